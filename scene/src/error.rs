@@ -1,0 +1,72 @@
+//! The one error type of the crate: every failure names the input it came from.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong while loading, tracing or writing a scene.
+///
+/// Loader errors carry the path of the file so that a user with several scenes knows which one
+/// is broken and why; none of them is ever raised as a panic.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: cannot read file: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: malformed glTF JSON: {detail}")]
+    MalformedJson { path: PathBuf, detail: String },
+    #[error(
+        "{path}: requires glTF extension {extension}, which Parallax does not support (supported: {supported})"
+    )]
+    UnsupportedExtension {
+        path: PathBuf,
+        extension: String,
+        supported: &'static str,
+    },
+    #[error("{path}: invalid glTF: {detail}")]
+    InvalidGltf { path: PathBuf, detail: String },
+    #[error("{path}: buffer {buffer} ({uri}) is missing or too short: {detail}")]
+    MissingBuffer {
+        path: PathBuf,
+        buffer: usize,
+        uri: String,
+        detail: String,
+    },
+    #[error("{path}: image {image} ({uri}) cannot be read: {detail}")]
+    BadImage {
+        path: PathBuf,
+        image: usize,
+        uri: String,
+        detail: String,
+    },
+    #[error("{path}: accessor {accessor} reads past the end of its buffer view or buffer")]
+    AccessorOutOfBounds { path: PathBuf, accessor: usize },
+    #[error(
+        "{path}: mesh {mesh} primitive {primitive}: vertex index {index} out of range (the primitive has {vertex_count} vertices)"
+    )]
+    IndexOutOfRange {
+        path: PathBuf,
+        mesh: usize,
+        primitive: usize,
+        index: u32,
+        vertex_count: usize,
+    },
+    #[error("{path}: mesh {mesh} primitive {primitive}: {what}")]
+    BadPrimitive {
+        path: PathBuf,
+        mesh: usize,
+        primitive: usize,
+        what: String,
+    },
+    #[error("{path}: uses {what}, which Parallax does not support")]
+    Unsupported { path: PathBuf, what: String },
+    #[error("{path}: the scene has no triangles to render")]
+    NoGeometry { path: PathBuf },
+    #[error("{path}: non-finite value in {what}")]
+    NonFinite { path: PathBuf, what: String },
+    #[error("{path}: cannot write image: {detail}")]
+    ImageWrite { path: PathBuf, detail: String },
+    #[error("invalid trace settings: {0}")]
+    InvalidSettings(String),
+}

@@ -1,0 +1,621 @@
+//! glTF 2.0 import into the flat [`Scene`] model.
+//!
+//! Supports what the scenes in `shared/scenes` use and nothing more: triangle meshes (indexed or
+//! not; flat normals generated when a primitive has none), node transforms, rest-pose skinning
+//! (so skinned models such as Fox stand where a viewer shows them), metallic-roughness materials
+//! with KHR_materials_emissive_strength, alpha MASK, double-sided, KHR_lights_punctual and
+//! perspective cameras. Images are decoded once, in parallel, to RGBA8.
+//!
+//! Every failure is a [`SceneError`] naming the file. The gltf crate's accessor readers slice
+//! buffers without checking, so every accessor is bounds-checked here before any is read.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use rayon::prelude::*;
+
+use crate::error::SceneError;
+use crate::model::{AlphaMode, Camera, Material, PunctualKind, PunctualLight, Scene, Texture};
+
+/// Extensions a file may list in `extensionsRequired`.
+pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] =
+    &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
+const SUPPORTED_LIST: &str = "KHR_materials_emissive_strength, KHR_lights_punctual";
+
+/// Loads a `.gltf` (with external or embedded buffers) or `.glb` file.
+pub fn load_gltf(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    load_gltf_bytes(&bytes, base, path)
+}
+
+/// Loads glTF from memory; relative URIs resolve against `base_dir`; errors name `path`.
+pub fn load_gltf_bytes(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneError> {
+    let path_buf = path.to_path_buf();
+    // A malformed file must never take the process down: the checks below are meant to catch
+    // everything, and this is the backstop if the gltf crate panics on an input we missed.
+    let result = std::panic::catch_unwind(|| import(bytes, base_dir, path));
+    result.unwrap_or_else(|_| {
+        Err(SceneError::InvalidGltf {
+            path: path_buf,
+            detail: "the glTF reader failed on this file (internal panic caught)".into(),
+        })
+    })
+}
+
+struct Importer<'a> {
+    path: &'a Path,
+    doc: &'a gltf::Document,
+    buffers: &'a [gltf::buffer::Data],
+    scene: Scene,
+    /// glTF material index -> scene material index (the default material is appended lazily).
+    default_material: Option<u32>,
+}
+
+fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneError> {
+    let p = || path.to_path_buf();
+    // Parse without validation first, so that an unsupported required extension is reported
+    // by name rather than as a generic validation failure.
+    let raw = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| {
+        SceneError::MalformedJson {
+            path: p(),
+            detail: e.to_string(),
+        }
+    })?;
+    if let Some(ext) = raw
+        .document
+        .extensions_required()
+        .find(|e| !SUPPORTED_REQUIRED_EXTENSIONS.contains(e))
+    {
+        return Err(SceneError::UnsupportedExtension {
+            path: p(),
+            extension: ext.to_string(),
+            supported: SUPPORTED_LIST,
+        });
+    }
+    drop(raw);
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| match e {
+        gltf::Error::Validation(errors) => SceneError::InvalidGltf {
+            path: p(),
+            detail: errors
+                .iter()
+                .take(3)
+                .map(|(at, err)| format!("{at}: {err}"))
+                .collect::<Vec<_>>()
+                .join("; "),
+        },
+        other => SceneError::MalformedJson {
+            path: p(),
+            detail: other.to_string(),
+        },
+    })?;
+    let gltf::Gltf { document, blob } = gltf;
+    let buffers = load_buffers(&document, base_dir, blob, path)?;
+    check_accessors(&document, &buffers, path)?;
+    let textures = decode_images(&document, &buffers, base_dir, path)?;
+
+    let mut imp = Importer {
+        path,
+        doc: &document,
+        buffers: &buffers,
+        scene: Scene {
+            name: path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            textures,
+            ..Default::default()
+        },
+        default_material: None,
+    };
+    imp.import_materials()?;
+    imp.import_nodes()?;
+    if imp.scene.triangles.is_empty() {
+        return Err(SceneError::NoGeometry { path: p() });
+    }
+    imp.scene
+        .check()
+        .map_err(|detail| SceneError::InvalidGltf { path: p(), detail })?;
+    Ok(imp.scene)
+}
+
+impl Importer<'_> {
+    fn err_unsupported(&self, what: impl Into<String>) -> SceneError {
+        SceneError::Unsupported {
+            path: self.path.to_path_buf(),
+            what: what.into(),
+        }
+    }
+
+    fn import_materials(&mut self) -> Result<(), SceneError> {
+        let mut materials = Vec::new();
+        for m in self.doc.materials() {
+            let pbr = m.pbr_metallic_roughness();
+            let tex = |info: Option<gltf::texture::Info>| -> Result<Option<u32>, SceneError> {
+                match info {
+                    None => Ok(None),
+                    Some(i) if i.tex_coord() != 0 => Err(self.err_unsupported(format!(
+                        "TEXCOORD_{} in material {}",
+                        i.tex_coord(),
+                        m.index().unwrap_or(0)
+                    ))),
+                    Some(i) => Ok(Some(i.texture().source().index() as u32)),
+                }
+            };
+            let alpha_mode = match m.alpha_mode() {
+                gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+                gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+                gltf::material::AlphaMode::Blend => AlphaMode::Mask(0.5),
+            };
+            let emissive = Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
+            let material = Material {
+                name: m.name().unwrap_or("").to_string(),
+                base_color: Vec4::from(pbr.base_color_factor()),
+                base_color_texture: tex(pbr.base_color_texture())?,
+                metallic: pbr.metallic_factor(),
+                roughness: pbr.roughness_factor(),
+                metallic_roughness_texture: tex(pbr.metallic_roughness_texture())?,
+                emissive,
+                emissive_texture: tex(m.emissive_texture())?,
+                alpha_mode,
+                double_sided: m.double_sided(),
+                specular: 1.0,
+            };
+            let finite = material.base_color.is_finite()
+                && material.emissive.is_finite()
+                && material.metallic.is_finite()
+                && material.roughness.is_finite();
+            if !finite {
+                return Err(SceneError::NonFinite {
+                    path: self.path.to_path_buf(),
+                    what: format!("material {}", materials.len()),
+                });
+            }
+            materials.push(material);
+        }
+        self.scene.materials = materials;
+        Ok(())
+    }
+
+    fn material_index(&mut self, prim: &gltf::Primitive) -> u32 {
+        match prim.material().index() {
+            Some(i) => i as u32,
+            None => *self.default_material.get_or_insert_with(|| {
+                self.scene.materials.push(Material::default());
+                (self.scene.materials.len() - 1) as u32
+            }),
+        }
+    }
+
+    fn import_nodes(&mut self) -> Result<(), SceneError> {
+        // World matrices of every node first: skins need their joints' matrices.
+        let node_count = self.doc.nodes().len();
+        let mut world = vec![Mat4::IDENTITY; node_count];
+        let mut in_scene = vec![false; node_count];
+        let roots: Vec<usize> = match self
+            .doc
+            .default_scene()
+            .or_else(|| self.doc.scenes().next())
+        {
+            Some(s) => s.nodes().map(|n| n.index()).collect(),
+            None => {
+                // No scene: every node that is nobody's child is a root.
+                let mut is_child = vec![false; node_count];
+                for n in self.doc.nodes() {
+                    for c in n.children() {
+                        is_child[c.index()] = true;
+                    }
+                }
+                (0..node_count).filter(|&i| !is_child[i]).collect()
+            }
+        };
+        let nodes: Vec<gltf::Node> = self.doc.nodes().collect();
+        let mut stack: Vec<(usize, Mat4, usize)> =
+            roots.iter().map(|&r| (r, Mat4::IDENTITY, 0)).collect();
+        let mut order = Vec::new();
+        while let Some((i, parent, depth)) = stack.pop() {
+            if in_scene[i] || depth > node_count {
+                // A node reachable twice means a cycle or shared child: the glTF spec forbids both.
+                return Err(SceneError::InvalidGltf {
+                    path: self.path.to_path_buf(),
+                    detail: format!("node {i} is reachable more than once (cycle or shared child)"),
+                });
+            }
+            in_scene[i] = true;
+            let local = Mat4::from_cols_array_2d(&nodes[i].transform().matrix());
+            world[i] = parent * local;
+            if !world[i].is_finite() {
+                return Err(SceneError::NonFinite {
+                    path: self.path.to_path_buf(),
+                    what: format!("transform of node {i}"),
+                });
+            }
+            order.push(i);
+            for c in nodes[i].children() {
+                stack.push((c.index(), world[i], depth + 1));
+            }
+        }
+        order.sort_unstable(); // deterministic triangle order, independent of traversal
+        for i in order {
+            let node = &nodes[i];
+            if let Some(mesh) = node.mesh() {
+                let skin = node
+                    .skin()
+                    .map(|s| self.joint_matrices(&s, &world))
+                    .transpose()?;
+                for prim in mesh.primitives() {
+                    self.import_primitive(&mesh, &prim, world[i], skin.as_deref())?;
+                }
+            }
+            if let Some(cam) = node.camera() {
+                // Orthographic cameras are skipped: nothing we render uses them.
+                if let gltf::camera::Projection::Perspective(p) = cam.projection() {
+                    self.scene
+                        .cameras
+                        .push(Camera::from_world_matrix(world[i], p.yfov()));
+                }
+            }
+            if let Some(light) = node.light() {
+                self.scene.lights.push(light_from_gltf(&light, world[i]));
+            }
+        }
+        Ok(())
+    }
+
+    /// Joint matrices for the rest pose: world(joint) * inverseBind(joint).
+    fn joint_matrices(&self, skin: &gltf::Skin, world: &[Mat4]) -> Result<Vec<Mat4>, SceneError> {
+        let reader = skin.reader(|b| Some(&self.buffers[b.index()].0[..]));
+        let ibms: Vec<Mat4> = match reader.read_inverse_bind_matrices() {
+            Some(it) => it.map(|m| Mat4::from_cols_array_2d(&m)).collect(),
+            None => vec![Mat4::IDENTITY; skin.joints().len()],
+        };
+        if ibms.len() < skin.joints().len() {
+            return Err(SceneError::InvalidGltf {
+                path: self.path.to_path_buf(),
+                detail: format!(
+                    "skin {} has fewer inverse bind matrices than joints",
+                    skin.index()
+                ),
+            });
+        }
+        Ok(skin
+            .joints()
+            .zip(ibms)
+            .map(|(j, ibm)| world[j.index()] * ibm)
+            .collect())
+    }
+
+    fn import_primitive(
+        &mut self,
+        mesh: &gltf::Mesh,
+        prim: &gltf::Primitive,
+        world: Mat4,
+        joints: Option<&[Mat4]>,
+    ) -> Result<(), SceneError> {
+        let bad = |what: String| SceneError::BadPrimitive {
+            path: self.path.to_path_buf(),
+            mesh: mesh.index(),
+            primitive: prim.index(),
+            what,
+        };
+        if prim.mode() != gltf::mesh::Mode::Triangles {
+            return Err(bad(format!(
+                "mode {:?} (only TRIANGLES is supported)",
+                prim.mode()
+            )));
+        }
+        let buffers = &self.buffers;
+        let reader = prim.reader(|b| Some(&buffers[b.index()].0[..]));
+        let mut positions: Vec<Vec3> = reader
+            .read_positions()
+            .ok_or_else(|| bad("no POSITION attribute".into()))?
+            .map(Vec3::from)
+            .collect();
+        let vertex_count = positions.len();
+        let mut normals: Option<Vec<Vec3>> =
+            reader.read_normals().map(|n| n.map(Vec3::from).collect());
+        let uvs: Vec<Vec2> = match reader.read_tex_coords(0) {
+            Some(t) => t.into_f32().map(Vec2::from).collect(),
+            None => vec![Vec2::ZERO; vertex_count],
+        };
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..vertex_count as u32).collect(),
+        };
+        if indices.len() % 3 != 0 {
+            return Err(bad(format!(
+                "{} indices, not a multiple of 3",
+                indices.len()
+            )));
+        }
+        if let Some(&index) = indices.iter().find(|&&i| i as usize >= vertex_count) {
+            return Err(SceneError::IndexOutOfRange {
+                path: self.path.to_path_buf(),
+                mesh: mesh.index(),
+                primitive: prim.index(),
+                index,
+                vertex_count,
+            });
+        }
+        if normals.as_ref().is_some_and(|n| n.len() != vertex_count) || uvs.len() != vertex_count {
+            return Err(bad("attribute counts differ from the POSITION count".into()));
+        }
+
+        // Skinned meshes: the node's own transform is ignored (glTF spec); the joints place them.
+        let skinning = match (joints, reader.read_joints(0), reader.read_weights(0)) {
+            (Some(js), Some(j), Some(w)) => {
+                let j: Vec<[u16; 4]> = j.into_u16().collect();
+                let w: Vec<[f32; 4]> = w.into_f32().collect();
+                if j.len() != vertex_count || w.len() != vertex_count {
+                    return Err(bad("JOINTS_0/WEIGHTS_0 counts differ from POSITION".into()));
+                }
+                let mut per_vertex = Vec::with_capacity(vertex_count);
+                for (jv, wv) in j.iter().zip(&w) {
+                    let mut m = Mat4::ZERO;
+                    for k in 0..4 {
+                        let joint = *js.get(jv[k] as usize).ok_or_else(|| {
+                            bad(format!(
+                                "joint index {} out of range ({} joints)",
+                                jv[k],
+                                js.len()
+                            ))
+                        })?;
+                        m += joint * wv[k];
+                    }
+                    per_vertex.push(m);
+                }
+                Some(per_vertex)
+            }
+            _ => None,
+        };
+        let normal_matrix = |m: Mat4| Mat3::from_mat4(m).inverse().transpose();
+        match &skinning {
+            Some(ms) => {
+                for (k, p) in positions.iter_mut().enumerate() {
+                    *p = ms[k].transform_point3(*p);
+                }
+                if let Some(ns) = normals.as_mut() {
+                    for (k, n) in ns.iter_mut().enumerate() {
+                        *n = (normal_matrix(ms[k]) * *n).normalize_or_zero();
+                    }
+                }
+            }
+            None => {
+                for p in positions.iter_mut() {
+                    *p = world.transform_point3(*p);
+                }
+                if let Some(ns) = normals.as_mut() {
+                    let nm = normal_matrix(world);
+                    for n in ns.iter_mut() {
+                        *n = (nm * *n).normalize_or_zero();
+                    }
+                }
+            }
+        }
+        if positions.iter().any(|p| !p.is_finite()) {
+            return Err(SceneError::NonFinite {
+                path: self.path.to_path_buf(),
+                what: format!(
+                    "positions of mesh {} primitive {}",
+                    mesh.index(),
+                    prim.index()
+                ),
+            });
+        }
+        // A mirroring transform reverses the winding (glTF spec); flip it back so that
+        // counter-clockwise stays front-facing.
+        let mirrored = skinning.is_none() && Mat3::from_mat4(world).determinant() < 0.0;
+        let material = self.material_index(prim);
+        let s = &mut self.scene;
+        let corner = |t: &[u32], k: usize| if mirrored { t[[0, 2, 1][k]] } else { t[k] };
+        match normals {
+            Some(ns) => {
+                let base = s.positions.len() as u32;
+                s.positions.extend_from_slice(&positions);
+                s.normals.extend(ns);
+                s.uvs.extend_from_slice(&uvs);
+                for t in indices.chunks_exact(3) {
+                    s.triangles.push([0, 1, 2].map(|k| base + corner(t, k)));
+                    s.triangle_materials.push(material);
+                }
+            }
+            None => {
+                // Flat normals need one vertex per triangle corner.
+                for t in indices.chunks_exact(3) {
+                    let c = [0, 1, 2].map(|k| corner(t, k) as usize);
+                    let [a, b, d] = c.map(|i| positions[i]);
+                    let n = (b - a).cross(d - a).normalize_or_zero();
+                    let base = s.positions.len() as u32;
+                    for &i in &c {
+                        s.positions.push(positions[i]);
+                        s.normals.push(n);
+                        s.uvs.push(uvs[i]);
+                    }
+                    s.triangles.push([base, base + 1, base + 2]);
+                    s.triangle_materials.push(material);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn light_from_gltf(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> PunctualLight {
+    use gltf::khr_lights_punctual::Kind;
+    let kind = match light.kind() {
+        Kind::Point => PunctualKind::Point,
+        Kind::Directional => PunctualKind::Directional,
+        Kind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => PunctualKind::Spot {
+            inner_cone: inner_cone_angle,
+            outer_cone: outer_cone_angle,
+        },
+    };
+    PunctualLight {
+        kind,
+        position: world.transform_point3(Vec3::ZERO),
+        direction: world
+            .transform_vector3(Vec3::NEG_Z)
+            .normalize_or(Vec3::NEG_Z),
+        color: Vec3::from(light.color()),
+        intensity: light.intensity(),
+    }
+}
+
+fn buffer_uri(buffer: &gltf::Buffer) -> String {
+    match buffer.source() {
+        gltf::buffer::Source::Bin => "GLB binary chunk".into(),
+        gltf::buffer::Source::Uri(u) if u.starts_with("data:") => "embedded data URI".into(),
+        gltf::buffer::Source::Uri(u) => u.to_string(),
+    }
+}
+
+fn load_buffers(
+    doc: &gltf::Document,
+    base_dir: &Path,
+    blob: Option<Vec<u8>>,
+    path: &Path,
+) -> Result<Vec<gltf::buffer::Data>, SceneError> {
+    gltf::import_buffers(doc, Some(base_dir), blob).map_err(|e| {
+        let (buffer, detail) = match &e {
+            gltf::Error::BufferLength {
+                buffer,
+                expected,
+                actual,
+            } => (
+                *buffer,
+                format!("expected {expected} bytes, found {actual}"),
+            ),
+            // import_buffers stops at the first failing buffer: find which one it was.
+            _ => (first_unreadable_buffer(doc, base_dir), e.to_string()),
+        };
+        let uri = doc
+            .buffers()
+            .nth(buffer)
+            .map(|b| buffer_uri(&b))
+            .unwrap_or_default();
+        SceneError::MissingBuffer {
+            path: path.to_path_buf(),
+            buffer,
+            uri,
+            detail,
+        }
+    })
+}
+
+fn first_unreadable_buffer(doc: &gltf::Document, base_dir: &Path) -> usize {
+    doc.buffers()
+        .position(|b| match b.source() {
+            gltf::buffer::Source::Uri(u) if !u.starts_with("data:") => !base_dir.join(u).is_file(),
+            _ => false,
+        })
+        .unwrap_or(0)
+}
+
+/// Every accessor must lie inside its buffer view and every view inside its buffer: the gltf
+/// crate's readers index without checking.
+fn check_accessors(
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    path: &Path,
+) -> Result<(), SceneError> {
+    for view in doc.views() {
+        let len = buffers.get(view.buffer().index()).map_or(0, |b| b.len());
+        let end = view.offset().checked_add(view.length());
+        if end.is_none_or(|e| e > len) {
+            return Err(SceneError::InvalidGltf {
+                path: path.to_path_buf(),
+                detail: format!(
+                    "buffer view {} reads past the end of its buffer",
+                    view.index()
+                ),
+            });
+        }
+    }
+    for acc in doc.accessors() {
+        let oob = || SceneError::AccessorOutOfBounds {
+            path: path.to_path_buf(),
+            accessor: acc.index(),
+        };
+        if acc.sparse().is_some() {
+            return Err(SceneError::Unsupported {
+                path: path.to_path_buf(),
+                what: format!("sparse accessor {}", acc.index()),
+            });
+        }
+        let Some(view) = acc.view() else {
+            return Err(oob());
+        };
+        if acc.count() == 0 {
+            continue;
+        }
+        let size = acc.size();
+        let stride = view.stride().unwrap_or(size);
+        if stride < size {
+            return Err(oob());
+        }
+        let end = (acc.count() - 1)
+            .checked_mul(stride)
+            .and_then(|x| x.checked_add(size))
+            .and_then(|x| x.checked_add(acc.offset()));
+        if end.is_none_or(|e| e > view.length()) {
+            return Err(oob());
+        }
+    }
+    Ok(())
+}
+
+fn decode_images(
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    base_dir: &Path,
+    path: &Path,
+) -> Result<Vec<Texture>, SceneError> {
+    let images: Vec<gltf::Image> = doc.images().collect();
+    images
+        .par_iter()
+        .map(|img| {
+            let (uri, encoded): (String, Result<Vec<u8>, String>) = match img.source() {
+                gltf::image::Source::View { view, .. } => {
+                    let data = &buffers[view.buffer().index()].0;
+                    let bytes = data
+                        .get(view.offset()..view.offset() + view.length())
+                        .map(|s| s.to_vec())
+                        .ok_or_else(|| "buffer view out of range".to_string());
+                    (format!("buffer view {}", view.index()), bytes)
+                }
+                gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => (
+                    "data URI".into(),
+                    Err("embedded data: URI images are not supported".into()),
+                ),
+                gltf::image::Source::Uri { uri, .. } => {
+                    let file: PathBuf = base_dir.join(uri);
+                    (
+                        uri.to_string(),
+                        std::fs::read(&file).map_err(|e| e.to_string()),
+                    )
+                }
+            };
+            let bad = |detail: String| SceneError::BadImage {
+                path: path.to_path_buf(),
+                image: img.index(),
+                uri: uri.clone(),
+                detail,
+            };
+            let encoded = encoded.map_err(bad)?;
+            let decoded = image::load_from_memory(&encoded).map_err(|e| bad(e.to_string()))?;
+            let rgba = decoded.to_rgba8();
+            Ok(Texture {
+                width: rgba.width(),
+                height: rgba.height(),
+                rgba8: rgba.into_raw(),
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,337 @@
+//! Light sampling for next-event estimation, and the matching pdfs for multiple importance
+//! sampling when a BSDF-sampled ray finds a light by itself.
+//!
+//! One NEE sample per vertex: first a light *group* is picked uniformly among those present
+//! (sun, sky, punctual lights, emissive triangles), then a light within the group (punctual:
+//! uniform; emissive triangles: proportional to area times emitted luminance), then a point or
+//! direction on it. Sun disc and sky are also reachable by BSDF rays, and emissive triangles
+//! by hitting them; their pdfs below let the path tracer weight both strategies (power
+//! heuristic). Punctual lights and a sun of zero size are delta lights: NEE only.
+
+use std::f32::consts::{FRAC_1_PI, PI, TAU};
+
+use glam::{Vec2, Vec3};
+
+use crate::bsdf::{orthonormal_basis, sample_cosine_hemisphere};
+use crate::model::{PunctualKind, Scene, Sun, srgb_to_linear};
+use crate::shading::oriented_face_normal;
+
+/// Which kind of light a group holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Group {
+    Sun,
+    Sky,
+    Punctual,
+    Emissive,
+}
+
+/// A light sample as seen from a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the shading point towards the light.
+    pub wi: Vec3,
+    /// Distance to the light point; infinite for distant lights.
+    pub distance: f32,
+    /// Incident radiance (area and distant lights) or irradiance-like `I / d^2` (delta lights).
+    pub radiance: Vec3,
+    /// Solid-angle pdf including the selection probability; for delta lights the discrete
+    /// selection probability.
+    pub pdf: f32,
+    pub is_delta: bool,
+}
+
+/// Precomputed light data of a scene.
+pub struct LightSet {
+    groups: Vec<Group>,
+    /// Scene triangle indices of emissive triangles.
+    emissive: Vec<u32>,
+    /// Cumulative selection weights over `emissive`, normalised to end at 1.
+    emissive_cdf: Vec<f32>,
+    /// Per scene triangle: its selection probability within the emissive group (0 if none).
+    emissive_prob: Vec<f32>,
+    area: Vec<f32>,
+    sun: Option<Sun>,
+}
+
+fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// Cosine of the sun disc's half angle and the disc's radiance.
+fn sun_disc(sun: &Sun) -> (f32, Vec3) {
+    let r = sun.angular_radius;
+    let s = r.sin();
+    (r.cos(), sun.irradiance / (PI * s * s))
+}
+
+impl LightSet {
+    pub fn new(scene: &Scene) -> Self {
+        let mut emissive = Vec::new();
+        let mut weights = Vec::new();
+        let mut area = vec![0.0; scene.triangle_count()];
+        for t in 0..scene.triangle_count() {
+            let m = &scene.materials[scene.triangle_materials[t] as usize];
+            if !m.is_emissive() {
+                continue;
+            }
+            let [a, b, c] = scene.triangle_positions(t);
+            let ar = 0.5 * (b - a).cross(c - a).length();
+            let w = ar * luminance(m.emissive);
+            if w > 0.0 && w.is_finite() {
+                area[t] = ar;
+                emissive.push(t as u32);
+                weights.push(w);
+            }
+        }
+        let total: f64 = weights.iter().map(|&w| w as f64).sum();
+        let mut emissive_prob = vec![0.0; scene.triangle_count()];
+        let mut acc = 0.0f64;
+        let mut emissive_cdf = Vec::with_capacity(weights.len());
+        for (k, &w) in weights.iter().enumerate() {
+            acc += w as f64;
+            emissive_cdf.push((acc / total) as f32);
+            emissive_prob[emissive[k] as usize] = (w as f64 / total) as f32;
+        }
+        if let Some(last) = emissive_cdf.last_mut() {
+            *last = 1.0;
+        }
+        let sun = scene
+            .sun
+            .filter(|s| s.irradiance.max_element() > 0.0 && s.to_sun.is_finite());
+        let mut groups = Vec::new();
+        if sun.is_some() {
+            groups.push(Group::Sun);
+        }
+        if !scene.sky().is_black() {
+            groups.push(Group::Sky);
+        }
+        if !scene.lights.is_empty() {
+            groups.push(Group::Punctual);
+        }
+        if !emissive.is_empty() {
+            groups.push(Group::Emissive);
+        }
+        Self {
+            groups,
+            emissive,
+            emissive_cdf,
+            emissive_prob,
+            area,
+            sun,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.groups.is_empty()
+    }
+
+    /// Selection probability within the emissive group and area of scene triangle `tri`.
+    pub fn emissive_prob_and_area(&self, tri: u32) -> (f32, f32) {
+        (self.emissive_prob[tri as usize], self.area[tri as usize])
+    }
+
+    pub fn emissive_triangle_count(&self) -> usize {
+        self.emissive.len()
+    }
+
+    fn group_prob(&self, g: Group) -> f32 {
+        if self.groups.contains(&g) {
+            1.0 / self.groups.len() as f32
+        } else {
+            0.0
+        }
+    }
+
+    /// Samples one light for shading point `p` with shading normal `n`; `u` are four uniforms.
+    pub fn sample(&self, scene: &Scene, p: Vec3, n: Vec3, u: [f32; 4]) -> Option<LightSample> {
+        if self.groups.is_empty() {
+            return None;
+        }
+        let count = self.groups.len();
+        let gi = ((u[0] * count as f32) as usize).min(count - 1);
+        let p_group = 1.0 / count as f32;
+        // Reuse the part of u[0] left after the group choice for the choice within the group.
+        let u_within = (u[0] * count as f32 - gi as f32).clamp(0.0, 0.999_999_9);
+        match self.groups[gi] {
+            Group::Sun => {
+                let sun = self.sun?;
+                let to_sun = sun.to_sun.normalize();
+                if sun.angular_radius <= 0.0 {
+                    return Some(LightSample {
+                        wi: to_sun,
+                        distance: f32::INFINITY,
+                        radiance: sun.irradiance,
+                        pdf: p_group,
+                        is_delta: true,
+                    });
+                }
+                let (cos_max, radiance) = sun_disc(&sun);
+                let cos_t = 1.0 - u[1] * (1.0 - cos_max);
+                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                let phi = TAU * u[2];
+                let (t, b) = orthonormal_basis(to_sun);
+                let wi = (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + to_sun * cos_t)
+                    .normalize();
+                Some(LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance,
+                    pdf: p_group / (TAU * (1.0 - cos_max)),
+                    is_delta: false,
+                })
+            }
+            Group::Sky => {
+                let wi = sample_cosine_hemisphere(n, u[1], u[2]);
+                let pdf = p_group * wi.dot(n).max(0.0) * FRAC_1_PI;
+                (pdf > 0.0).then(|| LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance: scene.sky().radiance(wi),
+                    pdf,
+                    is_delta: false,
+                })
+            }
+            Group::Punctual => {
+                let k =
+                    ((u_within * scene.lights.len() as f32) as usize).min(scene.lights.len() - 1);
+                let light = &scene.lights[k];
+                let pdf = p_group / scene.lights.len() as f32;
+                let power = light.color * light.intensity;
+                match light.kind {
+                    PunctualKind::Directional => Some(LightSample {
+                        wi: -light.direction,
+                        distance: f32::INFINITY,
+                        radiance: power,
+                        pdf,
+                        is_delta: true,
+                    }),
+                    PunctualKind::Point | PunctualKind::Spot { .. } => {
+                        let to_light = light.position - p;
+                        let d2 = to_light.length_squared();
+                        if d2 <= 0.0 {
+                            return None;
+                        }
+                        let wi = to_light / d2.sqrt();
+                        let mut radiance = power / d2;
+                        if let PunctualKind::Spot {
+                            inner_cone,
+                            outer_cone,
+                        } = light.kind
+                        {
+                            // glTF's recommended falloff between the cone angles.
+                            let (ci, co) = (inner_cone.cos(), outer_cone.cos());
+                            let scale = 1.0 / (ci - co).max(1e-3);
+                            let cd = light.direction.dot(-wi);
+                            let a = ((cd - co) * scale).clamp(0.0, 1.0);
+                            radiance *= a * a;
+                        }
+                        Some(LightSample {
+                            wi,
+                            distance: d2.sqrt(),
+                            radiance,
+                            pdf,
+                            is_delta: true,
+                        })
+                    }
+                }
+            }
+            Group::Emissive => {
+                let k = self
+                    .emissive_cdf
+                    .partition_point(|&c| c <= u_within)
+                    .min(self.emissive.len() - 1);
+                let tri = self.emissive[k] as usize;
+                let [a, b, c] = scene.triangle_positions(tri);
+                let su = u[1].sqrt();
+                let (b1, b2) = (su * (1.0 - u[2]), su * u[2]);
+                let q = a * (1.0 - b1 - b2) + b * b1 + c * b2;
+                let to_light = q - p;
+                let d2 = to_light.length_squared();
+                if d2 <= 0.0 {
+                    return None;
+                }
+                let dist = d2.sqrt();
+                let wi = to_light / dist;
+                let m = &scene.materials[scene.triangle_materials[tri] as usize];
+                let ln = oriented_face_normal(scene, tri);
+                let cos_l = ln.dot(-wi);
+                let facing = cos_l > 0.0 || (m.double_sided && cos_l < 0.0);
+                if !facing {
+                    return None;
+                }
+                let mut radiance = m.emissive;
+                if let Some(tex) = m.emissive_texture {
+                    let [i, j, k2] = scene.triangles[tri];
+                    let uv: Vec2 = scene.uvs[i as usize] * (1.0 - b1 - b2)
+                        + scene.uvs[j as usize] * b1
+                        + scene.uvs[k2 as usize] * b2;
+                    let t = scene.textures[tex as usize].sample_bilinear(uv);
+                    radiance *= Vec3::new(
+                        srgb_to_linear(t.x),
+                        srgb_to_linear(t.y),
+                        srgb_to_linear(t.z),
+                    );
+                }
+                let pdf = p_group * self.emissive_prob[tri] * d2 / (self.area[tri] * cos_l.abs());
+                (pdf.is_finite() && pdf > 0.0).then_some(LightSample {
+                    wi,
+                    distance: dist,
+                    radiance,
+                    pdf,
+                    is_delta: false,
+                })
+            }
+        }
+    }
+
+    /// Radiance of the sun disc seen along `dir` (zero outside it or for a delta sun).
+    pub fn sun_radiance(&self, dir: Vec3) -> Vec3 {
+        match self.sun {
+            Some(sun) if sun.angular_radius > 0.0 => {
+                let (cos_max, radiance) = sun_disc(&sun);
+                if dir.dot(sun.to_sun.normalize()) >= cos_max {
+                    radiance
+                } else {
+                    Vec3::ZERO
+                }
+            }
+            _ => Vec3::ZERO,
+        }
+    }
+
+    /// NEE pdf of the sun for a BSDF ray leaving along `dir`.
+    pub fn pdf_sun(&self, dir: Vec3) -> f32 {
+        match self.sun {
+            Some(sun) if sun.angular_radius > 0.0 => {
+                let (cos_max, _) = sun_disc(&sun);
+                if dir.dot(sun.to_sun.normalize()) >= cos_max {
+                    self.group_prob(Group::Sun) / (TAU * (1.0 - cos_max))
+                } else {
+                    0.0
+                }
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// NEE pdf of the sky for a BSDF ray leaving a point with shading normal `n` along `dir`.
+    pub fn pdf_sky(&self, n: Vec3, dir: Vec3) -> f32 {
+        self.group_prob(Group::Sky) * n.dot(dir).max(0.0) * FRAC_1_PI
+    }
+
+    /// NEE pdf (solid angle at `from`) of emissive triangle `tri` hit at `hit` with the
+    /// light's outward normal `light_normal`.
+    pub fn pdf_emissive(&self, tri: u32, from: Vec3, hit: Vec3, light_normal: Vec3) -> f32 {
+        let prob = self.emissive_prob[tri as usize];
+        if prob <= 0.0 {
+            return 0.0;
+        }
+        let d = hit - from;
+        let d2 = d.length_squared();
+        let cos_l = light_normal.dot(d / d2.sqrt()).abs();
+        if cos_l <= 0.0 {
+            return 0.0;
+        }
+        self.group_prob(Group::Emissive) * prob * d2 / (self.area[tri as usize] * cos_l)
+    }
+}
