@@ -220,7 +220,10 @@ mod tests {
             let wi = Vec3::new(rr * phi.cos(), rr * phi.sin(), z);
             uniform += (bsdf.eval(wo, wi).0 * TAU).as_dvec3();
         }
-        ((importance / n as f64).as_vec3(), (uniform / n as f64).as_vec3())
+        (
+            (importance / n as f64).as_vec3(),
+            (uniform / n as f64).as_vec3(),
+        )
     }
 
     #[test]

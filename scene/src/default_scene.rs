@@ -109,13 +109,13 @@ pub fn default_scene() -> Scene {
     });
     let mut scene = b.build();
     scene.sky = Some(Sky::Gradient {
-        zenith: Vec3::new(0.25, 0.4, 0.8),
-        horizon: Vec3::new(0.7, 0.75, 0.8),
+        zenith: Vec3::new(0.15, 0.25, 0.5),
+        horizon: Vec3::new(0.45, 0.5, 0.55),
         ground: Vec3::new(0.15, 0.13, 0.1),
     });
     scene.sun = Some(Sun {
         to_sun: Vec3::new(-0.5, 0.6, 0.45).normalize(),
-        irradiance: Vec3::new(3.0, 2.8, 2.5),
+        irradiance: Vec3::new(2.0, 1.9, 1.7),
         angular_radius: 0.02,
     });
     scene

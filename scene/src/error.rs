@@ -40,7 +40,7 @@ pub enum SceneError {
         uri: String,
         detail: String,
     },
-    #[error("{path}: accessor {accessor} reads past the end of its buffer view or buffer")]
+    #[error("{path}: accessor {accessor} is empty or reads past the end of its buffer view")]
     AccessorOutOfBounds { path: PathBuf, accessor: usize },
     #[error(
         "{path}: mesh {mesh} primitive {primitive}: vertex index {index} out of range (the primitive has {vertex_count} vertices)"

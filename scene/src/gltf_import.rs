@@ -77,6 +77,27 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
             supported: SUPPORTED_LIST,
         });
     }
+    // gltf-json's own validation indexes the POSITION accessor before checking that it
+    // exists (a panic on bad files), so that one reference is checked here first.
+    let root = raw.document.as_json();
+    for (mi, mesh) in root.meshes.iter().enumerate() {
+        for (pi, prim) in mesh.primitives.iter().enumerate() {
+            if let Some(bad) = prim
+                .attributes
+                .values()
+                .find(|a| a.value() >= root.accessors.len())
+            {
+                return Err(SceneError::InvalidGltf {
+                    path: p(),
+                    detail: format!(
+                        "mesh {mi} primitive {pi} names accessor {} of {}",
+                        bad.value(),
+                        root.accessors.len()
+                    ),
+                });
+            }
+        }
+    }
     drop(raw);
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| match e {
         gltf::Error::Validation(errors) => SceneError::InvalidGltf {
@@ -268,6 +289,19 @@ impl Importer<'_> {
 
     /// Joint matrices for the rest pose: world(joint) * inverseBind(joint).
     fn joint_matrices(&self, skin: &gltf::Skin, world: &[Mat4]) -> Result<Vec<Mat4>, SceneError> {
+        if let Some(a) = skin.inverse_bind_matrices() {
+            if a.data_type() != gltf::accessor::DataType::F32
+                || a.dimensions() != gltf::accessor::Dimensions::Mat4
+            {
+                return Err(SceneError::InvalidGltf {
+                    path: self.path.to_path_buf(),
+                    detail: format!(
+                        "skin {} inverse bind matrices are not float MAT4",
+                        skin.index()
+                    ),
+                });
+            }
+        }
         let reader = skin.reader(|b| Some(&self.buffers[b.index()].0[..]));
         let ibms: Vec<Mat4> = match reader.read_inverse_bind_matrices() {
             Some(it) => it.map(|m| Mat4::from_cols_array_2d(&m)).collect(),
@@ -308,6 +342,7 @@ impl Importer<'_> {
                 prim.mode()
             )));
         }
+        check_attribute_types(prim).map_err(bad)?;
         let buffers = &self.buffers;
         let reader = prim.reader(|b| Some(&buffers[b.index()].0[..]));
         let mut positions: Vec<Vec3> = reader
@@ -444,6 +479,43 @@ impl Importer<'_> {
     }
 }
 
+/// The gltf crate's readers assume spec-conforming component types and hit `unreachable!` or
+/// misread otherwise; its validation does not check them, so this does.
+fn check_attribute_types(prim: &gltf::Primitive) -> Result<(), String> {
+    use gltf::accessor::{DataType as T, Dimensions as D};
+    use gltf::mesh::Semantic;
+    let ok = |a: &gltf::Accessor, types: &[T], dims: D| {
+        types.contains(&a.data_type()) && a.dimensions() == dims
+    };
+    for (semantic, a) in prim.attributes() {
+        let fine = match semantic {
+            Semantic::Positions | Semantic::Normals => ok(&a, &[T::F32], D::Vec3),
+            Semantic::TexCoords(_) => ok(&a, &[T::F32, T::U8, T::U16], D::Vec2),
+            Semantic::Joints(_) => ok(&a, &[T::U8, T::U16], D::Vec4),
+            Semantic::Weights(_) => ok(&a, &[T::F32, T::U8, T::U16], D::Vec4),
+            // Not read by the importer.
+            _ => true,
+        };
+        if !fine {
+            return Err(format!(
+                "attribute {semantic:?} has type {:?} {:?}, which glTF does not allow",
+                a.data_type(),
+                a.dimensions()
+            ));
+        }
+    }
+    if let Some(i) = prim.indices() {
+        if !ok(&i, &[T::U8, T::U16, T::U32], D::Scalar) {
+            return Err(format!(
+                "indices have type {:?} {:?}",
+                i.data_type(),
+                i.dimensions()
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn light_from_gltf(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> PunctualLight {
     use gltf::khr_lights_punctual::Kind;
     let kind = match light.kind() {
@@ -552,8 +624,9 @@ fn check_accessors(
         let Some(view) = acc.view() else {
             return Err(oob());
         };
+        // The spec requires count >= 1, and the gltf reader underflows on 0.
         if acc.count() == 0 {
-            continue;
+            return Err(oob());
         }
         let size = acc.size();
         let stride = view.stride().unwrap_or(size);
