@@ -69,8 +69,13 @@ impl LightSet {
         let mut emissive = Vec::new();
         let mut weights = Vec::new();
         let mut area = vec![0.0; scene.triangle_count()];
-        for t in 0..scene.triangle_count() {
-            let m = &scene.materials[scene.triangle_materials[t] as usize];
+        for (t, (&mi, tri_area)) in scene
+            .triangle_materials
+            .iter()
+            .zip(area.iter_mut())
+            .enumerate()
+        {
+            let m = &scene.materials[mi as usize];
             if !m.is_emissive() {
                 continue;
             }
@@ -78,7 +83,7 @@ impl LightSet {
             let ar = 0.5 * (b - a).cross(c - a).length();
             let w = ar * luminance(m.emissive);
             if w > 0.0 && w.is_finite() {
-                area[t] = ar;
+                *tri_area = ar;
                 emissive.push(t as u32);
                 weights.push(w);
             }

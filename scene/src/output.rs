@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use exr::prelude::{
-    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Text,
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec,
     WritableImage,
 };
 use glam::Vec3;
@@ -96,7 +96,7 @@ pub fn read_exr_channels(
             .channel_data
             .list
             .iter()
-            .find(|c| c.name == Text::from(*name))
+            .find(|c| c.name == **name)
             .ok_or_else(|| bad(format!("no channel {name}")))?;
         out.push(c.sample_data.values_as_f32().collect());
     }
