@@ -65,20 +65,13 @@ fn quota(m: usize, n: usize, i: usize) -> usize {
 }
 
 /// Splits the views at `positions` into `n` sets. Requires 1 ≤ n ≤ M.
-pub fn assign(
-    strategy: AssignStrategy,
-    positions: &[DVec2],
-    n: u32,
-) -> Result<Assignment, PlanError> {
+pub fn assign(strategy: AssignStrategy, positions: &[DVec2], n: u32) -> Result<Assignment, PlanError> {
     let m = positions.len();
     if n == 0 {
         return Err(PlanError::NoDevices);
     }
     if n as usize > m {
-        return Err(PlanError::MoreDevicesThanViews {
-            devices: n,
-            views: m as u32,
-        });
+        return Err(PlanError::MoreDevicesThanViews { devices: n, views: m as u32 });
     }
     let set_of_view = match strategy {
         AssignStrategy::RoundRobin => (0..m).map(|v| (v % n as usize) as u32).collect(),
@@ -101,13 +94,7 @@ pub fn assign(
 }
 
 /// Assigns `views` to the sets `first_set..first_set + quotas.len()`.
-fn bisect(
-    positions: &[DVec2],
-    views: Vec<usize>,
-    quotas: &[usize],
-    first_set: usize,
-    out: &mut [u32],
-) {
+fn bisect(positions: &[DVec2], views: Vec<usize>, quotas: &[usize], first_set: usize, out: &mut [u32]) {
     if quotas.len() == 1 {
         for v in views {
             out[v] = first_set as u32;
@@ -121,17 +108,10 @@ fn bisect(
         let mut sorted = views.clone();
         sorted.sort_by(|&a, &b| {
             let (pa, pb) = (positions[a], positions[b]);
-            pa[axis]
-                .total_cmp(&pb[axis])
-                .then(pa[1 - axis].total_cmp(&pb[1 - axis]))
-                .then(a.cmp(&b))
+            pa[axis].total_cmp(&pb[axis]).then(pa[1 - axis].total_cmp(&pb[1 - axis])).then(a.cmp(&b))
         });
         for low_first in [true, false] {
-            let low_quotas = if low_first {
-                &quotas[..half]
-            } else {
-                &quotas[half..]
-            };
+            let low_quotas = if low_first { &quotas[..half] } else { &quotas[half..] };
             let cut: usize = low_quotas.iter().sum();
             let (lo, hi) = sorted.split_at(cut);
             let cost = spread(positions, lo) + spread(positions, hi);
@@ -143,13 +123,7 @@ fn bisect(
     let (_, lo, hi, low_first) = best.expect("two axes were tried");
     let (first_views, second_views) = if low_first { (lo, hi) } else { (hi, lo) };
     bisect(positions, first_views, &quotas[..half], first_set, out);
-    bisect(
-        positions,
-        second_views,
-        &quotas[half..],
-        first_set + half,
-        out,
-    );
+    bisect(positions, second_views, &quotas[half..], first_set + half, out);
 }
 
 /// Sum of distances from each view to the group's centroid.
@@ -179,11 +153,7 @@ mod tests {
 
     #[test]
     fn every_strategy_is_balanced() {
-        for strategy in [
-            AssignStrategy::RoundRobin,
-            AssignStrategy::Contiguous,
-            AssignStrategy::Compact,
-        ] {
+        for strategy in [AssignStrategy::RoundRobin, AssignStrategy::Contiguous, AssignStrategy::Compact] {
             for (m, n) in [(7, 3), (100, 4), (72, 3), (5, 5), (1, 1)] {
                 let a = assign(strategy, &line(m), n).unwrap();
                 for s in &a.sets {
@@ -199,16 +169,10 @@ mod tests {
 
     #[test]
     fn bad_device_counts() {
-        assert_eq!(
-            assign(AssignStrategy::Compact, &line(3), 0),
-            Err(PlanError::NoDevices)
-        );
+        assert_eq!(assign(AssignStrategy::Compact, &line(3), 0), Err(PlanError::NoDevices));
         assert_eq!(
             assign(AssignStrategy::Compact, &line(3), 4),
-            Err(PlanError::MoreDevicesThanViews {
-                devices: 4,
-                views: 3
-            })
+            Err(PlanError::MoreDevicesThanViews { devices: 4, views: 3 })
         );
     }
 }

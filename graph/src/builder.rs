@@ -159,27 +159,13 @@ impl Graph {
 
     fn family<K>(&mut self, name: &str, desc: ResourceDesc) -> Handle<K> {
         let family = FamilyId(self.families.len() as u32);
-        self.families.push(FamilyDecl {
-            name: name.to_string(),
-            desc,
-            imported: false,
-            exported: None,
-        });
-        Handle {
-            graph: self.id,
-            family,
-            versions: vec![0; self.topology.views() as usize],
-            _kind: PhantomData,
-        }
+        self.families.push(FamilyDecl { name: name.to_string(), desc, imported: false, exported: None });
+        Handle { graph: self.id, family, versions: vec![0; self.topology.views() as usize], _kind: PhantomData }
     }
 
     /// One image per view, at the light field's resolution.
     pub fn image(&mut self, name: &str, format: Format) -> Handle<Image> {
-        let desc = ResourceDesc::Image {
-            width: self.topology.width,
-            height: self.topology.height,
-            format,
-        };
+        let desc = ResourceDesc::Image { width: self.topology.width, height: self.topology.height, format };
         self.family(name, desc)
     }
 
@@ -212,11 +198,7 @@ impl Graph {
             reads: Vec::new(),
             writes: Vec::new(),
         };
-        PassBuilder {
-            graph: self,
-            decl,
-            foreign: None,
-        }
+        PassBuilder { graph: self, decl, foreign: None }
     }
 }
 
@@ -237,11 +219,7 @@ impl PassBuilder<'_> {
 
     fn push_read<K>(mut self, h: &Handle<K>, scope: ReadScope) -> Self {
         self.check(h);
-        self.decl.reads.push(ReadDecl {
-            family: h.family,
-            versions: h.versions.clone(),
-            scope,
-        });
+        self.decl.reads.push(ReadDecl { family: h.family, versions: h.versions.clone(), scope });
         self
     }
 
@@ -271,11 +249,7 @@ impl PassBuilder<'_> {
     pub fn read_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
         let versions = vec![version; h.versions.len()];
-        self.decl.reads.push(ReadDecl {
-            family: h.family,
-            versions,
-            scope: ReadScope::Own,
-        });
+        self.decl.reads.push(ReadDecl { family: h.family, versions, scope: ReadScope::Own });
         self
     }
 
@@ -288,10 +262,7 @@ impl PassBuilder<'_> {
                 h.versions[v as usize] += 1;
             }
         }
-        self.decl.writes.push(WriteDecl {
-            family: h.family,
-            versions: h.versions.clone(),
-        });
+        self.decl.writes.push(WriteDecl { family: h.family, versions: h.versions.clone() });
         self
     }
 
@@ -300,10 +271,7 @@ impl PassBuilder<'_> {
     pub fn write_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
         let versions = vec![version; h.versions.len()];
-        self.decl.writes.push(WriteDecl {
-            family: h.family,
-            versions,
-        });
+        self.decl.writes.push(WriteDecl { family: h.family, versions });
         self
     }
 

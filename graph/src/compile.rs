@@ -11,9 +11,7 @@ use crate::builder::{Graph, PassDecl, ReadScope, Role};
 use crate::error::GraphError;
 use crate::ids::{DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::lower::lower;
-use crate::schedule::{
-    Access, CulledPass, DeltaEdge, Edge, PassInstance, ResourceDesc, ResourceInfo, Schedule,
-};
+use crate::schedule::{Access, CulledPass, DeltaEdge, Edge, PassInstance, ResourceDesc, ResourceInfo, Schedule};
 
 /// What a placement may know about a pass.
 #[derive(Clone, Copy, Debug)]
@@ -30,23 +28,14 @@ pub trait Placement {
     fn devices(&self) -> u32;
     /// One `(device, rows)` per instance of `pass` for view `view`; the bands must tile
     /// `[0, height)` without overlap.
-    fn place(
-        &self,
-        pass: PassPlacementInfo<'_>,
-        view: ViewId,
-        height: u32,
-    ) -> Vec<(DeviceId, Region)>;
+    fn place(&self, pass: PassPlacementInfo<'_>, view: ViewId, height: u32) -> Vec<(DeviceId, Region)>;
 }
 
 /// Compiles `graph` under `placement` into a schedule.
 pub fn compile(graph: &Graph, placement: &dyn Placement) -> Result<Schedule, GraphError> {
     if let Some(&(pass, family)) = graph.foreign_uses.first() {
         let decl = &graph.passes[pass.index()];
-        return Err(GraphError::ForeignHandle {
-            pass: decl.name.clone(),
-            family,
-            at: decl.at,
-        });
+        return Err(GraphError::ForeignHandle { pass: decl.name.clone(), family, at: decl.at });
     }
     let views = graph.topology.views();
     let writers = writer_map(graph)?;
@@ -62,28 +51,12 @@ pub fn compile(graph: &Graph, placement: &dyn Placement) -> Result<Schedule, Gra
                 continue;
             }
             if !needed.contains(&(p as u32, v.0)) {
-                culled.push(CulledPass {
-                    name: decl.name.clone(),
-                    view: v,
-                });
+                culled.push(CulledPass { name: decl.name.clone(), view: v });
                 continue;
             }
-            let info = PassPlacementInfo {
-                name: &decl.name,
-                role: decl.role,
-                splittable: splittable(graph, decl),
-            };
+            let info = PassPlacementInfo { name: &decl.name, role: decl.role, splittable: splittable(graph, decl) };
             for (device, region) in placement.place(info, v, graph.topology.height) {
-                instances.push(instantiate(
-                    graph,
-                    &writers,
-                    decl,
-                    PassId(p as u32),
-                    v,
-                    device,
-                    region,
-                    &rid,
-                ));
+                instances.push(instantiate(graph, &writers, decl, PassId(p as u32), v, device, region, &rid));
             }
         }
     }
@@ -92,16 +65,7 @@ pub fn compile(graph: &Graph, placement: &dyn Placement) -> Result<Schedule, Gra
     let delta_edges = delta_edges(&instances, &resources);
     let order = topological_order(&instances, &edges)?;
     let (devices, copies) = lower(placement.devices(), &instances, &edges, &resources, &order);
-    Ok(Schedule {
-        views,
-        devices,
-        resources,
-        instances,
-        edges,
-        delta_edges,
-        copies,
-        culled,
-    })
+    Ok(Schedule { views, devices, resources, instances, edges, delta_edges, copies, culled })
 }
 
 type WriterMap = HashMap<(FamilyId, ViewId, u32), usize>;
@@ -135,12 +99,7 @@ fn writer_map(graph: &Graph) -> Result<WriterMap, GraphError> {
 
 /// Last version of a (family, view) written this frame; what a history read sees next frame.
 fn last_version(writers: &WriterMap, family: FamilyId, view: ViewId) -> u32 {
-    writers
-        .keys()
-        .filter(|(f, v, _)| *f == family && *v == view)
-        .map(|k| k.2)
-        .max()
-        .unwrap_or(0)
+    writers.keys().filter(|(f, v, _)| *f == family && *v == view).map(|k| k.2).max().unwrap_or(0)
 }
 
 /// The (family, view, version) triples one declared read touches for view `v`.
@@ -154,10 +113,9 @@ fn read_targets(
 ) -> Vec<(FamilyId, ViewId, u32)> {
     match scope {
         ReadScope::Own | ReadScope::OwnWhole => vec![(family, v, versions[v.index()])],
-        ReadScope::Sources => graph.topology.sources_of[v.index()]
-            .iter()
-            .map(|&s| (family, s, versions[s.index()]))
-            .collect(),
+        ReadScope::Sources => {
+            graph.topology.sources_of[v.index()].iter().map(|&s| (family, s, versions[s.index()])).collect()
+        }
         ReadScope::History => vec![(family, v, last_version(writers, family, v))],
     }
 }
@@ -177,25 +135,15 @@ fn cull(graph: &Graph, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>, Grap
                             resource: fam.name.clone(),
                             view: ViewId(v as u32),
                             version,
-                            at: graph
-                                .passes
-                                .first()
-                                .map_or(std::panic::Location::caller(), |p| p.at),
+                            at: graph.passes.first().map_or(std::panic::Location::caller(), |p| p.at),
                         });
                     }
                 }
             }
         }
     }
-    for (p, decl) in graph
-        .passes
-        .iter()
-        .enumerate()
-        .filter(|(_, d)| d.side_effect)
-    {
-        for v in
-            (0..graph.topology.views()).filter(|&v| graph.topology.in_role(decl.role, ViewId(v)))
-        {
+    for (p, decl) in graph.passes.iter().enumerate().filter(|(_, d)| d.side_effect) {
+        for v in (0..graph.topology.views()).filter(|&v| graph.topology.in_role(decl.role, ViewId(v))) {
             stack.push((p as u32, v));
         }
     }
@@ -209,14 +157,11 @@ fn cull(graph: &Graph, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>, Grap
         }
         let decl = &graph.passes[p as usize];
         for r in &decl.reads {
-            for (family, u, version) in
-                read_targets(graph, writers, r.scope, r.family, &r.versions, ViewId(v))
-            {
+            for (family, u, version) in read_targets(graph, writers, r.scope, r.family, &r.versions, ViewId(v)) {
                 match writers.get(&(family, u, version)) {
                     Some(&w) => stack.push((w as u32, u.0)),
                     None if version == 0
-                        && (graph.families[family.index()].imported
-                            || r.scope == ReadScope::History) => {}
+                        && (graph.families[family.index()].imported || r.scope == ReadScope::History) => {}
                     None => {
                         return Err(GraphError::ReadOfUnwritten {
                             pass: decl.name.clone(),
@@ -234,26 +179,17 @@ fn cull(graph: &Graph, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>, Grap
 }
 
 fn splittable(graph: &Graph, decl: &PassDecl) -> bool {
-    let is_buffer =
-        |f: FamilyId| matches!(graph.families[f.index()].desc, ResourceDesc::Buffer { .. });
+    let is_buffer = |f: FamilyId| matches!(graph.families[f.index()].desc, ResourceDesc::Buffer { .. });
     !decl.whole_view
         && !decl.writes.iter().any(|w| is_buffer(w.family))
-        && !decl
-            .reads
-            .iter()
-            .any(|r| matches!(r.scope, ReadScope::Own | ReadScope::History) && is_buffer(r.family))
+        && !decl.reads.iter().any(|r| matches!(r.scope, ReadScope::Own | ReadScope::History) && is_buffer(r.family))
 }
 
 fn resource_infos(graph: &Graph, writers: &WriterMap) -> Vec<ResourceInfo> {
     let history: BTreeSet<FamilyId> = graph
         .passes
         .iter()
-        .flat_map(|p| {
-            p.reads
-                .iter()
-                .filter(|r| r.scope == ReadScope::History)
-                .map(|r| r.family)
-        })
+        .flat_map(|p| p.reads.iter().filter(|r| r.scope == ReadScope::History).map(|r| r.family))
         .collect();
     graph
         .families
@@ -298,23 +234,13 @@ fn instantiate(
     let mut reads = Vec::new();
     let mut history_reads = Vec::new();
     for r in &decl.reads {
-        for (family, u, version) in
-            read_targets(graph, writers, r.scope, r.family, &r.versions, view)
-        {
+        for (family, u, version) in read_targets(graph, writers, r.scope, r.family, &r.versions, view) {
             let rows = match r.scope {
                 ReadScope::Own | ReadScope::History => rows_of(desc(family), region),
                 ReadScope::OwnWhole | ReadScope::Sources => desc(family).full(),
             };
-            let access = Access {
-                resource: rid(family, u),
-                version,
-                region: rows,
-            };
-            if r.scope == ReadScope::History {
-                history_reads.push(access)
-            } else {
-                reads.push(access)
-            }
+            let access = Access { resource: rid(family, u), version, region: rows };
+            if r.scope == ReadScope::History { history_reads.push(access) } else { reads.push(access) }
         }
     }
     let writes = decl
@@ -326,16 +252,7 @@ fn instantiate(
             region: rows_of(desc(w.family), region),
         })
         .collect();
-    PassInstance {
-        pass,
-        name: decl.name.clone(),
-        view,
-        region,
-        device,
-        reads,
-        writes,
-        history_reads,
-    }
+    PassInstance { pass, name: decl.name.clone(), view, region, device, reads, writes, history_reads }
 }
 
 /// Producer → consumer edges by (resource, version) and row overlap. Also checks that history
@@ -348,34 +265,22 @@ fn derive_edges(
     let mut by_version: HashMap<(ResourceId, u32), Vec<usize>> = HashMap::new();
     for (i, inst) in instances.iter().enumerate() {
         for w in &inst.writes {
-            by_version
-                .entry((w.resource, w.version))
-                .or_default()
-                .push(i);
+            by_version.entry((w.resource, w.version)).or_default().push(i);
         }
     }
     let mut edges = Vec::new();
     for (c, inst) in instances.iter().enumerate() {
         for read in &inst.reads {
             let mut covered = 0;
-            for &p in by_version
-                .get(&(read.resource, read.version))
-                .into_iter()
-                .flatten()
-            {
-                let written = instances[p]
-                    .writes
-                    .iter()
-                    .find(|w| w.resource == read.resource && w.version == read.version);
+            for &p in by_version.get(&(read.resource, read.version)).into_iter().flatten() {
+                let written =
+                    instances[p].writes.iter().find(|w| w.resource == read.resource && w.version == read.version);
                 if let Some(overlap) = written.and_then(|w| w.region.intersect(read.region)) {
                     covered += overlap.len();
                     edges.push(Edge {
                         producer: InstanceId(p as u32),
                         consumer: InstanceId(c as u32),
-                        access: Access {
-                            region: overlap,
-                            ..*read
-                        },
+                        access: Access { region: overlap, ..*read },
                     });
                 }
             }
@@ -393,16 +298,10 @@ fn derive_edges(
             }
         }
         for h in &inst.history_reads {
-            for &p in by_version
-                .get(&(h.resource, h.version))
-                .into_iter()
-                .flatten()
-            {
+            for &p in by_version.get(&(h.resource, h.version)).into_iter().flatten() {
                 let writer = &instances[p];
-                let overlaps = writer
-                    .writes
-                    .iter()
-                    .any(|w| w.resource == h.resource && w.region.intersect(h.region).is_some());
+                let overlaps =
+                    writer.writes.iter().any(|w| w.resource == h.resource && w.region.intersect(h.region).is_some());
                 if overlaps && writer.device != inst.device {
                     return Err(GraphError::HistoryAcrossDevices {
                         pass: inst.name.clone(),
@@ -426,11 +325,7 @@ fn delta_edges(instances: &[PassInstance], resources: &[ResourceInfo]) -> Vec<De
         .flat_map(|(i, inst)| {
             inst.reads.iter().filter_map(move |r| {
                 let source = resources[r.resource.index()].view;
-                (source != inst.view).then_some(DeltaEdge {
-                    source,
-                    target: inst.view,
-                    consumer: InstanceId(i as u32),
-                })
+                (source != inst.view).then_some(DeltaEdge { source, target: inst.view, consumer: InstanceId(i as u32) })
             })
         })
         .collect();
@@ -438,10 +333,7 @@ fn delta_edges(instances: &[PassInstance], resources: &[ResourceInfo]) -> Vec<De
 }
 
 /// Kahn's algorithm; among ready instances the earliest declared goes first.
-fn topological_order(
-    instances: &[PassInstance],
-    edges: &[Edge],
-) -> Result<Vec<InstanceId>, GraphError> {
+fn topological_order(instances: &[PassInstance], edges: &[Edge]) -> Result<Vec<InstanceId>, GraphError> {
     let n = instances.len();
     let mut indegree = vec![0usize; n];
     let mut successors: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); n];
@@ -450,8 +342,7 @@ fn topological_order(
             indegree[e.consumer.index()] += 1;
         }
     }
-    let mut ready: BinaryHeap<Reverse<usize>> =
-        (0..n).filter(|&i| indegree[i] == 0).map(Reverse).collect();
+    let mut ready: BinaryHeap<Reverse<usize>> = (0..n).filter(|&i| indegree[i] == 0).map(Reverse).collect();
     let mut order = Vec::with_capacity(n);
     while let Some(Reverse(i)) = ready.pop() {
         order.push(InstanceId(i as u32));
@@ -464,10 +355,13 @@ fn topological_order(
     }
     let self_loop = edges.iter().find(|e| e.producer == e.consumer);
     if order.len() < n || self_loop.is_some() {
-        let mut passes: Vec<String> = (0..n)
-            .filter(|&i| indegree[i] > 0)
-            .map(|i| instances[i].name.clone())
-            .collect();
+        // Nodes left after Kahn are on a cycle or downstream of one; peel off the downstream
+        // ones (no successor left) so the error names only the passes that form the cycle.
+        let mut left: BTreeSet<usize> = (0..n).filter(|&i| indegree[i] > 0).collect();
+        while let Some(&tail) = left.iter().find(|&&i| !successors[i].iter().any(|s| left.contains(s))) {
+            left.remove(&tail);
+        }
+        let mut passes: Vec<String> = left.into_iter().map(|i| instances[i].name.clone()).collect();
         passes.extend(self_loop.map(|e| instances[e.producer.index()].name.clone()));
         passes.sort();
         passes.dedup();

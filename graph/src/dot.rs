@@ -8,25 +8,16 @@ use std::fmt::Write;
 use crate::ids::CopyId;
 use crate::schedule::{CopyKind, Op, Schedule};
 
-const DEVICE_COLOURS: [&str; 8] = [
-    "#fde0dd", "#e0f3db", "#deebf7", "#fff7bc", "#efedf5", "#fee6ce", "#e5f5f9", "#f0f0f0",
-];
+const DEVICE_COLOURS: [&str; 8] =
+    ["#fde0dd", "#e0f3db", "#deebf7", "#fff7bc", "#efedf5", "#fee6ce", "#e5f5f9", "#f0f0f0"];
 
 impl Schedule {
     pub fn to_dot(&self) -> String {
         let mut out = String::new();
         let w = &mut out;
         writeln!(w, "digraph schedule {{").unwrap();
-        writeln!(
-            w,
-            "  graph [rankdir=TB, fontname=\"Helvetica\", newrank=true];"
-        )
-        .unwrap();
-        writeln!(
-            w,
-            "  node [shape=box, style=\"rounded,filled\", fontname=\"Helvetica\", fontsize=10];"
-        )
-        .unwrap();
+        writeln!(w, "  graph [rankdir=TB, fontname=\"Helvetica\", newrank=true];").unwrap();
+        writeln!(w, "  node [shape=box, style=\"rounded,filled\", fontname=\"Helvetica\", fontsize=10];").unwrap();
         writeln!(w, "  edge [color=\"#777777\", arrowsize=0.6];").unwrap();
         for program in &self.devices {
             let d = program.device;
@@ -46,17 +37,13 @@ impl Schedule {
                     } else {
                         format!("\\n{}", inst.region)
                     };
-                    writeln!(
-                        w,
-                        "    {id} [label=\"{}\\n{}{rows}\", fillcolor=white];",
-                        escape(&inst.name),
-                        inst.view
-                    )
-                    .unwrap();
+                    writeln!(w, "    {id} [label=\"{}\\n{}{rows}\", fillcolor=white];", escape(&inst.name), inst.view)
+                        .unwrap();
                 }
             }
             if d.0 == 0 && self.gather_copies().next().is_some() {
-                writeln!(w, "    gathered [label=\"finished views\", shape=doubleoctagon, fillcolor=\"#ffffff\"];").unwrap();
+                writeln!(w, "    gathered [label=\"finished views\", shape=doubleoctagon, fillcolor=\"#ffffff\"];")
+                    .unwrap();
             }
             writeln!(w, "  }}").unwrap();
         }
@@ -80,11 +67,7 @@ impl Schedule {
         for e in &self.edges {
             let (p, c) = (self.instance(e.producer), self.instance(e.consumer));
             let delta = self.resource(e.access.resource).view != c.view;
-            let style = if delta {
-                " [style=dashed, color=\"#1f5fbf\", label=\"δ\"]"
-            } else {
-                ""
-            };
+            let style = if delta { " [style=dashed, color=\"#1f5fbf\", label=\"δ\"]" } else { "" };
             if p.device == c.device {
                 writeln!(w, "  {} -> {}{style};", e.producer, e.consumer).unwrap();
                 continue;
@@ -132,11 +115,9 @@ impl Schedule {
             .iter()
             .position(|i| {
                 i.device == k.from
-                    && i.writes.iter().any(|w| {
-                        w.resource == k.resource
-                            && w.version == k.version
-                            && w.region.contains(k.region)
-                    })
+                    && i.writes
+                        .iter()
+                        .any(|w| w.resource == k.resource && w.version == k.version && w.region.contains(k.region))
             })
             .map(|i| crate::ids::InstanceId(i as u32))
     }

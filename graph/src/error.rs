@@ -25,9 +25,7 @@ pub enum PlanError {
         "--gpus {devices} exceeds the {views} views: the paper excludes N > M (a view would be split over devices); use at most {views} devices"
     )]
     MoreDevicesThanViews { devices: u32, views: u32 },
-    #[error(
-        "--sources: view {view} is out of range, the light field has {views} views (0..{views})"
-    )]
+    #[error("--sources: view {view} is out of range, the light field has {views} views (0..{views})")]
     SourceOutOfRange { view: u32, views: u32 },
     #[error("--sources: view {0} is listed twice; list each source once")]
     DuplicateSource(u32),
@@ -54,13 +52,7 @@ pub enum GraphError {
     #[error(
         "pass '{pass}' (declared at {at}) reads '{resource}' of {view} at version {version}, which no pass writes: declare a producer first or import the resource"
     )]
-    ReadOfUnwritten {
-        pass: String,
-        resource: String,
-        view: ViewId,
-        version: u32,
-        at: &'static Location<'static>,
-    },
+    ReadOfUnwritten { pass: String, resource: String, view: ViewId, version: u32, at: &'static Location<'static> },
     #[error(
         "'{resource}' of {view} version {version} is written by both '{first}' and '{second}' (declared at {at}): write through a `&mut` handle so each write makes a new version"
     )]
@@ -77,23 +69,11 @@ pub enum GraphError {
     )]
     Cycle { passes: Vec<String> },
     #[error("pass '{pass}' (declared at {at}) uses handle {family} from another graph")]
-    ForeignHandle {
-        pass: String,
-        family: FamilyId,
-        at: &'static Location<'static>,
-    },
+    ForeignHandle { pass: String, family: FamilyId, at: &'static Location<'static> },
     #[error(
         "pass '{pass}' reads the history of '{resource}' of {view} on {reader}, but its last writer runs on {writer}: history must stay on the device that wrote it"
     )]
-    HistoryAcrossDevices {
-        pass: String,
-        resource: String,
-        view: ViewId,
-        reader: u32,
-        writer: u32,
-    },
-    #[error(
-        "the graph has no roots: export a resource or mark a pass side_effect(), otherwise every pass is culled"
-    )]
+    HistoryAcrossDevices { pass: String, resource: String, view: ViewId, reader: u32, writer: u32 },
+    #[error("the graph has no roots: export a resource or mark a pass side_effect(), otherwise every pass is culled")]
     NoRoots,
 }

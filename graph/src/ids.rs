@@ -73,10 +73,7 @@ impl Region {
     }
 
     pub fn intersect(self, other: Region) -> Option<Region> {
-        let r = Region {
-            y0: self.y0.max(other.y0),
-            y1: self.y1.min(other.y1),
-        };
+        let r = Region { y0: self.y0.max(other.y0), y1: self.y1.min(other.y1) };
         (!r.is_empty()).then_some(r)
     }
 

@@ -54,8 +54,7 @@ pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use partition::{Plan, PlanConfig, Scheme, parse_source_list};
 pub use pipeline::{StandardPipeline, declare_standard_pipeline};
 pub use schedule::{
-    Access, CopyKind, CrossCopy, DeviceProgram, Format, Op, PassInstance, ResourceDesc,
-    ResourceInfo, Schedule,
+    Access, CopyKind, CrossCopy, DeviceProgram, Format, Op, PassInstance, ResourceDesc, ResourceInfo, Schedule,
 };
 pub use summary::PlanSummary;
 pub use validate::{ScheduleError, ValidationReport};

@@ -79,10 +79,7 @@ impl ViewCamera {
             return None;
         }
         let tan = (self.yfov * 0.5).tan();
-        let ndc = DVec2::new(
-            d.dot(self.right) / (z * tan * self.aspect),
-            d.dot(self.up) / (z * tan),
-        );
+        let ndc = DVec2::new(d.dot(self.right) / (z * tan * self.aspect), d.dot(self.up) / (z * tan));
         Some(ndc + self.ndc_shift)
     }
 
@@ -112,8 +109,7 @@ impl std::str::FromStr for LayoutSpec {
             "multiscopic" => Ok(LayoutSpec::Multiscopic),
             "nelf" => Ok(LayoutSpec::Nelf),
             _ => {
-                let (cols, rows) =
-                    parse_pair(s).ok_or_else(|| PlanError::BadLayout(s.to_string()))?;
+                let (cols, rows) = parse_pair(s).ok_or_else(|| PlanError::BadLayout(s.to_string()))?;
                 if cols == 0 || rows == 0 {
                     return Err(PlanError::EmptyLayout { cols, rows });
                 }
@@ -150,10 +146,7 @@ impl LightField {
         if let Some((w, h)) = resolution
             && (w == 0 || h == 0)
         {
-            return Err(PlanError::BadResolution {
-                width: w,
-                height: h,
-            });
+            return Err(PlanError::BadResolution { width: w, height: h });
         }
         if !(rig.focus_distance.is_finite() && rig.focus_distance > 0.0) {
             return Err(PlanError::BadFocus(rig.focus_distance));
@@ -166,25 +159,11 @@ impl LightField {
                 if cols == 0 || rows == 0 {
                     return Err(PlanError::EmptyLayout { cols, rows });
                 }
-                (
-                    format!("{cols}x{rows}"),
-                    cols,
-                    rows,
-                    (512, 512),
-                    grid(cols, rows, d),
-                )
+                (format!("{cols}x{rows}"), cols, rows, (512, 512), grid(cols, rows, d))
             }
         };
         let (width, height) = resolution.unwrap_or(default_res);
-        Ok(LightField {
-            name,
-            cols,
-            rows,
-            width,
-            height,
-            positions,
-            rig,
-        })
+        Ok(LightField { name, cols, rows, width, height, positions, rig })
     }
 
     /// Number of views M.
@@ -206,10 +185,12 @@ impl LightField {
 
     /// Centre of the bounding box of all view positions.
     pub fn centre(&self) -> DVec2 {
-        let (lo, hi) = self.positions.iter().fold(
-            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        );
+        let (lo, hi) = self
+            .positions
+            .iter()
+            .fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
+                (lo.min(*p), hi.max(*p))
+            });
         (lo + hi) * 0.5
     }
 
@@ -241,9 +222,7 @@ impl LightField {
 /// A W×H grid centred on the origin; row 0 is the top row (largest t).
 fn grid(cols: u32, rows: u32, d: f64) -> Vec<DVec2> {
     let (cx, cy) = ((cols as f64 - 1.0) * 0.5, (rows as f64 - 1.0) * 0.5);
-    (0..rows)
-        .flat_map(|r| (0..cols).map(move |c| DVec2::new((c as f64 - cx) * d, (cy - r as f64) * d)))
-        .collect()
+    (0..rows).flat_map(|r| (0..cols).map(move |c| DVec2::new((c as f64 - cx) * d, (cy - r as f64) * d))).collect()
 }
 
 /// Two 6×6 blocks side by side: columns 0–5 are the left eye, 6–11 the right eye.
@@ -283,45 +262,24 @@ mod tests {
 
     #[test]
     fn focus_plane_has_zero_disparity() {
-        let rig = Rig {
-            focus_distance: 2.5,
-            ..Rig::default()
-        };
-        let lf = LightField::new(
-            LayoutSpec::Grid { cols: 5, rows: 3 },
-            Some(0.05),
-            Some((64, 32)),
-            rig,
-        )
-        .unwrap();
+        let rig = Rig { focus_distance: 2.5, ..Rig::default() };
+        let lf = LightField::new(LayoutSpec::Grid { cols: 5, rows: 3 }, Some(0.05), Some((64, 32)), rig).unwrap();
         let on_plane = rig.eye + rig.forward * 2.5 + DVec3::new(0.3, -0.2, 0.0);
         let off_plane = rig.eye + rig.forward * 6.0;
         let first = lf.camera(ViewId(0)).project(on_plane).unwrap();
         let far0 = lf.camera(ViewId(0)).project(off_plane).unwrap();
         for v in lf.views() {
             let ndc = lf.camera(v).project(on_plane).unwrap();
-            assert!(
-                (ndc - first).length() < 1e-9,
-                "view {v:?}: {ndc} vs {first}"
-            );
+            assert!((ndc - first).length() < 1e-9, "view {v:?}: {ndc} vs {first}");
         }
         let far_last = lf.camera(ViewId(14)).project(off_plane).unwrap();
-        assert!(
-            (far_last - far0).length() > 1e-3,
-            "points off the focus plane must show parallax"
-        );
+        assert!((far_last - far0).length() > 1e-3, "points off the focus plane must show parallax");
     }
 
     #[test]
     fn bad_layouts_are_rejected() {
-        assert_eq!(
-            "0x3".parse::<LayoutSpec>(),
-            Err(PlanError::EmptyLayout { cols: 0, rows: 3 })
-        );
-        assert_eq!(
-            "banana".parse::<LayoutSpec>(),
-            Err(PlanError::BadLayout("banana".into()))
-        );
+        assert_eq!("0x3".parse::<LayoutSpec>(), Err(PlanError::EmptyLayout { cols: 0, rows: 3 }));
+        assert_eq!("banana".parse::<LayoutSpec>(), Err(PlanError::BadLayout("banana".into())));
         let spec = LayoutSpec::Grid { cols: 2, rows: 2 };
         let err = LightField::new(spec, Some(f64::NAN), None, Rig::default()).unwrap_err();
         assert!(matches!(err, PlanError::BadSpacing(d) if d.is_nan()));

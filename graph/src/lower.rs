@@ -22,16 +22,12 @@ pub(crate) fn lower(
     resources: &[ResourceInfo],
     order: &[InstanceId],
 ) -> (Vec<DeviceProgram>, Vec<CrossCopy>) {
-    let position: HashMap<InstanceId, usize> =
-        order.iter().enumerate().map(|(i, &id)| (id, i)).collect();
+    let position: HashMap<InstanceId, usize> = order.iter().enumerate().map(|(i, &id)| (id, i)).collect();
 
     // Rows each destination needs from each producer write, and its earliest consumer there.
     let mut needs: BTreeMap<CopyKey, (Region, InstanceId)> = BTreeMap::new();
     for e in edges {
-        let (p, c) = (
-            &instances[e.producer.index()],
-            &instances[e.consumer.index()],
-        );
+        let (p, c) = (&instances[e.producer.index()], &instances[e.consumer.index()]);
         if p.device == c.device {
             continue;
         }
@@ -52,10 +48,7 @@ pub(crate) fn lower(
         for w in &inst.writes {
             let info = &resources[w.resource.index()];
             if info.exported == Some(w.version) {
-                gathers.insert(
-                    (InstanceId(i as u32), w.resource, w.version, DeviceId(0)),
-                    w.region,
-                );
+                gathers.insert((InstanceId(i as u32), w.resource, w.version, DeviceId(0)), w.region);
             }
         }
     }
@@ -67,46 +60,26 @@ pub(crate) fn lower(
     let mut gathered_last = Vec::new();
     for &producer in order {
         let from = instances[producer.index()].device;
-        let range = (producer, ResourceId(0), 0, DeviceId(0))
-            ..=(producer, ResourceId(u32::MAX), u32::MAX, DeviceId(u32::MAX));
+        let range =
+            (producer, ResourceId(0), 0, DeviceId(0))..=(producer, ResourceId(u32::MAX), u32::MAX, DeviceId(u32::MAX));
         for (&(_, resource, version, to), &(region, first)) in needs.range(range.clone()) {
             let id = CopyId(copies.len() as u32);
             let bytes = resources[resource.index()].desc.bytes(region);
-            copies.push(CrossCopy {
-                resource,
-                version,
-                region,
-                from,
-                to,
-                bytes,
-                kind: CopyKind::Dependency,
-            });
+            copies.push(CrossCopy { resource, version, region, from, to, bytes, kind: CopyKind::Dependency });
             outgoing.entry(producer).or_default().push(id);
             incoming.entry(first).or_default().push(id);
         }
         for (&(_, resource, version, to), &region) in gathers.range(range) {
             let id = CopyId(copies.len() as u32);
             let bytes = resources[resource.index()].desc.bytes(region);
-            copies.push(CrossCopy {
-                resource,
-                version,
-                region,
-                from,
-                to,
-                bytes,
-                kind: CopyKind::Gather,
-            });
+            copies.push(CrossCopy { resource, version, region, from, to, bytes, kind: CopyKind::Gather });
             outgoing.entry(producer).or_default().push(id);
             gathered_last.push(id);
         }
     }
 
-    let mut devices: Vec<DeviceProgram> = (0..device_count)
-        .map(|d| DeviceProgram {
-            device: DeviceId(d),
-            ops: Vec::new(),
-        })
-        .collect();
+    let mut devices: Vec<DeviceProgram> =
+        (0..device_count).map(|d| DeviceProgram { device: DeviceId(d), ops: Vec::new() }).collect();
     for &id in order {
         let ops = &mut devices[instances[id.index()].device.index()].ops;
         for &c in incoming.get(&id).into_iter().flatten() {
@@ -126,8 +99,5 @@ pub(crate) fn lower(
 }
 
 fn hull(a: Region, b: Region) -> Region {
-    Region {
-        y0: a.y0.min(b.y0),
-        y1: a.y1.max(b.y1),
-    }
+    Region { y0: a.y0.min(b.y0), y1: a.y1.max(b.y1) }
 }

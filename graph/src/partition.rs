@@ -37,10 +37,7 @@ impl Scheme {
 impl std::str::FromStr for Scheme {
     type Err = PlanError;
     fn from_str(s: &str) -> Result<Self, PlanError> {
-        Scheme::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| PlanError::UnknownScheme(s.to_string()))
+        Scheme::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| PlanError::UnknownScheme(s.to_string()))
     }
 }
 
@@ -74,10 +71,7 @@ impl Plan {
             return Err(PlanError::NoDevices);
         }
         if config.devices > m {
-            return Err(PlanError::MoreDevicesThanViews {
-                devices: config.devices,
-                views: m,
-            });
+            return Err(PlanError::MoreDevicesThanViews { devices: config.devices, views: m });
         }
         let (assignment, sources, sources_of) = match config.scheme {
             Scheme::MultiSource => {
@@ -88,9 +82,7 @@ impl Plan {
                 let set_sources: Vec<ViewId> = a
                     .sets
                     .iter()
-                    .map(|set| {
-                        medoid(set, |v| lf.position(v)).expect("sets are never empty when N <= M")
-                    })
+                    .map(|set| medoid(set, |v| lf.position(v)).expect("sets are never empty when N <= M"))
                     .collect();
                 let sources_of = (0..m)
                     .map(|v| {
@@ -107,25 +99,13 @@ impl Plan {
                     Some(list) => checked_sources(list, m)?,
                     None => baseline_sources(&lf.positions, lf.centre(), config.devices as usize),
                 };
-                let sources_of = (0..m)
-                    .map(|v| {
-                        if sources.contains(&ViewId(v)) {
-                            Vec::new()
-                        } else {
-                            sources.clone()
-                        }
-                    })
-                    .collect();
+                let sources_of =
+                    (0..m).map(|v| if sources.contains(&ViewId(v)) { Vec::new() } else { sources.clone() }).collect();
                 (None, sources, sources_of)
             }
         };
         let is_source = (0..m).map(|v| sources.contains(&ViewId(v))).collect();
-        let topology = ViewTopology {
-            width: lf.width,
-            height: lf.height,
-            sources_of,
-            is_source,
-        };
+        let topology = ViewTopology { width: lf.width, height: lf.height, sources_of, is_source };
         Ok(Plan {
             scheme: config.scheme,
             devices: config.devices,
@@ -156,20 +136,11 @@ impl Placement for Plan {
         self.devices
     }
 
-    fn place(
-        &self,
-        pass: PassPlacementInfo<'_>,
-        view: ViewId,
-        height: u32,
-    ) -> Vec<(DeviceId, Region)> {
+    fn place(&self, pass: PassPlacementInfo<'_>, view: ViewId, height: u32) -> Vec<(DeviceId, Region)> {
         let whole = |d: u32| vec![(DeviceId(d), Region::rows(height))];
         match self.scheme {
-            Scheme::MultiSource => {
-                whole(self.set_of_view().expect("multi-source has sets")[view.index()])
-            }
-            Scheme::FineSources if pass.splittable && pass.role == Role::Sources => {
-                self.bands(height)
-            }
+            Scheme::MultiSource => whole(self.set_of_view().expect("multi-source has sets")[view.index()]),
+            Scheme::FineSources if pass.splittable && pass.role == Role::Sources => self.bands(height),
             Scheme::FineAll if pass.splittable => self.bands(height),
             Scheme::FineSources | Scheme::FineAll => whole(0),
         }
@@ -181,13 +152,7 @@ pub fn parse_source_list(s: &str) -> Result<Vec<u32>, PlanError> {
     if s.trim().is_empty() {
         return Err(PlanError::NoSources);
     }
-    s.split(',')
-        .map(|t| {
-            t.trim()
-                .parse::<u32>()
-                .map_err(|_| PlanError::BadSourceList(s.to_string()))
-        })
-        .collect()
+    s.split(',').map(|t| t.trim().parse::<u32>().map_err(|_| PlanError::BadSourceList(s.to_string()))).collect()
 }
 
 fn checked_sources(list: &[u32], views: u32) -> Result<Vec<ViewId>, PlanError> {
@@ -204,10 +169,7 @@ fn checked_sources(list: &[u32], views: u32) -> Result<Vec<ViewId>, PlanError> {
         }
     }
     if seen.len() as u32 == views {
-        return Err(PlanError::AllViewsSources {
-            sources: views,
-            views,
-        });
+        return Err(PlanError::AllViewsSources { sources: views, views });
     }
     Ok(seen.into_iter().map(ViewId).collect())
 }

@@ -17,14 +17,7 @@ pub struct StandardPipeline {
 }
 
 /// Pass names, in declaration order (the stage numbers of the paper's Table 1).
-pub const STAGES: [&str; 6] = [
-    "gbuffer",
-    "path_trace",
-    "reproject",
-    "hole_fill",
-    "denoise",
-    "tonemap",
-];
+pub const STAGES: [&str; 6] = ["gbuffer", "path_trace", "reproject", "hole_fill", "denoise", "tonemap"];
 
 /// Declares: G-buffer for every view (stage 3), path tracing of sources (2), reprojection of
 /// targets from their sources (4), hole filling (5), SVGF-style denoising with history (6, 8),
@@ -38,14 +31,8 @@ pub fn declare_standard_pipeline(g: &mut Graph) -> StandardPipeline {
     let mut denoised = g.image("denoised", Format::Rgba16f);
     let mut display = g.image("display", Format::Rgba8);
 
-    g.pass("gbuffer", Role::All)
-        .write(&mut position)
-        .write(&mut normal)
-        .write(&mut albedo)
-        .record();
-    g.pass("path_trace", Role::Sources)
-        .write(&mut radiance)
-        .record();
+    g.pass("gbuffer", Role::All).write(&mut position).write(&mut normal).write(&mut albedo).record();
+    g.pass("path_trace", Role::Sources).write(&mut radiance).record();
     g.pass("reproject", Role::Targets)
         .read(&position)
         .read(&normal)
@@ -72,18 +59,7 @@ pub fn declare_standard_pipeline(g: &mut Graph) -> StandardPipeline {
         .read_history(&denoised)
         .write(&mut denoised)
         .record();
-    g.pass("tonemap", Role::All)
-        .read(&denoised)
-        .write(&mut display)
-        .record();
+    g.pass("tonemap", Role::All).read(&denoised).write(&mut display).record();
     g.export(&display);
-    StandardPipeline {
-        position,
-        normal,
-        albedo,
-        radiance,
-        holes,
-        denoised,
-        display,
-    }
+    StandardPipeline { position, normal, albedo, radiance, holes, denoised, display }
 }

@@ -29,14 +29,8 @@ impl Format {
 /// Shape of a per-view resource. Images are addressed by row bands; a buffer is one row.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 pub enum ResourceDesc {
-    Image {
-        width: u32,
-        height: u32,
-        format: Format,
-    },
-    Buffer {
-        bytes: u64,
-    },
+    Image { width: u32, height: u32, format: Format },
+    Buffer { bytes: u64 },
 }
 
 impl ResourceDesc {
@@ -195,9 +189,7 @@ impl Schedule {
 
     /// Copies between devices before the final gather.
     pub fn dependency_copies(&self) -> impl Iterator<Item = &CrossCopy> {
-        self.copies
-            .iter()
-            .filter(|c| c.kind == CopyKind::Dependency)
+        self.copies.iter().filter(|c| c.kind == CopyKind::Dependency)
     }
 
     pub fn gather_copies(&self) -> impl Iterator<Item = &CrossCopy> {

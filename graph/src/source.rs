@@ -31,26 +31,14 @@ pub fn geometric_median(points: &[DVec2]) -> Option<Median> {
     }
     let weighted = merge_duplicates(points);
     if weighted.len() == 1 {
-        return Some(Median {
-            point: weighted[0].0,
-            iterations: 0,
-        });
+        return Some(Median { point: weighted[0].0, iterations: 0 });
     }
-    let scale = weighted
-        .iter()
-        .map(|(p, _)| (*p - weighted[0].0).length())
-        .fold(0.0, f64::max);
+    let scale = weighted.iter().map(|(p, _)| (*p - weighted[0].0).length()).fold(0.0, f64::max);
     let tolerance = scale * 1e-12;
     // Weiszfeld crawls toward a median that sits on a data point; test those exactly first
     // (a point is optimal iff the unit pull of all others is no stronger than its weight).
-    if let Some(&(p, _)) = weighted
-        .iter()
-        .find(|&&(p, w)| pull_at(&weighted, p, tolerance).length() <= w)
-    {
-        return Some(Median {
-            point: p,
-            iterations: 0,
-        });
+    if let Some(&(p, _)) = weighted.iter().find(|&&(p, w)| pull_at(&weighted, p, tolerance).length() <= w) {
+        return Some(Median { point: p, iterations: 0 });
     }
     let total: f64 = weighted.iter().map(|(_, w)| w).sum();
     // Start from the weighted centroid: inside the convex hull, usually close to the median.
@@ -60,16 +48,10 @@ pub fn geometric_median(points: &[DVec2]) -> Option<Median> {
         let moved = (next - y).length();
         y = next;
         if moved <= tolerance {
-            return Some(Median {
-                point: y,
-                iterations: iteration,
-            });
+            return Some(Median { point: y, iterations: iteration });
         }
     }
-    Some(Median {
-        point: y,
-        iterations: MAX_ITERATIONS,
-    })
+    Some(Median { point: y, iterations: MAX_ITERATIONS })
 }
 
 /// Merges identical positions into (position, multiplicity).
@@ -135,11 +117,7 @@ pub fn medoid(members: &[ViewId], position: impl Fn(ViewId) -> DVec2) -> Option<
 }
 
 fn nearest(members: &[ViewId], points: &[DVec2], target: DVec2) -> Option<ViewId> {
-    let scale = points
-        .iter()
-        .map(|p| (*p - points[0]).length())
-        .fold(0.0, f64::max)
-        .max(f64::MIN_POSITIVE);
+    let scale = points.iter().map(|p| (*p - points[0]).length()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
     let tie = scale * 1e-9;
     let mut best: Option<(f64, ViewId)> = None;
     for (&v, p) in members.iter().zip(points) {
@@ -162,25 +140,14 @@ pub fn weber_cost(points: &[DVec2], p: DVec2) -> f64 {
 /// possible from those already picked (so k = 2 gives opposite corners). Ties → lowest index.
 pub fn baseline_sources(positions: &[DVec2], centre: DVec2, k: usize) -> Vec<ViewId> {
     let k = k.min(positions.len());
-    let scale = positions
-        .iter()
-        .map(|p| (*p - centre).length())
-        .fold(0.0, f64::max)
-        .max(f64::MIN_POSITIVE);
+    let scale = positions.iter().map(|p| (*p - centre).length()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
     let tie = scale * 1e-9;
     let views = (0..positions.len() as u32).map(ViewId);
     if k % 2 == 1 {
         let mut ranked: Vec<ViewId> = views.collect();
         ranked.sort_by(|a, b| {
-            let (da, db) = (
-                (positions[a.index()] - centre).length(),
-                (positions[b.index()] - centre).length(),
-            );
-            if (da - db).abs() <= tie {
-                a.cmp(b)
-            } else {
-                da.total_cmp(&db)
-            }
+            let (da, db) = ((positions[a.index()] - centre).length(), (positions[b.index()] - centre).length());
+            if (da - db).abs() <= tie { a.cmp(b) } else { da.total_cmp(&db) }
         });
         ranked.truncate(k);
         ranked.sort();
@@ -190,18 +157,11 @@ pub fn baseline_sources(positions: &[DVec2], centre: DVec2, k: usize) -> Vec<Vie
     while picked.len() < k {
         let key = |v: ViewId| {
             let p = positions[v.index()];
-            let spread = picked
-                .iter()
-                .map(|q| (positions[q.index()] - p).length())
-                .fold(f64::INFINITY, f64::min);
+            let spread = picked.iter().map(|q| (positions[q.index()] - p).length()).fold(f64::INFINITY, f64::min);
             ((p - centre).length(), spread)
         };
         let better = |a: (f64, f64), b: (f64, f64)| {
-            if (a.0 - b.0).abs() > tie {
-                a.0 > b.0
-            } else {
-                a.1 > b.1 + tie
-            }
+            if (a.0 - b.0).abs() > tie { a.0 > b.0 } else { a.1 > b.1 + tie }
         };
         let mut best: Option<(ViewId, (f64, f64))> = None;
         for v in views.clone().filter(|v| !picked.contains(v)) {
@@ -239,19 +199,11 @@ mod tests {
             let m = geometric_median(&points).unwrap();
             assert!(m.point.is_finite(), "{points:?}");
             assert!(m.iterations < MAX_ITERATIONS, "{points:?} did not converge");
-            let best = points
-                .iter()
-                .map(|&p| weber_cost(&points, p))
-                .fold(f64::INFINITY, f64::min);
-            assert!(
-                weber_cost(&points, m.point) <= best + 1e-9,
-                "{points:?}: {m:?}"
-            );
+            let best = points.iter().map(|&p| weber_cost(&points, p)).fold(f64::INFINITY, f64::min);
+            assert!(weber_cost(&points, m.point) <= best + 1e-9, "{points:?}: {m:?}");
         }
         assert_eq!(
-            geometric_median(&pts(&[(0.0, 0.0), (0.0, 0.0), (0.0, 0.0), (5.0, 5.0)]))
-                .unwrap()
-                .point,
+            geometric_median(&pts(&[(0.0, 0.0), (0.0, 0.0), (0.0, 0.0), (5.0, 5.0)])).unwrap().point,
             DVec2::ZERO
         );
         assert_eq!(geometric_median(&[]), None);
@@ -260,27 +212,13 @@ mod tests {
 
     #[test]
     fn baseline_sources_follow_the_paper() {
-        let grid: Vec<DVec2> = (0..3)
-            .flat_map(|r| (0..4).map(move |c| DVec2::new(c as f64, -(r as f64))))
-            .collect();
+        let grid: Vec<DVec2> = (0..3).flat_map(|r| (0..4).map(move |c| DVec2::new(c as f64, -(r as f64)))).collect();
         let centre = DVec2::new(1.5, -1.0);
-        assert_eq!(
-            baseline_sources(&grid, centre, 2),
-            vec![ViewId(0), ViewId(11)]
-        );
-        assert_eq!(
-            baseline_sources(&grid, centre, 4),
-            vec![ViewId(0), ViewId(3), ViewId(8), ViewId(11)]
-        );
+        assert_eq!(baseline_sources(&grid, centre, 2), vec![ViewId(0), ViewId(11)]);
+        assert_eq!(baseline_sources(&grid, centre, 4), vec![ViewId(0), ViewId(3), ViewId(8), ViewId(11)]);
         assert_eq!(baseline_sources(&grid, centre, 1), vec![ViewId(5)]);
         let line: Vec<DVec2> = (0..100).map(|i| DVec2::new(i as f64 - 49.5, 0.0)).collect();
-        assert_eq!(
-            baseline_sources(&line, DVec2::ZERO, 2),
-            vec![ViewId(0), ViewId(99)]
-        );
-        assert_eq!(
-            baseline_sources(&line, DVec2::ZERO, 3),
-            vec![ViewId(48), ViewId(49), ViewId(50)]
-        );
+        assert_eq!(baseline_sources(&line, DVec2::ZERO, 2), vec![ViewId(0), ViewId(99)]);
+        assert_eq!(baseline_sources(&line, DVec2::ZERO, 3), vec![ViewId(48), ViewId(49), ViewId(50)]);
     }
 }

@@ -49,12 +49,7 @@ impl PlanSummary {
             passes_per_device: schedule
                 .devices
                 .iter()
-                .map(|p| {
-                    p.ops
-                        .iter()
-                        .filter(|o| matches!(o, crate::schedule::Op::Pass(_)))
-                        .count()
-                })
+                .map(|p| p.ops.iter().filter(|o| matches!(o, crate::schedule::Op::Pass(_))).count())
                 .collect(),
         }
     }

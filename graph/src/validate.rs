@@ -15,11 +15,7 @@ pub enum ScheduleError {
     /// An instance appears more than once.
     InstanceScheduledTwice { instance: InstanceId },
     /// An instance sits on a program other than the device it was placed on.
-    InstanceOnWrongDevice {
-        instance: InstanceId,
-        placed: DeviceId,
-        listed: DeviceId,
-    },
+    InstanceOnWrongDevice { instance: InstanceId, placed: DeviceId, listed: DeviceId },
     /// A copy joins a device to itself.
     CopyWithinDevice { copy: CopyId },
     /// One of a copy's four ops is missing from the device it belongs on.
@@ -33,30 +29,13 @@ pub enum ScheduleError {
     /// The copy leaves before its producer has run.
     CopyBeforeProducer { copy: CopyId, producer: InstanceId },
     /// The byte count does not match the rows copied.
-    CopyBytesMismatch {
-        copy: CopyId,
-        expected: u64,
-        actual: u64,
-    },
+    CopyBytesMismatch { copy: CopyId, expected: u64, actual: u64 },
     /// A read is not satisfied by an earlier producer on its device or by one copy.
-    UnsatisfiedRead {
-        instance: InstanceId,
-        resource: ResourceId,
-        version: u32,
-        rows: Region,
-    },
+    UnsatisfiedRead { instance: InstanceId, resource: ResourceId, version: u32, rows: Region },
     /// More than one copy brings the same rows to the consumer's device.
-    AmbiguousRead {
-        instance: InstanceId,
-        resource: ResourceId,
-        version: u32,
-        copies: Vec<CopyId>,
-    },
+    AmbiguousRead { instance: InstanceId, resource: ResourceId, version: u32, copies: Vec<CopyId> },
     /// A producer on the consumer's device runs after it.
-    OrderViolation {
-        producer: InstanceId,
-        consumer: InstanceId,
-    },
+    OrderViolation { producer: InstanceId, consumer: InstanceId },
     /// The copy a read depends on arrives after the reader runs.
     CopyArrivesLate { copy: CopyId, consumer: InstanceId },
     /// A finished view's rows are not all on device 0 at the end of the frame.
@@ -80,12 +59,11 @@ impl ValidationReport {
 /// Where each op sits: (device, index) for every occurrence.
 type Positions = HashMap<Op, Vec<(DeviceId, usize)>>;
 
-const COPY_OPS: [(&str, fn(CopyId) -> Op); 4] = [
-    ("CopyOut", Op::CopyOut),
-    ("Signal", Op::Signal),
-    ("Wait", Op::Wait),
-    ("CopyIn", Op::CopyIn),
-];
+/// A copy's four ops by name, in the order they must run.
+type CopyOpKinds = [(&'static str, fn(CopyId) -> Op); 4];
+
+const COPY_OPS: CopyOpKinds =
+    [("CopyOut", Op::CopyOut), ("Signal", Op::Signal), ("Wait", Op::Wait), ("CopyIn", Op::CopyIn)];
 
 impl Schedule {
     pub fn validate(&self) -> ValidationReport {
@@ -96,22 +74,14 @@ impl Schedule {
                 positions.entry(*op).or_default().push((program.device, i));
             }
         }
-        let at = |op: Op| {
-            positions
-                .get(&op)
-                .and_then(|v| (v.len() == 1).then_some(v[0]))
-        };
+        let at = |op: Op| positions.get(&op).and_then(|v| (v.len() == 1).then_some(v[0]));
 
         for (i, inst) in self.instances.iter().enumerate() {
             let instance = InstanceId(i as u32);
             match positions.get(&Op::Pass(instance)).map(Vec::as_slice) {
                 None | Some([]) => errors.push(ScheduleError::InstanceNotScheduled { instance }),
                 Some([(device, _)]) if *device != inst.device => {
-                    errors.push(ScheduleError::InstanceOnWrongDevice {
-                        instance,
-                        placed: inst.device,
-                        listed: *device,
-                    })
+                    errors.push(ScheduleError::InstanceOnWrongDevice { instance, placed: inst.device, listed: *device })
                 }
                 Some([_]) => {}
                 Some(_) => errors.push(ScheduleError::InstanceScheduledTwice { instance }),
@@ -133,9 +103,7 @@ impl Schedule {
         let mut map: HashMap<_, Vec<_>> = HashMap::new();
         for (i, inst) in self.instances.iter().enumerate() {
             for w in &inst.writes {
-                map.entry((w.resource, w.version))
-                    .or_default()
-                    .push((InstanceId(i as u32), w.region));
+                map.entry((w.resource, w.version)).or_default().push((InstanceId(i as u32), w.region));
             }
         }
         map
@@ -154,25 +122,18 @@ impl Schedule {
             }
             let expected = self.resource(copy.resource).desc.bytes(copy.region);
             if expected != copy.bytes {
-                errors.push(ScheduleError::CopyBytesMismatch {
-                    copy: id,
-                    expected,
-                    actual: copy.bytes,
-                });
+                errors.push(ScheduleError::CopyBytesMismatch { copy: id, expected, actual: copy.bytes });
             }
             let mut index = [None; 4];
             for (k, (name, make)) in COPY_OPS.iter().enumerate() {
                 let device = if k < 2 { copy.from } else { copy.to };
                 match positions.get(&make(id)).map(Vec::as_slice) {
                     Some([(d, i)]) if *d == device => index[k] = Some(*i),
-                    Some([_, _, ..]) => {
-                        errors.push(ScheduleError::CopyOpDuplicated { copy: id, op: name })
-                    }
+                    Some([_, _, ..]) => errors.push(ScheduleError::CopyOpDuplicated { copy: id, op: name }),
                     _ => errors.push(ScheduleError::CopyOpMissing { copy: id, op: name }),
                 }
             }
-            if matches!(index, [Some(o), Some(s), _, _] if s < o)
-                || matches!(index, [_, _, Some(w), Some(i)] if i < w)
+            if matches!(index, [Some(o), Some(s), _, _] if s < o) || matches!(index, [_, _, Some(w), Some(i)] if i < w)
             {
                 errors.push(ScheduleError::CopyOpsOutOfOrder { copy: id });
             }
@@ -180,19 +141,14 @@ impl Schedule {
                 .get(&(copy.resource, copy.version))
                 .into_iter()
                 .flatten()
-                .filter(|(w, r)| {
-                    self.instance(*w).device == copy.from && r.intersect(copy.region).is_some()
-                })
+                .filter(|(w, r)| self.instance(*w).device == copy.from && r.intersect(copy.region).is_some())
                 .copied()
                 .collect();
             if covered(copy.region, producers.iter().map(|p| p.1)) < copy.region.len() {
                 errors.push(ScheduleError::CopyWithoutProducer { copy: id });
             }
             for (producer, _) in producers {
-                let p = positions
-                    .get(&Op::Pass(producer))
-                    .and_then(|v| v.first())
-                    .map(|x| x.1);
+                let p = positions.get(&Op::Pass(producer)).and_then(|v| v.first()).map(|x| x.1);
                 if let (Some(p), Some(out)) = (p, index[0])
                     && p > out
                 {
@@ -218,11 +174,7 @@ impl Schedule {
                     continue; // imported: present on every device before the frame
                 }
                 let mut satisfied = Vec::new();
-                for &(producer, written) in writers
-                    .get(&(read.resource, read.version))
-                    .into_iter()
-                    .flatten()
-                {
+                for &(producer, written) in writers.get(&(read.resource, read.version)).into_iter().flatten() {
                     let Some(overlap) = written.intersect(read.region) else {
                         continue;
                     };
@@ -310,10 +262,7 @@ impl Schedule {
                 .map(|(_, k)| k.region);
             let full = info.desc.full();
             if covered(full, local.chain(gathered)) < full.len() {
-                errors.push(ScheduleError::ViewNotGathered {
-                    view: info.view,
-                    resource,
-                });
+                errors.push(ScheduleError::ViewNotGathered { view: info.view, resource });
             }
         }
     }
