@@ -27,7 +27,7 @@ pub struct PlanArgs {
     #[arg(long)]
     sources: Option<String>,
     /// Spacing between neighbouring views in metres (default 0.001).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     spacing: Option<f64>,
     /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
     #[arg(long)]
@@ -89,7 +89,7 @@ fn print_summary(s: &PlanSummary) {
     println!("light field   {} ({} views, {}x{} each)", s.layout, s.views, s.resolution[0], s.resolution[1]);
     println!("scheme        {} on {} device(s), assignment {}", s.scheme, s.devices, s.assign);
     println!("sources       {:?}", s.sources);
-    println!("δ-edges       {}", s.delta_edges);
+    println!("δ-edges       {} (mean baseline {:.2} mm)", s.delta_edges, s.mean_delta_distance_mm);
     println!(
         "passes        {} instances, per device {:?}, {} culled",
         s.pass_instances, s.passes_per_device, s.culled_passes

@@ -3,6 +3,7 @@
 //! cross-device copy as a red node between clusters. Output is deterministic: the same schedule
 //! always gives the same bytes.
 
+use std::collections::BTreeMap;
 use std::fmt::Write;
 
 use crate::ids::CopyId;
@@ -63,13 +64,18 @@ impl Schedule {
             )
             .unwrap();
         }
-        let mut via_copy = std::collections::BTreeSet::new();
+        // One arrow per pair of nodes however many resources flow between them; an arrow is a
+        // δ-edge when any of its reads is of another view.
+        let mut arrows: BTreeMap<(String, String), (bool, bool)> = BTreeMap::new();
         for e in &self.edges {
             let (p, c) = (self.instance(e.producer), self.instance(e.consumer));
             let delta = self.resource(e.access.resource).view != c.view;
-            let style = if delta { " [style=dashed, color=\"#1f5fbf\", label=\"δ\"]" } else { "" };
+            let mut arrow = |from: String, to: String, delta: bool, cross: bool| {
+                let entry = arrows.entry((from, to)).or_insert((false, cross));
+                entry.0 |= delta;
+            };
             if p.device == c.device {
-                writeln!(w, "  {} -> {}{style};", e.producer, e.consumer).unwrap();
+                arrow(e.producer.to_string(), e.consumer.to_string(), delta, false);
                 continue;
             }
             let copy = self.copies.iter().position(|k| {
@@ -81,15 +87,19 @@ impl Schedule {
                     && k.region.contains(e.access.region)
             });
             if let Some(k) = copy {
-                let k = CopyId(k as u32);
-                if via_copy.insert((e.producer, k)) {
-                    writeln!(w, "  {} -> {k} [color=\"#cc0000\"];", e.producer).unwrap();
-                }
-                if via_copy.insert((e.consumer, k)) {
-                    let style = if delta { "style=dashed, " } else { "" };
-                    writeln!(w, "  {k} -> {} [{style}color=\"#cc0000\"];", e.consumer).unwrap();
-                }
+                let k = CopyId(k as u32).to_string();
+                arrow(e.producer.to_string(), k.clone(), false, true);
+                arrow(k, e.consumer.to_string(), delta, true);
             }
+        }
+        for ((from, to), (delta, cross)) in arrows {
+            let attrs = match (delta, cross) {
+                (true, true) => " [style=dashed, color=\"#cc0000\", label=\"δ\"]",
+                (true, false) => " [style=dashed, color=\"#1f5fbf\", label=\"δ\"]",
+                (false, true) => " [color=\"#cc0000\"]",
+                (false, false) => "",
+            };
+            writeln!(w, "  {from} -> {to}{attrs};").unwrap();
         }
         for program in &self.devices {
             for op in &program.ops {

@@ -18,6 +18,9 @@ pub struct PlanSummary {
     /// Device of each view's set (multi-source only).
     pub set_of_view: Option<Vec<u32>>,
     pub delta_edges: usize,
+    /// Mean distance between the two views of a δ-edge, in millimetres: smaller baselines
+    /// mean smaller disparities and fewer holes after reprojection.
+    pub mean_delta_distance_mm: f64,
     /// Copies between devices before the final gather.
     pub cross_device_copies: usize,
     pub gather_copies: usize,
@@ -41,6 +44,7 @@ impl PlanSummary {
             sources: plan.sources.iter().map(|v| v.0).collect(),
             set_of_view: plan.set_of_view().map(<[u32]>::to_vec),
             delta_edges: schedule.delta_edges.len(),
+            mean_delta_distance_mm: mean_delta_distance(lf, schedule) * 1e3,
             cross_device_copies: schedule.dependency_copies().count(),
             gather_copies: schedule.gather_copies().count(),
             bytes_per_frame: schedule.bytes_per_frame(),
@@ -53,4 +57,13 @@ impl PlanSummary {
                 .collect(),
         }
     }
+}
+
+fn mean_delta_distance(lf: &LightField, schedule: &Schedule) -> f64 {
+    if schedule.delta_edges.is_empty() {
+        return 0.0;
+    }
+    let total: f64 =
+        schedule.delta_edges.iter().map(|e| (lf.position(e.source) - lf.position(e.target)).length()).sum();
+    total / schedule.delta_edges.len() as f64
 }
