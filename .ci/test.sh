@@ -5,8 +5,8 @@ cd "$(dirname "$0")/.."
 bash .ci/setup.sh
 
 cargo fmt --all -- --check
-cargo clippy --all-targets -- -D warnings
-cargo build --all-targets
+cargo clippy --workspace --all-targets -- -D warnings
+cargo build --workspace --all-targets
 
 # Every golden DOT must render without a single Graphviz warning.
 for f in tests/golden/*.dot; do
@@ -19,5 +19,5 @@ for f in tests/golden/*.dot; do
 done
 echo "rendered $(ls tests/golden/*.dot | wc -l) golden DOT files without warnings"
 
-cargo test --all-targets
-cargo test --doc
+cargo test --workspace --all-targets
+cargo test --workspace --doc
