@@ -108,8 +108,8 @@ pub(crate) struct FamilyDecl {
     pub name: String,
     pub desc: ResourceDesc,
     pub imported: bool,
-    /// Per view, the version gathered to device 0, when exported.
-    pub exported: Option<Vec<u32>>,
+    /// Per view, the version gathered to device 0, and where `export` was called.
+    pub exported: Option<(Vec<u32>, &'static Location<'static>)>,
 }
 
 /// A declared pass, before instantiation.
@@ -182,8 +182,9 @@ impl Graph {
 
     /// Marks the current version of every view's resource as a finished output: it keeps its
     /// producers alive and is gathered on device 0.
+    #[track_caller]
     pub fn export<K>(&mut self, handle: &Handle<K>) {
-        self.families[handle.family.index()].exported = Some(handle.versions.clone());
+        self.families[handle.family.index()].exported = Some((handle.versions.clone(), Location::caller()));
     }
 
     /// Starts declaring a pass that runs for every view of `role`.

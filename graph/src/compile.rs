@@ -124,18 +124,16 @@ fn read_targets(
 fn cull(graph: &Graph, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>, GraphError> {
     let mut stack: Vec<(u32, u32)> = Vec::new();
     for (f, fam) in graph.families.iter().enumerate() {
-        if let Some(versions) = &fam.exported {
+        if let Some((versions, at)) = &fam.exported {
             for (v, &version) in versions.iter().enumerate() {
                 match writers.get(&(FamilyId(f as u32), ViewId(v as u32), version)) {
                     Some(&p) => stack.push((p as u32, v as u32)),
                     None if version == 0 && fam.imported => {}
                     None => {
-                        return Err(GraphError::ReadOfUnwritten {
-                            pass: "export".into(),
+                        return Err(GraphError::ExportOfUnwritten {
                             resource: fam.name.clone(),
                             view: ViewId(v as u32),
-                            version,
-                            at: graph.passes.first().map_or(std::panic::Location::caller(), |p| p.at),
+                            at,
                         });
                     }
                 }
@@ -203,7 +201,7 @@ fn resource_infos(graph: &Graph, writers: &WriterMap) -> Vec<ResourceInfo> {
                 family,
                 view: ViewId(v),
                 desc: fam.desc,
-                exported: fam.exported.as_ref().map(|versions| versions[v as usize]),
+                exported: fam.exported.as_ref().map(|(versions, _)| versions[v as usize]),
                 history,
                 versions: last_version(writers, family, ViewId(v)),
             })

@@ -54,6 +54,10 @@ pub enum GraphError {
     )]
     ReadOfUnwritten { pass: String, resource: String, view: ViewId, version: u32, at: &'static Location<'static> },
     #[error(
+        "'{resource}' of {view} is exported (at {at}) but no pass writes it: export a handle after the pass that produces it"
+    )]
+    ExportOfUnwritten { resource: String, view: ViewId, at: &'static Location<'static> },
+    #[error(
         "'{resource}' of {view} version {version} is written by both '{first}' and '{second}' (declared at {at}): write through a `&mut` handle so each write makes a new version"
     )]
     DoubleWrite {

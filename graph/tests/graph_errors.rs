@@ -33,6 +33,18 @@ fn reading_a_version_nobody_writes() {
 }
 
 #[test]
+fn exporting_what_nobody_writes() {
+    let mut g = Graph::new(topology());
+    let a = g.image("a", Format::R32f);
+    g.export(&a);
+    let err = compile(&g, &Single).unwrap_err();
+    assert!(
+        matches!(err, GraphError::ExportOfUnwritten { ref resource, view: ViewId(0), .. } if resource == "a"),
+        "{err}"
+    );
+}
+
+#[test]
 fn imported_resources_may_be_read_before_written() {
     let mut g = Graph::new(topology());
     let scene = g.buffer("scene", 64);
