@@ -12,7 +12,10 @@
 #define BVH_TRIS scene_triangles.data
 #include "bvh_traverse.glsl"
 
-layout(local_size_x = 64) in;
+#ifndef RAYCAST_GROUP_SIZE
+#define RAYCAST_GROUP_SIZE 64
+#endif
+layout(local_size_x = RAYCAST_GROUP_SIZE) in;
 
 struct RayIn {
     vec4 origin_tmin;

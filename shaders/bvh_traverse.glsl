@@ -66,22 +66,24 @@ BvhRay bvh_make_ray(vec3 origin, vec3 dir, float tmin, float tmax) {
 
 // Moeller-Trumbore exactly as parallax_scene::bvh::intersect_triangle (two-sided, sign-bit
 // inside test). Returns t, or -1 on a miss; writes the barycentrics of v1 and v2.
+// `precise` forbids fused multiply-adds, which the CPU (x86 SSE, no FMA) does not use either;
+// without it near-ties between coplanar triangles can resolve differently on the GPU.
 float bvh_intersect_triangle(BvhTriangle tri, BvhRay ray, out vec2 bary) {
-    vec3 e1 = tri.v0 - tri.v1;
-    vec3 e2 = tri.v2 - tri.v0;
-    vec3 n = cross(e1, e2);
-    vec3 c = tri.v0 - ray.origin;
-    vec3 r = cross(ray.dir, c);
-    float inv_det = 1.0 / dot(n, ray.dir);
-    float u = dot(r, e2) * inv_det;
-    float v = dot(r, e1) * inv_det;
-    float w = 1.0 - u - v;
+    precise vec3 e1 = tri.v0 - tri.v1;
+    precise vec3 e2 = tri.v2 - tri.v0;
+    precise vec3 n = cross(e1, e2);
+    precise vec3 c = tri.v0 - ray.origin;
+    precise vec3 r = cross(ray.dir, c);
+    precise float inv_det = 1.0 / dot(n, ray.dir);
+    precise float u = dot(r, e2) * inv_det;
+    precise float v = dot(r, e1) * inv_det;
+    precise float w = 1.0 - u - v;
     bary = vec2(u, v);
     bool outside = ((floatBitsToUint(u) | floatBitsToUint(v) | floatBitsToUint(w)) & 0x80000000u) != 0u;
     if (inv_det == 0.0 || isinf(inv_det) || isnan(inv_det) || outside) {
         return -1.0;
     }
-    float t = dot(n, c) * inv_det;
+    precise float t = dot(n, c) * inv_det;
     return (t >= ray.tmin && t <= ray.tmax) ? t : -1.0;
 }
 

@@ -63,10 +63,7 @@ pub struct TraceArgs {
 fn parse_floats(what: &str, s: &str) -> anyhow::Result<Vec<f32>> {
     s.split(',')
         .map(|p| {
-            let v: f32 = p
-                .trim()
-                .parse()
-                .with_context(|| format!("--{what}: '{p}' is not a number"))?;
+            let v: f32 = p.trim().parse().with_context(|| format!("--{what}: '{p}' is not a number"))?;
             if !v.is_finite() {
                 bail!("--{what}: '{p}' is not finite");
             }
@@ -76,17 +73,9 @@ fn parse_floats(what: &str, s: &str) -> anyhow::Result<Vec<f32>> {
 }
 
 fn parse_resolution(s: &str) -> anyhow::Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--resolution '{s}': expected WxH, e.g. 512x512"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .with_context(|| format!("--resolution '{s}': bad width"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .with_context(|| format!("--resolution '{s}': bad height"))?;
+    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--resolution '{s}': expected WxH, e.g. 512x512"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--resolution '{s}': bad width"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--resolution '{s}': bad height"))?;
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         bail!("--resolution '{s}': width and height must be 1..=16384");
     }
@@ -96,10 +85,7 @@ fn parse_resolution(s: &str) -> anyhow::Result<(u32, u32)> {
 fn parse_camera(s: &str) -> anyhow::Result<Camera> {
     let v = parse_floats("camera", s)?;
     if v.len() != 10 {
-        bail!(
-            "--camera: expected 10 numbers eye(3),target(3),up(3),yfov_degrees; got {}",
-            v.len()
-        );
+        bail!("--camera: expected 10 numbers eye(3),target(3),up(3),yfov_degrees; got {}", v.len());
     }
     let eye = Vec3::new(v[0], v[1], v[2]);
     let target = Vec3::new(v[3], v[4], v[5]);
@@ -126,11 +112,7 @@ fn parse_sun(s: &str) -> anyhow::Result<Sun> {
     if !(0.0..=45.0).contains(&radius) {
         bail!("--sun: angular radius {radius} degrees is outside 0..45");
     }
-    Ok(Sun {
-        to_sun: dir.normalize(),
-        irradiance: Vec3::splat(v[3]),
-        angular_radius: radius.to_radians(),
-    })
+    Ok(Sun { to_sun: dir.normalize(), irradiance: Vec3::splat(v[3]), angular_radius: radius.to_radians() })
 }
 
 fn parse_sky(s: &str) -> anyhow::Result<Sky> {
@@ -159,8 +141,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let sky = args.sky.as_deref().map(parse_sky).transpose()?;
 
     let t0 = Instant::now();
-    let mut scene =
-        load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
+    let mut scene = load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
     if let Some(sun) = sun {
         scene.sun = Some(sun);
     }
@@ -183,12 +164,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         bvh.build_time
     );
 
-    let view = View {
-        camera: camera.unwrap_or_else(|| scene.default_camera()),
-        width,
-        height,
-        index: 0,
-    };
+    let view = View { camera: camera.unwrap_or_else(|| scene.default_camera()), width, height, index: 0 };
     let settings = TraceSettings {
         spp: args.spp,
         max_depth: args.max_depth,
@@ -215,20 +191,13 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         secs,
         view.pixel_count() as f64 * settings.spp as f64 / secs / 1e6,
         if stats.non_finite_samples > 0 {
-            format!(
-                "; {} non-finite samples discarded",
-                stats.non_finite_samples
-            )
+            format!("; {} non-finite samples discarded", stats.non_finite_samples)
         } else {
             String::new()
         }
     );
 
-    let layers = if args.layers {
-        ExrLayers::ALL
-    } else {
-        ExrLayers::default()
-    };
+    let layers = if args.layers { ExrLayers::ALL } else { ExrLayers::default() };
     write_exr(&args.out, &frame, layers)?;
     eprintln!("wrote {}", args.out.display());
     if let Some(png) = &args.png {

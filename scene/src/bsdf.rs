@@ -20,10 +20,7 @@ pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
     let sign = 1f32.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (
-        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 /// Cosine-weighted direction about `n`; pdf = cos / pi.
@@ -105,10 +102,7 @@ impl Bsdf {
     /// Both sides of the shading and geometric normals must agree, or light would leak through
     /// surfaces whose shading normals differ from their geometry.
     fn valid_pair(&self, wo: Vec3, wi: Vec3) -> bool {
-        self.n.dot(wo) > 0.0
-            && self.n.dot(wi) > 0.0
-            && self.ng.dot(wi) > 0.0
-            && self.ng.dot(wo) > 0.0
+        self.n.dot(wo) > 0.0 && self.n.dot(wi) > 0.0 && self.ng.dot(wi) > 0.0 && self.ng.dot(wo) > 0.0
     }
 
     /// `(f * cos(wi), pdf(wi))` for the pair; zero when `wi` is below the surface.
@@ -166,11 +160,7 @@ impl Bsdf {
 fn sample_ggx_vndf(v: Vec3, alpha: f32, u0: f32, u1: f32) -> Vec3 {
     let vh = Vec3::new(alpha * v.x, alpha * v.y, v.z).normalize();
     let len_sq = vh.x * vh.x + vh.y * vh.y;
-    let t1 = if len_sq > 0.0 {
-        Vec3::new(-vh.y, vh.x, 0.0) / len_sq.sqrt()
-    } else {
-        Vec3::X
-    };
+    let t1 = if len_sq > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / len_sq.sqrt() } else { Vec3::X };
     let t2 = vh.cross(t1);
     let r = u0.sqrt();
     let phi = TAU * u1;
@@ -220,10 +210,7 @@ mod tests {
             let wi = Vec3::new(rr * phi.cos(), rr * phi.sin(), z);
             uniform += (bsdf.eval(wo, wi).0 * TAU).as_dvec3();
         }
-        (
-            (importance / n as f64).as_vec3(),
-            (uniform / n as f64).as_vec3(),
-        )
+        ((importance / n as f64).as_vec3(), (uniform / n as f64).as_vec3())
     }
 
     #[test]

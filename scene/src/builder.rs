@@ -13,12 +13,7 @@ pub struct SceneBuilder {
 
 impl SceneBuilder {
     pub fn new(name: &str) -> Self {
-        Self {
-            scene: Scene {
-                name: name.to_string(),
-                ..Default::default()
-            },
-        }
+        Self { scene: Scene { name: name.to_string(), ..Default::default() } }
     }
 
     /// Adds a material and returns its index.
@@ -59,11 +54,7 @@ impl SceneBuilder {
     /// A closed box with outward faces, rotated by `yaw` radians about +Y around its centre.
     pub fn cuboid(&mut self, center: Vec3, half: Vec3, yaw: f32, material: u32) -> &mut Self {
         let r = Quat::from_rotation_y(yaw);
-        let (x, y, z) = (
-            r * Vec3::X * half.x,
-            r * Vec3::Y * half.y,
-            r * Vec3::Z * half.z,
-        );
+        let (x, y, z) = (r * Vec3::X * half.x, r * Vec3::Y * half.y, r * Vec3::Z * half.z);
         let c = center;
         // Each face: corner, u, v with u x v pointing outwards.
         let faces = [
@@ -81,20 +72,11 @@ impl SceneBuilder {
     }
 
     /// A closed icosphere with smooth normals; `subdivisions` 2 gives 320 triangles.
-    pub fn sphere(
-        &mut self,
-        center: Vec3,
-        radius: f32,
-        subdivisions: u32,
-        material: u32,
-    ) -> &mut Self {
+    pub fn sphere(&mut self, center: Vec3, radius: f32, subdivisions: u32, material: u32) -> &mut Self {
         let (verts, tris) = icosphere(subdivisions);
         let base = self.scene.positions.len() as u32;
         for v in &verts {
-            let uv = Vec2::new(
-                0.5 + v.z.atan2(v.x) / std::f32::consts::TAU,
-                0.5 - v.y.asin() / std::f32::consts::PI,
-            );
+            let uv = Vec2::new(0.5 + v.z.atan2(v.x) / std::f32::consts::TAU, 0.5 - v.y.asin() / std::f32::consts::PI);
             self.vertex(center + *v * radius, *v, uv);
         }
         for t in tris {
@@ -195,10 +177,7 @@ mod tests {
             let [a, b2, c] = s.triangle_positions(t);
             let n = (b2 - a).cross(c - a);
             let centroid = (a + b2 + c) / 3.0;
-            assert!(
-                n.dot(centroid - Vec3::new(1.0, 2.0, 3.0)) > 0.0,
-                "face {t} points inwards"
-            );
+            assert!(n.dot(centroid - Vec3::new(1.0, 2.0, 3.0)) > 0.0, "face {t} points inwards");
             assert!(n.normalize().dot(s.normals[s.triangles[t][0] as usize]) > 0.999);
         }
     }

@@ -47,34 +47,17 @@ impl SceneBvh {
         let tris: Vec<Triangle> = (0..scene.triangle_count())
             .map(|t| {
                 let [a, b, c] = scene.triangle_positions(t);
-                Triangle {
-                    v0: a.into(),
-                    v1: b.into(),
-                    v2: c.into(),
-                }
+                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
             })
             .collect();
         let mut core = Duration::ZERO;
         let cwbvh = if tris.is_empty() {
             CwBvh::default()
         } else {
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(
-                &tris,
-                BvhBuildParams::medium_build(),
-                &mut core,
-            )
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut core)
         };
-        let tris = cwbvh
-            .primitive_indices
-            .iter()
-            .map(|&i| tris[i as usize])
-            .collect();
-        Self {
-            cwbvh,
-            tris,
-            build_time: start.elapsed(),
-            core_build_time: core,
-        }
+        let tris = cwbvh.primitive_indices.iter().map(|&i| tris[i as usize]).collect();
+        Self { cwbvh, tris, build_time: start.elapsed(), core_build_time: core }
     }
 
     pub fn node_count(&self) -> usize {
@@ -87,28 +70,19 @@ impl SceneBvh {
     }
 
     /// Closest hit in `(tmin, tmax)`, skipping alpha-masked-out texels.
-    pub fn closest_hit(
-        &self,
-        scene: &Scene,
-        origin: Vec3,
-        dir: Vec3,
-        tmin: f32,
-        tmax: f32,
-    ) -> Option<Hit> {
+    pub fn closest_hit(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         if self.tris.is_empty() {
             return None;
         }
         let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
         let mut hit = RayHit::none();
         let mut bary = Vec2::ZERO;
-        self.cwbvh.ray_traverse(ray, &mut hit, |r, id| {
-            match self.intersect_visible(scene, id, r) {
-                Some((t, uv)) => {
-                    bary = uv;
-                    t
-                }
-                None => f32::INFINITY,
+        self.cwbvh.ray_traverse(ray, &mut hit, |r, id| match self.intersect_visible(scene, id, r) {
+            Some((t, uv)) => {
+                bary = uv;
+                t
             }
+            None => f32::INFINITY,
         });
         // obvhs records the barycentrics of the last accepted candidate, which is the closest
         // because it shrinks tmax on every accepted hit.
@@ -126,10 +100,9 @@ impl SceneBvh {
             return false;
         }
         let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
-        !self.cwbvh.ray_traverse_miss(ray, |r, id| {
-            self.intersect_visible(scene, id, r)
-                .map_or(f32::INFINITY, |(t, _)| t)
-        })
+        !self
+            .cwbvh
+            .ray_traverse_miss(ray, |r, id| self.intersect_visible(scene, id, r).map_or(f32::INFINITY, |(t, _)| t))
     }
 
     /// Ray-triangle test plus the alpha mask.
@@ -173,22 +146,12 @@ pub fn intersect_triangle(tri: &Triangle, ray: &Ray) -> Option<(f32, Vec2)> {
 }
 
 /// Closest hit by testing every triangle (no BVH, no alpha): the oracle for BVH tests.
-pub fn brute_force_closest(
-    scene: &Scene,
-    origin: Vec3,
-    dir: Vec3,
-    tmin: f32,
-    tmax: f32,
-) -> Option<(u32, f32)> {
+pub fn brute_force_closest(scene: &Scene, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<(u32, f32)> {
     let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
     let mut best: Option<(u32, f32)> = None;
     for t in 0..scene.triangle_count() {
         let [a, b, c] = scene.triangle_positions(t);
-        let tri = Triangle {
-            v0: a.into(),
-            v1: b.into(),
-            v2: c.into(),
-        };
+        let tri = Triangle { v0: a.into(), v1: b.into(), v2: c.into() };
         if let Some((d, _)) = intersect_triangle(&tri, &ray) {
             if best.is_none_or(|(_, bd)| d < bd) {
                 best = Some((t as u32, d));
@@ -204,17 +167,9 @@ mod tests {
 
     #[test]
     fn barycentrics_reconstruct_the_hit_point() {
-        let tri = Triangle {
-            v0: Vec3A::new(0.0, 0.0, 0.0),
-            v1: Vec3A::new(2.0, 0.0, 0.0),
-            v2: Vec3A::new(0.0, 3.0, 0.0),
-        };
-        let ray = Ray::new(
-            Vec3A::new(0.5, 0.75, 1.0),
-            Vec3A::new(0.0, 0.0, -1.0),
-            0.0,
-            10.0,
-        );
+        let tri =
+            Triangle { v0: Vec3A::new(0.0, 0.0, 0.0), v1: Vec3A::new(2.0, 0.0, 0.0), v2: Vec3A::new(0.0, 3.0, 0.0) };
+        let ray = Ray::new(Vec3A::new(0.5, 0.75, 1.0), Vec3A::new(0.0, 0.0, -1.0), 0.0, 10.0);
         let (t, uv) = intersect_triangle(&tri, &ray).unwrap();
         assert!((t - 1.0).abs() < 1e-6);
         let p = tri.v0 * (1.0 - uv.x - uv.y) + tri.v1 * uv.x + tri.v2 * uv.y;

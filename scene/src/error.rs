@@ -8,7 +8,7 @@ use std::path::PathBuf;
 /// is broken and why; none of them is ever raised as a panic.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{path}: cannot read file: {source}")]
+    #[error("{path}: cannot read file")]
     Io {
         path: PathBuf,
         #[source]
@@ -16,49 +16,22 @@ pub enum SceneError {
     },
     #[error("{path}: malformed glTF JSON: {detail}")]
     MalformedJson { path: PathBuf, detail: String },
-    #[error(
-        "{path}: requires glTF extension {extension}, which Parallax does not support (supported: {supported})"
-    )]
-    UnsupportedExtension {
-        path: PathBuf,
-        extension: String,
-        supported: &'static str,
-    },
+    #[error("{path}: requires glTF extension {extension}, which Parallax does not support (supported: {supported})")]
+    UnsupportedExtension { path: PathBuf, extension: String, supported: &'static str },
     #[error("{path}: invalid glTF: {detail}")]
     InvalidGltf { path: PathBuf, detail: String },
     #[error("{path}: buffer {buffer} ({uri}) is missing or too short: {detail}")]
-    MissingBuffer {
-        path: PathBuf,
-        buffer: usize,
-        uri: String,
-        detail: String,
-    },
+    MissingBuffer { path: PathBuf, buffer: usize, uri: String, detail: String },
     #[error("{path}: image {image} ({uri}) cannot be read: {detail}")]
-    BadImage {
-        path: PathBuf,
-        image: usize,
-        uri: String,
-        detail: String,
-    },
+    BadImage { path: PathBuf, image: usize, uri: String, detail: String },
     #[error("{path}: accessor {accessor} is empty or reads past the end of its buffer view")]
     AccessorOutOfBounds { path: PathBuf, accessor: usize },
     #[error(
         "{path}: mesh {mesh} primitive {primitive}: vertex index {index} out of range (the primitive has {vertex_count} vertices)"
     )]
-    IndexOutOfRange {
-        path: PathBuf,
-        mesh: usize,
-        primitive: usize,
-        index: u32,
-        vertex_count: usize,
-    },
+    IndexOutOfRange { path: PathBuf, mesh: usize, primitive: usize, index: u32, vertex_count: usize },
     #[error("{path}: mesh {mesh} primitive {primitive}: {what}")]
-    BadPrimitive {
-        path: PathBuf,
-        mesh: usize,
-        primitive: usize,
-        what: String,
-    },
+    BadPrimitive { path: PathBuf, mesh: usize, primitive: usize, what: String },
     #[error("{path}: uses {what}, which Parallax does not support")]
     Unsupported { path: PathBuf, what: String },
     #[error("{path}: the scene has no triangles to render")]

@@ -18,17 +18,13 @@ use crate::error::SceneError;
 use crate::model::{AlphaMode, Camera, Material, PunctualKind, PunctualLight, Scene, Texture};
 
 /// Extensions a file may list in `extensionsRequired`.
-pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] =
-    &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
+pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
 const SUPPORTED_LIST: &str = "KHR_materials_emissive_strength, KHR_lights_punctual";
 
 /// Loads a `.gltf` (with external or embedded buffers) or `.glb` file.
 pub fn load_gltf(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
     let base = path.parent().unwrap_or(Path::new("."));
     load_gltf_bytes(&bytes, base, path)
 }
@@ -60,17 +56,9 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
     let p = || path.to_path_buf();
     // Parse without validation first, so that an unsupported required extension is reported
     // by name rather than as a generic validation failure.
-    let raw = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| {
-        SceneError::MalformedJson {
-            path: p(),
-            detail: e.to_string(),
-        }
-    })?;
-    if let Some(ext) = raw
-        .document
-        .extensions_required()
-        .find(|e| !SUPPORTED_REQUIRED_EXTENSIONS.contains(e))
-    {
+    let raw = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| SceneError::MalformedJson { path: p(), detail: e.to_string() })?;
+    if let Some(ext) = raw.document.extensions_required().find(|e| !SUPPORTED_REQUIRED_EXTENSIONS.contains(e)) {
         return Err(SceneError::UnsupportedExtension {
             path: p(),
             extension: ext.to_string(),
@@ -82,11 +70,7 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
     let root = raw.document.as_json();
     for (mi, mesh) in root.meshes.iter().enumerate() {
         for (pi, prim) in mesh.primitives.iter().enumerate() {
-            if let Some(bad) = prim
-                .attributes
-                .values()
-                .find(|a| a.value() >= root.accessors.len())
-            {
+            if let Some(bad) = prim.attributes.values().find(|a| a.value() >= root.accessors.len()) {
                 return Err(SceneError::InvalidGltf {
                     path: p(),
                     detail: format!(
@@ -102,17 +86,9 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| match e {
         gltf::Error::Validation(errors) => SceneError::InvalidGltf {
             path: p(),
-            detail: errors
-                .iter()
-                .take(3)
-                .map(|(at, err)| format!("{at}: {err}"))
-                .collect::<Vec<_>>()
-                .join("; "),
+            detail: errors.iter().take(3).map(|(at, err)| format!("{at}: {err}")).collect::<Vec<_>>().join("; "),
         },
-        other => SceneError::MalformedJson {
-            path: p(),
-            detail: other.to_string(),
-        },
+        other => SceneError::MalformedJson { path: p(), detail: other.to_string() },
     })?;
     let gltf::Gltf { document, blob } = gltf;
     let buffers = load_buffers(&document, base_dir, blob, path)?;
@@ -124,10 +100,7 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
         doc: &document,
         buffers: &buffers,
         scene: Scene {
-            name: path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
+            name: path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
             textures,
             ..Default::default()
         },
@@ -138,18 +111,13 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
     if imp.scene.triangles.is_empty() {
         return Err(SceneError::NoGeometry { path: p() });
     }
-    imp.scene
-        .check()
-        .map_err(|detail| SceneError::InvalidGltf { path: p(), detail })?;
+    imp.scene.check().map_err(|detail| SceneError::InvalidGltf { path: p(), detail })?;
     Ok(imp.scene)
 }
 
 impl Importer<'_> {
     fn err_unsupported(&self, what: impl Into<String>) -> SceneError {
-        SceneError::Unsupported {
-            path: self.path.to_path_buf(),
-            what: what.into(),
-        }
+        SceneError::Unsupported { path: self.path.to_path_buf(), what: what.into() }
     }
 
     fn import_materials(&mut self) -> Result<(), SceneError> {
@@ -217,11 +185,7 @@ impl Importer<'_> {
         let node_count = self.doc.nodes().len();
         let mut world = vec![Mat4::IDENTITY; node_count];
         let mut in_scene = vec![false; node_count];
-        let roots: Vec<usize> = match self
-            .doc
-            .default_scene()
-            .or_else(|| self.doc.scenes().next())
-        {
+        let roots: Vec<usize> = match self.doc.default_scene().or_else(|| self.doc.scenes().next()) {
             Some(s) => s.nodes().map(|n| n.index()).collect(),
             None => {
                 // No scene: every node that is nobody's child is a root.
@@ -235,8 +199,7 @@ impl Importer<'_> {
             }
         };
         let nodes: Vec<gltf::Node> = self.doc.nodes().collect();
-        let mut stack: Vec<(usize, Mat4, usize)> =
-            roots.iter().map(|&r| (r, Mat4::IDENTITY, 0)).collect();
+        let mut stack: Vec<(usize, Mat4, usize)> = roots.iter().map(|&r| (r, Mat4::IDENTITY, 0)).collect();
         let mut order = Vec::new();
         while let Some((i, parent, depth)) = stack.pop() {
             if in_scene[i] || depth > node_count {
@@ -264,10 +227,7 @@ impl Importer<'_> {
         for i in order {
             let node = &nodes[i];
             if let Some(mesh) = node.mesh() {
-                let skin = node
-                    .skin()
-                    .map(|s| self.joint_matrices(&s, &world))
-                    .transpose()?;
+                let skin = node.skin().map(|s| self.joint_matrices(&s, &world)).transpose()?;
                 for prim in mesh.primitives() {
                     self.import_primitive(&mesh, &prim, world[i], skin.as_deref())?;
                 }
@@ -275,9 +235,7 @@ impl Importer<'_> {
             if let Some(cam) = node.camera() {
                 // Orthographic cameras are skipped: nothing we render uses them.
                 if let gltf::camera::Projection::Perspective(p) = cam.projection() {
-                    self.scene
-                        .cameras
-                        .push(Camera::from_world_matrix(world[i], p.yfov()));
+                    self.scene.cameras.push(Camera::from_world_matrix(world[i], p.yfov()));
                 }
             }
             if let Some(light) = node.light() {
@@ -290,15 +248,10 @@ impl Importer<'_> {
     /// Joint matrices for the rest pose: world(joint) * inverseBind(joint).
     fn joint_matrices(&self, skin: &gltf::Skin, world: &[Mat4]) -> Result<Vec<Mat4>, SceneError> {
         if let Some(a) = skin.inverse_bind_matrices() {
-            if a.data_type() != gltf::accessor::DataType::F32
-                || a.dimensions() != gltf::accessor::Dimensions::Mat4
-            {
+            if a.data_type() != gltf::accessor::DataType::F32 || a.dimensions() != gltf::accessor::Dimensions::Mat4 {
                 return Err(SceneError::InvalidGltf {
                     path: self.path.to_path_buf(),
-                    detail: format!(
-                        "skin {} inverse bind matrices are not float MAT4",
-                        skin.index()
-                    ),
+                    detail: format!("skin {} inverse bind matrices are not float MAT4", skin.index()),
                 });
             }
         }
@@ -310,17 +263,10 @@ impl Importer<'_> {
         if ibms.len() < skin.joints().len() {
             return Err(SceneError::InvalidGltf {
                 path: self.path.to_path_buf(),
-                detail: format!(
-                    "skin {} has fewer inverse bind matrices than joints",
-                    skin.index()
-                ),
+                detail: format!("skin {} has fewer inverse bind matrices than joints", skin.index()),
             });
         }
-        Ok(skin
-            .joints()
-            .zip(ibms)
-            .map(|(j, ibm)| world[j.index()] * ibm)
-            .collect())
+        Ok(skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * ibm).collect())
     }
 
     fn import_primitive(
@@ -337,22 +283,15 @@ impl Importer<'_> {
             what,
         };
         if prim.mode() != gltf::mesh::Mode::Triangles {
-            return Err(bad(format!(
-                "mode {:?} (only TRIANGLES is supported)",
-                prim.mode()
-            )));
+            return Err(bad(format!("mode {:?} (only TRIANGLES is supported)", prim.mode())));
         }
         check_attribute_types(prim).map_err(bad)?;
         let buffers = &self.buffers;
         let reader = prim.reader(|b| Some(&buffers[b.index()].0[..]));
-        let mut positions: Vec<Vec3> = reader
-            .read_positions()
-            .ok_or_else(|| bad("no POSITION attribute".into()))?
-            .map(Vec3::from)
-            .collect();
+        let mut positions: Vec<Vec3> =
+            reader.read_positions().ok_or_else(|| bad("no POSITION attribute".into()))?.map(Vec3::from).collect();
         let vertex_count = positions.len();
-        let mut normals: Option<Vec<Vec3>> =
-            reader.read_normals().map(|n| n.map(Vec3::from).collect());
+        let mut normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(Vec3::from).collect());
         let uvs: Vec<Vec2> = match reader.read_tex_coords(0) {
             Some(t) => t.into_f32().map(Vec2::from).collect(),
             None => vec![Vec2::ZERO; vertex_count],
@@ -362,10 +301,7 @@ impl Importer<'_> {
             None => (0..vertex_count as u32).collect(),
         };
         if indices.len() % 3 != 0 {
-            return Err(bad(format!(
-                "{} indices, not a multiple of 3",
-                indices.len()
-            )));
+            return Err(bad(format!("{} indices, not a multiple of 3", indices.len())));
         }
         if let Some(&index) = indices.iter().find(|&&i| i as usize >= vertex_count) {
             return Err(SceneError::IndexOutOfRange {
@@ -392,13 +328,9 @@ impl Importer<'_> {
                 for (jv, wv) in j.iter().zip(&w) {
                     let mut m = Mat4::ZERO;
                     for k in 0..4 {
-                        let joint = *js.get(jv[k] as usize).ok_or_else(|| {
-                            bad(format!(
-                                "joint index {} out of range ({} joints)",
-                                jv[k],
-                                js.len()
-                            ))
-                        })?;
+                        let joint = *js
+                            .get(jv[k] as usize)
+                            .ok_or_else(|| bad(format!("joint index {} out of range ({} joints)", jv[k], js.len())))?;
                         m += joint * wv[k];
                     }
                     per_vertex.push(m);
@@ -434,11 +366,7 @@ impl Importer<'_> {
         if positions.iter().any(|p| !p.is_finite()) {
             return Err(SceneError::NonFinite {
                 path: self.path.to_path_buf(),
-                what: format!(
-                    "positions of mesh {} primitive {}",
-                    mesh.index(),
-                    prim.index()
-                ),
+                what: format!("positions of mesh {} primitive {}", mesh.index(), prim.index()),
             });
         }
         // A mirroring transform reverses the winding (glTF spec); flip it back so that
@@ -484,9 +412,7 @@ impl Importer<'_> {
 fn check_attribute_types(prim: &gltf::Primitive) -> Result<(), String> {
     use gltf::accessor::{DataType as T, Dimensions as D};
     use gltf::mesh::Semantic;
-    let ok = |a: &gltf::Accessor, types: &[T], dims: D| {
-        types.contains(&a.data_type()) && a.dimensions() == dims
-    };
+    let ok = |a: &gltf::Accessor, types: &[T], dims: D| types.contains(&a.data_type()) && a.dimensions() == dims;
     for (semantic, a) in prim.attributes() {
         let fine = match semantic {
             Semantic::Positions | Semantic::Normals => ok(&a, &[T::F32], D::Vec3),
@@ -506,11 +432,7 @@ fn check_attribute_types(prim: &gltf::Primitive) -> Result<(), String> {
     }
     if let Some(i) = prim.indices() {
         if !ok(&i, &[T::U8, T::U16, T::U32], D::Scalar) {
-            return Err(format!(
-                "indices have type {:?} {:?}",
-                i.data_type(),
-                i.dimensions()
-            ));
+            return Err(format!("indices have type {:?} {:?}", i.data_type(), i.dimensions()));
         }
     }
     Ok(())
@@ -521,20 +443,14 @@ fn light_from_gltf(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Pun
     let kind = match light.kind() {
         Kind::Point => PunctualKind::Point,
         Kind::Directional => PunctualKind::Directional,
-        Kind::Spot {
-            inner_cone_angle,
-            outer_cone_angle,
-        } => PunctualKind::Spot {
-            inner_cone: inner_cone_angle,
-            outer_cone: outer_cone_angle,
-        },
+        Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+            PunctualKind::Spot { inner_cone: inner_cone_angle, outer_cone: outer_cone_angle }
+        }
     };
     PunctualLight {
         kind,
         position: world.transform_point3(Vec3::ZERO),
-        direction: world
-            .transform_vector3(Vec3::NEG_Z)
-            .normalize_or(Vec3::NEG_Z),
+        direction: world.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Z),
         color: Vec3::from(light.color()),
         intensity: light.intensity(),
     }
@@ -556,28 +472,14 @@ fn load_buffers(
 ) -> Result<Vec<gltf::buffer::Data>, SceneError> {
     gltf::import_buffers(doc, Some(base_dir), blob).map_err(|e| {
         let (buffer, detail) = match &e {
-            gltf::Error::BufferLength {
-                buffer,
-                expected,
-                actual,
-            } => (
-                *buffer,
-                format!("expected {expected} bytes, found {actual}"),
-            ),
+            gltf::Error::BufferLength { buffer, expected, actual } => {
+                (*buffer, format!("expected {expected} bytes, found {actual}"))
+            }
             // import_buffers stops at the first failing buffer: find which one it was.
             _ => (first_unreadable_buffer(doc, base_dir), e.to_string()),
         };
-        let uri = doc
-            .buffers()
-            .nth(buffer)
-            .map(|b| buffer_uri(&b))
-            .unwrap_or_default();
-        SceneError::MissingBuffer {
-            path: path.to_path_buf(),
-            buffer,
-            uri,
-            detail,
-        }
+        let uri = doc.buffers().nth(buffer).map(|b| buffer_uri(&b)).unwrap_or_default();
+        SceneError::MissingBuffer { path: path.to_path_buf(), buffer, uri, detail }
     })
 }
 
@@ -592,29 +494,19 @@ fn first_unreadable_buffer(doc: &gltf::Document, base_dir: &Path) -> usize {
 
 /// Every accessor must lie inside its buffer view and every view inside its buffer: the gltf
 /// crate's readers index without checking.
-fn check_accessors(
-    doc: &gltf::Document,
-    buffers: &[gltf::buffer::Data],
-    path: &Path,
-) -> Result<(), SceneError> {
+fn check_accessors(doc: &gltf::Document, buffers: &[gltf::buffer::Data], path: &Path) -> Result<(), SceneError> {
     for view in doc.views() {
         let len = buffers.get(view.buffer().index()).map_or(0, |b| b.len());
         let end = view.offset().checked_add(view.length());
         if end.is_none_or(|e| e > len) {
             return Err(SceneError::InvalidGltf {
                 path: path.to_path_buf(),
-                detail: format!(
-                    "buffer view {} reads past the end of its buffer",
-                    view.index()
-                ),
+                detail: format!("buffer view {} reads past the end of its buffer", view.index()),
             });
         }
     }
     for acc in doc.accessors() {
-        let oob = || SceneError::AccessorOutOfBounds {
-            path: path.to_path_buf(),
-            accessor: acc.index(),
-        };
+        let oob = || SceneError::AccessorOutOfBounds { path: path.to_path_buf(), accessor: acc.index() };
         if acc.sparse().is_some() {
             return Err(SceneError::Unsupported {
                 path: path.to_path_buf(),
@@ -663,16 +555,12 @@ fn decode_images(
                         .ok_or_else(|| "buffer view out of range".to_string());
                     (format!("buffer view {}", view.index()), bytes)
                 }
-                gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => (
-                    "data URI".into(),
-                    Err("embedded data: URI images are not supported".into()),
-                ),
+                gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                    ("data URI".into(), Err("embedded data: URI images are not supported".into()))
+                }
                 gltf::image::Source::Uri { uri, .. } => {
                     let file: PathBuf = base_dir.join(uri);
-                    (
-                        uri.to_string(),
-                        std::fs::read(&file).map_err(|e| e.to_string()),
-                    )
+                    (uri.to_string(), std::fs::read(&file).map_err(|e| e.to_string()))
                 }
             };
             let bad = |detail: String| SceneError::BadImage {
@@ -684,11 +572,7 @@ fn decode_images(
             let encoded = encoded.map_err(bad)?;
             let decoded = image::load_from_memory(&encoded).map_err(|e| bad(e.to_string()))?;
             let rgba = decoded.to_rgba8();
-            Ok(Texture {
-                width: rgba.width(),
-                height: rgba.height(),
-                rgba8: rgba.into_raw(),
-            })
+            Ok(Texture { width: rgba.width(), height: rgba.height(), rgba8: rgba.into_raw() })
         })
         .collect()
 }

@@ -188,10 +188,7 @@ impl<'a> GpuScene<'a> {
             .map(|l| {
                 let (kind, ci, co) = match l.kind {
                     PunctualKind::Point => (LIGHT_POINT, 1.0, -1.0),
-                    PunctualKind::Spot {
-                        inner_cone,
-                        outer_cone,
-                    } => (LIGHT_SPOT, inner_cone.cos(), outer_cone.cos()),
+                    PunctualKind::Spot { inner_cone, outer_cone } => (LIGHT_SPOT, inner_cone.cos(), outer_cone.cos()),
                     PunctualKind::Directional => (LIGHT_DIRECTIONAL, 1.0, -1.0),
                 };
                 GpuPunctualLight {
@@ -204,15 +201,7 @@ impl<'a> GpuScene<'a> {
                 }
             })
             .collect();
-        Self {
-            nodes: &bvh.cwbvh.nodes,
-            triangles,
-            attributes,
-            materials,
-            emissive,
-            lights,
-            textures: &scene.textures,
-        }
+        Self { nodes: &bvh.cwbvh.nodes, triangles, attributes, materials, emissive, lights, textures: &scene.textures }
     }
 
     pub fn node_bytes(&self) -> &[u8] {
@@ -262,11 +251,7 @@ mod tests {
             assert_eq!(glam::Vec3A::from(glam::Vec3::from(t.v0)), bvh.tris[k].v0);
             assert_eq!(glam::Vec3A::from(glam::Vec3::from(t.v2)), bvh.tris[k].v2);
         }
-        assert_eq!(
-            gpu.emissive.len(),
-            2,
-            "the default scene's lamp is two triangles"
-        );
+        assert_eq!(gpu.emissive.len(), 2, "the default scene's lamp is two triangles");
         assert_eq!(gpu.emissive.last().unwrap().cdf, 1.0);
         for e in &gpu.emissive {
             assert!(gpu.triangles[e.bvh_primitive as usize].flags & TRI_EMISSIVE != 0);

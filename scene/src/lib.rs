@@ -40,16 +40,10 @@ pub use bvh::{Hit, SceneBvh};
 pub use default_scene::default_scene;
 pub use error::SceneError;
 pub use gltf_import::{load_gltf, load_gltf_bytes};
-pub use model::{
-    AlphaMode, Bounds, Camera, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture,
-};
+pub use model::{AlphaMode, Bounds, Camera, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture};
 pub use pt::{CpuTracer, Frame, PixelSample, PixelSet, TraceSettings, TraceStats, View};
 
 /// Loads a scene: `"default"` is the embedded default scene, anything else a glTF path.
 pub fn load_scene(spec: &str) -> Result<Scene, SceneError> {
-    if spec == "default" {
-        Ok(default_scene())
-    } else {
-        load_gltf(spec)
-    }
+    if spec == "default" { Ok(default_scene()) } else { load_gltf(spec) }
 }

@@ -69,12 +69,7 @@ impl LightSet {
         let mut emissive = Vec::new();
         let mut weights = Vec::new();
         let mut area = vec![0.0; scene.triangle_count()];
-        for (t, (&mi, tri_area)) in scene
-            .triangle_materials
-            .iter()
-            .zip(area.iter_mut())
-            .enumerate()
-        {
+        for (t, (&mi, tri_area)) in scene.triangle_materials.iter().zip(area.iter_mut()).enumerate() {
             let m = &scene.materials[mi as usize];
             if !m.is_emissive() {
                 continue;
@@ -100,9 +95,7 @@ impl LightSet {
         if let Some(last) = emissive_cdf.last_mut() {
             *last = 1.0;
         }
-        let sun = scene
-            .sun
-            .filter(|s| s.irradiance.max_element() > 0.0 && s.to_sun.is_finite());
+        let sun = scene.sun.filter(|s| s.irradiance.max_element() > 0.0 && s.to_sun.is_finite());
         let mut groups = Vec::new();
         if sun.is_some() {
             groups.push(Group::Sun);
@@ -116,14 +109,7 @@ impl LightSet {
         if !emissive.is_empty() {
             groups.push(Group::Emissive);
         }
-        Self {
-            groups,
-            emissive,
-            emissive_cdf,
-            emissive_prob,
-            area,
-            sun,
-        }
+        Self { groups, emissive, emissive_cdf, emissive_prob, area, sun }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -140,11 +126,7 @@ impl LightSet {
     }
 
     fn group_prob(&self, g: Group) -> f32 {
-        if self.groups.contains(&g) {
-            1.0 / self.groups.len() as f32
-        } else {
-            0.0
-        }
+        if self.groups.contains(&g) { 1.0 / self.groups.len() as f32 } else { 0.0 }
     }
 
     /// Samples one light for shading point `p` with shading normal `n`; `u` are four uniforms.
@@ -175,8 +157,7 @@ impl LightSet {
                 let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
                 let phi = TAU * u[2];
                 let (t, b) = orthonormal_basis(to_sun);
-                let wi = (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + to_sun * cos_t)
-                    .normalize();
+                let wi = (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + to_sun * cos_t).normalize();
                 Some(LightSample {
                     wi,
                     distance: f32::INFINITY,
@@ -197,8 +178,7 @@ impl LightSet {
                 })
             }
             Group::Punctual => {
-                let k =
-                    ((u_within * scene.lights.len() as f32) as usize).min(scene.lights.len() - 1);
+                let k = ((u_within * scene.lights.len() as f32) as usize).min(scene.lights.len() - 1);
                 let light = &scene.lights[k];
                 let pdf = p_group / scene.lights.len() as f32;
                 let power = light.color * light.intensity;
@@ -218,11 +198,7 @@ impl LightSet {
                         }
                         let wi = to_light / d2.sqrt();
                         let mut radiance = power / d2;
-                        if let PunctualKind::Spot {
-                            inner_cone,
-                            outer_cone,
-                        } = light.kind
-                        {
+                        if let PunctualKind::Spot { inner_cone, outer_cone } = light.kind {
                             // glTF's recommended falloff between the cone angles.
                             let (ci, co) = (inner_cone.cos(), outer_cone.cos());
                             let scale = 1.0 / (ci - co).max(1e-3);
@@ -230,21 +206,12 @@ impl LightSet {
                             let a = ((cd - co) * scale).clamp(0.0, 1.0);
                             radiance *= a * a;
                         }
-                        Some(LightSample {
-                            wi,
-                            distance: d2.sqrt(),
-                            radiance,
-                            pdf,
-                            is_delta: true,
-                        })
+                        Some(LightSample { wi, distance: d2.sqrt(), radiance, pdf, is_delta: true })
                     }
                 }
             }
             Group::Emissive => {
-                let k = self
-                    .emissive_cdf
-                    .partition_point(|&c| c <= u_within)
-                    .min(self.emissive.len() - 1);
+                let k = self.emissive_cdf.partition_point(|&c| c <= u_within).min(self.emissive.len() - 1);
                 let tri = self.emissive[k] as usize;
                 let [a, b, c] = scene.triangle_positions(tri);
                 let su = u[1].sqrt();
@@ -271,11 +238,7 @@ impl LightSet {
                         + scene.uvs[j as usize] * b1
                         + scene.uvs[k2 as usize] * b2;
                     let t = scene.textures[tex as usize].sample_bilinear(uv);
-                    radiance *= Vec3::new(
-                        srgb_to_linear(t.x),
-                        srgb_to_linear(t.y),
-                        srgb_to_linear(t.z),
-                    );
+                    radiance *= Vec3::new(srgb_to_linear(t.x), srgb_to_linear(t.y), srgb_to_linear(t.z));
                 }
                 let pdf = p_group * self.emissive_prob[tri] * d2 / (self.area[tri] * cos_l.abs());
                 (pdf.is_finite() && pdf > 0.0).then_some(LightSample {
@@ -294,11 +257,7 @@ impl LightSet {
         match self.sun {
             Some(sun) if sun.angular_radius > 0.0 => {
                 let (cos_max, radiance) = sun_disc(&sun);
-                if dir.dot(sun.to_sun.normalize()) >= cos_max {
-                    radiance
-                } else {
-                    Vec3::ZERO
-                }
+                if dir.dot(sun.to_sun.normalize()) >= cos_max { radiance } else { Vec3::ZERO }
             }
             _ => Vec3::ZERO,
         }

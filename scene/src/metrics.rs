@@ -50,11 +50,7 @@ pub fn mse(a: &[Vec3], b: &[Vec3]) -> Option<[f64; 3]> {
 pub fn psnr(a: &[Vec3], b: &[Vec3], peak: f64) -> Option<f64> {
     let e = mse(a, b)?;
     let m = (e[0] + e[1] + e[2]) / 3.0;
-    Some(if m == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (peak * peak / m).log10()
-    })
+    Some(if m == 0.0 { f64::INFINITY } else { 10.0 * (peak * peak / m).log10() })
 }
 
 #[cfg(test)]

@@ -49,11 +49,7 @@ impl Texture {
 
 /// sRGB transfer function to linear, for base-colour and emissive texels.
 pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }
 
 /// How a material's alpha is interpreted. glTF BLEND is imported as `Mask(0.5)`: a path tracer
@@ -204,11 +200,7 @@ impl Sky {
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
         match *self {
             Sky::Constant(c) => c,
-            Sky::Gradient {
-                zenith,
-                horizon,
-                ground,
-            } => {
+            Sky::Gradient { zenith, horizon, ground } => {
                 if dir.y >= 0.0 {
                     horizon.lerp(zenith, dir.y.min(1.0))
                 } else {
@@ -221,11 +213,7 @@ impl Sky {
     pub fn is_black(&self) -> bool {
         match *self {
             Sky::Constant(c) => c.max_element() <= 0.0,
-            Sky::Gradient {
-                zenith,
-                horizon,
-                ground,
-            } => zenith.max(horizon).max(ground).max_element() <= 0.0,
+            Sky::Gradient { zenith, horizon, ground } => zenith.max(horizon).max(ground).max_element() <= 0.0,
         }
     }
 }
@@ -247,29 +235,15 @@ impl Camera {
     /// A camera at `eye` looking at `target`; `up` need not be orthogonal to the view direction.
     pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, yfov: f32) -> Self {
         let forward = (target - eye).normalize_or(Vec3::NEG_Z);
-        Self {
-            eye,
-            forward,
-            up: up.normalize_or(Vec3::Y),
-            yfov,
-            shift: Vec2::ZERO,
-        }
+        Self { eye, forward, up: up.normalize_or(Vec3::Y), yfov, shift: Vec2::ZERO }
     }
 
     /// From a glTF camera node's world matrix (camera looks down its -Z).
     pub fn from_world_matrix(world: Mat4, yfov: f32) -> Self {
         let eye = world.transform_point3(Vec3::ZERO);
-        let forward = world
-            .transform_vector3(Vec3::NEG_Z)
-            .normalize_or(Vec3::NEG_Z);
+        let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
         let up = world.transform_vector3(Vec3::Y).normalize_or(Vec3::Y);
-        Self {
-            eye,
-            forward,
-            up,
-            yfov,
-            shift: Vec2::ZERO,
-        }
+        Self { eye, forward, up, yfov, shift: Vec2::ZERO }
     }
 
     /// Orthonormal (right, up, back) basis; `back` = -forward.
@@ -348,11 +322,7 @@ impl Scene {
     /// The three world-space corners of triangle `t`.
     pub fn triangle_positions(&self, t: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[t];
-        [
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
-        ]
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
     pub fn bounds(&self) -> Bounds {
@@ -392,12 +362,7 @@ impl Scene {
     pub fn check(&self) -> Result<(), String> {
         let n = self.positions.len();
         if self.normals.len() != n || self.uvs.len() != n {
-            return Err(format!(
-                "{} positions, {} normals, {} uvs",
-                n,
-                self.normals.len(),
-                self.uvs.len()
-            ));
+            return Err(format!("{} positions, {} normals, {} uvs", n, self.normals.len(), self.uvs.len()));
         }
         if self.triangle_materials.len() != self.triangles.len() {
             return Err("one material per triangle required".into());
@@ -411,13 +376,8 @@ impl Scene {
         }
         let t = self.textures.len() as u32;
         for mat in &self.materials {
-            for tex in [
-                mat.base_color_texture,
-                mat.metallic_roughness_texture,
-                mat.emissive_texture,
-            ]
-            .into_iter()
-            .flatten()
+            for tex in
+                [mat.base_color_texture, mat.metallic_roughness_texture, mat.emissive_texture].into_iter().flatten()
             {
                 if tex >= t {
                     return Err(format!("material {} uses texture {tex} of {t}", mat.name));
@@ -425,10 +385,7 @@ impl Scene {
             }
         }
         for tex in &self.textures {
-            if tex.width == 0
-                || tex.height == 0
-                || tex.rgba8.len() != 4 * tex.width as usize * tex.height as usize
-            {
+            if tex.width == 0 || tex.height == 0 || tex.rgba8.len() != 4 * tex.width as usize * tex.height as usize {
                 return Err("texture size does not match its data".into());
             }
         }

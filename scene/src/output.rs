@@ -4,8 +4,7 @@
 use std::path::Path;
 
 use exr::prelude::{
-    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec,
-    WritableImage,
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, WritableImage,
 };
 use glam::Vec3;
 
@@ -24,11 +23,7 @@ pub struct ExrLayers {
 }
 
 impl ExrLayers {
-    pub const ALL: ExrLayers = ExrLayers {
-        albedo: true,
-        normal: true,
-        depth: true,
-    };
+    pub const ALL: ExrLayers = ExrLayers { albedo: true, normal: true, depth: true };
 }
 
 /// Writes `frame` as a single-part EXR with 32-bit float channels; layers use the usual
@@ -42,9 +37,8 @@ pub fn write_exr(path: &Path, frame: &Frame, layers: ExrLayers) -> Result<(), Sc
             detail: format!("{} pixels for a {w}x{h} image", px.len()),
         });
     }
-    let channel = |name: &str, f: &dyn Fn(usize) -> f32| {
-        AnyChannel::new(name, FlatSamples::F32((0..w * h).map(f).collect()))
-    };
+    let channel =
+        |name: &str, f: &dyn Fn(usize) -> f32| AnyChannel::new(name, FlatSamples::F32((0..w * h).map(f).collect()));
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     list.push(channel("R", &|i| px[i].radiance.x));
     list.push(channel("G", &|i| px[i].radiance.y));
@@ -62,32 +56,18 @@ pub fn write_exr(path: &Path, frame: &Frame, layers: ExrLayers) -> Result<(), Sc
     if layers.depth {
         list.push(channel("depth.Z", &|i| px[i].depth));
     }
-    let layer = Layer::new(
-        (w, h),
-        LayerAttributes::named("parallax"),
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(list),
-    );
+    let layer =
+        Layer::new((w, h), LayerAttributes::named("parallax"), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
     Image::from_layer(layer)
         .write()
         .to_file(path)
-        .map_err(|e| SceneError::ImageWrite {
-            path: path.to_path_buf(),
-            detail: e.to_string(),
-        })
+        .map_err(|e| SceneError::ImageWrite { path: path.to_path_buf(), detail: e.to_string() })
 }
 
 /// Reads the named channels of the first layer of an EXR (row-major), e.g. `["R","G","B"]`.
-pub fn read_exr_channels(
-    path: &Path,
-    names: &[&str],
-) -> Result<(usize, usize, Vec<Vec<f32>>), SceneError> {
-    let bad = |detail: String| SceneError::ImageWrite {
-        path: path.to_path_buf(),
-        detail,
-    };
-    let image =
-        exr::prelude::read_first_flat_layer_from_file(path).map_err(|e| bad(e.to_string()))?;
+pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, Vec<Vec<f32>>), SceneError> {
+    let bad = |detail: String| SceneError::ImageWrite { path: path.to_path_buf(), detail };
+    let image = exr::prelude::read_first_flat_layer_from_file(path).map_err(|e| bad(e.to_string()))?;
     let size = image.layer_data.size;
     let mut out = Vec::new();
     for name in names {
@@ -108,16 +88,8 @@ pub fn tonemap_to_srgb8(c: Vec3, exposure: f32) -> [u8; 3] {
     let x = (c * exposure).max(Vec3::ZERO);
     let mapped = (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14);
     let encode = |v: f32| {
-        let v = if v.is_finite() {
-            v.clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let s = if v <= 0.003_130_8 {
-            12.92 * v
-        } else {
-            1.055 * v.powf(1.0 / 2.4) - 0.055
-        };
+        let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+        let s = if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
         (s * 255.0 + 0.5) as u8
     };
     [encode(mapped.x), encode(mapped.y), encode(mapped.z)]
@@ -125,39 +97,20 @@ pub fn tonemap_to_srgb8(c: Vec3, exposure: f32) -> [u8; 3] {
 
 /// Tiles the frames (all the same size) into a grid `columns` wide with a 2-pixel gap, tonemaps
 /// them and writes an 8-bit sRGB PNG.
-pub fn write_contact_sheet(
-    path: &Path,
-    frames: &[&Frame],
-    columns: u32,
-    exposure: f32,
-) -> Result<(), SceneError> {
-    let bad = |detail: String| SceneError::ImageWrite {
-        path: path.to_path_buf(),
-        detail,
-    };
-    let first = frames
-        .first()
-        .ok_or_else(|| bad("no views to put on the sheet".into()))?;
+pub fn write_contact_sheet(path: &Path, frames: &[&Frame], columns: u32, exposure: f32) -> Result<(), SceneError> {
+    let bad = |detail: String| SceneError::ImageWrite { path: path.to_path_buf(), detail };
+    let first = frames.first().ok_or_else(|| bad("no views to put on the sheet".into()))?;
     let (fw, fh) = (first.width, first.height);
-    if frames
-        .iter()
-        .any(|f| f.width != fw || f.height != fh || f.pixels.len() != (fw * fh) as usize)
-    {
+    if frames.iter().any(|f| f.width != fw || f.height != fh || f.pixels.len() != (fw * fh) as usize) {
         return Err(bad("views differ in size".into()));
     }
     let gap = 2;
     let columns = columns.clamp(1, frames.len() as u32);
     let rows = (frames.len() as u32).div_ceil(columns);
-    let (w, h) = (
-        columns * fw + (columns - 1) * gap,
-        rows * fh + (rows - 1) * gap,
-    );
+    let (w, h) = (columns * fw + (columns - 1) * gap, rows * fh + (rows - 1) * gap);
     let mut sheet = image::RgbImage::new(w, h);
     for (k, frame) in frames.iter().enumerate() {
-        let (cx, cy) = (
-            (k as u32 % columns) * (fw + gap),
-            (k as u32 / columns) * (fh + gap),
-        );
+        let (cx, cy) = ((k as u32 % columns) * (fw + gap), (k as u32 / columns) * (fh + gap));
         for y in 0..fh {
             for x in 0..fw {
                 let p = frame.pixels[(y * fw + x) as usize].radiance;
@@ -165,7 +118,5 @@ pub fn write_contact_sheet(
             }
         }
     }
-    sheet
-        .save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| bad(e.to_string()))
+    sheet.save_with_format(path, image::ImageFormat::Png).map_err(|e| bad(e.to_string()))
 }

@@ -35,13 +35,7 @@ pub struct TraceSettings {
 
 impl Default for TraceSettings {
     fn default() -> Self {
-        Self {
-            spp: 1,
-            max_depth: 6,
-            frame: 0,
-            russian_roulette_from: None,
-            jitter: true,
-        }
+        Self { spp: 1, max_depth: 6, frame: 0, russian_roulette_from: None, jitter: true }
     }
 }
 
@@ -95,9 +89,7 @@ impl PixelSet {
     /// The pixel coordinates in the order results are returned (row-major for All/Rows).
     pub fn coordinates(&self, view: &View) -> Vec<(u32, u32)> {
         let rows = |a: u32, b: u32| -> Vec<(u32, u32)> {
-            (a..b.min(view.height))
-                .flat_map(|y| (0..view.width).map(move |x| (x, y)))
-                .collect()
+            (a..b.min(view.height)).flat_map(|y| (0..view.width).map(move |x| (x, y))).collect()
         };
         match self {
             PixelSet::All => rows(0, view.height),
@@ -159,15 +151,8 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
     const INT_SCALE: f32 = 256.0;
     let off = |p: f32, n: f32| -> f32 {
         let of_i = (INT_SCALE * n) as i32;
-        let moved =
-            f32::from_bits(
-                (p.to_bits() as i32).wrapping_add(if p < 0.0 { -of_i } else { of_i }) as u32,
-            );
-        if p.abs() < ORIGIN {
-            p + FLOAT_SCALE * n
-        } else {
-            moved
-        }
+        let moved = f32::from_bits((p.to_bits() as i32).wrapping_add(if p < 0.0 { -of_i } else { of_i }) as u32);
+        if p.abs() < ORIGIN { p + FLOAT_SCALE * n } else { moved }
     };
     Vec3::new(off(p.x, n.x), off(p.y, n.y), off(p.z, n.z))
 }
@@ -188,11 +173,7 @@ struct PrevVertex {
 
 impl<'a> CpuTracer<'a> {
     pub fn new(scene: &'a Scene, bvh: &'a SceneBvh) -> Self {
-        Self {
-            scene,
-            bvh,
-            lights: LightSet::new(scene),
-        }
+        Self { scene, bvh, lights: LightSet::new(scene) }
     }
 
     pub fn lights(&self) -> &LightSet {
@@ -273,12 +254,8 @@ impl<'a> CpuTracer<'a> {
                 let w = match &prev {
                     None => 1.0,
                     Some(p) => {
-                        let light_pdf = self.lights.pdf_emissive(
-                            hit.triangle,
-                            p.position,
-                            sp.position,
-                            sp.geometric_normal,
-                        );
+                        let light_pdf =
+                            self.lights.pdf_emissive(hit.triangle, p.position, sp.position, sp.geometric_normal);
                         mis_weight(p.bsdf_pdf, light_pdf)
                     }
                 };
@@ -302,11 +279,7 @@ impl<'a> CpuTracer<'a> {
                         f32::INFINITY
                     };
                     if !self.bvh.occluded(scene, origin, ls.wi, 0.0, tmax) {
-                        let w = if ls.is_delta {
-                            1.0
-                        } else {
-                            mis_weight(ls.pdf, bsdf_pdf)
-                        };
+                        let w = if ls.is_delta { 1.0 } else { mis_weight(ls.pdf, bsdf_pdf) };
                         radiance += throughput * fcos * ls.radiance * (w / ls.pdf);
                     }
                 }
@@ -329,11 +302,7 @@ impl<'a> CpuTracer<'a> {
             if throughput.max_element() <= 0.0 {
                 break;
             }
-            prev = Some(PrevVertex {
-                position: sp.position,
-                normal: sp.normal,
-                bsdf_pdf: bs.pdf,
-            });
+            prev = Some(PrevVertex { position: sp.position, normal: sp.normal, bsdf_pdf: bs.pdf });
             ro = origin;
             rd = bs.wi;
         }
@@ -354,15 +323,10 @@ impl<'a> CpuTracer<'a> {
             return Err(SceneError::InvalidSettings("view has zero pixels".into()));
         }
         if !view.camera.is_finite() {
-            return Err(SceneError::InvalidSettings(
-                "camera has non-finite values".into(),
-            ));
+            return Err(SceneError::InvalidSettings("camera has non-finite values".into()));
         }
         let coords = pixels.coordinates(view);
-        if let Some(&(x, y)) = coords
-            .iter()
-            .find(|&&(x, y)| x >= view.width || y >= view.height)
-        {
+        if let Some(&(x, y)) = coords.iter().find(|&&(x, y)| x >= view.width || y >= view.height) {
             return Err(SceneError::InvalidSettings(format!(
                 "pixel ({x}, {y}) outside the {}x{} view",
                 view.width, view.height
@@ -373,10 +337,7 @@ impl<'a> CpuTracer<'a> {
             .par_chunks(chunk)
             .map(|c| {
                 let mut stats = TraceStats::default();
-                let px = c
-                    .iter()
-                    .map(|&(x, y)| self.trace_pixel(view, settings, x, y, &mut stats))
-                    .collect();
+                let px = c.iter().map(|&(x, y)| self.trace_pixel(view, settings, x, y, &mut stats)).collect();
                 progress(c.len() as u64);
                 (px, stats)
             })
@@ -398,14 +359,7 @@ impl<'a> CpuTracer<'a> {
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(Frame, TraceStats), SceneError> {
         let (pixels, stats) = self.trace(view, settings, &PixelSet::All, progress)?;
-        Ok((
-            Frame {
-                width: view.width,
-                height: view.height,
-                pixels,
-            },
-            stats,
-        ))
+        Ok((Frame { width: view.width, height: view.height, pixels }, stats))
     }
 }
 

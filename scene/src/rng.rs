@@ -7,9 +7,7 @@ use glam::UVec4;
 
 /// PCG4D: a bijective hash of four 32-bit words into four well-mixed words.
 pub fn pcg4d(v: UVec4) -> UVec4 {
-    let mut v = v
-        .wrapping_mul(UVec4::splat(1_664_525))
-        .wrapping_add(UVec4::splat(1_013_904_223));
+    let mut v = v.wrapping_mul(UVec4::splat(1_664_525)).wrapping_add(UVec4::splat(1_013_904_223));
     v.x = v.x.wrapping_add(v.y.wrapping_mul(v.w));
     v.y = v.y.wrapping_add(v.z.wrapping_mul(v.x));
     v.z = v.z.wrapping_add(v.x.wrapping_mul(v.y));
@@ -50,19 +48,12 @@ pub enum Dim {
 
 impl PathRng {
     pub fn new(pixel_x: u32, pixel_y: u32, view: u32, frame: u32) -> Self {
-        Self {
-            key: pcg4d(UVec4::new(pixel_x, pixel_y, view, frame)),
-        }
+        Self { key: pcg4d(UVec4::new(pixel_x, pixel_y, view, frame)) }
     }
 
     /// Four uniforms in [0, 1) for (sample, bounce, dim).
     pub fn uniforms(&self, sample: u32, bounce: u32, dim: Dim) -> [f32; 4] {
-        let h = pcg4d(UVec4::new(
-            self.key.x ^ sample,
-            self.key.y ^ bounce,
-            self.key.z ^ dim as u32,
-            self.key.w,
-        ));
+        let h = pcg4d(UVec4::new(self.key.x ^ sample, self.key.y ^ bounce, self.key.z ^ dim as u32, self.key.w));
         [h.x, h.y, h.z, h.w].map(to_unit_float)
     }
 }
@@ -97,10 +88,7 @@ mod tests {
         assert!((var - 1.0 / 12.0).abs() < 0.005, "variance {var}");
         let expected = n as f64 / 16.0;
         for h in histogram {
-            assert!(
-                (h as f64 - expected).abs() < 0.1 * expected,
-                "{histogram:?}"
-            );
+            assert!((h as f64 - expected).abs() < 0.1 * expected, "{histogram:?}");
         }
     }
 

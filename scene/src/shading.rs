@@ -26,12 +26,7 @@ pub struct SurfacePoint {
 
 fn sample_srgb(scene: &Scene, tex: u32, uv: Vec2) -> Vec4 {
     let t = scene.textures[tex as usize].sample_bilinear(uv);
-    Vec4::new(
-        srgb_to_linear(t.x),
-        srgb_to_linear(t.y),
-        srgb_to_linear(t.z),
-        t.w,
-    )
+    Vec4::new(srgb_to_linear(t.x), srgb_to_linear(t.y), srgb_to_linear(t.z), t.w)
 }
 
 /// Base-colour alpha at `uv` (factor times texture), for alpha masking.
@@ -60,17 +55,12 @@ pub fn surface_point(scene: &Scene, hit: &Hit, origin: Vec3, dir: Vec3) -> Surfa
     let w = 1.0 - u - v;
     let uv = scene.uvs[i0] * w + scene.uvs[i1] * u + scene.uvs[i2] * v;
     let face = oriented_face_normal(scene, t);
-    let mut shading =
-        (scene.normals[i0] * w + scene.normals[i1] * u + scene.normals[i2] * v).normalize_or_zero();
+    let mut shading = (scene.normals[i0] * w + scene.normals[i1] * u + scene.normals[i2] * v).normalize_or_zero();
     if shading == Vec3::ZERO || !shading.is_finite() {
         shading = face;
     }
     let front_face = face.dot(dir) < 0.0;
-    let (geometric_normal, mut normal) = if front_face {
-        (face, shading)
-    } else {
-        (-face, -shading)
-    };
+    let (geometric_normal, mut normal) = if front_face { (face, shading) } else { (-face, -shading) };
     // A shading normal pointing away from the viewer makes the BSDF meaningless; fall back.
     if normal.dot(-dir) <= 0.0 {
         normal = geometric_normal;

@@ -49,18 +49,10 @@ fn compare_with_brute_force(scene: &Scene, rays: usize, seed: u64) -> usize {
                     let tie = f.triangle != tri;
                     if tie {
                         let [a, b, c] = scene.triangle_positions(f.triangle as usize);
-                        let tri = Triangle {
-                            v0: a.into(),
-                            v1: b.into(),
-                            v2: c.into(),
-                        };
+                        let tri = Triangle { v0: a.into(), v1: b.into(), v2: c.into() };
                         let ray = Ray::new(o.into(), d.into(), 1e-4, f32::INFINITY);
-                        let (t_own, _) =
-                            intersect_triangle(&tri, &ray).expect("BVH hit is a real hit");
-                        assert!(
-                            (t_own - t).abs() <= 1e-6 * t,
-                            "ray {i}: not a tie: {t_own} vs {t}"
-                        );
+                        let (t_own, _) = intersect_triangle(&tri, &ray).expect("BVH hit is a real hit");
+                        assert!((t_own - t).abs() <= 1e-6 * t, "ray {i}: not a tie: {t_own} vs {t}");
                     }
                     (true, tie)
                 }
@@ -84,8 +76,7 @@ fn default_scene_matches_brute_force() {
 
 #[test]
 fn cornell_box_matches_brute_force() {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../tests/data/cornell_box/CornellBox-Original.gltf");
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/cornell_box/CornellBox-Original.gltf");
     let scene = load_gltf(p).unwrap();
     let hits = compare_with_brute_force(&scene, 20_000, 2);
     assert!(hits > 10_000, "{hits}");
@@ -139,10 +130,7 @@ fn sponza_alpha_mask_changes_hits() {
         .iter()
         .map(|&m| matches!(masked.materials[m as usize].alpha_mode, AlphaMode::Mask(_)))
         .collect();
-    assert!(
-        masked_tris.iter().any(|&m| m),
-        "Sponza has alpha-masked materials"
-    );
+    assert!(masked_tris.iter().any(|&m| m), "Sponza has alpha-masked materials");
     let bvh = SceneBvh::build(&masked);
     let mut opaque = masked.clone();
     for m in &mut opaque.materials {
@@ -151,12 +139,7 @@ fn sponza_alpha_mask_changes_hits() {
     // Rays aimed at the centroids of masked triangles.
     let mut passed = 0;
     let mut aimed = 0;
-    for (t, _) in masked_tris
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| **m)
-        .step_by(50)
-    {
+    for (t, _) in masked_tris.iter().enumerate().filter(|(_, m)| **m).step_by(50) {
         let [a, b, c] = masked.triangle_positions(t);
         let target = (a + b + c) / 3.0;
         let n = (b - a).cross(c - a).normalize_or_zero();
@@ -168,10 +151,7 @@ fn sponza_alpha_mask_changes_hits() {
         aimed += 1;
         let with_mask = bvh.closest_hit(&masked, origin, d, 0.0, 0.1);
         let without = bvh.closest_hit(&opaque, origin, d, 0.0, 0.1);
-        assert!(
-            without.is_some(),
-            "opaque traversal must hit the aimed triangle"
-        );
+        assert!(without.is_some(), "opaque traversal must hit the aimed triangle");
         if with_mask.is_none_or(|h| h.t > without.unwrap().t) {
             passed += 1;
         }

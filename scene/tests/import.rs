@@ -6,9 +6,7 @@ use glam::Vec3;
 use parallax_scene::{AlphaMode, SceneError, load_gltf, load_gltf_bytes};
 
 fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../tests/data")
-        .join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data").join(rel)
 }
 
 const CORNELL: &str = "cornell_box/CornellBox-Original.gltf";
@@ -30,24 +28,9 @@ fn cornell_box_imports_with_materials_light_and_camera() {
     assert!(s.textures.is_empty());
     s.check().unwrap();
     // The light: emissiveFactor (1, 0.706, 0.235) x KHR_materials_emissive_strength 17.
-    let light = s
-        .materials
-        .iter()
-        .find(|m| m.is_emissive())
-        .expect("an emissive material");
-    assert!(
-        (light.emissive - Vec3::new(17.0, 12.0, 4.0))
-            .abs()
-            .max_element()
-            < 0.02,
-        "{}",
-        light.emissive
-    );
-    let red = s
-        .materials
-        .iter()
-        .find(|m| m.base_color.x > 0.6 && m.base_color.y < 0.1)
-        .unwrap();
+    let light = s.materials.iter().find(|m| m.is_emissive()).expect("an emissive material");
+    assert!((light.emissive - Vec3::new(17.0, 12.0, 4.0)).abs().max_element() < 0.02, "{}", light.emissive);
+    let red = s.materials.iter().find(|m| m.base_color.x > 0.6 && m.base_color.y < 0.1).unwrap();
     assert_eq!((red.metallic, red.roughness), (0.0, 1.0));
     // The camera node: yfov 0.686 at (0, 0.983, 3.87) looking down -Z.
     assert_eq!(s.cameras.len(), 1);
@@ -56,16 +39,8 @@ fn cornell_box_imports_with_materials_light_and_camera() {
     assert!((c.eye - Vec3::new(0.0, 0.9828, 3.87)).length() < 1e-4);
     assert!((c.forward - Vec3::NEG_Z).length() < 1e-6);
     let b = s.bounds();
-    assert!(
-        (b.min - Vec3::new(-1.02, 0.0, -1.04)).abs().max_element() < 0.01,
-        "{:?}",
-        b
-    );
-    assert!(
-        (b.max - Vec3::new(1.0, 1.99, 0.99)).abs().max_element() < 0.01,
-        "{:?}",
-        b
-    );
+    assert!((b.min - Vec3::new(-1.02, 0.0, -1.04)).abs().max_element() < 0.01, "{:?}", b);
+    assert!((b.max - Vec3::new(1.0, 1.99, 0.99)).abs().max_element() < 0.01, "{:?}", b);
     for n in &s.normals {
         assert!((n.length() - 1.0).abs() < 1e-4);
     }
@@ -124,9 +99,7 @@ fn missing_buffer_is_named() {
     let p = dir.join("box.gltf");
     std::fs::write(&p, cornell_json().0).unwrap(); // without the .bin next to it
     match load_gltf(&p) {
-        Err(SceneError::MissingBuffer {
-            path, buffer, uri, ..
-        }) => {
+        Err(SceneError::MissingBuffer { path, buffer, uri, .. }) => {
             assert_eq!(path, p);
             assert_eq!(buffer, 0);
             assert_eq!(uri, "CornellBox-Original.bin");
@@ -142,10 +115,7 @@ fn short_buffer_is_a_missing_buffer() {
     std::fs::write(&p, cornell_json().0).unwrap();
     let bin = std::fs::read(data("cornell_box/CornellBox-Original.bin")).unwrap();
     std::fs::write(dir.join("CornellBox-Original.bin"), &bin[..bin.len() / 2]).unwrap();
-    assert!(matches!(
-        load_gltf(&p),
-        Err(SceneError::MissingBuffer { buffer: 0, .. })
-    ));
+    assert!(matches!(load_gltf(&p), Err(SceneError::MissingBuffer { buffer: 0, .. })));
 }
 
 #[test]
@@ -165,12 +135,7 @@ fn unsupported_required_extension_is_named() {
         "\"extensionsUsed\": [",
         "\"extensionsRequired\": [\"KHR_draco_mesh_compression\"],\n \"extensionsUsed\": [\"KHR_draco_mesh_compression\",",
     );
-    let err = load_gltf_bytes(
-        json.0.as_bytes(),
-        &data("cornell_box"),
-        Path::new("draco.gltf"),
-    )
-    .unwrap_err();
+    let err = load_gltf_bytes(json.0.as_bytes(), &data("cornell_box"), Path::new("draco.gltf")).unwrap_err();
     match &err {
         SceneError::UnsupportedExtension { extension, .. } => {
             assert_eq!(extension, "KHR_draco_mesh_compression")
@@ -226,10 +191,7 @@ fn hand_written_triangle_loads() {
     // Default material (none given): glTF's white metal.
     assert_eq!(s.materials.len(), 1);
     assert_eq!(s.materials[0].alpha_mode, AlphaMode::Opaque);
-    assert!(
-        (s.normals[0] - Vec3::Z).length() < 1e-6,
-        "generated flat normal"
-    );
+    assert!((s.normals[0] - Vec3::Z).length() < 1e-6, "generated flat normal");
 }
 
 #[test]
@@ -237,17 +199,8 @@ fn absurd_index_is_reported_with_its_value() {
     let dir = scratch_dir("absurd-index");
     let p = write_triangle_gltf(&dir, &[0, 1, 4_000_000_000]);
     match load_gltf(&p) {
-        Err(SceneError::IndexOutOfRange {
-            index,
-            vertex_count,
-            mesh,
-            primitive,
-            ..
-        }) => {
-            assert_eq!(
-                (index, vertex_count, mesh, primitive),
-                (4_000_000_000, 3, 0, 0)
-            );
+        Err(SceneError::IndexOutOfRange { index, vertex_count, mesh, primitive, .. }) => {
+            assert_eq!((index, vertex_count, mesh, primitive), (4_000_000_000, 3, 0, 0));
         }
         other => panic!("{other:?}"),
     }
@@ -257,15 +210,11 @@ fn absurd_index_is_reported_with_its_value() {
 fn accessor_past_its_view_is_reported() {
     let dir = scratch_dir("accessor-oob");
     let p = write_triangle_gltf(&dir, &[0, 1, 2]);
-    let json = std::fs::read_to_string(&p).unwrap().replace(
-        "\"count\":3,\"type\":\"SCALAR\"",
-        "\"count\":3000,\"type\":\"SCALAR\"",
-    );
+    let json = std::fs::read_to_string(&p)
+        .unwrap()
+        .replace("\"count\":3,\"type\":\"SCALAR\"", "\"count\":3000,\"type\":\"SCALAR\"");
     std::fs::write(&p, json).unwrap();
-    assert!(matches!(
-        load_gltf(&p),
-        Err(SceneError::AccessorOutOfBounds { accessor: 1, .. })
-    ));
+    assert!(matches!(load_gltf(&p), Err(SceneError::AccessorOutOfBounds { accessor: 1, .. })));
 }
 
 #[test]
@@ -310,11 +259,7 @@ fn fuzzed_files_never_panic() {
     // Truncated JSON at many lengths.
     for k in 0..60 {
         let cut = json.len() * k / 60;
-        check(load_gltf_bytes(
-            &json[..cut],
-            &data("cornell_box"),
-            &gltf_path,
-        ));
+        check(load_gltf_bytes(&json[..cut], &data("cornell_box"), &gltf_path));
     }
     // Random byte flips in the JSON (digits and structure alike).
     for _ in 0..5000 {
@@ -326,12 +271,7 @@ fn fuzzed_files_never_panic() {
         check(load_gltf_bytes(&j, &data("cornell_box"), &gltf_path));
     }
     // Random digit changes: keeps the JSON valid but bends counts, offsets and indices.
-    let digits: Vec<usize> = json
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| c.is_ascii_digit())
-        .map(|(i, _)| i)
-        .collect();
+    let digits: Vec<usize> = json.iter().enumerate().filter(|(_, c)| c.is_ascii_digit()).map(|(i, _)| i).collect();
     for _ in 0..5000 {
         let mut j = json.clone();
         let i = digits[(next(&mut state) % digits.len() as u64) as usize];
@@ -353,8 +293,5 @@ fn fuzzed_files_never_panic() {
         std::fs::write(dir.join("CornellBox-Original.bin"), &b).unwrap();
         check(load_gltf(&gltf_path));
     }
-    assert!(
-        outcomes[0] > 0 && outcomes[1] > 0,
-        "both outcomes should occur: {outcomes:?}"
-    );
+    assert!(outcomes[0] > 0 && outcomes[1] > 0, "both outcomes should occur: {outcomes:?}");
 }

@@ -8,17 +8,12 @@ use glam::{Vec2, Vec3};
 use parallax_scene::metrics::channel_stats;
 use parallax_scene::output::{ExrLayers, read_exr_channels, write_contact_sheet, write_exr};
 use parallax_scene::{
-    Camera, CpuTracer, Material, PixelSample, PixelSet, Scene, SceneBuilder, SceneBvh, Sky, Sun,
-    TraceSettings, View, default_scene, load_gltf,
+    Camera, CpuTracer, Material, PixelSample, PixelSet, Scene, SceneBuilder, SceneBvh, Sky, Sun, TraceSettings, View,
+    default_scene, load_gltf,
 };
 
 fn view(camera: Camera, w: u32, h: u32) -> View {
-    View {
-        camera,
-        width: w,
-        height: h,
-        index: 0,
-    }
+    View { camera, width: w, height: h, index: 0 }
 }
 
 fn trace_all(scene: &Scene, v: &View, s: &TraceSettings) -> Vec<PixelSample> {
@@ -41,30 +36,15 @@ fn white_furnace_returns_the_sky_radiance() {
     b.cuboid(Vec3::new(0.55, 0.0, 0.0), Vec3::splat(0.45), 0.5, white);
     let mut scene = b.build();
     scene.sky = Some(Sky::Constant(Vec3::ONE));
-    let v = view(
-        Camera::look_at(Vec3::new(0.0, 0.3, 3.0), Vec3::ZERO, Vec3::Y, 0.7),
-        32,
-        24,
-    );
-    let s = TraceSettings {
-        spp: 64,
-        max_depth: 64,
-        ..Default::default()
-    };
+    let v = view(Camera::look_at(Vec3::new(0.0, 0.3, 3.0), Vec3::ZERO, Vec3::Y, 0.7), 32, 24);
+    let s = TraceSettings { spp: 64, max_depth: 64, ..Default::default() };
     let px = trace_all(&scene, &v, &s);
     let hits = px.iter().filter(|p| p.hit).count();
-    assert!(
-        hits > px.len() / 3,
-        "the objects should fill much of the frame: {hits}"
-    );
+    assert!(hits > px.len() / 3, "the objects should fill much of the frame: {hits}");
     let radiance: Vec<Vec3> = px.iter().filter(|p| p.hit).map(|p| p.radiance).collect();
     let stats = channel_stats(&radiance);
     for c in 0..3 {
-        assert!(
-            (stats.mean[c] - 1.0).abs() < 0.01,
-            "channel {c}: mean {}",
-            stats.mean[c]
-        );
+        assert!((stats.mean[c] - 1.0).abs() < 0.01, "channel {c}: mean {}", stats.mean[c]);
     }
     // Not merely right on average: no pixel far off either.
     for p in &radiance {
@@ -78,41 +58,16 @@ fn white_furnace_returns_the_sky_radiance() {
 fn delta_sun_direct_lighting_is_analytic() {
     let mut b = SceneBuilder::new("floor");
     let grey = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
-    b.quad(
-        Vec3::new(-50.0, 0.0, 50.0),
-        Vec3::new(100.0, 0.0, 0.0),
-        Vec3::new(0.0, 0.0, -100.0),
-        grey,
-    );
+    b.quad(Vec3::new(-50.0, 0.0, 50.0), Vec3::new(100.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -100.0), grey);
     let mut scene = b.build();
     let to_sun = Vec3::new(0.3, 0.8, 0.2).normalize();
-    scene.sun = Some(Sun {
-        to_sun,
-        irradiance: Vec3::new(3.0, 2.0, 1.0),
-        angular_radius: 0.0,
-    });
-    let v = view(
-        Camera::look_at(Vec3::new(0.0, 2.0, 2.0), Vec3::ZERO, Vec3::Y, 0.5),
-        8,
-        8,
-    );
-    let px = trace_all(
-        &scene,
-        &v,
-        &TraceSettings {
-            spp: 4,
-            max_depth: 1,
-            ..Default::default()
-        },
-    );
+    scene.sun = Some(Sun { to_sun, irradiance: Vec3::new(3.0, 2.0, 1.0), angular_radius: 0.0 });
+    let v = view(Camera::look_at(Vec3::new(0.0, 2.0, 2.0), Vec3::ZERO, Vec3::Y, 0.5), 8, 8);
+    let px = trace_all(&scene, &v, &TraceSettings { spp: 4, max_depth: 1, ..Default::default() });
     let expected = 0.5 * Vec3::new(3.0, 2.0, 1.0) * to_sun.y / PI;
     for p in &px {
         assert!(p.hit);
-        assert!(
-            (p.radiance - expected).abs().max_element() < 1e-4,
-            "{} vs {expected}",
-            p.radiance
-        );
+        assert!((p.radiance - expected).abs().max_element() < 1e-4, "{} vs {expected}", p.radiance);
     }
 }
 
@@ -122,42 +77,17 @@ fn delta_sun_direct_lighting_is_analytic() {
 fn sun_disc_with_mis_matches_the_analytic_value() {
     let mut b = SceneBuilder::new("floor");
     let grey = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
-    b.quad(
-        Vec3::new(-50.0, 0.0, 50.0),
-        Vec3::new(100.0, 0.0, 0.0),
-        Vec3::new(0.0, 0.0, -100.0),
-        grey,
-    );
+    b.quad(Vec3::new(-50.0, 0.0, 50.0), Vec3::new(100.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -100.0), grey);
     let mut scene = b.build();
     let to_sun = Vec3::new(0.0, 1.0, 0.0);
-    scene.sun = Some(Sun {
-        to_sun,
-        irradiance: Vec3::ONE,
-        angular_radius: 5f32.to_radians(),
-    });
-    let v = view(
-        Camera::look_at(Vec3::new(0.0, 2.0, 2.0), Vec3::ZERO, Vec3::Y, 0.5),
-        16,
-        16,
-    );
-    let px = trace_all(
-        &scene,
-        &v,
-        &TraceSettings {
-            spp: 64,
-            max_depth: 1,
-            ..Default::default()
-        },
-    );
+    scene.sun = Some(Sun { to_sun, irradiance: Vec3::ONE, angular_radius: 5f32.to_radians() });
+    let v = view(Camera::look_at(Vec3::new(0.0, 2.0, 2.0), Vec3::ZERO, Vec3::Y, 0.5), 16, 16);
+    let px = trace_all(&scene, &v, &TraceSettings { spp: 64, max_depth: 1, ..Default::default() });
     let stats = channel_stats(&px.iter().map(|p| p.radiance).collect::<Vec<_>>());
     // Uniform disc of radiance L = E / (pi sin^2 r) over a cosine-weighted floor: exactly
     // albedo * E / pi for a sun at the zenith.
     let expected = 0.5 / PI as f64;
-    assert!(
-        (stats.mean[0] - expected).abs() < 0.01 * expected,
-        "{} vs {expected}",
-        stats.mean[0]
-    );
+    assert!((stats.mean[0] - expected).abs() < 0.01 * expected, "{} vs {expected}", stats.mean[0]);
 }
 
 /// An emissive quad over a white floor at depth 1 (NEE on the lamp's triangles + BSDF hits,
@@ -167,39 +97,15 @@ fn emissive_quad_direct_lighting_matches_numerical_integration() {
     let mut b = SceneBuilder::new("lamp");
     let grey = b.material(Material::diffuse("grey", Vec3::ONE));
     let lamp = b.material(Material::emitter("lamp", Vec3::splat(2.0)));
-    b.quad(
-        Vec3::new(-5.0, 0.0, 5.0),
-        Vec3::new(10.0, 0.0, 0.0),
-        Vec3::new(0.0, 0.0, -10.0),
-        grey,
-    );
+    b.quad(Vec3::new(-5.0, 0.0, 5.0), Vec3::new(10.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -10.0), grey);
     // 1 x 1 lamp at height 1, facing down.
-    b.quad(
-        Vec3::new(-0.5, 1.0, 0.5),
-        Vec3::new(0.0, 0.0, -1.0),
-        Vec3::new(1.0, 0.0, 0.0),
-        lamp,
-    );
+    b.quad(Vec3::new(-0.5, 1.0, 0.5), Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 0.0), lamp);
     let scene = b.build();
     // Camera straight down at the floor from just below the lamp; centre pixel sees (0,0,0).
-    let cam = Camera {
-        eye: Vec3::new(0.0, 0.9, 0.0),
-        forward: Vec3::NEG_Y,
-        up: Vec3::NEG_Z,
-        yfov: 0.01,
-        shift: Vec2::ZERO,
-    };
+    let cam =
+        Camera { eye: Vec3::new(0.0, 0.9, 0.0), forward: Vec3::NEG_Y, up: Vec3::NEG_Z, yfov: 0.01, shift: Vec2::ZERO };
     let v = view(cam, 3, 3);
-    let px = trace_all(
-        &scene,
-        &v,
-        &TraceSettings {
-            spp: 4096,
-            max_depth: 1,
-            jitter: false,
-            ..Default::default()
-        },
-    );
+    let px = trace_all(&scene, &v, &TraceSettings { spp: 4096, max_depth: 1, jitter: false, ..Default::default() });
     let got = px[4].radiance.x as f64;
     // Irradiance at the origin from a unit square at height 1 with radiance 2, by midpoint rule.
     let n = 400;
@@ -214,10 +120,7 @@ fn emissive_quad_direct_lighting_matches_numerical_integration() {
         }
     }
     let expected = e / std::f64::consts::PI; // albedo 1 Lambert
-    assert!(
-        (got - expected).abs() < 0.01 * expected,
-        "{got} vs {expected}"
-    );
+    assert!((got - expected).abs() < 0.01 * expected, "{got} vs {expected}");
 }
 
 #[test]
@@ -225,46 +128,22 @@ fn any_pixel_subset_gives_identical_values() {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let tracer = CpuTracer::new(&scene, &bvh);
-    let v = View {
-        camera: scene.default_camera(),
-        width: 24,
-        height: 16,
-        index: 5,
-    };
-    let s = TraceSettings {
-        spp: 2,
-        frame: 3,
-        ..Default::default()
-    };
+    let v = View { camera: scene.default_camera(), width: 24, height: 16, index: 5 };
+    let s = TraceSettings { spp: 2, frame: 3, ..Default::default() };
     let (all, _) = tracer.trace(&v, &s, &PixelSet::All, &|_| {}).unwrap();
-    let (band, _) = tracer
-        .trace(&v, &s, &PixelSet::Rows { start: 5, end: 9 }, &|_| {})
-        .unwrap();
+    let (band, _) = tracer.trace(&v, &s, &PixelSet::Rows { start: 5, end: 9 }, &|_| {}).unwrap();
     assert_eq!(band.len(), 4 * 24);
     for (k, p) in band.iter().enumerate() {
         assert_eq!(*p, all[5 * 24 + k]);
     }
     // A scattered list in reverse order, as a hole-filling pass would compact it.
-    let list: Vec<(u32, u32)> = (0..v.pixel_count() as u32)
-        .rev()
-        .step_by(7)
-        .map(|i| (i % 24, i / 24))
-        .collect();
-    let (picked, _) = tracer
-        .trace(&v, &s, &PixelSet::List(list.clone()), &|_| {})
-        .unwrap();
+    let list: Vec<(u32, u32)> = (0..v.pixel_count() as u32).rev().step_by(7).map(|i| (i % 24, i / 24)).collect();
+    let (picked, _) = tracer.trace(&v, &s, &PixelSet::List(list.clone()), &|_| {}).unwrap();
     for (p, (x, y)) in picked.iter().zip(&list) {
         assert_eq!(*p, all[(y * 24 + x) as usize]);
     }
     // And the view index and frame are part of the key: other values, other noise.
-    let (other_frame, _) = tracer
-        .trace(
-            &v,
-            &TraceSettings { frame: 4, ..s },
-            &PixelSet::All,
-            &|_| {},
-        )
-        .unwrap();
+    let (other_frame, _) = tracer.trace(&v, &TraceSettings { frame: 4, ..s }, &PixelSet::All, &|_| {}).unwrap();
     assert_ne!(other_frame, all);
 }
 
@@ -286,36 +165,15 @@ fn assert_all_finite(px: &[PixelSample]) {
 fn default_scene_and_cornell_box_outputs_are_finite() {
     let scene = default_scene();
     let v = view(scene.default_camera(), 48, 32);
-    let px = trace_all(
-        &scene,
-        &v,
-        &TraceSettings {
-            spp: 4,
-            ..Default::default()
-        },
-    );
+    let px = trace_all(&scene, &v, &TraceSettings { spp: 4, ..Default::default() });
     assert_all_finite(&px);
-    assert!(
-        px.iter().any(|p| p.hit) && px.iter().any(|p| !p.hit),
-        "the default view shows sky and geometry"
-    );
-    assert!(
-        px.iter().any(|p| p.metallic > 0.5),
-        "a metal object is in view"
-    );
+    assert!(px.iter().any(|p| p.hit) && px.iter().any(|p| !p.hit), "the default view shows sky and geometry");
+    assert!(px.iter().any(|p| p.metallic > 0.5), "a metal object is in view");
 
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../tests/data/cornell_box/CornellBox-Original.gltf");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/cornell_box/CornellBox-Original.gltf");
     let cornell = load_gltf(path).unwrap();
     let v = view(cornell.default_camera(), 32, 32);
-    let px = trace_all(
-        &cornell,
-        &v,
-        &TraceSettings {
-            spp: 8,
-            ..Default::default()
-        },
-    );
+    let px = trace_all(&cornell, &v, &TraceSettings { spp: 8, ..Default::default() });
     assert_all_finite(&px);
     let mean = channel_stats(&px.iter().map(|p| p.radiance).collect::<Vec<_>>()).mean;
     // Lit by its ceiling lamp only: clearly non-black, and warm (the lamp is orange-white).
@@ -331,25 +189,14 @@ fn exr_round_trip_and_contact_sheet() {
     for i in 0..3 {
         let mut camera = scene.default_camera();
         camera.eye.x += 0.2 * i as f32;
-        let v = View {
-            camera,
-            width: 20,
-            height: 12,
-            index: i,
-        };
-        frames.push(
-            tracer
-                .render(&v, &TraceSettings::default(), &|_| {})
-                .unwrap()
-                .0,
-        );
+        let v = View { camera, width: 20, height: 12, index: i };
+        frames.push(tracer.render(&v, &TraceSettings::default(), &|_| {}).unwrap().0);
     }
     let dir = std::env::temp_dir().join(format!("parallax-scene-{}-exr", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let exr = dir.join("view0.exr");
     write_exr(&exr, &frames[0], ExrLayers::ALL).unwrap();
-    let (w, h, ch) =
-        read_exr_channels(&exr, &["R", "G", "B", "albedo.G", "normal.Y", "depth.Z"]).unwrap();
+    let (w, h, ch) = read_exr_channels(&exr, &["R", "G", "B", "albedo.G", "normal.Y", "depth.Z"]).unwrap();
     assert_eq!((w, h), (20, 12));
     for (i, p) in frames[0].pixels.iter().enumerate() {
         assert_eq!(ch[0][i], p.radiance.x);

@@ -16,11 +16,7 @@ fn compile(entry: &str, defines: &[&str]) {
         .arg(&out)
         .output()
         .unwrap_or_else(|e| panic!("cannot run {glslc} (apt-get install glslc): {e}"));
-    assert!(
-        result.status.success(),
-        "glslc failed on {entry}:\n{}",
-        String::from_utf8_lossy(&result.stderr)
-    );
+    assert!(result.status.success(), "glslc failed on {entry}:\n{}", String::from_utf8_lossy(&result.stderr));
     let spv = std::fs::read(&out).unwrap();
     assert_eq!(&spv[..4], &[0x03, 0x02, 0x23, 0x07], "SPIR-V magic");
 }
