@@ -55,7 +55,7 @@ pub fn default_scene() -> Scene {
     });
     scene.sun = Some(Sun {
         to_sun: Vec3::new(-0.5, 0.6, 0.45).normalize(),
-        irradiance: Vec3::new(2.0, 1.9, 1.7),
+        irradiance: Vec3::new(1.3, 1.2, 1.1),
         angular_radius: 0.02,
     });
     scene
