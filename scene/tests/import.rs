@@ -295,3 +295,42 @@ fn fuzzed_files_never_panic() {
     }
     assert!(outcomes[0] > 0 && outcomes[1] > 0, "both outcomes should occur: {outcomes:?}");
 }
+
+/// KHR_lights_punctual (point and spot under rotated/translated nodes) and a perspective camera
+/// on a child node: world-space positions and directions come from the node hierarchy.
+#[test]
+fn punctual_lights_and_cameras_follow_node_transforms() {
+    let dir = scratch_dir("lights");
+    let tri = write_triangle_gltf(&dir, &[0, 1, 2]);
+    let json = std::fs::read_to_string(&tri).unwrap();
+    // Rotation of -90 degrees about X turns the node's -Z (where lights shine) into -Y.
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let json = json
+        .replace(
+            r#""nodes":[{"mesh":0}]"#,
+            &format!(
+                r#""nodes":[{{"mesh":0,"children":[1,2]}},
+                   {{"translation":[1,4,2],"rotation":[{n},0,0,{s}],"extensions":{{"KHR_lights_punctual":{{"light":0}}}}}},
+                   {{"translation":[0,1,5],"children":[3]}},
+                   {{"translation":[0,0,1],"camera":0}}],
+                   "cameras":[{{"type":"perspective","perspective":{{"yfov":0.8,"znear":0.1}}}}],
+                   "extensionsUsed":["KHR_lights_punctual"],
+                   "extensions":{{"KHR_lights_punctual":{{"lights":[
+                     {{"type":"spot","color":[1,0.5,0.25],"intensity":40,"spot":{{"innerConeAngle":0.2,"outerConeAngle":0.5}}}}]}}}}"#,
+                n = -s
+            ),
+        ));
+    std::fs::write(&tri, json).unwrap();
+    let scene = load_gltf(&tri).unwrap();
+    assert_eq!(scene.lights.len(), 1);
+    let l = &scene.lights[0];
+    assert_eq!(l.kind, parallax_scene::PunctualKind::Spot { inner_cone: 0.2, outer_cone: 0.5 });
+    assert!((l.position - Vec3::new(1.0, 4.0, 2.0)).length() < 1e-5, "{}", l.position);
+    assert!((l.direction - Vec3::NEG_Y).length() < 1e-5, "{}", l.direction);
+    assert_eq!((l.color, l.intensity), (Vec3::new(1.0, 0.5, 0.25), 40.0));
+    assert_eq!(scene.cameras.len(), 1);
+    let c = scene.cameras[0];
+    assert!((c.eye - Vec3::new(0.0, 1.0, 6.0)).length() < 1e-5, "{}", c.eye);
+    assert!((c.forward - Vec3::NEG_Z).length() < 1e-6);
+    assert!((c.yfov - 0.8).abs() < 1e-6);
+}
