@@ -319,7 +319,7 @@ fn punctual_lights_and_cameras_follow_node_transforms() {
                      {{"type":"spot","color":[1,0.5,0.25],"intensity":40,"spot":{{"innerConeAngle":0.2,"outerConeAngle":0.5}}}}]}}}}"#,
                 n = -s
             ),
-        ));
+        );
     std::fs::write(&tri, json).unwrap();
     let scene = load_gltf(&tri).unwrap();
     assert_eq!(scene.lights.len(), 1);
