@@ -22,6 +22,7 @@
 
 #include "bvh_types.glsl"
 
+
 #ifndef BVH_STACK_SIZE
 #define BVH_STACK_SIZE 32
 #endif
@@ -97,7 +98,8 @@ uint bvh_byte(uint word, uint i) {
 }
 
 // Child hit mask of a node: high byte = internal children in traversal-priority bit positions,
-// low 24 bits = leaf triangles (CwBvhNode::intersect_ray_basic).
+// low 24 bits = leaf triangles (CwBvhNode::intersect_ray_basic). Four children at a time: one
+// uint of each 8-byte array holds a byte per child.
 uint bvh_intersect_node(uvec4 d0, uvec4 d1, uvec4 dx, uvec4 dy, uvec4 dz, BvhRay ray, uint oct_inv4) {
     vec3 p = uintBitsToFloat(d0.xyz);
     vec3 extent = uintBitsToFloat(uvec3(bvh_byte(d0.w, 0u), bvh_byte(d0.w, 1u), bvh_byte(d0.w, 2u)) << 23);
@@ -106,32 +108,36 @@ uint bvh_intersect_node(uvec4 d0, uvec4 d1, uvec4 dx, uvec4 dy, uvec4 dz, BvhRay
     bool rdx = ray.dir.x < 0.0;
     bool rdy = ray.dir.y < 0.0;
     bool rdz = ray.dir.z < 0.0;
+    const uvec4 shifts = uvec4(0u, 8u, 16u, 24u);
     uint hit_mask = 0u;
-    for (uint child = 0u; child < 8u; child++) {
-        uint w = child >> 2u; // which uint of each 8-byte array
-        uint b = child & 3u;  // which byte in it
-        uint meta = bvh_byte(w == 0u ? d1.z : d1.w, b);
-        if (meta == 0u) {
-            continue; // empty slot
-        }
-        bool inner = (meta & (meta << 1u) & 0x10u) != 0u;
-        uint bit_index = (meta ^ (inner ? (oct_inv4 & 0xffu) : 0u)) & 0x1fu;
-        uint child_bits = (meta >> 5u) & 7u;
-
-        float lo_x = float(bvh_byte(dx[w], b));
-        float hi_x = float(bvh_byte(dx[2u + w], b));
-        float lo_y = float(bvh_byte(dy[w], b));
-        float hi_y = float(bvh_byte(dy[2u + w], b));
-        float lo_z = float(bvh_byte(dz[w], b));
-        float hi_z = float(bvh_byte(dz[2u + w], b));
-        vec3 qmin = vec3(rdx ? hi_x : lo_x, rdy ? hi_y : lo_y, rdz ? hi_z : lo_z);
-        vec3 qmax = vec3(rdx ? lo_x : hi_x, rdy ? lo_y : hi_y, rdz ? lo_z : hi_z);
-        vec3 tmin3 = qmin * adj_dir_inv + adj_origin;
-        vec3 tmax3 = qmax * adj_dir_inv + adj_origin;
-        float tmin = max(max(max(tmin3.x, tmin3.y), tmin3.z), BVH_NODE_EPSILON);
-        float tmax = min(min(min(tmax3.x, tmax3.y), tmax3.z), ray.tmax);
-        if (tmin <= tmax) {
-            hit_mask |= child_bits << bit_index;
+    for (uint w = 0u; w < 2u; w++) {
+        uint meta4 = w == 0u ? d1.z : d1.w;
+        uint inner4 = ((meta4 & (meta4 << 1u)) & 0x10101010u) >> 4u;
+        uint bit_index4 = (meta4 ^ (oct_inv4 & (inner4 * 0xffu))) & 0x1f1f1f1fu;
+        uint child_bits4 = (meta4 >> 5u) & 0x07070707u;
+        // Near and far planes per axis: swap the min and max words by the ray's sign once.
+        uint near_x = rdx ? dx[2u + w] : dx[w];
+        uint far_x = rdx ? dx[w] : dx[2u + w];
+        uint near_y = rdy ? dy[2u + w] : dy[w];
+        uint far_y = rdy ? dy[w] : dy[2u + w];
+        uint near_z = rdz ? dz[2u + w] : dz[w];
+        uint far_z = rdz ? dz[w] : dz[2u + w];
+        vec4 tmin_x = vec4((uvec4(near_x) >> shifts) & 0xffu) * adj_dir_inv.x + adj_origin.x;
+        vec4 tmax_x = vec4((uvec4(far_x) >> shifts) & 0xffu) * adj_dir_inv.x + adj_origin.x;
+        vec4 tmin_y = vec4((uvec4(near_y) >> shifts) & 0xffu) * adj_dir_inv.y + adj_origin.y;
+        vec4 tmax_y = vec4((uvec4(far_y) >> shifts) & 0xffu) * adj_dir_inv.y + adj_origin.y;
+        vec4 tmin_z = vec4((uvec4(near_z) >> shifts) & 0xffu) * adj_dir_inv.z + adj_origin.z;
+        vec4 tmax_z = vec4((uvec4(far_z) >> shifts) & 0xffu) * adj_dir_inv.z + adj_origin.z;
+        vec4 tmin = max(max(tmin_x, tmin_y), max(tmin_z, vec4(BVH_NODE_EPSILON)));
+        vec4 tmax = min(min(tmax_x, tmax_y), min(tmax_z, vec4(ray.tmax)));
+        bvec4 hit = lessThanEqual(tmin, tmax);
+        uvec4 bits = (uvec4(child_bits4) >> shifts) & 7u;
+        uvec4 index = (uvec4(bit_index4) >> shifts) & 0x1fu;
+        // Empty slots have child bits 0 and add nothing even when their (zero) box is hit.
+        for (uint j = 0u; j < 4u; j++) {
+            if (hit[j]) {
+                hit_mask |= bits[j] << index[j];
+            }
         }
     }
     return hit_mask;
