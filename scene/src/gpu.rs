@@ -13,7 +13,10 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::bvh::SceneBvh;
 use crate::lights::LightSet;
-use crate::model::{AlphaMode, PunctualKind, Scene, Texture};
+use glam::Vec3;
+
+use crate::model::{AlphaMode, PunctualKind, Scene, Sky, Sun, Texture};
+use crate::pt::{PixelSet, TraceSettings, View};
 
 /// Triangle flag: the material has an alpha mask (any-hit must look at the texture).
 pub const TRI_ALPHA_MASK: u32 = 1;
@@ -92,6 +95,105 @@ pub struct GpuPunctualLight {
     pub cos_outer: f32,
 }
 
+/// Light-group bits in `GpuTraceParams::counts.z` (same order as the CPU's NEE groups).
+pub const LIGHT_GROUP_SUN: u32 = 1;
+pub const LIGHT_GROUP_SKY: u32 = 2;
+pub const LIGHT_GROUP_PUNCTUAL: u32 = 4;
+pub const LIGHT_GROUP_EMISSIVE: u32 = 8;
+
+/// Pixel selection in `GpuTraceParams::counts.w`.
+pub const PIXELS_ROWS: u32 = 0;
+pub const PIXELS_LIST: u32 = 1;
+
+/// Per-dispatch parameters of `shaders/pt_trace.glsl` (std430, 224 bytes): camera, view,
+/// frame, sampling settings, sky, sun and which pixels to trace.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTraceParams {
+    /// Camera position (xyz).
+    pub eye: [f32; 4],
+    /// Camera right axis times tan(yfov/2) * aspect.
+    pub right: [f32; 4],
+    /// Camera up axis times tan(yfov/2).
+    pub up: [f32; 4],
+    /// Camera forward axis (unit).
+    pub forward: [f32; 4],
+    /// xy: off-axis shift (NDC); zw unused.
+    pub shift: [f32; 4],
+    /// width, height, view index, frame.
+    pub dims: [u32; 4],
+    /// spp, max depth, Russian roulette from bounce (u32::MAX = off), jitter (0/1).
+    pub sampling: [u32; 4],
+    /// punctual light count, emissive triangle count, light-group bits, pixel mode.
+    pub counts: [u32; 4],
+    /// Rows mode: first row, end row; list mode: list length in z.
+    pub pixels: [u32; 4],
+    /// xyz radiance; w = 0 constant sky (this colour), 1 gradient (zenith).
+    pub sky_zenith: [f32; 4],
+    pub sky_horizon: [f32; 4],
+    pub sky_ground: [f32; 4],
+    /// xyz unit vector to the sun; w angular radius (radians).
+    pub sun_dir: [f32; 4],
+    /// xyz irradiance.
+    pub sun_irradiance: [f32; 4],
+}
+
+impl GpuTraceParams {
+    /// Parameters for tracing `pixels` of `view`; a pixel list itself goes in its own buffer
+    /// (x | y << 16 per pixel), of which this records only the length.
+    pub fn new(scene: &Scene, view: &View, settings: &TraceSettings, pixels: &PixelSet) -> Self {
+        let (right, up, back) = view.camera.basis();
+        let tan_half = (0.5 * view.camera.yfov).tan();
+        let (mode, range) = match pixels {
+            PixelSet::All => (PIXELS_ROWS, [0, view.height, 0, 0]),
+            PixelSet::Rows { start, end } => (PIXELS_ROWS, [*start, (*end).min(view.height), 0, 0]),
+            PixelSet::List(l) => (PIXELS_LIST, [0, 0, l.len() as u32, 0]),
+        };
+        let lights = LightSet::new(scene);
+        let (sky_kind, zenith, horizon, ground) = match scene.sky() {
+            Sky::Constant(c) => (0.0, c, c, c),
+            Sky::Gradient { zenith, horizon, ground } => (1.0, zenith, horizon, ground),
+        };
+        let sun = scene.sun.unwrap_or(Sun { to_sun: Vec3::Y, irradiance: Vec3::ZERO, angular_radius: 0.0 });
+        Self {
+            eye: view.camera.eye.extend(0.0).into(),
+            right: (right * (tan_half * view.aspect())).extend(0.0).into(),
+            up: (up * tan_half).extend(0.0).into(),
+            forward: (-back).extend(0.0).into(),
+            shift: [view.camera.shift.x, view.camera.shift.y, 0.0, 0.0],
+            dims: [view.width, view.height, view.index, settings.frame],
+            sampling: [
+                settings.spp,
+                settings.max_depth,
+                settings.russian_roulette_from.unwrap_or(u32::MAX),
+                settings.jitter as u32,
+            ],
+            counts: [scene.lights.len() as u32, lights.emissive_triangle_count() as u32, lights.group_mask(), mode],
+            pixels: range,
+            sky_zenith: zenith.extend(sky_kind).into(),
+            sky_horizon: horizon.extend(0.0).into(),
+            sky_ground: ground.extend(0.0).into(),
+            sun_dir: sun.to_sun.normalize_or(Vec3::Y).extend(sun.angular_radius).into(),
+            sun_irradiance: sun.irradiance.extend(0.0).into(),
+        }
+    }
+}
+
+/// One traced pixel as `shaders/pt_trace.glsl` writes it (std430, 64 bytes); misses have zero
+/// G-buffer values, like [`crate::PixelSample`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPixel {
+    /// rgb radiance, a = 1 if the first hit exists.
+    pub radiance: [f32; 4],
+    /// rgb albedo, a roughness.
+    pub albedo_roughness: [f32; 4],
+    /// xyz normal, w metallic.
+    pub normal_metallic: [f32; 4],
+    /// xyz position, w linear depth.
+    pub position_depth: [f32; 4],
+}
+
 /// Everything the GPU path tracer reads, as plain arrays.
 pub struct GpuScene<'a> {
     pub nodes: &'a [obvhs::cwbvh::node::CwBvhNode],
@@ -122,8 +224,7 @@ impl<'a> GpuScene<'a> {
         let lights = LightSet::new(scene);
         let mut triangles = Vec::with_capacity(bvh.tris.len());
         let mut attributes = Vec::with_capacity(bvh.tris.len());
-        let mut emissive: Vec<(u32, f32)> = Vec::new();
-        for (k, &t) in bvh.cwbvh.primitive_indices.iter().enumerate() {
+        for &t in &bvh.cwbvh.primitive_indices {
             let t = t as usize;
             let mi = scene.triangle_materials[t];
             let m = &scene.materials[mi as usize];
@@ -144,23 +245,17 @@ impl<'a> GpuScene<'a> {
                 emissive_prob: prob,
                 area,
             });
-            if prob > 0.0 {
-                emissive.push((k as u32, prob));
-            }
         }
-        let mut acc = 0.0f64;
-        let count = emissive.len();
-        let emissive = emissive
-            .into_iter()
-            .enumerate()
-            .map(|(i, (k, p))| {
-                acc += p as f64;
-                GpuEmissiveTriangle {
-                    bvh_primitive: k,
-                    cdf: if i + 1 == count { 1.0 } else { acc as f32 },
-                    _pad: [0; 2],
-                }
-            })
+        // The CPU's table, with scene triangle indices mapped to BVH positions.
+        let mut bvh_position = vec![0u32; scene.triangle_count()];
+        for (k, &t) in bvh.cwbvh.primitive_indices.iter().enumerate() {
+            bvh_position[t as usize] = k as u32;
+        }
+        let (emissive_tris, emissive_cdf) = lights.emissive_table();
+        let emissive = emissive_tris
+            .iter()
+            .zip(emissive_cdf)
+            .map(|(&t, &cdf)| GpuEmissiveTriangle { bvh_primitive: bvh_position[t as usize], cdf, _pad: [0; 2] })
             .collect();
         let materials = scene
             .materials
@@ -237,6 +332,8 @@ mod tests {
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 64);
         assert_eq!(std::mem::size_of::<GpuEmissiveTriangle>(), 16);
         assert_eq!(std::mem::size_of::<GpuPunctualLight>(), 48);
+        assert_eq!(std::mem::size_of::<GpuTraceParams>(), 224);
+        assert_eq!(std::mem::size_of::<GpuPixel>(), 64);
     }
 
     #[test]

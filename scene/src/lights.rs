@@ -121,6 +121,26 @@ impl LightSet {
         (self.emissive_prob[tri as usize], self.area[tri as usize])
     }
 
+    /// The emissive triangles (scene indices) and their cumulative selection probabilities, in
+    /// the order NEE searches them; the GPU gets the very same table.
+    pub fn emissive_table(&self) -> (&[u32], &[f32]) {
+        (&self.emissive, &self.emissive_cdf)
+    }
+
+    /// Light groups present, as bits: 1 sun, 2 sky, 4 punctual, 8 emissive (the GPU's
+    /// `LIGHT_GROUP_*`); NEE picks one uniformly in this order.
+    pub fn group_mask(&self) -> u32 {
+        self.groups
+            .iter()
+            .map(|g| match g {
+                Group::Sun => 1,
+                Group::Sky => 2,
+                Group::Punctual => 4,
+                Group::Emissive => 8,
+            })
+            .sum()
+    }
+
     pub fn emissive_triangle_count(&self) -> usize {
         self.emissive.len()
     }

@@ -1,4 +1,4 @@
-//! The GLSL that mirrors this crate (CWBVH traversal, scene layout) must compile: glslc is the
+//! The GLSL that mirrors this crate (CWBVH traversal, scene layout, path tracer) must compile: glslc is the
 //! project's shader compiler (apt package `glslc`, see shared/CRATES.md).
 
 use std::path::Path;
@@ -19,6 +19,12 @@ fn compile(entry: &str, defines: &[&str]) {
     assert!(result.status.success(), "glslc failed on {entry}:\n{}", String::from_utf8_lossy(&result.stderr));
     let spv = std::fs::read(&out).unwrap();
     assert_eq!(&spv[..4], &[0x03, 0x02, 0x23, 0x07], "SPIR-V magic");
+}
+
+#[test]
+fn path_tracer_compiles_with_and_without_textures() {
+    compile("pt_trace.glsl", &[]);
+    compile("pt_trace.glsl", &["PT_SCENE_NO_TEXTURES"]);
 }
 
 #[test]

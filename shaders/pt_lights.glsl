@@ -1,0 +1,250 @@
+// Surface evaluation and light sampling, the twins of parallax_scene::shading and ::lights.
+// Expects, declared before inclusion: the scene buffers (pt_scene.glsl), the BVH traversal,
+// and `params` (TraceParams of pt_trace.glsl) holding sky, sun and light-group data.
+
+#ifndef PT_LIGHTS_GLSL
+#define PT_LIGHTS_GLSL
+
+const uint LIGHT_GROUP_SUN = 1u;
+const uint LIGHT_GROUP_SKY = 2u;
+const uint LIGHT_GROUP_PUNCTUAL = 4u;
+const uint LIGHT_GROUP_EMISSIVE = 8u;
+
+vec3 safe_normalize(vec3 v) {
+    float l = length(v);
+    return (l > 0.0 && !isinf(l)) ? v / l : vec3(0.0);
+}
+
+// Triangle normal from its winding, flipped to agree with the vertex normals.
+vec3 oriented_face_normal(uint prim) {
+    BvhTriangle tri = scene_triangles.data[prim];
+    vec3 n = safe_normalize(cross(tri.v1 - tri.v0, tri.v2 - tri.v0));
+    TriangleAttributes a = scene_attributes.data[prim];
+    vec3 vn = a.normals[0].xyz + a.normals[1].xyz + a.normals[2].xyz;
+    return dot(n, vn) < 0.0 ? -n : n;
+}
+
+SurfacePoint surface_point(uint prim, vec2 bary, float t, vec3 origin, vec3 dir) {
+    SurfacePoint sp;
+    TriangleAttributes a = scene_attributes.data[prim];
+    float w = 1.0 - bary.x - bary.y;
+    vec2 uv = a.uvs[0] * w + a.uvs[1] * bary.x + a.uvs[2] * bary.y;
+    vec3 face = oriented_face_normal(prim);
+    vec3 shading = safe_normalize(a.normals[0].xyz * w + a.normals[1].xyz * bary.x + a.normals[2].xyz * bary.y);
+    if (shading == vec3(0.0)) {
+        shading = face;
+    }
+    sp.front_face = dot(face, dir) < 0.0;
+    sp.geometric_normal = sp.front_face ? face : -face;
+    sp.normal = sp.front_face ? shading : -shading;
+    if (dot(sp.normal, -dir) <= 0.0) {
+        sp.normal = sp.geometric_normal;
+    }
+    Material m = scene_materials.data[scene_triangles.data[prim].material];
+    vec4 base = m.base_color;
+    if (m.base_color_texture >= 0) {
+        vec4 tx = scene_texel(m.base_color_texture, uv);
+        base *= vec4(srgb_to_linear(tx.rgb), tx.a);
+    }
+    float metallic = m.metallic;
+    float roughness = m.roughness;
+    if (m.metallic_roughness_texture >= 0) {
+        vec4 mr = scene_texel(m.metallic_roughness_texture, uv);
+        roughness *= mr.g;
+        metallic *= mr.b;
+    }
+    vec3 emission = m.emissive;
+    if (m.emissive_texture >= 0) {
+        emission *= srgb_to_linear(scene_texel(m.emissive_texture, uv).rgb);
+    }
+    if (!sp.front_face && (m.flags & TRI_DOUBLE_SIDED) == 0u) {
+        emission = vec3(0.0);
+    }
+    sp.position = origin + dir * t;
+    sp.base_color = clamp(base.rgb, 0.0, 1.0);
+    sp.metallic = clamp(metallic, 0.0, 1.0);
+    sp.roughness = clamp(roughness, 0.0, 1.0);
+    sp.specular = clamp(m.specular, 0.0, 1.0);
+    sp.emission = max(emission, vec3(0.0));
+    return sp;
+}
+
+vec3 sky_radiance(vec3 dir) {
+    if (params.sky_zenith.w == 0.0) {
+        return params.sky_zenith.rgb;
+    }
+    return dir.y >= 0.0 ? mix(params.sky_horizon.rgb, params.sky_zenith.rgb, min(dir.y, 1.0)) : params.sky_ground.rgb;
+}
+
+uint light_group_count() {
+    return bitCount(params.counts.z);
+}
+
+float light_group_prob(uint group) {
+    return (params.counts.z & group) != 0u ? 1.0 / float(light_group_count()) : 0.0;
+}
+
+// Cosine of the sun disc's half angle (x) and the disc's radiance scale 1 / (pi sin^2 r) (y).
+vec2 sun_disc() {
+    float r = params.sun_dir.w;
+    float s = sin(r);
+    return vec2(cos(r), 1.0 / (PI * s * s));
+}
+
+struct LightSample {
+    vec3 wi;
+    float distance; // < 0: infinitely far
+    vec3 radiance;
+    float pdf;
+    bool is_delta;
+};
+
+bool sample_light(vec3 p, vec3 n, vec4 u, out LightSample ls) {
+    ls.wi = vec3(0.0);
+    ls.distance = -1.0;
+    ls.radiance = vec3(0.0);
+    ls.pdf = 0.0;
+    ls.is_delta = false;
+    uint count = light_group_count();
+    if (count == 0u) {
+        return false;
+    }
+    uint gi = min(uint(u.x * float(count)), count - 1u);
+    float p_group = 1.0 / float(count);
+    float u_within = clamp(u.x * float(count) - float(gi), 0.0, 0.99999994);
+    // The gi-th set bit of the group mask.
+    uint mask = params.counts.z;
+    for (uint k = 0u; k < gi; k++) {
+        mask &= mask - 1u;
+    }
+    uint group = mask & (~mask + 1u);
+
+    if (group == LIGHT_GROUP_SUN) {
+        vec3 to_sun = normalize(params.sun_dir.xyz);
+        if (params.sun_dir.w <= 0.0) {
+            ls.wi = to_sun;
+            ls.radiance = params.sun_irradiance.rgb;
+            ls.pdf = p_group;
+            ls.is_delta = true;
+            return true;
+        }
+        vec2 disc = sun_disc();
+        float cos_t = 1.0 - u.y * (1.0 - disc.x);
+        float sin_t = sqrt(max(1.0 - cos_t * cos_t, 0.0));
+        float phi = TAU * u.z;
+        vec3 t, b;
+        orthonormal_basis(to_sun, t, b);
+        ls.wi = normalize(t * (sin_t * cos(phi)) + b * (sin_t * sin(phi)) + to_sun * cos_t);
+        ls.radiance = params.sun_irradiance.rgb * disc.y;
+        ls.pdf = p_group / (TAU * (1.0 - disc.x));
+        return true;
+    }
+    if (group == LIGHT_GROUP_SKY) {
+        ls.wi = sample_cosine_hemisphere(n, u.y, u.z);
+        ls.pdf = p_group * max(dot(ls.wi, n), 0.0) * INV_PI;
+        ls.radiance = sky_radiance(ls.wi);
+        return ls.pdf > 0.0;
+    }
+    if (group == LIGHT_GROUP_PUNCTUAL) {
+        uint n_lights = params.counts.x;
+        uint k = min(uint(u_within * float(n_lights)), n_lights - 1u);
+        PunctualLight l = scene_lights.data[k];
+        ls.pdf = p_group / float(n_lights);
+        ls.is_delta = true;
+        if (l.kind == LIGHT_DIRECTIONAL) {
+            ls.wi = -l.direction;
+            ls.radiance = l.power;
+            return true;
+        }
+        vec3 to_light = l.position - p;
+        float d2 = dot(to_light, to_light);
+        if (d2 <= 0.0) {
+            return false;
+        }
+        ls.wi = to_light / sqrt(d2);
+        ls.distance = sqrt(d2);
+        ls.radiance = l.power / d2;
+        if (l.kind == LIGHT_SPOT) {
+            float scale = 1.0 / max(l.cos_inner - l.cos_outer, 1e-3);
+            float a = clamp((dot(l.direction, -ls.wi) - l.cos_outer) * scale, 0.0, 1.0);
+            ls.radiance *= a * a;
+        }
+        return true;
+    }
+    // Emissive triangles: the first entry whose cumulative probability exceeds u_within.
+    uint lo = 0u;
+    uint hi = params.counts.y;
+    while (lo < hi) {
+        uint mid = (lo + hi) / 2u;
+        if (scene_emissive.data[mid].cdf <= u_within) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    uint prim = scene_emissive.data[min(lo, params.counts.y - 1u)].bvh_primitive;
+    BvhTriangle tri = scene_triangles.data[prim];
+    float su = sqrt(u.y);
+    float b1 = su * (1.0 - u.z);
+    float b2 = su * u.z;
+    vec3 q = tri.v0 * (1.0 - b1 - b2) + tri.v1 * b1 + tri.v2 * b2;
+    vec3 to_light = q - p;
+    float d2 = dot(to_light, to_light);
+    if (d2 <= 0.0) {
+        return false;
+    }
+    float dist = sqrt(d2);
+    ls.wi = to_light / dist;
+    Material m = scene_materials.data[tri.material];
+    float cos_l = dot(oriented_face_normal(prim), -ls.wi);
+    bool facing = cos_l > 0.0 || ((m.flags & TRI_DOUBLE_SIDED) != 0u && cos_l < 0.0);
+    if (!facing) {
+        return false;
+    }
+    ls.radiance = m.emissive;
+    if (m.emissive_texture >= 0) {
+        TriangleAttributes a = scene_attributes.data[prim];
+        vec2 uv = a.uvs[0] * (1.0 - b1 - b2) + a.uvs[1] * b1 + a.uvs[2] * b2;
+        ls.radiance *= srgb_to_linear(scene_texel(m.emissive_texture, uv).rgb);
+    }
+    TriangleAttributes a = scene_attributes.data[prim];
+    ls.pdf = p_group * a.emissive_prob * d2 / (a.area * abs(cos_l));
+    ls.distance = dist;
+    return ls.pdf > 0.0 && !isinf(ls.pdf);
+}
+
+vec3 sun_radiance(vec3 dir) {
+    if (params.sun_dir.w <= 0.0 || (params.counts.z & LIGHT_GROUP_SUN) == 0u) {
+        return vec3(0.0);
+    }
+    vec2 disc = sun_disc();
+    return dot(dir, normalize(params.sun_dir.xyz)) >= disc.x ? params.sun_irradiance.rgb * disc.y : vec3(0.0);
+}
+
+float pdf_sun(vec3 dir) {
+    if (params.sun_dir.w <= 0.0) {
+        return 0.0;
+    }
+    vec2 disc = sun_disc();
+    return dot(dir, normalize(params.sun_dir.xyz)) >= disc.x ? light_group_prob(LIGHT_GROUP_SUN) / (TAU * (1.0 - disc.x)) : 0.0;
+}
+
+float pdf_sky(vec3 n, vec3 dir) {
+    return light_group_prob(LIGHT_GROUP_SKY) * max(dot(n, dir), 0.0) * INV_PI;
+}
+
+float pdf_emissive(uint prim, vec3 from, vec3 hit, vec3 light_normal) {
+    TriangleAttributes a = scene_attributes.data[prim];
+    if (a.emissive_prob <= 0.0) {
+        return 0.0;
+    }
+    vec3 d = hit - from;
+    float d2 = dot(d, d);
+    float cos_l = abs(dot(light_normal, d / sqrt(d2)));
+    if (cos_l <= 0.0) {
+        return 0.0;
+    }
+    return light_group_prob(LIGHT_GROUP_EMISSIVE) * a.emissive_prob * d2 / (a.area * cos_l);
+}
+
+#endif

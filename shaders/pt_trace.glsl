@@ -1,0 +1,207 @@
+#version 460
+// GPU path tracer, the twin of parallax_scene::pt::CpuTracer: same camera, random numbers,
+// BVH, materials, lights, MIS and depth convention, so that for every pixel it estimates the
+// same integral with the same random numbers (values differ only where float rounding of
+// transcendental functions sends a path another way). Compile with
+// `glslc -fshader-stage=compute --target-env=vulkan1.3`.
+//
+// Bindings: set 0 = the scene (pt_scene.glsl); set 1: 0 TraceParams (GpuTraceParams),
+// 1 pixel list (x | y << 16, list mode only), 2 output (GpuPixel per traced pixel, in the
+// order of the rows or of the list).
+
+#extension GL_GOOGLE_include_directive : require
+
+#include "pt_scene.glsl"
+#define BVH_NODES scene_nodes.data
+#define BVH_TRIS scene_triangles.data
+#include "bvh_traverse.glsl"
+#include "pt_rng.glsl"
+#include "pt_bsdf.glsl"
+
+#ifndef PT_GROUP_SIZE
+#define PT_GROUP_SIZE 64
+#endif
+layout(local_size_x = PT_GROUP_SIZE) in;
+
+struct TraceParams {
+    vec4 eye;
+    vec4 right;
+    vec4 up;
+    vec4 forward;
+    vec4 shift;
+    uvec4 dims;     // width, height, view, frame
+    uvec4 sampling; // spp, max depth, roulette from (0xffffffff off), jitter
+    uvec4 counts;   // punctual lights, emissive triangles, light-group bits, pixel mode
+    uvec4 pixels;   // rows: y0, y1; list: z = length
+    vec4 sky_zenith; // w: 0 constant, 1 gradient
+    vec4 sky_horizon;
+    vec4 sky_ground;
+    vec4 sun_dir;    // w: angular radius
+    vec4 sun_irradiance;
+};
+
+struct PixelOut {
+    vec4 radiance; // a = 1 if the first hit exists
+    vec4 albedo_roughness;
+    vec4 normal_metallic;
+    vec4 position_depth;
+};
+
+layout(std430, set = 1, binding = 0) readonly buffer Params { TraceParams params; };
+layout(std430, set = 1, binding = 1) readonly buffer PixelList { uint data[]; } pixel_list;
+layout(std430, set = 1, binding = 2) writeonly buffer Output { PixelOut data[]; } pixels_out;
+
+#include "pt_lights.glsl"
+
+float mis_weight(float pdf_a, float pdf_b) {
+    float a = pdf_a * pdf_a;
+    float b = pdf_b * pdf_b;
+    if (a + b > 0.0 && !isinf(a + b)) {
+        return a / (a + b);
+    }
+    return pdf_a > 0.0 ? 1.0 : 0.0;
+}
+
+// Waechter and Binder, Ray Tracing Gems ch. 6: `offset_ray_origin`.
+vec3 offset_ray_origin(vec3 p, vec3 n) {
+    ivec3 of_i = ivec3(256.0 * n);
+    vec3 moved = intBitsToFloat(floatBitsToInt(p) + ivec3(p.x < 0.0 ? -of_i.x : of_i.x,
+                                                           p.y < 0.0 ? -of_i.y : of_i.y,
+                                                           p.z < 0.0 ? -of_i.z : of_i.z));
+    const float origin = 1.0 / 32.0;
+    const float float_scale = 1.0 / 65536.0;
+    return vec3(abs(p.x) < origin ? p.x + float_scale * n.x : moved.x,
+                abs(p.y) < origin ? p.y + float_scale * n.y : moved.y,
+                abs(p.z) < origin ? p.z + float_scale * n.z : moved.z);
+}
+
+vec3 trace_path(uvec4 key, uint sample_index, vec3 origin, vec3 dir, bool first, inout PixelOut g) {
+    vec3 radiance = vec3(0.0);
+    vec3 throughput = vec3(1.0);
+    vec3 ro = origin;
+    vec3 rd = dir;
+    bool has_prev = false;
+    vec3 prev_position = vec3(0.0);
+    vec3 prev_normal = vec3(0.0);
+    float prev_pdf = 0.0;
+    uint max_depth = params.sampling.y;
+    for (uint depth = 0u; depth <= max_depth; depth++) {
+        BvhHit hit = bvh_closest_hit(bvh_make_ray(ro, rd, 0.0, 1.0 / 0.0));
+        if (hit.primitive == 0xffffffffu) {
+            vec3 sky = sky_radiance(rd);
+            vec3 sun = sun_radiance(rd);
+            if (!has_prev) {
+                radiance += throughput * (sky + sun);
+            } else {
+                radiance += throughput * (sky * mis_weight(prev_pdf, pdf_sky(prev_normal, rd))
+                                          + sun * mis_weight(prev_pdf, pdf_sun(rd)));
+            }
+            break;
+        }
+        SurfacePoint sp = surface_point(hit.primitive, hit.barycentrics, hit.t, ro, rd);
+        if (first && depth == 0u) {
+            g.radiance.a = 1.0;
+            g.albedo_roughness = vec4(sp.base_color, sp.roughness);
+            g.normal_metallic = vec4(sp.normal, sp.metallic);
+            g.position_depth = vec4(sp.position, dot(sp.position - params.eye.xyz, params.forward.xyz));
+        }
+        if (max(max(sp.emission.x, sp.emission.y), sp.emission.z) > 0.0) {
+            float w = 1.0;
+            if (has_prev) {
+                w = mis_weight(prev_pdf, pdf_emissive(hit.primitive, prev_position, sp.position, sp.geometric_normal));
+            }
+            radiance += throughput * sp.emission * w;
+        }
+        if (depth == max_depth) {
+            break;
+        }
+        vec3 wo = -rd;
+        Bsdf bsdf = bsdf_new(sp, wo);
+        vec3 o = offset_ray_origin(sp.position, sp.geometric_normal);
+
+        vec4 lu = rng_uniforms(key, sample_index, depth + 1u, DIM_LIGHT);
+        LightSample ls;
+        if (sample_light(sp.position, sp.normal, lu, ls)) {
+            vec4 e = bsdf_eval(bsdf, wo, ls.wi);
+            if (max(max(e.x, e.y), e.z) > 0.0) {
+                float tmax = ls.distance >= 0.0 ? max(ls.distance * (1.0 - 1e-4), 0.0) : 1.0 / 0.0;
+                if (!bvh_occluded(bvh_make_ray(o, ls.wi, 0.0, tmax))) {
+                    float w = ls.is_delta ? 1.0 : mis_weight(ls.pdf, e.w);
+                    radiance += throughput * e.rgb * ls.radiance * (w / ls.pdf);
+                }
+            }
+        }
+
+        vec4 bu = rng_uniforms(key, sample_index, depth + 1u, DIM_BSDF);
+        vec3 wi;
+        vec3 weight;
+        float pdf;
+        if (!bsdf_sample(bsdf, wo, bu.xyz, wi, weight, pdf)) {
+            break;
+        }
+        throughput *= weight;
+        if (params.sampling.z != 0xffffffffu && depth + 1u >= params.sampling.z) {
+            float survive = clamp(max(max(throughput.x, throughput.y), throughput.z), 0.05, 0.95);
+            if (rng_uniforms(key, sample_index, depth + 1u, DIM_ROULETTE).x >= survive) {
+                break;
+            }
+            throughput /= survive;
+        }
+        if (max(max(throughput.x, throughput.y), throughput.z) <= 0.0) {
+            break;
+        }
+        has_prev = true;
+        prev_position = sp.position;
+        prev_normal = sp.normal;
+        prev_pdf = pdf;
+        ro = o;
+        rd = wi;
+    }
+    return radiance;
+}
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    uint width = params.dims.x;
+    uint x;
+    uint y;
+    if (params.counts.w == 1u) {
+        if (i >= params.pixels.z) {
+            return;
+        }
+        x = pixel_list.data[i] & 0xffffu;
+        y = pixel_list.data[i] >> 16u;
+    } else {
+        uint rows = params.pixels.y - params.pixels.x;
+        if (i >= rows * width) {
+            return;
+        }
+        x = i % width;
+        y = params.pixels.x + i / width;
+    }
+    uvec4 key = rng_key(x, y, params.dims.z, params.dims.w);
+    PixelOut g;
+    g.radiance = vec4(0.0);
+    g.albedo_roughness = vec4(0.0);
+    g.normal_metallic = vec4(0.0);
+    g.position_depth = vec4(0.0);
+    float aspect_w = float(params.dims.x);
+    float aspect_h = float(params.dims.y);
+    vec3 sum = vec3(0.0);
+    for (uint s = 0u; s < params.sampling.x; s++) {
+        vec2 jitter = vec2(0.5);
+        if (params.sampling.w != 0u) {
+            jitter = rng_uniforms(key, s, 0u, DIM_CAMERA).xy;
+        }
+        vec2 ndc = vec2((float(x) + jitter.x) / aspect_w * 2.0 - 1.0, 1.0 - (float(y) + jitter.y) / aspect_h * 2.0);
+        vec2 p = ndc + params.shift.xy;
+        vec3 dir = normalize(params.right.xyz * p.x + params.up.xyz * p.y + params.forward.xyz);
+        vec3 l = trace_path(key, s, params.eye.xyz, dir, s == 0u, g);
+        // Like the CPU: a non-finite sample is dropped, never written.
+        if (!any(isnan(l)) && !any(isinf(l))) {
+            sum += l;
+        }
+    }
+    g.radiance.rgb = sum / float(params.sampling.x);
+    pixels_out.data[i] = g;
+}
