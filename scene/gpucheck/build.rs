@@ -1,4 +1,4 @@
-//! Compiles ../../shaders/bvh_raycast.glsl and pt_trace.glsl (variants without textures) with
+//! Compiles ../../shaders/bvh_raycast.glsl and pt_trace.glsl, with and without textures, with
 //! glslc into OUT_DIR.
 
 use std::path::PathBuf;
@@ -9,9 +9,16 @@ fn main() {
     let shaders = manifest.join("../../shaders");
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap());
     let glslc = std::env::var("GLSLC").unwrap_or_else(|_| "glslc".into());
-    for (src, spv) in [("bvh_raycast.glsl", "raycast.spv"), ("pt_trace.glsl", "pt_trace.spv")] {
+    let variants = [
+        ("bvh_raycast.glsl", "raycast.spv", true),
+        ("pt_trace.glsl", "pt_trace.spv", true),
+        ("bvh_raycast.glsl", "raycast_tex.spv", false),
+        ("pt_trace.glsl", "pt_trace_tex.spv", false),
+    ];
+    for (src, spv, untextured) in variants {
+        let define = if untextured { "-DPT_SCENE_NO_TEXTURES" } else { "-DPT_SCENE_TEXTURED" };
         let result = Command::new(&glslc)
-            .args(["-fshader-stage=compute", "--target-env=vulkan1.3", "-O", "-Werror", "-DPT_SCENE_NO_TEXTURES"])
+            .args(["-fshader-stage=compute", "--target-env=vulkan1.3", "-O", "-Werror", define])
             .arg(shaders.join(src))
             .arg("-o")
             .arg(out_dir.join(spv))

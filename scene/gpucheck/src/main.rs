@@ -14,8 +14,9 @@
 //!   gpucheck bench SCENE W H [CAMERA]      primary, diffuse-bounce and any-hit rays/s at W x H;
 //!                                          CAMERA = eye,target,up,yfov_degrees (10 numbers)
 //!
-//! SCENE is `default` or a glTF path. Materials are made opaque and untextured on both sides:
-//! the kernels are compiled with PT_SCENE_NO_TEXTURES. A scene without any light gets a sky
+//! SCENE is `default` or a glTF path. By default materials are made opaque and untextured on
+//! both sides (kernels compiled with PT_SCENE_NO_TEXTURES); GPUCHECK_TEXTURES=1 binds the
+//! scene's textures instead and keeps alpha masks on both sides. A scene without any light gets a sky
 //! and a sun; GPUCHECK_CAMERA (10 numbers as for bench) replaces the default camera for `pt`. GPUCHECK_SPV / GPUCHECK_GROUP swap in another build of
 //! the kernel and its workgroup size (for tuning).
 
@@ -31,6 +32,13 @@ use rayon::prelude::*;
 
 const RAYCAST_SPV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/raycast.spv"));
 const PT_TRACE_SPV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/pt_trace.spv"));
+const RAYCAST_TEX_SPV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/raycast_tex.spv"));
+const PT_TRACE_TEX_SPV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/pt_trace_tex.spv"));
+
+/// GPUCHECK_TEXTURES=1: bind the scene's textures and keep alpha masks (textured kernels).
+fn textured() -> bool {
+    std::env::var("GPUCHECK_TEXTURES").is_ok_and(|v| v == "1")
+}
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Default)]
@@ -89,7 +97,10 @@ impl Gpu {
             let prio = [1.0f32];
             let qci = [vk::DeviceQueueCreateInfo::default().queue_family_index(qf).queue_priorities(&prio)];
             let exts: [*const c_char; 0] = [];
-            let mut f12 = vk::PhysicalDeviceVulkan12Features::default().host_query_reset(true);
+            let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
+                .host_query_reset(true)
+                .runtime_descriptor_array(true)
+                .shader_sampled_image_array_non_uniform_indexing(true);
             let device = instance
                 .create_device(
                     pdev,
@@ -214,6 +225,106 @@ impl Gpu {
         out
     }
 
+    /// An RGBA8 UNORM sampled image holding `tex` (level 0 only), in SHADER_READ_ONLY layout.
+    fn upload_texture(&self, tex: &parallax_scene::Texture) -> (vk::Image, vk::DeviceMemory, vk::ImageView) {
+        let staging = self.buffer(tex.rgba8.len() as u64, vk::BufferUsageFlags::TRANSFER_SRC, true);
+        unsafe {
+            let p = self.device.map_memory(staging.memory, 0, staging.size, vk::MemoryMapFlags::empty()).unwrap()
+                as *mut u8;
+            std::ptr::copy_nonoverlapping(tex.rgba8.as_ptr(), p, tex.rgba8.len());
+            self.device.unmap_memory(staging.memory);
+            let extent = vk::Extent3D { width: tex.width, height: tex.height, depth: 1 };
+            let image = self
+                .device
+                .create_image(
+                    &vk::ImageCreateInfo::default()
+                        .image_type(vk::ImageType::TYPE_2D)
+                        .format(vk::Format::R8G8B8A8_UNORM)
+                        .extent(extent)
+                        .mip_levels(1)
+                        .array_layers(1)
+                        .samples(vk::SampleCountFlags::TYPE_1)
+                        .tiling(vk::ImageTiling::OPTIMAL)
+                        .usage(vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST),
+                    None,
+                )
+                .unwrap();
+            let req = self.device.get_image_memory_requirements(image);
+            let memory = self
+                .device
+                .allocate_memory(
+                    &vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(
+                        self.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL),
+                    ),
+                    None,
+                )
+                .unwrap();
+            self.device.bind_image_memory(image, memory, 0).unwrap();
+            let range = vk::ImageSubresourceRange::default()
+                .aspect_mask(vk::ImageAspectFlags::COLOR)
+                .level_count(1)
+                .layer_count(1);
+            self.one_shot(|cb| {
+                let to_dst = vk::ImageMemoryBarrier::default()
+                    .image(image)
+                    .subresource_range(range)
+                    .old_layout(vk::ImageLayout::UNDEFINED)
+                    .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                    .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE);
+                self.device.cmd_pipeline_barrier(
+                    cb,
+                    vk::PipelineStageFlags::TOP_OF_PIPE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::DependencyFlags::empty(),
+                    &[],
+                    &[],
+                    &[to_dst],
+                );
+                let region = vk::BufferImageCopy::default()
+                    .image_subresource(
+                        vk::ImageSubresourceLayers::default().aspect_mask(vk::ImageAspectFlags::COLOR).layer_count(1),
+                    )
+                    .image_extent(extent);
+                self.device.cmd_copy_buffer_to_image(
+                    cb,
+                    staging.buffer,
+                    image,
+                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                    &[region],
+                );
+                let to_read = vk::ImageMemoryBarrier::default()
+                    .image(image)
+                    .subresource_range(range)
+                    .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                    .new_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::SHADER_READ);
+                self.device.cmd_pipeline_barrier(
+                    cb,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::DependencyFlags::empty(),
+                    &[],
+                    &[],
+                    &[to_read],
+                );
+            });
+            let view = self
+                .device
+                .create_image_view(
+                    &vk::ImageViewCreateInfo::default()
+                        .image(image)
+                        .view_type(vk::ImageViewType::TYPE_2D)
+                        .format(vk::Format::R8G8B8A8_UNORM)
+                        .subresource_range(range),
+                    None,
+                )
+                .unwrap();
+            self.free(staging);
+            (image, memory, view)
+        }
+    }
+
     fn free(&self, b: Buf) {
         unsafe {
             self.device.destroy_buffer(b.buffer, None);
@@ -271,7 +382,7 @@ impl<'g> Raycaster<'g> {
     fn new(gpu: &'g Gpu, gs: &GpuScene) -> Self {
         let spv = match std::env::var("GPUCHECK_SPV") {
             Ok(p) => std::fs::read(p).unwrap(),
-            Err(_) => RAYCAST_SPV.to_vec(),
+            Err(_) => if textured() { RAYCAST_TEX_SPV } else { RAYCAST_SPV }.to_vec(),
         };
         Self::with_kernel(gpu, gs, &spv, 2)
     }
@@ -286,7 +397,35 @@ impl<'g> Raycaster<'g> {
             gpu.upload(gs.light_bytes()),
         ];
         unsafe {
-            let set_layouts = [storage_layout(gpu, 6), storage_layout(gpu, set1_bindings)];
+            let textured = textured();
+            let texture_count = gs.textures.len().max(1) as u32;
+            let scene_layout = if textured {
+                let mut bindings: Vec<_> = (0..6)
+                    .map(|i| {
+                        vk::DescriptorSetLayoutBinding::default()
+                            .binding(i)
+                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                            .descriptor_count(1)
+                            .stage_flags(vk::ShaderStageFlags::COMPUTE)
+                    })
+                    .collect();
+                bindings.push(
+                    vk::DescriptorSetLayoutBinding::default()
+                        .binding(6)
+                        .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                        .descriptor_count(texture_count)
+                        .stage_flags(vk::ShaderStageFlags::COMPUTE),
+                );
+                gpu.device
+                    .create_descriptor_set_layout(
+                        &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                        None,
+                    )
+                    .unwrap()
+            } else {
+                storage_layout(gpu, 6)
+            };
+            let set_layouts = [scene_layout, storage_layout(gpu, set1_bindings)];
             let pc = [vk::PushConstantRange::default().stage_flags(vk::ShaderStageFlags::COMPUTE).size(8)];
             let layout = gpu
                 .device
@@ -311,7 +450,12 @@ impl<'g> Raycaster<'g> {
                 )
                 .unwrap()[0];
             gpu.device.destroy_shader_module(module, None);
-            let sizes = [vk::DescriptorPoolSize::default().ty(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(64)];
+            let sizes = [
+                vk::DescriptorPoolSize::default().ty(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(64),
+                vk::DescriptorPoolSize::default()
+                    .ty(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                    .descriptor_count(texture_count),
+            ];
             let pool = gpu
                 .device
                 .create_descriptor_pool(
@@ -329,6 +473,42 @@ impl<'g> Raycaster<'g> {
                 )
                 .unwrap()[0];
             write_set(gpu, scene_set, &scene_bufs.iter().collect::<Vec<_>>());
+            if textured {
+                // Textures live as long as the process: this harness never frees them.
+                let sampler = gpu
+                    .device
+                    .create_sampler(
+                        &vk::SamplerCreateInfo::default()
+                            .mag_filter(vk::Filter::LINEAR)
+                            .min_filter(vk::Filter::LINEAR)
+                            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+                            .address_mode_u(vk::SamplerAddressMode::REPEAT)
+                            .address_mode_v(vk::SamplerAddressMode::REPEAT)
+                            .address_mode_w(vk::SamplerAddressMode::REPEAT)
+                            .max_lod(0.0),
+                        None,
+                    )
+                    .unwrap();
+                let white = parallax_scene::Texture { width: 1, height: 1, rgba8: vec![255; 4] };
+                let textures: Vec<&parallax_scene::Texture> =
+                    if gs.textures.is_empty() { vec![&white] } else { gs.textures.iter().collect() };
+                let infos: Vec<vk::DescriptorImageInfo> = textures
+                    .iter()
+                    .map(|t| {
+                        let (_, _, view) = gpu.upload_texture(t);
+                        vk::DescriptorImageInfo::default()
+                            .sampler(sampler)
+                            .image_view(view)
+                            .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+                    })
+                    .collect();
+                let write = vk::WriteDescriptorSet::default()
+                    .dst_set(scene_set)
+                    .dst_binding(6)
+                    .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                    .image_info(&infos);
+                gpu.device.update_descriptor_sets(&[write], &[]);
+            }
             Raycaster { gpu, pipeline, layout, set_layouts, pool, scene_set, _scene_bufs: scene_bufs }
         }
     }
@@ -482,7 +662,7 @@ fn compare_pt(gpu: &Gpu, scene: &Scene, w: u32, h: u32, spp: u32, frames: u32) {
     use parallax_scene::{CpuTracer, PixelSet, TraceSettings, View};
     let bvh = SceneBvh::build(scene);
     let gs = GpuScene::new(scene, &bvh);
-    let pt = Raycaster::with_kernel(gpu, &gs, PT_TRACE_SPV, 3);
+    let pt = Raycaster::with_kernel(gpu, &gs, if textured() { PT_TRACE_TEX_SPV } else { PT_TRACE_SPV }, 3);
     let cpu = CpuTracer::new(scene, &bvh);
     let view = View { camera: scene.default_camera(), width: w, height: h, index: 0 };
     let n = (w * h) as usize;
@@ -698,8 +878,8 @@ fn bench(gpu: &Gpu, scene: &Scene, camera: Camera, w: u32, h: u32) {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let mut scene = load_scene(&args[2]).expect("scene");
-    // The kernels are built without textures: make the CPU side match (opaque, untextured).
-    for m in &mut scene.materials {
+    // Untextured kernels (the default): make the CPU side match (opaque, untextured).
+    for m in scene.materials.iter_mut().filter(|_| !textured()) {
         m.alpha_mode = AlphaMode::Opaque;
         m.base_color_texture = None;
         m.metallic_roughness_texture = None;
