@@ -5,6 +5,9 @@
 //! - [`SceneBvh`]: an obvhs CWBVH over all triangles plus CPU traversal; [`gpu`] lays the same
 //!   BVH and scene out for storage buffers (traversed by `shaders/bvh_traverse.glsl`).
 //! - [`CpuTracer`]: the reference path tracer (NEE + MIS, Lambert + GGX, counter-based RNG).
+//!   `shaders/pt_trace.glsl` is its GPU twin; [`gpu::GpuTraceParams`] and [`gpu::GpuPixel`]
+//!   are its parameter and output layouts. No Vulkan here: `scene/gpucheck` (outside the
+//!   workspace) runs the shaders against this crate until the backend can bind a scene.
 //! - [`output`]: EXR per view and a PNG contact sheet; [`metrics`]: MSE, PSNR, means.
 //!
 //! ```
