@@ -84,11 +84,11 @@ float light_group_prob(uint group) {
     return (params.counts.z & group) != 0u ? 1.0 / float(light_group_count()) : 0.0;
 }
 
-// Cosine of the sun disc's half angle (x) and the disc's radiance scale 1 / (pi sin^2 r) (y).
-vec2 sun_disc() {
-    float r = params.sun_dir.w;
-    float s = sin(r);
-    return vec2(cos(r), 1.0 / (PI * s * s));
+// The sun disc from values the CPU computed precisely (parallax_scene::lights::sun_disc):
+// x = cos of the angular radius, y = 1 - cos (0: delta sun), z = radiance per irradiance.
+vec3 sun_disc() {
+    float one_minus_cos = params.sun_irradiance.w;
+    return vec3(params.sun_dir.w, one_minus_cos, 1.0 / (PI * one_minus_cos * (2.0 - one_minus_cos)));
 }
 
 struct LightSample {
@@ -121,22 +121,22 @@ bool sample_light(vec3 p, vec3 n, vec4 u, out LightSample ls) {
 
     if (group == LIGHT_GROUP_SUN) {
         vec3 to_sun = normalize(params.sun_dir.xyz);
-        if (params.sun_dir.w <= 0.0) {
+        vec3 disc = sun_disc();
+        if (disc.y <= 0.0) {
             ls.wi = to_sun;
             ls.radiance = params.sun_irradiance.rgb;
             ls.pdf = p_group;
             ls.is_delta = true;
             return true;
         }
-        vec2 disc = sun_disc();
-        float cos_t = 1.0 - u.y * (1.0 - disc.x);
+        float cos_t = 1.0 - u.y * disc.y;
         float sin_t = sqrt(max(1.0 - cos_t * cos_t, 0.0));
         float phi = TAU * u.z;
         vec3 t, b;
         orthonormal_basis(to_sun, t, b);
         ls.wi = normalize(t * (sin_t * cos(phi)) + b * (sin_t * sin(phi)) + to_sun * cos_t);
-        ls.radiance = params.sun_irradiance.rgb * disc.y;
-        ls.pdf = p_group / (TAU * (1.0 - disc.x));
+        ls.radiance = params.sun_irradiance.rgb * disc.z;
+        ls.pdf = p_group / (TAU * disc.y);
         return true;
     }
     if (group == LIGHT_GROUP_SKY) {
@@ -214,19 +214,19 @@ bool sample_light(vec3 p, vec3 n, vec4 u, out LightSample ls) {
 }
 
 vec3 sun_radiance(vec3 dir) {
-    if (params.sun_dir.w <= 0.0 || (params.counts.z & LIGHT_GROUP_SUN) == 0u) {
+    vec3 disc = sun_disc();
+    if (disc.y <= 0.0 || (params.counts.z & LIGHT_GROUP_SUN) == 0u) {
         return vec3(0.0);
     }
-    vec2 disc = sun_disc();
-    return dot(dir, normalize(params.sun_dir.xyz)) >= disc.x ? params.sun_irradiance.rgb * disc.y : vec3(0.0);
+    return dot(dir, normalize(params.sun_dir.xyz)) >= disc.x ? params.sun_irradiance.rgb * disc.z : vec3(0.0);
 }
 
 float pdf_sun(vec3 dir) {
-    if (params.sun_dir.w <= 0.0) {
+    vec3 disc = sun_disc();
+    if (disc.y <= 0.0) {
         return 0.0;
     }
-    vec2 disc = sun_disc();
-    return dot(dir, normalize(params.sun_dir.xyz)) >= disc.x ? light_group_prob(LIGHT_GROUP_SUN) / (TAU * (1.0 - disc.x)) : 0.0;
+    return dot(dir, normalize(params.sun_dir.xyz)) >= disc.x ? light_group_prob(LIGHT_GROUP_SUN) / (TAU * disc.y) : 0.0;
 }
 
 float pdf_sky(vec3 n, vec3 dir) {

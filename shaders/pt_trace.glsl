@@ -36,8 +36,8 @@ struct TraceParams {
     vec4 sky_zenith; // w: 0 constant, 1 gradient
     vec4 sky_horizon;
     vec4 sky_ground;
-    vec4 sun_dir;    // w: angular radius
-    vec4 sun_irradiance;
+    vec4 sun_dir;        // w: cos of the angular radius
+    vec4 sun_irradiance; // w: 1 - cos of the angular radius (0: delta sun)
 };
 
 struct PixelOut {

@@ -12,7 +12,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::bvh::SceneBvh;
-use crate::lights::LightSet;
+use crate::lights::{LightSet, sun_disc};
 use glam::Vec3;
 
 use crate::model::{AlphaMode, PunctualKind, Scene, Sky, Sun, Texture};
@@ -132,9 +132,9 @@ pub struct GpuTraceParams {
     pub sky_zenith: [f32; 4],
     pub sky_horizon: [f32; 4],
     pub sky_ground: [f32; 4],
-    /// xyz unit vector to the sun; w angular radius (radians).
+    /// xyz unit vector to the sun; w cosine of the disc's angular radius.
     pub sun_dir: [f32; 4],
-    /// xyz irradiance.
+    /// xyz irradiance; w 1 - cos(angular radius), 0 for a delta sun (see `lights::sun_disc`).
     pub sun_irradiance: [f32; 4],
 }
 
@@ -155,6 +155,7 @@ impl GpuTraceParams {
             Sky::Gradient { zenith, horizon, ground } => (1.0, zenith, horizon, ground),
         };
         let sun = scene.sun.unwrap_or(Sun { to_sun: Vec3::Y, irradiance: Vec3::ZERO, angular_radius: 0.0 });
+        let disc = sun_disc(sun.angular_radius.max(0.0));
         Self {
             eye: view.camera.eye.extend(0.0).into(),
             right: (right * (tan_half * view.aspect())).extend(0.0).into(),
@@ -173,8 +174,11 @@ impl GpuTraceParams {
             sky_zenith: zenith.extend(sky_kind).into(),
             sky_horizon: horizon.extend(0.0).into(),
             sky_ground: ground.extend(0.0).into(),
-            sun_dir: sun.to_sun.normalize_or(Vec3::Y).extend(sun.angular_radius).into(),
-            sun_irradiance: sun.irradiance.extend(0.0).into(),
+            sun_dir: sun.to_sun.normalize_or(Vec3::Y).extend(disc.cos_max).into(),
+            sun_irradiance: sun
+                .irradiance
+                .extend(if sun.angular_radius > 0.0 { disc.one_minus_cos } else { 0.0 })
+                .into(),
         }
     }
 }

@@ -8,7 +8,7 @@
 //! by hitting them; their pdfs below let the path tracer weight both strategies (power
 //! heuristic). Punctual lights and a sun of zero size are delta lights: NEE only.
 
-use std::f32::consts::{FRAC_1_PI, PI, TAU};
+use std::f32::consts::{FRAC_1_PI, TAU};
 
 use glam::{Vec2, Vec3};
 
@@ -57,11 +57,31 @@ fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
-/// Cosine of the sun disc's half angle and the disc's radiance.
-fn sun_disc(sun: &Sun) -> (f32, Vec3) {
-    let r = sun.angular_radius;
-    let s = r.sin();
-    (r.cos(), sun.irradiance / (PI * s * s))
+/// The sun disc as NEE and MIS need it: `one_minus_cos` = 1 - cos(angular radius), the cosine
+/// threshold of the cone, and the disc's radiance E / (pi sin^2 r).
+///
+/// For a disc of half a degree, 1 - cos is 4e-5: computed as `1.0 - r.cos()` in f32 it loses
+/// a few digits (the GPU's approximate cos loses more), and the pdf 1 / (2 pi (1 - cos)) and the
+/// radiance disagree by a fraction of a percent. So it is computed once, in f64, from
+/// 2 sin^2(r/2), and the GPU receives this value rather than recomputing it.
+pub fn sun_disc(angular_radius: f32) -> SunDisc {
+    let r = angular_radius as f64;
+    let half = (0.5 * r).sin();
+    let one_minus_cos = 2.0 * half * half;
+    let sin2 = one_minus_cos * (2.0 - one_minus_cos);
+    SunDisc {
+        one_minus_cos: one_minus_cos as f32,
+        cos_max: (1.0 - one_minus_cos) as f32,
+        radiance_scale: (1.0 / (std::f64::consts::PI * sin2)) as f32,
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SunDisc {
+    pub one_minus_cos: f32,
+    pub cos_max: f32,
+    /// Disc radiance per unit irradiance.
+    pub radiance_scale: f32,
 }
 
 impl LightSet {
@@ -172,8 +192,8 @@ impl LightSet {
                         is_delta: true,
                     });
                 }
-                let (cos_max, radiance) = sun_disc(&sun);
-                let cos_t = 1.0 - u[1] * (1.0 - cos_max);
+                let disc = sun_disc(sun.angular_radius);
+                let cos_t = 1.0 - u[1] * disc.one_minus_cos;
                 let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
                 let phi = TAU * u[2];
                 let (t, b) = orthonormal_basis(to_sun);
@@ -181,8 +201,8 @@ impl LightSet {
                 Some(LightSample {
                     wi,
                     distance: f32::INFINITY,
-                    radiance,
-                    pdf: p_group / (TAU * (1.0 - cos_max)),
+                    radiance: sun.irradiance * disc.radiance_scale,
+                    pdf: p_group / (TAU * disc.one_minus_cos),
                     is_delta: false,
                 })
             }
@@ -276,8 +296,12 @@ impl LightSet {
     pub fn sun_radiance(&self, dir: Vec3) -> Vec3 {
         match self.sun {
             Some(sun) if sun.angular_radius > 0.0 => {
-                let (cos_max, radiance) = sun_disc(&sun);
-                if dir.dot(sun.to_sun.normalize()) >= cos_max { radiance } else { Vec3::ZERO }
+                let disc = sun_disc(sun.angular_radius);
+                if dir.dot(sun.to_sun.normalize()) >= disc.cos_max {
+                    sun.irradiance * disc.radiance_scale
+                } else {
+                    Vec3::ZERO
+                }
             }
             _ => Vec3::ZERO,
         }
@@ -287,9 +311,9 @@ impl LightSet {
     pub fn pdf_sun(&self, dir: Vec3) -> f32 {
         match self.sun {
             Some(sun) if sun.angular_radius > 0.0 => {
-                let (cos_max, _) = sun_disc(&sun);
-                if dir.dot(sun.to_sun.normalize()) >= cos_max {
-                    self.group_prob(Group::Sun) / (TAU * (1.0 - cos_max))
+                let disc = sun_disc(sun.angular_radius);
+                if dir.dot(sun.to_sun.normalize()) >= disc.cos_max {
+                    self.group_prob(Group::Sun) / (TAU * disc.one_minus_cos)
                 } else {
                     0.0
                 }
@@ -317,5 +341,22 @@ impl LightSet {
             return 0.0;
         }
         self.group_prob(Group::Emissive) * prob * d2 / (self.area[tri as usize] * cos_l)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sun_disc_is_precise_for_small_suns() {
+        for degrees in [0.1f64, 0.27, 0.5, 5.0, 30.0] {
+            let r = degrees.to_radians();
+            let d = sun_disc(r as f32);
+            let exact = 1.0 - r.cos();
+            assert!(((d.one_minus_cos as f64 - exact) / exact).abs() < 1e-6, "{degrees}: {}", d.one_minus_cos);
+            let scale = 1.0 / (std::f64::consts::PI * r.sin() * r.sin());
+            assert!(((d.radiance_scale as f64 - scale) / scale).abs() < 1e-5, "{degrees}");
+        }
     }
 }
