@@ -1,0 +1,782 @@
+//! The executor: turns a [`Plan`] into per-device command buffers recorded once, and submits
+//! them frame after frame.
+//!
+//! * Within a device, submissions are ordered by the queue and made memory-safe by barriers;
+//!   each submission signals the device's progress timeline (values from
+//!   [`crate::segments::progress_value`]).
+//! * Across devices, the consumer's copy-in waits on a per-copy "ready" timeline that a host
+//!   relay thread signals once the producer's copy-out is done ([`crate::relay`]).
+//! * Up to `frames_in_flight` frames are submitted before the host waits for the oldest; each
+//!   frame-in-flight slot has its own command buffers, query pool, descriptor set and staging
+//!   memory, so nothing is re-recorded unless the plan changes ([`Executor::set_plan`]).
+//! * Images live as long as the plan's resources: their contents carry over from frame to frame
+//!   (history), and over a plan change for resources that keep their description.
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::Arc;
+use std::time::Instant;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use crate::context::Context;
+use crate::device::{ClockCalibration, Device, host_now_ns};
+use crate::error::{BackendError, Result, VkContext};
+use crate::instance::Instance;
+use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
+use crate::pipeline::Bindless;
+use crate::plan::{Plan, PlanResource};
+use crate::record::{SegmentContext, TimerLabel, record_segment, timer_labels};
+use crate::recorder::KernelRegistry;
+use crate::relay::{Relay, RelayJob};
+use crate::segments::{
+    Chunk, Item, Segment, chunks_of_copies, progress_value, ready_value, segment_device,
+};
+use crate::timing::{FrameReport, TimedEvent};
+
+/// How long the host waits for a frame before declaring it lost.
+const FRAME_TIMEOUT_S: u64 = 60;
+/// Alignment of each copy's region inside the staging buffer.
+const STAGING_ALIGN: u64 = 256;
+
+/// Deliberate faults, for tests that must show the synchronisation is really needed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaultInjection {
+    /// The consumer of `copy` does not wait for it. To make the resulting race lose every
+    /// time instead of now and then, the producer device is held back (by a host-signalled
+    /// semaphore) until the consumer has executed the copy-in; the copy-in then reads the
+    /// zero-initialised staging memory. Only possible when nothing the consumer does up to
+    /// that copy-in waits for another copy.
+    DropCrossDeviceWait { copy: usize },
+}
+
+/// Executor settings.
+#[derive(Clone, Debug)]
+pub struct ExecOptions {
+    /// Frames submitted before the host waits for the oldest (at least 1).
+    pub frames_in_flight: usize,
+    /// Copies larger than this are split into row bands submitted separately, so that the
+    /// consumer's upload of one band overlaps the producer's download of the next.
+    pub chunk_bytes: u64,
+    pub fault: Option<FaultInjection>,
+}
+
+impl Default for ExecOptions {
+    fn default() -> Self {
+        Self {
+            frames_in_flight: 2,
+            chunk_bytes: 8 << 20,
+            fault: None,
+        }
+    }
+}
+
+/// Per device, per frame-in-flight slot.
+struct SlotResources {
+    command_buffers: Vec<vk::CommandBuffer>,
+    query_pool: vk::QueryPool,
+}
+
+/// Everything the executor keeps for one device.
+struct DeviceState {
+    device: Arc<Device>,
+    images: HashMap<usize, Image>,
+    image_slots: HashMap<usize, u32>,
+    bindless: Bindless,
+    command_pool: vk::CommandPool,
+    progress: vk::Semaphore,
+    /// Ready timelines of the copies this device consumes.
+    ready: HashMap<usize, vk::Semaphore>,
+    /// Fault injection: host-signalled semaphore holding this (producer) device back.
+    gate: Option<vk::Semaphore>,
+    segments: Vec<Segment>,
+    timers: Vec<TimerLabel>,
+    slots: Vec<SlotResources>,
+}
+
+impl Drop for DeviceState {
+    fn drop(&mut self) {
+        let raw = &self.device.raw;
+        unsafe {
+            let _ = raw.device_wait_idle();
+            for slot in &self.slots {
+                if slot.query_pool != vk::QueryPool::null() {
+                    raw.destroy_query_pool(slot.query_pool, None);
+                }
+            }
+            raw.destroy_command_pool(self.command_pool, None);
+            raw.destroy_semaphore(self.progress, None);
+            for (_, s) in self.ready.drain() {
+                raw.destroy_semaphore(s, None);
+            }
+            if let Some(g) = self.gate.take() {
+                raw.destroy_semaphore(g, None);
+            }
+        }
+    }
+}
+
+/// Staging memory of cross-device copies: one shared host buffer per slot, each copy at a fixed
+/// offset.
+struct Staging {
+    buffers: Vec<SharedHostBuffer>,
+    offsets: Vec<u64>,
+}
+
+/// Fault-injection gate: producer's first submission of a frame waits until the consumer's
+/// segment `consumer_segment` of the same frame is done.
+struct FaultGate {
+    /// Semaphore on the producer device.
+    semaphore: vk::Semaphore,
+    producer: usize,
+    consumer: usize,
+    consumer_segment: usize,
+}
+
+struct InFlight {
+    frame: u64,
+    /// Frame index relative to the current plan (timeline values restart with each plan).
+    local: u64,
+    slot: usize,
+    submit_start_ns: u64,
+    submit_cpu_ns: u64,
+    passes: usize,
+    segments: usize,
+}
+
+/// Executes a [`Plan`] on the devices of a [`Context`].
+pub struct Executor {
+    instance: Arc<Instance>,
+    devices: Vec<Arc<Device>>,
+    plan: Plan,
+    kernels: KernelRegistry,
+    options: ExecOptions,
+    chunks: Vec<Vec<Chunk>>,
+    states: Vec<DeviceState>,
+    /// Ready timeline of each copy (owned by the consumer's state).
+    ready: Vec<vk::Semaphore>,
+    staging: Option<Staging>,
+    relay: Option<Relay>,
+    gate: Option<FaultGate>,
+    next_frame: u64,
+    /// First frame of the current plan.
+    plan_epoch: u64,
+    in_flight: VecDeque<InFlight>,
+    reports: Vec<FrameReport>,
+    calibration: Vec<ClockCalibration>,
+    recordings: u64,
+}
+
+impl Executor {
+    /// Validates `plan`, allocates its resources, records every command buffer once.
+    pub fn new(
+        context: &Context,
+        plan: Plan,
+        kernels: KernelRegistry,
+        options: ExecOptions,
+    ) -> Result<Self> {
+        let calibration = context
+            .devices
+            .iter()
+            .map(|d| d.clock_offset())
+            .collect::<Result<Vec<_>>>()?;
+        let mut executor = Self {
+            instance: context.instance.clone(),
+            devices: context.devices.clone(),
+            plan: Plan::default(),
+            kernels,
+            options: ExecOptions {
+                frames_in_flight: options.frames_in_flight.max(1),
+                ..options
+            },
+            chunks: Vec::new(),
+            states: Vec::new(),
+            ready: Vec::new(),
+            staging: None,
+            relay: None,
+            gate: None,
+            next_frame: 0,
+            plan_epoch: 0,
+            in_flight: VecDeque::new(),
+            reports: Vec::new(),
+            calibration,
+            recordings: 0,
+        };
+        executor.build(plan)?;
+        Ok(executor)
+    }
+
+    /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the
+    /// current one; otherwise waits for all frames, keeps the images whose resource description
+    /// is unchanged (their contents survive), and records everything anew.
+    pub fn set_plan(&mut self, plan: Plan) -> Result<bool> {
+        if plan == self.plan {
+            return Ok(false);
+        }
+        self.finish()?;
+        self.build(plan)?;
+        Ok(true)
+    }
+
+    fn build(&mut self, plan: Plan) -> Result<()> {
+        plan.validate(self.devices.len())?;
+        self.kernels.check_plan(&plan)?;
+        // Threads first (they use the old semaphores), then the old states.
+        self.relay = None;
+        let mut kept: HashMap<(usize, PlanResource), Image> = HashMap::new();
+        for (d, mut state) in std::mem::take(&mut self.states).into_iter().enumerate() {
+            for (resource, image) in state.images.drain() {
+                kept.insert((d, self.plan.resources[resource].clone()), image);
+            }
+        }
+        self.staging = None;
+
+        let chunks = chunks_of_copies(&plan, self.options.chunk_bytes);
+        let slots = self.options.frames_in_flight;
+        let dropped_wait = self
+            .options
+            .fault
+            .map(|FaultInjection::DropCrossDeviceWait { copy }| copy);
+        let mut states = Vec::with_capacity(self.devices.len());
+        for (d, device) in self.devices.iter().enumerate() {
+            let segments = segment_device(&plan, d, &chunks, dropped_wait);
+            states.push(create_device_state(
+                device, &plan, d, segments, slots, &mut kept,
+            )?);
+        }
+        drop(kept);
+        let mut ready = Vec::with_capacity(plan.copies.len());
+        for (c, copy) in plan.copies.iter().enumerate() {
+            let consumer = &mut states[copy.to];
+            let semaphore = consumer.device.create_timeline(0)?;
+            consumer.ready.insert(c, semaphore);
+            ready.push(semaphore);
+        }
+        self.gate = match self.options.fault {
+            Some(FaultInjection::DropCrossDeviceWait { copy }) => {
+                Some(fault_gate(&plan, &mut states, copy)?)
+            }
+            None => None,
+        };
+        self.staging = create_staging(&self.devices, &plan, slots)?;
+        self.plan = plan;
+        self.chunks = chunks;
+        self.states = states;
+        self.ready = ready;
+        self.record_all()?;
+        let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
+        self.relay = Some(Relay::new(&self.devices, &progress));
+        self.plan_epoch = self.next_frame;
+        Ok(())
+    }
+
+    fn record_all(&mut self) -> Result<()> {
+        let plan = &self.plan;
+        for (d, state) in self.states.iter_mut().enumerate() {
+            for slot in 0..state.slots.len() {
+                let staging = self.staging.as_ref().and_then(|s| {
+                    s.buffers[slot]
+                        .buffer_on(d)
+                        .map(|b| (b, s.offsets.as_slice()))
+                });
+                let mut ctx = SegmentContext {
+                    raw: &state.device.raw,
+                    device_index: d,
+                    plan,
+                    kernels: &self.kernels,
+                    bindless: &mut state.bindless,
+                    images: &state.images,
+                    image_slots: &state.image_slots,
+                    slot,
+                    query_pool: state.slots[slot].query_pool,
+                    query_count: state.timers.len() as u32 * 2,
+                    staging,
+                };
+                let mut first_timer = 0u32;
+                for (j, segment) in state.segments.iter().enumerate() {
+                    let cb = state.slots[slot].command_buffers[j];
+                    record_segment(&mut ctx, cb, segment, j, first_timer)?;
+                    first_timer += segment.items.len() as u32;
+                }
+            }
+        }
+        self.recordings += 1;
+        Ok(())
+    }
+
+    /// Submits one frame; returns its index. Waits only if `frames_in_flight` frames are
+    /// already in flight (for the oldest of them).
+    pub fn run_frame(&mut self) -> Result<u64> {
+        if self.in_flight.len() >= self.options.frames_in_flight {
+            self.retire_oldest()?;
+        }
+        let relay = self.relay.as_ref().expect("relay exists after build");
+        relay.check()?;
+        let submit_start_ns = host_now_ns();
+        let cpu_start = Instant::now();
+        let frame = self.next_frame;
+        let local = frame - self.plan_epoch;
+        let slot = (frame % self.options.frames_in_flight as u64) as usize;
+        for state in &mut self.states {
+            state.bindless.set_frame_constants(slot, frame);
+        }
+        let relay = self.relay.as_ref().expect("relay exists after build");
+        let mut submitted_segments = 0;
+        for (d, state) in self.states.iter().enumerate() {
+            if state.segments.is_empty() {
+                continue;
+            }
+            let segment_count = state.segments.len();
+            let mut waits: Vec<Vec<vk::SemaphoreSubmitInfo>> = Vec::with_capacity(segment_count);
+            let mut signals: Vec<[vk::SemaphoreSubmitInfo; 1]> = Vec::with_capacity(segment_count);
+            let mut buffers: Vec<[vk::CommandBufferSubmitInfo; 1]> =
+                Vec::with_capacity(segment_count);
+            for (j, segment) in state.segments.iter().enumerate() {
+                let mut w: Vec<vk::SemaphoreSubmitInfo> = segment
+                    .waits
+                    .iter()
+                    .map(|wait| {
+                        vk::SemaphoreSubmitInfo::default()
+                            .semaphore(self.ready[wait.copy])
+                            .value(ready_value(local, self.chunks[wait.copy].len(), wait.chunk))
+                            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+                    })
+                    .collect();
+                if let (Some(gate), 0) = (state.gate, j) {
+                    w.push(
+                        vk::SemaphoreSubmitInfo::default()
+                            .semaphore(gate)
+                            .value(local + 1)
+                            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS),
+                    );
+                }
+                waits.push(w);
+                signals.push([vk::SemaphoreSubmitInfo::default()
+                    .semaphore(state.progress)
+                    .value(progress_value(local, segment_count, j))
+                    .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)]);
+                buffers.push([vk::CommandBufferSubmitInfo::default()
+                    .command_buffer(state.slots[slot].command_buffers[j])]);
+            }
+            let submits: Vec<vk::SubmitInfo2> = (0..segment_count)
+                .map(|j| {
+                    vk::SubmitInfo2::default()
+                        .wait_semaphore_infos(&waits[j])
+                        .command_buffer_infos(&buffers[j])
+                        .signal_semaphore_infos(&signals[j])
+                })
+                .collect();
+            state.device.submit(&submits, vk::Fence::null())?;
+            submitted_segments += segment_count;
+
+            // Relay jobs watching this device, in segment order (see relay.rs).
+            for (j, segment) in state.segments.iter().enumerate() {
+                let watch_value = progress_value(local, segment_count, j);
+                for chunk in &segment.relays {
+                    let consumer = self.plan.copies[chunk.copy].to;
+                    relay.push(
+                        d,
+                        RelayJob {
+                            watch_value,
+                            target: self.devices[consumer].clone(),
+                            semaphore: self.ready[chunk.copy],
+                            signal_value: ready_value(
+                                local,
+                                self.chunks[chunk.copy].len(),
+                                chunk.index,
+                            ),
+                        },
+                    )?;
+                }
+                if let Some(gate) = &self.gate
+                    && gate.consumer == d
+                    && gate.consumer_segment == j
+                {
+                    relay.push(
+                        d,
+                        RelayJob {
+                            watch_value,
+                            target: self.devices[gate.producer].clone(),
+                            semaphore: gate.semaphore,
+                            signal_value: local + 1,
+                        },
+                    )?;
+                }
+            }
+        }
+        self.in_flight.push_back(InFlight {
+            frame,
+            local,
+            slot,
+            submit_start_ns,
+            submit_cpu_ns: cpu_start.elapsed().as_nanos() as u64,
+            passes: self.plan.passes.len(),
+            segments: submitted_segments,
+        });
+        self.next_frame += 1;
+        Ok(frame)
+    }
+
+    /// Waits for the oldest frame in flight and turns its timestamps into a report.
+    fn retire_oldest(&mut self) -> Result<()> {
+        let Some(f) = self.in_flight.pop_front() else {
+            return Ok(());
+        };
+        let mut events = Vec::new();
+        for (d, state) in self.states.iter().enumerate() {
+            let segment_count = state.segments.len();
+            if segment_count == 0 {
+                continue;
+            }
+            let last = progress_value(f.local, segment_count, segment_count - 1);
+            // Wait in short steps so a failed relay thread is reported instead of hanging.
+            let deadline = Instant::now() + std::time::Duration::from_secs(FRAME_TIMEOUT_S);
+            while !state
+                .device
+                .wait_timeline(state.progress, last, 100_000_000)?
+            {
+                self.relay.as_ref().map_or(Ok(()), Relay::check)?;
+                if Instant::now() > deadline {
+                    return Err(BackendError::FrameTimeout {
+                        frame: f.frame,
+                        device: d,
+                        seconds: FRAME_TIMEOUT_S,
+                    });
+                }
+            }
+            let timers = state.timers.len();
+            if timers == 0 {
+                continue;
+            }
+            let mut ticks = vec![0u64; timers * 2];
+            unsafe {
+                state.device.raw.get_query_pool_results(
+                    state.slots[f.slot].query_pool,
+                    0,
+                    &mut ticks,
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )
+            }
+            .vk("vkGetQueryPoolResults")?;
+            let offset = self.calibration[d].offset_ns;
+            let to_host = |t: u64| (state.device.ticks_to_ns(t) + offset).max(0.0) as u64;
+            for (t, label) in state.timers.iter().enumerate() {
+                events.push(TimedEvent {
+                    name: label.name.clone(),
+                    kind: label.kind,
+                    device: d,
+                    view: label.view,
+                    index: label.index,
+                    chunk: label.chunk,
+                    bytes: label.bytes,
+                    start_ns: to_host(ticks[2 * t]),
+                    end_ns: to_host(ticks[2 * t + 1]),
+                });
+            }
+        }
+        self.reports.push(FrameReport::new(
+            f.frame,
+            f.submit_start_ns,
+            f.submit_cpu_ns,
+            f.passes,
+            f.segments,
+            self.devices.len(),
+            events,
+        ));
+        Ok(())
+    }
+
+    /// Waits for every frame in flight (their reports become available).
+    pub fn finish(&mut self) -> Result<()> {
+        while !self.in_flight.is_empty() {
+            self.retire_oldest()?;
+        }
+        Ok(())
+    }
+
+    /// Reports of retired frames, oldest first, removed from the executor.
+    pub fn take_reports(&mut self) -> Vec<FrameReport> {
+        std::mem::take(&mut self.reports)
+    }
+
+    /// Reports of retired frames so far.
+    pub fn reports(&self) -> &[FrameReport] {
+        &self.reports
+    }
+
+    /// How many times the command buffers were recorded (once per plan).
+    pub fn recordings(&self) -> u64 {
+        self.recordings
+    }
+
+    /// The plan being executed.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    /// Clock calibration of each device (GPU → host CLOCK_MONOTONIC).
+    pub fn calibration(&self) -> &[ClockCalibration] {
+        &self.calibration
+    }
+
+    /// Fails if the validation layer reported anything since the last check.
+    pub fn check_validation(&self) -> Result<()> {
+        self.instance.check_validation()
+    }
+
+    /// Reads `resource` back from `device` as tightly packed rows (waits for all frames).
+    pub fn read_image(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
+        self.finish()?;
+        let state = &self.states[device];
+        let image = state
+            .images
+            .get(&resource)
+            .ok_or(BackendError::ResourceNotOnDevice { resource, device })?;
+        let size = image.row_bytes() * u64::from(image.height);
+        let readback = Buffer::new(
+            &state.device,
+            "readback",
+            size,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+        let raw = &state.device.raw;
+        state.device.one_shot(|cb| unsafe {
+            crate::record::full_barrier(raw, cb);
+            let region = vk::BufferImageCopy::default()
+                .image_subresource(vk::ImageSubresourceLayers {
+                    aspect_mask: vk::ImageAspectFlags::COLOR,
+                    mip_level: 0,
+                    base_array_layer: 0,
+                    layer_count: 1,
+                })
+                .image_extent(vk::Extent3D {
+                    width: image.width,
+                    height: image.height,
+                    depth: 1,
+                });
+            raw.cmd_copy_image_to_buffer(
+                cb,
+                image.raw,
+                vk::ImageLayout::GENERAL,
+                readback.raw,
+                &[region],
+            );
+            let to_host = [vk::MemoryBarrier2::default()
+                .src_stage_mask(vk::PipelineStageFlags2::COPY)
+                .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+                .dst_stage_mask(vk::PipelineStageFlags2::HOST)
+                .dst_access_mask(vk::AccessFlags2::HOST_READ)];
+            raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host));
+        })?;
+        Ok(readback
+            .mapped()
+            .expect("GpuToCpu buffers are mapped")
+            .to_vec())
+    }
+}
+
+impl Drop for Executor {
+    fn drop(&mut self) {
+        // Frames in flight must end before their memory and semaphores go; relay threads
+        // before the semaphores they wait on.
+        let _ = self.finish();
+        for device in &self.devices {
+            let _ = device.wait_idle();
+        }
+        self.relay = None;
+        self.staging = None;
+        self.states.clear();
+    }
+}
+
+/// Creates images, descriptor layout, command buffers and query pools of device `d`.
+fn create_device_state(
+    device: &Arc<Device>,
+    plan: &Plan,
+    d: usize,
+    segments: Vec<Segment>,
+    slots: usize,
+    kept: &mut HashMap<(usize, PlanResource), Image>,
+) -> Result<DeviceState> {
+    let resources = plan.resources_of_device(d);
+    let mut images = HashMap::new();
+    let mut fresh = Vec::new();
+    for &r in &resources {
+        let desc = &plan.resources[r];
+        let image = match kept.remove(&(d, desc.clone())) {
+            Some(image) => image,
+            None => {
+                fresh.push(r);
+                Image::new(
+                    device,
+                    &format!("{} view {}", desc.name, desc.view),
+                    desc.width,
+                    desc.height,
+                    desc.format,
+                )?
+            }
+        };
+        images.insert(r, image);
+    }
+    initialise_images(device, fresh.iter().map(|r| &images[r]))?;
+    let image_slots: HashMap<usize, u32> = resources
+        .iter()
+        .enumerate()
+        .map(|(slot, &r)| (r, slot as u32))
+        .collect();
+    let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
+    let bindless = Bindless::new(device, &ordered, slots)?;
+    let raw = &device.raw;
+    let command_pool = unsafe {
+        raw.create_command_pool(
+            &vk::CommandPoolCreateInfo::default().queue_family_index(device.queue_family),
+            None,
+        )
+    }
+    .vk("vkCreateCommandPool")?;
+    let mut state = DeviceState {
+        device: device.clone(),
+        images,
+        image_slots,
+        bindless,
+        command_pool,
+        progress: vk::Semaphore::null(),
+        ready: HashMap::new(),
+        gate: None,
+        timers: timer_labels(plan, &segments),
+        segments,
+        slots: Vec::new(),
+    };
+    state.progress = device.create_timeline(0)?;
+    for _ in 0..slots {
+        let command_buffers = if state.segments.is_empty() {
+            Vec::new()
+        } else {
+            unsafe {
+                raw.allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(command_pool)
+                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .command_buffer_count(state.segments.len() as u32),
+                )
+            }
+            .vk("vkAllocateCommandBuffers")?
+        };
+        let query_pool = if state.timers.is_empty() {
+            vk::QueryPool::null()
+        } else {
+            unsafe {
+                raw.create_query_pool(
+                    &vk::QueryPoolCreateInfo::default()
+                        .query_type(vk::QueryType::TIMESTAMP)
+                        .query_count(state.timers.len() as u32 * 2),
+                    None,
+                )
+            }
+            .vk("vkCreateQueryPool")?
+        };
+        state.slots.push(SlotResources {
+            command_buffers,
+            query_pool,
+        });
+    }
+    Ok(state)
+}
+
+/// Moves new images to `GENERAL` (their layout for life) and clears them to zero, so that a
+/// read of a never-written texel is deterministic.
+fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image>) -> Result<()> {
+    let images: Vec<&Image> = images.collect();
+    if images.is_empty() {
+        return Ok(());
+    }
+    let raw = &device.raw;
+    device.one_shot(|cb| unsafe {
+        let to_general: Vec<vk::ImageMemoryBarrier2> = images
+            .iter()
+            .map(|img| {
+                vk::ImageMemoryBarrier2::default()
+                    .src_stage_mask(vk::PipelineStageFlags2::NONE)
+                    .dst_stage_mask(vk::PipelineStageFlags2::CLEAR)
+                    .dst_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+                    .old_layout(vk::ImageLayout::UNDEFINED)
+                    .new_layout(vk::ImageLayout::GENERAL)
+                    .image(img.raw)
+                    .subresource_range(color_range())
+            })
+            .collect();
+        raw.cmd_pipeline_barrier2(
+            cb,
+            &vk::DependencyInfo::default().image_memory_barriers(&to_general),
+        );
+        for img in &images {
+            raw.cmd_clear_color_image(
+                cb,
+                img.raw,
+                vk::ImageLayout::GENERAL,
+                &vk::ClearColorValue::default(),
+                &[color_range()],
+            );
+        }
+        crate::record::full_barrier(raw, cb);
+    })
+}
+
+/// One shared host buffer per slot holding every copy of the plan, imported into each device
+/// that sends or receives a copy.
+fn create_staging(devices: &[Arc<Device>], plan: &Plan, slots: usize) -> Result<Option<Staging>> {
+    if plan.copies.is_empty() {
+        return Ok(None);
+    }
+    let mut offsets = Vec::with_capacity(plan.copies.len());
+    let mut total = 0u64;
+    for c in 0..plan.copies.len() {
+        offsets.push(total);
+        total += plan.copy_bytes(c).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
+    }
+    let mut participants: Vec<usize> = plan.copies.iter().flat_map(|c| [c.from, c.to]).collect();
+    participants.sort_unstable();
+    participants.dedup();
+    let participants: Vec<&Arc<Device>> = participants.iter().map(|&d| &devices[d]).collect();
+    let buffers = (0..slots)
+        .map(|_| SharedHostBuffer::new(&participants, total))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Some(Staging { buffers, offsets }))
+}
+
+/// Sets up [`FaultInjection::DropCrossDeviceWait`] for `copy`.
+fn fault_gate(plan: &Plan, states: &mut [DeviceState], copy: usize) -> Result<FaultGate> {
+    let target = plan
+        .copies
+        .get(copy)
+        .ok_or_else(|| BackendError::FaultInjection(format!("the plan has no copy {copy}")))?;
+    let consumer = &states[target.to];
+    let consumer_segment = consumer
+        .segments
+        .iter()
+        .rposition(|s| {
+            s.items
+                .iter()
+                .any(|i| matches!(i, Item::CopyIn(c) if c.copy == copy))
+        })
+        .expect("validated plan: the consumer copies in");
+    if consumer.segments[..=consumer_segment]
+        .iter()
+        .any(|s| !s.waits.is_empty())
+    {
+        return Err(BackendError::FaultInjection(format!(
+            "device {} waits for another copy before copy-in {copy}; holding its producer back would deadlock",
+            target.to
+        )));
+    }
+    let producer = &mut states[target.from];
+    let semaphore = producer.device.create_timeline(0)?;
+    producer.gate = Some(semaphore);
+    Ok(FaultGate {
+        semaphore,
+        producer: target.from,
+        consumer: target.to,
+        consumer_segment,
+    })
+}

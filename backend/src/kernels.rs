@@ -1,0 +1,112 @@
+//! Kernels the backend ships for its own tests, demos and benchmarks, with CPU references that
+//! compute bit-identical values. Real passes (path tracing, reprojection, ...) live in the
+//! passes crate and plug in through the same [`PassKernel`] trait.
+
+use crate::error::{BackendError, Result};
+use crate::plan::PlanPass;
+use crate::recorder::{KernelRegistry, PassKernel, PassParams, Recorder};
+
+/// Writes the deterministic pattern of `shaders/fill.comp` into `writes[0]` over the instance's rows.
+pub struct FillKernel;
+
+impl PassKernel for FillKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "fill", 0, 1)?;
+        let width = rec.resource(dst).width;
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            ..Default::default()
+        };
+        rec.dispatch_rows("fill", params)
+    }
+}
+
+/// Reprojection-shaped gather (`shaders/shift_blend.comp`): `writes[0] = 0.5 * reads[0] +
+/// 0.5 * reads[1]` shifted by [`shift_of_view`] columns; `reads[1]` normally belongs to another
+/// view, which is what makes the planner insert cross-device copies.
+pub struct ShiftBlendKernel;
+
+impl PassKernel for ShiftBlendKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "shift_blend", 2, 1)?;
+        let (own, other) = (pass.reads[0].resource, pass.reads[1].resource);
+        let width = rec.resource(dst).width;
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            src0: rec.image(own)?,
+            src1: rec.image(other)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            param: shift_of_view(pass.view, width),
+        };
+        rec.dispatch_rows("shift_blend", params)
+    }
+}
+
+/// Checks the access counts a kernel relies on; returns the first written resource.
+fn expect_accesses(
+    pass: &PlanPass,
+    index: usize,
+    kernel: &str,
+    reads: usize,
+    writes: usize,
+) -> Result<usize> {
+    if pass.reads.len() != reads || pass.writes.len() != writes {
+        return Err(BackendError::KernelMisuse {
+            kernel: kernel.to_string(),
+            instance: index,
+            detail: format!(
+                "expects {reads} read(s) and {writes} write(s), got {} and {}",
+                pass.reads.len(),
+                pass.writes.len()
+            ),
+        });
+    }
+    Ok(pass.writes[0].resource)
+}
+
+/// Registry with the built-in kernels under the pass names `fill` and `shift_blend`.
+pub fn builtin_kernels() -> KernelRegistry {
+    KernelRegistry::new()
+        .with("fill", FillKernel)
+        .with("shift_blend", ShiftBlendKernel)
+}
+
+/// Column shift used by `shift_blend` for `view`.
+pub fn shift_of_view(view: u32, width: u32) -> u32 {
+    (3 + 5 * view) % width.max(1)
+}
+
+fn pcg_hash(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+fn hash3(a: u32, b: u32, c: u32) -> u32 {
+    pcg_hash(a ^ pcg_hash(b ^ pcg_hash(c)))
+}
+
+/// CPU value of `fill.comp` at pixel (x, y) of `view`.
+pub fn reference_fill(x: u32, y: u32, view: u32) -> [f32; 4] {
+    let h = hash3(x, y, view);
+    [
+        (h & 0xffff) as f32 / 65536.0,
+        (h >> 16) as f32 / 65536.0,
+        (view & 0xffff) as f32 / 65536.0,
+        65535.0 / 65536.0,
+    ]
+}
+
+/// CPU value of `shift_blend.comp` at (x, y) of `view` reading `other_view`, both filled.
+pub fn reference_shift_blend(x: u32, y: u32, view: u32, other_view: u32, width: u32) -> [f32; 4] {
+    let own = reference_fill(x, y, view);
+    let other = reference_fill((x + shift_of_view(view, width)) % width, y, other_view);
+    std::array::from_fn(|i| 0.5 * own[i] + 0.5 * other[i])
+}

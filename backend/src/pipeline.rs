@@ -1,0 +1,240 @@
+//! Embedded shaders, the per-device descriptor layout every kernel shares, and compute
+//! pipelines created on first use.
+//!
+//! Layout (set 0): binding 0 = every storage image of the device (an array sized by the
+//! specialisation constant `IMAGE_COUNT`), binding 1 = the frame-constants uniform buffer of the
+//! frame-in-flight slot. Kernels select images by index in push constants, so one descriptor set
+//! per slot serves every pass and recorded command buffers never need new descriptors.
+
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use crate::device::Device;
+use crate::error::{BackendError, Result, VkContext};
+use crate::memory::{Buffer, Image};
+
+mod embedded {
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+}
+
+/// Names of all embedded shaders.
+pub fn shader_names() -> impl Iterator<Item = &'static str> {
+    embedded::EMBEDDED.iter().map(|(name, _)| *name)
+}
+
+/// SPIR-V words of the embedded shader `name` (file stem of `shaders/<name>.comp`).
+pub fn spirv(name: &str) -> Result<Vec<u32>> {
+    let bytes = embedded::EMBEDDED
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, b)| *b)
+        .ok_or_else(|| BackendError::UnknownShader(name.to_string()))?;
+    ash::util::read_spv(&mut Cursor::new(bytes))
+        .map_err(|e| BackendError::UnknownShader(format!("{name} (invalid SPIR-V: {e})")))
+}
+
+/// Size of the push-constant block (`PassParams` in shaders/include/bindless.glsl).
+pub const PUSH_CONSTANT_BYTES: u32 = 32;
+/// Size of the frame-constants uniform block.
+const FRAME_CONSTANT_BYTES: u64 = 16;
+
+/// Descriptor layout, sets and pipelines of one device for one plan.
+pub(crate) struct Bindless {
+    device: Arc<Device>,
+    set_layout: vk::DescriptorSetLayout,
+    pub(crate) pipeline_layout: vk::PipelineLayout,
+    pool: vk::DescriptorPool,
+    /// One descriptor set per frame-in-flight slot.
+    pub(crate) sets: Vec<vk::DescriptorSet>,
+    /// Host-visible frame constants, one buffer per slot.
+    frame_constants: Vec<Buffer>,
+    image_count: u32,
+    pipelines: HashMap<String, vk::Pipeline>,
+}
+
+impl Bindless {
+    /// Creates the layout for `images` and `slots` descriptor sets, all written.
+    pub(crate) fn new(device: &Arc<Device>, images: &[&Image], slots: usize) -> Result<Self> {
+        // A zero-sized descriptor array is invalid; a device with no image still gets one slot
+        // (never indexed), backed by a dummy image.
+        let image_count = images.len().max(1) as u32;
+        let bindings = [
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(0)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(image_count)
+                .stage_flags(vk::ShaderStageFlags::COMPUTE),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(1)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::COMPUTE),
+        ];
+        let raw = &device.raw;
+        let set_layout = unsafe {
+            raw.create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                None,
+            )
+        }
+        .vk("vkCreateDescriptorSetLayout")?;
+        let mut this = Self {
+            device: device.clone(),
+            set_layout,
+            pipeline_layout: vk::PipelineLayout::null(),
+            pool: vk::DescriptorPool::null(),
+            sets: Vec::new(),
+            frame_constants: Vec::new(),
+            image_count,
+            pipelines: HashMap::new(),
+        };
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            .offset(0)
+            .size(PUSH_CONSTANT_BYTES)];
+        let set_layouts = [set_layout];
+        this.pipeline_layout = unsafe {
+            raw.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default()
+                    .set_layouts(&set_layouts)
+                    .push_constant_ranges(&ranges),
+                None,
+            )
+        }
+        .vk("vkCreatePipelineLayout")?;
+        let sizes = [
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(image_count * slots as u32),
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(slots as u32),
+        ];
+        this.pool = unsafe {
+            raw.create_descriptor_pool(
+                &vk::DescriptorPoolCreateInfo::default()
+                    .max_sets(slots as u32)
+                    .pool_sizes(&sizes),
+                None,
+            )
+        }
+        .vk("vkCreateDescriptorPool")?;
+        let layouts = vec![set_layout; slots];
+        this.sets = unsafe {
+            raw.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(this.pool)
+                    .set_layouts(&layouts),
+            )
+        }
+        .vk("vkAllocateDescriptorSets")?;
+        for slot in 0..slots {
+            this.frame_constants.push(Buffer::new(
+                device,
+                "frame constants",
+                FRAME_CONSTANT_BYTES,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                MemoryLocation::CpuToGpu,
+            )?);
+            this.write_set(slot, images);
+        }
+        Ok(this)
+    }
+
+    fn write_set(&self, slot: usize, images: &[&Image]) {
+        let image_infos: Vec<vk::DescriptorImageInfo> = images
+            .iter()
+            .map(|img| {
+                vk::DescriptorImageInfo::default()
+                    .image_view(img.view)
+                    .image_layout(vk::ImageLayout::GENERAL)
+            })
+            .collect();
+        let buffer_infos = [vk::DescriptorBufferInfo::default()
+            .buffer(self.frame_constants[slot].raw)
+            .offset(0)
+            .range(FRAME_CONSTANT_BYTES)];
+        let mut writes = vec![
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.sets[slot])
+                .dst_binding(1)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .buffer_info(&buffer_infos),
+        ];
+        if !image_infos.is_empty() {
+            writes.push(
+                vk::WriteDescriptorSet::default()
+                    .dst_set(self.sets[slot])
+                    .dst_binding(0)
+                    .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                    .image_info(&image_infos),
+            );
+        }
+        unsafe { self.device.raw.update_descriptor_sets(&writes, &[]) };
+    }
+
+    /// Writes the frame constants of `slot` (the slot must not be in flight).
+    pub(crate) fn set_frame_constants(&mut self, slot: usize, frame_index: u64) {
+        if let Some(bytes) = self.frame_constants[slot].mapped_mut() {
+            bytes[..4].copy_from_slice(&(frame_index as u32).to_le_bytes());
+        }
+    }
+
+    /// The compute pipeline of shader `name`, created on first use.
+    pub(crate) fn pipeline(&mut self, name: &str) -> Result<vk::Pipeline> {
+        if let Some(&p) = self.pipelines.get(name) {
+            return Ok(p);
+        }
+        let code = spirv(name)?;
+        let raw = &self.device.raw;
+        let module = unsafe {
+            raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)
+        }
+        .vk("vkCreateShaderModule")?;
+        let entries = [vk::SpecializationMapEntry::default()
+            .constant_id(0)
+            .offset(0)
+            .size(4)];
+        let data = self.image_count.to_le_bytes();
+        let specialization = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(&data);
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main")
+            .specialization_info(&specialization);
+        let info = [vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(self.pipeline_layout)];
+        let created =
+            unsafe { raw.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        unsafe { raw.destroy_shader_module(module, None) };
+        let pipeline = created
+            .map_err(|(_, result)| BackendError::Vk {
+                call: "vkCreateComputePipelines",
+                result,
+            })?
+            .remove(0);
+        self.pipelines.insert(name.to_string(), pipeline);
+        Ok(pipeline)
+    }
+}
+
+impl Drop for Bindless {
+    fn drop(&mut self) {
+        let raw = &self.device.raw;
+        unsafe {
+            for (_, p) in self.pipelines.drain() {
+                raw.destroy_pipeline(p, None);
+            }
+            raw.destroy_descriptor_pool(self.pool, None);
+            raw.destroy_pipeline_layout(self.pipeline_layout, None);
+            raw.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
