@@ -165,6 +165,7 @@ pub struct Executor {
     reports: Vec<FrameReport>,
     calibration: Vec<ClockCalibration>,
     recordings: u64,
+    last_record_ns: u64,
 }
 
 impl Executor {
@@ -201,6 +202,7 @@ impl Executor {
             reports: Vec::new(),
             calibration,
             recordings: 0,
+            last_record_ns: 0,
         };
         executor.build(plan)?;
         Ok(executor)
@@ -271,6 +273,7 @@ impl Executor {
     }
 
     fn record_all(&mut self) -> Result<()> {
+        let started = Instant::now();
         let plan = &self.plan;
         for (d, state) in self.states.iter_mut().enumerate() {
             for slot in 0..state.slots.len() {
@@ -301,6 +304,7 @@ impl Executor {
             }
         }
         self.recordings += 1;
+        self.last_record_ns = started.elapsed().as_nanos() as u64;
         Ok(())
     }
 
@@ -507,6 +511,11 @@ impl Executor {
     /// How many times the command buffers were recorded (once per plan).
     pub fn recordings(&self) -> u64 {
         self.recordings
+    }
+
+    /// CPU time of the last recording of all command buffers (every slot), in ns.
+    pub fn last_record_ns(&self) -> u64 {
+        self.last_record_ns
     }
 
     /// The plan being executed.

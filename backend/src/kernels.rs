@@ -49,6 +49,32 @@ impl PassKernel for ShiftBlendKernel {
     }
 }
 
+/// Adds (frame index + 1) to `writes[0]` in place (`shaders/accumulate.comp`); `reads[0]` is
+/// the same resource's previous version (history).
+pub struct AccumulateKernel;
+
+impl PassKernel for AccumulateKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "accumulate", 1, 1)?;
+        if pass.reads[0].resource != dst {
+            return Err(BackendError::KernelMisuse {
+                kernel: "accumulate".into(),
+                instance: index,
+                detail: "must read the resource it writes (its history)".into(),
+            });
+        }
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.dispatch_rows("accumulate", params)
+    }
+}
+
 /// Checks the access counts a kernel relies on; returns the first written resource.
 fn expect_accesses(
     pass: &PlanPass,
@@ -71,11 +97,13 @@ fn expect_accesses(
     Ok(pass.writes[0].resource)
 }
 
-/// Registry with the built-in kernels under the pass names `fill` and `shift_blend`.
+/// Registry with the built-in kernels under the pass names `fill`, `shift_blend` and
+/// `accumulate`.
 pub fn builtin_kernels() -> KernelRegistry {
     KernelRegistry::new()
         .with("fill", FillKernel)
         .with("shift_blend", ShiftBlendKernel)
+        .with("accumulate", AccumulateKernel)
 }
 
 /// Column shift used by `shift_blend` for `view`.

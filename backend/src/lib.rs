@@ -21,6 +21,7 @@ mod relay;
 mod segments;
 mod timing;
 
+pub mod bench;
 pub mod demo;
 pub mod kernels;
 pub mod plan;

@@ -310,3 +310,68 @@ impl Plan {
         self.resources[copy.resource].row_bytes() * u64::from(copy.rows.len())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::demo::{copy_benchmark, reprojection_demo};
+
+    #[test]
+    fn signal_before_copy_out_is_refused() {
+        let mut plan = copy_benchmark(8, 8);
+        plan.devices[0] = vec![PlanOp::Pass(0), PlanOp::Signal(0), PlanOp::CopyOut(0)];
+        assert_eq!(plan.validate(2), Err(PlanError::CopyOpOrder { copy: 0 }));
+    }
+
+    #[test]
+    fn pass_listed_on_another_device_is_refused() {
+        let mut plan = copy_benchmark(8, 8);
+        plan.devices[1].insert(0, PlanOp::Pass(0));
+        assert_eq!(
+            plan.validate(2),
+            Err(PlanError::PassOnWrongDevice {
+                pass: 0,
+                listed: 1,
+                owner: 0
+            })
+        );
+    }
+
+    #[test]
+    fn rows_outside_the_image_are_refused() {
+        let mut plan = copy_benchmark(8, 8);
+        plan.copies[0].rows = Rows::new(4, 9);
+        assert_eq!(
+            plan.validate(2),
+            Err(PlanError::RowsOutOfRange {
+                what: "copy",
+                index: 0,
+                resource: 0,
+                y0: 4,
+                y1: 9,
+                height: 8
+            })
+        );
+    }
+
+    #[test]
+    fn copy_to_self_and_unscheduled_pass_are_refused() {
+        let mut plan = copy_benchmark(8, 8);
+        plan.copies[0].to = 0;
+        assert_eq!(
+            plan.validate(2),
+            Err(PlanError::CopyToSelf { copy: 0, from: 0 })
+        );
+        let (mut plan, _) = reprojection_demo(2, 1, 8, 8);
+        plan.devices[0].retain(|op| *op != PlanOp::Pass(1));
+        assert_eq!(plan.validate(1), Err(PlanError::PassNotScheduledOnce(1)));
+    }
+
+    #[test]
+    fn copy_bytes_counts_only_the_band() {
+        let mut plan = copy_benchmark(8, 8);
+        plan.copies[0].rows = Rows::new(2, 5);
+        assert_eq!(plan.copy_bytes(0), 8 * 16 * 3);
+        assert_eq!(plan.resources_of_device(1), vec![0]);
+    }
+}
