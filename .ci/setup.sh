@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs everything Parallax needs on a fresh Debian 12 machine (run as root, or with sudo
+# available). Idempotent: safe to run again.
+set -euo pipefail
+export DEBIAN_FRONTEND=noninteractive
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+# lavapipe with Vulkan 1.4 and ray tracing comes from bookworm-backports' Mesa.
+if ! grep -rqs "bookworm-backports" /etc/apt/sources.list /etc/apt/sources.list.d/; then
+  echo "deb http://deb.debian.org/debian bookworm-backports main" | $SUDO tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
+fi
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q -t bookworm-backports mesa-vulkan-drivers
+$SUDO apt-get install -y -q libvulkan1 vulkan-tools vulkan-validationlayers glslc graphviz
+
+if ! command -v cargo >/dev/null; then
+  echo "error: cargo not found. Install the Rust toolchain (https://rustup.rs), then re-run." >&2
+  exit 1
+fi
+if command -v rustup >/dev/null; then
+  rustup component add rustfmt clippy >/dev/null 2>&1 || true
+fi

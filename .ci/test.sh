@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# The test command of README.md: set-up, formatting, lints, every test, and Graphviz checks.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash .ci/setup.sh
+
+cargo fmt --all -- --check
+cargo clippy --workspace --all-targets -- -D warnings
+cargo build --workspace --all-targets
+
+# Every golden DOT must render without a single Graphviz warning.
+for f in tests/golden/*.dot; do
+  warnings=$(dot -Tsvg "$f" -o /dev/null 2>&1)
+  if [ -n "$warnings" ]; then
+    echo "error: Graphviz warned on $f:" >&2
+    echo "$warnings" >&2
+    exit 1
+  fi
+done
+echo "rendered $(ls tests/golden/*.dot | wc -l) golden DOT files without warnings"
+
+cargo test --workspace --all-targets
+cargo test --workspace --doc

@@ -1,0 +1,300 @@
+//! Declaring a render graph: typed per-view resource handles and passes with roles.
+//!
+//! A pass is declared once and instantiated for every view its [`Role`] selects. Reads and
+//! writes go through handles; a write takes `&mut` and bumps the handle's per-view version, so
+//! a later read sees the new version and the analyser can derive producer → consumer edges from
+//! versions alone. Reading "the source view's" version of a resource ([`PassBuilder::read_sources`])
+//! is how reprojection is declared: the δ-edges come from these reads, never from a list.
+
+use std::marker::PhantomData;
+use std::panic::Location;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::ids::{FamilyId, PassId, ViewId};
+use crate::schedule::{Format, ResourceDesc};
+
+/// Which views a pass runs for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Role {
+    All,
+    /// Views that are path traced in full.
+    Sources,
+    /// Views synthesised from their sources.
+    Targets,
+}
+
+/// Which views are sources and which sources each target reprojects from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewTopology {
+    pub width: u32,
+    pub height: u32,
+    /// Per view: the sources it reads when it is a target; empty for a source view.
+    pub sources_of: Vec<Vec<ViewId>>,
+    pub is_source: Vec<bool>,
+}
+
+impl ViewTopology {
+    pub fn views(&self) -> u32 {
+        self.is_source.len() as u32
+    }
+
+    pub fn in_role(&self, role: Role, v: ViewId) -> bool {
+        match role {
+            Role::All => true,
+            Role::Sources => self.is_source[v.index()],
+            Role::Targets => !self.is_source[v.index()],
+        }
+    }
+}
+
+/// Marker for image handles.
+#[derive(Debug)]
+pub struct Image;
+/// Marker for buffer handles.
+#[derive(Debug)]
+pub struct Buffer;
+
+/// A per-view resource family: one resource per view, each with its own version counter.
+/// Not `Clone`: the only way to get a newer version is to write through `&mut`.
+#[derive(Debug)]
+pub struct Handle<K> {
+    graph: u64,
+    pub(crate) family: FamilyId,
+    pub(crate) versions: Vec<u32>,
+    _kind: PhantomData<K>,
+}
+
+impl<K> Handle<K> {
+    pub fn family(&self) -> FamilyId {
+        self.family
+    }
+
+    /// Current version of this view's resource (0 = never written this frame).
+    pub fn version(&self, v: ViewId) -> u32 {
+        self.versions[v.index()]
+    }
+}
+
+/// Where a read looks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReadScope {
+    /// The instance's own view, over the instance's own rows (pixel-local read).
+    Own,
+    /// The instance's own view, every row (e.g. a filter with a large footprint).
+    OwnWhole,
+    /// Every source view of the instance's (target) view, every row: a reprojection read.
+    Sources,
+    /// The previous frame's last version of the instance's own view, own rows.
+    History,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct ReadDecl {
+    pub family: FamilyId,
+    /// Version per view at the time of the read.
+    pub versions: Vec<u32>,
+    pub scope: ReadScope,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct WriteDecl {
+    pub family: FamilyId,
+    /// New version per view; only meaningful for views in the pass's role.
+    pub versions: Vec<u32>,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct FamilyDecl {
+    pub name: String,
+    pub desc: ResourceDesc,
+    pub imported: bool,
+    /// Per view, the version gathered to device 0, and where `export` was called.
+    pub exported: Option<(Vec<u32>, &'static Location<'static>)>,
+}
+
+/// A declared pass, before instantiation.
+#[derive(Clone, Debug)]
+pub struct PassDecl {
+    pub name: String,
+    pub role: Role,
+    /// The pass needs every row of its view at once and is never split into bands.
+    pub whole_view: bool,
+    pub side_effect: bool,
+    pub at: &'static Location<'static>,
+    pub(crate) reads: Vec<ReadDecl>,
+    pub(crate) writes: Vec<WriteDecl>,
+}
+
+/// A render graph under declaration.
+#[derive(Debug)]
+pub struct Graph {
+    id: u64,
+    pub(crate) topology: ViewTopology,
+    pub(crate) families: Vec<FamilyDecl>,
+    pub(crate) passes: Vec<PassDecl>,
+    /// Handles from another graph used by a pass: reported at compile time.
+    pub(crate) foreign_uses: Vec<(PassId, FamilyId)>,
+}
+
+static NEXT_GRAPH: AtomicU64 = AtomicU64::new(1);
+
+impl Graph {
+    pub fn new(topology: ViewTopology) -> Self {
+        Graph {
+            id: NEXT_GRAPH.fetch_add(1, Ordering::Relaxed),
+            topology,
+            families: Vec::new(),
+            passes: Vec::new(),
+            foreign_uses: Vec::new(),
+        }
+    }
+
+    pub fn topology(&self) -> &ViewTopology {
+        &self.topology
+    }
+
+    pub fn passes(&self) -> &[PassDecl] {
+        &self.passes
+    }
+
+    fn family<K>(&mut self, name: &str, desc: ResourceDesc) -> Handle<K> {
+        let family = FamilyId(self.families.len() as u32);
+        self.families.push(FamilyDecl { name: name.to_string(), desc, imported: false, exported: None });
+        Handle { graph: self.id, family, versions: vec![0; self.topology.views() as usize], _kind: PhantomData }
+    }
+
+    /// One image per view, at the light field's resolution.
+    pub fn image(&mut self, name: &str, format: Format) -> Handle<Image> {
+        let desc = ResourceDesc::Image { width: self.topology.width, height: self.topology.height, format };
+        self.family(name, desc)
+    }
+
+    /// One buffer per view.
+    pub fn buffer(&mut self, name: &str, bytes: u64) -> Handle<Buffer> {
+        self.family(name, ResourceDesc::Buffer { bytes })
+    }
+
+    /// Declares that version 0 of every view's resource arrives from outside the frame
+    /// (uploaded or persistent), so reading it before any write is legal.
+    pub fn import<K>(&mut self, handle: &Handle<K>) {
+        self.families[handle.family.index()].imported = true;
+    }
+
+    /// Marks the current version of every view's resource as a finished output: it keeps its
+    /// producers alive and is gathered on device 0.
+    #[track_caller]
+    pub fn export<K>(&mut self, handle: &Handle<K>) {
+        self.families[handle.family.index()].exported = Some((handle.versions.clone(), Location::caller()));
+    }
+
+    /// Starts declaring a pass that runs for every view of `role`.
+    #[track_caller]
+    pub fn pass(&mut self, name: &str, role: Role) -> PassBuilder<'_> {
+        let decl = PassDecl {
+            name: name.to_string(),
+            role,
+            whole_view: false,
+            side_effect: false,
+            at: Location::caller(),
+            reads: Vec::new(),
+            writes: Vec::new(),
+        };
+        PassBuilder { graph: self, decl, foreign: None }
+    }
+}
+
+/// Fluent pass declaration. Nothing is recorded until [`PassBuilder::record`].
+#[must_use = "a pass is only added to the graph by .record()"]
+pub struct PassBuilder<'g> {
+    graph: &'g mut Graph,
+    decl: PassDecl,
+    foreign: Option<FamilyId>,
+}
+
+impl PassBuilder<'_> {
+    fn check<K>(&mut self, h: &Handle<K>) {
+        if h.graph != self.graph.id && self.foreign.is_none() {
+            self.foreign = Some(h.family);
+        }
+    }
+
+    fn push_read<K>(mut self, h: &Handle<K>, scope: ReadScope) -> Self {
+        self.check(h);
+        self.decl.reads.push(ReadDecl { family: h.family, versions: h.versions.clone(), scope });
+        self
+    }
+
+    /// Reads this view's current version over the instance's own rows.
+    pub fn read<K>(self, h: &Handle<K>) -> Self {
+        self.push_read(h, ReadScope::Own)
+    }
+
+    /// Reads this view's current version, every row.
+    pub fn read_whole<K>(self, h: &Handle<K>) -> Self {
+        self.push_read(h, ReadScope::OwnWhole)
+    }
+
+    /// Reads the current version of the resource of each source of this (target) view: a
+    /// reprojection read. Each such read yields a δ-edge source → target.
+    pub fn read_sources<K>(self, h: &Handle<K>) -> Self {
+        self.push_read(h, ReadScope::Sources)
+    }
+
+    /// Reads the previous frame's last version of this view's resource.
+    pub fn read_history<K>(self, h: &Handle<K>) -> Self {
+        self.push_read(h, ReadScope::History)
+    }
+
+    /// Reads an explicit version for every view. For graphs declared from data rather than
+    /// through handles; versions that nothing writes are reported at compile time.
+    pub fn read_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
+        self.check(h);
+        let versions = vec![version; h.versions.len()];
+        self.decl.reads.push(ReadDecl { family: h.family, versions, scope: ReadScope::Own });
+        self
+    }
+
+    /// Writes this view's resource over the instance's rows, making a new version.
+    pub fn write<K>(mut self, h: &mut Handle<K>) -> Self {
+        self.check(h);
+        let topo = &self.graph.topology;
+        for v in 0..topo.views() {
+            if topo.in_role(self.decl.role, ViewId(v)) {
+                h.versions[v as usize] += 1;
+            }
+        }
+        self.decl.writes.push(WriteDecl { family: h.family, versions: h.versions.clone() });
+        self
+    }
+
+    /// Writes an explicit version for every view, without touching the handle. For graphs
+    /// declared from data; conflicting writes are reported at compile time.
+    pub fn write_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
+        self.check(h);
+        let versions = vec![version; h.versions.len()];
+        self.decl.writes.push(WriteDecl { family: h.family, versions });
+        self
+    }
+
+    /// The pass needs its whole view at once (never split into row bands).
+    pub fn whole_view(mut self) -> Self {
+        self.decl.whole_view = true;
+        self
+    }
+
+    /// Keeps the pass even if nothing exported depends on it.
+    pub fn side_effect(mut self) -> Self {
+        self.decl.side_effect = true;
+        self
+    }
+
+    /// Adds the pass to the graph.
+    pub fn record(self) -> PassId {
+        let id = PassId(self.graph.passes.len() as u32);
+        if let Some(family) = self.foreign {
+            self.graph.foreign_uses.push((id, family));
+        }
+        self.graph.passes.push(self.decl);
+        id
+    }
+}

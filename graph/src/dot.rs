@@ -1,0 +1,138 @@
+//! Graphviz export of a schedule: one cluster per device with its passes in program order,
+//! producer edges in grey, δ-edges (reprojection reads of another view) dashed blue, and each
+//! cross-device copy as a red node between clusters. Output is deterministic: the same schedule
+//! always gives the same bytes.
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+
+use crate::ids::CopyId;
+use crate::schedule::{CopyKind, Op, Schedule};
+
+const DEVICE_COLOURS: [&str; 8] =
+    ["#fde0dd", "#e0f3db", "#deebf7", "#fff7bc", "#efedf5", "#fee6ce", "#e5f5f9", "#f0f0f0"];
+
+impl Schedule {
+    pub fn to_dot(&self) -> String {
+        let mut out = String::new();
+        let w = &mut out;
+        writeln!(w, "digraph schedule {{").unwrap();
+        writeln!(w, "  graph [rankdir=TB, fontname=\"Helvetica\", newrank=true];").unwrap();
+        writeln!(w, "  node [shape=box, style=\"rounded,filled\", fontname=\"Helvetica\", fontsize=10];").unwrap();
+        writeln!(w, "  edge [color=\"#777777\", arrowsize=0.6];").unwrap();
+        for program in &self.devices {
+            let d = program.device;
+            writeln!(w, "  subgraph cluster_{d} {{").unwrap();
+            writeln!(
+                w,
+                "    label=\"{d}\"; style=\"rounded,filled\"; fillcolor=\"{}\"; color=\"#999999\";",
+                DEVICE_COLOURS[d.index() % 8]
+            )
+            .unwrap();
+            for op in &program.ops {
+                if let Op::Pass(id) = op {
+                    let inst = self.instance(*id);
+                    let height = self.resources.first().map_or(0, |r| r.desc.rows());
+                    let rows = if inst.region.y0 == 0 && inst.region.y1 >= height {
+                        String::new()
+                    } else {
+                        format!("\\n{}", inst.region)
+                    };
+                    writeln!(w, "    {id} [label=\"{}\\n{}{rows}\", fillcolor=white];", escape(&inst.name), inst.view)
+                        .unwrap();
+                }
+            }
+            if d.0 == 0 && self.gather_copies().next().is_some() {
+                writeln!(w, "    gathered [label=\"finished views\", shape=doubleoctagon, fillcolor=\"#ffffff\"];")
+                    .unwrap();
+            }
+            writeln!(w, "  }}").unwrap();
+        }
+        for (c, copy) in self.copies.iter().enumerate() {
+            let id = CopyId(c as u32);
+            let res = self.resource(copy.resource);
+            writeln!(
+                w,
+                "  {id} [label=\"copy {}@v{} of {}\\n{} → {}, {}\\n{} B\", shape=cds, color=\"#cc0000\", fillcolor=\"#ffdddd\"];",
+                escape(&res.name),
+                copy.version,
+                res.view,
+                copy.from,
+                copy.to,
+                copy.region,
+                copy.bytes
+            )
+            .unwrap();
+        }
+        // One arrow per pair of nodes however many resources flow between them; an arrow is a
+        // δ-edge when any of its reads is of another view.
+        let mut arrows: BTreeMap<(String, String), (bool, bool)> = BTreeMap::new();
+        for e in &self.edges {
+            let (p, c) = (self.instance(e.producer), self.instance(e.consumer));
+            let delta = self.resource(e.access.resource).view != c.view;
+            let mut arrow = |from: String, to: String, delta: bool, cross: bool| {
+                let entry = arrows.entry((from, to)).or_insert((false, cross));
+                entry.0 |= delta;
+            };
+            if p.device == c.device {
+                arrow(e.producer.to_string(), e.consumer.to_string(), delta, false);
+                continue;
+            }
+            let copy = self.copies.iter().position(|k| {
+                k.kind == CopyKind::Dependency
+                    && k.resource == e.access.resource
+                    && k.version == e.access.version
+                    && k.from == p.device
+                    && k.to == c.device
+                    && k.region.contains(e.access.region)
+            });
+            if let Some(k) = copy {
+                let k = CopyId(k as u32).to_string();
+                arrow(e.producer.to_string(), k.clone(), false, true);
+                arrow(k, e.consumer.to_string(), delta, true);
+            }
+        }
+        for ((from, to), (delta, cross)) in arrows {
+            let attrs = match (delta, cross) {
+                (true, true) => " [style=dashed, color=\"#cc0000\", label=\"δ\"]",
+                (true, false) => " [style=dashed, color=\"#1f5fbf\", label=\"δ\"]",
+                (false, true) => " [color=\"#cc0000\"]",
+                (false, false) => "",
+            };
+            writeln!(w, "  {from} -> {to}{attrs};").unwrap();
+        }
+        for program in &self.devices {
+            for op in &program.ops {
+                if let Op::CopyOut(k) = op
+                    && self.copy(*k).kind == CopyKind::Gather
+                {
+                    let producer = self.producer_of(*k);
+                    if let Some(p) = producer {
+                        writeln!(w, "  {p} -> {k} [color=\"#cc0000\"];").unwrap();
+                    }
+                    writeln!(w, "  {k} -> gathered [color=\"#cc0000\"];").unwrap();
+                }
+            }
+        }
+        writeln!(w, "}}").unwrap();
+        out
+    }
+
+    /// The instance on the copy's source device that wrote the copied rows.
+    fn producer_of(&self, copy: CopyId) -> Option<crate::ids::InstanceId> {
+        let k = self.copy(copy);
+        self.instances
+            .iter()
+            .position(|i| {
+                i.device == k.from
+                    && i.writes
+                        .iter()
+                        .any(|w| w.resource == k.resource && w.version == k.version && w.region.contains(k.region))
+            })
+            .map(|i| crate::ids::InstanceId(i as u32))
+    }
+}
+
+fn escape(s: &str) -> String {
+    s.replace('\\', "\\\\").replace('"', "\\\"")
+}

@@ -1,0 +1,83 @@
+//! Error types. Each variant names the input at fault and, through its message, the fix.
+
+use std::panic::Location;
+
+use thiserror::Error;
+
+use crate::ids::{FamilyId, ViewId};
+
+/// Bad planning input: layouts, device counts, source lists, strategy names.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum PlanError {
+    #[error("--lf '{0}' is not a layout: use multiscopic, nelf or WxH (e.g. 8x4)")]
+    BadLayout(String),
+    #[error("--lf {cols}x{rows} has no views: both grid dimensions must be at least 1")]
+    EmptyLayout { cols: u32, rows: u32 },
+    #[error("--spacing {0} is invalid: use a finite, non-negative distance in metres (e.g. 0.001)")]
+    BadSpacing(f64),
+    #[error("--resolution {width}x{height} is invalid: both dimensions must be at least 1")]
+    BadResolution { width: u32, height: u32 },
+    #[error("focus distance {0} is invalid: use a finite distance greater than 0")]
+    BadFocus(f64),
+    #[error("--gpus 0: at least one device is needed")]
+    NoDevices,
+    #[error(
+        "--gpus {devices} exceeds the {views} views: the paper excludes N > M (a view would be split over devices); use at most {views} devices"
+    )]
+    MoreDevicesThanViews { devices: u32, views: u32 },
+    #[error("--sources: view {view} is out of range, the light field has {views} views (0..{views})")]
+    SourceOutOfRange { view: u32, views: u32 },
+    #[error("--sources: view {0} is listed twice; list each source once")]
+    DuplicateSource(u32),
+    #[error("--sources is empty: list at least one view index")]
+    NoSources,
+    #[error("--sources '{0}' is not a list of view indices (e.g. 0,99)")]
+    BadSourceList(String),
+    #[error("--sources lists {sources} views but there are {views}: keep at least one target view")]
+    AllViewsSources { sources: u32, views: u32 },
+    #[error(
+        "--sources does not apply to multi-source: it picks one medoid per set; use it with fine-sources or fine-all"
+    )]
+    SourcesWithMultiSource,
+    #[error("unknown scheme '{0}': use multi-source, fine-sources or fine-all")]
+    UnknownScheme(String),
+    #[error("unknown assignment '{0}': use round-robin, contiguous or compact")]
+    UnknownAssignment(String),
+}
+
+/// Errors found while declaring or compiling a render graph. Locations are where the offending
+/// pass or resource was declared (`#[track_caller]`).
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum GraphError {
+    #[error(
+        "pass '{pass}' (declared at {at}) reads '{resource}' of {view} at version {version}, which no pass writes: declare a producer first or import the resource"
+    )]
+    ReadOfUnwritten { pass: String, resource: String, view: ViewId, version: u32, at: &'static Location<'static> },
+    #[error(
+        "'{resource}' of {view} is exported (at {at}) but no pass writes it: export a handle after the pass that produces it"
+    )]
+    ExportOfUnwritten { resource: String, view: ViewId, at: &'static Location<'static> },
+    #[error(
+        "'{resource}' of {view} version {version} is written by both '{first}' and '{second}' (declared at {at}): write through a `&mut` handle so each write makes a new version"
+    )]
+    DoubleWrite {
+        resource: String,
+        view: ViewId,
+        version: u32,
+        first: String,
+        second: String,
+        at: &'static Location<'static>,
+    },
+    #[error(
+        "the passes {passes:?} depend on each other in a cycle: a pass reads a version that only a later pass produces"
+    )]
+    Cycle { passes: Vec<String> },
+    #[error("pass '{pass}' (declared at {at}) uses handle {family} from another graph")]
+    ForeignHandle { pass: String, family: FamilyId, at: &'static Location<'static> },
+    #[error(
+        "pass '{pass}' reads the history of '{resource}' of {view} on {reader}, but its last writer runs on {writer}: history must stay on the device that wrote it"
+    )]
+    HistoryAcrossDevices { pass: String, resource: String, view: ViewId, reader: u32, writer: u32 },
+    #[error("the graph has no roots: export a resource or mark a pass side_effect(), otherwise every pass is culled")]
+    NoRoots,
+}

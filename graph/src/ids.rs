@@ -1,0 +1,100 @@
+//! Small index newtypes. They are plain numbers so that schedules stay plain data.
+
+use serde::Serialize;
+
+macro_rules! id {
+    ($(#[$doc:meta])* $name:ident, $prefix:literal) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+        pub struct $name(pub u32);
+
+        impl $name {
+            pub fn index(self) -> usize {
+                self.0 as usize
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, concat!($prefix, "{}"), self.0)
+            }
+        }
+    };
+}
+
+id!(
+    /// A view of the light field (row-major index over the grid).
+    ViewId, "v"
+);
+id!(
+    /// A GPU (physical or logical). Device 0 is the primary: finished views are gathered there.
+    DeviceId, "gpu"
+);
+id!(
+    /// One per-view resource: a (declared resource, view) pair.
+    ResourceId, "r"
+);
+id!(
+    /// One pass instance: a declared pass, for one view, over one row band, on one device.
+    InstanceId, "p"
+);
+id!(
+    /// One cross-device copy.
+    CopyId, "c"
+);
+id!(
+    /// A declared resource (the family of its per-view resources).
+    FamilyId, "f"
+);
+id!(
+    /// A declared pass (the template of its instances).
+    PassId, "pass"
+);
+
+/// A band of image rows `[y0, y1)`. Fine-grained schemes split views into bands; a whole view is
+/// `[0, height)`. Buffers are one row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct Region {
+    pub y0: u32,
+    pub y1: u32,
+}
+
+impl Region {
+    pub fn rows(height: u32) -> Region {
+        Region { y0: 0, y1: height }
+    }
+
+    pub fn len(self) -> u32 {
+        self.y1.saturating_sub(self.y0)
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn intersect(self, other: Region) -> Option<Region> {
+        let r = Region { y0: self.y0.max(other.y0), y1: self.y1.min(other.y1) };
+        (!r.is_empty()).then_some(r)
+    }
+
+    pub fn contains(self, other: Region) -> bool {
+        self.y0 <= other.y0 && other.y1 <= self.y1
+    }
+
+    /// Splits `[0, height)` into `n` bands whose heights differ by at most one row.
+    pub fn bands(height: u32, n: u32) -> Vec<Region> {
+        let n = n.max(1);
+        (0..n)
+            .map(|i| Region {
+                y0: (height as u64 * i as u64 / n as u64) as u32,
+                y1: (height as u64 * (i + 1) as u64 / n as u64) as u32,
+            })
+            .collect()
+    }
+}
+
+impl std::fmt::Display for Region {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "rows {}..{}", self.y0, self.y1)
+    }
+}

@@ -1,0 +1,175 @@
+//! The three partitioning schemes compared in the paper, as placements of one pipeline graph.
+//!
+//! * `MultiSource` (proposed): views split into N sets, one per device; each set's medoid is its
+//!   source; every pass of a view runs whole on its set's device. No copy before the gather.
+//! * `FineSources` (Ikkala et al. 2022, Tauray): k sources path traced in row bands over all
+//!   devices; everything else runs on device 0, which receives the bands.
+//! * `FineAll` (Leria et al. 2024, extended to many views): every view split in bands over all
+//!   devices; each device all-gathers the source bands it reprojects from.
+
+use crate::assign::{AssignStrategy, Assignment, assign};
+use crate::builder::{Role, ViewTopology};
+use crate::compile::{PassPlacementInfo, Placement};
+use crate::error::PlanError;
+use crate::ids::{DeviceId, Region, ViewId};
+use crate::lightfield::LightField;
+use crate::source::{baseline_sources, medoid};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Scheme {
+    MultiSource,
+    FineSources,
+    FineAll,
+}
+
+impl Scheme {
+    pub const ALL: [Scheme; 3] = [Scheme::MultiSource, Scheme::FineSources, Scheme::FineAll];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::MultiSource => "multi-source",
+            Scheme::FineSources => "fine-sources",
+            Scheme::FineAll => "fine-all",
+        }
+    }
+}
+
+impl std::str::FromStr for Scheme {
+    type Err = PlanError;
+    fn from_str(s: &str) -> Result<Self, PlanError> {
+        Scheme::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| PlanError::UnknownScheme(s.to_string()))
+    }
+}
+
+/// What the user chose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanConfig {
+    pub devices: u32,
+    pub scheme: Scheme,
+    /// How views are grouped into sets (multi-source).
+    pub assign: AssignStrategy,
+    /// Explicit sources for the fine-grained schemes; default: k = N placed as in the paper.
+    pub sources: Option<Vec<u32>>,
+}
+
+/// Sources, sets and placement for one light field, one scheme, N devices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    pub scheme: Scheme,
+    pub devices: u32,
+    pub assign: AssignStrategy,
+    /// The sets of the multi-source scheme (None for the fine-grained schemes).
+    pub assignment: Option<Assignment>,
+    pub sources: Vec<ViewId>,
+    pub topology: ViewTopology,
+}
+
+impl Plan {
+    pub fn new(lf: &LightField, config: &PlanConfig) -> Result<Plan, PlanError> {
+        let m = lf.len() as u32;
+        if config.devices == 0 {
+            return Err(PlanError::NoDevices);
+        }
+        if config.devices > m {
+            return Err(PlanError::MoreDevicesThanViews { devices: config.devices, views: m });
+        }
+        let (assignment, sources, sources_of) = match config.scheme {
+            Scheme::MultiSource => {
+                if config.sources.is_some() {
+                    return Err(PlanError::SourcesWithMultiSource);
+                }
+                let a = assign(config.assign, &lf.positions, config.devices)?;
+                let set_sources: Vec<ViewId> = a
+                    .sets
+                    .iter()
+                    .map(|set| medoid(set, |v| lf.position(v)).expect("sets are never empty when N <= M"))
+                    .collect();
+                let sources_of = (0..m)
+                    .map(|v| {
+                        let s = set_sources[a.set_of_view[v as usize] as usize];
+                        if s == ViewId(v) { Vec::new() } else { vec![s] }
+                    })
+                    .collect();
+                let mut sources = set_sources;
+                sources.sort();
+                (Some(a), sources, sources_of)
+            }
+            Scheme::FineSources | Scheme::FineAll => {
+                let sources = match &config.sources {
+                    Some(list) => checked_sources(list, m)?,
+                    None => baseline_sources(&lf.positions, lf.centre(), config.devices as usize),
+                };
+                let sources_of =
+                    (0..m).map(|v| if sources.contains(&ViewId(v)) { Vec::new() } else { sources.clone() }).collect();
+                (None, sources, sources_of)
+            }
+        };
+        let is_source = (0..m).map(|v| sources.contains(&ViewId(v))).collect();
+        let topology = ViewTopology { width: lf.width, height: lf.height, sources_of, is_source };
+        Ok(Plan {
+            scheme: config.scheme,
+            devices: config.devices,
+            assign: config.assign,
+            assignment,
+            sources,
+            topology,
+        })
+    }
+
+    /// Device of each view's set under multi-source.
+    pub fn set_of_view(&self) -> Option<&[u32]> {
+        self.assignment.as_ref().map(|a| a.set_of_view.as_slice())
+    }
+
+    fn bands(&self, height: u32) -> Vec<(DeviceId, Region)> {
+        Region::bands(height, self.devices)
+            .into_iter()
+            .enumerate()
+            .filter(|(_, r)| !r.is_empty())
+            .map(|(d, r)| (DeviceId(d as u32), r))
+            .collect()
+    }
+}
+
+impl Placement for Plan {
+    fn devices(&self) -> u32 {
+        self.devices
+    }
+
+    fn place(&self, pass: PassPlacementInfo<'_>, view: ViewId, height: u32) -> Vec<(DeviceId, Region)> {
+        let whole = |d: u32| vec![(DeviceId(d), Region::rows(height))];
+        match self.scheme {
+            Scheme::MultiSource => whole(self.set_of_view().expect("multi-source has sets")[view.index()]),
+            Scheme::FineSources if pass.splittable && pass.role == Role::Sources => self.bands(height),
+            Scheme::FineAll if pass.splittable => self.bands(height),
+            Scheme::FineSources | Scheme::FineAll => whole(0),
+        }
+    }
+}
+
+/// Parses `--sources 0,99`.
+pub fn parse_source_list(s: &str) -> Result<Vec<u32>, PlanError> {
+    if s.trim().is_empty() {
+        return Err(PlanError::NoSources);
+    }
+    s.split(',').map(|t| t.trim().parse::<u32>().map_err(|_| PlanError::BadSourceList(s.to_string()))).collect()
+}
+
+fn checked_sources(list: &[u32], views: u32) -> Result<Vec<ViewId>, PlanError> {
+    if list.is_empty() {
+        return Err(PlanError::NoSources);
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    for &v in list {
+        if v >= views {
+            return Err(PlanError::SourceOutOfRange { view: v, views });
+        }
+        if !seen.insert(v) {
+            return Err(PlanError::DuplicateSource(v));
+        }
+    }
+    if seen.len() as u32 == views {
+        return Err(PlanError::AllViewsSources { sources: views, views });
+    }
+    Ok(seen.into_iter().map(ViewId).collect())
+}

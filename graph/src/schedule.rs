@@ -1,0 +1,203 @@
+//! The compiled schedule: plain data, nothing GPU-specific. `backend/` lowers it to command
+//! buffers; `validate()` checks every invariant the executor relies on; `dot` draws it.
+
+use serde::Serialize;
+
+use crate::ids::{CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
+
+/// Texel formats a pass can declare for a per-view image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum Format {
+    Rgba32f,
+    Rgba16f,
+    Rg32f,
+    R32f,
+    R32u,
+    Rgba8,
+}
+
+impl Format {
+    pub fn bytes_per_texel(self) -> u64 {
+        match self {
+            Format::Rgba32f => 16,
+            Format::Rgba16f | Format::Rg32f => 8,
+            Format::R32f | Format::R32u | Format::Rgba8 => 4,
+        }
+    }
+}
+
+/// Shape of a per-view resource. Images are addressed by row bands; a buffer is one row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum ResourceDesc {
+    Image { width: u32, height: u32, format: Format },
+    Buffer { bytes: u64 },
+}
+
+impl ResourceDesc {
+    pub fn rows(self) -> u32 {
+        match self {
+            ResourceDesc::Image { height, .. } => height,
+            ResourceDesc::Buffer { .. } => 1,
+        }
+    }
+
+    pub fn row_bytes(self) -> u64 {
+        match self {
+            ResourceDesc::Image { width, format, .. } => width as u64 * format.bytes_per_texel(),
+            ResourceDesc::Buffer { bytes } => bytes,
+        }
+    }
+
+    pub fn bytes(self, region: Region) -> u64 {
+        region.len() as u64 * self.row_bytes()
+    }
+
+    pub fn full(self) -> Region {
+        Region::rows(self.rows())
+    }
+}
+
+/// One per-view resource.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ResourceInfo {
+    pub name: String,
+    pub family: FamilyId,
+    pub view: ViewId,
+    pub desc: ResourceDesc,
+    /// The version that is a finished output, gathered to device 0 at the end of the frame.
+    pub exported: Option<u32>,
+    /// Read as "previous frame" by some pass: must persist across frames.
+    pub history: bool,
+    /// Number of versions written per frame.
+    pub versions: u32,
+}
+
+/// A read or a write of one version of a resource over a row band.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct Access {
+    pub resource: ResourceId,
+    pub version: u32,
+    pub region: Region,
+}
+
+/// A declared pass instantiated for one view, one row band, one device.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PassInstance {
+    pub pass: PassId,
+    pub name: String,
+    pub view: ViewId,
+    pub region: Region,
+    pub device: DeviceId,
+    pub reads: Vec<Access>,
+    pub writes: Vec<Access>,
+    /// Reads of the previous frame's last version (no edge inside the frame).
+    pub history_reads: Vec<Access>,
+}
+
+/// Producer → consumer dependency between two instances through one access.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Edge {
+    pub producer: InstanceId,
+    pub consumer: InstanceId,
+    pub access: Access,
+}
+
+/// A reprojection dependency δ(S, T): an instance owned by target view T reads a resource owned
+/// by source view S ≠ T. Counted once per (source view, consuming instance).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct DeltaEdge {
+    pub source: ViewId,
+    pub target: ViewId,
+    pub consumer: InstanceId,
+}
+
+/// Why a copy exists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum CopyKind {
+    /// A consumer on `to` reads what a producer on `from` wrote.
+    Dependency,
+    /// A finished view region travels to device 0.
+    Gather,
+}
+
+/// One cross-device copy of one version of a resource over a row band, through host memory
+/// visible to both devices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct CrossCopy {
+    pub resource: ResourceId,
+    pub version: u32,
+    pub region: Region,
+    pub from: DeviceId,
+    pub to: DeviceId,
+    pub bytes: u64,
+    pub kind: CopyKind,
+}
+
+/// One step of a device's program.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum Op {
+    Pass(InstanceId),
+    /// Producer side: device → shared host memory.
+    CopyOut(CopyId),
+    /// Producer side: tell the consumer the bytes are in host memory.
+    Signal(CopyId),
+    /// Consumer side: wait for the producer's signal.
+    Wait(CopyId),
+    /// Consumer side: shared host memory → device.
+    CopyIn(CopyId),
+}
+
+/// Everything one device does in a frame, in submission order.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DeviceProgram {
+    pub device: DeviceId,
+    pub ops: Vec<Op>,
+}
+
+/// A pass dropped because nothing that is exported or side-effecting needs it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct CulledPass {
+    pub name: String,
+    pub view: ViewId,
+}
+
+/// The compiled frame: per-device programs plus everything needed to check and draw them.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Schedule {
+    pub views: u32,
+    pub devices: Vec<DeviceProgram>,
+    pub resources: Vec<ResourceInfo>,
+    pub instances: Vec<PassInstance>,
+    pub edges: Vec<Edge>,
+    pub delta_edges: Vec<DeltaEdge>,
+    pub copies: Vec<CrossCopy>,
+    pub culled: Vec<CulledPass>,
+}
+
+impl Schedule {
+    pub fn instance(&self, id: InstanceId) -> &PassInstance {
+        &self.instances[id.index()]
+    }
+
+    pub fn resource(&self, id: ResourceId) -> &ResourceInfo {
+        &self.resources[id.index()]
+    }
+
+    pub fn copy(&self, id: CopyId) -> &CrossCopy {
+        &self.copies[id.index()]
+    }
+
+    /// Copies between devices before the final gather.
+    pub fn dependency_copies(&self) -> impl Iterator<Item = &CrossCopy> {
+        self.copies.iter().filter(|c| c.kind == CopyKind::Dependency)
+    }
+
+    pub fn gather_copies(&self) -> impl Iterator<Item = &CrossCopy> {
+        self.copies.iter().filter(|c| c.kind == CopyKind::Gather)
+    }
+
+    /// Bytes moved between devices per frame, gathers included.
+    pub fn bytes_per_frame(&self) -> u64 {
+        self.copies.iter().map(|c| c.bytes).sum()
+    }
+}

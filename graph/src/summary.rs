@@ -1,0 +1,69 @@
+//! The machine-readable summary of a plan (`parallax plan --json`).
+
+use serde::Serialize;
+
+use crate::lightfield::LightField;
+use crate::partition::Plan;
+use crate::schedule::Schedule;
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlanSummary {
+    pub layout: String,
+    pub resolution: [u32; 2],
+    pub views: u32,
+    pub devices: u32,
+    pub scheme: &'static str,
+    pub assign: &'static str,
+    pub sources: Vec<u32>,
+    /// Device of each view's set (multi-source only).
+    pub set_of_view: Option<Vec<u32>>,
+    pub delta_edges: usize,
+    /// Mean distance between the two views of a δ-edge, in millimetres: smaller baselines
+    /// mean smaller disparities and fewer holes after reprojection.
+    pub mean_delta_distance_mm: f64,
+    /// Copies between devices before the final gather.
+    pub cross_device_copies: usize,
+    pub gather_copies: usize,
+    /// Bytes of all copies, gathers included.
+    pub bytes_per_frame: u64,
+    pub pass_instances: usize,
+    pub culled_passes: usize,
+    /// Pass instances per device, in device order.
+    pub passes_per_device: Vec<usize>,
+}
+
+impl PlanSummary {
+    pub fn new(lf: &LightField, plan: &Plan, schedule: &Schedule) -> Self {
+        PlanSummary {
+            layout: lf.name.clone(),
+            resolution: [lf.width, lf.height],
+            views: lf.len() as u32,
+            devices: plan.devices,
+            scheme: plan.scheme.name(),
+            assign: plan.assign.name(),
+            sources: plan.sources.iter().map(|v| v.0).collect(),
+            set_of_view: plan.set_of_view().map(<[u32]>::to_vec),
+            delta_edges: schedule.delta_edges.len(),
+            mean_delta_distance_mm: mean_delta_distance(lf, schedule) * 1e3,
+            cross_device_copies: schedule.dependency_copies().count(),
+            gather_copies: schedule.gather_copies().count(),
+            bytes_per_frame: schedule.bytes_per_frame(),
+            pass_instances: schedule.instances.len(),
+            culled_passes: schedule.culled.len(),
+            passes_per_device: schedule
+                .devices
+                .iter()
+                .map(|p| p.ops.iter().filter(|o| matches!(o, crate::schedule::Op::Pass(_))).count())
+                .collect(),
+        }
+    }
+}
+
+fn mean_delta_distance(lf: &LightField, schedule: &Schedule) -> f64 {
+    if schedule.delta_edges.is_empty() {
+        return 0.0;
+    }
+    let total: f64 =
+        schedule.delta_edges.iter().map(|e| (lf.position(e.source) - lf.position(e.target)).length()).sum();
+    total / schedule.delta_edges.len() as f64
+}

@@ -1,0 +1,337 @@
+//! `Schedule::validate()`: every invariant the executor relies on, checked on the plain data.
+//! It recomputes what it needs from instances' reads and writes rather than trusting the
+//! schedule's own edge list, so a corrupted schedule cannot vouch for itself.
+
+use std::collections::{HashMap, VecDeque};
+
+use crate::ids::{CopyId, DeviceId, InstanceId, Region, ResourceId, ViewId};
+use crate::schedule::{CopyKind, Op, Schedule};
+
+/// One broken invariant.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ScheduleError {
+    /// An instance is on no device program.
+    InstanceNotScheduled { instance: InstanceId },
+    /// An instance appears more than once.
+    InstanceScheduledTwice { instance: InstanceId },
+    /// An instance sits on a program other than the device it was placed on.
+    InstanceOnWrongDevice { instance: InstanceId, placed: DeviceId, listed: DeviceId },
+    /// A copy joins a device to itself.
+    CopyWithinDevice { copy: CopyId },
+    /// One of a copy's four ops is missing from the device it belongs on.
+    CopyOpMissing { copy: CopyId, op: &'static str },
+    /// One of a copy's ops appears more than once.
+    CopyOpDuplicated { copy: CopyId, op: &'static str },
+    /// Signal before CopyOut, or CopyIn before Wait.
+    CopyOpsOutOfOrder { copy: CopyId },
+    /// No instance on the source device writes the copied rows of that version.
+    CopyWithoutProducer { copy: CopyId },
+    /// The copy leaves before its producer has run.
+    CopyBeforeProducer { copy: CopyId, producer: InstanceId },
+    /// The byte count does not match the rows copied.
+    CopyBytesMismatch { copy: CopyId, expected: u64, actual: u64 },
+    /// A read is not satisfied by an earlier producer on its device or by one copy.
+    UnsatisfiedRead { instance: InstanceId, resource: ResourceId, version: u32, rows: Region },
+    /// More than one copy brings the same rows to the consumer's device.
+    AmbiguousRead { instance: InstanceId, resource: ResourceId, version: u32, copies: Vec<CopyId> },
+    /// A producer on the consumer's device runs after it.
+    OrderViolation { producer: InstanceId, consumer: InstanceId },
+    /// The copy a read depends on arrives after the reader runs.
+    CopyArrivesLate { copy: CopyId, consumer: InstanceId },
+    /// A finished view's rows are not all on device 0 at the end of the frame.
+    ViewNotGathered { view: ViewId, resource: ResourceId },
+    /// Waits and signals form a cycle across devices.
+    Deadlock,
+}
+
+/// Every broken invariant found; empty when the schedule is sound.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ValidationReport {
+    pub errors: Vec<ScheduleError>,
+}
+
+impl ValidationReport {
+    pub fn is_ok(&self) -> bool {
+        self.errors.is_empty()
+    }
+}
+
+/// Where each op sits: (device, index) for every occurrence.
+type Positions = HashMap<Op, Vec<(DeviceId, usize)>>;
+
+/// A copy's four ops by name, in the order they must run.
+type CopyOpKinds = [(&'static str, fn(CopyId) -> Op); 4];
+
+const COPY_OPS: CopyOpKinds =
+    [("CopyOut", Op::CopyOut), ("Signal", Op::Signal), ("Wait", Op::Wait), ("CopyIn", Op::CopyIn)];
+
+impl Schedule {
+    pub fn validate(&self) -> ValidationReport {
+        let mut errors = Vec::new();
+        let mut positions: Positions = HashMap::new();
+        for program in &self.devices {
+            for (i, op) in program.ops.iter().enumerate() {
+                positions.entry(*op).or_default().push((program.device, i));
+            }
+        }
+        let at = |op: Op| positions.get(&op).and_then(|v| (v.len() == 1).then_some(v[0]));
+
+        for (i, inst) in self.instances.iter().enumerate() {
+            let instance = InstanceId(i as u32);
+            match positions.get(&Op::Pass(instance)).map(Vec::as_slice) {
+                None | Some([]) => errors.push(ScheduleError::InstanceNotScheduled { instance }),
+                Some([(device, _)]) if *device != inst.device => {
+                    errors.push(ScheduleError::InstanceOnWrongDevice { instance, placed: inst.device, listed: *device })
+                }
+                Some([_]) => {}
+                Some(_) => errors.push(ScheduleError::InstanceScheduledTwice { instance }),
+            }
+        }
+
+        let writers = self.writers();
+        self.check_copies(&positions, &writers, &mut errors);
+        self.check_reads(&at, &writers, &mut errors);
+        self.check_gather(&at, &writers, &mut errors);
+        if self.has_wait_cycle() {
+            errors.push(ScheduleError::Deadlock);
+        }
+        ValidationReport { errors }
+    }
+
+    /// (resource, version) → (writer, rows written).
+    fn writers(&self) -> HashMap<(ResourceId, u32), Vec<(InstanceId, Region)>> {
+        let mut map: HashMap<_, Vec<_>> = HashMap::new();
+        for (i, inst) in self.instances.iter().enumerate() {
+            for w in &inst.writes {
+                map.entry((w.resource, w.version)).or_default().push((InstanceId(i as u32), w.region));
+            }
+        }
+        map
+    }
+
+    fn check_copies(
+        &self,
+        positions: &Positions,
+        writers: &HashMap<(ResourceId, u32), Vec<(InstanceId, Region)>>,
+        errors: &mut Vec<ScheduleError>,
+    ) {
+        for (c, copy) in self.copies.iter().enumerate() {
+            let id = CopyId(c as u32);
+            if copy.from == copy.to {
+                errors.push(ScheduleError::CopyWithinDevice { copy: id });
+            }
+            let expected = self.resource(copy.resource).desc.bytes(copy.region);
+            if expected != copy.bytes {
+                errors.push(ScheduleError::CopyBytesMismatch { copy: id, expected, actual: copy.bytes });
+            }
+            let mut index = [None; 4];
+            for (k, (name, make)) in COPY_OPS.iter().enumerate() {
+                let device = if k < 2 { copy.from } else { copy.to };
+                match positions.get(&make(id)).map(Vec::as_slice) {
+                    Some([(d, i)]) if *d == device => index[k] = Some(*i),
+                    Some([_, _, ..]) => errors.push(ScheduleError::CopyOpDuplicated { copy: id, op: name }),
+                    _ => errors.push(ScheduleError::CopyOpMissing { copy: id, op: name }),
+                }
+            }
+            if matches!(index, [Some(o), Some(s), _, _] if s < o) || matches!(index, [_, _, Some(w), Some(i)] if i < w)
+            {
+                errors.push(ScheduleError::CopyOpsOutOfOrder { copy: id });
+            }
+            let producers: Vec<(InstanceId, Region)> = writers
+                .get(&(copy.resource, copy.version))
+                .into_iter()
+                .flatten()
+                .filter(|(w, r)| self.instance(*w).device == copy.from && r.intersect(copy.region).is_some())
+                .copied()
+                .collect();
+            if covered(copy.region, producers.iter().map(|p| p.1)) < copy.region.len() {
+                errors.push(ScheduleError::CopyWithoutProducer { copy: id });
+            }
+            for (producer, _) in producers {
+                let p = positions.get(&Op::Pass(producer)).and_then(|v| v.first()).map(|x| x.1);
+                if let (Some(p), Some(out)) = (p, index[0])
+                    && p > out
+                {
+                    errors.push(ScheduleError::CopyBeforeProducer { copy: id, producer });
+                }
+            }
+        }
+    }
+
+    fn check_reads(
+        &self,
+        at: &dyn Fn(Op) -> Option<(DeviceId, usize)>,
+        writers: &HashMap<(ResourceId, u32), Vec<(InstanceId, Region)>>,
+        errors: &mut Vec<ScheduleError>,
+    ) {
+        for (i, inst) in self.instances.iter().enumerate() {
+            let consumer = InstanceId(i as u32);
+            let Some((device, here)) = at(Op::Pass(consumer)) else {
+                continue;
+            };
+            for read in &inst.reads {
+                if read.version == 0 {
+                    continue; // imported: present on every device before the frame
+                }
+                let mut satisfied = Vec::new();
+                for &(producer, written) in writers.get(&(read.resource, read.version)).into_iter().flatten() {
+                    let Some(overlap) = written.intersect(read.region) else {
+                        continue;
+                    };
+                    let Some((pd, pi)) = at(Op::Pass(producer)) else {
+                        continue;
+                    };
+                    if pd == device {
+                        if pi > here {
+                            errors.push(ScheduleError::OrderViolation { producer, consumer });
+                        }
+                        satisfied.push(overlap);
+                        continue;
+                    }
+                    let copies: Vec<CopyId> = (0..self.copies.len() as u32)
+                        .map(CopyId)
+                        .filter(|&c| {
+                            let k = self.copy(c);
+                            k.resource == read.resource
+                                && k.version == read.version
+                                && k.from == pd
+                                && k.to == device
+                                && k.region.contains(overlap)
+                        })
+                        .collect();
+                    match copies.as_slice() {
+                        [] => {}
+                        [c] => {
+                            if at(Op::CopyIn(*c)).is_some_and(|(_, ci)| ci > here) {
+                                errors.push(ScheduleError::CopyArrivesLate { copy: *c, consumer });
+                            }
+                            satisfied.push(overlap);
+                        }
+                        _ => errors.push(ScheduleError::AmbiguousRead {
+                            instance: consumer,
+                            resource: read.resource,
+                            version: read.version,
+                            copies,
+                        }),
+                    }
+                }
+                if covered(read.region, satisfied.into_iter()) < read.region.len() {
+                    errors.push(ScheduleError::UnsatisfiedRead {
+                        instance: consumer,
+                        resource: read.resource,
+                        version: read.version,
+                        rows: read.region,
+                    });
+                }
+            }
+        }
+    }
+
+    fn check_gather(
+        &self,
+        at: &dyn Fn(Op) -> Option<(DeviceId, usize)>,
+        writers: &HashMap<(ResourceId, u32), Vec<(InstanceId, Region)>>,
+        errors: &mut Vec<ScheduleError>,
+    ) {
+        let primary = DeviceId(0);
+        for (r, info) in self.resources.iter().enumerate() {
+            let Some(version) = info.exported else {
+                continue;
+            };
+            if version == 0 {
+                continue;
+            }
+            let resource = ResourceId(r as u32);
+            let local = writers
+                .get(&(resource, version))
+                .into_iter()
+                .flatten()
+                .filter(|(w, _)| at(Op::Pass(*w)).is_some_and(|(d, _)| d == primary))
+                .map(|(_, region)| *region);
+            let gathered = self
+                .copies
+                .iter()
+                .enumerate()
+                .filter(|(c, k)| {
+                    k.kind == CopyKind::Gather
+                        && k.resource == resource
+                        && k.version == version
+                        && k.to == primary
+                        && at(Op::CopyIn(CopyId(*c as u32))).is_some_and(|(d, _)| d == primary)
+                })
+                .map(|(_, k)| k.region);
+            let full = info.desc.full();
+            if covered(full, local.chain(gathered)) < full.len() {
+                errors.push(ScheduleError::ViewNotGathered { view: info.view, resource });
+            }
+        }
+    }
+
+    /// Program order plus signal → wait must be acyclic, or some device waits forever.
+    fn has_wait_cycle(&self) -> bool {
+        let offsets: Vec<usize> = self
+            .devices
+            .iter()
+            .scan(0, |acc, p| {
+                let o = *acc;
+                *acc += p.ops.len();
+                Some(o)
+            })
+            .collect();
+        let total: usize = self.devices.iter().map(|p| p.ops.len()).sum();
+        let mut successors: Vec<Vec<usize>> = vec![Vec::new(); total];
+        let mut signals: HashMap<CopyId, usize> = HashMap::new();
+        let mut waits: Vec<(CopyId, usize)> = Vec::new();
+        for (p, program) in self.devices.iter().enumerate() {
+            for (i, op) in program.ops.iter().enumerate() {
+                let node = offsets[p] + i;
+                if i + 1 < program.ops.len() {
+                    successors[node].push(node + 1);
+                }
+                match op {
+                    Op::Signal(c) => {
+                        signals.insert(*c, node);
+                    }
+                    Op::Wait(c) => waits.push((*c, node)),
+                    _ => {}
+                }
+            }
+        }
+        for (c, w) in waits {
+            if let Some(&s) = signals.get(&c) {
+                successors[s].push(w);
+            }
+        }
+        let mut indegree = vec![0usize; total];
+        for s in successors.iter().flatten() {
+            indegree[*s] += 1;
+        }
+        let mut ready: VecDeque<usize> = (0..total).filter(|&n| indegree[n] == 0).collect();
+        let mut seen = 0;
+        while let Some(n) = ready.pop_front() {
+            seen += 1;
+            for &s in &successors[n] {
+                indegree[s] -= 1;
+                if indegree[s] == 0 {
+                    ready.push_back(s);
+                }
+            }
+        }
+        seen < total
+    }
+}
+
+/// Rows of `target` covered by the union of `parts`.
+fn covered(target: Region, parts: impl Iterator<Item = Region>) -> u32 {
+    let mut pieces: Vec<Region> = parts.filter_map(|p| p.intersect(target)).collect();
+    pieces.sort();
+    let (mut total, mut end) = (0, target.y0);
+    for p in pieces {
+        let start = p.y0.max(end);
+        if p.y1 > start {
+            total += p.y1 - start;
+            end = p.y1;
+        }
+    }
+    total
+}

@@ -1,0 +1,72 @@
+//! `parallax plan` end to end: the JSON it writes, and bad input giving one clear error, a
+//! non-zero exit and no files.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("parallax-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn plan(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .arg("plan")
+        .args(args)
+        .arg("--json")
+        .arg(dir.join("plan.json"))
+        .arg("--dot")
+        .arg(dir.join("plan.dot"))
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn json_summary_has_the_documented_fields() {
+    let dir = scratch("json");
+    let out = plan(&["--lf", "multiscopic", "--gpus", "4", "--scheme", "multi-source", "--assign", "contiguous"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("plan.json")).unwrap()).unwrap();
+    assert_eq!(json["views"], 100);
+    assert_eq!(json["devices"], 4);
+    assert_eq!(json["scheme"], "multi-source");
+    assert_eq!(json["assign"], "contiguous");
+    assert_eq!(json["sources"].as_array().unwrap().len(), 4);
+    let sets = json["set_of_view"].as_array().unwrap();
+    assert_eq!(sets.len(), 100);
+    assert_eq!((sets[0].as_u64(), sets[99].as_u64()), (Some(0), Some(3)));
+    assert_eq!(json["delta_edges"], 96);
+    assert_eq!(json["cross_device_copies"], 0);
+    assert_eq!(json["gather_copies"], 75);
+    // 75 RGBA8 768×432 display images travel to device 0.
+    assert_eq!(json["bytes_per_frame"], 75 * 768 * 432 * 4);
+    assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule {"));
+}
+
+#[test]
+fn bad_input_fails_cleanly_and_writes_nothing() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["--lf", "4x1", "--gpus", "5"], "exceeds the 4 views"),
+        (&["--lf", "4x1", "--gpus", "0"], "--gpus 0"),
+        (&["--lf", "0x3"], "--lf 0x3 has no views"),
+        (&["--lf", "4x1", "--spacing", "NaN"], "--spacing NaN is invalid"),
+        (&["--lf", "4x1", "--spacing", "-1"], "--spacing -1 is invalid"),
+        (&["--lf", "4x1", "--spacing", "inf"], "--spacing inf is invalid"),
+        (&["--lf", "4x1", "--gpus", "2", "--scheme", "fine-all", "--sources", "0,4"], "view 4 is out of range"),
+        (&["--lf", "4x1", "--gpus", "2", "--scheme", "fine-all", "--sources", "1,1"], "view 1 is listed twice"),
+        (&["--lf", "4x1", "--scheme", "coarse"], "unknown scheme 'coarse'"),
+        (&["--lf", "4x1", "--assign", "random"], "unknown assignment 'random'"),
+        (&["--lf", "4x1", "--resolution", "0x10"], "--resolution 0x10 is invalid"),
+    ];
+    for (i, (args, message)) in cases.iter().enumerate() {
+        let dir = scratch(&format!("bad{i}"));
+        let out = plan(args, &dir);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(stderr.contains(message), "{args:?}: expected '{message}' in: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: one clear error line, got: {stderr}");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "{args:?} left files behind");
+    }
+}
