@@ -29,22 +29,14 @@ fn main() {
     let mut table = String::from("/// Embedded SPIR-V, by shader name (file stem).\n");
     table.push_str("pub const EMBEDDED: &[(&str, &[u8])] = &[\n");
     for src in &sources {
-        let stem = src
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .expect("UTF-8 shader file name");
+        let stem = src.file_stem().and_then(|s| s.to_str()).expect("UTF-8 shader file name");
         let spv = out.join(format!("{stem}.spv"));
         let dep = out.join(format!("{stem}.d"));
         compile(&glslc, src, &include_dir, &spv, &dep);
         for dependency in read_depfile(&dep) {
             println!("cargo:rerun-if-changed={dependency}");
         }
-        writeln!(
-            table,
-            "    ({stem:?}, include_bytes!({:?})),",
-            spv.display().to_string()
-        )
-        .expect("write to String");
+        writeln!(table, "    ({stem:?}, include_bytes!({:?})),", spv.display().to_string()).expect("write to String");
     }
     table.push_str("];\n");
     std::fs::write(out.join("shaders.rs"), table).expect("write shaders.rs");
@@ -67,11 +59,7 @@ fn compile(glslc: &str, src: &Path, include_dir: &Path, spv: &Path, dep: &Path) 
             )
         });
     if !output.status.success() {
-        panic!(
-            "glslc failed on {}:\n{}",
-            src.display(),
-            String::from_utf8_lossy(&output.stderr)
-        );
+        panic!("glslc failed on {}:\n{}", src.display(), String::from_utf8_lossy(&output.stderr));
     }
 }
 
@@ -79,11 +67,6 @@ fn compile(glslc: &str, src: &Path, include_dir: &Path, spv: &Path, dep: &Path) 
 fn read_depfile(dep: &Path) -> Vec<String> {
     let text = std::fs::read_to_string(dep).unwrap_or_default();
     text.split_once(':')
-        .map(|(_, deps)| {
-            deps.split_whitespace()
-                .filter(|d| *d != "\\")
-                .map(str::to_string)
-                .collect()
-        })
+        .map(|(_, deps)| deps.split_whitespace().filter(|d| *d != "\\").map(str::to_string).collect())
         .unwrap_or_default()
 }

@@ -11,9 +11,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use parallax_backend::bench::{
-    CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead,
-};
+use parallax_backend::bench::{CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead};
 use parallax_backend::{ContextDesc, DeviceSelection, chrome_trace, write_json};
 
 struct Args {
@@ -38,9 +36,7 @@ fn parse() -> Result<Args, String> {
         let number = |v: String| v.parse::<u64>().map_err(|e| format!("{flag} {v}: {e}"));
         match flag.as_str() {
             "--gpus" => args.selection = DeviceSelection::Gpus(number(value()?)? as usize),
-            "--fake-devices" => {
-                args.selection = DeviceSelection::FakeDevices(number(value()?)? as usize)
-            }
+            "--fake-devices" => args.selection = DeviceSelection::FakeDevices(number(value()?)? as usize),
             "--size-mib" => args.copy.bytes = number(value()?)? << 20,
             "--chunk-mib" => {
                 let mib = number(value()?)?;
@@ -64,10 +60,7 @@ fn run() -> Result<(), String> {
     let desc = ContextDesc::from_env(args.selection);
     let copy = copy_bandwidth(&desc, &args.copy).map_err(|e| e.to_string())?;
     for d in &copy.devices {
-        println!(
-            "device {}: {} ({}, {}, Vulkan {})",
-            d.index, d.name, d.driver, d.driver_info, d.api_version
-        );
+        println!("device {}: {} ({}, {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version);
     }
     println!(
         "copy {:.1} MiB device 0 -> device 1 in {} chunk(s) of <= {:.1} MiB, {} frames:",
@@ -76,10 +69,7 @@ fn run() -> Result<(), String> {
         (copy.chunk_bytes.min(copy.bytes)) as f64 / (1 << 20) as f64,
         copy.frames.len()
     );
-    println!(
-        "  end-to-end  median {:.2} GB/s, best {:.2} GB/s",
-        copy.median_gb_per_s, copy.best_gb_per_s
-    );
+    println!("  end-to-end  median {:.2} GB/s, best {:.2} GB/s", copy.median_gb_per_s, copy.best_gb_per_s);
     println!(
         "  device->host {:.2} GB/s, host->device {:.2} GB/s (medians, each side alone)",
         copy.median_device_to_host_gb_per_s, copy.median_host_to_device_gb_per_s

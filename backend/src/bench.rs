@@ -27,13 +27,7 @@ pub struct CopyBenchOptions {
 
 impl Default for CopyBenchOptions {
     fn default() -> Self {
-        Self {
-            bytes: 64 << 20,
-            chunk_bytes: 8 << 20,
-            frames: 30,
-            warmup: 3,
-            frames_in_flight: 2,
-        }
+        Self { bytes: 64 << 20, chunk_bytes: 8 << 20, frames: 30, warmup: 3, frames_in_flight: 2 }
     }
 }
 
@@ -70,11 +64,7 @@ pub struct CopyBenchResult {
 }
 
 fn gb_per_s(bytes: u64, ns: u64) -> f64 {
-    if ns == 0 {
-        0.0
-    } else {
-        bytes as f64 / ns as f64
-    }
+    if ns == 0 { 0.0 } else { bytes as f64 / ns as f64 }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -105,28 +95,15 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         &context,
         plan,
         builtin_kernels(),
-        ExecOptions {
-            frames_in_flight: options.frames_in_flight,
-            chunk_bytes: options.chunk_bytes,
-            fault: None,
-        },
+        ExecOptions { frames_in_flight: options.frames_in_flight, chunk_bytes: options.chunk_bytes, fault: None },
     )?;
     for _ in 0..options.warmup + options.frames {
         executor.run_frame()?;
     }
     executor.finish()?;
     context.check_validation()?;
-    let reports: Vec<FrameReport> = executor
-        .take_reports()
-        .into_iter()
-        .skip(options.warmup)
-        .collect();
-    let chunks = reports.first().map_or(0, |r| {
-        r.events
-            .iter()
-            .filter(|e| e.kind == EventKind::CopyOut)
-            .count()
-    });
+    let reports: Vec<FrameReport> = executor.take_reports().into_iter().skip(options.warmup).collect();
+    let chunks = reports.first().map_or(0, |r| r.events.iter().filter(|e| e.kind == EventKind::CopyOut).count());
     let frames: Vec<CopyFrame> = reports
         .iter()
         .map(|r| {
@@ -141,18 +118,14 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
             }
         })
         .collect();
-    let rate =
-        |f: fn(&CopyFrame) -> u64| median(frames.iter().map(|fr| gb_per_s(bytes, f(fr))).collect());
+    let rate = |f: fn(&CopyFrame) -> u64| median(frames.iter().map(|fr| gb_per_s(bytes, f(fr))).collect());
     Ok(CopyBenchResult {
         devices: context.device_infos(),
         bytes,
         chunk_bytes: options.chunk_bytes,
         chunks,
         median_gb_per_s: rate(|f| f.end_to_end_ns),
-        best_gb_per_s: frames
-            .iter()
-            .map(|f| gb_per_s(bytes, f.end_to_end_ns))
-            .fold(0.0, f64::max),
+        best_gb_per_s: frames.iter().map(|f| gb_per_s(bytes, f.end_to_end_ns)).fold(0.0, f64::max),
         median_device_to_host_gb_per_s: rate(|f| f.device_to_host_ns),
         median_host_to_device_gb_per_s: rate(|f| f.host_to_device_ns),
         frames,
@@ -170,11 +143,7 @@ pub struct OverheadBenchOptions {
 
 impl Default for OverheadBenchOptions {
     fn default() -> Self {
-        Self {
-            passes_per_device: 256,
-            frames: 200,
-            warmup: 10,
-        }
+        Self { passes_per_device: 256, frames: 200, warmup: 10 }
     }
 }
 
@@ -195,10 +164,7 @@ pub struct OverheadBenchResult {
 }
 
 /// Submits frames of many tiny passes and reports the executor's CPU cost per pass.
-pub fn executor_overhead(
-    desc: &ContextDesc,
-    options: &OverheadBenchOptions,
-) -> Result<OverheadBenchResult> {
+pub fn executor_overhead(desc: &ContextDesc, options: &OverheadBenchOptions) -> Result<OverheadBenchResult> {
     let context = Context::new(desc)?;
     let devices = context.devices().len();
     let plan = overhead_benchmark(devices, options.passes_per_device, 8);
@@ -209,21 +175,10 @@ pub fn executor_overhead(
     }
     executor.finish()?;
     context.check_validation()?;
-    let reports: Vec<FrameReport> = executor
-        .take_reports()
-        .into_iter()
-        .skip(options.warmup)
-        .collect();
-    let per_frame = median(
-        reports
-            .iter()
-            .map(|r| r.submit_cpu_ns as f64 / 1000.0)
-            .collect(),
-    );
-    let walls: Vec<f64> = reports
-        .windows(2)
-        .map(|w| w[1].submit_start_ns.saturating_sub(w[0].submit_start_ns) as f64 / 1000.0)
-        .collect();
+    let reports: Vec<FrameReport> = executor.take_reports().into_iter().skip(options.warmup).collect();
+    let per_frame = median(reports.iter().map(|r| r.submit_cpu_ns as f64 / 1000.0).collect());
+    let walls: Vec<f64> =
+        reports.windows(2).map(|w| w[1].submit_start_ns.saturating_sub(w[0].submit_start_ns) as f64 / 1000.0).collect();
     Ok(OverheadBenchResult {
         devices: context.device_infos(),
         passes_per_frame: passes,

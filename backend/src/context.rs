@@ -39,10 +39,7 @@ pub struct ContextDesc {
 impl ContextDesc {
     /// `selection` with validation as `PARALLAX_VALIDATION` says.
     pub fn from_env(selection: DeviceSelection) -> Self {
-        Self {
-            selection,
-            validation: validation_from_env(),
-        }
+        Self { selection, validation: validation_from_env() }
     }
 }
 
@@ -60,8 +57,7 @@ impl Context {
             return Err(BackendError::ZeroDevices);
         }
         let instance = Instance::new(desc.validation)?;
-        let physical = unsafe { instance.raw.enumerate_physical_devices() }
-            .vk("vkEnumeratePhysicalDevices")?;
+        let physical = unsafe { instance.raw.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
         if physical.is_empty() {
             return Err(BackendError::NoDevice);
         }
@@ -71,10 +67,7 @@ impl Context {
         match desc.selection {
             DeviceSelection::Gpus(n) => {
                 if ranked.len() < n {
-                    return Err(BackendError::NotEnoughGpus {
-                        requested: n,
-                        available: ranked.len(),
-                    });
+                    return Err(BackendError::NotEnoughGpus { requested: n, available: ranked.len() });
                 }
                 for (index, &physical_index) in ranked.iter().take(n).enumerate() {
                     devices.push(Device::new(
@@ -173,9 +166,5 @@ fn rank_physical_devices(instance: &Instance, physical: &[vk::PhysicalDevice]) -
         .collect();
     order.sort_by_key(|&(i, r)| (r, i));
     let any_gpu = order.iter().any(|&(_, r)| r < 4);
-    order
-        .into_iter()
-        .filter(|&(_, r)| !any_gpu || r < 4)
-        .map(|(i, _)| i)
-        .collect()
+    order.into_iter().filter(|&(_, r)| !any_gpu || r < 4).map(|(i, _)| i).collect()
 }

@@ -23,17 +23,9 @@ pub fn demo_device_of_view(view: u32, devices: usize) -> usize {
 }
 
 /// Builds the reprojection demo for `views` views of `width`×`height` on `devices` devices.
-pub fn reprojection_demo(
-    views: u32,
-    devices: usize,
-    width: u32,
-    height: u32,
-) -> (Plan, DemoResources) {
+pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) -> (Plan, DemoResources) {
     assert!(views >= 1 && devices >= 1 && height >= devices as u32);
-    let mut plan = Plan {
-        devices: vec![Vec::new(); devices],
-        ..Plan::default()
-    };
+    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
     let all = Rows::new(0, height);
     let mut image = |name: &str, view: u32| {
         plan.resources.push(PlanResource {
@@ -56,13 +48,12 @@ pub fn reprojection_demo(
         plan.passes.push(pass);
         plan.passes.len() - 1
     };
-    let add_copy =
-        |plan: &mut Plan, phases: &mut Vec<[Vec<PlanOp>; 4]>, copy: PlanCopy, out: usize| {
-            plan.copies.push(copy);
-            let c = plan.copies.len() - 1;
-            phases[copy.from][out].extend([PlanOp::CopyOut(c), PlanOp::Signal(c)]);
-            phases[copy.to][out + 1].extend([PlanOp::Wait(c), PlanOp::CopyIn(c)]);
-        };
+    let add_copy = |plan: &mut Plan, phases: &mut Vec<[Vec<PlanOp>; 4]>, copy: PlanCopy, out: usize| {
+        plan.copies.push(copy);
+        let c = plan.copies.len() - 1;
+        phases[copy.from][out].extend([PlanOp::CopyOut(c), PlanOp::Signal(c)]);
+        phases[copy.to][out + 1].extend([PlanOp::Wait(c), PlanOp::CopyIn(c)]);
+    };
 
     // Phase 0: fills; the split view's bands go to its owner.
     for v in 0..views {
@@ -86,22 +77,13 @@ pub fn reprojection_demo(
                     rows,
                     device,
                     reads: vec![],
-                    writes: vec![PlanAccess {
-                        resource: radiance[v as usize],
-                        version: 1,
-                        rows,
-                    }],
+                    history_reads: vec![],
+                    writes: vec![PlanAccess { resource: radiance[v as usize], version: 1, rows }],
                 },
             );
             phases[device][0].push(PlanOp::Pass(p));
             if device != owner(v) {
-                let copy = PlanCopy {
-                    resource: radiance[v as usize],
-                    version: 1,
-                    rows,
-                    from: device,
-                    to: owner(v),
-                };
+                let copy = PlanCopy { resource: radiance[v as usize], version: 1, rows, from: device, to: owner(v) };
                 add_copy(&mut plan, &mut phases, copy, 0);
             }
         }
@@ -123,11 +105,7 @@ pub fn reprojection_demo(
     // Phase 2: blends, then the gather of finished views to device 0 (phase 2→3).
     for v in 0..views {
         let source = (v + 1) % views;
-        let access = |resource: usize| PlanAccess {
-            resource,
-            version: 1,
-            rows: all,
-        };
+        let access = |resource: usize| PlanAccess { resource, version: 1, rows: all };
         let p = add_pass(
             &mut plan,
             PlanPass {
@@ -135,10 +113,8 @@ pub fn reprojection_demo(
                 view: v,
                 rows: all,
                 device: owner(v),
-                reads: vec![
-                    access(radiance[v as usize]),
-                    access(radiance[source as usize]),
-                ],
+                reads: vec![access(radiance[v as usize]), access(radiance[source as usize])],
+                history_reads: vec![],
                 writes: vec![access(output[v as usize])],
             },
         );
@@ -146,13 +122,7 @@ pub fn reprojection_demo(
     }
     for v in 0..views {
         if owner(v) != 0 {
-            let copy = PlanCopy {
-                resource: output[v as usize],
-                version: 1,
-                rows: all,
-                from: owner(v),
-                to: 0,
-            };
+            let copy = PlanCopy { resource: output[v as usize], version: 1, rows: all, from: owner(v), to: 0 };
             add_copy(&mut plan, &mut phases, copy, 2);
         }
     }
@@ -180,19 +150,10 @@ pub fn copy_benchmark(width: u32, height: u32) -> Plan {
             rows: all,
             device: 0,
             reads: vec![],
-            writes: vec![PlanAccess {
-                resource: 0,
-                version: 1,
-                rows: all,
-            }],
+            history_reads: vec![],
+            writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
         }],
-        copies: vec![PlanCopy {
-            resource: 0,
-            version: 1,
-            rows: all,
-            from: 0,
-            to: 1,
-        }],
+        copies: vec![PlanCopy { resource: 0, version: 1, rows: all, from: 0, to: 1 }],
         devices: vec![
             vec![PlanOp::Pass(0), PlanOp::CopyOut(0), PlanOp::Signal(0)],
             vec![PlanOp::Wait(0), PlanOp::CopyIn(0)],
@@ -203,10 +164,7 @@ pub fn copy_benchmark(width: u32, height: u32) -> Plan {
 /// `passes_per_device` tiny fills per device, no copies: measures the executor's CPU cost per
 /// submitted pass.
 pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> Plan {
-    let mut plan = Plan {
-        devices: vec![Vec::new(); devices],
-        ..Plan::default()
-    };
+    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
     let all = Rows::new(0, size);
     for d in 0..devices {
         for i in 0..passes_per_device {
@@ -224,11 +182,8 @@ pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> 
                 rows: all,
                 device: d,
                 reads: vec![],
-                writes: vec![PlanAccess {
-                    resource: plan.resources.len() - 1,
-                    version: 1,
-                    rows: all,
-                }],
+                history_reads: vec![],
+                writes: vec![PlanAccess { resource: plan.resources.len() - 1, version: 1, rows: all }],
             });
             plan.devices[d].push(PlanOp::Pass(plan.passes.len() - 1));
         }

@@ -70,27 +70,16 @@ impl Device {
         let props = unsafe { raw_instance.get_physical_device_properties(physical) };
         let mut driver_props = vk::PhysicalDeviceDriverProperties::default();
         let mut host_props = vk::PhysicalDeviceExternalMemoryHostPropertiesEXT::default();
-        let mut props2 = vk::PhysicalDeviceProperties2::default()
-            .push_next(&mut driver_props)
-            .push_next(&mut host_props);
+        let mut props2 =
+            vk::PhysicalDeviceProperties2::default().push_next(&mut driver_props).push_next(&mut host_props);
         unsafe { raw_instance.get_physical_device_properties2(physical, &mut props2) };
-        let name = props
-            .device_name_as_c_str()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let missing = |what: &str| BackendError::MissingCapability {
-            device: index,
-            name: name.clone(),
-            what: what.to_string(),
-        };
+        let name = props.device_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let missing =
+            |what: &str| BackendError::MissingCapability { device: index, name: name.clone(), what: what.to_string() };
 
         let extensions = unsafe { raw_instance.enumerate_device_extension_properties(physical) }
             .vk("vkEnumerateDeviceExtensionProperties")?;
-        let has_ext = |ext: &CStr| {
-            extensions
-                .iter()
-                .any(|e| e.extension_name_as_c_str() == Ok(ext))
-        };
+        let has_ext = |ext: &CStr| extensions.iter().any(|e| e.extension_name_as_c_str() == Ok(ext));
         let mut enabled: Vec<*const std::ffi::c_char> = Vec::new();
         let host_import = has_ext(ash::ext::external_memory_host::NAME);
         if host_import {
@@ -118,8 +107,7 @@ impl Device {
                 }
             }
             .unwrap_or_default();
-            domains.contains(&vk::TimeDomainKHR::DEVICE)
-                && domains.contains(&vk::TimeDomainKHR::CLOCK_MONOTONIC)
+            domains.contains(&vk::TimeDomainKHR::DEVICE) && domains.contains(&vk::TimeDomainKHR::CLOCK_MONOTONIC)
         });
         if let Some(ext) = calibrated_ext {
             enabled.push(ext.as_ptr());
@@ -129,9 +117,7 @@ impl Device {
         // without a format qualifier let one bindless array hold every float format.
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default()
-            .push_next(&mut f12)
-            .push_next(&mut f13);
+        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12).push_next(&mut f13);
         unsafe { raw_instance.get_physical_device_features2(physical, &mut f2) };
         let core = f2.features;
         if f12.timeline_semaphore == vk::FALSE {
@@ -151,13 +137,10 @@ impl Device {
             return Err(missing("shaderStorageImage{Read,Write}WithoutFormat"));
         }
 
-        let families =
-            unsafe { raw_instance.get_physical_device_queue_family_properties(physical) };
+        let families = unsafe { raw_instance.get_physical_device_queue_family_properties(physical) };
         let queue_family = families
             .iter()
-            .position(|f| {
-                f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0
-            })
+            .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0)
             .ok_or_else(|| missing("a compute queue with timestamps"))?;
         let valid_bits = families[queue_family].timestamp_valid_bits;
 
@@ -171,17 +154,14 @@ impl Device {
         let mut e12 = vk::PhysicalDeviceVulkan12Features::default()
             .timeline_semaphore(true)
             .host_query_reset(f12.host_query_reset == vk::TRUE);
-        let mut e13 = vk::PhysicalDeviceVulkan13Features::default()
-            .synchronization2(true)
-            .maintenance4(true);
+        let mut e13 = vk::PhysicalDeviceVulkan13Features::default().synchronization2(true).maintenance4(true);
         let create_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_infos)
             .enabled_extension_names(&enabled)
             .enabled_features(&features)
             .push_next(&mut e12)
             .push_next(&mut e13);
-        let raw = unsafe { raw_instance.create_device(physical, &create_info, None) }
-            .vk("vkCreateDevice")?;
+        let raw = unsafe { raw_instance.create_device(physical, &create_info, None) }.vk("vkCreateDevice")?;
         let queue = unsafe { raw.get_device_queue(queue_family as u32, 0) };
 
         let allocator = Allocator::new(&AllocatorCreateDesc {
@@ -192,10 +172,7 @@ impl Device {
             buffer_device_address: false,
             allocation_sizes: Default::default(),
         })
-        .map_err(|source| BackendError::Allocation {
-            what: "allocator".into(),
-            source,
-        });
+        .map_err(|source| BackendError::Allocation { what: "allocator".into(), source });
         let allocator = match allocator {
             Ok(a) => a,
             Err(e) => {
@@ -206,34 +183,23 @@ impl Device {
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(queue_family as u32)
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        let one_shot_pool =
-            unsafe { raw.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
+        let one_shot_pool = unsafe { raw.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
 
         let calibrated = calibrated_ext.map(|ext| {
             if ext == ash::khr::calibrated_timestamps::NAME {
-                CalibratedFns::Khr(ash::khr::calibrated_timestamps::Device::new(
-                    raw_instance,
-                    &raw,
-                ))
+                CalibratedFns::Khr(ash::khr::calibrated_timestamps::Device::new(raw_instance, &raw))
             } else {
-                CalibratedFns::Ext(ash::ext::calibrated_timestamps::Device::new(
-                    raw_instance,
-                    &raw,
-                ))
+                CalibratedFns::Ext(ash::ext::calibrated_timestamps::Device::new(raw_instance, &raw))
             }
         });
-        let external_memory_host =
-            host_import.then(|| ash::ext::external_memory_host::Device::new(raw_instance, &raw));
+        let external_memory_host = host_import.then(|| ash::ext::external_memory_host::Device::new(raw_instance, &raw));
 
         let v = props.api_version;
         let info = DeviceInfo {
             index,
             physical_index,
             name,
-            driver: driver_props
-                .driver_name_as_c_str()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
+            driver: driver_props.driver_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
             driver_info: driver_props
                 .driver_info_as_c_str()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -260,11 +226,7 @@ impl Device {
             min_host_pointer_alignment: host_props.min_imported_host_pointer_alignment.max(1),
             calibrated,
             timestamp_period: f64::from(props.limits.timestamp_period),
-            timestamp_mask: if valid_bits >= 64 {
-                u64::MAX
-            } else {
-                (1u64 << valid_bits) - 1
-            },
+            timestamp_mask: if valid_bits >= 64 { u64::MAX } else { (1u64 << valid_bits) - 1 },
         }))
     }
 
@@ -276,9 +238,7 @@ impl Device {
     /// Runs `f` with the allocator locked.
     pub(crate) fn with_allocator<T>(&self, f: impl FnOnce(&mut Allocator) -> T) -> T {
         let mut guard = self.allocator.lock().unwrap_or_else(|p| p.into_inner());
-        f(guard
-            .as_mut()
-            .expect("allocator lives until the device is dropped"))
+        f(guard.as_mut().expect("allocator lives until the device is dropped"))
     }
 
     /// Submits to this device's only queue (queue access must be externally synchronised).
@@ -295,21 +255,18 @@ impl Device {
             .command_pool(*pool)
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(1);
-        let cb =
-            unsafe { self.raw.allocate_command_buffers(&alloc) }.vk("vkAllocateCommandBuffers")?[0];
+        let cb = unsafe { self.raw.allocate_command_buffers(&alloc) }.vk("vkAllocateCommandBuffers")?[0];
         let result = (|| {
-            let begin = vk::CommandBufferBeginInfo::default()
-                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
             unsafe { self.raw.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
             record(cb);
             unsafe { self.raw.end_command_buffer(cb) }.vk("vkEndCommandBuffer")?;
-            let fence = unsafe { self.raw.create_fence(&vk::FenceCreateInfo::default(), None) }
-                .vk("vkCreateFence")?;
+            let fence = unsafe { self.raw.create_fence(&vk::FenceCreateInfo::default(), None) }.vk("vkCreateFence")?;
             let cbs = [vk::CommandBufferSubmitInfo::default().command_buffer(cb)];
             let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cbs)];
-            let waited = self.submit(&submit, fence).and_then(|()| {
-                unsafe { self.raw.wait_for_fences(&[fence], true, u64::MAX) }.vk("vkWaitForFences")
-            });
+            let waited = self
+                .submit(&submit, fence)
+                .and_then(|()| unsafe { self.raw.wait_for_fences(&[fence], true, u64::MAX) }.vk("vkWaitForFences"));
             unsafe { self.raw.destroy_fence(fence, None) };
             waited
         })();
@@ -319,40 +276,27 @@ impl Device {
 
     /// Creates a timeline semaphore starting at `initial`.
     pub(crate) fn create_timeline(&self, initial: u64) -> Result<vk::Semaphore> {
-        let mut ty = vk::SemaphoreTypeCreateInfo::default()
-            .semaphore_type(vk::SemaphoreType::TIMELINE)
-            .initial_value(initial);
+        let mut ty =
+            vk::SemaphoreTypeCreateInfo::default().semaphore_type(vk::SemaphoreType::TIMELINE).initial_value(initial);
         let info = vk::SemaphoreCreateInfo::default().push_next(&mut ty);
         unsafe { self.raw.create_semaphore(&info, None) }.vk("vkCreateSemaphore")
     }
 
     /// Host wait until `semaphore` reaches `value`; `Ok(false)` on timeout.
-    pub(crate) fn wait_timeline(
-        &self,
-        semaphore: vk::Semaphore,
-        value: u64,
-        timeout_ns: u64,
-    ) -> Result<bool> {
+    pub(crate) fn wait_timeline(&self, semaphore: vk::Semaphore, value: u64, timeout_ns: u64) -> Result<bool> {
         let semaphores = [semaphore];
         let values = [value];
-        let info = vk::SemaphoreWaitInfo::default()
-            .semaphores(&semaphores)
-            .values(&values);
+        let info = vk::SemaphoreWaitInfo::default().semaphores(&semaphores).values(&values);
         match unsafe { self.raw.wait_semaphores(&info, timeout_ns) } {
             Ok(()) => Ok(true),
             Err(vk::Result::TIMEOUT) => Ok(false),
-            Err(result) => Err(BackendError::Vk {
-                call: "vkWaitSemaphores",
-                result,
-            }),
+            Err(result) => Err(BackendError::Vk { call: "vkWaitSemaphores", result }),
         }
     }
 
     /// Host signal of a timeline semaphore (used by the cross-device relay).
     pub(crate) fn signal_timeline(&self, semaphore: vk::Semaphore, value: u64) -> Result<()> {
-        let info = vk::SemaphoreSignalInfo::default()
-            .semaphore(semaphore)
-            .value(value);
+        let info = vk::SemaphoreSignalInfo::default().semaphore(semaphore).value(value);
         unsafe { self.raw.signal_semaphore(&info) }.vk("vkSignalSemaphore")
     }
 
@@ -368,8 +312,7 @@ impl Device {
         if let Some(fns) = &self.calibrated {
             let infos = [
                 vk::CalibratedTimestampInfoKHR::default().time_domain(vk::TimeDomainKHR::DEVICE),
-                vk::CalibratedTimestampInfoKHR::default()
-                    .time_domain(vk::TimeDomainKHR::CLOCK_MONOTONIC),
+                vk::CalibratedTimestampInfoKHR::default().time_domain(vk::TimeDomainKHR::CLOCK_MONOTONIC),
             ];
             let sampled = unsafe {
                 match fns {
@@ -390,16 +333,12 @@ impl Device {
     }
 
     fn round_trip_calibration(&self) -> Result<ClockCalibration> {
-        let pool_info = vk::QueryPoolCreateInfo::default()
-            .query_type(vk::QueryType::TIMESTAMP)
-            .query_count(1);
-        let pool =
-            unsafe { self.raw.create_query_pool(&pool_info, None) }.vk("vkCreateQueryPool")?;
+        let pool_info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(1);
+        let pool = unsafe { self.raw.create_query_pool(&pool_info, None) }.vk("vkCreateQueryPool")?;
         let before = host_now_ns();
         let recorded = self.one_shot(|cb| unsafe {
             self.raw.cmd_reset_query_pool(cb, pool, 0, 1);
-            self.raw
-                .cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, pool, 0);
+            self.raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, pool, 0);
         });
         let after = host_now_ns();
         let mut ticks = [0u64; 1];
@@ -435,18 +374,10 @@ impl Drop for Device {
         unsafe {
             // Nothing may still run when memory and the device go away.
             let _ = self.raw.device_wait_idle();
-            let pool = *self
-                .one_shot_pool
-                .get_mut()
-                .unwrap_or_else(|p| p.into_inner());
+            let pool = *self.one_shot_pool.get_mut().unwrap_or_else(|p| p.into_inner());
             self.raw.destroy_command_pool(pool, None);
             // Allocator frees its blocks; it must go before the device.
-            drop(
-                self.allocator
-                    .get_mut()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .take(),
-            );
+            drop(self.allocator.get_mut().unwrap_or_else(|p| p.into_inner()).take());
             self.raw.destroy_device(None);
         }
     }
@@ -471,10 +402,7 @@ pub struct ClockCalibration {
 
 /// Host CLOCK_MONOTONIC in nanoseconds: the common clock of every report and trace.
 pub fn host_now_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
     // clock_gettime(CLOCK_MONOTONIC) cannot fail with a valid pointer.
     unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64

@@ -36,25 +36,15 @@ pub enum BackendError {
 
     /// A device lacks an extension or feature the backend cannot work without.
     #[error("device {device} ({name}) lacks {what}, which the backend needs")]
-    MissingCapability {
-        device: usize,
-        name: String,
-        what: String,
-    },
+    MissingCapability { device: usize, name: String, what: String },
 
     /// A Vulkan call failed.
     #[error("{call} failed: {result}")]
-    Vk {
-        call: &'static str,
-        result: vk::Result,
-    },
+    Vk { call: &'static str, result: vk::Result },
 
     /// gpu-allocator could not allocate or free.
     #[error("memory allocation for {what} failed: {source}")]
-    Allocation {
-        what: String,
-        source: gpu_allocator::AllocationError,
-    },
+    Allocation { what: String, source: gpu_allocator::AllocationError },
 
     /// No memory type can hold an imported host allocation on this device.
     #[error("device {device} cannot import host memory for a buffer ({detail})")]
@@ -68,12 +58,13 @@ pub enum BackendError {
     #[error("invalid execution plan: {0}")]
     Plan(#[from] crate::plan::PlanError),
 
+    /// The schedule uses something the backend cannot run yet.
+    #[error("cannot lower the schedule: {0}")]
+    Lower(#[from] crate::lower::LowerError),
+
     /// A pass instance names a pass for which no kernel is registered.
     #[error("no kernel registered for pass `{pass}` (registered: {registered:?})")]
-    UnknownPass {
-        pass: String,
-        registered: Vec<String>,
-    },
+    UnknownPass { pass: String, registered: Vec<String> },
 
     /// A kernel asked for a shader that the build did not embed.
     #[error("no embedded shader named `{0}`")]
@@ -81,11 +72,7 @@ pub enum BackendError {
 
     /// A kernel's use of the instance does not match what the kernel expects.
     #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
-    KernelMisuse {
-        kernel: String,
-        instance: usize,
-        detail: String,
-    },
+    KernelMisuse { kernel: String, instance: usize, detail: String },
 
     /// A resource is not present on the device where it was asked for.
     #[error("resource {resource} is not allocated on device {device}")]
@@ -107,18 +94,11 @@ pub enum BackendError {
     #[error(
         "frame {frame} did not complete on device {device} within {seconds} s (lost cross-device signal or GPU hang)"
     )]
-    FrameTimeout {
-        frame: u64,
-        device: usize,
-        seconds: u64,
-    },
+    FrameTimeout { frame: u64, device: usize, seconds: u64 },
 
     /// Writing a report or trace file failed.
     #[error("cannot write {path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
+    Io { path: String, source: std::io::Error },
 }
 
 /// Shorthand used across the crate.

@@ -25,13 +25,11 @@ use crate::error::{BackendError, Result, VkContext};
 use crate::instance::Instance;
 use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
 use crate::pipeline::Bindless;
-use crate::plan::{Plan, PlanResource};
+use crate::plan::{Plan, PlanResource, TexelFormat};
 use crate::record::{SegmentContext, TimerLabel, record_segment, timer_labels};
 use crate::recorder::KernelRegistry;
 use crate::relay::{Relay, RelayJob};
-use crate::segments::{
-    Chunk, Item, Segment, chunks_of_copies, progress_value, ready_value, segment_device,
-};
+use crate::segments::{Chunk, Item, Segment, chunks_of_copies, progress_value, ready_value, segment_device};
 use crate::timing::{FrameReport, TimedEvent};
 
 /// How long the host waits for a frame before declaring it lost.
@@ -63,11 +61,7 @@ pub struct ExecOptions {
 
 impl Default for ExecOptions {
     fn default() -> Self {
-        Self {
-            frames_in_flight: 2,
-            chunk_bytes: 8 << 20,
-            fault: None,
-        }
+        Self { frames_in_flight: 2, chunk_bytes: 8 << 20, fault: None }
     }
 }
 
@@ -170,26 +164,14 @@ pub struct Executor {
 
 impl Executor {
     /// Validates `plan`, allocates its resources, records every command buffer once.
-    pub fn new(
-        context: &Context,
-        plan: Plan,
-        kernels: KernelRegistry,
-        options: ExecOptions,
-    ) -> Result<Self> {
-        let calibration = context
-            .devices
-            .iter()
-            .map(|d| d.clock_offset())
-            .collect::<Result<Vec<_>>>()?;
+    pub fn new(context: &Context, plan: Plan, kernels: KernelRegistry, options: ExecOptions) -> Result<Self> {
+        let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
             instance: context.instance.clone(),
             devices: context.devices.clone(),
             plan: Plan::default(),
             kernels,
-            options: ExecOptions {
-                frames_in_flight: options.frames_in_flight.max(1),
-                ..options
-            },
+            options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
             chunks: Vec::new(),
             states: Vec::new(),
             ready: Vec::new(),
@@ -235,16 +217,11 @@ impl Executor {
 
         let chunks = chunks_of_copies(&plan, self.options.chunk_bytes);
         let slots = self.options.frames_in_flight;
-        let dropped_wait = self
-            .options
-            .fault
-            .map(|FaultInjection::DropCrossDeviceWait { copy }| copy);
+        let dropped_wait = self.options.fault.map(|FaultInjection::DropCrossDeviceWait { copy }| copy);
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait);
-            states.push(create_device_state(
-                device, &plan, d, segments, slots, &mut kept,
-            )?);
+            states.push(create_device_state(device, &plan, d, segments, slots, &mut kept)?);
         }
         drop(kept);
         let mut ready = Vec::with_capacity(plan.copies.len());
@@ -255,9 +232,7 @@ impl Executor {
             ready.push(semaphore);
         }
         self.gate = match self.options.fault {
-            Some(FaultInjection::DropCrossDeviceWait { copy }) => {
-                Some(fault_gate(&plan, &mut states, copy)?)
-            }
+            Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(fault_gate(&plan, &mut states, copy)?),
             None => None,
         };
         self.staging = create_staging(&self.devices, &plan, slots)?;
@@ -277,11 +252,8 @@ impl Executor {
         let plan = &self.plan;
         for (d, state) in self.states.iter_mut().enumerate() {
             for slot in 0..state.slots.len() {
-                let staging = self.staging.as_ref().and_then(|s| {
-                    s.buffers[slot]
-                        .buffer_on(d)
-                        .map(|b| (b, s.offsets.as_slice()))
-                });
+                let staging =
+                    self.staging.as_ref().and_then(|s| s.buffers[slot].buffer_on(d).map(|b| (b, s.offsets.as_slice())));
                 let mut ctx = SegmentContext {
                     raw: &state.device.raw,
                     device_index: d,
@@ -333,8 +305,7 @@ impl Executor {
             let segment_count = state.segments.len();
             let mut waits: Vec<Vec<vk::SemaphoreSubmitInfo>> = Vec::with_capacity(segment_count);
             let mut signals: Vec<[vk::SemaphoreSubmitInfo; 1]> = Vec::with_capacity(segment_count);
-            let mut buffers: Vec<[vk::CommandBufferSubmitInfo; 1]> =
-                Vec::with_capacity(segment_count);
+            let mut buffers: Vec<[vk::CommandBufferSubmitInfo; 1]> = Vec::with_capacity(segment_count);
             for (j, segment) in state.segments.iter().enumerate() {
                 let mut w: Vec<vk::SemaphoreSubmitInfo> = segment
                     .waits
@@ -359,8 +330,9 @@ impl Executor {
                     .semaphore(state.progress)
                     .value(progress_value(local, segment_count, j))
                     .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)]);
-                buffers.push([vk::CommandBufferSubmitInfo::default()
-                    .command_buffer(state.slots[slot].command_buffers[j])]);
+                buffers.push([
+                    vk::CommandBufferSubmitInfo::default().command_buffer(state.slots[slot].command_buffers[j])
+                ]);
             }
             let submits: Vec<vk::SubmitInfo2> = (0..segment_count)
                 .map(|j| {
@@ -384,11 +356,7 @@ impl Executor {
                             watch_value,
                             target: self.devices[consumer].clone(),
                             semaphore: self.ready[chunk.copy],
-                            signal_value: ready_value(
-                                local,
-                                self.chunks[chunk.copy].len(),
-                                chunk.index,
-                            ),
+                            signal_value: ready_value(local, self.chunks[chunk.copy].len(), chunk.index),
                         },
                     )?;
                 }
@@ -435,17 +403,10 @@ impl Executor {
             let last = progress_value(f.local, segment_count, segment_count - 1);
             // Wait in short steps so a failed relay thread is reported instead of hanging.
             let deadline = Instant::now() + std::time::Duration::from_secs(FRAME_TIMEOUT_S);
-            while !state
-                .device
-                .wait_timeline(state.progress, last, 100_000_000)?
-            {
+            while !state.device.wait_timeline(state.progress, last, 100_000_000)? {
                 self.relay.as_ref().map_or(Ok(()), Relay::check)?;
                 if Instant::now() > deadline {
-                    return Err(BackendError::FrameTimeout {
-                        frame: f.frame,
-                        device: d,
-                        seconds: FRAME_TIMEOUT_S,
-                    });
+                    return Err(BackendError::FrameTimeout { frame: f.frame, device: d, seconds: FRAME_TIMEOUT_S });
                 }
             }
             let timers = state.timers.len();
@@ -537,18 +498,10 @@ impl Executor {
     pub fn read_image(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
         self.finish()?;
         let state = &self.states[device];
-        let image = state
-            .images
-            .get(&resource)
-            .ok_or(BackendError::ResourceNotOnDevice { resource, device })?;
+        let image = state.images.get(&resource).ok_or(BackendError::ResourceNotOnDevice { resource, device })?;
         let size = image.row_bytes() * u64::from(image.height);
-        let readback = Buffer::new(
-            &state.device,
-            "readback",
-            size,
-            vk::BufferUsageFlags::TRANSFER_DST,
-            MemoryLocation::GpuToCpu,
-        )?;
+        let readback =
+            Buffer::new(&state.device, "readback", size, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?;
         let raw = &state.device.raw;
         state.device.one_shot(|cb| unsafe {
             crate::record::full_barrier(raw, cb);
@@ -559,18 +512,8 @@ impl Executor {
                     base_array_layer: 0,
                     layer_count: 1,
                 })
-                .image_extent(vk::Extent3D {
-                    width: image.width,
-                    height: image.height,
-                    depth: 1,
-                });
-            raw.cmd_copy_image_to_buffer(
-                cb,
-                image.raw,
-                vk::ImageLayout::GENERAL,
-                readback.raw,
-                &[region],
-            );
+                .image_extent(vk::Extent3D { width: image.width, height: image.height, depth: 1 });
+            raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, readback.raw, &[region]);
             let to_host = [vk::MemoryBarrier2::default()
                 .src_stage_mask(vk::PipelineStageFlags2::COPY)
                 .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
@@ -578,10 +521,7 @@ impl Executor {
                 .dst_access_mask(vk::AccessFlags2::HOST_READ)];
             raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host));
         })?;
-        Ok(readback
-            .mapped()
-            .expect("GpuToCpu buffers are mapped")
-            .to_vec())
+        Ok(readback.mapped().expect("GpuToCpu buffers are mapped").to_vec())
     }
 }
 
@@ -617,31 +557,22 @@ fn create_device_state(
             Some(image) => image,
             None => {
                 fresh.push(r);
-                Image::new(
-                    device,
-                    &format!("{} view {}", desc.name, desc.view),
-                    desc.width,
-                    desc.height,
-                    desc.format,
-                )?
+                Image::new(device, &format!("{} view {}", desc.name, desc.view), desc.width, desc.height, desc.format)?
             }
         };
         images.insert(r, image);
     }
-    initialise_images(device, fresh.iter().map(|r| &images[r]))?;
-    let image_slots: HashMap<usize, u32> = resources
-        .iter()
-        .enumerate()
-        .map(|(slot, &r)| (r, slot as u32))
-        .collect();
+    let placeholders = [
+        Image::new(device, "float placeholder", 1, 1, TexelFormat::Rgba32Float)?,
+        Image::new(device, "uint placeholder", 1, 1, TexelFormat::R32Uint)?,
+    ];
+    initialise_images(device, fresh.iter().map(|r| &images[r]).chain(&placeholders))?;
+    let image_slots: HashMap<usize, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
     let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
-    let bindless = Bindless::new(device, &ordered, slots)?;
+    let bindless = Bindless::new(device, &ordered, placeholders, slots)?;
     let raw = &device.raw;
     let command_pool = unsafe {
-        raw.create_command_pool(
-            &vk::CommandPoolCreateInfo::default().queue_family_index(device.queue_family),
-            None,
-        )
+        raw.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(device.queue_family), None)
     }
     .vk("vkCreateCommandPool")?;
     let mut state = DeviceState {
@@ -685,10 +616,7 @@ fn create_device_state(
             }
             .vk("vkCreateQueryPool")?
         };
-        state.slots.push(SlotResources {
-            command_buffers,
-            query_pool,
-        });
+        state.slots.push(SlotResources { command_buffers, query_pool });
     }
     Ok(state)
 }
@@ -715,10 +643,7 @@ fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image
                     .subresource_range(color_range())
             })
             .collect();
-        raw.cmd_pipeline_barrier2(
-            cb,
-            &vk::DependencyInfo::default().image_memory_barriers(&to_general),
-        );
+        raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().image_memory_barriers(&to_general));
         for img in &images {
             raw.cmd_clear_color_image(
                 cb,
@@ -748,32 +673,21 @@ fn create_staging(devices: &[Arc<Device>], plan: &Plan, slots: usize) -> Result<
     participants.sort_unstable();
     participants.dedup();
     let participants: Vec<&Arc<Device>> = participants.iter().map(|&d| &devices[d]).collect();
-    let buffers = (0..slots)
-        .map(|_| SharedHostBuffer::new(&participants, total))
-        .collect::<Result<Vec<_>>>()?;
+    let buffers = (0..slots).map(|_| SharedHostBuffer::new(&participants, total)).collect::<Result<Vec<_>>>()?;
     Ok(Some(Staging { buffers, offsets }))
 }
 
 /// Sets up [`FaultInjection::DropCrossDeviceWait`] for `copy`.
 fn fault_gate(plan: &Plan, states: &mut [DeviceState], copy: usize) -> Result<FaultGate> {
-    let target = plan
-        .copies
-        .get(copy)
-        .ok_or_else(|| BackendError::FaultInjection(format!("the plan has no copy {copy}")))?;
+    let target =
+        plan.copies.get(copy).ok_or_else(|| BackendError::FaultInjection(format!("the plan has no copy {copy}")))?;
     let consumer = &states[target.to];
     let consumer_segment = consumer
         .segments
         .iter()
-        .rposition(|s| {
-            s.items
-                .iter()
-                .any(|i| matches!(i, Item::CopyIn(c) if c.copy == copy))
-        })
+        .rposition(|s| s.items.iter().any(|i| matches!(i, Item::CopyIn(c) if c.copy == copy)))
         .expect("validated plan: the consumer copies in");
-    if consumer.segments[..=consumer_segment]
-        .iter()
-        .any(|s| !s.waits.is_empty())
-    {
+    if consumer.segments[..=consumer_segment].iter().any(|s| !s.waits.is_empty()) {
         return Err(BackendError::FaultInjection(format!(
             "device {} waits for another copy before copy-in {copy}; holding its producer back would deadlock",
             target.to
@@ -782,10 +696,5 @@ fn fault_gate(plan: &Plan, states: &mut [DeviceState], copy: usize) -> Result<Fa
     let producer = &mut states[target.from];
     let semaphore = producer.device.create_timeline(0)?;
     producer.gate = Some(semaphore);
-    Ok(FaultGate {
-        semaphore,
-        producer: target.from,
-        consumer: target.to,
-        consumer_segment,
-    })
+    Ok(FaultGate { semaphore, producer: target.from, consumer: target.to, consumer_segment })
 }

@@ -53,19 +53,15 @@ impl Instance {
     /// Loads the Vulkan loader and creates an instance, with the Khronos validation layer and a
     /// collecting messenger unless `validation` is off.
     pub fn new(validation: Validation) -> Result<Arc<Self>> {
-        let entry = unsafe { ash::Entry::load() }
-            .map_err(|e| BackendError::LoaderMissing(e.to_string()))?;
+        let entry = unsafe { ash::Entry::load() }.map_err(|e| BackendError::LoaderMissing(e.to_string()))?;
 
         let mut layers = Vec::new();
         let mut extensions = Vec::new();
         let enabled = validation != Validation::Off;
         if enabled {
-            let available = unsafe { entry.enumerate_instance_layer_properties() }
-                .vk("vkEnumerateInstanceLayerProperties")?;
-            if !available
-                .iter()
-                .any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER))
-            {
+            let available =
+                unsafe { entry.enumerate_instance_layer_properties() }.vk("vkEnumerateInstanceLayerProperties")?;
+            if !available.iter().any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)) {
                 return Err(BackendError::ValidationLayerMissing);
             }
             layers.push(VALIDATION_LAYER.as_ptr());
@@ -89,18 +85,10 @@ impl Instance {
         }
         let raw = unsafe { entry.create_instance(&info, None) }.map_err(|result| match result {
             vk::Result::ERROR_INCOMPATIBLE_DRIVER => BackendError::NoDevice,
-            result => BackendError::Vk {
-                call: "vkCreateInstance",
-                result,
-            },
+            result => BackendError::Vk { call: "vkCreateInstance", result },
         })?;
 
-        let mut instance = Self {
-            entry,
-            raw,
-            debug: None,
-            messages: None,
-        };
+        let mut instance = Self { entry, raw, debug: None, messages: None };
         if enabled {
             instance.install_messenger()?;
         }
@@ -113,8 +101,7 @@ impl Instance {
         let loader = ash::ext::debug_utils::Instance::new(&self.entry, &self.raw);
         let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
             .message_severity(
-                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
             )
             .message_type(
                 vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
@@ -123,8 +110,8 @@ impl Instance {
             )
             .pfn_user_callback(Some(collect_message))
             .user_data(user_data);
-        let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) }
-            .vk("vkCreateDebugUtilsMessengerEXT")?;
+        let messenger =
+            unsafe { loader.create_debug_utils_messenger(&info, None) }.vk("vkCreateDebugUtilsMessengerEXT")?;
         self.debug = Some((loader, messenger));
         self.messages = Some(sink);
         Ok(())
@@ -146,11 +133,7 @@ impl Instance {
     /// Fails with [`BackendError::Validation`] if any message was collected since the last call.
     pub fn check_validation(&self) -> Result<()> {
         let messages = self.take_validation_messages();
-        if messages.is_empty() {
-            Ok(())
-        } else {
-            Err(BackendError::Validation { messages })
-        }
+        if messages.is_empty() { Ok(()) } else { Err(BackendError::Validation { messages }) }
     }
 
     /// The raw `ash` instance (for code that needs instance-level functions).
@@ -190,9 +173,7 @@ unsafe extern "system" fn collect_message(
         if id.is_some_and(|id| IGNORED_MESSAGE_IDS.contains(&id)) {
             return vk::FALSE;
         }
-        let message = unsafe { data.message_as_c_str() }
-            .map(|m| m.to_string_lossy().into_owned())
-            .unwrap_or_default();
+        let message = unsafe { data.message_as_c_str() }.map(|m| m.to_string_lossy().into_owned()).unwrap_or_default();
         format!("[{severity:?} {types:?}] {message}")
     };
     if !user.is_null() {

@@ -76,13 +76,7 @@ impl PassKernel for AccumulateKernel {
 }
 
 /// Checks the access counts a kernel relies on; returns the first written resource.
-fn expect_accesses(
-    pass: &PlanPass,
-    index: usize,
-    kernel: &str,
-    reads: usize,
-    writes: usize,
-) -> Result<usize> {
+fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, writes: usize) -> Result<usize> {
     if pass.reads.len() != reads || pass.writes.len() != writes {
         return Err(BackendError::KernelMisuse {
             kernel: kernel.to_string(),
@@ -124,12 +118,7 @@ fn hash3(a: u32, b: u32, c: u32) -> u32 {
 /// CPU value of `fill.comp` at pixel (x, y) of `view`.
 pub fn reference_fill(x: u32, y: u32, view: u32) -> [f32; 4] {
     let h = hash3(x, y, view);
-    [
-        (h & 0xffff) as f32 / 65536.0,
-        (h >> 16) as f32 / 65536.0,
-        (view & 0xffff) as f32 / 65536.0,
-        65535.0 / 65536.0,
-    ]
+    [(h & 0xffff) as f32 / 65536.0, (h >> 16) as f32 / 65536.0, (view & 0xffff) as f32 / 65536.0, 65535.0 / 65536.0]
 }
 
 /// CPU value of `shift_blend.comp` at (x, y) of `view` reading `other_view`, both filled.

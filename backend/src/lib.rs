@@ -13,6 +13,7 @@ mod device;
 mod error;
 mod executor;
 mod instance;
+mod lower;
 mod memory;
 mod pipeline;
 mod record;
@@ -31,13 +32,10 @@ pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, host_n
 pub use error::{BackendError, Result};
 pub use executor::{ExecOptions, Executor, FaultInjection};
 pub use instance::{Instance, Validation, validation_from_env};
+pub use lower::LowerError;
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use pipeline::{shader_names, spirv};
-pub use plan::{
-    Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, Rows, TexelFormat,
-};
+pub use plan::{Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, Rows, TexelFormat};
 pub use recorder::{KernelRegistry, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
-pub use timing::{
-    DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json,
-};
+pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

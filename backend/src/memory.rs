@@ -13,7 +13,7 @@ use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::plan::TexelFormat;
 
-/// The Vulkan format of a texel format usable as a storage image in the float bindless array.
+/// The Vulkan format of a texel format (all are storage-image formats every Vulkan device has).
 pub fn vk_format(format: TexelFormat) -> Result<vk::Format> {
     Ok(match format {
         TexelFormat::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
@@ -21,8 +21,7 @@ pub fn vk_format(format: TexelFormat) -> Result<vk::Format> {
         TexelFormat::Rg32Float => vk::Format::R32G32_SFLOAT,
         TexelFormat::R32Float => vk::Format::R32_SFLOAT,
         TexelFormat::Rgba8Unorm => vk::Format::R8G8B8A8_UNORM,
-        // Integer images need a `uimage2D` binding of their own; no pass uses one yet.
-        TexelFormat::R32Uint => return Err(BackendError::UnsupportedFormat(format)),
+        TexelFormat::R32Uint => vk::Format::R32_UINT,
     })
 }
 
@@ -45,31 +44,17 @@ pub struct Image {
 }
 
 impl Image {
-    pub fn new(
-        device: &Arc<Device>,
-        name: &str,
-        width: u32,
-        height: u32,
-        format: TexelFormat,
-    ) -> Result<Self> {
+    pub fn new(device: &Arc<Device>, name: &str, width: u32, height: u32, format: TexelFormat) -> Result<Self> {
         let vk_fmt = vk_format(format)?;
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
             .format(vk_fmt)
-            .extent(vk::Extent3D {
-                width,
-                height,
-                depth: 1,
-            })
+            .extent(vk::Extent3D { width, height, depth: 1 })
             .mip_levels(1)
             .array_layers(1)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(
-                vk::ImageUsageFlags::STORAGE
-                    | vk::ImageUsageFlags::TRANSFER_SRC
-                    | vk::ImageUsageFlags::TRANSFER_DST,
-            )
+            .usage(vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)
             .initial_layout(vk::ImageLayout::UNDEFINED);
         let raw = unsafe { device.raw.create_image(&info, None) }.vk("vkCreateImage")?;
         let requirements = unsafe { device.raw.get_image_memory_requirements(raw) };
@@ -101,19 +86,14 @@ impl Image {
             height,
         };
         let allocation = image.allocation.as_ref().expect("just set");
-        unsafe {
-            device
-                .raw
-                .bind_image_memory(raw, allocation.memory(), allocation.offset())
-        }
-        .vk("vkBindImageMemory")?;
+        unsafe { device.raw.bind_image_memory(raw, allocation.memory(), allocation.offset()) }
+            .vk("vkBindImageMemory")?;
         let view_info = vk::ImageViewCreateInfo::default()
             .image(raw)
             .view_type(vk::ImageViewType::TYPE_2D)
             .format(vk_fmt)
             .subresource_range(color_range());
-        image.view =
-            unsafe { device.raw.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
+        image.view = unsafe { device.raw.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
         Ok(image)
     }
 
@@ -165,10 +145,8 @@ impl Buffer {
         usage: vk::BufferUsageFlags,
         location: MemoryLocation,
     ) -> Result<Self> {
-        let info = vk::BufferCreateInfo::default()
-            .size(size.max(4))
-            .usage(usage)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let info =
+            vk::BufferCreateInfo::default().size(size.max(4)).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         let raw = unsafe { device.raw.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
         let requirements = unsafe { device.raw.get_buffer_memory_requirements(raw) };
         let allocation = device
@@ -189,37 +167,22 @@ impl Buffer {
                 return Err(e);
             }
         };
-        let buffer = Self {
-            device: device.clone(),
-            raw,
-            allocation: Some(allocation),
-            size,
-        };
+        let buffer = Self { device: device.clone(), raw, allocation: Some(allocation), size };
         let allocation = buffer.allocation.as_ref().expect("just set");
-        unsafe {
-            device
-                .raw
-                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
-        }
-        .vk("vkBindBufferMemory")?;
+        unsafe { device.raw.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) }
+            .vk("vkBindBufferMemory")?;
         Ok(buffer)
     }
 
     /// The mapped bytes of a host-visible buffer (`None` for device-local ones).
     pub fn mapped(&self) -> Option<&[u8]> {
-        self.allocation
-            .as_ref()
-            .and_then(|a| a.mapped_slice())
-            .map(|s| &s[..self.size as usize])
+        self.allocation.as_ref().and_then(|a| a.mapped_slice()).map(|s| &s[..self.size as usize])
     }
 
     /// Mutable mapped bytes of a host-visible buffer.
     pub fn mapped_mut(&mut self) -> Option<&mut [u8]> {
         let size = self.size as usize;
-        self.allocation
-            .as_mut()
-            .and_then(|a| a.mapped_slice_mut())
-            .map(|s| &mut s[..size])
+        self.allocation.as_mut().and_then(|a| a.mapped_slice_mut()).map(|s| &mut s[..size])
     }
 
     pub fn raw(&self) -> vk::Buffer {
@@ -260,18 +223,10 @@ impl SharedHostBuffer {
     /// Allocates `size` bytes of zeroed host memory (rounded up to the import alignment) and
     /// imports it into every device of `devices`.
     pub fn new(devices: &[&Arc<Device>], size: u64) -> Result<Self> {
-        let align = devices
-            .iter()
-            .map(|d| d.min_host_pointer_alignment)
-            .max()
-            .unwrap_or(4096)
-            .max(64);
+        let align = devices.iter().map(|d| d.min_host_pointer_alignment).max().unwrap_or(4096).max(64);
         let rounded = size.max(1).div_ceil(align) * align;
         let layout = Layout::from_size_align(rounded as usize, align as usize).map_err(|e| {
-            BackendError::HostImport {
-                device: devices.first().map_or(0, |d| d.info.index),
-                detail: e.to_string(),
-            }
+            BackendError::HostImport { device: devices.first().map_or(0, |d| d.info.index), detail: e.to_string() }
         })?;
         // Zeroed so that a copy-in that ran too early (a missing wait) reads zeros, never
         // stale bytes that could pass for a right answer.
@@ -279,12 +234,7 @@ impl SharedHostBuffer {
         if ptr.is_null() {
             std::alloc::handle_alloc_error(layout);
         }
-        let mut shared = Self {
-            ptr,
-            layout,
-            imports: Vec::with_capacity(devices.len()),
-            size: rounded,
-        };
+        let mut shared = Self { ptr, layout, imports: Vec::with_capacity(devices.len()), size: rounded };
         for device in devices {
             let import = shared.import_into(device)?;
             shared.imports.push(import);
@@ -293,10 +243,7 @@ impl SharedHostBuffer {
     }
 
     fn import_into(&self, device: &Arc<Device>) -> Result<HostImport> {
-        let fail = |detail: String| BackendError::HostImport {
-            device: device.info.index,
-            detail,
-        };
+        let fail = |detail: String| BackendError::HostImport { device: device.info.index, detail };
         let emh = device
             .external_memory_host
             .as_ref()
@@ -322,21 +269,14 @@ impl SharedHostBuffer {
             .push_next(&mut external);
         let buffer = unsafe { device.raw.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
         let requirements = unsafe { device.raw.get_buffer_memory_requirements(buffer) };
-        let memory_props = unsafe {
-            device
-                .instance
-                .raw
-                .get_physical_device_memory_properties(device.physical)
-        };
+        let memory_props = unsafe { device.instance.raw.get_physical_device_memory_properties(device.physical) };
         let candidates = host_props.memory_type_bits & requirements.memory_type_bits;
         // Prefer host-cached memory if offered: the bytes are read by the DMA engine anyway,
         // but some drivers only list one type.
-        let memory_type = (0..memory_props.memory_type_count)
-            .filter(|t| candidates & (1 << t) != 0)
-            .min_by_key(|&t| {
-                let flags = memory_props.memory_types[t as usize].property_flags;
-                u32::from(!flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT))
-            });
+        let memory_type = (0..memory_props.memory_type_count).filter(|t| candidates & (1 << t) != 0).min_by_key(|&t| {
+            let flags = memory_props.memory_types[t as usize].property_flags;
+            u32::from(!flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT))
+        });
         let Some(memory_type) = memory_type else {
             unsafe { device.raw.destroy_buffer(buffer, None) };
             return Err(fail(format!(
@@ -344,9 +284,8 @@ impl SharedHostBuffer {
                 host_props.memory_type_bits, requirements.memory_type_bits
             )));
         };
-        let mut import = vk::ImportMemoryHostPointerInfoEXT::default()
-            .handle_type(handle_type)
-            .host_pointer(self.ptr.cast());
+        let mut import =
+            vk::ImportMemoryHostPointerInfoEXT::default().handle_type(handle_type).host_pointer(self.ptr.cast());
         let alloc = vk::MemoryAllocateInfo::default()
             .allocation_size(self.size)
             .memory_type_index(memory_type)
@@ -355,10 +294,7 @@ impl SharedHostBuffer {
             Ok(m) => m,
             Err(result) => {
                 unsafe { device.raw.destroy_buffer(buffer, None) };
-                return Err(BackendError::Vk {
-                    call: "vkAllocateMemory(host pointer import)",
-                    result,
-                });
+                return Err(BackendError::Vk { call: "vkAllocateMemory(host pointer import)", result });
             }
         };
         if let Err(result) = unsafe { device.raw.bind_buffer_memory(buffer, memory, 0) } {
@@ -366,24 +302,14 @@ impl SharedHostBuffer {
                 device.raw.destroy_buffer(buffer, None);
                 device.raw.free_memory(memory, None);
             }
-            return Err(BackendError::Vk {
-                call: "vkBindBufferMemory(host pointer import)",
-                result,
-            });
+            return Err(BackendError::Vk { call: "vkBindBufferMemory(host pointer import)", result });
         }
-        Ok(HostImport {
-            device: device.clone(),
-            buffer,
-            memory,
-        })
+        Ok(HostImport { device: device.clone(), buffer, memory })
     }
 
     /// The `VkBuffer` through which device `device_index` sees the allocation.
     pub(crate) fn buffer_on(&self, device_index: usize) -> Option<vk::Buffer> {
-        self.imports
-            .iter()
-            .find(|i| i.device.info.index == device_index)
-            .map(|i| i.buffer)
+        self.imports.iter().find(|i| i.device.info.index == device_index).map(|i| i.buffer)
     }
 }
 

@@ -1,9 +1,10 @@
 //! Embedded shaders, the per-device descriptor layout every kernel shares, and compute
 //! pipelines created on first use.
 //!
-//! Layout (set 0): binding 0 = every storage image of the device (an array sized by the
+//! Layout (set 0): binding 0 = every float storage image of the device (an array sized by the
 //! specialisation constant `IMAGE_COUNT`), binding 1 = the frame-constants uniform buffer of the
-//! frame-in-flight slot. Kernels select images by index in push constants, so one descriptor set
+//! frame-in-flight slot, binding 2 = the R32_UINT images at the same indices. Each array holds a
+//! 1x1 placeholder where the other one holds the real image, so every descriptor is valid. Kernels select images by index in push constants, so one descriptor set
 //! per slot serves every pass and recorded command buffers never need new descriptors.
 
 use std::collections::HashMap;
@@ -16,6 +17,7 @@ use gpu_allocator::MemoryLocation;
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::memory::{Buffer, Image};
+use crate::plan::TexelFormat;
 
 mod embedded {
     include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
@@ -54,13 +56,16 @@ pub(crate) struct Bindless {
     frame_constants: Vec<Buffer>,
     image_count: u32,
     pipelines: HashMap<String, vk::Pipeline>,
+    placeholders: [Image; 2],
 }
 
 impl Bindless {
     /// Creates the layout for `images` and `slots` descriptor sets, all written.
-    pub(crate) fn new(device: &Arc<Device>, images: &[&Image], slots: usize) -> Result<Self> {
+    /// `placeholders` are a float and a uint 1x1 image in `GENERAL` layout; they live as long
+    /// as the descriptor sets that name them.
+    pub(crate) fn new(device: &Arc<Device>, images: &[&Image], placeholders: [Image; 2], slots: usize) -> Result<Self> {
         // A zero-sized descriptor array is invalid; a device with no image still gets one slot
-        // (never indexed), backed by a dummy image.
+        // (never indexed), holding the placeholders.
         let image_count = images.len().max(1) as u32;
         let bindings = [
             vk::DescriptorSetLayoutBinding::default()
@@ -73,13 +78,15 @@ impl Bindless {
                 .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
                 .descriptor_count(1)
                 .stage_flags(vk::ShaderStageFlags::COMPUTE),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(2)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(image_count)
+                .stage_flags(vk::ShaderStageFlags::COMPUTE),
         ];
         let raw = &device.raw;
         let set_layout = unsafe {
-            raw.create_descriptor_set_layout(
-                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
-                None,
-            )
+            raw.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None)
         }
         .vk("vkCreateDescriptorSetLayout")?;
         let mut this = Self {
@@ -91,6 +98,7 @@ impl Bindless {
             frame_constants: Vec::new(),
             image_count,
             pipelines: HashMap::new(),
+            placeholders,
         };
         let ranges = [vk::PushConstantRange::default()
             .stage_flags(vk::ShaderStageFlags::COMPUTE)
@@ -99,9 +107,7 @@ impl Bindless {
         let set_layouts = [set_layout];
         this.pipeline_layout = unsafe {
             raw.create_pipeline_layout(
-                &vk::PipelineLayoutCreateInfo::default()
-                    .set_layouts(&set_layouts)
-                    .push_constant_ranges(&ranges),
+                &vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges),
                 None,
             )
         }
@@ -109,16 +115,12 @@ impl Bindless {
         let sizes = [
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::STORAGE_IMAGE)
-                .descriptor_count(image_count * slots as u32),
-            vk::DescriptorPoolSize::default()
-                .ty(vk::DescriptorType::UNIFORM_BUFFER)
-                .descriptor_count(slots as u32),
+                .descriptor_count(2 * image_count * slots as u32),
+            vk::DescriptorPoolSize::default().ty(vk::DescriptorType::UNIFORM_BUFFER).descriptor_count(slots as u32),
         ];
         this.pool = unsafe {
             raw.create_descriptor_pool(
-                &vk::DescriptorPoolCreateInfo::default()
-                    .max_sets(slots as u32)
-                    .pool_sizes(&sizes),
+                &vk::DescriptorPoolCreateInfo::default().max_sets(slots as u32).pool_sizes(&sizes),
                 None,
             )
         }
@@ -126,9 +128,7 @@ impl Bindless {
         let layouts = vec![set_layout; slots];
         this.sets = unsafe {
             raw.allocate_descriptor_sets(
-                &vk::DescriptorSetAllocateInfo::default()
-                    .descriptor_pool(this.pool)
-                    .set_layouts(&layouts),
+                &vk::DescriptorSetAllocateInfo::default().descriptor_pool(this.pool).set_layouts(&layouts),
             )
         }
         .vk("vkAllocateDescriptorSets")?;
@@ -146,34 +146,40 @@ impl Bindless {
     }
 
     fn write_set(&self, slot: usize, images: &[&Image]) {
-        let image_infos: Vec<vk::DescriptorImageInfo> = images
-            .iter()
-            .map(|img| {
-                vk::DescriptorImageInfo::default()
-                    .image_view(img.view)
-                    .image_layout(vk::ImageLayout::GENERAL)
-            })
-            .collect();
+        let placeholders = [&self.placeholders[0], &self.placeholders[1]];
+        let info = |img: &Image| {
+            vk::DescriptorImageInfo::default().image_view(img.view).image_layout(vk::ImageLayout::GENERAL)
+        };
+        let is_uint = |img: &Image| img.format == TexelFormat::R32Uint;
+        let mut float_infos: Vec<vk::DescriptorImageInfo> =
+            images.iter().map(|&img| info(if is_uint(img) { placeholders[0] } else { img })).collect();
+        let mut uint_infos: Vec<vk::DescriptorImageInfo> =
+            images.iter().map(|&img| info(if is_uint(img) { img } else { placeholders[1] })).collect();
+        if images.is_empty() {
+            float_infos.push(info(placeholders[0]));
+            uint_infos.push(info(placeholders[1]));
+        }
         let buffer_infos = [vk::DescriptorBufferInfo::default()
             .buffer(self.frame_constants[slot].raw)
             .offset(0)
             .range(FRAME_CONSTANT_BYTES)];
-        let mut writes = vec![
+        let writes = [
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.sets[slot])
+                .dst_binding(0)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .image_info(&float_infos),
             vk::WriteDescriptorSet::default()
                 .dst_set(self.sets[slot])
                 .dst_binding(1)
                 .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
                 .buffer_info(&buffer_infos),
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.sets[slot])
+                .dst_binding(2)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .image_info(&uint_infos),
         ];
-        if !image_infos.is_empty() {
-            writes.push(
-                vk::WriteDescriptorSet::default()
-                    .dst_set(self.sets[slot])
-                    .dst_binding(0)
-                    .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
-                    .image_info(&image_infos),
-            );
-        }
         unsafe { self.device.raw.update_descriptor_sets(&writes, &[]) };
     }
 
@@ -191,35 +197,21 @@ impl Bindless {
         }
         let code = spirv(name)?;
         let raw = &self.device.raw;
-        let module = unsafe {
-            raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)
-        }
-        .vk("vkCreateShaderModule")?;
-        let entries = [vk::SpecializationMapEntry::default()
-            .constant_id(0)
-            .offset(0)
-            .size(4)];
+        let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
+            .vk("vkCreateShaderModule")?;
+        let entries = [vk::SpecializationMapEntry::default().constant_id(0).offset(0).size(4)];
         let data = self.image_count.to_le_bytes();
-        let specialization = vk::SpecializationInfo::default()
-            .map_entries(&entries)
-            .data(&data);
+        let specialization = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main")
             .specialization_info(&specialization);
-        let info = [vk::ComputePipelineCreateInfo::default()
-            .stage(stage)
-            .layout(self.pipeline_layout)];
-        let created =
-            unsafe { raw.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(self.pipeline_layout)];
+        let created = unsafe { raw.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
         unsafe { raw.destroy_shader_module(module, None) };
-        let pipeline = created
-            .map_err(|(_, result)| BackendError::Vk {
-                call: "vkCreateComputePipelines",
-                result,
-            })?
-            .remove(0);
+        let pipeline =
+            created.map_err(|(_, result)| BackendError::Vk { call: "vkCreateComputePipelines", result })?.remove(0);
         self.pipelines.insert(name.to_string(), pipeline);
         Ok(pipeline)
     }

@@ -80,6 +80,8 @@ pub struct PlanPass {
     /// Reads in the order the pass declared them (kernels rely on that order).
     pub reads: Vec<PlanAccess>,
     pub writes: Vec<PlanAccess>,
+    /// Reads of the previous frame's last version (the image persists across frames).
+    pub history_reads: Vec<PlanAccess>,
 }
 
 /// A transfer of a row band of one resource from one device to another.
@@ -124,29 +126,11 @@ pub enum PlanError {
     #[error("plan has {plan} device programs but the context has {context} devices")]
     DeviceCount { plan: usize, context: usize },
     #[error("{what} {index} refers to missing {missing} {target}")]
-    Dangling {
-        what: &'static str,
-        index: usize,
-        missing: &'static str,
-        target: usize,
-    },
+    Dangling { what: &'static str, index: usize, missing: &'static str, target: usize },
     #[error("{what} {index}: rows {y0}..{y1} are outside its {height}-row resource {resource}")]
-    RowsOutOfRange {
-        what: &'static str,
-        index: usize,
-        resource: usize,
-        y0: u32,
-        y1: u32,
-        height: u32,
-    },
-    #[error(
-        "pass instance {pass} is in the program of device {listed} but belongs to device {owner}"
-    )]
-    PassOnWrongDevice {
-        pass: usize,
-        listed: usize,
-        owner: usize,
-    },
+    RowsOutOfRange { what: &'static str, index: usize, resource: usize, y0: u32, y1: u32, height: u32 },
+    #[error("pass instance {pass} is in the program of device {listed} but belongs to device {owner}")]
+    PassOnWrongDevice { pass: usize, listed: usize, owner: usize },
     #[error("pass instance {0} is not scheduled exactly once")]
     PassNotScheduledOnce(usize),
     #[error("copy {copy} goes from device {from} to itself")]
@@ -163,10 +147,7 @@ impl Plan {
     /// Checks the invariants the executor relies on.
     pub fn validate(&self, context_devices: usize) -> Result<(), PlanError> {
         if self.devices.len() != context_devices {
-            return Err(PlanError::DeviceCount {
-                plan: self.devices.len(),
-                context: context_devices,
-            });
+            return Err(PlanError::DeviceCount { plan: self.devices.len(), context: context_devices });
         }
         for (i, r) in self.resources.iter().enumerate() {
             if r.width == 0 || r.height == 0 {
@@ -201,7 +182,7 @@ impl Plan {
                     target: p.device,
                 });
             }
-            for a in p.reads.iter().chain(&p.writes) {
+            for a in p.reads.iter().chain(&p.writes).chain(&p.history_reads) {
                 check_rows("pass instance", i, a.resource, a.rows)?;
             }
         }
@@ -209,19 +190,11 @@ impl Plan {
             check_rows("copy", i, c.resource, c.rows)?;
             for d in [c.from, c.to] {
                 if d >= self.devices.len() {
-                    return Err(PlanError::Dangling {
-                        what: "copy",
-                        index: i,
-                        missing: "device",
-                        target: d,
-                    });
+                    return Err(PlanError::Dangling { what: "copy", index: i, missing: "device", target: d });
                 }
             }
             if c.from == c.to {
-                return Err(PlanError::CopyToSelf {
-                    copy: i,
-                    from: c.from,
-                });
+                return Err(PlanError::CopyToSelf { copy: i, from: c.from });
             }
         }
 
@@ -239,11 +212,7 @@ impl Plan {
                             target: p,
                         })?;
                         if pass.device != d {
-                            return Err(PlanError::PassOnWrongDevice {
-                                pass: p,
-                                listed: d,
-                                owner: pass.device,
-                            });
+                            return Err(PlanError::PassOnWrongDevice { pass: p, listed: d, owner: pass.device });
                         }
                         pass_seen[p] += 1;
                         continue;
@@ -254,12 +223,7 @@ impl Plan {
                     PlanOp::CopyIn(c) => (c, "CopyIn"),
                 };
                 if copy >= self.copies.len() {
-                    return Err(PlanError::Dangling {
-                        what: "op of device",
-                        index: d,
-                        missing: "copy",
-                        target: copy,
-                    });
+                    return Err(PlanError::Dangling { what: "op of device", index: d, missing: "copy", target: copy });
                 }
                 copy_ops.entry((copy, kind)).or_default().push((d, pos));
             }
@@ -268,10 +232,7 @@ impl Plan {
             return Err(PlanError::PassNotScheduledOnce(p));
         }
         for (c, copy) in self.copies.iter().enumerate() {
-            let at = |kind: &'static str, device: usize| match copy_ops
-                .get(&(c, kind))
-                .map(Vec::as_slice)
-            {
+            let at = |kind: &'static str, device: usize| match copy_ops.get(&(c, kind)).map(Vec::as_slice) {
                 Some(&[(d, pos)]) if d == device => Ok(pos),
                 _ => Err(PlanError::CopyOpMisplaced { copy: c, op: kind }),
             };
@@ -293,7 +254,7 @@ impl Plan {
             match *op {
                 PlanOp::Pass(p) => {
                     let pass = &self.passes[p];
-                    used.extend(pass.reads.iter().chain(&pass.writes).map(|a| a.resource));
+                    used.extend(pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).map(|a| a.resource));
                 }
                 PlanOp::CopyOut(c) | PlanOp::CopyIn(c) => used.push(self.copies[c].resource),
                 PlanOp::Signal(_) | PlanOp::Wait(_) => {}
@@ -327,14 +288,7 @@ mod tests {
     fn pass_listed_on_another_device_is_refused() {
         let mut plan = copy_benchmark(8, 8);
         plan.devices[1].insert(0, PlanOp::Pass(0));
-        assert_eq!(
-            plan.validate(2),
-            Err(PlanError::PassOnWrongDevice {
-                pass: 0,
-                listed: 1,
-                owner: 0
-            })
-        );
+        assert_eq!(plan.validate(2), Err(PlanError::PassOnWrongDevice { pass: 0, listed: 1, owner: 0 }));
     }
 
     #[test]
@@ -343,14 +297,7 @@ mod tests {
         plan.copies[0].rows = Rows::new(4, 9);
         assert_eq!(
             plan.validate(2),
-            Err(PlanError::RowsOutOfRange {
-                what: "copy",
-                index: 0,
-                resource: 0,
-                y0: 4,
-                y1: 9,
-                height: 8
-            })
+            Err(PlanError::RowsOutOfRange { what: "copy", index: 0, resource: 0, y0: 4, y1: 9, height: 8 })
         );
     }
 
@@ -358,10 +305,7 @@ mod tests {
     fn copy_to_self_and_unscheduled_pass_are_refused() {
         let mut plan = copy_benchmark(8, 8);
         plan.copies[0].to = 0;
-        assert_eq!(
-            plan.validate(2),
-            Err(PlanError::CopyToSelf { copy: 0, from: 0 })
-        );
+        assert_eq!(plan.validate(2), Err(PlanError::CopyToSelf { copy: 0, from: 0 }));
         let (mut plan, _) = reprojection_demo(2, 1, 8, 8);
         plan.devices[0].retain(|op| *op != PlanOp::Pass(1));
         assert_eq!(plan.validate(1), Err(PlanError::PassNotScheduledOnce(1)));

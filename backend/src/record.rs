@@ -36,11 +36,7 @@ pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel>
         TimerLabel {
             name: format!(
                 "{} {} view {} → device {}",
-                if kind == EventKind::CopyOut {
-                    "copy out"
-                } else {
-                    "copy in"
-                },
+                if kind == EventKind::CopyOut { "copy out" } else { "copy in" },
                 resource.name,
                 resource.view,
                 copy.to
@@ -99,8 +95,7 @@ pub(crate) fn record_segment(
 ) -> Result<()> {
     let raw = ctx.raw;
     unsafe {
-        raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default())
-            .vk("vkBeginCommandBuffer")?;
+        raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()).vk("vkBeginCommandBuffer")?;
         if segment_index == 0 && ctx.query_count > 0 {
             raw.cmd_reset_query_pool(cb, ctx.query_pool, 0, ctx.query_count);
         }
@@ -117,14 +112,7 @@ pub(crate) fn record_segment(
     for (i, item) in segment.items.iter().enumerate() {
         let query = (first_timer + i as u32) * 2;
         full_barrier(raw, cb);
-        unsafe {
-            raw.cmd_write_timestamp2(
-                cb,
-                vk::PipelineStageFlags2::ALL_COMMANDS,
-                ctx.query_pool,
-                query,
-            )
-        };
+        unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
         match *item {
             Item::Pass(p) => {
                 let pass = &ctx.plan.passes[p];
@@ -144,13 +132,7 @@ pub(crate) fn record_segment(
             Item::CopyOut(chunk) => {
                 let (buffer, region, image) = copy_region(ctx, &chunk);
                 unsafe {
-                    raw.cmd_copy_image_to_buffer(
-                        cb,
-                        image,
-                        vk::ImageLayout::GENERAL,
-                        buffer,
-                        &[region],
-                    );
+                    raw.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::GENERAL, buffer, &[region]);
                 }
                 // Make the bytes available to the host domain, where the other device reads
                 // them.
@@ -159,48 +141,25 @@ pub(crate) fn record_segment(
                     .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
                     .dst_stage_mask(vk::PipelineStageFlags2::HOST)
                     .dst_access_mask(vk::AccessFlags2::HOST_READ)];
-                unsafe {
-                    raw.cmd_pipeline_barrier2(
-                        cb,
-                        &vk::DependencyInfo::default().memory_barriers(&to_host),
-                    )
-                };
+                unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
             }
             Item::CopyIn(chunk) => {
                 let (buffer, region, image) = copy_region(ctx, &chunk);
                 unsafe {
-                    raw.cmd_copy_buffer_to_image(
-                        cb,
-                        buffer,
-                        image,
-                        vk::ImageLayout::GENERAL,
-                        &[region],
-                    );
+                    raw.cmd_copy_buffer_to_image(cb, buffer, image, vk::ImageLayout::GENERAL, &[region]);
                 }
             }
         }
-        unsafe {
-            raw.cmd_write_timestamp2(
-                cb,
-                vk::PipelineStageFlags2::ALL_COMMANDS,
-                ctx.query_pool,
-                query + 1,
-            )
-        };
+        unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
     }
     unsafe { raw.end_command_buffer(cb) }.vk("vkEndCommandBuffer")
 }
 
 /// Staging buffer, copy region and image of one chunk on this device.
-fn copy_region(
-    ctx: &SegmentContext<'_>,
-    chunk: &Chunk,
-) -> (vk::Buffer, vk::BufferImageCopy, vk::Image) {
+fn copy_region(ctx: &SegmentContext<'_>, chunk: &Chunk) -> (vk::Buffer, vk::BufferImageCopy, vk::Image) {
     let copy = &ctx.plan.copies[chunk.copy];
     let resource = &ctx.plan.resources[copy.resource];
-    let (buffer, offsets) = ctx
-        .staging
-        .expect("a device with copies has a staging buffer");
+    let (buffer, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
     let offset = offsets[chunk.copy] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
     let region = vk::BufferImageCopy::default()
         .buffer_offset(offset)
@@ -210,16 +169,8 @@ fn copy_region(
             base_array_layer: 0,
             layer_count: 1,
         })
-        .image_offset(vk::Offset3D {
-            x: 0,
-            y: chunk.y0 as i32,
-            z: 0,
-        })
-        .image_extent(vk::Extent3D {
-            width: resource.width,
-            height: chunk.y1 - chunk.y0,
-            depth: 1,
-        });
+        .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
+        .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 });
     (buffer, region, ctx.images[&copy.resource].raw)
 }
 
@@ -230,7 +181,5 @@ pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
         .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
         .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
         .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)];
-    unsafe {
-        raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&barrier))
-    };
+    unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
 }

@@ -29,9 +29,7 @@ pub struct PassParams {
 
 impl PassParams {
     fn to_bytes(self) -> [u8; PUSH_CONSTANT_BYTES as usize] {
-        let words = [
-            self.dst, self.src0, self.src1, self.view, self.y0, self.y1, self.width, self.param,
-        ];
+        let words = [self.dst, self.src0, self.src1, self.view, self.y0, self.y1, self.width, self.param];
         let mut bytes = [0u8; PUSH_CONSTANT_BYTES as usize];
         for (chunk, w) in bytes.chunks_exact_mut(4).zip(words) {
             chunk.copy_from_slice(&w.to_le_bytes());
@@ -57,10 +55,7 @@ impl Recorder<'_> {
         self.image_slots
             .get(&resource)
             .copied()
-            .ok_or(BackendError::ResourceNotOnDevice {
-                resource,
-                device: self.device_index,
-            })
+            .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
     }
 
     /// The plan's description of `resource`.
@@ -78,8 +73,7 @@ impl Recorder<'_> {
         let pipeline = self.bindless.pipeline(shader)?;
         unsafe {
             if self.bound != Some(pipeline) {
-                self.raw
-                    .cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+                self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
                 self.bound = Some(pipeline);
             }
             self.raw.cmd_push_constants(
@@ -89,8 +83,7 @@ impl Recorder<'_> {
                 0,
                 &params.to_bytes(),
             );
-            self.raw
-                .cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
+            self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
         }
         Ok(())
     }
@@ -99,11 +92,7 @@ impl Recorder<'_> {
     /// row-band kernel in shaders/ uses.
     pub fn dispatch_rows(&mut self, shader: &str, params: PassParams) -> Result<()> {
         let rows = params.y1.saturating_sub(params.y0);
-        self.dispatch(
-            shader,
-            params,
-            [params.width.div_ceil(8), rows.div_ceil(8), 1],
-        )
+        self.dispatch(shader, params, [params.width.div_ceil(8), rows.div_ceil(8), 1])
     }
 
     /// The raw command buffer, for kernels that need a command the recorder does not wrap.
@@ -151,17 +140,12 @@ impl KernelRegistry {
         self.kernels.get(name).ok_or_else(|| {
             let mut registered: Vec<String> = self.kernels.keys().cloned().collect();
             registered.sort();
-            BackendError::UnknownPass {
-                pass: name.to_string(),
-                registered,
-            }
+            BackendError::UnknownPass { pass: name.to_string(), registered }
         })
     }
 
     /// Fails with [`BackendError::UnknownPass`] for the first pass of `plan` without a kernel.
     pub fn check_plan(&self, plan: &Plan) -> Result<()> {
-        plan.passes
-            .iter()
-            .try_for_each(|p| self.get(&p.name).map(|_| ()))
+        plan.passes.iter().try_for_each(|p| self.get(&p.name).map(|_| ()))
     }
 }

@@ -59,17 +59,10 @@ impl Relay {
                     .name(format!("parallax-relay-{}", device.info.index))
                     .spawn(move || run_worker(&device, timeline, &receiver, &stop, &failure))
                     .expect("spawn relay thread");
-                Worker {
-                    sender: Some(sender),
-                    thread: Some(thread),
-                }
+                Worker { sender: Some(sender), thread: Some(thread) }
             })
             .collect();
-        Self {
-            workers,
-            stop,
-            failure,
-        }
+        Self { workers, stop, failure }
     }
 
     /// Queues `job` on the thread watching device `watched`.
@@ -113,10 +106,7 @@ fn run_worker(
     failure: &Mutex<Option<String>>,
 ) {
     let fail = |message: String| {
-        failure
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .get_or_insert(message);
+        failure.lock().unwrap_or_else(|p| p.into_inner()).get_or_insert(message);
     };
     while let Ok(job) = jobs.recv() {
         loop {
@@ -127,19 +117,13 @@ fn run_worker(
                 Ok(true) => break,
                 Ok(false) => continue,
                 Err(e) => {
-                    fail(format!(
-                        "waiting on device {} for value {}: {e}",
-                        device.info.index, job.watch_value
-                    ));
+                    fail(format!("waiting on device {} for value {}: {e}", device.info.index, job.watch_value));
                     return;
                 }
             }
         }
         if let Err(e) = job.target.signal_timeline(job.semaphore, job.signal_value) {
-            fail(format!(
-                "signalling device {} to value {}: {e}",
-                job.target.info.index, job.signal_value
-            ));
+            fail(format!("signalling device {} to value {}: {e}", job.target.info.index, job.signal_value));
             return;
         }
     }

@@ -65,12 +65,7 @@ pub fn chunks_of_copies(plan: &Plan, chunk_bytes: u64) -> Vec<Vec<Chunk>> {
             let mut y0 = copy.rows.y0;
             while y0 < copy.rows.y1 {
                 let y1 = copy.rows.y1.min(y0.saturating_add(rows_per_chunk));
-                chunks.push(Chunk {
-                    copy: c,
-                    index: chunks.len() as u32,
-                    y0,
-                    y1,
-                });
+                chunks.push(Chunk { copy: c, index: chunks.len() as u32, y0, y1 });
                 y0 = y1;
             }
             chunks
@@ -91,12 +86,7 @@ pub fn progress_value(frame: u64, segments: usize, segment: usize) -> u64 {
 
 /// Cuts `device`'s op list. `dropped_wait` (fault injection) leaves out the ready waits of one
 /// copy.
-pub fn segment_device(
-    plan: &Plan,
-    device: usize,
-    chunks: &[Vec<Chunk>],
-    dropped_wait: Option<usize>,
-) -> Vec<Segment> {
+pub fn segment_device(plan: &Plan, device: usize, chunks: &[Vec<Chunk>], dropped_wait: Option<usize>) -> Vec<Segment> {
     let mut segments = Vec::new();
     let mut current = Segment::default();
     for op in &plan.devices[device] {
@@ -118,10 +108,7 @@ pub fn segment_device(
                         segments.push(std::mem::take(&mut current));
                     }
                     if dropped_wait != Some(c) {
-                        current.waits.push(ReadyWait {
-                            copy: c,
-                            chunk: chunk.index,
-                        });
+                        current.waits.push(ReadyWait { copy: c, chunk: chunk.index });
                     }
                     current.items.push(Item::CopyIn(chunk));
                 }
@@ -148,21 +135,11 @@ mod tests {
         let producer = segment_device(&plan, 0, &chunks, None);
         assert_eq!(producer.len(), 4);
         assert_eq!(producer[0].items.len(), 2, "fill + first chunk");
-        assert!(
-            producer
-                .iter()
-                .all(|s| s.relays.len() == 1 && s.waits.is_empty())
-        );
+        assert!(producer.iter().all(|s| s.relays.len() == 1 && s.waits.is_empty()));
         let consumer = segment_device(&plan, 1, &chunks, None);
         assert_eq!(consumer.len(), 4);
         for (i, s) in consumer.iter().enumerate() {
-            assert_eq!(
-                s.waits,
-                vec![ReadyWait {
-                    copy: 0,
-                    chunk: i as u32
-                }]
-            );
+            assert_eq!(s.waits, vec![ReadyWait { copy: 0, chunk: i as u32 }]);
         }
         let dropped = segment_device(&plan, 1, &chunks, Some(0));
         assert!(dropped.iter().all(|s| s.waits.is_empty()));

@@ -102,11 +102,7 @@ impl FrameReport {
                 DeviceFrameStats {
                     device: d,
                     busy_ns,
-                    busy_fraction: if gpu_span_ns == 0 {
-                        0.0
-                    } else {
-                        busy_ns as f64 / gpu_span_ns as f64
-                    },
+                    busy_fraction: if gpu_span_ns == 0 { 0.0 } else { busy_ns as f64 / gpu_span_ns as f64 },
                     events: mine.len(),
                 }
             })
@@ -133,12 +129,7 @@ impl FrameReport {
             devices,
             stages: stages
                 .into_iter()
-                .map(|((stage, device), (count, total_ns))| StageStats {
-                    stage,
-                    device,
-                    count,
-                    total_ns,
-                })
+                .map(|((stage, device), (count, total_ns))| StageStats { stage, device, count, total_ns })
                 .collect(),
             events,
         }
@@ -168,16 +159,8 @@ fn union_length(intervals: impl Iterator<Item = (u64, u64)>) -> u64 {
 /// one complete ("X") event per pass instance and copy chunk, timestamps in µs relative to the
 /// first event.
 pub fn chrome_trace(reports: &[FrameReport], devices: &[DeviceInfo]) -> serde_json::Value {
-    let origin = reports
-        .iter()
-        .flat_map(|r| {
-            r.events
-                .iter()
-                .map(|e| e.start_ns)
-                .chain([r.submit_start_ns])
-        })
-        .min()
-        .unwrap_or(0);
+    let origin =
+        reports.iter().flat_map(|r| r.events.iter().map(|e| e.start_ns).chain([r.submit_start_ns])).min().unwrap_or(0);
     let us = |ns: u64| ns.saturating_sub(origin) as f64 / 1000.0;
     let mut events = Vec::new();
     for d in devices {
@@ -206,10 +189,7 @@ pub fn chrome_trace(reports: &[FrameReport], devices: &[DeviceInfo]) -> serde_js
 /// Writes `value` as pretty JSON to `path`.
 pub fn write_json(path: &std::path::Path, value: &impl Serialize) -> Result<()> {
     let text = serde_json::to_string_pretty(value).expect("reports serialise");
-    std::fs::write(path, text).map_err(|source| BackendError::Io {
-        path: path.display().to_string(),
-        source,
-    })
+    std::fs::write(path, text).map_err(|source| BackendError::Io { path: path.display().to_string(), source })
 }
 
 #[cfg(test)]

@@ -3,26 +3,19 @@
 
 use parallax_backend::kernels::builtin_kernels;
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelRegistry,
-    Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, Rows, TexelFormat,
-    Validation,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelRegistry, Plan, PlanAccess,
+    PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, Rows, TexelFormat, Validation,
 };
 
 fn context(selection: DeviceSelection) -> Result<Context, BackendError> {
-    Context::new(&ContextDesc {
-        selection,
-        validation: Validation::Core,
-    })
+    Context::new(&ContextDesc { selection, validation: Validation::Core })
 }
 
 #[test]
 fn asking_for_more_gpus_than_exist_names_both_counts() {
     let err = context(DeviceSelection::Gpus(64)).err().unwrap();
     match err {
-        BackendError::NotEnoughGpus {
-            requested,
-            available,
-        } => {
+        BackendError::NotEnoughGpus { requested, available } => {
             assert_eq!(requested, 64);
             assert!((1..64).contains(&available));
         }
@@ -32,10 +25,7 @@ fn asking_for_more_gpus_than_exist_names_both_counts() {
 
 #[test]
 fn zero_devices_is_refused() {
-    assert!(matches!(
-        context(DeviceSelection::FakeDevices(0)).err().unwrap(),
-        BackendError::ZeroDevices
-    ));
+    assert!(matches!(context(DeviceSelection::FakeDevices(0)).err().unwrap(), BackendError::ZeroDevices));
 }
 
 #[test]
@@ -45,20 +35,13 @@ fn validation_messages_fail_the_check() {
     ctx.check_validation().unwrap();
     let device = ctx.devices()[0].raw();
     // size 0 violates VUID-VkBufferCreateInfo-size-00912.
-    let info = vk::BufferCreateInfo::default()
-        .size(0)
-        .usage(vk::BufferUsageFlags::TRANSFER_DST);
+    let info = vk::BufferCreateInfo::default().size(0).usage(vk::BufferUsageFlags::TRANSFER_DST);
     if let Ok(buffer) = unsafe { device.create_buffer(&info, None) } {
         unsafe { device.destroy_buffer(buffer, None) };
     }
     match ctx.check_validation() {
         Err(BackendError::Validation { messages }) => {
-            assert!(
-                messages
-                    .iter()
-                    .any(|m| m.contains("VUID-VkBufferCreateInfo-size")),
-                "{messages:?}"
-            );
+            assert!(messages.iter().any(|m| m.contains("VUID-VkBufferCreateInfo-size")), "{messages:?}");
         }
         other => panic!("expected a validation failure, got {other:?}"),
     }
@@ -81,24 +64,11 @@ fn history_plan(size: u32) -> Plan {
             view: 0,
             rows: all,
             device: 1,
-            reads: vec![PlanAccess {
-                resource: 0,
-                version: 0,
-                rows: all,
-            }],
-            writes: vec![PlanAccess {
-                resource: 0,
-                version: 1,
-                rows: all,
-            }],
+            reads: vec![PlanAccess { resource: 0, version: 0, rows: all }],
+            history_reads: vec![],
+            writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
         }],
-        copies: vec![PlanCopy {
-            resource: 0,
-            version: 1,
-            rows: all,
-            from: 1,
-            to: 0,
-        }],
+        copies: vec![PlanCopy { resource: 0, version: 1, rows: all, from: 1, to: 0 }],
         devices: vec![
             vec![PlanOp::Wait(0), PlanOp::CopyIn(0)],
             vec![PlanOp::Pass(0), PlanOp::CopyOut(0), PlanOp::Signal(0)],
@@ -109,10 +79,7 @@ fn history_plan(size: u32) -> Plan {
 #[test]
 fn history_survives_frames_in_flight_without_re_recording() {
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let options = ExecOptions {
-        frames_in_flight: 3,
-        ..ExecOptions::default()
-    };
+    let options = ExecOptions { frames_in_flight: 3, ..ExecOptions::default() };
     let mut exec = Executor::new(&ctx, history_plan(16), builtin_kernels(), options).unwrap();
     let frames = 7u32;
     for _ in 0..frames {
@@ -120,15 +87,8 @@ fn history_survives_frames_in_flight_without_re_recording() {
     }
     let bytes = exec.read_image(0, 0).unwrap();
     let expected = (frames * (frames + 1) / 2) as f32;
-    let values: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
-    assert!(
-        values.iter().all(|&v| v == expected),
-        "expected {expected}, got {:?}",
-        &values[..4]
-    );
+    let values: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    assert!(values.iter().all(|&v| v == expected), "expected {expected}, got {:?}", &values[..4]);
     assert_eq!(exec.recordings(), 1);
     drop(exec);
     ctx.check_validation().unwrap();
@@ -139,27 +99,9 @@ fn plan_errors_are_reported_before_any_gpu_work() {
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
     let mut plan = history_plan(8);
     plan.devices[0].clear();
-    let err = Executor::new(&ctx, plan, builtin_kernels(), ExecOptions::default())
-        .err()
-        .unwrap();
-    assert!(
-        matches!(
-            err,
-            BackendError::Plan(PlanError::CopyOpMisplaced {
-                copy: 0,
-                op: "Wait"
-            })
-        ),
-        "{err}"
-    );
-    let err = Executor::new(
-        &ctx,
-        history_plan(8),
-        KernelRegistry::new(),
-        ExecOptions::default(),
-    )
-    .err()
-    .unwrap();
+    let err = Executor::new(&ctx, plan, builtin_kernels(), ExecOptions::default()).err().unwrap();
+    assert!(matches!(err, BackendError::Plan(PlanError::CopyOpMisplaced { copy: 0, op: "Wait" })), "{err}");
+    let err = Executor::new(&ctx, history_plan(8), KernelRegistry::new(), ExecOptions::default()).err().unwrap();
     match err {
         BackendError::UnknownPass { pass, registered } => {
             assert_eq!(pass, "accumulate");
@@ -168,22 +110,6 @@ fn plan_errors_are_reported_before_any_gpu_work() {
         other => panic!("unexpected {other}"),
     }
     let one = context(DeviceSelection::FakeDevices(1)).unwrap();
-    let err = Executor::new(
-        &one,
-        history_plan(8),
-        builtin_kernels(),
-        ExecOptions::default(),
-    )
-    .err()
-    .unwrap();
-    assert!(
-        matches!(
-            err,
-            BackendError::Plan(PlanError::DeviceCount {
-                plan: 2,
-                context: 1
-            })
-        ),
-        "{err}"
-    );
+    let err = Executor::new(&one, history_plan(8), builtin_kernels(), ExecOptions::default()).err().unwrap();
+    assert!(matches!(err, BackendError::Plan(PlanError::DeviceCount { plan: 2, context: 1 })), "{err}");
 }

@@ -4,8 +4,8 @@
 use parallax_backend::demo::{demo_device_of_view, reprojection_demo};
 use parallax_backend::kernels::{builtin_kernels, reference_shift_blend};
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, Executor,
-    FaultInjection, PlanOp, Validation, chrome_trace,
+    BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, Executor, FaultInjection, PlanOp,
+    Validation, chrome_trace,
 };
 
 const VIEWS: u32 = 3;
@@ -14,32 +14,18 @@ const SIZE: u32 = 32;
 /// Validation always on; synchronisation validation where the layer copes (one device, see
 /// `Validation::CoreAndSync`).
 fn context(devices: usize) -> Context {
-    let validation = if devices == 1 {
-        Validation::CoreAndSync
-    } else {
-        Validation::Core
-    };
-    Context::new(&ContextDesc {
-        selection: DeviceSelection::FakeDevices(devices),
-        validation,
-    })
-    .expect("a Vulkan device (apt-get install mesa-vulkan-drivers) and validation layers")
+    let validation = if devices == 1 { Validation::CoreAndSync } else { Validation::Core };
+    Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(devices), validation })
+        .expect("a Vulkan device (apt-get install mesa-vulkan-drivers) and validation layers")
 }
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
-    bytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect()
+    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
 }
 
 /// Runs `frames` frames of the demo on `devices` devices; returns the gathered outputs (bytes
 /// per view, read on device 0) and the executor.
-fn run_demo(
-    devices: usize,
-    frames: usize,
-    options: ExecOptions,
-) -> (Vec<Vec<u8>>, Executor, Context) {
+fn run_demo(devices: usize, frames: usize, options: ExecOptions) -> (Vec<Vec<u8>>, Executor, Context) {
     let ctx = context(devices);
     let (plan, ids) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
     let mut exec = Executor::new(&ctx, plan, builtin_kernels(), options).unwrap();
@@ -47,19 +33,13 @@ fn run_demo(
         exec.run_frame().unwrap();
     }
     exec.finish().unwrap();
-    let outputs = ids
-        .output
-        .iter()
-        .map(|&r| exec.read_image(0, r).unwrap())
-        .collect();
+    let outputs = ids.output.iter().map(|&r| exec.read_image(0, r).unwrap()).collect();
     (outputs, exec, ctx)
 }
 
 fn reference_output(view: u32) -> Vec<f32> {
     let other = (view + 1) % VIEWS;
-    (0..SIZE)
-        .flat_map(|y| (0..SIZE).flat_map(move |x| reference_shift_blend(x, y, view, other, SIZE)))
-        .collect()
+    (0..SIZE).flat_map(|y| (0..SIZE).flat_map(move |x| reference_shift_blend(x, y, view, other, SIZE))).collect()
 }
 
 #[test]
@@ -68,11 +48,7 @@ fn one_two_three_devices_give_bit_identical_images() {
     assert_eq!(exec1.plan().copies.len(), 0);
     ctx1.check_validation().unwrap();
     for (v, bytes) in single.iter().enumerate() {
-        assert_eq!(
-            floats(bytes),
-            reference_output(v as u32),
-            "view {v} vs CPU reference"
-        );
+        assert_eq!(floats(bytes), reference_output(v as u32), "view {v} vs CPU reference");
     }
     drop(exec1);
     for devices in [2, 3] {
@@ -82,16 +58,8 @@ fn one_two_three_devices_give_bit_identical_images() {
         let copies = exec.plan().copies.len();
         assert!(copies > 0);
         for report in exec.take_reports() {
-            let outs = report
-                .events
-                .iter()
-                .filter(|e| e.kind == EventKind::CopyOut)
-                .count();
-            let ins = report
-                .events
-                .iter()
-                .filter(|e| e.kind == EventKind::CopyIn)
-                .count();
+            let outs = report.events.iter().filter(|e| e.kind == EventKind::CopyOut).count();
+            let ins = report.events.iter().filter(|e| e.kind == EventKind::CopyIn).count();
             assert_eq!((outs, ins), (copies, copies), "frame {}", report.frame);
         }
         drop(exec);
@@ -112,18 +80,13 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
         })
         .unwrap();
     let ctx = context(devices);
-    let options = ExecOptions {
-        fault: Some(FaultInjection::DropCrossDeviceWait { copy }),
-        ..ExecOptions::default()
-    };
+    let options = ExecOptions { fault: Some(FaultInjection::DropCrossDeviceWait { copy }), ..ExecOptions::default() };
     // Views whose blend reads the copied resource on the consumer are the ones that go wrong.
     let dropped = plan.copies[copy];
     let expected: Vec<usize> = plan
         .passes
         .iter()
-        .filter(|p| {
-            p.device == dropped.to && p.reads.iter().any(|a| a.resource == dropped.resource)
-        })
+        .filter(|p| p.device == dropped.to && p.reads.iter().any(|a| a.resource == dropped.resource))
         .map(|p| p.view as usize)
         .collect();
     assert!(!expected.is_empty());
@@ -137,10 +100,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
         })
         .map(|v| v as usize)
         .collect();
-    assert_eq!(
-        wrong, expected,
-        "exactly the views fed by the un-awaited copy are wrong"
-    );
+    assert_eq!(wrong, expected, "exactly the views fed by the un-awaited copy are wrong");
     drop(exec);
     ctx.check_validation().unwrap();
 }
@@ -159,13 +119,9 @@ fn fault_injection_refuses_a_copy_that_would_deadlock() {
         .nth(1)
         .unwrap();
     let ctx = context(devices);
-    let options = ExecOptions {
-        fault: Some(FaultInjection::DropCrossDeviceWait { copy: later }),
-        ..ExecOptions::default()
-    };
-    let err = Executor::new(&ctx, plan, builtin_kernels(), options)
-        .err()
-        .unwrap();
+    let options =
+        ExecOptions { fault: Some(FaultInjection::DropCrossDeviceWait { copy: later }), ..ExecOptions::default() };
+    let err = Executor::new(&ctx, plan, builtin_kernels(), options).err().unwrap();
     assert!(matches!(err, BackendError::FaultInjection(_)), "{err}");
 }
 
@@ -186,22 +142,13 @@ fn timestamps_are_ordered_and_trace_lists_every_pass() {
             }
             // One queue per device: intervals follow each other.
             for pair in events.windows(2) {
-                assert!(
-                    pair[0].end_ns <= pair[1].start_ns,
-                    "{:?} overlaps {:?}",
-                    pair[0],
-                    pair[1]
-                );
+                assert!(pair[0].end_ns <= pair[1].start_ns, "{:?} overlaps {:?}", pair[0], pair[1]);
             }
         }
         for stats in &report.devices {
             assert!(stats.busy_fraction > 0.0 && stats.busy_fraction <= 1.0 + 1e-9);
         }
-        let passes = report
-            .events
-            .iter()
-            .filter(|e| e.kind == EventKind::Pass)
-            .count();
+        let passes = report.events.iter().filter(|e| e.kind == EventKind::Pass).count();
         assert_eq!(passes, plan.passes.len());
     }
     let trace = chrome_trace(&reports, &ctx.device_infos());
@@ -209,21 +156,12 @@ fn timestamps_are_ordered_and_trace_lists_every_pass() {
     let parsed: serde_json::Value = serde_json::from_str(&text).unwrap();
     let events = parsed["traceEvents"].as_array().unwrap();
     for (i, pass) in plan.passes.iter().enumerate() {
-        let listed = events.iter().filter(|e| {
-            e["ph"] == "X" && e["name"] == pass.name.as_str() && e["args"]["index"] == i
-        });
-        assert_eq!(
-            listed.count(),
-            reports.len(),
-            "pass instance {i} ({})",
-            pass.name
-        );
+        let listed =
+            events.iter().filter(|e| e["ph"] == "X" && e["name"] == pass.name.as_str() && e["args"]["index"] == i);
+        assert_eq!(listed.count(), reports.len(), "pass instance {i} ({})", pass.name);
     }
     for e in events.iter().filter(|e| e["ph"] == "X") {
-        assert_eq!(
-            e["tid"].as_u64().unwrap() as usize,
-            demo_tid_check(&plan, e)
-        );
+        assert_eq!(e["tid"].as_u64().unwrap() as usize, demo_tid_check(&plan, e));
     }
     drop(exec);
     ctx.check_validation().unwrap();
@@ -244,21 +182,12 @@ fn frames_reuse_recorded_command_buffers() {
     let devices = 2;
     let ctx = context(devices);
     let (plan, _) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
-    let mut exec = Executor::new(
-        &ctx,
-        plan.clone(),
-        builtin_kernels(),
-        ExecOptions::default(),
-    )
-    .unwrap();
+    let mut exec = Executor::new(&ctx, plan.clone(), builtin_kernels(), ExecOptions::default()).unwrap();
     for _ in 0..5 {
         exec.run_frame().unwrap();
     }
     assert_eq!(exec.recordings(), 1);
-    assert!(
-        !exec.set_plan(plan).unwrap(),
-        "same plan must not re-record"
-    );
+    assert!(!exec.set_plan(plan).unwrap(), "same plan must not re-record");
     assert_eq!(exec.recordings(), 1);
     let (other, _) = reprojection_demo(VIEWS + 1, devices, SIZE, SIZE);
     assert!(exec.set_plan(other).unwrap());

@@ -11,6 +11,10 @@
 // Number of images on this device; the backend specialises it per plan.
 layout(constant_id = 0) const uint IMAGE_COUNT = 1;
 layout(set = 0, binding = 0) uniform image2D images[IMAGE_COUNT];
+// The same indices for integer images (hole masks, ids). Slot i of `images` holds image i if it
+// is a float image, and slot i of `uimages` holds it if it is R32_UINT; the other array has a
+// never-read 1x1 placeholder there.
+layout(set = 0, binding = 2, r32ui) uniform uimage2D uimages[IMAGE_COUNT];
 
 // Per frame-in-flight constants, written by the host before each submission, so that recorded
 // command buffers stay valid from frame to frame.
