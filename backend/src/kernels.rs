@@ -26,14 +26,28 @@ impl PassKernel for FillKernel {
 }
 
 /// Reprojection-shaped gather (`shaders/shift_blend.comp`): `writes[0] = 0.5 * reads[0] +
-/// 0.5 * reads[1]` shifted by [`shift_of_view`] columns; `reads[1]` normally belongs to another
-/// view, which is what makes the planner insert cross-device copies.
+/// 0.5 * reads[1]` shifted by [`shift_of_view`] columns. `reads[1]` is the first source view's
+/// image (the graph's `read_sources`), which is what makes the planner insert cross-device
+/// copies; further source reads are declared but not sampled. A view without sources (a source
+/// view) blends with itself.
 pub struct ShiftBlendKernel;
 
 impl PassKernel for ShiftBlendKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "shift_blend", 2, 1)?;
-        let (own, other) = (pass.reads[0].resource, pass.reads[1].resource);
+        if pass.reads.is_empty() || pass.writes.len() != 1 {
+            return Err(BackendError::KernelMisuse {
+                kernel: "shift_blend".into(),
+                instance: index,
+                detail: format!(
+                    "expects at least 1 read and 1 write, got {} and {}",
+                    pass.reads.len(),
+                    pass.writes.len()
+                ),
+            });
+        }
+        let dst = pass.writes[0].resource;
+        let own = pass.reads[0].resource;
+        let other = pass.reads.get(1).unwrap_or(&pass.reads[0]).resource;
         let width = rec.resource(dst).width;
         let params = PassParams {
             dst: rec.image(dst)?,
