@@ -106,7 +106,9 @@ fn both_schemes_really_copy_between_devices() {
                 plan.copies.iter().any(|c| c.rows.len() < SIZE),
                 "{scheme:?}/{devices}: expected band copies"
             );
-            assert!(schedule.gather_copies().count() > 0, "{scheme:?}/{devices}");
+            // Fine-sources finishes every view on device 0; fine-all gathers the bands there.
+            let gathers = schedule.gather_copies().count();
+            assert_eq!(gathers > 0, scheme == Scheme::FineAll, "{scheme:?}/{devices}");
         }
     }
 }
