@@ -102,10 +102,7 @@ fn both_schemes_really_copy_between_devices() {
             let (schedule, _) = demo_schedule(scheme, devices);
             let plan = Plan::from_schedule(&schedule).unwrap();
             plan.validate(devices as usize).unwrap();
-            assert!(
-                plan.copies.iter().any(|c| c.rows.len() < SIZE),
-                "{scheme:?}/{devices}: expected band copies"
-            );
+            assert!(plan.copies.iter().any(|c| c.rows.len() < SIZE), "{scheme:?}/{devices}: expected band copies");
             // Fine-sources finishes every view on device 0; fine-all gathers the bands there.
             let gathers = schedule.gather_copies().count();
             assert_eq!(gathers > 0, scheme == Scheme::FineAll, "{scheme:?}/{devices}");
