@@ -193,7 +193,7 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         println!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version);
     }
     println!(
-        "copy {} MiB device 0 -> 1, {} chunk(s): median {:.2} GB/s, best {:.2} GB/s (D->H alone {:.2}, H->D alone {:.2})",
+        "copy {} MiB device 0 -> 1, {} chunk(s): median {:.2} GB/s, best {:.2} GB/s (while copying: D->H {:.2}, H->D {:.2})",
         args.size_mib,
         copy.chunks,
         copy.median_gb_per_s,

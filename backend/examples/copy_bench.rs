@@ -71,7 +71,7 @@ fn run() -> Result<(), String> {
     );
     println!("  end-to-end  median {:.2} GB/s, best {:.2} GB/s", copy.median_gb_per_s, copy.best_gb_per_s);
     println!(
-        "  device->host {:.2} GB/s, host->device {:.2} GB/s (medians, each side alone)",
+        "  while copying: device->host {:.2} GB/s, host->device {:.2} GB/s (medians of bytes / busy time)",
         copy.median_device_to_host_gb_per_s, copy.median_host_to_device_gb_per_s
     );
     let overhead = executor_overhead(&desc, &args.overhead).map_err(|e| e.to_string())?;

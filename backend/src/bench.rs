@@ -37,10 +37,14 @@ pub struct CopyFrame {
     pub frame: u64,
     /// First copy-out start to last copy-in end: what a consumer waits for.
     pub end_to_end_ns: u64,
-    /// Producer side only: first copy-out start to last copy-out end.
-    pub device_to_host_ns: u64,
-    /// Consumer side only: first copy-in start to last copy-in end.
-    pub host_to_device_ns: u64,
+    /// Producer side: first copy-out start to last copy-out end.
+    pub device_to_host_span_ns: u64,
+    /// Consumer side: first copy-in start to last copy-in end (includes waits for chunks).
+    pub host_to_device_span_ns: u64,
+    /// Sum of the copy-out chunk durations (the device→host transfer rate without gaps).
+    pub device_to_host_busy_ns: u64,
+    /// Sum of the copy-in chunk durations.
+    pub host_to_device_busy_ns: u64,
     /// Time both directions were running at once (0 = not pipelined).
     pub overlap_ns: u64,
 }
@@ -56,7 +60,9 @@ pub struct CopyBenchResult {
     /// Median over frames of bytes / end_to_end (GB/s, 1 GB = 1e9 bytes).
     pub median_gb_per_s: f64,
     pub best_gb_per_s: f64,
+    /// Median rate of the device→host copies while they run (bytes / busy time).
     pub median_device_to_host_gb_per_s: f64,
+    /// Median rate of the host→device copies while they run.
     pub median_host_to_device_gb_per_s: f64,
     /// The measured frames' full reports (for `--trace`).
     #[serde(skip)]
@@ -109,11 +115,14 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         .map(|r| {
             let (out_start, out_end) = span(r, EventKind::CopyOut);
             let (in_start, in_end) = span(r, EventKind::CopyIn);
+            let busy = |kind| r.events.iter().filter(|e| e.kind == kind).map(|e| e.duration_ns()).sum();
             CopyFrame {
                 frame: r.frame,
                 end_to_end_ns: in_end.saturating_sub(out_start),
-                device_to_host_ns: out_end.saturating_sub(out_start),
-                host_to_device_ns: in_end.saturating_sub(in_start),
+                device_to_host_span_ns: out_end.saturating_sub(out_start),
+                host_to_device_span_ns: in_end.saturating_sub(in_start),
+                device_to_host_busy_ns: busy(EventKind::CopyOut),
+                host_to_device_busy_ns: busy(EventKind::CopyIn),
                 overlap_ns: out_end.min(in_end).saturating_sub(out_start.max(in_start)),
             }
         })
@@ -126,8 +135,8 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         chunks,
         median_gb_per_s: rate(|f| f.end_to_end_ns),
         best_gb_per_s: frames.iter().map(|f| gb_per_s(bytes, f.end_to_end_ns)).fold(0.0, f64::max),
-        median_device_to_host_gb_per_s: rate(|f| f.device_to_host_ns),
-        median_host_to_device_gb_per_s: rate(|f| f.host_to_device_ns),
+        median_device_to_host_gb_per_s: rate(|f| f.device_to_host_busy_ns),
+        median_host_to_device_gb_per_s: rate(|f| f.host_to_device_busy_ns),
         frames,
         reports,
     })
