@@ -3,7 +3,7 @@
 //! passes crate and plug in through the same [`PassKernel`] trait.
 
 use crate::error::{BackendError, Result};
-use crate::plan::PlanPass;
+use crate::plan::{PlanPass, TexelFormat};
 use crate::recorder::{KernelRegistry, PassKernel, PassParams, Recorder};
 
 /// Writes the deterministic pattern of `shaders/fill.comp` into `writes[0]` over the instance's rows.
@@ -63,6 +63,36 @@ impl PassKernel for ShiftBlendKernel {
     }
 }
 
+/// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`shaders/fill_mask.comp`).
+pub struct FillMaskKernel;
+
+impl PassKernel for FillMaskKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "fill_mask", 0, 1)?;
+        if rec.resource(dst).format != TexelFormat::R32Uint {
+            return Err(BackendError::KernelMisuse {
+                kernel: "fill_mask".into(),
+                instance: index,
+                detail: format!("writes an R32Uint image, not {:?}", rec.resource(dst).format),
+            });
+        }
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.dispatch_rows("fill_mask", params)
+    }
+}
+
+/// CPU value of `fill_mask.comp` at pixel (x, y) of `view`.
+pub fn reference_mask(x: u32, y: u32, view: u32) -> u32 {
+    hash3(x, y, view)
+}
+
 /// Adds (frame index + 1) to `writes[0]` in place (`shaders/accumulate.comp`); `reads[0]` is
 /// the same resource's previous version (history).
 pub struct AccumulateKernel;
@@ -105,13 +135,14 @@ fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, wr
     Ok(pass.writes[0].resource)
 }
 
-/// Registry with the built-in kernels under the pass names `fill`, `shift_blend` and
-/// `accumulate`.
+/// Registry with the built-in kernels under the pass names `fill`, `shift_blend`,
+/// `accumulate` and `fill_mask`.
 pub fn builtin_kernels() -> KernelRegistry {
     KernelRegistry::new()
         .with("fill", FillKernel)
         .with("shift_blend", ShiftBlendKernel)
         .with("accumulate", AccumulateKernel)
+        .with("fill_mask", FillMaskKernel)
 }
 
 /// Column shift used by `shift_blend` for `view`.

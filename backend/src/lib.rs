@@ -7,6 +7,31 @@
 //!   semaphores, moves cross-device copies through host memory imported into both devices, and
 //!   times every pass instance and copy ([`FrameReport`], [`chrome_trace`]).
 //! * [`PassKernel`] / [`KernelRegistry`]: how passes plug their GPU work in.
+//!
+//! ```
+//! use parallax_backend::*;
+//! use parallax_backend::demo::reprojection_demo;
+//! use parallax_backend::kernels::builtin_kernels;
+//!
+//! // Two logical devices on one physical device (lavapipe in CI), validation on.
+//! let context = Context::new(&ContextDesc {
+//!     selection: DeviceSelection::FakeDevices(2),
+//!     validation: Validation::Core,
+//! })?;
+//! let (plan, ids) = reprojection_demo(3, 2, 32, 32); // or Plan::from_schedule(&schedule)?
+//! let mut executor = Executor::new(&context, plan, builtin_kernels(), ExecOptions::default())?;
+//! for _ in 0..3 {
+//!     executor.run_frame()?; // no re-recording, up to 2 frames in flight
+//! }
+//! let view0 = executor.read_image(0, ids.output[0])?; // gathered on device 0
+//! assert_eq!(view0.len(), 32 * 32 * 16);
+//! let reports = executor.take_reports(); // GPU timestamps of every pass and copy
+//! let trace = chrome_trace(&reports, &context.device_infos());
+//! assert!(trace["traceEvents"].as_array().unwrap().len() > 3);
+//! drop(executor);
+//! context.check_validation()?;
+//! # Ok::<(), BackendError>(())
+//! ```
 
 mod context;
 mod device;

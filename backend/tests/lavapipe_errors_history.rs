@@ -113,3 +113,67 @@ fn plan_errors_are_reported_before_any_gpu_work() {
     let err = Executor::new(&one, history_plan(8), builtin_kernels(), ExecOptions::default()).err().unwrap();
     assert!(matches!(err, BackendError::Plan(PlanError::DeviceCount { plan: 2, context: 1 })), "{err}");
 }
+
+#[test]
+fn integer_images_go_through_the_uint_binding_and_across_devices() {
+    use parallax_backend::kernels::{reference_fill, reference_mask};
+    let size = 16;
+    let all = Rows::new(0, size);
+    let image = |name: &str, format| PlanResource { name: name.into(), view: 0, width: size, height: size, format };
+    let write = |resource| PlanAccess { resource, version: 1, rows: all };
+    // Device 1 writes a uint mask and a float image side by side (indices interleave the two
+    // bindings); both travel to device 0.
+    let plan = Plan {
+        resources: vec![image("mask", TexelFormat::R32Uint), image("radiance", TexelFormat::Rgba32Float)],
+        passes: vec![
+            PlanPass {
+                name: "fill_mask".into(),
+                view: 0,
+                rows: all,
+                device: 1,
+                reads: vec![],
+                history_reads: vec![],
+                writes: vec![write(0)],
+            },
+            PlanPass {
+                name: "fill".into(),
+                view: 0,
+                rows: all,
+                device: 1,
+                reads: vec![],
+                history_reads: vec![],
+                writes: vec![write(1)],
+            },
+        ],
+        copies: vec![
+            PlanCopy { resource: 0, version: 1, rows: all, from: 1, to: 0 },
+            PlanCopy { resource: 1, version: 1, rows: all, from: 1, to: 0 },
+        ],
+        devices: vec![
+            vec![PlanOp::Wait(0), PlanOp::CopyIn(0), PlanOp::Wait(1), PlanOp::CopyIn(1)],
+            vec![
+                PlanOp::Pass(0),
+                PlanOp::Pass(1),
+                PlanOp::CopyOut(0),
+                PlanOp::Signal(0),
+                PlanOp::CopyOut(1),
+                PlanOp::Signal(1),
+            ],
+        ],
+    };
+    let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
+    let mut exec = Executor::new(&ctx, plan, builtin_kernels(), ExecOptions::default()).unwrap();
+    exec.run_frame().unwrap();
+    let mask = exec.read_image(0, 0).unwrap();
+    let radiance = exec.read_image(0, 1).unwrap();
+    let words = |b: &[u8]| b.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>();
+    let mask: Vec<u32> = words(&mask).into_iter().map(u32::from_le_bytes).collect();
+    let radiance: Vec<f32> = words(&radiance).into_iter().map(f32::from_le_bytes).collect();
+    let expected_mask: Vec<u32> = (0..size).flat_map(|y| (0..size).map(move |x| reference_mask(x, y, 0))).collect();
+    let expected_radiance: Vec<f32> =
+        (0..size).flat_map(|y| (0..size).flat_map(move |x| reference_fill(x, y, 0))).collect();
+    assert_eq!(mask, expected_mask);
+    assert_eq!(radiance, expected_radiance);
+    drop(exec);
+    ctx.check_validation().unwrap();
+}
