@@ -300,6 +300,11 @@ impl Device {
         unsafe { self.raw.signal_semaphore(&info) }.vk("vkSignalSemaphore")
     }
 
+    /// Current value of a timeline semaphore.
+    pub(crate) fn timeline_value(&self, semaphore: vk::Semaphore) -> Result<u64> {
+        unsafe { self.raw.get_semaphore_counter_value(semaphore) }.vk("vkGetSemaphoreCounterValue")
+    }
+
     /// Waits until the device is idle (teardown, tests).
     pub fn wait_idle(&self) -> Result<()> {
         unsafe { self.raw.device_wait_idle() }.vk("vkDeviceWaitIdle")

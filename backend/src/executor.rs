@@ -20,7 +20,7 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use crate::context::Context;
-use crate::device::{ClockCalibration, Device, host_now_ns};
+use crate::device::{CalibrationMethod, ClockCalibration, Device, host_now_ns};
 use crate::error::{BackendError, Result, VkContext};
 use crate::instance::Instance;
 use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
@@ -423,6 +423,10 @@ impl Executor {
                 )
             }
             .vk("vkGetQueryPoolResults")?;
+            // Calibrated timestamps are cheap: re-sample so that clock drift never accumulates.
+            if self.calibration[d].method == CalibrationMethod::CalibratedTimestamps {
+                self.calibration[d] = state.device.clock_offset()?;
+            }
             let offset = self.calibration[d].offset_ns;
             let to_host = |t: u64| (state.device.ticks_to_ns(t) + offset).max(0.0) as u64;
             for (t, label) in state.timers.iter().enumerate() {
@@ -449,6 +453,27 @@ impl Executor {
             events,
         ));
         Ok(())
+    }
+
+    /// After a failure (a relay thread died, a frame timed out), submissions may wait on values
+    /// nobody will signal, and waiting for the devices to go idle would hang. Signals every
+    /// cross-device semaphore to the last value any submitted frame waits for, so the queues
+    /// drain (with meaningless contents) and teardown can proceed.
+    fn unblock_device_waits(&mut self) {
+        self.relay = None;
+        let Some(last) = self.next_frame.checked_sub(1) else {
+            return;
+        };
+        let local = last.saturating_sub(self.plan_epoch);
+        for (c, copy) in self.plan.copies.iter().enumerate() {
+            let chunks = self.chunks[c].len();
+            let value = ready_value(local, chunks, chunks.saturating_sub(1) as u32);
+            raise_timeline(&self.devices[copy.to], self.ready[c], value);
+        }
+        if let Some(gate) = &self.gate {
+            raise_timeline(&self.devices[gate.producer], gate.semaphore, local + 1);
+        }
+        self.in_flight.clear();
     }
 
     /// Waits for every frame in flight (their reports become available).
@@ -529,13 +554,23 @@ impl Drop for Executor {
     fn drop(&mut self) {
         // Frames in flight must end before their memory and semaphores go; relay threads
         // before the semaphores they wait on.
-        let _ = self.finish();
+        if self.finish().is_err() {
+            self.unblock_device_waits();
+        }
         for device in &self.devices {
             let _ = device.wait_idle();
         }
         self.relay = None;
         self.staging = None;
         self.states.clear();
+    }
+}
+
+/// Host-signals `semaphore` to `value` unless it is already there (a timeline never goes back).
+/// Errors are ignored: this only runs while tearing down after a failure.
+fn raise_timeline(device: &Device, semaphore: vk::Semaphore, value: u64) {
+    if device.timeline_value(semaphore).is_ok_and(|current| current < value) {
+        let _ = device.signal_timeline(semaphore, value);
     }
 }
 
