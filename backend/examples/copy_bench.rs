@@ -5,8 +5,10 @@
 //! cargo run --release -p parallax-backend --example copy_bench -- --fake-devices 2 --size-mib 16
 //! ```
 //! Options: `--gpus N` | `--fake-devices N` (default: 2 fake devices), `--size-mib M` (64),
-//! `--chunk-mib C` (8; 0 = one chunk), `--frames F` (30), `--json FILE`, `--trace FILE`
-//! (Chrome trace of the copy frames). `PARALLAX_VALIDATION=1` turns validation on.
+//! `--chunk-mib C` (8; 0 = one chunk), `--frames F` (30), `--copy-queue main|separate|both`
+//! (both: measure copies on the main queue, then on a transfer-only queue), `--json FILE`,
+//! `--trace FILE` (Chrome trace of the last copy run). `PARALLAX_VALIDATION=1` turns validation
+//! on.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -16,6 +18,8 @@ use parallax_backend::{ContextDesc, DeviceSelection, chrome_trace, write_json};
 
 struct Args {
     selection: DeviceSelection,
+    /// Copy-queue modes to measure (false = main queue, true = separate copy queue).
+    queue_modes: Vec<bool>,
     copy: CopyBenchOptions,
     overhead: OverheadBenchOptions,
     json: Option<PathBuf>,
@@ -25,6 +29,7 @@ struct Args {
 fn parse() -> Result<Args, String> {
     let mut args = Args {
         selection: DeviceSelection::FakeDevices(2),
+        queue_modes: vec![false, true],
         copy: CopyBenchOptions::default(),
         overhead: OverheadBenchOptions::default(),
         json: None,
@@ -44,6 +49,14 @@ fn parse() -> Result<Args, String> {
             }
             "--frames" => args.copy.frames = number(value()?)? as usize,
             "--passes-per-device" => args.overhead.passes_per_device = number(value()?)? as u32,
+            "--copy-queue" => {
+                args.queue_modes = match value()?.as_str() {
+                    "main" => vec![false],
+                    "separate" => vec![true],
+                    "both" => vec![false, true],
+                    other => return Err(format!("--copy-queue {other}: expected main, separate or both")),
+                }
+            }
             "--json" => args.json = Some(value()?.into()),
             "--trace" => args.trace = Some(value()?.into()),
             other => return Err(format!("unknown argument {other}")),
@@ -58,22 +71,34 @@ fn parse() -> Result<Args, String> {
 fn run() -> Result<(), String> {
     let args = parse()?;
     let desc = ContextDesc::from_env(args.selection);
-    let copy = copy_bandwidth(&desc, &args.copy).map_err(|e| e.to_string())?;
-    for d in &copy.devices {
-        println!("device {}: {} ({}, {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version);
+    let mut copies = Vec::new();
+    for &separate in &args.queue_modes {
+        let options = CopyBenchOptions { separate_copy_queue: separate, ..args.copy.clone() };
+        let copy = copy_bandwidth(&desc, &options).map_err(|e| e.to_string())?;
+        if copies.is_empty() {
+            for d in &copy.devices {
+                println!("device {}: {} ({}, {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version);
+            }
+        }
+        let queue = match (separate, copy.devices_with_copy_queue.iter().all(|&q| q)) {
+            (false, _) => "main queue",
+            (true, true) => "transfer-only queue",
+            (true, false) => "separate submissions (no transfer-only queue: main queue)",
+        };
+        println!(
+            "copy {:.1} MiB device 0 -> device 1 in {} chunk(s) of <= {:.1} MiB on the {queue}, {} frames:",
+            copy.bytes as f64 / (1 << 20) as f64,
+            copy.chunks,
+            (copy.chunk_bytes.min(copy.bytes)) as f64 / (1 << 20) as f64,
+            copy.frames.len()
+        );
+        println!("  end-to-end  median {:.2} GB/s, best {:.2} GB/s", copy.median_gb_per_s, copy.best_gb_per_s);
+        println!(
+            "  while copying: device->host {:.2} GB/s, host->device {:.2} GB/s (medians of bytes / busy time)",
+            copy.median_device_to_host_gb_per_s, copy.median_host_to_device_gb_per_s
+        );
+        copies.push(copy);
     }
-    println!(
-        "copy {:.1} MiB device 0 -> device 1 in {} chunk(s) of <= {:.1} MiB, {} frames:",
-        copy.bytes as f64 / (1 << 20) as f64,
-        copy.chunks,
-        (copy.chunk_bytes.min(copy.bytes)) as f64 / (1 << 20) as f64,
-        copy.frames.len()
-    );
-    println!("  end-to-end  median {:.2} GB/s, best {:.2} GB/s", copy.median_gb_per_s, copy.best_gb_per_s);
-    println!(
-        "  while copying: device->host {:.2} GB/s, host->device {:.2} GB/s (medians of bytes / busy time)",
-        copy.median_device_to_host_gb_per_s, copy.median_host_to_device_gb_per_s
-    );
     let overhead = executor_overhead(&desc, &args.overhead).map_err(|e| e.to_string())?;
     println!(
         "executor: {} passes/frame on {} device(s): {:.2} µs CPU per submitted pass ({:.1} µs per frame), recording {:.2} µs per pass (once), frame wall {:.1} µs",
@@ -85,11 +110,12 @@ fn run() -> Result<(), String> {
         overhead.median_frame_wall_us
     );
     if let Some(path) = &args.json {
-        let value = serde_json::json!({ "copy": &copy, "overhead": &overhead });
+        let value = serde_json::json!({ "copy": &copies, "overhead": &overhead });
         write_json(path, &value).map_err(|e| e.to_string())?;
     }
     if let Some(path) = &args.trace {
-        write_json(path, &chrome_trace(&copy.reports, &copy.devices)).map_err(|e| e.to_string())?;
+        let last = copies.last().expect("at least one copy run");
+        write_json(path, &chrome_trace(&last.reports, &last.devices)).map_err(|e| e.to_string())?;
     }
     Ok(())
 }

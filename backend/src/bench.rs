@@ -23,11 +23,20 @@ pub struct CopyBenchOptions {
     /// Frames run before measuring (first-touch of host pages, pipeline creation).
     pub warmup: usize,
     pub frames_in_flight: usize,
+    /// Copies on a transfer-only queue where the devices have one.
+    pub separate_copy_queue: bool,
 }
 
 impl Default for CopyBenchOptions {
     fn default() -> Self {
-        Self { bytes: 64 << 20, chunk_bytes: 8 << 20, frames: 30, warmup: 3, frames_in_flight: 2 }
+        Self {
+            bytes: 64 << 20,
+            chunk_bytes: 8 << 20,
+            frames: 30,
+            warmup: 3,
+            frames_in_flight: 2,
+            separate_copy_queue: false,
+        }
     }
 }
 
@@ -56,6 +65,10 @@ pub struct CopyBenchResult {
     pub bytes: u64,
     pub chunk_bytes: u64,
     pub chunks: usize,
+    /// Whether copies were submitted to a queue of their own, and whether each device really
+    /// has a transfer-only queue (if not, that queue is the main queue).
+    pub separate_copy_queue: bool,
+    pub devices_with_copy_queue: Vec<bool>,
     pub frames: Vec<CopyFrame>,
     /// Median over frames of bytes / end_to_end (GB/s, 1 GB = 1e9 bytes).
     pub median_gb_per_s: f64,
@@ -101,7 +114,12 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         &context,
         plan,
         builtin_kernels(),
-        ExecOptions { frames_in_flight: options.frames_in_flight, chunk_bytes: options.chunk_bytes, fault: None },
+        ExecOptions {
+            frames_in_flight: options.frames_in_flight,
+            chunk_bytes: options.chunk_bytes,
+            separate_copy_queue: options.separate_copy_queue,
+            fault: None,
+        },
     )?;
     for _ in 0..options.warmup + options.frames {
         executor.run_frame()?;
@@ -133,6 +151,8 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         bytes,
         chunk_bytes: options.chunk_bytes,
         chunks,
+        separate_copy_queue: options.separate_copy_queue,
+        devices_with_copy_queue: context.devices().iter().map(|d| d.has_copy_queue()).collect(),
         median_gb_per_s: rate(|f| f.end_to_end_ns),
         best_gb_per_s: frames.iter().map(|f| gb_per_s(bytes, f.end_to_end_ns)).fold(0.0, f64::max),
         median_device_to_host_gb_per_s: rate(|f| f.device_to_host_busy_ns),

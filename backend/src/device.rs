@@ -45,6 +45,11 @@ pub struct Device {
     pub(crate) raw: ash::Device,
     pub(crate) queue_family: u32,
     queue: Mutex<vk::Queue>,
+    /// A transfer-only queue (the DMA engines of a GPU), when the device has one with
+    /// timestamps: `(family, queue)`.
+    copy_queue: Option<(u32, Mutex<vk::Queue>)>,
+    /// Valid timestamp bits of the main and of the copy queue family.
+    pub(crate) timestamp_bits: [u32; 2],
     allocator: Mutex<Option<Allocator>>,
     /// Pool for one-shot command buffers (init, readback); the executor has its own pools.
     one_shot_pool: Mutex<vk::CommandPool>,
@@ -53,7 +58,15 @@ pub struct Device {
     calibrated: Option<CalibratedFns>,
     /// Nanoseconds per timestamp tick.
     pub(crate) timestamp_period: f64,
-    pub(crate) timestamp_mask: u64,
+}
+
+/// Which queue of a device a submission goes to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum QueueKind {
+    /// Compute (and graphics) queue: passes, and copies unless a copy queue is used.
+    Main,
+    /// Transfer-only queue, if the device has one; otherwise the main queue.
+    Copy,
 }
 
 impl Device {
@@ -143,17 +156,30 @@ impl Device {
             .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0)
             .ok_or_else(|| missing("a compute queue with timestamps"))?;
         let valid_bits = families[queue_family].timestamp_valid_bits;
+        // Transfer-only families are the copy engines on discrete GPUs; lavapipe has none.
+        let copy_family = families.iter().position(|f| {
+            f.queue_flags.contains(vk::QueueFlags::TRANSFER)
+                && !f.queue_flags.intersects(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE)
+                && f.timestamp_valid_bits > 0
+                && f.queue_count > 0
+        });
+        let copy_bits = copy_family.map_or(valid_bits, |f| families[f].timestamp_valid_bits);
+        if f12.host_query_reset == vk::FALSE {
+            return Err(missing("hostQueryReset"));
+        }
 
         let priorities = [1.0f32];
-        let queue_infos = [vk::DeviceQueueCreateInfo::default()
-            .queue_family_index(queue_family as u32)
-            .queue_priorities(&priorities)];
+        let mut queue_infos = vec![
+            vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family as u32).queue_priorities(&priorities),
+        ];
+        if let Some(f) = copy_family {
+            queue_infos
+                .push(vk::DeviceQueueCreateInfo::default().queue_family_index(f as u32).queue_priorities(&priorities));
+        }
         let features = vk::PhysicalDeviceFeatures::default()
             .shader_storage_image_read_without_format(true)
             .shader_storage_image_write_without_format(true);
-        let mut e12 = vk::PhysicalDeviceVulkan12Features::default()
-            .timeline_semaphore(true)
-            .host_query_reset(f12.host_query_reset == vk::TRUE);
+        let mut e12 = vk::PhysicalDeviceVulkan12Features::default().timeline_semaphore(true).host_query_reset(true);
         let mut e13 = vk::PhysicalDeviceVulkan13Features::default().synchronization2(true).maintenance4(true);
         let create_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_infos)
@@ -163,6 +189,7 @@ impl Device {
             .push_next(&mut e13);
         let raw = unsafe { raw_instance.create_device(physical, &create_info, None) }.vk("vkCreateDevice")?;
         let queue = unsafe { raw.get_device_queue(queue_family as u32, 0) };
+        let copy_queue = copy_family.map(|f| (f as u32, Mutex::new(unsafe { raw.get_device_queue(f as u32, 0) })));
 
         let allocator = Allocator::new(&AllocatorCreateDesc {
             instance: raw_instance.clone(),
@@ -220,13 +247,14 @@ impl Device {
             raw,
             queue_family: queue_family as u32,
             queue: Mutex::new(queue),
+            copy_queue,
+            timestamp_bits: [valid_bits, copy_bits],
             allocator: Mutex::new(Some(allocator)),
             one_shot_pool: Mutex::new(one_shot_pool),
             external_memory_host,
             min_host_pointer_alignment: host_props.min_imported_host_pointer_alignment.max(1),
             calibrated,
             timestamp_period: f64::from(props.limits.timestamp_period),
-            timestamp_mask: if valid_bits >= 64 { u64::MAX } else { (1u64 << valid_bits) - 1 },
         }))
     }
 
@@ -241,10 +269,41 @@ impl Device {
         f(guard.as_mut().expect("allocator lives until the device is dropped"))
     }
 
-    /// Submits to this device's only queue (queue access must be externally synchronised).
+    /// Submits to the main queue (queue access must be externally synchronised).
     pub(crate) fn submit(&self, submits: &[vk::SubmitInfo2<'_>], fence: vk::Fence) -> Result<()> {
-        let queue = self.queue.lock().unwrap_or_else(|p| p.into_inner());
+        self.submit_to(QueueKind::Main, submits, fence)
+    }
+
+    /// Submits to the queue of `kind` (the main queue if the device has no copy queue).
+    pub(crate) fn submit_to(&self, kind: QueueKind, submits: &[vk::SubmitInfo2<'_>], fence: vk::Fence) -> Result<()> {
+        let queue = match (&self.copy_queue, kind) {
+            (Some((_, q)), QueueKind::Copy) => q,
+            _ => &self.queue,
+        };
+        let queue = queue.lock().unwrap_or_else(|p| p.into_inner());
         unsafe { self.raw.queue_submit2(*queue, submits, fence) }.vk("vkQueueSubmit2")
+    }
+
+    /// Queue family of the queue `kind` resolves to.
+    pub(crate) fn family_of(&self, kind: QueueKind) -> u32 {
+        match (&self.copy_queue, kind) {
+            (Some((f, _)), QueueKind::Copy) => *f,
+            _ => self.queue_family,
+        }
+    }
+
+    /// Whether copies can go to a transfer-only queue of their own.
+    pub fn has_copy_queue(&self) -> bool {
+        self.copy_queue.is_some()
+    }
+
+    /// Distinct queue families resources must be shared between (CONCURRENT sharing when two).
+    pub(crate) fn families(&self) -> Vec<u32> {
+        let mut f = vec![self.queue_family];
+        if let Some((c, _)) = &self.copy_queue {
+            f.push(*c);
+        }
+        f
     }
 
     /// Records `record` into a fresh command buffer, submits it and waits for it. For set-up
@@ -310,9 +369,8 @@ impl Device {
         unsafe { self.raw.device_wait_idle() }.vk("vkDeviceWaitIdle")
     }
 
-    /// Offset that maps this device's timestamps (in ns) to host CLOCK_MONOTONIC ns:
-    /// `host_ns = gpu_ns + offset`. Uses calibrated timestamps when the device has them,
-    /// else a submitted timestamp bracketed by two host clock reads.
+    /// Pairs a device timestamp with host CLOCK_MONOTONIC time. Uses calibrated timestamps
+    /// when the device has them, else a submitted timestamp bracketed by two host clock reads.
     pub(crate) fn clock_offset(&self) -> Result<ClockCalibration> {
         if let Some(fns) = &self.calibrated {
             let infos = [
@@ -327,9 +385,9 @@ impl Device {
             }
             .vk("vkGetCalibratedTimestamps")?;
             let (ts, deviation) = sampled;
-            let gpu_ns = self.ticks_to_ns(ts[0]);
             return Ok(ClockCalibration {
-                offset_ns: ts[1] as f64 - gpu_ns,
+                reference_ticks: ts[0],
+                reference_host_ns: ts[1] as f64,
                 uncertainty_ns: deviation as f64,
                 method: CalibrationMethod::CalibratedTimestamps,
             });
@@ -360,17 +418,21 @@ impl Device {
         });
         unsafe { self.raw.destroy_query_pool(pool, None) };
         read?;
-        let host_mid = (before + after) as f64 / 2.0;
         Ok(ClockCalibration {
-            offset_ns: host_mid - self.ticks_to_ns(ticks[0]),
+            reference_ticks: ticks[0],
+            reference_host_ns: (before + after) as f64 / 2.0,
             uncertainty_ns: (after - before) as f64 / 2.0,
             method: CalibrationMethod::SubmitRoundTrip,
         })
     }
 
-    /// Converts raw timestamp ticks into nanoseconds of the device clock.
-    pub(crate) fn ticks_to_ns(&self, ticks: u64) -> f64 {
-        (ticks & self.timestamp_mask) as f64 * self.timestamp_period
+    /// Host CLOCK_MONOTONIC ns of a timestamp written on queue `kind`, through `calibration`.
+    ///
+    /// Timestamps of a family with fewer than 64 valid bits wrap; they are unwrapped around the
+    /// calibration's reference, which is sampled every frame, far closer than a wrap period
+    /// (2^32 ns ≈ 4.3 s for 32 bits).
+    pub(crate) fn timestamp_to_host_ns(&self, ticks: u64, kind: QueueKind, calibration: &ClockCalibration) -> u64 {
+        timestamp_to_host_ns(ticks, self.timestamp_bits[kind as usize], self.timestamp_period, calibration)
     }
 }
 
@@ -397,12 +459,28 @@ pub enum CalibrationMethod {
     SubmitRoundTrip,
 }
 
-/// Result of a clock calibration of one device.
+/// Result of a clock calibration of one device: a device timestamp and the host time it
+/// corresponds to.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct ClockCalibration {
-    pub offset_ns: f64,
+    pub reference_ticks: u64,
+    pub reference_host_ns: f64,
     pub uncertainty_ns: f64,
     pub method: CalibrationMethod,
+}
+
+/// Maps a timestamp with `bits` valid bits to host ns (see [`Device::timestamp_to_host_ns`]).
+fn timestamp_to_host_ns(ticks: u64, bits: u32, period_ns: f64, calibration: &ClockCalibration) -> u64 {
+    let bits = bits.clamp(1, 64);
+    let delta_ticks = if bits == 64 {
+        ticks.wrapping_sub(calibration.reference_ticks) as i64
+    } else {
+        let modulus = 1u64 << bits;
+        let d = ticks.wrapping_sub(calibration.reference_ticks) & (modulus - 1);
+        if d >= modulus / 2 { d as i64 - modulus as i64 } else { d as i64 }
+    };
+    let host = calibration.reference_host_ns + delta_ticks as f64 * period_ns;
+    host.max(0.0) as u64
 }
 
 /// Host CLOCK_MONOTONIC in nanoseconds: the common clock of every report and trace.
@@ -411,4 +489,35 @@ pub fn host_now_ns() -> u64 {
     // clock_gettime(CLOCK_MONOTONIC) cannot fail with a valid pointer.
     unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn calibration(reference_ticks: u64) -> ClockCalibration {
+        ClockCalibration {
+            reference_ticks,
+            reference_host_ns: 1_000_000_000.0,
+            uncertainty_ns: 0.0,
+            method: CalibrationMethod::CalibratedTimestamps,
+        }
+    }
+
+    #[test]
+    fn full_width_timestamps_map_linearly() {
+        let c = calibration(5_000);
+        assert_eq!(timestamp_to_host_ns(5_500, 64, 1.0, &c), 1_000_000_500);
+        assert_eq!(timestamp_to_host_ns(4_000, 64, 2.0, &c), 999_998_000);
+    }
+
+    #[test]
+    fn narrow_timestamps_unwrap_around_the_reference() {
+        // Reference just below a 32-bit wrap; an event just after the wrap reads as a small value.
+        let reference = (7u64 << 32) + (1 << 32) - 100;
+        let c = calibration(reference);
+        assert_eq!(timestamp_to_host_ns(50, 32, 1.0, &c), 1_000_000_150);
+        // An event before the reference, without a wrap in between.
+        assert_eq!(timestamp_to_host_ns((1 << 32) - 300, 32, 1.0, &c), 999_999_800);
+    }
 }

@@ -20,7 +20,7 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use crate::context::Context;
-use crate::device::{CalibrationMethod, ClockCalibration, Device, host_now_ns};
+use crate::device::{CalibrationMethod, ClockCalibration, Device, QueueKind, host_now_ns};
 use crate::error::{BackendError, Result, VkContext};
 use crate::instance::Instance;
 use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
@@ -56,12 +56,17 @@ pub struct ExecOptions {
     /// Copies larger than this are split into row bands submitted separately, so that the
     /// consumer's upload of one band overlaps the producer's download of the next.
     pub chunk_bytes: u64,
+    /// Submit copies to a transfer-only queue (a GPU's copy engines) where the device has one.
+    /// Copies then form submissions of their own, ordered against the passes through the
+    /// device's progress timeline. On a device without such a queue the same submissions go to
+    /// the main queue (which is how lavapipe tests this path).
+    pub separate_copy_queue: bool,
     pub fault: Option<FaultInjection>,
 }
 
 impl Default for ExecOptions {
     fn default() -> Self {
-        Self { frames_in_flight: 2, chunk_bytes: 8 << 20, fault: None }
+        Self { frames_in_flight: 2, chunk_bytes: 8 << 20, separate_copy_queue: false, fault: None }
     }
 }
 
@@ -77,7 +82,8 @@ struct DeviceState {
     images: HashMap<usize, Image>,
     image_slots: HashMap<usize, u32>,
     bindless: Bindless,
-    command_pool: vk::CommandPool,
+    /// Command pools of the main and of the copy queue family.
+    command_pools: [vk::CommandPool; 2],
     progress: vk::Semaphore,
     /// Ready timelines of the copies this device consumes.
     ready: HashMap<usize, vk::Semaphore>,
@@ -98,7 +104,9 @@ impl Drop for DeviceState {
                     raw.destroy_query_pool(slot.query_pool, None);
                 }
             }
-            raw.destroy_command_pool(self.command_pool, None);
+            for pool in self.command_pools {
+                raw.destroy_command_pool(pool, None);
+            }
             raw.destroy_semaphore(self.progress, None);
             for (_, s) in self.ready.drain() {
                 raw.destroy_semaphore(s, None);
@@ -220,7 +228,7 @@ impl Executor {
         let dropped_wait = self.options.fault.map(|FaultInjection::DropCrossDeviceWait { copy }| copy);
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
-            let segments = segment_device(&plan, d, &chunks, dropped_wait);
+            let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
             states.push(create_device_state(device, &plan, d, segments, slots, &mut kept)?);
         }
         drop(kept);
@@ -264,13 +272,12 @@ impl Executor {
                     image_slots: &state.image_slots,
                     slot,
                     query_pool: state.slots[slot].query_pool,
-                    query_count: state.timers.len() as u32 * 2,
                     staging,
                 };
                 let mut first_timer = 0u32;
                 for (j, segment) in state.segments.iter().enumerate() {
                     let cb = state.slots[slot].command_buffers[j];
-                    record_segment(&mut ctx, cb, segment, j, first_timer)?;
+                    record_segment(&mut ctx, cb, segment, first_timer)?;
                     first_timer += segment.items.len() as u32;
                 }
             }
@@ -286,8 +293,7 @@ impl Executor {
         if self.in_flight.len() >= self.options.frames_in_flight {
             self.retire_oldest()?;
         }
-        let relay = self.relay.as_ref().expect("relay exists after build");
-        relay.check()?;
+        self.relay.as_ref().expect("relay exists after build").check()?;
         let submit_start_ns = host_now_ns();
         let cpu_start = Instant::now();
         let frame = self.next_frame;
@@ -303,6 +309,12 @@ impl Executor {
                 continue;
             }
             let segment_count = state.segments.len();
+            // The slot's previous frame has retired: its queries were read and can be reset.
+            if !state.timers.is_empty() {
+                unsafe {
+                    state.device.raw.reset_query_pool(state.slots[slot].query_pool, 0, state.timers.len() as u32 * 2)
+                };
+            }
             let mut waits: Vec<Vec<vk::SemaphoreSubmitInfo>> = Vec::with_capacity(segment_count);
             let mut signals: Vec<[vk::SemaphoreSubmitInfo; 1]> = Vec::with_capacity(segment_count);
             let mut buffers: Vec<[vk::CommandBufferSubmitInfo; 1]> = Vec::with_capacity(segment_count);
@@ -317,6 +329,23 @@ impl Executor {
                             .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
                     })
                     .collect();
+                // A segment on another queue than its predecessor (in program order, across the
+                // frame boundary too) waits for it: the two queues run one program.
+                let previous = match j {
+                    0 if local > 0 => Some((segment_count - 1, local - 1)),
+                    0 => None,
+                    _ => Some((j - 1, local)),
+                };
+                if let Some((p, p_frame)) = previous
+                    && state.segments[p].queue != segment.queue
+                {
+                    w.push(
+                        vk::SemaphoreSubmitInfo::default()
+                            .semaphore(state.progress)
+                            .value(progress_value(p_frame, segment_count, p))
+                            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS),
+                    );
+                }
                 if let (Some(gate), 0) = (state.gate, j) {
                     w.push(
                         vk::SemaphoreSubmitInfo::default()
@@ -342,7 +371,14 @@ impl Executor {
                         .signal_semaphore_infos(&signals[j])
                 })
                 .collect();
-            state.device.submit(&submits, vk::Fence::null())?;
+            // One vkQueueSubmit2 per run of segments on the same queue, in program order.
+            let mut start = 0;
+            while start < segment_count {
+                let queue = state.segments[start].queue;
+                let end = (start..segment_count).find(|&j| state.segments[j].queue != queue).unwrap_or(segment_count);
+                state.device.submit_to(queue, &submits[start..end], vk::Fence::null())?;
+                start = end;
+            }
             submitted_segments += segment_count;
 
             // Relay jobs watching this device, in segment order (see relay.rs).
@@ -427,9 +463,9 @@ impl Executor {
             if self.calibration[d].method == CalibrationMethod::CalibratedTimestamps {
                 self.calibration[d] = state.device.clock_offset()?;
             }
-            let offset = self.calibration[d].offset_ns;
-            let to_host = |t: u64| (state.device.ticks_to_ns(t) + offset).max(0.0) as u64;
+            let calibration = self.calibration[d];
             for (t, label) in state.timers.iter().enumerate() {
+                let to_host = |ticks: u64| state.device.timestamp_to_host_ns(ticks, label.queue, &calibration);
                 events.push(TimedEvent {
                     name: label.name.clone(),
                     kind: label.kind,
@@ -606,16 +642,17 @@ fn create_device_state(
     let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
     let bindless = Bindless::new(device, &ordered, placeholders, slots)?;
     let raw = &device.raw;
-    let command_pool = unsafe {
-        raw.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(device.queue_family), None)
+    let mut command_pools = [vk::CommandPool::null(); 2];
+    for (pool, kind) in command_pools.iter_mut().zip([QueueKind::Main, QueueKind::Copy]) {
+        let info = vk::CommandPoolCreateInfo::default().queue_family_index(device.family_of(kind));
+        *pool = unsafe { raw.create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
     }
-    .vk("vkCreateCommandPool")?;
     let mut state = DeviceState {
         device: device.clone(),
         images,
         image_slots,
         bindless,
-        command_pool,
+        command_pools,
         progress: vk::Semaphore::null(),
         ready: HashMap::new(),
         gate: None,
@@ -625,19 +662,15 @@ fn create_device_state(
     };
     state.progress = device.create_timeline(0)?;
     for _ in 0..slots {
-        let command_buffers = if state.segments.is_empty() {
-            Vec::new()
-        } else {
-            unsafe {
-                raw.allocate_command_buffers(
-                    &vk::CommandBufferAllocateInfo::default()
-                        .command_pool(command_pool)
-                        .level(vk::CommandBufferLevel::PRIMARY)
-                        .command_buffer_count(state.segments.len() as u32),
-                )
-            }
-            .vk("vkAllocateCommandBuffers")?
-        };
+        let mut command_buffers = Vec::with_capacity(state.segments.len());
+        for segment in &state.segments {
+            let pool = command_pools[segment.queue as usize];
+            let info = vk::CommandBufferAllocateInfo::default()
+                .command_pool(pool)
+                .level(vk::CommandBufferLevel::PRIMARY)
+                .command_buffer_count(1);
+            command_buffers.push(unsafe { raw.allocate_command_buffers(&info) }.vk("vkAllocateCommandBuffers")?[0]);
+        }
         let query_pool = if state.timers.is_empty() {
             vk::QueryPool::null()
         } else {

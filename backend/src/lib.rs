@@ -53,7 +53,7 @@ pub mod kernels;
 pub mod plan;
 
 pub use context::{Context, ContextDesc, DeviceSelection};
-pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, host_now_ns};
+pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
 pub use executor::{ExecOptions, Executor, FaultInjection};
 pub use instance::{Instance, Validation, validation_from_env};

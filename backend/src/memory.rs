@@ -56,6 +56,14 @@ impl Image {
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)
             .initial_layout(vk::ImageLayout::UNDEFINED);
+        // Copies may run on a transfer-only queue: share between its family and the main one
+        // instead of transferring ownership at every copy.
+        let families = device.families();
+        let info = if families.len() > 1 {
+            info.sharing_mode(vk::SharingMode::CONCURRENT).queue_family_indices(&families)
+        } else {
+            info
+        };
         let raw = unsafe { device.raw.create_image(&info, None) }.vk("vkCreateImage")?;
         let requirements = unsafe { device.raw.get_image_memory_requirements(raw) };
         let allocation = device
@@ -265,8 +273,13 @@ impl SharedHostBuffer {
         let info = vk::BufferCreateInfo::default()
             .size(self.size)
             .usage(vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE)
             .push_next(&mut external);
+        let families = device.families();
+        let info = if families.len() > 1 {
+            info.sharing_mode(vk::SharingMode::CONCURRENT).queue_family_indices(&families)
+        } else {
+            info.sharing_mode(vk::SharingMode::EXCLUSIVE)
+        };
         let buffer = unsafe { device.raw.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
         let requirements = unsafe { device.raw.get_buffer_memory_requirements(buffer) };
         let memory_props = unsafe { device.instance.raw.get_physical_device_memory_properties(device.physical) };

@@ -9,6 +9,7 @@ use std::collections::HashMap;
 
 use ash::vk;
 
+use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
 use crate::memory::Image;
 use crate::pipeline::Bindless;
@@ -26,11 +27,13 @@ pub(crate) struct TimerLabel {
     pub index: usize,
     pub chunk: u32,
     pub bytes: u64,
+    /// Queue the item runs on (timestamp width differs between queue families).
+    pub queue: QueueKind,
 }
 
 /// Timer labels of all items of `segments`, in recording order.
 pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel> {
-    let copy_label = |chunk: &Chunk, kind| {
+    let copy_label = |chunk: &Chunk, kind, queue| {
         let copy = &plan.copies[chunk.copy];
         let resource = &plan.resources[copy.resource];
         TimerLabel {
@@ -46,12 +49,13 @@ pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel>
             index: chunk.copy,
             chunk: chunk.index,
             bytes: resource.row_bytes() * u64::from(chunk.y1 - chunk.y0),
+            queue,
         }
     };
     segments
         .iter()
-        .flat_map(|s| &s.items)
-        .map(|item| match item {
+        .flat_map(|s| s.items.iter().map(move |item| (s.queue, item)))
+        .map(|(queue, item)| match item {
             Item::Pass(p) => {
                 let pass = &plan.passes[*p];
                 TimerLabel {
@@ -61,10 +65,11 @@ pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel>
                     index: *p,
                     chunk: 0,
                     bytes: 0,
+                    queue,
                 }
             }
-            Item::CopyOut(c) => copy_label(c, EventKind::CopyOut),
-            Item::CopyIn(c) => copy_label(c, EventKind::CopyIn),
+            Item::CopyOut(c) => copy_label(c, EventKind::CopyOut, queue),
+            Item::CopyIn(c) => copy_label(c, EventKind::CopyIn, queue),
         })
         .collect()
 }
@@ -80,33 +85,32 @@ pub(crate) struct SegmentContext<'a> {
     pub image_slots: &'a HashMap<usize, u32>,
     pub slot: usize,
     pub query_pool: vk::QueryPool,
-    pub query_count: u32,
     /// The staging buffer of this slot as seen by this device, and each copy's offset in it.
     pub staging: Option<(vk::Buffer, &'a [u64])>,
 }
 
-/// Records `segment` (the `segment_index`-th of the frame; its first timer is `first_timer`).
+/// Records `segment`; its first timer is `first_timer`.
 pub(crate) fn record_segment(
     ctx: &mut SegmentContext<'_>,
     cb: vk::CommandBuffer,
     segment: &Segment,
-    segment_index: usize,
     first_timer: u32,
 ) -> Result<()> {
     let raw = ctx.raw;
     unsafe {
         raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()).vk("vkBeginCommandBuffer")?;
-        if segment_index == 0 && ctx.query_count > 0 {
-            raw.cmd_reset_query_pool(cb, ctx.query_pool, 0, ctx.query_count);
+        // Queries are reset from the host before each submission of the slot (a transfer-only
+        // queue cannot reset them), and only the main queue has a compute bind point.
+        if segment.queue == QueueKind::Main {
+            raw.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::COMPUTE,
+                ctx.bindless.pipeline_layout,
+                0,
+                &[ctx.bindless.sets[ctx.slot]],
+                &[],
+            );
         }
-        raw.cmd_bind_descriptor_sets(
-            cb,
-            vk::PipelineBindPoint::COMPUTE,
-            ctx.bindless.pipeline_layout,
-            0,
-            &[ctx.bindless.sets[ctx.slot]],
-            &[],
-        );
     }
     let mut bound = None;
     for (i, item) in segment.items.iter().enumerate() {

@@ -15,6 +15,7 @@
 //! the producer's device→host copy of chunk i+1 is still going (the two PCIe directions of two
 //! GPUs overlap instead of adding up).
 
+use crate::device::QueueKind;
 use crate::plan::{Plan, PlanOp};
 
 /// A row band of a copy moved by one submission.
@@ -44,13 +45,32 @@ pub struct ReadyWait {
 }
 
 /// One submission of a device program.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Segment {
+    /// Queue the segment is submitted to.
+    pub queue: QueueKind,
     pub items: Vec<Item>,
     pub waits: Vec<ReadyWait>,
     /// Copy-out chunks completed by this segment: the relay signals their consumer once this
     /// segment's progress value is reached.
     pub relays: Vec<Chunk>,
+}
+
+impl Default for Segment {
+    fn default() -> Self {
+        Self { queue: QueueKind::Main, items: Vec::new(), waits: Vec::new(), relays: Vec::new() }
+    }
+}
+
+impl Item {
+    /// Queue of the item when copies have a queue of their own.
+    fn queue(self, separate_copy_queue: bool) -> QueueKind {
+        match self {
+            Item::Pass(_) => QueueKind::Main,
+            Item::CopyOut(_) | Item::CopyIn(_) if separate_copy_queue => QueueKind::Copy,
+            Item::CopyOut(_) | Item::CopyIn(_) => QueueKind::Main,
+        }
+    }
 }
 
 /// Row bands of each copy: at most `chunk_bytes` per band (at least one row).
@@ -85,8 +105,48 @@ pub fn progress_value(frame: u64, segments: usize, segment: usize) -> u64 {
 }
 
 /// Cuts `device`'s op list. `dropped_wait` (fault injection) leaves out the ready waits of one
-/// copy.
-pub fn segment_device(plan: &Plan, device: usize, chunks: &[Vec<Chunk>], dropped_wait: Option<usize>) -> Vec<Segment> {
+/// copy. With `separate_copy_queue`, copies go to [`QueueKind::Copy`] and a segment never mixes
+/// the two queues (the executor orders segments of different queues by the progress timeline).
+pub fn segment_device(
+    plan: &Plan,
+    device: usize,
+    chunks: &[Vec<Chunk>],
+    dropped_wait: Option<usize>,
+    separate_copy_queue: bool,
+) -> Vec<Segment> {
+    let segments = segment_single_queue(plan, device, chunks, dropped_wait);
+    if !separate_copy_queue {
+        return segments;
+    }
+    let mut split = Vec::new();
+    for segment in segments {
+        let mut pieces: Vec<Segment> = Vec::new();
+        for item in segment.items {
+            let queue = item.queue(true);
+            match pieces.last_mut() {
+                Some(piece) if piece.queue == queue => piece.items.push(item),
+                _ => pieces.push(Segment { queue, items: vec![item], ..Segment::default() }),
+            }
+        }
+        // Waits guard the segment's first item (a copy-in); relays belong to its last item (a
+        // copy-out chunk).
+        if let Some(first) = pieces.first_mut() {
+            first.waits = segment.waits;
+        }
+        if let Some(last) = pieces.last_mut() {
+            last.relays = segment.relays;
+        }
+        split.extend(pieces);
+    }
+    split
+}
+
+fn segment_single_queue(
+    plan: &Plan,
+    device: usize,
+    chunks: &[Vec<Chunk>],
+    dropped_wait: Option<usize>,
+) -> Vec<Segment> {
     let mut segments = Vec::new();
     let mut current = Segment::default();
     for op in &plan.devices[device] {
@@ -132,17 +192,31 @@ mod tests {
         let chunks = chunks_of_copies(&plan, 256 * 1024);
         assert_eq!(chunks[0].len(), 4);
         assert_eq!((chunks[0][3].y0, chunks[0][3].y1), (192, 256));
-        let producer = segment_device(&plan, 0, &chunks, None);
+        let producer = segment_device(&plan, 0, &chunks, None, false);
         assert_eq!(producer.len(), 4);
         assert_eq!(producer[0].items.len(), 2, "fill + first chunk");
         assert!(producer.iter().all(|s| s.relays.len() == 1 && s.waits.is_empty()));
-        let consumer = segment_device(&plan, 1, &chunks, None);
+        let consumer = segment_device(&plan, 1, &chunks, None, false);
         assert_eq!(consumer.len(), 4);
         for (i, s) in consumer.iter().enumerate() {
             assert_eq!(s.waits, vec![ReadyWait { copy: 0, chunk: i as u32 }]);
         }
-        let dropped = segment_device(&plan, 1, &chunks, Some(0));
+        let dropped = segment_device(&plan, 1, &chunks, Some(0), false);
         assert!(dropped.iter().all(|s| s.waits.is_empty()));
+    }
+
+    #[test]
+    fn a_separate_copy_queue_never_mixes_queues_in_a_segment() {
+        let plan = copy_benchmark(256, 256);
+        let chunks = chunks_of_copies(&plan, 256 * 1024);
+        let producer = segment_device(&plan, 0, &chunks, None, true);
+        let queues: Vec<QueueKind> = producer.iter().map(|s| s.queue).collect();
+        assert_eq!(queues, [QueueKind::Main, QueueKind::Copy, QueueKind::Copy, QueueKind::Copy, QueueKind::Copy]);
+        assert!(producer[0].relays.is_empty(), "the fill completes no chunk");
+        assert!(producer[1..].iter().all(|s| s.relays.len() == 1 && s.items.len() == 1));
+        let consumer = segment_device(&plan, 1, &chunks, None, true);
+        assert_eq!(consumer.len(), 4);
+        assert!(consumer.iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
     }
 
     #[test]
