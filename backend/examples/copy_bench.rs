@@ -83,7 +83,7 @@ fn run() -> Result<(), String> {
         let queue = match (separate, copy.devices_with_copy_queue.iter().all(|&q| q)) {
             (false, _) => "main queue",
             (true, true) => "transfer-only queue",
-            (true, false) => "separate submissions (no transfer-only queue: main queue)",
+            (true, false) => "main queue in copy-only submissions (no transfer-only queue)",
         };
         println!(
             "copy {:.1} MiB device 0 -> device 1 in {} chunk(s) of <= {:.1} MiB on the {queue}, {} frames:",
