@@ -1,5 +1,5 @@
-//! Compiles every `shaders/*.comp` (GLSL 460, `#include` from `shaders/include`) to SPIR-V with
-//! `glslc` and writes `shaders.rs` into OUT_DIR, which embeds them by name.
+//! Compiles every `shaders/*.{comp,vert,frag}` (GLSL 460, `#include` from `shaders/include`) to
+//! SPIR-V with `glslc` and writes `shaders.rs` into OUT_DIR, which embeds them by name.
 //!
 //! glslc (Debian package `glslc`) is used instead of the shaderc crate: Debian's libshaderc does
 //! not link and building it from source takes over ten minutes (see shared/CRATES.md).
@@ -22,16 +22,19 @@ fn main() {
     let mut sources: Vec<PathBuf> = std::fs::read_dir(&shader_dir)
         .unwrap_or_else(|e| panic!("cannot read {}: {e}", shader_dir.display()))
         .map(|entry| entry.expect("readable directory entry").path())
-        .filter(|p| p.extension().is_some_and(|e| e == "comp"))
+        .filter(|p| p.extension().is_some_and(|e| e == "comp" || e == "vert" || e == "frag"))
         .collect();
     sources.sort();
 
     let mut table = String::from("/// Embedded SPIR-V, by shader name (file stem).\n");
     table.push_str("pub const EMBEDDED: &[(&str, &[u8])] = &[\n");
     for src in &sources {
-        let stem = src.file_stem().and_then(|s| s.to_str()).expect("UTF-8 shader file name");
-        let spv = out.join(format!("{stem}.spv"));
-        let dep = out.join(format!("{stem}.d"));
+        let file = src.file_name().and_then(|s| s.to_str()).expect("UTF-8 shader file name");
+        // Compute shaders are named by stem (`fill`), graphics stages by file name
+        // (`raster_demo.vert`), so a pass's vertex and fragment shaders can share a stem.
+        let stem = file.strip_suffix(".comp").unwrap_or(file);
+        let spv = out.join(format!("{file}.spv"));
+        let dep = out.join(format!("{file}.d"));
         compile(&glslc, src, &include_dir, &spv, &dep);
         for dependency in read_depfile(&dep) {
             println!("cargo:rerun-if-changed={dependency}");

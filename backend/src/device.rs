@@ -144,6 +144,10 @@ impl Device {
         if f13.maintenance4 == vk::FALSE {
             return Err(missing("maintenance4"));
         }
+        // Raster passes render without render-pass objects.
+        if f13.dynamic_rendering == vk::FALSE {
+            return Err(missing("dynamicRendering"));
+        }
         if core.shader_storage_image_read_without_format == vk::FALSE
             || core.shader_storage_image_write_without_format == vk::FALSE
         {
@@ -180,7 +184,10 @@ impl Device {
             .shader_storage_image_read_without_format(true)
             .shader_storage_image_write_without_format(true);
         let mut e12 = vk::PhysicalDeviceVulkan12Features::default().timeline_semaphore(true).host_query_reset(true);
-        let mut e13 = vk::PhysicalDeviceVulkan13Features::default().synchronization2(true).maintenance4(true);
+        let mut e13 = vk::PhysicalDeviceVulkan13Features::default()
+            .synchronization2(true)
+            .maintenance4(true)
+            .dynamic_rendering(true);
         let create_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_infos)
             .enabled_extension_names(&enabled)

@@ -4,7 +4,7 @@
 
 use crate::error::{BackendError, Result};
 use crate::plan::{PlanPass, TexelFormat};
-use crate::recorder::{KernelRegistry, PassKernel, PassParams, Recorder};
+use crate::recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
 
 /// Writes the deterministic pattern of `shaders/fill.comp` into `writes[0]` over the instance's rows.
 pub struct FillKernel;
@@ -61,6 +61,43 @@ impl PassKernel for ShiftBlendKernel {
         };
         rec.dispatch_rows("shift_blend", params)
     }
+}
+
+/// Raster demo (`shaders/raster_demo.{vert,frag}`): renders into `writes[0]` over the
+/// instance's rows a near quad (left half, constant [`RASTER_NEAR_COLOR`]) drawn before a far
+/// full-image quad (the fill pattern), with the depth test on.
+pub struct RasterDemoKernel;
+
+/// Colour of the near quad of [`RasterDemoKernel`].
+pub const RASTER_NEAR_COLOR: [f32; 4] = [0.25, 0.5, 0.75, 1.0];
+
+impl PassKernel for RasterDemoKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "raster_demo", 0, 1)?;
+        let params = PassParams {
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.draw(&Draw {
+            vertex_shader: "raster_demo.vert",
+            fragment_shader: "raster_demo.frag",
+            color_targets: &[dst],
+            clear: true,
+            depth_test: true,
+            rows: pass.rows,
+            vertex_count: 6,
+            instance_count: 2,
+            params,
+        })
+    }
+}
+
+/// CPU value of the raster demo at (x, y) of a `width`-wide image of `view`.
+pub fn reference_raster(x: u32, y: u32, view: u32, width: u32) -> [f32; 4] {
+    if x < width / 2 { RASTER_NEAR_COLOR } else { reference_fill(x, y, view) }
 }
 
 /// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`shaders/fill_mask.comp`).
@@ -136,13 +173,14 @@ fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, wr
 }
 
 /// Registry with the built-in kernels under the pass names `fill`, `shift_blend`,
-/// `accumulate` and `fill_mask`.
+/// `accumulate`, `fill_mask` and `raster_demo`.
 pub fn builtin_kernels() -> KernelRegistry {
     KernelRegistry::new()
         .with("fill", FillKernel)
         .with("shift_blend", ShiftBlendKernel)
         .with("accumulate", AccumulateKernel)
         .with("fill_mask", FillMaskKernel)
+        .with("raster_demo", RasterDemoKernel)
 }
 
 /// Column shift used by `shift_blend` for `view`.
@@ -160,7 +198,8 @@ fn hash3(a: u32, b: u32, c: u32) -> u32 {
     pcg_hash(a ^ pcg_hash(b ^ pcg_hash(c)))
 }
 
-/// CPU value of `fill.comp` at pixel (x, y) of `view`.
+/// CPU value of `fill.comp` (`fill_pattern` in shaders/include/pattern.glsl) at pixel (x, y)
+/// of `view`.
 pub fn reference_fill(x: u32, y: u32, view: u32) -> [f32; 4] {
     let h = hash3(x, y, view);
     [(h & 0xffff) as f32 / 65536.0, (h >> 16) as f32 / 65536.0, (view & 0xffff) as f32 / 65536.0, 65535.0 / 65536.0]

@@ -61,6 +61,6 @@ pub use lower::LowerError;
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use pipeline::{shader_names, spirv};
 pub use plan::{Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, Rows, TexelFormat};
-pub use recorder::{KernelRegistry, PassKernel, PassParams, Recorder};
+pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

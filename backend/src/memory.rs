@@ -46,6 +46,43 @@ pub struct Image {
 impl Image {
     pub fn new(device: &Arc<Device>, name: &str, width: u32, height: u32, format: TexelFormat) -> Result<Self> {
         let vk_fmt = vk_format(format)?;
+        let mut usage =
+            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
+        // Raster passes render into the same images where the format allows it.
+        let features = unsafe {
+            device.instance.raw.get_physical_device_format_properties(device.physical, vk_fmt).optimal_tiling_features
+        };
+        if features.contains(vk::FormatFeatureFlags::COLOR_ATTACHMENT) {
+            usage |= vk::ImageUsageFlags::COLOR_ATTACHMENT;
+        }
+        Self::create(device, name, width, height, vk_fmt, usage, vk::ImageAspectFlags::COLOR, format)
+    }
+
+    /// A D32_SFLOAT depth attachment (raster passes' depth test; not a plan resource).
+    pub(crate) fn new_depth(device: &Arc<Device>, width: u32, height: u32) -> Result<Self> {
+        Self::create(
+            device,
+            "depth",
+            width,
+            height,
+            vk::Format::D32_SFLOAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+            vk::ImageAspectFlags::DEPTH,
+            TexelFormat::R32Float,
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn create(
+        device: &Arc<Device>,
+        name: &str,
+        width: u32,
+        height: u32,
+        vk_fmt: vk::Format,
+        usage: vk::ImageUsageFlags,
+        aspect: vk::ImageAspectFlags,
+        format: TexelFormat,
+    ) -> Result<Self> {
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
             .format(vk_fmt)
@@ -54,7 +91,7 @@ impl Image {
             .array_layers(1)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)
+            .usage(usage)
             .initial_layout(vk::ImageLayout::UNDEFINED);
         // Copies may run on a transfer-only queue: share between its family and the main one
         // instead of transferring ownership at every copy.
@@ -100,7 +137,7 @@ impl Image {
             .image(raw)
             .view_type(vk::ImageViewType::TYPE_2D)
             .format(vk_fmt)
-            .subresource_range(color_range());
+            .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, ..color_range() });
         image.view = unsafe { device.raw.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
         Ok(image)
     }

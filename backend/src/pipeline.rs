@@ -39,6 +39,22 @@ pub fn spirv(name: &str) -> Result<Vec<u32>> {
         .map_err(|e| BackendError::UnknownShader(format!("{name} (invalid SPIR-V: {e})")))
 }
 
+/// Stages that see the descriptor set and the push constants: compute kernels and raster passes.
+pub(crate) const SHADER_STAGES: vk::ShaderStageFlags = vk::ShaderStageFlags::from_raw(
+    vk::ShaderStageFlags::COMPUTE.as_raw()
+        | vk::ShaderStageFlags::VERTEX.as_raw()
+        | vk::ShaderStageFlags::FRAGMENT.as_raw(),
+);
+
+/// What a graphics pipeline is specialised on.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct GraphicsKey {
+    pub vertex: String,
+    pub fragment: String,
+    pub color_formats: Vec<vk::Format>,
+    pub depth_test: bool,
+}
+
 /// Size of the push-constant block (`PassParams` in shaders/include/bindless.glsl).
 pub const PUSH_CONSTANT_BYTES: u32 = 32;
 /// Size of the frame-constants uniform block.
@@ -56,6 +72,10 @@ pub(crate) struct Bindless {
     frame_constants: Vec<Buffer>,
     image_count: u32,
     pipelines: HashMap<String, vk::Pipeline>,
+    graphics_pipelines: HashMap<GraphicsKey, vk::Pipeline>,
+    /// Depth attachments of raster passes, one per size: passes on a device run one after the
+    /// other, so they can share it.
+    depth_images: HashMap<(u32, u32), Image>,
     placeholders: [Image; 2],
 }
 
@@ -72,17 +92,17 @@ impl Bindless {
                 .binding(0)
                 .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
                 .descriptor_count(image_count)
-                .stage_flags(vk::ShaderStageFlags::COMPUTE),
+                .stage_flags(SHADER_STAGES),
             vk::DescriptorSetLayoutBinding::default()
                 .binding(1)
                 .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
                 .descriptor_count(1)
-                .stage_flags(vk::ShaderStageFlags::COMPUTE),
+                .stage_flags(SHADER_STAGES),
             vk::DescriptorSetLayoutBinding::default()
                 .binding(2)
                 .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
                 .descriptor_count(image_count)
-                .stage_flags(vk::ShaderStageFlags::COMPUTE),
+                .stage_flags(SHADER_STAGES),
         ];
         let raw = &device.raw;
         let set_layout = unsafe {
@@ -98,12 +118,11 @@ impl Bindless {
             frame_constants: Vec::new(),
             image_count,
             pipelines: HashMap::new(),
+            graphics_pipelines: HashMap::new(),
+            depth_images: HashMap::new(),
             placeholders,
         };
-        let ranges = [vk::PushConstantRange::default()
-            .stage_flags(vk::ShaderStageFlags::COMPUTE)
-            .offset(0)
-            .size(PUSH_CONSTANT_BYTES)];
+        let ranges = [vk::PushConstantRange::default().stage_flags(SHADER_STAGES).offset(0).size(PUSH_CONSTANT_BYTES)];
         let set_layouts = [set_layout];
         this.pipeline_layout = unsafe {
             raw.create_pipeline_layout(
@@ -217,11 +236,107 @@ impl Bindless {
     }
 }
 
+impl Bindless {
+    /// The depth attachment for a `width`×`height` raster pass, created on first use.
+    pub(crate) fn depth_image(&mut self, width: u32, height: u32) -> Result<&Image> {
+        if !self.depth_images.contains_key(&(width, height)) {
+            let image = Image::new_depth(&self.device, width, height)?;
+            self.depth_images.insert((width, height), image);
+        }
+        Ok(&self.depth_images[&(width, height)])
+    }
+
+    /// The graphics pipeline of `key`, created on first use: no vertex input (vertex shaders
+    /// pull what they need from storage), triangle lists, no culling, dynamic viewport and
+    /// scissor, depth test LESS with writes when asked, no blending.
+    pub(crate) fn graphics_pipeline(&mut self, key: &GraphicsKey) -> Result<vk::Pipeline> {
+        if let Some(&p) = self.graphics_pipelines.get(key) {
+            return Ok(p);
+        }
+        let raw = &self.device.raw;
+        let mut modules = Vec::new();
+        for name in [&key.vertex, &key.fragment] {
+            let code = spirv(name)?;
+            let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
+                .vk("vkCreateShaderModule");
+            match module {
+                Ok(m) => modules.push(m),
+                Err(e) => {
+                    modules.iter().for_each(|&m| unsafe { raw.destroy_shader_module(m, None) });
+                    return Err(e);
+                }
+            }
+        }
+        let entries = [vk::SpecializationMapEntry::default().constant_id(0).offset(0).size(4)];
+        let data = self.image_count.to_le_bytes();
+        let specialization = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::VERTEX)
+                .module(modules[0])
+                .name(c"main")
+                .specialization_info(&specialization),
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(modules[1])
+                .name(c"main")
+                .specialization_info(&specialization),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let input_assembly =
+            vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .line_width(1.0);
+        let multisample =
+            vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(key.depth_test)
+            .depth_write_enable(key.depth_test)
+            .depth_compare_op(vk::CompareOp::LESS);
+        let attachments: Vec<vk::PipelineColorBlendAttachmentState> = key
+            .color_formats
+            .iter()
+            .map(|_| vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA))
+            .collect();
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&key.color_formats);
+        if key.depth_test {
+            rendering = rendering.depth_attachment_format(vk::Format::D32_SFLOAT);
+        }
+        let info = [vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(self.pipeline_layout)
+            .push_next(&mut rendering)];
+        let created = unsafe { raw.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+        modules.iter().for_each(|&m| unsafe { raw.destroy_shader_module(m, None) });
+        let pipeline =
+            created.map_err(|(_, result)| BackendError::Vk { call: "vkCreateGraphicsPipelines", result })?.remove(0);
+        self.graphics_pipelines.insert(key.clone(), pipeline);
+        Ok(pipeline)
+    }
+}
+
 impl Drop for Bindless {
     fn drop(&mut self) {
         let raw = &self.device.raw;
         unsafe {
             for (_, p) in self.pipelines.drain() {
+                raw.destroy_pipeline(p, None);
+            }
+            for (_, p) in self.graphics_pipelines.drain() {
                 raw.destroy_pipeline(p, None);
             }
             raw.destroy_descriptor_pool(self.pool, None);

@@ -126,6 +126,8 @@ pub(crate) fn record_segment(
                     cb,
                     bindless: ctx.bindless,
                     image_slots: ctx.image_slots,
+                    images: ctx.images,
+                    slot: ctx.slot,
                     plan: ctx.plan,
                     device_index: ctx.device_index,
                     bound,

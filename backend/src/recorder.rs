@@ -10,7 +10,9 @@ use std::sync::Arc;
 use ash::vk;
 
 use crate::error::{BackendError, Result};
-use crate::pipeline::{Bindless, PUSH_CONSTANT_BYTES};
+use crate::memory::color_range;
+use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
+use crate::plan::Rows;
 use crate::plan::{Plan, PlanPass, PlanResource};
 
 /// Push constants of every kernel (`PassParams` in shaders/include/bindless.glsl).
@@ -38,12 +40,34 @@ impl PassParams {
     }
 }
 
+/// A draw of a raster pass: the render targets are plan images, the row band limits the render
+/// area (the viewport stays the whole image, so a band renders exactly its rows of the frame).
+#[derive(Clone, Debug)]
+pub struct Draw<'a> {
+    /// Embedded vertex and fragment shaders (`name.vert`, `name.frag` in shaders/).
+    pub vertex_shader: &'a str,
+    pub fragment_shader: &'a str,
+    /// Colour targets (resources), in fragment output location order. All the same size.
+    pub color_targets: &'a [usize],
+    /// Clear the targets (within the band) to zero first; otherwise keep their contents.
+    pub clear: bool,
+    /// Depth test LESS against a per-device depth attachment cleared to 1.0 for this draw.
+    pub depth_test: bool,
+    pub rows: Rows,
+    pub vertex_count: u32,
+    pub instance_count: u32,
+    pub params: PassParams,
+}
+
 /// Records the work of one pass instance into a device's command buffer.
 pub struct Recorder<'a> {
     pub(crate) raw: &'a ash::Device,
     pub(crate) cb: vk::CommandBuffer,
     pub(crate) bindless: &'a mut Bindless,
     pub(crate) image_slots: &'a HashMap<usize, u32>,
+    pub(crate) images: &'a HashMap<usize, crate::memory::Image>,
+    /// Frame-in-flight slot being recorded (selects the descriptor set).
+    pub(crate) slot: usize,
     pub(crate) plan: &'a Plan,
     pub(crate) device_index: usize,
     pub(crate) bound: Option<vk::Pipeline>,
@@ -76,13 +100,7 @@ impl Recorder<'_> {
                 self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
                 self.bound = Some(pipeline);
             }
-            self.raw.cmd_push_constants(
-                self.cb,
-                self.bindless.pipeline_layout,
-                vk::ShaderStageFlags::COMPUTE,
-                0,
-                &params.to_bytes(),
-            );
+            self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, &params.to_bytes());
             self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
         }
         Ok(())
@@ -93,6 +111,110 @@ impl Recorder<'_> {
     pub fn dispatch_rows(&mut self, shader: &str, params: PassParams) -> Result<()> {
         let rows = params.y1.saturating_sub(params.y0);
         self.dispatch(shader, params, [params.width.div_ceil(8), rows.div_ceil(8), 1])
+    }
+
+    /// Renders `draw` with dynamic rendering into its colour targets (images stay in `GENERAL`).
+    pub fn draw(&mut self, draw: &Draw<'_>) -> Result<()> {
+        let Some(&first) = draw.color_targets.first() else {
+            return Err(BackendError::KernelMisuse {
+                kernel: draw.vertex_shader.to_string(),
+                instance: usize::MAX,
+                detail: "a draw needs at least one colour target".into(),
+            });
+        };
+        let (width, height) = (self.plan.resources[first].width, self.plan.resources[first].height);
+        let mut color_formats = Vec::with_capacity(draw.color_targets.len());
+        let mut attachments = Vec::with_capacity(draw.color_targets.len());
+        for &target in draw.color_targets {
+            let image = self
+                .images
+                .get(&target)
+                .ok_or(BackendError::ResourceNotOnDevice { resource: target, device: self.device_index })?;
+            color_formats.push(crate::memory::vk_format(image.format)?);
+            attachments.push(
+                vk::RenderingAttachmentInfo::default()
+                    .image_view(image.view)
+                    .image_layout(vk::ImageLayout::GENERAL)
+                    .load_op(if draw.clear { vk::AttachmentLoadOp::CLEAR } else { vk::AttachmentLoadOp::LOAD })
+                    .store_op(vk::AttachmentStoreOp::STORE),
+            );
+        }
+        let key = GraphicsKey {
+            vertex: draw.vertex_shader.to_string(),
+            fragment: draw.fragment_shader.to_string(),
+            color_formats,
+            depth_test: draw.depth_test,
+        };
+        let pipeline = self.bindless.graphics_pipeline(&key)?;
+        let area = vk::Rect2D {
+            offset: vk::Offset2D { x: 0, y: draw.rows.y0 as i32 },
+            extent: vk::Extent2D { width, height: draw.rows.len() },
+        };
+        let depth_attachment = if draw.depth_test {
+            let depth = self.bindless.depth_image(width, height)?;
+            // The depth contents are per draw: discard the previous ones and clear.
+            let to_general = [vk::ImageMemoryBarrier2::default()
+                .src_stage_mask(vk::PipelineStageFlags2::LATE_FRAGMENT_TESTS)
+                .src_access_mask(vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE)
+                .dst_stage_mask(vk::PipelineStageFlags2::EARLY_FRAGMENT_TESTS)
+                .dst_access_mask(
+                    vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_READ | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                )
+                .old_layout(vk::ImageLayout::UNDEFINED)
+                .new_layout(vk::ImageLayout::GENERAL)
+                .image(depth.raw)
+                .subresource_range(vk::ImageSubresourceRange {
+                    aspect_mask: vk::ImageAspectFlags::DEPTH,
+                    ..color_range()
+                })];
+            unsafe {
+                self.raw
+                    .cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().image_memory_barriers(&to_general))
+            };
+            Some(
+                vk::RenderingAttachmentInfo::default()
+                    .image_view(depth.view)
+                    .image_layout(vk::ImageLayout::GENERAL)
+                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .store_op(vk::AttachmentStoreOp::DONT_CARE)
+                    .clear_value(vk::ClearValue {
+                        depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 },
+                    }),
+            )
+        } else {
+            None
+        };
+        let mut rendering =
+            vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
+        if let Some(depth) = &depth_attachment {
+            rendering = rendering.depth_attachment(depth);
+        }
+        let viewport =
+            vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 };
+        unsafe {
+            self.raw.cmd_begin_rendering(self.cb, &rendering);
+            self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            self.raw.cmd_bind_descriptor_sets(
+                self.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.bindless.pipeline_layout,
+                0,
+                &[self.bindless.sets[self.slot]],
+                &[],
+            );
+            self.raw.cmd_set_viewport(self.cb, 0, &[viewport]);
+            self.raw.cmd_set_scissor(self.cb, 0, &[area]);
+            self.raw.cmd_push_constants(
+                self.cb,
+                self.bindless.pipeline_layout,
+                SHADER_STAGES,
+                0,
+                &draw.params.to_bytes(),
+            );
+            self.raw.cmd_draw(self.cb, draw.vertex_count, draw.instance_count, 0, 0);
+            self.raw.cmd_end_rendering(self.cb);
+        }
+        Ok(())
     }
 
     /// The raw command buffer, for kernels that need a command the recorder does not wrap.

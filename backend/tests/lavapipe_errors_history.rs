@@ -177,3 +177,64 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     drop(exec);
     ctx.check_validation().unwrap();
 }
+
+/// One raster pass instance per device, each over a row band of the same image; bands gathered
+/// on device 0.
+fn raster_plan(devices: usize, size: u32) -> Plan {
+    let bands: Vec<Rows> =
+        (0..devices as u32).map(|d| Rows::new(size * d / devices as u32, size * (d + 1) / devices as u32)).collect();
+    let mut plan = Plan {
+        resources: vec![PlanResource {
+            name: "gbuffer".into(),
+            view: 5,
+            width: size,
+            height: size,
+            format: TexelFormat::Rgba32Float,
+        }],
+        devices: vec![Vec::new(); devices],
+        ..Plan::default()
+    };
+    for (d, &rows) in bands.iter().enumerate() {
+        plan.passes.push(PlanPass {
+            name: "raster_demo".into(),
+            view: 5,
+            rows,
+            device: d,
+            reads: vec![],
+            history_reads: vec![],
+            writes: vec![PlanAccess { resource: 0, version: 1, rows }],
+        });
+        plan.devices[d].push(PlanOp::Pass(d));
+        if d != 0 {
+            let c = plan.copies.len();
+            plan.copies.push(PlanCopy { resource: 0, version: 1, rows, from: d, to: 0 });
+            plan.devices[d].extend([PlanOp::CopyOut(c), PlanOp::Signal(c)]);
+            plan.devices[0].extend([PlanOp::Wait(c), PlanOp::CopyIn(c)]);
+        }
+    }
+    plan
+}
+
+#[test]
+fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
+    use parallax_backend::kernels::reference_raster;
+    let size = 32;
+    let expected: Vec<f32> =
+        (0..size).flat_map(|y| (0..size).flat_map(move |x| reference_raster(x, y, 5, size))).collect();
+    for devices in [1, 2, 3] {
+        let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
+        let mut exec =
+            Executor::new(&ctx, raster_plan(devices, size), builtin_kernels(), ExecOptions::default()).unwrap();
+        exec.run_frame().unwrap();
+        exec.run_frame().unwrap();
+        let values: Vec<f32> = exec
+            .read_image(0, 0)
+            .unwrap()
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        assert_eq!(values, expected, "{devices} device(s)");
+        drop(exec);
+        ctx.check_validation().unwrap();
+    }
+}
