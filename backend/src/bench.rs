@@ -118,7 +118,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
             frames_in_flight: options.frames_in_flight,
             chunk_bytes: options.chunk_bytes,
             separate_copy_queue: options.separate_copy_queue,
-            fault: None,
+            ..ExecOptions::default()
         },
     )?;
     for _ in 0..options.warmup + options.frames {

@@ -133,6 +133,10 @@ impl Device {
         let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12).push_next(&mut f13);
         unsafe { raw_instance.get_physical_device_features2(physical, &mut f2) };
         let core = f2.features;
+        // Global buffers (scene data, per-frame data) reach shaders as buffer references.
+        if f12.buffer_device_address == vk::FALSE {
+            return Err(missing("bufferDeviceAddress"));
+        }
         if f12.timeline_semaphore == vk::FALSE {
             return Err(missing("timelineSemaphore"));
         }
@@ -183,7 +187,10 @@ impl Device {
         let features = vk::PhysicalDeviceFeatures::default()
             .shader_storage_image_read_without_format(true)
             .shader_storage_image_write_without_format(true);
-        let mut e12 = vk::PhysicalDeviceVulkan12Features::default().timeline_semaphore(true).host_query_reset(true);
+        let mut e12 = vk::PhysicalDeviceVulkan12Features::default()
+            .timeline_semaphore(true)
+            .host_query_reset(true)
+            .buffer_device_address(true);
         let mut e13 = vk::PhysicalDeviceVulkan13Features::default()
             .synchronization2(true)
             .maintenance4(true)
@@ -203,7 +210,7 @@ impl Device {
             device: raw.clone(),
             physical_device: physical,
             debug_settings: Default::default(),
-            buffer_device_address: false,
+            buffer_device_address: true,
             allocation_sizes: Default::default(),
         })
         .map_err(|source| BackendError::Allocation { what: "allocator".into(), source });

@@ -74,6 +74,14 @@ pub enum BackendError {
     #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
     KernelMisuse { kernel: String, instance: usize, detail: String },
 
+    /// A kernel asked for a global buffer that was never uploaded.
+    #[error("no global buffer `{name}` on device {device}; upload it with Executor::upload_buffer before running")]
+    UnknownBuffer { name: String, device: usize },
+
+    /// Per-frame data larger than the executor's capacity.
+    #[error("per-frame data of {bytes} bytes exceeds the capacity of {capacity} (ExecOptions::frame_data_bytes)")]
+    FrameDataTooLarge { bytes: usize, capacity: u64 },
+
     /// A resource is not present on the device where it was asked for.
     #[error("resource {resource} is not allocated on device {device}")]
     ResourceNotOnDevice { resource: usize, device: usize },

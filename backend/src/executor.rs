@@ -61,12 +61,20 @@ pub struct ExecOptions {
     /// device's progress timeline. On a device without such a queue the same submissions go to
     /// the main queue (which is how lavapipe tests this path).
     pub separate_copy_queue: bool,
+    /// Capacity of the per-frame data buffer ([`Executor::set_frame_data`]).
+    pub frame_data_bytes: u64,
     pub fault: Option<FaultInjection>,
 }
 
 impl Default for ExecOptions {
     fn default() -> Self {
-        Self { frames_in_flight: 2, chunk_bytes: 8 << 20, separate_copy_queue: false, fault: None }
+        Self {
+            frames_in_flight: 2,
+            chunk_bytes: 8 << 20,
+            separate_copy_queue: false,
+            frame_data_bytes: 64 << 10,
+            fault: None,
+        }
     }
 }
 
@@ -168,10 +176,19 @@ pub struct Executor {
     calibration: Vec<ClockCalibration>,
     recordings: u64,
     last_record_ns: u64,
+    /// Command buffers must be (re-)recorded before the next frame: after a plan change or a
+    /// global buffer that moved.
+    needs_record: bool,
+    /// Global buffers per device, by name; they outlive plan changes.
+    globals: Vec<HashMap<String, Buffer>>,
+    /// Per frame-in-flight slot and device: host-visible copy of the per-frame data.
+    frame_data_buffers: Vec<Vec<Buffer>>,
+    frame_data: Vec<u8>,
 }
 
 impl Executor {
-    /// Validates `plan`, allocates its resources, records every command buffer once.
+    /// Validates `plan` and allocates its resources. Command buffers are recorded at the first
+    /// frame (so global buffers can be uploaded first) and then reused.
     pub fn new(context: &Context, plan: Plan, kernels: KernelRegistry, options: ExecOptions) -> Result<Self> {
         let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
@@ -193,14 +210,35 @@ impl Executor {
             calibration,
             recordings: 0,
             last_record_ns: 0,
+            needs_record: true,
+            globals: context.devices.iter().map(|_| HashMap::new()).collect(),
+            frame_data_buffers: Vec::new(),
+            frame_data: Vec::new(),
         };
+        executor.frame_data_buffers = (0..executor.options.frames_in_flight)
+            .map(|_| {
+                executor
+                    .devices
+                    .iter()
+                    .map(|d| {
+                        Buffer::new(
+                            d,
+                            "frame data",
+                            executor.options.frame_data_bytes.max(16),
+                            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                            MemoryLocation::CpuToGpu,
+                        )
+                    })
+                    .collect::<Result<Vec<_>>>()
+            })
+            .collect::<Result<Vec<_>>>()?;
         executor.build(plan)?;
         Ok(executor)
     }
 
     /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the
     /// current one; otherwise waits for all frames, keeps the images whose resource description
-    /// is unchanged (their contents survive), and records everything anew.
+    /// is unchanged (their contents survive), and records everything anew at the next frame.
     pub fn set_plan(&mut self, plan: Plan) -> Result<bool> {
         if plan == self.plan {
             return Ok(false);
@@ -248,7 +286,7 @@ impl Executor {
         self.chunks = chunks;
         self.states = states;
         self.ready = ready;
-        self.record_all()?;
+        self.needs_record = true;
         let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
         self.relay = Some(Relay::new(&self.devices, &progress));
         self.plan_epoch = self.next_frame;
@@ -258,6 +296,11 @@ impl Executor {
     fn record_all(&mut self) -> Result<()> {
         let started = Instant::now();
         let plan = &self.plan;
+        let addresses: Vec<HashMap<String, u64>> = self
+            .globals
+            .iter()
+            .map(|g| g.iter().map(|(name, b)| (name.clone(), b.device_address())).collect())
+            .collect();
         for (d, state) in self.states.iter_mut().enumerate() {
             for slot in 0..state.slots.len() {
                 let staging =
@@ -273,6 +316,8 @@ impl Executor {
                     slot,
                     query_pool: state.slots[slot].query_pool,
                     staging,
+                    global_buffers: &addresses[d],
+                    frame_data_address: self.frame_data_buffers[slot][d].device_address(),
                 };
                 let mut first_timer = 0u32;
                 for (j, segment) in state.segments.iter().enumerate() {
@@ -284,6 +329,63 @@ impl Executor {
         }
         self.recordings += 1;
         self.last_record_ns = started.elapsed().as_nanos() as u64;
+        self.needs_record = false;
+        Ok(())
+    }
+
+    /// Uploads `bytes` as the global buffer `name` on every device (scene data: BVH nodes,
+    /// triangles, materials, ...), reachable from kernels through
+    /// `Recorder::buffer_address(name)`. Waits for all frames in flight. Re-uploading the same
+    /// size keeps the buffer (and the recorded command buffers); another size replaces it and
+    /// the command buffers are recorded again before the next frame.
+    pub fn upload_buffer(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
+        self.finish()?;
+        let size = (bytes.len() as u64).max(4);
+        for (d, device) in self.devices.iter().enumerate() {
+            let keep = self.globals[d].get(name).is_some_and(|b| b.size == size);
+            if !keep {
+                let buffer = Buffer::new(
+                    device,
+                    name,
+                    size,
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::TRANSFER_DST
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    MemoryLocation::GpuOnly,
+                )?;
+                self.globals[d].insert(name.to_string(), buffer);
+                self.needs_record = true;
+            }
+            let mut staging = Buffer::new(
+                device,
+                "upload staging",
+                size,
+                vk::BufferUsageFlags::TRANSFER_SRC,
+                MemoryLocation::CpuToGpu,
+            )?;
+            staging.mapped_mut().expect("CpuToGpu buffers are mapped")[..bytes.len()].copy_from_slice(bytes);
+            let target = self.globals[d][name].raw;
+            let raw = &device.raw;
+            device.one_shot(|cb| unsafe {
+                crate::record::full_barrier(raw, cb);
+                raw.cmd_copy_buffer(cb, staging.raw, target, &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size }]);
+                crate::record::full_barrier(raw, cb);
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Sets the per-frame data (camera matrices, sample counters, ...) that every following
+    /// frame's kernels read at `Recorder::frame_data_address()`; copied into the frame's slot at
+    /// each `run_frame`, so recorded command buffers stay valid.
+    pub fn set_frame_data(&mut self, bytes: &[u8]) -> Result<()> {
+        if bytes.len() as u64 > self.options.frame_data_bytes {
+            return Err(BackendError::FrameDataTooLarge {
+                bytes: bytes.len(),
+                capacity: self.options.frame_data_bytes,
+            });
+        }
+        self.frame_data = bytes.to_vec();
         Ok(())
     }
 
@@ -294,6 +396,9 @@ impl Executor {
             self.retire_oldest()?;
         }
         self.relay.as_ref().expect("relay exists after build").check()?;
+        if self.needs_record {
+            self.record_all()?;
+        }
         let submit_start_ns = host_now_ns();
         let cpu_start = Instant::now();
         let frame = self.next_frame;
@@ -301,6 +406,12 @@ impl Executor {
         let slot = (frame % self.options.frames_in_flight as u64) as usize;
         for state in &mut self.states {
             state.bindless.set_frame_constants(slot, frame);
+        }
+        if !self.frame_data.is_empty() {
+            for buffer in &mut self.frame_data_buffers[slot] {
+                buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..self.frame_data.len()]
+                    .copy_from_slice(&self.frame_data);
+            }
         }
         let relay = self.relay.as_ref().expect("relay exists after build");
         let mut submitted_segments = 0;
@@ -599,6 +710,8 @@ impl Drop for Executor {
         self.relay = None;
         self.staging = None;
         self.states.clear();
+        self.globals.clear();
+        self.frame_data_buffers.clear();
     }
 }
 
@@ -644,7 +757,10 @@ fn create_device_state(
     let raw = &device.raw;
     let mut command_pools = [vk::CommandPool::null(); 2];
     for (pool, kind) in command_pools.iter_mut().zip([QueueKind::Main, QueueKind::Copy]) {
-        let info = vk::CommandPoolCreateInfo::default().queue_family_index(device.family_of(kind));
+        // Command buffers are recorded again in place when a global buffer moves.
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(device.family_of(kind))
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
         *pool = unsafe { raw.create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
     }
     let mut state = DeviceState {

@@ -100,6 +100,25 @@ pub fn reference_raster(x: u32, y: u32, view: u32, width: u32) -> [f32; 4] {
     if x < width / 2 { RASTER_NEAR_COLOR } else { reference_fill(x, y, view) }
 }
 
+/// `writes[0] = fill_pattern * weights[view] + frame_data[0]` (`shaders/weighted_fill.comp`):
+/// reads the global buffer `weights` (f32 per view) and the per-frame data (one f32), both by
+/// buffer address.
+pub struct WeightedFillKernel;
+
+impl PassKernel for WeightedFillKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "weighted_fill", 0, 1)?;
+        let width = rec.resource(dst).width;
+        let mut push = Vec::with_capacity(40);
+        for word in [rec.image(dst)?, pass.view, pass.rows.y0, pass.rows.y1, width, 0] {
+            push.extend_from_slice(&word.to_le_bytes());
+        }
+        push.extend_from_slice(&rec.buffer_address("weights")?.to_le_bytes());
+        push.extend_from_slice(&rec.frame_data_address().to_le_bytes());
+        rec.dispatch_bytes("weighted_fill", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+    }
+}
+
 /// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`shaders/fill_mask.comp`).
 pub struct FillMaskKernel;
 
@@ -173,7 +192,7 @@ fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, wr
 }
 
 /// Registry with the built-in kernels under the pass names `fill`, `shift_blend`,
-/// `accumulate`, `fill_mask` and `raster_demo`.
+/// `accumulate`, `fill_mask`, `raster_demo` and `weighted_fill`.
 pub fn builtin_kernels() -> KernelRegistry {
     KernelRegistry::new()
         .with("fill", FillKernel)
@@ -181,6 +200,7 @@ pub fn builtin_kernels() -> KernelRegistry {
         .with("accumulate", AccumulateKernel)
         .with("fill_mask", FillMaskKernel)
         .with("raster_demo", RasterDemoKernel)
+        .with("weighted_fill", WeightedFillKernel)
 }
 
 /// Column shift used by `shift_blend` for `view`.

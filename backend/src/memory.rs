@@ -233,6 +233,13 @@ impl Buffer {
     pub fn raw(&self) -> vk::Buffer {
         self.raw
     }
+
+    /// GPU address for shaders (`GL_EXT_buffer_reference`); the buffer needs
+    /// `SHADER_DEVICE_ADDRESS` usage.
+    pub fn device_address(&self) -> u64 {
+        let info = vk::BufferDeviceAddressInfo::default().buffer(self.raw);
+        unsafe { self.device.raw.get_buffer_device_address(&info) }
+    }
 }
 
 impl Drop for Buffer {

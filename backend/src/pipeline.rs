@@ -55,8 +55,10 @@ pub(crate) struct GraphicsKey {
     pub depth_test: bool,
 }
 
-/// Size of the push-constant block (`PassParams` in shaders/include/bindless.glsl).
-pub const PUSH_CONSTANT_BYTES: u32 = 32;
+/// Size of the push-constant range: `PassParams` (32 bytes) by default; kernels that define
+/// their own block (`PARALLAX_CUSTOM_PUSH_CONSTANTS`) may use up to the 128 bytes every Vulkan
+/// device guarantees.
+pub const PUSH_CONSTANT_BYTES: u32 = 128;
 /// Size of the frame-constants uniform block.
 const FRAME_CONSTANT_BYTES: u64 = 16;
 

@@ -87,6 +87,9 @@ pub(crate) struct SegmentContext<'a> {
     pub query_pool: vk::QueryPool,
     /// The staging buffer of this slot as seen by this device, and each copy's offset in it.
     pub staging: Option<(vk::Buffer, &'a [u64])>,
+    /// Addresses of the global buffers on this device, and of the slot's per-frame data.
+    pub global_buffers: &'a HashMap<String, u64>,
+    pub frame_data_address: u64,
 }
 
 /// Records `segment`; its first timer is `first_timer`.
@@ -96,9 +99,23 @@ pub(crate) fn record_segment(
     segment: &Segment,
     first_timer: u32,
 ) -> Result<()> {
+    unsafe { ctx.raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()) }.vk("vkBeginCommandBuffer")?;
+    let recorded = record_items(ctx, cb, segment, first_timer);
+    if recorded.is_err() {
+        // Leave the buffer re-recordable (its pool allows resets) rather than half recorded.
+        let _ = unsafe { ctx.raw.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty()) };
+    }
+    recorded
+}
+
+fn record_items(
+    ctx: &mut SegmentContext<'_>,
+    cb: vk::CommandBuffer,
+    segment: &Segment,
+    first_timer: u32,
+) -> Result<()> {
     let raw = ctx.raw;
     unsafe {
-        raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()).vk("vkBeginCommandBuffer")?;
         // Queries are reset from the host before each submission of the slot (a transfer-only
         // queue cannot reset them), and only the main queue has a compute bind point.
         if segment.queue == QueueKind::Main {
@@ -128,6 +145,8 @@ pub(crate) fn record_segment(
                     image_slots: ctx.image_slots,
                     images: ctx.images,
                     slot: ctx.slot,
+                    global_buffers: ctx.global_buffers,
+                    frame_data_address: ctx.frame_data_address,
                     plan: ctx.plan,
                     device_index: ctx.device_index,
                     bound,

@@ -30,9 +30,10 @@ pub struct PassParams {
 }
 
 impl PassParams {
-    fn to_bytes(self) -> [u8; PUSH_CONSTANT_BYTES as usize] {
+    /// The 32 bytes the shaders' `PassParams` block reads.
+    pub fn to_bytes(self) -> [u8; 32] {
         let words = [self.dst, self.src0, self.src1, self.view, self.y0, self.y1, self.width, self.param];
-        let mut bytes = [0u8; PUSH_CONSTANT_BYTES as usize];
+        let mut bytes = [0u8; 32];
         for (chunk, w) in bytes.chunks_exact_mut(4).zip(words) {
             chunk.copy_from_slice(&w.to_le_bytes());
         }
@@ -68,6 +69,8 @@ pub struct Recorder<'a> {
     pub(crate) images: &'a HashMap<usize, crate::memory::Image>,
     /// Frame-in-flight slot being recorded (selects the descriptor set).
     pub(crate) slot: usize,
+    pub(crate) global_buffers: &'a HashMap<String, u64>,
+    pub(crate) frame_data_address: u64,
     pub(crate) plan: &'a Plan,
     pub(crate) device_index: usize,
     pub(crate) bound: Option<vk::Pipeline>,
@@ -94,16 +97,45 @@ impl Recorder<'_> {
 
     /// Binds the embedded compute shader `shader`, pushes `params` and dispatches `groups`.
     pub fn dispatch(&mut self, shader: &str, params: PassParams, groups: [u32; 3]) -> Result<()> {
+        self.dispatch_bytes(shader, &params.to_bytes(), groups)
+    }
+
+    /// Like [`Self::dispatch`] with a kernel-defined push-constant block (at most 128 bytes, a
+    /// multiple of 4; the shader defines `PARALLAX_CUSTOM_PUSH_CONSTANTS` and declares it).
+    pub fn dispatch_bytes(&mut self, shader: &str, push: &[u8], groups: [u32; 3]) -> Result<()> {
+        if push.len() > PUSH_CONSTANT_BYTES as usize || push.len() % 4 != 0 {
+            return Err(BackendError::KernelMisuse {
+                kernel: shader.to_string(),
+                instance: usize::MAX,
+                detail: format!("{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)", push.len()),
+            });
+        }
         let pipeline = self.bindless.pipeline(shader)?;
         unsafe {
             if self.bound != Some(pipeline) {
                 self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
                 self.bound = Some(pipeline);
             }
-            self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, &params.to_bytes());
+            if !push.is_empty() {
+                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push);
+            }
             self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
         }
         Ok(())
+    }
+
+    /// GPU address of the global buffer `name` on this device (see `Executor::upload_buffer`).
+    pub fn buffer_address(&self, name: &str) -> Result<u64> {
+        self.global_buffers
+            .get(name)
+            .copied()
+            .ok_or_else(|| BackendError::UnknownBuffer { name: name.to_string(), device: self.device_index })
+    }
+
+    /// GPU address of this frame-in-flight slot's copy of the per-frame data (see
+    /// `Executor::set_frame_data`); the contents change every frame without re-recording.
+    pub fn frame_data_address(&self) -> u64 {
+        self.frame_data_address
     }
 
     /// Dispatches `shader` over `params.width` × rows `[y0, y1)` with the 8×8 workgroups every

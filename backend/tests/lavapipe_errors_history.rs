@@ -238,3 +238,84 @@ fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
         ctx.check_validation().unwrap();
     }
 }
+
+fn weighted_plan(size: u32) -> Plan {
+    let all = Rows::new(0, size);
+    Plan {
+        resources: (0..2)
+            .map(|v| PlanResource {
+                name: "w".into(),
+                view: v,
+                width: size,
+                height: size,
+                format: TexelFormat::Rgba32Float,
+            })
+            .collect(),
+        passes: (0..2)
+            .map(|v| PlanPass {
+                name: "weighted_fill".into(),
+                view: v,
+                rows: all,
+                device: v as usize,
+                reads: vec![],
+                history_reads: vec![],
+                writes: vec![PlanAccess { resource: v as usize, version: 1, rows: all }],
+            })
+            .collect(),
+        copies: vec![PlanCopy { resource: 1, version: 1, rows: all, from: 1, to: 0 }],
+        devices: vec![
+            vec![PlanOp::Pass(0), PlanOp::Wait(0), PlanOp::CopyIn(0)],
+            vec![PlanOp::Pass(1), PlanOp::CopyOut(0), PlanOp::Signal(0)],
+        ],
+    }
+}
+
+#[test]
+fn global_buffers_and_frame_data_reach_kernels_by_address() {
+    use parallax_backend::kernels::reference_fill;
+    let size = 16;
+    let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
+    let mut exec = Executor::new(&ctx, weighted_plan(size), builtin_kernels(), ExecOptions::default()).unwrap();
+    let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+    let check = |exec: &mut Executor, weights: [f32; 2], offset: f32| {
+        for view in 0..2u32 {
+            let bytes = exec.read_image(0, view as usize).unwrap();
+            let got: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+            let expected: Vec<f32> = (0..size)
+                .flat_map(|y| (0..size).flat_map(move |x| reference_fill(x, y, view)))
+                .map(|p| p * weights[view as usize] + offset)
+                .collect();
+            assert_eq!(got, expected, "view {view}, weights {weights:?}, offset {offset}");
+        }
+    };
+
+    // Running before the kernel's buffer exists is an error naming it.
+    match exec.run_frame() {
+        Err(BackendError::UnknownBuffer { name, device: 0 }) => assert_eq!(name, "weights"),
+        other => panic!("expected UnknownBuffer, got {other:?}"),
+    }
+    exec.upload_buffer("weights", &floats(&[0.5, 2.0])).unwrap();
+    exec.set_frame_data(&floats(&[0.25])).unwrap();
+    exec.run_frame().unwrap();
+    check(&mut exec, [0.5, 2.0], 0.25);
+    let recorded = exec.recordings();
+
+    // Same size: contents change in place, nothing is re-recorded; frame data changes per frame.
+    exec.upload_buffer("weights", &floats(&[1.0, 4.0])).unwrap();
+    exec.set_frame_data(&floats(&[0.5])).unwrap();
+    exec.run_frame().unwrap();
+    exec.run_frame().unwrap();
+    check(&mut exec, [1.0, 4.0], 0.5);
+    assert_eq!(exec.recordings(), recorded);
+
+    // Another size moves the buffer: recorded again before the next frame.
+    exec.upload_buffer("weights", &floats(&[0.25, 0.125, 9.0])).unwrap();
+    exec.run_frame().unwrap();
+    check(&mut exec, [0.25, 0.125], 0.5);
+    assert_eq!(exec.recordings(), recorded + 1);
+
+    let too_big = vec![0u8; (ExecOptions::default().frame_data_bytes + 4) as usize];
+    assert!(matches!(exec.set_frame_data(&too_big), Err(BackendError::FrameDataTooLarge { .. })));
+    drop(exec);
+    ctx.check_validation().unwrap();
+}

@@ -23,7 +23,9 @@ layout(set = 0, binding = 1, std140) uniform FrameConstants {
 } frame;
 
 // Generic pass parameters: image indices into `images`, the row band of the instance, and two
-// kernel-specific words.
+// kernel-specific words. A kernel that needs more (buffer addresses, ...) defines
+// PARALLAX_CUSTOM_PUSH_CONSTANTS before the include and declares its own block (<= 128 bytes).
+#ifndef PARALLAX_CUSTOM_PUSH_CONSTANTS
 layout(push_constant, std430) uniform PassParams {
     uint dst;
     uint src0;
@@ -34,5 +36,6 @@ layout(push_constant, std430) uniform PassParams {
     uint width;
     uint param;
 } pc;
+#endif
 
 #endif
