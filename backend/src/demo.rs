@@ -6,7 +6,7 @@
 //! devices, like a fine-grained split), then blended with view `v+1` (a gather from another
 //! view), and every finished view is gathered on device 0.
 
-use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, Rows, TexelFormat};
+use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat};
 
 /// Resource ids of the reprojection demo.
 #[derive(Clone, Debug)]
@@ -34,6 +34,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
             width,
             height,
             format: TexelFormat::Rgba32Float,
+            kind: ResourceKind::Image,
         });
         plan.resources.len() - 1
     };
@@ -143,6 +144,7 @@ pub fn copy_benchmark(width: u32, height: u32) -> Plan {
             width,
             height,
             format: TexelFormat::Rgba32Float,
+            kind: ResourceKind::Image,
         }],
         passes: vec![PlanPass {
             name: "fill".into(),
@@ -175,6 +177,7 @@ pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> 
                 width: size,
                 height: size,
                 format: TexelFormat::Rgba8Unorm,
+                kind: ResourceKind::Image,
             });
             plan.passes.push(PlanPass {
                 name: "fill".into(),

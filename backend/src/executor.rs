@@ -25,7 +25,7 @@ use crate::error::{BackendError, Result, VkContext};
 use crate::instance::Instance;
 use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
 use crate::pipeline::Bindless;
-use crate::plan::{Plan, PlanResource, TexelFormat};
+use crate::plan::{Plan, PlanResource, ResourceKind, TexelFormat};
 use crate::record::{SegmentContext, TimerLabel, record_segment, timer_labels};
 use crate::recorder::KernelRegistry;
 use crate::relay::{Relay, RelayJob};
@@ -88,6 +88,8 @@ struct SlotResources {
 struct DeviceState {
     device: Arc<Device>,
     images: HashMap<usize, Image>,
+    /// Per-view buffer resources (ResourceKind::Buffer).
+    buffers: HashMap<usize, Buffer>,
     image_slots: HashMap<usize, u32>,
     bindless: Bindless,
     /// Command pools of the main and of the copy queue family.
@@ -253,10 +255,13 @@ impl Executor {
         self.kernels.check_plan(&plan)?;
         // Threads first (they use the old semaphores), then the old states.
         self.relay = None;
-        let mut kept: HashMap<(usize, PlanResource), Image> = HashMap::new();
+        let mut kept = Kept::default();
         for (d, mut state) in std::mem::take(&mut self.states).into_iter().enumerate() {
             for (resource, image) in state.images.drain() {
-                kept.insert((d, self.plan.resources[resource].clone()), image);
+                kept.images.insert((d, self.plan.resources[resource].clone()), image);
+            }
+            for (resource, buffer) in state.buffers.drain() {
+                kept.buffers.insert((d, self.plan.resources[resource].clone()), buffer);
             }
         }
         self.staging = None;
@@ -302,6 +307,8 @@ impl Executor {
             .map(|g| g.iter().map(|(name, b)| (name.clone(), b.device_address())).collect())
             .collect();
         for (d, state) in self.states.iter_mut().enumerate() {
+            let buffer_addresses: HashMap<usize, u64> =
+                state.buffers.iter().map(|(&r, b)| (r, b.device_address())).collect();
             for slot in 0..state.slots.len() {
                 let staging =
                     self.staging.as_ref().and_then(|s| s.buffers[slot].buffer_on(d).map(|b| (b, s.offsets.as_slice())));
@@ -317,6 +324,8 @@ impl Executor {
                     query_pool: state.slots[slot].query_pool,
                     staging,
                     global_buffers: &addresses[d],
+                    buffers: &state.buffers,
+                    buffer_addresses: &buffer_addresses,
                     frame_data_address: self.frame_data_buffers[slot][d].device_address(),
                 };
                 let mut first_timer = 0u32;
@@ -668,24 +677,43 @@ impl Executor {
 
     /// Reads `resource` back from `device` as tightly packed rows (waits for all frames).
     pub fn read_image(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
+        self.read_resource(device, resource)
+    }
+
+    /// Reads an image (tightly packed rows) or a buffer back from `device` (waits for all
+    /// frames).
+    pub fn read_resource(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
         self.finish()?;
         let state = &self.states[device];
-        let image = state.images.get(&resource).ok_or(BackendError::ResourceNotOnDevice { resource, device })?;
-        let size = image.row_bytes() * u64::from(image.height);
+        let image = state.images.get(&resource);
+        let buffer = state.buffers.get(&resource);
+        if image.is_none() && buffer.is_none() {
+            return Err(BackendError::ResourceNotOnDevice { resource, device });
+        }
+        let size = self.plan.resources[resource].bytes();
         let readback =
             Buffer::new(&state.device, "readback", size, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?;
         let raw = &state.device.raw;
         state.device.one_shot(|cb| unsafe {
             crate::record::full_barrier(raw, cb);
-            let region = vk::BufferImageCopy::default()
-                .image_subresource(vk::ImageSubresourceLayers {
-                    aspect_mask: vk::ImageAspectFlags::COLOR,
-                    mip_level: 0,
-                    base_array_layer: 0,
-                    layer_count: 1,
-                })
-                .image_extent(vk::Extent3D { width: image.width, height: image.height, depth: 1 });
-            raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, readback.raw, &[region]);
+            if let Some(image) = image {
+                let region = vk::BufferImageCopy::default()
+                    .image_subresource(vk::ImageSubresourceLayers {
+                        aspect_mask: vk::ImageAspectFlags::COLOR,
+                        mip_level: 0,
+                        base_array_layer: 0,
+                        layer_count: 1,
+                    })
+                    .image_extent(vk::Extent3D { width: image.width, height: image.height, depth: 1 });
+                raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, readback.raw, &[region]);
+            } else if let Some(buffer) = buffer {
+                raw.cmd_copy_buffer(
+                    cb,
+                    buffer.raw,
+                    readback.raw,
+                    &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size }],
+                );
+            }
             let to_host = [vk::MemoryBarrier2::default()
                 .src_stage_mask(vk::PipelineStageFlags2::COPY)
                 .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
@@ -730,14 +758,15 @@ fn create_device_state(
     d: usize,
     segments: Vec<Segment>,
     slots: usize,
-    kept: &mut HashMap<(usize, PlanResource), Image>,
+    kept: &mut Kept,
 ) -> Result<DeviceState> {
-    let resources = plan.resources_of_device(d);
+    let (resources, buffer_resources): (Vec<usize>, Vec<usize>) =
+        plan.resources_of_device(d).into_iter().partition(|&r| plan.resources[r].kind == ResourceKind::Image);
     let mut images = HashMap::new();
     let mut fresh = Vec::new();
     for &r in &resources {
         let desc = &plan.resources[r];
-        let image = match kept.remove(&(d, desc.clone())) {
+        let image = match kept.images.remove(&(d, desc.clone())) {
             Some(image) => image,
             None => {
                 fresh.push(r);
@@ -746,6 +775,29 @@ fn create_device_state(
         };
         images.insert(r, image);
     }
+    let mut buffers = HashMap::new();
+    let mut fresh_buffers = Vec::new();
+    for &r in &buffer_resources {
+        let desc = &plan.resources[r];
+        let buffer = match kept.buffers.remove(&(d, desc.clone())) {
+            Some(buffer) => buffer,
+            None => {
+                fresh_buffers.push(r);
+                Buffer::new(
+                    device,
+                    &format!("{} view {}", desc.name, desc.view),
+                    desc.bytes(),
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::TRANSFER_SRC
+                        | vk::BufferUsageFlags::TRANSFER_DST
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    MemoryLocation::GpuOnly,
+                )?
+            }
+        };
+        buffers.insert(r, buffer);
+    }
+    clear_buffers(device, fresh_buffers.iter().map(|r| &buffers[r]))?;
     let placeholders = [
         Image::new(device, "float placeholder", 1, 1, TexelFormat::Rgba32Float)?,
         Image::new(device, "uint placeholder", 1, 1, TexelFormat::R32Uint)?,
@@ -766,6 +818,7 @@ fn create_device_state(
     let mut state = DeviceState {
         device: device.clone(),
         images,
+        buffers,
         image_slots,
         bindless,
         command_pools,
@@ -803,6 +856,28 @@ fn create_device_state(
         state.slots.push(SlotResources { command_buffers, query_pool });
     }
     Ok(state)
+}
+
+/// Resources of the previous plan that the next one may take over, by device and description.
+#[derive(Default)]
+struct Kept {
+    images: HashMap<(usize, PlanResource), Image>,
+    buffers: HashMap<(usize, PlanResource), Buffer>,
+}
+
+/// Zeroes new buffers, for the same reason images are cleared.
+fn clear_buffers<'a>(device: &Device, buffers: impl Iterator<Item = &'a Buffer>) -> Result<()> {
+    let buffers: Vec<&Buffer> = buffers.collect();
+    if buffers.is_empty() {
+        return Ok(());
+    }
+    let raw = &device.raw;
+    device.one_shot(|cb| unsafe {
+        for b in &buffers {
+            raw.cmd_fill_buffer(cb, b.raw, 0, vk::WHOLE_SIZE, 0);
+        }
+        crate::record::full_barrier(raw, cb);
+    })
 }
 
 /// Moves new images to `GENERAL` (their layout for life) and clears them to zero, so that a

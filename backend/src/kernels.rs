@@ -119,6 +119,27 @@ impl PassKernel for WeightedFillKernel {
     }
 }
 
+/// Writes `hash3(i, 0, view)` into every 32-bit word `i` of the per-view buffer `writes[0]`
+/// (`shaders/fill_buffer.comp`).
+pub struct FillBufferKernel;
+
+impl PassKernel for FillBufferKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "fill_buffer", 0, 1)?;
+        let words = rec.resource(dst).width;
+        let mut push = Vec::with_capacity(16);
+        push.extend_from_slice(&pass.view.to_le_bytes());
+        push.extend_from_slice(&words.to_le_bytes());
+        push.extend_from_slice(&rec.buffer_of(dst)?.to_le_bytes());
+        rec.dispatch_bytes("fill_buffer", &push, [words.div_ceil(64), 1, 1])
+    }
+}
+
+/// CPU value of word `i` written by [`FillBufferKernel`] for `view`.
+pub fn reference_buffer_word(i: u32, view: u32) -> u32 {
+    hash3(i, 0, view)
+}
+
 /// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`shaders/fill_mask.comp`).
 pub struct FillMaskKernel;
 
@@ -192,7 +213,7 @@ fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, wr
 }
 
 /// Registry with the built-in kernels under the pass names `fill`, `shift_blend`,
-/// `accumulate`, `fill_mask`, `raster_demo` and `weighted_fill`.
+/// `accumulate`, `fill_mask`, `raster_demo`, `weighted_fill` and `fill_buffer`.
 pub fn builtin_kernels() -> KernelRegistry {
     KernelRegistry::new()
         .with("fill", FillKernel)
@@ -201,6 +222,7 @@ pub fn builtin_kernels() -> KernelRegistry {
         .with("fill_mask", FillMaskKernel)
         .with("raster_demo", RasterDemoKernel)
         .with("weighted_fill", WeightedFillKernel)
+        .with("fill_buffer", FillBufferKernel)
 }
 
 /// Column shift used by `shift_blend` for `view`.

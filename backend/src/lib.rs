@@ -60,7 +60,9 @@ pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::LowerError;
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use pipeline::{shader_names, spirv};
-pub use plan::{Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, Rows, TexelFormat};
+pub use plan::{
+    Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
+};
 pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

@@ -4,13 +4,11 @@
 
 use parallax_graph::{Access, Format, Op, ResourceDesc, Schedule};
 
-use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, Rows, TexelFormat};
+use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat};
 
-/// What a schedule can contain that the backend cannot run yet.
+/// What makes a schedule impossible to lower.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum LowerError {
-    #[error("resource {resource} (`{name}`) is a buffer; the backend only allocates per-view images so far")]
-    BufferResource { resource: usize, name: String },
     #[error("the schedule has programs for devices {found:?}; expected exactly 0..{expected}")]
     DevicePrograms { found: Vec<u32>, expected: usize },
 }
@@ -36,18 +34,18 @@ impl Plan {
         let resources = schedule
             .resources
             .iter()
-            .enumerate()
-            .map(|(i, r)| match r.desc {
-                ResourceDesc::Image { width, height, format } => Ok(PlanResource {
+            .map(|r| match r.desc {
+                ResourceDesc::Image { width, height, format } => PlanResource {
                     name: r.name.clone(),
                     view: r.view.0,
                     width,
                     height,
                     format: texel_format(format),
-                }),
-                ResourceDesc::Buffer { .. } => Err(LowerError::BufferResource { resource: i, name: r.name.clone() }),
+                    kind: ResourceKind::Image,
+                },
+                ResourceDesc::Buffer { bytes } => PlanResource::buffer(r.name.clone(), r.view.0, bytes),
             })
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Vec<_>>();
         let passes = schedule
             .instances
             .iter()

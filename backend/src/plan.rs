@@ -45,7 +45,18 @@ impl TexelFormat {
     }
 }
 
-/// One per-view image.
+/// What a plan resource is on the GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+pub enum ResourceKind {
+    /// A 2D storage image of `width`×`height` texels of `format`.
+    Image,
+    /// A storage buffer, described as one row (`height` 1) of `width` 32-bit words
+    /// (`format` [`TexelFormat::R32Uint`]), so copies and validation treat both kinds alike.
+    /// Shaders reach it by address ([`crate::Recorder::buffer_of`]).
+    Buffer,
+}
+
+/// One per-view resource.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub struct PlanResource {
     pub name: String,
@@ -53,9 +64,28 @@ pub struct PlanResource {
     pub width: u32,
     pub height: u32,
     pub format: TexelFormat,
+    pub kind: ResourceKind,
 }
 
 impl PlanResource {
+    /// A per-view buffer of at least `bytes` bytes (rounded up to whole 32-bit words).
+    pub fn buffer(name: impl Into<String>, view: u32, bytes: u64) -> Self {
+        let words = bytes.div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;
+        Self {
+            name: name.into(),
+            view,
+            width: words,
+            height: 1,
+            format: TexelFormat::R32Uint,
+            kind: ResourceKind::Buffer,
+        }
+    }
+
+    /// Bytes of the whole resource.
+    pub fn bytes(&self) -> u64 {
+        self.row_bytes() * u64::from(self.height)
+    }
+
     pub fn row_bytes(&self) -> u64 {
         u64::from(self.width) * u64::from(self.format.bytes_per_texel())
     }

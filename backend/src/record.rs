@@ -90,6 +90,9 @@ pub(crate) struct SegmentContext<'a> {
     /// Addresses of the global buffers on this device, and of the slot's per-frame data.
     pub global_buffers: &'a HashMap<String, u64>,
     pub frame_data_address: u64,
+    /// Per-view buffer resources of this device and their addresses.
+    pub buffers: &'a HashMap<usize, crate::memory::Buffer>,
+    pub buffer_addresses: &'a HashMap<usize, u64>,
 }
 
 /// Records `segment`; its first timer is `first_timer`.
@@ -147,6 +150,7 @@ fn record_items(
                     slot: ctx.slot,
                     global_buffers: ctx.global_buffers,
                     frame_data_address: ctx.frame_data_address,
+                    buffer_addresses: ctx.buffer_addresses,
                     plan: ctx.plan,
                     device_index: ctx.device_index,
                     bound,
@@ -155,10 +159,7 @@ fn record_items(
                 bound = rec.bound;
             }
             Item::CopyOut(chunk) => {
-                let (buffer, region, image) = copy_region(ctx, &chunk);
-                unsafe {
-                    raw.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::GENERAL, buffer, &[region]);
-                }
+                record_copy(ctx, cb, &chunk, CopyDirection::Out);
                 // Make the bytes available to the host domain, where the other device reads
                 // them.
                 let to_host = [vk::MemoryBarrier2::default()
@@ -168,26 +169,45 @@ fn record_items(
                     .dst_access_mask(vk::AccessFlags2::HOST_READ)];
                 unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
             }
-            Item::CopyIn(chunk) => {
-                let (buffer, region, image) = copy_region(ctx, &chunk);
-                unsafe {
-                    raw.cmd_copy_buffer_to_image(cb, buffer, image, vk::ImageLayout::GENERAL, &[region]);
-                }
-            }
+            Item::CopyIn(chunk) => record_copy(ctx, cb, &chunk, CopyDirection::In),
         }
         unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
     }
     unsafe { raw.end_command_buffer(cb) }.vk("vkEndCommandBuffer")
 }
 
-/// Staging buffer, copy region and image of one chunk on this device.
-fn copy_region(ctx: &SegmentContext<'_>, chunk: &Chunk) -> (vk::Buffer, vk::BufferImageCopy, vk::Image) {
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum CopyDirection {
+    /// Resource → staging (producer).
+    Out,
+    /// Staging → resource (consumer).
+    In,
+}
+
+/// Copies one chunk between the resource and its place in the staging buffer.
+fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, direction: CopyDirection) {
+    let raw = ctx.raw;
     let copy = &ctx.plan.copies[chunk.copy];
     let resource = &ctx.plan.resources[copy.resource];
-    let (buffer, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
-    let offset = offsets[chunk.copy] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
+    let (staging, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
+    let staging_offset = offsets[chunk.copy] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
+    if let Some(buffer) = ctx.buffers.get(&copy.resource) {
+        let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
+        let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
+        let (src, dst, region) = match direction {
+            CopyDirection::Out => {
+                (buffer.raw, staging, vk::BufferCopy { src_offset: resource_offset, dst_offset: staging_offset, size })
+            }
+            CopyDirection::In => {
+                (staging, buffer.raw, vk::BufferCopy { src_offset: staging_offset, dst_offset: resource_offset, size })
+            }
+        };
+        unsafe { raw.cmd_copy_buffer(cb, src, dst, &[region]) };
+        return;
+    }
+    let image = ctx.images[&copy.resource].raw;
     let region = vk::BufferImageCopy::default()
-        .buffer_offset(offset)
+        .buffer_offset(staging_offset)
         .image_subresource(vk::ImageSubresourceLayers {
             aspect_mask: vk::ImageAspectFlags::COLOR,
             mip_level: 0,
@@ -196,7 +216,12 @@ fn copy_region(ctx: &SegmentContext<'_>, chunk: &Chunk) -> (vk::Buffer, vk::Buff
         })
         .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
         .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 });
-    (buffer, region, ctx.images[&copy.resource].raw)
+    unsafe {
+        match direction {
+            CopyDirection::Out => raw.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::GENERAL, staging, &[region]),
+            CopyDirection::In => raw.cmd_copy_buffer_to_image(cb, staging, image, vk::ImageLayout::GENERAL, &[region]),
+        }
+    }
 }
 
 /// Every earlier write is visible to every later access on this queue.

@@ -71,6 +71,7 @@ pub struct Recorder<'a> {
     pub(crate) slot: usize,
     pub(crate) global_buffers: &'a HashMap<String, u64>,
     pub(crate) frame_data_address: u64,
+    pub(crate) buffer_addresses: &'a HashMap<usize, u64>,
     pub(crate) plan: &'a Plan,
     pub(crate) device_index: usize,
     pub(crate) bound: Option<vk::Pipeline>,
@@ -122,6 +123,15 @@ impl Recorder<'_> {
             self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
         }
         Ok(())
+    }
+
+    /// GPU address of the per-view buffer `resource` (a `ResourceKind::Buffer` of the plan) on
+    /// this device.
+    pub fn buffer_of(&self, resource: usize) -> Result<u64> {
+        self.buffer_addresses
+            .get(&resource)
+            .copied()
+            .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
     }
 
     /// GPU address of the global buffer `name` on this device (see `Executor::upload_buffer`).

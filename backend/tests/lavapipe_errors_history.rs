@@ -4,7 +4,7 @@
 use parallax_backend::kernels::builtin_kernels;
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelRegistry, Plan, PlanAccess,
-    PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, Rows, TexelFormat, Validation,
+    PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat, Validation,
 };
 
 fn context(selection: DeviceSelection) -> Result<Context, BackendError> {
@@ -58,6 +58,7 @@ fn history_plan(size: u32) -> Plan {
             width: size,
             height: size,
             format: TexelFormat::Rgba32Float,
+            kind: ResourceKind::Image,
         }],
         passes: vec![PlanPass {
             name: "accumulate".into(),
@@ -119,7 +120,14 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     use parallax_backend::kernels::{reference_fill, reference_mask};
     let size = 16;
     let all = Rows::new(0, size);
-    let image = |name: &str, format| PlanResource { name: name.into(), view: 0, width: size, height: size, format };
+    let image = |name: &str, format| PlanResource {
+        name: name.into(),
+        view: 0,
+        width: size,
+        height: size,
+        format,
+        kind: ResourceKind::Image,
+    };
     let write = |resource| PlanAccess { resource, version: 1, rows: all };
     // Device 1 writes a uint mask and a float image side by side (indices interleave the two
     // bindings); both travel to device 0.
@@ -190,6 +198,7 @@ fn raster_plan(devices: usize, size: u32) -> Plan {
             width: size,
             height: size,
             format: TexelFormat::Rgba32Float,
+            kind: ResourceKind::Image,
         }],
         devices: vec![Vec::new(); devices],
         ..Plan::default()
@@ -249,6 +258,7 @@ fn weighted_plan(size: u32) -> Plan {
                 width: size,
                 height: size,
                 format: TexelFormat::Rgba32Float,
+                kind: ResourceKind::Image,
             })
             .collect(),
         passes: (0..2)

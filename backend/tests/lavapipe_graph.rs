@@ -109,3 +109,34 @@ fn both_schemes_really_copy_between_devices() {
         }
     }
 }
+
+#[test]
+fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
+    use parallax_backend::ResourceKind;
+    use parallax_backend::kernels::reference_buffer_word;
+    let lf = LightField::new("3x1".parse().unwrap(), None, Some((8, 8)), Rig::default()).unwrap();
+    let config = PlanConfig { devices: 3, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
+    let mut g = Graph::new(plan.topology.clone());
+    let bytes = 1000; // not a multiple of 4 on purpose: rounded up to 250 words
+    let mut list = g.buffer("list", bytes);
+    g.pass("fill_buffer", Role::All).write(&mut list).record();
+    g.export(&list);
+    let schedule = compile(&g, &plan).unwrap();
+    assert!(schedule.validate().is_ok());
+    let exec_plan = Plan::from_schedule(&schedule).unwrap();
+    assert!(exec_plan.resources.iter().all(|r| r.kind == ResourceKind::Buffer && r.width == 250));
+    assert_eq!(exec_plan.copies.len(), 2, "views on devices 1 and 2 gathered to device 0");
+    let ctx = Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(3), validation: Validation::Core })
+        .unwrap();
+    let mut exec = Executor::new(&ctx, exec_plan.clone(), builtin_kernels(), ExecOptions::default()).unwrap();
+    exec.run_frame().unwrap();
+    for (r, resource) in exec_plan.resources.iter().enumerate() {
+        let bytes = exec.read_resource(0, r).unwrap();
+        let words: Vec<u32> = bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let expected: Vec<u32> = (0..250).map(|i| reference_buffer_word(i, resource.view)).collect();
+        assert_eq!(words, expected, "view {}", resource.view);
+    }
+    drop(exec);
+    ctx.check_validation().unwrap();
+}
