@@ -35,6 +35,7 @@
 
 mod context;
 mod device;
+mod device_state;
 mod error;
 mod executor;
 mod instance;
