@@ -97,6 +97,7 @@ fn run() -> Result<(), String> {
             "  while copying: device->host {:.2} GB/s, host->device {:.2} GB/s (medians of bytes / busy time)",
             copy.median_device_to_host_gb_per_s, copy.median_host_to_device_gb_per_s
         );
+        println!("  chunk handoff (copy-in start - copy-out end): median {:.1} µs", copy.median_handoff_us);
         copies.push(copy);
     }
     let overhead = executor_overhead(&desc, &args.overhead).map_err(|e| e.to_string())?;

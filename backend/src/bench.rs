@@ -56,6 +56,9 @@ pub struct CopyFrame {
     pub host_to_device_busy_ns: u64,
     /// Time both directions were running at once (0 = not pipelined).
     pub overlap_ns: u64,
+    /// Per chunk: copy-in start minus copy-out end (the cross-device signal latency, host relay
+    /// included, plus any wait for the consumer's queue); the median over the chunks.
+    pub median_handoff_ns: i64,
 }
 
 /// Result of [`copy_bandwidth`].
@@ -77,6 +80,8 @@ pub struct CopyBenchResult {
     pub median_device_to_host_gb_per_s: f64,
     /// Median rate of the host→device copies while they run.
     pub median_host_to_device_gb_per_s: f64,
+    /// Median over frames of the per-chunk handoff latency (µs).
+    pub median_handoff_us: f64,
     /// The measured frames' full reports (for `--trace`).
     #[serde(skip)]
     pub reports: Vec<FrameReport>,
@@ -92,6 +97,20 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+/// Median over chunks of (copy-in start − copy-out end) of the same chunk.
+fn median_handoff(report: &FrameReport) -> i64 {
+    let end_of =
+        |chunk: u32| report.events.iter().find(|e| e.kind == EventKind::CopyOut && e.chunk == chunk).map(|e| e.end_ns);
+    let mut gaps: Vec<i64> = report
+        .events
+        .iter()
+        .filter(|e| e.kind == EventKind::CopyIn)
+        .filter_map(|e| end_of(e.chunk).map(|end| e.start_ns as i64 - end as i64))
+        .collect();
+    gaps.sort_unstable();
+    gaps.get(gaps.len() / 2).copied().unwrap_or(0)
 }
 
 /// Span (first start, last end) of the events of `kind`.
@@ -142,6 +161,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
                 device_to_host_busy_ns: busy(EventKind::CopyOut),
                 host_to_device_busy_ns: busy(EventKind::CopyIn),
                 overlap_ns: out_end.min(in_end).saturating_sub(out_start.max(in_start)),
+                median_handoff_ns: median_handoff(r),
             }
         })
         .collect();
@@ -157,6 +177,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         best_gb_per_s: frames.iter().map(|f| gb_per_s(bytes, f.end_to_end_ns)).fold(0.0, f64::max),
         median_device_to_host_gb_per_s: rate(|f| f.device_to_host_busy_ns),
         median_host_to_device_gb_per_s: rate(|f| f.host_to_device_busy_ns),
+        median_handoff_us: median(frames.iter().map(|f| f.median_handoff_ns as f64 / 1000.0).collect()),
         frames,
         reports,
     })
