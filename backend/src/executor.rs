@@ -7,10 +7,12 @@
 //! * Across devices, the consumer's copy-in waits on a per-copy "ready" timeline that a host
 //!   relay thread signals once the producer's copy-out is done ([`crate::relay`]).
 //! * Up to `frames_in_flight` frames are submitted before the host waits for the oldest; each
-//!   frame-in-flight slot has its own command buffers, query pool, descriptor set and staging
-//!   memory, so nothing is re-recorded unless the plan changes ([`Executor::set_plan`]).
-//! * Images live as long as the plan's resources: their contents carry over from frame to frame
-//!   (history), and over a plan change for resources that keep their description.
+//!   frame-in-flight slot has its own command buffers, query pool, descriptor set, per-frame
+//!   data and staging memory, so nothing is re-recorded unless the plan changes
+//!   ([`Executor::set_plan`]) or a global buffer is reallocated ([`Executor::upload_buffer`]).
+//! * Images and buffers live as long as the plan's resources: their contents carry over from
+//!   frame to frame (history), and over a plan change for resources that keep their
+//!   description.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
