@@ -79,8 +79,6 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
             _ => None,
         })
         .unwrap();
-    let ctx = context(devices);
-    let options = ExecOptions { fault: Some(FaultInjection::DropCrossDeviceWait { copy }), ..ExecOptions::default() };
     // Views whose blend reads the copied resource on the consumer are the ones that go wrong.
     let dropped = plan.copies[copy];
     let expected: Vec<usize> = plan
@@ -90,19 +88,27 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
         .map(|p| p.view as usize)
         .collect();
     assert!(!expected.is_empty());
-    let mut exec = Executor::new(&ctx, plan, builtin_kernels(), options).unwrap();
-    exec.run_frame().unwrap();
-    exec.finish().unwrap();
-    let wrong: Vec<usize> = (0..VIEWS)
-        .filter(|&v| {
-            let bytes = exec.read_image(0, ids.output[v as usize]).unwrap();
-            floats(&bytes) != reference_output(v)
-        })
-        .map(|v| v as usize)
-        .collect();
-    assert_eq!(wrong, expected, "exactly the views fed by the un-awaited copy are wrong");
-    drop(exec);
-    ctx.check_validation().unwrap();
+    for separate_copy_queue in [false, true] {
+        let ctx = context(devices);
+        let options = ExecOptions {
+            fault: Some(FaultInjection::DropCrossDeviceWait { copy }),
+            separate_copy_queue,
+            ..ExecOptions::default()
+        };
+        let mut exec = Executor::new(&ctx, plan.clone(), builtin_kernels(), options).unwrap();
+        exec.run_frame().unwrap();
+        exec.finish().unwrap();
+        let wrong: Vec<usize> = (0..VIEWS)
+            .filter(|&v| {
+                let bytes = exec.read_image(0, ids.output[v as usize]).unwrap();
+                floats(&bytes) != reference_output(v)
+            })
+            .map(|v| v as usize)
+            .collect();
+        assert_eq!(wrong, expected, "exactly the views fed by the un-awaited copy are wrong");
+        drop(exec);
+        ctx.check_validation().unwrap();
+    }
 }
 
 #[test]
