@@ -80,10 +80,17 @@ pub struct Recorder<'a> {
 impl Recorder<'_> {
     /// Index of `resource` in the device's image array (what shaders get in push constants).
     pub fn image(&self, resource: usize) -> Result<u32> {
-        self.image_slots
-            .get(&resource)
-            .copied()
-            .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
+        if let Some(&slot) = self.image_slots.get(&resource) {
+            return Ok(slot);
+        }
+        if self.buffer_addresses.contains_key(&resource) {
+            return Err(BackendError::KernelMisuse {
+                kernel: format!("a kernel of device {}", self.device_index),
+                instance: usize::MAX,
+                detail: format!("resource {resource} is a buffer: use Recorder::buffer_of, not image"),
+            });
+        }
+        Err(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
     }
 
     /// The plan's description of `resource`.
