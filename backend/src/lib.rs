@@ -6,7 +6,11 @@
 //! * [`Executor`]: records per-device command buffers once, submits frames with timeline
 //!   semaphores, moves cross-device copies through host memory imported into both devices, and
 //!   times every pass instance and copy ([`FrameReport`], [`chrome_trace`]).
-//! * [`PassKernel`] / [`KernelRegistry`]: how passes plug their GPU work in.
+//! * [`PassKernel`] / [`KernelRegistry`] / [`Recorder`]: how passes plug their GPU work in:
+//!   compute dispatches over a bindless image array, raster draws ([`Draw`], dynamic rendering
+//!   into plan images), per-view buffers, global buffers ([`Executor::upload_buffer`]) and
+//!   per-frame data ([`Executor::set_frame_data`]) by buffer address.
+//! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]).
 //!
 //! ```
 //! use parallax_backend::*;
