@@ -77,9 +77,10 @@ pub struct RunArgs {
     /// Frames submitted before the host waits for the oldest.
     #[arg(long, default_value_t = 2)]
     frames_in_flight: usize,
-    /// Submit copies to a transfer-only queue where the devices have one.
+    /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
+    /// used by default where the devices have one).
     #[arg(long)]
-    separate_copy_queue: bool,
+    copies_on_main_queue: bool,
     /// Write the per-frame timing reports as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -121,7 +122,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let exec_plan = parallax_backend::Plan::from_schedule(&schedule)?;
     let options = ExecOptions {
         frames_in_flight: args.frames_in_flight,
-        separate_copy_queue: args.separate_copy_queue,
+        separate_copy_queue: !args.copies_on_main_queue,
         ..ExecOptions::default()
     };
     let mut executor = Executor::new(&context, exec_plan, builtin_kernels(), options)?;
@@ -172,9 +173,10 @@ pub struct BenchCopyArgs {
     /// Measured frames (after 3 warm-up frames).
     #[arg(long, default_value_t = 30)]
     frames: usize,
-    /// Submit copies to a transfer-only queue where the devices have one.
+    /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
+    /// used by default where the devices have one).
     #[arg(long)]
-    separate_copy_queue: bool,
+    copies_on_main_queue: bool,
     /// Tiny passes per device for the executor-overhead measurement.
     #[arg(long, default_value_t = 256)]
     passes_per_device: u32,
@@ -196,7 +198,7 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         bytes: args.size_mib << 20,
         chunk_bytes: if args.chunk_mib == 0 { u64::MAX } else { args.chunk_mib << 20 },
         frames: args.frames,
-        separate_copy_queue: args.separate_copy_queue,
+        separate_copy_queue: !args.copies_on_main_queue,
         ..CopyBenchOptions::default()
     };
     let copy = copy_bandwidth(&desc, &copy_options)?;

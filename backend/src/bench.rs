@@ -35,7 +35,7 @@ impl Default for CopyBenchOptions {
             frames: 30,
             warmup: 3,
             frames_in_flight: 2,
-            separate_copy_queue: false,
+            separate_copy_queue: true,
         }
     }
 }
