@@ -1,5 +1,6 @@
 //! The `parallax` command line.
 
+mod cmd_backend;
 mod cmd_plan;
 mod output;
 
@@ -16,12 +17,21 @@ struct Cli {
 enum Command {
     /// Plan a light field over N devices: sources, δ-edges, per-device schedule, copies.
     Plan(cmd_plan::PlanArgs),
+    /// List the Vulkan devices a selection would use (name, driver, API version).
+    Devices(cmd_backend::DevicesArgs),
+    /// Compile the backend's demo pipeline and execute it, with a timing report and trace.
+    Run(cmd_backend::RunArgs),
+    /// Measure cross-device copy bandwidth and executor overhead.
+    BenchCopy(cmd_backend::BenchCopyArgs),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Plan(args) => cmd_plan::run(args),
+        Command::Devices(args) => cmd_backend::devices(args),
+        Command::Run(args) => cmd_backend::run(args),
+        Command::BenchCopy(args) => cmd_backend::bench_copy(args),
     };
     if let Err(err) = result {
         eprintln!("error: {err:#}");

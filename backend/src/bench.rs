@@ -1,0 +1,241 @@
+//! Benchmarks (commands, not tests): cross-device copy bandwidth and the executor's CPU cost per
+//! submitted pass. Used by `examples/copy_bench.rs`; results go to docs/RESULTS.md.
+
+use serde::Serialize;
+
+use crate::context::{Context, ContextDesc};
+use crate::demo::{copy_benchmark, overhead_benchmark};
+use crate::device::DeviceInfo;
+use crate::error::Result;
+use crate::executor::{ExecOptions, Executor};
+use crate::kernels::builtin_kernels;
+use crate::timing::{EventKind, FrameReport};
+
+/// Width of the benchmark payload image (RGBA32F, 16 KiB per row).
+const PAYLOAD_WIDTH: u32 = 1024;
+
+/// Settings of [`copy_bandwidth`].
+#[derive(Clone, Debug)]
+pub struct CopyBenchOptions {
+    pub bytes: u64,
+    pub chunk_bytes: u64,
+    pub frames: usize,
+    /// Frames run before measuring (first-touch of host pages, pipeline creation).
+    pub warmup: usize,
+    pub frames_in_flight: usize,
+    /// Copies on a transfer-only queue where the devices have one.
+    pub separate_copy_queue: bool,
+}
+
+impl Default for CopyBenchOptions {
+    fn default() -> Self {
+        Self {
+            bytes: 64 << 20,
+            chunk_bytes: 8 << 20,
+            frames: 30,
+            warmup: 3,
+            frames_in_flight: 2,
+            separate_copy_queue: true,
+        }
+    }
+}
+
+/// One frame of the copy benchmark, from GPU timestamps on the host clock.
+#[derive(Clone, Debug, Serialize)]
+pub struct CopyFrame {
+    pub frame: u64,
+    /// First copy-out start to last copy-in end: what a consumer waits for.
+    pub end_to_end_ns: u64,
+    /// Producer side: first copy-out start to last copy-out end.
+    pub device_to_host_span_ns: u64,
+    /// Consumer side: first copy-in start to last copy-in end (includes waits for chunks).
+    pub host_to_device_span_ns: u64,
+    /// Sum of the copy-out chunk durations (the device→host transfer rate without gaps).
+    pub device_to_host_busy_ns: u64,
+    /// Sum of the copy-in chunk durations.
+    pub host_to_device_busy_ns: u64,
+    /// Time both directions were running at once (0 = not pipelined).
+    pub overlap_ns: u64,
+    /// Per chunk: copy-in start minus copy-out end (the cross-device signal latency, host relay
+    /// included, plus any wait for the consumer's queue); the median over the chunks.
+    pub median_handoff_ns: i64,
+}
+
+/// Result of [`copy_bandwidth`].
+#[derive(Clone, Debug, Serialize)]
+pub struct CopyBenchResult {
+    pub devices: Vec<DeviceInfo>,
+    pub bytes: u64,
+    pub chunk_bytes: u64,
+    pub chunks: usize,
+    /// Whether copies were submitted to a queue of their own, and whether each device really
+    /// has a transfer-only queue (if not, that queue is the main queue).
+    pub separate_copy_queue: bool,
+    pub devices_with_copy_queue: Vec<bool>,
+    pub frames: Vec<CopyFrame>,
+    /// Median over frames of bytes / end_to_end (GB/s, 1 GB = 1e9 bytes).
+    pub median_gb_per_s: f64,
+    pub best_gb_per_s: f64,
+    /// Median rate of the device→host copies while they run (bytes / busy time).
+    pub median_device_to_host_gb_per_s: f64,
+    /// Median rate of the host→device copies while they run.
+    pub median_host_to_device_gb_per_s: f64,
+    /// Median over frames of the per-chunk handoff latency (µs).
+    pub median_handoff_us: f64,
+    /// The measured frames' full reports (for `--trace`).
+    #[serde(skip)]
+    pub reports: Vec<FrameReport>,
+}
+
+fn gb_per_s(bytes: u64, ns: u64) -> f64 {
+    if ns == 0 { 0.0 } else { bytes as f64 / ns as f64 }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Median over chunks of (copy-in start − copy-out end) of the same chunk.
+fn median_handoff(report: &FrameReport) -> i64 {
+    let end_of =
+        |chunk: u32| report.events.iter().find(|e| e.kind == EventKind::CopyOut && e.chunk == chunk).map(|e| e.end_ns);
+    let mut gaps: Vec<i64> = report
+        .events
+        .iter()
+        .filter(|e| e.kind == EventKind::CopyIn)
+        .filter_map(|e| end_of(e.chunk).map(|end| e.start_ns as i64 - end as i64))
+        .collect();
+    gaps.sort_unstable();
+    gaps.get(gaps.len() / 2).copied().unwrap_or(0)
+}
+
+/// Span (first start, last end) of the events of `kind`.
+fn span(report: &FrameReport, kind: EventKind) -> (u64, u64) {
+    let events = report.events.iter().filter(|e| e.kind == kind);
+    let start = events.clone().map(|e| e.start_ns).min().unwrap_or(0);
+    let end = events.map(|e| e.end_ns).max().unwrap_or(0);
+    (start, end)
+}
+
+/// Moves `options.bytes` from device 0 to device 1 every frame (fill on device 0, copy-out,
+/// copy-in on device 1) and measures the copy with GPU timestamps. `desc` must yield two devices.
+pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<CopyBenchResult> {
+    let context = Context::new(desc)?;
+    let row_bytes = u64::from(PAYLOAD_WIDTH) * 16;
+    let height = options.bytes.div_ceil(row_bytes).max(1) as u32;
+    let plan = copy_benchmark(PAYLOAD_WIDTH, height);
+    let bytes = plan.copy_bytes(0);
+    let mut executor = Executor::new(
+        &context,
+        plan,
+        builtin_kernels(),
+        ExecOptions {
+            frames_in_flight: options.frames_in_flight,
+            chunk_bytes: options.chunk_bytes,
+            separate_copy_queue: options.separate_copy_queue,
+            ..ExecOptions::default()
+        },
+    )?;
+    for _ in 0..options.warmup + options.frames {
+        executor.run_frame()?;
+    }
+    executor.finish()?;
+    context.check_validation()?;
+    let reports: Vec<FrameReport> = executor.take_reports().into_iter().skip(options.warmup).collect();
+    let chunks = reports.first().map_or(0, |r| r.events.iter().filter(|e| e.kind == EventKind::CopyOut).count());
+    let frames: Vec<CopyFrame> = reports
+        .iter()
+        .map(|r| {
+            let (out_start, out_end) = span(r, EventKind::CopyOut);
+            let (in_start, in_end) = span(r, EventKind::CopyIn);
+            let busy = |kind| r.events.iter().filter(|e| e.kind == kind).map(|e| e.duration_ns()).sum();
+            CopyFrame {
+                frame: r.frame,
+                end_to_end_ns: in_end.saturating_sub(out_start),
+                device_to_host_span_ns: out_end.saturating_sub(out_start),
+                host_to_device_span_ns: in_end.saturating_sub(in_start),
+                device_to_host_busy_ns: busy(EventKind::CopyOut),
+                host_to_device_busy_ns: busy(EventKind::CopyIn),
+                overlap_ns: out_end.min(in_end).saturating_sub(out_start.max(in_start)),
+                median_handoff_ns: median_handoff(r),
+            }
+        })
+        .collect();
+    let rate = |f: fn(&CopyFrame) -> u64| median(frames.iter().map(|fr| gb_per_s(bytes, f(fr))).collect());
+    Ok(CopyBenchResult {
+        devices: context.device_infos(),
+        bytes,
+        chunk_bytes: options.chunk_bytes,
+        chunks,
+        separate_copy_queue: options.separate_copy_queue,
+        devices_with_copy_queue: context.devices().iter().map(|d| d.has_copy_queue()).collect(),
+        median_gb_per_s: rate(|f| f.end_to_end_ns),
+        best_gb_per_s: frames.iter().map(|f| gb_per_s(bytes, f.end_to_end_ns)).fold(0.0, f64::max),
+        median_device_to_host_gb_per_s: rate(|f| f.device_to_host_busy_ns),
+        median_host_to_device_gb_per_s: rate(|f| f.host_to_device_busy_ns),
+        median_handoff_us: median(frames.iter().map(|f| f.median_handoff_ns as f64 / 1000.0).collect()),
+        frames,
+        reports,
+    })
+}
+
+/// Settings of [`executor_overhead`].
+#[derive(Clone, Debug)]
+pub struct OverheadBenchOptions {
+    pub passes_per_device: u32,
+    pub frames: usize,
+    pub warmup: usize,
+}
+
+impl Default for OverheadBenchOptions {
+    fn default() -> Self {
+        Self { passes_per_device: 256, frames: 200, warmup: 10 }
+    }
+}
+
+/// Result of [`executor_overhead`].
+#[derive(Clone, Debug, Serialize)]
+pub struct OverheadBenchResult {
+    pub devices: Vec<DeviceInfo>,
+    pub passes_per_frame: usize,
+    pub frames: usize,
+    /// Median CPU time of `run_frame` (submission + relay bookkeeping, excluding the
+    /// frames-in-flight wait) per frame, and per submitted pass.
+    pub median_submit_us_per_frame: f64,
+    pub median_submit_us_per_pass: f64,
+    /// Median host wall time per frame (`run_frame` calls back to back, throttled by the GPU).
+    pub median_frame_wall_us: f64,
+    /// One-time cost of recording all command buffers (every slot), per pass instance.
+    pub record_us_per_pass: f64,
+}
+
+/// Submits frames of many tiny passes and reports the executor's CPU cost per pass.
+pub fn executor_overhead(desc: &ContextDesc, options: &OverheadBenchOptions) -> Result<OverheadBenchResult> {
+    let context = Context::new(desc)?;
+    let devices = context.devices().len();
+    let plan = overhead_benchmark(devices, options.passes_per_device, 8);
+    let passes = plan.passes.len();
+    let mut executor = Executor::new(&context, plan, builtin_kernels(), ExecOptions::default())?;
+    for _ in 0..options.warmup + options.frames {
+        executor.run_frame()?;
+    }
+    executor.finish()?;
+    context.check_validation()?;
+    let reports: Vec<FrameReport> = executor.take_reports().into_iter().skip(options.warmup).collect();
+    let per_frame = median(reports.iter().map(|r| r.submit_cpu_ns as f64 / 1000.0).collect());
+    let walls: Vec<f64> =
+        reports.windows(2).map(|w| w[1].submit_start_ns.saturating_sub(w[0].submit_start_ns) as f64 / 1000.0).collect();
+    Ok(OverheadBenchResult {
+        devices: context.device_infos(),
+        passes_per_frame: passes,
+        frames: reports.len(),
+        median_submit_us_per_frame: per_frame,
+        median_submit_us_per_pass: per_frame / passes.max(1) as f64,
+        median_frame_wall_us: median(walls),
+        record_us_per_pass: executor.last_record_ns() as f64 / 1000.0 / passes.max(1) as f64,
+    })
+}

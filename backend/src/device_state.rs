@@ -1,0 +1,286 @@
+//! What the executor allocates per device for a plan: images and buffers (kept across plan
+//! changes when their description is unchanged), descriptor layout, command pools and buffers,
+//! query pools, timelines; the shared staging memory of cross-device copies; the fault-injection
+//! gate.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use crate::device::{Device, QueueKind};
+use crate::error::{BackendError, Result, VkContext};
+use crate::executor::FaultGate;
+use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
+use crate::pipeline::Bindless;
+use crate::plan::{Plan, PlanResource, ResourceKind, TexelFormat};
+use crate::record::{TimerLabel, timer_labels};
+use crate::segments::{Item, Segment};
+
+/// Alignment of each copy's region inside the staging buffer.
+const STAGING_ALIGN: u64 = 256;
+
+/// Per device, per frame-in-flight slot.
+pub(crate) struct SlotResources {
+    pub(crate) command_buffers: Vec<vk::CommandBuffer>,
+    pub(crate) query_pool: vk::QueryPool,
+}
+
+/// Everything the executor keeps for one device.
+pub(crate) struct DeviceState {
+    pub(crate) device: Arc<Device>,
+    pub(crate) images: HashMap<usize, Image>,
+    /// Per-view buffer resources (ResourceKind::Buffer).
+    pub(crate) buffers: HashMap<usize, Buffer>,
+    pub(crate) image_slots: HashMap<usize, u32>,
+    pub(crate) bindless: Bindless,
+    /// Command pools of the main and of the copy queue family.
+    pub(crate) command_pools: [vk::CommandPool; 2],
+    pub(crate) progress: vk::Semaphore,
+    /// Ready timelines of the copies this device consumes.
+    pub(crate) ready: HashMap<usize, vk::Semaphore>,
+    /// Fault injection: host-signalled semaphore holding this (producer) device back.
+    pub(crate) gate: Option<vk::Semaphore>,
+    pub(crate) segments: Vec<Segment>,
+    pub(crate) timers: Vec<TimerLabel>,
+    pub(crate) slots: Vec<SlotResources>,
+}
+
+impl Drop for DeviceState {
+    fn drop(&mut self) {
+        let raw = &self.device.raw;
+        unsafe {
+            let _ = raw.device_wait_idle();
+            for slot in &self.slots {
+                if slot.query_pool != vk::QueryPool::null() {
+                    raw.destroy_query_pool(slot.query_pool, None);
+                }
+            }
+            for pool in self.command_pools {
+                raw.destroy_command_pool(pool, None);
+            }
+            raw.destroy_semaphore(self.progress, None);
+            for (_, s) in self.ready.drain() {
+                raw.destroy_semaphore(s, None);
+            }
+            if let Some(g) = self.gate.take() {
+                raw.destroy_semaphore(g, None);
+            }
+        }
+    }
+}
+
+/// Staging memory of cross-device copies: one shared host buffer per slot, each copy at a fixed
+/// offset.
+pub(crate) struct Staging {
+    pub(crate) buffers: Vec<SharedHostBuffer>,
+    pub(crate) offsets: Vec<u64>,
+}
+
+/// Creates images, descriptor layout, command buffers and query pools of device `d`.
+pub(crate) fn create_device_state(
+    device: &Arc<Device>,
+    plan: &Plan,
+    d: usize,
+    segments: Vec<Segment>,
+    slots: usize,
+    kept: &mut Kept,
+) -> Result<DeviceState> {
+    let (resources, buffer_resources): (Vec<usize>, Vec<usize>) =
+        plan.resources_of_device(d).into_iter().partition(|&r| plan.resources[r].kind == ResourceKind::Image);
+    let mut images = HashMap::new();
+    let mut fresh = Vec::new();
+    for &r in &resources {
+        let desc = &plan.resources[r];
+        let image = match kept.images.remove(&(d, desc.clone())) {
+            Some(image) => image,
+            None => {
+                fresh.push(r);
+                Image::new(device, &format!("{} view {}", desc.name, desc.view), desc.width, desc.height, desc.format)?
+            }
+        };
+        images.insert(r, image);
+    }
+    let mut buffers = HashMap::new();
+    let mut fresh_buffers = Vec::new();
+    for &r in &buffer_resources {
+        let desc = &plan.resources[r];
+        let buffer = match kept.buffers.remove(&(d, desc.clone())) {
+            Some(buffer) => buffer,
+            None => {
+                fresh_buffers.push(r);
+                Buffer::new(
+                    device,
+                    &format!("{} view {}", desc.name, desc.view),
+                    desc.bytes(),
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::TRANSFER_SRC
+                        | vk::BufferUsageFlags::TRANSFER_DST
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    MemoryLocation::GpuOnly,
+                )?
+            }
+        };
+        buffers.insert(r, buffer);
+    }
+    clear_buffers(device, fresh_buffers.iter().map(|r| &buffers[r]))?;
+    let placeholders = [
+        Image::new(device, "float placeholder", 1, 1, TexelFormat::Rgba32Float)?,
+        Image::new(device, "uint placeholder", 1, 1, TexelFormat::R32Uint)?,
+    ];
+    initialise_images(device, fresh.iter().map(|r| &images[r]).chain(&placeholders))?;
+    let image_slots: HashMap<usize, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
+    let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
+    let bindless = Bindless::new(device, &ordered, placeholders, slots)?;
+    let raw = &device.raw;
+    let mut command_pools = [vk::CommandPool::null(); 2];
+    for (pool, kind) in command_pools.iter_mut().zip([QueueKind::Main, QueueKind::Copy]) {
+        // Command buffers are recorded again in place when a global buffer moves.
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(device.family_of(kind))
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        *pool = unsafe { raw.create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
+    }
+    let mut state = DeviceState {
+        device: device.clone(),
+        images,
+        buffers,
+        image_slots,
+        bindless,
+        command_pools,
+        progress: vk::Semaphore::null(),
+        ready: HashMap::new(),
+        gate: None,
+        timers: timer_labels(plan, &segments),
+        segments,
+        slots: Vec::new(),
+    };
+    state.progress = device.create_timeline(0)?;
+    for _ in 0..slots {
+        let mut command_buffers = Vec::with_capacity(state.segments.len());
+        for segment in &state.segments {
+            let pool = command_pools[segment.queue as usize];
+            let info = vk::CommandBufferAllocateInfo::default()
+                .command_pool(pool)
+                .level(vk::CommandBufferLevel::PRIMARY)
+                .command_buffer_count(1);
+            command_buffers.push(unsafe { raw.allocate_command_buffers(&info) }.vk("vkAllocateCommandBuffers")?[0]);
+        }
+        let query_pool = if state.timers.is_empty() {
+            vk::QueryPool::null()
+        } else {
+            unsafe {
+                raw.create_query_pool(
+                    &vk::QueryPoolCreateInfo::default()
+                        .query_type(vk::QueryType::TIMESTAMP)
+                        .query_count(state.timers.len() as u32 * 2),
+                    None,
+                )
+            }
+            .vk("vkCreateQueryPool")?
+        };
+        state.slots.push(SlotResources { command_buffers, query_pool });
+    }
+    Ok(state)
+}
+
+/// Resources of the previous plan that the next one may take over, by device and description.
+#[derive(Default)]
+pub(crate) struct Kept {
+    pub(crate) images: HashMap<(usize, PlanResource), Image>,
+    pub(crate) buffers: HashMap<(usize, PlanResource), Buffer>,
+}
+
+/// Zeroes new buffers, for the same reason images are cleared.
+fn clear_buffers<'a>(device: &Device, buffers: impl Iterator<Item = &'a Buffer>) -> Result<()> {
+    let buffers: Vec<&Buffer> = buffers.collect();
+    if buffers.is_empty() {
+        return Ok(());
+    }
+    let raw = &device.raw;
+    device.one_shot(|cb| unsafe {
+        for b in &buffers {
+            raw.cmd_fill_buffer(cb, b.raw, 0, vk::WHOLE_SIZE, 0);
+        }
+        crate::record::full_barrier(raw, cb);
+    })
+}
+
+/// Moves new images to `GENERAL` (their layout for life) and clears them to zero, so that a
+/// read of a never-written texel is deterministic.
+fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image>) -> Result<()> {
+    let images: Vec<&Image> = images.collect();
+    if images.is_empty() {
+        return Ok(());
+    }
+    let raw = &device.raw;
+    device.one_shot(|cb| unsafe {
+        let to_general: Vec<vk::ImageMemoryBarrier2> = images
+            .iter()
+            .map(|img| {
+                vk::ImageMemoryBarrier2::default()
+                    .src_stage_mask(vk::PipelineStageFlags2::NONE)
+                    .dst_stage_mask(vk::PipelineStageFlags2::CLEAR)
+                    .dst_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+                    .old_layout(vk::ImageLayout::UNDEFINED)
+                    .new_layout(vk::ImageLayout::GENERAL)
+                    .image(img.raw)
+                    .subresource_range(color_range())
+            })
+            .collect();
+        raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().image_memory_barriers(&to_general));
+        for img in &images {
+            raw.cmd_clear_color_image(
+                cb,
+                img.raw,
+                vk::ImageLayout::GENERAL,
+                &vk::ClearColorValue::default(),
+                &[color_range()],
+            );
+        }
+        crate::record::full_barrier(raw, cb);
+    })
+}
+
+/// One shared host buffer per slot holding every copy of the plan, imported into each device
+/// that sends or receives a copy.
+pub(crate) fn create_staging(devices: &[Arc<Device>], plan: &Plan, slots: usize) -> Result<Option<Staging>> {
+    if plan.copies.is_empty() {
+        return Ok(None);
+    }
+    let mut offsets = Vec::with_capacity(plan.copies.len());
+    let mut total = 0u64;
+    for c in 0..plan.copies.len() {
+        offsets.push(total);
+        total += plan.copy_bytes(c).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
+    }
+    let mut participants: Vec<usize> = plan.copies.iter().flat_map(|c| [c.from, c.to]).collect();
+    participants.sort_unstable();
+    participants.dedup();
+    let participants: Vec<&Arc<Device>> = participants.iter().map(|&d| &devices[d]).collect();
+    let buffers = (0..slots).map(|_| SharedHostBuffer::new(&participants, total)).collect::<Result<Vec<_>>>()?;
+    Ok(Some(Staging { buffers, offsets }))
+}
+
+/// Sets up [`FaultInjection::DropCrossDeviceWait`] for `copy`.
+pub(crate) fn fault_gate(plan: &Plan, states: &mut [DeviceState], copy: usize) -> Result<FaultGate> {
+    let target =
+        plan.copies.get(copy).ok_or_else(|| BackendError::FaultInjection(format!("the plan has no copy {copy}")))?;
+    let consumer = &states[target.to];
+    let consumer_segment = consumer
+        .segments
+        .iter()
+        .rposition(|s| s.items.iter().any(|i| matches!(i, Item::CopyIn(c) if c.copy == copy)))
+        .expect("validated plan: the consumer copies in");
+    if consumer.segments[..=consumer_segment].iter().any(|s| !s.waits.is_empty()) {
+        return Err(BackendError::FaultInjection(format!(
+            "device {} waits for another copy before copy-in {copy}; holding its producer back would deadlock",
+            target.to
+        )));
+    }
+    let producer = &mut states[target.from];
+    let semaphore = producer.device.create_timeline(0)?;
+    producer.gate = Some(semaphore);
+    Ok(FaultGate { semaphore, producer: target.from, consumer: target.to, consumer_segment })
+}

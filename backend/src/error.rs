@@ -1,0 +1,124 @@
+//! The one error type of the backend. Every variant names what went wrong and, where a person
+//! can fix it, what to do (which package to install, which flag to change).
+
+use ash::vk;
+
+/// Errors of the Vulkan backend.
+#[derive(Debug, thiserror::Error)]
+pub enum BackendError {
+    /// `libvulkan.so.1` could not be opened.
+    #[error(
+        "cannot load the Vulkan loader (libvulkan.so.1): {0}; install it with `apt-get install libvulkan1 mesa-vulkan-drivers`"
+    )]
+    LoaderMissing(String),
+
+    /// The loader works but no driver exposes a physical device.
+    #[error(
+        "no Vulkan device found; install a driver: `apt-get install mesa-vulkan-drivers` (lavapipe, software) or the GPU vendor's driver"
+    )]
+    NoDevice,
+
+    /// `--gpus N` asked for more physical devices than the machine has.
+    #[error(
+        "asked for {requested} GPUs but only {available} Vulkan device(s) exist; use --gpus {available} or --fake-devices {requested}"
+    )]
+    NotEnoughGpus { requested: usize, available: usize },
+
+    /// Zero devices were asked for.
+    #[error("the device count must be at least 1")]
+    ZeroDevices,
+
+    /// The Khronos validation layer was requested but is not installed.
+    #[error(
+        "PARALLAX_VALIDATION is set but VK_LAYER_KHRONOS_validation is not installed; `apt-get install vulkan-validationlayers`"
+    )]
+    ValidationLayerMissing,
+
+    /// A device lacks an extension or feature the backend cannot work without.
+    #[error("device {device} ({name}) lacks {what}, which the backend needs")]
+    MissingCapability { device: usize, name: String, what: String },
+
+    /// A Vulkan call failed.
+    #[error("{call} failed: {result}")]
+    Vk { call: &'static str, result: vk::Result },
+
+    /// gpu-allocator could not allocate or free.
+    #[error("memory allocation for {what} failed: {source}")]
+    Allocation { what: String, source: gpu_allocator::AllocationError },
+
+    /// No memory type can hold an imported host allocation on this device.
+    #[error("device {device} cannot import host memory for a buffer ({detail})")]
+    HostImport { device: usize, detail: String },
+
+    /// The validation layer reported errors or warnings.
+    #[error("Vulkan validation reported {} message(s); first: {}", .messages.len(), .messages.first().map(String::as_str).unwrap_or(""))]
+    Validation { messages: Vec<String> },
+
+    /// The plan handed to the executor is inconsistent.
+    #[error("invalid execution plan: {0}")]
+    Plan(#[from] crate::plan::PlanError),
+
+    /// The schedule uses something the backend cannot run yet.
+    #[error("cannot lower the schedule: {0}")]
+    Lower(#[from] crate::lower::LowerError),
+
+    /// A pass instance names a pass for which no kernel is registered.
+    #[error("no kernel registered for pass `{pass}` (registered: {registered:?})")]
+    UnknownPass { pass: String, registered: Vec<String> },
+
+    /// A kernel asked for a shader that the build did not embed.
+    #[error("no embedded shader named `{0}`")]
+    UnknownShader(String),
+
+    /// A kernel's use of the instance does not match what the kernel expects.
+    #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
+    KernelMisuse { kernel: String, instance: usize, detail: String },
+
+    /// A kernel asked for a global buffer that was never uploaded.
+    #[error("no global buffer `{name}` on device {device}; upload it with Executor::upload_buffer before running")]
+    UnknownBuffer { name: String, device: usize },
+
+    /// Per-frame data larger than the executor's capacity.
+    #[error("per-frame data of {bytes} bytes exceeds the capacity of {capacity} (ExecOptions::frame_data_bytes)")]
+    FrameDataTooLarge { bytes: usize, capacity: u64 },
+
+    /// A resource is not present on the device where it was asked for.
+    #[error("resource {resource} is not allocated on device {device}")]
+    ResourceNotOnDevice { resource: usize, device: usize },
+
+    /// A texel format the backend cannot use as a storage image.
+    #[error("format {0:?} is not supported as a storage image by the backend yet")]
+    UnsupportedFormat(crate::plan::TexelFormat),
+
+    /// A host relay thread (cross-device signal forwarding) failed.
+    #[error("cross-device relay failed: {0}")]
+    Relay(String),
+
+    /// The fault-injection hook was asked for something it cannot do deterministically.
+    #[error("fault injection not possible: {0}")]
+    FaultInjection(String),
+
+    /// A frame did not complete in time: a lost signal or a GPU hang.
+    #[error(
+        "frame {frame} did not complete on device {device} within {seconds} s (lost cross-device signal or GPU hang)"
+    )]
+    FrameTimeout { frame: u64, device: usize, seconds: u64 },
+
+    /// Writing a report or trace file failed.
+    #[error("cannot write {path}: {source}")]
+    Io { path: String, source: std::io::Error },
+}
+
+/// Shorthand used across the crate.
+pub type Result<T> = std::result::Result<T, BackendError>;
+
+/// Adds the name of the Vulkan call to an `ash` result.
+pub(crate) trait VkContext<T> {
+    fn vk(self, call: &'static str) -> Result<T>;
+}
+
+impl<T> VkContext<T> for std::result::Result<T, vk::Result> {
+    fn vk(self, call: &'static str) -> Result<T> {
+        self.map_err(|result| BackendError::Vk { call, result })
+    }
+}

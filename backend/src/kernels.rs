@@ -1,0 +1,255 @@
+//! Kernels the backend ships for its own tests, demos and benchmarks, with CPU references that
+//! compute bit-identical values. Real passes (path tracing, reprojection, ...) live in the
+//! passes crate and plug in through the same [`PassKernel`] trait.
+
+use crate::error::{BackendError, Result};
+use crate::plan::{PlanPass, TexelFormat};
+use crate::recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
+
+/// Writes the deterministic pattern of `shaders/fill.comp` into `writes[0]` over the instance's rows.
+pub struct FillKernel;
+
+impl PassKernel for FillKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "fill", 0, 1)?;
+        let width = rec.resource(dst).width;
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            ..Default::default()
+        };
+        rec.dispatch_rows("fill", params)
+    }
+}
+
+/// Reprojection-shaped gather (`shaders/shift_blend.comp`): `writes[0] = 0.5 * reads[0] +
+/// 0.5 * reads[1]` shifted by [`shift_of_view`] columns. `reads[1]` is the first source view's
+/// image (the graph's `read_sources`), which is what makes the planner insert cross-device
+/// copies; further source reads are declared but not sampled. A view without sources (a source
+/// view) blends with itself.
+pub struct ShiftBlendKernel;
+
+impl PassKernel for ShiftBlendKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        if pass.reads.is_empty() || pass.writes.len() != 1 {
+            return Err(BackendError::KernelMisuse {
+                kernel: "shift_blend".into(),
+                instance: index,
+                detail: format!(
+                    "expects at least 1 read and 1 write, got {} and {}",
+                    pass.reads.len(),
+                    pass.writes.len()
+                ),
+            });
+        }
+        let dst = pass.writes[0].resource;
+        let own = pass.reads[0].resource;
+        let other = pass.reads.get(1).unwrap_or(&pass.reads[0]).resource;
+        let width = rec.resource(dst).width;
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            src0: rec.image(own)?,
+            src1: rec.image(other)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            param: shift_of_view(pass.view, width),
+        };
+        rec.dispatch_rows("shift_blend", params)
+    }
+}
+
+/// Raster demo (`shaders/raster_demo.{vert,frag}`): renders into `writes[0]` over the
+/// instance's rows a near quad (left half, constant [`RASTER_NEAR_COLOR`]) drawn before a far
+/// full-image quad (the fill pattern), with the depth test on.
+pub struct RasterDemoKernel;
+
+/// Colour of the near quad of [`RasterDemoKernel`].
+pub const RASTER_NEAR_COLOR: [f32; 4] = [0.25, 0.5, 0.75, 1.0];
+
+impl PassKernel for RasterDemoKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "raster_demo", 0, 1)?;
+        let params = PassParams {
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.draw(&Draw {
+            vertex_shader: "raster_demo.vert",
+            fragment_shader: "raster_demo.frag",
+            color_targets: &[dst],
+            clear: true,
+            depth_test: true,
+            rows: pass.rows,
+            vertex_count: 6,
+            instance_count: 2,
+            params,
+        })
+    }
+}
+
+/// CPU value of the raster demo at (x, y) of a `width`-wide image of `view`.
+pub fn reference_raster(x: u32, y: u32, view: u32, width: u32) -> [f32; 4] {
+    if x < width / 2 { RASTER_NEAR_COLOR } else { reference_fill(x, y, view) }
+}
+
+/// `writes[0] = fill_pattern * weights[view] + frame_data[0]` (`shaders/weighted_fill.comp`):
+/// reads the global buffer `weights` (f32 per view) and the per-frame data (one f32), both by
+/// buffer address.
+pub struct WeightedFillKernel;
+
+impl PassKernel for WeightedFillKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "weighted_fill", 0, 1)?;
+        let width = rec.resource(dst).width;
+        let mut push = Vec::with_capacity(40);
+        for word in [rec.image(dst)?, pass.view, pass.rows.y0, pass.rows.y1, width, 0] {
+            push.extend_from_slice(&word.to_le_bytes());
+        }
+        push.extend_from_slice(&rec.buffer_address("weights")?.to_le_bytes());
+        push.extend_from_slice(&rec.frame_data_address().to_le_bytes());
+        rec.dispatch_bytes("weighted_fill", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+    }
+}
+
+/// Writes `hash3(i, 0, view)` into every 32-bit word `i` of the per-view buffer `writes[0]`
+/// (`shaders/fill_buffer.comp`).
+pub struct FillBufferKernel;
+
+impl PassKernel for FillBufferKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "fill_buffer", 0, 1)?;
+        let words = rec.resource(dst).width;
+        let mut push = Vec::with_capacity(16);
+        push.extend_from_slice(&pass.view.to_le_bytes());
+        push.extend_from_slice(&words.to_le_bytes());
+        push.extend_from_slice(&rec.buffer_of(dst)?.to_le_bytes());
+        rec.dispatch_bytes("fill_buffer", &push, [words.div_ceil(64), 1, 1])
+    }
+}
+
+/// CPU value of word `i` written by [`FillBufferKernel`] for `view`.
+pub fn reference_buffer_word(i: u32, view: u32) -> u32 {
+    hash3(i, 0, view)
+}
+
+/// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`shaders/fill_mask.comp`).
+pub struct FillMaskKernel;
+
+impl PassKernel for FillMaskKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "fill_mask", 0, 1)?;
+        if rec.resource(dst).format != TexelFormat::R32Uint {
+            return Err(BackendError::KernelMisuse {
+                kernel: "fill_mask".into(),
+                instance: index,
+                detail: format!("writes an R32Uint image, not {:?}", rec.resource(dst).format),
+            });
+        }
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.dispatch_rows("fill_mask", params)
+    }
+}
+
+/// CPU value of `fill_mask.comp` at pixel (x, y) of `view`.
+pub fn reference_mask(x: u32, y: u32, view: u32) -> u32 {
+    hash3(x, y, view)
+}
+
+/// Adds (frame index + 1) to `writes[0]` in place (`shaders/accumulate.comp`); `reads[0]` is
+/// the same resource's previous version (history).
+pub struct AccumulateKernel;
+
+impl PassKernel for AccumulateKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+        let dst = expect_accesses(pass, index, "accumulate", 1, 1)?;
+        if pass.reads[0].resource != dst {
+            return Err(BackendError::KernelMisuse {
+                kernel: "accumulate".into(),
+                instance: index,
+                detail: "must read the resource it writes (its history)".into(),
+            });
+        }
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.dispatch_rows("accumulate", params)
+    }
+}
+
+/// Checks the access counts a kernel relies on; returns the first written resource.
+fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, writes: usize) -> Result<usize> {
+    if pass.reads.len() != reads || pass.writes.len() != writes {
+        return Err(BackendError::KernelMisuse {
+            kernel: kernel.to_string(),
+            instance: index,
+            detail: format!(
+                "expects {reads} read(s) and {writes} write(s), got {} and {}",
+                pass.reads.len(),
+                pass.writes.len()
+            ),
+        });
+    }
+    Ok(pass.writes[0].resource)
+}
+
+/// Registry with the built-in kernels under the pass names `fill`, `shift_blend`,
+/// `accumulate`, `fill_mask`, `raster_demo`, `weighted_fill` and `fill_buffer`.
+pub fn builtin_kernels() -> KernelRegistry {
+    KernelRegistry::new()
+        .with("fill", FillKernel)
+        .with("shift_blend", ShiftBlendKernel)
+        .with("accumulate", AccumulateKernel)
+        .with("fill_mask", FillMaskKernel)
+        .with("raster_demo", RasterDemoKernel)
+        .with("weighted_fill", WeightedFillKernel)
+        .with("fill_buffer", FillBufferKernel)
+}
+
+/// Column shift used by `shift_blend` for `view`.
+pub fn shift_of_view(view: u32, width: u32) -> u32 {
+    (3 + 5 * view) % width.max(1)
+}
+
+fn pcg_hash(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+fn hash3(a: u32, b: u32, c: u32) -> u32 {
+    pcg_hash(a ^ pcg_hash(b ^ pcg_hash(c)))
+}
+
+/// CPU value of `fill.comp` (`fill_pattern` in shaders/include/pattern.glsl) at pixel (x, y)
+/// of `view`.
+pub fn reference_fill(x: u32, y: u32, view: u32) -> [f32; 4] {
+    let h = hash3(x, y, view);
+    [(h & 0xffff) as f32 / 65536.0, (h >> 16) as f32 / 65536.0, (view & 0xffff) as f32 / 65536.0, 65535.0 / 65536.0]
+}
+
+/// CPU value of `shift_blend.comp` at (x, y) of `view` reading `other_view`, both filled.
+pub fn reference_shift_blend(x: u32, y: u32, view: u32, other_view: u32, width: u32) -> [f32; 4] {
+    let own = reference_fill(x, y, view);
+    let other = reference_fill((x + shift_of_view(view, width)) % width, y, other_view);
+    std::array::from_fn(|i| 0.5 * own[i] + 0.5 * other[i])
+}

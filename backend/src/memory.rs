@@ -1,0 +1,385 @@
+//! GPU memory: storage images and buffers through gpu-allocator, and the one thing it cannot
+//! do: a host allocation imported into several devices (VK_EXT_external_memory_host), the
+//! staging area of cross-device copies.
+
+use std::alloc::Layout;
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+
+use crate::device::Device;
+use crate::error::{BackendError, Result, VkContext};
+use crate::plan::TexelFormat;
+
+/// The Vulkan format of a texel format (all are storage-image formats every Vulkan device has).
+pub fn vk_format(format: TexelFormat) -> Result<vk::Format> {
+    Ok(match format {
+        TexelFormat::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
+        TexelFormat::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
+        TexelFormat::Rg32Float => vk::Format::R32G32_SFLOAT,
+        TexelFormat::R32Float => vk::Format::R32_SFLOAT,
+        TexelFormat::Rgba8Unorm => vk::Format::R8G8B8A8_UNORM,
+        TexelFormat::R32Uint => vk::Format::R32_UINT,
+    })
+}
+
+fn allocation_error(what: &str) -> impl FnOnce(gpu_allocator::AllocationError) -> BackendError {
+    let what = what.to_string();
+    move |source| BackendError::Allocation { what, source }
+}
+
+/// A 2D storage image in device-local memory, kept in `GENERAL` layout for its whole life
+/// (storage writes, storage reads and transfers are all valid there, so no pass has to track
+/// layouts).
+pub struct Image {
+    device: Arc<Device>,
+    pub(crate) raw: vk::Image,
+    pub(crate) view: vk::ImageView,
+    allocation: Option<Allocation>,
+    pub format: TexelFormat,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Image {
+    pub fn new(device: &Arc<Device>, name: &str, width: u32, height: u32, format: TexelFormat) -> Result<Self> {
+        let vk_fmt = vk_format(format)?;
+        let mut usage =
+            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
+        // Raster passes render into the same images where the format allows it.
+        let features = unsafe {
+            device.instance.raw.get_physical_device_format_properties(device.physical, vk_fmt).optimal_tiling_features
+        };
+        if features.contains(vk::FormatFeatureFlags::COLOR_ATTACHMENT) {
+            usage |= vk::ImageUsageFlags::COLOR_ATTACHMENT;
+        }
+        Self::create(device, name, width, height, vk_fmt, usage, vk::ImageAspectFlags::COLOR, format)
+    }
+
+    /// A D32_SFLOAT depth attachment (raster passes' depth test; not a plan resource).
+    pub(crate) fn new_depth(device: &Arc<Device>, width: u32, height: u32) -> Result<Self> {
+        Self::create(
+            device,
+            "depth",
+            width,
+            height,
+            vk::Format::D32_SFLOAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+            vk::ImageAspectFlags::DEPTH,
+            TexelFormat::R32Float,
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn create(
+        device: &Arc<Device>,
+        name: &str,
+        width: u32,
+        height: u32,
+        vk_fmt: vk::Format,
+        usage: vk::ImageUsageFlags,
+        aspect: vk::ImageAspectFlags,
+        format: TexelFormat,
+    ) -> Result<Self> {
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(vk_fmt)
+            .extent(vk::Extent3D { width, height, depth: 1 })
+            .mip_levels(1)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        // Copies may run on a transfer-only queue: share between its family and the main one
+        // instead of transferring ownership at every copy.
+        let families = device.families();
+        let info = if families.len() > 1 {
+            info.sharing_mode(vk::SharingMode::CONCURRENT).queue_family_indices(&families)
+        } else {
+            info
+        };
+        let raw = unsafe { device.raw.create_image(&info, None) }.vk("vkCreateImage")?;
+        let requirements = unsafe { device.raw.get_image_memory_requirements(raw) };
+        let allocation = device
+            .with_allocator(|a| {
+                a.allocate(&AllocationCreateDesc {
+                    name,
+                    requirements,
+                    location: MemoryLocation::GpuOnly,
+                    linear: false,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                })
+            })
+            .map_err(allocation_error(name));
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(e) => {
+                unsafe { device.raw.destroy_image(raw, None) };
+                return Err(e);
+            }
+        };
+        let mut image = Self {
+            device: device.clone(),
+            raw,
+            view: vk::ImageView::null(),
+            allocation: Some(allocation),
+            format,
+            width,
+            height,
+        };
+        let allocation = image.allocation.as_ref().expect("just set");
+        unsafe { device.raw.bind_image_memory(raw, allocation.memory(), allocation.offset()) }
+            .vk("vkBindImageMemory")?;
+        let view_info = vk::ImageViewCreateInfo::default()
+            .image(raw)
+            .view_type(vk::ImageViewType::TYPE_2D)
+            .format(vk_fmt)
+            .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, ..color_range() });
+        image.view = unsafe { device.raw.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
+        Ok(image)
+    }
+
+    /// Bytes of one row of texels.
+    pub fn row_bytes(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.format.bytes_per_texel())
+    }
+}
+
+impl Drop for Image {
+    fn drop(&mut self) {
+        unsafe {
+            if self.view != vk::ImageView::null() {
+                self.device.raw.destroy_image_view(self.view, None);
+            }
+            self.device.raw.destroy_image(self.raw, None);
+        }
+        if let Some(a) = self.allocation.take() {
+            // A failed free only leaks until the allocator is dropped with the device.
+            let _ = self.device.with_allocator(|al| al.free(a));
+        }
+    }
+}
+
+/// The whole colour subresource of a single-mip, single-layer image.
+pub(crate) fn color_range() -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange {
+        aspect_mask: vk::ImageAspectFlags::COLOR,
+        base_mip_level: 0,
+        level_count: 1,
+        base_array_layer: 0,
+        layer_count: 1,
+    }
+}
+
+/// A buffer from gpu-allocator; host-visible locations are persistently mapped.
+pub struct Buffer {
+    device: Arc<Device>,
+    pub(crate) raw: vk::Buffer,
+    allocation: Option<Allocation>,
+    pub size: u64,
+}
+
+impl Buffer {
+    pub fn new(
+        device: &Arc<Device>,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Self> {
+        let info =
+            vk::BufferCreateInfo::default().size(size.max(4)).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let raw = unsafe { device.raw.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
+        let requirements = unsafe { device.raw.get_buffer_memory_requirements(raw) };
+        let allocation = device
+            .with_allocator(|a| {
+                a.allocate(&AllocationCreateDesc {
+                    name,
+                    requirements,
+                    location,
+                    linear: true,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                })
+            })
+            .map_err(allocation_error(name));
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(e) => {
+                unsafe { device.raw.destroy_buffer(raw, None) };
+                return Err(e);
+            }
+        };
+        let buffer = Self { device: device.clone(), raw, allocation: Some(allocation), size };
+        let allocation = buffer.allocation.as_ref().expect("just set");
+        unsafe { device.raw.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) }
+            .vk("vkBindBufferMemory")?;
+        Ok(buffer)
+    }
+
+    /// The mapped bytes of a host-visible buffer (`None` for device-local ones).
+    pub fn mapped(&self) -> Option<&[u8]> {
+        self.allocation.as_ref().and_then(|a| a.mapped_slice()).map(|s| &s[..self.size as usize])
+    }
+
+    /// Mutable mapped bytes of a host-visible buffer.
+    pub fn mapped_mut(&mut self) -> Option<&mut [u8]> {
+        let size = self.size as usize;
+        self.allocation.as_mut().and_then(|a| a.mapped_slice_mut()).map(|s| &mut s[..size])
+    }
+
+    pub fn raw(&self) -> vk::Buffer {
+        self.raw
+    }
+
+    /// GPU address for shaders (`GL_EXT_buffer_reference`); the buffer needs
+    /// `SHADER_DEVICE_ADDRESS` usage.
+    pub fn device_address(&self) -> u64 {
+        let info = vk::BufferDeviceAddressInfo::default().buffer(self.raw);
+        unsafe { self.device.raw.get_buffer_device_address(&info) }
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        unsafe { self.device.raw.destroy_buffer(self.raw, None) };
+        if let Some(a) = self.allocation.take() {
+            let _ = self.device.with_allocator(|al| al.free(a));
+        }
+    }
+}
+
+/// One host allocation seen by several devices as a `VkBuffer` each. The producer of a
+/// cross-device copy writes it with a GPU copy and the consumer reads it with a GPU copy; the
+/// CPU never touches the bytes.
+pub struct SharedHostBuffer {
+    ptr: *mut u8,
+    layout: Layout,
+    imports: Vec<HostImport>,
+    pub size: u64,
+}
+
+struct HostImport {
+    device: Arc<Device>,
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+}
+
+// The raw pointer is only handed to Vulkan; the struct owns the allocation outright.
+unsafe impl Send for SharedHostBuffer {}
+unsafe impl Sync for SharedHostBuffer {}
+
+impl SharedHostBuffer {
+    /// Allocates `size` bytes of zeroed host memory (rounded up to the import alignment) and
+    /// imports it into every device of `devices`.
+    pub fn new(devices: &[&Arc<Device>], size: u64) -> Result<Self> {
+        let align = devices.iter().map(|d| d.min_host_pointer_alignment).max().unwrap_or(4096).max(64);
+        let rounded = size.max(1).div_ceil(align) * align;
+        let layout = Layout::from_size_align(rounded as usize, align as usize).map_err(|e| {
+            BackendError::HostImport { device: devices.first().map_or(0, |d| d.info.index), detail: e.to_string() }
+        })?;
+        // Zeroed so that a copy-in that ran too early (a missing wait) reads zeros, never
+        // stale bytes that could pass for a right answer.
+        let ptr = unsafe { std::alloc::alloc_zeroed(layout) };
+        if ptr.is_null() {
+            std::alloc::handle_alloc_error(layout);
+        }
+        let mut shared = Self { ptr, layout, imports: Vec::with_capacity(devices.len()), size: rounded };
+        for device in devices {
+            let import = shared.import_into(device)?;
+            shared.imports.push(import);
+        }
+        Ok(shared)
+    }
+
+    fn import_into(&self, device: &Arc<Device>) -> Result<HostImport> {
+        let fail = |detail: String| BackendError::HostImport { device: device.info.index, detail };
+        let emh = device
+            .external_memory_host
+            .as_ref()
+            .ok_or_else(|| fail("VK_EXT_external_memory_host is not enabled".into()))?;
+        let handle_type = vk::ExternalMemoryHandleTypeFlags::HOST_ALLOCATION_EXT;
+        let mut host_props = vk::MemoryHostPointerPropertiesEXT::default();
+        unsafe {
+            (emh.fp().get_memory_host_pointer_properties_ext)(
+                device.raw.handle(),
+                handle_type,
+                self.ptr.cast(),
+                &mut host_props,
+            )
+        }
+        .result()
+        .vk("vkGetMemoryHostPointerPropertiesEXT")?;
+
+        let mut external = vk::ExternalMemoryBufferCreateInfo::default().handle_types(handle_type);
+        let info = vk::BufferCreateInfo::default()
+            .size(self.size)
+            .usage(vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST)
+            .push_next(&mut external);
+        let families = device.families();
+        let info = if families.len() > 1 {
+            info.sharing_mode(vk::SharingMode::CONCURRENT).queue_family_indices(&families)
+        } else {
+            info.sharing_mode(vk::SharingMode::EXCLUSIVE)
+        };
+        let buffer = unsafe { device.raw.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
+        let requirements = unsafe { device.raw.get_buffer_memory_requirements(buffer) };
+        let memory_props = unsafe { device.instance.raw.get_physical_device_memory_properties(device.physical) };
+        let candidates = host_props.memory_type_bits & requirements.memory_type_bits;
+        // Prefer host-cached memory if offered: the bytes are read by the DMA engine anyway,
+        // but some drivers only list one type.
+        let memory_type = (0..memory_props.memory_type_count).filter(|t| candidates & (1 << t) != 0).min_by_key(|&t| {
+            let flags = memory_props.memory_types[t as usize].property_flags;
+            u32::from(!flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT))
+        });
+        let Some(memory_type) = memory_type else {
+            unsafe { device.raw.destroy_buffer(buffer, None) };
+            return Err(fail(format!(
+                "no memory type in host-pointer bits {:#x} & buffer bits {:#x}",
+                host_props.memory_type_bits, requirements.memory_type_bits
+            )));
+        };
+        let mut import =
+            vk::ImportMemoryHostPointerInfoEXT::default().handle_type(handle_type).host_pointer(self.ptr.cast());
+        let alloc = vk::MemoryAllocateInfo::default()
+            .allocation_size(self.size)
+            .memory_type_index(memory_type)
+            .push_next(&mut import);
+        let memory = match unsafe { device.raw.allocate_memory(&alloc, None) } {
+            Ok(m) => m,
+            Err(result) => {
+                unsafe { device.raw.destroy_buffer(buffer, None) };
+                return Err(BackendError::Vk { call: "vkAllocateMemory(host pointer import)", result });
+            }
+        };
+        if let Err(result) = unsafe { device.raw.bind_buffer_memory(buffer, memory, 0) } {
+            unsafe {
+                device.raw.destroy_buffer(buffer, None);
+                device.raw.free_memory(memory, None);
+            }
+            return Err(BackendError::Vk { call: "vkBindBufferMemory(host pointer import)", result });
+        }
+        Ok(HostImport { device: device.clone(), buffer, memory })
+    }
+
+    /// The `VkBuffer` through which device `device_index` sees the allocation.
+    pub(crate) fn buffer_on(&self, device_index: usize) -> Option<vk::Buffer> {
+        self.imports.iter().find(|i| i.device.info.index == device_index).map(|i| i.buffer)
+    }
+}
+
+impl Drop for SharedHostBuffer {
+    fn drop(&mut self) {
+        // Every device must be done with its view before the host memory goes away.
+        for import in self.imports.drain(..) {
+            unsafe {
+                let _ = import.device.raw.device_wait_idle();
+                import.device.raw.destroy_buffer(import.buffer, None);
+                import.device.raw.free_memory(import.memory, None);
+            }
+        }
+        unsafe { std::alloc::dealloc(self.ptr, self.layout) };
+    }
+}

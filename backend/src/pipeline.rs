@@ -1,0 +1,349 @@
+//! Embedded shaders, the per-device descriptor layout every kernel shares, and compute
+//! pipelines created on first use.
+//!
+//! Layout (set 0): binding 0 = every float storage image of the device (an array sized by the
+//! specialisation constant `IMAGE_COUNT`), binding 1 = the frame-constants uniform buffer of the
+//! frame-in-flight slot, binding 2 = the R32_UINT images at the same indices. Each array holds a
+//! 1x1 placeholder where the other one holds the real image, so every descriptor is valid. Kernels select images by index in push constants, so one descriptor set
+//! per slot serves every pass and recorded command buffers never need new descriptors.
+
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use crate::device::Device;
+use crate::error::{BackendError, Result, VkContext};
+use crate::memory::{Buffer, Image};
+use crate::plan::TexelFormat;
+
+mod embedded {
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+}
+
+/// Names of all embedded shaders.
+pub fn shader_names() -> impl Iterator<Item = &'static str> {
+    embedded::EMBEDDED.iter().map(|(name, _)| *name)
+}
+
+/// SPIR-V words of the embedded shader `name` (file stem of `shaders/<name>.comp`).
+pub fn spirv(name: &str) -> Result<Vec<u32>> {
+    let bytes = embedded::EMBEDDED
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, b)| *b)
+        .ok_or_else(|| BackendError::UnknownShader(name.to_string()))?;
+    ash::util::read_spv(&mut Cursor::new(bytes))
+        .map_err(|e| BackendError::UnknownShader(format!("{name} (invalid SPIR-V: {e})")))
+}
+
+/// Stages that see the descriptor set and the push constants: compute kernels and raster passes.
+pub(crate) const SHADER_STAGES: vk::ShaderStageFlags = vk::ShaderStageFlags::from_raw(
+    vk::ShaderStageFlags::COMPUTE.as_raw()
+        | vk::ShaderStageFlags::VERTEX.as_raw()
+        | vk::ShaderStageFlags::FRAGMENT.as_raw(),
+);
+
+/// What a graphics pipeline is specialised on.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct GraphicsKey {
+    pub vertex: String,
+    pub fragment: String,
+    pub color_formats: Vec<vk::Format>,
+    pub depth_test: bool,
+}
+
+/// Size of the push-constant range: `PassParams` (32 bytes) by default; kernels that define
+/// their own block (`PARALLAX_CUSTOM_PUSH_CONSTANTS`) may use up to the 128 bytes every Vulkan
+/// device guarantees.
+pub const PUSH_CONSTANT_BYTES: u32 = 128;
+/// Size of the frame-constants uniform block.
+const FRAME_CONSTANT_BYTES: u64 = 16;
+
+/// Descriptor layout, sets and pipelines of one device for one plan.
+pub(crate) struct Bindless {
+    device: Arc<Device>,
+    set_layout: vk::DescriptorSetLayout,
+    pub(crate) pipeline_layout: vk::PipelineLayout,
+    pool: vk::DescriptorPool,
+    /// One descriptor set per frame-in-flight slot.
+    pub(crate) sets: Vec<vk::DescriptorSet>,
+    /// Host-visible frame constants, one buffer per slot.
+    frame_constants: Vec<Buffer>,
+    image_count: u32,
+    pipelines: HashMap<String, vk::Pipeline>,
+    graphics_pipelines: HashMap<GraphicsKey, vk::Pipeline>,
+    /// Depth attachments of raster passes, one per size: passes on a device run one after the
+    /// other, so they can share it.
+    depth_images: HashMap<(u32, u32), Image>,
+    placeholders: [Image; 2],
+}
+
+impl Bindless {
+    /// Creates the layout for `images` and `slots` descriptor sets, all written.
+    /// `placeholders` are a float and a uint 1x1 image in `GENERAL` layout; they live as long
+    /// as the descriptor sets that name them.
+    pub(crate) fn new(device: &Arc<Device>, images: &[&Image], placeholders: [Image; 2], slots: usize) -> Result<Self> {
+        // A zero-sized descriptor array is invalid; a device with no image still gets one slot
+        // (never indexed), holding the placeholders.
+        let image_count = images.len().max(1) as u32;
+        let bindings = [
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(0)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(image_count)
+                .stage_flags(SHADER_STAGES),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(1)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(SHADER_STAGES),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(2)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(image_count)
+                .stage_flags(SHADER_STAGES),
+        ];
+        let raw = &device.raw;
+        let set_layout = unsafe {
+            raw.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None)
+        }
+        .vk("vkCreateDescriptorSetLayout")?;
+        let mut this = Self {
+            device: device.clone(),
+            set_layout,
+            pipeline_layout: vk::PipelineLayout::null(),
+            pool: vk::DescriptorPool::null(),
+            sets: Vec::new(),
+            frame_constants: Vec::new(),
+            image_count,
+            pipelines: HashMap::new(),
+            graphics_pipelines: HashMap::new(),
+            depth_images: HashMap::new(),
+            placeholders,
+        };
+        let ranges = [vk::PushConstantRange::default().stage_flags(SHADER_STAGES).offset(0).size(PUSH_CONSTANT_BYTES)];
+        let set_layouts = [set_layout];
+        this.pipeline_layout = unsafe {
+            raw.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges),
+                None,
+            )
+        }
+        .vk("vkCreatePipelineLayout")?;
+        let sizes = [
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::STORAGE_IMAGE)
+                .descriptor_count(2 * image_count * slots as u32),
+            vk::DescriptorPoolSize::default().ty(vk::DescriptorType::UNIFORM_BUFFER).descriptor_count(slots as u32),
+        ];
+        this.pool = unsafe {
+            raw.create_descriptor_pool(
+                &vk::DescriptorPoolCreateInfo::default().max_sets(slots as u32).pool_sizes(&sizes),
+                None,
+            )
+        }
+        .vk("vkCreateDescriptorPool")?;
+        let layouts = vec![set_layout; slots];
+        this.sets = unsafe {
+            raw.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default().descriptor_pool(this.pool).set_layouts(&layouts),
+            )
+        }
+        .vk("vkAllocateDescriptorSets")?;
+        for slot in 0..slots {
+            this.frame_constants.push(Buffer::new(
+                device,
+                "frame constants",
+                FRAME_CONSTANT_BYTES,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                MemoryLocation::CpuToGpu,
+            )?);
+            this.write_set(slot, images);
+        }
+        Ok(this)
+    }
+
+    fn write_set(&self, slot: usize, images: &[&Image]) {
+        let placeholders = [&self.placeholders[0], &self.placeholders[1]];
+        let info = |img: &Image| {
+            vk::DescriptorImageInfo::default().image_view(img.view).image_layout(vk::ImageLayout::GENERAL)
+        };
+        let is_uint = |img: &Image| img.format == TexelFormat::R32Uint;
+        let mut float_infos: Vec<vk::DescriptorImageInfo> =
+            images.iter().map(|&img| info(if is_uint(img) { placeholders[0] } else { img })).collect();
+        let mut uint_infos: Vec<vk::DescriptorImageInfo> =
+            images.iter().map(|&img| info(if is_uint(img) { img } else { placeholders[1] })).collect();
+        if images.is_empty() {
+            float_infos.push(info(placeholders[0]));
+            uint_infos.push(info(placeholders[1]));
+        }
+        let buffer_infos = [vk::DescriptorBufferInfo::default()
+            .buffer(self.frame_constants[slot].raw)
+            .offset(0)
+            .range(FRAME_CONSTANT_BYTES)];
+        let writes = [
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.sets[slot])
+                .dst_binding(0)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .image_info(&float_infos),
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.sets[slot])
+                .dst_binding(1)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .buffer_info(&buffer_infos),
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.sets[slot])
+                .dst_binding(2)
+                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+                .image_info(&uint_infos),
+        ];
+        unsafe { self.device.raw.update_descriptor_sets(&writes, &[]) };
+    }
+
+    /// Writes the frame constants of `slot` (the slot must not be in flight).
+    pub(crate) fn set_frame_constants(&mut self, slot: usize, frame_index: u64) {
+        if let Some(bytes) = self.frame_constants[slot].mapped_mut() {
+            bytes[..4].copy_from_slice(&(frame_index as u32).to_le_bytes());
+        }
+    }
+
+    /// The compute pipeline of shader `name`, created on first use.
+    pub(crate) fn pipeline(&mut self, name: &str) -> Result<vk::Pipeline> {
+        if let Some(&p) = self.pipelines.get(name) {
+            return Ok(p);
+        }
+        let code = spirv(name)?;
+        let raw = &self.device.raw;
+        let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
+            .vk("vkCreateShaderModule")?;
+        let entries = [vk::SpecializationMapEntry::default().constant_id(0).offset(0).size(4)];
+        let data = self.image_count.to_le_bytes();
+        let specialization = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main")
+            .specialization_info(&specialization);
+        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(self.pipeline_layout)];
+        let created = unsafe { raw.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        unsafe { raw.destroy_shader_module(module, None) };
+        let pipeline =
+            created.map_err(|(_, result)| BackendError::Vk { call: "vkCreateComputePipelines", result })?.remove(0);
+        self.pipelines.insert(name.to_string(), pipeline);
+        Ok(pipeline)
+    }
+}
+
+impl Bindless {
+    /// The depth attachment for a `width`×`height` raster pass, created on first use.
+    pub(crate) fn depth_image(&mut self, width: u32, height: u32) -> Result<&Image> {
+        if !self.depth_images.contains_key(&(width, height)) {
+            let image = Image::new_depth(&self.device, width, height)?;
+            self.depth_images.insert((width, height), image);
+        }
+        Ok(&self.depth_images[&(width, height)])
+    }
+
+    /// The graphics pipeline of `key`, created on first use: no vertex input (vertex shaders
+    /// pull what they need from storage), triangle lists, no culling, dynamic viewport and
+    /// scissor, depth test LESS with writes when asked, no blending.
+    pub(crate) fn graphics_pipeline(&mut self, key: &GraphicsKey) -> Result<vk::Pipeline> {
+        if let Some(&p) = self.graphics_pipelines.get(key) {
+            return Ok(p);
+        }
+        let raw = &self.device.raw;
+        let mut modules = Vec::new();
+        for name in [&key.vertex, &key.fragment] {
+            let code = spirv(name)?;
+            let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
+                .vk("vkCreateShaderModule");
+            match module {
+                Ok(m) => modules.push(m),
+                Err(e) => {
+                    modules.iter().for_each(|&m| unsafe { raw.destroy_shader_module(m, None) });
+                    return Err(e);
+                }
+            }
+        }
+        let entries = [vk::SpecializationMapEntry::default().constant_id(0).offset(0).size(4)];
+        let data = self.image_count.to_le_bytes();
+        let specialization = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::VERTEX)
+                .module(modules[0])
+                .name(c"main")
+                .specialization_info(&specialization),
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(modules[1])
+                .name(c"main")
+                .specialization_info(&specialization),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let input_assembly =
+            vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .line_width(1.0);
+        let multisample =
+            vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(key.depth_test)
+            .depth_write_enable(key.depth_test)
+            .depth_compare_op(vk::CompareOp::LESS);
+        let attachments: Vec<vk::PipelineColorBlendAttachmentState> = key
+            .color_formats
+            .iter()
+            .map(|_| vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA))
+            .collect();
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&key.color_formats);
+        if key.depth_test {
+            rendering = rendering.depth_attachment_format(vk::Format::D32_SFLOAT);
+        }
+        let info = [vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(self.pipeline_layout)
+            .push_next(&mut rendering)];
+        let created = unsafe { raw.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+        modules.iter().for_each(|&m| unsafe { raw.destroy_shader_module(m, None) });
+        let pipeline =
+            created.map_err(|(_, result)| BackendError::Vk { call: "vkCreateGraphicsPipelines", result })?.remove(0);
+        self.graphics_pipelines.insert(key.clone(), pipeline);
+        Ok(pipeline)
+    }
+}
+
+impl Drop for Bindless {
+    fn drop(&mut self) {
+        let raw = &self.device.raw;
+        unsafe {
+            for (_, p) in self.pipelines.drain() {
+                raw.destroy_pipeline(p, None);
+            }
+            for (_, p) in self.graphics_pipelines.drain() {
+                raw.destroy_pipeline(p, None);
+            }
+            raw.destroy_descriptor_pool(self.pool, None);
+            raw.destroy_pipeline_layout(self.pipeline_layout, None);
+            raw.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! Recording one segment of a device program into a command buffer: a barrier before every
+//! item, a timestamp pair around it, the kernel's commands or the copy.
+//!
+//! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers. One global
+//! barrier per item is coarse but always right; finer barriers (only the resources an item
+//! touches) are an optimisation for later, measured first.
+
+use std::collections::HashMap;
+
+use ash::vk;
+
+use crate::device::QueueKind;
+use crate::error::{Result, VkContext};
+use crate::memory::Image;
+use crate::pipeline::Bindless;
+use crate::plan::Plan;
+use crate::recorder::{KernelRegistry, Recorder};
+use crate::segments::{Chunk, Item, Segment};
+use crate::timing::EventKind;
+
+/// What timestamp pair `i` of a device measures.
+#[derive(Clone, Debug)]
+pub(crate) struct TimerLabel {
+    pub name: String,
+    pub kind: EventKind,
+    pub view: u32,
+    pub index: usize,
+    pub chunk: u32,
+    pub bytes: u64,
+    /// Queue the item runs on (timestamp width differs between queue families).
+    pub queue: QueueKind,
+}
+
+/// Timer labels of all items of `segments`, in recording order.
+pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel> {
+    let copy_label = |chunk: &Chunk, kind, queue| {
+        let copy = &plan.copies[chunk.copy];
+        let resource = &plan.resources[copy.resource];
+        TimerLabel {
+            name: format!(
+                "{} {} view {} → device {}",
+                if kind == EventKind::CopyOut { "copy out" } else { "copy in" },
+                resource.name,
+                resource.view,
+                copy.to
+            ),
+            kind,
+            view: resource.view,
+            index: chunk.copy,
+            chunk: chunk.index,
+            bytes: resource.row_bytes() * u64::from(chunk.y1 - chunk.y0),
+            queue,
+        }
+    };
+    segments
+        .iter()
+        .flat_map(|s| s.items.iter().map(move |item| (s.queue, item)))
+        .map(|(queue, item)| match item {
+            Item::Pass(p) => {
+                let pass = &plan.passes[*p];
+                TimerLabel {
+                    name: pass.name.clone(),
+                    kind: EventKind::Pass,
+                    view: pass.view,
+                    index: *p,
+                    chunk: 0,
+                    bytes: 0,
+                    queue,
+                }
+            }
+            Item::CopyOut(c) => copy_label(c, EventKind::CopyOut, queue),
+            Item::CopyIn(c) => copy_label(c, EventKind::CopyIn, queue),
+        })
+        .collect()
+}
+
+/// Everything a segment recording needs from the device state.
+pub(crate) struct SegmentContext<'a> {
+    pub raw: &'a ash::Device,
+    pub device_index: usize,
+    pub plan: &'a Plan,
+    pub kernels: &'a KernelRegistry,
+    pub bindless: &'a mut Bindless,
+    pub images: &'a HashMap<usize, Image>,
+    pub image_slots: &'a HashMap<usize, u32>,
+    pub slot: usize,
+    pub query_pool: vk::QueryPool,
+    /// The staging buffer of this slot as seen by this device, and each copy's offset in it.
+    pub staging: Option<(vk::Buffer, &'a [u64])>,
+    /// Addresses of the global buffers on this device, and of the slot's per-frame data.
+    pub global_buffers: &'a HashMap<String, u64>,
+    pub frame_data_address: u64,
+    /// Per-view buffer resources of this device and their addresses.
+    pub buffers: &'a HashMap<usize, crate::memory::Buffer>,
+    pub buffer_addresses: &'a HashMap<usize, u64>,
+}
+
+/// Records `segment`; its first timer is `first_timer`.
+pub(crate) fn record_segment(
+    ctx: &mut SegmentContext<'_>,
+    cb: vk::CommandBuffer,
+    segment: &Segment,
+    first_timer: u32,
+) -> Result<()> {
+    unsafe { ctx.raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()) }.vk("vkBeginCommandBuffer")?;
+    let recorded = record_items(ctx, cb, segment, first_timer);
+    if recorded.is_err() {
+        // Leave the buffer re-recordable (its pool allows resets) rather than half recorded.
+        let _ = unsafe { ctx.raw.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty()) };
+    }
+    recorded
+}
+
+fn record_items(
+    ctx: &mut SegmentContext<'_>,
+    cb: vk::CommandBuffer,
+    segment: &Segment,
+    first_timer: u32,
+) -> Result<()> {
+    let raw = ctx.raw;
+    unsafe {
+        // Queries are reset from the host before each submission of the slot (a transfer-only
+        // queue cannot reset them), and only the main queue has a compute bind point.
+        if segment.queue == QueueKind::Main {
+            raw.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::COMPUTE,
+                ctx.bindless.pipeline_layout,
+                0,
+                &[ctx.bindless.sets[ctx.slot]],
+                &[],
+            );
+        }
+    }
+    let mut bound = None;
+    for (i, item) in segment.items.iter().enumerate() {
+        let query = (first_timer + i as u32) * 2;
+        full_barrier(raw, cb);
+        unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
+        match *item {
+            Item::Pass(p) => {
+                let pass = &ctx.plan.passes[p];
+                let kernel = ctx.kernels.get(&pass.name)?.clone();
+                let mut rec = Recorder {
+                    raw,
+                    cb,
+                    bindless: ctx.bindless,
+                    image_slots: ctx.image_slots,
+                    images: ctx.images,
+                    slot: ctx.slot,
+                    global_buffers: ctx.global_buffers,
+                    frame_data_address: ctx.frame_data_address,
+                    buffer_addresses: ctx.buffer_addresses,
+                    plan: ctx.plan,
+                    device_index: ctx.device_index,
+                    bound,
+                };
+                kernel.record(&mut rec, pass, p)?;
+                bound = rec.bound;
+            }
+            Item::CopyOut(chunk) => {
+                record_copy(ctx, cb, &chunk, CopyDirection::Out);
+                // Make the bytes available to the host domain, where the other device reads
+                // them.
+                let to_host = [vk::MemoryBarrier2::default()
+                    .src_stage_mask(vk::PipelineStageFlags2::COPY)
+                    .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+                    .dst_stage_mask(vk::PipelineStageFlags2::HOST)
+                    .dst_access_mask(vk::AccessFlags2::HOST_READ)];
+                unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
+            }
+            Item::CopyIn(chunk) => record_copy(ctx, cb, &chunk, CopyDirection::In),
+        }
+        unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
+    }
+    unsafe { raw.end_command_buffer(cb) }.vk("vkEndCommandBuffer")
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum CopyDirection {
+    /// Resource → staging (producer).
+    Out,
+    /// Staging → resource (consumer).
+    In,
+}
+
+/// Copies one chunk between the resource and its place in the staging buffer.
+fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, direction: CopyDirection) {
+    let raw = ctx.raw;
+    let copy = &ctx.plan.copies[chunk.copy];
+    let resource = &ctx.plan.resources[copy.resource];
+    let (staging, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
+    let staging_offset = offsets[chunk.copy] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
+    if let Some(buffer) = ctx.buffers.get(&copy.resource) {
+        let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
+        let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
+        let (src, dst, region) = match direction {
+            CopyDirection::Out => {
+                (buffer.raw, staging, vk::BufferCopy { src_offset: resource_offset, dst_offset: staging_offset, size })
+            }
+            CopyDirection::In => {
+                (staging, buffer.raw, vk::BufferCopy { src_offset: staging_offset, dst_offset: resource_offset, size })
+            }
+        };
+        unsafe { raw.cmd_copy_buffer(cb, src, dst, &[region]) };
+        return;
+    }
+    let image = ctx.images[&copy.resource].raw;
+    let region = vk::BufferImageCopy::default()
+        .buffer_offset(staging_offset)
+        .image_subresource(vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        })
+        .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
+        .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 });
+    unsafe {
+        match direction {
+            CopyDirection::Out => raw.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::GENERAL, staging, &[region]),
+            CopyDirection::In => raw.cmd_copy_buffer_to_image(cb, staging, image, vk::ImageLayout::GENERAL, &[region]),
+        }
+    }
+}
+
+/// Every earlier write is visible to every later access on this queue.
+pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
+    let barrier = [vk::MemoryBarrier2::default()
+        .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
+        .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)];
+    unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
+}

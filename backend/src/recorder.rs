@@ -1,0 +1,322 @@
+//! The recording API that pass kernels see, and the registry that maps pass names to kernels.
+//!
+//! A kernel never touches descriptors, barriers or timestamps: the executor binds the device's
+//! descriptor set, puts a barrier before each op and a timestamp pair around it. The kernel only
+//! chooses a shader, fills [`PassParams`] from the pass instance and dispatches.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use ash::vk;
+
+use crate::error::{BackendError, Result};
+use crate::memory::color_range;
+use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
+use crate::plan::Rows;
+use crate::plan::{Plan, PlanPass, PlanResource};
+
+/// Push constants of every kernel (`PassParams` in shaders/include/bindless.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PassParams {
+    pub dst: u32,
+    pub src0: u32,
+    pub src1: u32,
+    pub view: u32,
+    pub y0: u32,
+    pub y1: u32,
+    pub width: u32,
+    pub param: u32,
+}
+
+impl PassParams {
+    /// The 32 bytes the shaders' `PassParams` block reads.
+    pub fn to_bytes(self) -> [u8; 32] {
+        let words = [self.dst, self.src0, self.src1, self.view, self.y0, self.y1, self.width, self.param];
+        let mut bytes = [0u8; 32];
+        for (chunk, w) in bytes.chunks_exact_mut(4).zip(words) {
+            chunk.copy_from_slice(&w.to_le_bytes());
+        }
+        bytes
+    }
+}
+
+/// A draw of a raster pass: the render targets are plan images, the row band limits the render
+/// area (the viewport stays the whole image, so a band renders exactly its rows of the frame).
+#[derive(Clone, Debug)]
+pub struct Draw<'a> {
+    /// Embedded vertex and fragment shaders (`name.vert`, `name.frag` in shaders/).
+    pub vertex_shader: &'a str,
+    pub fragment_shader: &'a str,
+    /// Colour targets (resources), in fragment output location order. All the same size.
+    pub color_targets: &'a [usize],
+    /// Clear the targets (within the band) to zero first; otherwise keep their contents.
+    pub clear: bool,
+    /// Depth test LESS against a per-device depth attachment cleared to 1.0 for this draw.
+    pub depth_test: bool,
+    pub rows: Rows,
+    pub vertex_count: u32,
+    pub instance_count: u32,
+    pub params: PassParams,
+}
+
+/// Records the work of one pass instance into a device's command buffer.
+pub struct Recorder<'a> {
+    pub(crate) raw: &'a ash::Device,
+    pub(crate) cb: vk::CommandBuffer,
+    pub(crate) bindless: &'a mut Bindless,
+    pub(crate) image_slots: &'a HashMap<usize, u32>,
+    pub(crate) images: &'a HashMap<usize, crate::memory::Image>,
+    /// Frame-in-flight slot being recorded (selects the descriptor set).
+    pub(crate) slot: usize,
+    pub(crate) global_buffers: &'a HashMap<String, u64>,
+    pub(crate) frame_data_address: u64,
+    pub(crate) buffer_addresses: &'a HashMap<usize, u64>,
+    pub(crate) plan: &'a Plan,
+    pub(crate) device_index: usize,
+    pub(crate) bound: Option<vk::Pipeline>,
+}
+
+impl Recorder<'_> {
+    /// Index of `resource` in the device's image array (what shaders get in push constants).
+    pub fn image(&self, resource: usize) -> Result<u32> {
+        if let Some(&slot) = self.image_slots.get(&resource) {
+            return Ok(slot);
+        }
+        if self.buffer_addresses.contains_key(&resource) {
+            return Err(BackendError::KernelMisuse {
+                kernel: format!("a kernel of device {}", self.device_index),
+                instance: usize::MAX,
+                detail: format!("resource {resource} is a buffer: use Recorder::buffer_of, not image"),
+            });
+        }
+        Err(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
+    }
+
+    /// The plan's description of `resource`.
+    pub fn resource(&self, resource: usize) -> &PlanResource {
+        &self.plan.resources[resource]
+    }
+
+    /// Index of the device being recorded.
+    pub fn device_index(&self) -> usize {
+        self.device_index
+    }
+
+    /// Binds the embedded compute shader `shader`, pushes `params` and dispatches `groups`.
+    pub fn dispatch(&mut self, shader: &str, params: PassParams, groups: [u32; 3]) -> Result<()> {
+        self.dispatch_bytes(shader, &params.to_bytes(), groups)
+    }
+
+    /// Like [`Self::dispatch`] with a kernel-defined push-constant block (at most 128 bytes, a
+    /// multiple of 4; the shader defines `PARALLAX_CUSTOM_PUSH_CONSTANTS` and declares it).
+    pub fn dispatch_bytes(&mut self, shader: &str, push: &[u8], groups: [u32; 3]) -> Result<()> {
+        if push.len() > PUSH_CONSTANT_BYTES as usize || push.len() % 4 != 0 {
+            return Err(BackendError::KernelMisuse {
+                kernel: shader.to_string(),
+                instance: usize::MAX,
+                detail: format!("{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)", push.len()),
+            });
+        }
+        let pipeline = self.bindless.pipeline(shader)?;
+        unsafe {
+            if self.bound != Some(pipeline) {
+                self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+                self.bound = Some(pipeline);
+            }
+            if !push.is_empty() {
+                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push);
+            }
+            self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
+        }
+        Ok(())
+    }
+
+    /// GPU address of the per-view buffer `resource` (a `ResourceKind::Buffer` of the plan) on
+    /// this device.
+    pub fn buffer_of(&self, resource: usize) -> Result<u64> {
+        self.buffer_addresses
+            .get(&resource)
+            .copied()
+            .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
+    }
+
+    /// GPU address of the global buffer `name` on this device (see `Executor::upload_buffer`).
+    pub fn buffer_address(&self, name: &str) -> Result<u64> {
+        self.global_buffers
+            .get(name)
+            .copied()
+            .ok_or_else(|| BackendError::UnknownBuffer { name: name.to_string(), device: self.device_index })
+    }
+
+    /// GPU address of this frame-in-flight slot's copy of the per-frame data (see
+    /// `Executor::set_frame_data`); the contents change every frame without re-recording.
+    pub fn frame_data_address(&self) -> u64 {
+        self.frame_data_address
+    }
+
+    /// Dispatches `shader` over `params.width` × rows `[y0, y1)` with the 8×8 workgroups every
+    /// row-band kernel in shaders/ uses.
+    pub fn dispatch_rows(&mut self, shader: &str, params: PassParams) -> Result<()> {
+        let rows = params.y1.saturating_sub(params.y0);
+        self.dispatch(shader, params, [params.width.div_ceil(8), rows.div_ceil(8), 1])
+    }
+
+    /// Renders `draw` with dynamic rendering into its colour targets (images stay in `GENERAL`).
+    pub fn draw(&mut self, draw: &Draw<'_>) -> Result<()> {
+        let Some(&first) = draw.color_targets.first() else {
+            return Err(BackendError::KernelMisuse {
+                kernel: draw.vertex_shader.to_string(),
+                instance: usize::MAX,
+                detail: "a draw needs at least one colour target".into(),
+            });
+        };
+        let (width, height) = (self.plan.resources[first].width, self.plan.resources[first].height);
+        let mut color_formats = Vec::with_capacity(draw.color_targets.len());
+        let mut attachments = Vec::with_capacity(draw.color_targets.len());
+        for &target in draw.color_targets {
+            let image = self
+                .images
+                .get(&target)
+                .ok_or(BackendError::ResourceNotOnDevice { resource: target, device: self.device_index })?;
+            color_formats.push(crate::memory::vk_format(image.format)?);
+            attachments.push(
+                vk::RenderingAttachmentInfo::default()
+                    .image_view(image.view)
+                    .image_layout(vk::ImageLayout::GENERAL)
+                    .load_op(if draw.clear { vk::AttachmentLoadOp::CLEAR } else { vk::AttachmentLoadOp::LOAD })
+                    .store_op(vk::AttachmentStoreOp::STORE),
+            );
+        }
+        let key = GraphicsKey {
+            vertex: draw.vertex_shader.to_string(),
+            fragment: draw.fragment_shader.to_string(),
+            color_formats,
+            depth_test: draw.depth_test,
+        };
+        let pipeline = self.bindless.graphics_pipeline(&key)?;
+        let area = vk::Rect2D {
+            offset: vk::Offset2D { x: 0, y: draw.rows.y0 as i32 },
+            extent: vk::Extent2D { width, height: draw.rows.len() },
+        };
+        let depth_attachment = if draw.depth_test {
+            let depth = self.bindless.depth_image(width, height)?;
+            // The depth contents are per draw: discard the previous ones and clear.
+            let to_general = [vk::ImageMemoryBarrier2::default()
+                .src_stage_mask(vk::PipelineStageFlags2::LATE_FRAGMENT_TESTS)
+                .src_access_mask(vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE)
+                .dst_stage_mask(vk::PipelineStageFlags2::EARLY_FRAGMENT_TESTS)
+                .dst_access_mask(
+                    vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_READ | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                )
+                .old_layout(vk::ImageLayout::UNDEFINED)
+                .new_layout(vk::ImageLayout::GENERAL)
+                .image(depth.raw)
+                .subresource_range(vk::ImageSubresourceRange {
+                    aspect_mask: vk::ImageAspectFlags::DEPTH,
+                    ..color_range()
+                })];
+            unsafe {
+                self.raw
+                    .cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().image_memory_barriers(&to_general))
+            };
+            Some(
+                vk::RenderingAttachmentInfo::default()
+                    .image_view(depth.view)
+                    .image_layout(vk::ImageLayout::GENERAL)
+                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .store_op(vk::AttachmentStoreOp::DONT_CARE)
+                    .clear_value(vk::ClearValue {
+                        depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 },
+                    }),
+            )
+        } else {
+            None
+        };
+        let mut rendering =
+            vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
+        if let Some(depth) = &depth_attachment {
+            rendering = rendering.depth_attachment(depth);
+        }
+        let viewport =
+            vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 };
+        unsafe {
+            self.raw.cmd_begin_rendering(self.cb, &rendering);
+            self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            self.raw.cmd_bind_descriptor_sets(
+                self.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.bindless.pipeline_layout,
+                0,
+                &[self.bindless.sets[self.slot]],
+                &[],
+            );
+            self.raw.cmd_set_viewport(self.cb, 0, &[viewport]);
+            self.raw.cmd_set_scissor(self.cb, 0, &[area]);
+            self.raw.cmd_push_constants(
+                self.cb,
+                self.bindless.pipeline_layout,
+                SHADER_STAGES,
+                0,
+                &draw.params.to_bytes(),
+            );
+            self.raw.cmd_draw(self.cb, draw.vertex_count, draw.instance_count, 0, 0);
+            self.raw.cmd_end_rendering(self.cb);
+        }
+        Ok(())
+    }
+
+    /// The raw command buffer, for kernels that need a command the recorder does not wrap.
+    pub fn command_buffer(&self) -> vk::CommandBuffer {
+        self.cb
+    }
+
+    /// The raw device, with [`Self::command_buffer`].
+    pub fn raw_device(&self) -> &ash::Device {
+        self.raw
+    }
+}
+
+/// The GPU work of one pass (by name). Implemented by the passes crate for path tracing,
+/// reprojection, denoising, ...; the backend ships the small kernels its own tests use.
+pub trait PassKernel: Send + Sync {
+    /// Records instance `index` of the plan (`pass` = `plan.passes[index]`).
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()>;
+}
+
+/// Pass name → kernel.
+#[derive(Clone, Default)]
+pub struct KernelRegistry {
+    kernels: HashMap<String, Arc<dyn PassKernel>>,
+}
+
+impl KernelRegistry {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Registers `kernel` for pass `name` (replacing an earlier one).
+    pub fn register(&mut self, name: impl Into<String>, kernel: impl PassKernel + 'static) {
+        self.kernels.insert(name.into(), Arc::new(kernel));
+    }
+
+    /// Builder form of [`Self::register`].
+    pub fn with(mut self, name: impl Into<String>, kernel: impl PassKernel + 'static) -> Self {
+        self.register(name, kernel);
+        self
+    }
+
+    /// The kernel of pass `name`.
+    pub fn get(&self, name: &str) -> Result<&Arc<dyn PassKernel>> {
+        self.kernels.get(name).ok_or_else(|| {
+            let mut registered: Vec<String> = self.kernels.keys().cloned().collect();
+            registered.sort();
+            BackendError::UnknownPass { pass: name.to_string(), registered }
+        })
+    }
+
+    /// Fails with [`BackendError::UnknownPass`] for the first pass of `plan` without a kernel.
+    pub fn check_plan(&self, plan: &Plan) -> Result<()> {
+        plan.passes.iter().try_for_each(|p| self.get(&p.name).map(|_| ()))
+    }
+}

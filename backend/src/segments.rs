@@ -1,0 +1,275 @@
+//! Cutting a device's op list into submissions ("segments"). Pure data, no Vulkan.
+//!
+//! A segment is one command buffer submitted with its waits; it signals the device's progress
+//! timeline with a value fixed by its position: segment `j` of frame `f` on a device with `S`
+//! segments per frame signals `f * S + j + 1`. Values are a function of (frame, segment), so
+//! nothing needs to be counted at run time and recorded command buffers stay valid.
+//!
+//! Cuts happen:
+//! * after every chunk of a copy-out: the chunk's bytes are complete in host memory when the
+//!   segment's signal fires, and the host relay forwards that to the consumer;
+//! * before every chunk of a copy-in: a wait applies to a whole submission, so the chunk must
+//!   start one.
+//!
+//! Splitting a large copy into chunks lets the consumer's host→device copy of chunk i run while
+//! the producer's device→host copy of chunk i+1 is still going (the two PCIe directions of two
+//! GPUs overlap instead of adding up).
+
+use crate::device::QueueKind;
+use crate::plan::{Plan, PlanOp};
+
+/// A row band of a copy moved by one submission.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Chunk {
+    pub copy: usize,
+    pub index: u32,
+    /// Rows relative to the image (absolute `y`).
+    pub y0: u32,
+    pub y1: u32,
+}
+
+/// What a segment records, in order (the executor puts a barrier before each item and a
+/// timestamp pair around it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Item {
+    Pass(usize),
+    CopyOut(Chunk),
+    CopyIn(Chunk),
+}
+
+/// A wait on the consumer-side "ready" timeline of a copy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadyWait {
+    pub copy: usize,
+    pub chunk: u32,
+}
+
+/// One submission of a device program.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Segment {
+    /// Queue the segment is submitted to.
+    pub queue: QueueKind,
+    pub items: Vec<Item>,
+    pub waits: Vec<ReadyWait>,
+    /// Copy-out chunks completed by this segment: the relay signals their consumer once this
+    /// segment's progress value is reached.
+    pub relays: Vec<Chunk>,
+}
+
+impl Default for Segment {
+    fn default() -> Self {
+        Self { queue: QueueKind::Main, items: Vec::new(), waits: Vec::new(), relays: Vec::new() }
+    }
+}
+
+impl Item {
+    /// Queue of the item when copies have a queue of their own.
+    fn queue(self, separate_copy_queue: bool) -> QueueKind {
+        match self {
+            Item::Pass(_) => QueueKind::Main,
+            Item::CopyOut(_) | Item::CopyIn(_) if separate_copy_queue => QueueKind::Copy,
+            Item::CopyOut(_) | Item::CopyIn(_) => QueueKind::Main,
+        }
+    }
+}
+
+/// Row bands of each copy: at most `chunk_bytes` per band (at least one row), see [`band_rows`].
+pub fn chunks_of_copies(plan: &Plan, chunk_bytes: u64) -> Vec<Vec<Chunk>> {
+    plan.copies
+        .iter()
+        .enumerate()
+        .map(|(c, copy)| {
+            let row_bytes = plan.resources[copy.resource].row_bytes().max(1);
+            let rows_per_chunk = (chunk_bytes / row_bytes).clamp(1, u64::from(u32::MAX)) as u32;
+            let mut y0 = copy.rows.y0;
+            band_rows(copy.rows.y1 - copy.rows.y0, rows_per_chunk)
+                .into_iter()
+                .enumerate()
+                .map(|(index, rows)| {
+                    let chunk = Chunk { copy: c, index: index as u32, y0, y1: y0 + rows };
+                    y0 += rows;
+                    chunk
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Heights of the bands a copy of `total` rows is cut into: full bands of `rows_per_chunk`,
+/// tapering to a half, a quarter and an eighth of that at the end. The consumer uploads a band
+/// only after the producer has downloaded it, so the last band's upload is pure latency on the
+/// copy's critical path; small last bands shorten it while full bands keep per-band overhead
+/// low (64 MiB between two H200s: 42 GB/s with uniform 8 MiB bands, docs/RESULTS.md).
+pub fn band_rows(total: u32, rows_per_chunk: u32) -> Vec<u32> {
+    let rows_per_chunk = rows_per_chunk.max(1);
+    let mut tail = Vec::new();
+    let mut rest = total;
+    for shift in [3, 2, 1] {
+        let rows = (rows_per_chunk >> shift).max(1);
+        if rest > rows_per_chunk + rows && (tail.is_empty() || tail.last() != Some(&rows)) {
+            tail.push(rows);
+            rest -= rows;
+        }
+    }
+    let mut bands = Vec::new();
+    if rest % rows_per_chunk != 0 {
+        bands.push(rest % rows_per_chunk);
+    }
+    bands.extend(std::iter::repeat_n(rows_per_chunk, (rest / rows_per_chunk) as usize));
+    bands.extend(tail.into_iter().rev());
+    bands
+}
+
+/// Value the ready timeline of a copy reaches when chunk `chunk` of frame `frame` is in host
+/// memory.
+pub fn ready_value(frame: u64, chunks: usize, chunk: u32) -> u64 {
+    frame * chunks as u64 + u64::from(chunk) + 1
+}
+
+/// Value the progress timeline of a device reaches when segment `segment` of `frame` is done.
+pub fn progress_value(frame: u64, segments: usize, segment: usize) -> u64 {
+    frame * segments as u64 + segment as u64 + 1
+}
+
+/// Cuts `device`'s op list. `dropped_wait` (fault injection) leaves out the ready waits of one
+/// copy. With `separate_copy_queue`, copies go to [`QueueKind::Copy`] and a segment never mixes
+/// the two queues (the executor orders segments of different queues by the progress timeline).
+pub fn segment_device(
+    plan: &Plan,
+    device: usize,
+    chunks: &[Vec<Chunk>],
+    dropped_wait: Option<usize>,
+    separate_copy_queue: bool,
+) -> Vec<Segment> {
+    let segments = segment_single_queue(plan, device, chunks, dropped_wait);
+    if !separate_copy_queue {
+        return segments;
+    }
+    let mut split = Vec::new();
+    for segment in segments {
+        let mut pieces: Vec<Segment> = Vec::new();
+        for item in segment.items {
+            let queue = item.queue(true);
+            match pieces.last_mut() {
+                Some(piece) if piece.queue == queue => piece.items.push(item),
+                _ => pieces.push(Segment { queue, items: vec![item], ..Segment::default() }),
+            }
+        }
+        // Waits guard the segment's first item (a copy-in); relays belong to its last item (a
+        // copy-out chunk).
+        if let Some(first) = pieces.first_mut() {
+            first.waits = segment.waits;
+        }
+        if let Some(last) = pieces.last_mut() {
+            last.relays = segment.relays;
+        }
+        split.extend(pieces);
+    }
+    split
+}
+
+fn segment_single_queue(
+    plan: &Plan,
+    device: usize,
+    chunks: &[Vec<Chunk>],
+    dropped_wait: Option<usize>,
+) -> Vec<Segment> {
+    let mut segments = Vec::new();
+    let mut current = Segment::default();
+    for op in &plan.devices[device] {
+        match *op {
+            PlanOp::Pass(p) => current.items.push(Item::Pass(p)),
+            PlanOp::CopyOut(c) => {
+                for &chunk in &chunks[c] {
+                    current.items.push(Item::CopyOut(chunk));
+                    current.relays.push(chunk);
+                    segments.push(std::mem::take(&mut current));
+                }
+            }
+            // The producer's signal is sent per chunk, right after the chunk's copy; the wait is
+            // placed on the copy-in itself, the only command that reads the host buffer.
+            PlanOp::Signal(_) | PlanOp::Wait(_) => {}
+            PlanOp::CopyIn(c) => {
+                for &chunk in &chunks[c] {
+                    if !current.items.is_empty() {
+                        segments.push(std::mem::take(&mut current));
+                    }
+                    if dropped_wait != Some(c) {
+                        current.waits.push(ReadyWait { copy: c, chunk: chunk.index });
+                    }
+                    current.items.push(Item::CopyIn(chunk));
+                }
+            }
+        }
+    }
+    if !current.items.is_empty() {
+        segments.push(current);
+    }
+    segments
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::demo::copy_benchmark;
+
+    #[test]
+    fn large_copy_is_chunked_and_every_chunk_is_its_own_submission() {
+        let plan = copy_benchmark(256, 256); // 1 MiB
+        let chunks = chunks_of_copies(&plan, 256 * 1024); // 64 rows per chunk
+        let heights: Vec<u32> = chunks[0].iter().map(|c| c.y1 - c.y0).collect();
+        assert_eq!(heights, band_rows(256, 64));
+        assert_eq!(chunks[0].last().map(|c| c.y1), Some(256));
+        let n = chunks[0].len();
+        let producer = segment_device(&plan, 0, &chunks, None, false);
+        assert_eq!(producer.len(), n);
+        assert_eq!(producer[0].items.len(), 2, "fill + first chunk");
+        assert!(producer.iter().all(|s| s.relays.len() == 1 && s.waits.is_empty()));
+        let consumer = segment_device(&plan, 1, &chunks, None, false);
+        assert_eq!(consumer.len(), n);
+        for (i, s) in consumer.iter().enumerate() {
+            assert_eq!(s.waits, vec![ReadyWait { copy: 0, chunk: i as u32 }]);
+        }
+        let dropped = segment_device(&plan, 1, &chunks, Some(0), false);
+        assert!(dropped.iter().all(|s| s.waits.is_empty()));
+    }
+
+    #[test]
+    fn bands_cover_the_copy_and_taper_at_the_end() {
+        for (total, per) in [(4096, 512), (100, 7), (5, 8), (513, 512), (1, 1), (4096, 1), (0, 16)] {
+            let bands = band_rows(total, per);
+            assert_eq!(bands.iter().sum::<u32>(), total, "{total} rows in bands of {per}: {bands:?}");
+            assert!(bands.iter().all(|&b| b >= 1 && b <= per.max(1)), "{bands:?}");
+        }
+        assert_eq!(band_rows(4096, 512), [vec![64], vec![512; 7], vec![256, 128, 64]].concat());
+        assert_eq!(band_rows(512, 512), vec![512], "a copy that fits one band is not cut");
+    }
+
+    #[test]
+    fn a_separate_copy_queue_never_mixes_queues_in_a_segment() {
+        let plan = copy_benchmark(256, 256);
+        let chunks = chunks_of_copies(&plan, 256 * 1024);
+        let producer = segment_device(&plan, 0, &chunks, None, true);
+        let queues: Vec<QueueKind> = producer.iter().map(|s| s.queue).collect();
+        let n = chunks[0].len();
+        assert_eq!(queues, [vec![QueueKind::Main], vec![QueueKind::Copy; n]].concat());
+        assert!(producer[0].relays.is_empty(), "the fill completes no chunk");
+        assert!(producer[1..].iter().all(|s| s.relays.len() == 1 && s.items.len() == 1));
+        let consumer = segment_device(&plan, 1, &chunks, None, true);
+        assert_eq!(consumer.len(), n);
+        assert!(consumer.iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
+    }
+
+    #[test]
+    fn timeline_values_are_distinct_and_increasing() {
+        let mut last = 0;
+        for frame in 0..3 {
+            for segment in 0..4 {
+                let v = progress_value(frame, 4, segment);
+                assert!(v > last);
+                last = v;
+            }
+        }
+        assert_eq!(ready_value(2, 3, 1), 8);
+    }
+}
