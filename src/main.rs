@@ -2,6 +2,7 @@
 
 mod cmd_backend;
 mod cmd_plan;
+mod cmd_trace;
 mod output;
 
 use clap::{Parser, Subcommand};
@@ -17,6 +18,8 @@ struct Cli {
 enum Command {
     /// Plan a light field over N devices: sources, δ-edges, per-device schedule, copies.
     Plan(cmd_plan::PlanArgs),
+    /// Path trace one view of a scene (`--cpu`: the CPU reference) to EXR (+ PNG).
+    Trace(cmd_trace::TraceArgs),
     /// List the Vulkan devices a selection would use (name, driver, API version).
     Devices(cmd_backend::DevicesArgs),
     /// Compile the backend's demo pipeline and execute it, with a timing report and trace.
@@ -29,6 +32,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Plan(args) => cmd_plan::run(args),
+        Command::Trace(args) => cmd_trace::run(args),
         Command::Devices(args) => cmd_backend::devices(args),
         Command::Run(args) => cmd_backend::run(args),
         Command::BenchCopy(args) => cmd_backend::bench_copy(args),
