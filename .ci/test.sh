@@ -21,3 +21,12 @@ echo "rendered $(ls tests/golden/*.dot | wc -l) golden DOT files without warning
 
 cargo test --workspace --all-targets
 cargo test --workspace --doc
+
+# Tests on Sponza read its path from PARALLAX_SPONZA and are #[ignore]d without it; CI has the
+# shared scenes beside the clone.
+sponza="${PARALLAX_SPONZA:-$(pwd)/../shared/scenes/sponza/Sponza.gltf}"
+if [ -f "$sponza" ]; then
+  PARALLAX_SPONZA="$sponza" cargo test --workspace --all-targets -- --ignored
+else
+  echo "Sponza not found at $sponza: its tests stay ignored (set PARALLAX_SPONZA to run them)"
+fi
