@@ -19,14 +19,19 @@ for f in tests/golden/*.dot; do
 done
 echo "rendered $(ls tests/golden/*.dot | wc -l) golden DOT files without warnings"
 
-cargo test --workspace --all-targets
-cargo test --workspace --doc
+# Every test run's output also goes to a log, so the script can close with one total line.
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+cargo test --workspace --all-targets 2>&1 | tee -a "$log"
+cargo test --workspace --doc 2>&1 | tee -a "$log"
 
 # Tests on Sponza read its path from PARALLAX_SPONZA and are #[ignore]d without it; CI has the
 # shared scenes beside the clone.
 sponza="${PARALLAX_SPONZA:-$(pwd)/../shared/scenes/sponza/Sponza.gltf}"
 if [ -f "$sponza" ]; then
-  PARALLAX_SPONZA="$sponza" cargo test --workspace --all-targets -- --ignored
+  PARALLAX_SPONZA="$sponza" cargo test --workspace --all-targets -- --ignored 2>&1 | tee -a "$log"
 else
   echo "Sponza not found at $sponza: its tests stay ignored (set PARALLAX_SPONZA to run them)"
 fi
+
+awk '/^test result:/ { passed += $4; failed += $6 } END { printf "tests: %d passed, %d failed\n", passed, failed }' "$log"

@@ -43,6 +43,7 @@ fn json_summary_has_the_documented_fields() {
     // 75 RGBA8 768×432 display images travel to device 0.
     assert_eq!(json["bytes_per_frame"], 75 * 768 * 432 * 4);
     assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule {"));
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -68,5 +69,6 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         assert!(stderr.contains(message), "{args:?}: expected '{message}' in: {stderr}");
         assert_eq!(stderr.lines().count(), 1, "{args:?}: one clear error line, got: {stderr}");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "{args:?} left files behind");
+        std::fs::remove_dir(&dir).unwrap();
     }
 }
