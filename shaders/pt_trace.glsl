@@ -1,15 +1,15 @@
-#version 460
 // GPU path tracer, the twin of parallax_scene::pt::CpuTracer: same camera, random numbers,
 // BVH, materials, lights, MIS and depth convention, so that for every pixel it estimates the
 // same integral with the same random numbers (values differ only where float rounding of
-// transcendental functions sends a path another way). Compile with
-// `glslc -fshader-stage=compute --target-env=vulkan1.3`.
+// transcendental functions sends a path another way).
 //
-// Bindings: set 0 = the scene (pt_scene.glsl); set 1: 0 TraceParams (GpuTraceParams),
-// 1 pixel list (x | y << 16, list mode only), 2 output (GpuPixel per traced pixel, in the
-// order of the rows or of the list).
+// A library: `trace_pixel(x, y)` returns one pixel's radiance and first-hit data. The kernel
+// that includes it (shaders/pt_trace.comp) declares the scene references (`PT_SCENE`, see
+// pt_scene.glsl) and names the view's TraceParams `params` before the include:
+//   #define params (pc.trace.p)
 
-#extension GL_GOOGLE_include_directive : require
+#ifndef PT_TRACE_GLSL
+#define PT_TRACE_GLSL
 
 #include "pt_scene.glsl"
 #define BVH_NODES scene_nodes.data
@@ -17,40 +17,6 @@
 #include "bvh_traverse.glsl"
 #include "pt_rng.glsl"
 #include "pt_bsdf.glsl"
-
-#ifndef PT_GROUP_SIZE
-#define PT_GROUP_SIZE 64
-#endif
-layout(local_size_x = PT_GROUP_SIZE) in;
-
-struct TraceParams {
-    vec4 eye;
-    vec4 right;
-    vec4 up;
-    vec4 forward;
-    vec4 shift;
-    uvec4 dims;     // width, height, view, frame
-    uvec4 sampling; // spp, max depth, roulette from (0xffffffff off), jitter
-    uvec4 counts;   // punctual lights, emissive triangles, light-group bits, pixel mode
-    uvec4 pixels;   // rows: y0, y1; list: z = length
-    vec4 sky_zenith; // w: 0 constant, 1 gradient
-    vec4 sky_horizon;
-    vec4 sky_ground;
-    vec4 sun_dir;        // w: cos of the angular radius
-    vec4 sun_irradiance; // w: 1 - cos of the angular radius (0: delta sun)
-};
-
-struct PixelOut {
-    vec4 radiance; // a = 1 if the first hit exists
-    vec4 albedo_roughness;
-    vec4 normal_metallic;
-    vec4 position_depth;
-};
-
-layout(std430, set = 1, binding = 0) readonly buffer Params { TraceParams params; };
-layout(std430, set = 1, binding = 1) readonly buffer PixelList { uint data[]; } pixel_list;
-layout(std430, set = 1, binding = 2) writeonly buffer Output { PixelOut data[]; } pixels_out;
-
 #include "pt_lights.glsl"
 
 float mis_weight(float pdf_a, float pdf_b) {
@@ -160,25 +126,10 @@ vec3 trace_path(uvec4 key, uint sample_index, vec3 origin, vec3 dir, bool first,
     return radiance;
 }
 
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    uint width = params.dims.x;
-    uint x;
-    uint y;
-    if (params.counts.w == 1u) {
-        if (i >= params.pixels.z) {
-            return;
-        }
-        x = pixel_list.data[i] & 0xffffu;
-        y = pixel_list.data[i] >> 16u;
-    } else {
-        uint rows = params.pixels.y - params.pixels.x;
-        if (i >= rows * width) {
-            return;
-        }
-        x = i % width;
-        y = params.pixels.x + i / width;
-    }
+// One pixel: `spp` samples (the view's TraceParams), radiance averaged, first-hit data of
+// sample 0. Depends only on (x, y) and the parameters, never on which pixels are traced
+// alongside or on which device.
+PixelOut trace_pixel(uint x, uint y) {
     uvec4 key = rng_key(x, y, params.dims.z, params.dims.w);
     PixelOut g;
     g.radiance = vec4(0.0);
@@ -203,5 +154,7 @@ void main() {
         }
     }
     g.radiance.rgb = sum / float(params.sampling.x);
-    pixels_out.data[i] = g;
+    return g;
 }
+
+#endif

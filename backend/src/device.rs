@@ -152,6 +152,10 @@ impl Device {
         if f13.dynamic_rendering == vk::FALSE {
             return Err(missing("dynamicRendering"));
         }
+        // Scene textures are sampled from one array with a per-material (non-uniform) index.
+        if f12.shader_sampled_image_array_non_uniform_indexing == vk::FALSE {
+            return Err(missing("shaderSampledImageArrayNonUniformIndexing"));
+        }
         if core.shader_storage_image_read_without_format == vk::FALSE
             || core.shader_storage_image_write_without_format == vk::FALSE
         {
@@ -190,7 +194,8 @@ impl Device {
         let mut e12 = vk::PhysicalDeviceVulkan12Features::default()
             .timeline_semaphore(true)
             .host_query_reset(true)
-            .buffer_device_address(true);
+            .buffer_device_address(true)
+            .shader_sampled_image_array_non_uniform_indexing(true);
         let mut e13 = vk::PhysicalDeviceVulkan13Features::default()
             .synchronization2(true)
             .maintenance4(true)

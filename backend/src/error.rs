@@ -78,6 +78,14 @@ pub enum BackendError {
     #[error("no global buffer `{name}` on device {device}; upload it with Executor::upload_buffer before running")]
     UnknownBuffer { name: String, device: usize },
 
+    /// Texture bytes that do not match the texture's size.
+    #[error("texture `{name}`: {width}x{height} RGBA8 needs width*height*4 bytes, got {bytes}")]
+    TextureData { name: String, width: u32, height: u32, bytes: usize },
+
+    /// More textures than the texture array of the descriptor layout holds.
+    #[error("{count} textures exceed the backend's texture array of {max} (parallax_backend::MAX_TEXTURES)")]
+    TooManyTextures { count: usize, max: u32 },
+
     /// Per-frame data larger than the executor's capacity.
     #[error("per-frame data of {bytes} bytes exceeds the capacity of {capacity} (ExecOptions::frame_data_bytes)")]
     FrameDataTooLarge { bytes: usize, capacity: u64 },

@@ -32,6 +32,7 @@ use crate::record::{SegmentContext, record_segment};
 use crate::recorder::KernelRegistry;
 use crate::relay::{Relay, RelayJob};
 use crate::segments::{Chunk, chunks_of_copies, progress_value, ready_value, segment_device};
+use crate::texture::{MAX_TEXTURES, Texture, TextureData};
 use crate::timing::{FrameReport, TimedEvent};
 
 /// How long the host waits for a frame before declaring it lost.
@@ -128,6 +129,8 @@ pub struct Executor {
     needs_record: bool,
     /// Global buffers per device, by name; they outlive plan changes.
     globals: Vec<HashMap<String, Buffer>>,
+    /// Sampled textures per device (the `textures[]` array); they outlive plan changes.
+    textures: Vec<Vec<Texture>>,
     /// Per frame-in-flight slot and device: host-visible copy of the per-frame data.
     frame_data_buffers: Vec<Vec<Buffer>>,
     frame_data: Vec<u8>,
@@ -159,6 +162,7 @@ impl Executor {
             last_record_ns: 0,
             needs_record: true,
             globals: context.devices.iter().map(|_| HashMap::new()).collect(),
+            textures: context.devices.iter().map(|_| Vec::new()).collect(),
             frame_data_buffers: Vec::new(),
             frame_data: Vec::new(),
         };
@@ -217,7 +221,10 @@ impl Executor {
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
-            states.push(create_device_state(device, &plan, d, segments, slots, &mut kept)?);
+            let state = create_device_state(device, &plan, d, segments, slots, &mut kept)?;
+            let views: Vec<vk::ImageView> = self.textures[d].iter().map(|t| t.view).collect();
+            state.bindless.set_textures(&views);
+            states.push(state);
         }
         drop(kept);
         let mut ready = Vec::with_capacity(plan.copies.len());
@@ -326,6 +333,30 @@ impl Executor {
                 crate::record::full_barrier(raw, cb);
             })?;
         }
+        Ok(())
+    }
+
+    /// Uploads `textures` on every device as the sampled-texture array every kernel sees
+    /// (`textures[i]` in shaders/include/bindless.glsl), replacing earlier ones. Waits for all
+    /// frames in flight; command buffers are recorded again before the next frame.
+    pub fn upload_textures(&mut self, textures: &[TextureData<'_>]) -> Result<()> {
+        if textures.len() > MAX_TEXTURES as usize {
+            return Err(BackendError::TooManyTextures { count: textures.len(), max: MAX_TEXTURES });
+        }
+        self.finish()?;
+        for (d, device) in self.devices.iter().enumerate() {
+            let uploaded = textures
+                .iter()
+                .enumerate()
+                .map(|(i, t)| Texture::new(device, &format!("texture {i}"), t))
+                .collect::<Result<Vec<_>>>()?;
+            let views: Vec<vk::ImageView> = uploaded.iter().map(|t| t.view).collect();
+            // No frame is in flight (finish above), so the descriptor sets can change; the old
+            // textures go only after the sets no longer name them.
+            self.states[d].bindless.set_textures(&views);
+            self.textures[d] = uploaded;
+        }
+        self.needs_record = true;
         Ok(())
     }
 
@@ -684,6 +715,7 @@ impl Drop for Executor {
         self.staging = None;
         self.states.clear();
         self.globals.clear();
+        self.textures.clear();
         self.frame_data_buffers.clear();
     }
 }

@@ -9,7 +9,8 @@
 //! * [`PassKernel`] / [`KernelRegistry`] / [`Recorder`]: how passes plug their GPU work in:
 //!   compute dispatches over a bindless image array, raster draws ([`Draw`], dynamic rendering
 //!   into plan images), per-view buffers, global buffers ([`Executor::upload_buffer`]) and
-//!   per-frame data ([`Executor::set_frame_data`]) by buffer address.
+//!   per-frame data ([`Executor::set_frame_data`]) by buffer address, sampled RGBA8 textures
+//!   ([`Executor::upload_textures`]) by index into the `textures[]` array of set 0.
 //! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]).
 //!
 //! ```
@@ -50,6 +51,7 @@ mod record;
 mod recorder;
 mod relay;
 mod segments;
+mod texture;
 mod timing;
 
 pub mod bench;
@@ -70,4 +72,5 @@ pub use plan::{
 };
 pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
+pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

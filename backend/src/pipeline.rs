@@ -3,9 +3,12 @@
 //!
 //! Layout (set 0): binding 0 = every float storage image of the device (an array sized by the
 //! specialisation constant `IMAGE_COUNT`), binding 1 = the frame-constants uniform buffer of the
-//! frame-in-flight slot, binding 2 = the R32_UINT images at the same indices. Each array holds a
-//! 1x1 placeholder where the other one holds the real image, so every descriptor is valid. Kernels select images by index in push constants, so one descriptor set
-//! per slot serves every pass and recorded command buffers never need new descriptors.
+//! frame-in-flight slot, binding 2 = the R32_UINT images at the same indices, binding 3 = the
+//! sampled textures ([`MAX_TEXTURES`] combined image samplers, global like uploaded buffers).
+//! Each image array holds a 1x1 placeholder where the other one holds the real image, and
+//! unused texture slots hold a 1x1 white texture, so every descriptor is valid. Kernels select
+//! images and textures by index in push constants, so one descriptor set per slot serves every
+//! pass and recorded command buffers only need new descriptors when the textures change.
 
 use std::collections::HashMap;
 use std::io::Cursor;
@@ -18,6 +21,7 @@ use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::memory::{Buffer, Image};
 use crate::plan::TexelFormat;
+use crate::texture::{MAX_TEXTURES, Texture, TextureData, create_sampler};
 
 mod embedded {
     include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
@@ -79,6 +83,9 @@ pub(crate) struct Bindless {
     /// other, so they can share it.
     depth_images: HashMap<(u32, u32), Image>,
     placeholders: [Image; 2],
+    /// What unused texture slots show, and the sampler of every slot.
+    placeholder_texture: Texture,
+    sampler: vk::Sampler,
 }
 
 impl Bindless {
@@ -105,7 +112,15 @@ impl Bindless {
                 .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
                 .descriptor_count(image_count)
                 .stage_flags(SHADER_STAGES),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(3)
+                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                .descriptor_count(MAX_TEXTURES)
+                .stage_flags(SHADER_STAGES),
         ];
+        let placeholder_texture =
+            Texture::new(device, "placeholder texture", &TextureData { width: 1, height: 1, rgba8: &[255; 4] })?;
+        let sampler = create_sampler(device)?;
         let raw = &device.raw;
         let set_layout = unsafe {
             raw.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None)
@@ -123,6 +138,8 @@ impl Bindless {
             graphics_pipelines: HashMap::new(),
             depth_images: HashMap::new(),
             placeholders,
+            placeholder_texture,
+            sampler,
         };
         let ranges = [vk::PushConstantRange::default().stage_flags(SHADER_STAGES).offset(0).size(PUSH_CONSTANT_BYTES)];
         let set_layouts = [set_layout];
@@ -138,6 +155,9 @@ impl Bindless {
                 .ty(vk::DescriptorType::STORAGE_IMAGE)
                 .descriptor_count(2 * image_count * slots as u32),
             vk::DescriptorPoolSize::default().ty(vk::DescriptorType::UNIFORM_BUFFER).descriptor_count(slots as u32),
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                .descriptor_count(MAX_TEXTURES * slots as u32),
         ];
         this.pool = unsafe {
             raw.create_descriptor_pool(
@@ -163,7 +183,34 @@ impl Bindless {
             )?);
             this.write_set(slot, images);
         }
+        this.set_textures(&[]);
         Ok(this)
+    }
+
+    /// Points the texture array of every slot at `textures` (at most [`MAX_TEXTURES`], checked
+    /// by the executor); the other slots show the placeholder. No slot may be in flight, and
+    /// command buffers recorded with the old descriptors must be recorded again.
+    pub(crate) fn set_textures(&self, textures: &[vk::ImageView]) {
+        let infos: Vec<vk::DescriptorImageInfo> = (0..MAX_TEXTURES as usize)
+            .map(|i| {
+                vk::DescriptorImageInfo::default()
+                    .sampler(self.sampler)
+                    .image_view(textures.get(i).copied().unwrap_or(self.placeholder_texture.view))
+                    .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = self
+            .sets
+            .iter()
+            .map(|&set| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(3)
+                    .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                    .image_info(&infos)
+            })
+            .collect();
+        unsafe { self.device.raw.update_descriptor_sets(&writes, &[]) };
     }
 
     fn write_set(&self, slot: usize, images: &[&Image]) {
@@ -342,6 +389,7 @@ impl Drop for Bindless {
                 raw.destroy_pipeline(p, None);
             }
             raw.destroy_descriptor_pool(self.pool, None);
+            raw.destroy_sampler(self.sampler, None);
             raw.destroy_pipeline_layout(self.pipeline_layout, None);
             raw.destroy_descriptor_set_layout(self.set_layout, None);
         }

@@ -16,6 +16,12 @@ layout(set = 0, binding = 0) uniform image2D images[IMAGE_COUNT];
 // never-read 1x1 placeholder there.
 layout(set = 0, binding = 2, r32ui) uniform uimage2D uimages[IMAGE_COUNT];
 
+// Sampled RGBA8 textures (Executor::upload_textures), bilinear, repeat, level 0; unused slots
+// hold a 1x1 white texture. The size is parallax_backend::MAX_TEXTURES. Index with
+// nonuniformEXT (GL_EXT_nonuniform_qualifier) where the index varies across invocations.
+#define PARALLAX_MAX_TEXTURES 1024
+layout(set = 0, binding = 3) uniform sampler2D textures[PARALLAX_MAX_TEXTURES];
+
 // Per frame-in-flight constants, written by the host before each submission, so that recorded
 // command buffers stay valid from frame to frame.
 layout(set = 0, binding = 1, std140) uniform FrameConstants {

@@ -1,0 +1,43 @@
+//! Errors of the passes crate: what the backend, the planner or the scene reported, plus the
+//! inconsistencies between them that only this crate can see.
+
+use parallax_backend::BackendError;
+
+/// Errors of parallax-passes.
+#[derive(Debug, thiserror::Error)]
+pub enum PassError {
+    #[error(transparent)]
+    Backend(#[from] BackendError),
+
+    #[error(transparent)]
+    Plan(#[from] parallax_graph::PlanError),
+
+    #[error(transparent)]
+    Graph(#[from] parallax_graph::GraphError),
+
+    #[error(transparent)]
+    Scene(#[from] parallax_scene::SceneError),
+
+    /// The trace parameters are indexed by view: `views[i].index` must be `i`.
+    #[error("view {position} of the list has index {index}; trace parameters must list views 0, 1, 2, ... in order")]
+    ViewOrder { position: usize, index: u32 },
+
+    /// Per-view trace parameters do not fit into the executor's per-frame data.
+    #[error("{views} views need {bytes} bytes of per-frame data (ExecOptions::frame_data_bytes is {capacity})")]
+    TooManyViews { views: usize, bytes: usize, capacity: u64 },
+
+    /// A plan lacks an image or buffer this crate looks up by name.
+    #[error("the plan has no resource `{name}` for view {view}")]
+    MissingResource { name: String, view: u32 },
+
+    /// Pixel coordinates are packed as 16 + 16 bits.
+    #[error("a {width}x{height} view is beyond the 65536x65536 that packed pixel lists can address")]
+    ViewTooLarge { width: u32, height: u32 },
+
+    /// More rays than the raycaster was created for.
+    #[error("{rays} rays exceed the raycaster's capacity of {capacity}")]
+    TooManyRays { rays: usize, capacity: usize },
+}
+
+/// Shorthand used across the crate.
+pub type Result<T> = std::result::Result<T, PassError>;

@@ -1,0 +1,231 @@
+//! The `raycast` pass: a batch of rays through the scene CWBVH on the GPU
+//! (shaders/bvh_raycast.glsl), closest hit or any hit. It backs the GPU-vs-CPU traversal test
+//! and the rays/s benchmark, which is why [`Raycaster`] runs it alone on a one-pass plan and
+//! reports the pass's GPU time from the executor's timestamps.
+//!
+//! Rays come from the global buffer [`RAYS`], hits go to the per-view buffer of the pass's
+//! write, and the ray count and query kind come from the per-frame data, so the same recorded
+//! frame casts any batch up to the plan's capacity.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use parallax_backend::{
+    BackendError, Context, EventKind, ExecOptions, Executor, KernelRegistry, PassKernel, Plan, PlanAccess, PlanOp,
+    PlanPass, PlanResource, Recorder, ResourceKind, Rows,
+};
+use parallax_scene::Scene;
+use parallax_scene::gpu::GpuScene;
+
+use crate::error::{PassError, Result};
+use crate::scene_upload::{scene_refs, upload_scene};
+
+/// Pass name the kernel is registered under.
+pub const RAYCAST: &str = "raycast";
+/// Global buffer holding the rays.
+pub const RAYS: &str = "rays";
+
+/// One ray as the kernel reads it (32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RayIn {
+    pub origin_tmin: [f32; 4],
+    pub dir_tmax: [f32; 4],
+}
+
+/// One result (16 bytes): BVH-ordered triangle index (`u32::MAX` = miss), distance, weights of
+/// the second and third corner.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct HitOut {
+    pub primitive: u32,
+    pub t: f32,
+    pub barycentrics: [f32; 2],
+}
+
+/// Records `raycast` instances. `opaque` selects the kernel compiled without textures
+/// (bvh_raycast_opaque.comp): what the rays/s benchmark measures on opaque geometry.
+pub struct RaycastKernel {
+    pub opaque: bool,
+}
+
+impl PassKernel for RaycastKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> parallax_backend::Result<()> {
+        let hits = match pass.writes.as_slice() {
+            [w] if rec.resource(w.resource).kind == ResourceKind::Buffer && pass.reads.is_empty() => w.resource,
+            _ => {
+                return Err(BackendError::KernelMisuse {
+                    kernel: RAYCAST.into(),
+                    instance: index,
+                    detail: "expects exactly one write (the hit buffer) and no read".into(),
+                });
+            }
+        };
+        let capacity = rec.resource(hits).width / 4;
+        let mut push = scene_refs(rec)?;
+        push.extend_from_slice(&rec.buffer_address(RAYS)?.to_le_bytes());
+        push.extend_from_slice(&rec.buffer_of(hits)?.to_le_bytes());
+        push.extend_from_slice(&rec.frame_data_address().to_le_bytes());
+        let groups = capacity.div_ceil(64).max(1);
+        let shader = if self.opaque { "bvh_raycast_opaque" } else { "bvh_raycast" };
+        rec.dispatch_bytes(shader, &push, [groups.min(65535), groups.div_ceil(65535), 1])
+    }
+}
+
+/// GPU time of one cast, from the pass's timestamps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CastTiming {
+    pub median_ns: f64,
+    pub best_ns: f64,
+}
+
+/// An executor running nothing but the `raycast` pass on device 0, with the scene uploaded.
+pub struct Raycaster {
+    executor: Executor,
+    capacity: usize,
+}
+
+impl Raycaster {
+    /// Uploads `scene` and plans one `raycast` pass for up to `capacity` rays on device 0 of
+    /// `context` (other devices stay idle).
+    pub fn new(context: &Context, scene: &GpuScene<'_>, capacity: usize, opaque: bool) -> Result<Self> {
+        let capacity = capacity.max(1);
+        let all = Rows::new(0, 1);
+        let plan = Plan {
+            resources: vec![PlanResource::buffer("hits", 0, (capacity * std::mem::size_of::<HitOut>()) as u64)],
+            passes: vec![PlanPass {
+                name: RAYCAST.into(),
+                view: 0,
+                rows: all,
+                device: 0,
+                reads: vec![],
+                writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
+                history_reads: vec![],
+            }],
+            copies: vec![],
+            devices: (0..context.devices().len())
+                .map(|d| if d == 0 { vec![PlanOp::Pass(0)] } else { vec![] })
+                .collect(),
+        };
+        let kernels = KernelRegistry::new().with(RAYCAST, RaycastKernel { opaque });
+        let mut executor = Executor::new(context, plan, kernels, ExecOptions::default())?;
+        upload_scene(&mut executor, scene)?;
+        Ok(Self { executor, capacity })
+    }
+
+    /// Casts `rays` `repeats` times (at least once); returns the hits and the GPU time of the
+    /// pass (median and best over the repeats).
+    pub fn cast(&mut self, rays: &[RayIn], any_hit: bool, repeats: usize) -> Result<(Vec<HitOut>, CastTiming)> {
+        if rays.len() > self.capacity {
+            return Err(PassError::TooManyRays { rays: rays.len(), capacity: self.capacity });
+        }
+        self.executor.upload_buffer(RAYS, bytemuck::cast_slice(rays))?;
+        let frame: [u32; 2] = [rays.len() as u32, u32::from(any_hit)];
+        self.executor.set_frame_data(bytemuck::bytes_of(&frame))?;
+        self.executor.take_reports();
+        for _ in 0..repeats.max(1) {
+            self.executor.run_frame()?;
+        }
+        self.executor.finish()?;
+        let mut times: Vec<f64> = self
+            .executor
+            .take_reports()
+            .iter()
+            .flat_map(|r| &r.events)
+            .filter(|e| e.kind == EventKind::Pass && e.name == RAYCAST)
+            .map(|e| e.end_ns.saturating_sub(e.start_ns) as f64)
+            .collect();
+        times.sort_by(f64::total_cmp);
+        let timing = CastTiming { median_ns: times[times.len() / 2], best_ns: times[0] };
+        let bytes = self.executor.read_resource(0, 0)?;
+        let hits = bytemuck::pod_collect_to_vec(&bytes[..rays.len() * std::mem::size_of::<HitOut>()]);
+        Ok((hits, timing))
+    }
+
+    /// Fails if the validation layer reported anything.
+    pub fn check_validation(&self) -> Result<()> {
+        Ok(self.executor.check_validation()?)
+    }
+}
+
+fn xorshift(s: &mut u64) -> f32 {
+    *s ^= *s << 13;
+    *s ^= *s >> 7;
+    *s ^= *s << 17;
+    (*s >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// `n` reproducible random rays: origins uniform in the scene bounds enlarged by 10 % on each
+/// side, directions uniform on the sphere, tmin 1e-4, tmax infinite.
+pub fn random_rays(scene: &Scene, n: usize) -> Vec<RayIn> {
+    let b = scene.bounds();
+    let lo = b.min - 0.1 * (b.max - b.min);
+    let hi = b.max + 0.1 * (b.max - b.min);
+    (0..n)
+        .map(|i| {
+            let mut s = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+            for _ in 0..4 {
+                xorshift(&mut s);
+            }
+            let o = lo + (hi - lo) * Vec3::new(xorshift(&mut s), xorshift(&mut s), xorshift(&mut s));
+            let z = 2.0 * xorshift(&mut s) - 1.0;
+            let phi = std::f32::consts::TAU * xorshift(&mut s);
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+            RayIn { origin_tmin: [o.x, o.y, o.z, 1e-4], dir_tmax: [d.x, d.y, d.z, f32::INFINITY] }
+        })
+        .collect()
+}
+
+/// Outcome of comparing GPU hits with the CPU traversal (see [`compare_with_cpu`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TraversalComparison {
+    pub rays: usize,
+    pub gpu_hits: usize,
+    /// Hit/miss disagreements, or t beyond 1e-4 relative.
+    pub disagreements: usize,
+    /// Same t (within 1e-4 relative) on another triangle: a ray through a shared edge.
+    pub same_t_other_triangle: usize,
+    pub max_relative_dt: f32,
+    /// Any-hit queries whose hit/miss differs from the CPU's closest hit.
+    pub any_hit_disagreements: usize,
+}
+
+/// Compares `closest` and `any` (GPU results for `rays`) with `SceneBvh::closest_hit`.
+pub fn compare_with_cpu(
+    scene: &Scene,
+    bvh: &parallax_scene::SceneBvh,
+    rays: &[RayIn],
+    closest: &[HitOut],
+    any: &[HitOut],
+) -> TraversalComparison {
+    use rayon::prelude::*;
+    let per_ray: Vec<(usize, usize, usize, f32)> = rays
+        .par_iter()
+        .zip(closest)
+        .zip(any)
+        .map(|((r, g), a)| {
+            let o = Vec3::from_slice(&r.origin_tmin[..3]);
+            let d = Vec3::from_slice(&r.dir_tmax[..3]);
+            let cpu = bvh.closest_hit(scene, o, d, r.origin_tmin[3], r.dir_tmax[3]);
+            let any_wrong = usize::from((a.primitive != u32::MAX) != cpu.is_some());
+            match cpu {
+                None => (usize::from(g.primitive != u32::MAX), 0, any_wrong, 0.0),
+                Some(_) if g.primitive == u32::MAX => (1, 0, any_wrong, 0.0),
+                Some(c) => {
+                    let rel = (g.t - c.t).abs() / c.t.max(1e-6);
+                    let wrong = rel > 1e-4;
+                    let other = usize::from(!wrong && g.primitive != c.bvh_primitive);
+                    (usize::from(wrong), other, any_wrong, rel)
+                }
+            }
+        })
+        .collect();
+    TraversalComparison {
+        rays: rays.len(),
+        gpu_hits: closest.iter().filter(|h| h.primitive != u32::MAX).count(),
+        disagreements: per_ray.iter().map(|r| r.0).sum(),
+        same_t_other_triangle: per_ray.iter().map(|r| r.1).sum(),
+        max_relative_dt: per_ray.iter().map(|r| r.3).fold(0.0, f32::max),
+        any_hit_disagreements: per_ray.iter().map(|r| r.2).sum(),
+    }
+}

@@ -1,0 +1,45 @@
+//! The scene on the GPU: the six arrays of `parallax_scene::gpu::GpuScene` as global buffers of
+//! the executor (reached by buffer address), its textures as the backend's sampled-texture
+//! array. Uploaded once per scene; every pass that reads the scene finds it by name.
+
+use parallax_backend::{Executor, Recorder, TextureData};
+use parallax_scene::gpu::GpuScene;
+
+use crate::error::Result;
+
+/// Global buffer names, in the order of `SceneRefs` in shaders/pt_types.glsl.
+pub const SCENE_BUFFERS: [&str; 6] =
+    ["scene.nodes", "scene.triangles", "scene.attributes", "scene.materials", "scene.emissive", "scene.lights"];
+
+/// Bytes of `SceneRefs` (six buffer addresses) at the start of a kernel's push constants.
+pub const SCENE_REFS_BYTES: usize = 48;
+
+/// Uploads `scene` on every device of `executor`: BVH nodes, BVH-ordered triangles and their
+/// attributes, materials, emissive-triangle table, punctual lights, textures. Replaces a
+/// previously uploaded scene.
+pub fn upload_scene(executor: &mut Executor, scene: &GpuScene<'_>) -> Result<()> {
+    let arrays: [&[u8]; 6] = [
+        scene.node_bytes(),
+        scene.triangle_bytes(),
+        scene.attribute_bytes(),
+        scene.material_bytes(),
+        scene.emissive_bytes(),
+        scene.light_bytes(),
+    ];
+    for (name, bytes) in SCENE_BUFFERS.iter().zip(arrays) {
+        executor.upload_buffer(name, bytes)?;
+    }
+    let textures: Vec<TextureData<'_>> =
+        scene.textures.iter().map(|t| TextureData { width: t.width, height: t.height, rgba8: &t.rgba8 }).collect();
+    executor.upload_textures(&textures)?;
+    Ok(())
+}
+
+/// The `SceneRefs` push-constant bytes of the device being recorded.
+pub(crate) fn scene_refs(rec: &Recorder<'_>) -> parallax_backend::Result<Vec<u8>> {
+    let mut bytes = Vec::with_capacity(SCENE_REFS_BYTES);
+    for name in SCENE_BUFFERS {
+        bytes.extend_from_slice(&rec.buffer_address(name)?.to_le_bytes());
+    }
+    Ok(bytes)
+}

@@ -1,0 +1,162 @@
+//! Path tracing views through the framework: the graphs that declare it, and [`GpuTracer`],
+//! which runs a plan of `path_trace` (and `pixel_list`) passes on a scene and reads the views
+//! back. `parallax trace` and the GPU tests use it; the light-field pipelines will declare the
+//! same pass among their others.
+
+use parallax_backend::{BackendError, Context, ExecOptions, Executor, KernelRegistry, Plan, ResourceKind, TexelFormat};
+use parallax_graph::{
+    AssignStrategy, Format, Graph, Handle, Image, LayoutSpec, LightField, PlanConfig, Rig, Role, Scheme, compile,
+};
+use parallax_scene::gpu::{GpuPixel, GpuScene};
+use parallax_scene::{Scene, TraceSettings, View};
+
+use crate::error::{PassError, Result};
+use crate::path_trace::{
+    PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, TRACE_PARAMS_BYTES, pixels_from_images, trace_frame_data,
+};
+use crate::pixel_list::{PIXEL_LIST, pixel_list_bytes};
+use crate::scene_upload::upload_scene;
+
+/// Declares, for every view, one `path_trace` pass writing the four [`TRACE_OUTPUTS`] images
+/// (all exported, so finished views end on device 0). With `pixel_list` the pass first gets a
+/// `pixel_list` pass writing a per-view list buffer of that many entries and traces only the
+/// listed pixels (both passes whole-view: a list is not split into row bands).
+pub fn declare_trace(graph: &mut Graph, pixel_list: Option<u64>) -> [Handle<Image>; 4] {
+    let mut images = TRACE_OUTPUTS.map(|name| graph.image(name, Format::Rgba32f));
+    let list = pixel_list.map(|entries| {
+        let mut list = graph.buffer(PIXEL_LIST, pixel_list_bytes(entries));
+        graph.pass(PIXEL_LIST, Role::All).write(&mut list).whole_view().record();
+        list
+    });
+    let mut pass = graph.pass(PATH_TRACE, Role::All);
+    if let Some(list) = &list {
+        pass = pass.read_whole(list).whole_view();
+    }
+    for image in &mut images {
+        pass = pass.write(image);
+    }
+    pass.record();
+    for image in &images {
+        graph.export(image);
+    }
+    images
+}
+
+/// The executor plan for tracing a `cols`×`rows` grid of `width`×`height` views on `devices`
+/// devices under `scheme` (fine-all: every view in row bands over all devices; multi-source:
+/// whole views spread over the devices), as [`declare_trace`] declares it. View 0 is the
+/// fine schemes' only source: tracing has no δ-edges, so sources only matter for placement.
+pub fn trace_plan(
+    cols: u32,
+    rows: u32,
+    (width, height): (u32, u32),
+    devices: u32,
+    scheme: Scheme,
+    pixel_list: Option<u64>,
+) -> Result<Plan> {
+    let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
+    // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
+    let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
+    let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources };
+    let placement = parallax_graph::Plan::new(&lf, &config)?;
+    let mut graph = Graph::new(placement.topology.clone());
+    declare_trace(&mut graph, pixel_list);
+    let schedule = compile(&graph, &placement)?;
+    Ok(Plan::from_schedule(&schedule).map_err(BackendError::from)?)
+}
+
+/// The kernels of [`declare_trace`] graphs: `path_trace`, and `pixel_list` when given.
+pub fn trace_kernels(pixel_list: Option<crate::pixel_list::StridedPixelListKernel>) -> KernelRegistry {
+    let mut kernels = KernelRegistry::new().with(PATH_TRACE, PathTraceKernel);
+    if let Some(list) = pixel_list {
+        kernels.register(PIXEL_LIST, list);
+    }
+    kernels
+}
+
+/// Runs plans of `path_trace` passes on a scene and reads the traced views back.
+pub struct GpuTracer {
+    executor: Executor,
+    frame_data_bytes: u64,
+}
+
+impl GpuTracer {
+    /// Creates the executor for `plan` on `context` and uploads `scene`.
+    pub fn new(context: &Context, plan: Plan, kernels: KernelRegistry, scene: &GpuScene<'_>) -> Result<Self> {
+        let options = ExecOptions::default();
+        let frame_data_bytes = options.frame_data_bytes;
+        let mut executor = Executor::new(context, plan, kernels, options)?;
+        upload_scene(&mut executor, scene)?;
+        Ok(Self { executor, frame_data_bytes })
+    }
+
+    /// Traces one frame of every view of the plan (`views[i]` describes plan view `i`; its
+    /// size must match the plan's images) and returns each view's pixels, row-major. Pixels a
+    /// pass did not trace (outside a pixel list) keep their previous contents (zero at first).
+    pub fn render(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<GpuPixel>>> {
+        let data = trace_frame_data(scene, views, settings)?;
+        if data.len() as u64 > self.frame_data_bytes {
+            return Err(PassError::TooManyViews {
+                views: views.len(),
+                bytes: views.len() * TRACE_PARAMS_BYTES as usize,
+                capacity: self.frame_data_bytes,
+            });
+        }
+        self.executor.set_frame_data(&data)?;
+        self.executor.run_frame()?;
+        self.executor.finish()?;
+        views.iter().map(|view| self.read_view(view)).collect()
+    }
+
+    /// The traced pixels of `view` (from device 0 where the view was gathered, else from the
+    /// device that traced it).
+    pub fn read_view(&mut self, view: &View) -> Result<Vec<GpuPixel>> {
+        let mut layers: [Option<Vec<u8>>; 4] = Default::default();
+        for (layer, name) in layers.iter_mut().zip(TRACE_OUTPUTS) {
+            let Some(resource) = self.find_image(name, view.index) else {
+                continue;
+            };
+            let desc = &self.executor.plan().resources[resource];
+            if (desc.width, desc.height) != (view.width, view.height) || desc.format != TexelFormat::Rgba32Float {
+                return Err(PassError::MissingResource {
+                    name: format!("{name} ({}x{} RGBA32F)", view.width, view.height),
+                    view: view.index,
+                });
+            }
+            *layer = Some(self.read_anywhere(resource)?);
+        }
+        if layers[0].is_none() {
+            return Err(PassError::MissingResource { name: TRACE_OUTPUTS[0].into(), view: view.index });
+        }
+        Ok(pixels_from_images(view.width, view.height, [0, 1, 2, 3].map(|k| layers[k].as_deref())))
+    }
+
+    fn find_image(&self, name: &str, view: u32) -> Option<usize> {
+        self.executor
+            .plan()
+            .resources
+            .iter()
+            .position(|r| r.name == name && r.view == view && r.kind == ResourceKind::Image)
+    }
+
+    fn read_anywhere(&mut self, resource: usize) -> Result<Vec<u8>> {
+        match self.executor.read_image(0, resource) {
+            Err(BackendError::ResourceNotOnDevice { .. }) => {
+                let device = self
+                    .executor
+                    .plan()
+                    .passes
+                    .iter()
+                    .find(|p| p.writes.iter().any(|w| w.resource == resource))
+                    .map_or(0, |p| p.device);
+                Ok(self.executor.read_image(device, resource)?)
+            }
+            other => Ok(other?),
+        }
+    }
+
+    /// The executor (timing reports, validation).
+    pub fn executor(&mut self) -> &mut Executor {
+        &mut self.executor
+    }
+}
