@@ -59,6 +59,8 @@ pub struct CopyFrame {
     /// Per chunk: copy-in start minus copy-out end (the cross-device signal latency, host relay
     /// included, plus any wait for the consumer's queue); the median over the chunks.
     pub median_handoff_ns: i64,
+    /// Host-clock time the frame's last copy-in ended (for the sustained rate).
+    pub copy_in_end_ns: u64,
 }
 
 /// Result of [`copy_bandwidth`].
@@ -73,8 +75,13 @@ pub struct CopyBenchResult {
     pub separate_copy_queue: bool,
     pub devices_with_copy_queue: Vec<bool>,
     pub frames: Vec<CopyFrame>,
-    /// Median over frames of bytes / end_to_end (GB/s, 1 GB = 1e9 bytes).
+    /// Median over frames of bytes / end_to_end (GB/s, 1 GB = 1e9 bytes). With several frames
+    /// in flight a frame's copy can queue behind the previous frame's upload, so this is the
+    /// latency-bound rate; with one frame in flight it is the rate of an isolated copy.
     pub median_gb_per_s: f64,
+    /// Bytes delivered per second over all measured frames: bytes × (frames − 1) / (time between
+    /// the first and the last frame's last copy-in end). The throughput a stream of frames gets.
+    pub sustained_gb_per_s: f64,
     pub best_gb_per_s: f64,
     /// Median rate of the device→host copies while they run (bytes / busy time).
     pub median_device_to_host_gb_per_s: f64,
@@ -85,6 +92,15 @@ pub struct CopyBenchResult {
     /// The measured frames' full reports (for `--trace`).
     #[serde(skip)]
     pub reports: Vec<FrameReport>,
+}
+
+fn sustained_rate(bytes: u64, frames: &[CopyFrame]) -> f64 {
+    match (frames.first(), frames.last()) {
+        (Some(first), Some(last)) if frames.len() > 1 => {
+            gb_per_s(bytes * (frames.len() as u64 - 1), last.copy_in_end_ns.saturating_sub(first.copy_in_end_ns))
+        }
+        _ => 0.0,
+    }
 }
 
 fn gb_per_s(bytes: u64, ns: u64) -> f64 {
@@ -162,6 +178,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
                 host_to_device_busy_ns: busy(EventKind::CopyIn),
                 overlap_ns: out_end.min(in_end).saturating_sub(out_start.max(in_start)),
                 median_handoff_ns: median_handoff(r),
+                copy_in_end_ns: in_end,
             }
         })
         .collect();
@@ -174,6 +191,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         separate_copy_queue: options.separate_copy_queue,
         devices_with_copy_queue: context.devices().iter().map(|d| d.has_copy_queue()).collect(),
         median_gb_per_s: rate(|f| f.end_to_end_ns),
+        sustained_gb_per_s: sustained_rate(bytes, &frames),
         best_gb_per_s: frames.iter().map(|f| gb_per_s(bytes, f.end_to_end_ns)).fold(0.0, f64::max),
         median_device_to_host_gb_per_s: rate(|f| f.device_to_host_busy_ns),
         median_host_to_device_gb_per_s: rate(|f| f.host_to_device_busy_ns),
