@@ -1,4 +1,6 @@
-//! `parallax trace`: path trace one view of a scene and write it as EXR (+ optional PNG).
+//! `parallax trace`: path trace one view of a scene and write it as EXR (+ optional PNG), on
+//! the GPU through the `path_trace` pass (the view in row bands over the selected devices,
+//! gathered on device 0) or with `--cpu` on the CPU reference.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -6,8 +8,11 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, EventKind};
+use parallax_passes::{GpuTracer, PATH_TRACE, banded_trace_plan, to_pixel_sample, trace_kernels};
+use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
-use parallax_scene::{Camera, CpuTracer, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
+use parallax_scene::{Camera, CpuTracer, Frame, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
 
 #[derive(Debug, clap::Args)]
 pub struct TraceArgs {
@@ -39,9 +44,16 @@ pub struct TraceArgs {
     /// Exposure multiplier for the PNG.
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,
-    /// Trace on the CPU reference path tracer (the GPU path is not available yet).
+    /// Trace on the CPU reference path tracer instead of the GPU.
     #[arg(long)]
     pub cpu: bool,
+    /// GPU tracing on N physical GPUs (the view is split into row bands over them).
+    #[arg(long, conflicts_with_all = ["fake_devices", "cpu"])]
+    pub gpus: Option<usize>,
+    /// GPU tracing on N logical devices of one physical device (how lavapipe runs multi-device
+    /// code).
+    #[arg(long, conflicts_with = "cpu")]
+    pub fake_devices: Option<usize>,
     /// Frame index (part of the random-number key).
     #[arg(long, default_value_t = 0)]
     pub frame: u32,
@@ -72,7 +84,7 @@ fn parse_floats(what: &str, s: &str) -> anyhow::Result<Vec<f32>> {
         .collect()
 }
 
-fn parse_resolution(s: &str) -> anyhow::Result<(u32, u32)> {
+pub(crate) fn parse_resolution(s: &str) -> anyhow::Result<(u32, u32)> {
     let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--resolution '{s}': expected WxH, e.g. 512x512"))?;
     let w: u32 = w.trim().parse().with_context(|| format!("--resolution '{s}': bad width"))?;
     let h: u32 = h.trim().parse().with_context(|| format!("--resolution '{s}': bad height"))?;
@@ -82,7 +94,7 @@ fn parse_resolution(s: &str) -> anyhow::Result<(u32, u32)> {
     Ok((w, h))
 }
 
-fn parse_camera(s: &str) -> anyhow::Result<Camera> {
+pub(crate) fn parse_camera(s: &str) -> anyhow::Result<Camera> {
     let v = parse_floats("camera", s)?;
     if v.len() != 10 {
         bail!("--camera: expected 10 numbers eye(3),target(3),up(3),yfov_degrees; got {}", v.len());
@@ -132,9 +144,6 @@ fn parse_sky(s: &str) -> anyhow::Result<Sky> {
 }
 
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
-    if !args.cpu {
-        bail!("GPU tracing is not available yet: pass --cpu to use the CPU reference path tracer");
-    }
     let (width, height) = parse_resolution(&args.resolution)?;
     let camera = args.camera.as_deref().map(parse_camera).transpose()?;
     let sun = args.sun.as_deref().map(parse_sun).transpose()?;
@@ -172,20 +181,43 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         russian_roulette_from: args.russian_roulette_from,
         ..Default::default()
     };
-    let tracer = CpuTracer::new(&scene, &bvh);
+    settings.validate()?;
+    let frame = if args.cpu {
+        trace_cpu(&scene, &bvh, &view, &settings)?
+    } else {
+        let selection = match (args.gpus, args.fake_devices) {
+            (Some(n), _) => DeviceSelection::Gpus(n),
+            (None, Some(n)) => DeviceSelection::FakeDevices(n),
+            (None, None) => DeviceSelection::Gpus(1),
+        };
+        trace_gpu(selection, &scene, &bvh, &view, &settings)?
+    };
+
+    let layers = if args.layers { ExrLayers::ALL } else { ExrLayers::default() };
+    write_exr(&args.out, &frame, layers)?;
+    eprintln!("wrote {}", args.out.display());
+    if let Some(png) = &args.png {
+        write_contact_sheet(png, &[&frame], 1, args.exposure)?;
+        eprintln!("wrote {}", png.display());
+    }
+    Ok(())
+}
+
+fn trace_cpu(scene: &Scene, bvh: &SceneBvh, view: &View, settings: &TraceSettings) -> anyhow::Result<Frame> {
+    let tracer = CpuTracer::new(scene, bvh);
     let bar = ProgressBar::new(view.pixel_count() as u64);
     bar.set_style(
         ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% ({eta} left)")
             .context("progress bar template")?,
     );
     let t1 = Instant::now();
-    let (frame, stats) = tracer.render(&view, &settings, &|n| bar.inc(n))?;
+    let (frame, stats) = tracer.render(view, settings, &|n| bar.inc(n))?;
     bar.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
     eprintln!(
-        "traced {}x{} at {} spp, max depth {} in {:.2} s ({:.2} Mpaths/s){}",
-        width,
-        height,
+        "traced {}x{} at {} spp, max depth {} on the CPU in {:.2} s ({:.2} Mpaths/s){}",
+        view.width,
+        view.height,
         settings.spp,
         settings.max_depth,
         secs,
@@ -196,13 +228,54 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
             String::new()
         }
     );
+    Ok(frame)
+}
 
-    let layers = if args.layers { ExrLayers::ALL } else { ExrLayers::default() };
-    write_exr(&args.out, &frame, layers)?;
-    eprintln!("wrote {}", args.out.display());
-    if let Some(png) = &args.png {
-        write_contact_sheet(png, &[&frame], 1, args.exposure)?;
-        eprintln!("wrote {}", png.display());
-    }
-    Ok(())
+/// One frame of the `path_trace` pass: the view in one row band per selected device, gathered
+/// on device 0. The GPU drops non-finite samples as the CPU does.
+fn trace_gpu(
+    selection: DeviceSelection,
+    scene: &Scene,
+    bvh: &SceneBvh,
+    view: &View,
+    settings: &TraceSettings,
+) -> anyhow::Result<Frame> {
+    let context = VkContext::new(&ContextDesc::from_env(selection))?;
+    eprint!("{context}");
+    let devices = selection.count() as u32;
+    let plan = banded_trace_plan(1, (view.width, view.height), devices, devices as usize);
+    let mut tracer = GpuTracer::new(&context, plan, trace_kernels(None), &GpuScene::new(scene, bvh))?;
+    let spinner = ProgressBar::new_spinner();
+    spinner.set_message(format!("tracing {}x{} at {} spp on the GPU", view.width, view.height, settings.spp));
+    spinner.enable_steady_tick(std::time::Duration::from_millis(200));
+    let t1 = Instant::now();
+    let pixels = tracer.render(scene, std::slice::from_ref(view), settings)?.remove(0);
+    spinner.finish_and_clear();
+    let secs = t1.elapsed().as_secs_f64();
+    // GPU time: from the first path_trace band's start to the last one's end, any device.
+    let events: Vec<_> = tracer
+        .executor()
+        .take_reports()
+        .into_iter()
+        .flat_map(|r| r.events)
+        .filter(|e| e.kind == EventKind::Pass && e.name == PATH_TRACE)
+        .collect();
+    let gpu_ms = match (events.iter().map(|e| e.start_ns).min(), events.iter().map(|e| e.end_ns).max()) {
+        (Some(start), Some(end)) => end.saturating_sub(start) as f64 / 1e6,
+        _ => f64::NAN,
+    };
+    drop(tracer);
+    context.check_validation()?;
+    eprintln!(
+        "traced {}x{} at {} spp, max depth {} on {} device(s) in {:.2} s ({:.1} ms of GPU time, {:.2} Mpaths/s)",
+        view.width,
+        view.height,
+        settings.spp,
+        settings.max_depth,
+        devices,
+        secs,
+        gpu_ms,
+        view.pixel_count() as f64 * settings.spp as f64 / (gpu_ms * 1e-3) / 1e6
+    );
+    Ok(Frame { width: view.width, height: view.height, pixels: pixels.iter().map(to_pixel_sample).collect() })
 }

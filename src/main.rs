@@ -1,6 +1,7 @@
 //! The `parallax` command line.
 
 mod cmd_backend;
+mod cmd_bench_rays;
 mod cmd_plan;
 mod cmd_trace;
 mod output;
@@ -18,7 +19,7 @@ struct Cli {
 enum Command {
     /// Plan a light field over N devices: sources, δ-edges, per-device schedule, copies.
     Plan(cmd_plan::PlanArgs),
-    /// Path trace one view of a scene (`--cpu`: the CPU reference) to EXR (+ PNG).
+    /// Path trace one view of a scene on the GPU (`--cpu`: the CPU reference) to EXR (+ PNG).
     Trace(cmd_trace::TraceArgs),
     /// List the Vulkan devices a selection would use (name, driver, API version).
     Devices(cmd_backend::DevicesArgs),
@@ -26,6 +27,8 @@ enum Command {
     Run(cmd_backend::RunArgs),
     /// Measure cross-device copy bandwidth and executor overhead.
     BenchCopy(cmd_backend::BenchCopyArgs),
+    /// Measure GPU traversal: primary and diffuse-bounce rays/s, and the CWBVH build time.
+    BenchRays(cmd_bench_rays::BenchRaysArgs),
 }
 
 fn main() {
@@ -36,6 +39,7 @@ fn main() {
         Command::Devices(args) => cmd_backend::devices(args),
         Command::Run(args) => cmd_backend::run(args),
         Command::BenchCopy(args) => cmd_backend::bench_copy(args),
+        Command::BenchRays(args) => cmd_bench_rays::run(args),
     };
     if let Err(err) = result {
         eprintln!("error: {err:#}");

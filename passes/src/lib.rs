@@ -44,4 +44,4 @@ pub use raycast::{
     HitOut, RAYCAST, RayIn, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu, random_rays,
 };
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
-pub use trace::{GpuTracer, declare_trace, trace_kernels, trace_plan};
+pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_kernels, trace_plan};

@@ -3,7 +3,10 @@
 //! back. `parallax trace` and the GPU tests use it; the light-field pipelines will declare the
 //! same pass among their others.
 
-use parallax_backend::{BackendError, Context, ExecOptions, Executor, KernelRegistry, Plan, ResourceKind, TexelFormat};
+use parallax_backend::{
+    BackendError, Context, ExecOptions, Executor, KernelRegistry, Plan, PlanAccess, PlanCopy, PlanOp, PlanPass,
+    PlanResource, ResourceKind, Rows, TexelFormat,
+};
 use parallax_graph::{
     AssignStrategy, Format, Graph, Handle, Image, LayoutSpec, LightField, PlanConfig, Rig, Role, Scheme, compile,
 };
@@ -63,6 +66,55 @@ pub fn trace_plan(
     declare_trace(&mut graph, pixel_list);
     let schedule = compile(&graph, &placement)?;
     Ok(Plan::from_schedule(&schedule).map_err(BackendError::from)?)
+}
+
+/// A hand-laid plan of `views` views, each traced in `bands` row bands of equal height, band
+/// `b` on device `b % devices`, and every band traced away from device 0 copied there. It is
+/// what the graph's fine-all would compile to, without the graph's rule that a light field has
+/// at least as many views as devices: `parallax trace` splits its single view over any number
+/// of devices this way.
+pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: usize) -> Plan {
+    let bands = bands.clamp(1, height.max(1));
+    let devices = devices.max(1);
+    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
+    let mut copy_ins = Vec::new();
+    for view in 0..views {
+        let first = plan.resources.len();
+        plan.resources.extend(TRACE_OUTPUTS.map(|name| PlanResource {
+            name: name.into(),
+            view,
+            width,
+            height,
+            format: TexelFormat::Rgba32Float,
+            kind: ResourceKind::Image,
+        }));
+        for b in 0..bands {
+            let rows = Rows::new(b * height / bands, (b + 1) * height / bands);
+            let device = b as usize % devices;
+            let writes = (0..TRACE_OUTPUTS.len()).map(|k| PlanAccess { resource: first + k, version: 1, rows });
+            plan.devices[device].push(PlanOp::Pass(plan.passes.len()));
+            plan.passes.push(PlanPass {
+                name: PATH_TRACE.into(),
+                view,
+                rows,
+                device,
+                reads: vec![],
+                writes: writes.collect(),
+                history_reads: vec![],
+            });
+            if device != 0 {
+                for k in 0..TRACE_OUTPUTS.len() {
+                    let copy = plan.copies.len();
+                    plan.copies.push(PlanCopy { resource: first + k, version: 1, rows, from: device, to: 0 });
+                    plan.devices[device].extend([PlanOp::CopyOut(copy), PlanOp::Signal(copy)]);
+                    copy_ins.extend([PlanOp::Wait(copy), PlanOp::CopyIn(copy)]);
+                }
+            }
+        }
+    }
+    // Device 0 traces its own bands first, then takes the others' as they arrive.
+    plan.devices[0].extend(copy_ins);
+    plan
 }
 
 /// The kernels of [`declare_trace`] graphs: `path_trace`, and `pixel_list` when given.

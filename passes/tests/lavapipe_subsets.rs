@@ -1,17 +1,14 @@
-//! Subset independence of `path_trace`: the same views traced whole, in row bands (one device,
-//! and fine-all over two devices with the bands gathered on device 0) and as compacted pixel
-//! lists (one device, and one view per device) give bit-identical pixels. This holds because
+//! Subset independence of `path_trace`: the same views traced whole, in row bands (one device;
+//! alternating over two devices; fine-all over two devices, bands gathered on device 0) and as
+//! compacted pixel lists (one device, and one view per device) give bit-identical pixels. This holds because
 //! every random number is keyed by (pixel, view, frame, sample, bounce) and nothing else.
 
 mod common;
 
-use parallax_backend::{
-    KernelRegistry, Plan, PlanAccess, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
-};
+use parallax_backend::{KernelRegistry, Plan};
 use parallax_graph::Scheme;
 use parallax_passes::{
-    GpuTracer, PATH_TRACE, PathTraceKernel, StridedPixelListKernel, TRACE_OUTPUTS, strided_pixels, trace_kernels,
-    trace_plan,
+    GpuTracer, PATH_TRACE, StridedPixelListKernel, banded_trace_plan, strided_pixels, trace_kernels, trace_plan,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
@@ -21,37 +18,6 @@ const H: u32 = 16;
 const VIEWS: u32 = 2;
 const STRIDE: u32 = 3;
 const PHASE: u32 = 1;
-
-/// One device, every view in `bands` row bands traced by separate pass instances.
-fn banded_plan(bands: u32) -> Plan {
-    let mut resources = Vec::new();
-    let mut passes = Vec::new();
-    for view in 0..VIEWS {
-        let first = resources.len();
-        resources.extend(TRACE_OUTPUTS.map(|name| PlanResource {
-            name: name.into(),
-            view,
-            width: W,
-            height: H,
-            format: TexelFormat::Rgba32Float,
-            kind: ResourceKind::Image,
-        }));
-        for b in 0..bands {
-            let rows = Rows::new(b * H / bands, (b + 1) * H / bands);
-            passes.push(PlanPass {
-                name: PATH_TRACE.into(),
-                view,
-                rows,
-                device: 0,
-                reads: vec![],
-                writes: (0..4).map(|k| PlanAccess { resource: first + k, version: 1, rows }).collect(),
-                history_reads: vec![],
-            });
-        }
-    }
-    let ops = (0..passes.len()).map(PlanOp::Pass).collect();
-    Plan { resources, passes, copies: vec![], devices: vec![ops] }
-}
 
 fn render(devices: usize, plan: Plan, kernels: KernelRegistry) -> Vec<Vec<GpuPixel>> {
     let scene = default_scene();
@@ -80,8 +46,11 @@ fn whole_views_bands_and_pixel_lists_give_identical_pixels_on_one_and_two_device
     }
     assert_ne!(whole[0], whole[1], "views differ (camera and random key)");
 
-    let bands_one_device = render(1, banded_plan(3), KernelRegistry::new().with(PATH_TRACE, PathTraceKernel));
+    let bands_one_device = render(1, banded_trace_plan(VIEWS, (W, H), 3, 1), trace_kernels(None));
     assert_eq!(bands_one_device, whole, "3 row bands on one device");
+    let bands_copied = banded_trace_plan(VIEWS, (W, H), 3, 2);
+    assert_eq!(bands_copied.copies.len(), 2 * 4, "per view, the band on device 1 comes back as 4 images");
+    assert_eq!(render(2, bands_copied, trace_kernels(None)), whole, "3 row bands alternating over 2 devices");
 
     let bands_two_devices = trace_plan(VIEWS, 1, (W, H), 2, Scheme::FineAll, None).unwrap();
     let split: Vec<usize> = bands_two_devices.passes.iter().map(|p| p.device).collect();

@@ -1,0 +1,68 @@
+//! `parallax bench-rays`: rays/s of the GPU traversal (the `raycast` pass) for primary and
+//! diffuse-bounce rays, and the CWBVH build time; see parallax_passes::bench.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context as _;
+use parallax_backend::{Context, ContextDesc, DeviceSelection};
+use parallax_passes::bench::{RayRate, bench_rays};
+use parallax_scene::load_scene;
+
+use crate::cmd_trace::{parse_camera, parse_resolution};
+
+#[derive(Debug, clap::Args)]
+pub struct BenchRaysArgs {
+    /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
+    #[arg(long, default_value = "default")]
+    pub scene: String,
+    /// Primary rays: one per pixel centre of a WxH image.
+    #[arg(long, default_value = "1024x1024")]
+    pub resolution: String,
+    /// Camera as `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`;
+    /// without it the scene's first camera (or one framing the whole scene).
+    #[arg(long, allow_hyphen_values = true)]
+    pub camera: Option<String>,
+    /// Casts per batch; the median GPU time is reported.
+    #[arg(long, default_value_t = 9)]
+    pub repeats: usize,
+    /// Create N logical devices on one physical device and measure on the first (how it runs
+    /// on lavapipe); by default the first GPU.
+    #[arg(long)]
+    pub fake_devices: Option<usize>,
+    /// Write the measurements as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
+    let (width, height) = parse_resolution(&args.resolution)?;
+    let camera = args.camera.as_deref().map(parse_camera).transpose()?;
+    let t0 = Instant::now();
+    let scene = load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
+    eprintln!("scene '{}': {} triangles, loaded in {:.2?}", scene.name, scene.triangle_count(), t0.elapsed());
+    let selection = args.fake_devices.map_or(DeviceSelection::Gpus(1), DeviceSelection::FakeDevices);
+    let context = Context::new(&ContextDesc::from_env(selection))?;
+    let camera = camera.unwrap_or_else(|| scene.default_camera());
+    let report = bench_rays(&context, scene, camera, width, height, args.repeats.max(1))?;
+    context.check_validation()?;
+    println!("device: {}", report.device);
+    println!(
+        "CWBVH: {} triangles, {} nodes, build {:.1} ms (obvhs core {:.1} ms)",
+        report.triangles, report.bvh_nodes, report.bvh_build_ms, report.bvh_core_build_ms
+    );
+    let line = |what: &str, r: &RayRate| {
+        println!(
+            "{what}: {} rays, {:.3} ms median ({:.3} best) -> {:.3e} rays/s",
+            r.rays, r.median_ms, r.best_ms, r.rays_per_s
+        )
+    };
+    line("primary, closest hit", &report.primary);
+    line("diffuse bounce, closest hit", &report.diffuse_bounce);
+    line("diffuse bounce, any hit", &report.diffuse_bounce_any_hit);
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,66 @@
+//! `parallax trace` on the GPU (lavapipe, two logical devices, validation on) writes the same
+//! kinds of output as `--cpu`, and `parallax bench-rays` measures and writes its JSON.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("parallax-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn parallax(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_parallax")).env("PARALLAX_VALIDATION", "1").args(args).output().unwrap()
+}
+
+#[test]
+fn gpu_trace_writes_exr_and_png_like_the_cpu() {
+    let dir = scratch("trace");
+    for (name, device) in [("gpu", "--fake-devices=2"), ("cpu", "--cpu")] {
+        let exr = dir.join(format!("{name}.exr"));
+        let png = dir.join(format!("{name}.png"));
+        let out = parallax(&[
+            "trace",
+            "--resolution",
+            "20x12",
+            "--spp",
+            "2",
+            "--layers",
+            device,
+            "--out",
+            exr.to_str().unwrap(),
+            "--png",
+            png.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(std::fs::metadata(&exr).unwrap().len() > 0 && std::fs::metadata(&png).unwrap().len() > 0);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bench_rays_reports_the_three_batches() {
+    let dir = scratch("bench-rays");
+    let json = dir.join("rays.json");
+    let out = parallax(&[
+        "bench-rays",
+        "--fake-devices",
+        "1",
+        "--resolution",
+        "32x32",
+        "--repeats",
+        "2",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(report["primary"]["rays"], 32 * 32);
+    assert_eq!(report["triangles"], 1028);
+    for batch in ["primary", "diffuse_bounce", "diffuse_bounce_any_hit"] {
+        assert!(report[batch]["rays_per_s"].as_f64().unwrap() > 0.0, "{batch}: {report}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
