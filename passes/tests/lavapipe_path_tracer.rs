@@ -122,7 +122,7 @@ fn textured_fox_matches_the_cpu_reference() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/fox/Fox.gltf");
     let mut scene = load_gltf(path).unwrap();
     assert!(!scene.textures.is_empty());
-    // The file has no light: a sky and a sun, as gpucheck and `parallax trace --sky/--sun` give.
+    // The file has no light: a sky and a sun, as `parallax trace --sky/--sun` would give it.
     scene.sky = Some(Sky::Constant(Vec3::new(0.5, 0.6, 0.8)));
     scene.sun = Some(Sun {
         to_sun: Vec3::new(0.3, 1.0, 0.2).normalize(),

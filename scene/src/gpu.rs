@@ -6,7 +6,7 @@
 //! - materials (64 B), emissive-triangle table (16 B), punctual lights (48 B);
 //! - textures: RGBA8 images for a bindless `sampler2D[]` (UNORM; the shader decodes sRGB).
 //!
-//! The structs below and `shaders/pt_scene.glsl` must change together; the size tests here and
+//! The structs below and `shaders/pt_types.glsl` must change together; the size tests here and
 //! the `offsetof`-style comments in the GLSL keep them honest.
 
 use bytemuck::{Pod, Zeroable};
@@ -105,7 +105,7 @@ pub const LIGHT_GROUP_EMISSIVE: u32 = 8;
 pub const PIXELS_ROWS: u32 = 0;
 pub const PIXELS_LIST: u32 = 1;
 
-/// Per-dispatch parameters of `shaders/pt_trace.glsl` (std430, 224 bytes): camera, view,
+/// Per-view parameters of `shaders/pt_trace.glsl` (std430, 224 bytes): camera, view,
 /// frame, sampling settings, sky, sun and which pixels to trace.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]

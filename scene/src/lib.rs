@@ -6,8 +6,8 @@
 //!   BVH and scene out for storage buffers (traversed by `shaders/bvh_traverse.glsl`).
 //! - [`CpuTracer`]: the reference path tracer (NEE + MIS, Lambert + GGX, counter-based RNG).
 //!   `shaders/pt_trace.glsl` is its GPU twin; [`gpu::GpuTraceParams`] and [`gpu::GpuPixel`]
-//!   are its parameter and output layouts. No Vulkan here: `scene/gpucheck` (outside the
-//!   workspace) runs the shaders against this crate until the backend can bind a scene.
+//!   are its parameter and output layouts. No Vulkan here: parallax-passes uploads the
+//!   [`gpu::GpuScene`] and runs the shaders (its lavapipe tests compare them with this crate).
 //! - [`output`]: EXR per view and a PNG contact sheet; [`metrics`]: MSE, PSNR, means.
 //!
 //! ```
