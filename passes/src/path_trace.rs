@@ -12,7 +12,7 @@
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
 
-use parallax_backend::{BackendError, PassKernel, PlanPass, Recorder, ResourceKind};
+use parallax_backend::{BackendError, PassKernel, PlanPass, Recorder, ResourceKind, TexelFormat};
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
@@ -56,6 +56,10 @@ impl PassKernel for PathTraceKernel {
         let width = rec.resource(pass.writes[0].resource).width;
         let mut images = [NO_IMAGE; 4];
         for (slot, write) in images.iter_mut().zip(&pass.writes) {
+            let target = rec.resource(write.resource);
+            if target.kind != ResourceKind::Image || target.format == TexelFormat::R32Uint {
+                return Err(misuse(index, format!("its write `{}` must be a float image", target.name)));
+            }
             *slot = rec.image(write.resource)?;
         }
         let (list_mode, list_address, groups) = match pass.reads.first() {

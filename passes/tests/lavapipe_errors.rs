@@ -1,0 +1,77 @@
+//! Misuse gives the exact error: views out of order, too many rays, a `path_trace` pass with
+//! accesses it cannot serve, textures that do not fit the backend's texture array.
+
+mod common;
+
+use parallax_backend::{
+    BackendError, ExecOptions, Executor, KernelRegistry, MAX_TEXTURES, Plan, PlanAccess, PlanOp, PlanPass,
+    PlanResource, Rows, TextureData,
+};
+use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, Raycaster, random_rays, trace_frame_data};
+use parallax_scene::gpu::GpuScene;
+use parallax_scene::{SceneBvh, TraceSettings, default_scene};
+
+#[test]
+fn trace_parameters_must_list_views_in_order() {
+    let scene = default_scene();
+    let mut views = common::views(&scene, 2, 8, 8);
+    views.swap(0, 1);
+    match trace_frame_data(&scene, &views, &TraceSettings::default()) {
+        Err(PassError::ViewOrder { position: 0, index: 1 }) => {}
+        other => panic!("expected ViewOrder, got {other:?}"),
+    }
+    let zero_spp = TraceSettings { spp: 0, ..Default::default() };
+    assert!(matches!(trace_frame_data(&scene, &views[..0], &zero_spp), Err(PassError::Scene(_))));
+}
+
+#[test]
+fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_target() {
+    let scene = default_scene();
+    let bvh = SceneBvh::build(&scene);
+    let gpu_scene = GpuScene::new(&scene, &bvh);
+    let ctx = common::context(1);
+    let mut raycaster = Raycaster::new(&ctx, &gpu_scene, 10, false).unwrap();
+    match raycaster.cast(&random_rays(&scene, 11), false, 1) {
+        Err(PassError::TooManyRays { rays: 11, capacity: 10 }) => {}
+        other => panic!("expected TooManyRays, got {other:?}"),
+    }
+    drop(raycaster);
+
+    // A path_trace pass whose only write is a buffer: the kernel says what it expects.
+    let all = Rows::new(0, 1);
+    let plan = Plan {
+        resources: vec![PlanResource::buffer("list", 0, 64)],
+        passes: vec![PlanPass {
+            name: PATH_TRACE.into(),
+            view: 0,
+            rows: all,
+            device: 0,
+            reads: vec![],
+            writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
+            history_reads: vec![],
+        }],
+        copies: vec![],
+        devices: vec![vec![PlanOp::Pass(0)]],
+    };
+    let kernels = KernelRegistry::new().with(PATH_TRACE, PathTraceKernel);
+    let mut exec = Executor::new(&ctx, plan, kernels, ExecOptions::default()).unwrap();
+    parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
+    match exec.run_frame() {
+        Err(BackendError::KernelMisuse { kernel, instance: 0, .. }) => assert_eq!(kernel, "path_trace"),
+        other => panic!("expected KernelMisuse, got {other:?}"),
+    }
+
+    // Textures: the byte count must match the size, and the array has a fixed capacity.
+    let texel = [255u8; 4];
+    match exec.upload_textures(&[TextureData { width: 2, height: 1, rgba8: &texel }]) {
+        Err(BackendError::TextureData { width: 2, height: 1, bytes: 4, .. }) => {}
+        other => panic!("expected TextureData, got {other:?}"),
+    }
+    let many = vec![TextureData { width: 1, height: 1, rgba8: &texel }; MAX_TEXTURES as usize + 1];
+    match exec.upload_textures(&many) {
+        Err(BackendError::TooManyTextures { count, max: MAX_TEXTURES }) => assert_eq!(count, many.len()),
+        other => panic!("expected TooManyTextures, got {other:?}"),
+    }
+    drop(exec);
+    ctx.check_validation().unwrap();
+}
