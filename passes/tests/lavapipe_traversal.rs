@@ -33,6 +33,23 @@ fn default_scene_closest_and_any_hit_match_the_cpu() {
     check(&default_scene(), 100_000);
 }
 
+/// The benchmark's kernel (compiled without textures) on a scene without textures or alpha
+/// masks gives exactly the textured kernel's hits.
+#[test]
+fn opaque_kernel_matches_the_textured_one_on_an_untextured_scene() {
+    let scene = default_scene();
+    let bvh = SceneBvh::build(&scene);
+    let ctx = common::context(1);
+    let gpu_scene = GpuScene::new(&scene, &bvh);
+    let rays = random_rays(&scene, 20_000);
+    let hits = |opaque: bool| {
+        let mut raycaster = Raycaster::new(&ctx, &gpu_scene, rays.len(), opaque).unwrap();
+        [false, true].map(|any| raycaster.cast(&rays, any, 1).unwrap().0)
+    };
+    assert_eq!(hits(true), hits(false));
+    ctx.check_validation().unwrap();
+}
+
 #[test]
 fn cornell_box_closest_and_any_hit_match_the_cpu() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/cornell_box/CornellBox-Original.gltf");
