@@ -22,6 +22,10 @@ pub enum PassError {
     #[error("view {position} of the list has index {index}; trace parameters must list views 0, 1, 2, ... in order")]
     ViewOrder { position: usize, index: u32 },
 
+    /// Every view a pass of the plan traces needs its parameters.
+    #[error("the plan traces views 0..{plan_views} but parameters were given for {given}")]
+    MissingViews { plan_views: u32, given: usize },
+
     /// Per-view trace parameters do not fit into the executor's per-frame data.
     #[error("{views} views need {bytes} bytes of per-frame data (ExecOptions::frame_data_bytes is {capacity})")]
     TooManyViews { views: usize, bytes: usize, capacity: u64 },
@@ -29,6 +33,10 @@ pub enum PassError {
     /// A plan lacks an image or buffer this crate looks up by name.
     #[error("the plan has no resource `{name}` for view {view}")]
     MissingResource { name: String, view: u32 },
+
+    /// A view's size differs from its images in the plan.
+    #[error("view {view} is {width}x{height} but the plan's `{name}` image is {plan_width}x{plan_height} {format}")]
+    ViewSize { view: u32, name: String, width: u32, height: u32, plan_width: u32, plan_height: u32, format: String },
 
     /// Pixel coordinates are packed as 16 + 16 bits.
     #[error("a {width}x{height} view is beyond the 65536x65536 that packed pixel lists can address")]

@@ -146,6 +146,13 @@ impl GpuTracer {
     /// size must match the plan's images) and returns each view's pixels, row-major. Pixels a
     /// pass did not trace (outside a pixel list) keep their previous contents (zero at first).
     pub fn render(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<GpuPixel>>> {
+        let plan_views = self.executor.plan().passes.iter().map(|p| p.view + 1).max().unwrap_or(0);
+        if (views.len() as u64) < u64::from(plan_views) {
+            return Err(PassError::MissingViews { plan_views, given: views.len() });
+        }
+        for view in views {
+            self.check_view(view)?;
+        }
         let data = trace_frame_data(scene, views, settings)?;
         if data.len() as u64 > self.frame_data_bytes {
             return Err(PassError::TooManyViews {
@@ -163,24 +170,40 @@ impl GpuTracer {
     /// The traced pixels of `view` (from device 0 where the view was gathered, else from the
     /// device that traced it).
     pub fn read_view(&mut self, view: &View) -> Result<Vec<GpuPixel>> {
+        self.check_view(view)?;
         let mut layers: [Option<Vec<u8>>; 4] = Default::default();
         for (layer, name) in layers.iter_mut().zip(TRACE_OUTPUTS) {
             let Some(resource) = self.find_image(name, view.index) else {
                 continue;
             };
-            let desc = &self.executor.plan().resources[resource];
-            if (desc.width, desc.height) != (view.width, view.height) || desc.format != TexelFormat::Rgba32Float {
-                return Err(PassError::MissingResource {
-                    name: format!("{name} ({}x{} RGBA32F)", view.width, view.height),
-                    view: view.index,
-                });
-            }
             *layer = Some(self.read_anywhere(resource)?);
         }
         if layers[0].is_none() {
             return Err(PassError::MissingResource { name: TRACE_OUTPUTS[0].into(), view: view.index });
         }
         Ok(pixels_from_images(view.width, view.height, [0, 1, 2, 3].map(|k| layers[k].as_deref())))
+    }
+
+    /// Every output image the plan has for `view` must be `view`-sized RGBA32F.
+    fn check_view(&self, view: &View) -> Result<()> {
+        for name in TRACE_OUTPUTS {
+            let Some(resource) = self.find_image(name, view.index) else {
+                continue;
+            };
+            let desc = &self.executor.plan().resources[resource];
+            if (desc.width, desc.height) != (view.width, view.height) || desc.format != TexelFormat::Rgba32Float {
+                return Err(PassError::ViewSize {
+                    view: view.index,
+                    name: name.into(),
+                    width: view.width,
+                    height: view.height,
+                    plan_width: desc.width,
+                    plan_height: desc.height,
+                    format: format!("{:?}", desc.format),
+                });
+            }
+        }
+        Ok(())
     }
 
     fn find_image(&self, name: &str, view: u32) -> Option<usize> {
