@@ -6,7 +6,7 @@
 //!   reference path tracer, over a whole view, a row band or a compacted pixel list, writing
 //!   radiance and first-hit data into the view's images.
 //! * [`RaycastKernel`] / [`Raycaster`] (`raycast`): rays through the CWBVH, for the GPU-vs-CPU
-//!   traversal check and the rays/s benchmark ([`bench`]).
+//!   traversal check and the rays/s benchmark ([`bench`](mod@bench)).
 //! * [`pixel_list`]: the list format of `path_trace`'s list mode and a demo list producer.
 //! * [`trace`]: the graph declaring path tracing per view, and [`GpuTracer`], which runs it.
 //!
