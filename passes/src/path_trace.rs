@@ -5,7 +5,7 @@
 //!   and roughness, normal and metallic, position and linear depth: the [`TRACE_OUTPUTS`]
 //!   images. A pass that needs only radiance (hole filling) declares only the first.
 //! * Pixels: the instance's row band (a whole view or one device's strip), or, when the pass
-//!   reads a per-view buffer, the pixel list in it (word 0 = count, then x | y << 16 per
+//!   reads a per-view buffer, the pixel list in it, whatever the band (word 0 = count, then x | y << 16 per
 //!   pixel; see [`crate::pixel_list`]). The dispatch covers the buffer's capacity and threads
 //!   past the count return, so the list can be produced on the GPU in the same frame.
 //! * Camera, frame index and settings come from the per-frame data, one

@@ -69,10 +69,10 @@ pub fn trace_plan(
 }
 
 /// A hand-laid plan of `views` views, each traced in `bands` row bands of equal height, band
-/// `b` on device `b % devices`, and every band traced away from device 0 copied there. It is
-/// what the graph's fine-all would compile to, without the graph's rule that a light field has
-/// at least as many views as devices: `parallax trace` splits its single view over any number
-/// of devices this way.
+/// `b` on device `b % devices`, and every band traced away from device 0 copied there: the
+/// shape of a fine-all schedule, without the planner's rule that a light field has at least as
+/// many views as devices. `parallax trace` splits its single view over any number of devices
+/// this way.
 pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: usize) -> Plan {
     let bands = bands.clamp(1, height.max(1));
     let devices = devices.max(1);
