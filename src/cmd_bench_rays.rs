@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use parallax_backend::{Context, ContextDesc, DeviceSelection};
 use parallax_passes::bench::{RayRate, bench_rays};
-use parallax_scene::load_scene;
+use parallax_scene::{BvhQuality, load_scene};
 
 use crate::cmd_trace::{parse_camera, parse_resolution};
 
@@ -23,6 +23,9 @@ pub struct BenchRaysArgs {
     /// without it the scene's first camera (or one framing the whole scene).
     #[arg(long, allow_hyphen_values = true)]
     pub camera: Option<String>,
+    /// BVH build preset: fast, medium, slow or very-slow (slow ones pre-split triangles).
+    #[arg(long, default_value = "medium")]
+    pub bvh_quality: BvhQuality,
     /// Casts per batch; the median GPU time is reported.
     #[arg(long, default_value_t = 9)]
     pub repeats: usize,
@@ -44,7 +47,7 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     let selection = args.fake_devices.map_or(DeviceSelection::Gpus(1), DeviceSelection::FakeDevices);
     let context = Context::new(&ContextDesc::from_env(selection))?;
     let camera = camera.unwrap_or_else(|| scene.default_camera());
-    let report = bench_rays(&context, scene, camera, width, height, args.repeats.max(1))?;
+    let report = bench_rays(&context, scene, camera, (width, height), args.repeats.max(1), args.bvh_quality)?;
     context.check_validation()?;
     println!("device: {}", report.device);
     println!(

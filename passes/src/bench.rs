@@ -9,7 +9,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use parallax_backend::Context;
 use parallax_scene::gpu::GpuScene;
-use parallax_scene::{AlphaMode, Camera, Scene, SceneBvh};
+use parallax_scene::{AlphaMode, BvhQuality, Camera, Scene, SceneBvh};
 use rayon::prelude::*;
 
 use crate::error::Result;
@@ -55,14 +55,14 @@ pub struct RayBench {
 }
 
 /// Measures rays/s on device 0 of `context` for `scene` seen from `camera` at `width`×`height`
-/// (median of `repeats` casts per batch).
+/// (median of `repeats` casts per batch), with a BVH built at `quality`.
 pub fn bench_rays(
     context: &Context,
     mut scene: Scene,
     camera: Camera,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
     repeats: usize,
+    quality: BvhQuality,
 ) -> Result<RayBench> {
     for m in &mut scene.materials {
         m.alpha_mode = AlphaMode::Opaque;
@@ -72,7 +72,7 @@ pub fn bench_rays(
     }
     scene.textures.clear();
     let started = Instant::now();
-    let bvh = SceneBvh::build(&scene);
+    let bvh = SceneBvh::build_with(&scene, quality);
     let build = started.elapsed();
     let gpu_scene = GpuScene::new(&scene, &bvh);
     let pixels = width as usize * height as usize;

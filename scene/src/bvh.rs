@@ -39,10 +39,50 @@ pub struct SceneBvh {
     pub core_build_time: Duration,
 }
 
+/// How much build time to spend for traversal speed (obvhs's presets). `Slow` and `VerySlow`
+/// pre-split large triangles, so one triangle can sit in several leaves; hits still map to scene
+/// triangles through `primitive_indices`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BvhQuality {
+    Fast,
+    #[default]
+    Medium,
+    Slow,
+    VerySlow,
+}
+
+impl BvhQuality {
+    fn params(self) -> BvhBuildParams {
+        match self {
+            BvhQuality::Fast => BvhBuildParams::fast_build(),
+            BvhQuality::Medium => BvhBuildParams::medium_build(),
+            BvhQuality::Slow => BvhBuildParams::slow_build(),
+            BvhQuality::VerySlow => BvhBuildParams::very_slow_build(),
+        }
+    }
+}
+
+impl std::str::FromStr for BvhQuality {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "fast" => Ok(BvhQuality::Fast),
+            "medium" => Ok(BvhQuality::Medium),
+            "slow" => Ok(BvhQuality::Slow),
+            "very-slow" => Ok(BvhQuality::VerySlow),
+            _ => Err(format!("unknown BVH quality '{s}': use fast, medium, slow or very-slow")),
+        }
+    }
+}
+
 impl SceneBvh {
-    /// Builds with obvhs's `medium_build` preset (PLOC + reinsertion, no pre-splitting, so every
-    /// triangle appears exactly once).
+    /// Builds with obvhs's `medium_build` preset (PLOC + reinsertion).
     pub fn build(scene: &Scene) -> Self {
+        Self::build_with(scene, BvhQuality::Medium)
+    }
+
+    /// Builds with the preset of `quality`.
+    pub fn build_with(scene: &Scene, quality: BvhQuality) -> Self {
         let start = Instant::now();
         let tris: Vec<Triangle> = (0..scene.triangle_count())
             .map(|t| {
@@ -54,7 +94,7 @@ impl SceneBvh {
         let cwbvh = if tris.is_empty() {
             CwBvh::default()
         } else {
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut core)
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, quality.params(), &mut core)
         };
         let tris = cwbvh.primitive_indices.iter().map(|&i| tris[i as usize]).collect();
         Self { cwbvh, tris, build_time: start.elapsed(), core_build_time: core }

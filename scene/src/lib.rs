@@ -39,7 +39,7 @@ pub mod rng;
 pub mod shading;
 
 pub use builder::SceneBuilder;
-pub use bvh::{Hit, SceneBvh};
+pub use bvh::{BvhQuality, Hit, SceneBvh};
 pub use default_scene::default_scene;
 pub use error::SceneError;
 pub use gltf_import::{load_gltf, load_gltf_bytes};
