@@ -4,11 +4,27 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-fn scratch(name: &str) -> PathBuf {
+/// A fresh, empty directory for one test, removed again when the test is done with it.
+struct ScratchDir(PathBuf);
+
+impl std::ops::Deref for ScratchDir {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn scratch(name: &str) -> ScratchDir {
     let dir = std::env::temp_dir().join(format!("parallax-cli-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    dir
+    ScratchDir(dir)
 }
 
 fn parallax(args: &[&str]) -> std::process::Output {
@@ -37,7 +53,6 @@ fn gpu_trace_writes_exr_and_png_like_the_cpu() {
         assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
         assert!(std::fs::metadata(&exr).unwrap().len() > 0 && std::fs::metadata(&png).unwrap().len() > 0);
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -62,5 +77,4 @@ fn bench_rays_reports_the_three_batches() {
     for batch in ["primary", "diffuse_bounce", "diffuse_bounce_any_hit"] {
         assert!(report[batch]["rays_per_s"].as_f64().unwrap() > 0.0, "{batch}: {report}");
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -12,12 +12,27 @@ fn data(rel: &str) -> PathBuf {
 const CORNELL: &str = "cornell_box/CornellBox-Original.gltf";
 const FOX: &str = "fox/Fox.gltf";
 
-/// A fresh, empty directory for one test.
-fn scratch_dir(name: &str) -> PathBuf {
+/// A fresh, empty directory for one test, removed again when the test is done with it.
+struct ScratchDir(PathBuf);
+
+impl std::ops::Deref for ScratchDir {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn scratch_dir(name: &str) -> ScratchDir {
     let d = std::env::temp_dir().join(format!("parallax-scene-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    ScratchDir(d)
 }
 
 #[test]

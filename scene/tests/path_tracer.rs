@@ -210,6 +210,7 @@ fn exr_round_trip_and_contact_sheet() {
     write_contact_sheet(&png, &refs, 2, 1.0).unwrap();
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (2 * 20 + 2, 2 * 12 + 2));
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A point light of intensity I at height h over a white Lambert floor: the radiance of the
