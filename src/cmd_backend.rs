@@ -29,7 +29,7 @@ pub struct DeviceArgs {
 }
 
 impl DeviceArgs {
-    fn selection(&self) -> DeviceSelection {
+    pub(crate) fn selection(&self) -> DeviceSelection {
         match (self.gpus, self.fake_devices) {
             (Some(n), _) => DeviceSelection::Gpus(n),
             (None, Some(n)) => DeviceSelection::FakeDevices(n),

@@ -3,6 +3,7 @@
 mod cmd_backend;
 mod cmd_bench_rays;
 mod cmd_plan;
+mod cmd_render;
 mod cmd_trace;
 mod output;
 
@@ -19,6 +20,8 @@ struct Cli {
 enum Command {
     /// Plan a light field over N devices: sources, δ-edges, per-device schedule, copies.
     Plan(cmd_plan::PlanArgs),
+    /// Path trace every view of a light field over N devices (reference, no reprojection).
+    Render(cmd_render::RenderArgs),
     /// Path trace one view of a scene on the GPU (`--cpu`: the CPU reference) to EXR (+ PNG).
     Trace(cmd_trace::TraceArgs),
     /// List the Vulkan devices a selection would use (name, driver, API version).
@@ -35,6 +38,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Plan(args) => cmd_plan::run(args),
+        Command::Render(args) => cmd_render::run(args),
         Command::Trace(args) => cmd_trace::run(args),
         Command::Devices(args) => cmd_backend::devices(args),
         Command::Run(args) => cmd_backend::run(args),
