@@ -62,15 +62,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     let plan = Plan::new(&lf, &config)?;
     let mut graph = Graph::new(plan.topology.clone());
     declare_standard_pipeline(&mut graph);
-    let schedule = compile(&graph, &plan)?;
-    let report = schedule.validate();
-    if !report.is_ok() {
-        bail!(
-            "internal error: the compiled schedule breaks {} invariant(s), first: {:?}",
-            report.errors.len(),
-            report.errors[0]
-        );
-    }
+    let schedule = compile_checked(&graph, &plan)?;
     let summary = PlanSummary::new(&lf, &plan, &schedule);
     // Render everything before writing anything, so a failure leaves no partial output.
     let dot = args.dot.as_ref().map(|_| schedule.to_dot());
@@ -100,4 +92,19 @@ fn print_summary(s: &PlanSummary) {
         s.gather_copies,
         s.bytes_per_frame as f64 / (1 << 20) as f64
     );
+}
+
+/// Compiles `graph` under `plan` and checks every schedule invariant: a broken one is a bug of
+/// the compiler, reported as such rather than executed.
+pub(crate) fn compile_checked(graph: &Graph, plan: &Plan) -> Result<Schedule> {
+    let schedule = compile(graph, plan)?;
+    let report = schedule.validate();
+    if !report.is_ok() {
+        bail!(
+            "internal error: the compiled schedule breaks {} invariant(s), first: {:?}",
+            report.errors.len(),
+            report.errors[0]
+        );
+    }
+    Ok(schedule)
 }

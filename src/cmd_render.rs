@@ -7,14 +7,14 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context as _, Result, bail};
+use anyhow::{Context as _, Result};
 use clap::Args;
 use glam::Vec2;
 use parallax_backend::{
     Context as VkContext, ContextDesc, EventKind, FrameReport, Plan as ExecPlan, chrome_trace, write_json,
 };
 use parallax_graph::{
-    Graph, LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId, compile, lightfield::parse_pair,
+    Graph, LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId, lightfield::parse_pair,
 };
 use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample, trace_kernels};
 use parallax_scene::gpu::GpuScene;
@@ -22,6 +22,7 @@ use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{Camera, Frame, Scene, SceneBvh, TraceSettings, View, load_scene};
 
 use crate::cmd_backend::DeviceArgs;
+use crate::cmd_plan::compile_checked;
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -86,15 +87,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let plan = Plan::new(&lf, &config)?;
     let mut graph = Graph::new(plan.topology.clone());
     declare_trace(&mut graph, None);
-    let schedule = compile(&graph, &plan)?;
-    let report = schedule.validate();
-    if !report.is_ok() {
-        bail!(
-            "internal error: the compiled schedule breaks {} invariant(s), first: {:?}",
-            report.errors.len(),
-            report.errors[0]
-        );
-    }
+    let schedule = compile_checked(&graph, &plan)?;
     let summary = PlanSummary::new(&lf, &plan, &schedule);
 
     let bvh = SceneBvh::build(&scene);

@@ -1,15 +1,12 @@
 //! `parallax plan` end to end: the JSON it writes, and bad input giving one clear error, a
 //! non-zero exit and no files.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("parallax-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use common::scratch;
+
+use std::path::Path;
+use std::process::{Command, Output};
 
 fn plan(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_parallax"))
@@ -25,7 +22,7 @@ fn plan(args: &[&str], dir: &Path) -> Output {
 
 #[test]
 fn json_summary_has_the_documented_fields() {
-    let dir = scratch("json");
+    let dir = scratch("plan", "json");
     let out = plan(&["--lf", "multiscopic", "--gpus", "4", "--scheme", "multi-source", "--assign", "contiguous"], &dir);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("plan.json")).unwrap()).unwrap();
@@ -43,7 +40,6 @@ fn json_summary_has_the_documented_fields() {
     // 75 RGBA8 768×432 display images travel to device 0.
     assert_eq!(json["bytes_per_frame"], 75 * 768 * 432 * 4);
     assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule {"));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -62,13 +58,12 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         (&["--lf", "4x1", "--resolution", "0x10"], "--resolution 0x10 is invalid"),
     ];
     for (i, (args, message)) in cases.iter().enumerate() {
-        let dir = scratch(&format!("bad{i}"));
+        let dir = scratch("plan", &format!("bad{i}"));
         let out = plan(args, &dir);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} should fail");
         assert!(stderr.contains(message), "{args:?}: expected '{message}' in: {stderr}");
         assert_eq!(stderr.lines().count(), 1, "{args:?}: one clear error line, got: {stderr}");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "{args:?} left files behind");
-        std::fs::remove_dir(&dir).unwrap();
     }
 }

@@ -2,31 +2,12 @@
 //! 2 logical devices under every scheme gives bit-identical views (the random numbers depend on
 //! pixel, view, frame, sample and bounce, never on the device), with validation on.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::scratch;
+
+use std::path::Path;
 use std::process::Command;
-
-/// A fresh, empty directory for one test, removed again when the test is done with it.
-struct ScratchDir(PathBuf);
-
-impl std::ops::Deref for ScratchDir {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for ScratchDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> ScratchDir {
-    let dir = std::env::temp_dir().join(format!("parallax-render-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    ScratchDir(dir)
-}
 
 fn render(out: &Path, devices: &str, scheme: &str) {
     let status = Command::new(env!("CARGO_BIN_EXE_parallax"))
@@ -41,7 +22,7 @@ fn render(out: &Path, devices: &str, scheme: &str) {
 
 #[test]
 fn views_are_identical_on_any_number_of_devices_and_schemes() {
-    let dir = scratch("devices");
+    let dir = scratch("render", "devices");
     let reference = dir.join("one");
     render(&reference, "1", "multi-source");
     let json: serde_json::Value =

@@ -1,31 +1,11 @@
 //! `parallax trace` on the GPU (lavapipe, two logical devices, validation on) writes the same
 //! kinds of output as `--cpu`, and `parallax bench-rays` measures and writes its JSON.
 
-use std::path::PathBuf;
+mod common;
+
+use common::scratch;
+
 use std::process::Command;
-
-/// A fresh, empty directory for one test, removed again when the test is done with it.
-struct ScratchDir(PathBuf);
-
-impl std::ops::Deref for ScratchDir {
-    type Target = std::path::Path;
-    fn deref(&self) -> &std::path::Path {
-        &self.0
-    }
-}
-
-impl Drop for ScratchDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> ScratchDir {
-    let dir = std::env::temp_dir().join(format!("parallax-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    ScratchDir(dir)
-}
 
 fn parallax(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_parallax")).env("PARALLAX_VALIDATION", "1").args(args).output().unwrap()
@@ -33,7 +13,7 @@ fn parallax(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn gpu_trace_writes_exr_and_png_like_the_cpu() {
-    let dir = scratch("trace");
+    let dir = scratch("trace", "trace");
     for (name, device) in [("gpu", "--fake-devices=2"), ("cpu", "--cpu")] {
         let exr = dir.join(format!("{name}.exr"));
         let png = dir.join(format!("{name}.png"));
@@ -57,7 +37,7 @@ fn gpu_trace_writes_exr_and_png_like_the_cpu() {
 
 #[test]
 fn bench_rays_reports_the_three_batches() {
-    let dir = scratch("bench-rays");
+    let dir = scratch("trace", "bench-rays");
     let json = dir.join("rays.json");
     let out = parallax(&[
         "bench-rays",
