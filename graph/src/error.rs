@@ -22,7 +22,7 @@ pub enum PlanError {
     #[error("--gpus 0: at least one device is needed")]
     NoDevices,
     #[error(
-        "--gpus {devices} exceeds the {views} views: the paper excludes N > M (a view would be split over devices); use at most {views} devices"
+        "--gpus/--fake-devices {devices} exceeds the {views} views: the paper excludes N > M (a view would be split over devices); use at most {views} devices"
     )]
     MoreDevicesThanViews { devices: u32, views: u32 },
     #[error("--sources: view {view} is out of range, the light field has {views} views (0..{views})")]
