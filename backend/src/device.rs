@@ -100,10 +100,13 @@ impl Device {
         } else if need_host_import {
             return Err(missing("VK_EXT_external_memory_host (cross-device copies)"));
         }
-        let calibrated_ext = if has_ext(ash::khr::calibrated_timestamps::NAME) {
-            Some(ash::khr::calibrated_timestamps::NAME)
-        } else if has_ext(ash::ext::calibrated_timestamps::NAME) {
+        // EXT first: the two are the same functions, and the Khronos validation layer that
+        // Debian 12 ships (1.3.239) predates the KHR name and warns about it on NVIDIA, which
+        // offers both.
+        let calibrated_ext = if has_ext(ash::ext::calibrated_timestamps::NAME) {
             Some(ash::ext::calibrated_timestamps::NAME)
+        } else if has_ext(ash::khr::calibrated_timestamps::NAME) {
+            Some(ash::khr::calibrated_timestamps::NAME)
         } else {
             None
         };
