@@ -64,33 +64,18 @@ impl Context {
         let ranked = rank_physical_devices(&instance, &physical);
         let need_host_import = wanted > 1;
         let mut devices = Vec::with_capacity(wanted);
-        match desc.selection {
+        // Real GPUs: the n best-ranked; logical devices: n on the best-ranked one.
+        let physical_indices: Vec<usize> = match desc.selection {
             DeviceSelection::Gpus(n) => {
                 if ranked.len() < n {
                     return Err(BackendError::NotEnoughGpus { requested: n, available: ranked.len() });
                 }
-                for (index, &physical_index) in ranked.iter().take(n).enumerate() {
-                    devices.push(Device::new(
-                        &instance,
-                        physical[physical_index],
-                        index,
-                        physical_index,
-                        need_host_import,
-                    )?);
-                }
+                ranked[..n].to_vec()
             }
-            DeviceSelection::FakeDevices(n) => {
-                let physical_index = ranked[0];
-                for index in 0..n {
-                    devices.push(Device::new(
-                        &instance,
-                        physical[physical_index],
-                        index,
-                        physical_index,
-                        need_host_import,
-                    )?);
-                }
-            }
+            DeviceSelection::FakeDevices(n) => vec![ranked[0]; n],
+        };
+        for (index, &physical_index) in physical_indices.iter().enumerate() {
+            devices.push(Device::new(&instance, physical[physical_index], index, physical_index, need_host_import)?);
         }
         let context = Self { instance, devices };
         context.check_validation()?;

@@ -317,14 +317,7 @@ impl Executor {
                 self.globals[d].insert(name.to_string(), buffer);
                 self.needs_record = true;
             }
-            let mut staging = Buffer::new(
-                device,
-                "upload staging",
-                size,
-                vk::BufferUsageFlags::TRANSFER_SRC,
-                MemoryLocation::CpuToGpu,
-            )?;
-            staging.mapped_mut().expect("CpuToGpu buffers are mapped")[..bytes.len()].copy_from_slice(bytes);
+            let staging = Buffer::staging(device, "upload staging", bytes)?;
             let target = self.globals[d][name].raw;
             let raw = &device.raw;
             device.one_shot(|cb| unsafe {

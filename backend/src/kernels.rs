@@ -12,15 +12,7 @@ pub struct FillKernel;
 impl PassKernel for FillKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "fill", 0, 1)?;
-        let width = rec.resource(dst).width;
-        let params = PassParams {
-            dst: rec.image(dst)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width,
-            ..Default::default()
-        };
+        let params = row_params(rec, pass, dst)?;
         rec.dispatch_rows("fill", params)
     }
 }
@@ -48,16 +40,12 @@ impl PassKernel for ShiftBlendKernel {
         let dst = pass.writes[0].resource;
         let own = pass.reads[0].resource;
         let other = pass.reads.get(1).unwrap_or(&pass.reads[0]).resource;
-        let width = rec.resource(dst).width;
+        let base = row_params(rec, pass, dst)?;
         let params = PassParams {
-            dst: rec.image(dst)?,
             src0: rec.image(own)?,
             src1: rec.image(other)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width,
-            param: shift_of_view(pass.view, width),
+            param: shift_of_view(pass.view, base.width),
+            ..base
         };
         rec.dispatch_rows("shift_blend", params)
     }
@@ -153,14 +141,7 @@ impl PassKernel for FillMaskKernel {
                 detail: format!("writes an R32Uint image, not {:?}", rec.resource(dst).format),
             });
         }
-        let params = PassParams {
-            dst: rec.image(dst)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(dst).width,
-            ..Default::default()
-        };
+        let params = row_params(rec, pass, dst)?;
         rec.dispatch_rows("fill_mask", params)
     }
 }
@@ -184,16 +165,21 @@ impl PassKernel for AccumulateKernel {
                 detail: "must read the resource it writes (its history)".into(),
             });
         }
-        let params = PassParams {
-            dst: rec.image(dst)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(dst).width,
-            ..Default::default()
-        };
+        let params = row_params(rec, pass, dst)?;
         rec.dispatch_rows("accumulate", params)
     }
+}
+
+/// Parameters of a kernel that writes image `dst` over the pass's row band.
+fn row_params(rec: &Recorder<'_>, pass: &PlanPass, dst: usize) -> Result<PassParams> {
+    Ok(PassParams {
+        dst: rec.image(dst)?,
+        view: pass.view,
+        y0: pass.rows.y0,
+        y1: pass.rows.y1,
+        width: rec.resource(dst).width,
+        ..Default::default()
+    })
 }
 
 /// Checks the access counts a kernel relies on; returns the first written resource.

@@ -219,6 +219,14 @@ impl Buffer {
         Ok(buffer)
     }
 
+    /// A host-visible buffer holding a copy of `bytes`, the source of an upload.
+    pub fn staging(device: &Arc<Device>, name: &str, bytes: &[u8]) -> Result<Self> {
+        let mut staging =
+            Self::new(device, name, bytes.len() as u64, vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::CpuToGpu)?;
+        staging.mapped_mut().expect("CpuToGpu buffers are mapped")[..bytes.len()].copy_from_slice(bytes);
+        Ok(staging)
+    }
+
     /// The mapped bytes of a host-visible buffer (`None` for device-local ones).
     pub fn mapped(&self) -> Option<&[u8]> {
         self.allocation.as_ref().and_then(|a| a.mapped_slice()).map(|s| &s[..self.size as usize])

@@ -90,14 +90,7 @@ impl Texture {
             .subresource_range(color_range());
         texture.view = unsafe { device.raw.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
 
-        let mut staging = Buffer::new(
-            device,
-            "texture staging",
-            expected,
-            vk::BufferUsageFlags::TRANSFER_SRC,
-            MemoryLocation::CpuToGpu,
-        )?;
-        staging.mapped_mut().expect("CpuToGpu buffers are mapped")[..data.rgba8.len()].copy_from_slice(data.rgba8);
+        let staging = Buffer::staging(device, "texture staging", data.rgba8)?;
         let raw_device = &device.raw;
         device.one_shot(|cb| unsafe {
             let to_dst = [vk::ImageMemoryBarrier2::default()
