@@ -11,21 +11,23 @@
 //
 // The including shader declares the two buffers before including this file and names them:
 //   #define BVH_NODES <buffer array of uvec4>   e.g. scene_nodes.data
-//   #define BVH_TRIS  <buffer array of BvhTriangle (bvh_types.glsl)>
+//   #define BVH_TRIS  <buffer array of uvec4>   the BvhTriangles (bvh_types.glsl), 3 words each
 // and defines, anywhere in the file, the alpha-mask test for triangles whose flags have
 // TRI_ALPHA_MASK set:
 //   bool bvh_alpha_visible(uint bvh_primitive, vec2 barycentrics);
-// A shader without alpha-masked materials can define it as `return true;`.
+// A shader without alpha-masked materials can define it as `return true;`. Defining
+// BVH_COOPERATIVE (with the subgroup basic, ballot, vote, shuffle, shuffle-relative and
+// arithmetic extensions enabled) adds `bvh_test_pending_triangles_together`.
 
 #ifndef BVH_TRAVERSE_GLSL
 #define BVH_TRAVERSE_GLSL
 
 #include "bvh_types.glsl"
 
-
 #ifndef BVH_STACK_SIZE
 #define BVH_STACK_SIZE 32
 #endif
+
 
 // obvhs's fixed near distance for node tests (it ignores ray tmin there).
 const float BVH_NODE_EPSILON = 0.0001;
@@ -93,6 +95,19 @@ uint bvh_octant_inv4(vec3 dir) {
     return (dir.x < 0.0 ? 0u : 0x04040404u) | (dir.y < 0.0 ? 0u : 0x02020202u) | (dir.z < 0.0 ? 0u : 0x01010101u);
 }
 
+// The four bytes of `word` as floats, byte 0 first. With BVH_BYTES_FROM_INT8 (and
+// GL_EXT_shader_explicit_arithmetic_types_int8) the conversion reads the bytes from 8-bit lanes
+// and needs no shift and mask per byte: 3 % more rays/s in the `raycast` kernel on an H100,
+// but the path tracer then needs 128 registers instead of 96 and runs 5 % slower
+// (docs/RESULTS.md), so each kernel picks.
+vec4 bvh_bytes(uint word) {
+#ifdef BVH_BYTES_FROM_INT8
+    return vec4(unpack8(word));
+#else
+    return vec4((uvec4(word) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu);
+#endif
+}
+
 uint bvh_byte(uint word, uint i) {
     return (word >> (8u * i)) & 0xffu;
 }
@@ -122,17 +137,22 @@ uint bvh_intersect_node(uvec4 d0, uvec4 d1, uvec4 dx, uvec4 dy, uvec4 dz, BvhRay
         uint far_y = rdy ? dy[w] : dy[2u + w];
         uint near_z = rdz ? dz[2u + w] : dz[w];
         uint far_z = rdz ? dz[w] : dz[2u + w];
-        vec4 tmin_x = vec4((uvec4(near_x) >> shifts) & 0xffu) * adj_dir_inv.x + adj_origin.x;
-        vec4 tmax_x = vec4((uvec4(far_x) >> shifts) & 0xffu) * adj_dir_inv.x + adj_origin.x;
-        vec4 tmin_y = vec4((uvec4(near_y) >> shifts) & 0xffu) * adj_dir_inv.y + adj_origin.y;
-        vec4 tmax_y = vec4((uvec4(far_y) >> shifts) & 0xffu) * adj_dir_inv.y + adj_origin.y;
-        vec4 tmin_z = vec4((uvec4(near_z) >> shifts) & 0xffu) * adj_dir_inv.z + adj_origin.z;
-        vec4 tmax_z = vec4((uvec4(far_z) >> shifts) & 0xffu) * adj_dir_inv.z + adj_origin.z;
+        vec4 tmin_x = bvh_bytes(near_x) * adj_dir_inv.x + adj_origin.x;
+        vec4 tmax_x = bvh_bytes(far_x) * adj_dir_inv.x + adj_origin.x;
+        vec4 tmin_y = bvh_bytes(near_y) * adj_dir_inv.y + adj_origin.y;
+        vec4 tmax_y = bvh_bytes(far_y) * adj_dir_inv.y + adj_origin.y;
+        vec4 tmin_z = bvh_bytes(near_z) * adj_dir_inv.z + adj_origin.z;
+        vec4 tmax_z = bvh_bytes(far_z) * adj_dir_inv.z + adj_origin.z;
         vec4 tmin = max(max(tmin_x, tmin_y), max(tmin_z, vec4(BVH_NODE_EPSILON)));
         vec4 tmax = min(min(tmax_x, tmax_y), min(tmax_z, vec4(ray.tmax)));
         bvec4 hit = lessThanEqual(tmin, tmax);
+#ifdef BVH_BYTES_FROM_INT8
+        uvec4 bits = uvec4(unpack8(child_bits4));
+        uvec4 index = uvec4(unpack8(bit_index4));
+#else
         uvec4 bits = (uvec4(child_bits4) >> shifts) & 7u;
         uvec4 index = (uvec4(bit_index4) >> shifts) & 0x1fu;
+#endif
         // Empty slots have child bits 0 and add nothing even when their (zero) box is hit.
         for (uint j = 0u; j < 4u; j++) {
             if (hit[j]) {
@@ -143,9 +163,16 @@ uint bvh_intersect_node(uvec4 d0, uvec4 d1, uvec4 dx, uvec4 dy, uvec4 dz, BvhRay
     return hit_mask;
 }
 
-// Ray against triangle `prim` including the alpha mask; returns t or -1.
-float bvh_test_primitive(uint prim, BvhRay ray, out vec2 bary) {
-    BvhTriangle tri = BVH_TRIS[prim];
+// Triangle `prim` of the BVH-ordered array, as three 16-byte loads.
+BvhTriangle bvh_load_triangle(uint prim) {
+    uvec4 w0 = BVH_TRIS[3u * prim + 0u];
+    uvec4 w1 = BVH_TRIS[3u * prim + 1u];
+    uvec4 w2 = BVH_TRIS[3u * prim + 2u];
+    return BvhTriangle(uintBitsToFloat(w0.xyz), w0.w, uintBitsToFloat(w1.xyz), w1.w, uintBitsToFloat(w2.xyz), w2.w);
+}
+
+// Ray against a loaded triangle including the alpha mask; returns t or -1.
+float bvh_test_triangle(BvhTriangle tri, uint prim, BvhRay ray, out vec2 bary) {
     float t = bvh_intersect_triangle(tri, ray, bary);
     if (t >= 0.0 && (tri.flags & TRI_ALPHA_MASK) != 0u && !bvh_alpha_visible(prim, bary)) {
         return -1.0;
@@ -153,75 +180,245 @@ float bvh_test_primitive(uint prim, BvhRay ray, out vec2 bary) {
     return t;
 }
 
-// Shared traversal loop. any_hit = true stops at the first accepted triangle (shadow rays).
-BvhHit bvh_traverse(BvhRay ray, bool any_hit) {
-    BvhHit hit;
-    hit.primitive = 0xffffffffu;
-    hit.t = ray.tmax;
-    hit.barycentrics = vec2(0.0);
+// Traversal state of the one ray an invocation is tracing. Module-scope (Private) variables so
+// that `bvh_traverse` (a ray to completion) and ray-scheduling kernels that interleave many
+// rays per invocation (bvh_raycast.glsl) step through the same code.
+BvhRay bvh_ray;
+BvhHit bvh_hit;
+bool bvh_any_hit; // stop at the first accepted triangle (shadow rays)
+uint bvh_oct_inv4;
+uvec2 bvh_stack[BVH_STACK_SIZE];
+int bvh_sp;
+uvec2 bvh_node_group;      // x: first child node, y: hit children (high byte) | imask
+uvec2 bvh_primitive_group; // x: first triangle, y: triangles left to test (low 24 bits)
 
-    uint oct_inv4 = bvh_octant_inv4(ray.dir);
-    uvec2 stack[BVH_STACK_SIZE];
-    int sp = 0;
-    uvec2 current_group = uvec2(0u, 0x80000000u);
-    uvec2 primitive_group = uvec2(0u);
+void bvh_begin(BvhRay ray, bool any_hit) {
+    bvh_ray = ray;
+    bvh_hit.primitive = 0xffffffffu;
+    bvh_hit.t = ray.tmax;
+    bvh_hit.barycentrics = vec2(0.0);
+    bvh_any_hit = any_hit;
+    bvh_oct_inv4 = bvh_octant_inv4(ray.dir);
+    bvh_sp = 0;
+    bvh_node_group = uvec2(0u, 0x80000000u);
+    bvh_primitive_group = uvec2(0u);
+}
 
-    for (;;) {
-        while (primitive_group.y != 0u) {
-            uint local = uint(findMSB(primitive_group.y));
-            primitive_group.y &= ~(1u << local);
-            uint prim = primitive_group.x + local;
-            vec2 bary;
-            float t = bvh_test_primitive(prim, ray, bary);
-            if (t >= 0.0 && t < ray.tmax) {
-                hit.primitive = prim;
-                hit.t = t;
-                hit.barycentrics = bary;
-                if (any_hit) {
-                    return hit;
-                }
-                ray.tmax = t;
-            }
-        }
-        primitive_group = uvec2(0u);
+// Tests a loaded triangle and keeps it if it is the closest so far. Returns true when that
+// ends the traversal (an any-hit query found something).
+bool bvh_consider(BvhTriangle tri, uint prim) {
+    vec2 bary;
+    float t = bvh_test_triangle(tri, prim, bvh_ray, bary);
+    if (t >= 0.0 && t < bvh_ray.tmax) {
+        bvh_hit.primitive = prim;
+        bvh_hit.t = t;
+        bvh_hit.barycentrics = bary;
+        bvh_ray.tmax = t;
+        return bvh_any_hit;
+    }
+    return false;
+}
 
-        if ((current_group.y & 0xff000000u) != 0u) {
-            uint hits_imask = current_group.y;
-            uint child_index_offset = uint(findMSB(hits_imask));
-            uint child_index_base = current_group.x;
-            current_group.y &= ~(1u << child_index_offset);
-            if ((current_group.y & 0xff000000u) != 0u) {
-                // obvhs's StackStack overwrites the top entry when full; do the same.
-                if (sp < BVH_STACK_SIZE) {
-                    stack[sp++] = current_group;
-                } else {
-                    stack[BVH_STACK_SIZE - 1] = current_group;
-                }
-            }
-            uint slot_index = (child_index_offset - 24u) ^ (oct_inv4 & 0xffu);
-            uint relative_index = uint(bitCount(hits_imask & ~(0xffffffffu << slot_index)));
-            uint node = child_index_base + relative_index;
-
-            uvec4 d0 = BVH_NODES[5u * node + 0u];
-            uvec4 d1 = BVH_NODES[5u * node + 1u];
-            uint hitmask = bvh_intersect_node(d0, d1, BVH_NODES[5u * node + 2u], BVH_NODES[5u * node + 3u],
-                                              BVH_NODES[5u * node + 4u], ray, oct_inv4);
-            current_group.x = d1.x;
-            primitive_group.x = d1.y;
-            current_group.y = (hitmask & 0xff000000u) | bvh_byte(d0.w, 3u);
-            primitive_group.y = hitmask & 0x00ffffffu;
-        } else {
-            current_group = uvec2(0u);
-        }
-
-        if (primitive_group.y == 0u && (current_group.y & 0xff000000u) == 0u) {
-            if (sp == 0) {
-                break;
-            }
-            current_group = stack[--sp];
+// Tests the triangles the last node test found, one after the other, highest bit first.
+// Returns true when that ends the traversal (an any-hit query found something).
+bool bvh_test_pending_triangles() {
+    while (bvh_primitive_group.y != 0u) {
+        uint local = uint(findMSB(bvh_primitive_group.y));
+        bvh_primitive_group.y &= ~(1u << local);
+        uint prim = bvh_primitive_group.x + local;
+        if (bvh_consider(bvh_load_triangle(prim), prim)) {
+            bvh_primitive_group.y = 0u;
+            return true;
         }
     }
-    return hit;
+    return false;
+}
+
+const uint BVH_NO_NODE = 0xffffffffu;
+
+// Takes the child node of highest priority out of the current group (pushing the rest of the
+// group); BVH_NO_NODE when the group holds no node.
+uint bvh_next_node() {
+    if ((bvh_node_group.y & 0xff000000u) == 0u) {
+        bvh_node_group = uvec2(0u);
+        return BVH_NO_NODE;
+    }
+    uint hits_imask = bvh_node_group.y;
+    uint child_index_offset = uint(findMSB(hits_imask));
+    uint child_index_base = bvh_node_group.x;
+    bvh_node_group.y &= ~(1u << child_index_offset);
+    if ((bvh_node_group.y & 0xff000000u) != 0u) {
+        // obvhs's StackStack overwrites the top entry when full; do the same.
+        if (bvh_sp < BVH_STACK_SIZE) {
+            bvh_stack[bvh_sp++] = bvh_node_group;
+        } else {
+            bvh_stack[BVH_STACK_SIZE - 1] = bvh_node_group;
+        }
+    }
+    uint slot_index = (child_index_offset - 24u) ^ (bvh_oct_inv4 & 0xffu);
+    uint relative_index = uint(bitCount(hits_imask & ~(0xffffffffu << slot_index)));
+    return child_index_base + relative_index;
+}
+
+// Tests the ray against the children of a loaded node: its hit internal children become the
+// node group, its hit triangles the pending triangles.
+void bvh_enter_node(uvec4 d0, uvec4 d1, uvec4 dx, uvec4 dy, uvec4 dz) {
+    uint hitmask = bvh_intersect_node(d0, d1, dx, dy, dz, bvh_ray, bvh_oct_inv4);
+    bvh_node_group = uvec2(d1.x, (hitmask & 0xff000000u) | bvh_byte(d0.w, 3u));
+    bvh_primitive_group = uvec2(d1.y, hitmask & 0x00ffffffu);
+}
+
+// Pops the next group when nothing is pending. Returns false once the ray is finished.
+bool bvh_pop_if_idle() {
+    if (bvh_primitive_group.y == 0u && (bvh_node_group.y & 0xff000000u) == 0u) {
+        if (bvh_sp == 0) {
+            return false;
+        }
+        bvh_node_group = bvh_stack[--bvh_sp];
+    }
+    return true;
+}
+
+// Tests the child node of highest priority in the current group (pushing the rest), or pops
+// the next group when nothing is pending. Returns false once the ray is finished.
+bool bvh_visit_node() {
+    uint node = bvh_next_node();
+    if (node != BVH_NO_NODE) {
+        bvh_enter_node(BVH_NODES[5u * node + 0u], BVH_NODES[5u * node + 1u], BVH_NODES[5u * node + 2u],
+                       BVH_NODES[5u * node + 3u], BVH_NODES[5u * node + 4u]);
+    }
+    return bvh_pop_if_idle();
+}
+
+// One iteration of the traversal loop: the pending triangles, then one child node, then a pop
+// when nothing is left. Returns false once the ray is finished (its result is `bvh_hit`).
+bool bvh_step() {
+    return !bvh_test_pending_triangles() && bvh_visit_node();
+}
+
+#ifdef BVH_COOPERATIVE
+// Position of the n-th highest set bit of `mask` (n = 0: findMSB).
+uint bvh_nth_highest_bit(uint mask, uint n) {
+    uint p = 0u;
+    for (uint step = 16u; step > 0u; step >>= 1u) {
+        if (uint(bitCount(mask >> (p + step))) > n) {
+            p += step;
+        }
+    }
+    return p;
+}
+
+// A subgroup tests the pending triangles of all its lanes' rays together: after a node test
+// a lane has a few triangles (often none), so one lane after the other would leave most of
+// the subgroup idle while each waits on its own triangle loads. Here the subgroup lists all
+// (ray, triangle) pairs in lane order, each lane tests one pair per round against the owning
+// lane's ray, and a segmented minimum over (distance, order) hands each ray its closest hit:
+// the triangle that `bvh_test_pending_triangles` would keep, bit for bit (same test, same
+// tie rule: at equal distance the earlier triangle, highest bit first). An any-hit ray takes
+// its first hit in that order. Must be called by every lane of the subgroup (`tracing` false
+// for lanes without a ray); when some lanes are missing (divergence) or subgroups are wider
+// than 32, each lane falls back to its own loop. Returns true when this lane's ray ended.
+bool bvh_test_pending_triangles_together(bool tracing) {
+    if (gl_SubgroupSize > 32u || subgroupBallotBitCount(subgroupBallot(true)) != gl_SubgroupSize) {
+        return tracing && bvh_test_pending_triangles();
+    }
+    uint mask = tracing ? bvh_primitive_group.y : 0u;
+    uint count = uint(bitCount(mask));
+    uint total = subgroupAdd(count);
+    if (total == 0u) {
+        return false;
+    }
+    uint offset = subgroupExclusiveAdd(count);
+    uint lane = gl_SubgroupInvocationID;
+    uint size = gl_SubgroupSize;
+    // This lane's ray as owner: the best pair so far (key = distance bits, then order).
+    uint best_key = 0xffffffffu;
+    uint best_order = 0xffffffffu;
+    vec2 best_bary = vec2(0.0);
+    for (uint round_base = 0u; round_base < total; round_base += size) {
+        uint k = round_base + lane;
+        // Owner of pair k: the last lane whose first pair is at or before k.
+        uint owner = 0u;
+        for (uint step = size >> 1u; step > 0u; step >>= 1u) {
+            uint probe = min(owner + step, size - 1u);
+            if (subgroupShuffle(offset, probe) <= k && owner + step < size) {
+                owner = probe;
+            }
+        }
+        uint owner_offset = subgroupShuffle(offset, owner);
+        uint owner_count = subgroupShuffle(count, owner);
+        uint owner_mask = subgroupShuffle(mask, owner);
+        uint owner_base = subgroupShuffle(bvh_primitive_group.x, owner);
+        BvhRay ray;
+        ray.origin = subgroupShuffle(bvh_ray.origin, owner);
+        ray.dir = subgroupShuffle(bvh_ray.dir, owner);
+        ray.tmin = subgroupShuffle(bvh_ray.tmin, owner);
+        ray.tmax = subgroupShuffle(bvh_ray.tmax, owner);
+        bool owner_any_hit = subgroupShuffle(bvh_any_hit, owner);
+        uint order = k - owner_offset;
+        uint key = 0xffffffffu;
+        vec2 bary = vec2(0.0);
+        if (k < total) {
+            uint prim = owner_base + bvh_nth_highest_bit(owner_mask, order);
+            float t = bvh_test_triangle(bvh_load_triangle(prim), prim, ray, bary);
+            if (t >= 0.0 && t < ray.tmax) {
+                // Non-negative distances order like their bits; -0.0 (a hit at tmin = 0) sorts
+                // first, as the loop's `t < tmax` would keep it.
+                key = owner_any_hit ? 0u : floatBitsToUint(t) & 0x7fffffffu;
+            }
+        }
+        // Segmented minimum of (key, order) over the lanes holding this owner's pairs.
+        uint last = min(owner_offset + owner_count, round_base + size) - 1u - round_base;
+        for (uint d = 1u; d < size; d <<= 1u) {
+            uint other_key = subgroupShuffleDown(key, d);
+            uint other_order = subgroupShuffleDown(order, d);
+            vec2 other_bary = subgroupShuffleDown(bary, d);
+            if (lane + d <= last && (other_key < key || (other_key == key && other_order < order))) {
+                key = other_key;
+                order = other_order;
+                bary = other_bary;
+            }
+        }
+        // The first lane of each owner's run now holds the run's minimum.
+        bool has_pairs = count > 0u && offset < round_base + size && offset + count > round_base;
+        uint first = has_pairs ? max(offset, round_base) - round_base : lane;
+        uint run_key = subgroupShuffle(key, first);
+        uint run_order = subgroupShuffle(order, first);
+        vec2 run_bary = subgroupShuffle(bary, first);
+        if (has_pairs && run_key != 0xffffffffu && (run_key < best_key || (run_key == best_key && run_order < best_order))) {
+            best_key = run_key;
+            best_order = run_order;
+            best_bary = run_bary;
+        }
+    }
+    if (!tracing) {
+        return false;
+    }
+    bvh_primitive_group.y = 0u;
+    if (best_key == 0xffffffffu) {
+        return false;
+    }
+    uint prim = bvh_primitive_group.x + bvh_nth_highest_bit(mask, best_order);
+    bvh_hit.primitive = prim;
+    bvh_hit.barycentrics = best_bary;
+    if (bvh_any_hit || best_key == 0u) {
+        // The key does not hold the distance (any hit) or its sign (zero): test again.
+        vec2 unused;
+        bvh_hit.t = bvh_test_triangle(bvh_load_triangle(prim), prim, bvh_ray, unused);
+    } else {
+        bvh_hit.t = uintBitsToFloat(best_key);
+    }
+    bvh_ray.tmax = bvh_hit.t;
+    return bvh_any_hit;
+}
+#endif
+
+// Traces `ray` to completion.
+BvhHit bvh_traverse(BvhRay ray, bool any_hit) {
+    bvh_begin(ray, any_hit);
+    while (bvh_step()) {
+    }
+    return bvh_hit;
 }
 
 BvhHit bvh_closest_hit(BvhRay ray) {
@@ -231,5 +428,6 @@ BvhHit bvh_closest_hit(BvhRay ray) {
 bool bvh_occluded(BvhRay ray) {
     return bvh_traverse(ray, true).primitive != 0xffffffffu;
 }
+
 
 #endif

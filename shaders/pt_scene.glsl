@@ -21,6 +21,7 @@
 
 #define scene_nodes (PT_SCENE.nodes)
 #define scene_triangles (PT_SCENE.triangles)
+#define scene_triangle_words (SceneTriangleWords(PT_SCENE.triangles))
 #define scene_attributes (PT_SCENE.attributes)
 #define scene_materials (PT_SCENE.materials)
 #define scene_emissive (PT_SCENE.emissive)

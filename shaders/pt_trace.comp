@@ -51,9 +51,12 @@ void main() {
         x = entry & 0xffffu;
         y = entry >> 16u;
     } else {
-        // One workgroup row per image row: 64 consecutive pixels of a row per group.
-        x = gl_GlobalInvocationID.x;
-        y = pc.y0 + gl_GlobalInvocationID.y;
+        // One workgroup per 8x8-pixel tile, so that a subgroup of 32 covers 8x4 pixels rather
+        // than 32x1: nearby rays traverse the same nodes (1.5 % faster on an H100 on Sponza,
+        // docs/RESULTS.md).
+        uint local = gl_LocalInvocationIndex;
+        x = gl_WorkGroupID.x * 8u + (local & 7u);
+        y = pc.y0 + gl_WorkGroupID.y * 8u + (local >> 3u);
         if (x >= pc.width || y >= pc.y1) {
             return;
         }

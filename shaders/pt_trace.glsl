@@ -13,7 +13,7 @@
 
 #include "pt_scene.glsl"
 #define BVH_NODES scene_nodes.data
-#define BVH_TRIS scene_triangles.data
+#define BVH_TRIS scene_triangle_words.data
 #include "bvh_traverse.glsl"
 #include "pt_rng.glsl"
 #include "pt_bsdf.glsl"

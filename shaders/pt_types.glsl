@@ -87,6 +87,8 @@ struct PixelOut {
 
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneNodes { uvec4 data[]; };
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneTriangles { BvhTriangle data[]; };
+// The same triangles as three 16-byte words each: what traversal loads (see bvh_traverse.glsl).
+layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneTriangleWords { uvec4 data[]; };
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneAttributes { TriangleAttributes data[]; };
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneMaterials { Material data[]; };
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneEmissive { EmissiveTriangle data[]; };

@@ -47,14 +47,21 @@ fn bench_rays_reports_the_three_batches() {
         "32x32",
         "--repeats",
         "2",
+        "--schedule",
+        "per-ray,persistent:16:8",
         "--json",
         json.to_str().unwrap(),
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
-    assert_eq!(report["primary"]["rays"], 32 * 32);
     assert_eq!(report["triangles"], 1028);
-    for batch in ["primary", "diffuse_bounce", "diffuse_bounce_any_hit"] {
-        assert!(report[batch]["rays_per_s"].as_f64().unwrap() > 0.0, "{batch}: {report}");
+    let schedules = report["schedules"].as_array().unwrap();
+    assert_eq!(schedules.len(), 2, "{report}");
+    for (entry, name) in schedules.iter().zip(["per-ray", "persistent:16:8"]) {
+        assert_eq!(entry["schedule"], name);
+        assert_eq!(entry["primary"]["rays"], 32 * 32);
+        for batch in ["primary", "diffuse_bounce", "diffuse_bounce_any_hit"] {
+            assert!(entry[batch]["rays_per_s"].as_f64().unwrap() > 0.0, "{batch}: {report}");
+        }
     }
 }

@@ -56,6 +56,9 @@ pub struct Device {
     pub(crate) external_memory_host: Option<ash::ext::external_memory_host::Device>,
     pub(crate) min_host_pointer_alignment: u64,
     calibrated: Option<CalibratedFns>,
+    /// VK_KHR_pipeline_executable_properties, enabled when `PARALLAX_PIPELINE_STATS` is set and
+    /// the driver has it: compiled kernels' statistics (registers, local memory) go to stderr.
+    pub(crate) pipeline_stats: Option<ash::khr::pipeline_executable_properties::Device>,
     /// Nanoseconds per timestamp tick.
     pub(crate) timestamp_period: f64,
 }
@@ -83,8 +86,11 @@ impl Device {
         let props = unsafe { raw_instance.get_physical_device_properties(physical) };
         let mut driver_props = vk::PhysicalDeviceDriverProperties::default();
         let mut host_props = vk::PhysicalDeviceExternalMemoryHostPropertiesEXT::default();
-        let mut props2 =
-            vk::PhysicalDeviceProperties2::default().push_next(&mut driver_props).push_next(&mut host_props);
+        let mut subgroup_props = vk::PhysicalDeviceSubgroupProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default()
+            .push_next(&mut driver_props)
+            .push_next(&mut host_props)
+            .push_next(&mut subgroup_props);
         unsafe { raw_instance.get_physical_device_properties2(physical, &mut props2) };
         let name = props.device_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let missing =
@@ -127,6 +133,11 @@ impl Device {
         });
         if let Some(ext) = calibrated_ext {
             enabled.push(ext.as_ptr());
+        }
+        let want_stats = std::env::var_os("PARALLAX_PIPELINE_STATS").is_some_and(|v| !v.is_empty() && v != "0");
+        let pipeline_stats_ext = want_stats && has_ext(ash::khr::pipeline_executable_properties::NAME);
+        if pipeline_stats_ext {
+            enabled.push(ash::khr::pipeline_executable_properties::NAME.as_ptr());
         }
 
         // Features: timeline semaphores and sync2 carry all synchronisation; storage images
@@ -182,6 +193,25 @@ impl Device {
         if f12.host_query_reset == vk::FALSE {
             return Err(missing("hostQueryReset"));
         }
+        // The persistent ray schedule (shaders/bvh_raycast.glsl) hands out rays and tests
+        // triangles by subgroup.
+        let needed_subgroup_ops = vk::SubgroupFeatureFlags::BASIC
+            | vk::SubgroupFeatureFlags::BALLOT
+            | vk::SubgroupFeatureFlags::VOTE
+            | vk::SubgroupFeatureFlags::SHUFFLE
+            | vk::SubgroupFeatureFlags::SHUFFLE_RELATIVE
+            | vk::SubgroupFeatureFlags::ARITHMETIC;
+        if !subgroup_props.supported_operations.contains(needed_subgroup_ops)
+            || !subgroup_props.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
+        {
+            return Err(missing(
+                "subgroup basic, ballot, vote, shuffle, relative shuffle and arithmetic operations in compute shaders",
+            ));
+        }
+        // BVH node bytes are converted to floats from 8-bit lanes (shaders/bvh_traverse.glsl).
+        if f12.shader_int8 == vk::FALSE {
+            return Err(missing("shaderInt8"));
+        }
 
         let priorities = [1.0f32];
         let mut queue_infos = vec![
@@ -198,17 +228,23 @@ impl Device {
             .timeline_semaphore(true)
             .host_query_reset(true)
             .buffer_device_address(true)
+            .shader_int8(true)
             .shader_sampled_image_array_non_uniform_indexing(true);
         let mut e13 = vk::PhysicalDeviceVulkan13Features::default()
             .synchronization2(true)
             .maintenance4(true)
             .dynamic_rendering(true);
-        let create_info = vk::DeviceCreateInfo::default()
+        let mut executable_info =
+            vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default().pipeline_executable_info(true);
+        let mut create_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_infos)
             .enabled_extension_names(&enabled)
             .enabled_features(&features)
             .push_next(&mut e12)
             .push_next(&mut e13);
+        if pipeline_stats_ext {
+            create_info = create_info.push_next(&mut executable_info);
+        }
         let raw = unsafe { raw_instance.create_device(physical, &create_info, None) }.vk("vkCreateDevice")?;
         let queue = unsafe { raw.get_device_queue(queue_family as u32, 0) };
         let copy_queue = copy_family.map(|f| (f as u32, Mutex::new(unsafe { raw.get_device_queue(f as u32, 0) })));
@@ -242,6 +278,8 @@ impl Device {
             }
         });
         let external_memory_host = host_import.then(|| ash::ext::external_memory_host::Device::new(raw_instance, &raw));
+        let pipeline_stats =
+            pipeline_stats_ext.then(|| ash::khr::pipeline_executable_properties::Device::new(raw_instance, &raw));
 
         let v = props.api_version;
         let info = DeviceInfo {
@@ -276,6 +314,7 @@ impl Device {
             external_memory_host,
             min_host_pointer_alignment: host_props.min_imported_host_pointer_alignment.max(1),
             calibrated,
+            pipeline_stats,
             timestamp_period: f64::from(props.limits.timestamp_period),
         }))
     }

@@ -275,12 +275,20 @@ impl Bindless {
             .module(module)
             .name(c"main")
             .specialization_info(&specialization);
-        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(self.pipeline_layout)];
+        let flags = if self.device.pipeline_stats.is_some() {
+            vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR
+        } else {
+            vk::PipelineCreateFlags::empty()
+        };
+        let info = [vk::ComputePipelineCreateInfo::default().flags(flags).stage(stage).layout(self.pipeline_layout)];
         let created = unsafe { raw.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
         unsafe { raw.destroy_shader_module(module, None) };
         let pipeline =
             created.map_err(|(_, result)| BackendError::Vk { call: "vkCreateComputePipelines", result })?.remove(0);
         self.pipelines.insert(name.to_string(), pipeline);
+        if let Some(stats) = &self.device.pipeline_stats {
+            print_pipeline_statistics(stats, pipeline, name, self.device.info.index);
+        }
         Ok(pipeline)
     }
 }
@@ -393,5 +401,42 @@ impl Drop for Bindless {
             raw.destroy_pipeline_layout(self.pipeline_layout, None);
             raw.destroy_descriptor_set_layout(self.set_layout, None);
         }
+    }
+}
+
+/// Prints the driver's statistics of every executable of `pipeline` (on NVIDIA: register
+/// count, local and shared memory) as one stderr line per executable: what sets a kernel's
+/// occupancy, which no Vulkan profiler here can show.
+fn print_pipeline_statistics(
+    stats: &ash::khr::pipeline_executable_properties::Device,
+    pipeline: vk::Pipeline,
+    name: &str,
+    device: usize,
+) {
+    let pipeline_info = vk::PipelineInfoKHR::default().pipeline(pipeline);
+    let Ok(executables) = (unsafe { stats.get_pipeline_executable_properties(&pipeline_info) }) else {
+        return;
+    };
+    for index in 0..executables.len() as u32 {
+        let info = vk::PipelineExecutableInfoKHR::default().pipeline(pipeline).executable_index(index);
+        let Ok(values) = (unsafe { stats.get_pipeline_executable_statistics(&info) }) else {
+            continue;
+        };
+        let fields: Vec<String> = values
+            .iter()
+            .map(|v| {
+                let label = v.name_as_c_str().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+                let value = unsafe {
+                    match v.format {
+                        vk::PipelineExecutableStatisticFormatKHR::BOOL32 => (v.value.b32 != 0).to_string(),
+                        vk::PipelineExecutableStatisticFormatKHR::INT64 => v.value.i64.to_string(),
+                        vk::PipelineExecutableStatisticFormatKHR::UINT64 => v.value.u64.to_string(),
+                        _ => v.value.f64.to_string(),
+                    }
+                };
+                format!("{label}={value}")
+            })
+            .collect();
+        eprintln!("pipeline statistics: device {device} {name} executable {index}: {}", fields.join(", "));
     }
 }

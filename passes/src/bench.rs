@@ -2,7 +2,9 @@
 //! camera, one cosine-distributed diffuse bounce from every primary hit, closest and any hit,
 //! each cast several times; GPU time of the `raycast` pass from the executor's timestamps.
 //! Materials are made opaque and untextured and the opaque kernel is used, so the figure is
-//! traversal and intersection only (as the earlier measurements in docs/RESULTS.md).
+//! traversal and intersection only (as the earlier measurements in docs/RESULTS.md). Rays are
+//! ordered in 8x4-pixel tiles like the path tracer's subgroups; every ray schedule asked for
+//! casts the same rays, and their hits must agree bit for bit.
 
 use std::time::Instant;
 
@@ -12,8 +14,8 @@ use parallax_scene::gpu::GpuScene;
 use parallax_scene::{AlphaMode, BvhQuality, Camera, Scene, SceneBvh};
 use rayon::prelude::*;
 
-use crate::error::Result;
-use crate::raycast::{CastTiming, RayIn, Raycaster};
+use crate::error::{PassError, Result};
+use crate::raycast::{CastTiming, HitOut, RayIn, RaySchedule, Raycaster};
 
 /// One measured batch.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -49,13 +51,23 @@ pub struct RayBench {
     pub width: u32,
     pub height: u32,
     pub repeats: usize,
+    /// One entry per ray schedule, in the order asked for, measured in one run.
+    pub schedules: Vec<ScheduleRates>,
+}
+
+/// Rays/s of one [`RaySchedule`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ScheduleRates {
+    pub schedule: String,
     pub primary: RayRate,
     pub diffuse_bounce: RayRate,
     pub diffuse_bounce_any_hit: RayRate,
 }
 
 /// Measures rays/s on device 0 of `context` for `scene` seen from `camera` at `width`×`height`
-/// (median of `repeats` casts per batch), with a BVH built at `quality`.
+/// (median of `repeats` casts per batch), with a BVH built at `quality`, under each of
+/// `schedules` (at least one) on the same rays. Fails with
+/// [`PassError::ScheduleChangedHits`] if two schedules disagree on any hit bit.
 pub fn bench_rays(
     context: &Context,
     mut scene: Scene,
@@ -63,7 +75,9 @@ pub fn bench_rays(
     (width, height): (u32, u32),
     repeats: usize,
     quality: BvhQuality,
+    schedules: &[RaySchedule],
 ) -> Result<RayBench> {
+    let schedules = if schedules.is_empty() { &[RaySchedule::PerRay][..] } else { schedules };
     for m in &mut scene.materials {
         m.alpha_mode = AlphaMode::Opaque;
         m.base_color_texture = None;
@@ -76,11 +90,18 @@ pub fn bench_rays(
     let build = started.elapsed();
     let gpu_scene = GpuScene::new(&scene, &bvh);
     let pixels = width as usize * height as usize;
-    let mut raycaster = Raycaster::new(context, &gpu_scene, pixels, true)?;
+    let mut raycasters = schedules
+        .iter()
+        .map(|&schedule| Raycaster::new(context, &gpu_scene, pixels, true, schedule))
+        .collect::<Result<Vec<_>>>()?;
 
     let aspect = width as f32 / height as f32;
-    let primary: Vec<RayIn> = (0..height)
-        .flat_map(|y| (0..width).map(move |x| (x, y)))
+    // Rays in 8x4-pixel tiles, 32 consecutive rays per tile: the pixels a subgroup of the
+    // path tracer covers (pt_trace.comp).
+    let mut pixels: Vec<(u32, u32)> = (0..height).flat_map(|y| (0..width).map(move |x| (x, y))).collect();
+    pixels.sort_by_key(|&(x, y)| (y / 4, x / 8, y % 4, x % 8));
+    let primary: Vec<RayIn> = pixels
+        .into_iter()
         .map(|(x, y)| {
             let ndc =
                 Vec2::new((x as f32 + 0.5) / width as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / height as f32 * 2.0);
@@ -88,7 +109,7 @@ pub fn bench_rays(
             RayIn { origin_tmin: camera.eye.extend(0.0).into(), dir_tmax: d.extend(f32::INFINITY).into() }
         })
         .collect();
-    let (hits, t_primary) = raycaster.cast(&primary, false, repeats)?;
+    let (hits, _) = raycasters[0].cast(&primary, false, 1)?;
 
     // From each primary hit, a cosine-distributed direction about the face normal facing the ray.
     let bounce: Vec<RayIn> = primary
@@ -119,9 +140,37 @@ pub fn bench_rays(
             RayIn { origin_tmin: o.extend(0.0).into(), dir_tmax: dir.extend(f32::INFINITY).into() }
         })
         .collect();
-    let (_, t_bounce) = raycaster.cast(&bounce, false, repeats)?;
-    let (_, t_any) = raycaster.cast(&bounce, true, repeats)?;
-    raycaster.check_validation()?;
+
+    // The schedules take turns batch by batch, so that clock and thermal drift fall on all.
+    let batches = [(&primary, false), (&bounce, false), (&bounce, true)];
+    let mut timings = vec![Vec::new(); schedules.len()];
+    for (rays, any_hit) in batches {
+        let mut reference: Option<Vec<HitOut>> = None;
+        for (i, raycaster) in raycasters.iter_mut().enumerate() {
+            let (hits, timing) = raycaster.cast(rays, any_hit, repeats)?;
+            timings[i].push(RayRate::new(rays.len(), timing));
+            match &reference {
+                None => reference = Some(hits),
+                Some(first) => {
+                    let differing = first
+                        .iter()
+                        .zip(&hits)
+                        .filter(|(a, b)| bytemuck::bytes_of(*a) != bytemuck::bytes_of(*b))
+                        .count();
+                    if differing > 0 {
+                        return Err(PassError::ScheduleChangedHits {
+                            schedule: schedules[i].to_string(),
+                            reference: schedules[0].to_string(),
+                            differing,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    for raycaster in &raycasters {
+        raycaster.check_validation()?;
+    }
     Ok(RayBench {
         device: context.device_infos()[0].name.clone(),
         triangles: scene.triangle_count(),
@@ -131,8 +180,15 @@ pub fn bench_rays(
         width,
         height,
         repeats,
-        primary: RayRate::new(primary.len(), t_primary),
-        diffuse_bounce: RayRate::new(bounce.len(), t_bounce),
-        diffuse_bounce_any_hit: RayRate::new(bounce.len(), t_any),
+        schedules: schedules
+            .iter()
+            .zip(timings)
+            .map(|(schedule, t)| ScheduleRates {
+                schedule: schedule.to_string(),
+                primary: t[0],
+                diffuse_bounce: t[1],
+                diffuse_bounce_any_hit: t[2],
+            })
+            .collect(),
     })
 }

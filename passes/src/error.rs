@@ -45,6 +45,11 @@ pub enum PassError {
     /// More rays than the raycaster was created for.
     #[error("{rays} rays exceed the raycaster's capacity of {capacity}")]
     TooManyRays { rays: usize, capacity: usize },
+
+    /// Two ray schedules of the `raycast` kernel returned different hits for the same rays:
+    /// a bug, since each ray is traced by the same code whichever invocation takes it.
+    #[error("ray schedule {schedule} returned {differing} hits that differ from schedule {reference}")]
+    ScheduleChangedHits { schedule: String, reference: String, differing: usize },
 }
 
 /// Shorthand used across the crate.

@@ -41,7 +41,8 @@ pub use path_trace::{
 };
 pub use pixel_list::{PIXEL_LIST, StridedPixelListKernel, pixel_list_bytes, strided_pixels};
 pub use raycast::{
-    HitOut, RAYCAST, RayIn, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu, random_rays,
+    HitOut, RAYCAST, RAYCAST_WORK, RayIn, RaySchedule, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu,
+    random_rays,
 };
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
 pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_kernels, trace_plan};

@@ -72,7 +72,8 @@ impl PassKernel for PathTraceKernel {
                 let groups = capacity.div_ceil(GROUP).max(1);
                 (1u32, rec.buffer_of(read.resource)?, [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS), 1])
             }
-            None => (0, 0, [width.div_ceil(GROUP), pass.rows.len().max(1), 1]),
+            // 8x8-pixel tiles (see pt_trace.comp).
+            None => (0, 0, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1]),
         };
         let trace_address = rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES;
         let mut push = scene_refs(rec)?;

@@ -42,10 +42,65 @@ pub struct HitOut {
     pub barycentrics: [f32; 2],
 }
 
+/// Global buffer holding the work queue of [`RaySchedule::Persistent`] (two zeroed words).
+pub const RAYCAST_WORK: &str = "raycast_work";
+
+/// How the `raycast` kernel maps rays to invocations. Hits are the same under every schedule:
+/// a ray is traced by the same code whichever invocation takes it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RaySchedule {
+    /// One invocation per ray; a subgroup lives as long as its longest ray.
+    PerRay,
+    /// `workgroups` groups of 64 persistent invocations; a subgroup takes new rays for its idle
+    /// lanes from a global queue once `fetch_threshold` of them are idle.
+    Persistent { fetch_threshold: u32, workgroups: u32 },
+}
+
+impl std::fmt::Display for RaySchedule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RaySchedule::PerRay => write!(f, "per-ray"),
+            RaySchedule::Persistent { fetch_threshold, workgroups } => {
+                write!(f, "persistent:{fetch_threshold}:{workgroups}")
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for RaySchedule {
+    type Err = String;
+
+    /// `per-ray`, or `persistent:THRESHOLD:WORKGROUPS` (threshold 1..=32 lanes, workgroups
+    /// 1..=65535).
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        let usage = || format!("ray schedule '{s}': expected `per-ray` or `persistent:THRESHOLD:WORKGROUPS`");
+        if s == "per-ray" {
+            return Ok(RaySchedule::PerRay);
+        }
+        let parts: Vec<&str> = s.split(':').collect();
+        match parts.as_slice() {
+            ["persistent", t, g] => {
+                let fetch_threshold: u32 = t.parse().map_err(|_| usage())?;
+                let workgroups: u32 = g.parse().map_err(|_| usage())?;
+                if !(1..=32).contains(&fetch_threshold) || !(1..=65535).contains(&workgroups) {
+                    return Err(format!(
+                        "ray schedule '{s}': the threshold must be 1..=32 lanes and the workgroups 1..=65535"
+                    ));
+                }
+                Ok(RaySchedule::Persistent { fetch_threshold, workgroups })
+            }
+            _ => Err(usage()),
+        }
+    }
+}
+
 /// Records `raycast` instances. `opaque` selects the kernel compiled without textures
-/// (bvh_raycast_opaque.comp): what the rays/s benchmark measures on opaque geometry.
+/// (bvh_raycast_opaque.comp): what the rays/s benchmark measures on opaque geometry. A
+/// persistent `schedule` needs the global buffer [`RAYCAST_WORK`] (zeroed once; the kernel
+/// leaves it zeroed).
 pub struct RaycastKernel {
     pub opaque: bool,
+    pub schedule: RaySchedule,
 }
 
 impl PassKernel for RaycastKernel {
@@ -65,9 +120,20 @@ impl PassKernel for RaycastKernel {
         push.extend_from_slice(&rec.buffer_address(RAYS)?.to_le_bytes());
         push.extend_from_slice(&rec.buffer_of(hits)?.to_le_bytes());
         push.extend_from_slice(&rec.frame_data_address().to_le_bytes());
-        let groups = capacity.div_ceil(64).max(1);
+        let (work, fetch_threshold, groups) = match self.schedule {
+            RaySchedule::PerRay => {
+                let groups = capacity.div_ceil(64).max(1);
+                (0, 0, [groups.min(65535), groups.div_ceil(65535), 1])
+            }
+            RaySchedule::Persistent { fetch_threshold, workgroups } => {
+                (rec.buffer_address(RAYCAST_WORK)?, fetch_threshold, [workgroups, 1, 1])
+            }
+        };
+        push.extend_from_slice(&work.to_le_bytes());
+        push.extend_from_slice(&fetch_threshold.to_le_bytes());
+        push.extend_from_slice(&0u32.to_le_bytes());
         let shader = if self.opaque { "bvh_raycast_opaque" } else { "bvh_raycast" };
-        rec.dispatch_bytes(shader, &push, [groups.min(65535), groups.div_ceil(65535), 1])
+        rec.dispatch_bytes(shader, &push, groups)
     }
 }
 
@@ -87,7 +153,13 @@ pub struct Raycaster {
 impl Raycaster {
     /// Uploads `scene` and plans one `raycast` pass for up to `capacity` rays on device 0 of
     /// `context` (other devices stay idle).
-    pub fn new(context: &Context, scene: &GpuScene<'_>, capacity: usize, opaque: bool) -> Result<Self> {
+    pub fn new(
+        context: &Context,
+        scene: &GpuScene<'_>,
+        capacity: usize,
+        opaque: bool,
+        schedule: RaySchedule,
+    ) -> Result<Self> {
         let capacity = capacity.max(1);
         let all = Rows::new(0, 1);
         let plan = Plan {
@@ -106,9 +178,10 @@ impl Raycaster {
                 .map(|d| if d == 0 { vec![PlanOp::Pass(0)] } else { vec![] })
                 .collect(),
         };
-        let kernels = KernelRegistry::new().with(RAYCAST, RaycastKernel { opaque });
+        let kernels = KernelRegistry::new().with(RAYCAST, RaycastKernel { opaque, schedule });
         let mut executor = Executor::new(context, plan, kernels, ExecOptions::default())?;
         upload_scene(&mut executor, scene)?;
+        executor.upload_buffer(RAYCAST_WORK, &[0u8; 8])?;
         Ok(Self { executor, capacity })
     }
 
@@ -227,5 +300,31 @@ pub fn compare_with_cpu(
         same_t_other_triangle: per_ray.iter().map(|r| r.1).sum(),
         max_relative_dt: per_ray.iter().map(|r| r.3).fold(0.0, f32::max),
         any_hit_disagreements: per_ray.iter().map(|r| r.2).sum(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RaySchedule;
+
+    #[test]
+    fn ray_schedules_parse_and_print_back() {
+        for text in ["per-ray", "persistent:4:2112", "persistent:32:1", "persistent:1:65535"] {
+            let schedule: RaySchedule = text.parse().unwrap();
+            assert_eq!(schedule.to_string(), text);
+        }
+        assert_eq!("persistent:8:64".parse(), Ok(RaySchedule::Persistent { fetch_threshold: 8, workgroups: 64 }));
+    }
+
+    #[test]
+    fn bad_ray_schedules_name_the_input_and_the_form() {
+        for text in ["", "persistent", "persistent:4", "persistent:x:2", "per_ray", "persistent:4:2:1"] {
+            let err = text.parse::<RaySchedule>().unwrap_err();
+            assert!(err.contains(&format!("'{text}'")) && err.contains("persistent:THRESHOLD:WORKGROUPS"), "{err}");
+        }
+        for text in ["persistent:0:8", "persistent:33:8", "persistent:4:0", "persistent:4:65536"] {
+            let err = text.parse::<RaySchedule>().unwrap_err();
+            assert!(err.contains("1..=32") && err.contains("1..=65535"), "{err}");
+        }
     }
 }

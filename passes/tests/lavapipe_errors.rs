@@ -7,7 +7,7 @@ use parallax_backend::{
     BackendError, ExecOptions, Executor, KernelRegistry, MAX_TEXTURES, Plan, PlanAccess, PlanOp, PlanPass,
     PlanResource, Rows, TextureData,
 };
-use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, Raycaster, random_rays, trace_frame_data};
+use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
 
@@ -30,7 +30,7 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     let bvh = SceneBvh::build(&scene);
     let gpu_scene = GpuScene::new(&scene, &bvh);
     let ctx = common::context(1);
-    let mut raycaster = Raycaster::new(&ctx, &gpu_scene, 10, false).unwrap();
+    let mut raycaster = Raycaster::new(&ctx, &gpu_scene, 10, false, RaySchedule::PerRay).unwrap();
     match raycaster.cast(&random_rays(&scene, 11), false, 1) {
         Err(PassError::TooManyRays { rays: 11, capacity: 10 }) => {}
         other => panic!("expected TooManyRays, got {other:?}"),

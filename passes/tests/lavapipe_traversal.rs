@@ -1,24 +1,43 @@
 //! GPU traversal (the `raycast` pass, shaders/bvh_traverse.glsl) against the CPU traversal of
 //! parallax-scene, for random rays: the same closest hit (hit or miss; t within 1e-4 relative;
 //! a different triangle only at the same t, i.e. a ray through an edge two triangles share) and
-//! the same any-hit answer. Textures and alpha masks are on on both sides.
+//! the same any-hit answer. Textures and alpha masks are on on both sides. Every ray schedule
+//! of the kernel returns the same hits, bit for bit.
 
 mod common;
 
-use parallax_passes::{Raycaster, compare_with_cpu, random_rays};
+use parallax_passes::{HitOut, RaySchedule, Raycaster, compare_with_cpu, random_rays};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Scene, SceneBvh, default_scene, load_gltf};
+
+/// Persistent schedules that refill often (threshold 1, few workgroups: many fetches, lanes
+/// of different ages side by side) and rarely (a whole subgroup idle, more workgroups than
+/// rays need).
+const PERSISTENT: [RaySchedule; 2] = [
+    RaySchedule::Persistent { fetch_threshold: 1, workgroups: 3 },
+    RaySchedule::Persistent { fetch_threshold: 32, workgroups: 4096 },
+];
 
 fn check(scene: &Scene, rays: usize) {
     let bvh = SceneBvh::build(scene);
     let ctx = common::context(1);
     let gpu_scene = GpuScene::new(scene, &bvh);
-    let mut raycaster = Raycaster::new(&ctx, &gpu_scene, rays, false).unwrap();
     let batch = random_rays(scene, rays);
-    let (closest, _) = raycaster.cast(&batch, false, 1).unwrap();
-    let (any, _) = raycaster.cast(&batch, true, 1).unwrap();
-    raycaster.check_validation().unwrap();
-    drop(raycaster);
+    let cast = |schedule: RaySchedule| -> [Vec<HitOut>; 2] {
+        let mut raycaster = Raycaster::new(&ctx, &gpu_scene, rays, false, schedule).unwrap();
+        // Twice each: the persistent queue must be back at zero after a dispatch.
+        let hits = [false, true, false, true].map(|any| raycaster.cast(&batch, any, 1).unwrap().0);
+        raycaster.check_validation().unwrap();
+        assert_eq!(hits[0], hits[2], "{schedule}: closest hits changed between two casts");
+        assert_eq!(hits[1], hits[3], "{schedule}: any hits changed between two casts");
+        let [closest, any, _, _] = hits;
+        [closest, any]
+    };
+    let [closest, any] = cast(RaySchedule::PerRay);
+    for schedule in PERSISTENT {
+        let [c, a] = cast(schedule);
+        assert!(c == closest && a == any, "{schedule} returned other hits than per-ray");
+    }
     let c = compare_with_cpu(scene, &bvh, &batch, &closest, &any);
     println!("{}: {c:?}", scene.name);
     assert!(c.gpu_hits > rays / 10, "the rays must meet the scene: {c:?}");
@@ -43,7 +62,7 @@ fn opaque_kernel_matches_the_textured_one_on_an_untextured_scene() {
     let gpu_scene = GpuScene::new(&scene, &bvh);
     let rays = random_rays(&scene, 20_000);
     let hits = |opaque: bool| {
-        let mut raycaster = Raycaster::new(&ctx, &gpu_scene, rays.len(), opaque).unwrap();
+        let mut raycaster = Raycaster::new(&ctx, &gpu_scene, rays.len(), opaque, RaySchedule::PerRay).unwrap();
         [false, true].map(|any| raycaster.cast(&rays, any, 1).unwrap().0)
     };
     assert_eq!(hits(true), hits(false));
