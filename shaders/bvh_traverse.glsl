@@ -9,7 +9,9 @@
 //   d[1].zw   child_meta[0..4], child_meta[4..8]
 //   d[2]      child_min_x[0..4], [4..8], child_max_x[0..4], [4..8]; d[3] y; d[4] z
 //
-// The including shader declares the two buffers before including this file and names them:
+// The including shader enables GL_EXT_shader_explicit_arithmetic_types_int8 (bytes of node
+// words are read from 8-bit lanes), declares the two buffers before including this file and
+// names them:
 //   #define BVH_NODES <buffer array of uvec4>   e.g. scene_nodes.data
 //   #define BVH_TRIS  <buffer array of uvec4>   the BvhTriangles (bvh_types.glsl), 3 words each
 // and defines, anywhere in the file, the alpha-mask test for triangles whose flags have
@@ -95,11 +97,11 @@ uint bvh_octant_inv4(vec3 dir) {
     return (dir.x < 0.0 ? 0u : 0x04040404u) | (dir.y < 0.0 ? 0u : 0x02020202u) | (dir.z < 0.0 ? 0u : 0x01010101u);
 }
 
-// The four bytes of `word` as floats, byte 0 first. With BVH_BYTES_FROM_INT8 (and
-// GL_EXT_shader_explicit_arithmetic_types_int8) the conversion reads the bytes from 8-bit lanes
-// and needs no shift and mask per byte: 3 % more rays/s in the `raycast` kernel on an H100,
-// but the path tracer then needs 128 registers instead of 96 and runs 5 % slower
-// (docs/RESULTS.md), so each kernel picks.
+// The four bytes of `word` as floats, byte 0 first. With BVH_BYTES_FROM_INT8 the conversion
+// reads the bytes from 8-bit lanes and needs no shift and mask per byte: 3 % more rays/s in the
+// `raycast` kernel on an H100, but there the path tracer gets 128 registers instead of 96 and
+// runs 5 % slower (NVIDIA's register allocation, measured in docs/RESULTS.md), so each kernel
+// picks.
 vec4 bvh_bytes(uint word) {
 #ifdef BVH_BYTES_FROM_INT8
     return vec4(unpack8(word));
@@ -123,7 +125,6 @@ uint bvh_intersect_node(uvec4 d0, uvec4 d1, uvec4 dx, uvec4 dy, uvec4 dz, BvhRay
     bool rdx = ray.dir.x < 0.0;
     bool rdy = ray.dir.y < 0.0;
     bool rdz = ray.dir.z < 0.0;
-    const uvec4 shifts = uvec4(0u, 8u, 16u, 24u);
     uint hit_mask = 0u;
     for (uint w = 0u; w < 2u; w++) {
         uint meta4 = w == 0u ? d1.z : d1.w;
@@ -146,13 +147,8 @@ uint bvh_intersect_node(uvec4 d0, uvec4 d1, uvec4 dx, uvec4 dy, uvec4 dz, BvhRay
         vec4 tmin = max(max(tmin_x, tmin_y), max(tmin_z, vec4(BVH_NODE_EPSILON)));
         vec4 tmax = min(min(tmax_x, tmax_y), min(tmax_z, vec4(ray.tmax)));
         bvec4 hit = lessThanEqual(tmin, tmax);
-#ifdef BVH_BYTES_FROM_INT8
         uvec4 bits = uvec4(unpack8(child_bits4));
         uvec4 index = uvec4(unpack8(bit_index4));
-#else
-        uvec4 bits = (uvec4(child_bits4) >> shifts) & 7u;
-        uvec4 index = (uvec4(bit_index4) >> shifts) & 0x1fu;
-#endif
         // Empty slots have child bits 0 and add nothing even when their (zero) box is hit.
         for (uint j = 0u; j < 4u; j++) {
             if (hit[j]) {

@@ -5,6 +5,7 @@
 // settings) only, so any split of a view into bands, lists or devices gives the same pixels.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_buffer_reference : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int8 : require
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
 #include "pt_types.glsl"
