@@ -30,7 +30,6 @@
 #define BVH_STACK_SIZE 32
 #endif
 
-
 // obvhs's fixed near distance for node tests (it ignores ray tmin there).
 const float BVH_NODE_EPSILON = 0.0001;
 const float F32_EPSILON = 1.1920929e-07;
@@ -99,9 +98,9 @@ uint bvh_octant_inv4(vec3 dir) {
 
 // The four bytes of `word` as floats, byte 0 first. With BVH_BYTES_FROM_INT8 the conversion
 // reads the bytes from 8-bit lanes and needs no shift and mask per byte: 3 % more rays/s in the
-// `raycast` kernel on an H100, but there the path tracer gets 128 registers instead of 96 and
-// runs 5 % slower (NVIDIA's register allocation, measured in docs/RESULTS.md), so each kernel
-// picks.
+// `raycast` kernel on an H100, but with it the path tracer gets 128 registers instead of 96
+// and runs 5 % slower (NVIDIA's register allocation, measured in docs/RESULTS.md), so each
+// kernel picks.
 vec4 bvh_bytes(uint word) {
 #ifdef BVH_BYTES_FROM_INT8
     return vec4(unpack8(word));
