@@ -97,7 +97,8 @@ impl std::str::FromStr for RaySchedule {
 /// Records `raycast` instances. `opaque` selects the kernel compiled without textures
 /// (bvh_raycast_opaque.comp): what the rays/s benchmark measures on opaque geometry. A
 /// persistent `schedule` needs the global buffer [`RAYCAST_WORK`] (zeroed once; the kernel
-/// leaves it zeroed).
+/// leaves it zeroed). Instances on one device may share it: the executor puts a barrier
+/// between ops, so one dispatch has reset the queue before the next starts.
 pub struct RaycastKernel {
     pub opaque: bool,
     pub schedule: RaySchedule,
