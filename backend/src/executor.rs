@@ -26,7 +26,7 @@ use crate::device::{CalibrationMethod, ClockCalibration, Device, host_now_ns};
 use crate::device_state::{DeviceState, Kept, Staging, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result, VkContext};
 use crate::instance::Instance;
-use crate::memory::Buffer;
+use crate::memory::{Buffer, color_layers};
 use crate::plan::Plan;
 use crate::record::{SegmentContext, record_segment};
 use crate::recorder::KernelRegistry;
@@ -222,7 +222,7 @@ impl Executor {
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
             let state = create_device_state(device, &plan, d, segments, slots, &mut kept)?;
-            let views: Vec<vk::ImageView> = self.textures[d].iter().map(|t| t.view).collect();
+            let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);
             states.push(state);
         }
@@ -343,7 +343,7 @@ impl Executor {
                 .enumerate()
                 .map(|(i, t)| Texture::new(device, &format!("texture {i}"), t))
                 .collect::<Result<Vec<_>>>()?;
-            let views: Vec<vk::ImageView> = uploaded.iter().map(|t| t.view).collect();
+            let views: Vec<vk::ImageView> = uploaded.iter().map(Texture::view).collect();
             // No frame is in flight (finish above), so the descriptor sets can change; the old
             // textures go only after the sets no longer name them.
             self.states[d].bindless.set_textures(&views);
@@ -667,12 +667,7 @@ impl Executor {
             crate::record::full_barrier(raw, cb);
             if let Some(image) = image {
                 let region = vk::BufferImageCopy::default()
-                    .image_subresource(vk::ImageSubresourceLayers {
-                        aspect_mask: vk::ImageAspectFlags::COLOR,
-                        mip_level: 0,
-                        base_array_layer: 0,
-                        layer_count: 1,
-                    })
+                    .image_subresource(color_layers())
                     .image_extent(vk::Extent3D { width: image.width, height: image.height, depth: 1 });
                 raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, readback.raw, &[region]);
             } else if let Some(buffer) = buffer {

@@ -72,6 +72,20 @@ impl Image {
         )
     }
 
+    /// An RGBA8 image that shaders sample, filled by a transfer (the texture array).
+    pub(crate) fn new_sampled_rgba8(device: &Arc<Device>, name: &str, width: u32, height: u32) -> Result<Self> {
+        Self::create(
+            device,
+            name,
+            width,
+            height,
+            vk::Format::R8G8B8A8_UNORM,
+            vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
+            vk::ImageAspectFlags::COLOR,
+            TexelFormat::Rgba8Unorm,
+        )
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn create(
         device: &Arc<Device>,
@@ -160,6 +174,16 @@ impl Drop for Image {
             // A failed free only leaks until the allocator is dropped with the device.
             let _ = self.device.with_allocator(|al| al.free(a));
         }
+    }
+}
+
+/// The colour layer of a single-mip, single-layer image, for copies.
+pub(crate) fn color_layers() -> vk::ImageSubresourceLayers {
+    vk::ImageSubresourceLayers {
+        aspect_mask: vk::ImageAspectFlags::COLOR,
+        mip_level: 0,
+        base_array_layer: 0,
+        layer_count: 1,
     }
 }
 

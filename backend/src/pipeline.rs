@@ -195,7 +195,7 @@ impl Bindless {
             .map(|i| {
                 vk::DescriptorImageInfo::default()
                     .sampler(self.sampler)
-                    .image_view(textures.get(i).copied().unwrap_or(self.placeholder_texture.view))
+                    .image_view(textures.get(i).copied().unwrap_or(self.placeholder_texture.view()))
                     .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
             })
             .collect();

@@ -174,6 +174,26 @@ pub enum PlanError {
 }
 
 impl Plan {
+    /// One pass instance `name` on device 0 writing all of `resource` (version 1) and nothing
+    /// else; the other `devices - 1` devices stay idle. What a kernel that runs alone needs.
+    pub fn single_pass(name: impl Into<String>, resource: PlanResource, devices: usize) -> Self {
+        let all = Rows::new(0, resource.height);
+        Plan {
+            passes: vec![PlanPass {
+                name: name.into(),
+                view: resource.view,
+                rows: all,
+                device: 0,
+                reads: vec![],
+                writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
+                history_reads: vec![],
+            }],
+            resources: vec![resource],
+            copies: vec![],
+            devices: (0..devices.max(1)).map(|d| if d == 0 { vec![PlanOp::Pass(0)] } else { vec![] }).collect(),
+        }
+    }
+
     /// Checks the invariants the executor relies on.
     pub fn validate(&self, context_devices: usize) -> Result<(), PlanError> {
         if self.devices.len() != context_devices {

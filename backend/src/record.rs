@@ -11,7 +11,7 @@ use ash::vk;
 
 use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
-use crate::memory::Image;
+use crate::memory::{Image, color_layers};
 use crate::pipeline::Bindless;
 use crate::plan::Plan;
 use crate::recorder::{KernelRegistry, Recorder};
@@ -208,12 +208,7 @@ fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, d
     let image = ctx.images[&copy.resource].raw;
     let region = vk::BufferImageCopy::default()
         .buffer_offset(staging_offset)
-        .image_subresource(vk::ImageSubresourceLayers {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
-            mip_level: 0,
-            base_array_layer: 0,
-            layer_count: 1,
-        })
+        .image_subresource(color_layers())
         .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
         .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 });
     unsafe {

@@ -8,12 +8,10 @@
 use std::sync::Arc;
 
 use ash::vk;
-use gpu_allocator::MemoryLocation;
-use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
-use crate::memory::{Buffer, color_range};
+use crate::memory::{Buffer, Image, color_layers, color_range};
 
 /// Capacity of the texture array of set 0. Fixed so that the descriptor layout (and every
 /// pipeline) does not depend on the scene; Sponza needs 69.
@@ -30,10 +28,7 @@ pub struct TextureData<'a> {
 
 /// A sampled RGBA8 image on one device, in `SHADER_READ_ONLY_OPTIMAL` layout.
 pub(crate) struct Texture {
-    device: Arc<Device>,
-    raw: vk::Image,
-    pub(crate) view: vk::ImageView,
-    allocation: Option<Allocation>,
+    image: Image,
 }
 
 impl Texture {
@@ -48,48 +43,9 @@ impl Texture {
                 bytes: data.rgba8.len(),
             });
         }
+        let image = Image::new_sampled_rgba8(device, name, data.width, data.height)?;
+        let raw = image.raw;
         let extent = vk::Extent3D { width: data.width, height: data.height, depth: 1 };
-        let info = vk::ImageCreateInfo::default()
-            .image_type(vk::ImageType::TYPE_2D)
-            .format(vk::Format::R8G8B8A8_UNORM)
-            .extent(extent)
-            .mip_levels(1)
-            .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
-            .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST)
-            .initial_layout(vk::ImageLayout::UNDEFINED);
-        let raw = unsafe { device.raw.create_image(&info, None) }.vk("vkCreateImage")?;
-        let requirements = unsafe { device.raw.get_image_memory_requirements(raw) };
-        let allocation = device
-            .with_allocator(|a| {
-                a.allocate(&AllocationCreateDesc {
-                    name,
-                    requirements,
-                    location: MemoryLocation::GpuOnly,
-                    linear: false,
-                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-                })
-            })
-            .map_err(|source| BackendError::Allocation { what: name.to_string(), source });
-        let allocation = match allocation {
-            Ok(a) => a,
-            Err(e) => {
-                unsafe { device.raw.destroy_image(raw, None) };
-                return Err(e);
-            }
-        };
-        let mut texture =
-            Self { device: device.clone(), raw, view: vk::ImageView::null(), allocation: Some(allocation) };
-        let a = texture.allocation.as_ref().expect("just set");
-        unsafe { device.raw.bind_image_memory(raw, a.memory(), a.offset()) }.vk("vkBindImageMemory")?;
-        let view_info = vk::ImageViewCreateInfo::default()
-            .image(raw)
-            .view_type(vk::ImageViewType::TYPE_2D)
-            .format(vk::Format::R8G8B8A8_UNORM)
-            .subresource_range(color_range());
-        texture.view = unsafe { device.raw.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
-
         let staging = Buffer::staging(device, "texture staging", data.rgba8)?;
         let raw_device = &device.raw;
         device.one_shot(|cb| unsafe {
@@ -102,14 +58,7 @@ impl Texture {
                 .image(raw)
                 .subresource_range(color_range())];
             raw_device.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().image_memory_barriers(&to_dst));
-            let region = vk::BufferImageCopy::default()
-                .image_subresource(vk::ImageSubresourceLayers {
-                    aspect_mask: vk::ImageAspectFlags::COLOR,
-                    mip_level: 0,
-                    base_array_layer: 0,
-                    layer_count: 1,
-                })
-                .image_extent(extent);
+            let region = vk::BufferImageCopy::default().image_subresource(color_layers()).image_extent(extent);
             raw_device.cmd_copy_buffer_to_image(
                 cb,
                 staging.raw(),
@@ -128,21 +77,11 @@ impl Texture {
                 .subresource_range(color_range())];
             raw_device.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().image_memory_barriers(&to_read));
         })?;
-        Ok(texture)
+        Ok(Self { image })
     }
-}
 
-impl Drop for Texture {
-    fn drop(&mut self) {
-        unsafe {
-            if self.view != vk::ImageView::null() {
-                self.device.raw.destroy_image_view(self.view, None);
-            }
-            self.device.raw.destroy_image(self.raw, None);
-        }
-        if let Some(a) = self.allocation.take() {
-            let _ = self.device.with_allocator(|al| al.free(a));
-        }
+    pub(crate) fn view(&self) -> vk::ImageView {
+        self.image.view
     }
 }
 

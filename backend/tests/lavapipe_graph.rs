@@ -16,6 +16,11 @@ fn demo_schedule(scheme: Scheme, devices: u32) -> (Schedule, Vec<Vec<ViewId>>) {
     let lf = LightField::new("4x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
     let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![0, 3]) };
     let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
+    (fill_and_blend(&plan), plan.topology.sources_of.clone())
+}
+
+/// The fill → shift_blend graph of [`demo_schedule`] compiled for `plan`, validated.
+fn fill_and_blend(plan: &parallax_graph::Plan) -> Schedule {
     let mut g = Graph::new(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
@@ -23,9 +28,9 @@ fn demo_schedule(scheme: Scheme, devices: u32) -> (Schedule, Vec<Vec<ViewId>>) {
     g.pass("fill", Role::Targets).write(&mut radiance).record();
     g.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance).write(&mut output).record();
     g.export(&output);
-    let schedule = compile(&g, &plan).unwrap();
+    let schedule = compile(&g, plan).unwrap();
     assert!(schedule.validate().is_ok(), "{:?}", schedule.validate());
-    (schedule, plan.topology.sources_of.clone())
+    schedule
 }
 
 fn output_resources(schedule: &Schedule) -> Vec<(u32, ResourceId)> {
@@ -155,14 +160,7 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
                 }
                 let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
                 let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
-                let mut g = Graph::new(plan.topology.clone());
-                let mut radiance = g.image("radiance", Format::Rgba32f);
-                let mut output = g.image("output", Format::Rgba32f);
-                g.pass("fill", Role::Sources).write(&mut radiance).record();
-                g.pass("fill", Role::Targets).write(&mut radiance).record();
-                g.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance).write(&mut output).record();
-                g.export(&output);
-                let schedule = compile(&g, &plan).unwrap();
+                let schedule = fill_and_blend(&plan);
                 let exec_plan = Plan::from_schedule(&schedule).unwrap();
                 let ctx = Context::new(&ContextDesc {
                     selection: DeviceSelection::FakeDevices(devices as usize),

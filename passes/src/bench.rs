@@ -109,7 +109,8 @@ pub fn bench_rays(
             RayIn { origin_tmin: camera.eye.extend(0.0).into(), dir_tmax: d.extend(f32::INFINITY).into() }
         })
         .collect();
-    let (hits, _) = raycasters[0].cast(&primary, false, 1)?;
+    let mut timings = vec![Vec::new(); schedules.len()];
+    let hits = cast_under_every_schedule(&mut raycasters, schedules, &mut timings, &primary, false, repeats)?;
 
     // From each primary hit, a cosine-distributed direction about the face normal facing the ray.
     let bounce: Vec<RayIn> = primary
@@ -141,33 +142,8 @@ pub fn bench_rays(
         })
         .collect();
 
-    // The schedules take turns batch by batch, so that clock and thermal drift fall on all.
-    let batches = [(&primary, false), (&bounce, false), (&bounce, true)];
-    let mut timings = vec![Vec::new(); schedules.len()];
-    for (rays, any_hit) in batches {
-        let mut reference: Option<Vec<HitOut>> = None;
-        for (i, raycaster) in raycasters.iter_mut().enumerate() {
-            let (hits, timing) = raycaster.cast(rays, any_hit, repeats)?;
-            timings[i].push(RayRate::new(rays.len(), timing));
-            match &reference {
-                None => reference = Some(hits),
-                Some(first) => {
-                    let differing = first
-                        .iter()
-                        .zip(&hits)
-                        .filter(|(a, b)| bytemuck::bytes_of(*a) != bytemuck::bytes_of(*b))
-                        .count();
-                    if differing > 0 {
-                        return Err(PassError::ScheduleChangedHits {
-                            schedule: schedules[i].to_string(),
-                            reference: schedules[0].to_string(),
-                            differing,
-                        });
-                    }
-                }
-            }
-        }
-    }
+    cast_under_every_schedule(&mut raycasters, schedules, &mut timings, &bounce, false, repeats)?;
+    cast_under_every_schedule(&mut raycasters, schedules, &mut timings, &bounce, true, repeats)?;
     for raycaster in &raycasters {
         raycaster.check_validation()?;
     }
@@ -191,4 +167,37 @@ pub fn bench_rays(
             })
             .collect(),
     })
+}
+
+/// Casts `rays` under every schedule in turn (batch by batch, so that clock and thermal drift
+/// fall on all), appends each one's rate to its `timings`, and returns the hits, which must
+/// agree bit for bit between schedules.
+fn cast_under_every_schedule(
+    raycasters: &mut [Raycaster],
+    schedules: &[RaySchedule],
+    timings: &mut [Vec<RayRate>],
+    rays: &[RayIn],
+    any_hit: bool,
+    repeats: usize,
+) -> Result<Vec<HitOut>> {
+    let mut reference: Option<Vec<HitOut>> = None;
+    for (i, raycaster) in raycasters.iter_mut().enumerate() {
+        let (hits, timing) = raycaster.cast(rays, any_hit, repeats)?;
+        timings[i].push(RayRate::new(rays.len(), timing));
+        match &reference {
+            None => reference = Some(hits),
+            Some(first) => {
+                let differing =
+                    first.iter().zip(&hits).filter(|(a, b)| bytemuck::bytes_of(*a) != bytemuck::bytes_of(*b)).count();
+                if differing > 0 {
+                    return Err(PassError::ScheduleChangedHits {
+                        schedule: schedules[i].to_string(),
+                        reference: schedules[0].to_string(),
+                        differing,
+                    });
+                }
+            }
+        }
+    }
+    Ok(reference.expect("at least one schedule"))
 }

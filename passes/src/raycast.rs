@@ -10,8 +10,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    BackendError, Context, EventKind, ExecOptions, Executor, KernelRegistry, PassKernel, Plan, PlanAccess, PlanOp,
-    PlanPass, PlanResource, Recorder, ResourceKind, Rows,
+    BackendError, Context, EventKind, ExecOptions, Executor, KernelRegistry, PassKernel, Plan, PlanPass, PlanResource,
+    Recorder, ResourceKind,
 };
 use parallax_scene::Scene;
 use parallax_scene::gpu::GpuScene;
@@ -162,23 +162,8 @@ impl Raycaster {
         schedule: RaySchedule,
     ) -> Result<Self> {
         let capacity = capacity.max(1);
-        let all = Rows::new(0, 1);
-        let plan = Plan {
-            resources: vec![PlanResource::buffer("hits", 0, (capacity * std::mem::size_of::<HitOut>()) as u64)],
-            passes: vec![PlanPass {
-                name: RAYCAST.into(),
-                view: 0,
-                rows: all,
-                device: 0,
-                reads: vec![],
-                writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
-                history_reads: vec![],
-            }],
-            copies: vec![],
-            devices: (0..context.devices().len())
-                .map(|d| if d == 0 { vec![PlanOp::Pass(0)] } else { vec![] })
-                .collect(),
-        };
+        let hits = PlanResource::buffer("hits", 0, (capacity * std::mem::size_of::<HitOut>()) as u64);
+        let plan = Plan::single_pass(RAYCAST, hits, context.devices().len());
         let kernels = KernelRegistry::new().with(RAYCAST, RaycastKernel { opaque, schedule });
         let mut executor = Executor::new(context, plan, kernels, ExecOptions::default())?;
         upload_scene(&mut executor, scene)?;

@@ -4,8 +4,7 @@
 mod common;
 
 use parallax_backend::{
-    BackendError, ExecOptions, Executor, KernelRegistry, MAX_TEXTURES, Plan, PlanAccess, PlanOp, PlanPass,
-    PlanResource, Rows, TextureData,
+    BackendError, ExecOptions, Executor, KernelRegistry, MAX_TEXTURES, Plan, PlanResource, TextureData,
 };
 use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data};
 use parallax_scene::gpu::GpuScene;
@@ -53,21 +52,7 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     drop(tracer);
 
     // A path_trace pass whose only write is a buffer: the kernel says what it expects.
-    let all = Rows::new(0, 1);
-    let plan = Plan {
-        resources: vec![PlanResource::buffer("list", 0, 64)],
-        passes: vec![PlanPass {
-            name: PATH_TRACE.into(),
-            view: 0,
-            rows: all,
-            device: 0,
-            reads: vec![],
-            writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
-            history_reads: vec![],
-        }],
-        copies: vec![],
-        devices: vec![vec![PlanOp::Pass(0)]],
-    };
+    let plan = Plan::single_pass(PATH_TRACE, PlanResource::buffer("list", 0, 64), 1);
     let kernels = KernelRegistry::new().with(PATH_TRACE, PathTraceKernel);
     let mut exec = Executor::new(&ctx, plan, kernels, ExecOptions::default()).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
