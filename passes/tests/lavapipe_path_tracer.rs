@@ -23,8 +23,8 @@ use parallax_graph::Scheme;
 use parallax_passes::{GpuTracer, to_pixel_sample, trace_kernels, trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{
-    Camera, CpuTracer, Material, PixelSet, Scene, SceneBuilder, SceneBvh, Sky, Sun, TraceSettings, View, default_scene,
-    load_gltf,
+    Camera, CpuTracer, PixelSet, Scene, SceneBvh, Sky, Sun, TraceSettings, View, default_scene, load_gltf,
+    white_furnace_scene,
 };
 
 const FRAMES: u32 = 8;
@@ -163,12 +163,7 @@ fn textured_sponza_matches_the_cpu_reference() {
 /// in scene/tests/path_tracer.rs); the image mean within 1 %, no pixel beyond 0.25, all finite.
 #[test]
 fn gpu_white_furnace_returns_the_sky_radiance() {
-    let mut b = SceneBuilder::new("furnace");
-    let white = b.material(Material::diffuse("white", Vec3::ONE));
-    b.sphere(Vec3::new(-0.55, 0.0, 0.0), 0.5, 3, white);
-    b.cuboid(Vec3::new(0.55, 0.0, 0.0), Vec3::splat(0.45), 0.5, white);
-    let mut scene = b.build();
-    scene.sky = Some(Sky::Constant(Vec3::ONE));
+    let scene = white_furnace_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(1);
     let (width, height) = (32, 24);

@@ -60,3 +60,16 @@ pub fn default_scene() -> Scene {
     });
     scene
 }
+
+/// The white-furnace scene: a sphere and a box of albedo-1 Lambert material close together
+/// under a uniform sky of radiance 1 and no other light, so every pixel (object or sky) has
+/// expected value 1. What the CPU and GPU energy-conservation tests render.
+pub fn white_furnace_scene() -> Scene {
+    let mut b = SceneBuilder::new("furnace");
+    let white = b.material(Material::diffuse("white", Vec3::ONE));
+    b.sphere(Vec3::new(-0.55, 0.0, 0.0), 0.5, 3, white);
+    b.cuboid(Vec3::new(0.55, 0.0, 0.0), Vec3::splat(0.45), 0.5, white);
+    let mut scene = b.build();
+    scene.sky = Some(Sky::Constant(Vec3::ONE));
+    scene
+}

@@ -40,7 +40,7 @@ pub mod shading;
 
 pub use builder::SceneBuilder;
 pub use bvh::{BvhQuality, Hit, SceneBvh};
-pub use default_scene::default_scene;
+pub use default_scene::{default_scene, white_furnace_scene};
 pub use error::SceneError;
 pub use gltf_import::{load_gltf, load_gltf_bytes};
 pub use model::{AlphaMode, Bounds, Camera, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture};

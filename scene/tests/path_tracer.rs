@@ -9,7 +9,7 @@ use parallax_scene::metrics::channel_stats;
 use parallax_scene::output::{ExrLayers, read_exr_channels, write_contact_sheet, write_exr};
 use parallax_scene::{
     Camera, CpuTracer, Material, PixelSample, PixelSet, Scene, SceneBuilder, SceneBvh, Sky, Sun, TraceSettings, View,
-    default_scene, load_gltf,
+    default_scene, load_gltf, white_furnace_scene,
 };
 
 fn view(camera: Camera, w: u32, h: u32) -> View {
@@ -30,12 +30,7 @@ fn trace_all(scene: &Scene, v: &View, s: &TraceSettings) -> Vec<PixelSample> {
 /// MIS, so a wrong weight or pdf shows up as a biased mean.
 #[test]
 fn white_furnace_returns_the_sky_radiance() {
-    let mut b = SceneBuilder::new("furnace");
-    let white = b.material(Material::diffuse("white", Vec3::ONE));
-    b.sphere(Vec3::new(-0.55, 0.0, 0.0), 0.5, 3, white);
-    b.cuboid(Vec3::new(0.55, 0.0, 0.0), Vec3::splat(0.45), 0.5, white);
-    let mut scene = b.build();
-    scene.sky = Some(Sky::Constant(Vec3::ONE));
+    let scene = white_furnace_scene();
     let v = view(Camera::look_at(Vec3::new(0.0, 0.3, 3.0), Vec3::ZERO, Vec3::Y, 0.7), 32, 24);
     let s = TraceSettings { spp: 64, max_depth: 64, ..Default::default() };
     let px = trace_all(&scene, &v, &s);
