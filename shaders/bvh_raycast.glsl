@@ -42,7 +42,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) coherent buffer Ray
     uint groups_done;
 };
 
-// 88 bytes; parallax_passes::raycast (RaycastKernel::record).
+// 84 bytes; parallax_passes::raycast (RaycastKernel::record).
 layout(push_constant, std430) uniform RaycastPush {
     SceneRefs scene;
     Rays rays;
@@ -52,7 +52,6 @@ layout(push_constant, std430) uniform RaycastPush {
     // 0: one ray per invocation. Otherwise persistent invocations that fetch new rays for
     // their idle lanes once at least this many lanes of the subgroup are idle.
     uint fetch_threshold;
-    uint pad;
 } pc;
 
 #define PT_SCENE pc.scene

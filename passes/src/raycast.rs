@@ -132,7 +132,6 @@ impl PassKernel for RaycastKernel {
         };
         push.extend_from_slice(&work.to_le_bytes());
         push.extend_from_slice(&fetch_threshold.to_le_bytes());
-        push.extend_from_slice(&0u32.to_le_bytes());
         let shader = if self.opaque { "bvh_raycast_opaque" } else { "bvh_raycast" };
         rec.dispatch_bytes(shader, &push, groups)
     }
