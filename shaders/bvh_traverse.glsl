@@ -294,7 +294,8 @@ bool bvh_visit_node() {
 }
 
 // One iteration of the traversal loop: the pending triangles, then one child node (popping a
-// new group first if the current one is used up), then a pop when nothing is left. Returns false once the ray is finished (its result is `bvh_hit`).
+// new group first if the current one is used up), then a pop when nothing is left. Returns
+// false once the ray is finished (its result is `bvh_hit`).
 bool bvh_step() {
     return !bvh_test_pending_triangles() && bvh_visit_node();
 }
@@ -385,7 +386,8 @@ bool bvh_test_pending_triangles_together(bool tracing) {
         uint owner_run_min = subgroupShuffle(run_min, max(owner_offset, round_base) - round_base);
         bool is_run_min = k < total && key != 0xffffffffu && key == owner_run_min;
         uint min_lanes = subgroupBallot(is_run_min).x;
-        // As owner: this round's part of this lane's pairs is lanes first..last.
+        // As owner: this round's part of this lane's pairs sits in lanes first..end-1; the
+        // lowest of them holding the run's minimum is the earliest such triangle.
         bool has_pairs = count > 0u && offset < round_base + size && offset + count > round_base;
         uint first = has_pairs ? max(offset, round_base) - round_base : lane;
         uint run_key = subgroupShuffle(run_min, first);
