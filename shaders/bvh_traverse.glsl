@@ -286,6 +286,8 @@ bool bvh_visit_node() {
         return false;
     }
     uint node = bvh_next_node();
+    // Always a node when the triangles were tested first; the check keeps a caller that did
+    // not from reading past the node buffer.
     if (node != BVH_NO_NODE) {
         bvh_enter_node(BVH_NODES[5u * node + 0u], BVH_NODES[5u * node + 1u], BVH_NODES[5u * node + 2u],
                        BVH_NODES[5u * node + 3u], BVH_NODES[5u * node + 4u]);
