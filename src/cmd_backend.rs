@@ -4,18 +4,21 @@
 //!
 //! `parallax run` executes the backend's own demo kernels (`fill` → `shift_blend` reading the
 //! view's first source → exported output), not the path tracer: the passes crate plugs in the
-//! real kernels through `parallax_backend::KernelRegistry`.
+//! real kernels attached where the graph declares its passes.
 
 use std::path::PathBuf;
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use parallax_backend::bench::{CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead};
-use parallax_backend::kernels::builtin_kernels;
+use std::sync::Arc;
+
+use parallax_backend::kernels::{FillKernel, ShiftBlendKernel};
 use parallax_backend::{
     Context, ContextDesc, DeviceSelection, ExecOptions, Executor, FrameReport, chrome_trace, write_json,
 };
-use parallax_graph::{Format, Graph, LayoutSpec, LightField, PlanConfig, Rig, Role, compile, lightfield};
+use parallax_backend::{KernelGraph, PassKernel};
+use parallax_graph::{Format, LayoutSpec, LightField, PlanConfig, Rig, Role, compile, lightfield};
 
 /// Which Vulkan devices to use.
 #[derive(Args, Debug, Clone)]
@@ -104,12 +107,19 @@ pub fn run(args: RunArgs) -> Result<()> {
         sources: args.sources.as_deref().map(parallax_graph::parse_source_list).transpose()?,
     };
     let plan = parallax_graph::Plan::new(&lf, &config)?;
-    let mut graph = Graph::new(plan.topology.clone());
+    let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = graph.image("radiance", Format::Rgba32f);
     let mut output = graph.image("output", Format::Rgba32f);
-    graph.pass("fill", Role::Sources).write(&mut radiance).record();
-    graph.pass("fill", Role::Targets).write(&mut radiance).record();
-    graph.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance).write(&mut output).record();
+    let fill: Arc<dyn PassKernel> = Arc::new(FillKernel);
+    graph.pass("fill", Role::Sources).write(&mut radiance).kernel(fill.clone()).record();
+    graph.pass("fill", Role::Targets).write(&mut radiance).kernel(fill).record();
+    graph
+        .pass("shift_blend", Role::All)
+        .read(&radiance)
+        .read_sources(&radiance)
+        .write(&mut output)
+        .kernel(Arc::new(ShiftBlendKernel))
+        .record();
     graph.export(&output);
     let schedule = compile(&graph, &plan)?;
     let report = schedule.validate();
@@ -119,13 +129,13 @@ pub fn run(args: RunArgs) -> Result<()> {
 
     let context = Context::new(&ContextDesc::from_env(selection))?;
     print!("{context}");
-    let exec_plan = parallax_backend::Plan::from_schedule(&schedule)?;
+    let exec_plan = parallax_backend::Plan::from_schedule(&graph, &schedule)?;
     let options = ExecOptions {
         frames_in_flight: args.frames_in_flight,
         separate_copy_queue: !args.copies_on_main_queue,
         ..ExecOptions::default()
     };
-    let mut executor = Executor::new(&context, exec_plan, builtin_kernels(), options)?;
+    let mut executor = Executor::new(&context, exec_plan, options)?;
     for _ in 0..args.frames {
         executor.run_frame()?;
     }

@@ -11,12 +11,10 @@ use anyhow::{Context as _, Result};
 use clap::Args;
 use glam::Vec2;
 use parallax_backend::{
-    Context as VkContext, ContextDesc, EventKind, FrameReport, Plan as ExecPlan, chrome_trace, write_json,
+    Context as VkContext, ContextDesc, EventKind, FrameReport, KernelGraph, Plan as ExecPlan, chrome_trace, write_json,
 };
-use parallax_graph::{
-    Graph, LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId, lightfield::parse_pair,
-};
-use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample, trace_kernels};
+use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId, lightfield::parse_pair};
+use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{Camera, Frame, Scene, SceneBvh, TraceSettings, View, load_scene};
@@ -85,7 +83,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         sources: None,
     };
     let plan = Plan::new(&lf, &config)?;
-    let mut graph = Graph::new(plan.topology.clone());
+    let mut graph = KernelGraph::with_payload(plan.topology.clone());
     declare_trace(&mut graph, None);
     let schedule = compile_checked(&graph, &plan)?;
     let summary = PlanSummary::new(&lf, &plan, &schedule);
@@ -93,8 +91,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let bvh = SceneBvh::build(&scene);
     let context = VkContext::new(&ContextDesc::from_env(selection))?;
     eprint!("{context}");
-    let exec_plan = ExecPlan::from_schedule(&schedule)?;
-    let mut tracer = GpuTracer::new(&context, exec_plan, trace_kernels(None), &GpuScene::new(&scene, &bvh))?;
+    let exec_plan = ExecPlan::from_schedule(&graph, &schedule)?;
+    let mut tracer = GpuTracer::new(&context, exec_plan, &GpuScene::new(&scene, &bvh))?;
     let views: Vec<View> = lf
         .views()
         .map(|v| View { camera: camera_of(&lf, v), width: lf.width, height: lf.height, index: v.0 })

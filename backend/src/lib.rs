@@ -24,7 +24,7 @@
 //!     validation: Validation::Core,
 //! })?;
 //! let (plan, ids) = reprojection_demo(3, 2, 32, 32); // or Plan::from_schedule(&schedule)?
-//! let mut executor = Executor::new(&context, plan, builtin_kernels(), ExecOptions::default())?;
+//! let mut executor = Executor::new(&context, plan, ExecOptions::default())?;
 //! for _ in 0..3 {
 //!     executor.run_frame()?; // no re-recording, up to 2 frames in flight
 //! }
@@ -58,19 +58,20 @@ pub mod bench;
 pub mod demo;
 pub mod kernels;
 pub mod plan;
+pub mod reflect;
 
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
 pub use executor::{ExecOptions, Executor, FaultInjection};
 pub use instance::{Instance, Validation, validation_from_env};
-pub use lower::LowerError;
+pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use pipeline::{shader_names, spirv};
 pub use plan::{
     Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
 };
-pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
+pub use recorder::{Draw, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
 pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

@@ -252,9 +252,10 @@ impl Bindless {
     }
 
     /// Writes the frame constants of `slot` (the slot must not be in flight).
-    pub(crate) fn set_frame_constants(&mut self, slot: usize, frame_index: u64) {
+    pub(crate) fn set_frame_constants(&mut self, slot: usize, frame_index: u64, history_valid: bool) {
         if let Some(bytes) = self.frame_constants[slot].mapped_mut() {
             bytes[..4].copy_from_slice(&(frame_index as u32).to_le_bytes());
+            bytes[4..8].copy_from_slice(&u32::from(history_valid).to_le_bytes());
         }
     }
 

@@ -34,6 +34,16 @@ pub struct ViewTopology {
 }
 
 impl ViewTopology {
+    /// `views` views of `width`×`height`, every one a source (nothing is reprojected).
+    pub fn all_sources(views: u32, width: u32, height: u32) -> Self {
+        ViewTopology {
+            width,
+            height,
+            sources_of: vec![Vec::new(); views as usize],
+            is_source: vec![true; views as usize],
+        }
+    }
+
     pub fn views(&self) -> u32 {
         self.is_source.len() as u32
     }

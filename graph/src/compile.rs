@@ -417,3 +417,30 @@ fn topological_order(instances: &[PassInstance], edges: &[Edge]) -> Result<Vec<I
     }
     Ok(order)
 }
+
+/// Every splittable pass instance of every view in `bands` row bands, band `b` on device
+/// `b % devices`; passes that need their whole view stay on device 0. How one view (or a few)
+/// is traced over more devices than a light-field plan allows (it needs a view per device).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BandedPlacement {
+    pub devices: u32,
+    pub bands: u32,
+}
+
+impl Placement for BandedPlacement {
+    fn devices(&self) -> u32 {
+        self.devices.max(1)
+    }
+
+    fn place(&self, pass: PassPlacementInfo<'_>, _view: ViewId, height: u32) -> Vec<(DeviceId, Region)> {
+        if !pass.splittable {
+            return vec![(DeviceId(0), Region::rows(height))];
+        }
+        let bands = self.bands.clamp(1, height.max(1));
+        Region::bands(height, bands)
+            .into_iter()
+            .enumerate()
+            .map(|(b, region)| (DeviceId(b as u32 % self.devices()), region))
+            .collect()
+    }
+}

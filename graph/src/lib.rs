@@ -49,7 +49,7 @@ mod validate_storage;
 
 pub use assign::{AssignStrategy, Assignment, assign};
 pub use builder::{Buffer, Graph, Handle, Image, PassBuilder, Role, ViewTopology};
-pub use compile::{PassPlacementInfo, Placement, compile};
+pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile};
 pub use error::{GraphError, PlanError};
 pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
