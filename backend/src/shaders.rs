@@ -61,7 +61,9 @@ impl ShaderLibrary {
     }
 
     /// Adds (or replaces) shader `name` as SPIR-V words; refuses words that do not start with a
-    /// SPIR-V header ([`BackendError::InvalidSpirv`]).
+    /// SPIR-V header ([`BackendError::InvalidSpirv`]). Only the header is checked here: the rest
+    /// of the module is the driver's to check, which the validation layer does
+    /// (`PARALLAX_VALIDATION=1`) when the pipeline is created.
     pub fn with_spirv(mut self, name: impl Into<String>, words: impl Into<Vec<u32>>) -> Result<Self> {
         let name = name.into();
         let words = words.into();
