@@ -300,10 +300,11 @@ impl Bindless {
             return Ok(p);
         }
         let raw = &self.device.raw;
+        // Both shaders are looked up before either module exists, so an unknown name leaks none.
+        let codes = [self.shaders.spirv(&key.vertex)?, self.shaders.spirv(&key.fragment)?];
         let mut modules = Vec::new();
-        for name in [&key.vertex, &key.fragment] {
-            let code = self.shaders.spirv(name)?;
-            let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
+        for code in &codes {
+            let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(code), None) }
                 .vk("vkCreateShaderModule");
             match module {
                 Ok(m) => modules.push(m),
