@@ -31,6 +31,7 @@ use crate::plan::Plan;
 use crate::record::{SegmentContext, record_segment};
 use crate::relay::{Relay, RelayJob};
 use crate::segments::{Chunk, chunks_of_copies, progress_value, ready_value, segment_device};
+use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData};
 use crate::timing::{FrameReport, TimedEvent};
 
@@ -66,6 +67,9 @@ pub struct ExecOptions {
     /// Capacity of the per-frame data buffer ([`Executor::set_frame_data`]).
     pub frame_data_bytes: u64,
     pub fault: Option<FaultInjection>,
+    /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
+    /// the built-in shaders of `shaders/`.
+    pub shaders: ShaderLibrary,
 }
 
 impl Default for ExecOptions {
@@ -76,6 +80,7 @@ impl Default for ExecOptions {
             separate_copy_queue: true,
             frame_data_bytes: 64 << 10,
             fault: None,
+            shaders: ShaderLibrary::default(),
         }
     }
 }
@@ -221,7 +226,7 @@ impl Executor {
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
-            let state = create_device_state(device, &plan, d, segments, slots, &mut kept)?;
+            let state = create_device_state(device, &plan, d, segments, slots, &self.options.shaders, &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);
             states.push(state);

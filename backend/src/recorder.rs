@@ -44,7 +44,8 @@ impl PassParams {
 /// area (the viewport stays the whole image, so a band renders exactly its rows of the frame).
 #[derive(Clone, Debug)]
 pub struct Draw<'a> {
-    /// Embedded vertex and fragment shaders (`name.vert`, `name.frag` in shaders/).
+    /// Vertex and fragment shaders (`name.vert`, `name.frag`), from `ExecOptions::shaders`,
+    /// else built in (shaders/).
     pub vertex_shader: &'a str,
     pub fragment_shader: &'a str,
     /// Colour targets (resources), in fragment output location order. All the same size.
@@ -115,7 +116,8 @@ impl Recorder<'_> {
         self.device_index
     }
 
-    /// Binds the embedded compute shader `shader`, pushes `params` and dispatches `groups`.
+    /// Binds compute shader `shader` (from `ExecOptions::shaders`, else built in), pushes
+    /// `params` and dispatches `groups`.
     pub fn dispatch(&mut self, shader: &str, params: PassParams, groups: [u32; 3]) -> Result<()> {
         self.dispatch_bytes(shader, &params.to_bytes(), groups)
     }
