@@ -91,7 +91,7 @@ mod tests {
 
     #[test]
     fn the_shared_pass_params_match_bindless_glsl() {
-        let spirv = crate::pipeline::spirv("fill").unwrap();
+        let spirv = crate::spirv("fill").unwrap();
         let glsl = push_constant_members(&spirv).expect("fill.comp has push constants");
         let rust = rust_layout!(PassParams { dst, src0, src1, view, y0, y1, width, param });
         assert_eq!(glsl, rust);

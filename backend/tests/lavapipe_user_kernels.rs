@@ -4,14 +4,15 @@
 //! bytes that are not SPIR-V are refused with the exact error.
 
 use std::path::Path;
+use std::sync::Arc;
 
-use parallax_backend::kernels::{builtin_kernels, reference_fill};
+use parallax_backend::kernels::{FillKernel, reference_fill};
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, PassKernel, PassParams, Plan, PlanPass,
-    Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelGraph, PassKernel, PassParams,
+    Plan, PlanPass, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
-use parallax_graph::{AssignStrategy, Format, Graph, LightField, PlanConfig, Rig, Role, Scheme, compile};
+use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
 
 const SIZE: u32 = 16;
 const DEVICES: u32 = 2;
@@ -32,14 +33,21 @@ fn user_library(shaders: &[CompiledShader]) -> ShaderLibrary {
     })
 }
 
-/// Dispatches the user shader `shader` with `reads[0]` as `src0` and `writes[0]` as `dst`.
+/// Dispatches the user shader `shader` with slot `pattern` as `src0` and `output` as `dst`.
 struct ReadWriteKernel {
     shader: &'static str,
 }
 
 impl PassKernel for ReadWriteKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, _index: usize) -> parallax_backend::Result<()> {
-        let (src, dst) = (pass.reads[0].resource, pass.writes[0].resource);
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> parallax_backend::Result<()> {
+        let (Some(src), Some(dst)) = (pass.input("pattern"), pass.output("output")) else {
+            return Err(BackendError::KernelMisuse {
+                kernel: self.shader.into(),
+                instance: index,
+                detail: "reads `pattern` and writes `output`".into(),
+            });
+        };
+        let (src, dst) = (src.resource, dst.resource);
         let params = PassParams {
             dst: rec.image(dst)?,
             src0: rec.image(src)?,
@@ -63,22 +71,21 @@ fn reference_scale_swap(x: u32, y: u32, view: u32) -> [f32; 4] {
 /// built-in `fill` → user pass `user` (kernel dispatching `shader`) on every view of a 2×1 light
 /// field over two devices, the result gathered on device 0. Returns the plan and, per view,
 /// the resource of the result.
-fn fill_then_user_pass() -> (Plan, Vec<usize>) {
+fn fill_then_user_pass(shader: &'static str) -> (Plan, Vec<usize>) {
     let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
     let config =
         PlanConfig { devices: DEVICES, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
-    let mut g = Graph::new(plan.topology.clone());
+    let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut pattern = g.image("pattern", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
-    g.pass("fill", Role::All).write(&mut pattern).record();
-    g.pass("user", Role::All).read(&pattern).write(&mut output).record();
+    g.pass("fill", Role::All).write(&mut pattern).kernel(Arc::new(FillKernel)).record();
+    g.pass("user", Role::All).read(&pattern).write(&mut output).kernel(Arc::new(ReadWriteKernel { shader })).record();
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
-    let mut outputs: Vec<(u32, usize)> =
-        schedule.resources.iter().enumerate().filter(|(_, r)| r.name == "output").map(|(i, r)| (r.view.0, i)).collect();
-    outputs.sort();
-    (Plan::from_schedule(&schedule).unwrap(), outputs.into_iter().map(|(_, r)| r).collect())
+    let plan = Plan::from_schedule(&g, &schedule).unwrap();
+    let outputs = (0..2).map(|v| plan.final_output("output", v).unwrap().1).collect();
+    (plan, outputs)
 }
 
 fn context() -> Context {
@@ -99,11 +106,10 @@ fn a_kernel_compiled_outside_shaders_runs_on_every_device_like_the_cpu() {
     assert_eq!(deps, ["scale_swap.comp", "scale_swap.glsl", "bindless.glsl"]);
 
     let ctx = context();
-    let (plan, outputs) = fill_then_user_pass();
+    let (plan, outputs) = fill_then_user_pass("scale_swap");
     assert!(!plan.copies.is_empty(), "the second view is gathered from device 1");
-    let kernels = builtin_kernels().with("user", ReadWriteKernel { shader: "scale_swap" });
     let options = ExecOptions { shaders: user_library(&shaders), ..ExecOptions::default() };
-    let mut exec = Executor::new(&ctx, plan, kernels, options).unwrap();
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
     for _ in 0..2 {
         exec.run_frame().unwrap();
     }
@@ -123,10 +129,9 @@ fn a_kernel_compiled_outside_shaders_runs_on_every_device_like_the_cpu() {
 #[test]
 fn a_kernel_naming_no_known_shader_lists_where_it_looked() {
     let ctx = context();
-    let (plan, _) = fill_then_user_pass();
-    let kernels = builtin_kernels().with("user", ReadWriteKernel { shader: "no_such_shader" });
+    let (plan, _) = fill_then_user_pass("no_such_shader");
     let options = ExecOptions { shaders: user_library(&compile_user_shaders("unknown")), ..ExecOptions::default() };
-    let mut exec = Executor::new(&ctx, plan, kernels, options).unwrap();
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
     match exec.run_frame() {
         Err(BackendError::UnknownShader { name, user, builtin }) => {
             assert_eq!(name, "no_such_shader");

@@ -13,6 +13,9 @@ use crate::ids::{AllocId, CopyId, InstanceId, PassId, Region, ViewId};
 use crate::schedule::{Access, Op, Schedule};
 use crate::validate::ScheduleError;
 
+/// (allocation, version) pairs an op reads or writes.
+type Touches = Vec<(AllocId, u32)>;
+
 impl Schedule {
     /// Every id an op, instance, access or copy names exists.
     pub(crate) fn dangling_ids(&self) -> Vec<ScheduleError> {
@@ -107,7 +110,7 @@ impl Schedule {
         for program in &self.devices {
             let mut newest: HashMap<AllocId, (u32, Op)> = HashMap::new();
             for &op in &program.ops {
-                let (reads, writes): (Vec<(AllocId, u32)>, Vec<(AllocId, u32)>) = match op {
+                let (reads, writes): (Touches, Touches) = match op {
                     Op::Pass(i) => {
                         let inst = self.instance(i);
                         (
