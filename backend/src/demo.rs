@@ -35,6 +35,8 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
             height,
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
+            exported: false,
+            reset: None,
         });
         plan.resources.len() - 1
     };
@@ -145,6 +147,8 @@ pub fn copy_benchmark(width: u32, height: u32) -> Plan {
             height,
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
+            exported: false,
+            reset: None,
         }],
         passes: vec![PlanPass {
             name: "fill".into(),
@@ -178,6 +182,8 @@ pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> 
                 height: size,
                 format: TexelFormat::Rgba8Unorm,
                 kind: ResourceKind::Image,
+                exported: false,
+                reset: None,
             });
             plan.passes.push(PlanPass {
                 name: "fill".into(),

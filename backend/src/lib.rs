@@ -9,8 +9,14 @@
 //! * [`PassKernel`] / [`KernelRegistry`] / [`Recorder`]: how passes plug their GPU work in:
 //!   compute dispatches over a bindless image array, raster draws ([`Draw`], dynamic rendering
 //!   into plan images), per-view buffers, global buffers ([`Executor::upload_buffer`]) and
-//!   per-frame data ([`Executor::set_frame_data`]) by buffer address, sampled RGBA8 textures
-//!   ([`Executor::upload_textures`]) by index into the `textures[]` array of set 0.
+//!   per-frame data ([`Executor::set_frame_data`], or [`FrameData`] cut into one section per
+//!   pass) by buffer address, sampled RGBA8 textures ([`Executor::upload_textures`]) by index
+//!   into the `textures[]` array of set 0; indirect dispatches on counts a pass wrote
+//!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `PlanResource::reset`).
+//! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera and the frame
+//!   index, as `shaders/include/frame_block.glsl` declares them.
+//! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
+//!   [`Executor::wait_readback`] returns one frame's exported resources.
 //! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]).
 //!
 //! ```
@@ -43,10 +49,13 @@ mod device;
 mod device_state;
 mod error;
 mod executor;
+mod frame_block;
+mod frame_data;
 mod instance;
 mod lower;
 mod memory;
 mod pipeline;
+mod readback;
 mod record;
 mod recorder;
 mod relay;
@@ -58,18 +67,22 @@ pub mod bench;
 pub mod demo;
 pub mod kernels;
 pub mod plan;
+pub mod reflect;
 
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
 pub use executor::{ExecOptions, Executor, FaultInjection};
+pub use frame_block::{FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameHeader, GpuCamera, ViewCameras};
+pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::LowerError;
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use pipeline::{shader_names, spirv};
 pub use plan::{
-    Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
+    MAX_RESET_WORDS, Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
 };
+pub use readback::{FrameReadback, FrameTicket};
 pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
 pub use texture::{MAX_TEXTURES, TextureData};

@@ -34,16 +34,21 @@ impl Plan {
         let resources = schedule
             .resources
             .iter()
-            .map(|r| match r.desc {
-                ResourceDesc::Image { width, height, format } => PlanResource {
-                    name: r.name.clone(),
-                    view: r.view.0,
-                    width,
-                    height,
-                    format: texel_format(format),
-                    kind: ResourceKind::Image,
-                },
-                ResourceDesc::Buffer { bytes } => PlanResource::buffer(r.name.clone(), r.view.0, bytes),
+            .map(|r| {
+                let resource = match r.desc {
+                    ResourceDesc::Image { width, height, format } => PlanResource {
+                        name: r.name.clone(),
+                        view: r.view.0,
+                        width,
+                        height,
+                        format: texel_format(format),
+                        kind: ResourceKind::Image,
+                        exported: false,
+                        reset: None,
+                    },
+                    ResourceDesc::Buffer { bytes } => PlanResource::buffer(r.name.clone(), r.view.0, bytes),
+                };
+                PlanResource { exported: r.exported.is_some(), ..resource }
             })
             .collect::<Vec<_>>();
         let passes = schedule

@@ -65,6 +65,14 @@ pub struct PlanResource {
     pub height: u32,
     pub format: TexelFormat,
     pub kind: ResourceKind,
+    /// A finished output, gathered on device 0 (the graph's `export`): what the frame loop
+    /// reads back ([`crate::Executor::submit_frame`]).
+    pub exported: bool,
+    /// Buffers only: rewritten on the GPU at the start of every frame, before any pass of the
+    /// frame touches it, on every device that holds it: the first `reset.len()` words set to
+    /// these, the rest zeroed (`Some(vec![])` zeroes it all). For counters and indirect
+    /// arguments that passes of the frame accumulate into.
+    pub reset: Option<Vec<u32>>,
 }
 
 impl PlanResource {
@@ -78,6 +86,8 @@ impl PlanResource {
             height: 1,
             format: TexelFormat::R32Uint,
             kind: ResourceKind::Buffer,
+            exported: false,
+            reset: None,
         }
     }
 
@@ -171,7 +181,18 @@ pub enum PlanError {
     CopyOpOrder { copy: usize },
     #[error("resource {resource} has zero size")]
     EmptyResource { resource: usize },
+    #[error("resource {resource} is an image: only buffers can be reset each frame")]
+    ResetOfImage { resource: usize },
+    #[error(
+        "resource {resource}: a reset header of {words} words does not fit its {capacity}-word buffer (nor the {max} words vkCmdUpdateBuffer takes)"
+    )]
+    ResetTooLong { resource: usize, words: usize, capacity: u32, max: usize },
+    #[error("resource {resource} is exported but device 0 never holds it: exports are gathered on device 0")]
+    ExportNotOnDevice0 { resource: usize },
 }
+
+/// Most words a reset header may have: vkCmdUpdateBuffer writes at most 65536 bytes.
+pub const MAX_RESET_WORDS: usize = 65536 / 4;
 
 impl Plan {
     /// One pass instance `name` on device 0 writing all of `resource` (version 1) and nothing
@@ -202,6 +223,19 @@ impl Plan {
         for (i, r) in self.resources.iter().enumerate() {
             if r.width == 0 || r.height == 0 {
                 return Err(PlanError::EmptyResource { resource: i });
+            }
+            if let Some(header) = &r.reset {
+                if r.kind != ResourceKind::Buffer {
+                    return Err(PlanError::ResetOfImage { resource: i });
+                }
+                if header.len() > r.width as usize || header.len() > MAX_RESET_WORDS {
+                    return Err(PlanError::ResetTooLong {
+                        resource: i,
+                        words: header.len(),
+                        capacity: r.width,
+                        max: MAX_RESET_WORDS,
+                    });
+                }
             }
         }
         let check_rows = |what, index, resource: usize, rows: Rows| {
@@ -280,6 +314,13 @@ impl Plan {
         }
         if let Some(p) = pass_seen.iter().position(|&n| n != 1) {
             return Err(PlanError::PassNotScheduledOnce(p));
+        }
+        // Every op index is valid by now, and a context has at least one device.
+        if !self.devices.is_empty() {
+            let on_device0 = self.resources_of_device(0);
+            if let Some(r) = (0..self.resources.len()).find(|r| self.resources[*r].exported && !on_device0.contains(r)) {
+                return Err(PlanError::ExportNotOnDevice0 { resource: r });
+            }
         }
         for (c, copy) in self.copies.iter().enumerate() {
             let at = |kind: &'static str, device: usize| match copy_ops.get(&(c, kind)).map(Vec::as_slice) {

@@ -59,6 +59,8 @@ fn history_plan(size: u32) -> Plan {
             height: size,
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
+            exported: false,
+            reset: None,
         }],
         passes: vec![PlanPass {
             name: "accumulate".into(),
@@ -127,6 +129,8 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
         height: size,
         format,
         kind: ResourceKind::Image,
+        exported: false,
+        reset: None,
     };
     let write = |resource| PlanAccess { resource, version: 1, rows: all };
     // Device 1 writes a uint mask and a float image side by side (indices interleave the two
@@ -199,6 +203,8 @@ fn raster_plan(devices: usize, size: u32) -> Plan {
             height: size,
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
+            exported: false,
+            reset: None,
         }],
         devices: vec![Vec::new(); devices],
         ..Plan::default()
@@ -259,6 +265,8 @@ fn weighted_plan(size: u32) -> Plan {
                 height: size,
                 format: TexelFormat::Rgba32Float,
                 kind: ResourceKind::Image,
+                exported: false,
+                reset: None,
             })
             .collect(),
         passes: (0..2)

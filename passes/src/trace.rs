@@ -87,6 +87,8 @@ pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, de
             height,
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
+            exported: false,
+            reset: None,
         }));
         for b in 0..bands {
             let rows = Rows::new(b * height / bands, (b + 1) * height / bands);
