@@ -403,6 +403,23 @@ mod tests {
     }
 
     #[test]
+    fn exports_must_reach_device_0_and_reset_headers_fit_their_buffer() {
+        let mut plan = Plan::single_pass("fill_buffer", PlanResource::buffer("counts", 0, 8), 2);
+        plan.resources[0].reset = Some(vec![0, 1]);
+        plan.resources[0].exported = true;
+        assert_eq!(plan.validate(2), Ok(()));
+        plan.resources[0].reset = Some(vec![0, 1, 1]);
+        assert_eq!(
+            plan.validate(2),
+            Err(PlanError::ResetTooLong { resource: 0, words: 3, capacity: 2, max: MAX_RESET_WORDS })
+        );
+        plan.resources[0].reset = None;
+        plan.passes[0].device = 1;
+        plan.devices = vec![vec![], vec![PlanOp::Pass(0)]];
+        assert_eq!(plan.validate(2), Err(PlanError::ExportNotOnDevice0 { resource: 0 }));
+    }
+
+    #[test]
     fn copy_bytes_counts_only_the_band() {
         let mut plan = copy_benchmark(8, 8);
         plan.copies[0].rows = Rows::new(2, 5);
