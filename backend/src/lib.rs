@@ -80,7 +80,8 @@ pub use lower::LowerError;
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use pipeline::{shader_names, spirv};
 pub use plan::{
-    MAX_RESET_WORDS, Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
+    MAX_RESET_WORDS, Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows,
+    TexelFormat,
 };
 pub use readback::{FrameReadback, FrameTicket};
 pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};

@@ -318,7 +318,8 @@ impl Plan {
         // Every op index is valid by now, and a context has at least one device.
         if !self.devices.is_empty() {
             let on_device0 = self.resources_of_device(0);
-            if let Some(r) = (0..self.resources.len()).find(|r| self.resources[*r].exported && !on_device0.contains(r)) {
+            let missing = self.resources.iter().enumerate().find(|(r, res)| res.exported && !on_device0.contains(r));
+            if let Some((r, _)) = missing {
                 return Err(PlanError::ExportNotOnDevice0 { resource: r });
             }
         }

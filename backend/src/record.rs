@@ -206,11 +206,8 @@ fn record_items(
 /// zeros after them. Runs before the first item's barrier, so every pass of the frame sees the
 /// reset values; the barrier in front orders it after last frame's uses of the buffers.
 fn record_resets(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
-    let mut resets: Vec<(usize, &[u32])> = ctx
-        .buffers
-        .keys()
-        .filter_map(|&r| ctx.plan.resources[r].reset.as_deref().map(|header| (r, header)))
-        .collect();
+    let mut resets: Vec<(usize, &[u32])> =
+        ctx.buffers.keys().filter_map(|&r| ctx.plan.resources[r].reset.as_deref().map(|header| (r, header))).collect();
     if resets.is_empty() {
         return;
     }

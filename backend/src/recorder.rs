@@ -222,12 +222,14 @@ impl Recorder<'_> {
     /// GPU address of the section `name` of the per-frame data (see `FrameData::section`), in
     /// this frame-in-flight slot's copy.
     pub fn frame_section_address(&self, name: &str) -> Result<u64> {
-        self.frame_sections.iter().find(|(n, _)| n == name).map(|(_, offset)| self.frame_data_address + offset).ok_or_else(
-            || BackendError::UnknownFrameSection {
+        self.frame_sections
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, offset)| self.frame_data_address + offset)
+            .ok_or_else(|| BackendError::UnknownFrameSection {
                 name: name.to_string(),
                 known: self.frame_sections.iter().map(|(n, _)| n.clone()).collect(),
-            },
-        )
+            })
     }
 
     /// Dispatches `shader` over `params.width` × rows `[y0, y1)` with the 8×8 workgroups every

@@ -176,7 +176,9 @@ fn the_frame_loop_reads_back_every_frames_exports_with_two_frames_in_flight() {
     let mut exec = Executor::new(&ctx, gather_plan(), kernels(), options).unwrap();
     let mut clock = FrameClock::new();
     let expected = |frame: u32, view: u32| -> Vec<u32> {
-        (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| reference_mask(x, y, 8 * frame + view) ^ salt_of(frame))).collect()
+        (0..SIZE)
+            .flat_map(|y| (0..SIZE).map(move |x| reference_mask(x, y, 8 * frame + view) ^ salt_of(frame)))
+            .collect()
     };
     let mut pending = std::collections::VecDeque::new();
     for frame in 0..FRAMES {

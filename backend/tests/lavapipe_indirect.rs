@@ -148,7 +148,11 @@ fn gpu_counts_drive_the_next_dispatch_and_resets_start_every_frame_afresh() {
                 let readback = exec.wait_readback(ticket).unwrap();
                 let n = counts[f];
                 assert_eq!(readback[0].0, ARGS);
-                assert_eq!(words(&readback[0].1), vec![n.div_ceil(64), 1, 1, n], "arguments of frame {f}, fused {fused}");
+                assert_eq!(
+                    words(&readback[0].1),
+                    vec![n.div_ceil(64), 1, 1, n],
+                    "arguments of frame {f}, fused {fused}"
+                );
                 assert_eq!(readback[1].0, COUNTER);
                 assert_eq!(words(&readback[1].1), vec![n], "invocations below N in frame {f}, fused {fused}");
                 checked += 1;
@@ -180,9 +184,12 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     plan.resources.push(image);
     plan.passes[0].writes.push(PlanAccess { resource: 1, version: 1, rows: Rows::new(0, 4) });
     let ctx = context();
-    for (resource, offset, problem) in
-        [(0, 2, "multiple of 4"), (0, 8, "do not fit the 16-byte buffer"), (1, 0, "is an image"), (7, 0, "not allocated")]
-    {
+    for (resource, offset, problem) in [
+        (0, 2, "multiple of 4"),
+        (0, 8, "do not fit the 16-byte buffer"),
+        (1, 0, "is an image"),
+        (7, 0, "not allocated"),
+    ] {
         let kernels = KernelRegistry::new().with("misused", MisusedKernel { resource, offset });
         let mut exec = Executor::new(&ctx, plan.clone(), kernels, ExecOptions::default()).unwrap();
         match exec.run_frame() {
