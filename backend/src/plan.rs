@@ -184,7 +184,7 @@ pub enum PlanError {
     #[error("resource {resource} is an image: only buffers can be reset each frame")]
     ResetOfImage { resource: usize },
     #[error(
-        "resource {resource}: a reset header of {words} words does not fit its {capacity}-word buffer (nor the {max} words vkCmdUpdateBuffer takes)"
+        "resource {resource}: a reset header of {words} words is longer than its {capacity}-word buffer or than the {max} words vkCmdUpdateBuffer writes"
     )]
     ResetTooLong { resource: usize, words: usize, capacity: u32, max: usize },
     #[error("resource {resource} is exported but device 0 never holds it: exports are gathered on device 0")]
