@@ -129,7 +129,7 @@ pub fn run(args: RunArgs) -> Result<()> {
 
     let context = Context::new(&ContextDesc::from_env(selection))?;
     print!("{context}");
-    let exec_plan = parallax_backend::Plan::from_schedule(&graph, &schedule)?;
+    let exec_plan = parallax_backend::ExecutionPlan::from_schedule(&graph, &schedule)?;
     let options = ExecOptions {
         frames_in_flight: args.frames_in_flight,
         separate_copy_queue: !args.copies_on_main_queue,

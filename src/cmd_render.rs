@@ -11,7 +11,8 @@ use anyhow::{Context as _, Result};
 use clap::Args;
 use glam::Vec2;
 use parallax_backend::{
-    Context as VkContext, ContextDesc, EventKind, FrameReport, KernelGraph, Plan as ExecPlan, chrome_trace, write_json,
+    Context as VkContext, ContextDesc, EventKind, ExecutionPlan as ExecPlan, FrameReport, KernelGraph, chrome_trace,
+    write_json,
 };
 use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId, lightfield::parse_pair};
 use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample};
