@@ -29,6 +29,11 @@ pub struct DeviceInfo {
     pub device_type: String,
     /// Whether GPU timestamps can be mapped to the host clock by VK_*_calibrated_timestamps.
     pub calibrated_timestamps: bool,
+    /// `maxImageDimension2D`: the largest width or height of an image the device can create.
+    pub max_image_dimension_2d: u32,
+    /// Size of the largest device-local memory heap, in bytes: what a caller can check its
+    /// working set against before allocating.
+    pub device_local_heap_bytes: u64,
 }
 
 /// Device-level functions of calibrated timestamps (EXT and KHR have the same shape).
@@ -299,6 +304,8 @@ impl Device {
             ),
             device_type: format!("{:?}", props.device_type),
             calibrated_timestamps: calibrated.is_some(),
+            max_image_dimension_2d: props.limits.max_image_dimension2_d,
+            device_local_heap_bytes: largest_device_local_heap(raw_instance, physical),
         };
         Ok(Arc::new(Self {
             info,
@@ -581,4 +588,11 @@ mod tests {
         // An event before the reference, without a wrap in between.
         assert_eq!(timestamp_to_host_ns((1 << 32) - 300, 32, 1.0, &c), 999_999_800);
     }
+}
+
+/// The largest DEVICE_LOCAL heap (lavapipe's one heap is system memory and is flagged so).
+fn largest_device_local_heap(instance: &ash::Instance, physical: vk::PhysicalDevice) -> u64 {
+    let memory = unsafe { instance.get_physical_device_memory_properties(physical) };
+    let heaps = &memory.memory_heaps[..memory.memory_heap_count as usize];
+    heaps.iter().filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL)).map(|h| h.size).max().unwrap_or(0)
 }

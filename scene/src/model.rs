@@ -275,6 +275,11 @@ impl Camera {
     }
 }
 
+/// Largest world-space coordinate magnitude a scene may have. Ray/box and ray/triangle tests
+/// multiply coordinate differences (edge cross products are squares of them), and f32 overflows
+/// at 3.4e38: ±1e18 keeps every such product finite with a wide margin.
+pub const MAX_COORDINATE: f32 = 1e18;
+
 /// Axis-aligned bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
@@ -337,6 +342,25 @@ impl Scene {
             max = Vec3::ZERO;
         }
         Bounds { min, max }
+    }
+
+    /// Total area of all triangles (zero when every triangle is degenerate).
+    pub fn surface_area(&self) -> f64 {
+        (0..self.triangle_count())
+            .map(|t| {
+                let [a, b, c] = self.triangle_positions(t).map(|p| p.as_dvec3());
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+
+    /// Whether anything emits light: a sun, a non-black sky, a punctual light or an emissive
+    /// material. Without any, every pixel is black.
+    pub fn has_light(&self) -> bool {
+        self.sun.is_some_and(|s| s.irradiance.max_element() > 0.0)
+            || !self.sky().is_black()
+            || self.lights.iter().any(|l| l.intensity > 0.0 && l.color.max_element() > 0.0)
+            || self.materials.iter().any(|m| m.is_emissive())
     }
 
     pub fn sky(&self) -> Sky {
