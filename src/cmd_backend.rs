@@ -54,10 +54,10 @@ pub struct RunArgs {
     #[arg(long, default_value = "64x64", value_parser = parse_resolution)]
     resolution: Resolution,
     /// Frames to execute (1..=10000).
-    #[arg(long, default_value_t = 3, value_parser = count_in(1..=10_000))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 3, value_parser = count_in(1..=10_000))]
     frames: u64,
     /// Frames submitted before the host waits for the oldest (1..=16).
-    #[arg(long, default_value_t = 2, value_parser = count_in(1..=16))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 2, value_parser = count_in(1..=16))]
     frames_in_flight: u64,
     /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
     /// used by default where the devices have one).
@@ -159,23 +159,23 @@ pub struct BenchCopyArgs {
     #[command(flatten)]
     devices: DeviceArgs,
     /// Bytes moved from device 0 to device 1 per frame, in MiB (1..=65536, and within host memory).
-    #[arg(long, default_value_t = 64, value_parser = count_in(1..=65_536))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 64, value_parser = count_in(1..=65_536))]
     size_mib: u64,
     /// Chunk size in MiB (copies are pipelined chunk by chunk); 0 = one chunk.
-    #[arg(long, default_value_t = 8, value_parser = count_in(0..=65_536))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 8, value_parser = count_in(0..=65_536))]
     chunk_mib: u64,
     /// Measured frames (after 3 warm-up frames; 1..=10000).
-    #[arg(long, default_value_t = 30, value_parser = count_in(1..=10_000))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 30, value_parser = count_in(1..=10_000))]
     frames: u64,
     /// Frames submitted before the host waits for the oldest (1..=16; 1 = every copy runs alone).
-    #[arg(long, default_value_t = 2, value_parser = count_in(1..=16))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 2, value_parser = count_in(1..=16))]
     frames_in_flight: u64,
     /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
     /// used by default where the devices have one).
     #[arg(long)]
     copies_on_main_queue: bool,
     /// Tiny passes per device for the executor-overhead measurement (1..=65536).
-    #[arg(long, default_value_t = 256, value_parser = count_in(1..=65_536))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 256, value_parser = count_in(1..=65_536))]
     passes_per_device: u64,
     /// Write both measurements as JSON (`-` = stdout).
     #[arg(long, value_parser = parse_sink)]

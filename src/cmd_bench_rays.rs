@@ -30,11 +30,11 @@ pub struct BenchRaysArgs {
     #[arg(long, default_value = "medium")]
     pub bvh_quality: BvhQuality,
     /// Timed casts per batch, after one untimed warm-up cast; the median GPU time is reported.
-    #[arg(long, default_value_t = 9, value_parser = count_in(1..=1000))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 9, value_parser = count_in(1..=1000))]
     pub repeats: u64,
     /// Create N logical devices on one physical device and measure on the first (how it runs
     /// on lavapipe); by default the first GPU.
-    #[arg(long, value_parser = count_in(1..=MAX_DEVICES as u64))]
+    #[arg(long, allow_negative_numbers = true, value_parser = count_in(1..=MAX_DEVICES as u64))]
     pub fake_devices: Option<u64>,
     /// Ray schedules of the `raycast` kernel to measure side by side on the same rays
     /// (comma-separated): `per-ray`, or `persistent:THRESHOLD:WORKGROUPS`.
@@ -62,15 +62,8 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     work.check_devices(&context)?;
     let camera = args.camera.unwrap_or_else(|| scene.default_camera());
     let progress = spinner(format!("casting {width}x{height} rays under {} schedule(s)", args.schedule.len()));
-    let report = bench_rays(
-        &context,
-        scene,
-        camera,
-        (width, height),
-        args.repeats as usize,
-        args.bvh_quality,
-        &args.schedule,
-    )?;
+    let report =
+        bench_rays(&context, scene, camera, (width, height), args.repeats as usize, args.bvh_quality, &args.schedule)?;
     progress.finish_and_clear();
     context.check_validation()?;
     println!("device: {}", report.device);

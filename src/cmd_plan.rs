@@ -19,7 +19,7 @@ pub struct PlanArgs {
     #[arg(long, value_parser = parse_layout)]
     lf: LayoutSpec,
     /// Number of devices N (1 ≤ N ≤ 64 and N ≤ number of views).
-    #[arg(long, default_value_t = 1, value_parser = count_in(1..=MAX_DEVICES as u64))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = count_in(1..=MAX_DEVICES as u64))]
     gpus: u64,
     /// Partitioning scheme.
     #[arg(long, value_enum, default_value_t = SchemeArg::MultiSource)]

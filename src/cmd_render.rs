@@ -53,10 +53,10 @@ pub struct RenderArgs {
     #[arg(long, value_enum)]
     assign: Option<AssignArg>,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
     /// Maximum number of scattering events per path (0..=1024).
-    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
     max_depth: u32,
     /// Folder for view_NNN.exr, lightfield.png and render.json (created if missing). Every
     /// view_NNN.exr already there that this run does not write is removed, so the folder
@@ -64,7 +64,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "out/lightfield")]
     out_dir: PathBuf,
     /// Exposure multiplier for the contact sheet (> 0).
-    #[arg(long, default_value = "1", value_parser = parse_exposure)]
+    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
     exposure: f32,
     /// Write a Chrome trace-event JSON of the frame (open in Perfetto or chrome://tracing;
     /// `-` = stdout).
@@ -89,8 +89,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let rig = rig_of(&scene, args.focus)?;
     let lf = LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), rig)?;
     let selection = args.devices.selection();
-    let config =
-        PlanConfig { devices: selection.count() as u32, scheme: args.scheme.into(), assign, sources: None };
+    let config = PlanConfig { devices: selection.count() as u32, scheme: args.scheme.into(), assign, sources: None };
     let plan = Plan::new(&lf, &config)?;
     let mut graph = Graph::new(plan.topology.clone());
     declare_trace(&mut graph, None);
@@ -181,9 +180,8 @@ fn check_outputs(out_dir: &Path, sheet: &Path, render_json: &Path, trace: Option
     if !existing.is_dir() {
         bail!("--out-dir {}: {} is not a folder", out_dir.display(), existing.display());
     }
-    tempfile::NamedTempFile::new_in(existing).with_context(|| {
-        format!("--out-dir {}: folder {} is not writable", out_dir.display(), existing.display())
-    })?;
+    tempfile::NamedTempFile::new_in(existing)
+        .with_context(|| format!("--out-dir {}: folder {} is not writable", out_dir.display(), existing.display()))?;
     let sheet_sink = Sink::File(sheet.to_path_buf());
     let json_sink = Sink::File(render_json.to_path_buf());
     let mut outputs = Vec::new();

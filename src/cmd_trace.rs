@@ -32,10 +32,10 @@ pub struct TraceArgs {
     #[arg(long, default_value = "512x512", value_parser = parse_resolution)]
     pub resolution: Resolution,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: u32,
     /// Maximum number of scattering events per path (0..=1024).
-    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
     pub max_depth: u32,
     /// Output EXR (radiance; with --layers also albedo, normal and depth).
     #[arg(long, default_value = "trace.exr")]
@@ -47,17 +47,17 @@ pub struct TraceArgs {
     #[arg(long)]
     pub png: Option<PathBuf>,
     /// Exposure multiplier for the PNG (> 0).
-    #[arg(long, default_value = "1", value_parser = parse_exposure)]
+    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
     pub exposure: f32,
     /// Trace on the CPU reference path tracer instead of the GPU.
     #[arg(long)]
     pub cpu: bool,
     /// GPU tracing on N physical GPUs (1..=64; the view is split into row bands over them).
-    #[arg(long, conflicts_with_all = ["fake_devices", "cpu"], value_parser = count_in(1..=MAX_DEVICES as u64))]
+    #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["fake_devices", "cpu"], value_parser = count_in(1..=MAX_DEVICES as u64))]
     pub gpus: Option<u64>,
     /// GPU tracing on N logical devices of one physical device (1..=64; how lavapipe runs
     /// multi-device code).
-    #[arg(long, conflicts_with = "cpu", value_parser = count_in(1..=MAX_DEVICES as u64))]
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "cpu", value_parser = count_in(1..=MAX_DEVICES as u64))]
     pub fake_devices: Option<u64>,
     /// Frame index (part of the random-number key).
     #[arg(long, default_value_t = 0)]

@@ -34,11 +34,7 @@ pub fn init(v: Verbosity) {
         (false, _) => Level::TRACE,
     };
     QUIET.store(v.quiet, Ordering::Relaxed);
-    tracing_subscriber::fmt()
-        .with_max_level(level)
-        .with_writer(std::io::stderr)
-        .event_format(Plain)
-        .init();
+    tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).event_format(Plain).init();
 }
 
 /// Messages as a compiler prints them: `error: …`, `warning: …`, notes without a prefix.

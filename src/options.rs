@@ -263,10 +263,10 @@ pub fn count_in(range: RangeInclusive<u64>) -> impl Fn(&str) -> Result<u64, Stri
 #[derive(clap::Args, Debug, Clone)]
 pub struct DeviceArgs {
     /// Use N physical GPUs (1..=64).
-    #[arg(long, conflicts_with = "fake_devices", value_parser = count_in(1..=MAX_DEVICES as u64))]
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "fake_devices", value_parser = count_in(1..=MAX_DEVICES as u64))]
     gpus: Option<u64>,
     /// Use N logical devices on one physical device (1..=64; how lavapipe runs multi-device code).
-    #[arg(long, value_parser = count_in(1..=MAX_DEVICES as u64))]
+    #[arg(long, allow_negative_numbers = true, value_parser = count_in(1..=MAX_DEVICES as u64))]
     fake_devices: Option<u64>,
 }
 

@@ -184,7 +184,11 @@ impl Staged {
                 .with_context(|| format!("cannot write {shown}"))
         } else {
             set_published_permissions(&temp_path, &self.target).with_context(|| format!("cannot write {shown}"))?;
-            self.temp.persist(&self.target).map(drop).map_err(|e| e.error).with_context(|| format!("cannot write {shown}"))
+            self.temp
+                .persist(&self.target)
+                .map(drop)
+                .map_err(|e| e.error)
+                .with_context(|| format!("cannot write {shown}"))
         };
         forget_pending(&temp_path);
         result
@@ -212,10 +216,10 @@ pub fn write_bytes(sink: &Sink, bytes: &[u8]) -> Result<()> {
             let mut out = std::io::stdout().lock();
             out.write_all(bytes).and_then(|_| out.flush()).context("cannot write to stdout")
         }
-        Sink::File(path) => stage(path, |temp| {
-            std::fs::write(temp, bytes).with_context(|| format!("cannot write {}", path.display()))
-        })?
-        .commit(),
+        Sink::File(path) => {
+            stage(path, |temp| std::fs::write(temp, bytes).with_context(|| format!("cannot write {}", path.display())))?
+                .commit()
+        }
     }
 }
 

@@ -189,7 +189,8 @@ fn outputs_are_checked_first_and_never_replaced_or_left_half_written() {
     );
     // Re-rendering a smaller light field leaves exactly the views render.json lists.
     let render = |lf: &str| {
-        let out = parallax_in(&dir, &["render", "--lf", lf, "--resolution", "4x4", "--fake-devices", "1", "--out-dir", "lf"]);
+        let out =
+            parallax_in(&dir, &["render", "--lf", lf, "--resolution", "4x4", "--fake-devices", "1", "--out-dir", "lf"]);
         assert!(out.status.success(), "{lf}: {}", String::from_utf8_lossy(&out.stderr));
     };
     render("4x1");

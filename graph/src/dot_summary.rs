@@ -75,7 +75,9 @@ impl Schedule {
         let mut writer: HashMap<(u32, u32, DeviceId), usize> = HashMap::new();
         for inst in &self.instances {
             for w in &inst.writes {
-                writer.entry((w.resource.0, w.version, inst.device)).or_insert(node_of[&(inst.device, inst.name.clone())]);
+                writer
+                    .entry((w.resource.0, w.version, inst.device))
+                    .or_insert(node_of[&(inst.device, inst.name.clone())]);
             }
         }
         for c in self.copies.iter().filter(|c| c.kind == CopyKind::Gather) {
@@ -95,7 +97,8 @@ impl Schedule {
         for program in &self.devices {
             let d = program.device;
             writeln!(w, "  subgraph cluster_{d} {{").unwrap();
-            writeln!(w, "    label=\"{d}\"; style=\"rounded,filled\"; fillcolor=\"#f4f4f4\"; color=\"#999999\";").unwrap();
+            writeln!(w, "    label=\"{d}\"; style=\"rounded,filled\"; fillcolor=\"#f4f4f4\"; color=\"#999999\";")
+                .unwrap();
             for (i, group) in order.iter().enumerate().filter(|(_, g)| g.0 == d) {
                 writeln!(
                     w,

@@ -139,10 +139,8 @@ impl GpuTracer {
         // size the caller never chose.
         let views = plan.resources.iter().map(|r| u64::from(r.view) + 1).max().unwrap_or(1);
         let defaults = ExecOptions::default();
-        let options = ExecOptions {
-            frame_data_bytes: defaults.frame_data_bytes.max(views * TRACE_PARAMS_BYTES),
-            ..defaults
-        };
+        let options =
+            ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(views * TRACE_PARAMS_BYTES), ..defaults };
         let frame_data_bytes = options.frame_data_bytes;
         let mut executor = Executor::new(context, plan, kernels, options)?;
         upload_scene(&mut executor, scene)?;

@@ -42,7 +42,9 @@ pub enum SceneError {
         "{path}: {what} has a coordinate of {value:e}; coordinates must lie within ±{limit:e} (beyond that f32 products in the BVH overflow): rescale the scene"
     )]
     CoordinateOutOfRange { path: PathBuf, what: String, value: f32, limit: f32 },
-    #[error("{path}: every triangle has zero area ({hint}), so nothing would be visible; fix the node scales or vertex positions")]
+    #[error(
+        "{path}: every triangle has zero area ({hint}), so nothing would be visible; fix the node scales or vertex positions"
+    )]
     ZeroArea { path: PathBuf, hint: String },
     #[error("{path}: camera {camera} (node {node}): {detail}")]
     BadCamera { path: PathBuf, camera: usize, node: usize, detail: String },
