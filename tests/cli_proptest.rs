@@ -26,7 +26,17 @@ fn number() -> impl Strategy<Value = String> {
 }
 
 fn pair(max: u32) -> impl Strategy<Value = String> {
-    prop_oneof![(0..=max, 0..=max).prop_map(|(w, h)| format!("{w}x{h}")), number()]
+    prop_oneof![3 => (0..=max, 0..=max).prop_map(|(w, h)| format!("{w}x{h}")), 1 => number()]
+}
+
+/// Mostly a valid value from `valid`, sometimes any number: so that most runs get past the
+/// parser and exercise planning and tracing, and some do not.
+fn mostly<S: Strategy<Value = String> + 'static>(valid: S) -> impl Strategy<Value = String> {
+    prop_oneof![3 => valid, 1 => number()]
+}
+
+fn real(range: std::ops::Range<f64>) -> impl Strategy<Value = String> {
+    mostly(range.prop_map(|v| format!("{v}")))
 }
 
 /// Checks one run's outcome; `dir` must not change unless it succeeded.
@@ -51,8 +61,8 @@ proptest! {
     #[test]
     fn plan_never_panics(
         lf in pair(12),
-        gpus in number(),
-        spacing in number(),
+        gpus in mostly((1u32..6).prop_map(|v| v.to_string())),
+        spacing in real(0.0..1.0),
         resolution in pair(64),
         scheme in prop_oneof![Just("multi-source"), Just("fine-sources"), Just("fine-all")],
         sources in proptest::option::of(number()),
@@ -75,11 +85,11 @@ proptest! {
     #[test]
     fn trace_never_panics(
         resolution in pair(8),
-        spp in prop_oneof![Just("0"), Just("1"), Just("2"), Just("-1")],
-        max_depth in number(),
-        exposure in number(),
-        sun in proptest::option::of(proptest::collection::vec(number(), 3..=6)),
-        sky in proptest::option::of(proptest::collection::vec(number(), 2..=4)),
+        spp in prop_oneof![1 => Just("0"), 4 => Just("1"), 1 => Just("2"), 1 => Just("-1")],
+        max_depth in mostly((0u32..8).prop_map(|v| v.to_string())),
+        exposure in real(0.01..100.0),
+        sun in proptest::option::of(proptest::collection::vec(real(-10.0..10.0), 3..=6)),
+        sky in proptest::option::of(proptest::collection::vec(real(0.0..10.0), 2..=4)),
         device in prop_oneof![Just("--cpu"), Just("--fake-devices=1"), Just("--fake-devices=2")],
     ) {
         // Sizes beyond 8×8 would be slow to trace: only the refusals of larger ones are kept.
