@@ -559,6 +559,13 @@ pub fn host_now_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
+/// The largest DEVICE_LOCAL heap (lavapipe's one heap is system memory and is flagged so).
+fn largest_device_local_heap(instance: &ash::Instance, physical: vk::PhysicalDevice) -> u64 {
+    let memory = unsafe { instance.get_physical_device_memory_properties(physical) };
+    let heaps = &memory.memory_heaps[..memory.memory_heap_count as usize];
+    heaps.iter().filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL)).map(|h| h.size).max().unwrap_or(0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -588,11 +595,4 @@ mod tests {
         // An event before the reference, without a wrap in between.
         assert_eq!(timestamp_to_host_ns((1 << 32) - 300, 32, 1.0, &c), 999_999_800);
     }
-}
-
-/// The largest DEVICE_LOCAL heap (lavapipe's one heap is system memory and is flagged so).
-fn largest_device_local_heap(instance: &ash::Instance, physical: vk::PhysicalDevice) -> u64 {
-    let memory = unsafe { instance.get_physical_device_memory_properties(physical) };
-    let heaps = &memory.memory_heaps[..memory.memory_heap_count as usize];
-    heaps.iter().filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL)).map(|h| h.size).max().unwrap_or(0)
 }
