@@ -207,7 +207,9 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         separate_copy_queue: !args.copies_on_main_queue,
         ..CopyBenchOptions::default()
     };
+    let progress = crate::logging::spinner(format!("copying {} MiB per frame for {} frames", args.size_mib, args.frames));
     let copy = copy_bandwidth(&desc, &copy_options)?;
+    progress.finish_and_clear();
     for d in &copy.devices {
         println!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version);
     }
@@ -224,7 +226,9 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
     );
     let overhead_options =
         OverheadBenchOptions { passes_per_device: args.passes_per_device as u32, ..Default::default() };
+    let progress = crate::logging::spinner("measuring executor overhead".into());
     let overhead = executor_overhead(&desc, &overhead_options)?;
+    progress.finish_and_clear();
     println!(
         "executor: {:.3} µs CPU per submitted pass ({} passes/frame, {:.1} µs/frame); recording once {:.2} µs/pass",
         overhead.median_submit_us_per_pass,

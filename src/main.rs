@@ -46,7 +46,7 @@ fn main() {
     // outputs not yet in place, so an interrupted run leaves nothing behind.
     if let Err(err) = ctrlc::set_handler(|| {
         outputs::remove_pending();
-        eprintln!("interrupted: no output was written");
+        tracing::error!("interrupted: outputs not yet in place were removed");
         std::process::exit(130);
     }) {
         tracing::debug!("no Ctrl-C handler ({err}): an interrupted run may leave a temporary file");

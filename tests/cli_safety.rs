@@ -203,3 +203,22 @@ fn outputs_are_checked_first_and_never_replaced_or_left_half_written() {
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("lf/render.json")).unwrap()).unwrap();
     assert_eq!(json["plan"]["views"], 2);
 }
+
+#[test]
+fn ctrl_c_leaves_no_output() {
+    let dir = scratch("safety", "ctrl-c");
+    // Long enough to be interrupted mid-trace (about a minute on the CPU).
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .current_dir(&dir)
+        .args(["trace", "--cpu", "--resolution", "256x256", "--spp", "4096", "--out", "x.exr", "--png", "x.png"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    assert!(std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("error: interrupted: outputs not yet in place were removed"), "{stderr}");
+    assert!(snapshot(&dir).is_empty(), "files left behind: {:?}", snapshot(&dir).keys());
+}
