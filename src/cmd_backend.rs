@@ -207,7 +207,8 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         separate_copy_queue: !args.copies_on_main_queue,
         ..CopyBenchOptions::default()
     };
-    let progress = crate::logging::spinner(format!("copying {} MiB per frame for {} frames", args.size_mib, args.frames));
+    let progress =
+        crate::logging::spinner(format!("copying {} MiB per frame for {} frames", args.size_mib, args.frames));
     let copy = copy_bandwidth(&desc, &copy_options)?;
     progress.finish_and_clear();
     for d in &copy.devices {
