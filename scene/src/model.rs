@@ -275,9 +275,10 @@ impl Camera {
     }
 }
 
-/// Largest world-space coordinate magnitude a scene may have. Ray/box and ray/triangle tests
-/// multiply coordinate differences (edge cross products are squares of them), and f32 overflows
-/// at 3.4e38: ±1e18 keeps every such product finite with a wide margin.
+/// Largest world-space coordinate magnitude a scene may have. BVH builds and traversal multiply
+/// coordinate differences (surface areas of bounds, edge cross products), and f32 overflows at
+/// 3.4e38: the bounds of ±L have a surface area of 24·L², finite up to L ≈ 3.7e18, so ±1e18
+/// keeps a margin (obvhs panics beyond it: docs/UPSTREAM.md).
 pub const MAX_COORDINATE: f32 = 1e18;
 
 /// Axis-aligned bounds.
