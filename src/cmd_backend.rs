@@ -14,6 +14,7 @@ use parallax_backend::{Context, ContextDesc, ExecOptions, Executor, FrameReport,
 use parallax_graph::{Format as TexelFormat, Graph, LayoutSpec, LightField, PlanConfig, Rig, Role, compile};
 
 use crate::budget::{TraceWork, check_host_bytes};
+use crate::logging::result;
 use crate::options::{
     AssignArg, DeviceArgs, Resolution, SchemeArg, SourceList, assignment, count_in, parse_layout, parse_resolution,
     parse_sources,
@@ -109,7 +110,8 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
 
     let context = Context::new(&ContextDesc::from_env(selection))?;
-    print!("{context}");
+    let stdout_taken = [&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout)));
+    result(stdout_taken, context.to_string().trim_end());
     work.check_devices(&context)?;
     let exec_plan = parallax_backend::Plan::from_schedule(&schedule)?;
     let options = ExecOptions {
@@ -129,7 +131,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     drop(executor);
     context.check_validation()?;
     for r in &reports {
-        print_frame(r);
+        result(stdout_taken, &frame_line(r));
     }
     if let Some(sink) = &args.trace {
         write_json(sink, &chrome_trace(&reports, &context.device_infos()))?;
@@ -140,9 +142,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_frame(r: &FrameReport) {
+fn frame_line(r: &FrameReport) -> String {
     let busy: Vec<String> = r.devices.iter().map(|d| format!("{:.0}%", d.busy_fraction * 100.0)).collect();
-    println!(
+    format!(
         "frame {}: wall {:.3} ms, GPU span {:.3} ms, {} passes in {} submissions ({:.1} µs CPU), busy {}",
         r.frame,
         r.frame_wall_ns as f64 / 1e6,
@@ -151,7 +153,7 @@ fn print_frame(r: &FrameReport) {
         r.submitted_segments,
         r.submit_cpu_ns as f64 / 1e3,
         busy.join(" / ")
-    );
+    )
 }
 
 #[derive(Args, Debug)]
@@ -211,10 +213,11 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         crate::logging::spinner(format!("copying {} MiB per frame for {} frames", args.size_mib, args.frames));
     let copy = copy_bandwidth(&desc, &copy_options)?;
     progress.finish_and_clear();
+    let say = |line: String| result([&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout))), &line);
     for d in &copy.devices {
-        println!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version);
+        say(format!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version));
     }
-    println!(
+    say(format!(
         "copy {} MiB device 0 -> 1, {} chunk(s), {} frame(s) in flight: sustained {:.2} GB/s; per frame median {:.2} GB/s, best {:.2} GB/s (while copying: D->H {:.2}, H->D {:.2})",
         args.size_mib,
         copy.chunks,
@@ -224,19 +227,19 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         copy.best_gb_per_s,
         copy.median_device_to_host_gb_per_s,
         copy.median_host_to_device_gb_per_s
-    );
+    ));
     let overhead_options =
         OverheadBenchOptions { passes_per_device: args.passes_per_device as u32, ..Default::default() };
     let progress = crate::logging::spinner("measuring executor overhead".into());
     let overhead = executor_overhead(&desc, &overhead_options)?;
     progress.finish_and_clear();
-    println!(
+    say(format!(
         "executor: {:.3} µs CPU per submitted pass ({} passes/frame, {:.1} µs/frame); recording once {:.2} µs/pass",
         overhead.median_submit_us_per_pass,
         overhead.passes_per_frame,
         overhead.median_submit_us_per_frame,
         overhead.record_us_per_pass
-    );
+    ));
     if let Some(sink) = &args.trace {
         write_json(sink, &chrome_trace(&copy.reports, &copy.devices))?;
     }

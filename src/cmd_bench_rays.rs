@@ -10,7 +10,7 @@ use parallax_passes::bench::{RayRate, bench_rays};
 use parallax_scene::{BvhQuality, Camera, load_scene};
 
 use crate::budget::TraceWork;
-use crate::logging::spinner;
+use crate::logging::{result, spinner};
 use crate::options::{MAX_DEVICES, Resolution, count_in, parse_camera, parse_resolution};
 use crate::outputs::{Format, Output, Sink, check, parse_sink, write_json};
 
@@ -66,19 +66,20 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
         bench_rays(&context, scene, camera, (width, height), args.repeats as usize, args.bvh_quality, &args.schedule)?;
     progress.finish_and_clear();
     context.check_validation()?;
-    println!("device: {}", report.device);
-    println!(
+    let say = |line: String| result(matches!(args.json, Some(Sink::Stdout)), &line);
+    say(format!("device: {}", report.device));
+    say(format!(
         "CWBVH: {} triangles, {} nodes, build {:.1} ms (obvhs core {:.1} ms)",
         report.triangles, report.bvh_nodes, report.bvh_build_ms, report.bvh_core_build_ms
-    );
+    ));
     let line = |what: &str, r: &RayRate| {
-        println!(
+        say(format!(
             "{what}: {} rays, {:.3} ms median ({:.3} best) -> {:.3e} rays/s",
             r.rays, r.median_ms, r.best_ms, r.rays_per_s
-        )
+        ))
     };
     for s in &report.schedules {
-        println!("schedule {}:", s.schedule);
+        say(format!("schedule {}:", s.schedule));
         line("  primary, closest hit", &s.primary);
         line("  diffuse bounce, closest hit", &s.diffuse_bounce);
         line("  diffuse bounce, any hit", &s.diffuse_bounce_any_hit);

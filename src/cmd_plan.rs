@@ -6,7 +6,7 @@ use clap::Args;
 use parallax_graph::*;
 
 use crate::budget::check_plan_size;
-use crate::logging::spinner;
+use crate::logging::{result, spinner};
 use crate::options::{
     AssignArg, DotDetail, MAX_DEVICES, Resolution, SchemeArg, SourceList, assignment, count_in, parse_layout,
     parse_resolution, parse_sources, parse_spacing,
@@ -82,13 +82,9 @@ pub fn run(args: PlanArgs) -> Result<()> {
         write_json(sink, &summary)?;
     }
     // The summary is the result, on stdout, unless stdout already carries the DOT or JSON.
-    let to_stdout = ![&args.dot, &args.json].iter().any(|s| matches!(s, Some(Sink::Stdout)));
+    let stdout_taken = [&args.dot, &args.json].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     for line in summary_lines(&summary) {
-        if to_stdout {
-            println!("{line}");
-        } else {
-            tracing::info!("{line}");
-        }
+        result(stdout_taken, &line);
     }
     Ok(())
 }

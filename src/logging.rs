@@ -59,6 +59,16 @@ where
     }
 }
 
+/// Prints one result line: on stdout, or as a note on stderr when stdout already carries a
+/// machine-readable output (`--json -`), which text would corrupt.
+pub fn result(stdout_taken: bool, line: &str) {
+    if stdout_taken {
+        tracing::info!("{line}");
+    } else {
+        println!("{line}");
+    }
+}
+
 /// A spinner for work of unknown length (a GPU frame), ticking on its own.
 pub fn spinner(message: String) -> ProgressBar {
     let bar = if QUIET.load(Ordering::Relaxed) {

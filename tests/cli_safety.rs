@@ -21,7 +21,9 @@ fn refused(dir: &Path, args: &[&str], code: i32, needles: &[&str]) {
 fn crashes_are_refusals() {
     let dir = scratch("safety", "crash");
     // obvhs panics on a vertex at 1e20 (docs/UPSTREAM.md): the importer refuses it first.
-    let far = write_gltf(&dir, "far", &[[0.0, 0.0, 0.0], [1e20, 0.0, 0.0], [0.0, 1.0, 0.0]], r#"[{"mesh":0}]"#, "");
+    let positions =
+        [[0.0, 0.0, 0.0], [1e20, 1e20, 1e20], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]];
+    let far = write_gltf(&dir, "far", &positions, r#"[{"mesh":0}]"#, "");
     refused(
         &dir,
         &["trace", "--cpu", "--resolution", "4x4", "--scene", far.to_str().unwrap(), "--out", "x.exr"],
