@@ -157,3 +157,33 @@ fn duration(seconds: f64) -> String {
         s => format!("{:.0} days", s / 86_400.0),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_of_more_than_a_day_are_refused_with_the_flags() {
+        let work = TraceWork { views: 1, width: 512, height: 512, spp: u32::MAX };
+        let err = work.check_duration().unwrap_err().to_string();
+        assert!(err.starts_with("1.13e15 paths (1 view(s) × 512x512 × 4294967295 spp) would take 13 days"), "{err}");
+        assert!(err.ends_with("lower --spp or --resolution (at most 1e14 paths)"), "{err}");
+        assert!(TraceWork { spp: 1 << 16, ..work }.check_duration().is_ok(), "1.7e10 paths: a warning only");
+    }
+
+    #[test]
+    fn plans_beyond_the_planner_are_refused() {
+        assert!(check_plan_size(100, 8, 8, Scheme::FineAll).is_ok());
+        assert!(check_plan_size(4096, 64, 64, Scheme::MultiSource).is_ok());
+        let err = check_plan_size(4096, 64, 64, Scheme::FineAll).unwrap_err().to_string();
+        assert!(err.contains("about 19660800 pass instances and dependencies (at most 4000000)"), "{err}");
+    }
+
+    #[test]
+    fn durations_read_naturally() {
+        assert_eq!(duration(5.0), "5 s");
+        assert_eq!(duration(600.0), "10 min");
+        assert_eq!(duration(36_000.0), "10.0 h");
+        assert_eq!(duration(864_000.0), "10 days");
+    }
+}

@@ -52,7 +52,7 @@ pub struct RunArgs {
     #[arg(long, value_parser = parse_sources)]
     sources: Option<SourceList>,
     /// Per-view resolution WxH.
-    #[arg(long, default_value = "64x64", value_parser = parse_resolution)]
+    #[arg(long, default_value = "64x64", value_name = "WxH", value_parser = parse_resolution)]
     resolution: Resolution,
     /// Frames to execute (1..=10000).
     #[arg(long, allow_negative_numbers = true, default_value_t = 3, value_parser = count_in(1..=10_000))]

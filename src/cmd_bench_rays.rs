@@ -20,7 +20,7 @@ pub struct BenchRaysArgs {
     #[arg(long, default_value = "default")]
     pub scene: String,
     /// Primary rays: one per pixel centre of a WxH image.
-    #[arg(long, default_value = "1024x1024", value_parser = parse_resolution)]
+    #[arg(long, default_value = "1024x1024", value_name = "WxH", value_parser = parse_resolution)]
     pub resolution: Resolution,
     /// Camera as `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`;
     /// without it the scene's first camera (or one framing the whole scene).

@@ -34,7 +34,7 @@ pub struct PlanArgs {
     #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
     spacing: Option<f64>,
     /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
-    #[arg(long, value_parser = parse_resolution)]
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
     resolution: Option<Resolution>,
     /// Write the schedule as Graphviz DOT (.dot or .gv; `-` = stdout).
     #[arg(long, value_parser = parse_sink)]

@@ -39,7 +39,7 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
     spacing: Option<f64>,
     /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
-    #[arg(long, value_parser = parse_resolution)]
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
     resolution: Option<Resolution>,
     /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
     #[arg(long, allow_negative_numbers = true)]

@@ -29,7 +29,7 @@ pub struct TraceArgs {
     #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
     pub camera: Option<Camera>,
     /// Image size as WxH.
-    #[arg(long, default_value = "512x512", value_parser = parse_resolution)]
+    #[arg(long, default_value = "512x512", value_name = "WxH", value_parser = parse_resolution)]
     pub resolution: Resolution,
     /// Samples per pixel.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]

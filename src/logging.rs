@@ -16,10 +16,10 @@ use tracing_subscriber::registry::LookupSpan;
 #[derive(clap::Args, Debug, Clone, Copy)]
 pub struct Verbosity {
     /// More detail on stderr (-v debug, -vv trace).
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, display_order = 1000)]
     verbose: u8,
     /// Only errors on stderr: no progress, no notes, no warnings.
-    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    #[arg(short, long, global = true, conflicts_with = "verbose", display_order = 1000)]
     quiet: bool,
 }
 

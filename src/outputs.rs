@@ -140,12 +140,21 @@ fn forget_pending(path: &Path) {
     PENDING.lock().unwrap_or_else(|e| e.into_inner()).retain(|p| p != path);
 }
 
-/// An output written to a temporary file and not yet in place.
+/// An output written to a temporary file and not yet in place. Dropped without a commit, the
+/// temporary file is removed and the target left as it was.
 pub struct Staged {
-    temp: NamedTempFile,
+    /// `None` once persisted.
+    temp: Option<NamedTempFile>,
+    temp_path: PathBuf,
     target: PathBuf,
     /// The target exists and is not a regular file: copy the bytes into it, never replace it.
     write_through: bool,
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        forget_pending(&self.temp_path);
+    }
 }
 
 /// Writes one output through `write` (which is handed the temporary file's path) without
@@ -163,35 +172,31 @@ pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<Sta
         .prefix(".parallax-")
         .tempfile_in(&folder)
         .with_context(|| format!("cannot write {}: folder {} is not writable", path.display(), folder.display()))?;
-    PENDING.lock().unwrap_or_else(|e| e.into_inner()).push(temp.path().to_path_buf());
-    let staged = Staged { temp, target, write_through };
-    write(staged.temp.path())?;
-    staged.temp.as_file().sync_all().with_context(|| format!("cannot write {}", path.display()))?;
+    let temp_path = temp.path().to_path_buf();
+    PENDING.lock().unwrap_or_else(|e| e.into_inner()).push(temp_path.clone());
+    let staged = Staged { temp: Some(temp), temp_path, target, write_through };
+    write(&staged.temp_path)?;
+    std::fs::File::open(&staged.temp_path)
+        .and_then(|f| f.sync_all())
+        .with_context(|| format!("cannot write {}", path.display()))?;
     Ok(staged)
 }
 
 impl Staged {
     /// Puts the output in place: a rename for a file, a copy into a device or FIFO.
-    pub fn commit(self) -> Result<()> {
-        let temp_path = self.temp.path().to_path_buf();
+    pub fn commit(mut self) -> Result<()> {
         let shown = self.target.display().to_string();
-        let result = if self.write_through {
-            let bytes = std::fs::read(&temp_path).with_context(|| format!("cannot write {shown}"))?;
-            std::fs::OpenOptions::new()
+        if self.write_through {
+            let bytes = std::fs::read(&self.temp_path).with_context(|| format!("cannot write {shown}"))?;
+            return std::fs::OpenOptions::new()
                 .write(true)
                 .open(&self.target)
                 .and_then(|mut f| f.write_all(&bytes).and_then(|_| f.flush()))
-                .with_context(|| format!("cannot write {shown}"))
-        } else {
-            set_published_permissions(&temp_path, &self.target).with_context(|| format!("cannot write {shown}"))?;
-            self.temp
-                .persist(&self.target)
-                .map(drop)
-                .map_err(|e| e.error)
-                .with_context(|| format!("cannot write {shown}"))
-        };
-        forget_pending(&temp_path);
-        result
+                .with_context(|| format!("cannot write {shown}"));
+        }
+        set_published_permissions(&self.temp_path, &self.target).with_context(|| format!("cannot write {shown}"))?;
+        let temp = self.temp.take().context("output committed twice")?;
+        temp.persist(&self.target).map(drop).map_err(|e| e.error).with_context(|| format!("cannot write {shown}"))
     }
 }
 
@@ -235,4 +240,55 @@ pub fn write_json(sink: &Sink, value: &impl serde::Serialize) -> Result<()> {
     let mut text = serde_json::to_string_pretty(value)?;
     text.push('\n');
     write_bytes(sink, text.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file(p: &Path) -> Sink {
+        Sink::File(p.to_path_buf())
+    }
+
+    #[test]
+    fn check_refuses_each_bad_output_by_its_flag() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (file(&dir.path().join("a.json")), file(&dir.path().join("x/../a.json")));
+        let err = |outputs: &[Output]| check(outputs).unwrap_err().to_string();
+        let json = |flag, sink| Output { flag, sink, format: Format::Json };
+        std::fs::create_dir(dir.path().join("x")).unwrap();
+        assert!(err(&[json("--json", &a), json("--trace", &b)]).starts_with("--trace and --json both write"));
+        assert!(err(&[json("--json", &Sink::Stdout), json("--trace", &Sink::Stdout)]).contains("both write to stdout"));
+        let png = file(&dir.path().join("a.exr"));
+        assert!(
+            err(&[Output { flag: "--png", sink: &png, format: Format::Png }])
+                .ends_with("must end in .png (it is written as Png)")
+        );
+        let missing = file(&dir.path().join("none/a.json"));
+        assert!(err(&[json("--json", &missing)]).ends_with("does not exist; create it first"));
+        let folder = file(dir.path());
+        assert!(err(&[json("--json", &folder)]).contains("is a folder"));
+        let exr = Output { flag: "--out", sink: &Sink::Stdout, format: Format::Exr };
+        assert!(err(&[exr]).contains("images cannot be written to stdout"));
+        // Devices carry no extension and are fine.
+        assert!(check(&[json("--json", &file(Path::new("/dev/null")))]).is_ok());
+    }
+
+    #[test]
+    fn a_committed_file_replaces_the_old_one_whole_and_readable() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.json");
+        write_bytes(&file(&path), b"first").unwrap();
+        assert_eq!(std::fs::metadata(&path).unwrap().permissions().mode() & 0o777, 0o644);
+        let staged = stage(&path, |t| Ok(std::fs::write(t, "second")?)).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"first", "nothing changes before the commit");
+        staged.commit().unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        // A failed writer leaves the old file and no temporary file.
+        assert!(stage(&path, |_| anyhow::bail!("disk full")).is_err());
+        assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        assert!(PENDING.lock().unwrap().is_empty());
+    }
 }
