@@ -4,14 +4,18 @@
 //!
 //! `parallax run` executes the backend's own demo kernels (`fill` → `shift_blend` reading the
 //! view's first source → exported output), not the path tracer: the passes crate plugs in the
-//! real kernels through `parallax_backend::KernelRegistry`.
+//! real kernels attached where the graph declares its passes.
 
 use anyhow::{Result, bail};
 use clap::Args;
 use parallax_backend::bench::{CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead};
-use parallax_backend::kernels::builtin_kernels;
-use parallax_backend::{Context, ContextDesc, ExecOptions, Executor, FrameReport, chrome_trace};
-use parallax_graph::{Format as TexelFormat, Graph, LayoutSpec, LightField, PlanConfig, Rig, Role, compile};
+use std::sync::Arc;
+
+use parallax_backend::kernels::{FillKernel, ShiftBlendKernel};
+use parallax_backend::{
+    Context, ContextDesc, ExecOptions, Executor, FrameReport, KernelGraph, PassKernel, chrome_trace,
+};
+use parallax_graph::{Format as TexelFormat, LayoutSpec, LightField, PlanConfig, Rig, Role, compile};
 
 use crate::budget::{TraceWork, check_host_bytes};
 use crate::logging::result;
@@ -96,12 +100,19 @@ pub fn run(args: RunArgs) -> Result<()> {
     let work = TraceWork { views: lf.len() as u64, width: lf.width, height: lf.height, spp: 1 };
     work.check_host()?;
     let plan = parallax_graph::Plan::new(&lf, &config)?;
-    let mut graph = Graph::new(plan.topology.clone());
+    let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = graph.image("radiance", TexelFormat::Rgba32f);
     let mut output = graph.image("output", TexelFormat::Rgba32f);
-    graph.pass("fill", Role::Sources).write(&mut radiance).record();
-    graph.pass("fill", Role::Targets).write(&mut radiance).record();
-    graph.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance).write(&mut output).record();
+    let fill: Arc<dyn PassKernel> = Arc::new(FillKernel);
+    graph.pass("fill", Role::Sources).write(&mut radiance).kernel(fill.clone()).record();
+    graph.pass("fill", Role::Targets).write(&mut radiance).kernel(fill).record();
+    graph
+        .pass("shift_blend", Role::All)
+        .read(&radiance)
+        .read_sources(&radiance)
+        .write(&mut output)
+        .kernel(Arc::new(ShiftBlendKernel))
+        .record();
     graph.export(&output);
     let schedule = compile(&graph, &plan)?;
     let report = schedule.validate();
@@ -113,13 +124,13 @@ pub fn run(args: RunArgs) -> Result<()> {
     let stdout_taken = [&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     result(stdout_taken, context.to_string().trim_end());
     work.check_devices(&context)?;
-    let exec_plan = parallax_backend::Plan::from_schedule(&schedule)?;
+    let exec_plan = parallax_backend::Plan::from_schedule(&graph, &schedule)?;
     let options = ExecOptions {
         frames_in_flight: args.frames_in_flight as usize,
         separate_copy_queue: !args.copies_on_main_queue,
         ..ExecOptions::default()
     };
-    let mut executor = Executor::new(&context, exec_plan, builtin_kernels(), options)?;
+    let mut executor = Executor::new(&context, exec_plan, options)?;
     let progress = crate::logging::bar(args.frames);
     for _ in 0..args.frames {
         executor.run_frame()?;

@@ -110,7 +110,7 @@ fn summary_lines(s: &PlanSummary) -> [String; 6] {
 
 /// Compiles `graph` under `plan` and checks every schedule invariant: a broken one is a bug of
 /// the compiler, reported as such rather than executed.
-pub(crate) fn compile_checked(graph: &Graph, plan: &Plan) -> Result<Schedule> {
+pub(crate) fn compile_checked<P>(graph: &Graph<P>, plan: &Plan) -> Result<Schedule> {
     let schedule = compile(graph, plan)?;
     let report = schedule.validate();
     if !report.is_ok() {

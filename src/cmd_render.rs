@@ -10,9 +10,11 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use glam::Vec2;
-use parallax_backend::{Context as VkContext, ContextDesc, EventKind, FrameReport, Plan as ExecPlan, chrome_trace};
-use parallax_graph::{Graph, LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId};
-use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample, trace_kernels};
+use parallax_backend::{
+    Context as VkContext, ContextDesc, EventKind, FrameReport, KernelGraph, Plan as ExecPlan, chrome_trace,
+};
+use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId};
+use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{Camera, Frame, Scene, SceneBvh, TraceSettings, View, load_scene};
@@ -91,7 +93,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let selection = args.devices.selection();
     let config = PlanConfig { devices: selection.count() as u32, scheme: args.scheme.into(), assign, sources: None };
     let plan = Plan::new(&lf, &config)?;
-    let mut graph = Graph::new(plan.topology.clone());
+    let mut graph = KernelGraph::with_payload(plan.topology.clone());
     declare_trace(&mut graph, None);
     let schedule = compile_checked(&graph, &plan)?;
     let summary = PlanSummary::new(&lf, &plan, &schedule);
@@ -100,8 +102,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let context = VkContext::new(&ContextDesc::from_env(selection))?;
     tracing::info!("{}", context.to_string().trim_end());
     work.check_devices(&context)?;
-    let exec_plan = ExecPlan::from_schedule(&schedule)?;
-    let mut tracer = GpuTracer::new(&context, exec_plan, trace_kernels(None), &GpuScene::new(&scene, &bvh))?;
+    let exec_plan = ExecPlan::from_schedule(&graph, &schedule)?;
+    let mut tracer = GpuTracer::new(&context, exec_plan, &GpuScene::new(&scene, &bvh))?;
     let views: Vec<View> = lf
         .views()
         .map(|v| View { camera: camera_of(&lf, v), width: lf.width, height: lf.height, index: v.0 })

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, EventKind};
-use parallax_passes::{GpuTracer, PATH_TRACE, banded_trace_plan, to_pixel_sample, trace_kernels};
+use parallax_passes::{GpuTracer, PATH_TRACE, banded_trace_plan, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{Camera, CpuTracer, Frame, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
@@ -199,8 +199,8 @@ fn trace_gpu(
     tracing::info!("{}", context.to_string().trim_end());
     work.check_devices(&context)?;
     let devices = selection.count() as u32;
-    let plan = banded_trace_plan(1, (view.width, view.height), devices, devices as usize);
-    let mut tracer = GpuTracer::new(&context, plan, trace_kernels(None), &GpuScene::new(scene, bvh))?;
+    let plan = banded_trace_plan(1, (view.width, view.height), devices, devices)?;
+    let mut tracer = GpuTracer::new(&context, plan, &GpuScene::new(scene, bvh))?;
     let spinner = spinner(format!("tracing {}x{} at {} spp on the GPU", view.width, view.height, settings.spp));
     let t1 = Instant::now();
     let pixels = tracer.render(scene, std::slice::from_ref(view), settings)?.remove(0);

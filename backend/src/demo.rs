@@ -6,7 +6,10 @@
 //! devices, like a fine-grained split), then blended with view `v+1` (a gather from another
 //! view), and every finished view is gathered on device 0.
 
-use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat};
+use crate::kernels::{FillKernel, ShiftBlendKernel};
+use crate::plan::{
+    Kernels, Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
+};
 
 /// Resource ids of the reprojection demo.
 #[derive(Clone, Debug)]
@@ -25,7 +28,10 @@ pub fn demo_device_of_view(view: u32, devices: usize) -> usize {
 /// Builds the reprojection demo for `views` views of `width`×`height` on `devices` devices.
 pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) -> (Plan, DemoResources) {
     assert!(views >= 1 && devices >= 1 && height >= devices as u32);
-    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
+    let mut kernels = Kernels::default();
+    kernels.push(FillKernel);
+    kernels.push(ShiftBlendKernel);
+    let mut plan = Plan { devices: vec![Vec::new(); devices], kernels, ..Plan::default() };
     let all = Rows::new(0, height);
     let mut image = |name: &str, view: u32| {
         plan.resources.push(PlanResource {
@@ -35,6 +41,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
             height,
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
+            storage: 0,
         });
         plan.resources.len() - 1
     };
@@ -74,17 +81,25 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                 &mut plan,
                 PlanPass {
                     name: "fill".into(),
+                    kernel: 0,
                     view: v,
                     rows,
                     device,
                     reads: vec![],
                     history_reads: vec![],
-                    writes: vec![PlanAccess { resource: radiance[v as usize], version: 1, rows }],
+                    writes: vec![PlanAccess::own("radiance", radiance[v as usize], 1, rows)],
                 },
             );
             phases[device][0].push(PlanOp::Pass(p));
             if device != owner(v) {
-                let copy = PlanCopy { resource: radiance[v as usize], version: 1, rows, from: device, to: owner(v) };
+                let copy = PlanCopy {
+                    resource: radiance[v as usize],
+                    dst: radiance[v as usize],
+                    version: 1,
+                    rows,
+                    from: device,
+                    to: owner(v),
+                };
                 add_copy(&mut plan, &mut phases, copy, 0);
             }
         }
@@ -95,6 +110,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
         if owner(source) != owner(v) {
             let copy = PlanCopy {
                 resource: radiance[source as usize],
+                dst: radiance[source as usize],
                 version: 1,
                 rows: all,
                 from: owner(source),
@@ -106,24 +122,32 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
     // Phase 2: blends, then the gather of finished views to device 0 (phase 2→3).
     for v in 0..views {
         let source = (v + 1) % views;
-        let access = |resource: usize| PlanAccess { resource, version: 1, rows: all };
+        let access = |slot: &str, resource: usize| PlanAccess::own(slot, resource, 1, all);
         let p = add_pass(
             &mut plan,
             PlanPass {
                 name: "shift_blend".into(),
+                kernel: 1,
                 view: v,
                 rows: all,
                 device: owner(v),
-                reads: vec![access(radiance[v as usize]), access(radiance[source as usize])],
+                reads: vec![access("radiance", radiance[v as usize]), access("source", radiance[source as usize])],
                 history_reads: vec![],
-                writes: vec![access(output[v as usize])],
+                writes: vec![access("output", output[v as usize])],
             },
         );
         phases[owner(v)][2].push(PlanOp::Pass(p));
     }
     for v in 0..views {
         if owner(v) != 0 {
-            let copy = PlanCopy { resource: output[v as usize], version: 1, rows: all, from: owner(v), to: 0 };
+            let copy = PlanCopy {
+                resource: output[v as usize],
+                dst: output[v as usize],
+                version: 1,
+                rows: all,
+                from: owner(v),
+                to: 0,
+            };
             add_copy(&mut plan, &mut phases, copy, 2);
         }
     }
@@ -145,28 +169,32 @@ pub fn copy_benchmark(width: u32, height: u32) -> Plan {
             height,
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
+            storage: 0,
         }],
         passes: vec![PlanPass {
             name: "fill".into(),
+            kernel: 0,
             view: 0,
             rows: all,
             device: 0,
             reads: vec![],
             history_reads: vec![],
-            writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
+            writes: vec![PlanAccess::own("payload", 0, 1, all)],
         }],
-        copies: vec![PlanCopy { resource: 0, version: 1, rows: all, from: 0, to: 1 }],
+        copies: vec![PlanCopy { resource: 0, dst: 0, version: 1, rows: all, from: 0, to: 1 }],
         devices: vec![
             vec![PlanOp::Pass(0), PlanOp::CopyOut(0), PlanOp::Signal(0)],
             vec![PlanOp::Wait(0), PlanOp::CopyIn(0)],
         ],
+        history_pairs: vec![],
+        kernels: fill_only(),
     }
 }
 
 /// `passes_per_device` tiny fills per device, no copies: measures the executor's CPU cost per
 /// submitted pass.
 pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> Plan {
-    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
+    let mut plan = Plan { devices: vec![Vec::new(); devices], kernels: fill_only(), ..Plan::default() };
     let all = Rows::new(0, size);
     for d in 0..devices {
         for i in 0..passes_per_device {
@@ -178,20 +206,28 @@ pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> 
                 height: size,
                 format: TexelFormat::Rgba8Unorm,
                 kind: ResourceKind::Image,
+                storage: 0,
             });
             plan.passes.push(PlanPass {
                 name: "fill".into(),
+                kernel: 0,
                 view,
                 rows: all,
                 device: d,
                 reads: vec![],
                 history_reads: vec![],
-                writes: vec![PlanAccess { resource: plan.resources.len() - 1, version: 1, rows: all }],
+                writes: vec![PlanAccess::own("target", plan.resources.len() - 1, 1, all)],
             });
             plan.devices[d].push(PlanOp::Pass(plan.passes.len() - 1));
         }
     }
     plan
+}
+
+fn fill_only() -> Kernels {
+    let mut kernels = Kernels::default();
+    kernels.push(FillKernel);
+    kernels
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@ use crate::pipeline::Bindless;
 use crate::plan::{Plan, PlanResource, ResourceKind, TexelFormat};
 use crate::record::{TimerLabel, timer_labels};
 use crate::segments::{Item, Segment};
+use crate::shaders::ShaderLibrary;
 
 /// Alignment of each copy's region inside the staging buffer.
 const STAGING_ALIGN: u64 = 256;
@@ -85,6 +86,7 @@ pub(crate) fn create_device_state(
     d: usize,
     segments: Vec<Segment>,
     slots: usize,
+    shaders: &ShaderLibrary,
     kept: &mut Kept,
 ) -> Result<DeviceState> {
     let (resources, buffer_resources): (Vec<usize>, Vec<usize>) =
@@ -132,7 +134,7 @@ pub(crate) fn create_device_state(
     initialise_images(device, fresh.iter().map(|r| &images[r]).chain(&placeholders))?;
     let image_slots: HashMap<usize, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
     let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
-    let bindless = Bindless::new(device, &ordered, placeholders, slots)?;
+    let bindless = Bindless::new(device, &ordered, placeholders, slots, shaders.clone())?;
     let raw = &device.raw;
     let mut command_pools = [vk::CommandPool::null(); 2];
     for (pool, kind) in command_pools.iter_mut().zip([QueueKind::Main, QueueKind::Copy]) {

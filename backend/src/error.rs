@@ -67,9 +67,17 @@ pub enum BackendError {
     #[error("no kernel registered for pass `{pass}` (registered: {registered:?})")]
     UnknownPass { pass: String, registered: Vec<String> },
 
-    /// A kernel asked for a shader that the build did not embed.
-    #[error("no embedded shader named `{0}`")]
-    UnknownShader(String),
+    /// A kernel asked for a shader that neither the user's library nor the build has.
+    #[error(
+        "no shader named `{name}`: not among the user shaders of ExecOptions::shaders ({}) nor the built-in \
+         shaders of shaders/ ({}); add it with ShaderLibrary::with_spirv or include_shaders!",
+        list(.user), list(.builtin)
+    )]
+    UnknownShader { name: String, user: Vec<String>, builtin: Vec<String> },
+
+    /// Bytes or words handed over as a shader are not SPIR-V.
+    #[error("shader `{shader}` is not SPIR-V: {defect}")]
+    InvalidSpirv { shader: String, defect: crate::shaders::SpirvDefect },
 
     /// A kernel's use of the instance does not match what the kernel expects.
     #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
@@ -116,6 +124,11 @@ pub enum BackendError {
     /// Writing a report or trace file failed.
     #[error("cannot write {path}")]
     Io { path: String, source: std::io::Error },
+}
+
+/// `a, b, c`, or `none` for an empty list.
+fn list(names: &[String]) -> String {
+    if names.is_empty() { "none".into() } else { names.join(", ") }
 }
 
 /// Shorthand used across the crate.

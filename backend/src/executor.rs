@@ -29,9 +29,9 @@ use crate::instance::Instance;
 use crate::memory::{Buffer, color_layers};
 use crate::plan::Plan;
 use crate::record::{SegmentContext, record_segment};
-use crate::recorder::KernelRegistry;
 use crate::relay::{Relay, RelayJob};
 use crate::segments::{Chunk, chunks_of_copies, progress_value, ready_value, segment_device};
+use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData};
 use crate::timing::{FrameReport, TimedEvent};
 
@@ -67,6 +67,9 @@ pub struct ExecOptions {
     /// Capacity of the per-frame data buffer ([`Executor::set_frame_data`]).
     pub frame_data_bytes: u64,
     pub fault: Option<FaultInjection>,
+    /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
+    /// the built-in shaders of `shaders/`.
+    pub shaders: ShaderLibrary,
 }
 
 impl Default for ExecOptions {
@@ -77,6 +80,7 @@ impl Default for ExecOptions {
             separate_copy_queue: true,
             frame_data_bytes: 64 << 10,
             fault: None,
+            shaders: ShaderLibrary::default(),
         }
     }
 }
@@ -107,7 +111,6 @@ pub struct Executor {
     instance: Arc<Instance>,
     devices: Vec<Arc<Device>>,
     plan: Plan,
-    kernels: KernelRegistry,
     options: ExecOptions,
     chunks: Vec<Vec<Chunk>>,
     states: Vec<DeviceState>,
@@ -119,6 +122,9 @@ pub struct Executor {
     next_frame: u64,
     /// First frame of the current plan.
     plan_epoch: u64,
+    /// First frame whose history reads are not last frame's output (plan start, reset): history
+    /// is valid from the frame after it.
+    history_origin: u64,
     in_flight: VecDeque<InFlight>,
     reports: Vec<FrameReport>,
     calibration: Vec<ClockCalibration>,
@@ -139,13 +145,12 @@ pub struct Executor {
 impl Executor {
     /// Validates `plan` and allocates its resources. Command buffers are recorded at the first
     /// frame (so global buffers can be uploaded first) and then reused.
-    pub fn new(context: &Context, plan: Plan, kernels: KernelRegistry, options: ExecOptions) -> Result<Self> {
+    pub fn new(context: &Context, plan: Plan, options: ExecOptions) -> Result<Self> {
         let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
             instance: context.instance.clone(),
             devices: context.devices.clone(),
             plan: Plan::default(),
-            kernels,
             options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
             chunks: Vec::new(),
             states: Vec::new(),
@@ -155,6 +160,7 @@ impl Executor {
             gate: None,
             next_frame: 0,
             plan_epoch: 0,
+            history_origin: 0,
             in_flight: VecDeque::new(),
             reports: Vec::new(),
             calibration,
@@ -166,7 +172,7 @@ impl Executor {
             frame_data_buffers: Vec::new(),
             frame_data: Vec::new(),
         };
-        executor.frame_data_buffers = (0..executor.options.frames_in_flight)
+        executor.frame_data_buffers = (0..executor.slot_count())
             .map(|_| {
                 executor
                     .devices
@@ -201,7 +207,6 @@ impl Executor {
 
     fn build(&mut self, plan: Plan) -> Result<()> {
         plan.validate(self.devices.len())?;
-        self.kernels.check_plan(&plan)?;
         // Threads first (they use the old semaphores), then the old states.
         self.relay = None;
         let mut kept = Kept::default();
@@ -216,12 +221,12 @@ impl Executor {
         self.staging = None;
 
         let chunks = chunks_of_copies(&plan, self.options.chunk_bytes);
-        let slots = self.options.frames_in_flight;
+        let slots = self.slot_count();
         let dropped_wait = self.options.fault.map(|FaultInjection::DropCrossDeviceWait { copy }| copy);
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
-            let state = create_device_state(device, &plan, d, segments, slots, &mut kept)?;
+            let state = create_device_state(device, &plan, d, segments, slots, &self.options.shaders, &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);
             states.push(state);
@@ -247,12 +252,26 @@ impl Executor {
         let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
         self.relay = Some(Relay::new(&self.devices, &progress));
         self.plan_epoch = self.next_frame;
+        self.history_origin = self.next_frame;
         Ok(())
+    }
+
+    /// Recorded frame slots: frames in flight rounded up to even, so a slot's frame parity never
+    /// changes and history pairs can be swapped in the recording (see `Plan::history_pairs`).
+    fn slot_count(&self) -> usize {
+        self.options.frames_in_flight.div_ceil(2) * 2
+    }
+
+    /// Marks history invalid for the next frame (a camera cut, a teleport): its kernels see
+    /// `history_valid = 0` and must not blend in what their history reads return.
+    pub fn reset_history(&mut self) {
+        self.history_origin = self.next_frame;
     }
 
     fn record_all(&mut self) -> Result<()> {
         let started = Instant::now();
         let plan = &self.plan;
+        let parity_maps = [plan.parity_map(0), plan.parity_map(1)];
         let addresses: Vec<HashMap<String, u64>> = self
             .globals
             .iter()
@@ -268,7 +287,7 @@ impl Executor {
                     raw: &state.device.raw,
                     device_index: d,
                     plan,
-                    kernels: &self.kernels,
+                    parity_map: &parity_maps[slot % 2],
                     bindless: &mut state.bindless,
                     images: &state.images,
                     image_slots: &state.image_slots,
@@ -381,9 +400,10 @@ impl Executor {
         let cpu_start = Instant::now();
         let frame = self.next_frame;
         let local = frame - self.plan_epoch;
-        let slot = (frame % self.options.frames_in_flight as u64) as usize;
+        let slot = (frame % self.slot_count() as u64) as usize;
+        let history_valid = frame > self.history_origin;
         for state in &mut self.states {
-            state.bindless.set_frame_constants(slot, frame);
+            state.bindless.set_frame_constants(slot, frame, history_valid);
         }
         if !self.frame_data.is_empty() {
             for buffer in &mut self.frame_data_buffers[slot] {
@@ -653,6 +673,10 @@ impl Executor {
     /// frames).
     pub fn read_resource(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
         self.finish()?;
+        // A history allocation's halves swap by frame parity: read the half the last frame
+        // wrote in `resource`'s place (and its other half for the pair's other member).
+        let last_parity = self.next_frame.saturating_sub(1) % 2;
+        let resource = self.plan.parity_map(last_parity as usize).get(&resource).copied().unwrap_or(resource);
         let state = &self.states[device];
         let image = state.images.get(&resource);
         let buffer = state.buffers.get(&resource);

@@ -4,7 +4,7 @@
 
 use crate::error::{BackendError, Result};
 use crate::plan::{PlanPass, TexelFormat};
-use crate::recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
+use crate::recorder::{Draw, PassKernel, PassParams, Recorder};
 
 /// Writes the deterministic pattern of `shaders/fill.comp` into `writes[0]` over the instance's rows.
 pub struct FillKernel;
@@ -151,21 +151,20 @@ pub fn reference_mask(x: u32, y: u32, view: u32) -> u32 {
     hash3(x, y, view)
 }
 
-/// Adds (frame index + 1) to `writes[0]` in place (`shaders/accumulate.comp`); `reads[0]` is
-/// the same resource's previous version (history).
+/// `acc = history(acc) + frame index + 1` (`shaders/accumulate.comp`): the slot `acc` is
+/// written and read as history (last frame's final `acc`, zero when history is invalid).
 pub struct AccumulateKernel;
 
 impl PassKernel for AccumulateKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "accumulate", 1, 1)?;
-        if pass.reads[0].resource != dst {
+        let (Some(output), Some(history)) = (pass.output("acc"), pass.history("acc")) else {
             return Err(BackendError::KernelMisuse {
                 kernel: "accumulate".into(),
                 instance: index,
-                detail: "must read the resource it writes (its history)".into(),
+                detail: "writes slot `acc` and reads it as history (read_history)".into(),
             });
-        }
-        let params = row_params(rec, pass, dst)?;
+        };
+        let params = PassParams { src0: rec.image(history.resource)?, ..row_params(rec, pass, output.resource)? };
         rec.dispatch_rows("accumulate", params)
     }
 }
@@ -196,19 +195,6 @@ fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, wr
         });
     }
     Ok(pass.writes[0].resource)
-}
-
-/// Registry with the built-in kernels under the pass names `fill`, `shift_blend`,
-/// `accumulate`, `fill_mask`, `raster_demo`, `weighted_fill` and `fill_buffer`.
-pub fn builtin_kernels() -> KernelRegistry {
-    KernelRegistry::new()
-        .with("fill", FillKernel)
-        .with("shift_blend", ShiftBlendKernel)
-        .with("accumulate", AccumulateKernel)
-        .with("fill_mask", FillMaskKernel)
-        .with("raster_demo", RasterDemoKernel)
-        .with("weighted_fill", WeightedFillKernel)
-        .with("fill_buffer", FillBufferKernel)
 }
 
 /// Column shift used by `shift_blend` for `view`.

@@ -11,7 +11,10 @@
 //!   into plan images), per-view buffers, global buffers ([`Executor::upload_buffer`]) and
 //!   per-frame data ([`Executor::set_frame_data`]) by buffer address, sampled RGBA8 textures
 //!   ([`Executor::upload_textures`]) by index into the `textures[]` array of set 0.
-//! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]).
+//! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]);
+//!   kernels of other crates bring their own SPIR-V in a [`ShaderLibrary`]
+//!   ([`ExecOptions::shaders`]), compiled by their build.rs with parallax-glsl
+//!   ([`include_shaders!`]) or loaded at run time.
 //!
 //! ```
 //! use parallax_backend::*;
@@ -24,7 +27,7 @@
 //!     validation: Validation::Core,
 //! })?;
 //! let (plan, ids) = reprojection_demo(3, 2, 32, 32); // or Plan::from_schedule(&schedule)?
-//! let mut executor = Executor::new(&context, plan, builtin_kernels(), ExecOptions::default())?;
+//! let mut executor = Executor::new(&context, plan, ExecOptions::default())?;
 //! for _ in 0..3 {
 //!     executor.run_frame()?; // no re-recording, up to 2 frames in flight
 //! }
@@ -51,6 +54,7 @@ mod record;
 mod recorder;
 mod relay;
 mod segments;
+mod shaders;
 mod texture;
 mod timing;
 
@@ -58,19 +62,20 @@ pub mod bench;
 pub mod demo;
 pub mod kernels;
 pub mod plan;
+pub mod reflect;
 
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
 pub use executor::{ExecOptions, Executor, FaultInjection};
 pub use instance::{Instance, Validation, validation_from_env};
-pub use lower::LowerError;
+pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
-pub use pipeline::{shader_names, spirv};
 pub use plan::{
     Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
 };
-pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
+pub use recorder::{Draw, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
+pub use shaders::{ShaderLibrary, SpirvDefect, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

@@ -1,16 +1,31 @@
-//! Lowering a compiled `parallax_graph::Schedule` to the executor's [`Plan`]: ids become
-//! indices, regions become row bands, device programs are ordered by device id. Nothing is
-//! re-planned here; the schedule's op order is kept exactly.
+//! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
+//! [`Plan`]: allocations become resources (history allocations two: the halves swapped by frame
+//! parity), accesses keep their slot name and origin, each pass instance points at the kernel
+//! its pass was declared with, device programs are ordered by device id. Nothing is re-planned;
+//! the schedule's op order is kept exactly.
 
-use parallax_graph::{Access, Format, Op, ResourceDesc, Schedule};
+use std::collections::HashMap;
+use std::sync::Arc;
 
-use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat};
+use parallax_graph::{Access, Format, Graph, Op, PassId, ResourceDesc, Schedule};
+
+use crate::plan::{
+    Kernels, Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
+};
+use crate::recorder::PassKernel;
+
+/// A render graph whose passes carry their kernels: what the executor runs.
+pub type KernelGraph = Graph<Arc<dyn PassKernel>>;
 
 /// What makes a schedule impossible to lower.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum LowerError {
     #[error("the schedule has programs for devices {found:?}; expected exactly 0..{expected}")]
     DevicePrograms { found: Vec<u32>, expected: usize },
+    #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
+    MissingKernel { pass: String },
+    #[error("the schedule does not validate: {0}")]
+    Invalid(String),
 }
 
 fn texel_format(format: Format) -> TexelFormat {
@@ -24,46 +39,105 @@ fn texel_format(format: Format) -> TexelFormat {
     }
 }
 
-fn access(a: &Access) -> PlanAccess {
-    PlanAccess { resource: a.resource.index(), version: a.version, rows: Rows::new(a.region.y0, a.region.y1) }
-}
-
 impl Plan {
-    /// Lowers `schedule`. Run `Plan::validate` (the executor does) for the execution invariants.
-    pub fn from_schedule(schedule: &Schedule) -> Result<Plan, LowerError> {
-        let resources = schedule
-            .resources
+    /// Lowers `schedule`, compiled from `graph`. The schedule must pass
+    /// `Schedule::validate()` (checked here: a plan that breaks the storage rules would race);
+    /// `Plan::validate` (the executor runs it) checks the execution invariants.
+    pub fn from_schedule(graph: &KernelGraph, schedule: &Schedule) -> Result<Plan, LowerError> {
+        let report = schedule.validate();
+        if let Some(first) = report.errors.first() {
+            return Err(LowerError::Invalid(format!("{first} ({} problem(s) in all)", report.errors.len())));
+        }
+        let mut kernels = Kernels::default();
+        let mut kernel_of: HashMap<PassId, usize> = HashMap::new();
+        for inst in &schedule.instances {
+            if kernel_of.contains_key(&inst.pass) {
+                continue;
+            }
+            let kernel =
+                graph.payload(inst.pass).ok_or_else(|| LowerError::MissingKernel { pass: inst.name.clone() })?;
+            kernels.0.push(kernel.clone());
+            kernel_of.insert(inst.pass, kernels.0.len() - 1);
+        }
+
+        let mut resources: Vec<PlanResource> = schedule
+            .allocations
             .iter()
-            .map(|r| match r.desc {
-                ResourceDesc::Image { width, height, format } => PlanResource {
-                    name: r.name.clone(),
-                    view: r.view.0,
+            .enumerate()
+            .map(|(a, alloc)| {
+                let info = schedule.resource(alloc.resource);
+                let (width, height, format, kind) = match info.desc {
+                    ResourceDesc::Image { width, height, format } => {
+                        (width, height, texel_format(format), ResourceKind::Image)
+                    }
+                    // A buffer is rows of 32-bit words: one row, or one per image row for a row
+                    // buffer, so its bands are copied like an image's.
+                    ResourceDesc::Buffer { .. } | ResourceDesc::RowBuffer { .. } => {
+                        let words = info.desc.row_bytes().div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;
+                        (words, info.desc.rows(), TexelFormat::R32Uint, ResourceKind::Buffer)
+                    }
+                };
+                PlanResource {
+                    name: info.name.clone(),
+                    view: info.view.0,
                     width,
                     height,
-                    format: texel_format(format),
-                    kind: ResourceKind::Image,
-                },
-                ResourceDesc::Buffer { bytes } => PlanResource::buffer(r.name.clone(), r.view.0, bytes),
+                    format,
+                    kind,
+                    storage: a as u32,
+                }
             })
-            .collect::<Vec<_>>();
+            .collect();
+        // The other half of each history allocation.
+        let mut history_pairs = Vec::new();
+        let mut previous_of: HashMap<usize, usize> = HashMap::new();
+        for (a, alloc) in schedule.allocations.iter().enumerate().filter(|(_, alloc)| alloc.history) {
+            let twin = PlanResource {
+                storage: (schedule.allocations.len() + history_pairs.len()) as u32,
+                ..resources[a].clone()
+            };
+            resources.push(twin);
+            let b = resources.len() - 1;
+            history_pairs.push((a, b));
+            previous_of.insert(a, b);
+            debug_assert!(alloc.history);
+        }
+
+        let rows_of = |a: &Access| Rows::new(a.region.y0, a.region.y1);
         let passes = schedule
             .instances
             .iter()
-            .map(|p| PlanPass {
-                name: p.name.clone(),
-                view: p.view.0,
-                rows: Rows::new(p.region.y0, p.region.y1),
-                device: p.device.index(),
-                reads: p.reads.iter().map(access).collect(),
-                writes: p.writes.iter().map(access).collect(),
-                history_reads: p.history_reads.iter().map(access).collect(),
+            .map(|p| {
+                let info = &schedule.passes[p.pass.index()];
+                let access = |a: &Access, names: &[parallax_graph::SlotInfo], resource: usize| PlanAccess {
+                    resource,
+                    version: a.version,
+                    rows: rows_of(a),
+                    slot: names[a.decl as usize].name.clone(),
+                    origin: a.origin,
+                };
+                PlanPass {
+                    name: p.name.clone(),
+                    kernel: kernel_of[&p.pass],
+                    view: p.view.0,
+                    rows: Rows::new(p.region.y0, p.region.y1),
+                    device: p.device.index(),
+                    reads: p.reads.iter().map(|a| access(a, &info.reads, a.alloc.index())).collect(),
+                    writes: p.writes.iter().map(|a| access(a, &info.writes, a.alloc.index())).collect(),
+                    history_reads: p
+                        .history_reads
+                        .iter()
+                        .map(|a| access(a, &info.reads, previous_of[&a.alloc.index()]))
+                        .collect(),
+                }
             })
             .collect();
         let copies = schedule
             .copies
             .iter()
             .map(|c| PlanCopy {
-                resource: c.resource.index(),
+                resource: c.src_alloc.index(),
+                dst: c.dst_alloc.index(),
                 version: c.version,
                 rows: Rows::new(c.region.y0, c.region.y1),
                 from: c.from.index(),
@@ -91,6 +165,6 @@ impl Plan {
                     .collect()
             })
             .collect();
-        Ok(Plan { resources, passes, copies, devices })
+        Ok(Plan { resources, passes, copies, devices, history_pairs, kernels })
     }
 }

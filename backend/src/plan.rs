@@ -4,6 +4,11 @@
 //! translation, and the executor can be tested with hand-written plans.
 
 use std::collections::HashMap;
+use std::sync::Arc;
+
+pub use parallax_graph::Origin;
+
+use crate::recorder::PassKernel;
 
 /// A row band `[y0, y1)` of a view image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -56,7 +61,8 @@ pub enum ResourceKind {
     Buffer,
 }
 
-/// One per-view resource.
+/// One allocation: storage of one or more versions of a per-view resource on one device (the
+/// schedule's `Allocation`s; a history allocation is two of these, see [`Plan::history_pairs`]).
 #[derive(Clone, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub struct PlanResource {
     pub name: String,
@@ -65,6 +71,9 @@ pub struct PlanResource {
     pub height: u32,
     pub format: TexelFormat,
     pub kind: ResourceKind,
+    /// Tells apart allocations of one resource (the schedule's allocation index, or any
+    /// distinct number in a hand-laid plan), so a plan change keeps each one's contents.
+    pub storage: u32,
 }
 
 impl PlanResource {
@@ -78,6 +87,7 @@ impl PlanResource {
             height: 1,
             format: TexelFormat::R32Uint,
             kind: ResourceKind::Buffer,
+            storage: 0,
         }
     }
 
@@ -92,32 +102,75 @@ impl PlanResource {
 }
 
 /// One access of a pass instance to a resource version, over a row band.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct PlanAccess {
+    /// The allocation (index into [`Plan::resources`]).
     pub resource: usize,
     pub version: u32,
     pub rows: Rows,
+    /// The slot the kernel finds it under: the declared resource's name.
+    pub slot: String,
+    pub origin: Origin,
+}
+
+impl PlanAccess {
+    /// An access of the instance's own view under slot `slot`.
+    pub fn own(slot: impl Into<String>, resource: usize, version: u32, rows: Rows) -> Self {
+        Self { resource, version, rows, slot: slot.into(), origin: Origin::Own }
+    }
 }
 
 /// One pass instance: a pass of the graph run for one view (or a row band of it) on one device.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct PlanPass {
-    /// Pass name; selects the kernel.
+    /// Pass name (for timings and messages; the kernel is [`Self::kernel`]).
     pub name: String,
+    /// Index of the pass's kernel in [`Plan::kernels`].
+    pub kernel: usize,
     pub view: u32,
     pub rows: Rows,
     pub device: usize,
-    /// Reads in the order the pass declared them (kernels rely on that order).
+    /// Reads in declaration order (sources of one read in source order).
     pub reads: Vec<PlanAccess>,
     pub writes: Vec<PlanAccess>,
-    /// Reads of the previous frame's last version (the image persists across frames).
+    /// Reads of the previous frame's final version (its other half, by frame parity).
     pub history_reads: Vec<PlanAccess>,
 }
 
-/// A transfer of a row band of one resource from one device to another.
+impl PlanPass {
+    /// The own-view read in slot `slot`.
+    pub fn input(&self, slot: &str) -> Option<&PlanAccess> {
+        self.reads.iter().find(|a| a.slot == slot && a.origin == Origin::Own)
+    }
+
+    /// The read of source `i` (in the view's source order) in slot `slot`.
+    pub fn source_input(&self, slot: &str, i: u32) -> Option<&PlanAccess> {
+        self.reads.iter().find(|a| a.slot == slot && a.origin == Origin::Source(i))
+    }
+
+    /// Reads of every source in slot `slot`, in source order.
+    pub fn source_inputs<'p>(&'p self, slot: &'p str) -> impl Iterator<Item = &'p PlanAccess> + 'p {
+        self.reads.iter().filter(move |a| a.slot == slot && matches!(a.origin, Origin::Source(_)))
+    }
+
+    /// Last frame's final version in slot `slot`.
+    pub fn history(&self, slot: &str) -> Option<&PlanAccess> {
+        self.history_reads.iter().find(|a| a.slot == slot)
+    }
+
+    /// The write in slot `slot`.
+    pub fn output(&self, slot: &str) -> Option<&PlanAccess> {
+        self.writes.iter().find(|a| a.slot == slot)
+    }
+}
+
+/// A transfer of a row band of one resource version from one device to another.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct PlanCopy {
+    /// The version's allocation on `from`.
     pub resource: usize,
+    /// Its allocation on `to` (the same description as `resource`).
+    pub dst: usize,
     pub version: u32,
     pub rows: Rows,
     pub from: usize,
@@ -147,6 +200,37 @@ pub struct Plan {
     pub copies: Vec<PlanCopy>,
     /// `devices[d]` is device d's op list in submission order.
     pub devices: Vec<Vec<PlanOp>>,
+    /// Double-buffered history allocations as (current, previous) resource pairs: passes of an
+    /// even frame write `current` and read history from `previous`; odd frames swap the two.
+    /// Command buffers are recorded once per parity, so the swap costs nothing per frame.
+    pub history_pairs: Vec<(usize, usize)>,
+    /// The kernels passes run, by [`PlanPass::kernel`].
+    #[serde(skip)]
+    pub kernels: Kernels,
+}
+
+/// The kernels of a plan. Two plans' kernels are equal when they are the same objects.
+#[derive(Clone, Default)]
+pub struct Kernels(pub Vec<Arc<dyn PassKernel>>);
+
+impl PartialEq for Kernels {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.len() == other.0.len() && self.0.iter().zip(&other.0).all(|(a, b)| Arc::ptr_eq(a, b))
+    }
+}
+
+impl std::fmt::Debug for Kernels {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Kernels({})", self.0.len())
+    }
+}
+
+impl Kernels {
+    /// Adds `kernel`; returns its index.
+    pub fn push(&mut self, kernel: impl PassKernel + 'static) -> usize {
+        self.0.push(Arc::new(kernel));
+        self.0.len() - 1
+    }
 }
 
 /// What can be inconsistent in a plan. The graph's `Schedule::validate()` checks the planning
@@ -171,26 +255,37 @@ pub enum PlanError {
     CopyOpOrder { copy: usize },
     #[error("resource {resource} has zero size")]
     EmptyResource { resource: usize },
+    #[error("history pair ({current}, {previous}): the two halves differ in size, format or kind")]
+    HistoryPairMismatch { current: usize, previous: usize },
 }
 
 impl Plan {
     /// One pass instance `name` on device 0 writing all of `resource` (version 1) and nothing
     /// else; the other `devices - 1` devices stay idle. What a kernel that runs alone needs.
-    pub fn single_pass(name: impl Into<String>, resource: PlanResource, devices: usize) -> Self {
+    pub fn single_pass(
+        name: impl Into<String>,
+        kernel: impl PassKernel + 'static,
+        resource: PlanResource,
+        devices: usize,
+    ) -> Self {
         let all = Rows::new(0, resource.height);
+        let mut kernels = Kernels::default();
         Plan {
             passes: vec![PlanPass {
                 name: name.into(),
+                kernel: kernels.push(kernel),
                 view: resource.view,
                 rows: all,
                 device: 0,
                 reads: vec![],
-                writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
+                writes: vec![PlanAccess::own(resource.name.clone(), 0, 1, all)],
                 history_reads: vec![],
             }],
             resources: vec![resource],
             copies: vec![],
             devices: (0..devices.max(1)).map(|d| if d == 0 { vec![PlanOp::Pass(0)] } else { vec![] }).collect(),
+            history_pairs: vec![],
+            kernels,
         }
     }
 
@@ -236,8 +331,33 @@ impl Plan {
                 check_rows("pass instance", i, a.resource, a.rows)?;
             }
         }
+        for (i, p) in self.passes.iter().enumerate() {
+            if p.kernel >= self.kernels.0.len() {
+                return Err(PlanError::Dangling {
+                    what: "pass instance",
+                    index: i,
+                    missing: "kernel",
+                    target: p.kernel,
+                });
+            }
+        }
+        for &(a, b) in &self.history_pairs {
+            for r in [a, b] {
+                if r >= self.resources.len() {
+                    return Err(PlanError::Dangling { what: "history pair", index: a, missing: "resource", target: r });
+                }
+            }
+            if self.resources[a].width != self.resources[b].width
+                || self.resources[a].height != self.resources[b].height
+                || self.resources[a].format != self.resources[b].format
+                || self.resources[a].kind != self.resources[b].kind
+            {
+                return Err(PlanError::HistoryPairMismatch { current: a, previous: b });
+            }
+        }
         for (i, c) in self.copies.iter().enumerate() {
             check_rows("copy", i, c.resource, c.rows)?;
+            check_rows("copy", i, c.dst, c.rows)?;
             for d in [c.from, c.to] {
                 if d >= self.devices.len() {
                     return Err(PlanError::Dangling { what: "copy", index: i, missing: "device", target: d });
@@ -306,13 +426,48 @@ impl Plan {
                     let pass = &self.passes[p];
                     used.extend(pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).map(|a| a.resource));
                 }
-                PlanOp::CopyOut(c) | PlanOp::CopyIn(c) => used.push(self.copies[c].resource),
+                PlanOp::CopyOut(c) => used.push(self.copies[c].resource),
+                PlanOp::CopyIn(c) => used.push(self.copies[c].dst),
                 PlanOp::Signal(_) | PlanOp::Wait(_) => {}
+            }
+        }
+        // Both halves of a history allocation live where either is used.
+        for &(a, b) in &self.history_pairs {
+            if used.contains(&a) || used.contains(&b) {
+                used.extend([a, b]);
             }
         }
         used.sort_unstable();
         used.dedup();
         used
+    }
+
+    /// Where each resource reads from and writes to in a frame of `parity` (0 even, 1 odd): the
+    /// identity but for history pairs, which swap on odd frames.
+    pub fn parity_map(&self, parity: usize) -> HashMap<usize, usize> {
+        if parity % 2 == 0 {
+            return HashMap::new();
+        }
+        self.history_pairs.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect()
+    }
+
+    /// Where the final version of the resource written under slot `slot` for `view` can be
+    /// read after a frame: `(device, resource)`, on device 0 when it is there (written there or
+    /// gathered), else on the device that wrote it.
+    pub fn final_output(&self, slot: &str, view: u32) -> Option<(usize, usize)> {
+        let writes = || {
+            self.passes
+                .iter()
+                .filter(move |p| p.view == view)
+                .flat_map(|p| p.writes.iter().filter(|w| w.slot == slot).map(move |w| (p.device, w)))
+        };
+        let version = writes().map(|(_, w)| w.version).max()?;
+        let finals = || writes().filter(move |(_, w)| w.version == version);
+        let on_primary = finals().find(|(d, _)| *d == 0).map(|(_, w)| w.resource).or_else(|| {
+            let sources: Vec<usize> = finals().map(|(_, w)| w.resource).collect();
+            self.copies.iter().find(|c| c.to == 0 && sources.contains(&c.resource)).map(|c| c.dst)
+        });
+        on_primary.map(|r| (0, r)).or_else(|| finals().next().map(|(d, w)| (d, w.resource)))
     }
 
     /// Bytes moved by copy `c` (only the copied rows).

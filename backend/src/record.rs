@@ -14,7 +14,7 @@ use crate::error::{Result, VkContext};
 use crate::memory::{Image, color_layers};
 use crate::pipeline::Bindless;
 use crate::plan::Plan;
-use crate::recorder::{KernelRegistry, Recorder};
+use crate::recorder::Recorder;
 use crate::segments::{Chunk, Item, Segment};
 use crate::timing::EventKind;
 
@@ -79,7 +79,6 @@ pub(crate) struct SegmentContext<'a> {
     pub raw: &'a ash::Device,
     pub device_index: usize,
     pub plan: &'a Plan,
-    pub kernels: &'a KernelRegistry,
     pub bindless: &'a mut Bindless,
     pub images: &'a HashMap<usize, Image>,
     pub image_slots: &'a HashMap<usize, u32>,
@@ -93,6 +92,15 @@ pub(crate) struct SegmentContext<'a> {
     /// Per-view buffer resources of this device and their addresses.
     pub buffers: &'a HashMap<usize, crate::memory::Buffer>,
     pub buffer_addresses: &'a HashMap<usize, u64>,
+    /// The plan's history pairs swapped for an odd frame (empty for an even one).
+    pub parity_map: &'a HashMap<usize, usize>,
+}
+
+impl SegmentContext<'_> {
+    /// The resource an access to `resource` touches in this slot's frame parity.
+    fn resolve(&self, resource: usize) -> usize {
+        self.parity_map.get(&resource).copied().unwrap_or(resource)
+    }
 }
 
 /// Records `segment`; its first timer is `first_timer`.
@@ -140,8 +148,9 @@ fn record_items(
         match *item {
             Item::Pass(p) => {
                 let pass = &ctx.plan.passes[p];
-                let kernel = ctx.kernels.get(&pass.name)?.clone();
+                let kernel = ctx.plan.kernels.0[pass.kernel].clone();
                 let mut rec = Recorder {
+                    parity_map: ctx.parity_map,
                     raw,
                     cb,
                     bindless: ctx.bindless,
@@ -188,10 +197,14 @@ enum CopyDirection {
 fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, direction: CopyDirection) {
     let raw = ctx.raw;
     let copy = &ctx.plan.copies[chunk.copy];
-    let resource = &ctx.plan.resources[copy.resource];
+    let local = ctx.resolve(match direction {
+        CopyDirection::Out => copy.resource,
+        CopyDirection::In => copy.dst,
+    });
+    let resource = &ctx.plan.resources[local];
     let (staging, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
     let staging_offset = offsets[chunk.copy] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
-    if let Some(buffer) = ctx.buffers.get(&copy.resource) {
+    if let Some(buffer) = ctx.buffers.get(&local) {
         let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
         let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
         let (src, dst, region) = match direction {
@@ -205,7 +218,7 @@ fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, d
         unsafe { raw.cmd_copy_buffer(cb, src, dst, &[region]) };
         return;
     }
-    let image = ctx.images[&copy.resource].raw;
+    let image = ctx.images[&local].raw;
     let region = vk::BufferImageCopy::default()
         .buffer_offset(staging_offset)
         .image_subresource(color_layers())

@@ -5,7 +5,6 @@
 //! chooses a shader, fills [`PassParams`] from the pass instance and dispatches.
 
 use std::collections::HashMap;
-use std::sync::Arc;
 
 use ash::vk;
 
@@ -45,7 +44,8 @@ impl PassParams {
 /// area (the viewport stays the whole image, so a band renders exactly its rows of the frame).
 #[derive(Clone, Debug)]
 pub struct Draw<'a> {
-    /// Embedded vertex and fragment shaders (`name.vert`, `name.frag` in shaders/).
+    /// Vertex and fragment shaders (`name.vert`, `name.frag`), from `ExecOptions::shaders`,
+    /// else built in (shaders/).
     pub vertex_shader: &'a str,
     pub fragment_shader: &'a str,
     /// Colour targets (resources), in fragment output location order. All the same size.
@@ -62,6 +62,8 @@ pub struct Draw<'a> {
 
 /// Records the work of one pass instance into a device's command buffer.
 pub struct Recorder<'a> {
+    /// History pairs swapped for an odd frame (see `Plan::history_pairs`).
+    pub(crate) parity_map: &'a HashMap<usize, usize>,
     pub(crate) raw: &'a ash::Device,
     pub(crate) cb: vk::CommandBuffer,
     pub(crate) bindless: &'a mut Bindless,
@@ -80,6 +82,7 @@ pub struct Recorder<'a> {
 impl Recorder<'_> {
     /// Index of `resource` in the device's image array (what shaders get in push constants).
     pub fn image(&self, resource: usize) -> Result<u32> {
+        let resource = self.resolve(resource);
         if let Some(&slot) = self.image_slots.get(&resource) {
             return Ok(slot);
         }
@@ -93,6 +96,16 @@ impl Recorder<'_> {
         Err(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
     }
 
+    /// The resource an access to `resource` touches in the frame parity being recorded.
+    fn resolve(&self, resource: usize) -> usize {
+        self.parity_map.get(&resource).copied().unwrap_or(resource)
+    }
+
+    /// The image slot of access `access` (see [`Self::image`]).
+    pub fn image_of(&self, access: &crate::plan::PlanAccess) -> Result<u32> {
+        self.image(access.resource)
+    }
+
     /// The plan's description of `resource`.
     pub fn resource(&self, resource: usize) -> &PlanResource {
         &self.plan.resources[resource]
@@ -103,7 +116,8 @@ impl Recorder<'_> {
         self.device_index
     }
 
-    /// Binds the embedded compute shader `shader`, pushes `params` and dispatches `groups`.
+    /// Binds compute shader `shader` (from `ExecOptions::shaders`, else built in), pushes
+    /// `params` and dispatches `groups`.
     pub fn dispatch(&mut self, shader: &str, params: PassParams, groups: [u32; 3]) -> Result<()> {
         self.dispatch_bytes(shader, &params.to_bytes(), groups)
     }
@@ -136,7 +150,7 @@ impl Recorder<'_> {
     /// this device.
     pub fn buffer_of(&self, resource: usize) -> Result<u64> {
         self.buffer_addresses
-            .get(&resource)
+            .get(&self.resolve(resource))
             .copied()
             .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
     }
@@ -177,7 +191,7 @@ impl Recorder<'_> {
         for &target in draw.color_targets {
             let image = self
                 .images
-                .get(&target)
+                .get(&self.resolve(target))
                 .ok_or(BackendError::ResourceNotOnDevice { resource: target, device: self.device_index })?;
             color_formats.push(crate::memory::vk_format(image.format)?);
             attachments.push(
@@ -282,41 +296,4 @@ impl Recorder<'_> {
 pub trait PassKernel: Send + Sync {
     /// Records instance `index` of the plan (`pass` = `plan.passes[index]`).
     fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()>;
-}
-
-/// Pass name → kernel.
-#[derive(Clone, Default)]
-pub struct KernelRegistry {
-    kernels: HashMap<String, Arc<dyn PassKernel>>,
-}
-
-impl KernelRegistry {
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Registers `kernel` for pass `name` (replacing an earlier one).
-    pub fn register(&mut self, name: impl Into<String>, kernel: impl PassKernel + 'static) {
-        self.kernels.insert(name.into(), Arc::new(kernel));
-    }
-
-    /// Builder form of [`Self::register`].
-    pub fn with(mut self, name: impl Into<String>, kernel: impl PassKernel + 'static) -> Self {
-        self.register(name, kernel);
-        self
-    }
-
-    /// The kernel of pass `name`.
-    pub fn get(&self, name: &str) -> Result<&Arc<dyn PassKernel>> {
-        self.kernels.get(name).ok_or_else(|| {
-            let mut registered: Vec<String> = self.kernels.keys().cloned().collect();
-            registered.sort();
-            BackendError::UnknownPass { pass: name.to_string(), registered }
-        })
-    }
-
-    /// Fails with [`BackendError::UnknownPass`] for the first pass of `plan` without a kernel.
-    pub fn check_plan(&self, plan: &Plan) -> Result<()> {
-        plan.passes.iter().try_for_each(|p| self.get(&p.name).map(|_| ()))
-    }
 }

@@ -10,8 +10,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    BackendError, Context, EventKind, ExecOptions, Executor, KernelRegistry, PassKernel, Plan, PlanPass, PlanResource,
-    Recorder, ResourceKind,
+    BackendError, Context, EventKind, ExecOptions, Executor, PassKernel, Plan, PlanPass, PlanResource, Recorder,
+    ResourceKind,
 };
 use parallax_scene::Scene;
 use parallax_scene::gpu::GpuScene;
@@ -117,7 +117,7 @@ impl PassKernel for RaycastKernel {
             }
         };
         let capacity = rec.resource(hits).width / 4;
-        let mut push = scene_refs(rec)?;
+        let mut push: Vec<u8> = bytemuck::cast_slice(&scene_refs(rec)?).to_vec();
         push.extend_from_slice(&rec.buffer_address(RAYS)?.to_le_bytes());
         push.extend_from_slice(&rec.buffer_of(hits)?.to_le_bytes());
         push.extend_from_slice(&rec.frame_data_address().to_le_bytes());
@@ -162,9 +162,8 @@ impl Raycaster {
     ) -> Result<Self> {
         let capacity = capacity.max(1);
         let hits = PlanResource::buffer("hits", 0, (capacity * std::mem::size_of::<HitOut>()) as u64);
-        let plan = Plan::single_pass(RAYCAST, hits, context.devices().len());
-        let kernels = KernelRegistry::new().with(RAYCAST, RaycastKernel { opaque, schedule });
-        let mut executor = Executor::new(context, plan, kernels, ExecOptions::default())?;
+        let plan = Plan::single_pass(RAYCAST, RaycastKernel { opaque, schedule }, hits, context.devices().len());
+        let mut executor = Executor::new(context, plan, ExecOptions::default())?;
         upload_scene(&mut executor, scene)?;
         executor.upload_buffer(RAYCAST_WORK, &[0u8; 8])?;
         Ok(Self { executor, capacity })
