@@ -33,7 +33,10 @@ pub struct DevicesArgs {
 
 /// `parallax devices`: create the devices and print them.
 pub fn devices(args: DevicesArgs) -> Result<()> {
-    let context = Context::new(&ContextDesc::from_env(args.devices.selection()))?;
+    let selection = args.devices.selection();
+    let progress = crate::logging::spinner(format!("creating {} device(s)", selection.count()));
+    let context = Context::new(&ContextDesc::from_env(selection))?;
+    progress.finish_and_clear();
     print!("{context}");
     context.check_validation()?;
     Ok(())

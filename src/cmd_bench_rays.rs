@@ -7,11 +7,11 @@ use anyhow::Context as _;
 use parallax_backend::{Context, ContextDesc, DeviceSelection};
 use parallax_passes::RaySchedule;
 use parallax_passes::bench::{RayRate, bench_rays};
-use parallax_scene::{BvhQuality, Camera, load_scene};
+use parallax_scene::{Camera, load_scene};
 
 use crate::budget::TraceWork;
 use crate::logging::{result, spinner};
-use crate::options::{MAX_DEVICES, Resolution, count_in, parse_camera, parse_resolution};
+use crate::options::{BvhQualityArg, MAX_DEVICES, Resolution, count_in, parse_camera, parse_resolution};
 use crate::outputs::{Format, Output, Sink, check, parse_sink, write_json};
 
 #[derive(Debug, clap::Args)]
@@ -26,9 +26,9 @@ pub struct BenchRaysArgs {
     /// without it the scene's first camera (or one framing the whole scene).
     #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
     pub camera: Option<Camera>,
-    /// BVH build preset: fast, medium, slow or very-slow (slow ones pre-split triangles).
-    #[arg(long, default_value = "medium")]
-    pub bvh_quality: BvhQuality,
+    /// obvhs BVH build preset.
+    #[arg(long, value_enum, default_value_t = BvhQualityArg::Medium)]
+    pub bvh_quality: BvhQualityArg,
     /// Timed casts per batch, after one untimed warm-up cast; the median GPU time is reported.
     #[arg(long, allow_negative_numbers = true, default_value_t = 9, value_parser = count_in(1..=1000))]
     pub repeats: u64,
@@ -62,8 +62,15 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     work.check_devices(&context)?;
     let camera = args.camera.unwrap_or_else(|| scene.default_camera());
     let progress = spinner(format!("casting {width}x{height} rays under {} schedule(s)", args.schedule.len()));
-    let report =
-        bench_rays(&context, scene, camera, (width, height), args.repeats as usize, args.bvh_quality, &args.schedule)?;
+    let report = bench_rays(
+        &context,
+        scene,
+        camera,
+        (width, height),
+        args.repeats as usize,
+        args.bvh_quality.into(),
+        &args.schedule,
+    )?;
     progress.finish_and_clear();
     context.check_validation()?;
     let say = |line: String| result(matches!(args.json, Some(Sink::Stdout)), &line);

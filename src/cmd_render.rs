@@ -22,10 +22,10 @@ use parallax_scene::{Camera, Frame, Scene, SceneBvh, TraceSettings, View, load_s
 use crate::budget::TraceWork;
 use crate::cmd_plan::compile_checked;
 use crate::cmd_trace::warn_if_unlit;
-use crate::logging::spinner;
+use crate::logging::{result, spinner};
 use crate::options::{
-    AssignArg, DeviceArgs, Resolution, SchemeArg, assignment, parse_exposure, parse_layout, parse_resolution,
-    parse_spacing,
+    AssignArg, DeviceArgs, Resolution, SchemeArg, assignment, parse_exposure, parse_focus, parse_layout,
+    parse_resolution, parse_spacing,
 };
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
 
@@ -44,7 +44,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
     resolution: Option<Resolution>,
     /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_focus)]
     focus: Option<f64>,
     #[command(flatten)]
     devices: DeviceArgs,
@@ -150,7 +150,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         crate::outputs::write_json(sink, trace)?;
     }
     json_file.commit()?;
-    println!(
+    let say = |line: String| result(matches!(args.trace, Some(Sink::Stdout)), &line);
+    say(format!(
         "rendered {} views of {}x{} at {} spp ({}, {} device(s)) in {:.1} ms wall; GPU span {:.2} ms, path_trace per device {:?} ms, {} gather copies",
         lf.len(),
         lf.width,
@@ -162,8 +163,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         timing.gpu_span_ms,
         timing.path_trace_ms_per_device,
         summary.gather_copies
-    );
-    println!("wrote {} view EXRs, {} and {}", lf.len(), sheet.display(), render_json.display());
+    ));
+    say(format!("wrote {} view EXRs, {} and {}", lf.len(), sheet.display(), render_json.display()));
     Ok(())
 }
 

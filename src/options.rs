@@ -103,6 +103,37 @@ pub fn parse_spacing(s: &str) -> Result<f64, String> {
     }
 }
 
+/// `--focus`: distance of the zero-disparity plane, finite and > 0.
+pub fn parse_focus(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err("use a finite distance in metres greater than 0 (e.g. 2.5)".into()),
+    }
+}
+
+/// `--bvh-quality`: obvhs's build presets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BvhQualityArg {
+    Fast,
+    Medium,
+    /// Pre-splits triangles.
+    Slow,
+    /// Pre-splits triangles.
+    VerySlow,
+}
+
+impl From<BvhQualityArg> for parallax_scene::BvhQuality {
+    fn from(q: BvhQualityArg) -> Self {
+        use parallax_scene::BvhQuality as Q;
+        match q {
+            BvhQualityArg::Fast => Q::Fast,
+            BvhQualityArg::Medium => Q::Medium,
+            BvhQualityArg::Slow => Q::Slow,
+            BvhQualityArg::VerySlow => Q::VerySlow,
+        }
+    }
+}
+
 /// `--dot-detail`: how much of a schedule the DOT drawing shows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum DotDetail {
