@@ -78,6 +78,9 @@ pub fn check(outputs: &[Output]) -> Result<()> {
         };
         let shown = path.display();
         let meta = std::fs::metadata(path).ok();
+        if meta.is_none() && std::fs::symlink_metadata(path).is_ok() {
+            bail!("{} {shown} is a symlink to a missing file: remove it or fix it", o.flag);
+        }
         if meta.as_ref().is_some_and(|m| m.is_dir()) {
             bail!("{} {shown} is a folder; give a file name such as {shown}/out.{}", o.flag, o.format.extensions()[0]);
         }
@@ -270,6 +273,9 @@ mod tests {
         assert!(err(&[json("--json", &folder)]).contains("is a folder"));
         let exr = Output { flag: "--out", sink: &Sink::Stdout, format: Format::Exr };
         assert!(err(&[exr]).contains("images cannot be written to stdout"));
+        std::os::unix::fs::symlink("gone.json", dir.path().join("dangling.json")).unwrap();
+        let dangling = file(&dir.path().join("dangling.json"));
+        assert!(err(&[json("--json", &dangling)]).ends_with("is a symlink to a missing file: remove it or fix it"));
         // Devices carry no extension and are fine.
         assert!(check(&[json("--json", &file(Path::new("/dev/null")))]).is_ok());
     }
