@@ -42,6 +42,8 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
             storage: 0,
+            exported: false,
+            reset: None,
         });
         plan.resources.len() - 1
     };
@@ -170,6 +172,8 @@ pub fn copy_benchmark(width: u32, height: u32) -> Plan {
             format: TexelFormat::Rgba32Float,
             kind: ResourceKind::Image,
             storage: 0,
+            exported: false,
+            reset: None,
         }],
         passes: vec![PlanPass {
             name: "fill".into(),
@@ -207,6 +211,8 @@ pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> 
                 format: TexelFormat::Rgba8Unorm,
                 kind: ResourceKind::Image,
                 storage: 0,
+                exported: false,
+                reset: None,
             });
             plan.passes.push(PlanPass {
                 name: "fill".into(),

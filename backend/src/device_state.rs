@@ -116,10 +116,13 @@ pub(crate) fn create_device_state(
                     device,
                     &format!("{} view {}", desc.name, desc.view),
                     desc.bytes(),
+                    // INDIRECT_BUFFER: passes write dispatch arguments into their own buffers
+                    // (Recorder::dispatch_indirect).
                     vk::BufferUsageFlags::STORAGE_BUFFER
                         | vk::BufferUsageFlags::TRANSFER_SRC
                         | vk::BufferUsageFlags::TRANSFER_DST
-                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+                        | vk::BufferUsageFlags::INDIRECT_BUFFER,
                     MemoryLocation::GpuOnly,
                 )?
             }

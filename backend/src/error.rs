@@ -99,6 +99,28 @@ pub enum BackendError {
     #[error("per-frame data of {bytes} bytes exceeds the capacity of {capacity} (ExecOptions::frame_data_bytes)")]
     FrameDataTooLarge { bytes: usize, capacity: u64 },
 
+    /// `Recorder::dispatch_indirect` was pointed at something that cannot hold its arguments.
+    #[error("indirect dispatch of `{shader}` from resource {resource} at byte {offset}: {problem}")]
+    IndirectArgs { shader: String, resource: usize, offset: u64, problem: String },
+
+    /// A kernel asked for a section of the per-frame data that the frame data does not have.
+    #[error(
+        "no per-frame data section `{name}` (sections: {known:?}); add it with FrameData::section and Executor::set_frame before the first frame"
+    )]
+    UnknownFrameSection { name: String, known: Vec<String> },
+
+    /// Two sections of one `FrameData` with the same name.
+    #[error("per-frame data section `{0}` is added twice")]
+    DuplicateFrameSection(String),
+
+    /// `Executor::submit_frame` without `ExecOptions::read_back_exports`.
+    #[error("submit_frame reads exported resources back, which needs ExecOptions::read_back_exports = true")]
+    ReadbackDisabled,
+
+    /// `Executor::wait_readback` for a frame whose readback is not there.
+    #[error("no readback of frame {frame}: it was already taken, or the frame was not submitted with submit_frame")]
+    ReadbackUnavailable { frame: u64 },
+
     /// A resource is not present on the device where it was asked for.
     #[error("resource {resource} is not allocated on device {device}")]
     ResourceNotOnDevice { resource: usize, device: usize },

@@ -12,7 +12,9 @@
 //!   ([`Executor::set_plan`]) or a global buffer is reallocated ([`Executor::upload_buffer`]).
 //! * Images and buffers live as long as the plan's resources: their contents carry over from
 //!   frame to frame (history), and over a plan change for resources that keep their
-//!   description.
+//!   description; buffers the plan resets are rewritten at the start of every frame.
+//! * The frame loop ([`Executor::submit_frame`], [`Executor::wait_readback`]) reads back the
+//!   exported resources of each frame without waiting for any later frame (readback.rs).
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
@@ -25,10 +27,12 @@ use crate::context::Context;
 use crate::device::{CalibrationMethod, ClockCalibration, Device, host_now_ns};
 use crate::device_state::{DeviceState, Kept, Staging, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result, VkContext};
+use crate::frame_data::FrameData;
 use crate::instance::Instance;
 use crate::memory::{Buffer, color_layers};
 use crate::plan::Plan;
-use crate::record::{SegmentContext, record_segment};
+use crate::readback::{FrameReadback, FrameTicket, Readback};
+use crate::record::{SegmentContext, SegmentPlace, record_segment};
 use crate::relay::{Relay, RelayJob};
 use crate::segments::{Chunk, chunks_of_copies, progress_value, ready_value, segment_device};
 use crate::shaders::ShaderLibrary;
@@ -66,6 +70,11 @@ pub struct ExecOptions {
     pub separate_copy_queue: bool,
     /// Capacity of the per-frame data buffer ([`Executor::set_frame_data`]).
     pub frame_data_bytes: u64,
+    /// Copy the plan's exported resources to host memory at the end of every frame, for
+    /// [`Executor::submit_frame`]. Off by default: it costs a host-visible copy of every export
+    /// per frame in flight and a device→host copy per frame, which callers that read results
+    /// once with [`Executor::read_image`] do not need.
+    pub read_back_exports: bool,
     pub fault: Option<FaultInjection>,
     /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
     /// the built-in shaders of `shaders/`.
@@ -79,6 +88,7 @@ impl Default for ExecOptions {
             chunk_bytes: 8 << 20,
             separate_copy_queue: true,
             frame_data_bytes: 64 << 10,
+            read_back_exports: false,
             fault: None,
             shaders: ShaderLibrary::default(),
         }
@@ -104,6 +114,8 @@ struct InFlight {
     submit_cpu_ns: u64,
     passes: usize,
     segments: usize,
+    /// Submitted by `submit_frame`: its readback is kept when it retires.
+    read_back: bool,
 }
 
 /// Executes a [`Plan`] on the devices of a [`Context`].
@@ -139,7 +151,9 @@ pub struct Executor {
     textures: Vec<Vec<Texture>>,
     /// Per frame-in-flight slot and device: host-visible copy of the per-frame data.
     frame_data_buffers: Vec<Vec<Buffer>>,
-    frame_data: Vec<u8>,
+    frame_data: FrameData,
+    /// With `ExecOptions::read_back_exports`.
+    readback: Option<Readback>,
 }
 
 impl Executor {
@@ -170,7 +184,8 @@ impl Executor {
             globals: context.devices.iter().map(|_| HashMap::new()).collect(),
             textures: context.devices.iter().map(|_| Vec::new()).collect(),
             frame_data_buffers: Vec::new(),
-            frame_data: Vec::new(),
+            frame_data: FrameData::new(),
+            readback: options.read_back_exports.then(Readback::new),
         };
         executor.frame_data_buffers = (0..executor.slot_count())
             .map(|_| {
@@ -244,6 +259,9 @@ impl Executor {
             None => None,
         };
         self.staging = create_staging(&self.devices, &plan, slots)?;
+        if let Some(readback) = &mut self.readback {
+            readback.allocate(&self.devices[0], &plan, slots)?;
+        }
         self.plan = plan;
         self.chunks = chunks;
         self.states = states;
@@ -281,6 +299,10 @@ impl Executor {
             let buffer_addresses: HashMap<usize, u64> =
                 state.buffers.iter().map(|(&r, b)| (r, b.device_address())).collect();
             for slot in 0..state.slots.len() {
+                let readback = match &self.readback {
+                    Some(readback) if d == 0 => readback.targets(slot),
+                    _ => Vec::new(),
+                };
                 let staging =
                     self.staging.as_ref().and_then(|s| s.buffers[slot].buffer_on(d).map(|b| (b, s.offsets.as_slice())));
                 let mut ctx = SegmentContext {
@@ -298,11 +320,15 @@ impl Executor {
                     buffers: &state.buffers,
                     buffer_addresses: &buffer_addresses,
                     frame_data_address: self.frame_data_buffers[slot][d].device_address(),
+                    frame_sections: self.frame_data.sections(),
+                    readback: &readback,
                 };
                 let mut first_timer = 0u32;
+                let segment_count = state.segments.len();
                 for (j, segment) in state.segments.iter().enumerate() {
                     let cb = state.slots[slot].command_buffers[j];
-                    record_segment(&mut ctx, cb, segment, first_timer)?;
+                    let place = SegmentPlace { first: j == 0, last: j + 1 == segment_count };
+                    record_segment(&mut ctx, cb, segment, first_timer, place)?;
                     first_timer += segment.items.len() as u32;
                 }
             }
@@ -374,21 +400,58 @@ impl Executor {
 
     /// Sets the per-frame data (camera matrices, sample counters, ...) that every following
     /// frame's kernels read at `Recorder::frame_data_address()`; copied into the frame's slot at
-    /// each `run_frame`, so recorded command buffers stay valid.
+    /// each `run_frame`, so recorded command buffers stay valid. The same as
+    /// `set_frame(&FrameData::whole(bytes))`.
     pub fn set_frame_data(&mut self, bytes: &[u8]) -> Result<()> {
-        if bytes.len() as u64 > self.options.frame_data_bytes {
-            return Err(BackendError::FrameDataTooLarge {
-                bytes: bytes.len(),
-                capacity: self.options.frame_data_bytes,
-            });
+        self.set_frame(&FrameData::whole(bytes))
+    }
+
+    /// Sets the per-frame data of every following frame, sections included (kernels find them
+    /// at `Recorder::frame_section_address`). The same sections at the same offsets as before
+    /// only change bytes; another layout waits for the frames in flight and has the command
+    /// buffers recorded again before the next frame.
+    pub fn set_frame(&mut self, data: &FrameData) -> Result<()> {
+        let bytes = data.bytes().len();
+        if bytes as u64 > self.options.frame_data_bytes {
+            return Err(BackendError::FrameDataTooLarge { bytes, capacity: self.options.frame_data_bytes });
         }
-        self.frame_data = bytes.to_vec();
+        if data.sections() != self.frame_data.sections() {
+            self.finish()?;
+            self.needs_record = true;
+        }
+        self.frame_data.clone_from(data);
         Ok(())
     }
 
     /// Submits one frame; returns its index. Waits only if `frames_in_flight` frames are
     /// already in flight (for the oldest of them).
     pub fn run_frame(&mut self) -> Result<u64> {
+        self.submit(false)
+    }
+
+    /// Submits one frame like [`Self::run_frame`]; its exported resources (`PlanResource::exported`)
+    /// can then be waited for with [`Self::wait_readback`]. Needs
+    /// `ExecOptions::read_back_exports`.
+    pub fn submit_frame(&mut self) -> Result<FrameTicket> {
+        if self.readback.is_none() {
+            return Err(BackendError::ReadbackDisabled);
+        }
+        Ok(FrameTicket { frame: self.submit(true)? })
+    }
+
+    /// Waits for the frame of `ticket` (and so for the frames submitted before it, which finish
+    /// first) — not for later frames — and returns its exported resources.
+    pub fn wait_readback(&mut self, ticket: FrameTicket) -> Result<FrameReadback> {
+        while self.in_flight.front().is_some_and(|f| f.frame <= ticket.frame) {
+            self.retire_oldest()?;
+        }
+        self.readback
+            .as_mut()
+            .and_then(|r| r.take(ticket.frame))
+            .ok_or(BackendError::ReadbackUnavailable { frame: ticket.frame })
+    }
+
+    fn submit(&mut self, read_back: bool) -> Result<u64> {
         if self.in_flight.len() >= self.options.frames_in_flight {
             self.retire_oldest()?;
         }
@@ -405,10 +468,11 @@ impl Executor {
         for state in &mut self.states {
             state.bindless.set_frame_constants(slot, frame, history_valid);
         }
-        if !self.frame_data.is_empty() {
+        let frame_bytes = self.frame_data.bytes();
+        if !frame_bytes.is_empty() {
             for buffer in &mut self.frame_data_buffers[slot] {
-                buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..self.frame_data.len()]
-                    .copy_from_slice(&self.frame_data);
+                buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..frame_bytes.len()]
+                    .copy_from_slice(frame_bytes);
             }
         }
         let relay = self.relay.as_ref().expect("relay exists after build");
@@ -529,6 +593,7 @@ impl Executor {
             submit_cpu_ns: cpu_start.elapsed().as_nanos() as u64,
             passes: self.plan.passes.len(),
             segments: submitted_segments,
+            read_back,
         });
         self.next_frame += 1;
         Ok(frame)
@@ -597,6 +662,9 @@ impl Executor {
             self.devices.len(),
             events,
         ));
+        if let (true, Some(readback)) = (f.read_back, &mut self.readback) {
+            readback.retire(f.frame, f.slot);
+        }
         Ok(())
     }
 

@@ -85,6 +85,11 @@ impl Plan {
                     format,
                     kind,
                     storage: a as u32,
+                    // The allocation on device 0 holding a view's finished version is what
+                    // the frame loop reads back.
+                    exported: alloc.device.index() == 0 && info.exported.is_some_and(|v| alloc.versions.contains(&v)),
+                    // Only the allocation holding the frame's starting contents is reset.
+                    reset: info.reset.clone().filter(|_| alloc.versions.contains(&0)),
                 }
             })
             .collect();
@@ -94,6 +99,8 @@ impl Plan {
         for (a, alloc) in schedule.allocations.iter().enumerate().filter(|(_, alloc)| alloc.history) {
             let twin = PlanResource {
                 storage: (schedule.allocations.len() + history_pairs.len()) as u32,
+                // Read back through the parity map, as the half the frame wrote.
+                exported: false,
                 ..resources[a].clone()
             };
             resources.push(twin);

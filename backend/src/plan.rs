@@ -74,6 +74,14 @@ pub struct PlanResource {
     /// Tells apart allocations of one resource (the schedule's allocation index, or any
     /// distinct number in a hand-laid plan), so a plan change keeps each one's contents.
     pub storage: u32,
+    /// A finished output, gathered on device 0 (the graph's `export`): what the frame loop
+    /// reads back ([`crate::Executor::submit_frame`]).
+    pub exported: bool,
+    /// Buffers only: rewritten on the GPU at the start of every frame, before any pass of the
+    /// frame touches it, on every device that holds it: the first `reset.len()` words set to
+    /// these, the rest zeroed (`Some(vec![])` zeroes it all). For counters and indirect
+    /// arguments that passes of the frame accumulate into.
+    pub reset: Option<Vec<u32>>,
 }
 
 impl PlanResource {
@@ -88,6 +96,8 @@ impl PlanResource {
             format: TexelFormat::R32Uint,
             kind: ResourceKind::Buffer,
             storage: 0,
+            exported: false,
+            reset: None,
         }
     }
 
@@ -257,7 +267,18 @@ pub enum PlanError {
     EmptyResource { resource: usize },
     #[error("history pair ({current}, {previous}): the two halves differ in size, format or kind")]
     HistoryPairMismatch { current: usize, previous: usize },
+    #[error("resource {resource} is an image: only buffers can be reset each frame")]
+    ResetOfImage { resource: usize },
+    #[error(
+        "resource {resource}: a reset header of {words} words is longer than its {capacity}-word buffer or than the {max} words vkCmdUpdateBuffer writes"
+    )]
+    ResetTooLong { resource: usize, words: usize, capacity: u32, max: usize },
+    #[error("resource {resource} is exported but device 0 never holds it: exports are gathered on device 0")]
+    ExportNotOnDevice0 { resource: usize },
 }
+
+/// Most words a reset header may have: vkCmdUpdateBuffer writes at most 65536 bytes.
+pub const MAX_RESET_WORDS: usize = 65536 / 4;
 
 impl Plan {
     /// One pass instance `name` on device 0 writing all of `resource` (version 1) and nothing
@@ -297,6 +318,19 @@ impl Plan {
         for (i, r) in self.resources.iter().enumerate() {
             if r.width == 0 || r.height == 0 {
                 return Err(PlanError::EmptyResource { resource: i });
+            }
+            if let Some(header) = &r.reset {
+                if r.kind != ResourceKind::Buffer {
+                    return Err(PlanError::ResetOfImage { resource: i });
+                }
+                if header.len() > r.width as usize || header.len() > MAX_RESET_WORDS {
+                    return Err(PlanError::ResetTooLong {
+                        resource: i,
+                        words: header.len(),
+                        capacity: r.width,
+                        max: MAX_RESET_WORDS,
+                    });
+                }
             }
         }
         let check_rows = |what, index, resource: usize, rows: Rows| {
@@ -400,6 +434,14 @@ impl Plan {
         }
         if let Some(p) = pass_seen.iter().position(|&n| n != 1) {
             return Err(PlanError::PassNotScheduledOnce(p));
+        }
+        // Every op index is valid by now, and a context has at least one device.
+        if !self.devices.is_empty() {
+            let on_device0 = self.resources_of_device(0);
+            let missing = self.resources.iter().enumerate().find(|(r, res)| res.exported && !on_device0.contains(r));
+            if let Some((r, _)) = missing {
+                return Err(PlanError::ExportNotOnDevice0 { resource: r });
+            }
         }
         for (c, copy) in self.copies.iter().enumerate() {
             let at = |kind: &'static str, device: usize| match copy_ops.get(&(c, kind)).map(Vec::as_slice) {
@@ -514,6 +556,24 @@ mod tests {
         let (mut plan, _) = reprojection_demo(2, 1, 8, 8);
         plan.devices[0].retain(|op| *op != PlanOp::Pass(1));
         assert_eq!(plan.validate(1), Err(PlanError::PassNotScheduledOnce(1)));
+    }
+
+    #[test]
+    fn exports_must_reach_device_0_and_reset_headers_fit_their_buffer() {
+        let mut plan =
+            Plan::single_pass("fill_buffer", crate::kernels::FillBufferKernel, PlanResource::buffer("counts", 0, 8), 2);
+        plan.resources[0].reset = Some(vec![0, 1]);
+        plan.resources[0].exported = true;
+        assert_eq!(plan.validate(2), Ok(()));
+        plan.resources[0].reset = Some(vec![0, 1, 1]);
+        assert_eq!(
+            plan.validate(2),
+            Err(PlanError::ResetTooLong { resource: 0, words: 3, capacity: 2, max: MAX_RESET_WORDS })
+        );
+        plan.resources[0].reset = None;
+        plan.passes[0].device = 1;
+        plan.devices = vec![vec![], vec![PlanOp::Pass(0)]];
+        assert_eq!(plan.validate(2), Err(PlanError::ExportNotOnDevice0 { resource: 0 }));
     }
 
     #[test]

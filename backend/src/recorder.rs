@@ -9,10 +9,13 @@ use std::collections::HashMap;
 use ash::vk;
 
 use crate::error::{BackendError, Result};
-use crate::memory::color_range;
+use crate::memory::{Buffer, color_range};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
 use crate::plan::Rows;
 use crate::plan::{Plan, PlanPass, PlanResource};
+
+/// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
+const INDIRECT_ARGS_BYTES: u64 = 12;
 
 /// Push constants of every kernel (`PassParams` in shaders/include/bindless.glsl).
 #[repr(C)]
@@ -73,6 +76,9 @@ pub struct Recorder<'a> {
     pub(crate) slot: usize,
     pub(crate) global_buffers: &'a HashMap<String, u64>,
     pub(crate) frame_data_address: u64,
+    /// Named sections of the per-frame data and their offsets from `frame_data_address`.
+    pub(crate) frame_sections: &'a [(String, u64)],
+    pub(crate) buffers: &'a HashMap<usize, Buffer>,
     pub(crate) buffer_addresses: &'a HashMap<usize, u64>,
     pub(crate) plan: &'a Plan,
     pub(crate) device_index: usize,
@@ -125,6 +131,65 @@ impl Recorder<'_> {
     /// Like [`Self::dispatch`] with a kernel-defined push-constant block (at most 128 bytes, a
     /// multiple of 4; the shader defines `PARALLAX_CUSTOM_PUSH_CONSTANTS` and declares it).
     pub fn dispatch_bytes(&mut self, shader: &str, push: &[u8], groups: [u32; 3]) -> Result<()> {
+        self.bind_compute(shader, push)?;
+        unsafe { self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]) };
+        Ok(())
+    }
+
+    /// Like [`Self::dispatch_bytes`], with the workgroup counts read on the GPU from the
+    /// per-view buffer `resource` at `byte_offset`: three `u32` (x, y, z), as a pass of the same
+    /// frame wrote them (compaction counts; see `PlanResource::reset` for counters that start
+    /// from zero every frame).
+    ///
+    /// Writes of earlier passes are ordered by the barrier before every pass; this also orders
+    /// the writes of this pass's own earlier dispatches, so a kernel may compute its counts and
+    /// dispatch on them in one pass.
+    pub fn dispatch_indirect(&mut self, shader: &str, push: &[u8], resource: usize, byte_offset: u64) -> Result<()> {
+        let invalid = |problem: String| BackendError::IndirectArgs {
+            shader: shader.to_string(),
+            resource,
+            offset: byte_offset,
+            problem,
+        };
+        if self.images.contains_key(&resource) {
+            return Err(invalid("it is an image; indirect arguments live in a buffer resource".into()));
+        }
+        let buffer = self
+            .buffers
+            .get(&resource)
+            .ok_or_else(|| invalid(format!("it is not allocated on device {}", self.device_index)))?;
+        if byte_offset % 4 != 0 {
+            return Err(invalid("the offset is not a multiple of 4".into()));
+        }
+        if byte_offset.checked_add(INDIRECT_ARGS_BYTES).is_none_or(|end| end > buffer.size) {
+            return Err(invalid(format!(
+                "{INDIRECT_ARGS_BYTES} bytes of arguments do not fit the {}-byte buffer",
+                buffer.size
+            )));
+        }
+        let raw_buffer = buffer.raw;
+        self.bind_compute(shader, push)?;
+        // Earlier dispatches of this pass → the argument read and the indirect shader itself
+        // (which typically reads the count next to the arguments).
+        let args_ready = [vk::MemoryBarrier2::default()
+            .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
+            .src_access_mask(vk::AccessFlags2::SHADER_STORAGE_WRITE)
+            .dst_stage_mask(vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER)
+            .dst_access_mask(
+                vk::AccessFlags2::INDIRECT_COMMAND_READ
+                    | vk::AccessFlags2::SHADER_STORAGE_READ
+                    | vk::AccessFlags2::SHADER_STORAGE_WRITE,
+            )];
+        unsafe {
+            self.raw.cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().memory_barriers(&args_ready));
+            self.raw.cmd_dispatch_indirect(self.cb, raw_buffer, byte_offset);
+        }
+        Ok(())
+    }
+
+    /// Binds compute shader `shader` (unless bound already) and pushes `push` (at most 128
+    /// bytes, a multiple of 4).
+    fn bind_compute(&mut self, shader: &str, push: &[u8]) -> Result<()> {
         if push.len() > PUSH_CONSTANT_BYTES as usize || push.len() % 4 != 0 {
             return Err(BackendError::KernelMisuse {
                 kernel: shader.to_string(),
@@ -141,7 +206,6 @@ impl Recorder<'_> {
             if !push.is_empty() {
                 self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push);
             }
-            self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
         }
         Ok(())
     }
@@ -167,6 +231,19 @@ impl Recorder<'_> {
     /// `Executor::set_frame_data`); the contents change every frame without re-recording.
     pub fn frame_data_address(&self) -> u64 {
         self.frame_data_address
+    }
+
+    /// GPU address of the section `name` of the per-frame data (see `FrameData::section`), in
+    /// this frame-in-flight slot's copy.
+    pub fn frame_section_address(&self, name: &str) -> Result<u64> {
+        self.frame_sections
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, offset)| self.frame_data_address + offset)
+            .ok_or_else(|| BackendError::UnknownFrameSection {
+                name: name.to_string(),
+                known: self.frame_sections.iter().map(|(n, _)| n.clone()).collect(),
+            })
     }
 
     /// Dispatches `shader` over `params.width` × rows `[y0, y1)` with the 8×8 workgroups every

@@ -201,3 +201,33 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
         }
     }
 }
+
+#[test]
+fn graph_exports_are_read_back_by_the_frame_loop() {
+    let devices = 2;
+    let ((graph, schedule), _) = demo_schedule(Scheme::FineAll, devices);
+    let plan = Plan::from_schedule(&graph, &schedule).unwrap();
+    let mut outputs: Vec<usize> = output_resources(&plan, schedule.views).into_iter().map(|(_, r)| r).collect();
+    outputs.sort();
+    let exported: Vec<usize> = (0..plan.resources.len()).filter(|&r| plan.resources[r].exported).collect();
+    assert_eq!(exported, outputs, "lowering keeps the graph's exports");
+    let ctx = Context::new(&ContextDesc {
+        selection: DeviceSelection::FakeDevices(devices as usize),
+        validation: Validation::Core,
+    })
+    .unwrap();
+    let options = ExecOptions { read_back_exports: true, ..ExecOptions::default() };
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
+    let tickets = [exec.submit_frame().unwrap(), exec.submit_frame().unwrap()];
+    let mut frames = Vec::new();
+    for ticket in tickets {
+        frames.push(exec.wait_readback(ticket).unwrap());
+    }
+    assert_eq!(frames[0].len(), outputs.len());
+    assert_eq!(frames[0], frames[1], "the demo renders the same every frame");
+    for (r, bytes) in &frames[0] {
+        assert_eq!(*bytes, exec.read_image(0, *r).unwrap(), "resource {r}");
+    }
+    drop(exec);
+    ctx.check_validation().unwrap();
+}

@@ -125,6 +125,8 @@ pub(crate) struct FamilyDecl {
     pub name: String,
     pub desc: ResourceDesc,
     pub imported: bool,
+    /// Buffers rewritten at the start of every frame: these leading words, the rest zero.
+    pub reset: Option<Vec<u32>>,
     /// Per view, the version gathered to device 0, and where `export` was called.
     pub exported: Option<(Vec<u32>, &'static Location<'static>)>,
 }
@@ -195,7 +197,7 @@ impl<P> Graph<P> {
 
     fn family<K>(&mut self, name: &str, desc: ResourceDesc) -> Handle<K> {
         let family = FamilyId(self.families.len() as u32);
-        self.families.push(FamilyDecl { name: name.to_string(), desc, imported: false, exported: None });
+        self.families.push(FamilyDecl { name: name.to_string(), desc, imported: false, reset: None, exported: None });
         Handle { graph: self.id, family, versions: vec![0; self.topology.views() as usize], _kind: PhantomData }
     }
 
@@ -220,6 +222,16 @@ impl<P> Graph<P> {
     /// (uploaded or persistent), so reading it before any write is legal.
     pub fn import<K>(&mut self, handle: &Handle<K>) {
         self.families[handle.family.index()].imported = true;
+    }
+
+    /// Resets every view's buffer at the start of every frame, before any pass touches it: the
+    /// first `header.len()` words set to `header`, the rest zeroed. Version 0 of the buffer is
+    /// then the reset contents, which passes accumulate into (counters, indirect arguments,
+    /// pixel lists) with [`PassBuilder::modify`].
+    pub fn reset_each_frame(&mut self, handle: &Handle<Buffer>, header: Vec<u32>) {
+        let family = &mut self.families[handle.family.index()];
+        family.imported = true;
+        family.reset = Some(header);
     }
 
     /// Marks the current version of every view's resource as a finished output: it keeps its

@@ -235,6 +235,7 @@ fn resource_infos<P>(graph: &Graph<P>, writers: &WriterMap) -> Vec<ResourceInfo>
                 exported: fam.exported.as_ref().map(|(versions, _)| versions[v as usize]),
                 history,
                 versions: last_version(writers, family, ViewId(v)),
+                reset: fam.reset.clone(),
             })
         })
         .collect()

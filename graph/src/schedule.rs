@@ -91,6 +91,9 @@ pub struct ResourceInfo {
     pub history: bool,
     /// Number of versions written per frame.
     pub versions: u32,
+    /// Rewritten at the start of every frame (`Graph::reset_each_frame`): these leading words,
+    /// the rest zero.
+    pub reset: Option<Vec<u32>>,
 }
 
 /// Where an access of a pass instance comes from, as its kernel sees it.

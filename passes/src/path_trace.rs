@@ -164,12 +164,12 @@ pub fn to_pixel_sample(p: &GpuPixel) -> parallax_scene::PixelSample {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::push_constant_members;
+    use parallax_backend::reflect::member_offsets;
     use parallax_backend::rust_layout;
 
     #[test]
     fn the_push_struct_matches_pt_trace_comp() {
-        let glsl = push_constant_members(&parallax_backend::spirv("pt_trace").unwrap()).unwrap();
+        let glsl = member_offsets(&parallax_backend::spirv("pt_trace").unwrap(), "PathTracePush").unwrap();
         let rust = rust_layout!(PathTracePush {
             scene,
             trace,
