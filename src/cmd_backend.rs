@@ -127,7 +127,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let stdout_taken = [&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     result(stdout_taken, context.to_string().trim_end());
     work.check_devices(&context)?;
-    let exec_plan = parallax_backend::Plan::from_schedule(&graph, &schedule)?;
+    let exec_plan = parallax_backend::ExecutionPlan::from_schedule(&graph, &schedule)?;
     let options = ExecOptions {
         frames_in_flight: args.frames_in_flight as usize,
         separate_copy_queue: !args.copies_on_main_queue,

@@ -11,7 +11,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use glam::Vec2;
 use parallax_backend::{
-    Context as VkContext, ContextDesc, EventKind, FrameReport, KernelGraph, Plan as ExecPlan, chrome_trace,
+    Context as VkContext, ContextDesc, EventKind, ExecutionPlan as ExecPlan, FrameReport, KernelGraph, chrome_trace,
 };
 use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId};
 use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample};

@@ -57,7 +57,7 @@ pub enum BackendError {
 
     /// The plan handed to the executor is inconsistent.
     #[error("invalid execution plan: {0}")]
-    Plan(#[from] crate::plan::PlanError),
+    ExecutionPlan(#[from] crate::plan::ExecutionPlanError),
 
     /// The schedule uses something the backend cannot run yet.
     #[error("cannot lower the schedule: {0}")]
@@ -127,7 +127,7 @@ pub enum BackendError {
 
     /// A texel format the backend cannot use as a storage image.
     #[error("format {0:?} is not supported as a storage image by the backend yet")]
-    UnsupportedFormat(crate::plan::TexelFormat),
+    UnsupportedFormat(crate::plan::Format),
 
     /// A host relay thread (cross-device signal forwarding) failed.
     #[error("cross-device relay failed: {0}")]

@@ -1,4 +1,4 @@
-//! The executor: turns a [`Plan`] into per-device command buffers recorded once, and submits
+//! The executor: turns an [`ExecutionPlan`] into per-device command buffers recorded once, and submits
 //! them frame after frame.
 //!
 //! * Within a device, submissions are ordered by the queue and made memory-safe by barriers;
@@ -30,7 +30,7 @@ use crate::error::{BackendError, Result, VkContext};
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
 use crate::memory::{Buffer, color_layers};
-use crate::plan::Plan;
+use crate::plan::ExecutionPlan;
 use crate::readback::{FrameReadback, FrameTicket, Readback};
 use crate::record::{SegmentContext, SegmentPlace, record_segment};
 use crate::relay::{Relay, RelayJob};
@@ -118,11 +118,11 @@ struct InFlight {
     read_back: bool,
 }
 
-/// Executes a [`Plan`] on the devices of a [`Context`].
+/// Executes an [`ExecutionPlan`] on the devices of a [`Context`].
 pub struct Executor {
     instance: Arc<Instance>,
     devices: Vec<Arc<Device>>,
-    plan: Plan,
+    plan: ExecutionPlan,
     options: ExecOptions,
     chunks: Vec<Vec<Chunk>>,
     states: Vec<DeviceState>,
@@ -159,12 +159,12 @@ pub struct Executor {
 impl Executor {
     /// Validates `plan` and allocates its resources. Command buffers are recorded at the first
     /// frame (so global buffers can be uploaded first) and then reused.
-    pub fn new(context: &Context, plan: Plan, options: ExecOptions) -> Result<Self> {
+    pub fn new(context: &Context, plan: ExecutionPlan, options: ExecOptions) -> Result<Self> {
         let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
             instance: context.instance.clone(),
             devices: context.devices.clone(),
-            plan: Plan::default(),
+            plan: ExecutionPlan::default(),
             options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
             chunks: Vec::new(),
             states: Vec::new(),
@@ -211,7 +211,7 @@ impl Executor {
     /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the
     /// current one; otherwise waits for all frames, keeps the images whose resource description
     /// is unchanged (their contents survive), and records everything anew at the next frame.
-    pub fn set_plan(&mut self, plan: Plan) -> Result<bool> {
+    pub fn set_plan(&mut self, plan: ExecutionPlan) -> Result<bool> {
         if plan == self.plan {
             return Ok(false);
         }
@@ -220,7 +220,7 @@ impl Executor {
         Ok(true)
     }
 
-    fn build(&mut self, plan: Plan) -> Result<()> {
+    fn build(&mut self, plan: ExecutionPlan) -> Result<()> {
         plan.validate(self.devices.len())?;
         // Threads first (they use the old semaphores), then the old states.
         self.relay = None;
@@ -275,7 +275,7 @@ impl Executor {
     }
 
     /// Recorded frame slots: frames in flight rounded up to even, so a slot's frame parity never
-    /// changes and history pairs can be swapped in the recording (see `Plan::history_pairs`).
+    /// changes and history pairs can be swapped in the recording (see `ExecutionPlan::history_pairs`).
     fn slot_count(&self) -> usize {
         self.options.frames_in_flight.div_ceil(2) * 2
     }
@@ -429,7 +429,7 @@ impl Executor {
         self.submit(false)
     }
 
-    /// Submits one frame like [`Self::run_frame`]; its exported resources (`PlanResource::exported`)
+    /// Submits one frame like [`Self::run_frame`]; its exported resources (`ExecResource::exported`)
     /// can then be waited for with [`Self::wait_readback`]. Needs
     /// `ExecOptions::read_back_exports`.
     pub fn submit_frame(&mut self) -> Result<FrameTicket> {
@@ -718,7 +718,7 @@ impl Executor {
     }
 
     /// The plan being executed.
-    pub fn plan(&self) -> &Plan {
+    pub fn plan(&self) -> &ExecutionPlan {
         &self.plan
     }
 

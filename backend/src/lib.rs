@@ -2,12 +2,12 @@
 //!
 //! * [`Context`]: instance (+ validation), N physical devices (`--gpus N`) or N logical
 //!   devices on one physical device (`--fake-devices N`).
-//! * [`Plan`]: what the executor runs, lowered from the graph crate's `Schedule`.
+//! * [`ExecutionPlan`]: what the executor runs, lowered from the graph crate's `Schedule`.
 //! * [`Executor`]: records per-device command buffers once, submits frames with timeline
 //!   semaphores, moves cross-device copies through host memory imported into both devices, and
 //!   times every pass instance and copy ([`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
-//!   [`Plan::from_schedule`] lowers its compiled schedule (allocations become resources, history
+//!   [`ExecutionPlan::from_schedule`] lowers its compiled schedule (allocations become resources, history
 //!   allocations two halves swapped by frame parity, accesses keep their slot names).
 //! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
 //!   bindless image array, raster draws ([`Draw`], dynamic rendering into plan images),
@@ -15,7 +15,7 @@
 //!   ([`Executor::set_frame_data`], or [`FrameData`] cut into one section per pass) by buffer
 //!   address, sampled RGBA8 textures ([`Executor::upload_textures`]) by index into the
 //!   `textures[]` array of set 0; indirect dispatches on counts a pass wrote
-//!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `PlanResource::reset`).
+//!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `ExecResource::reset`).
 //! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera and the frame
 //!   index, as `shaders/include/frame_block.glsl` declares them.
 //! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
@@ -42,7 +42,7 @@
 //! graph.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance)
 //!     .write(&mut output).kernel(Arc::new(ShiftBlendKernel)).record();
 //! graph.export(&output);
-//! let plan = Plan::from_schedule(&graph, &compile(&graph, &placement)?)?;
+//! let plan = ExecutionPlan::from_schedule(&graph, &compile(&graph, &placement)?)?;
 //!
 //! // Two logical devices on one physical device (lavapipe in CI), validation on.
 //! let context = Context::new(&ContextDesc {
@@ -99,8 +99,8 @@ pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
-    MAX_RESET_WORDS, Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows,
-    TexelFormat,
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError, Format, MAX_RESET_WORDS,
+    Region, ResourceKind,
 };
 pub use readback::{FrameReadback, FrameTicket};
 pub use recorder::{Draw, PassKernel, PassParams, Recorder};

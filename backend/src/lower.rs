@@ -1,5 +1,5 @@
 //! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
-//! [`Plan`]: allocations become resources (history allocations two: the halves swapped by frame
+//! [`ExecutionPlan`]: allocations become resources (history allocations two: the halves swapped by frame
 //! parity), accesses keep their slot name and origin, each pass instance points at the kernel
 //! its pass was declared with, device programs are ordered by device id. Nothing is re-planned;
 //! the schedule's op order is kept exactly.
@@ -9,9 +9,7 @@ use std::sync::Arc;
 
 use parallax_graph::{Access, Format, Graph, Op, PassId, ResourceDesc, Schedule};
 
-use crate::plan::{
-    Kernels, Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
-};
+use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
 use crate::recorder::PassKernel;
 
 /// A render graph whose passes carry their kernels: what the executor runs.
@@ -28,22 +26,11 @@ pub enum LowerError {
     Invalid(String),
 }
 
-fn texel_format(format: Format) -> TexelFormat {
-    match format {
-        Format::Rgba32f => TexelFormat::Rgba32Float,
-        Format::Rgba16f => TexelFormat::Rgba16Float,
-        Format::Rg32f => TexelFormat::Rg32Float,
-        Format::R32f => TexelFormat::R32Float,
-        Format::R32u => TexelFormat::R32Uint,
-        Format::Rgba8 => TexelFormat::Rgba8Unorm,
-    }
-}
-
-impl Plan {
+impl ExecutionPlan {
     /// Lowers `schedule`, compiled from `graph`. The schedule must pass
     /// `Schedule::validate()` (checked here: a plan that breaks the storage rules would race);
-    /// `Plan::validate` (the executor runs it) checks the execution invariants.
-    pub fn from_schedule(graph: &KernelGraph, schedule: &Schedule) -> Result<Plan, LowerError> {
+    /// `ExecutionPlan::validate` (the executor runs it) checks the execution invariants.
+    pub fn from_schedule(graph: &KernelGraph, schedule: &Schedule) -> Result<ExecutionPlan, LowerError> {
         let report = schedule.validate();
         if let Some(first) = report.errors.first() {
             return Err(LowerError::Invalid(format!("{first} ({} problem(s) in all)", report.errors.len())));
@@ -60,24 +47,22 @@ impl Plan {
             kernel_of.insert(inst.pass, kernels.0.len() - 1);
         }
 
-        let mut resources: Vec<PlanResource> = schedule
+        let mut resources: Vec<ExecResource> = schedule
             .allocations
             .iter()
             .enumerate()
             .map(|(a, alloc)| {
                 let info = schedule.resource(alloc.resource);
                 let (width, height, format, kind) = match info.desc {
-                    ResourceDesc::Image { width, height, format } => {
-                        (width, height, texel_format(format), ResourceKind::Image)
-                    }
+                    ResourceDesc::Image { width, height, format } => (width, height, format, ResourceKind::Image),
                     // A buffer is rows of 32-bit words: one row, or one per image row for a row
                     // buffer, so its bands are copied like an image's.
                     ResourceDesc::Buffer { .. } | ResourceDesc::RowBuffer { .. } => {
                         let words = info.desc.row_bytes().div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;
-                        (words, info.desc.rows(), TexelFormat::R32Uint, ResourceKind::Buffer)
+                        (words, info.desc.rows(), Format::R32u, ResourceKind::Buffer)
                     }
                 };
-                PlanResource {
+                ExecResource {
                     name: info.name.clone(),
                     view: info.view.0,
                     width,
@@ -97,7 +82,7 @@ impl Plan {
         let mut history_pairs = Vec::new();
         let mut previous_of: HashMap<usize, usize> = HashMap::new();
         for (a, alloc) in schedule.allocations.iter().enumerate().filter(|(_, alloc)| alloc.history) {
-            let twin = PlanResource {
+            let twin = ExecResource {
                 storage: (schedule.allocations.len() + history_pairs.len()) as u32,
                 // Read back through the parity map, as the half the frame wrote.
                 exported: false,
@@ -110,24 +95,24 @@ impl Plan {
             debug_assert!(alloc.history);
         }
 
-        let rows_of = |a: &Access| Rows::new(a.region.y0, a.region.y1);
+        let rows_of = |a: &Access| Region::new(a.region.y0, a.region.y1);
         let passes = schedule
             .instances
             .iter()
             .map(|p| {
                 let info = &schedule.passes[p.pass.index()];
-                let access = |a: &Access, names: &[parallax_graph::SlotInfo], resource: usize| PlanAccess {
+                let access = |a: &Access, names: &[parallax_graph::SlotInfo], resource: usize| ExecAccess {
                     resource,
                     version: a.version,
                     rows: rows_of(a),
                     slot: names[a.decl as usize].name.clone(),
                     origin: a.origin,
                 };
-                PlanPass {
+                ExecPass {
                     name: p.name.clone(),
                     kernel: kernel_of[&p.pass],
                     view: p.view.0,
-                    rows: Rows::new(p.region.y0, p.region.y1),
+                    rows: Region::new(p.region.y0, p.region.y1),
                     device: p.device.index(),
                     reads: p.reads.iter().map(|a| access(a, &info.reads, a.alloc.index())).collect(),
                     writes: p.writes.iter().map(|a| access(a, &info.writes, a.alloc.index())).collect(),
@@ -142,11 +127,11 @@ impl Plan {
         let copies = schedule
             .copies
             .iter()
-            .map(|c| PlanCopy {
+            .map(|c| ExecCopy {
                 resource: c.src_alloc.index(),
                 dst: c.dst_alloc.index(),
                 version: c.version,
-                rows: Rows::new(c.region.y0, c.region.y1),
+                rows: Region::new(c.region.y0, c.region.y1),
                 from: c.from.index(),
                 to: c.to.index(),
             })
@@ -163,15 +148,15 @@ impl Plan {
                 p.ops
                     .iter()
                     .map(|op| match *op {
-                        Op::Pass(i) => PlanOp::Pass(i.index()),
-                        Op::CopyOut(c) => PlanOp::CopyOut(c.index()),
-                        Op::Signal(c) => PlanOp::Signal(c.index()),
-                        Op::Wait(c) => PlanOp::Wait(c.index()),
-                        Op::CopyIn(c) => PlanOp::CopyIn(c.index()),
+                        Op::Pass(i) => ExecOp::Pass(i.index()),
+                        Op::CopyOut(c) => ExecOp::CopyOut(c.index()),
+                        Op::Signal(c) => ExecOp::Signal(c.index()),
+                        Op::Wait(c) => ExecOp::Wait(c.index()),
+                        Op::CopyIn(c) => ExecOp::CopyIn(c.index()),
                     })
                     .collect()
             })
             .collect();
-        Ok(Plan { resources, passes, copies, devices, history_pairs, kernels })
+        Ok(ExecutionPlan { resources, passes, copies, devices, history_pairs, kernels })
     }
 }

@@ -19,7 +19,7 @@ use gpu_allocator::MemoryLocation;
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::memory::{Buffer, Image};
-use crate::plan::TexelFormat;
+use crate::plan::Format;
 use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData, create_sampler};
 
@@ -207,7 +207,7 @@ impl Bindless {
         let info = |img: &Image| {
             vk::DescriptorImageInfo::default().image_view(img.view).image_layout(vk::ImageLayout::GENERAL)
         };
-        let is_uint = |img: &Image| img.format == TexelFormat::R32Uint;
+        let is_uint = |img: &Image| img.format == Format::R32u;
         let mut float_infos: Vec<vk::DescriptorImageInfo> =
             images.iter().map(|&img| info(if is_uint(img) { placeholders[0] } else { img })).collect();
         let mut uint_infos: Vec<vk::DescriptorImageInfo> =

@@ -13,7 +13,7 @@ use gpu_allocator::MemoryLocation;
 use crate::device::Device;
 use crate::error::Result;
 use crate::memory::Buffer;
-use crate::plan::Plan;
+use crate::plan::ExecutionPlan;
 
 /// A submitted frame whose exported resources can be waited for, once.
 #[derive(Debug, PartialEq, Eq)]
@@ -47,7 +47,7 @@ impl Readback {
 
     /// Buffers for `plan`'s exports in each of `slots` slots, replacing the previous plan's (no
     /// frame may be in flight). Bytes of retired frames stay.
-    pub(crate) fn allocate(&mut self, device0: &Arc<Device>, plan: &Plan, slots: usize) -> Result<()> {
+    pub(crate) fn allocate(&mut self, device0: &Arc<Device>, plan: &ExecutionPlan, slots: usize) -> Result<()> {
         let exported: Vec<usize> = (0..plan.resources.len()).filter(|&r| plan.resources[r].exported).collect();
         self.slots = (0..slots)
             .map(|_| {

@@ -17,7 +17,7 @@ use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
 use crate::memory::{Image, color_layers};
 use crate::pipeline::Bindless;
-use crate::plan::Plan;
+use crate::plan::ExecutionPlan;
 use crate::recorder::Recorder;
 use crate::segments::{Chunk, Item, Segment};
 use crate::timing::EventKind;
@@ -36,7 +36,7 @@ pub(crate) struct TimerLabel {
 }
 
 /// Timer labels of all items of `segments`, in recording order.
-pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel> {
+pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment]) -> Vec<TimerLabel> {
     let copy_label = |chunk: &Chunk, kind, queue| {
         let copy = &plan.copies[chunk.copy];
         let resource = &plan.resources[copy.resource];
@@ -82,7 +82,7 @@ pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel>
 pub(crate) struct SegmentContext<'a> {
     pub raw: &'a ash::Device,
     pub device_index: usize,
-    pub plan: &'a Plan,
+    pub plan: &'a ExecutionPlan,
     pub bindless: &'a mut Bindless,
     pub images: &'a HashMap<usize, Image>,
     pub image_slots: &'a HashMap<usize, u32>,
@@ -211,7 +211,7 @@ fn record_items(
     Ok(())
 }
 
-/// Rewrites the buffers the plan resets every frame (`PlanResource::reset`): the header words,
+/// Rewrites the buffers the plan resets every frame (`ExecResource::reset`): the header words,
 /// zeros after them. Runs before the first item's barrier, so every pass of the frame sees the
 /// reset values; the barrier in front orders it after last frame's uses of the buffers.
 fn record_resets(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {

@@ -11,8 +11,8 @@ use ash::vk;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, color_range};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
-use crate::plan::Rows;
-use crate::plan::{Plan, PlanPass, PlanResource};
+use crate::plan::Region;
+use crate::plan::{ExecPass, ExecResource, ExecutionPlan};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
 const INDIRECT_ARGS_BYTES: u64 = 12;
@@ -57,7 +57,7 @@ pub struct Draw<'a> {
     pub clear: bool,
     /// Depth test LESS against a per-device depth attachment cleared to 1.0 for this draw.
     pub depth_test: bool,
-    pub rows: Rows,
+    pub rows: Region,
     pub vertex_count: u32,
     pub instance_count: u32,
     pub params: PassParams,
@@ -65,7 +65,7 @@ pub struct Draw<'a> {
 
 /// Records the work of one pass instance into a device's command buffer.
 pub struct Recorder<'a> {
-    /// History pairs swapped for an odd frame (see `Plan::history_pairs`).
+    /// History pairs swapped for an odd frame (see `ExecutionPlan::history_pairs`).
     pub(crate) parity_map: &'a HashMap<usize, usize>,
     pub(crate) raw: &'a ash::Device,
     pub(crate) cb: vk::CommandBuffer,
@@ -80,7 +80,7 @@ pub struct Recorder<'a> {
     pub(crate) frame_sections: &'a [(String, u64)],
     pub(crate) buffers: &'a HashMap<usize, Buffer>,
     pub(crate) buffer_addresses: &'a HashMap<usize, u64>,
-    pub(crate) plan: &'a Plan,
+    pub(crate) plan: &'a ExecutionPlan,
     pub(crate) device_index: usize,
     pub(crate) bound: Option<vk::Pipeline>,
 }
@@ -108,12 +108,12 @@ impl Recorder<'_> {
     }
 
     /// The image slot of access `access` (see [`Self::image`]).
-    pub fn image_of(&self, access: &crate::plan::PlanAccess) -> Result<u32> {
+    pub fn image_of(&self, access: &crate::plan::ExecAccess) -> Result<u32> {
         self.image(access.resource)
     }
 
     /// The plan's description of `resource`.
-    pub fn resource(&self, resource: usize) -> &PlanResource {
+    pub fn resource(&self, resource: usize) -> &ExecResource {
         &self.plan.resources[resource]
     }
 
@@ -138,7 +138,7 @@ impl Recorder<'_> {
 
     /// Like [`Self::dispatch_bytes`], with the workgroup counts read on the GPU from the
     /// per-view buffer `resource` at `byte_offset`: three `u32` (x, y, z), as a pass of the same
-    /// frame wrote them (compaction counts; see `PlanResource::reset` for counters that start
+    /// frame wrote them (compaction counts; see `ExecResource::reset` for counters that start
     /// from zero every frame).
     ///
     /// Writes of earlier passes are ordered by the barrier before every pass; this also orders
@@ -372,5 +372,5 @@ impl Recorder<'_> {
 /// reprojection, denoising, ...; the backend ships the small kernels its own tests use.
 pub trait PassKernel: Send + Sync {
     /// Records instance `index` of the plan (`pass` = `plan.passes[index]`).
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()>;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()>;
 }

@@ -6,8 +6,8 @@ use std::sync::Arc;
 
 use parallax_backend::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelGraph, LowerError, Plan,
-    PlanError, Validation,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, ExecutionPlanError, Executor,
+    KernelGraph, LowerError, Validation,
 };
 use parallax_graph::{
     BandedPlacement, DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile,
@@ -70,15 +70,15 @@ impl Placement for OnDevice {
     }
 }
 
-fn lower(graph: &KernelGraph, placement: &dyn Placement) -> Plan {
+fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
     let schedule = compile(graph, placement).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    Plan::from_schedule(graph, &schedule).unwrap()
+    ExecutionPlan::from_schedule(graph, &schedule).unwrap()
 }
 
 /// `views` views of `size`², each accumulating into `acc` from its own history (`read_history`),
 /// exported; under `placement`.
-fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> Plan {
+fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, size, size));
     let mut acc = graph.image("acc", Format::Rgba32f);
     graph.pass("accumulate", Role::All).read_history(&acc).write(&mut acc).kernel(Arc::new(AccumulateKernel)).record();
@@ -167,10 +167,16 @@ fn plan_errors_are_reported_before_any_gpu_work() {
     let mut plan = parallax_backend::demo::copy_benchmark(8, 8);
     plan.devices[1].clear();
     let err = Executor::new(&ctx, plan, ExecOptions::default()).err().unwrap();
-    assert!(matches!(err, BackendError::Plan(PlanError::CopyOpMisplaced { copy: 0, op: "Wait" })), "{err}");
+    assert!(
+        matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::CopyOpMisplaced { copy: 0, op: "Wait" })),
+        "{err}"
+    );
     let one = context(DeviceSelection::FakeDevices(1)).unwrap();
     let err = Executor::new(&one, parallax_backend::demo::copy_benchmark(8, 8), ExecOptions::default()).err().unwrap();
-    assert!(matches!(err, BackendError::Plan(PlanError::DeviceCount { plan: 2, context: 1 })), "{err}");
+    assert!(
+        matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::DeviceCount { plan: 2, context: 1 })),
+        "{err}"
+    );
 
     // A pass declared without a kernel cannot be lowered; the error names it.
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 8));
@@ -179,7 +185,7 @@ fn plan_errors_are_reported_before_any_gpu_work() {
     graph.export(&acc);
     let schedule = compile(&graph, &OnDevice { device: 0, devices: 1 }).unwrap();
     assert_eq!(
-        Plan::from_schedule(&graph, &schedule).err().unwrap(),
+        ExecutionPlan::from_schedule(&graph, &schedule).err().unwrap(),
         LowerError::MissingKernel { pass: "accumulate".into() }
     );
 }
@@ -221,7 +227,7 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
 
 /// One raster pass instance per device, each over a row band of the same image; bands gathered
 /// on device 0.
-fn raster_plan(devices: usize, size: u32) -> Plan {
+fn raster_plan(devices: usize, size: u32) -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(6, size, size));
     let mut gbuffer = graph.image("gbuffer", Format::Rgba32f);
     graph.pass("raster_demo", Role::All).write(&mut gbuffer).kernel(Arc::new(RasterDemoKernel)).record();
@@ -255,7 +261,7 @@ fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
 }
 
 /// Two views, view v on device v, each `weighted_fill`ed; view 1 gathered on device 0.
-fn weighted_plan(size: u32) -> Plan {
+fn weighted_plan(size: u32) -> ExecutionPlan {
     struct ViewPerDevice;
     impl Placement for ViewPerDevice {
         fn devices(&self) -> u32 {

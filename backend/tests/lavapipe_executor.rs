@@ -4,7 +4,7 @@
 use parallax_backend::demo::{demo_device_of_view, reprojection_demo};
 use parallax_backend::kernels::reference_shift_blend;
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, Executor, FaultInjection, PlanOp,
+    BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOp, ExecOptions, Executor, FaultInjection,
     Validation, chrome_trace,
 };
 
@@ -75,7 +75,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
     let copy = plan.devices[1]
         .iter()
         .find_map(|op| match op {
-            PlanOp::CopyIn(c) => Some(*c),
+            ExecOp::CopyIn(c) => Some(*c),
             _ => None,
         })
         .unwrap();
@@ -119,7 +119,7 @@ fn fault_injection_refuses_a_copy_that_would_deadlock() {
     let later = plan.devices[0]
         .iter()
         .filter_map(|op| match op {
-            PlanOp::CopyIn(c) => Some(*c),
+            ExecOp::CopyIn(c) => Some(*c),
             _ => None,
         })
         .nth(1)
@@ -174,7 +174,7 @@ fn timestamps_are_ordered_and_trace_lists_every_pass() {
 }
 
 /// Device an event of the demo must be on: the pass's device, or the copy's producer/consumer.
-fn demo_tid_check(plan: &parallax_backend::Plan, e: &serde_json::Value) -> usize {
+fn demo_tid_check(plan: &parallax_backend::ExecutionPlan, e: &serde_json::Value) -> usize {
     let index = e["args"]["index"].as_u64().unwrap() as usize;
     match e["cat"].as_str().unwrap() {
         "pass" => plan.passes[index].device,

@@ -8,8 +8,8 @@ use glam::{Mat4, Vec2, Vec3};
 use parallax_backend::kernels::reference_mask;
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, FRAME_BLOCK_SECTION, FrameBlock,
-    FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Plan, PlanPass, PlanResource, Recorder,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor,
+    FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder,
     Validation, ViewCameras, spirv,
 };
 use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
@@ -107,7 +107,7 @@ fn camera(frame: u32, view: u32) -> GpuCamera {
 struct FrameFillKernel;
 
 impl PassKernel for FrameFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         let params = FrameFillParams {
             dst: rec.image(pass.writes[0].resource)?,
             view: pass.view,
@@ -134,13 +134,13 @@ impl Placement for ViewPerDevice {
 }
 
 /// View 0 filled on device 0, view 1 on device 1 and gathered on device 0; both exported.
-fn gather_plan() -> Plan {
+fn gather_plan() -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, SIZE, SIZE));
     let mut fill = graph.image("fill", Format::R32u);
     graph.pass("frame_fill", Role::All).write(&mut fill).kernel(Arc::new(FrameFillKernel)).record();
     graph.export(&fill);
     let schedule = compile(&graph, &ViewPerDevice).unwrap();
-    Plan::from_schedule(&graph, &schedule).unwrap()
+    ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
 }
 
 /// This frame's data: the frame block, then the fill pass's salt.
@@ -222,7 +222,7 @@ struct FrameProbeKernel {
 }
 
 impl PassKernel for FrameProbeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         let mut push = rec.frame_section_address(FRAME_BLOCK_SECTION)?.to_le_bytes().to_vec();
         push.extend_from_slice(&rec.buffer_of(pass.writes[0].resource)?.to_le_bytes());
         push.extend_from_slice(&self.views.to_le_bytes());
@@ -242,9 +242,9 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
     const FRAMES: u32 = 6;
     const CUT: u32 = 3;
     let camera_words_per_view = 2 * 38;
-    let mut probe = PlanResource::buffer("frame block copy", 0, 4 * (3 + camera_words_per_view * VIEWS as u64));
+    let mut probe = ExecResource::buffer("frame block copy", 0, 4 * (3 + camera_words_per_view * VIEWS as u64));
     probe.exported = true;
-    let plan = Plan::single_pass("frame_probe", FrameProbeKernel { views: VIEWS }, probe, 1);
+    let plan = ExecutionPlan::single_pass("frame_probe", FrameProbeKernel { views: VIEWS }, probe, 1);
     let ctx = context(1);
     let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..ExecOptions::default() };
     let mut exec = Executor::new(&ctx, plan, options).unwrap();

@@ -8,8 +8,9 @@ use std::sync::Arc;
 
 use parallax_backend::kernels::reference_mask;
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelGraph, PassKernel, Plan,
-    PlanAccess, PlanError, PlanPass, PlanResource, Recorder, ResourceKind, Rows, TexelFormat, Validation,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecAccess, ExecOptions, ExecPass, ExecResource,
+    ExecutionPlan, ExecutionPlanError, Executor, Format, KernelGraph, PassKernel, Recorder, Region, ResourceKind,
+    Validation,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
 
@@ -37,12 +38,12 @@ fn push(address: u64, word: &[u8]) -> Vec<u8> {
     [address.to_le_bytes().as_slice(), word].concat()
 }
 
-fn slot(pass: &PlanPass, name: &str) -> usize {
+fn slot(pass: &ExecPass, name: &str) -> usize {
     pass.output(name).or_else(|| pass.input(name)).expect("the test graph declares the slot").resource
 }
 
 /// Records the arguments pass (one workgroup) into slot `indirect args`.
-fn record_args(rec: &mut Recorder<'_>, pass: &PlanPass) -> parallax_backend::Result<()> {
+fn record_args(rec: &mut Recorder<'_>, pass: &ExecPass) -> parallax_backend::Result<()> {
     let args = rec.buffer_of(slot(pass, ARGS))?;
     rec.dispatch_bytes("test_indirect_args", &push(args, &SALT.to_le_bytes()), [1, 1, 1])
 }
@@ -57,7 +58,7 @@ fn record_count(rec: &mut Recorder<'_>, args: usize, counter: usize) -> parallax
 struct ArgsKernel;
 
 impl PassKernel for ArgsKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         record_args(rec, pass)
     }
 }
@@ -66,7 +67,7 @@ impl PassKernel for ArgsKernel {
 struct CountKernel;
 
 impl PassKernel for CountKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         record_count(rec, slot(pass, ARGS), slot(pass, COUNTER))
     }
 }
@@ -78,7 +79,7 @@ impl PassKernel for CountKernel {
 struct FusedKernel;
 
 impl PassKernel for FusedKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         record_args(rec, pass)?;
         record_count(rec, slot(pass, ARGS), slot(pass, COUNTER))
     }
@@ -91,14 +92,14 @@ struct MisusedKernel {
 }
 
 impl PassKernel for MisusedKernel {
-    fn record(&self, rec: &mut Recorder<'_>, _: &PlanPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, _: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         rec.dispatch_indirect("test_indirect_count", &[0; 16], self.resource, self.offset)
     }
 }
 
 /// Arguments and counter (both reset every frame and exported), written by `fused` as one pass
 /// or by two; both accumulate into their reset contents in place.
-fn indirect_plan(fused: bool) -> Plan {
+fn indirect_plan(fused: bool) -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 1, 1));
     let mut args = graph.buffer(ARGS, 16);
     let mut counter = graph.buffer(COUNTER, 4);
@@ -119,7 +120,7 @@ fn indirect_plan(fused: bool) -> Plan {
     graph.export(&counter);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    Plan::from_schedule(&graph, &schedule).unwrap()
+    ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
 }
 
 #[test]
@@ -165,21 +166,21 @@ fn gpu_counts_drive_the_next_dispatch_and_resets_start_every_frame_afresh() {
 #[test]
 fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     // Resource 0: a 16-byte buffer; resource 1: an image.
-    let image = PlanResource {
+    let image = ExecResource {
         name: "image".into(),
         view: 0,
         width: 4,
         height: 4,
-        format: TexelFormat::R32Uint,
+        format: Format::R32u,
         kind: ResourceKind::Image,
         storage: 1,
         exported: false,
         reset: None,
     };
     let plan = |kernel: MisusedKernel| {
-        let mut plan = Plan::single_pass("misused", kernel, PlanResource::buffer("args", 0, 16), 1);
+        let mut plan = ExecutionPlan::single_pass("misused", kernel, ExecResource::buffer("args", 0, 16), 1);
         plan.resources.push(image.clone());
-        plan.passes[0].writes.push(PlanAccess::own("image", 1, 1, Rows::new(0, 4)));
+        plan.passes[0].writes.push(ExecAccess::own("image", 1, 1, Region::new(0, 4)));
         plan
     };
     let ctx = context();
@@ -207,6 +208,6 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     let mut reset_image = plan(MisusedKernel { resource: 0, offset: 4 });
     reset_image.resources[1].reset = Some(vec![]);
     let err = Executor::new(&ctx, reset_image, ExecOptions::default()).err().unwrap();
-    assert!(matches!(err, BackendError::Plan(PlanError::ResetOfImage { resource: 1 })), "{err}");
+    assert!(matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::ResetOfImage { resource: 1 })), "{err}");
     ctx.check_validation().unwrap();
 }

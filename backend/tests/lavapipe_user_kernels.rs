@@ -8,8 +8,8 @@ use std::sync::Arc;
 
 use parallax_backend::kernels::{FillKernel, reference_fill};
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelGraph, PassKernel, PassParams,
-    Plan, PlanPass, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
+    PassKernel, PassParams, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
 use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
@@ -39,7 +39,7 @@ struct ReadWriteKernel {
 }
 
 impl PassKernel for ReadWriteKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let (Some(src), Some(dst)) = (pass.input("pattern"), pass.output("output")) else {
             return Err(BackendError::KernelMisuse {
                 kernel: self.shader.into(),
@@ -71,7 +71,7 @@ fn reference_scale_swap(x: u32, y: u32, view: u32) -> [f32; 4] {
 /// built-in `fill` → user pass `user` (kernel dispatching `shader`) on every view of a 2×1 light
 /// field over two devices, the result gathered on device 0. Returns the plan and, per view,
 /// the resource of the result.
-fn fill_then_user_pass(shader: &'static str) -> (Plan, Vec<usize>) {
+fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<usize>) {
     let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
     let config =
         PlanConfig { devices: DEVICES, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
@@ -83,7 +83,7 @@ fn fill_then_user_pass(shader: &'static str) -> (Plan, Vec<usize>) {
     g.pass("user", Role::All).read(&pattern).write(&mut output).kernel(Arc::new(ReadWriteKernel { shader })).record();
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
-    let plan = Plan::from_schedule(&g, &schedule).unwrap();
+    let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
     let outputs = (0..2).map(|v| plan.final_output("output", v).unwrap().1).collect();
     (plan, outputs)
 }

@@ -69,6 +69,11 @@ pub struct Region {
 }
 
 impl Region {
+    /// Rows `[y0, y1)`.
+    pub fn new(y0: u32, y1: u32) -> Region {
+        Region { y0, y1 }
+    }
+
     pub fn rows(height: u32) -> Region {
         Region { y0: 0, y1: height }
     }

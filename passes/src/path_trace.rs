@@ -12,7 +12,7 @@
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
 
-use parallax_backend::{BackendError, PassKernel, PlanPass, Recorder, ResourceKind, TexelFormat};
+use parallax_backend::{BackendError, ExecPass, Format, PassKernel, Recorder, ResourceKind};
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
@@ -65,7 +65,7 @@ pub struct PathTracePush {
 }
 
 impl PassKernel for PathTraceKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let outputs = TRACE_OUTPUTS.map(|slot| pass.output(slot));
         let Some(radiance) = outputs[0] else {
             return Err(misuse(index, format!("writes no `{}` slot", TRACE_OUTPUTS[0])));
@@ -75,7 +75,7 @@ impl PassKernel for PathTraceKernel {
         for (slot, write) in images.iter_mut().zip(outputs) {
             let Some(write) = write else { continue };
             let target = rec.resource(write.resource);
-            if target.kind != ResourceKind::Image || target.format == TexelFormat::R32Uint {
+            if target.kind != ResourceKind::Image || target.format == Format::R32u {
                 return Err(misuse(index, format!("its write `{}` must be a float image", target.name)));
             }
             *slot = rec.image(write.resource)?;

@@ -10,8 +10,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    BackendError, Context, EventKind, ExecOptions, Executor, PassKernel, Plan, PlanPass, PlanResource, Recorder,
-    ResourceKind,
+    BackendError, Context, EventKind, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor, PassKernel,
+    Recorder, ResourceKind,
 };
 use parallax_scene::Scene;
 use parallax_scene::gpu::GpuScene;
@@ -105,7 +105,7 @@ pub struct RaycastKernel {
 }
 
 impl PassKernel for RaycastKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let hits = match pass.writes.as_slice() {
             [w] if rec.resource(w.resource).kind == ResourceKind::Buffer && pass.reads.is_empty() => w.resource,
             _ => {
@@ -161,8 +161,9 @@ impl Raycaster {
         schedule: RaySchedule,
     ) -> Result<Self> {
         let capacity = capacity.max(1);
-        let hits = PlanResource::buffer("hits", 0, (capacity * std::mem::size_of::<HitOut>()) as u64);
-        let plan = Plan::single_pass(RAYCAST, RaycastKernel { opaque, schedule }, hits, context.devices().len());
+        let hits = ExecResource::buffer("hits", 0, (capacity * std::mem::size_of::<HitOut>()) as u64);
+        let plan =
+            ExecutionPlan::single_pass(RAYCAST, RaycastKernel { opaque, schedule }, hits, context.devices().len());
         let mut executor = Executor::new(context, plan, ExecOptions::default())?;
         upload_scene(&mut executor, scene)?;
         executor.upload_buffer(RAYCAST_WORK, &[0u8; 8])?;

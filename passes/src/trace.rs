@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, Context, ExecOptions, Executor, KernelGraph, Plan, ResourceKind, TexelFormat};
+use parallax_backend::{BackendError, Context, ExecOptions, ExecutionPlan, Executor, KernelGraph, ResourceKind};
 use parallax_graph::{
     AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
     Scheme, ViewTopology, compile,
@@ -57,7 +57,7 @@ pub fn trace_plan(
     devices: u32,
     scheme: Scheme,
     pixel_list: Option<(u64, StridedPixelListKernel)>,
-) -> Result<Plan> {
+) -> Result<ExecutionPlan> {
     let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
     // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
     let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
@@ -70,7 +70,7 @@ pub fn trace_plan(
 /// on device `b % devices`, every band traced away from device 0 gathered there: the shape of
 /// a fine-all schedule without the light-field rule of at least one view per device.
 /// `parallax trace` splits its single view over any number of devices this way.
-pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<Plan> {
+pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<ExecutionPlan> {
     let topology = ViewTopology::all_sources(views, width, height);
     lower_trace(topology, &BandedPlacement { devices, bands }, None)
 }
@@ -79,11 +79,11 @@ fn lower_trace(
     topology: ViewTopology,
     placement: &dyn Placement,
     pixel_list: Option<(u64, StridedPixelListKernel)>,
-) -> Result<Plan> {
+) -> Result<ExecutionPlan> {
     let mut graph = KernelGraph::with_payload(topology);
     declare_trace(&mut graph, pixel_list);
     let schedule = compile(&graph, placement)?;
-    Ok(Plan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
+    Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
 }
 
 /// Runs plans of `path_trace` passes on a scene and reads the traced views back.
@@ -94,7 +94,7 @@ pub struct GpuTracer {
 
 impl GpuTracer {
     /// Creates the executor for `plan` on `context` and uploads `scene`.
-    pub fn new(context: &Context, plan: Plan, scene: &GpuScene<'_>) -> Result<Self> {
+    pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
         // Room for every view's parameters, so a large light field is not refused for a buffer
         // size the caller never chose.
         let views = plan.resources.iter().map(|r| u64::from(r.view) + 1).max().unwrap_or(1);
@@ -158,7 +158,7 @@ impl GpuTracer {
             let desc = &self.executor.plan().resources[resource];
             if (desc.width, desc.height) != (view.width, view.height)
                 || desc.kind != ResourceKind::Image
-                || desc.format != TexelFormat::Rgba32Float
+                || desc.format != Format::Rgba32f
             {
                 return Err(PassError::ViewSize {
                     view: view.index,

@@ -3,7 +3,7 @@
 
 mod common;
 
-use parallax_backend::{BackendError, ExecOptions, Executor, MAX_TEXTURES, Plan, PlanResource, TextureData};
+use parallax_backend::{BackendError, ExecOptions, ExecResource, ExecutionPlan, Executor, MAX_TEXTURES, TextureData};
 use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
@@ -49,7 +49,7 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     drop(tracer);
 
     // A path_trace pass whose only write is a buffer: the kernel says what it expects.
-    let plan = Plan::single_pass(PATH_TRACE, PathTraceKernel, PlanResource::buffer("list", 0, 64), 1);
+    let plan = ExecutionPlan::single_pass(PATH_TRACE, PathTraceKernel, ExecResource::buffer("list", 0, 64), 1);
     let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
     match exec.run_frame() {

@@ -5,7 +5,7 @@
 
 mod common;
 
-use parallax_backend::Plan;
+use parallax_backend::ExecutionPlan;
 use parallax_graph::Scheme;
 use parallax_passes::{GpuTracer, PATH_TRACE, StridedPixelListKernel, banded_trace_plan, strided_pixels, trace_plan};
 use parallax_scene::gpu::{GpuPixel, GpuScene};
@@ -17,7 +17,7 @@ const VIEWS: u32 = 2;
 const STRIDE: u32 = 3;
 const PHASE: u32 = 1;
 
-fn render(devices: usize, plan: Plan) -> Vec<Vec<GpuPixel>> {
+fn render(devices: usize, plan: ExecutionPlan) -> Vec<Vec<GpuPixel>> {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices);
