@@ -43,7 +43,8 @@ pub enum BackendError {
     Vk { call: &'static str, result: vk::Result },
 
     /// gpu-allocator could not allocate or free.
-    #[error("memory allocation for {what} failed: {source}")]
+    // The source is not repeated here: `{:#}` prints the chain, and it would appear twice.
+    #[error("memory allocation for {what} failed")]
     Allocation { what: String, source: gpu_allocator::AllocationError },
 
     /// No memory type can hold an imported host allocation on this device.
@@ -143,7 +144,7 @@ pub enum BackendError {
     FrameTimeout { frame: u64, device: usize, seconds: u64 },
 
     /// Writing a report or trace file failed.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}")]
     Io { path: String, source: std::io::Error },
 }
 

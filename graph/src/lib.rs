@@ -34,6 +34,7 @@ pub mod assign;
 pub mod builder;
 pub mod compile;
 pub mod dot;
+mod dot_summary;
 pub mod error;
 pub mod ids;
 pub mod lightfield;

@@ -95,7 +95,12 @@ pub struct GpuTracer {
 impl GpuTracer {
     /// Creates the executor for `plan` on `context` and uploads `scene`.
     pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
-        let options = ExecOptions::default();
+        // Room for every view's parameters, so a large light field is not refused for a buffer
+        // size the caller never chose.
+        let views = plan.resources.iter().map(|r| u64::from(r.view) + 1).max().unwrap_or(1);
+        let defaults = ExecOptions::default();
+        let options =
+            ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(views * TRACE_PARAMS_BYTES), ..defaults };
         let frame_data_bytes = options.frame_data_bytes;
         let mut executor = Executor::new(context, plan, options)?;
         upload_scene(&mut executor, scene)?;
