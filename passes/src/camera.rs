@@ -10,10 +10,43 @@
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use parallax_backend::{FrameBlock, FrameClock, GpuCamera};
-use parallax_scene::View;
+use parallax_graph::{LightField, Rig, ViewId};
+use parallax_scene::{Camera, View};
 
 /// Distance of the depth range's near end, in scene units.
 pub const NEAR: f32 = 1e-3;
+
+/// The light-field rig of `camera`: the zero-disparity plane `focus` in front of it, or through
+/// the point `centre` when no focus is given (1 when that lies behind the camera).
+pub fn rig_of(camera: &Camera, centre: Vec3, focus: Option<f64>) -> Rig {
+    let to_centre = (centre - camera.eye).dot(camera.forward.normalize()) as f64;
+    Rig {
+        eye: camera.eye.as_dvec3(),
+        forward: camera.forward.as_dvec3(),
+        up: camera.up.as_dvec3(),
+        yfov: camera.yfov as f64,
+        focus_distance: focus.unwrap_or(if to_centre > 0.0 { to_centre } else { 1.0 }),
+    }
+}
+
+/// View `v` of `lf` as the renderer sees it. The scene camera adds its shift to the NDC point
+/// (the planner's camera subtracts it), hence the sign.
+pub fn lightfield_view(lf: &LightField, v: ViewId) -> View {
+    let c = lf.camera(v);
+    let camera = Camera {
+        eye: c.eye.as_vec3(),
+        forward: c.forward.as_vec3(),
+        up: c.up.as_vec3(),
+        yfov: c.yfov as f32,
+        shift: -Vec2::new(c.ndc_shift.x as f32, c.ndc_shift.y as f32),
+    };
+    View { camera, width: lf.width, height: lf.height, index: v.0 }
+}
+
+/// Every view of `lf`, in view order.
+pub fn lightfield_views(lf: &LightField) -> Vec<View> {
+    lf.views().map(|v| lightfield_view(lf, v)).collect()
+}
 
 /// World → clip of `view` (see the module docs).
 pub fn view_projection(view: &View) -> Mat4 {
@@ -51,7 +84,6 @@ pub fn frame_block(clock: &mut FrameClock, views: &[View]) -> FrameBlock {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_scene::Camera;
 
     fn views() -> Vec<View> {
         let mut shifted = Camera::look_at(Vec3::new(0.3, 1.0, 4.0), Vec3::new(0.0, 0.5, 0.0), Vec3::Y, 0.9);
