@@ -146,7 +146,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
 /// The rig is the scene's camera; the zero-disparity plane goes through the scene's centre
 /// unless `--focus` says otherwise.
-fn rig_of(scene: &Scene, focus: Option<f64>) -> Result<Rig> {
+pub(crate) fn rig_of(scene: &Scene, focus: Option<f64>) -> Result<Rig> {
     let camera = scene.default_camera();
     let to_centre = (scene.bounds().center() - camera.eye).dot(camera.forward.normalize()) as f64;
     let focus_distance = focus.unwrap_or(if to_centre > 0.0 { to_centre } else { 1.0 });
@@ -161,7 +161,7 @@ fn rig_of(scene: &Scene, focus: Option<f64>) -> Result<Rig> {
 
 /// View `v`'s camera for the renderer. The scene's camera adds its shift to the NDC point (the
 /// planner's subtracts it), hence the sign.
-fn camera_of(lf: &LightField, v: ViewId) -> Camera {
+pub(crate) fn camera_of(lf: &LightField, v: ViewId) -> Camera {
     let c = lf.camera(v);
     Camera {
         eye: c.eye.as_vec3(),

@@ -111,7 +111,7 @@ pub(crate) fn parse_camera(s: &str) -> anyhow::Result<Camera> {
     Ok(Camera::look_at(eye, target, up, v[9].to_radians()))
 }
 
-fn parse_sun(s: &str) -> anyhow::Result<Sun> {
+pub(crate) fn parse_sun(s: &str) -> anyhow::Result<Sun> {
     let v = parse_floats("sun", s)?;
     if v.len() != 4 && v.len() != 5 {
         bail!("--sun: expected to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]");
@@ -127,7 +127,7 @@ fn parse_sun(s: &str) -> anyhow::Result<Sun> {
     Ok(Sun { to_sun: dir.normalize(), irradiance: Vec3::splat(v[3]), angular_radius: radius.to_radians() })
 }
 
-fn parse_sky(s: &str) -> anyhow::Result<Sky> {
+pub(crate) fn parse_sky(s: &str) -> anyhow::Result<Sky> {
     let v = parse_floats("sky", s)?;
     if v.iter().any(|&x| x < 0.0) {
         bail!("--sky: radiance must be non-negative");

@@ -11,8 +11,8 @@
 //!
 //! The f32 EXRs of the mean are not enough to resume (the f64 sum cannot be recovered from
 //! them), so the state lives in a sidecar, `reference.partial`, written atomically after every
-//! chunk: magic, a JSON header (settings, sizes, spp reached, per-chunk image means) and the f64
-//! sums, little-endian.
+//! chunk: magic, a JSON header (settings, sizes, spp reached), then the f64 sums and the
+//! per-chunk image means, little-endian.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -46,7 +46,9 @@ pub struct ReferenceHeader {
     /// Seconds of tracing over all runs so far.
     pub seconds: f64,
     /// Per chunk: the mean radiance (R, G, B) over every pixel of every view; their spread gives
-    /// the standard error of the image mean.
+    /// the standard error of the image mean. Stored in binary after the sums (JSON does not
+    /// round-trip every f64 exactly).
+    #[serde(skip)]
     pub chunk_means: Vec<[f64; 3]>,
 }
 
@@ -147,7 +149,7 @@ impl Accumulator {
         bytes.extend_from_slice(MAGIC);
         bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
         bytes.extend_from_slice(&header);
-        for s in &self.sums {
+        for s in self.sums.iter().chain(self.header.chunk_means.iter().flatten()) {
             bytes.extend_from_slice(&s.to_le_bytes());
         }
         write_atomically(path, |f| f.write_all(&bytes))
@@ -165,13 +167,15 @@ impl Accumulator {
         }
         let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
         let header_end = 16usize.checked_add(len).filter(|&e| e <= bytes.len()).ok_or_else(|| bad("truncated header"))?;
-        let header: ReferenceHeader =
+        let mut header: ReferenceHeader =
             serde_json::from_slice(&bytes[16..header_end]).map_err(|e| bad(&format!("bad header ({e})")))?;
         let count = header.views * header.width * header.height * 3;
-        if bytes.len() - header_end != count * 8 {
+        if bytes.len() - header_end != (count + 3 * header.chunks as usize) * 8 {
             return Err(bad("sum data of the wrong length"));
         }
-        let sums = bytes[header_end..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes"))).collect();
+        let mut values = bytes[header_end..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
+        let sums = values.by_ref().take(count).collect();
+        header.chunk_means = (0..header.chunks).map(|_| [0; 3].map(|_| values.next().expect("length checked"))).collect();
         Ok(Self { header, sums })
     }
 }

@@ -31,6 +31,29 @@ impl RgbImage {
         Ok(Self { width, height, pixels })
     }
 
+    /// Writes R, G, B as 32-bit float channels, with `attributes` as text attributes of the
+    /// layer (what `reference` stores its spp count in, beside the sidecar that resumes it).
+    pub fn write_exr(&self, path: &Path, attributes: &[(&str, String)]) -> Result<()> {
+        use exr::prelude::*;
+        let (w, h) = (self.width, self.height);
+        let channel = |name: &str, c: usize| {
+            AnyChannel::new(name, FlatSamples::F32(self.pixels.iter().map(|p| p[c]).collect()))
+        };
+        let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
+            SmallVec::from_vec(vec![channel("R", 0), channel("G", 1), channel("B", 2)]);
+        let mut layer_attributes = LayerAttributes::named("parallax");
+        for (key, value) in attributes {
+            layer_attributes.other.insert(Text::new_or_panic(*key), AttributeValue::Text(Text::new_or_panic(value)));
+        }
+        let layer = Layer::new((w, h), layer_attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
+        crate::accumulate::write_atomically_to_path(path, |tmp| {
+            Image::from_layer(layer)
+                .write()
+                .to_file(tmp)
+                .map_err(|e| AccuracyError::Write { path: path.into(), detail: e.to_string() })
+        })
+    }
+
     /// Pixels with a NaN or infinite channel: their count and the first one's (x, y).
     pub fn non_finite(&self) -> Option<(usize, (usize, usize))> {
         let bad: Vec<usize> =
