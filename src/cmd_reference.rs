@@ -270,7 +270,9 @@ fn write_checkpoint(dir: &Path, acc: &Accumulator, selected: &[u32]) -> Result<(
     let (w, h) = (acc.header.width, acc.header.height);
     for (i, v) in selected.iter().enumerate() {
         let image = RgbImage::new(w, h, acc.mean(i));
-        let attributes = [("parallaxSpp", acc.header.spp.to_string()), ("parallaxView", v.to_string())];
+        // One attribute: the EXR writer keeps attributes in a hash map, so several would be
+        // written in a different order each run.
+        let attributes = [("parallaxSpp", acc.header.spp.to_string())];
         image.write_exr(&dir.join(format!("view_{v:03}.exr")), &attributes)?;
     }
     acc.save(&dir.join(PARTIAL_FILE))?;

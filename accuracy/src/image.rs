@@ -45,7 +45,10 @@ impl RgbImage {
         for (key, value) in attributes {
             layer_attributes.other.insert(Text::new_or_panic(*key), AttributeValue::Text(Text::new_or_panic(value)));
         }
-        let layer = Layer::new((w, h), layer_attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
+        // Increasing line order: blocks are written in order, not as the parallel compressor
+        // finishes them, so equal pixels give byte-identical files.
+        let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::SMALL_LOSSLESS };
+        let layer = Layer::new((w, h), layer_attributes, encoding, AnyChannels::sort(list));
         crate::accumulate::write_atomically_to_path(path, |tmp| {
             Image::from_layer(layer)
                 .write()
