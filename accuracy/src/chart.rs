@@ -40,6 +40,8 @@ pub struct XyChart {
     pub x_label: String,
     pub y_label: String,
     pub series: Vec<Series>,
+    /// The x axis counts things (devices, views): ticks between integers stay unlabelled.
+    pub integer_x: bool,
 }
 
 /// Which accuracy figure the speed-accuracy chart plots.
@@ -89,6 +91,7 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
                 points: ps.iter().map(|p| (p.frame_ms.unwrap(), y(p).unwrap(), Some(p.label.clone()))).collect(),
             })
             .collect(),
+        integer_x: false,
     })
 }
 
@@ -115,6 +118,7 @@ pub fn scaling(points: &[Point]) -> Result<XyChart> {
         x_label: "devices".into(),
         y_label: "frame time (ms)".into(),
         series,
+        integer_x: true,
     })
 }
 
@@ -137,6 +141,7 @@ pub fn frame_time_over_views(points: &[Point]) -> Result<XyChart> {
         x_label: "views".into(),
         y_label: "frame time (ms)".into(),
         series,
+        integer_x: true,
     })
 }
 
@@ -162,8 +167,14 @@ impl XyChart {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         root.fill(&WHITE).map_err(chart_err)?;
         let all = || self.series.iter().flat_map(|s| s.points.iter());
-        let xr = range(all().map(|p| p.0), true);
-        let yr = range(all().map(|p| p.1), true);
+        let mut xr = range(all().map(|p| p.0), true);
+        let mut yr = range(all().map(|p| p.1), true);
+        // Room for point labels on the right and for the legend at the top.
+        if all().any(|p| p.2.is_some()) {
+            xr.end += (xr.end - xr.start) * 0.3;
+        }
+        yr.end += (yr.end - yr.start) * 0.2;
+        let integer_x = self.integer_x;
         let mut chart = ChartBuilder::on(root)
             .caption(&self.title, (FONT, 22))
             .margin(20)
@@ -177,6 +188,15 @@ impl XyChart {
             .y_desc(&self.y_label)
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 17))
+            .x_label_formatter(&|x: &f64| {
+                if !integer_x {
+                    format!("{x}")
+                } else if (x - x.round()).abs() < 1e-6 {
+                    format!("{}", x.round())
+                } else {
+                    String::new()
+                }
+            })
             .draw()
             .map_err(chart_err)?;
         for (i, s) in self.series.iter().enumerate() {

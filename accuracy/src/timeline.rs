@@ -13,6 +13,7 @@ use crate::error::{AccuracyError, Result};
 #[derive(Clone, Debug, PartialEq)]
 pub struct Span {
     pub lane: u64,
+    /// The pass name, or for copies their category ("copy_in", "copy_out"): one colour each.
     pub name: String,
     pub start_ms: f64,
     pub end_ms: f64,
@@ -48,7 +49,11 @@ impl Timeline {
                 Some("X") => {
                     let ts = e.get("ts").and_then(|t| t.as_f64()).ok_or_else(|| bad(format!("event without ts: {e}")))?;
                     let dur = e.get("dur").and_then(|t| t.as_f64()).unwrap_or(0.0);
-                    let name = e.get("name").and_then(|n| n.as_str()).unwrap_or("?").to_string();
+                    let name = match e.get("cat").and_then(|c| c.as_str()) {
+                        Some(cat) if cat != "pass" => cat,
+                        _ => e.get("name").and_then(|n| n.as_str()).unwrap_or("?"),
+                    }
+                    .to_string();
                     spans.push(Span { lane: tid, name, start_ms: ts / 1e3, end_ms: (ts + dur) / 1e3 });
                 }
                 _ => {}
@@ -76,19 +81,23 @@ impl Timeline {
             .margin(20)
             .x_label_area_size(50)
             .y_label_area_size(260)
-            .build_cartesian_2d(start..end * 1.02 + 1e-6, (0..n).into_segmented())
+            .build_cartesian_2d(start..end * 1.02 + 1e-6, 0.0..n as f64)
             .map_err(chart_err)?;
         let lanes = self.lanes.clone();
         chart
             .configure_mesh()
             .x_desc("time since the first event (ms)")
-            .y_desc("device")
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 17))
-            .y_labels(n)
-            .y_label_formatter(&move |v| match v {
-                SegmentValue::CenterOf(i) => lanes.get(*i).map_or(String::new(), |l| l.1.clone()),
-                _ => String::new(),
+            // Lane i spans [i, i + 1]: its name goes on the tick at i + 0.5.
+            .y_labels(2 * n + 1)
+            .y_label_formatter(&move |y: &f64| {
+                let lane = y - 0.5;
+                if (lane - lane.round()).abs() < 1e-6 && lane >= 0.0 {
+                    lanes.get(lane.round() as usize).map_or(String::new(), |l| l.1.clone())
+                } else {
+                    String::new()
+                }
             })
             .disable_y_mesh()
             .draw()
@@ -104,7 +113,7 @@ impl Timeline {
             let bars = self.spans.iter().filter(|s| s.name == *name).map(|s| {
                 let lane = self.lanes.iter().position(|l| l.0 == s.lane).expect("every lane is listed");
                 Rectangle::new(
-                    [(s.start_ms, SegmentValue::Exact(lane)), (s.end_ms, SegmentValue::Exact(lane + 1))],
+                    [(s.start_ms, lane as f64 + 0.05), (s.end_ms, lane as f64 + 0.95)],
                     c.mix(0.8).filled(),
                 )
             });
