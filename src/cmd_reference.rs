@@ -150,7 +150,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
             args.spp.div_ceil(args.chunk_spp.max(1)) * args.chunk_spp.max(1)
         );
     }
-    if !(args.checkpoint_secs >= 0.0) {
+    if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
         bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
     let spec: LayoutSpec = args.lf.parse()?;
@@ -333,7 +333,12 @@ fn write_outputs(
         mean,
         standard_error.map(|e| format!("{e:.2e}"))
     );
-    println!("wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}", selected.len(), sheet.display(), args.out_dir.display());
+    println!(
+        "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
+        selected.len(),
+        sheet.display(),
+        args.out_dir.display()
+    );
     Ok(())
 }
 

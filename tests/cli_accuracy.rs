@@ -188,7 +188,10 @@ fn charts_from_render_reference_and_compare_outputs() {
     let lf = ["--lf", "2x1", "--resolution", "16x12", "--spacing", "0.05"];
     let (render, refdir) = (dir.join("render"), dir.join("ref"));
     let trace = dir.join("trace.json");
-    ok(parallax(&[&["render"], &lf[..], &["--spp", "2", "--fake-devices", "2", "--trace"]].concat(), &[&trace, Path::new("--out-dir"), &render]));
+    ok(parallax(
+        &[&["render"], &lf[..], &["--spp", "2", "--fake-devices", "2", "--trace"]].concat(),
+        &[&trace, Path::new("--out-dir"), &render],
+    ));
     ok(parallax(&[&["reference"], &lf[..], &["--spp", "32", "--fake-devices", "1", "--out-dir"]].concat(), &[&refdir]));
     let cmp = dir.join("cmp.json");
     ok(parallax(&["compare"], &[&render, &refdir, Path::new("--json"), &cmp]));
@@ -197,10 +200,16 @@ fn charts_from_render_reference_and_compare_outputs() {
     assert_eq!((point["devices"].as_u64(), point["views"].as_u64()), (Some(2), Some(2)));
 
     let out = |name: &str| dir.join(name);
-    ok(parallax(&["chart", "speed-accuracy"], &[&cmp, Path::new("-o"), &out("sa.svg"), Path::new("-o"), &out("sa.png")]));
+    ok(parallax(
+        &["chart", "speed-accuracy"],
+        &[&cmp, Path::new("-o"), &out("sa.svg"), Path::new("-o"), &out("sa.png")],
+    ));
     ok(parallax(&["chart", "speed-accuracy", "--metric", "psnr"], &[&cmp, Path::new("-o"), &out("sa_psnr.svg")]));
     ok(parallax(&["chart", "scaling"], &[&render.join("render.json"), Path::new("-o"), &out("sc.png")]));
-    ok(parallax(&["chart", "views"], &[&render.join("render.json"), &refdir.join("reference.json"), Path::new("-o"), &out("v.svg")]));
+    ok(parallax(
+        &["chart", "views"],
+        &[&render.join("render.json"), &refdir.join("reference.json"), Path::new("-o"), &out("v.svg")],
+    ));
     ok(parallax(&["chart", "timeline"], &[&trace, Path::new("-o"), &out("tl.svg"), Path::new("-o"), &out("tl.png")]));
     for png in ["sa.png", "sc.png", "tl.png"] {
         image::open(out(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
@@ -209,7 +218,10 @@ fn charts_from_render_reference_and_compare_outputs() {
         let text = std::fs::read_to_string(out(svg)).unwrap();
         assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"), "{svg}");
     }
-    let err = fails(parallax(&["chart", "speed-accuracy"], &[&refdir.join("reference.json"), Path::new("-o"), &out("x.svg")]));
+    let err = fails(parallax(
+        &["chart", "speed-accuracy"],
+        &[&refdir.join("reference.json"), Path::new("-o"), &out("x.svg")],
+    ));
     assert!(err.contains("no input point has"), "{err}");
     assert!(!out("x.svg").exists());
 }

@@ -60,7 +60,12 @@ pub struct Accumulator {
 }
 
 impl Accumulator {
-    pub fn new(settings: BTreeMap<String, String>, views: usize, (width, height): (usize, usize), chunk_spp: u32) -> Self {
+    pub fn new(
+        settings: BTreeMap<String, String>,
+        views: usize,
+        (width, height): (usize, usize),
+        chunk_spp: u32,
+    ) -> Self {
         let header = ReferenceHeader {
             settings,
             views,
@@ -161,21 +166,25 @@ impl Accumulator {
             path: path.into(),
             detail: format!("{detail}: not a partial reference of this version; delete it to start over"),
         };
-        let bytes = std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
+        let bytes =
+            std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
         if bytes.len() < 16 || &bytes[..8] != MAGIC {
             return Err(bad("bad magic"));
         }
         let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-        let header_end = 16usize.checked_add(len).filter(|&e| e <= bytes.len()).ok_or_else(|| bad("truncated header"))?;
+        let header_end =
+            16usize.checked_add(len).filter(|&e| e <= bytes.len()).ok_or_else(|| bad("truncated header"))?;
         let mut header: ReferenceHeader =
             serde_json::from_slice(&bytes[16..header_end]).map_err(|e| bad(&format!("bad header ({e})")))?;
         let count = header.views * header.width * header.height * 3;
         if bytes.len() - header_end != (count + 3 * header.chunks as usize) * 8 {
             return Err(bad("sum data of the wrong length"));
         }
-        let mut values = bytes[header_end..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
+        let mut values =
+            bytes[header_end..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
         let sums = values.by_ref().take(count).collect();
-        header.chunk_means = (0..header.chunks).map(|_| [0; 3].map(|_| values.next().expect("length checked"))).collect();
+        header.chunk_means =
+            (0..header.chunks).map(|_| [0; 3].map(|_| values.next().expect("length checked"))).collect();
         Ok(Self { header, sums })
     }
 }

@@ -51,7 +51,7 @@ pub enum AccuracyAxis {
     Psnr,
 }
 
-fn group<'a>(points: &'a [Point], keep: impl Fn(&Point) -> bool) -> Vec<(String, Vec<&'a Point>)> {
+fn group(points: &[Point], keep: impl Fn(&Point) -> bool) -> Vec<(String, Vec<&Point>)> {
     let mut groups: Vec<(String, Vec<&Point>)> = Vec::new();
     for p in points.iter().filter(|p| keep(p)) {
         match groups.iter_mut().find(|(name, _)| name == p.series_name()) {
@@ -203,9 +203,9 @@ impl XyChart {
             let c = color(i);
             let xy: Vec<(f64, f64)> = s.points.iter().map(|p| (p.0, p.1)).collect();
             let legend = match s.style {
-                Style::Points => chart
-                    .draw_series(xy.iter().map(|&p| Circle::new(p, 5, c.filled())))
-                    .map_err(chart_err)?,
+                Style::Points => {
+                    chart.draw_series(xy.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(chart_err)?
+                }
                 Style::Line => {
                     chart.draw_series(xy.iter().map(|&p| Circle::new(p, 4, c.filled()))).map_err(chart_err)?;
                     chart.draw_series(LineSeries::new(xy.clone(), c.stroke_width(2))).map_err(chart_err)?

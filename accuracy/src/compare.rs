@@ -36,7 +36,11 @@ pub fn compare_paths(test: &Path, reference: &Path) -> Result<Comparison> {
     let pairs = match (test.is_dir(), reference.is_dir()) {
         (true, true) => matched_views(test, reference)?,
         (false, false) => {
-            vec![(test.file_name().map_or("image".into(), |n| n.to_string_lossy().into_owned()), test.into(), reference.into())]
+            vec![(
+                test.file_name().map_or("image".into(), |n| n.to_string_lossy().into_owned()),
+                test.into(),
+                reference.into(),
+            )]
         }
         _ => {
             return Err(AccuracyError::BadInput {
@@ -57,8 +61,8 @@ pub fn compare_paths(test: &Path, reference: &Path) -> Result<Comparison> {
 }
 
 fn view_names(folder: &Path) -> Result<BTreeSet<String>> {
-    let entries = std::fs::read_dir(folder)
-        .map_err(|e| AccuracyError::Read { path: folder.into(), detail: e.to_string() })?;
+    let entries =
+        std::fs::read_dir(folder).map_err(|e| AccuracyError::Read { path: folder.into(), detail: e.to_string() })?;
     let mut names = BTreeSet::new();
     for entry in entries {
         let entry = entry.map_err(|e| AccuracyError::Read { path: folder.into(), detail: e.to_string() })?;

@@ -36,9 +36,8 @@ impl RgbImage {
     pub fn write_exr(&self, path: &Path, attributes: &[(&str, String)]) -> Result<()> {
         use exr::prelude::*;
         let (w, h) = (self.width, self.height);
-        let channel = |name: &str, c: usize| {
-            AnyChannel::new(name, FlatSamples::F32(self.pixels.iter().map(|p| p[c]).collect()))
-        };
+        let channel =
+            |name: &str, c: usize| AnyChannel::new(name, FlatSamples::F32(self.pixels.iter().map(|p| p[c]).collect()));
         let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
             SmallVec::from_vec(vec![channel("R", 0), channel("G", 1), channel("B", 2)]);
         let mut layer_attributes = LayerAttributes::named("parallax");

@@ -85,7 +85,12 @@ fn serialize_db<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::E
 
 /// Compares `test` against `reference` (named in errors): same size and finite values are
 /// required, and the result is the sums to pool; `.metrics()` gives the figures.
-pub fn compare_images(test: &RgbImage, test_name: &str, reference: &RgbImage, reference_name: &str) -> Result<ErrorSums> {
+pub fn compare_images(
+    test: &RgbImage,
+    test_name: &str,
+    reference: &RgbImage,
+    reference_name: &str,
+) -> Result<ErrorSums> {
     check_same_size(test, test_name, reference, reference_name)?;
     test.check_finite(test_name)?;
     reference.check_finite(reference_name)?;

@@ -13,7 +13,9 @@ pub fn ssim_plane(a: &[f64], b: &[f64], width: usize, height: usize) -> f64 {
         return 1.0;
     }
     let kernel = gaussian(size, 1.5);
-    let blur = |f: &dyn Fn(usize) -> f64| separable_valid(&(0..width * height).map(f).collect::<Vec<_>>(), width, height, &kernel);
+    let blur = |f: &dyn Fn(usize) -> f64| {
+        separable_valid(&(0..width * height).map(f).collect::<Vec<_>>(), width, height, &kernel)
+    };
     let mu_a = blur(&|i| a[i]);
     let mu_b = blur(&|i| b[i]);
     let aa = blur(&|i| a[i] * a[i]);

@@ -29,7 +29,8 @@ pub struct Timeline {
 impl Timeline {
     pub fn read(path: &Path) -> Result<Self> {
         let bad = |detail: String| AccuracyError::BadInput { path: path.into(), detail };
-        let bytes = std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
+        let bytes =
+            std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
         let json: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| bad(format!("not JSON: {e}")))?;
         // Both forms of the format: {"traceEvents": [...]} and a bare array.
         let events = json
@@ -47,7 +48,8 @@ impl Timeline {
                     lanes.push((tid, name));
                 }
                 Some("X") => {
-                    let ts = e.get("ts").and_then(|t| t.as_f64()).ok_or_else(|| bad(format!("event without ts: {e}")))?;
+                    let ts =
+                        e.get("ts").and_then(|t| t.as_f64()).ok_or_else(|| bad(format!("event without ts: {e}")))?;
                     let dur = e.get("dur").and_then(|t| t.as_f64()).unwrap_or(0.0);
                     let name = match e.get("cat").and_then(|c| c.as_str()) {
                         Some(cat) if cat != "pass" => cat,
@@ -112,10 +114,7 @@ impl Timeline {
             let c = color(k);
             let bars = self.spans.iter().filter(|s| s.name == *name).map(|s| {
                 let lane = self.lanes.iter().position(|l| l.0 == s.lane).expect("every lane is listed");
-                Rectangle::new(
-                    [(s.start_ms, lane as f64 + 0.05), (s.end_ms, lane as f64 + 0.95)],
-                    c.mix(0.8).filled(),
-                )
+                Rectangle::new([(s.start_ms, lane as f64 + 0.05), (s.end_ms, lane as f64 + 0.95)], c.mix(0.8).filled())
             });
             chart
                 .draw_series(bars)
