@@ -27,6 +27,10 @@ pub struct CompareArgs {
     /// Label of the chart point (default: from the test folder's render.json, else its path).
     #[arg(long)]
     label: Option<String>,
+    /// Series of the chart point (default: the scheme in render.json): points of one series
+    /// share a colour, and a line in the scaling and views charts.
+    #[arg(long)]
+    series: Option<String>,
 }
 
 pub fn run(args: CompareArgs) -> Result<()> {
@@ -53,6 +57,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         let o = &comparison.overall;
         let point = Point {
             label: args.label.clone().unwrap_or(timing.label.clone()),
+            series: args.series.clone().or(timing.series.clone()),
             flip: Some(o.flip),
             psnr: o.psnr_linear_db.is_finite().then_some(o.psnr_linear_db),
             ..timing

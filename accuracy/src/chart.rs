@@ -28,6 +28,8 @@ pub enum Style {
 #[derive(Clone, Debug)]
 pub struct Series {
     pub name: String,
+    /// Palette index: a measured series and its ideal line share one.
+    pub color: usize,
     pub style: Style,
     /// (x, y, label shown next to the marker).
     pub points: Vec<(f64, f64, Option<String>)>,
@@ -85,8 +87,10 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
         },
         series: groups
             .into_iter()
-            .map(|(name, ps)| Series {
+            .enumerate()
+            .map(|(color, (name, ps))| Series {
                 name,
+                color,
                 style: Style::Points,
                 points: ps.iter().map(|p| (p.frame_ms.unwrap(), y(p).unwrap(), Some(p.label.clone()))).collect(),
             })
@@ -103,15 +107,15 @@ pub fn scaling(points: &[Point]) -> Result<XyChart> {
         return Err(none_usable("both frame_ms and devices"));
     }
     let mut series = Vec::new();
-    for (name, mut ps) in groups {
+    for (color, (name, mut ps)) in groups.into_iter().enumerate() {
         ps.sort_by_key(|p| p.devices);
         let xy: Vec<(f64, f64, Option<String>)> =
             ps.iter().map(|p| (p.devices.unwrap() as f64, p.frame_ms.unwrap(), None)).collect();
         let (d0, t0) = (xy[0].0, xy[0].1);
         let ideal = xy.iter().map(|&(d, _, _)| (d, t0 * d0 / d, None)).collect();
         let label = if name.is_empty() { String::new() } else { format!("{name}, ") };
-        series.push(Series { name: format!("{label}measured"), style: Style::Line, points: xy });
-        series.push(Series { name: format!("{label}ideal"), style: Style::Dashed, points: ideal });
+        series.push(Series { name: format!("{label}measured"), color, style: Style::Line, points: xy });
+        series.push(Series { name: format!("{label}ideal"), color, style: Style::Dashed, points: ideal });
     }
     Ok(XyChart {
         title: "Scaling over devices".into(),
@@ -130,10 +134,12 @@ pub fn frame_time_over_views(points: &[Point]) -> Result<XyChart> {
     }
     let series = groups
         .into_iter()
-        .map(|(name, mut ps)| {
+        .enumerate()
+        .map(|(color, (name, mut ps))| {
             ps.sort_by_key(|p| p.views);
             let points = ps.iter().map(|p| (p.views.unwrap() as f64, p.frame_ms.unwrap(), None)).collect();
-            Series { name: if name.is_empty() { "frame time".into() } else { name }, style: Style::Line, points }
+            let name = if name.is_empty() { "frame time".into() } else { name };
+            Series { name, color, style: Style::Line, points }
         })
         .collect();
     Ok(XyChart {
@@ -199,8 +205,11 @@ impl XyChart {
             })
             .draw()
             .map_err(chart_err)?;
-        for (i, s) in self.series.iter().enumerate() {
-            let c = color(i);
+        // Label boxes already placed, in pixels: a label takes the first of four places beside
+        // its marker that overlaps none of them.
+        let mut placed: Vec<(i32, i32, i32, i32)> = Vec::new();
+        for s in &self.series {
+            let c = color(s.color);
             let xy: Vec<(f64, f64)> = s.points.iter().map(|p| (p.0, p.1)).collect();
             let legend = match s.style {
                 Style::Points => {
@@ -216,10 +225,21 @@ impl XyChart {
             };
             let name = if s.name.is_empty() { "points".to_string() } else { s.name.clone() };
             legend.label(name).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
-            let labelled = s.points.iter().filter_map(|p| p.2.as_ref().map(|l| ((p.0, p.1), l.clone())));
-            chart
-                .draw_series(labelled.map(|(p, l)| EmptyElement::at(p) + Text::new(l, (7, -16), (FONT, 14))))
-                .map_err(chart_err)?;
+            let mut labels = Vec::new();
+            for (x, y, label) in &s.points {
+                let Some(label) = label else { continue };
+                let (px, py) = chart.backend_coord(&(*x, *y));
+                let (w, h) = (label.chars().count() as i32 * 8, 16);
+                let candidates = [(7, -16), (7, 4), (-w - 7, -16), (-w - 7, 4)];
+                let free = |&(dx, dy): &(i32, i32)| {
+                    let (x0, y0) = (px + dx, py + dy);
+                    !placed.iter().any(|&(a, b, c, d)| x0 < c && a < x0 + w && y0 < d && b < y0 + h)
+                };
+                let (dx, dy) = candidates.iter().copied().find(free).unwrap_or(candidates[0]);
+                placed.push((px + dx, py + dy, px + dx + w, py + dy + h));
+                labels.push(EmptyElement::at((*x, *y)) + Text::new(label.clone(), (dx, dy), (FONT, 14)));
+            }
+            chart.draw_series(labels).map_err(chart_err)?;
         }
         chart
             .configure_series_labels()
