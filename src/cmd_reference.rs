@@ -238,6 +238,8 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
             .context("progress bar template")?,
     );
     bar.set_position(acc.header.spp);
+    // The rate, and so the ETA, counts only this run's chunks.
+    bar.reset_eta();
     let started = Instant::now();
     let mut last_checkpoint = Instant::now();
     while acc.header.spp < target {

@@ -75,6 +75,39 @@ fn a_resumed_reference_equals_an_uninterrupted_one() {
     assert!(!dir.join("bad").exists());
 }
 
+/// A real interruption: the run is killed (SIGKILL) right after its first checkpoint, then
+/// resumed; the result equals an uninterrupted run byte for byte.
+#[test]
+fn a_killed_reference_resumes_to_the_same_bytes() {
+    let dir = scratch("accuracy", "kill");
+    let (straight, killed) = (dir.join("straight"), dir.join("killed"));
+    ok(reference(&["--spp", "256", "--fake-devices", "1"], &straight));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .args([SMALL, &["--spp", "256", "--fake-devices", "1", "--checkpoint-secs", "0", "--out-dir"]].concat())
+        .arg(&killed)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let partial = killed.join("reference.partial");
+    let t = std::time::Instant::now();
+    while !partial.exists() && t.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let reached = parallax_accuracy::Accumulator::load(&partial).unwrap().header.spp;
+    assert!(reached > 0 && reached < 256, "killed at {reached} spp: not an interruption");
+    let log = reference(&["--spp", "256", "--fake-devices", "1"], &killed);
+    assert!(String::from_utf8_lossy(&log.stderr).contains(&format!("resuming {} at {reached} spp", partial.display())));
+    ok(log);
+    for v in 0..2 {
+        let name = format!("view_{v:03}.exr");
+        let (a, b) = (std::fs::read(straight.join(&name)).unwrap(), std::fs::read(killed.join(&name)).unwrap());
+        assert!(a == b, "{name}: killed at {reached} spp and resumed differs from the uninterrupted run");
+    }
+}
+
 fn mean_and_se(dir: &Path) -> ([f64; 3], [f64; 3]) {
     let meta = json(&dir.join("reference.json"));
     let read = |key: &str| [0, 1, 2].map(|c| meta[key][c].as_f64().unwrap());
