@@ -105,14 +105,17 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     Ok(views)
 }
 
-/// FNV-1a of a scene file, so a resumed run notices an edited scene (`default` is built in).
+/// The scene file's name and FNV-1a hash, so a resumed run notices an edited scene but not a
+/// different path to the same file (`default` is built in). Buffers and textures a glTF
+/// refers to are not hashed.
 fn scene_fingerprint(spec: &str) -> Result<String> {
     if spec == "default" {
         return Ok("default".into());
     }
     let bytes = std::fs::read(spec).with_context(|| format!("--scene {spec}: cannot read the file"))?;
     let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    Ok(format!("{spec} (fnv1a {hash:016x}, {} bytes)", bytes.len()))
+    let name = Path::new(spec).file_name().map_or(spec.into(), |n| n.to_string_lossy());
+    Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))
 }
 
 enum Tracer<'a> {
@@ -190,7 +193,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let settings_key = BTreeMap::from([
         ("--scene".to_string(), scene_fingerprint(&args.scene)?),
         ("--lf".to_string(), format!("{} ({}x{} views)", args.lf, lf.cols, lf.rows)),
-        ("--spacing".to_string(), format!("{:?}", args.spacing)),
+        ("--spacing".to_string(), args.spacing.map_or("(preset)".into(), |s| s.to_string())),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
         ("--views".to_string(), format!("{selected:?}")),

@@ -129,22 +129,24 @@ impl Accumulator {
         (mean, se)
     }
 
-    /// Fails with [`AccuracyError::SettingsDiffer`], naming the first flag that differs, unless
+    /// Fails with [`AccuracyError::SettingsDiffer`], naming every flag that differs, unless
     /// this partial state was made with `settings`.
     pub fn check_settings(&self, given: &BTreeMap<String, String>, path: &Path) -> Result<()> {
         let keys: std::collections::BTreeSet<&String> = self.header.settings.keys().chain(given.keys()).collect();
-        for key in keys {
-            let (stored, now) = (self.header.settings.get(key), given.get(key));
-            if stored != now {
-                return Err(AccuracyError::SettingsDiffer {
-                    path: path.into(),
-                    flag: key.clone(),
-                    stored: stored.cloned().unwrap_or_else(|| "(unset)".into()),
-                    given: now.cloned().unwrap_or_else(|| "(unset)".into()),
-                });
-            }
+        let unset = || "(unset)".to_string();
+        let differences: Vec<String> = keys
+            .into_iter()
+            .filter(|key| self.header.settings.get(*key) != given.get(*key))
+            .map(|key| {
+                let stored = self.header.settings.get(key).cloned().unwrap_or_else(unset);
+                let now = given.get(key).cloned().unwrap_or_else(unset);
+                format!("{key} {stored} (this run: {key} {now})")
+            })
+            .collect();
+        if differences.is_empty() {
+            return Ok(());
         }
-        Ok(())
+        Err(AccuracyError::SettingsDiffer { path: path.into(), differences: differences.join("; ") })
     }
 
     /// Writes the sidecar atomically (temporary file in the same folder, then a rename).

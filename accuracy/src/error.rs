@@ -20,10 +20,14 @@ pub enum AccuracyError {
     #[error("{path}: {detail}")]
     BadInput { path: PathBuf, detail: String },
     #[error(
-        "the partial reference in {path} was made with {flag} {stored}, this run has {flag} {given}: \
-         run again with {flag} {stored}, or use another --out-dir (or delete {path}) to start over"
+        "the partial reference in {path} was made with other settings: {differences}; run again with \
+         the partial's settings, or use another --out-dir (or delete {path}) to start over"
     )]
-    SettingsDiffer { path: PathBuf, flag: String, stored: String, given: String },
+    SettingsDiffer {
+        path: PathBuf,
+        /// Every flag that differs, as `--flag stored (this run: --flag given)`, `; `-separated.
+        differences: String,
+    },
     #[error("chart: {0}")]
     Chart(String),
 }
