@@ -205,9 +205,15 @@ fn compare_of_folders_and_files() {
     nan.pixels[3][0] = f32::NAN;
     nan.pixels[30][2] = f32::INFINITY;
     let e = dir.join("e");
-    folder(&e, &[(0, nan), (1, ramp(20, 12, 0.0))]);
+    let mut nan1 = ramp(20, 12, 0.0);
+    nan1.pixels[25][1] = f32::NEG_INFINITY;
+    folder(&e, &[(0, nan), (1, nan1)]);
     let err = fails(parallax(&["compare"], &[&e, &b]));
-    assert!(err.contains("2 pixel(s) with a non-finite channel"), "{err}");
+    assert!(err.contains("3 pixel(s) with a non-finite channel"), "{err}");
+    assert!(
+        err.contains("view_000.exr: 2, first at (3, 0)") && err.contains("view_001.exr: 1, first at (5, 1)"),
+        "{err}"
+    );
     let err = fails(parallax(&["compare"], &[&a, &b.join("view_000.exr")]));
     assert!(err.contains("not one of each"), "{err}");
     let err = fails(parallax(&["compare"], &[&a, &dir.join("nothing")]));

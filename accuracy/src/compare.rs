@@ -51,11 +51,27 @@ pub fn compare_paths(test: &Path, reference: &Path) -> Result<Comparison> {
     };
     let mut pooled = ErrorSums::default();
     let mut views = Vec::new();
+    // Non-finite pixels are counted over every image first, so one error reports them all.
+    let (mut non_finite, mut total) = (Vec::new(), 0);
     for (name, a, b) in pairs {
         let (ta, tb) = (RgbImage::read_exr(&a)?, RgbImage::read_exr(&b)?);
+        let mut finite = true;
+        for (path, image) in [(&a, &ta), (&b, &tb)] {
+            if let Some((count, (x, y))) = image.non_finite() {
+                non_finite.push(format!("{}: {count}, first at ({x}, {y})", path.display()));
+                total += count;
+                finite = false;
+            }
+        }
+        if !finite {
+            continue;
+        }
         let sums = compare_images(&ta, &a.display().to_string(), &tb, &b.display().to_string())?;
         pooled.add(&sums);
         views.push(ViewMetrics { name, width: ta.width, height: ta.height, metrics: sums.metrics() });
+    }
+    if !non_finite.is_empty() {
+        return Err(AccuracyError::NonFiniteViews { total, report: non_finite.join("; ") });
     }
     Ok(Comparison { test: test.into(), reference: reference.into(), views, overall: pooled.metrics() })
 }

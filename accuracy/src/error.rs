@@ -15,6 +15,15 @@ pub enum AccuracyError {
          metrics over them would be meaningless: fix the renderer or the file"
     )]
     NonFinite { name: String, count: usize, x: usize, y: usize },
+    #[error(
+        "{total} pixel(s) with a non-finite channel (NaN or infinity) in {report}; metrics over them \
+         would be meaningless: fix the renderer or the files"
+    )]
+    NonFiniteViews {
+        total: usize,
+        /// Per image: `path: N pixel(s), first at (x, y)`, `; `-separated.
+        report: String,
+    },
     #[error("views missing from {folder}: {missing} (both folders need the same view_NNN.exr files)")]
     MissingViews { folder: PathBuf, missing: String },
     #[error("{path}: {detail}")]
