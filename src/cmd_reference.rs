@@ -16,7 +16,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage};
+use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries};
 use parallax_backend::{Context as VkContext, ContextDesc};
 use parallax_graph::{LayoutSpec, LightField, ViewId, lightfield::parse_pair};
 use parallax_passes::{GpuTracer, banded_trace_plan, trace_kernels};
@@ -205,6 +205,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     ]);
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    remove_stale_temporaries(&args.out_dir);
     let partial = args.out_dir.join(PARTIAL_FILE);
     let size = (lf.width as usize, lf.height as usize);
     let mut acc = if partial.exists() {

@@ -106,6 +106,12 @@ fn a_killed_reference_resumes_to_the_same_bytes() {
         let (a, b) = (std::fs::read(straight.join(&name)).unwrap(), std::fs::read(killed.join(&name)).unwrap());
         assert!(a == b, "{name}: killed at {reached} spp and resumed differs from the uninterrupted run");
     }
+    let leftovers: Vec<_> = std::fs::read_dir(&killed)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left behind: {leftovers:?}");
 }
 
 fn mean_and_se(dir: &Path) -> ([f64; 3], [f64; 3]) {

@@ -191,12 +191,29 @@ impl Accumulator {
     }
 }
 
+/// Prefix of the temporary files of [`write_atomically`]; a killed process can leave them
+/// behind, and [`remove_stale_temporaries`] clears them.
+pub const TEMP_PREFIX: &str = ".parallax-tmp-";
+
+fn temporary_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    tempfile::Builder::new().prefix(TEMP_PREFIX).tempfile_in(dir)
+}
+
+/// Removes the temporary files a killed writer left in `dir` (only ours, by their prefix).
+pub fn remove_stale_temporaries(dir: &Path) {
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        if entry.file_name().to_string_lossy().starts_with(TEMP_PREFIX) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Writes `path` through a temporary file in its folder and a rename, so readers never see a
 /// partial file and a failure leaves nothing behind (the temporary file is removed on drop).
 pub fn write_atomically(path: &Path, write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>) -> Result<()> {
     let fail = |detail: String| AccuracyError::Write { path: path.into(), detail };
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| fail(e.to_string()))?;
+    let mut tmp = temporary_in(dir).map_err(|e| fail(e.to_string()))?;
     write(tmp.as_file_mut()).and_then(|_| tmp.as_file().sync_all()).map_err(|e| fail(e.to_string()))?;
     readable(tmp.as_file()).map_err(|e| fail(e.to_string()))?;
     tmp.persist(path).map_err(|e| fail(e.error.to_string()))?;
@@ -208,7 +225,7 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&mut std::fs::File) -> s
 pub fn write_atomically_to_path(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let fail = |detail: String| AccuracyError::Write { path: path.into(), detail };
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| fail(e.to_string()))?;
+    let tmp = temporary_in(dir).map_err(|e| fail(e.to_string()))?;
     write(tmp.path())?;
     readable(tmp.as_file()).map_err(|e| fail(e.to_string()))?;
     tmp.persist(path).map_err(|e| fail(e.error.to_string()))?;

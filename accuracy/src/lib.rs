@@ -20,7 +20,9 @@ pub mod points;
 pub mod ssim;
 pub mod timeline;
 
-pub use accumulate::{Accumulator, FRAME_BASE, PARTIAL_FILE, ReferenceHeader, write_atomically};
+pub use accumulate::{
+    Accumulator, FRAME_BASE, PARTIAL_FILE, ReferenceHeader, remove_stale_temporaries, write_atomically,
+};
 pub use compare::{Comparison, ViewMetrics, compare_paths};
 pub use error::{AccuracyError, Result};
 pub use image::RgbImage;
