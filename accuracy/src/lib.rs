@@ -8,6 +8,18 @@
 //!   `reference` and `compare` write) and plotters charts as SVG or PNG.
 //!
 //! No GPU here: the `parallax reference` command drives the tracers and feeds this crate.
+//!
+//! ```
+//! use parallax_accuracy::{RgbImage, compare_images};
+//! let reference = RgbImage::new(2, 1, vec![[0.25, 0.5, 0.75], [0.5, 0.5, 0.5]]);
+//! let same = compare_images(&reference, "a.exr", &reference, "b.exr")?.metrics();
+//! assert_eq!((same.psnr_linear_db, same.ssim, same.flip), (f64::INFINITY, 1.0, 0.0));
+//! // +1/64 on every channel: MSE = (1/64)², PSNR = 20 log10(64) dB.
+//! let brighter = RgbImage::new(2, 1, reference.pixels.iter().map(|p| p.map(|c| c + 1.0 / 64.0)).collect());
+//! let m = compare_images(&brighter, "c.exr", &reference, "b.exr")?.metrics();
+//! assert!((m.psnr_linear_db - 20.0 * 64f64.log10()).abs() < 1e-6);
+//! # Ok::<(), parallax_accuracy::AccuracyError>(())
+//! ```
 
 pub mod accumulate;
 pub mod chart;
