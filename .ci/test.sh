@@ -19,6 +19,11 @@ for f in tests/golden/*.dot; do
 done
 echo "rendered $(ls tests/golden/*.dot | wc -l) golden DOT files without warnings"
 
+# A big schedule's summary drawing renders in seconds (its full drawing, 9 MB, does not finish).
+target/debug/parallax -q plan --lf multiscopic --gpus 8 --scheme fine-all --dot-detail summary --dot - \
+  | timeout 60 dot -Tsvg -o /dev/null
+echo "rendered the summary DOT of multiscopic on 8 devices under fine-all"
+
 # Every test run's output also goes to a log, so the script can close with one total line.
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT

@@ -4,39 +4,26 @@
 //!
 //! `parallax run` executes the backend's own demo kernels (`fill` → `shift_blend` reading the
 //! view's first source → exported output), not the path tracer: the passes crate plugs in the
-//! real kernels through `parallax_backend::KernelRegistry`.
+//! real kernels attached where the graph declares its passes.
 
-use std::path::PathBuf;
-
-use anyhow::{Context as _, Result, bail};
+use anyhow::{Result, bail};
 use clap::Args;
 use parallax_backend::bench::{CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead};
-use parallax_backend::kernels::builtin_kernels;
+use std::sync::Arc;
+
+use parallax_backend::kernels::{FillKernel, ShiftBlendKernel};
 use parallax_backend::{
-    Context, ContextDesc, DeviceSelection, ExecOptions, Executor, FrameReport, chrome_trace, write_json,
+    Context, ContextDesc, ExecOptions, Executor, FrameReport, KernelGraph, PassKernel, chrome_trace,
 };
-use parallax_graph::{Format, Graph, LayoutSpec, LightField, PlanConfig, Rig, Role, compile, lightfield};
+use parallax_graph::{Format as TexelFormat, LayoutSpec, LightField, PlanConfig, Rig, Role, compile};
 
-/// Which Vulkan devices to use.
-#[derive(Args, Debug, Clone)]
-pub struct DeviceArgs {
-    /// Use N physical GPUs.
-    #[arg(long, conflicts_with = "fake_devices")]
-    gpus: Option<usize>,
-    /// Use N logical devices on one physical device (how lavapipe runs multi-device code).
-    #[arg(long)]
-    fake_devices: Option<usize>,
-}
-
-impl DeviceArgs {
-    pub(crate) fn selection(&self) -> DeviceSelection {
-        match (self.gpus, self.fake_devices) {
-            (Some(n), _) => DeviceSelection::Gpus(n),
-            (None, Some(n)) => DeviceSelection::FakeDevices(n),
-            (None, None) => DeviceSelection::Gpus(1),
-        }
-    }
-}
+use crate::budget::{TraceWork, check_host_bytes};
+use crate::logging::result;
+use crate::options::{
+    AssignArg, DeviceArgs, Resolution, SchemeArg, SourceList, assignment, count_in, parse_layout, parse_resolution,
+    parse_sources,
+};
+use crate::outputs::{Format, Output, Sink, check, parse_sink, write_json};
 
 #[derive(Args, Debug)]
 pub struct DevicesArgs {
@@ -46,7 +33,10 @@ pub struct DevicesArgs {
 
 /// `parallax devices`: create the devices and print them.
 pub fn devices(args: DevicesArgs) -> Result<()> {
-    let context = Context::new(&ContextDesc::from_env(args.devices.selection()))?;
+    let selection = args.devices.selection();
+    let progress = crate::logging::spinner(format!("creating {} device(s)", selection.count()));
+    let context = Context::new(&ContextDesc::from_env(selection))?;
+    progress.finish_and_clear();
     print!("{context}");
     context.check_validation()?;
     Ok(())
@@ -56,60 +46,76 @@ pub fn devices(args: DevicesArgs) -> Result<()> {
 pub struct RunArgs {
     #[command(flatten)]
     devices: DeviceArgs,
-    /// Light-field layout: multiscopic, nelf or WxH.
-    #[arg(long, default_value = "4x1")]
-    lf: String,
-    /// Partitioning scheme: multi-source, fine-sources or fine-all.
-    #[arg(long, default_value = "fine-all")]
-    scheme: String,
-    /// How views are grouped into sets (multi-source).
-    #[arg(long, default_value = "compact")]
-    assign: String,
+    /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
+    #[arg(long, default_value = "4x1", value_parser = parse_layout)]
+    lf: LayoutSpec,
+    /// Partitioning scheme.
+    #[arg(long, value_enum, default_value_t = SchemeArg::FineAll)]
+    scheme: SchemeArg,
+    /// How views are grouped into sets (multi-source only) [default: compact]
+    #[arg(long, value_enum)]
+    assign: Option<AssignArg>,
     /// Explicit source views for the fine-grained schemes, e.g. 0,3.
-    #[arg(long)]
-    sources: Option<String>,
+    #[arg(long, value_parser = parse_sources)]
+    sources: Option<SourceList>,
     /// Per-view resolution WxH.
-    #[arg(long, default_value = "64x64")]
-    resolution: String,
-    /// Frames to execute.
-    #[arg(long, default_value_t = 3)]
-    frames: usize,
-    /// Frames submitted before the host waits for the oldest.
-    #[arg(long, default_value_t = 2)]
-    frames_in_flight: usize,
+    #[arg(long, default_value = "64x64", value_name = "WxH", value_parser = parse_resolution)]
+    resolution: Resolution,
+    /// Frames to execute (1..=10000).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 3, value_parser = count_in(1..=10_000))]
+    frames: u64,
+    /// Frames submitted before the host waits for the oldest (1..=16).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 2, value_parser = count_in(1..=16))]
+    frames_in_flight: u64,
     /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
     /// used by default where the devices have one).
     #[arg(long)]
     copies_on_main_queue: bool,
-    /// Write the per-frame timing reports as JSON.
-    #[arg(long)]
-    json: Option<PathBuf>,
-    /// Write a Chrome trace-event JSON (open in Perfetto or chrome://tracing).
-    #[arg(long)]
-    trace: Option<PathBuf>,
+    /// Write the per-frame timing reports as JSON (`-` = stdout).
+    #[arg(long, value_parser = parse_sink)]
+    json: Option<Sink>,
+    /// Write a Chrome trace-event JSON (open in Perfetto or chrome://tracing; `-` = stdout).
+    #[arg(long, value_parser = parse_sink)]
+    trace: Option<Sink>,
+}
+
+/// The JSON outputs of a command, checked before any work.
+fn check_json_outputs(json: &Option<Sink>, trace: &Option<Sink>) -> Result<()> {
+    let outputs: Vec<Output> = [("--json", json), ("--trace", trace)]
+        .into_iter()
+        .filter_map(|(flag, sink)| Some(Output { flag, sink: sink.as_ref()?, format: Format::Json }))
+        .collect();
+    check(&outputs)
 }
 
 /// `parallax run`: plan, compile, execute, report.
 pub fn run(args: RunArgs) -> Result<()> {
     let selection = args.devices.selection();
-    let spec: LayoutSpec = args.lf.parse()?;
-    let Some(resolution) = lightfield::parse_pair(&args.resolution) else {
-        bail!("--resolution '{}' is not WxH (e.g. 64x64)", args.resolution);
-    };
-    let lf = LightField::new(spec, None, Some(resolution), Rig::default())?;
+    let assign = assignment(args.scheme, args.assign)?;
+    check_json_outputs(&args.json, &args.trace)?;
+    let lf = LightField::new(args.lf, None, Some(args.resolution.pair()), Rig::default())?;
     let config = PlanConfig {
         devices: selection.count() as u32,
-        scheme: args.scheme.parse()?,
-        assign: args.assign.parse()?,
-        sources: args.sources.as_deref().map(parallax_graph::parse_source_list).transpose()?,
+        scheme: args.scheme.into(),
+        assign,
+        sources: args.sources.map(|s| s.0),
     };
+    let work = TraceWork { views: lf.len() as u64, width: lf.width, height: lf.height, spp: 1 };
+    work.check_host()?;
     let plan = parallax_graph::Plan::new(&lf, &config)?;
-    let mut graph = Graph::new(plan.topology.clone());
-    let mut radiance = graph.image("radiance", Format::Rgba32f);
-    let mut output = graph.image("output", Format::Rgba32f);
-    graph.pass("fill", Role::Sources).write(&mut radiance).record();
-    graph.pass("fill", Role::Targets).write(&mut radiance).record();
-    graph.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance).write(&mut output).record();
+    let mut graph = KernelGraph::with_payload(plan.topology.clone());
+    let mut radiance = graph.image("radiance", TexelFormat::Rgba32f);
+    let mut output = graph.image("output", TexelFormat::Rgba32f);
+    let fill: Arc<dyn PassKernel> = Arc::new(FillKernel);
+    graph.pass("fill", Role::Sources).write(&mut radiance).kernel(fill.clone()).record();
+    graph.pass("fill", Role::Targets).write(&mut radiance).kernel(fill).record();
+    graph
+        .pass("shift_blend", Role::All)
+        .read(&radiance)
+        .read_sources(&radiance)
+        .write(&mut output)
+        .kernel(Arc::new(ShiftBlendKernel))
+        .record();
     graph.export(&output);
     let schedule = compile(&graph, &plan)?;
     let report = schedule.validate();
@@ -118,37 +124,41 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
 
     let context = Context::new(&ContextDesc::from_env(selection))?;
-    print!("{context}");
-    let exec_plan = parallax_backend::Plan::from_schedule(&schedule)?;
+    let stdout_taken = [&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout)));
+    result(stdout_taken, context.to_string().trim_end());
+    work.check_devices(&context)?;
+    let exec_plan = parallax_backend::ExecutionPlan::from_schedule(&graph, &schedule)?;
     let options = ExecOptions {
-        frames_in_flight: args.frames_in_flight,
+        frames_in_flight: args.frames_in_flight as usize,
         separate_copy_queue: !args.copies_on_main_queue,
         ..ExecOptions::default()
     };
-    let mut executor = Executor::new(&context, exec_plan, builtin_kernels(), options)?;
+    let mut executor = Executor::new(&context, exec_plan, options)?;
+    let progress = crate::logging::bar(args.frames);
     for _ in 0..args.frames {
         executor.run_frame()?;
+        progress.inc(1);
     }
+    progress.finish_and_clear();
     executor.finish()?;
     let reports = executor.take_reports();
     drop(executor);
     context.check_validation()?;
     for r in &reports {
-        print_frame(r);
+        result(stdout_taken, &frame_line(r));
     }
-    if let Some(path) = &args.json {
-        write_json(path, &reports).with_context(|| format!("writing {}", path.display()))?;
+    if let Some(sink) = &args.trace {
+        write_json(sink, &chrome_trace(&reports, &context.device_infos()))?;
     }
-    if let Some(path) = &args.trace {
-        write_json(path, &chrome_trace(&reports, &context.device_infos()))
-            .with_context(|| format!("writing {}", path.display()))?;
+    if let Some(sink) = &args.json {
+        write_json(sink, &reports)?;
     }
     Ok(())
 }
 
-fn print_frame(r: &FrameReport) {
+fn frame_line(r: &FrameReport) -> String {
     let busy: Vec<String> = r.devices.iter().map(|d| format!("{:.0}%", d.busy_fraction * 100.0)).collect();
-    println!(
+    format!(
         "frame {}: wall {:.3} ms, GPU span {:.3} ms, {} passes in {} submissions ({:.1} µs CPU), busy {}",
         r.frame,
         r.frame_wall_ns as f64 / 1e6,
@@ -157,37 +167,38 @@ fn print_frame(r: &FrameReport) {
         r.submitted_segments,
         r.submit_cpu_ns as f64 / 1e3,
         busy.join(" / ")
-    );
+    )
 }
 
 #[derive(Args, Debug)]
 pub struct BenchCopyArgs {
     #[command(flatten)]
     devices: DeviceArgs,
-    /// Bytes moved from device 0 to device 1 per frame, in MiB.
-    #[arg(long, default_value_t = 64)]
+    /// Bytes moved from device 0 to device 1 per frame, in MiB (1..=65536, and within host memory).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 64, value_parser = count_in(1..=65_536))]
     size_mib: u64,
     /// Chunk size in MiB (copies are pipelined chunk by chunk); 0 = one chunk.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 8, value_parser = count_in(0..=65_536))]
     chunk_mib: u64,
-    /// Measured frames (after 3 warm-up frames).
-    #[arg(long, default_value_t = 30)]
-    frames: usize,
-    /// Frames submitted before the host waits for the oldest (1 = every copy runs alone).
-    #[arg(long, default_value_t = 2)]
-    frames_in_flight: usize,
+    /// Measured frames (after 3 warm-up frames; 1..=10000).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 30, value_parser = count_in(1..=10_000))]
+    frames: u64,
+    /// Frames submitted before the host waits for the oldest (1..=16; 1 = every copy runs alone).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 2, value_parser = count_in(1..=16))]
+    frames_in_flight: u64,
     /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
     /// used by default where the devices have one).
     #[arg(long)]
     copies_on_main_queue: bool,
-    /// Tiny passes per device for the executor-overhead measurement.
-    #[arg(long, default_value_t = 256)]
-    passes_per_device: u32,
-    #[arg(long)]
-    json: Option<PathBuf>,
-    /// Chrome trace of the copy frames.
-    #[arg(long)]
-    trace: Option<PathBuf>,
+    /// Tiny passes per device for the executor-overhead measurement (1..=65536).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 256, value_parser = count_in(1..=65_536))]
+    passes_per_device: u64,
+    /// Write both measurements as JSON (`-` = stdout).
+    #[arg(long, value_parser = parse_sink)]
+    json: Option<Sink>,
+    /// Chrome trace of the copy frames (`-` = stdout).
+    #[arg(long, value_parser = parse_sink)]
+    trace: Option<Sink>,
 }
 
 /// `parallax bench-copy`: copy bandwidth between devices 0 and 1, and executor CPU cost.
@@ -196,20 +207,31 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
     if selection.count() < 2 {
         bail!("bench-copy needs two devices: --gpus 2 or --fake-devices 2");
     }
+    check_json_outputs(&args.json, &args.trace)?;
+    // Every frame in flight holds its own copy in host memory shared by both devices.
+    check_host_bytes(
+        &format!("--size-mib {} with --frames-in-flight {}", args.size_mib, args.frames_in_flight),
+        (args.size_mib << 20) * args.frames_in_flight,
+        "lower --size-mib or --frames-in-flight",
+    )?;
     let desc = ContextDesc::from_env(selection);
     let copy_options = CopyBenchOptions {
         bytes: args.size_mib << 20,
         chunk_bytes: if args.chunk_mib == 0 { u64::MAX } else { args.chunk_mib << 20 },
-        frames: args.frames,
-        frames_in_flight: args.frames_in_flight,
+        frames: args.frames as usize,
+        frames_in_flight: args.frames_in_flight as usize,
         separate_copy_queue: !args.copies_on_main_queue,
         ..CopyBenchOptions::default()
     };
+    let progress =
+        crate::logging::spinner(format!("copying {} MiB per frame for {} frames", args.size_mib, args.frames));
     let copy = copy_bandwidth(&desc, &copy_options)?;
+    progress.finish_and_clear();
+    let say = |line: String| result([&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout))), &line);
     for d in &copy.devices {
-        println!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version);
+        say(format!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version));
     }
-    println!(
+    say(format!(
         "copy {} MiB device 0 -> 1, {} chunk(s), {} frame(s) in flight: sustained {:.2} GB/s; per frame median {:.2} GB/s, best {:.2} GB/s (while copying: D->H {:.2}, H->D {:.2})",
         args.size_mib,
         copy.chunks,
@@ -219,21 +241,24 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         copy.best_gb_per_s,
         copy.median_device_to_host_gb_per_s,
         copy.median_host_to_device_gb_per_s
-    );
-    let overhead_options = OverheadBenchOptions { passes_per_device: args.passes_per_device, ..Default::default() };
+    ));
+    let overhead_options =
+        OverheadBenchOptions { passes_per_device: args.passes_per_device as u32, ..Default::default() };
+    let progress = crate::logging::spinner("measuring executor overhead".into());
     let overhead = executor_overhead(&desc, &overhead_options)?;
-    println!(
+    progress.finish_and_clear();
+    say(format!(
         "executor: {:.3} µs CPU per submitted pass ({} passes/frame, {:.1} µs/frame); recording once {:.2} µs/pass",
         overhead.median_submit_us_per_pass,
         overhead.passes_per_frame,
         overhead.median_submit_us_per_frame,
         overhead.record_us_per_pass
-    );
-    if let Some(path) = &args.json {
-        write_json(path, &serde_json::json!({ "copy": &copy, "overhead": &overhead }))?;
+    ));
+    if let Some(sink) = &args.trace {
+        write_json(sink, &chrome_trace(&copy.reports, &copy.devices))?;
     }
-    if let Some(path) = &args.trace {
-        write_json(path, &chrome_trace(&copy.reports, &copy.devices))?;
+    if let Some(sink) = &args.json {
+        write_json(sink, &serde_json::json!({ "copy": &copy, "overhead": &overhead }))?;
     }
     Ok(())
 }

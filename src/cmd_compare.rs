@@ -8,9 +8,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use parallax_accuracy::points::point_of_render_json;
-use parallax_accuracy::{Point, compare_paths};
-
-use crate::output::write_atomically;
+use parallax_accuracy::{Point, compare_paths, write_atomically};
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
@@ -43,7 +41,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let table = comparison.markdown();
     print!("{table}");
     if let Some(path) = &args.markdown {
-        write_atomically(path, table.as_bytes())?;
+        write_atomically(path, |f| std::io::Write::write_all(f, table.as_bytes()))?;
     }
     if let Some(path) = &args.json {
         let render_json = args.test.join("render.json");
@@ -63,7 +61,8 @@ pub fn run(args: CompareArgs) -> Result<()> {
             ..timing
         };
         let json = serde_json::json!({ "comparison": &comparison, "point": point });
-        write_atomically(path, &serde_json::to_vec_pretty(&json)?)?;
+        let bytes = serde_json::to_vec_pretty(&json)?;
+        write_atomically(path, |f| std::io::Write::write_all(f, &bytes))?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())

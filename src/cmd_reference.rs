@@ -16,35 +16,36 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries};
+use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
 use parallax_backend::{Context as VkContext, ContextDesc};
-use parallax_graph::{LayoutSpec, LightField, ViewId, lightfield::parse_pair};
-use parallax_passes::{GpuTracer, banded_trace_plan, trace_kernels};
+use parallax_graph::{LayoutSpec, LightField, ViewId};
+use parallax_passes::{GpuTracer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
-use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View, load_scene};
+use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
 
-use crate::cmd_backend::DeviceArgs;
 use crate::cmd_render::{camera_of, rig_of};
-use crate::cmd_trace::{parse_sky, parse_sun};
-use crate::output::write_atomically;
+use crate::options::{
+    DeviceArgs, Resolution, parse_exposure, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
+    parse_sun,
+};
 
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {
     /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
     #[arg(long, default_value = "default")]
     scene: String,
-    /// Light-field layout: multiscopic, nelf or WxH.
-    #[arg(long, default_value = "8x4")]
-    lf: String,
+    /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
+    #[arg(long, default_value = "8x4", value_parser = parse_layout)]
+    lf: LayoutSpec,
     /// Spacing between neighbouring views in metres (default 0.001, the paper's).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
     spacing: Option<f64>,
     /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
-    #[arg(long)]
-    resolution: Option<String>,
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
+    resolution: Option<Resolution>,
     /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_focus)]
     focus: Option<f64>,
     /// Only these views, e.g. `0,5,8-11` (default: every view).
     #[arg(long)]
@@ -55,32 +56,32 @@ pub struct ReferenceArgs {
     #[arg(long, conflicts_with_all = ["gpus", "fake_devices"])]
     cpu: bool,
     /// Samples per pixel to reach (a multiple of --chunk-spp).
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
     /// Samples per pixel of one chunk: averaged in f32 on the device, chunks summed in f64.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
     chunk_spp: u32,
-    /// Maximum number of scattering events per path.
-    #[arg(long, default_value_t = 6)]
+    /// Maximum number of scattering events per path (0..=1024).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
     max_depth: u32,
     /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`; replaces the
     /// scene's sun.
-    #[arg(long, allow_hyphen_values = true)]
-    sun: Option<String>,
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
+    sun: Option<Sun>,
     /// Remove the scene's sun.
     #[arg(long, conflicts_with = "sun")]
     no_sun: bool,
     /// Constant sky radiance `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb` (9 values).
-    #[arg(long)]
-    sky: Option<String>,
+    #[arg(long, value_parser = parse_sky)]
+    sky: Option<Sky>,
     /// Write the EXRs and the resumable state at least this often (seconds) and at the end.
     #[arg(long, default_value_t = 30.0)]
     checkpoint_secs: f64,
     /// Folder for view_NNN.exr, reference.png, reference.json and reference.partial.
     #[arg(long, default_value = "out/reference")]
     out_dir: PathBuf,
-    /// Exposure multiplier for the contact sheet.
-    #[arg(long, default_value_t = 1.0)]
+    /// Exposure multiplier for the contact sheet (> 0).
+    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
     exposure: f32,
 }
 
@@ -156,13 +157,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
         bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
-    let spec: LayoutSpec = args.lf.parse()?;
-    let resolution = match &args.resolution {
-        Some(r) => Some(parse_pair(r).with_context(|| format!("--resolution '{r}' is not WxH (e.g. 256x192)"))?),
-        None => None,
-    };
-    let sun = args.sun.as_deref().map(parse_sun).transpose()?;
-    let sky = args.sky.as_deref().map(parse_sky).transpose()?;
+    let (spec, resolution, sun, sky) = (args.lf, args.resolution.map(Resolution::pair), args.sun, args.sky);
     let mut scene = load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
     if let Some(sun) = sun {
         scene.sun = Some(sun);
@@ -192,7 +187,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     // (results do not depend on the device count), so a reference can resume on other GPUs.
     let settings_key = BTreeMap::from([
         ("--scene".to_string(), scene_fingerprint(&args.scene)?),
-        ("--lf".to_string(), format!("{} ({}x{} views)", args.lf, lf.cols, lf.rows)),
+        ("--lf".to_string(), format!("{:?} ({}x{} views)", args.lf, lf.cols, lf.rows)),
         ("--spacing".to_string(), args.spacing.map_or("(preset)".into(), |s| s.to_string())),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
@@ -230,8 +225,8 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         let context = VkContext::new(&ContextDesc::from_env(selection))?;
         eprint!("{context}");
         let devices = selection.count();
-        let plan = banded_trace_plan(views.len() as u32, (lf.width, lf.height), devices as u32, devices);
-        let tracer = GpuTracer::new(&context, plan, trace_kernels(None), &GpuScene::new(&scene, &bvh))?;
+        let plan = banded_trace_plan(views.len() as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
+        let tracer = GpuTracer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
         Tracer::Gpu { context, tracer: Box::new(tracer) }
     };
     let devices = if args.cpu { 0 } else { args.devices.selection().count() };
@@ -327,7 +322,8 @@ fn write_outputs(
             "views": selected, "width": h.width, "height": h.height, "settings": &h.settings,
             "mean_radiance": mean, "standard_error": standard_error, "point": point,
     });
-    write_atomically(&args.out_dir.join("reference.json"), &serde_json::to_vec_pretty(&json)?)?;
+    let bytes = serde_json::to_vec_pretty(&json)?;
+    write_atomically(&args.out_dir.join("reference.json"), |f| std::io::Write::write_all(f, &bytes))?;
     println!(
         "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {:.5?} ± {:?} (standard error)",
         selected.len(),

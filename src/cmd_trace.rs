@@ -5,14 +5,19 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, bail};
-use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
+use anyhow::Context;
 use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, EventKind};
-use parallax_passes::{GpuTracer, PATH_TRACE, banded_trace_plan, to_pixel_sample, trace_kernels};
+use parallax_passes::{GpuTracer, PATH_TRACE, banded_trace_plan, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{Camera, CpuTracer, Frame, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
+
+use crate::budget::TraceWork;
+use crate::logging::{bar, spinner};
+use crate::options::{
+    MAX_DEVICES, Resolution, count_in, parse_camera, parse_exposure, parse_resolution, parse_sky, parse_sun, selection,
+};
+use crate::outputs::{Format, Output, Sink, check, stage};
 
 #[derive(Debug, clap::Args)]
 pub struct TraceArgs {
@@ -21,16 +26,16 @@ pub struct TraceArgs {
     pub scene: String,
     /// Camera as `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`;
     /// without it the scene's first camera (or one framing the whole scene) is used.
-    #[arg(long, allow_hyphen_values = true)]
-    pub camera: Option<String>,
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
+    pub camera: Option<Camera>,
     /// Image size as WxH.
-    #[arg(long, default_value = "512x512")]
-    pub resolution: String,
+    #[arg(long, default_value = "512x512", value_name = "WxH", value_parser = parse_resolution)]
+    pub resolution: Resolution,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: u32,
-    /// Maximum number of scattering events per path.
-    #[arg(long, default_value_t = 6)]
+    /// Maximum number of scattering events per path (0..=1024).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
     pub max_depth: u32,
     /// Output EXR (radiance; with --layers also albedo, normal and depth).
     #[arg(long, default_value = "trace.exr")]
@@ -41,128 +46,66 @@ pub struct TraceArgs {
     /// Also write a tonemapped PNG.
     #[arg(long)]
     pub png: Option<PathBuf>,
-    /// Exposure multiplier for the PNG.
-    #[arg(long, default_value_t = 1.0)]
+    /// Exposure multiplier for the PNG (> 0).
+    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
     pub exposure: f32,
     /// Trace on the CPU reference path tracer instead of the GPU.
     #[arg(long)]
     pub cpu: bool,
-    /// GPU tracing on N physical GPUs (the view is split into row bands over them).
-    #[arg(long, conflicts_with_all = ["fake_devices", "cpu"])]
-    pub gpus: Option<usize>,
-    /// GPU tracing on N logical devices of one physical device (how lavapipe runs multi-device
-    /// code).
-    #[arg(long, conflicts_with = "cpu")]
-    pub fake_devices: Option<usize>,
+    /// GPU tracing on N physical GPUs (1..=64; the view is split into row bands over them).
+    #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["fake_devices", "cpu"], value_parser = count_in(1..=MAX_DEVICES as u64))]
+    pub gpus: Option<u64>,
+    /// GPU tracing on N logical devices of one physical device (1..=64; how lavapipe runs
+    /// multi-device code).
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "cpu", value_parser = count_in(1..=MAX_DEVICES as u64))]
+    pub fake_devices: Option<u64>,
     /// Frame index (part of the random-number key).
     #[arg(long, default_value_t = 0)]
     pub frame: u32,
-    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`; replaces the
-    /// scene's sun.
-    #[arg(long, allow_hyphen_values = true)]
-    pub sun: Option<String>,
+    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]` (irradiance
+    /// 0..=1e6); replaces the scene's sun.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
+    pub sun: Option<Sun>,
     /// Remove the scene's sun.
     #[arg(long, conflicts_with = "sun")]
     pub no_sun: bool,
-    /// Constant sky radiance `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb` (9 values).
-    #[arg(long)]
-    pub sky: Option<String>,
+    /// Constant sky radiance `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb` (9
+    /// values), each 0..=1e6.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sky)]
+    pub sky: Option<Sky>,
     /// Turn on Russian roulette from this bounce on (off by default).
     #[arg(long)]
     pub russian_roulette_from: Option<u32>,
 }
 
-fn parse_floats(what: &str, s: &str) -> anyhow::Result<Vec<f32>> {
-    s.split(',')
-        .map(|p| {
-            let v: f32 = p.trim().parse().with_context(|| format!("--{what}: '{p}' is not a number"))?;
-            if !v.is_finite() {
-                bail!("--{what}: '{p}' is not finite");
-            }
-            Ok(v)
-        })
-        .collect()
-}
-
-pub(crate) fn parse_resolution(s: &str) -> anyhow::Result<(u32, u32)> {
-    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--resolution '{s}': expected WxH, e.g. 512x512"))?;
-    let w: u32 = w.trim().parse().with_context(|| format!("--resolution '{s}': bad width"))?;
-    let h: u32 = h.trim().parse().with_context(|| format!("--resolution '{s}': bad height"))?;
-    if w == 0 || h == 0 || w > 16384 || h > 16384 {
-        bail!("--resolution '{s}': width and height must be 1..=16384");
-    }
-    Ok((w, h))
-}
-
-pub(crate) fn parse_camera(s: &str) -> anyhow::Result<Camera> {
-    let v = parse_floats("camera", s)?;
-    if v.len() != 10 {
-        bail!("--camera: expected 10 numbers eye(3),target(3),up(3),yfov_degrees; got {}", v.len());
-    }
-    let eye = Vec3::new(v[0], v[1], v[2]);
-    let target = Vec3::new(v[3], v[4], v[5]);
-    let up = Vec3::new(v[6], v[7], v[8]);
-    if (target - eye).length() == 0.0 || up.length() == 0.0 {
-        bail!("--camera: eye and target must differ and up must be non-zero");
-    }
-    if !(0.1..179.0).contains(&v[9]) {
-        bail!("--camera: yfov {} degrees is outside 0.1..179", v[9]);
-    }
-    Ok(Camera::look_at(eye, target, up, v[9].to_radians()))
-}
-
-pub(crate) fn parse_sun(s: &str) -> anyhow::Result<Sun> {
-    let v = parse_floats("sun", s)?;
-    if v.len() != 4 && v.len() != 5 {
-        bail!("--sun: expected to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]");
-    }
-    let dir = Vec3::new(v[0], v[1], v[2]);
-    if dir.length() == 0.0 || v[3] < 0.0 {
-        bail!("--sun: direction must be non-zero and irradiance non-negative");
-    }
-    let radius = v.get(4).copied().unwrap_or(0.27);
-    if !(0.0..=45.0).contains(&radius) {
-        bail!("--sun: angular radius {radius} degrees is outside 0..45");
-    }
-    Ok(Sun { to_sun: dir.normalize(), irradiance: Vec3::splat(v[3]), angular_radius: radius.to_radians() })
-}
-
-pub(crate) fn parse_sky(s: &str) -> anyhow::Result<Sky> {
-    let v = parse_floats("sky", s)?;
-    if v.iter().any(|&x| x < 0.0) {
-        bail!("--sky: radiance must be non-negative");
-    }
-    match v.len() {
-        3 => Ok(Sky::Constant(Vec3::new(v[0], v[1], v[2]))),
-        9 => Ok(Sky::Gradient {
-            zenith: Vec3::new(v[0], v[1], v[2]),
-            horizon: Vec3::new(v[3], v[4], v[5]),
-            ground: Vec3::new(v[6], v[7], v[8]),
-        }),
-        n => bail!("--sky: expected 3 (constant) or 9 (gradient) numbers, got {n}"),
-    }
-}
-
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
-    let (width, height) = parse_resolution(&args.resolution)?;
-    let camera = args.camera.as_deref().map(parse_camera).transpose()?;
-    let sun = args.sun.as_deref().map(parse_sun).transpose()?;
-    let sky = args.sky.as_deref().map(parse_sky).transpose()?;
+    let (width, height) = args.resolution.pair();
+    let out = Sink::File(args.out.clone());
+    let png = args.png.clone().map(Sink::File);
+    let mut outputs = vec![Output { flag: "--out", sink: &out, format: Format::Exr }];
+    if let Some(sink) = &png {
+        outputs.push(Output { flag: "--png", sink, format: Format::Png });
+    }
+    check(&outputs)?;
+    let work = TraceWork { views: 1, width, height, spp: args.spp };
+    work.check_duration()?;
+    work.check_host()?;
 
     let t0 = Instant::now();
-    let mut scene = load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
-    if let Some(sun) = sun {
+    let mut scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
+    if let Some(sun) = args.sun {
         scene.sun = Some(sun);
     }
     if args.no_sun {
         scene.sun = None;
     }
-    if let Some(sky) = sky {
+    if let Some(sky) = args.sky {
         scene.sky = Some(sky);
     }
+    warn_if_unlit(&scene);
     let load_time = t0.elapsed();
     let bvh = SceneBvh::build(&scene);
-    eprintln!(
+    tracing::info!(
         "scene '{}': {} triangles, {} materials, {} textures; loaded in {:.2?}; CWBVH {} nodes built in {:.2?}",
         scene.name,
         scene.triangle_count(),
@@ -173,7 +116,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         bvh.build_time
     );
 
-    let view = View { camera: camera.unwrap_or_else(|| scene.default_camera()), width, height, index: 0 };
+    let view = View { camera: args.camera.unwrap_or_else(|| scene.default_camera()), width, height, index: 0 };
     let settings = TraceSettings {
         spp: args.spp,
         max_depth: args.max_depth,
@@ -185,36 +128,47 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let frame = if args.cpu {
         trace_cpu(&scene, &bvh, &view, &settings)?
     } else {
-        let selection = match (args.gpus, args.fake_devices) {
-            (Some(n), _) => DeviceSelection::Gpus(n),
-            (None, Some(n)) => DeviceSelection::FakeDevices(n),
-            (None, None) => DeviceSelection::Gpus(1),
-        };
-        trace_gpu(selection, &scene, &bvh, &view, &settings)?
+        trace_gpu(selection(args.gpus, args.fake_devices), work, &scene, &bvh, &view, &settings)?
     };
 
     let layers = if args.layers { ExrLayers::ALL } else { ExrLayers::default() };
-    write_exr(&args.out, &frame, layers)?;
-    eprintln!("wrote {}", args.out.display());
-    if let Some(png) = &args.png {
-        write_contact_sheet(png, &[&frame], 1, args.exposure)?;
-        eprintln!("wrote {}", png.display());
+    let exr = stage(&args.out, |tmp| {
+        write_exr(tmp, &frame, layers).with_context(|| format!("cannot write --out {}", args.out.display()))
+    })?;
+    let sheet = match &args.png {
+        Some(path) => Some(stage(path, |tmp| {
+            write_contact_sheet(tmp, &[&frame], 1, args.exposure)
+                .with_context(|| format!("cannot write --png {}", path.display()))
+        })?),
+        None => None,
+    };
+    exr.commit()?;
+    tracing::info!("wrote {}", args.out.display());
+    if let (Some(sheet), Some(path)) = (sheet, &args.png) {
+        sheet.commit()?;
+        tracing::info!("wrote {}", path.display());
     }
     Ok(())
 }
 
+/// Without any light every pixel is black: say so rather than write a black image silently.
+pub(crate) fn warn_if_unlit(scene: &Scene) {
+    if !scene.has_light() {
+        tracing::warn!(
+            "scene '{}' has no light (no sun, sky, punctual light or emissive material): the image will be black; add --sun or --sky",
+            scene.name
+        );
+    }
+}
+
 fn trace_cpu(scene: &Scene, bvh: &SceneBvh, view: &View, settings: &TraceSettings) -> anyhow::Result<Frame> {
     let tracer = CpuTracer::new(scene, bvh);
-    let bar = ProgressBar::new(view.pixel_count() as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% ({eta} left)")
-            .context("progress bar template")?,
-    );
+    let bar = bar(view.pixel_count() as u64);
     let t1 = Instant::now();
     let (frame, stats) = tracer.render(view, settings, &|n| bar.inc(n))?;
     bar.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
-    eprintln!(
+    tracing::info!(
         "traced {}x{} at {} spp, max depth {} on the CPU in {:.2} s ({:.2} Mpaths/s){}",
         view.width,
         view.height,
@@ -235,19 +189,19 @@ fn trace_cpu(scene: &Scene, bvh: &SceneBvh, view: &View, settings: &TraceSetting
 /// on device 0. The GPU drops non-finite samples as the CPU does.
 fn trace_gpu(
     selection: DeviceSelection,
+    work: TraceWork,
     scene: &Scene,
     bvh: &SceneBvh,
     view: &View,
     settings: &TraceSettings,
 ) -> anyhow::Result<Frame> {
     let context = VkContext::new(&ContextDesc::from_env(selection))?;
-    eprint!("{context}");
+    tracing::info!("{}", context.to_string().trim_end());
+    work.check_devices(&context)?;
     let devices = selection.count() as u32;
-    let plan = banded_trace_plan(1, (view.width, view.height), devices, devices as usize);
-    let mut tracer = GpuTracer::new(&context, plan, trace_kernels(None), &GpuScene::new(scene, bvh))?;
-    let spinner = ProgressBar::new_spinner();
-    spinner.set_message(format!("tracing {}x{} at {} spp on the GPU", view.width, view.height, settings.spp));
-    spinner.enable_steady_tick(std::time::Duration::from_millis(200));
+    let plan = banded_trace_plan(1, (view.width, view.height), devices, devices)?;
+    let mut tracer = GpuTracer::new(&context, plan, &GpuScene::new(scene, bvh))?;
+    let spinner = spinner(format!("tracing {}x{} at {} spp on the GPU", view.width, view.height, settings.spp));
     let t1 = Instant::now();
     let pixels = tracer.render(scene, std::slice::from_ref(view), settings)?.remove(0);
     spinner.finish_and_clear();
@@ -266,7 +220,7 @@ fn trace_gpu(
     };
     drop(tracer);
     context.check_validation()?;
-    eprintln!(
+    tracing::info!(
         "traced {}x{} at {} spp, max depth {} on {} device(s) in {:.2} s ({:.1} ms of GPU time, {:.2} Mpaths/s)",
         view.width,
         view.height,

@@ -1,5 +1,6 @@
 //! The `parallax` command line.
 
+mod budget;
 mod cmd_backend;
 mod cmd_bench_rays;
 mod cmd_chart;
@@ -8,13 +9,17 @@ mod cmd_plan;
 mod cmd_reference;
 mod cmd_render;
 mod cmd_trace;
-mod output;
+mod logging;
+mod options;
+mod outputs;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(name = "parallax", version, about = "Multi-GPU light-field path tracing as a render graph")]
 struct Cli {
+    #[command(flatten)]
+    verbosity: logging::Verbosity,
     #[command(subcommand)]
     command: Command,
 }
@@ -45,6 +50,16 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    logging::init(cli.verbosity);
+    // Ctrl-C ends the process before any destructor runs: remove the temporary files of
+    // outputs not yet in place, so an interrupted run leaves nothing behind.
+    if let Err(err) = ctrlc::set_handler(|| {
+        outputs::remove_pending();
+        tracing::error!("interrupted: outputs not yet in place were removed");
+        std::process::exit(130);
+    }) {
+        tracing::debug!("no Ctrl-C handler ({err}): an interrupted run may leave a temporary file");
+    }
     let result = match cli.command {
         Command::Plan(args) => cmd_plan::run(args),
         Command::Render(args) => cmd_render::run(args),
@@ -58,7 +73,11 @@ fn main() {
         Command::Chart(args) => cmd_chart::run(args),
     };
     if let Err(err) = result {
-        eprintln!("error: {err:#}");
+        // Flags that do not go together are usage errors like clap's own: same form, exit 2.
+        if let Some(usage) = err.downcast_ref::<options::UsageError>() {
+            Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();
+        }
+        tracing::error!("{err:#}");
         std::process::exit(1);
     }
 }

@@ -8,7 +8,6 @@ use crate::demo::{copy_benchmark, overhead_benchmark};
 use crate::device::DeviceInfo;
 use crate::error::Result;
 use crate::executor::{ExecOptions, Executor};
-use crate::kernels::builtin_kernels;
 use crate::timing::{EventKind, FrameReport};
 
 /// Width of the benchmark payload image (RGBA32F, 16 KiB per row).
@@ -148,7 +147,6 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
     let mut executor = Executor::new(
         &context,
         plan,
-        builtin_kernels(),
         ExecOptions {
             frames_in_flight: options.frames_in_flight,
             chunk_bytes: options.chunk_bytes,
@@ -237,7 +235,7 @@ pub fn executor_overhead(desc: &ContextDesc, options: &OverheadBenchOptions) -> 
     let devices = context.devices().len();
     let plan = overhead_benchmark(devices, options.passes_per_device, 8);
     let passes = plan.passes.len();
-    let mut executor = Executor::new(&context, plan, builtin_kernels(), ExecOptions::default())?;
+    let mut executor = Executor::new(&context, plan, ExecOptions::default())?;
     for _ in 0..options.warmup + options.frames {
         executor.run_frame()?;
     }

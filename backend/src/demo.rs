@@ -6,7 +6,10 @@
 //! devices, like a fine-grained split), then blended with view `v+1` (a gather from another
 //! view), and every finished view is gathered on device 0.
 
-use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat};
+use crate::kernels::{FillKernel, ShiftBlendKernel};
+use crate::plan::{
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, Kernels, Region, ResourceKind,
+};
 
 /// Resource ids of the reprojection demo.
 #[derive(Clone, Debug)]
@@ -23,18 +26,24 @@ pub fn demo_device_of_view(view: u32, devices: usize) -> usize {
 }
 
 /// Builds the reprojection demo for `views` views of `width`×`height` on `devices` devices.
-pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) -> (Plan, DemoResources) {
+pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) -> (ExecutionPlan, DemoResources) {
     assert!(views >= 1 && devices >= 1 && height >= devices as u32);
-    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
-    let all = Rows::new(0, height);
+    let mut kernels = Kernels::default();
+    kernels.push(FillKernel);
+    kernels.push(ShiftBlendKernel);
+    let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
+    let all = Region::new(0, height);
     let mut image = |name: &str, view: u32| {
-        plan.resources.push(PlanResource {
+        plan.resources.push(ExecResource {
             name: name.to_string(),
             view,
             width,
             height,
-            format: TexelFormat::Rgba32Float,
+            format: Format::Rgba32f,
             kind: ResourceKind::Image,
+            storage: 0,
+            exported: false,
+            reset: None,
         });
         plan.resources.len() - 1
     };
@@ -43,27 +52,27 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
     let owner = |v: u32| demo_device_of_view(v, devices);
     let split_view = views - 1;
     // Phase lists per device; concatenated at the end so every wait follows its signal's phase.
-    let mut phases: Vec<[Vec<PlanOp>; 4]> = (0..devices).map(|_| Default::default()).collect();
+    let mut phases: Vec<[Vec<ExecOp>; 4]> = (0..devices).map(|_| Default::default()).collect();
 
-    let add_pass = |plan: &mut Plan, pass: PlanPass| {
+    let add_pass = |plan: &mut ExecutionPlan, pass: ExecPass| {
         plan.passes.push(pass);
         plan.passes.len() - 1
     };
-    let add_copy = |plan: &mut Plan, phases: &mut Vec<[Vec<PlanOp>; 4]>, copy: PlanCopy, out: usize| {
+    let add_copy = |plan: &mut ExecutionPlan, phases: &mut Vec<[Vec<ExecOp>; 4]>, copy: ExecCopy, out: usize| {
         plan.copies.push(copy);
         let c = plan.copies.len() - 1;
-        phases[copy.from][out].extend([PlanOp::CopyOut(c), PlanOp::Signal(c)]);
-        phases[copy.to][out + 1].extend([PlanOp::Wait(c), PlanOp::CopyIn(c)]);
+        phases[copy.from][out].extend([ExecOp::CopyOut(c), ExecOp::Signal(c)]);
+        phases[copy.to][out + 1].extend([ExecOp::Wait(c), ExecOp::CopyIn(c)]);
     };
 
     // Phase 0: fills; the split view's bands go to its owner.
     for v in 0..views {
-        let bands: Vec<(usize, Rows)> = if v == split_view {
+        let bands: Vec<(usize, Region)> = if v == split_view {
             (0..devices)
                 .map(|d| {
                     let y0 = height * d as u32 / devices as u32;
                     let y1 = height * (d as u32 + 1) / devices as u32;
-                    (d, Rows::new(y0, y1))
+                    (d, Region::new(y0, y1))
                 })
                 .collect()
         } else {
@@ -72,19 +81,27 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
         for (device, rows) in bands {
             let p = add_pass(
                 &mut plan,
-                PlanPass {
+                ExecPass {
                     name: "fill".into(),
+                    kernel: 0,
                     view: v,
                     rows,
                     device,
                     reads: vec![],
                     history_reads: vec![],
-                    writes: vec![PlanAccess { resource: radiance[v as usize], version: 1, rows }],
+                    writes: vec![ExecAccess::own("radiance", radiance[v as usize], 1, rows)],
                 },
             );
-            phases[device][0].push(PlanOp::Pass(p));
+            phases[device][0].push(ExecOp::Pass(p));
             if device != owner(v) {
-                let copy = PlanCopy { resource: radiance[v as usize], version: 1, rows, from: device, to: owner(v) };
+                let copy = ExecCopy {
+                    resource: radiance[v as usize],
+                    dst: radiance[v as usize],
+                    version: 1,
+                    rows,
+                    from: device,
+                    to: owner(v),
+                };
                 add_copy(&mut plan, &mut phases, copy, 0);
             }
         }
@@ -93,8 +110,9 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
     for v in 0..views {
         let source = (v + 1) % views;
         if owner(source) != owner(v) {
-            let copy = PlanCopy {
+            let copy = ExecCopy {
                 resource: radiance[source as usize],
+                dst: radiance[source as usize],
                 version: 1,
                 rows: all,
                 from: owner(source),
@@ -106,24 +124,32 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
     // Phase 2: blends, then the gather of finished views to device 0 (phase 2→3).
     for v in 0..views {
         let source = (v + 1) % views;
-        let access = |resource: usize| PlanAccess { resource, version: 1, rows: all };
+        let access = |slot: &str, resource: usize| ExecAccess::own(slot, resource, 1, all);
         let p = add_pass(
             &mut plan,
-            PlanPass {
+            ExecPass {
                 name: "shift_blend".into(),
+                kernel: 1,
                 view: v,
                 rows: all,
                 device: owner(v),
-                reads: vec![access(radiance[v as usize]), access(radiance[source as usize])],
+                reads: vec![access("radiance", radiance[v as usize]), access("source", radiance[source as usize])],
                 history_reads: vec![],
-                writes: vec![access(output[v as usize])],
+                writes: vec![access("output", output[v as usize])],
             },
         );
-        phases[owner(v)][2].push(PlanOp::Pass(p));
+        phases[owner(v)][2].push(ExecOp::Pass(p));
     }
     for v in 0..views {
         if owner(v) != 0 {
-            let copy = PlanCopy { resource: output[v as usize], version: 1, rows: all, from: owner(v), to: 0 };
+            let copy = ExecCopy {
+                resource: output[v as usize],
+                dst: output[v as usize],
+                version: 1,
+                rows: all,
+                from: owner(v),
+                to: 0,
+            };
             add_copy(&mut plan, &mut phases, copy, 2);
         }
     }
@@ -135,63 +161,80 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
 
 /// One fill on device 0 of a `width`×`height` RGBA32F image and its copy to device 1: the
 /// cross-device bandwidth benchmark (64 MiB = 2048×2048).
-pub fn copy_benchmark(width: u32, height: u32) -> Plan {
-    let all = Rows::new(0, height);
-    Plan {
-        resources: vec![PlanResource {
+pub fn copy_benchmark(width: u32, height: u32) -> ExecutionPlan {
+    let all = Region::new(0, height);
+    ExecutionPlan {
+        resources: vec![ExecResource {
             name: "payload".into(),
             view: 0,
             width,
             height,
-            format: TexelFormat::Rgba32Float,
+            format: Format::Rgba32f,
             kind: ResourceKind::Image,
+            storage: 0,
+            exported: false,
+            reset: None,
         }],
-        passes: vec![PlanPass {
+        passes: vec![ExecPass {
             name: "fill".into(),
+            kernel: 0,
             view: 0,
             rows: all,
             device: 0,
             reads: vec![],
             history_reads: vec![],
-            writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
+            writes: vec![ExecAccess::own("payload", 0, 1, all)],
         }],
-        copies: vec![PlanCopy { resource: 0, version: 1, rows: all, from: 0, to: 1 }],
+        copies: vec![ExecCopy { resource: 0, dst: 0, version: 1, rows: all, from: 0, to: 1 }],
         devices: vec![
-            vec![PlanOp::Pass(0), PlanOp::CopyOut(0), PlanOp::Signal(0)],
-            vec![PlanOp::Wait(0), PlanOp::CopyIn(0)],
+            vec![ExecOp::Pass(0), ExecOp::CopyOut(0), ExecOp::Signal(0)],
+            vec![ExecOp::Wait(0), ExecOp::CopyIn(0)],
         ],
+        history_pairs: vec![],
+        kernels: fill_only(),
     }
 }
 
 /// `passes_per_device` tiny fills per device, no copies: measures the executor's CPU cost per
 /// submitted pass.
-pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> Plan {
-    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
-    let all = Rows::new(0, size);
+pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> ExecutionPlan {
+    let mut plan =
+        ExecutionPlan { devices: vec![Vec::new(); devices], kernels: fill_only(), ..ExecutionPlan::default() };
+    let all = Region::new(0, size);
     for d in 0..devices {
         for i in 0..passes_per_device {
             let view = d as u32 * passes_per_device + i;
-            plan.resources.push(PlanResource {
+            plan.resources.push(ExecResource {
                 name: "target".into(),
                 view,
                 width: size,
                 height: size,
-                format: TexelFormat::Rgba8Unorm,
+                format: Format::Rgba8,
                 kind: ResourceKind::Image,
+                storage: 0,
+                exported: false,
+                reset: None,
             });
-            plan.passes.push(PlanPass {
+            plan.passes.push(ExecPass {
                 name: "fill".into(),
+                kernel: 0,
                 view,
                 rows: all,
                 device: d,
                 reads: vec![],
                 history_reads: vec![],
-                writes: vec![PlanAccess { resource: plan.resources.len() - 1, version: 1, rows: all }],
+                writes: vec![ExecAccess::own("target", plan.resources.len() - 1, 1, all)],
             });
-            plan.devices[d].push(PlanOp::Pass(plan.passes.len() - 1));
+            plan.devices[d].push(ExecOp::Pass(plan.passes.len() - 1));
         }
     }
     plan
+}
+
+fn fill_only() -> Kernels {
+    let mut kernels = Kernels::default();
+    kernels.push(FillKernel);
+    kernels
 }
 
 #[cfg(test)]

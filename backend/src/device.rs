@@ -29,6 +29,11 @@ pub struct DeviceInfo {
     pub device_type: String,
     /// Whether GPU timestamps can be mapped to the host clock by VK_*_calibrated_timestamps.
     pub calibrated_timestamps: bool,
+    /// `maxImageDimension2D`: the largest width or height of an image the device can create.
+    pub max_image_dimension_2d: u32,
+    /// Size of the largest device-local memory heap, in bytes: what a caller can check its
+    /// working set against before allocating.
+    pub device_local_heap_bytes: u64,
 }
 
 /// Device-level functions of calibrated timestamps (EXT and KHR have the same shape).
@@ -299,6 +304,8 @@ impl Device {
             ),
             device_type: format!("{:?}", props.device_type),
             calibrated_timestamps: calibrated.is_some(),
+            max_image_dimension_2d: props.limits.max_image_dimension2_d,
+            device_local_heap_bytes: largest_device_local_heap(raw_instance, physical),
         };
         Ok(Arc::new(Self {
             info,
@@ -550,6 +557,13 @@ pub fn host_now_ns() -> u64 {
     // clock_gettime(CLOCK_MONOTONIC) cannot fail with a valid pointer.
     unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// The largest DEVICE_LOCAL heap (lavapipe's one heap is system memory and is flagged so).
+fn largest_device_local_heap(instance: &ash::Instance, physical: vk::PhysicalDevice) -> u64 {
+    let memory = unsafe { instance.get_physical_device_memory_properties(physical) };
+    let heaps = &memory.memory_heaps[..memory.memory_heap_count as usize];
+    heaps.iter().filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL)).map(|h| h.size).max().unwrap_or(0)
 }
 
 #[cfg(test)]

@@ -14,9 +14,10 @@ use crate::error::{BackendError, Result, VkContext};
 use crate::executor::FaultGate;
 use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
 use crate::pipeline::Bindless;
-use crate::plan::{Plan, PlanResource, ResourceKind, TexelFormat};
+use crate::plan::{ExecResource, ExecutionPlan, Format, ResourceKind};
 use crate::record::{TimerLabel, timer_labels};
 use crate::segments::{Item, Segment};
+use crate::shaders::ShaderLibrary;
 
 /// Alignment of each copy's region inside the staging buffer.
 const STAGING_ALIGN: u64 = 256;
@@ -81,10 +82,11 @@ pub(crate) struct Staging {
 /// Creates images, descriptor layout, command buffers and query pools of device `d`.
 pub(crate) fn create_device_state(
     device: &Arc<Device>,
-    plan: &Plan,
+    plan: &ExecutionPlan,
     d: usize,
     segments: Vec<Segment>,
     slots: usize,
+    shaders: &ShaderLibrary,
     kept: &mut Kept,
 ) -> Result<DeviceState> {
     let (resources, buffer_resources): (Vec<usize>, Vec<usize>) =
@@ -114,10 +116,13 @@ pub(crate) fn create_device_state(
                     device,
                     &format!("{} view {}", desc.name, desc.view),
                     desc.bytes(),
+                    // INDIRECT_BUFFER: passes write dispatch arguments into their own buffers
+                    // (Recorder::dispatch_indirect).
                     vk::BufferUsageFlags::STORAGE_BUFFER
                         | vk::BufferUsageFlags::TRANSFER_SRC
                         | vk::BufferUsageFlags::TRANSFER_DST
-                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+                        | vk::BufferUsageFlags::INDIRECT_BUFFER,
                     MemoryLocation::GpuOnly,
                 )?
             }
@@ -126,13 +131,13 @@ pub(crate) fn create_device_state(
     }
     clear_buffers(device, fresh_buffers.iter().map(|r| &buffers[r]))?;
     let placeholders = [
-        Image::new(device, "float placeholder", 1, 1, TexelFormat::Rgba32Float)?,
-        Image::new(device, "uint placeholder", 1, 1, TexelFormat::R32Uint)?,
+        Image::new(device, "float placeholder", 1, 1, Format::Rgba32f)?,
+        Image::new(device, "uint placeholder", 1, 1, Format::R32u)?,
     ];
     initialise_images(device, fresh.iter().map(|r| &images[r]).chain(&placeholders))?;
     let image_slots: HashMap<usize, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
     let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
-    let bindless = Bindless::new(device, &ordered, placeholders, slots)?;
+    let bindless = Bindless::new(device, &ordered, placeholders, slots, shaders.clone())?;
     let raw = &device.raw;
     let mut command_pools = [vk::CommandPool::null(); 2];
     for (pool, kind) in command_pools.iter_mut().zip([QueueKind::Main, QueueKind::Copy]) {
@@ -188,8 +193,8 @@ pub(crate) fn create_device_state(
 /// Resources of the previous plan that the next one may take over, by device and description.
 #[derive(Default)]
 pub(crate) struct Kept {
-    pub(crate) images: HashMap<(usize, PlanResource), Image>,
-    pub(crate) buffers: HashMap<(usize, PlanResource), Buffer>,
+    pub(crate) images: HashMap<(usize, ExecResource), Image>,
+    pub(crate) buffers: HashMap<(usize, ExecResource), Buffer>,
 }
 
 /// Zeroes new buffers, for the same reason images are cleared.
@@ -245,7 +250,7 @@ fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image
 
 /// One shared host buffer per slot holding every copy of the plan, imported into each device
 /// that sends or receives a copy.
-pub(crate) fn create_staging(devices: &[Arc<Device>], plan: &Plan, slots: usize) -> Result<Option<Staging>> {
+pub(crate) fn create_staging(devices: &[Arc<Device>], plan: &ExecutionPlan, slots: usize) -> Result<Option<Staging>> {
     if plan.copies.is_empty() {
         return Ok(None);
     }
@@ -264,7 +269,7 @@ pub(crate) fn create_staging(devices: &[Arc<Device>], plan: &Plan, slots: usize)
 }
 
 /// Sets up [`FaultInjection::DropCrossDeviceWait`] for `copy`.
-pub(crate) fn fault_gate(plan: &Plan, states: &mut [DeviceState], copy: usize) -> Result<FaultGate> {
+pub(crate) fn fault_gate(plan: &ExecutionPlan, states: &mut [DeviceState], copy: usize) -> Result<FaultGate> {
     let target =
         plan.copies.get(copy).ok_or_else(|| BackendError::FaultInjection(format!("the plan has no copy {copy}")))?;
     let consumer = &states[target.to];

@@ -43,7 +43,8 @@ pub enum BackendError {
     Vk { call: &'static str, result: vk::Result },
 
     /// gpu-allocator could not allocate or free.
-    #[error("memory allocation for {what} failed: {source}")]
+    // The source is not repeated here: `{:#}` prints the chain, and it would appear twice.
+    #[error("memory allocation for {what} failed")]
     Allocation { what: String, source: gpu_allocator::AllocationError },
 
     /// No memory type can hold an imported host allocation on this device.
@@ -56,7 +57,7 @@ pub enum BackendError {
 
     /// The plan handed to the executor is inconsistent.
     #[error("invalid execution plan: {0}")]
-    Plan(#[from] crate::plan::PlanError),
+    ExecutionPlan(#[from] crate::plan::ExecutionPlanError),
 
     /// The schedule uses something the backend cannot run yet.
     #[error("cannot lower the schedule: {0}")]
@@ -66,9 +67,17 @@ pub enum BackendError {
     #[error("no kernel registered for pass `{pass}` (registered: {registered:?})")]
     UnknownPass { pass: String, registered: Vec<String> },
 
-    /// A kernel asked for a shader that the build did not embed.
-    #[error("no embedded shader named `{0}`")]
-    UnknownShader(String),
+    /// A kernel asked for a shader that neither the user's library nor the build has.
+    #[error(
+        "no shader named `{name}`: not among the user shaders of ExecOptions::shaders ({}) nor the built-in \
+         shaders of shaders/ ({}); add it with ShaderLibrary::with_spirv or include_shaders!",
+        list(.user), list(.builtin)
+    )]
+    UnknownShader { name: String, user: Vec<String>, builtin: Vec<String> },
+
+    /// Bytes or words handed over as a shader are not SPIR-V.
+    #[error("shader `{shader}` is not SPIR-V: {defect}")]
+    InvalidSpirv { shader: String, defect: crate::shaders::SpirvDefect },
 
     /// A kernel's use of the instance does not match what the kernel expects.
     #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
@@ -90,13 +99,35 @@ pub enum BackendError {
     #[error("per-frame data of {bytes} bytes exceeds the capacity of {capacity} (ExecOptions::frame_data_bytes)")]
     FrameDataTooLarge { bytes: usize, capacity: u64 },
 
+    /// `Recorder::dispatch_indirect` was pointed at something that cannot hold its arguments.
+    #[error("indirect dispatch of `{shader}` from resource {resource} at byte {offset}: {problem}")]
+    IndirectArgs { shader: String, resource: usize, offset: u64, problem: String },
+
+    /// A kernel asked for a section of the per-frame data that the frame data does not have.
+    #[error(
+        "no per-frame data section `{name}` (sections: {known:?}); add it with FrameData::section and Executor::set_frame before the first frame"
+    )]
+    UnknownFrameSection { name: String, known: Vec<String> },
+
+    /// Two sections of one `FrameData` with the same name.
+    #[error("per-frame data section `{0}` is added twice")]
+    DuplicateFrameSection(String),
+
+    /// `Executor::submit_frame` without `ExecOptions::read_back_exports`.
+    #[error("submit_frame reads exported resources back, which needs ExecOptions::read_back_exports = true")]
+    ReadbackDisabled,
+
+    /// `Executor::wait_readback` for a frame whose readback is not there.
+    #[error("no readback of frame {frame}: it was already taken, or the frame was not submitted with submit_frame")]
+    ReadbackUnavailable { frame: u64 },
+
     /// A resource is not present on the device where it was asked for.
     #[error("resource {resource} is not allocated on device {device}")]
     ResourceNotOnDevice { resource: usize, device: usize },
 
     /// A texel format the backend cannot use as a storage image.
     #[error("format {0:?} is not supported as a storage image by the backend yet")]
-    UnsupportedFormat(crate::plan::TexelFormat),
+    UnsupportedFormat(crate::plan::Format),
 
     /// A host relay thread (cross-device signal forwarding) failed.
     #[error("cross-device relay failed: {0}")]
@@ -113,8 +144,13 @@ pub enum BackendError {
     FrameTimeout { frame: u64, device: usize, seconds: u64 },
 
     /// Writing a report or trace file failed.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}")]
     Io { path: String, source: std::io::Error },
+}
+
+/// `a, b, c`, or `none` for an empty list.
+fn list(names: &[String]) -> String {
+    if names.is_empty() { "none".into() } else { names.join(", ") }
 }
 
 /// Shorthand used across the crate.

@@ -1,4 +1,4 @@
-//! The executor: turns a [`Plan`] into per-device command buffers recorded once, and submits
+//! The executor: turns an [`ExecutionPlan`] into per-device command buffers recorded once, and submits
 //! them frame after frame.
 //!
 //! * Within a device, submissions are ordered by the queue and made memory-safe by barriers;
@@ -12,7 +12,9 @@
 //!   ([`Executor::set_plan`]) or a global buffer is reallocated ([`Executor::upload_buffer`]).
 //! * Images and buffers live as long as the plan's resources: their contents carry over from
 //!   frame to frame (history), and over a plan change for resources that keep their
-//!   description.
+//!   description; buffers the plan resets are rewritten at the start of every frame.
+//! * The frame loop ([`Executor::submit_frame`], [`Executor::wait_readback`]) reads back the
+//!   exported resources of each frame without waiting for any later frame (readback.rs).
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
@@ -25,13 +27,15 @@ use crate::context::Context;
 use crate::device::{CalibrationMethod, ClockCalibration, Device, host_now_ns};
 use crate::device_state::{DeviceState, Kept, Staging, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result, VkContext};
+use crate::frame_data::FrameData;
 use crate::instance::Instance;
 use crate::memory::{Buffer, color_layers};
-use crate::plan::Plan;
-use crate::record::{SegmentContext, record_segment};
-use crate::recorder::KernelRegistry;
+use crate::plan::ExecutionPlan;
+use crate::readback::{FrameReadback, FrameTicket, Readback};
+use crate::record::{SegmentContext, SegmentPlace, record_segment};
 use crate::relay::{Relay, RelayJob};
 use crate::segments::{Chunk, chunks_of_copies, progress_value, ready_value, segment_device};
+use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData};
 use crate::timing::{FrameReport, TimedEvent};
 
@@ -66,7 +70,15 @@ pub struct ExecOptions {
     pub separate_copy_queue: bool,
     /// Capacity of the per-frame data buffer ([`Executor::set_frame_data`]).
     pub frame_data_bytes: u64,
+    /// Copy the plan's exported resources to host memory at the end of every frame, for
+    /// [`Executor::submit_frame`]. Off by default: it costs a host-visible copy of every export
+    /// per frame in flight and a device→host copy per frame, which callers that read results
+    /// once with [`Executor::read_image`] do not need.
+    pub read_back_exports: bool,
     pub fault: Option<FaultInjection>,
+    /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
+    /// the built-in shaders of `shaders/`.
+    pub shaders: ShaderLibrary,
 }
 
 impl Default for ExecOptions {
@@ -76,7 +88,9 @@ impl Default for ExecOptions {
             chunk_bytes: 8 << 20,
             separate_copy_queue: true,
             frame_data_bytes: 64 << 10,
+            read_back_exports: false,
             fault: None,
+            shaders: ShaderLibrary::default(),
         }
     }
 }
@@ -100,14 +114,15 @@ struct InFlight {
     submit_cpu_ns: u64,
     passes: usize,
     segments: usize,
+    /// Submitted by `submit_frame`: its readback is kept when it retires.
+    read_back: bool,
 }
 
-/// Executes a [`Plan`] on the devices of a [`Context`].
+/// Executes an [`ExecutionPlan`] on the devices of a [`Context`].
 pub struct Executor {
     instance: Arc<Instance>,
     devices: Vec<Arc<Device>>,
-    plan: Plan,
-    kernels: KernelRegistry,
+    plan: ExecutionPlan,
     options: ExecOptions,
     chunks: Vec<Vec<Chunk>>,
     states: Vec<DeviceState>,
@@ -119,6 +134,9 @@ pub struct Executor {
     next_frame: u64,
     /// First frame of the current plan.
     plan_epoch: u64,
+    /// First frame whose history reads are not last frame's output (plan start, reset): history
+    /// is valid from the frame after it.
+    history_origin: u64,
     in_flight: VecDeque<InFlight>,
     reports: Vec<FrameReport>,
     calibration: Vec<ClockCalibration>,
@@ -133,19 +151,20 @@ pub struct Executor {
     textures: Vec<Vec<Texture>>,
     /// Per frame-in-flight slot and device: host-visible copy of the per-frame data.
     frame_data_buffers: Vec<Vec<Buffer>>,
-    frame_data: Vec<u8>,
+    frame_data: FrameData,
+    /// With `ExecOptions::read_back_exports`.
+    readback: Option<Readback>,
 }
 
 impl Executor {
     /// Validates `plan` and allocates its resources. Command buffers are recorded at the first
     /// frame (so global buffers can be uploaded first) and then reused.
-    pub fn new(context: &Context, plan: Plan, kernels: KernelRegistry, options: ExecOptions) -> Result<Self> {
+    pub fn new(context: &Context, plan: ExecutionPlan, options: ExecOptions) -> Result<Self> {
         let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
             instance: context.instance.clone(),
             devices: context.devices.clone(),
-            plan: Plan::default(),
-            kernels,
+            plan: ExecutionPlan::default(),
             options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
             chunks: Vec::new(),
             states: Vec::new(),
@@ -155,6 +174,7 @@ impl Executor {
             gate: None,
             next_frame: 0,
             plan_epoch: 0,
+            history_origin: 0,
             in_flight: VecDeque::new(),
             reports: Vec::new(),
             calibration,
@@ -164,9 +184,10 @@ impl Executor {
             globals: context.devices.iter().map(|_| HashMap::new()).collect(),
             textures: context.devices.iter().map(|_| Vec::new()).collect(),
             frame_data_buffers: Vec::new(),
-            frame_data: Vec::new(),
+            frame_data: FrameData::new(),
+            readback: options.read_back_exports.then(Readback::new),
         };
-        executor.frame_data_buffers = (0..executor.options.frames_in_flight)
+        executor.frame_data_buffers = (0..executor.slot_count())
             .map(|_| {
                 executor
                     .devices
@@ -190,7 +211,7 @@ impl Executor {
     /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the
     /// current one; otherwise waits for all frames, keeps the images whose resource description
     /// is unchanged (their contents survive), and records everything anew at the next frame.
-    pub fn set_plan(&mut self, plan: Plan) -> Result<bool> {
+    pub fn set_plan(&mut self, plan: ExecutionPlan) -> Result<bool> {
         if plan == self.plan {
             return Ok(false);
         }
@@ -199,9 +220,8 @@ impl Executor {
         Ok(true)
     }
 
-    fn build(&mut self, plan: Plan) -> Result<()> {
+    fn build(&mut self, plan: ExecutionPlan) -> Result<()> {
         plan.validate(self.devices.len())?;
-        self.kernels.check_plan(&plan)?;
         // Threads first (they use the old semaphores), then the old states.
         self.relay = None;
         let mut kept = Kept::default();
@@ -216,12 +236,12 @@ impl Executor {
         self.staging = None;
 
         let chunks = chunks_of_copies(&plan, self.options.chunk_bytes);
-        let slots = self.options.frames_in_flight;
+        let slots = self.slot_count();
         let dropped_wait = self.options.fault.map(|FaultInjection::DropCrossDeviceWait { copy }| copy);
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
-            let state = create_device_state(device, &plan, d, segments, slots, &mut kept)?;
+            let state = create_device_state(device, &plan, d, segments, slots, &self.options.shaders, &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);
             states.push(state);
@@ -239,6 +259,9 @@ impl Executor {
             None => None,
         };
         self.staging = create_staging(&self.devices, &plan, slots)?;
+        if let Some(readback) = &mut self.readback {
+            readback.allocate(&self.devices[0], &plan, slots)?;
+        }
         self.plan = plan;
         self.chunks = chunks;
         self.states = states;
@@ -247,12 +270,26 @@ impl Executor {
         let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
         self.relay = Some(Relay::new(&self.devices, &progress));
         self.plan_epoch = self.next_frame;
+        self.history_origin = self.next_frame;
         Ok(())
+    }
+
+    /// Recorded frame slots: frames in flight rounded up to even, so a slot's frame parity never
+    /// changes and history pairs can be swapped in the recording (see `ExecutionPlan::history_pairs`).
+    fn slot_count(&self) -> usize {
+        self.options.frames_in_flight.div_ceil(2) * 2
+    }
+
+    /// Marks history invalid for the next frame (a camera cut, a teleport): its kernels see
+    /// `history_valid = 0` and must not blend in what their history reads return.
+    pub fn reset_history(&mut self) {
+        self.history_origin = self.next_frame;
     }
 
     fn record_all(&mut self) -> Result<()> {
         let started = Instant::now();
         let plan = &self.plan;
+        let parity_maps = [plan.parity_map(0), plan.parity_map(1)];
         let addresses: Vec<HashMap<String, u64>> = self
             .globals
             .iter()
@@ -262,13 +299,17 @@ impl Executor {
             let buffer_addresses: HashMap<usize, u64> =
                 state.buffers.iter().map(|(&r, b)| (r, b.device_address())).collect();
             for slot in 0..state.slots.len() {
+                let readback = match &self.readback {
+                    Some(readback) if d == 0 => readback.targets(slot),
+                    _ => Vec::new(),
+                };
                 let staging =
                     self.staging.as_ref().and_then(|s| s.buffers[slot].buffer_on(d).map(|b| (b, s.offsets.as_slice())));
                 let mut ctx = SegmentContext {
                     raw: &state.device.raw,
                     device_index: d,
                     plan,
-                    kernels: &self.kernels,
+                    parity_map: &parity_maps[slot % 2],
                     bindless: &mut state.bindless,
                     images: &state.images,
                     image_slots: &state.image_slots,
@@ -279,11 +320,15 @@ impl Executor {
                     buffers: &state.buffers,
                     buffer_addresses: &buffer_addresses,
                     frame_data_address: self.frame_data_buffers[slot][d].device_address(),
+                    frame_sections: self.frame_data.sections(),
+                    readback: &readback,
                 };
                 let mut first_timer = 0u32;
+                let segment_count = state.segments.len();
                 for (j, segment) in state.segments.iter().enumerate() {
                     let cb = state.slots[slot].command_buffers[j];
-                    record_segment(&mut ctx, cb, segment, first_timer)?;
+                    let place = SegmentPlace { first: j == 0, last: j + 1 == segment_count };
+                    record_segment(&mut ctx, cb, segment, first_timer, place)?;
                     first_timer += segment.items.len() as u32;
                 }
             }
@@ -355,21 +400,58 @@ impl Executor {
 
     /// Sets the per-frame data (camera matrices, sample counters, ...) that every following
     /// frame's kernels read at `Recorder::frame_data_address()`; copied into the frame's slot at
-    /// each `run_frame`, so recorded command buffers stay valid.
+    /// each `run_frame`, so recorded command buffers stay valid. The same as
+    /// `set_frame(&FrameData::whole(bytes))`.
     pub fn set_frame_data(&mut self, bytes: &[u8]) -> Result<()> {
-        if bytes.len() as u64 > self.options.frame_data_bytes {
-            return Err(BackendError::FrameDataTooLarge {
-                bytes: bytes.len(),
-                capacity: self.options.frame_data_bytes,
-            });
+        self.set_frame(&FrameData::whole(bytes))
+    }
+
+    /// Sets the per-frame data of every following frame, sections included (kernels find them
+    /// at `Recorder::frame_section_address`). The same sections at the same offsets as before
+    /// only change bytes; another layout waits for the frames in flight and has the command
+    /// buffers recorded again before the next frame.
+    pub fn set_frame(&mut self, data: &FrameData) -> Result<()> {
+        let bytes = data.bytes().len();
+        if bytes as u64 > self.options.frame_data_bytes {
+            return Err(BackendError::FrameDataTooLarge { bytes, capacity: self.options.frame_data_bytes });
         }
-        self.frame_data = bytes.to_vec();
+        if data.sections() != self.frame_data.sections() {
+            self.finish()?;
+            self.needs_record = true;
+        }
+        self.frame_data.clone_from(data);
         Ok(())
     }
 
     /// Submits one frame; returns its index. Waits only if `frames_in_flight` frames are
     /// already in flight (for the oldest of them).
     pub fn run_frame(&mut self) -> Result<u64> {
+        self.submit(false)
+    }
+
+    /// Submits one frame like [`Self::run_frame`]; its exported resources (`ExecResource::exported`)
+    /// can then be waited for with [`Self::wait_readback`]. Needs
+    /// `ExecOptions::read_back_exports`.
+    pub fn submit_frame(&mut self) -> Result<FrameTicket> {
+        if self.readback.is_none() {
+            return Err(BackendError::ReadbackDisabled);
+        }
+        Ok(FrameTicket { frame: self.submit(true)? })
+    }
+
+    /// Waits for the frame of `ticket` (and so for the frames submitted before it, which finish
+    /// first) — not for later frames — and returns its exported resources.
+    pub fn wait_readback(&mut self, ticket: FrameTicket) -> Result<FrameReadback> {
+        while self.in_flight.front().is_some_and(|f| f.frame <= ticket.frame) {
+            self.retire_oldest()?;
+        }
+        self.readback
+            .as_mut()
+            .and_then(|r| r.take(ticket.frame))
+            .ok_or(BackendError::ReadbackUnavailable { frame: ticket.frame })
+    }
+
+    fn submit(&mut self, read_back: bool) -> Result<u64> {
         if self.in_flight.len() >= self.options.frames_in_flight {
             self.retire_oldest()?;
         }
@@ -381,14 +463,16 @@ impl Executor {
         let cpu_start = Instant::now();
         let frame = self.next_frame;
         let local = frame - self.plan_epoch;
-        let slot = (frame % self.options.frames_in_flight as u64) as usize;
+        let slot = (frame % self.slot_count() as u64) as usize;
+        let history_valid = frame > self.history_origin;
         for state in &mut self.states {
-            state.bindless.set_frame_constants(slot, frame);
+            state.bindless.set_frame_constants(slot, frame, history_valid);
         }
-        if !self.frame_data.is_empty() {
+        let frame_bytes = self.frame_data.bytes();
+        if !frame_bytes.is_empty() {
             for buffer in &mut self.frame_data_buffers[slot] {
-                buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..self.frame_data.len()]
-                    .copy_from_slice(&self.frame_data);
+                buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..frame_bytes.len()]
+                    .copy_from_slice(frame_bytes);
             }
         }
         let relay = self.relay.as_ref().expect("relay exists after build");
@@ -509,6 +593,7 @@ impl Executor {
             submit_cpu_ns: cpu_start.elapsed().as_nanos() as u64,
             passes: self.plan.passes.len(),
             segments: submitted_segments,
+            read_back,
         });
         self.next_frame += 1;
         Ok(frame)
@@ -577,6 +662,9 @@ impl Executor {
             self.devices.len(),
             events,
         ));
+        if let (true, Some(readback)) = (f.read_back, &mut self.readback) {
+            readback.retire(f.frame, f.slot);
+        }
         Ok(())
     }
 
@@ -630,7 +718,7 @@ impl Executor {
     }
 
     /// The plan being executed.
-    pub fn plan(&self) -> &Plan {
+    pub fn plan(&self) -> &ExecutionPlan {
         &self.plan
     }
 
@@ -653,6 +741,10 @@ impl Executor {
     /// frames).
     pub fn read_resource(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
         self.finish()?;
+        // A history allocation's halves swap by frame parity: read the half the last frame
+        // wrote in `resource`'s place (and its other half for the pair's other member).
+        let last_parity = self.next_frame.saturating_sub(1) % 2;
+        let resource = self.plan.parity_map(last_parity as usize).get(&resource).copied().unwrap_or(resource);
         let state = &self.states[device];
         let image = state.images.get(&resource);
         let buffer = state.buffers.get(&resource);

@@ -3,14 +3,14 @@
 //! passes crate and plug in through the same [`PassKernel`] trait.
 
 use crate::error::{BackendError, Result};
-use crate::plan::{PlanPass, TexelFormat};
-use crate::recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
+use crate::plan::{ExecPass, Format};
+use crate::recorder::{Draw, PassKernel, PassParams, Recorder};
 
 /// Writes the deterministic pattern of `shaders/fill.comp` into `writes[0]` over the instance's rows.
 pub struct FillKernel;
 
 impl PassKernel for FillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "fill", 0, 1)?;
         let params = row_params(rec, pass, dst)?;
         rec.dispatch_rows("fill", params)
@@ -25,7 +25,7 @@ impl PassKernel for FillKernel {
 pub struct ShiftBlendKernel;
 
 impl PassKernel for ShiftBlendKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         if pass.reads.is_empty() || pass.writes.len() != 1 {
             return Err(BackendError::KernelMisuse {
                 kernel: "shift_blend".into(),
@@ -60,7 +60,7 @@ pub struct RasterDemoKernel;
 pub const RASTER_NEAR_COLOR: [f32; 4] = [0.25, 0.5, 0.75, 1.0];
 
 impl PassKernel for RasterDemoKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "raster_demo", 0, 1)?;
         let params = PassParams {
             view: pass.view,
@@ -94,7 +94,7 @@ pub fn reference_raster(x: u32, y: u32, view: u32, width: u32) -> [f32; 4] {
 pub struct WeightedFillKernel;
 
 impl PassKernel for WeightedFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "weighted_fill", 0, 1)?;
         let width = rec.resource(dst).width;
         let mut push = Vec::with_capacity(40);
@@ -112,7 +112,7 @@ impl PassKernel for WeightedFillKernel {
 pub struct FillBufferKernel;
 
 impl PassKernel for FillBufferKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "fill_buffer", 0, 1)?;
         let words = rec.resource(dst).width;
         let mut push = Vec::with_capacity(16);
@@ -132,9 +132,9 @@ pub fn reference_buffer_word(i: u32, view: u32) -> u32 {
 pub struct FillMaskKernel;
 
 impl PassKernel for FillMaskKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "fill_mask", 0, 1)?;
-        if rec.resource(dst).format != TexelFormat::R32Uint {
+        if rec.resource(dst).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: "fill_mask".into(),
                 instance: index,
@@ -151,27 +151,26 @@ pub fn reference_mask(x: u32, y: u32, view: u32) -> u32 {
     hash3(x, y, view)
 }
 
-/// Adds (frame index + 1) to `writes[0]` in place (`shaders/accumulate.comp`); `reads[0]` is
-/// the same resource's previous version (history).
+/// `acc = history(acc) + frame index + 1` (`shaders/accumulate.comp`): the slot `acc` is
+/// written and read as history (last frame's final `acc`, zero when history is invalid).
 pub struct AccumulateKernel;
 
 impl PassKernel for AccumulateKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "accumulate", 1, 1)?;
-        if pass.reads[0].resource != dst {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
+        let (Some(output), Some(history)) = (pass.output("acc"), pass.history("acc")) else {
             return Err(BackendError::KernelMisuse {
                 kernel: "accumulate".into(),
                 instance: index,
-                detail: "must read the resource it writes (its history)".into(),
+                detail: "writes slot `acc` and reads it as history (read_history)".into(),
             });
-        }
-        let params = row_params(rec, pass, dst)?;
+        };
+        let params = PassParams { src0: rec.image(history.resource)?, ..row_params(rec, pass, output.resource)? };
         rec.dispatch_rows("accumulate", params)
     }
 }
 
 /// Parameters of a kernel that writes image `dst` over the pass's row band.
-fn row_params(rec: &Recorder<'_>, pass: &PlanPass, dst: usize) -> Result<PassParams> {
+fn row_params(rec: &Recorder<'_>, pass: &ExecPass, dst: usize) -> Result<PassParams> {
     Ok(PassParams {
         dst: rec.image(dst)?,
         view: pass.view,
@@ -183,7 +182,7 @@ fn row_params(rec: &Recorder<'_>, pass: &PlanPass, dst: usize) -> Result<PassPar
 }
 
 /// Checks the access counts a kernel relies on; returns the first written resource.
-fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, writes: usize) -> Result<usize> {
+fn expect_accesses(pass: &ExecPass, index: usize, kernel: &str, reads: usize, writes: usize) -> Result<usize> {
     if pass.reads.len() != reads || pass.writes.len() != writes {
         return Err(BackendError::KernelMisuse {
             kernel: kernel.to_string(),
@@ -196,19 +195,6 @@ fn expect_accesses(pass: &PlanPass, index: usize, kernel: &str, reads: usize, wr
         });
     }
     Ok(pass.writes[0].resource)
-}
-
-/// Registry with the built-in kernels under the pass names `fill`, `shift_blend`,
-/// `accumulate`, `fill_mask`, `raster_demo`, `weighted_fill` and `fill_buffer`.
-pub fn builtin_kernels() -> KernelRegistry {
-    KernelRegistry::new()
-        .with("fill", FillKernel)
-        .with("shift_blend", ShiftBlendKernel)
-        .with("accumulate", AccumulateKernel)
-        .with("fill_mask", FillMaskKernel)
-        .with("raster_demo", RasterDemoKernel)
-        .with("weighted_fill", WeightedFillKernel)
-        .with("fill_buffer", FillBufferKernel)
 }
 
 /// Column shift used by `shift_blend` for `view`.

@@ -2,40 +2,65 @@
 //!
 //! * [`Context`]: instance (+ validation), N physical devices (`--gpus N`) or N logical
 //!   devices on one physical device (`--fake-devices N`).
-//! * [`Plan`]: what the executor runs, lowered from the graph crate's `Schedule`.
+//! * [`ExecutionPlan`]: what the executor runs, lowered from the graph crate's `Schedule`.
 //! * [`Executor`]: records per-device command buffers once, submits frames with timeline
 //!   semaphores, moves cross-device copies through host memory imported into both devices, and
 //!   times every pass instance and copy ([`FrameReport`], [`chrome_trace`]).
-//! * [`PassKernel`] / [`KernelRegistry`] / [`Recorder`]: how passes plug their GPU work in:
-//!   compute dispatches over a bindless image array, raster draws ([`Draw`], dynamic rendering
-//!   into plan images), per-view buffers, global buffers ([`Executor::upload_buffer`]) and
-//!   per-frame data ([`Executor::set_frame_data`]) by buffer address, sampled RGBA8 textures
-//!   ([`Executor::upload_textures`]) by index into the `textures[]` array of set 0.
-//! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]).
+//! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
+//!   [`ExecutionPlan::from_schedule`] lowers its compiled schedule (allocations become resources, history
+//!   allocations two halves swapped by frame parity, accesses keep their slot names).
+//! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
+//!   bindless image array, raster draws ([`Draw`], dynamic rendering into plan images),
+//!   per-view buffers, global buffers ([`Executor::upload_buffer`]) and per-frame data
+//!   ([`Executor::set_frame_data`], or [`FrameData`] cut into one section per pass) by buffer
+//!   address, sampled RGBA8 textures ([`Executor::upload_textures`]) by index into the
+//!   `textures[]` array of set 0; indirect dispatches on counts a pass wrote
+//!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `ExecResource::reset`).
+//! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera and the frame
+//!   index, as `shaders/include/frame_block.glsl` declares them.
+//! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
+//!   [`Executor::wait_readback`] returns one frame's exported resources.
+//! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]);
+//!   kernels of other crates bring their own SPIR-V in a [`ShaderLibrary`]
+//!   ([`ExecOptions::shaders`]), compiled by their build.rs with parallax-glsl
+//!   ([`include_shaders!`]) or loaded at run time.
 //!
 //! ```
+//! use std::sync::Arc;
 //! use parallax_backend::*;
-//! use parallax_backend::demo::reprojection_demo;
-//! use parallax_backend::kernels::builtin_kernels;
+//! use parallax_backend::kernels::{FillKernel, ShiftBlendKernel};
+//! use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
+//!
+//! // Declare: fill every view, then blend each with its source (a δ-edge), kernels attached.
+//! let lf = LightField::new("3x1".parse()?, None, Some((32, 32)), Rig::default())?;
+//! let config = PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
+//! let placement = parallax_graph::Plan::new(&lf, &config)?;
+//! let mut graph = KernelGraph::with_payload(placement.topology.clone());
+//! let mut radiance = graph.image("radiance", Format::Rgba32f);
+//! let mut output = graph.image("output", Format::Rgba32f);
+//! graph.pass("fill", Role::All).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
+//! graph.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance)
+//!     .write(&mut output).kernel(Arc::new(ShiftBlendKernel)).record();
+//! graph.export(&output);
+//! let plan = ExecutionPlan::from_schedule(&graph, &compile(&graph, &placement)?)?;
 //!
 //! // Two logical devices on one physical device (lavapipe in CI), validation on.
 //! let context = Context::new(&ContextDesc {
 //!     selection: DeviceSelection::FakeDevices(2),
 //!     validation: Validation::Core,
 //! })?;
-//! let (plan, ids) = reprojection_demo(3, 2, 32, 32); // or Plan::from_schedule(&schedule)?
-//! let mut executor = Executor::new(&context, plan, builtin_kernels(), ExecOptions::default())?;
+//! let (device, view0) = plan.final_output("output", 0).unwrap(); // gathered on device 0
+//! let mut executor = Executor::new(&context, plan, ExecOptions::default())?;
 //! for _ in 0..3 {
 //!     executor.run_frame()?; // no re-recording, up to 2 frames in flight
 //! }
-//! let view0 = executor.read_image(0, ids.output[0])?; // gathered on device 0
-//! assert_eq!(view0.len(), 32 * 32 * 16);
+//! assert_eq!(executor.read_image(device, view0)?.len(), 32 * 32 * 16);
 //! let reports = executor.take_reports(); // GPU timestamps of every pass and copy
 //! let trace = chrome_trace(&reports, &context.device_infos());
 //! assert!(trace["traceEvents"].as_array().unwrap().len() > 3);
 //! drop(executor);
 //! context.check_validation()?;
-//! # Ok::<(), BackendError>(())
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 mod context;
@@ -43,14 +68,18 @@ mod device;
 mod device_state;
 mod error;
 mod executor;
+mod frame_block;
+mod frame_data;
 mod instance;
 mod lower;
 mod memory;
 mod pipeline;
+mod readback;
 mod record;
 mod recorder;
 mod relay;
 mod segments;
+mod shaders;
 mod texture;
 mod timing;
 
@@ -58,19 +87,24 @@ pub mod bench;
 pub mod demo;
 pub mod kernels;
 pub mod plan;
+pub mod reflect;
 
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
 pub use executor::{ExecOptions, Executor, FaultInjection};
+pub use frame_block::{FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameHeader, GpuCamera, ViewCameras};
+pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use instance::{Instance, Validation, validation_from_env};
-pub use lower::LowerError;
+pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
-pub use pipeline::{shader_names, spirv};
 pub use plan::{
-    Plan, PlanAccess, PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat,
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError, Format, MAX_RESET_WORDS,
+    Region, ResourceKind,
 };
-pub use recorder::{Draw, KernelRegistry, PassKernel, PassParams, Recorder};
+pub use readback::{FrameReadback, FrameTicket};
+pub use recorder::{Draw, PassKernel, PassParams, Recorder};
 pub use segments::{Chunk, chunks_of_copies};
+pub use shaders::{ShaderLibrary, SpirvDefect, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

@@ -1,71 +1,137 @@
-//! Lowering a compiled `parallax_graph::Schedule` to the executor's [`Plan`]: ids become
-//! indices, regions become row bands, device programs are ordered by device id. Nothing is
-//! re-planned here; the schedule's op order is kept exactly.
+//! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
+//! [`ExecutionPlan`]: allocations become resources (history allocations two: the halves swapped by frame
+//! parity), accesses keep their slot name and origin, each pass instance points at the kernel
+//! its pass was declared with, device programs are ordered by device id. Nothing is re-planned;
+//! the schedule's op order is kept exactly.
 
-use parallax_graph::{Access, Format, Op, ResourceDesc, Schedule};
+use std::collections::HashMap;
+use std::sync::Arc;
 
-use crate::plan::{Plan, PlanAccess, PlanCopy, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat};
+use parallax_graph::{Access, Format, Graph, Op, PassId, ResourceDesc, Schedule};
+
+use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
+use crate::recorder::PassKernel;
+
+/// A render graph whose passes carry their kernels: what the executor runs.
+pub type KernelGraph = Graph<Arc<dyn PassKernel>>;
 
 /// What makes a schedule impossible to lower.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum LowerError {
     #[error("the schedule has programs for devices {found:?}; expected exactly 0..{expected}")]
     DevicePrograms { found: Vec<u32>, expected: usize },
+    #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
+    MissingKernel { pass: String },
+    #[error("the schedule does not validate: {0}")]
+    Invalid(String),
 }
 
-fn texel_format(format: Format) -> TexelFormat {
-    match format {
-        Format::Rgba32f => TexelFormat::Rgba32Float,
-        Format::Rgba16f => TexelFormat::Rgba16Float,
-        Format::Rg32f => TexelFormat::Rg32Float,
-        Format::R32f => TexelFormat::R32Float,
-        Format::R32u => TexelFormat::R32Uint,
-        Format::Rgba8 => TexelFormat::Rgba8Unorm,
-    }
-}
+impl ExecutionPlan {
+    /// Lowers `schedule`, compiled from `graph`. The schedule must pass
+    /// `Schedule::validate()` (checked here: a plan that breaks the storage rules would race);
+    /// `ExecutionPlan::validate` (the executor runs it) checks the execution invariants.
+    pub fn from_schedule(graph: &KernelGraph, schedule: &Schedule) -> Result<ExecutionPlan, LowerError> {
+        let report = schedule.validate();
+        if let Some(first) = report.errors.first() {
+            return Err(LowerError::Invalid(format!("{first} ({} problem(s) in all)", report.errors.len())));
+        }
+        let mut kernels = Kernels::default();
+        let mut kernel_of: HashMap<PassId, usize> = HashMap::new();
+        for inst in &schedule.instances {
+            if kernel_of.contains_key(&inst.pass) {
+                continue;
+            }
+            let kernel =
+                graph.payload(inst.pass).ok_or_else(|| LowerError::MissingKernel { pass: inst.name.clone() })?;
+            kernels.0.push(kernel.clone());
+            kernel_of.insert(inst.pass, kernels.0.len() - 1);
+        }
 
-fn access(a: &Access) -> PlanAccess {
-    PlanAccess { resource: a.resource.index(), version: a.version, rows: Rows::new(a.region.y0, a.region.y1) }
-}
-
-impl Plan {
-    /// Lowers `schedule`. Run `Plan::validate` (the executor does) for the execution invariants.
-    pub fn from_schedule(schedule: &Schedule) -> Result<Plan, LowerError> {
-        let resources = schedule
-            .resources
+        let mut resources: Vec<ExecResource> = schedule
+            .allocations
             .iter()
-            .map(|r| match r.desc {
-                ResourceDesc::Image { width, height, format } => PlanResource {
-                    name: r.name.clone(),
-                    view: r.view.0,
+            .enumerate()
+            .map(|(a, alloc)| {
+                let info = schedule.resource(alloc.resource);
+                let (width, height, format, kind) = match info.desc {
+                    ResourceDesc::Image { width, height, format } => (width, height, format, ResourceKind::Image),
+                    // A buffer is rows of 32-bit words: one row, or one per image row for a row
+                    // buffer, so its bands are copied like an image's.
+                    ResourceDesc::Buffer { .. } | ResourceDesc::RowBuffer { .. } => {
+                        let words = info.desc.row_bytes().div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;
+                        (words, info.desc.rows(), Format::R32u, ResourceKind::Buffer)
+                    }
+                };
+                ExecResource {
+                    name: info.name.clone(),
+                    view: info.view.0,
                     width,
                     height,
-                    format: texel_format(format),
-                    kind: ResourceKind::Image,
-                },
-                ResourceDesc::Buffer { bytes } => PlanResource::buffer(r.name.clone(), r.view.0, bytes),
+                    format,
+                    kind,
+                    storage: a as u32,
+                    // The allocation on device 0 holding a view's finished version is what
+                    // the frame loop reads back.
+                    exported: alloc.device.index() == 0 && info.exported.is_some_and(|v| alloc.versions.contains(&v)),
+                    // Only the allocation holding the frame's starting contents is reset.
+                    reset: info.reset.clone().filter(|_| alloc.versions.contains(&0)),
+                }
             })
-            .collect::<Vec<_>>();
+            .collect();
+        // The other half of each history allocation.
+        let mut history_pairs = Vec::new();
+        let mut previous_of: HashMap<usize, usize> = HashMap::new();
+        for (a, alloc) in schedule.allocations.iter().enumerate().filter(|(_, alloc)| alloc.history) {
+            let twin = ExecResource {
+                storage: (schedule.allocations.len() + history_pairs.len()) as u32,
+                // Read back through the parity map, as the half the frame wrote.
+                exported: false,
+                ..resources[a].clone()
+            };
+            resources.push(twin);
+            let b = resources.len() - 1;
+            history_pairs.push((a, b));
+            previous_of.insert(a, b);
+            debug_assert!(alloc.history);
+        }
+
+        let rows_of = |a: &Access| Region::new(a.region.y0, a.region.y1);
         let passes = schedule
             .instances
             .iter()
-            .map(|p| PlanPass {
-                name: p.name.clone(),
-                view: p.view.0,
-                rows: Rows::new(p.region.y0, p.region.y1),
-                device: p.device.index(),
-                reads: p.reads.iter().map(access).collect(),
-                writes: p.writes.iter().map(access).collect(),
-                history_reads: p.history_reads.iter().map(access).collect(),
+            .map(|p| {
+                let info = &schedule.passes[p.pass.index()];
+                let access = |a: &Access, names: &[parallax_graph::SlotInfo], resource: usize| ExecAccess {
+                    resource,
+                    version: a.version,
+                    rows: rows_of(a),
+                    slot: names[a.decl as usize].name.clone(),
+                    origin: a.origin,
+                };
+                ExecPass {
+                    name: p.name.clone(),
+                    kernel: kernel_of[&p.pass],
+                    view: p.view.0,
+                    rows: Region::new(p.region.y0, p.region.y1),
+                    device: p.device.index(),
+                    reads: p.reads.iter().map(|a| access(a, &info.reads, a.alloc.index())).collect(),
+                    writes: p.writes.iter().map(|a| access(a, &info.writes, a.alloc.index())).collect(),
+                    history_reads: p
+                        .history_reads
+                        .iter()
+                        .map(|a| access(a, &info.reads, previous_of[&a.alloc.index()]))
+                        .collect(),
+                }
             })
             .collect();
         let copies = schedule
             .copies
             .iter()
-            .map(|c| PlanCopy {
-                resource: c.resource.index(),
+            .map(|c| ExecCopy {
+                resource: c.src_alloc.index(),
+                dst: c.dst_alloc.index(),
                 version: c.version,
-                rows: Rows::new(c.region.y0, c.region.y1),
+                rows: Region::new(c.region.y0, c.region.y1),
                 from: c.from.index(),
                 to: c.to.index(),
             })
@@ -82,15 +148,15 @@ impl Plan {
                 p.ops
                     .iter()
                     .map(|op| match *op {
-                        Op::Pass(i) => PlanOp::Pass(i.index()),
-                        Op::CopyOut(c) => PlanOp::CopyOut(c.index()),
-                        Op::Signal(c) => PlanOp::Signal(c.index()),
-                        Op::Wait(c) => PlanOp::Wait(c.index()),
-                        Op::CopyIn(c) => PlanOp::CopyIn(c.index()),
+                        Op::Pass(i) => ExecOp::Pass(i.index()),
+                        Op::CopyOut(c) => ExecOp::CopyOut(c.index()),
+                        Op::Signal(c) => ExecOp::Signal(c.index()),
+                        Op::Wait(c) => ExecOp::Wait(c.index()),
+                        Op::CopyIn(c) => ExecOp::CopyIn(c.index()),
                     })
                     .collect()
             })
             .collect();
-        Ok(Plan { resources, passes, copies, devices })
+        Ok(ExecutionPlan { resources, passes, copies, devices, history_pairs, kernels })
     }
 }

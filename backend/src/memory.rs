@@ -11,17 +11,17 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
-use crate::plan::TexelFormat;
+use crate::plan::Format;
 
 /// The Vulkan format of a texel format (all are storage-image formats every Vulkan device has).
-pub fn vk_format(format: TexelFormat) -> Result<vk::Format> {
+pub fn vk_format(format: Format) -> Result<vk::Format> {
     Ok(match format {
-        TexelFormat::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
-        TexelFormat::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
-        TexelFormat::Rg32Float => vk::Format::R32G32_SFLOAT,
-        TexelFormat::R32Float => vk::Format::R32_SFLOAT,
-        TexelFormat::Rgba8Unorm => vk::Format::R8G8B8A8_UNORM,
-        TexelFormat::R32Uint => vk::Format::R32_UINT,
+        Format::Rgba32f => vk::Format::R32G32B32A32_SFLOAT,
+        Format::Rgba16f => vk::Format::R16G16B16A16_SFLOAT,
+        Format::Rg32f => vk::Format::R32G32_SFLOAT,
+        Format::R32f => vk::Format::R32_SFLOAT,
+        Format::Rgba8 => vk::Format::R8G8B8A8_UNORM,
+        Format::R32u => vk::Format::R32_UINT,
     })
 }
 
@@ -38,13 +38,13 @@ pub struct Image {
     pub(crate) raw: vk::Image,
     pub(crate) view: vk::ImageView,
     allocation: Option<Allocation>,
-    pub format: TexelFormat,
+    pub format: Format,
     pub width: u32,
     pub height: u32,
 }
 
 impl Image {
-    pub fn new(device: &Arc<Device>, name: &str, width: u32, height: u32, format: TexelFormat) -> Result<Self> {
+    pub fn new(device: &Arc<Device>, name: &str, width: u32, height: u32, format: Format) -> Result<Self> {
         let vk_fmt = vk_format(format)?;
         let mut usage =
             vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
@@ -68,7 +68,7 @@ impl Image {
             vk::Format::D32_SFLOAT,
             vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
             vk::ImageAspectFlags::DEPTH,
-            TexelFormat::R32Float,
+            Format::R32f,
         )
     }
 
@@ -82,7 +82,7 @@ impl Image {
             vk::Format::R8G8B8A8_UNORM,
             vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
             vk::ImageAspectFlags::COLOR,
-            TexelFormat::Rgba8Unorm,
+            Format::Rgba8,
         )
     }
 
@@ -95,7 +95,7 @@ impl Image {
         vk_fmt: vk::Format,
         usage: vk::ImageUsageFlags,
         aspect: vk::ImageAspectFlags,
-        format: TexelFormat,
+        format: Format,
     ) -> Result<Self> {
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
@@ -158,7 +158,7 @@ impl Image {
 
     /// Bytes of one row of texels.
     pub fn row_bytes(&self) -> u64 {
-        u64::from(self.width) * u64::from(self.format.bytes_per_texel())
+        u64::from(self.width) * self.format.bytes_per_texel()
     }
 }
 

@@ -1,5 +1,5 @@
-//! Embedded shaders, the per-device descriptor layout every kernel shares, and compute
-//! pipelines created on first use.
+//! The per-device descriptor layout every kernel shares, and compute and graphics pipelines
+//! created on first use from the shaders of a [`ShaderLibrary`].
 //!
 //! Layout (set 0): binding 0 = every float storage image of the device (an array sized by the
 //! specialisation constant `IMAGE_COUNT`), binding 1 = the frame-constants uniform buffer of the
@@ -11,7 +11,6 @@
 //! pass and recorded command buffers only need new descriptors when the textures change.
 
 use std::collections::HashMap;
-use std::io::Cursor;
 use std::sync::Arc;
 
 use ash::vk;
@@ -20,28 +19,9 @@ use gpu_allocator::MemoryLocation;
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::memory::{Buffer, Image};
-use crate::plan::TexelFormat;
+use crate::plan::Format;
+use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData, create_sampler};
-
-mod embedded {
-    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
-}
-
-/// Names of all embedded shaders.
-pub fn shader_names() -> impl Iterator<Item = &'static str> {
-    embedded::EMBEDDED.iter().map(|(name, _)| *name)
-}
-
-/// SPIR-V words of the embedded shader `name` (file stem of `shaders/<name>.comp`).
-pub fn spirv(name: &str) -> Result<Vec<u32>> {
-    let bytes = embedded::EMBEDDED
-        .iter()
-        .find(|(n, _)| *n == name)
-        .map(|(_, b)| *b)
-        .ok_or_else(|| BackendError::UnknownShader(name.to_string()))?;
-    ash::util::read_spv(&mut Cursor::new(bytes))
-        .map_err(|e| BackendError::UnknownShader(format!("{name} (invalid SPIR-V: {e})")))
-}
 
 /// Stages that see the descriptor set and the push constants: compute kernels and raster passes.
 pub(crate) const SHADER_STAGES: vk::ShaderStageFlags = vk::ShaderStageFlags::from_raw(
@@ -77,6 +57,8 @@ pub(crate) struct Bindless {
     /// Host-visible frame constants, one buffer per slot.
     frame_constants: Vec<Buffer>,
     image_count: u32,
+    /// Where pipelines' shaders come from: the user's, then the built-in ones.
+    shaders: ShaderLibrary,
     pipelines: HashMap<String, vk::Pipeline>,
     graphics_pipelines: HashMap<GraphicsKey, vk::Pipeline>,
     /// Depth attachments of raster passes, one per size: passes on a device run one after the
@@ -91,8 +73,14 @@ pub(crate) struct Bindless {
 impl Bindless {
     /// Creates the layout for `images` and `slots` descriptor sets, all written.
     /// `placeholders` are a float and a uint 1x1 image in `GENERAL` layout; they live as long
-    /// as the descriptor sets that name them.
-    pub(crate) fn new(device: &Arc<Device>, images: &[&Image], placeholders: [Image; 2], slots: usize) -> Result<Self> {
+    /// as the descriptor sets that name them. Pipelines take their shaders from `shaders`.
+    pub(crate) fn new(
+        device: &Arc<Device>,
+        images: &[&Image],
+        placeholders: [Image; 2],
+        slots: usize,
+        shaders: ShaderLibrary,
+    ) -> Result<Self> {
         // A zero-sized descriptor array is invalid; a device with no image still gets one slot
         // (never indexed), holding the placeholders.
         let image_count = images.len().max(1) as u32;
@@ -134,6 +122,7 @@ impl Bindless {
             sets: Vec::new(),
             frame_constants: Vec::new(),
             image_count,
+            shaders,
             pipelines: HashMap::new(),
             graphics_pipelines: HashMap::new(),
             depth_images: HashMap::new(),
@@ -218,7 +207,7 @@ impl Bindless {
         let info = |img: &Image| {
             vk::DescriptorImageInfo::default().image_view(img.view).image_layout(vk::ImageLayout::GENERAL)
         };
-        let is_uint = |img: &Image| img.format == TexelFormat::R32Uint;
+        let is_uint = |img: &Image| img.format == Format::R32u;
         let mut float_infos: Vec<vk::DescriptorImageInfo> =
             images.iter().map(|&img| info(if is_uint(img) { placeholders[0] } else { img })).collect();
         let mut uint_infos: Vec<vk::DescriptorImageInfo> =
@@ -252,9 +241,10 @@ impl Bindless {
     }
 
     /// Writes the frame constants of `slot` (the slot must not be in flight).
-    pub(crate) fn set_frame_constants(&mut self, slot: usize, frame_index: u64) {
+    pub(crate) fn set_frame_constants(&mut self, slot: usize, frame_index: u64, history_valid: bool) {
         if let Some(bytes) = self.frame_constants[slot].mapped_mut() {
             bytes[..4].copy_from_slice(&(frame_index as u32).to_le_bytes());
+            bytes[4..8].copy_from_slice(&u32::from(history_valid).to_le_bytes());
         }
     }
 
@@ -263,7 +253,7 @@ impl Bindless {
         if let Some(&p) = self.pipelines.get(name) {
             return Ok(p);
         }
-        let code = spirv(name)?;
+        let code = self.shaders.spirv(name)?;
         let raw = &self.device.raw;
         let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
             .vk("vkCreateShaderModule")?;
@@ -311,10 +301,11 @@ impl Bindless {
             return Ok(p);
         }
         let raw = &self.device.raw;
+        // Both shaders are looked up before either module exists, so an unknown name leaks none.
+        let codes = [self.shaders.spirv(&key.vertex)?, self.shaders.spirv(&key.fragment)?];
         let mut modules = Vec::new();
-        for name in [&key.vertex, &key.fragment] {
-            let code = spirv(name)?;
-            let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
+        for code in &codes {
+            let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(code), None) }
                 .vk("vkCreateShaderModule");
             match module {
                 Ok(m) => modules.push(m),

@@ -4,6 +4,10 @@
 //! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers. One global
 //! barrier per item is coarse but always right; finer barriers (only the resources an item
 //! touches) are an optimisation for later, measured first.
+//!
+//! A device's first segment of a frame starts by resetting the buffers the plan resets every
+//! frame; device 0's last segment ends by copying the exported resources into the slot's
+//! readback buffers (the frame loop, `Executor::submit_frame`).
 
 use std::collections::HashMap;
 
@@ -13,8 +17,8 @@ use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
 use crate::memory::{Image, color_layers};
 use crate::pipeline::Bindless;
-use crate::plan::Plan;
-use crate::recorder::{KernelRegistry, Recorder};
+use crate::plan::ExecutionPlan;
+use crate::recorder::Recorder;
 use crate::segments::{Chunk, Item, Segment};
 use crate::timing::EventKind;
 
@@ -32,7 +36,7 @@ pub(crate) struct TimerLabel {
 }
 
 /// Timer labels of all items of `segments`, in recording order.
-pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel> {
+pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment]) -> Vec<TimerLabel> {
     let copy_label = |chunk: &Chunk, kind, queue| {
         let copy = &plan.copies[chunk.copy];
         let resource = &plan.resources[copy.resource];
@@ -78,8 +82,7 @@ pub(crate) fn timer_labels(plan: &Plan, segments: &[Segment]) -> Vec<TimerLabel>
 pub(crate) struct SegmentContext<'a> {
     pub raw: &'a ash::Device,
     pub device_index: usize,
-    pub plan: &'a Plan,
-    pub kernels: &'a KernelRegistry,
+    pub plan: &'a ExecutionPlan,
     pub bindless: &'a mut Bindless,
     pub images: &'a HashMap<usize, Image>,
     pub image_slots: &'a HashMap<usize, u32>,
@@ -90,9 +93,29 @@ pub(crate) struct SegmentContext<'a> {
     /// Addresses of the global buffers on this device, and of the slot's per-frame data.
     pub global_buffers: &'a HashMap<String, u64>,
     pub frame_data_address: u64,
+    pub frame_sections: &'a [(String, u64)],
     /// Per-view buffer resources of this device and their addresses.
     pub buffers: &'a HashMap<usize, crate::memory::Buffer>,
     pub buffer_addresses: &'a HashMap<usize, u64>,
+    /// The plan's history pairs swapped for an odd frame (empty for an even one).
+    pub parity_map: &'a HashMap<usize, usize>,
+    /// Exported resources and the slot's host-visible buffer each is read back into (device 0
+    /// with `ExecOptions::read_back_exports`; empty otherwise).
+    pub readback: &'a [(usize, vk::Buffer)],
+}
+
+impl SegmentContext<'_> {
+    /// The resource an access to `resource` touches in this slot's frame parity.
+    fn resolve(&self, resource: usize) -> usize {
+        self.parity_map.get(&resource).copied().unwrap_or(resource)
+    }
+}
+
+/// Where a segment sits in its device's frame.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SegmentPlace {
+    pub first: bool,
+    pub last: bool,
 }
 
 /// Records `segment`; its first timer is `first_timer`.
@@ -101,9 +124,18 @@ pub(crate) fn record_segment(
     cb: vk::CommandBuffer,
     segment: &Segment,
     first_timer: u32,
+    place: SegmentPlace,
 ) -> Result<()> {
     unsafe { ctx.raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()) }.vk("vkBeginCommandBuffer")?;
-    let recorded = record_items(ctx, cb, segment, first_timer);
+    if place.first {
+        record_resets(ctx, cb);
+    }
+    let recorded = record_items(ctx, cb, segment, first_timer).and_then(|()| {
+        if place.last {
+            record_readback(ctx, cb);
+        }
+        unsafe { ctx.raw.end_command_buffer(cb) }.vk("vkEndCommandBuffer")
+    });
     if recorded.is_err() {
         // Leave the buffer re-recordable (its pool allows resets) rather than half recorded.
         let _ = unsafe { ctx.raw.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty()) };
@@ -140,8 +172,9 @@ fn record_items(
         match *item {
             Item::Pass(p) => {
                 let pass = &ctx.plan.passes[p];
-                let kernel = ctx.kernels.get(&pass.name)?.clone();
+                let kernel = ctx.plan.kernels.0[pass.kernel].clone();
                 let mut rec = Recorder {
+                    parity_map: ctx.parity_map,
                     raw,
                     cb,
                     bindless: ctx.bindless,
@@ -150,6 +183,8 @@ fn record_items(
                     slot: ctx.slot,
                     global_buffers: ctx.global_buffers,
                     frame_data_address: ctx.frame_data_address,
+                    frame_sections: ctx.frame_sections,
+                    buffers: ctx.buffers,
                     buffer_addresses: ctx.buffer_addresses,
                     plan: ctx.plan,
                     device_index: ctx.device_index,
@@ -173,7 +208,66 @@ fn record_items(
         }
         unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
     }
-    unsafe { raw.end_command_buffer(cb) }.vk("vkEndCommandBuffer")
+    Ok(())
+}
+
+/// Rewrites the buffers the plan resets every frame (`ExecResource::reset`): the header words,
+/// zeros after them. Runs before the first item's barrier, so every pass of the frame sees the
+/// reset values; the barrier in front orders it after last frame's uses of the buffers.
+fn record_resets(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
+    let mut resets: Vec<(usize, &[u32])> =
+        ctx.buffers.keys().filter_map(|&r| ctx.plan.resources[r].reset.as_deref().map(|header| (r, header))).collect();
+    if resets.is_empty() {
+        return;
+    }
+    resets.sort_unstable_by_key(|&(r, _)| r);
+    full_barrier(ctx.raw, cb);
+    for (r, header) in resets {
+        let buffer = &ctx.buffers[&r];
+        let header_bytes = header.len() as u64 * 4;
+        // The two ranges are disjoint, so the fill and the update need no barrier between them.
+        unsafe {
+            if header_bytes < buffer.size {
+                ctx.raw.cmd_fill_buffer(cb, buffer.raw, header_bytes, vk::WHOLE_SIZE, 0);
+            }
+            if !header.is_empty() {
+                let bytes: Vec<u8> = header.iter().flat_map(|w| w.to_le_bytes()).collect();
+                ctx.raw.cmd_update_buffer(cb, buffer.raw, 0, &bytes);
+            }
+        }
+    }
+}
+
+/// Copies every exported resource into its readback buffer and makes the bytes visible to the
+/// host, which reads them once the segment's progress value is reached.
+fn record_readback(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
+    if ctx.readback.is_empty() {
+        return;
+    }
+    let raw = ctx.raw;
+    full_barrier(raw, cb);
+    for &(exported, target) in ctx.readback {
+        // A history allocation's frame writes the half its parity selects.
+        let r = ctx.resolve(exported);
+        let resource = &ctx.plan.resources[r];
+        unsafe {
+            if let Some(image) = ctx.images.get(&r) {
+                let region = vk::BufferImageCopy::default()
+                    .image_subresource(color_layers())
+                    .image_extent(vk::Extent3D { width: resource.width, height: resource.height, depth: 1 });
+                raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, target, &[region]);
+            } else if let Some(buffer) = ctx.buffers.get(&r) {
+                let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: resource.bytes() };
+                raw.cmd_copy_buffer(cb, buffer.raw, target, &[region]);
+            }
+        }
+    }
+    let to_host = [vk::MemoryBarrier2::default()
+        .src_stage_mask(vk::PipelineStageFlags2::COPY)
+        .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+        .dst_stage_mask(vk::PipelineStageFlags2::HOST)
+        .dst_access_mask(vk::AccessFlags2::HOST_READ)];
+    unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -188,10 +282,14 @@ enum CopyDirection {
 fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, direction: CopyDirection) {
     let raw = ctx.raw;
     let copy = &ctx.plan.copies[chunk.copy];
-    let resource = &ctx.plan.resources[copy.resource];
+    let local = ctx.resolve(match direction {
+        CopyDirection::Out => copy.resource,
+        CopyDirection::In => copy.dst,
+    });
+    let resource = &ctx.plan.resources[local];
     let (staging, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
     let staging_offset = offsets[chunk.copy] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
-    if let Some(buffer) = ctx.buffers.get(&copy.resource) {
+    if let Some(buffer) = ctx.buffers.get(&local) {
         let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
         let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
         let (src, dst, region) = match direction {
@@ -205,7 +303,7 @@ fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, d
         unsafe { raw.cmd_copy_buffer(cb, src, dst, &[region]) };
         return;
     }
-    let image = ctx.images[&copy.resource].raw;
+    let image = ctx.images[&local].raw;
     let region = vk::BufferImageCopy::default()
         .buffer_offset(staging_offset)
         .image_subresource(color_layers())
@@ -219,7 +317,9 @@ fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, d
     }
 }
 
-/// Every earlier write is visible to every later access on this queue.
+/// Every earlier write is visible to every later access on this queue. `ALL_COMMANDS` and
+/// `MEMORY_READ` include `DRAW_INDIRECT` and `INDIRECT_COMMAND_READ`: the arguments of an
+/// indirect dispatch that an earlier pass wrote are ready too.
 pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
     let barrier = [vk::MemoryBarrier2::default()
         .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)

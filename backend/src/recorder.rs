@@ -5,15 +5,17 @@
 //! chooses a shader, fills [`PassParams`] from the pass instance and dispatches.
 
 use std::collections::HashMap;
-use std::sync::Arc;
 
 use ash::vk;
 
 use crate::error::{BackendError, Result};
-use crate::memory::color_range;
+use crate::memory::{Buffer, color_range};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
-use crate::plan::Rows;
-use crate::plan::{Plan, PlanPass, PlanResource};
+use crate::plan::Region;
+use crate::plan::{ExecPass, ExecResource, ExecutionPlan};
+
+/// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
+const INDIRECT_ARGS_BYTES: u64 = 12;
 
 /// Push constants of every kernel (`PassParams` in shaders/include/bindless.glsl).
 #[repr(C)]
@@ -45,7 +47,8 @@ impl PassParams {
 /// area (the viewport stays the whole image, so a band renders exactly its rows of the frame).
 #[derive(Clone, Debug)]
 pub struct Draw<'a> {
-    /// Embedded vertex and fragment shaders (`name.vert`, `name.frag` in shaders/).
+    /// Vertex and fragment shaders (`name.vert`, `name.frag`), from `ExecOptions::shaders`,
+    /// else built in (shaders/).
     pub vertex_shader: &'a str,
     pub fragment_shader: &'a str,
     /// Colour targets (resources), in fragment output location order. All the same size.
@@ -54,7 +57,7 @@ pub struct Draw<'a> {
     pub clear: bool,
     /// Depth test LESS against a per-device depth attachment cleared to 1.0 for this draw.
     pub depth_test: bool,
-    pub rows: Rows,
+    pub rows: Region,
     pub vertex_count: u32,
     pub instance_count: u32,
     pub params: PassParams,
@@ -62,6 +65,8 @@ pub struct Draw<'a> {
 
 /// Records the work of one pass instance into a device's command buffer.
 pub struct Recorder<'a> {
+    /// History pairs swapped for an odd frame (see `ExecutionPlan::history_pairs`).
+    pub(crate) parity_map: &'a HashMap<usize, usize>,
     pub(crate) raw: &'a ash::Device,
     pub(crate) cb: vk::CommandBuffer,
     pub(crate) bindless: &'a mut Bindless,
@@ -71,8 +76,11 @@ pub struct Recorder<'a> {
     pub(crate) slot: usize,
     pub(crate) global_buffers: &'a HashMap<String, u64>,
     pub(crate) frame_data_address: u64,
+    /// Named sections of the per-frame data and their offsets from `frame_data_address`.
+    pub(crate) frame_sections: &'a [(String, u64)],
+    pub(crate) buffers: &'a HashMap<usize, Buffer>,
     pub(crate) buffer_addresses: &'a HashMap<usize, u64>,
-    pub(crate) plan: &'a Plan,
+    pub(crate) plan: &'a ExecutionPlan,
     pub(crate) device_index: usize,
     pub(crate) bound: Option<vk::Pipeline>,
 }
@@ -80,6 +88,7 @@ pub struct Recorder<'a> {
 impl Recorder<'_> {
     /// Index of `resource` in the device's image array (what shaders get in push constants).
     pub fn image(&self, resource: usize) -> Result<u32> {
+        let resource = self.resolve(resource);
         if let Some(&slot) = self.image_slots.get(&resource) {
             return Ok(slot);
         }
@@ -93,8 +102,18 @@ impl Recorder<'_> {
         Err(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
     }
 
+    /// The resource an access to `resource` touches in the frame parity being recorded.
+    fn resolve(&self, resource: usize) -> usize {
+        self.parity_map.get(&resource).copied().unwrap_or(resource)
+    }
+
+    /// The image slot of access `access` (see [`Self::image`]).
+    pub fn image_of(&self, access: &crate::plan::ExecAccess) -> Result<u32> {
+        self.image(access.resource)
+    }
+
     /// The plan's description of `resource`.
-    pub fn resource(&self, resource: usize) -> &PlanResource {
+    pub fn resource(&self, resource: usize) -> &ExecResource {
         &self.plan.resources[resource]
     }
 
@@ -103,7 +122,8 @@ impl Recorder<'_> {
         self.device_index
     }
 
-    /// Binds the embedded compute shader `shader`, pushes `params` and dispatches `groups`.
+    /// Binds compute shader `shader` (from `ExecOptions::shaders`, else built in), pushes
+    /// `params` and dispatches `groups`.
     pub fn dispatch(&mut self, shader: &str, params: PassParams, groups: [u32; 3]) -> Result<()> {
         self.dispatch_bytes(shader, &params.to_bytes(), groups)
     }
@@ -111,6 +131,65 @@ impl Recorder<'_> {
     /// Like [`Self::dispatch`] with a kernel-defined push-constant block (at most 128 bytes, a
     /// multiple of 4; the shader defines `PARALLAX_CUSTOM_PUSH_CONSTANTS` and declares it).
     pub fn dispatch_bytes(&mut self, shader: &str, push: &[u8], groups: [u32; 3]) -> Result<()> {
+        self.bind_compute(shader, push)?;
+        unsafe { self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]) };
+        Ok(())
+    }
+
+    /// Like [`Self::dispatch_bytes`], with the workgroup counts read on the GPU from the
+    /// per-view buffer `resource` at `byte_offset`: three `u32` (x, y, z), as a pass of the same
+    /// frame wrote them (compaction counts; see `ExecResource::reset` for counters that start
+    /// from zero every frame).
+    ///
+    /// Writes of earlier passes are ordered by the barrier before every pass; this also orders
+    /// the writes of this pass's own earlier dispatches, so a kernel may compute its counts and
+    /// dispatch on them in one pass.
+    pub fn dispatch_indirect(&mut self, shader: &str, push: &[u8], resource: usize, byte_offset: u64) -> Result<()> {
+        let invalid = |problem: String| BackendError::IndirectArgs {
+            shader: shader.to_string(),
+            resource,
+            offset: byte_offset,
+            problem,
+        };
+        if self.images.contains_key(&resource) {
+            return Err(invalid("it is an image; indirect arguments live in a buffer resource".into()));
+        }
+        let buffer = self
+            .buffers
+            .get(&resource)
+            .ok_or_else(|| invalid(format!("it is not allocated on device {}", self.device_index)))?;
+        if byte_offset % 4 != 0 {
+            return Err(invalid("the offset is not a multiple of 4".into()));
+        }
+        if byte_offset.checked_add(INDIRECT_ARGS_BYTES).is_none_or(|end| end > buffer.size) {
+            return Err(invalid(format!(
+                "{INDIRECT_ARGS_BYTES} bytes of arguments do not fit the {}-byte buffer",
+                buffer.size
+            )));
+        }
+        let raw_buffer = buffer.raw;
+        self.bind_compute(shader, push)?;
+        // Earlier dispatches of this pass → the argument read and the indirect shader itself
+        // (which typically reads the count next to the arguments).
+        let args_ready = [vk::MemoryBarrier2::default()
+            .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER)
+            .src_access_mask(vk::AccessFlags2::SHADER_STORAGE_WRITE)
+            .dst_stage_mask(vk::PipelineStageFlags2::DRAW_INDIRECT | vk::PipelineStageFlags2::COMPUTE_SHADER)
+            .dst_access_mask(
+                vk::AccessFlags2::INDIRECT_COMMAND_READ
+                    | vk::AccessFlags2::SHADER_STORAGE_READ
+                    | vk::AccessFlags2::SHADER_STORAGE_WRITE,
+            )];
+        unsafe {
+            self.raw.cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().memory_barriers(&args_ready));
+            self.raw.cmd_dispatch_indirect(self.cb, raw_buffer, byte_offset);
+        }
+        Ok(())
+    }
+
+    /// Binds compute shader `shader` (unless bound already) and pushes `push` (at most 128
+    /// bytes, a multiple of 4).
+    fn bind_compute(&mut self, shader: &str, push: &[u8]) -> Result<()> {
         if push.len() > PUSH_CONSTANT_BYTES as usize || push.len() % 4 != 0 {
             return Err(BackendError::KernelMisuse {
                 kernel: shader.to_string(),
@@ -127,7 +206,6 @@ impl Recorder<'_> {
             if !push.is_empty() {
                 self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push);
             }
-            self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]);
         }
         Ok(())
     }
@@ -136,7 +214,7 @@ impl Recorder<'_> {
     /// this device.
     pub fn buffer_of(&self, resource: usize) -> Result<u64> {
         self.buffer_addresses
-            .get(&resource)
+            .get(&self.resolve(resource))
             .copied()
             .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
     }
@@ -153,6 +231,19 @@ impl Recorder<'_> {
     /// `Executor::set_frame_data`); the contents change every frame without re-recording.
     pub fn frame_data_address(&self) -> u64 {
         self.frame_data_address
+    }
+
+    /// GPU address of the section `name` of the per-frame data (see `FrameData::section`), in
+    /// this frame-in-flight slot's copy.
+    pub fn frame_section_address(&self, name: &str) -> Result<u64> {
+        self.frame_sections
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, offset)| self.frame_data_address + offset)
+            .ok_or_else(|| BackendError::UnknownFrameSection {
+                name: name.to_string(),
+                known: self.frame_sections.iter().map(|(n, _)| n.clone()).collect(),
+            })
     }
 
     /// Dispatches `shader` over `params.width` × rows `[y0, y1)` with the 8×8 workgroups every
@@ -177,7 +268,7 @@ impl Recorder<'_> {
         for &target in draw.color_targets {
             let image = self
                 .images
-                .get(&target)
+                .get(&self.resolve(target))
                 .ok_or(BackendError::ResourceNotOnDevice { resource: target, device: self.device_index })?;
             color_formats.push(crate::memory::vk_format(image.format)?);
             attachments.push(
@@ -281,42 +372,5 @@ impl Recorder<'_> {
 /// reprojection, denoising, ...; the backend ships the small kernels its own tests use.
 pub trait PassKernel: Send + Sync {
     /// Records instance `index` of the plan (`pass` = `plan.passes[index]`).
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> Result<()>;
-}
-
-/// Pass name → kernel.
-#[derive(Clone, Default)]
-pub struct KernelRegistry {
-    kernels: HashMap<String, Arc<dyn PassKernel>>,
-}
-
-impl KernelRegistry {
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Registers `kernel` for pass `name` (replacing an earlier one).
-    pub fn register(&mut self, name: impl Into<String>, kernel: impl PassKernel + 'static) {
-        self.kernels.insert(name.into(), Arc::new(kernel));
-    }
-
-    /// Builder form of [`Self::register`].
-    pub fn with(mut self, name: impl Into<String>, kernel: impl PassKernel + 'static) -> Self {
-        self.register(name, kernel);
-        self
-    }
-
-    /// The kernel of pass `name`.
-    pub fn get(&self, name: &str) -> Result<&Arc<dyn PassKernel>> {
-        self.kernels.get(name).ok_or_else(|| {
-            let mut registered: Vec<String> = self.kernels.keys().cloned().collect();
-            registered.sort();
-            BackendError::UnknownPass { pass: name.to_string(), registered }
-        })
-    }
-
-    /// Fails with [`BackendError::UnknownPass`] for the first pass of `plan` without a kernel.
-    pub fn check_plan(&self, plan: &Plan) -> Result<()> {
-        plan.passes.iter().try_for_each(|p| self.get(&p.name).map(|_| ()))
-    }
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()>;
 }

@@ -16,14 +16,14 @@
 //! GPUs overlap instead of adding up).
 
 use crate::device::QueueKind;
-use crate::plan::{Plan, PlanOp};
+use crate::plan::{ExecOp, ExecutionPlan};
 
 /// A row band of a copy moved by one submission.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Chunk {
     pub copy: usize,
     pub index: u32,
-    /// Rows relative to the image (absolute `y`).
+    /// Region relative to the image (absolute `y`).
     pub y0: u32,
     pub y1: u32,
 }
@@ -74,7 +74,7 @@ impl Item {
 }
 
 /// Row bands of each copy: at most `chunk_bytes` per band (at least one row), see [`band_rows`].
-pub fn chunks_of_copies(plan: &Plan, chunk_bytes: u64) -> Vec<Vec<Chunk>> {
+pub fn chunks_of_copies(plan: &ExecutionPlan, chunk_bytes: u64) -> Vec<Vec<Chunk>> {
     plan.copies
         .iter()
         .enumerate()
@@ -135,7 +135,7 @@ pub fn progress_value(frame: u64, segments: usize, segment: usize) -> u64 {
 /// copy. With `separate_copy_queue`, copies go to [`QueueKind::Copy`] and a segment never mixes
 /// the two queues (the executor orders segments of different queues by the progress timeline).
 pub fn segment_device(
-    plan: &Plan,
+    plan: &ExecutionPlan,
     device: usize,
     chunks: &[Vec<Chunk>],
     dropped_wait: Option<usize>,
@@ -169,7 +169,7 @@ pub fn segment_device(
 }
 
 fn segment_single_queue(
-    plan: &Plan,
+    plan: &ExecutionPlan,
     device: usize,
     chunks: &[Vec<Chunk>],
     dropped_wait: Option<usize>,
@@ -178,8 +178,8 @@ fn segment_single_queue(
     let mut current = Segment::default();
     for op in &plan.devices[device] {
         match *op {
-            PlanOp::Pass(p) => current.items.push(Item::Pass(p)),
-            PlanOp::CopyOut(c) => {
+            ExecOp::Pass(p) => current.items.push(Item::Pass(p)),
+            ExecOp::CopyOut(c) => {
                 for &chunk in &chunks[c] {
                     current.items.push(Item::CopyOut(chunk));
                     current.relays.push(chunk);
@@ -188,8 +188,8 @@ fn segment_single_queue(
             }
             // The producer's signal is sent per chunk, right after the chunk's copy; the wait is
             // placed on the copy-in itself, the only command that reads the host buffer.
-            PlanOp::Signal(_) | PlanOp::Wait(_) => {}
-            PlanOp::CopyIn(c) => {
+            ExecOp::Signal(_) | ExecOp::Wait(_) => {}
+            ExecOp::CopyIn(c) => {
                 for &chunk in &chunks[c] {
                     if !current.items.is_empty() {
                         segments.push(std::mem::take(&mut current));

@@ -1,10 +1,16 @@
 //! Exact error variants of the backend, the validation messenger, and history resources that
 //! survive from frame to frame (lavapipe or any Vulkan device).
 
-use parallax_backend::kernels::builtin_kernels;
+use std::collections::BTreeSet;
+use std::sync::Arc;
+
+use parallax_backend::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, KernelRegistry, Plan, PlanAccess,
-    PlanCopy, PlanError, PlanOp, PlanPass, PlanResource, ResourceKind, Rows, TexelFormat, Validation,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, ExecutionPlanError, Executor,
+    KernelGraph, LowerError, Validation,
+};
+use parallax_graph::{
+    BandedPlacement, DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile,
 };
 
 fn context(selection: DeviceSelection) -> Result<Context, BackendError> {
@@ -48,49 +54,109 @@ fn validation_messages_fail_the_check() {
     ctx.check_validation().unwrap();
 }
 
-/// Device 1 accumulates into `acc` every frame; device 0 receives a copy each frame.
-fn history_plan(size: u32) -> Plan {
-    let all = Rows::new(0, size);
-    Plan {
-        resources: vec![PlanResource {
-            name: "acc".into(),
-            view: 0,
-            width: size,
-            height: size,
-            format: TexelFormat::Rgba32Float,
-            kind: ResourceKind::Image,
-        }],
-        passes: vec![PlanPass {
-            name: "accumulate".into(),
-            view: 0,
-            rows: all,
-            device: 1,
-            reads: vec![PlanAccess { resource: 0, version: 0, rows: all }],
-            history_reads: vec![],
-            writes: vec![PlanAccess { resource: 0, version: 1, rows: all }],
-        }],
-        copies: vec![PlanCopy { resource: 0, version: 1, rows: all, from: 1, to: 0 }],
-        devices: vec![
-            vec![PlanOp::Wait(0), PlanOp::CopyIn(0)],
-            vec![PlanOp::Pass(0), PlanOp::CopyOut(0), PlanOp::Signal(0)],
-        ],
+/// Every pass instance on one device, whole views.
+struct OnDevice {
+    device: u32,
+    devices: u32,
+}
+
+impl Placement for OnDevice {
+    fn devices(&self) -> u32 {
+        self.devices
+    }
+
+    fn place(&self, _: PassPlacementInfo<'_>, _: ViewId, height: u32) -> Vec<(DeviceId, Region)> {
+        vec![(DeviceId(self.device), Region::rows(height))]
+    }
+}
+
+fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
+    let schedule = compile(graph, placement).unwrap();
+    assert_eq!(schedule.validate().errors, vec![]);
+    ExecutionPlan::from_schedule(graph, &schedule).unwrap()
+}
+
+/// `views` views of `size`², each accumulating into `acc` from its own history (`read_history`),
+/// exported; under `placement`.
+fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> ExecutionPlan {
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, size, size));
+    let mut acc = graph.image("acc", Format::Rgba32f);
+    graph.pass("accumulate", Role::All).read_history(&acc).write(&mut acc).kernel(Arc::new(AccumulateKernel)).record();
+    graph.export(&acc);
+    lower(&graph, placement)
+}
+
+fn floats(bytes: &[u8]) -> Vec<f32> {
+    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+/// Runs `frames` frames with 2 in flight; returns every view's final `acc` as read on device 0
+/// and the other half of its history allocation on the device that wrote it (last frame's).
+fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u32) -> Vec<(Vec<f32>, Vec<f32>)> {
+    let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
+    let plan = history_plan(views, 8, placement);
+    assert_eq!(
+        plan.history_pairs.len(),
+        plan.passes.iter().map(|p| p.device).collect::<BTreeSet<_>>().len() * views as usize
+    );
+    let options = ExecOptions { frames_in_flight: 2, ..ExecOptions::default() };
+    let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
+    for _ in 0..frames {
+        exec.run_frame().unwrap();
+    }
+    let mut out = Vec::new();
+    for v in 0..views {
+        let (device, resource) = plan.final_output("acc", v).unwrap();
+        let current = floats(&exec.read_image(device, resource).unwrap());
+        let writer = plan.passes.iter().find(|p| p.view == v).unwrap();
+        let own = writer.output("acc").unwrap().resource;
+        // Reads resolve through the last frame's parity: `own` is what it wrote, its twin what
+        // the frame before wrote (what its history reads saw).
+        let other = plan.history_pairs.iter().find(|(a, _)| *a == own).unwrap().1;
+        let previous = floats(&exec.read_image(writer.device, other).unwrap());
+        out.push((current, previous));
+    }
+    assert_eq!(exec.recordings(), 1, "parity swaps need no re-recording");
+    drop(exec);
+    ctx.check_validation().unwrap();
+    out
+}
+
+#[test]
+fn history_reads_see_exactly_last_frames_output_on_one_and_three_devices() {
+    let frames = 6;
+    let sum = |n: u32| (n * (n + 1) / 2) as f32;
+    let one = run_history(1, &OnDevice { device: 0, devices: 1 }, 3, frames);
+    let three = run_history(3, &BandedPlacement { devices: 3, bands: 3 }, 3, frames);
+    assert_eq!(one, three, "1 and 3 devices are bit-identical");
+    for (current, previous) in &one {
+        assert!(current.chunks_exact(4).all(|t| t[0] == sum(frames) && t[1] == 1.0), "{:?}", &current[..4]);
+        let distinct: BTreeSet<u32> = previous.chunks_exact(4).map(|t| t[0] as u32).collect();
+        assert_eq!(distinct, BTreeSet::from([sum(frames - 1) as u32]), "last frame's half");
     }
 }
 
 #[test]
-fn history_survives_frames_in_flight_without_re_recording() {
-    let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let options = ExecOptions { frames_in_flight: 3, ..ExecOptions::default() };
-    let mut exec = Executor::new(&ctx, history_plan(16), builtin_kernels(), options).unwrap();
-    let frames = 7u32;
-    for _ in 0..frames {
-        exec.run_frame().unwrap();
-    }
-    let bytes = exec.read_image(0, 0).unwrap();
-    let expected = (frames * (frames + 1) / 2) as f32;
-    let values: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-    assert!(values.iter().all(|&v| v == expected), "expected {expected}, got {:?}", &values[..4]);
-    assert_eq!(exec.recordings(), 1);
+fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
+    let ctx = context(DeviceSelection::FakeDevices(1)).unwrap();
+    let plan = history_plan(1, 8, &OnDevice { device: 0, devices: 1 });
+    let (device, resource) = plan.final_output("acc", 0).unwrap();
+    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
+    let texel = |exec: &mut Executor| {
+        exec.finish().unwrap();
+        let t = floats(&exec.read_image(device, resource).unwrap());
+        (t[0], t[1])
+    };
+    exec.run_frame().unwrap();
+    assert_eq!(texel(&mut exec), (1.0, 0.0), "frame 0: history invalid, nothing blended");
+    exec.run_frame().unwrap();
+    exec.run_frame().unwrap();
+    exec.reset_history();
+    exec.run_frame().unwrap();
+    // Frame 3 after the reset starts over: 0 + (3 + 1), flag 0.
+    assert_eq!(texel(&mut exec), (4.0, 0.0));
+    exec.run_frame().unwrap();
+    assert_eq!(texel(&mut exec), (9.0, 1.0), "frame 4 builds on frame 3 again");
     drop(exec);
     ctx.check_validation().unwrap();
 }
@@ -98,82 +164,55 @@ fn history_survives_frames_in_flight_without_re_recording() {
 #[test]
 fn plan_errors_are_reported_before_any_gpu_work() {
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let mut plan = history_plan(8);
-    plan.devices[0].clear();
-    let err = Executor::new(&ctx, plan, builtin_kernels(), ExecOptions::default()).err().unwrap();
-    assert!(matches!(err, BackendError::Plan(PlanError::CopyOpMisplaced { copy: 0, op: "Wait" })), "{err}");
-    let err = Executor::new(&ctx, history_plan(8), KernelRegistry::new(), ExecOptions::default()).err().unwrap();
-    match err {
-        BackendError::UnknownPass { pass, registered } => {
-            assert_eq!(pass, "accumulate");
-            assert!(registered.is_empty());
-        }
-        other => panic!("unexpected {other}"),
-    }
+    let mut plan = parallax_backend::demo::copy_benchmark(8, 8);
+    plan.devices[1].clear();
+    let err = Executor::new(&ctx, plan, ExecOptions::default()).err().unwrap();
+    assert!(
+        matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::CopyOpMisplaced { copy: 0, op: "Wait" })),
+        "{err}"
+    );
     let one = context(DeviceSelection::FakeDevices(1)).unwrap();
-    let err = Executor::new(&one, history_plan(8), builtin_kernels(), ExecOptions::default()).err().unwrap();
-    assert!(matches!(err, BackendError::Plan(PlanError::DeviceCount { plan: 2, context: 1 })), "{err}");
+    let err = Executor::new(&one, parallax_backend::demo::copy_benchmark(8, 8), ExecOptions::default()).err().unwrap();
+    assert!(
+        matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::DeviceCount { plan: 2, context: 1 })),
+        "{err}"
+    );
+
+    // A pass declared without a kernel cannot be lowered; the error names it.
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 8));
+    let mut acc = graph.image("acc", Format::Rgba32f);
+    graph.pass("accumulate", Role::All).write(&mut acc).record();
+    graph.export(&acc);
+    let schedule = compile(&graph, &OnDevice { device: 0, devices: 1 }).unwrap();
+    assert_eq!(
+        ExecutionPlan::from_schedule(&graph, &schedule).err().unwrap(),
+        LowerError::MissingKernel { pass: "accumulate".into() }
+    );
 }
 
 #[test]
 fn integer_images_go_through_the_uint_binding_and_across_devices() {
     use parallax_backend::kernels::{reference_fill, reference_mask};
     let size = 16;
-    let all = Rows::new(0, size);
-    let image = |name: &str, format| PlanResource {
-        name: name.into(),
-        view: 0,
-        width: size,
-        height: size,
-        format,
-        kind: ResourceKind::Image,
-    };
-    let write = |resource| PlanAccess { resource, version: 1, rows: all };
     // Device 1 writes a uint mask and a float image side by side (indices interleave the two
     // bindings); both travel to device 0.
-    let plan = Plan {
-        resources: vec![image("mask", TexelFormat::R32Uint), image("radiance", TexelFormat::Rgba32Float)],
-        passes: vec![
-            PlanPass {
-                name: "fill_mask".into(),
-                view: 0,
-                rows: all,
-                device: 1,
-                reads: vec![],
-                history_reads: vec![],
-                writes: vec![write(0)],
-            },
-            PlanPass {
-                name: "fill".into(),
-                view: 0,
-                rows: all,
-                device: 1,
-                reads: vec![],
-                history_reads: vec![],
-                writes: vec![write(1)],
-            },
-        ],
-        copies: vec![
-            PlanCopy { resource: 0, version: 1, rows: all, from: 1, to: 0 },
-            PlanCopy { resource: 1, version: 1, rows: all, from: 1, to: 0 },
-        ],
-        devices: vec![
-            vec![PlanOp::Wait(0), PlanOp::CopyIn(0), PlanOp::Wait(1), PlanOp::CopyIn(1)],
-            vec![
-                PlanOp::Pass(0),
-                PlanOp::Pass(1),
-                PlanOp::CopyOut(0),
-                PlanOp::Signal(0),
-                PlanOp::CopyOut(1),
-                PlanOp::Signal(1),
-            ],
-        ],
-    };
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, size, size));
+    let mut mask = graph.image("mask", Format::R32u);
+    let mut radiance = graph.image("radiance", Format::Rgba32f);
+    graph.pass("fill_mask", Role::All).write(&mut mask).kernel(Arc::new(FillMaskKernel)).record();
+    graph.pass("fill", Role::All).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
+    graph.export(&mask);
+    graph.export(&radiance);
+    let plan = lower(&graph, &OnDevice { device: 1, devices: 2 });
+    assert_eq!(plan.copies.len(), 2);
+    let (mask_device, mask_resource) = plan.final_output("mask", 0).unwrap();
+    let (radiance_device, radiance_resource) = plan.final_output("radiance", 0).unwrap();
+    assert_eq!((mask_device, radiance_device), (0, 0));
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let mut exec = Executor::new(&ctx, plan, builtin_kernels(), ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
     exec.run_frame().unwrap();
-    let mask = exec.read_image(0, 0).unwrap();
-    let radiance = exec.read_image(0, 1).unwrap();
+    let mask = exec.read_image(0, mask_resource).unwrap();
+    let radiance = exec.read_image(0, radiance_resource).unwrap();
     let words = |b: &[u8]| b.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>();
     let mask: Vec<u32> = words(&mask).into_iter().map(u32::from_le_bytes).collect();
     let radiance: Vec<f32> = words(&radiance).into_iter().map(f32::from_le_bytes).collect();
@@ -188,40 +227,12 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
 
 /// One raster pass instance per device, each over a row band of the same image; bands gathered
 /// on device 0.
-fn raster_plan(devices: usize, size: u32) -> Plan {
-    let bands: Vec<Rows> =
-        (0..devices as u32).map(|d| Rows::new(size * d / devices as u32, size * (d + 1) / devices as u32)).collect();
-    let mut plan = Plan {
-        resources: vec![PlanResource {
-            name: "gbuffer".into(),
-            view: 5,
-            width: size,
-            height: size,
-            format: TexelFormat::Rgba32Float,
-            kind: ResourceKind::Image,
-        }],
-        devices: vec![Vec::new(); devices],
-        ..Plan::default()
-    };
-    for (d, &rows) in bands.iter().enumerate() {
-        plan.passes.push(PlanPass {
-            name: "raster_demo".into(),
-            view: 5,
-            rows,
-            device: d,
-            reads: vec![],
-            history_reads: vec![],
-            writes: vec![PlanAccess { resource: 0, version: 1, rows }],
-        });
-        plan.devices[d].push(PlanOp::Pass(d));
-        if d != 0 {
-            let c = plan.copies.len();
-            plan.copies.push(PlanCopy { resource: 0, version: 1, rows, from: d, to: 0 });
-            plan.devices[d].extend([PlanOp::CopyOut(c), PlanOp::Signal(c)]);
-            plan.devices[0].extend([PlanOp::Wait(c), PlanOp::CopyIn(c)]);
-        }
-    }
-    plan
+fn raster_plan(devices: usize, size: u32) -> ExecutionPlan {
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(6, size, size));
+    let mut gbuffer = graph.image("gbuffer", Format::Rgba32f);
+    graph.pass("raster_demo", Role::All).write(&mut gbuffer).kernel(Arc::new(RasterDemoKernel)).record();
+    graph.export(&gbuffer);
+    lower(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 })
 }
 
 #[test]
@@ -232,12 +243,13 @@ fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
         (0..size).flat_map(|y| (0..size).flat_map(move |x| reference_raster(x, y, 5, size))).collect();
     for devices in [1, 2, 3] {
         let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
-        let mut exec =
-            Executor::new(&ctx, raster_plan(devices, size), builtin_kernels(), ExecOptions::default()).unwrap();
+        let plan = raster_plan(devices, size);
+        let (device, resource) = plan.final_output("gbuffer", 5).unwrap();
+        let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
         exec.run_frame().unwrap();
         exec.run_frame().unwrap();
         let values: Vec<f32> = exec
-            .read_image(0, 0)
+            .read_image(device, resource)
             .unwrap()
             .chunks_exact(4)
             .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
@@ -248,36 +260,22 @@ fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
     }
 }
 
-fn weighted_plan(size: u32) -> Plan {
-    let all = Rows::new(0, size);
-    Plan {
-        resources: (0..2)
-            .map(|v| PlanResource {
-                name: "w".into(),
-                view: v,
-                width: size,
-                height: size,
-                format: TexelFormat::Rgba32Float,
-                kind: ResourceKind::Image,
-            })
-            .collect(),
-        passes: (0..2)
-            .map(|v| PlanPass {
-                name: "weighted_fill".into(),
-                view: v,
-                rows: all,
-                device: v as usize,
-                reads: vec![],
-                history_reads: vec![],
-                writes: vec![PlanAccess { resource: v as usize, version: 1, rows: all }],
-            })
-            .collect(),
-        copies: vec![PlanCopy { resource: 1, version: 1, rows: all, from: 1, to: 0 }],
-        devices: vec![
-            vec![PlanOp::Pass(0), PlanOp::Wait(0), PlanOp::CopyIn(0)],
-            vec![PlanOp::Pass(1), PlanOp::CopyOut(0), PlanOp::Signal(0)],
-        ],
+/// Two views, view v on device v, each `weighted_fill`ed; view 1 gathered on device 0.
+fn weighted_plan(size: u32) -> ExecutionPlan {
+    struct ViewPerDevice;
+    impl Placement for ViewPerDevice {
+        fn devices(&self) -> u32 {
+            2
+        }
+        fn place(&self, _: PassPlacementInfo<'_>, view: ViewId, height: u32) -> Vec<(DeviceId, Region)> {
+            vec![(DeviceId(view.0), Region::rows(height))]
+        }
     }
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, size, size));
+    let mut w = graph.image("w", Format::Rgba32f);
+    graph.pass("weighted_fill", Role::All).write(&mut w).kernel(Arc::new(WeightedFillKernel)).record();
+    graph.export(&w);
+    lower(&graph, &ViewPerDevice)
 }
 
 #[test]
@@ -285,11 +283,13 @@ fn global_buffers_and_frame_data_reach_kernels_by_address() {
     use parallax_backend::kernels::reference_fill;
     let size = 16;
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let mut exec = Executor::new(&ctx, weighted_plan(size), builtin_kernels(), ExecOptions::default()).unwrap();
+    let plan = weighted_plan(size);
+    let outputs: Vec<usize> = (0..2).map(|v| plan.final_output("w", v).unwrap().1).collect();
+    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
     let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
     let check = |exec: &mut Executor, weights: [f32; 2], offset: f32| {
         for view in 0..2u32 {
-            let bytes = exec.read_image(0, view as usize).unwrap();
+            let bytes = exec.read_image(0, outputs[view as usize]).unwrap();
             let got: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
             let expected: Vec<f32> = (0..size)
                 .flat_map(|y| (0..size).flat_map(move |x| reference_fill(x, y, view)))

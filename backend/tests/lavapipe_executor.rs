@@ -2,9 +2,9 @@
 //! devices, with validation always on.
 
 use parallax_backend::demo::{demo_device_of_view, reprojection_demo};
-use parallax_backend::kernels::{builtin_kernels, reference_shift_blend};
+use parallax_backend::kernels::reference_shift_blend;
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, Executor, FaultInjection, PlanOp,
+    BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOp, ExecOptions, Executor, FaultInjection,
     Validation, chrome_trace,
 };
 
@@ -28,7 +28,7 @@ fn floats(bytes: &[u8]) -> Vec<f32> {
 fn run_demo(devices: usize, frames: usize, options: ExecOptions) -> (Vec<Vec<u8>>, Executor, Context) {
     let ctx = context(devices);
     let (plan, ids) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
-    let mut exec = Executor::new(&ctx, plan, builtin_kernels(), options).unwrap();
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
     for _ in 0..frames {
         exec.run_frame().unwrap();
     }
@@ -75,7 +75,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
     let copy = plan.devices[1]
         .iter()
         .find_map(|op| match op {
-            PlanOp::CopyIn(c) => Some(*c),
+            ExecOp::CopyIn(c) => Some(*c),
             _ => None,
         })
         .unwrap();
@@ -95,7 +95,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
             separate_copy_queue,
             ..ExecOptions::default()
         };
-        let mut exec = Executor::new(&ctx, plan.clone(), builtin_kernels(), options).unwrap();
+        let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
         exec.run_frame().unwrap();
         exec.finish().unwrap();
         let wrong: Vec<usize> = (0..VIEWS)
@@ -119,7 +119,7 @@ fn fault_injection_refuses_a_copy_that_would_deadlock() {
     let later = plan.devices[0]
         .iter()
         .filter_map(|op| match op {
-            PlanOp::CopyIn(c) => Some(*c),
+            ExecOp::CopyIn(c) => Some(*c),
             _ => None,
         })
         .nth(1)
@@ -127,7 +127,7 @@ fn fault_injection_refuses_a_copy_that_would_deadlock() {
     let ctx = context(devices);
     let options =
         ExecOptions { fault: Some(FaultInjection::DropCrossDeviceWait { copy: later }), ..ExecOptions::default() };
-    let err = Executor::new(&ctx, plan, builtin_kernels(), options).err().unwrap();
+    let err = Executor::new(&ctx, plan, options).err().unwrap();
     assert!(matches!(err, BackendError::FaultInjection(_)), "{err}");
 }
 
@@ -174,7 +174,7 @@ fn timestamps_are_ordered_and_trace_lists_every_pass() {
 }
 
 /// Device an event of the demo must be on: the pass's device, or the copy's producer/consumer.
-fn demo_tid_check(plan: &parallax_backend::Plan, e: &serde_json::Value) -> usize {
+fn demo_tid_check(plan: &parallax_backend::ExecutionPlan, e: &serde_json::Value) -> usize {
     let index = e["args"]["index"].as_u64().unwrap() as usize;
     match e["cat"].as_str().unwrap() {
         "pass" => plan.passes[index].device,
@@ -188,7 +188,7 @@ fn frames_reuse_recorded_command_buffers() {
     let devices = 2;
     let ctx = context(devices);
     let (plan, _) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
-    let mut exec = Executor::new(&ctx, plan.clone(), builtin_kernels(), ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan.clone(), ExecOptions::default()).unwrap();
     for _ in 0..5 {
         exec.run_frame().unwrap();
     }

@@ -1,18 +1,21 @@
 //! Schedules compiled by the graph crate, executed on 1, 2 and 3 logical devices: bit-identical
 //! to each other and to the CPU reference, every copy of the schedule executed once per frame.
 
-use parallax_backend::kernels::{builtin_kernels, reference_shift_blend};
-use parallax_backend::{Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, Executor, Plan, Validation};
-use parallax_graph::Format;
-use parallax_graph::{
-    AssignStrategy, Graph, LightField, PlanConfig, ResourceId, Rig, Role, Schedule, Scheme, ViewId, compile,
+use std::sync::Arc;
+
+use parallax_backend::kernels::{FillBufferKernel, FillKernel, ShiftBlendKernel, reference_shift_blend};
+use parallax_backend::{
+    Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, ExecutionPlan, Executor, Validation,
 };
+use parallax_backend::{KernelGraph, PassKernel};
+use parallax_graph::Format;
+use parallax_graph::{AssignStrategy, LightField, PlanConfig, Rig, Role, Schedule, Scheme, ViewId, compile};
 
 const SIZE: u32 = 32;
 
 /// fill (sources and targets as separate passes) → shift_blend reading the view's first
 /// source → output exported (gathered on device 0).
-fn demo_schedule(scheme: Scheme, devices: u32) -> (Schedule, Vec<Vec<ViewId>>) {
+fn demo_schedule(scheme: Scheme, devices: u32) -> ((KernelGraph, Schedule), Vec<Vec<ViewId>>) {
     let lf = LightField::new("4x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
     let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![0, 3]) };
     let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
@@ -20,38 +23,45 @@ fn demo_schedule(scheme: Scheme, devices: u32) -> (Schedule, Vec<Vec<ViewId>>) {
 }
 
 /// The fill → shift_blend graph of [`demo_schedule`] compiled for `plan`, validated.
-fn fill_and_blend(plan: &parallax_graph::Plan) -> Schedule {
-    let mut g = Graph::new(plan.topology.clone());
+fn fill_and_blend(plan: &parallax_graph::Plan) -> (KernelGraph, Schedule) {
+    let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
-    g.pass("fill", Role::Sources).write(&mut radiance).record();
-    g.pass("fill", Role::Targets).write(&mut radiance).record();
-    g.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance).write(&mut output).record();
+    let fill: Arc<dyn PassKernel> = Arc::new(FillKernel);
+    g.pass("fill", Role::Sources).write(&mut radiance).kernel(fill.clone()).record();
+    g.pass("fill", Role::Targets).write(&mut radiance).kernel(fill).record();
+    g.pass("shift_blend", Role::All)
+        .read(&radiance)
+        .read_sources(&radiance)
+        .write(&mut output)
+        .kernel(Arc::new(ShiftBlendKernel))
+        .record();
     g.export(&output);
     let schedule = compile(&g, plan).unwrap();
     assert!(schedule.validate().is_ok(), "{:?}", schedule.validate());
-    schedule
+    (g, schedule)
 }
 
-fn output_resources(schedule: &Schedule) -> Vec<(u32, ResourceId)> {
-    schedule
-        .resources
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| r.name == "output")
-        .map(|(i, r)| (r.view.0, ResourceId(i as u32)))
+/// Per view, the resource of its gathered `output` on device 0.
+fn output_resources(plan: &ExecutionPlan, views: u32) -> Vec<(u32, usize)> {
+    (0..views)
+        .map(|v| (v, plan.final_output("output", v).unwrap()))
+        .map(|(v, (d, r))| {
+            assert_eq!(d, 0);
+            (v, r)
+        })
         .collect()
 }
 
 fn run(scheme: Scheme, devices: u32) -> Vec<Vec<f32>> {
-    let (schedule, sources_of) = demo_schedule(scheme, devices);
-    let plan = Plan::from_schedule(&schedule).unwrap();
+    let ((graph, schedule), sources_of) = demo_schedule(scheme, devices);
+    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = Context::new(&ContextDesc {
         selection: DeviceSelection::FakeDevices(devices as usize),
         validation: Validation::Core,
     })
     .unwrap();
-    let mut exec = Executor::new(&ctx, plan, builtin_kernels(), ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan.clone(), ExecOptions::default()).unwrap();
     for _ in 0..2 {
         exec.run_frame().unwrap();
     }
@@ -63,10 +73,10 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<f32>> {
         let passes = report.events.iter().filter(|e| e.kind == EventKind::Pass).count();
         assert_eq!(passes, schedule.instances.len());
     }
-    let outputs: Vec<Vec<f32>> = output_resources(&schedule)
+    let outputs: Vec<Vec<f32>> = output_resources(&plan, schedule.views)
         .into_iter()
         .map(|(view, r)| {
-            let bytes = exec.read_image(0, r.index()).unwrap();
+            let bytes = exec.read_image(0, r).unwrap();
             let values: Vec<f32> =
                 bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
             let other = sources_of[view as usize].first().map_or(view, |s| s.0);
@@ -86,7 +96,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<f32>> {
 fn fine_all_on_one_two_three_devices_is_bit_identical() {
     let one = run(Scheme::FineAll, 1);
     for devices in [2, 3] {
-        let (schedule, _) = demo_schedule(Scheme::FineAll, devices);
+        let ((_, schedule), _) = demo_schedule(Scheme::FineAll, devices);
         assert!(!schedule.copies.is_empty());
         assert_eq!(run(Scheme::FineAll, devices), one);
     }
@@ -104,8 +114,8 @@ fn fine_sources_on_one_two_three_devices_is_bit_identical() {
 fn both_schemes_really_copy_between_devices() {
     for scheme in [Scheme::FineAll, Scheme::FineSources] {
         for devices in [2, 3] {
-            let (schedule, _) = demo_schedule(scheme, devices);
-            let plan = Plan::from_schedule(&schedule).unwrap();
+            let ((graph, schedule), _) = demo_schedule(scheme, devices);
+            let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
             plan.validate(devices as usize).unwrap();
             assert!(plan.copies.iter().any(|c| c.rows.len() < SIZE), "{scheme:?}/{devices}: expected band copies");
             // Fine-sources finishes every view on device 0; fine-all gathers the bands there.
@@ -122,21 +132,23 @@ fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     let lf = LightField::new("3x1".parse().unwrap(), None, Some((8, 8)), Rig::default()).unwrap();
     let config = PlanConfig { devices: 3, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
-    let mut g = Graph::new(plan.topology.clone());
+    let mut g = KernelGraph::with_payload(plan.topology.clone());
     let bytes = 1000; // not a multiple of 4 on purpose: rounded up to 250 words
     let mut list = g.buffer("list", bytes);
-    g.pass("fill_buffer", Role::All).write(&mut list).record();
+    g.pass("fill_buffer", Role::All).write(&mut list).kernel(Arc::new(FillBufferKernel)).record();
     g.export(&list);
     let schedule = compile(&g, &plan).unwrap();
     assert!(schedule.validate().is_ok());
-    let exec_plan = Plan::from_schedule(&schedule).unwrap();
+    let exec_plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
     assert!(exec_plan.resources.iter().all(|r| r.kind == ResourceKind::Buffer && r.width == 250));
     assert_eq!(exec_plan.copies.len(), 2, "views on devices 1 and 2 gathered to device 0");
+    let gathered: Vec<usize> = (0..3).map(|v| exec_plan.final_output("list", v).unwrap().1).collect();
     let ctx = Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(3), validation: Validation::Core })
         .unwrap();
-    let mut exec = Executor::new(&ctx, exec_plan.clone(), builtin_kernels(), ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, exec_plan.clone(), ExecOptions::default()).unwrap();
     exec.run_frame().unwrap();
-    for (r, resource) in exec_plan.resources.iter().enumerate() {
+    for r in gathered {
+        let resource = &exec_plan.resources[r];
         let bytes = exec.read_resource(0, r).unwrap();
         let words: Vec<u32> = bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         let expected: Vec<u32> = (0..250).map(|i| reference_buffer_word(i, resource.view)).collect();
@@ -160,20 +172,21 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
                 }
                 let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
                 let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
-                let schedule = fill_and_blend(&plan);
-                let exec_plan = Plan::from_schedule(&schedule).unwrap();
+                let (graph, schedule) = fill_and_blend(&plan);
+                let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+                let outputs = output_resources(&exec_plan, lf.len() as u32);
                 let ctx = Context::new(&ContextDesc {
                     selection: DeviceSelection::FakeDevices(devices as usize),
                     validation: Validation::Core,
                 })
                 .unwrap();
                 let options = ExecOptions { separate_copy_queue: devices == 2, ..ExecOptions::default() };
-                let mut exec = Executor::new(&ctx, exec_plan, builtin_kernels(), options).unwrap();
+                let mut exec = Executor::new(&ctx, exec_plan, options).unwrap();
                 exec.run_frame().unwrap();
                 exec.run_frame().unwrap();
-                for (view, r) in output_resources(&schedule) {
+                for &(view, r) in &outputs {
                     let values: Vec<f32> = exec
-                        .read_resource(0, r.index())
+                        .read_resource(0, r)
                         .unwrap()
                         .chunks_exact(4)
                         .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
@@ -189,4 +202,34 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
             }
         }
     }
+}
+
+#[test]
+fn graph_exports_are_read_back_by_the_frame_loop() {
+    let devices = 2;
+    let ((graph, schedule), _) = demo_schedule(Scheme::FineAll, devices);
+    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let mut outputs: Vec<usize> = output_resources(&plan, schedule.views).into_iter().map(|(_, r)| r).collect();
+    outputs.sort();
+    let exported: Vec<usize> = (0..plan.resources.len()).filter(|&r| plan.resources[r].exported).collect();
+    assert_eq!(exported, outputs, "lowering keeps the graph's exports");
+    let ctx = Context::new(&ContextDesc {
+        selection: DeviceSelection::FakeDevices(devices as usize),
+        validation: Validation::Core,
+    })
+    .unwrap();
+    let options = ExecOptions { read_back_exports: true, ..ExecOptions::default() };
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
+    let tickets = [exec.submit_frame().unwrap(), exec.submit_frame().unwrap()];
+    let mut frames = Vec::new();
+    for ticket in tickets {
+        frames.push(exec.wait_readback(ticket).unwrap());
+    }
+    assert_eq!(frames[0].len(), outputs.len());
+    assert_eq!(frames[0], frames[1], "the demo renders the same every frame");
+    for (r, bytes) in &frames[0] {
+        assert_eq!(*bytes, exec.read_image(0, *r).unwrap(), "resource {r}");
+    }
+    drop(exec);
+    ctx.check_validation().unwrap();
 }

@@ -14,7 +14,7 @@ use crate::ids::{FamilyId, PassId, ViewId};
 use crate::schedule::{Format, ResourceDesc};
 
 /// Which views a pass runs for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub enum Role {
     All,
     /// Views that are path traced in full.
@@ -34,6 +34,16 @@ pub struct ViewTopology {
 }
 
 impl ViewTopology {
+    /// `views` views of `width`×`height`, every one a source (nothing is reprojected).
+    pub fn all_sources(views: u32, width: u32, height: u32) -> Self {
+        ViewTopology {
+            width,
+            height,
+            sources_of: vec![Vec::new(); views as usize],
+            is_source: vec![true; views as usize],
+        }
+    }
+
     pub fn views(&self) -> u32 {
         self.is_source.len() as u32
     }
@@ -94,6 +104,9 @@ pub(crate) struct ReadDecl {
     /// Version per view at the time of the read.
     pub versions: Vec<u32>,
     pub scope: ReadScope,
+    /// Name the kernel finds this read under: the resource's name (with the read's origin:
+    /// own view, source i or history, which tells apart two reads of one resource).
+    pub slot: String,
 }
 
 #[derive(Clone, Debug)]
@@ -101,6 +114,10 @@ pub(crate) struct WriteDecl {
     pub family: FamilyId,
     /// New version per view; only meaningful for views in the pass's role.
     pub versions: Vec<u32>,
+    pub slot: String,
+    /// Declared in place ([`PassBuilder::modify`]): the new version lives in the allocation of
+    /// the version it replaces, which the same pass reads.
+    pub in_place: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -108,6 +125,8 @@ pub(crate) struct FamilyDecl {
     pub name: String,
     pub desc: ResourceDesc,
     pub imported: bool,
+    /// Buffers rewritten at the start of every frame: these leading words, the rest zero.
+    pub reset: Option<Vec<u32>>,
     /// Per view, the version gathered to device 0, and where `export` was called.
     pub exported: Option<(Vec<u32>, &'static Location<'static>)>,
 }
@@ -125,13 +144,17 @@ pub struct PassDecl {
     pub(crate) writes: Vec<WriteDecl>,
 }
 
-/// A render graph under declaration.
+/// A render graph under declaration. `P` is what a pass carries to whoever executes it (the
+/// backend's kernel type); planning never looks inside it, so `graph` stays free of GPU types
+/// and a graph declared only to be planned uses `()`.
 #[derive(Debug)]
-pub struct Graph {
+pub struct Graph<P = ()> {
     id: u64,
     pub(crate) topology: ViewTopology,
     pub(crate) families: Vec<FamilyDecl>,
     pub(crate) passes: Vec<PassDecl>,
+    /// Per pass (by `PassId`), the payload attached with [`PassBuilder::kernel`].
+    pub(crate) payloads: Vec<Option<P>>,
     /// Handles from another graph used by a pass: reported at compile time.
     pub(crate) foreign_uses: Vec<(PassId, FamilyId)>,
 }
@@ -139,12 +162,22 @@ pub struct Graph {
 static NEXT_GRAPH: AtomicU64 = AtomicU64::new(1);
 
 impl Graph {
+    /// A graph for planning only: its passes carry no kernels.
     pub fn new(topology: ViewTopology) -> Self {
+        Graph::with_payload(topology)
+    }
+}
+
+impl<P> Graph<P> {
+    /// A graph whose passes carry a `P` each (attached with [`PassBuilder::kernel`]), e.g. the
+    /// backend's kernels, so the executor never looks a kernel up by pass name.
+    pub fn with_payload(topology: ViewTopology) -> Self {
         Graph {
             id: NEXT_GRAPH.fetch_add(1, Ordering::Relaxed),
             topology,
             families: Vec::new(),
             passes: Vec::new(),
+            payloads: Vec::new(),
             foreign_uses: Vec::new(),
         }
     }
@@ -157,9 +190,14 @@ impl Graph {
         &self.passes
     }
 
+    /// The payload (kernel) attached to `pass`, if any.
+    pub fn payload(&self, pass: PassId) -> Option<&P> {
+        self.payloads.get(pass.index()).and_then(Option::as_ref)
+    }
+
     fn family<K>(&mut self, name: &str, desc: ResourceDesc) -> Handle<K> {
         let family = FamilyId(self.families.len() as u32);
-        self.families.push(FamilyDecl { name: name.to_string(), desc, imported: false, exported: None });
+        self.families.push(FamilyDecl { name: name.to_string(), desc, imported: false, reset: None, exported: None });
         Handle { graph: self.id, family, versions: vec![0; self.topology.views() as usize], _kind: PhantomData }
     }
 
@@ -174,10 +212,26 @@ impl Graph {
         self.family(name, ResourceDesc::Buffer { bytes })
     }
 
+    /// One buffer per view with `row_bytes` per image row, split into row bands like an image
+    /// (see [`ResourceDesc::RowBuffer`]).
+    pub fn row_buffer(&mut self, name: &str, row_bytes: u64) -> Handle<Buffer> {
+        self.family(name, ResourceDesc::RowBuffer { rows: self.topology.height, row_bytes })
+    }
+
     /// Declares that version 0 of every view's resource arrives from outside the frame
     /// (uploaded or persistent), so reading it before any write is legal.
     pub fn import<K>(&mut self, handle: &Handle<K>) {
         self.families[handle.family.index()].imported = true;
+    }
+
+    /// Resets every view's buffer at the start of every frame, before any pass touches it: the
+    /// first `header.len()` words set to `header`, the rest zeroed. Version 0 of the buffer is
+    /// then the reset contents, which passes accumulate into (counters, indirect arguments,
+    /// pixel lists) with [`PassBuilder::modify`].
+    pub fn reset_each_frame(&mut self, handle: &Handle<Buffer>, header: Vec<u32>) {
+        let family = &mut self.families[handle.family.index()];
+        family.imported = true;
+        family.reset = Some(header);
     }
 
     /// Marks the current version of every view's resource as a finished output: it keeps its
@@ -189,7 +243,7 @@ impl Graph {
 
     /// Starts declaring a pass that runs for every view of `role`.
     #[track_caller]
-    pub fn pass(&mut self, name: &str, role: Role) -> PassBuilder<'_> {
+    pub fn pass(&mut self, name: &str, role: Role) -> PassBuilder<'_, P> {
         let decl = PassDecl {
             name: name.to_string(),
             role,
@@ -199,28 +253,34 @@ impl Graph {
             reads: Vec::new(),
             writes: Vec::new(),
         };
-        PassBuilder { graph: self, decl, foreign: None }
+        PassBuilder { graph: self, decl, payload: None, foreign: None }
     }
 }
 
 /// Fluent pass declaration. Nothing is recorded until [`PassBuilder::record`].
 #[must_use = "a pass is only added to the graph by .record()"]
-pub struct PassBuilder<'g> {
-    graph: &'g mut Graph,
+pub struct PassBuilder<'g, P = ()> {
+    graph: &'g mut Graph<P>,
     decl: PassDecl,
+    payload: Option<P>,
     foreign: Option<FamilyId>,
 }
 
-impl PassBuilder<'_> {
+impl<P> PassBuilder<'_, P> {
     fn check<K>(&mut self, h: &Handle<K>) {
         if h.graph != self.graph.id && self.foreign.is_none() {
             self.foreign = Some(h.family);
         }
     }
 
+    fn family_name(&self, family: FamilyId) -> String {
+        self.graph.families[family.index()].name.clone()
+    }
+
     fn push_read<K>(mut self, h: &Handle<K>, scope: ReadScope) -> Self {
         self.check(h);
-        self.decl.reads.push(ReadDecl { family: h.family, versions: h.versions.clone(), scope });
+        let slot = self.family_name(h.family);
+        self.decl.reads.push(ReadDecl { family: h.family, versions: h.versions.clone(), scope, slot });
         self
     }
 
@@ -250,12 +310,12 @@ impl PassBuilder<'_> {
     pub fn read_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
         let versions = vec![version; h.versions.len()];
-        self.decl.reads.push(ReadDecl { family: h.family, versions, scope: ReadScope::Own });
+        let slot = self.family_name(h.family);
+        self.decl.reads.push(ReadDecl { family: h.family, versions, scope: ReadScope::Own, slot });
         self
     }
 
-    /// Writes this view's resource over the instance's rows, making a new version.
-    pub fn write<K>(mut self, h: &mut Handle<K>) -> Self {
+    fn push_write<K>(mut self, h: &mut Handle<K>, in_place: bool) -> Self {
         self.check(h);
         let topo = &self.graph.topology;
         for v in 0..topo.views() {
@@ -263,8 +323,22 @@ impl PassBuilder<'_> {
                 h.versions[v as usize] += 1;
             }
         }
-        self.decl.writes.push(WriteDecl { family: h.family, versions: h.versions.clone() });
+        let slot = self.family_name(h.family);
+        self.decl.writes.push(WriteDecl { family: h.family, versions: h.versions.clone(), slot, in_place });
         self
+    }
+
+    /// Writes this view's resource over the instance's rows, making a new version in an
+    /// allocation of its own (so passes still reading the old version are unaffected).
+    pub fn write<K>(self, h: &mut Handle<K>) -> Self {
+        self.push_write(h, false)
+    }
+
+    /// Reads and writes this view's resource in place over the instance's rows: the pass reads
+    /// the current version and leaves the next one in the same allocation. Only a pass whose
+    /// every invocation reads exactly the texels it writes may declare this.
+    pub fn modify<K>(self, h: &mut Handle<K>) -> Self {
+        self.push_read(h, ReadScope::Own).push_write(h, true)
     }
 
     /// Writes an explicit version for every view, without touching the handle. For graphs
@@ -272,7 +346,14 @@ impl PassBuilder<'_> {
     pub fn write_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
         let versions = vec![version; h.versions.len()];
-        self.decl.writes.push(WriteDecl { family: h.family, versions });
+        let slot = self.family_name(h.family);
+        self.decl.writes.push(WriteDecl { family: h.family, versions, slot, in_place: false });
+        self
+    }
+
+    /// Attaches what executes this pass (the backend's kernel).
+    pub fn kernel(mut self, payload: P) -> Self {
+        self.payload = Some(payload);
         self
     }
 
@@ -295,6 +376,7 @@ impl PassBuilder<'_> {
             self.graph.foreign_uses.push((id, family));
         }
         self.graph.passes.push(self.decl);
+        self.graph.payloads.push(self.payload);
         id
     }
 }

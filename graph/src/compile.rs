@@ -9,9 +9,12 @@ use std::collections::{BTreeSet, BinaryHeap, HashMap};
 
 use crate::builder::{Graph, PassDecl, ReadScope, Role};
 use crate::error::GraphError;
-use crate::ids::{DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
+use crate::ids::{AllocId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::lower::lower;
-use crate::schedule::{Access, CulledPass, DeltaEdge, Edge, PassInstance, ResourceDesc, ResourceInfo, Schedule};
+use crate::schedule::{
+    Access, CulledPass, DeltaEdge, Edge, Origin, PassInfo, PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
+};
+use crate::storage::assign_storage;
 
 /// What a placement may know about a pass.
 #[derive(Clone, Copy, Debug)]
@@ -32,7 +35,7 @@ pub trait Placement {
 }
 
 /// Compiles `graph` under `placement` into a schedule.
-pub fn compile(graph: &Graph, placement: &dyn Placement) -> Result<Schedule, GraphError> {
+pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedule, GraphError> {
     if let Some(&(pass, family)) = graph.foreign_uses.first() {
         let decl = &graph.passes[pass.index()];
         return Err(GraphError::ForeignHandle { pass: decl.name.clone(), family, at: decl.at });
@@ -64,14 +67,28 @@ pub fn compile(graph: &Graph, placement: &dyn Placement) -> Result<Schedule, Gra
     let edges = derive_edges(graph, &instances, &resources)?;
     let delta_edges = delta_edges(&instances, &resources);
     let order = topological_order(&instances, &edges)?;
-    let (devices, copies) = lower(placement.devices(), &instances, &edges, &resources, &order);
-    Ok(Schedule { views, devices, resources, instances, edges, delta_edges, copies, culled })
+    let (devices, mut copies) = lower(placement.devices(), &instances, &edges, &resources, &order);
+    let allocations = assign_storage(&mut instances, &mut copies, &order);
+    let passes = pass_infos(graph);
+    Ok(Schedule {
+        views,
+        height: graph.topology.height,
+        devices,
+        passes,
+        resources,
+        allocations,
+        instances,
+        edges,
+        delta_edges,
+        copies,
+        culled,
+    })
 }
 
 type WriterMap = HashMap<(FamilyId, ViewId, u32), usize>;
 
 /// (family, view, version) → declaring pass. Catches two passes writing one version.
-fn writer_map(graph: &Graph) -> Result<WriterMap, GraphError> {
+fn writer_map<P>(graph: &Graph<P>) -> Result<WriterMap, GraphError> {
     let mut writers = WriterMap::new();
     for (p, decl) in graph.passes.iter().enumerate() {
         for w in &decl.writes {
@@ -103,8 +120,8 @@ fn last_version(writers: &WriterMap, family: FamilyId, view: ViewId) -> u32 {
 }
 
 /// The (family, view, version) triples one declared read touches for view `v`.
-fn read_targets(
-    graph: &Graph,
+fn read_targets<P>(
+    graph: &Graph<P>,
     writers: &WriterMap,
     scope: ReadScope,
     family: FamilyId,
@@ -120,8 +137,22 @@ fn read_targets(
     }
 }
 
+/// The declared passes' names and slots, by `PassId`.
+fn pass_infos<P>(graph: &Graph<P>) -> Vec<PassInfo> {
+    graph
+        .passes
+        .iter()
+        .map(|decl| PassInfo {
+            name: decl.name.clone(),
+            role: decl.role,
+            reads: decl.reads.iter().map(|r| SlotInfo { name: r.slot.clone(), family: r.family }).collect(),
+            writes: decl.writes.iter().map(|w| SlotInfo { name: w.slot.clone(), family: w.family }).collect(),
+        })
+        .collect()
+}
+
 /// Keeps what exported resources and side-effect passes need; returns the needed (pass, view).
-fn cull(graph: &Graph, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>, GraphError> {
+fn cull<P>(graph: &Graph<P>, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>, GraphError> {
     let mut stack: Vec<(u32, u32)> = Vec::new();
     for (f, fam) in graph.families.iter().enumerate() {
         if let Some((versions, at)) = &fam.exported {
@@ -176,14 +207,14 @@ fn cull(graph: &Graph, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>, Grap
     Ok(needed)
 }
 
-fn splittable(graph: &Graph, decl: &PassDecl) -> bool {
+fn splittable<P>(graph: &Graph<P>, decl: &PassDecl) -> bool {
     let is_buffer = |f: FamilyId| matches!(graph.families[f.index()].desc, ResourceDesc::Buffer { .. });
     !decl.whole_view
         && !decl.writes.iter().any(|w| is_buffer(w.family))
         && !decl.reads.iter().any(|r| matches!(r.scope, ReadScope::Own | ReadScope::History) && is_buffer(r.family))
 }
 
-fn resource_infos(graph: &Graph, writers: &WriterMap) -> Vec<ResourceInfo> {
+fn resource_infos<P>(graph: &Graph<P>, writers: &WriterMap) -> Vec<ResourceInfo> {
     let history: BTreeSet<FamilyId> = graph
         .passes
         .iter()
@@ -204,6 +235,7 @@ fn resource_infos(graph: &Graph, writers: &WriterMap) -> Vec<ResourceInfo> {
                 exported: fam.exported.as_ref().map(|(versions, _)| versions[v as usize]),
                 history,
                 versions: last_version(writers, family, ViewId(v)),
+                reset: fam.reset.clone(),
             })
         })
         .collect()
@@ -212,14 +244,14 @@ fn resource_infos(graph: &Graph, writers: &WriterMap) -> Vec<ResourceInfo> {
 /// Resource rows covered by an instance band (buffers are always their single row).
 fn rows_of(desc: ResourceDesc, band: Region) -> Region {
     match desc {
-        ResourceDesc::Image { .. } => band,
+        ResourceDesc::Image { .. } | ResourceDesc::RowBuffer { .. } => band,
         ResourceDesc::Buffer { .. } => desc.full(),
     }
 }
 
 #[allow(clippy::too_many_arguments)]
-fn instantiate(
-    graph: &Graph,
+fn instantiate<P>(
+    graph: &Graph<P>,
     writers: &WriterMap,
     decl: &PassDecl,
     pass: PassId,
@@ -231,23 +263,42 @@ fn instantiate(
     let desc = |f: FamilyId| graph.families[f.index()].desc;
     let mut reads = Vec::new();
     let mut history_reads = Vec::new();
-    for r in &decl.reads {
-        for (family, u, version) in read_targets(graph, writers, r.scope, r.family, &r.versions, view) {
+    for (k, r) in decl.reads.iter().enumerate() {
+        let targets = read_targets(graph, writers, r.scope, r.family, &r.versions, view);
+        for (i, (family, u, version)) in targets.into_iter().enumerate() {
             let rows = match r.scope {
                 ReadScope::Own | ReadScope::History => rows_of(desc(family), region),
                 ReadScope::OwnWhole | ReadScope::Sources => desc(family).full(),
             };
-            let access = Access { resource: rid(family, u), version, region: rows };
+            let origin = match r.scope {
+                ReadScope::Own | ReadScope::OwnWhole => Origin::Own,
+                ReadScope::Sources => Origin::Source(i as u32),
+                ReadScope::History => Origin::History,
+            };
+            let access = Access {
+                resource: rid(family, u),
+                version,
+                region: rows,
+                alloc: AllocId::UNASSIGNED,
+                origin,
+                decl: k as u16,
+                in_place: false,
+            };
             if r.scope == ReadScope::History { history_reads.push(access) } else { reads.push(access) }
         }
     }
     let writes = decl
         .writes
         .iter()
-        .map(|w| Access {
+        .enumerate()
+        .map(|(k, w)| Access {
             resource: rid(w.family, view),
             version: w.versions[view.index()],
             region: rows_of(desc(w.family), region),
+            alloc: AllocId::UNASSIGNED,
+            origin: Origin::Own,
+            decl: k as u16,
+            in_place: w.in_place,
         })
         .collect();
     PassInstance { pass, name: decl.name.clone(), view, region, device, reads, writes, history_reads }
@@ -255,8 +306,8 @@ fn instantiate(
 
 /// Producer → consumer edges by (resource, version) and row overlap. Also checks that history
 /// reads stay on the device of the last writer.
-fn derive_edges(
-    graph: &Graph,
+fn derive_edges<P>(
+    graph: &Graph<P>,
     instances: &[PassInstance],
     resources: &[ResourceInfo],
 ) -> Result<Vec<Edge>, GraphError> {
@@ -366,4 +417,31 @@ fn topological_order(instances: &[PassInstance], edges: &[Edge]) -> Result<Vec<I
         return Err(GraphError::Cycle { passes });
     }
     Ok(order)
+}
+
+/// Every splittable pass instance of every view in `bands` row bands, band `b` on device
+/// `b % devices`; passes that need their whole view stay on device 0. How one view (or a few)
+/// is traced over more devices than a light-field plan allows (it needs a view per device).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BandedPlacement {
+    pub devices: u32,
+    pub bands: u32,
+}
+
+impl Placement for BandedPlacement {
+    fn devices(&self) -> u32 {
+        self.devices.max(1)
+    }
+
+    fn place(&self, pass: PassPlacementInfo<'_>, _view: ViewId, height: u32) -> Vec<(DeviceId, Region)> {
+        if !pass.splittable {
+            return vec![(DeviceId(0), Region::rows(height))];
+        }
+        let bands = self.bands.clamp(1, height.max(1));
+        Region::bands(height, bands)
+            .into_iter()
+            .enumerate()
+            .map(|(b, region)| (DeviceId(b as u32 % self.devices()), region))
+            .collect()
+    }
 }

@@ -50,6 +50,15 @@ id!(
     /// A declared pass (the template of its instances).
     PassId, "pass"
 );
+id!(
+    /// Storage of one or more versions of a resource on one device.
+    AllocId, "a"
+);
+
+impl AllocId {
+    /// Not yet given storage (compile assigns every access one before it returns).
+    pub const UNASSIGNED: AllocId = AllocId(u32::MAX);
+}
 
 /// A band of image rows `[y0, y1)`. Fine-grained schemes split views into bands; a whole view is
 /// `[0, height)`. Buffers are one row.
@@ -60,6 +69,11 @@ pub struct Region {
 }
 
 impl Region {
+    /// Rows `[y0, y1)`.
+    pub fn new(y0: u32, y1: u32) -> Region {
+        Region { y0, y1 }
+    }
+
     pub fn rows(height: u32) -> Region {
         Region { y0: 0, y1: height }
     }

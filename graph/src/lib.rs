@@ -34,6 +34,7 @@ pub mod assign;
 pub mod builder;
 pub mod compile;
 pub mod dot;
+mod dot_summary;
 pub mod error;
 pub mod ids;
 pub mod lightfield;
@@ -42,19 +43,22 @@ pub mod partition;
 pub mod pipeline;
 pub mod schedule;
 pub mod source;
+mod storage;
 pub mod summary;
 pub mod validate;
+mod validate_storage;
 
 pub use assign::{AssignStrategy, Assignment, assign};
 pub use builder::{Buffer, Graph, Handle, Image, PassBuilder, Role, ViewTopology};
-pub use compile::{PassPlacementInfo, Placement, compile};
+pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile};
 pub use error::{GraphError, PlanError};
-pub use ids::{CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
+pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use partition::{Plan, PlanConfig, Scheme, parse_source_list};
 pub use pipeline::{StandardPipeline, declare_standard_pipeline};
 pub use schedule::{
-    Access, CopyKind, CrossCopy, DeviceProgram, Format, Op, PassInstance, ResourceDesc, ResourceInfo, Schedule,
+    Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, Op, Origin, PassInfo, PassInstance, ResourceDesc,
+    ResourceInfo, Schedule, SlotInfo,
 };
 pub use summary::PlanSummary;
 pub use validate::{ScheduleError, ValidationReport};

@@ -9,7 +9,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 
-use crate::ids::{CopyId, DeviceId, InstanceId, Region, ResourceId};
+use crate::ids::{AllocId, CopyId, DeviceId, InstanceId, Region, ResourceId};
 use crate::schedule::{CopyKind, CrossCopy, DeviceProgram, Edge, Op, PassInstance, ResourceInfo};
 
 /// Key of one copy: producer instance, resource, version, destination device.
@@ -65,14 +65,34 @@ pub(crate) fn lower(
         for (&(_, resource, version, to), &(region, first)) in needs.range(range.clone()) {
             let id = CopyId(copies.len() as u32);
             let bytes = resources[resource.index()].desc.bytes(region);
-            copies.push(CrossCopy { resource, version, region, from, to, bytes, kind: CopyKind::Dependency });
+            copies.push(CrossCopy {
+                resource,
+                version,
+                region,
+                from,
+                to,
+                src_alloc: AllocId::UNASSIGNED,
+                dst_alloc: AllocId::UNASSIGNED,
+                bytes,
+                kind: CopyKind::Dependency,
+            });
             outgoing.entry(producer).or_default().push(id);
             incoming.entry(first).or_default().push(id);
         }
         for (&(_, resource, version, to), &region) in gathers.range(range) {
             let id = CopyId(copies.len() as u32);
             let bytes = resources[resource.index()].desc.bytes(region);
-            copies.push(CrossCopy { resource, version, region, from, to, bytes, kind: CopyKind::Gather });
+            copies.push(CrossCopy {
+                resource,
+                version,
+                region,
+                from,
+                to,
+                src_alloc: AllocId::UNASSIGNED,
+                dst_alloc: AllocId::UNASSIGNED,
+                bytes,
+                kind: CopyKind::Gather,
+            });
             outgoing.entry(producer).or_default().push(id);
             gathered_last.push(id);
         }

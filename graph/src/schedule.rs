@@ -3,7 +3,8 @@
 
 use serde::Serialize;
 
-use crate::ids::{CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
+use crate::builder::Role;
+use crate::ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 
 /// Texel formats a pass can declare for a per-view image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -29,8 +30,21 @@ impl Format {
 /// Shape of a per-view resource. Images are addressed by row bands; a buffer is one row.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 pub enum ResourceDesc {
-    Image { width: u32, height: u32, format: Format },
-    Buffer { bytes: u64 },
+    Image {
+        width: u32,
+        height: u32,
+        format: Format,
+    },
+    Buffer {
+        bytes: u64,
+    },
+    /// A buffer with one `row_bytes` section per image row, split into bands like an image:
+    /// band `[y0, y1)` owns bytes `y0 * row_bytes .. y1 * row_bytes`. What a per-band pixel
+    /// list (its counters first) needs, so a compaction pass and its consumer both split.
+    RowBuffer {
+        rows: u32,
+        row_bytes: u64,
+    },
 }
 
 impl ResourceDesc {
@@ -38,6 +52,7 @@ impl ResourceDesc {
         match self {
             ResourceDesc::Image { height, .. } => height,
             ResourceDesc::Buffer { .. } => 1,
+            ResourceDesc::RowBuffer { rows, .. } => rows,
         }
     }
 
@@ -45,7 +60,13 @@ impl ResourceDesc {
         match self {
             ResourceDesc::Image { width, format, .. } => width as u64 * format.bytes_per_texel(),
             ResourceDesc::Buffer { bytes } => bytes,
+            ResourceDesc::RowBuffer { row_bytes, .. } => row_bytes,
         }
+    }
+
+    /// Whether the resource is an image (else a buffer reached by address).
+    pub fn is_image(self) -> bool {
+        matches!(self, ResourceDesc::Image { .. })
     }
 
     pub fn bytes(self, region: Region) -> u64 {
@@ -70,14 +91,66 @@ pub struct ResourceInfo {
     pub history: bool,
     /// Number of versions written per frame.
     pub versions: u32,
+    /// Rewritten at the start of every frame (`Graph::reset_each_frame`): these leading words,
+    /// the rest zero.
+    pub reset: Option<Vec<u32>>,
 }
 
-/// A read or a write of one version of a resource over a row band.
+/// Where an access of a pass instance comes from, as its kernel sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub enum Origin {
+    /// The instance's own view.
+    Own,
+    /// Source `i` of the instance's (target) view, in `ViewTopology::sources_of` order.
+    Source(u32),
+    /// The instance's own view, last frame's final version.
+    History,
+}
+
+/// A read or a write of one version of a resource over a row band, in one allocation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 pub struct Access {
     pub resource: ResourceId,
     pub version: u32,
     pub region: Region,
+    /// Where the version lives on the instance's device.
+    pub alloc: AllocId,
+    pub origin: Origin,
+    /// Index of the declared read or write (in `PassInfo::reads` / `writes`) this access
+    /// instantiates: it names the kernel's slot.
+    pub decl: u16,
+    /// A write declared in place: it shares the allocation of the version it replaces.
+    pub in_place: bool,
+}
+
+/// Storage for versions of one resource on one device. Versions that are alive at the same
+/// time never share one; a version written in place shares the allocation of the version it
+/// replaces. A `history` allocation is double buffered by frame parity: frame f writes one
+/// half and reads last frame's final version from the other, with no re-recording.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Allocation {
+    pub resource: ResourceId,
+    pub device: DeviceId,
+    /// Versions stored here, in increasing order.
+    pub versions: Vec<u32>,
+    pub history: bool,
+}
+
+/// A declared slot of a pass: the name its kernel looks it up by.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct SlotInfo {
+    pub name: String,
+    /// The family the slot reads or writes.
+    pub family: FamilyId,
+}
+
+/// What the schedule keeps of each declared pass.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct PassInfo {
+    pub name: String,
+    pub role: Role,
+    pub reads: Vec<SlotInfo>,
+    pub writes: Vec<SlotInfo>,
 }
 
 /// A declared pass instantiated for one view, one row band, one device.
@@ -129,6 +202,9 @@ pub struct CrossCopy {
     pub region: Region,
     pub from: DeviceId,
     pub to: DeviceId,
+    /// The version's allocation on `from` and on `to`.
+    pub src_alloc: AllocId,
+    pub dst_alloc: AllocId,
     pub bytes: u64,
     pub kind: CopyKind,
 }
@@ -165,8 +241,13 @@ pub struct CulledPass {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Schedule {
     pub views: u32,
+    /// Rows of every view (the bands of each pass instance tile `0..height`).
+    pub height: u32,
     pub devices: Vec<DeviceProgram>,
+    /// Declared passes by `PassId` (instances name them by `PassInstance::pass`).
+    pub passes: Vec<PassInfo>,
     pub resources: Vec<ResourceInfo>,
+    pub allocations: Vec<Allocation>,
     pub instances: Vec<PassInstance>,
     pub edges: Vec<Edge>,
     pub delta_edges: Vec<DeltaEdge>,
@@ -185,6 +266,10 @@ impl Schedule {
 
     pub fn copy(&self, id: CopyId) -> &CrossCopy {
         &self.copies[id.index()]
+    }
+
+    pub fn allocation(&self, id: AllocId) -> &Allocation {
+        &self.allocations[id.index()]
     }
 
     /// Copies between devices before the final gather.

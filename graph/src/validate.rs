@@ -4,44 +4,73 @@
 
 use std::collections::{HashMap, VecDeque};
 
-use crate::ids::{CopyId, DeviceId, InstanceId, Region, ResourceId, ViewId};
+use crate::ids::{AllocId, CopyId, DeviceId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::schedule::{CopyKind, Op, Schedule};
 
 /// One broken invariant.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ScheduleError {
-    /// An instance is on no device program.
+    #[error("pass instance {instance} is on no device program")]
     InstanceNotScheduled { instance: InstanceId },
-    /// An instance appears more than once.
+    #[error("pass instance {instance} appears more than once")]
     InstanceScheduledTwice { instance: InstanceId },
-    /// An instance sits on a program other than the device it was placed on.
+    #[error("pass instance {instance} was placed on {placed} but is listed on {listed}")]
     InstanceOnWrongDevice { instance: InstanceId, placed: DeviceId, listed: DeviceId },
-    /// A copy joins a device to itself.
+    #[error("copy {copy} joins a device to itself")]
     CopyWithinDevice { copy: CopyId },
-    /// One of a copy's four ops is missing from the device it belongs on.
+    #[error("copy {copy}: its {op} op is missing from the device it belongs on")]
     CopyOpMissing { copy: CopyId, op: &'static str },
-    /// One of a copy's ops appears more than once.
+    #[error("copy {copy}: its {op} op appears more than once")]
     CopyOpDuplicated { copy: CopyId, op: &'static str },
-    /// Signal before CopyOut, or CopyIn before Wait.
+    #[error("copy {copy}: Signal before CopyOut, or CopyIn before Wait")]
     CopyOpsOutOfOrder { copy: CopyId },
-    /// No instance on the source device writes the copied rows of that version.
+    #[error("copy {copy}: no instance on the source device writes the copied rows of that version")]
     CopyWithoutProducer { copy: CopyId },
-    /// The copy leaves before its producer has run.
+    #[error("copy {copy} leaves before its producer {producer} has run")]
     CopyBeforeProducer { copy: CopyId, producer: InstanceId },
-    /// The byte count does not match the rows copied.
+    #[error("copy {copy} moves {actual} bytes; its rows hold {expected}")]
     CopyBytesMismatch { copy: CopyId, expected: u64, actual: u64 },
-    /// A read is not satisfied by an earlier producer on its device or by one copy.
+    #[error("{instance} reads {resource} version {version} ({rows}) that no earlier producer or copy provides")]
     UnsatisfiedRead { instance: InstanceId, resource: ResourceId, version: u32, rows: Region },
-    /// More than one copy brings the same rows to the consumer's device.
+    #[error("{instance} reads {resource} version {version} through more than one copy: {copies:?}")]
     AmbiguousRead { instance: InstanceId, resource: ResourceId, version: u32, copies: Vec<CopyId> },
-    /// A producer on the consumer's device runs after it.
+    #[error("producer {producer} runs after its consumer {consumer} on the same device")]
     OrderViolation { producer: InstanceId, consumer: InstanceId },
-    /// The copy a read depends on arrives after the reader runs.
+    #[error("copy {copy} arrives after its consumer {consumer} runs")]
     CopyArrivesLate { copy: CopyId, consumer: InstanceId },
-    /// A finished view's rows are not all on device 0 at the end of the frame.
+    #[error("view {view}: the finished rows of {resource} are not all on device 0 at the end of the frame")]
     ViewNotGathered { view: ViewId, resource: ResourceId },
-    /// Waits and signals form a cycle across devices.
+    #[error("waits and signals form a cycle across devices")]
     Deadlock,
+    #[error("{what} {index} refers to a missing {missing} {target}")]
+    Dangling { what: &'static str, index: u32, missing: &'static str, target: u32 },
+    #[error(
+        "{instance}: access to {resource} version {version} uses allocation {alloc}, which is not on its device or not of that resource and version"
+    )]
+    AllocationMismatch { instance: InstanceId, resource: ResourceId, version: u32, alloc: AllocId },
+    #[error(
+        "copy {copy}: its source or destination allocation is not on its device or not of that resource and version"
+    )]
+    CopyAllocationMismatch { copy: CopyId },
+    #[error("{instance} reads and writes allocation {alloc} without declaring the write in place")]
+    UndeclaredInPlace { instance: InstanceId, alloc: AllocId },
+    #[error(
+        "allocation {alloc} on {device}: {later:?} touches version {later_version} after {earlier:?} wrote version {earlier_version} there"
+    )]
+    AllocationHazard {
+        alloc: AllocId,
+        device: DeviceId,
+        earlier: Op,
+        earlier_version: u32,
+        later: Op,
+        later_version: u32,
+    },
+    #[error(
+        "{instance} reads history of {resource} from allocation {alloc}, which is not a history allocation of its own device"
+    )]
+    HistoryOnOtherDevice { instance: InstanceId, resource: ResourceId, alloc: AllocId },
+    #[error("the instances of {pass} for view {view} do not tile its rows exactly (rows 0..{height})")]
+    BandsDoNotTile { pass: PassId, view: ViewId, height: u32 },
 }
 
 /// Every broken invariant found; empty when the schedule is sound.
@@ -67,7 +96,11 @@ const COPY_OPS: CopyOpKinds =
 
 impl Schedule {
     pub fn validate(&self) -> ValidationReport {
-        let mut errors = Vec::new();
+        // Ids are checked first: every later check indexes by them.
+        let mut errors = self.dangling_ids();
+        if !errors.is_empty() {
+            return ValidationReport { errors };
+        }
         let mut positions: Positions = HashMap::new();
         for program in &self.devices {
             for (i, op) in program.ops.iter().enumerate() {
@@ -95,6 +128,8 @@ impl Schedule {
         if self.has_wait_cycle() {
             errors.push(ScheduleError::Deadlock);
         }
+        self.check_storage(&mut errors);
+        self.check_bands(&mut errors);
         ValidationReport { errors }
     }
 

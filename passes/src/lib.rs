@@ -12,7 +12,7 @@
 //!
 //! ```no_run
 //! use parallax_backend::{Context, ContextDesc, DeviceSelection};
-//! use parallax_passes::{GpuTracer, trace_kernels, trace_plan};
+//! use parallax_passes::{GpuTracer, trace_plan};
 //! use parallax_scene::{default_scene, gpu::GpuScene, SceneBvh, TraceSettings, View};
 //!
 //! let scene = default_scene();
@@ -20,7 +20,7 @@
 //! let context = Context::new(&ContextDesc::from_env(DeviceSelection::FakeDevices(2)))?;
 //! // One 64x48 view in row bands over two devices, gathered on device 0.
 //! let plan = trace_plan(1, 1, (64, 48), 2, parallax_graph::Scheme::FineAll, None)?;
-//! let mut tracer = GpuTracer::new(&context, plan, trace_kernels(None), &GpuScene::new(&scene, &bvh))?;
+//! let mut tracer = GpuTracer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
 //! let view = View { camera: scene.default_camera(), width: 64, height: 48, index: 0 };
 //! let pixels = tracer.render(&scene, &[view], &TraceSettings::default())?;
 //! assert_eq!(pixels[0].len(), 64 * 48);
@@ -45,4 +45,4 @@ pub use raycast::{
     random_rays,
 };
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
-pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_kernels, trace_plan};
+pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_plan};

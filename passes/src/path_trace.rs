@@ -12,7 +12,7 @@
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
 
-use parallax_backend::{BackendError, PassKernel, PlanPass, Recorder, ResourceKind, TexelFormat};
+use parallax_backend::{BackendError, ExecPass, Format, PassKernel, Recorder, ResourceKind};
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
@@ -41,28 +41,46 @@ fn misuse(index: usize, detail: String) -> BackendError {
     BackendError::KernelMisuse { kernel: PATH_TRACE.into(), instance: index, detail }
 }
 
+/// Push constants of `pt_trace.comp` (`PathTracePush` there; a test holds the two layouts
+/// together).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PathTracePush {
+    /// Addresses of the scene buffers (`SceneRefs`, [`crate::SCENE_BUFFERS`] order).
+    pub scene: [u64; 6],
+    /// Address of this view's `TraceParams` in the per-frame data.
+    pub trace: u64,
+    /// Address of the pixel list (list mode only).
+    pub pixel_list: u64,
+    /// Image indices of the outputs, [`NO_IMAGE`] where not written.
+    pub radiance: u32,
+    pub albedo_roughness: u32,
+    pub normal_metallic: u32,
+    pub position_depth: u32,
+    pub y0: u32,
+    pub y1: u32,
+    pub width: u32,
+    /// 1: trace the pixel list instead of rows `y0..y1`.
+    pub list_mode: u32,
+}
+
 impl PassKernel for PathTraceKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> parallax_backend::Result<()> {
-        if pass.writes.is_empty() || pass.writes.len() > TRACE_OUTPUTS.len() || pass.reads.len() > 1 {
-            return Err(misuse(
-                index,
-                format!(
-                    "expects 1 to 4 image writes and at most 1 read (a pixel list), got {} and {}",
-                    pass.writes.len(),
-                    pass.reads.len()
-                ),
-            ));
-        }
-        let width = rec.resource(pass.writes[0].resource).width;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let outputs = TRACE_OUTPUTS.map(|slot| pass.output(slot));
+        let Some(radiance) = outputs[0] else {
+            return Err(misuse(index, format!("writes no `{}` slot", TRACE_OUTPUTS[0])));
+        };
+        let width = rec.resource(radiance.resource).width;
         let mut images = [NO_IMAGE; 4];
-        for (slot, write) in images.iter_mut().zip(&pass.writes) {
+        for (slot, write) in images.iter_mut().zip(outputs) {
+            let Some(write) = write else { continue };
             let target = rec.resource(write.resource);
-            if target.kind != ResourceKind::Image || target.format == TexelFormat::R32Uint {
+            if target.kind != ResourceKind::Image || target.format == Format::R32u {
                 return Err(misuse(index, format!("its write `{}` must be a float image", target.name)));
             }
             *slot = rec.image(write.resource)?;
         }
-        let (list_mode, list_address, groups) = match pass.reads.first() {
+        let (list_mode, pixel_list, groups) = match pass.input(crate::pixel_list::PIXEL_LIST) {
             Some(read) => {
                 let list = rec.resource(read.resource);
                 if list.kind != ResourceKind::Buffer {
@@ -75,14 +93,20 @@ impl PassKernel for PathTraceKernel {
             // 8x8-pixel tiles (see pt_trace.comp).
             None => (0, 0, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1]),
         };
-        let trace_address = rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES;
-        let mut push = scene_refs(rec)?;
-        push.extend_from_slice(&trace_address.to_le_bytes());
-        push.extend_from_slice(&list_address.to_le_bytes());
-        for word in images.into_iter().chain([pass.rows.y0, pass.rows.y1, width, list_mode]) {
-            push.extend_from_slice(&word.to_le_bytes());
-        }
-        rec.dispatch_bytes("pt_trace", &push, groups)
+        let push = PathTracePush {
+            scene: scene_refs(rec)?,
+            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
+            pixel_list,
+            radiance: images[0],
+            albedo_roughness: images[1],
+            normal_metallic: images[2],
+            position_depth: images[3],
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            list_mode,
+        };
+        rec.dispatch_bytes("pt_trace", bytemuck::bytes_of(&push), groups)
     }
 }
 
@@ -134,5 +158,32 @@ pub fn to_pixel_sample(p: &GpuPixel) -> parallax_scene::PixelSample {
         roughness: p.albedo_roughness[3],
         metallic: p.normal_metallic[3],
         hit: p.radiance[3] > 0.5,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_push_struct_matches_pt_trace_comp() {
+        let glsl = member_offsets(&parallax_backend::spirv("pt_trace").unwrap(), "PathTracePush").unwrap();
+        let rust = rust_layout!(PathTracePush {
+            scene,
+            trace,
+            pixel_list,
+            radiance,
+            albedo_roughness,
+            normal_metallic,
+            position_depth,
+            y0,
+            y1,
+            width,
+            list_mode
+        });
+        assert_eq!(glsl, rust);
+        assert_eq!(std::mem::size_of::<PathTracePush>(), 96);
     }
 }

@@ -3,7 +3,7 @@
 //! mask; until then [`StridedPixelListKernel`] writes a deterministic scattered selection, which
 //! is what the subset-independence tests trace.
 
-use parallax_backend::{BackendError, PassKernel, PlanPass, Recorder, ResourceKind};
+use parallax_backend::{BackendError, ExecPass, PassKernel, Recorder, ResourceKind};
 
 /// Pass name of [`StridedPixelListKernel`].
 pub const PIXEL_LIST: &str = "pixel_list";
@@ -30,7 +30,7 @@ pub struct StridedPixelListKernel {
 }
 
 impl PassKernel for StridedPixelListKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PlanPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let misuse = |detail: String| BackendError::KernelMisuse { kernel: PIXEL_LIST.into(), instance: index, detail };
         if pass.writes.len() != 1 || !pass.reads.is_empty() {
             return Err(misuse(format!(

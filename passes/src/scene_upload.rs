@@ -36,10 +36,10 @@ pub fn upload_scene(executor: &mut Executor, scene: &GpuScene<'_>) -> Result<()>
 }
 
 /// The `SceneRefs` push-constant bytes of the device being recorded.
-pub(crate) fn scene_refs(rec: &Recorder<'_>) -> parallax_backend::Result<Vec<u8>> {
-    let mut bytes = Vec::with_capacity(SCENE_REFS_BYTES);
-    for name in SCENE_BUFFERS {
-        bytes.extend_from_slice(&rec.buffer_address(name)?.to_le_bytes());
+pub(crate) fn scene_refs(rec: &Recorder<'_>) -> parallax_backend::Result<[u64; 6]> {
+    let mut refs = [0u64; 6];
+    for (slot, name) in refs.iter_mut().zip(SCENE_BUFFERS) {
+        *slot = rec.buffer_address(name)?;
     }
-    Ok(bytes)
+    Ok(refs)
 }

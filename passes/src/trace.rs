@@ -3,12 +3,12 @@
 //! back. `parallax trace` and the GPU tests use it; the light-field pipelines will declare the
 //! same pass among their others.
 
-use parallax_backend::{
-    BackendError, Context, ExecOptions, Executor, KernelRegistry, Plan, PlanAccess, PlanCopy, PlanOp, PlanPass,
-    PlanResource, ResourceKind, Rows, TexelFormat,
-};
+use std::sync::Arc;
+
+use parallax_backend::{BackendError, Context, ExecOptions, ExecutionPlan, Executor, KernelGraph, ResourceKind};
 use parallax_graph::{
-    AssignStrategy, Format, Graph, Handle, Image, LayoutSpec, LightField, PlanConfig, Rig, Role, Scheme, compile,
+    AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
+    Scheme, ViewTopology, compile,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -17,21 +17,22 @@ use crate::error::{PassError, Result};
 use crate::path_trace::{
     PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, TRACE_PARAMS_BYTES, pixels_from_images, trace_frame_data,
 };
-use crate::pixel_list::{PIXEL_LIST, pixel_list_bytes};
+use crate::pixel_list::{PIXEL_LIST, StridedPixelListKernel, pixel_list_bytes};
 use crate::scene_upload::upload_scene;
 
 /// Declares, for every view, one `path_trace` pass writing the four [`TRACE_OUTPUTS`] images
-/// (all exported, so finished views end on device 0). With `pixel_list` the pass first gets a
-/// `pixel_list` pass writing a per-view list buffer of that many entries and traces only the
-/// listed pixels (both passes whole-view: a list is not split into row bands).
-pub fn declare_trace(graph: &mut Graph, pixel_list: Option<u64>) -> [Handle<Image>; 4] {
+/// (all exported, so finished views end on device 0). With a pixel list (its capacity in
+/// entries and the kernel that fills it) the pass first gets a `pixel_list` pass writing a
+/// per-view list buffer and traces only the listed pixels (both passes whole-view: a list is
+/// not split into row bands).
+pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPixelListKernel)>) -> [Handle<Image>; 4] {
     let mut images = TRACE_OUTPUTS.map(|name| graph.image(name, Format::Rgba32f));
-    let list = pixel_list.map(|entries| {
+    let list = pixel_list.map(|(entries, kernel)| {
         let mut list = graph.buffer(PIXEL_LIST, pixel_list_bytes(entries));
-        graph.pass(PIXEL_LIST, Role::All).write(&mut list).whole_view().record();
+        graph.pass(PIXEL_LIST, Role::All).write(&mut list).whole_view().kernel(Arc::new(kernel)).record();
         list
     });
-    let mut pass = graph.pass(PATH_TRACE, Role::All);
+    let mut pass = graph.pass(PATH_TRACE, Role::All).kernel(Arc::new(PathTraceKernel));
     if let Some(list) = &list {
         pass = pass.read_whole(list).whole_view();
     }
@@ -55,75 +56,34 @@ pub fn trace_plan(
     (width, height): (u32, u32),
     devices: u32,
     scheme: Scheme,
-    pixel_list: Option<u64>,
-) -> Result<Plan> {
+    pixel_list: Option<(u64, StridedPixelListKernel)>,
+) -> Result<ExecutionPlan> {
     let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
     // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
     let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
     let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources };
     let placement = parallax_graph::Plan::new(&lf, &config)?;
-    let mut graph = Graph::new(placement.topology.clone());
+    lower_trace(placement.topology.clone(), &placement, pixel_list)
+}
+
+/// The plan for tracing `views` views of `width`×`height`, each in `bands` row bands, band `b`
+/// on device `b % devices`, every band traced away from device 0 gathered there: the shape of
+/// a fine-all schedule without the light-field rule of at least one view per device.
+/// `parallax trace` splits its single view over any number of devices this way.
+pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<ExecutionPlan> {
+    let topology = ViewTopology::all_sources(views, width, height);
+    lower_trace(topology, &BandedPlacement { devices, bands }, None)
+}
+
+fn lower_trace(
+    topology: ViewTopology,
+    placement: &dyn Placement,
+    pixel_list: Option<(u64, StridedPixelListKernel)>,
+) -> Result<ExecutionPlan> {
+    let mut graph = KernelGraph::with_payload(topology);
     declare_trace(&mut graph, pixel_list);
-    let schedule = compile(&graph, &placement)?;
-    Ok(Plan::from_schedule(&schedule).map_err(BackendError::from)?)
-}
-
-/// A hand-laid plan of `views` views, each traced in `bands` row bands of equal height, band
-/// `b` on device `b % devices`, and every band traced away from device 0 copied there: the
-/// shape of a fine-all schedule, without the planner's rule that a light field has at least as
-/// many views as devices. `parallax trace` splits its single view over any number of devices
-/// this way.
-pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: usize) -> Plan {
-    let bands = bands.clamp(1, height.max(1));
-    let devices = devices.max(1);
-    let mut plan = Plan { devices: vec![Vec::new(); devices], ..Plan::default() };
-    let mut copy_ins = Vec::new();
-    for view in 0..views {
-        let first = plan.resources.len();
-        plan.resources.extend(TRACE_OUTPUTS.map(|name| PlanResource {
-            name: name.into(),
-            view,
-            width,
-            height,
-            format: TexelFormat::Rgba32Float,
-            kind: ResourceKind::Image,
-        }));
-        for b in 0..bands {
-            let rows = Rows::new(b * height / bands, (b + 1) * height / bands);
-            let device = b as usize % devices;
-            let writes = (0..TRACE_OUTPUTS.len()).map(|k| PlanAccess { resource: first + k, version: 1, rows });
-            plan.devices[device].push(PlanOp::Pass(plan.passes.len()));
-            plan.passes.push(PlanPass {
-                name: PATH_TRACE.into(),
-                view,
-                rows,
-                device,
-                reads: vec![],
-                writes: writes.collect(),
-                history_reads: vec![],
-            });
-            if device != 0 {
-                for k in 0..TRACE_OUTPUTS.len() {
-                    let copy = plan.copies.len();
-                    plan.copies.push(PlanCopy { resource: first + k, version: 1, rows, from: device, to: 0 });
-                    plan.devices[device].extend([PlanOp::CopyOut(copy), PlanOp::Signal(copy)]);
-                    copy_ins.extend([PlanOp::Wait(copy), PlanOp::CopyIn(copy)]);
-                }
-            }
-        }
-    }
-    // Device 0 traces its own bands first, then takes the others' as they arrive.
-    plan.devices[0].extend(copy_ins);
-    plan
-}
-
-/// The kernels of [`declare_trace`] graphs: `path_trace`, and `pixel_list` when given.
-pub fn trace_kernels(pixel_list: Option<crate::pixel_list::StridedPixelListKernel>) -> KernelRegistry {
-    let mut kernels = KernelRegistry::new().with(PATH_TRACE, PathTraceKernel);
-    if let Some(list) = pixel_list {
-        kernels.register(PIXEL_LIST, list);
-    }
-    kernels
+    let schedule = compile(&graph, placement)?;
+    Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
 }
 
 /// Runs plans of `path_trace` passes on a scene and reads the traced views back.
@@ -134,10 +94,15 @@ pub struct GpuTracer {
 
 impl GpuTracer {
     /// Creates the executor for `plan` on `context` and uploads `scene`.
-    pub fn new(context: &Context, plan: Plan, kernels: KernelRegistry, scene: &GpuScene<'_>) -> Result<Self> {
-        let options = ExecOptions::default();
+    pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
+        // Room for every view's parameters, so a large light field is not refused for a buffer
+        // size the caller never chose.
+        let views = plan.resources.iter().map(|r| u64::from(r.view) + 1).max().unwrap_or(1);
+        let defaults = ExecOptions::default();
+        let options =
+            ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(views * TRACE_PARAMS_BYTES), ..defaults };
         let frame_data_bytes = options.frame_data_bytes;
-        let mut executor = Executor::new(context, plan, kernels, options)?;
+        let mut executor = Executor::new(context, plan, options)?;
         upload_scene(&mut executor, scene)?;
         Ok(Self { executor, frame_data_bytes })
     }
@@ -173,10 +138,10 @@ impl GpuTracer {
         self.check_view(view)?;
         let mut layers: [Option<Vec<u8>>; 4] = Default::default();
         for (layer, name) in layers.iter_mut().zip(TRACE_OUTPUTS) {
-            let Some(resource) = self.find_image(name, view.index) else {
+            let Some((device, resource)) = self.executor.plan().final_output(name, view.index) else {
                 continue;
             };
-            *layer = Some(self.read_anywhere(resource)?);
+            *layer = Some(self.executor.read_image(device, resource)?);
         }
         if layers[0].is_none() {
             return Err(PassError::MissingResource { name: TRACE_OUTPUTS[0].into(), view: view.index });
@@ -187,11 +152,14 @@ impl GpuTracer {
     /// Every output image the plan has for `view` must be `view`-sized RGBA32F.
     fn check_view(&self, view: &View) -> Result<()> {
         for name in TRACE_OUTPUTS {
-            let Some(resource) = self.find_image(name, view.index) else {
+            let Some((_, resource)) = self.executor.plan().final_output(name, view.index) else {
                 continue;
             };
             let desc = &self.executor.plan().resources[resource];
-            if (desc.width, desc.height) != (view.width, view.height) || desc.format != TexelFormat::Rgba32Float {
+            if (desc.width, desc.height) != (view.width, view.height)
+                || desc.kind != ResourceKind::Image
+                || desc.format != Format::Rgba32f
+            {
                 return Err(PassError::ViewSize {
                     view: view.index,
                     name: name.into(),
@@ -204,30 +172,6 @@ impl GpuTracer {
             }
         }
         Ok(())
-    }
-
-    fn find_image(&self, name: &str, view: u32) -> Option<usize> {
-        self.executor
-            .plan()
-            .resources
-            .iter()
-            .position(|r| r.name == name && r.view == view && r.kind == ResourceKind::Image)
-    }
-
-    fn read_anywhere(&mut self, resource: usize) -> Result<Vec<u8>> {
-        match self.executor.read_image(0, resource) {
-            Err(BackendError::ResourceNotOnDevice { .. }) => {
-                let device = self
-                    .executor
-                    .plan()
-                    .passes
-                    .iter()
-                    .find(|p| p.writes.iter().any(|w| w.resource == resource))
-                    .map_or(0, |p| p.device);
-                Ok(self.executor.read_image(device, resource)?)
-            }
-            other => Ok(other?),
-        }
     }
 
     /// The executor (timing reports, validation).

@@ -3,9 +3,7 @@
 
 mod common;
 
-use parallax_backend::{
-    BackendError, ExecOptions, Executor, KernelRegistry, MAX_TEXTURES, Plan, PlanResource, TextureData,
-};
+use parallax_backend::{BackendError, ExecOptions, ExecResource, ExecutionPlan, Executor, MAX_TEXTURES, TextureData};
 use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
@@ -37,9 +35,8 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     drop(raycaster);
 
     // Views must have the size of the plan's images.
-    let plan = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1);
-    let mut tracer =
-        parallax_passes::GpuTracer::new(&ctx, plan, parallax_passes::trace_kernels(None), &gpu_scene).unwrap();
+    let plan = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
+    let mut tracer = parallax_passes::GpuTracer::new(&ctx, plan, &gpu_scene).unwrap();
     let view = parallax_scene::View { camera: scene.default_camera(), width: 8, height: 4, index: 0 };
     match tracer.render(&scene, &[view], &TraceSettings::default()) {
         Err(PassError::ViewSize { view: 0, width: 8, height: 4, plan_width: 8, plan_height: 8, .. }) => {}
@@ -52,9 +49,8 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     drop(tracer);
 
     // A path_trace pass whose only write is a buffer: the kernel says what it expects.
-    let plan = Plan::single_pass(PATH_TRACE, PlanResource::buffer("list", 0, 64), 1);
-    let kernels = KernelRegistry::new().with(PATH_TRACE, PathTraceKernel);
-    let mut exec = Executor::new(&ctx, plan, kernels, ExecOptions::default()).unwrap();
+    let plan = ExecutionPlan::single_pass(PATH_TRACE, PathTraceKernel, ExecResource::buffer("list", 0, 64), 1);
+    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
     match exec.run_frame() {
         Err(BackendError::KernelMisuse { kernel, instance: 0, .. }) => assert_eq!(kernel, "path_trace"),

@@ -20,7 +20,7 @@ mod common;
 
 use glam::{DVec3, Vec3};
 use parallax_graph::Scheme;
-use parallax_passes::{GpuTracer, to_pixel_sample, trace_kernels, trace_plan};
+use parallax_passes::{GpuTracer, to_pixel_sample, trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{
     Camera, CpuTracer, PixelSet, Scene, SceneBvh, Sky, Sun, TraceSettings, View, default_scene, load_gltf,
@@ -37,7 +37,7 @@ fn compare(scene: &Scene, size: u32, spp: u32) {
     let bvh = SceneBvh::build(scene);
     let ctx = common::context(1);
     let plan = trace_plan(1, 1, (size, size), 1, Scheme::MultiSource, None).unwrap();
-    let mut gpu = GpuTracer::new(&ctx, plan, trace_kernels(None), &GpuScene::new(scene, &bvh)).unwrap();
+    let mut gpu = GpuTracer::new(&ctx, plan, &GpuScene::new(scene, &bvh)).unwrap();
     let cpu = CpuTracer::new(scene, &bvh);
     let view = View { camera: scene.default_camera(), width: size, height: size, index: 0 };
     let n = view.pixel_count();
@@ -168,7 +168,7 @@ fn gpu_white_furnace_returns_the_sky_radiance() {
     let ctx = common::context(1);
     let (width, height) = (32, 24);
     let plan = trace_plan(1, 1, (width, height), 1, Scheme::MultiSource, None).unwrap();
-    let mut gpu = GpuTracer::new(&ctx, plan, trace_kernels(None), &GpuScene::new(&scene, &bvh)).unwrap();
+    let mut gpu = GpuTracer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
     let camera = Camera::look_at(Vec3::new(0.0, 0.3, 3.0), Vec3::ZERO, Vec3::Y, 0.7);
     let view = View { camera, width, height, index: 0 };
     let settings = TraceSettings { spp: 64, max_depth: 64, ..Default::default() };

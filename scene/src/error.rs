@@ -38,6 +38,20 @@ pub enum SceneError {
     NoGeometry { path: PathBuf },
     #[error("{path}: non-finite value in {what}")]
     NonFinite { path: PathBuf, what: String },
+    #[error(
+        "{path}: {what} has a coordinate of {value:e}; coordinates must lie within ±{limit:e} (beyond that f32 products in the BVH overflow): rescale the scene"
+    )]
+    CoordinateOutOfRange { path: PathBuf, what: String, value: f32, limit: f32 },
+    #[error(
+        "{path}: every triangle has zero area ({hint}), so nothing would be visible; fix the node scales or vertex positions"
+    )]
+    ZeroArea { path: PathBuf, hint: String },
+    #[error("{path}: camera {camera} (node {node}): {detail}")]
+    BadCamera { path: PathBuf, camera: usize, node: usize, detail: String },
+    #[error(
+        "{path}: not a glTF file ({detail}); Parallax reads .gltf (JSON) and .glb (binary glTF): convert other formats such as .obj first, e.g. with Blender"
+    )]
+    NotGltf { path: PathBuf, detail: String },
     #[error("{path}: cannot write image: {detail}")]
     ImageWrite { path: PathBuf, detail: String },
     #[error("invalid trace settings: {0}")]

@@ -15,7 +15,7 @@ use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::error::SceneError;
-use crate::model::{AlphaMode, Camera, Material, PunctualKind, PunctualLight, Scene, Texture};
+use crate::model::{AlphaMode, Camera, MAX_COORDINATE, Material, PunctualKind, PunctualLight, Scene, Texture};
 
 /// Extensions a file may list in `extensionsRequired`.
 pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
@@ -50,10 +50,14 @@ struct Importer<'a> {
     scene: Scene,
     /// glTF material index -> scene material index (the default material is appended lazily).
     default_material: Option<u32>,
+    /// The first mesh node whose world transform flattens everything (determinant 0): the
+    /// likely cause when the whole scene has zero area.
+    zero_scale_node: Option<usize>,
 }
 
 fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneError> {
     let p = || path.to_path_buf();
+    check_container(bytes, path)?;
     // Parse without validation first, so that an unsupported required extension is reported
     // by name rather than as a generic validation failure.
     let raw = gltf::Gltf::from_slice_without_validation(bytes)
@@ -105,11 +109,19 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
             ..Default::default()
         },
         default_material: None,
+        zero_scale_node: None,
     };
     imp.import_materials()?;
     imp.import_nodes()?;
     if imp.scene.triangles.is_empty() {
         return Err(SceneError::NoGeometry { path: p() });
+    }
+    if imp.scene.surface_area() == 0.0 {
+        let hint = match imp.zero_scale_node {
+            Some(node) => format!("node {node} has a transform of zero scale"),
+            None => "the vertices of each triangle coincide or are collinear".into(),
+        };
+        return Err(SceneError::ZeroArea { path: p(), hint });
     }
     imp.scene.check().map_err(|detail| SceneError::InvalidGltf { path: p(), detail })?;
     Ok(imp.scene)
@@ -227,20 +239,40 @@ impl Importer<'_> {
         for i in order {
             let node = &nodes[i];
             if let Some(mesh) = node.mesh() {
+                if Mat3::from_mat4(world[i]).determinant() == 0.0 && node.skin().is_none() {
+                    self.zero_scale_node.get_or_insert(i);
+                }
                 let skin = node.skin().map(|s| self.joint_matrices(&s, &world)).transpose()?;
                 for prim in mesh.primitives() {
-                    self.import_primitive(&mesh, &prim, world[i], skin.as_deref())?;
+                    self.import_primitive(i, &mesh, &prim, world[i], skin.as_deref())?;
                 }
             }
             if let Some(cam) = node.camera() {
                 // Orthographic cameras are skipped: nothing we render uses them.
                 if let gltf::camera::Projection::Perspective(p) = cam.projection() {
-                    self.scene.cameras.push(Camera::from_world_matrix(world[i], p.yfov()));
+                    let camera = Camera::from_world_matrix(world[i], p.yfov());
+                    self.check_camera(cam.index(), i, p.yfov(), world[i])?;
+                    self.scene.cameras.push(camera);
                 }
             }
             if let Some(light) = node.light() {
                 self.scene.lights.push(light_from_gltf(&light, world[i]));
             }
+        }
+        Ok(())
+    }
+
+    /// A camera the renderer can use: the spec's 0 < yfov < π, and a node transform that keeps
+    /// a view direction and an up direction apart (a zero scale would silently point it down -Z).
+    fn check_camera(&self, camera: usize, node: usize, yfov: f32, world: Mat4) -> Result<(), SceneError> {
+        let bad = |detail: String| SceneError::BadCamera { path: self.path.to_path_buf(), camera, node, detail };
+        if !(yfov.is_finite() && yfov > 0.0 && yfov < std::f32::consts::PI) {
+            return Err(bad(format!("yfov {yfov} rad is outside 0 < yfov < π (glTF spec); use e.g. 0.8")));
+        }
+        let forward = world.transform_vector3(Vec3::NEG_Z);
+        let up = world.transform_vector3(Vec3::Y);
+        if forward.cross(up).length_squared() <= f32::MIN_POSITIVE {
+            return Err(bad("its node transform has zero scale, so the camera has no view direction".into()));
         }
         Ok(())
     }
@@ -271,6 +303,7 @@ impl Importer<'_> {
 
     fn import_primitive(
         &mut self,
+        node: usize,
         mesh: &gltf::Mesh,
         prim: &gltf::Primitive,
         world: Mat4,
@@ -369,6 +402,21 @@ impl Importer<'_> {
                 what: format!("positions of mesh {} primitive {}", mesh.index(), prim.index()),
             });
         }
+        // The obvhs CWBVH builder panics on coordinates near f32's range (docs/UPSTREAM.md), and
+        // traversal would overflow long before that: refuse them here, before any BVH exists.
+        if let Some((k, p)) = positions.iter().enumerate().find(|(_, p)| p.abs().max_element() > MAX_COORDINATE) {
+            let accessor = prim.get(&gltf::Semantic::Positions).map_or(0, |a| a.index());
+            return Err(SceneError::CoordinateOutOfRange {
+                path: self.path.to_path_buf(),
+                what: format!(
+                    "vertex {k} of accessor {accessor} (node {node}, mesh {} primitive {}) in world space",
+                    mesh.index(),
+                    prim.index()
+                ),
+                value: p.abs().max_element(),
+                limit: MAX_COORDINATE,
+            });
+        }
         // A mirroring transform reverses the winding (glTF spec); flip it back so that
         // counter-clockwise stays front-facing.
         let mirrored = skinning.is_none() && Mat3::from_mat4(world).determinant() < 0.0;
@@ -404,6 +452,24 @@ impl Importer<'_> {
             }
         }
         Ok(())
+    }
+}
+
+/// Tells a glTF file from anything else before the JSON parser does, whose "malformed JSON" would
+/// send the owner of an .obj or a truncated .glb looking for a syntax error.
+fn check_container(bytes: &[u8], path: &Path) -> Result<(), SceneError> {
+    let not_gltf = |detail: &str| Err(SceneError::NotGltf { path: path.to_path_buf(), detail: detail.into() });
+    let is_glb_name = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    if bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    if is_glb_name {
+        return not_gltf("a .glb file must start with the binary glTF magic `glTF`");
+    }
+    match bytes.iter().find(|b| !b.is_ascii_whitespace()) {
+        Some(b'{') => Ok(()),
+        Some(_) => not_gltf("the file is neither JSON nor binary glTF"),
+        None => not_gltf("the file is empty"),
     }
 }
 

@@ -43,7 +43,9 @@ pub use bvh::{BvhQuality, Hit, SceneBvh};
 pub use default_scene::{default_scene, white_furnace_scene};
 pub use error::SceneError;
 pub use gltf_import::{load_gltf, load_gltf_bytes};
-pub use model::{AlphaMode, Bounds, Camera, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture};
+pub use model::{
+    AlphaMode, Bounds, Camera, MAX_COORDINATE, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture,
+};
 pub use pt::{CpuTracer, Frame, PixelSample, PixelSet, TraceSettings, TraceStats, View};
 
 /// Loads a scene: `"default"` is the embedded default scene, anything else a glTF path.

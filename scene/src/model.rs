@@ -275,6 +275,12 @@ impl Camera {
     }
 }
 
+/// Largest world-space coordinate magnitude a scene may have. BVH builds and traversal multiply
+/// coordinate differences (surface areas of bounds, edge cross products), and f32 overflows at
+/// 3.4e38: the bounds of ±L have a surface area of 24·L², finite up to L ≈ 3.7e18, so ±1e18
+/// keeps a margin (obvhs panics beyond it: docs/UPSTREAM.md).
+pub const MAX_COORDINATE: f32 = 1e18;
+
 /// Axis-aligned bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
@@ -337,6 +343,25 @@ impl Scene {
             max = Vec3::ZERO;
         }
         Bounds { min, max }
+    }
+
+    /// Total area of all triangles (zero when every triangle is degenerate).
+    pub fn surface_area(&self) -> f64 {
+        (0..self.triangle_count())
+            .map(|t| {
+                let [a, b, c] = self.triangle_positions(t).map(|p| p.as_dvec3());
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+
+    /// Whether anything emits light: a sun, a non-black sky, a punctual light or an emissive
+    /// material. Without any, every pixel is black.
+    pub fn has_light(&self) -> bool {
+        self.sun.is_some_and(|s| s.irradiance.max_element() > 0.0)
+            || !self.sky().is_black()
+            || self.lights.iter().any(|l| l.intensity > 0.0 && l.color.max_element() > 0.0)
+            || self.materials.iter().any(|m| m.is_emissive())
     }
 
     pub fn sky(&self) -> Sky {

@@ -349,3 +349,68 @@ fn punctual_lights_and_cameras_follow_node_transforms() {
     assert!((c.forward - Vec3::NEG_Z).length() < 1e-6);
     assert!((c.yfov - 0.8).abs() < 1e-6);
 }
+
+/// The triangle of `write_triangle_gltf` under other `nodes` (and extra root members).
+fn triangle_with_nodes(dir: &Path, nodes: &str, extra: &str) -> Result<parallax_scene::Scene, SceneError> {
+    let path = write_triangle_gltf(dir, &[0, 1, 2]);
+    let json = std::fs::read_to_string(&path).unwrap().replacen(r#""nodes":[{"mesh":0}]"#, nodes, 1);
+    let json = format!("{}{extra}}}", json.trim_end().strip_suffix('}').unwrap());
+    load_gltf_bytes(json.as_bytes(), dir, &path)
+}
+
+#[test]
+fn coordinates_beyond_the_f32_safe_range_are_refused_before_the_bvh() {
+    let dir = scratch_dir("far");
+    let far = triangle_with_nodes(&dir, r#""nodes":[{"mesh":0,"translation":[1e20,0,0]}]"#, "");
+    match far {
+        Err(SceneError::CoordinateOutOfRange { what, value, limit, .. }) => {
+            assert_eq!(what, "vertex 0 of accessor 0 (node 0, mesh 0 primitive 0) in world space");
+            assert_eq!((value, limit), (1e20, 1e18));
+        }
+        other => panic!("{other:?}"),
+    }
+    // Large but within range (a translation of 1e17 would round the triangle away to zero area).
+    assert!(triangle_with_nodes(&dir, r#""nodes":[{"mesh":0,"scale":[1e17,1e17,1e17]}]"#, "").is_ok());
+}
+
+#[test]
+fn a_scene_of_zero_area_names_the_flattening_node() {
+    let dir = scratch_dir("flat");
+    let flat = triangle_with_nodes(&dir, r#""nodes":[{"mesh":0,"scale":[1,0,1]}]"#, "");
+    match flat {
+        Err(SceneError::ZeroArea { hint, .. }) => assert_eq!(hint, "node 0 has a transform of zero scale"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn cameras_outside_the_spec_are_refused() {
+    let dir = scratch_dir("cameras");
+    let nodes = r#""nodes":[{"mesh":0,"children":[1]},{"camera":0,"translation":[0,0,3]}]"#;
+    for yfov in ["0", "4", "3.2"] {
+        let cameras = format!(r#","cameras":[{{"type":"perspective","perspective":{{"yfov":{yfov},"znear":0.1}}}}]"#);
+        match triangle_with_nodes(&dir, nodes, &cameras) {
+            Err(SceneError::BadCamera { camera: 0, node: 1, detail, .. }) => {
+                assert_eq!(detail, format!("yfov {yfov} rad is outside 0 < yfov < π (glTF spec); use e.g. 0.8"))
+            }
+            other => panic!("yfov {yfov}: {other:?}"),
+        }
+    }
+    let cameras = r#","cameras":[{"type":"perspective","perspective":{"yfov":0.8,"znear":0.1}}]"#;
+    let flat_camera = nodes.replace(r#""translation":[0,0,3]"#, r#""scale":[0,0,0]"#);
+    assert!(matches!(triangle_with_nodes(&dir, &flat_camera, cameras), Err(SceneError::BadCamera { node: 1, .. })));
+    assert_eq!(triangle_with_nodes(&dir, nodes, cameras).unwrap().cameras.len(), 1);
+}
+
+#[test]
+fn files_that_are_not_gltf_are_named_as_such() {
+    let dir = scratch_dir("not-gltf");
+    let obj = load_gltf_bytes(b"v 0 0 0\nf 1 1 1\n", &dir, Path::new("cube.obj"));
+    assert!(
+        matches!(&obj, Err(SceneError::NotGltf { detail, .. }) if detail == "the file is neither JSON nor binary glTF")
+    );
+    let glb = load_gltf_bytes(b"{\"asset\":{}}", &dir, Path::new("x.glb"));
+    assert!(matches!(&glb, Err(SceneError::NotGltf { detail, .. }) if detail.contains("magic `glTF`")), "{glb:?}");
+    let empty = load_gltf_bytes(b"  \n", &dir, Path::new("x.gltf"));
+    assert!(matches!(&empty, Err(SceneError::NotGltf { detail, .. }) if detail == "the file is empty"));
+}

@@ -26,6 +26,9 @@ layout(set = 0, binding = 3) uniform sampler2D textures[PARALLAX_MAX_TEXTURES];
 // command buffers stay valid from frame to frame.
 layout(set = 0, binding = 1, std140) uniform FrameConstants {
     uint frame_index;
+    // 0 on the first frame of a plan and after Executor::reset_history (a camera cut): what
+    // history reads see then is not last frame's output and must not be blended in.
+    uint history_valid;
 } frame;
 
 // Generic pass parameters: image indices into `images`, the row band of the instance, and two

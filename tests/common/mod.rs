@@ -1,5 +1,8 @@
 //! Helpers shared by the CLI integration tests.
 
+// Each test file uses its own subset of these.
+#![allow(dead_code)]
+
 use std::path::{Path, PathBuf};
 
 /// A fresh, empty directory for one test, removed again when the test is done with it.
@@ -30,4 +33,79 @@ pub fn scratch(test: &str, name: &str) -> ScratchDir {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     ScratchDir(dir)
+}
+
+/// Runs the binary with validation on, from `cwd`.
+pub fn parallax_in(cwd: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .env("PARALLAX_VALIDATION", "1")
+        .current_dir(cwd)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Every file under `dir` (recursively) with its bytes: what a refused run must leave as it was.
+pub fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut files = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap().flatten() {
+            let path = entry.path();
+            let kind = entry.file_type().unwrap();
+            if kind.is_dir() {
+                stack.push(path);
+            } else if kind.is_file() {
+                files.insert(path.clone(), std::fs::read(&path).unwrap());
+            } else {
+                files.insert(path, Vec::new());
+            }
+        }
+    }
+    files
+}
+
+/// Asserts a refused run: exit `code`, every needle in stderr (the input and the fix), no
+/// panic, and `dir` exactly as `before`.
+pub fn assert_refused(
+    what: &str,
+    out: &std::process::Output,
+    code: i32,
+    needles: &[&str],
+    dir: &Path,
+    before: &std::collections::BTreeMap<PathBuf, Vec<u8>>,
+) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(code), "{what}: exit code; stderr: {stderr}");
+    for needle in needles {
+        assert!(stderr.contains(needle), "{what}: expected '{needle}' in stderr: {stderr}");
+    }
+    assert!(!stderr.contains("panicked"), "{what}: panicked: {stderr}");
+    assert!(&snapshot(dir) == before, "{what}: files were left behind or changed in {}", dir.display());
+}
+
+/// A one-mesh glTF (external .bin) with `positions` as one triangle list, and `extra` merged
+/// into the JSON root (cameras, nodes...). Returns the .gltf path.
+pub fn write_gltf(dir: &Path, name: &str, positions: &[[f32; 3]], nodes: &str, extra: &str) -> PathBuf {
+    let bin: Vec<u8> = positions.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(dir.join(format!("{name}.bin")), &bin).unwrap();
+    let (mut min, mut max) = ([f32::MAX; 3], [f32::MIN; 3]);
+    for p in positions {
+        for k in 0..3 {
+            min[k] = min[k].min(p[k]);
+            max[k] = max[k].max(p[k]);
+        }
+    }
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":{nodes},
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+"buffers":[{{"uri":"{name}.bin","byteLength":{len}}}],
+"bufferViews":[{{"buffer":0,"byteLength":{len}}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":{count},"type":"VEC3","min":{min:?},"max":{max:?}}}]{extra}}}"#,
+        len = bin.len(),
+        count = positions.len(),
+    );
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, json).unwrap();
+    path
 }

@@ -1,0 +1,177 @@
+//! Kernels from outside `shaders/`: GLSL in this test's folder (`tests/user_kernels/`),
+//! compiled at run time with parallax-glsl, handed to the executor as a `ShaderLibrary` and run
+//! on two logical devices after a built-in kernel, against a CPU reference (validation on);
+//! bytes that are not SPIR-V are refused with the exact error.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use parallax_backend::kernels::{FillKernel, reference_fill};
+use parallax_backend::{
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
+    PassKernel, PassParams, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
+};
+use parallax_glsl::{CompiledShader, Compiler};
+use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
+
+const SIZE: u32 = 16;
+const DEVICES: u32 = 2;
+
+/// The shaders of `tests/user_kernels/`, compiled into a folder of cargo's temporary folder of
+/// `test`'s own (tests run in parallel).
+fn compile_user_shaders(test: &str) -> Vec<CompiledShader> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("user_kernels");
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("user_kernels").join(test);
+    std::fs::create_dir_all(&out).unwrap();
+    let includes = [src.join("include"), parallax_glsl::parallax_include_dir().to_path_buf()];
+    Compiler::new().compile_dir(&src, &[&includes[0], &includes[1]], &out).unwrap()
+}
+
+fn user_library(shaders: &[CompiledShader]) -> ShaderLibrary {
+    shaders.iter().fold(ShaderLibrary::new(), |library, shader| {
+        library.with_spirv_bytes(&shader.name, &std::fs::read(&shader.spirv).unwrap()).unwrap()
+    })
+}
+
+/// Dispatches the user shader `shader` with slot `pattern` as `src0` and `output` as `dst`.
+struct ReadWriteKernel {
+    shader: &'static str,
+}
+
+impl PassKernel for ReadWriteKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let (Some(src), Some(dst)) = (pass.input("pattern"), pass.output("output")) else {
+            return Err(BackendError::KernelMisuse {
+                kernel: self.shader.into(),
+                instance: index,
+                detail: "reads `pattern` and writes `output`".into(),
+            });
+        };
+        let (src, dst) = (src.resource, dst.resource);
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            src0: rec.image(src)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.dispatch_rows(self.shader, params)
+    }
+}
+
+/// `scale_swap.glsl` on the CPU, applied to the built-in fill pattern.
+fn reference_scale_swap(x: u32, y: u32, view: u32) -> [f32; 4] {
+    let v = reference_fill(x, y, view);
+    let offset = view as f32 * 0.25;
+    [v[1] * 0.5 + offset, v[0] * 0.5 + offset, v[3] * 0.5 + offset, v[2] * 0.5 + offset]
+}
+
+/// built-in `fill` → user pass `user` (kernel dispatching `shader`) on every view of a 2×1 light
+/// field over two devices, the result gathered on device 0. Returns the plan and, per view,
+/// the resource of the result.
+fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<usize>) {
+    let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
+    let config =
+        PlanConfig { devices: DEVICES, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
+    let mut g = KernelGraph::with_payload(plan.topology.clone());
+    let mut pattern = g.image("pattern", Format::Rgba32f);
+    let mut output = g.image("output", Format::Rgba32f);
+    g.pass("fill", Role::All).write(&mut pattern).kernel(Arc::new(FillKernel)).record();
+    g.pass("user", Role::All).read(&pattern).write(&mut output).kernel(Arc::new(ReadWriteKernel { shader })).record();
+    g.export(&output);
+    let schedule = compile(&g, &plan).unwrap();
+    let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
+    let outputs = (0..2).map(|v| plan.final_output("output", v).unwrap().1).collect();
+    (plan, outputs)
+}
+
+fn context() -> Context {
+    Context::new(&ContextDesc {
+        selection: DeviceSelection::FakeDevices(DEVICES as usize),
+        validation: Validation::Core,
+    })
+    .expect("a Vulkan device (apt-get install mesa-vulkan-drivers) and validation layers")
+}
+
+#[test]
+fn a_kernel_compiled_outside_shaders_runs_on_every_device_like_the_cpu() {
+    let shaders = compile_user_shaders("runs");
+    let names: Vec<&str> = shaders.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["scale_swap"]);
+    // Its own include and the backend's, so a build script reruns when either changes.
+    let deps: Vec<_> = shaders[0].dependencies.iter().filter_map(|d| d.file_name()).collect();
+    assert_eq!(deps, ["scale_swap.comp", "scale_swap.glsl", "bindless.glsl"]);
+
+    let ctx = context();
+    let (plan, outputs) = fill_then_user_pass("scale_swap");
+    assert!(!plan.copies.is_empty(), "the second view is gathered from device 1");
+    let options = ExecOptions { shaders: user_library(&shaders), ..ExecOptions::default() };
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
+    for _ in 0..2 {
+        exec.run_frame().unwrap();
+    }
+    exec.finish().unwrap();
+    for (view, &resource) in outputs.iter().enumerate() {
+        let bytes = exec.read_image(0, resource).unwrap();
+        let values: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let view = view as u32;
+        let expected: Vec<f32> =
+            (0..SIZE).flat_map(|y| (0..SIZE).flat_map(move |x| reference_scale_swap(x, y, view))).collect();
+        assert_eq!(values, expected, "view {view}");
+    }
+    drop(exec);
+    ctx.check_validation().unwrap();
+}
+
+#[test]
+fn a_kernel_naming_no_known_shader_lists_where_it_looked() {
+    let ctx = context();
+    let (plan, _) = fill_then_user_pass("no_such_shader");
+    let options = ExecOptions { shaders: user_library(&compile_user_shaders("unknown")), ..ExecOptions::default() };
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
+    match exec.run_frame() {
+        Err(BackendError::UnknownShader { name, user, builtin }) => {
+            assert_eq!(name, "no_such_shader");
+            assert_eq!(user, ["scale_swap"]);
+            assert_eq!(builtin, shader_names().collect::<Vec<_>>());
+        }
+        other => panic!("expected BackendError::UnknownShader, got {other:?}"),
+    }
+    drop(exec);
+    ctx.check_validation().unwrap();
+}
+
+#[test]
+fn bytes_that_are_not_spirv_are_refused_naming_the_shader() {
+    let spirv = std::fs::read(&compile_user_shaders("refused")[0].spirv).unwrap();
+    let source =
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/user_kernels/scale_swap.comp")).unwrap();
+    let cases = [
+        (&spirv[..spirv.len() - 1], SpirvDefect::Unaligned { bytes: spirv.len() - 1 }),
+        (&spirv[..8], SpirvDefect::TooShort { words: 2 }),
+        // GLSL handed over where SPIR-V belongs.
+        (&source[..20], SpirvDefect::BadMagic { found: u32::from_le_bytes(*b"#ver") }),
+    ];
+    for (bytes, expected) in cases {
+        match ShaderLibrary::new().with_spirv_bytes("scale_swap", bytes) {
+            Err(BackendError::InvalidSpirv { shader, defect }) => {
+                assert_eq!((shader.as_str(), &defect), ("scale_swap", &expected));
+            }
+            other => panic!("expected BackendError::InvalidSpirv, got {other:?}"),
+        }
+    }
+    let err = ShaderLibrary::new().with_spirv("empty", Vec::new()).unwrap_err();
+    assert!(err.to_string().starts_with("shader `empty` is not SPIR-V"), "{err}");
+}
+
+#[test]
+fn include_shaders_reads_the_table_parallax_glsl_wrote() {
+    // The backend's own build.rs wrote this crate's table through parallax-glsl, as a user
+    // crate's build.rs would.
+    let library = parallax_backend::include_shaders!().unwrap();
+    assert_eq!(library.names().collect::<Vec<_>>(), shader_names().collect::<Vec<_>>());
+    assert_eq!(library.spirv("fill").unwrap(), parallax_backend::spirv("fill").unwrap());
+}

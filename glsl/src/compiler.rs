@@ -1,0 +1,117 @@
+//! glslc, run once per shader of a folder.
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::depfile;
+use crate::error::{GlslError, Result};
+use crate::table;
+
+/// The flags every Parallax kernel is compiled with: Vulkan 1.3 SPIR-V (what the backend's
+/// devices run), optimised, with debug info (names in validation messages and profilers), and
+/// warnings as errors.
+const FLAGS: [&str; 4] = ["--target-env=vulkan1.3", "-O", "-g", "-Werror"];
+
+/// Shader stages compiled from a folder, by file extension.
+const STAGES: [&str; 3] = ["comp", "vert", "frag"];
+
+/// One shader compiled by [`Compiler::compile_dir`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CompiledShader {
+    /// Name in the embedded table: the file stem of a compute shader (`fill` for `fill.comp`),
+    /// the file name of a graphics stage (`raster.vert`), so that a pass's vertex and fragment
+    /// shaders can share a stem.
+    pub name: String,
+    pub source: PathBuf,
+    /// The SPIR-V file written into the output folder.
+    pub spirv: PathBuf,
+    /// Every file the shader was built from, as glslc reports it: the source and each
+    /// `#include`d file.
+    pub dependencies: Vec<PathBuf>,
+}
+
+/// A glslc to run: the one the `GLSLC` environment variable names, or `glslc` from `PATH`.
+///
+/// glslc (Debian package `glslc`) is used instead of the shaderc crate: Debian's libshaderc
+/// does not link and building shaderc from source takes over ten minutes (shared/CRATES.md).
+#[derive(Clone, Debug)]
+pub struct Compiler {
+    glslc: OsString,
+}
+
+impl Default for Compiler {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Compiler {
+    /// `$GLSLC`, else `glslc`.
+    pub fn new() -> Self {
+        Self::with_glslc(std::env::var_os("GLSLC").unwrap_or_else(|| "glslc".into()))
+    }
+
+    /// The compiler at `glslc` (a path, or a name looked up in `PATH`).
+    pub fn with_glslc(glslc: impl Into<OsString>) -> Self {
+        Self { glslc: glslc.into() }
+    }
+
+    /// Compiles `source` into `spirv`, writing glslc's depfile to `depfile`; `#include`s are
+    /// searched in the source's folder, then in `include_dirs`. Returns the dependencies.
+    pub fn compile_file(
+        &self,
+        source: &Path,
+        include_dirs: &[&Path],
+        spirv: &Path,
+        depfile: &Path,
+    ) -> Result<Vec<PathBuf>> {
+        let mut command = Command::new(&self.glslc);
+        command.args(FLAGS);
+        for dir in include_dirs {
+            command.arg(format!("-I{}", dir.display()));
+        }
+        command.args(["-MD", "-MF"]).arg(depfile).arg(source).arg("-o").arg(spirv);
+        let output = command.output().map_err(|source| GlslError::MissingCompiler {
+            glslc: self.glslc.to_string_lossy().into_owned(),
+            source,
+        })?;
+        if !output.status.success() {
+            return Err(GlslError::Compile {
+                file: source.to_path_buf(),
+                stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
+            });
+        }
+        let text = std::fs::read_to_string(depfile)
+            .map_err(|source| GlslError::Read { path: depfile.to_path_buf(), source })?;
+        Ok(depfile::dependencies(&text))
+    }
+
+    /// Compiles every `*.comp`, `*.vert` and `*.frag` of `src_dir` (not its subfolders, which
+    /// hold includes) into `out_dir`, in file-name order, and writes the table that embeds
+    /// them, [`crate::TABLE_FILE`], into `out_dir`. Prints nothing: [`crate::compile_dir`] adds
+    /// what cargo needs.
+    pub fn compile_dir(&self, src_dir: &Path, include_dirs: &[&Path], out_dir: &Path) -> Result<Vec<CompiledShader>> {
+        let entries =
+            std::fs::read_dir(src_dir).map_err(|source| GlslError::Read { path: src_dir.to_path_buf(), source })?;
+        let mut sources = Vec::new();
+        for entry in entries {
+            let path = entry.map_err(|source| GlslError::Read { path: src_dir.to_path_buf(), source })?.path();
+            if path.is_file() && path.extension().is_some_and(|e| STAGES.iter().any(|s| e == *s)) {
+                sources.push(path);
+            }
+        }
+        sources.sort();
+        let mut shaders = Vec::with_capacity(sources.len());
+        for source in sources {
+            let file =
+                source.file_name().and_then(|f| f.to_str()).ok_or_else(|| GlslError::NonUtf8Name(source.clone()))?;
+            let name = file.strip_suffix(".comp").unwrap_or(file).to_string();
+            let spirv = out_dir.join(format!("{file}.spv"));
+            let dependencies = self.compile_file(&source, include_dirs, &spirv, &out_dir.join(format!("{file}.d")))?;
+            shaders.push(CompiledShader { name, source, spirv, dependencies });
+        }
+        table::write(&shaders, &out_dir.join(crate::TABLE_FILE))?;
+        Ok(shaders)
+    }
+}

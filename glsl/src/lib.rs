@@ -1,0 +1,62 @@
+//! parallax-glsl: compiles a folder of GLSL kernels with glslc from a build script, for
+//! Parallax's own `shaders/` and for crates that bring their own kernels.
+//!
+//! In the `build.rs` of a crate with its kernels in `shaders/` (GLSL 460, `#include`):
+//!
+//! ```no_run
+//! use std::path::{Path, PathBuf};
+//!
+//! let out = PathBuf::from(std::env::var("OUT_DIR").unwrap());
+//! let includes = [Path::new("shaders/include"), parallax_glsl::parallax_include_dir()];
+//! parallax_glsl::compile_dir_or_exit(Path::new("shaders"), &includes, &out);
+//! ```
+//!
+//! and at run time `parallax_backend::include_shaders!()?` turns the table into a
+//! `ShaderLibrary` for `ExecOptions::shaders`. Each shader is compiled for Vulkan 1.3 with
+//! `-O -g -Werror`; `GLSLC` overrides which glslc runs.
+
+mod compiler;
+mod depfile;
+mod error;
+mod table;
+
+use std::path::Path;
+
+pub use compiler::{CompiledShader, Compiler};
+pub use error::{GlslError, Result};
+
+/// File name of the embedded-shader table that [`Compiler::compile_dir`] writes into its output
+/// folder: `pub const EMBEDDED: &[(&str, &[u8])]`, shader name → SPIR-V bytes.
+pub const TABLE_FILE: &str = "shaders.rs";
+
+/// The folder of Parallax's shared includes (`bindless.glsl`: the descriptor set and push
+/// constants every kernel sees). It is found beside this crate's sources, which a path or git
+/// dependency on the Parallax repository provides.
+pub fn parallax_include_dir() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shaders/include"))
+}
+
+/// [`Compiler::compile_dir`] with the compiler of [`Compiler::new`], plus what cargo needs to
+/// run the build script again when a shader changes: `rerun-if-changed` for the folders (a new
+/// shader), every source and every `#include`d file, and `rerun-if-env-changed=GLSLC`.
+pub fn compile_dir(src_dir: &Path, include_dirs: &[&Path], out_dir: &Path) -> Result<Vec<CompiledShader>> {
+    println!("cargo:rerun-if-env-changed=GLSLC");
+    for dir in std::iter::once(&src_dir).chain(include_dirs) {
+        println!("cargo:rerun-if-changed={}", dir.display());
+    }
+    let shaders = Compiler::new().compile_dir(src_dir, include_dirs, out_dir)?;
+    for dependency in shaders.iter().flat_map(|s| &s.dependencies) {
+        println!("cargo:rerun-if-changed={}", dependency.display());
+    }
+    Ok(shaders)
+}
+
+/// [`compile_dir`] for a build script's `main`: on failure prints the error (glslc's report,
+/// or how to install glslc) and exits with status 1, which cargo shows as the build script's
+/// failure without a panic backtrace.
+pub fn compile_dir_or_exit(src_dir: &Path, include_dirs: &[&Path], out_dir: &Path) -> Vec<CompiledShader> {
+    compile_dir(src_dir, include_dirs, out_dir).unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    })
+}

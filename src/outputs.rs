@@ -1,0 +1,300 @@
+//! Output files a user can trust: every path is checked before any work starts, every file is
+//! written whole or not at all, and nothing that is not a regular file is ever replaced.
+//!
+//! - [`Sink`]: `-` is stdout, anything else a path.
+//! - [`check`]: the folder exists and is writable, the extension matches the format, no two
+//!   outputs share a path, the target is not a folder.
+//! - [`stage`] then [`Staged::commit`]: the bytes go to a temporary file in the target's folder
+//!   and are renamed over the target, so a reader (or a full disk, or Ctrl-C) never leaves a
+//!   truncated file and a failed run keeps the previous good one. A target that exists and is
+//!   not a regular file (a device such as /dev/null, a FIFO) is written through instead; a
+//!   symlink is followed and its target replaced, the link kept.
+
+use std::ffi::OsStr;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use anyhow::{Context, Result, bail};
+use tempfile::NamedTempFile;
+
+/// Where an output goes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Sink {
+    Stdout,
+    File(PathBuf),
+}
+
+/// clap value parser: `-` is stdout.
+pub fn parse_sink(s: &str) -> Result<Sink, String> {
+    match s {
+        "" => Err("an empty path".into()),
+        "-" => Ok(Sink::Stdout),
+        _ => Ok(Sink::File(PathBuf::from(s))),
+    }
+}
+
+/// The format of an output, which its file name must say.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Exr,
+    Png,
+    Json,
+    Dot,
+}
+
+impl Format {
+    fn extensions(self) -> &'static [&'static str] {
+        match self {
+            Format::Exr => &["exr"],
+            Format::Png => &["png"],
+            Format::Json => &["json"],
+            Format::Dot => &["dot", "gv"],
+        }
+    }
+}
+
+/// One output of a command: the flag that named it, where it goes and what it holds.
+pub struct Output<'a> {
+    pub flag: &'a str,
+    pub sink: &'a Sink,
+    pub format: Format,
+}
+
+/// Checks every output before any work: a problem found after minutes of tracing would waste
+/// them. Only image outputs cannot go to stdout.
+pub fn check(outputs: &[Output]) -> Result<()> {
+    let mut seen: Vec<(PathBuf, &str)> = Vec::new();
+    for o in outputs {
+        let Sink::File(path) = o.sink else {
+            if matches!(o.format, Format::Exr | Format::Png) {
+                bail!("{} -: images cannot be written to stdout; give a file name", o.flag);
+            }
+            if let Some((_, other)) = seen.iter().find(|(p, _)| p.as_os_str() == "-") {
+                bail!("{} and {other} both write to stdout: send one of them to a file", o.flag);
+            }
+            seen.push((PathBuf::from("-"), o.flag));
+            continue;
+        };
+        let shown = path.display();
+        let meta = std::fs::metadata(path).ok();
+        if meta.is_none() && std::fs::symlink_metadata(path).is_ok() {
+            bail!("{} {shown} is a symlink to a missing file: remove it or fix it", o.flag);
+        }
+        if meta.as_ref().is_some_and(|m| m.is_dir()) {
+            bail!("{} {shown} is a folder; give a file name such as {shown}/out.{}", o.flag, o.format.extensions()[0]);
+        }
+        let special = meta.as_ref().is_some_and(|m| !m.is_file());
+        // Devices and FIFOs (/dev/null, a pipe) carry no extension and are written through.
+        if !special {
+            let ext = path.extension().and_then(OsStr::to_str).map(str::to_ascii_lowercase);
+            if !ext.as_deref().is_some_and(|e| o.format.extensions().contains(&e)) {
+                bail!(
+                    "{} {shown}: the file name must end in .{} (it is written as {:?})",
+                    o.flag,
+                    o.format.extensions().join(" or ."),
+                    o.format
+                );
+            }
+            let folder = folder_of(path);
+            if !folder.is_dir() {
+                bail!("{} {shown}: folder {} does not exist; create it first", o.flag, folder.display());
+            }
+            NamedTempFile::new_in(&folder)
+                .with_context(|| format!("{} {shown}: folder {} is not writable", o.flag, folder.display()))?;
+        }
+        let key = identity(path);
+        if let Some((_, other)) = seen.iter().find(|(p, _)| *p == key) {
+            bail!("{} and {other} both write {shown}: give each output its own path", o.flag);
+        }
+        seen.push((key, o.flag));
+    }
+    Ok(())
+}
+
+/// The folder a file path lives in (`.` for a bare name).
+fn folder_of(path: &Path) -> PathBuf {
+    path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new(".")).to_path_buf()
+}
+
+/// A path's identity for duplicate checks: the canonical folder and the file name, or the
+/// canonical target of an existing file (so `a.json` and `./x/../a.json` are one path).
+fn identity(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let folder = std::fs::canonicalize(folder_of(path)).unwrap_or_else(|_| folder_of(path));
+    folder.join(path.file_name().unwrap_or_default())
+}
+
+/// Temporary files not yet renamed into place: removed by the Ctrl-C handler, which ends the
+/// process before destructors run.
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes every pending temporary file (called on Ctrl-C).
+pub fn remove_pending() {
+    let pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+    for p in pending.iter() {
+        let _ = std::fs::remove_file(p);
+    }
+}
+
+fn forget_pending(path: &Path) {
+    PENDING.lock().unwrap_or_else(|e| e.into_inner()).retain(|p| p != path);
+}
+
+/// An output written to a temporary file and not yet in place. Dropped without a commit, the
+/// temporary file is removed and the target left as it was.
+pub struct Staged {
+    /// `None` once persisted.
+    temp: Option<NamedTempFile>,
+    temp_path: PathBuf,
+    target: PathBuf,
+    /// The target exists and is not a regular file: copy the bytes into it, never replace it.
+    write_through: bool,
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        forget_pending(&self.temp_path);
+    }
+}
+
+/// Writes one output through `write` (which is handed the temporary file's path) without
+/// touching the target yet.
+pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<Staged> {
+    // Follow a symlink so that the link stays and its target is replaced.
+    let target = match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => std::fs::canonicalize(path)
+            .with_context(|| format!("{} is a symlink to a missing file: remove it or fix it", path.display()))?,
+        _ => path.to_path_buf(),
+    };
+    let write_through = std::fs::metadata(&target).is_ok_and(|m| !m.is_file());
+    let folder = if write_through { std::env::temp_dir() } else { folder_of(&target) };
+    let temp = tempfile::Builder::new()
+        .prefix(".parallax-")
+        .tempfile_in(&folder)
+        .with_context(|| format!("cannot write {}: folder {} is not writable", path.display(), folder.display()))?;
+    let temp_path = temp.path().to_path_buf();
+    PENDING.lock().unwrap_or_else(|e| e.into_inner()).push(temp_path.clone());
+    let staged = Staged { temp: Some(temp), temp_path, target, write_through };
+    write(&staged.temp_path)?;
+    std::fs::File::open(&staged.temp_path)
+        .and_then(|f| f.sync_all())
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(staged)
+}
+
+impl Staged {
+    /// Puts the output in place: a rename for a file, a copy into a device or FIFO.
+    pub fn commit(mut self) -> Result<()> {
+        let shown = self.target.display().to_string();
+        if self.write_through {
+            let bytes = std::fs::read(&self.temp_path).with_context(|| format!("cannot write {shown}"))?;
+            return std::fs::OpenOptions::new()
+                .write(true)
+                .open(&self.target)
+                .and_then(|mut f| f.write_all(&bytes).and_then(|_| f.flush()))
+                .with_context(|| format!("cannot write {shown}"));
+        }
+        set_published_permissions(&self.temp_path, &self.target).with_context(|| format!("cannot write {shown}"))?;
+        let temp = self.temp.take().context("output committed twice")?;
+        temp.persist(&self.target).map(drop).map_err(|e| e.error).with_context(|| format!("cannot write {shown}"))
+    }
+}
+
+/// A new file gets the usual rw-r--r-- rather than the temporary file's rw-------; a replaced
+/// one keeps its permissions.
+#[cfg(unix)]
+fn set_published_permissions(temp: &Path, target: &Path) -> std::io::Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    let perms = std::fs::metadata(target).map(|m| m.permissions()).unwrap_or_else(|_| PermissionsExt::from_mode(0o644));
+    std::fs::set_permissions(temp, perms)
+}
+
+#[cfg(not(unix))]
+fn set_published_permissions(_: &Path, _: &Path) -> std::io::Result<()> {
+    Ok(())
+}
+
+/// Writes `bytes` to `sink` whole or not at all.
+pub fn write_bytes(sink: &Sink, bytes: &[u8]) -> Result<()> {
+    match sink {
+        Sink::Stdout => {
+            let mut out = std::io::stdout().lock();
+            out.write_all(bytes).and_then(|_| out.flush()).context("cannot write to stdout")
+        }
+        Sink::File(path) => {
+            stage(path, |temp| std::fs::write(temp, bytes).with_context(|| format!("cannot write {}", path.display())))?
+                .commit()
+        }
+    }
+}
+
+/// Stages `value` as pretty JSON for `path`, to be committed after the other outputs.
+pub fn stage_json(path: &Path, value: &impl serde::Serialize) -> Result<Staged> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    stage(path, |temp| std::fs::write(temp, text).with_context(|| format!("cannot write {}", path.display())))
+}
+
+/// Writes `value` as pretty JSON to `sink`.
+pub fn write_json(sink: &Sink, value: &impl serde::Serialize) -> Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    write_bytes(sink, text.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file(p: &Path) -> Sink {
+        Sink::File(p.to_path_buf())
+    }
+
+    #[test]
+    fn check_refuses_each_bad_output_by_its_flag() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (file(&dir.path().join("a.json")), file(&dir.path().join("x/../a.json")));
+        let err = |outputs: &[Output]| check(outputs).unwrap_err().to_string();
+        let json = |flag, sink| Output { flag, sink, format: Format::Json };
+        std::fs::create_dir(dir.path().join("x")).unwrap();
+        assert!(err(&[json("--json", &a), json("--trace", &b)]).starts_with("--trace and --json both write"));
+        assert!(err(&[json("--json", &Sink::Stdout), json("--trace", &Sink::Stdout)]).contains("both write to stdout"));
+        let png = file(&dir.path().join("a.exr"));
+        assert!(
+            err(&[Output { flag: "--png", sink: &png, format: Format::Png }])
+                .ends_with("must end in .png (it is written as Png)")
+        );
+        let missing = file(&dir.path().join("none/a.json"));
+        assert!(err(&[json("--json", &missing)]).ends_with("does not exist; create it first"));
+        let folder = file(dir.path());
+        assert!(err(&[json("--json", &folder)]).contains("is a folder"));
+        let exr = Output { flag: "--out", sink: &Sink::Stdout, format: Format::Exr };
+        assert!(err(&[exr]).contains("images cannot be written to stdout"));
+        std::os::unix::fs::symlink("gone.json", dir.path().join("dangling.json")).unwrap();
+        let dangling = file(&dir.path().join("dangling.json"));
+        assert!(err(&[json("--json", &dangling)]).ends_with("is a symlink to a missing file: remove it or fix it"));
+        // Devices carry no extension and are fine.
+        assert!(check(&[json("--json", &file(Path::new("/dev/null")))]).is_ok());
+    }
+
+    #[test]
+    fn a_committed_file_replaces_the_old_one_whole_and_readable() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.json");
+        write_bytes(&file(&path), b"first").unwrap();
+        assert_eq!(std::fs::metadata(&path).unwrap().permissions().mode() & 0o777, 0o644);
+        let staged = stage(&path, |t| Ok(std::fs::write(t, "second")?)).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"first", "nothing changes before the commit");
+        staged.commit().unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        // A failed writer leaves the old file and no temporary file.
+        assert!(stage(&path, |_| anyhow::bail!("disk full")).is_err());
+        assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        assert!(PENDING.lock().unwrap().is_empty());
+    }
+}

@@ -1,0 +1,226 @@
+//! Bad input of every class issue 14 found, each refused the way a user can act on: the exit
+//! code (2 for usage errors, 1 for a failed run), stderr naming the input and the fix, no
+//! panic, and no file left behind or replaced. Sizes are tiny: lavapipe is slow.
+
+mod common;
+
+use common::{assert_refused, parallax_in, scratch, snapshot, write_gltf};
+
+use std::path::Path;
+
+const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+/// Runs `args` in `dir` and asserts the refusal.
+fn refused(dir: &Path, args: &[&str], code: i32, needles: &[&str]) {
+    let before = snapshot(dir);
+    let out = parallax_in(dir, args);
+    assert_refused(&args.join(" "), &out, code, needles, dir, &before);
+}
+
+#[test]
+fn crashes_are_refusals() {
+    let dir = scratch("safety", "crash");
+    // obvhs panics on a vertex at 1e20 (docs/UPSTREAM.md): the importer refuses it first.
+    let positions =
+        [[0.0, 0.0, 0.0], [1e20, 1e20, 1e20], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]];
+    let far = write_gltf(&dir, "far", &positions, r#"[{"mesh":0}]"#, "");
+    refused(
+        &dir,
+        &["trace", "--cpu", "--resolution", "4x4", "--scene", far.to_str().unwrap(), "--out", "x.exr"],
+        1,
+        &["far.gltf", "vertex 1 of accessor 0 (node 0, mesh 0 primitive 0)", "1e20", "rescale the scene"],
+    );
+    refused(&dir, &["devices", "--fake-devices", "4294967295"], 2, &["--fake-devices", "outside 1..=64"]);
+    refused(&dir, &["bench-copy", "--fake-devices", "2", "--size-mib", "100000"], 2, &["--size-mib", "1..=65536"]);
+    // Within the flag's range but not within this machine's memory: refused before allocating.
+    refused(
+        &dir,
+        &["bench-copy", "--fake-devices", "2", "--size-mib", "65536", "--frames-in-flight", "16"],
+        1,
+        &["--size-mib 65536", "of host memory", "lower --size-mib or --frames-in-flight"],
+    );
+}
+
+#[test]
+fn unbounded_work_is_refused_with_the_numbers() {
+    let dir = scratch("safety", "unbounded");
+    refused(&dir, &["render", "--lf", "100x100", "--resolution", "4096x4096"], 2, &["--lf", "at most 4096"]);
+    refused(
+        &dir,
+        &["render", "--lf", "64x64", "--resolution", "4096x4096", "--out-dir", "lf"],
+        1,
+        &["4096 view(s) of 4096x4096", "of host memory", "lower --resolution"],
+    );
+    refused(&dir, &["plan", "--lf", "1000000x1000000"], 2, &["--lf", "1000000000000 views; at most 4096"]);
+    refused(
+        &dir,
+        &["plan", "--lf", "64x64", "--gpus", "64", "--scheme", "fine-all"],
+        1,
+        &["fine-all over 4096 views and 64 devices", "use fewer devices"],
+    );
+    refused(&dir, &["devices", "--fake-devices", "100000"], 2, &["--fake-devices", "outside 1..=64"]);
+    refused(&dir, &["trace", "--spp", "4294967295"], 1, &["512x512 × 4294967295 spp", "lower --spp"]);
+}
+
+#[test]
+fn unclear_errors_name_the_input_and_the_limit() {
+    let dir = scratch("safety", "unclear");
+    refused(&dir, &["trace", "--resolution", "40000x10"], 2, &["--resolution", "width 40000 is outside 1..=32768"]);
+    // Within the flag's range, beyond lavapipe's maxImageDimension2D (16384).
+    refused(
+        &dir,
+        &["trace", "--fake-devices", "1", "--resolution", "32768x1", "--out", "x.exr"],
+        1,
+        &["--resolution 32768x1 exceeds device 0", "image limit of", "use at most"],
+    );
+    refused(&dir, &["trace", "--fake-devices", "0"], 2, &["--fake-devices", "outside 1..=64"]);
+    refused(&dir, &["trace", "--cpu", "--sky", "-1,0,0"], 2, &["--sky", "radiance -1 is outside 0..=1e6"]);
+    std::fs::write(dir.join("cube.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    refused(&dir, &["trace", "--cpu", "--scene", "cube.obj"], 1, &["cube.obj: not a glTF file", "convert"]);
+    std::fs::write(dir.join("junk.glb"), [0u8, 1, 2, 3, 4, 5, 6, 7]).unwrap();
+    refused(&dir, &["trace", "--cpu", "--scene", "junk.glb"], 1, &["junk.glb: not a glTF file", "magic"]);
+    let before = snapshot(&dir);
+    let out = parallax_in(&dir, &["trace", "--cpu", "--scene", "missing.gltf"]);
+    assert_refused("missing scene", &out, 1, &["missing.gltf", "os error 2"], &dir, &before);
+    assert_eq!(String::from_utf8_lossy(&out.stderr).matches("os error").count(), 1, "the OS error once");
+    // 300 views used to overflow a per-frame buffer named only by its internal name.
+    let out = parallax_in(&dir, &["render", "--lf", "20x15", "--resolution", "2x2", "--fake-devices", "1"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(dir.join("out/lightfield/view_299.exr").is_file());
+}
+
+#[test]
+fn nonsense_values_are_refused_or_warned_about() {
+    let dir = scratch("safety", "nonsense");
+    for exposure in ["0", "-1", "NaN"] {
+        refused(&dir, &["trace", "--cpu", "--exposure", exposure], 2, &["--exposure", "black"]);
+    }
+    refused(
+        &dir,
+        &["trace", "--cpu", "--camera", "0,0,5,0,0,0,0,0,1,45"],
+        2,
+        &["--camera", "not parallel to the view direction"],
+    );
+    for (name, yfov) in [("yfov0", "0"), ("yfov4", "4")] {
+        let nodes = r#"[{"mesh":0,"children":[1]},{"camera":0,"translation":[0,0,3]}]"#;
+        let cameras = format!(r#","cameras":[{{"type":"perspective","perspective":{{"yfov":{yfov},"znear":0.1}}}}]"#);
+        let scene = write_gltf(&dir, name, &TRIANGLE, nodes, &cameras);
+        refused(
+            &dir,
+            &["trace", "--cpu", "--scene", scene.to_str().unwrap()],
+            1,
+            &[&format!("{name}.gltf: camera 0 (node 1): yfov {yfov} rad"), "use e.g. 0.8"],
+        );
+    }
+    let flat = write_gltf(&dir, "flat", &TRIANGLE, r#"[{"mesh":0,"scale":[0,0,0]}]"#, "");
+    refused(
+        &dir,
+        &["trace", "--cpu", "--scene", flat.to_str().unwrap()],
+        1,
+        &["flat.gltf: every triangle has zero area (node 0 has a transform of zero scale)"],
+    );
+    refused(&dir, &["trace", "--cpu", "--sun", "0,1,0,1e38"], 2, &["--sun", "irradiance 1e38 is outside 0..=1e6"]);
+    refused(&dir, &["trace", "--cpu", "--out", "a.png"], 1, &["--out a.png", "must end in .exr"]);
+    refused(&dir, &["run", "--json", "a.json", "--trace", "a.json"], 1, &["--trace and --json both write a.json"]);
+    refused(&dir, &["run", "--frames", "0"], 2, &["--frames", "outside 1..=10000"]);
+    refused(
+        &dir,
+        &["plan", "--lf", "4x1", "--gpus", "2", "--scheme", "fine-all", "--assign", "round-robin"],
+        2,
+        &["--assign applies only to --scheme multi-source", "drop --assign"],
+    );
+    // No light at all: the image is black, so the run says so (and still succeeds).
+    let dark = write_gltf(&dir, "dark", &TRIANGLE, r#"[{"mesh":0}]"#, "");
+    let out = parallax_in(
+        &dir,
+        &["trace", "--cpu", "--resolution", "4x4", "--scene", dark.to_str().unwrap(), "--out", "dark.exr"],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("warning: scene 'dark' has no light") && stderr.contains("add --sun or --sky"), "{stderr}");
+}
+
+#[test]
+fn outputs_are_checked_first_and_never_replaced_or_left_half_written() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = scratch("safety", "outputs");
+    let plan = |extra: &[&str]| {
+        let mut args = vec!["plan", "--lf", "4x1", "--gpus", "2"];
+        args.extend_from_slice(extra);
+        parallax_in(&dir, &args)
+    };
+    // A device is written through, never replaced by a regular file.
+    let out = plan(&["--json", "/dev/full"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot write /dev/full"));
+    assert!(std::fs::metadata("/dev/full").unwrap().file_type().is_char_device());
+    // A FIFO gets the JSON and stays a FIFO.
+    let fifo = dir.join("plan.fifo");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    let out = plan(&["--json", fifo.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&reader.join().unwrap()).unwrap();
+    assert_eq!(json["views"], 4);
+    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    std::fs::remove_file(&fifo).unwrap();
+    // A symlink stays a symlink; its target gets the new contents.
+    std::fs::write(dir.join("real.json"), "old").unwrap();
+    std::os::unix::fs::symlink("real.json", dir.join("link.json")).unwrap();
+    assert!(plan(&["--json", "link.json"]).status.success());
+    assert!(std::fs::symlink_metadata(dir.join("link.json")).unwrap().file_type().is_symlink());
+    assert!(std::fs::read_to_string(dir.join("real.json")).unwrap().contains("\"views\": 4"));
+    // `-` is stdout, not a file named `-`.
+    let out = plan(&["--json", "-"]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["devices"], 2);
+    assert!(!dir.join("-").exists());
+    // A failed run keeps the previous good output.
+    refused(&dir, &["plan", "--lf", "4x1", "--gpus", "5", "--json", "real.json"], 1, &["exceeds the 4 views"]);
+    // Output paths are checked before any work.
+    refused(&dir, &["trace", "--cpu", "--out", "nowhere/x.exr"], 1, &["--out nowhere/x.exr", "does not exist"]);
+    refused(
+        &dir,
+        &["render", "--lf", "2x1", "--resolution", "4x4", "--fake-devices", "1", "--trace", "bad/path.json"],
+        1,
+        &["--trace bad/path.json", "folder bad does not exist"],
+    );
+    // Re-rendering a smaller light field leaves exactly the views render.json lists.
+    let render = |lf: &str| {
+        let out =
+            parallax_in(&dir, &["render", "--lf", lf, "--resolution", "4x4", "--fake-devices", "1", "--out-dir", "lf"]);
+        assert!(out.status.success(), "{lf}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    render("4x1");
+    std::fs::write(dir.join("lf/notes.txt"), "mine").unwrap();
+    render("2x1");
+    let mut names: Vec<String> =
+        std::fs::read_dir(dir.join("lf")).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    names.sort();
+    assert_eq!(names, ["lightfield.png", "notes.txt", "render.json", "view_000.exr", "view_001.exr"]);
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("lf/render.json")).unwrap()).unwrap();
+    assert_eq!(json["plan"]["views"], 2);
+}
+
+#[test]
+fn ctrl_c_leaves_no_output() {
+    let dir = scratch("safety", "ctrl-c");
+    // Long enough to be interrupted mid-trace (about a minute on the CPU).
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .current_dir(&dir)
+        .args(["trace", "--cpu", "--resolution", "256x256", "--spp", "4096", "--out", "x.exr", "--png", "x.png"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    assert!(std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("error: interrupted: outputs not yet in place were removed"), "{stderr}");
+    assert!(snapshot(&dir).is_empty(), "files left behind: {:?}", snapshot(&dir).keys());
+}
