@@ -55,7 +55,7 @@ pub fn run(args: ChartArgs) -> Result<()> {
         let timeline = Timeline::read(trace)?;
         for out in &args.out {
             timeline.write(out)?;
-            eprintln!("wrote {}", out.display());
+            tracing::info!("wrote {}", out.display());
         }
         return Ok(());
     }
@@ -77,7 +77,7 @@ pub fn run(args: ChartArgs) -> Result<()> {
     };
     for out in &args.out {
         xy.write(out)?;
-        eprintln!("wrote {}", out.display());
+        tracing::info!("wrote {}", out.display());
     }
     Ok(())
 }

@@ -63,7 +63,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         let json = serde_json::json!({ "comparison": &comparison, "point": point });
         let bytes = serde_json::to_vec_pretty(&json)?;
         write_atomically(path, |f| std::io::Write::write_all(f, &bytes))?;
-        eprintln!("wrote {}", path.display());
+        tracing::info!("wrote {}", path.display());
     }
     Ok(())
 }

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
 use parallax_backend::{Context as VkContext, ContextDesc};
 use parallax_graph::{LayoutSpec, LightField, ViewId};
@@ -24,6 +24,7 @@ use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
 
+use crate::budget::{TraceWork, check_host_bytes};
 use crate::cmd_render::{camera_of, rig_of};
 use crate::options::{
     DeviceArgs, Resolution, parse_exposure, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
@@ -183,6 +184,17 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         .map(|(i, &v)| View { camera: camera_of(&lf, ViewId(v)), width: lf.width, height: lf.height, index: i as u32 })
         .collect();
 
+    // What it costs, checked before anything is allocated: the paths, the read-back views and
+    // the f64 sums (3 channels × 8 bytes per pixel of every view).
+    let work = TraceWork { views: views.len() as u64, width: lf.width, height: lf.height, spp: args.spp };
+    work.check_duration()?;
+    work.check_host()?;
+    check_host_bytes(
+        &format!("the f64 sums of {} view(s) of {}x{}", views.len(), lf.width, lf.height),
+        work.views * u64::from(lf.width) * u64::from(lf.height) * 24,
+        "lower --resolution or trace fewer --views",
+    )?;
+
     // Everything the pixels depend on, by the flag that sets it; devices are not among them
     // (results do not depend on the device count), so a reference can resume on other GPUs.
     let settings_key = BTreeMap::from([
@@ -206,14 +218,18 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let mut acc = if partial.exists() {
         let acc = Accumulator::load(&partial)?;
         acc.check_settings(&settings_key, &partial)?;
-        eprintln!("resuming {} at {} spp", partial.display(), acc.header.spp);
+        tracing::info!("resuming {} at {} spp", partial.display(), acc.header.spp);
         acc
     } else {
         Accumulator::new(settings_key, views.len(), size, args.chunk_spp)
     };
     let target = u64::from(args.spp);
     if acc.header.spp >= target {
-        eprintln!("{} already holds {} spp (target {target}): nothing to trace", partial.display(), acc.header.spp);
+        tracing::info!(
+            "{} already holds {} spp (target {target}): nothing to trace",
+            partial.display(),
+            acc.header.spp
+        );
         return write_outputs(&args, &acc, &selected, &lf, 0.0, None);
     }
 
@@ -223,7 +239,8 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     } else {
         let selection = args.devices.selection();
         let context = VkContext::new(&ContextDesc::from_env(selection))?;
-        eprint!("{context}");
+        tracing::info!("{}", context.to_string().trim_end());
+        work.check_devices(&context)?;
         let devices = selection.count();
         let plan = banded_trace_plan(views.len() as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
         let tracer = GpuTracer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
@@ -231,7 +248,8 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     };
     let devices = if args.cpu { 0 } else { args.devices.selection().count() };
 
-    let bar = ProgressBar::new(target);
+    // Hidden under -q, like every progress bar of the CLI.
+    let bar = crate::logging::bar(target);
     bar.set_style(
         ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} spp ({per_sec}, {eta} left)")
             .context("progress bar template")?,

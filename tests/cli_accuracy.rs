@@ -270,3 +270,16 @@ fn charts_from_render_reference_and_compare_outputs() {
     assert!(err.contains("no input point has"), "{err}");
     assert!(!out("x.svg").exists());
 }
+
+/// What a reference would cost is checked before anything is traced, allocated or written.
+#[test]
+fn an_unbounded_reference_is_refused_before_it_starts() {
+    let dir = scratch("accuracy", "unbounded");
+    let out = dir.join("never");
+    let err = fails(parallax(
+        &["reference", "--lf", "64x64", "--resolution", "4096x4096", "--spp", "4096", "--out-dir"],
+        &[&out],
+    ));
+    assert!(err.contains("paths") && err.contains("--spp"), "{err}");
+    assert!(!out.exists());
+}
