@@ -28,10 +28,13 @@
 //! ```
 
 pub mod bench;
+pub mod camera;
 pub mod error;
+pub mod gbuffer;
 pub mod path_trace;
 pub mod pixel_list;
 pub mod raycast;
+pub mod reproject;
 pub mod scene_upload;
 pub mod trace;
 
