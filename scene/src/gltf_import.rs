@@ -53,6 +53,8 @@ struct Importer<'a> {
     /// The first mesh node whose world transform flattens everything (determinant 0): the
     /// likely cause when the whole scene has zero area.
     zero_scale_node: Option<usize>,
+    /// Node and yfov of the first perspective camera (the scene's default camera).
+    first_camera: Option<(usize, f32)>,
 }
 
 fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneError> {
@@ -110,6 +112,7 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
         },
         default_material: None,
         zero_scale_node: None,
+        first_camera: None,
     };
     imp.import_materials()?;
     imp.import_nodes()?;
@@ -124,6 +127,9 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
         return Err(SceneError::ZeroArea { path: p(), hint });
     }
     imp.scene.check().map_err(|detail| SceneError::InvalidGltf { path: p(), detail })?;
+    if let Some((node, yfov)) = imp.first_camera {
+        imp.scene.camera_animation = crate::gltf_animation::camera_animation(&document, &buffers, node, yfov, path)?;
+    }
     Ok(imp.scene)
 }
 
@@ -252,6 +258,7 @@ impl Importer<'_> {
                 if let gltf::camera::Projection::Perspective(p) = cam.projection() {
                     let camera = Camera::from_world_matrix(world[i], p.yfov());
                     self.check_camera(cam.index(), i, p.yfov(), world[i])?;
+                    self.first_camera.get_or_insert((i, p.yfov()));
                     self.scene.cameras.push(camera);
                 }
             }

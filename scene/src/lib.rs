@@ -23,11 +23,13 @@
 //! assert_eq!(stats.non_finite_samples, 0);
 //! ```
 
+pub mod animation;
 pub mod bsdf;
 pub mod builder;
 pub mod bvh;
 pub mod default_scene;
 pub mod error;
+mod gltf_animation;
 pub mod gltf_import;
 pub mod gpu;
 pub mod lights;

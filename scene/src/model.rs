@@ -314,6 +314,8 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     pub lights: Vec<PunctualLight>,
     pub cameras: Vec<Camera>,
+    /// How the first camera moves, when the file animates it (or a node above it).
+    pub camera_animation: Option<crate::animation::CameraAnimation>,
     /// Set by the caller (CLI); glTF files carry no sun.
     pub sun: Option<Sun>,
     /// Set by the caller (CLI); black unless set.

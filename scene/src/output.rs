@@ -29,6 +29,17 @@ impl ExrLayers {
 /// Writes `frame` as a single-part EXR with 32-bit float channels; layers use the usual
 /// `layer.channel` names, which Blender, Nuke and oiiotool show as layers.
 pub fn write_exr(path: &Path, frame: &Frame, layers: ExrLayers) -> Result<(), SceneError> {
+    write_exr_with(path, frame, layers, &[])
+}
+
+/// [`write_exr`] with extra float channels, each `(name, one value per pixel)` (e.g.
+/// `("holes.Y", mask)`).
+pub fn write_exr_with(
+    path: &Path,
+    frame: &Frame,
+    layers: ExrLayers,
+    extra: &[(&str, &[f32])],
+) -> Result<(), SceneError> {
     let (w, h) = (frame.width as usize, frame.height as usize);
     let px = &frame.pixels;
     if px.len() != w * h {
@@ -55,6 +66,15 @@ pub fn write_exr(path: &Path, frame: &Frame, layers: ExrLayers) -> Result<(), Sc
     }
     if layers.depth {
         list.push(channel("depth.Z", &|i| px[i].depth));
+    }
+    for (name, values) in extra {
+        if values.len() != w * h {
+            return Err(SceneError::ImageWrite {
+                path: path.to_path_buf(),
+                detail: format!("channel {name} has {} values for a {w}x{h} image", values.len()),
+            });
+        }
+        list.push(channel(name, &|i| values[i]));
     }
     let layer =
         Layer::new((w, h), LayerAttributes::named("parallax"), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));

@@ -1,0 +1,112 @@
+//! Reading the animation of the scene camera from a glTF document: the path of nodes from a
+//! root to the first perspective camera's node, each with its rest TRS and the channels of any
+//! animation that target it (see [`crate::animation`]).
+
+use std::path::Path;
+
+use glam::{Mat4, Quat, Vec3};
+use gltf::animation::util::ReadOutputs;
+
+use crate::animation::{AnimatedNode, CameraAnimation, Interpolation, Track};
+use crate::error::SceneError;
+
+/// The animation of camera node `camera_node` (yfov `yfov`), or None when nothing animates it
+/// or a node above it.
+pub(crate) fn camera_animation(
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    camera_node: usize,
+    yfov: f32,
+    path: &Path,
+) -> Result<Option<CameraAnimation>, SceneError> {
+    let mut parent = vec![None; doc.nodes().len()];
+    for n in doc.nodes() {
+        for c in n.children() {
+            parent[c.index()] = Some(n.index());
+        }
+    }
+    let mut chain = vec![camera_node];
+    while let Some(p) = parent[*chain.last().expect("never empty")] {
+        if chain.contains(&p) || chain.len() > parent.len() {
+            break; // a cycle: the node walk reports it
+        }
+        chain.push(p);
+    }
+    chain.reverse();
+    let nodes: Vec<gltf::Node> = doc.nodes().collect();
+    let mut animated: Vec<AnimatedNode> = chain
+        .iter()
+        .map(|&i| match nodes[i].transform() {
+            gltf::scene::Transform::Matrix { matrix } => AnimatedNode {
+                translation: Vec3::ZERO,
+                rotation: Quat::IDENTITY,
+                scale: Vec3::ONE,
+                matrix: Some(Mat4::from_cols_array_2d(&matrix)),
+                translation_track: None,
+                rotation_track: None,
+                scale_track: None,
+            },
+            gltf::scene::Transform::Decomposed { translation, rotation, scale } => AnimatedNode {
+                translation: Vec3::from(translation),
+                rotation: Quat::from_array(rotation),
+                scale: Vec3::from(scale),
+                matrix: None,
+                translation_track: None,
+                rotation_track: None,
+                scale_track: None,
+            },
+        })
+        .collect();
+    let mut duration = 0.0f32;
+    let mut any = false;
+    for animation in doc.animations() {
+        for (c, channel) in animation.channels().enumerate() {
+            let Some(k) = chain.iter().position(|&i| i == channel.target().node().index()) else { continue };
+            let bad = |detail: String| SceneError::InvalidGltf {
+                path: path.to_path_buf(),
+                detail: format!("animation {} channel {c} (node {}): {detail}", animation.index(), chain[k]),
+            };
+            let interpolation = match channel.sampler().interpolation() {
+                gltf::animation::Interpolation::Step => Interpolation::Step,
+                gltf::animation::Interpolation::Linear => Interpolation::Linear,
+                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+            };
+            let reader = channel.reader(|b| Some(&buffers[b.index()].0[..]));
+            let times: Vec<f32> = reader.read_inputs().ok_or_else(|| bad("no keyframe times".into()))?.collect();
+            let node = &mut animated[k];
+            let well_formed = match reader.read_outputs() {
+                Some(ReadOutputs::Translations(v)) => {
+                    let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
+                    let ok = track.is_well_formed();
+                    node.translation_track = Some(track);
+                    ok
+                }
+                Some(ReadOutputs::Rotations(v)) => {
+                    let values = v.into_f32().map(Quat::from_array).collect();
+                    let track = Track { times: times.clone(), values, interpolation };
+                    let ok = track.is_well_formed();
+                    node.rotation_track = Some(track);
+                    ok
+                }
+                Some(ReadOutputs::Scales(v)) => {
+                    let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
+                    let ok = track.is_well_formed();
+                    node.scale_track = Some(track);
+                    ok
+                }
+                // Morph weights do not move a camera.
+                Some(ReadOutputs::MorphTargetWeights(_)) => continue,
+                None => return Err(bad("no output values".into())),
+            };
+            if !well_formed {
+                return Err(bad("keyframe times are not finite and increasing, or do not match the values".into()));
+            }
+            if node.matrix.is_some() {
+                return Err(bad("the node has a matrix, which glTF does not allow to animate".into()));
+            }
+            duration = duration.max(*times.last().expect("well formed tracks have keyframes"));
+            any = true;
+        }
+    }
+    Ok(any.then_some(CameraAnimation { nodes: animated, yfov, duration }))
+}
