@@ -6,7 +6,7 @@
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
 
-// 84 bytes; parallax_passes::svgf::SvgfPush (a test holds the layouts together). Image
+// 72 bytes; parallax_passes::svgf::SvgfPush (a test holds the layouts together). Image
 // indices into images[]; what in0..in3 and out0..out2 hold depends on the kernel (see its
 // header). Rows [y0, y1) are the instance's band; every read with a footprint may touch any row.
 layout(push_constant, std430) uniform SvgfPush {

@@ -33,6 +33,8 @@ pub mod path_trace;
 pub mod pixel_list;
 pub mod raycast;
 pub mod scene_upload;
+pub mod svgf;
+pub mod tonemap;
 pub mod trace;
 
 pub use error::{PassError, Result};
@@ -45,4 +47,6 @@ pub use raycast::{
     random_rays,
 };
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
+pub use svgf::{DENOISED, SvgfInputs, declare_svgf};
+pub use tonemap::{DISPLAY, TONEMAP, TonemapError, declare_tonemap, tonemap_pixel};
 pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_plan};
