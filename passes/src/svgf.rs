@@ -295,8 +295,24 @@ mod tests {
     #[test]
     fn the_push_struct_matches_every_svgf_shader() {
         let rust = rust_layout!(SvgfPush {
-            radiance, albedo, normal, position, motion, in0, in1, in2, in3, out0, out1, out2, y0, y1, width, height,
-            step, last
+            radiance,
+            albedo,
+            normal,
+            position,
+            motion,
+            in0,
+            in1,
+            in2,
+            in3,
+            out0,
+            out1,
+            out2,
+            y0,
+            y1,
+            width,
+            height,
+            step,
+            last
         });
         for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous"] {
             let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "SvgfPush").unwrap();
