@@ -1,9 +1,10 @@
 //! The SVGF and tonemap passes on lavapipe (validation on): the tonemap against its CPU twin,
-//! SVGF on a noiseless input (gives it back), on path-traced noise (error against a 64-spp
-//! reference), after a history reset (a fresh first frame, bit for bit) and over row bands on
-//! three devices (the one-device result, bit for bit). Inputs come from the `path_trace` pass
-//! of the default scene; `motion` and the constant input from test kernels in
-//! `tests/svgf_kernels/`, compiled at run time.
+//! SVGF on a noiseless input (gives it back), on a spoilt one (NaN, Inf, black albedo, zero
+//! normals: only finite output), on path-traced noise (error against a 64-spp reference),
+//! after a history reset (a fresh first frame, bit for bit) and over row bands on three devices
+//! (the one-device result, bit for bit). Inputs come from the `path_trace` pass of the default
+//! scene; `motion` and the changes to the input from test kernels in `tests/svgf_kernels/`,
+//! compiled at run time.
 
 mod common;
 
@@ -63,31 +64,46 @@ impl PassKernel for MotionKernel {
     }
 }
 
-/// `test_constant.comp`: radiance and albedo set to constants in place.
-struct ConstantKernel;
+/// `test_constant.comp` or `test_poison.comp` (the shader named): radiance (dst), albedo
+/// (src0) and, where declared, normal (src1) changed in place.
+struct ChangeKernel(&'static str);
 
-impl PassKernel for ConstantKernel {
+impl PassKernel for ChangeKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let (Some(radiance), Some(albedo)) = (pass.output("radiance"), pass.output("albedo_roughness")) else {
-            return Err(misuse("test_constant", index, "modifies `radiance` and `albedo_roughness`"));
+            return Err(misuse(self.0, index, "modifies `radiance` and `albedo_roughness`"));
+        };
+        let normal = match pass.output("normal_metallic") {
+            Some(normal) => rec.image(normal.resource)?,
+            None => 0,
         };
         let params = PassParams {
             dst: rec.image(radiance.resource)?,
             src0: rec.image(albedo.resource)?,
+            src1: normal,
             y0: pass.rows.y0,
             y1: pass.rows.y1,
             width: rec.resource(radiance.resource).width,
             ..Default::default()
         };
-        rec.dispatch_rows("test_constant", params)
+        rec.dispatch_rows(self.0, params)
     }
+}
+
+/// What a test kernel does to the traced input before SVGF.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Change {
+    None,
+    /// Radiance and albedo replaced by constants (`test_constant`).
+    Constant,
+    /// NaN, Inf, black albedo and zero normals on some pixels (`test_poison`).
+    Poison,
 }
 
 /// What the SVGF test graphs feed in.
 #[derive(Clone, Copy)]
 struct Input {
-    /// Radiance and albedo replaced by constants (`test_constant`).
-    constant: bool,
+    change: Change,
     /// The motion test kernel's offset.
     motion: [f32; 2],
 }
@@ -105,12 +121,23 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> ExecutionPl
         .write(&mut position)
         .kernel(Arc::new(PathTraceKernel))
         .record();
-    if input.constant {
-        g.pass("test_constant", Role::All)
-            .modify(&mut radiance)
-            .modify(&mut albedo)
-            .kernel(Arc::new(ConstantKernel))
-            .record();
+    match input.change {
+        Change::None => {}
+        Change::Constant => {
+            g.pass("test_constant", Role::All)
+                .modify(&mut radiance)
+                .modify(&mut albedo)
+                .kernel(Arc::new(ChangeKernel("test_constant")))
+                .record();
+        }
+        Change::Poison => {
+            g.pass("test_poison", Role::All)
+                .modify(&mut radiance)
+                .modify(&mut albedo)
+                .modify(&mut normal)
+                .kernel(Arc::new(ChangeKernel("test_poison")))
+                .record();
+        }
     }
     let mut motion = g.image("motion", Format::Rg32f);
     g.pass("test_motion", Role::All)
@@ -230,7 +257,7 @@ fn tonemap_matches_its_cpu_twin_within_one_step_of_255() {
 #[test]
 fn svgf_gives_a_constant_input_back_on_every_frame() {
     let ctx = common::context(1);
-    let plan = svgf_plan(1, Input { constant: true, motion: [0.0, 0.0] }, &one_device());
+    let plan = svgf_plan(1, Input { change: Change::Constant, motion: [0.0, 0.0] }, &one_device());
     let mut run = Run::new(&ctx, plan, 1, "constant");
     let expected = [0.3f32, 0.2, 0.1];
     for frame in 0..6 {
@@ -250,10 +277,26 @@ fn svgf_gives_a_constant_input_back_on_every_frame() {
 }
 
 #[test]
+fn svgf_writes_only_finite_values_from_nan_inf_black_albedo_and_zero_normals() {
+    let ctx = common::context(1);
+    // Motion half a pixel off: bilinear taps reach the spoilt neighbours through history too.
+    let plan = svgf_plan(1, Input { change: Change::Poison, motion: [0.5, 0.5] }, &one_device());
+    let mut run = Run::new(&ctx, plan, 1, "poison");
+    for frame in 0..6 {
+        run.frame(frame);
+        let denoised = run.read(DENOISED, 0);
+        let bad = denoised.iter().filter(|v| !v.is_finite()).count();
+        assert_eq!(bad, 0, "frame {frame}: {bad} values are NaN or Inf");
+    }
+    drop(run);
+    ctx.check_validation().unwrap();
+}
+
+#[test]
 fn svgf_lowers_the_error_of_one_spp_against_a_64_spp_reference_by_3x() {
     let ctx = common::context(1);
     let frames = 8;
-    let plan = svgf_plan(1, Input { constant: false, motion: [0.0, 0.0] }, &one_device());
+    let plan = svgf_plan(1, Input { change: Change::None, motion: [0.0, 0.0] }, &one_device());
     let mut run = Run::new(&ctx, plan, 1, "noisy");
     let mut timings = Vec::new();
     for frame in 0..frames {
@@ -299,7 +342,7 @@ fn print_svgf_timings(reports: &[parallax_backend::FrameReport]) {
 #[test]
 fn a_frame_after_a_history_reset_equals_a_fresh_first_frame_bit_for_bit() {
     let ctx = common::context(1);
-    let input = Input { constant: false, motion: [0.0, 0.0] };
+    let input = Input { change: Change::None, motion: [0.0, 0.0] };
     let mut fresh = Run::new(&ctx, svgf_plan(1, input, &one_device()), 1, "reset_fresh");
     fresh.frame(0);
     let first = fresh.read(DENOISED, 0);
@@ -324,7 +367,7 @@ fn a_frame_after_a_history_reset_equals_a_fresh_first_frame_bit_for_bit() {
 #[test]
 fn svgf_in_three_row_bands_on_three_devices_equals_one_device_bit_for_bit() {
     // Motion 5.75 rows down: reprojection reads rows of other bands (and bilinear weights).
-    let input = Input { constant: false, motion: [0.25, 5.75] };
+    let input = Input { change: Change::None, motion: [0.25, 5.75] };
     let frames = 4;
     let views = 2;
     let run = |devices: usize| -> Vec<Vec<u32>> {
