@@ -82,7 +82,8 @@ float svgf_depth_slope(ivec2 p, ivec2 axis, float z) {
             continue;
         }
         float zq = svgf_depth(q);
-        if (zq <= 0.0) {
+        // Written so that NaN fails too.
+        if (!(zq > 0.0)) {
             continue;
         }
         float d = float(s) * (zq - z);
@@ -108,8 +109,10 @@ float svgf_depth_weight(float zp, float zq, vec2 gradient, vec2 offset) {
 }
 
 // Edge-stopping weight on normals (Schied's w_n, σ_n = 128).
+// A NaN normal gives 0 (max(0, NaN) is undefined in GLSL, the comparison is not).
 float svgf_normal_weight(vec3 np, vec3 nq) {
-    return pow(max(0.0, dot(np, nq)), 128.0);
+    float d = dot(np, nq);
+    return d > 0.0 ? pow(min(d, 1.0), 128.0) : 0.0;
 }
 
 #endif

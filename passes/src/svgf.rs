@@ -67,7 +67,8 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     let mut moments = graph.image(SVGF_MOMENTS, Format::Rgba32f);
     let mut prev_color = graph.image(PREV_COLOR, Format::Rgba32f);
     let mut prev_moments = graph.image(PREV_MOMENTS, Format::Rgba32f);
-    let mut prev_normal = graph.image(PREV_NORMAL, Format::Rgba32f);
+    // Normals only feed a dot-product test: half floats are plenty.
+    let mut prev_normal = graph.image(PREV_NORMAL, Format::Rgba16f);
     let mut illum = graph.image(ILLUM, Format::Rgba32f);
     let mut variance = graph.image(VARIANCE, Format::Rgba32f);
     let mut atrous = graph.image(ATROUS, Format::Rgba32f);

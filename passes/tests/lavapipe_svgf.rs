@@ -1,6 +1,6 @@
 //! The SVGF and tonemap passes on lavapipe (validation on): the tonemap against its CPU twin,
-//! SVGF on a noiseless input (gives it back), on a spoilt one (NaN, Inf, black albedo, zero
-//! normals: only finite output), on path-traced noise (error against a 64-spp reference),
+//! SVGF on a noiseless input (gives it back), on a spoilt one (NaN, Inf, black albedo, bad
+//! normals and depths: only finite output), on path-traced noise (error against a 64-spp reference),
 //! after a history reset (a fresh first frame, bit for bit) and over row bands on three devices
 //! (the one-device result, bit for bit). Inputs come from the `path_trace` pass of the default
 //! scene; `motion` and the changes to the input from test kernels in `tests/svgf_kernels/`,
@@ -65,7 +65,7 @@ impl PassKernel for MotionKernel {
 }
 
 /// `test_constant.comp` or `test_poison.comp` (the shader named): radiance (dst), albedo
-/// (src0) and, where declared, normal (src1) changed in place.
+/// (src0) and, where declared, normal (src1) and position (param) changed in place.
 struct ChangeKernel(&'static str);
 
 impl PassKernel for ChangeKernel {
@@ -73,14 +73,13 @@ impl PassKernel for ChangeKernel {
         let (Some(radiance), Some(albedo)) = (pass.output("radiance"), pass.output("albedo_roughness")) else {
             return Err(misuse(self.0, index, "modifies `radiance` and `albedo_roughness`"));
         };
-        let normal = match pass.output("normal_metallic") {
-            Some(normal) => rec.image(normal.resource)?,
-            None => 0,
-        };
+        let optional = |slot: &str| pass.output(slot).map_or(Ok(0), |access| rec.image(access.resource));
+        let (normal, position) = (optional("normal_metallic")?, optional("position_depth")?);
         let params = PassParams {
             dst: rec.image(radiance.resource)?,
             src0: rec.image(albedo.resource)?,
             src1: normal,
+            param: position,
             y0: pass.rows.y0,
             y1: pass.rows.y1,
             width: rec.resource(radiance.resource).width,
@@ -96,7 +95,7 @@ enum Change {
     None,
     /// Radiance and albedo replaced by constants (`test_constant`).
     Constant,
-    /// NaN, Inf, black albedo and zero normals on some pixels (`test_poison`).
+    /// NaN, Inf, black albedo, zero or NaN normals, NaN depth on some pixels (`test_poison`).
     Poison,
 }
 
@@ -135,6 +134,7 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> ExecutionPl
                 .modify(&mut radiance)
                 .modify(&mut albedo)
                 .modify(&mut normal)
+                .modify(&mut position)
                 .kernel(Arc::new(ChangeKernel("test_poison")))
                 .record();
         }
@@ -277,7 +277,7 @@ fn svgf_gives_a_constant_input_back_on_every_frame() {
 }
 
 #[test]
-fn svgf_writes_only_finite_values_from_nan_inf_black_albedo_and_zero_normals() {
+fn svgf_writes_only_finite_values_from_nan_inf_black_albedo_bad_normals_and_depths() {
     let ctx = common::context(1);
     // Motion half a pixel off: bilinear taps reach the spoilt neighbours through history too.
     let plan = svgf_plan(1, Input { change: Change::Poison, motion: [0.5, 0.5] }, &one_device());

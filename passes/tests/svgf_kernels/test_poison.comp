@@ -1,7 +1,7 @@
 #version 460
 // Test kernel: spoils a traced G-buffer in place the ways a renderer can: radiance NaN, +Inf,
-// -Inf or huge (dst), albedo 0 or NaN (src0), a zero normal (src1), on a fixed pattern of
-// pixels. SVGF must still write only finite values.
+// -Inf or huge (dst), albedo 0 or NaN (src0), a zero or NaN normal (src1), a NaN depth
+// (image `param`), on a fixed pattern of pixels. SVGF must still write only finite values.
 #include "bindless.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -18,6 +18,7 @@ void main() {
     vec4 radiance = imageLoad(images[pc.dst], p);
     vec4 albedo = imageLoad(images[pc.src0], p);
     vec4 normal = imageLoad(images[pc.src1], p);
+    vec4 position = imageLoad(images[pc.param], p);
     switch ((x * 7u + y * 13u) % 11u) {
         case 0u: radiance.rgb = vec3(nan); break;
         case 1u: radiance.rgb = vec3(inf); break;
@@ -25,9 +26,12 @@ void main() {
         case 3u: albedo.rgb = vec3(0.0); break;
         case 4u: albedo.rgb = vec3(nan); break;
         case 5u: normal.xyz = vec3(0.0); break;
+        case 6u: normal.xyz = vec3(nan); break;
+        case 7u: position.w = nan; break;
         default: break;
     }
     imageStore(images[pc.dst], p, radiance);
     imageStore(images[pc.src0], p, albedo);
     imageStore(images[pc.src1], p, normal);
+    imageStore(images[pc.param], p, position);
 }
