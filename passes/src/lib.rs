@@ -38,6 +38,8 @@ pub mod raycast;
 pub mod renderer;
 pub mod reproject;
 pub mod scene_upload;
+pub mod svgf;
+pub mod tonemap;
 pub mod trace;
 
 pub use error::{PassError, Result};
@@ -50,4 +52,6 @@ pub use raycast::{
     random_rays,
 };
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
+pub use svgf::{DENOISED, SvgfInputs, declare_svgf};
+pub use tonemap::{DISPLAY, TONEMAP, TonemapError, declare_tonemap, tonemap_pixel};
 pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_plan};

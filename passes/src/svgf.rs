@@ -1,0 +1,324 @@
+//! The `svgf` passes: spatiotemporal variance-guided filtering (Schied et al., *Spatiotemporal
+//! Variance-Guided Filtering*, HPG 2017) of a view's `radiance` into `denoised`, declared by
+//! [`declare_svgf`] as a chain of passes over the view's G-buffer:
+//!
+//! 1. `svgf_history` (shaders/svgf_history.comp): last frame's colour history, moments and
+//!    G-buffer (history reads) copied into this frame's images. History reads see only the
+//!    instance's own rows, reprojection may land on any row: the copies are read whole.
+//! 2. `svgf_temporal`: radiance demodulated by albedo, accumulated through `motion` with an
+//!    exponential moving average (α = 0.2 for colour and moments, 1/n while the history is
+//!    shorter); disoccluded pixels (depth or normal differ from the previous frame's) restart.
+//! 3. `svgf_variance`: variance from the temporal moments, or a 7×7 spatial estimate while the
+//!    history is shorter than 4 frames.
+//! 4. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16) with
+//!    edge-stopping on depth, normal and luminance; the first one's output is the colour history
+//!    (`svgf_color`), the last one remodulates by albedo into `denoised`.
+//!
+//! Every pass with a footprint reads whole views (`read_whole`), so a view split into row bands
+//! over devices gives the same pixels as one device. Pixels without a hit (depth 0) keep their
+//! radiance; every output is finite (inputs are sanitised, every division is guarded).
+
+use std::sync::Arc;
+
+use parallax_backend::{BackendError, ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_graph::{Format, Handle, Image, Role};
+
+/// Slot name of the result (Rgba32f linear radiance, docs/PIPELINE.md).
+pub const DENOISED: &str = "denoised";
+/// Colour history: the first à-trous iteration's output (illumination rgb, variance).
+pub const SVGF_COLOR: &str = "svgf_color";
+/// Moments history: (m1, m2, history length, 0) of the luminance of the illumination.
+pub const SVGF_MOMENTS: &str = "svgf_moments";
+/// Tap spacing of the à-trous iterations, in pixels.
+pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
+
+// This frame's copies of the history ([`Stage::History`]) and the intermediate images.
+const PREV_COLOR: &str = "svgf_prev_color";
+const PREV_MOMENTS: &str = "svgf_prev_moments";
+const PREV_NORMAL: &str = "svgf_prev_normal";
+const ILLUM: &str = "svgf_illum";
+const VARIANCE: &str = "svgf_variance";
+const ATROUS: &str = "svgf_atrous";
+
+// G-buffer slots (docs/PIPELINE.md).
+const RADIANCE: &str = "radiance";
+const ALBEDO: &str = "albedo_roughness";
+const NORMAL: &str = "normal_metallic";
+const POSITION: &str = "position_depth";
+const MOTION: &str = "motion";
+
+/// Image index the shaders never read (push constants of slots a kernel does not use).
+const UNUSED: u32 = u32::MAX;
+
+/// The G-buffer and radiance of the views to denoise (formats: docs/PIPELINE.md).
+pub struct SvgfInputs<'a> {
+    pub radiance: &'a Handle<Image>,
+    pub albedo_roughness: &'a Handle<Image>,
+    pub normal_metallic: &'a Handle<Image>,
+    pub position_depth: &'a Handle<Image>,
+    pub motion: &'a Handle<Image>,
+}
+
+/// Declares the SVGF passes (see the module docs) for every view and returns the `denoised`
+/// handle (Rgba32f; not exported). The inputs are read in their current versions; the
+/// previous frame's `position_depth` and `normal_metallic` through history.
+pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<Image> {
+    let mut color = graph.image(SVGF_COLOR, Format::Rgba32f);
+    let mut moments = graph.image(SVGF_MOMENTS, Format::Rgba32f);
+    let mut prev_color = graph.image(PREV_COLOR, Format::Rgba32f);
+    let mut prev_moments = graph.image(PREV_MOMENTS, Format::Rgba32f);
+    // Normals only feed a dot-product test: half floats are plenty.
+    let mut prev_normal = graph.image(PREV_NORMAL, Format::Rgba16f);
+    let mut illum = graph.image(ILLUM, Format::Rgba32f);
+    let mut variance = graph.image(VARIANCE, Format::Rgba32f);
+    let mut atrous = graph.image(ATROUS, Format::Rgba32f);
+    let mut denoised = graph.image(DENOISED, Format::Rgba32f);
+
+    graph
+        .pass("svgf_history", Role::All)
+        .read_history(&color)
+        .read_history(&moments)
+        .read_history(inputs.position_depth)
+        .read_history(inputs.normal_metallic)
+        .write(&mut prev_color)
+        .write(&mut prev_moments)
+        .write(&mut prev_normal)
+        .kernel(Arc::new(SvgfKernel(Stage::History)))
+        .record();
+    graph
+        .pass("svgf_temporal", Role::All)
+        .read(inputs.radiance)
+        .read(inputs.albedo_roughness)
+        .read(inputs.normal_metallic)
+        .read_whole(inputs.position_depth)
+        .read(inputs.motion)
+        .read_whole(&prev_color)
+        .read_whole(&prev_moments)
+        .read_whole(&prev_normal)
+        .write(&mut illum)
+        .write(&mut moments)
+        .kernel(Arc::new(SvgfKernel(Stage::Temporal)))
+        .record();
+    graph
+        .pass("svgf_variance", Role::All)
+        .read_whole(&illum)
+        .read_whole(&moments)
+        .read_whole(inputs.normal_metallic)
+        .read_whole(inputs.position_depth)
+        .write(&mut variance)
+        .kernel(Arc::new(SvgfKernel(Stage::Variance)))
+        .record();
+    for (i, &step) in ATROUS_STEPS.iter().enumerate() {
+        let name = format!("svgf_atrous_{}", i + 1);
+        let last = i + 1 == ATROUS_STEPS.len();
+        let (input, input_slot) = match i {
+            0 => (&variance, VARIANCE),
+            1 => (&color, SVGF_COLOR),
+            _ => (&atrous, ATROUS),
+        };
+        let mut pass = graph
+            .pass(&name, Role::All)
+            .read_whole(input)
+            .read_whole(inputs.normal_metallic)
+            .read_whole(inputs.position_depth);
+        let output_slot = if last {
+            pass = pass.read(inputs.radiance).read(inputs.albedo_roughness).write(&mut denoised);
+            DENOISED
+        } else if i == 0 {
+            pass = pass.write(&mut color);
+            SVGF_COLOR
+        } else {
+            pass = pass.write(&mut atrous);
+            ATROUS
+        };
+        let stage = Stage::Atrous { step, input: input_slot, output: output_slot, last };
+        pass.kernel(Arc::new(SvgfKernel(stage))).record();
+    }
+    denoised
+}
+
+/// Push constants of the SVGF shaders (`SvgfPush` in shaders/svgf.glsl; a test holds the
+/// layouts together). Image indices; `in*` and `out*` mean what the stage's shader says.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SvgfPush {
+    pub radiance: u32,
+    pub albedo: u32,
+    pub normal: u32,
+    pub position: u32,
+    pub motion: u32,
+    pub in0: u32,
+    pub in1: u32,
+    pub in2: u32,
+    pub in3: u32,
+    pub out0: u32,
+    pub out1: u32,
+    pub out2: u32,
+    pub y0: u32,
+    pub y1: u32,
+    pub width: u32,
+    pub height: u32,
+    /// À-trous tap spacing in pixels.
+    pub step: u32,
+    /// 1 on the last à-trous iteration (remodulate into `denoised`).
+    pub last: u32,
+}
+
+/// Which SVGF shader a pass runs, and with which slots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stage {
+    History,
+    Temporal,
+    Variance,
+    Atrous { step: u32, input: &'static str, output: &'static str, last: bool },
+}
+
+impl Stage {
+    fn shader(self) -> &'static str {
+        match self {
+            Stage::History => "svgf_history",
+            Stage::Temporal => "svgf_temporal",
+            Stage::Variance => "svgf_variance",
+            Stage::Atrous { .. } => "svgf_atrous",
+        }
+    }
+}
+
+/// Records one SVGF pass instance over its row band.
+struct SvgfKernel(Stage);
+
+/// An image slot of a pass instance: its access (own view, history or output) by name.
+enum Slot {
+    Input(&'static str),
+    History(&'static str),
+    Output(&'static str),
+}
+
+impl PassKernel for SvgfKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let stage = self.0;
+        let image = |rec: &Recorder<'_>, slot: Slot| -> parallax_backend::Result<u32> {
+            let (access, name) = match slot {
+                Slot::Input(name) => (pass.input(name), name),
+                Slot::History(name) => (pass.history(name), name),
+                Slot::Output(name) => (pass.output(name), name),
+            };
+            let access = access.ok_or_else(|| BackendError::KernelMisuse {
+                kernel: stage.shader().into(),
+                instance: index,
+                detail: format!("has no `{name}` slot (declare the pass with parallax_passes::declare_svgf)"),
+            })?;
+            rec.image(access.resource)
+        };
+        let Some(band) = pass.writes.first() else {
+            return Err(BackendError::KernelMisuse {
+                kernel: stage.shader().into(),
+                instance: index,
+                detail: "writes nothing".into(),
+            });
+        };
+        let target = rec.resource(band.resource);
+        let (width, height) = (target.width, target.height);
+        let mut push = SvgfPush {
+            radiance: UNUSED,
+            albedo: UNUSED,
+            normal: UNUSED,
+            position: UNUSED,
+            motion: UNUSED,
+            in0: UNUSED,
+            in1: UNUSED,
+            in2: UNUSED,
+            in3: UNUSED,
+            out0: UNUSED,
+            out1: UNUSED,
+            out2: UNUSED,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            height,
+            step: 0,
+            last: 0,
+        };
+        match stage {
+            Stage::History => {
+                push.in0 = image(rec, Slot::History(SVGF_COLOR))?;
+                push.in1 = image(rec, Slot::History(SVGF_MOMENTS))?;
+                push.in2 = image(rec, Slot::History(POSITION))?;
+                push.in3 = image(rec, Slot::History(NORMAL))?;
+                push.out0 = image(rec, Slot::Output(PREV_COLOR))?;
+                push.out1 = image(rec, Slot::Output(PREV_MOMENTS))?;
+                push.out2 = image(rec, Slot::Output(PREV_NORMAL))?;
+            }
+            Stage::Temporal => {
+                push.radiance = image(rec, Slot::Input(RADIANCE))?;
+                push.albedo = image(rec, Slot::Input(ALBEDO))?;
+                push.normal = image(rec, Slot::Input(NORMAL))?;
+                push.position = image(rec, Slot::Input(POSITION))?;
+                push.motion = image(rec, Slot::Input(MOTION))?;
+                push.in0 = image(rec, Slot::Input(PREV_COLOR))?;
+                push.in1 = image(rec, Slot::Input(PREV_MOMENTS))?;
+                push.in2 = image(rec, Slot::Input(PREV_NORMAL))?;
+                push.out0 = image(rec, Slot::Output(ILLUM))?;
+                push.out1 = image(rec, Slot::Output(SVGF_MOMENTS))?;
+            }
+            Stage::Variance => {
+                push.normal = image(rec, Slot::Input(NORMAL))?;
+                push.position = image(rec, Slot::Input(POSITION))?;
+                push.in0 = image(rec, Slot::Input(ILLUM))?;
+                push.in1 = image(rec, Slot::Input(SVGF_MOMENTS))?;
+                push.out0 = image(rec, Slot::Output(VARIANCE))?;
+            }
+            Stage::Atrous { step, input, output, last } => {
+                push.normal = image(rec, Slot::Input(NORMAL))?;
+                push.position = image(rec, Slot::Input(POSITION))?;
+                push.in0 = image(rec, Slot::Input(input))?;
+                push.out0 = image(rec, Slot::Output(output))?;
+                push.step = step;
+                if last {
+                    push.radiance = image(rec, Slot::Input(RADIANCE))?;
+                    push.albedo = image(rec, Slot::Input(ALBEDO))?;
+                    push.last = 1;
+                }
+            }
+        }
+        // 8×8 workgroups over the band (see shaders/svgf.glsl).
+        let groups = [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1];
+        rec.dispatch_bytes(stage.shader(), bytemuck::bytes_of(&push), groups)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_push_struct_matches_every_svgf_shader() {
+        let rust = rust_layout!(SvgfPush {
+            radiance,
+            albedo,
+            normal,
+            position,
+            motion,
+            in0,
+            in1,
+            in2,
+            in3,
+            out0,
+            out1,
+            out2,
+            y0,
+            y1,
+            width,
+            height,
+            step,
+            last
+        });
+        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous"] {
+            let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "SvgfPush").unwrap();
+            assert_eq!(glsl, rust, "{shader}");
+        }
+        assert_eq!(std::mem::size_of::<SvgfPush>(), 72);
+    }
+}

@@ -1,0 +1,414 @@
+//! The SVGF and tonemap passes on lavapipe (validation on): the tonemap against its CPU twin,
+//! SVGF on a noiseless input (gives it back), on a spoilt one (NaN, Inf, black albedo, bad
+//! normals and depths: only finite output), on path-traced noise (error against a 64-spp reference),
+//! after a history reset (a fresh first frame, bit for bit) and over row bands on three devices
+//! (the one-device result, bit for bit). Inputs come from the `path_trace` pass of the default
+//! scene; `motion` and the changes to the input from test kernels in `tests/svgf_kernels/`,
+//! compiled at run time.
+
+mod common;
+
+use std::path::Path;
+use std::sync::Arc;
+
+use parallax_backend::{
+    BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams,
+    Recorder, ShaderLibrary,
+};
+use parallax_graph::{BandedPlacement, Format, Handle, Image, Placement, Role, ViewTopology, compile};
+use parallax_passes::path_trace::TRACE_PARAMS_BYTES;
+use parallax_passes::{
+    DENOISED, DISPLAY, GpuTracer, PATH_TRACE, PathTraceKernel, SvgfInputs, TRACE_OUTPUTS, banded_trace_plan,
+    declare_svgf, declare_tonemap, tonemap_pixel, trace_frame_data, upload_scene,
+};
+use parallax_scene::gpu::GpuScene;
+use parallax_scene::{Scene, SceneBvh, TraceSettings, View, default_scene};
+
+const SIZE: u32 = 32;
+
+/// The test kernels of `tests/svgf_kernels/`, compiled into a folder of `test`'s own.
+fn test_shaders(test: &str) -> ShaderLibrary {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("svgf_kernels");
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("svgf_kernels").join(test);
+    std::fs::create_dir_all(&out).unwrap();
+    let shaders =
+        parallax_glsl::Compiler::new().compile_dir(&src, &[parallax_glsl::parallax_include_dir()], &out).unwrap();
+    shaders.iter().fold(ShaderLibrary::new(), |library, shader| {
+        library.with_spirv_bytes(&shader.name, &std::fs::read(&shader.spirv).unwrap()).unwrap()
+    })
+}
+
+fn misuse(kernel: &str, index: usize, detail: &str) -> BackendError {
+    BackendError::KernelMisuse { kernel: kernel.into(), instance: index, detail: detail.into() }
+}
+
+/// `test_motion.comp`: motion = own pixel centre + `offset` where there is a hit.
+struct MotionKernel {
+    offset: [f32; 2],
+}
+
+impl PassKernel for MotionKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let (Some(dst), Some(position)) = (pass.output("motion"), pass.input("position_depth")) else {
+            return Err(misuse("test_motion", index, "reads `position_depth`, writes `motion`"));
+        };
+        let width = rec.resource(dst.resource).width;
+        let mut push = Vec::new();
+        for word in [rec.image(dst.resource)?, rec.image(position.resource)?, pass.rows.y0, pass.rows.y1, width] {
+            push.extend_from_slice(&word.to_le_bytes());
+        }
+        for value in self.offset {
+            push.extend_from_slice(&value.to_le_bytes());
+        }
+        rec.dispatch_bytes("test_motion", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+    }
+}
+
+/// `test_constant.comp` or `test_poison.comp` (the shader named): radiance (dst), albedo
+/// (src0) and, where declared, normal (src1) and position (param) changed in place.
+struct ChangeKernel(&'static str);
+
+impl PassKernel for ChangeKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let (Some(radiance), Some(albedo)) = (pass.output("radiance"), pass.output("albedo_roughness")) else {
+            return Err(misuse(self.0, index, "modifies `radiance` and `albedo_roughness`"));
+        };
+        let optional = |slot: &str| pass.output(slot).map_or(Ok(0), |access| rec.image(access.resource));
+        let (normal, position) = (optional("normal_metallic")?, optional("position_depth")?);
+        let params = PassParams {
+            dst: rec.image(radiance.resource)?,
+            src0: rec.image(albedo.resource)?,
+            src1: normal,
+            param: position,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(radiance.resource).width,
+            ..Default::default()
+        };
+        rec.dispatch_rows(self.0, params)
+    }
+}
+
+/// What a test kernel does to the traced input before SVGF.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Change {
+    None,
+    /// Radiance and albedo replaced by constants (`test_constant`).
+    Constant,
+    /// NaN, Inf, black albedo, zero or NaN normals, NaN depth on some pixels (`test_poison`).
+    Poison,
+}
+
+/// What the SVGF test graphs feed in.
+#[derive(Clone, Copy)]
+struct Input {
+    change: Change,
+    /// The motion test kernel's offset.
+    motion: [f32; 2],
+}
+
+/// `path_trace` (G-buffer and radiance) → [`Input`] → `declare_svgf`, for `views` views;
+/// `denoised` and the traced radiance exported.
+fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> ExecutionPlan {
+    let mut g = KernelGraph::with_payload(ViewTopology::all_sources(views, SIZE, SIZE));
+    let [mut radiance, mut albedo, mut normal, mut position]: [Handle<Image>; 4] =
+        TRACE_OUTPUTS.map(|name| g.image(name, Format::Rgba32f));
+    g.pass(PATH_TRACE, Role::All)
+        .write(&mut radiance)
+        .write(&mut albedo)
+        .write(&mut normal)
+        .write(&mut position)
+        .kernel(Arc::new(PathTraceKernel))
+        .record();
+    match input.change {
+        Change::None => {}
+        Change::Constant => {
+            g.pass("test_constant", Role::All)
+                .modify(&mut radiance)
+                .modify(&mut albedo)
+                .kernel(Arc::new(ChangeKernel("test_constant")))
+                .record();
+        }
+        Change::Poison => {
+            g.pass("test_poison", Role::All)
+                .modify(&mut radiance)
+                .modify(&mut albedo)
+                .modify(&mut normal)
+                .modify(&mut position)
+                .kernel(Arc::new(ChangeKernel("test_poison")))
+                .record();
+        }
+    }
+    let mut motion = g.image("motion", Format::Rg32f);
+    g.pass("test_motion", Role::All)
+        .read(&position)
+        .write(&mut motion)
+        .kernel(Arc::new(MotionKernel { offset: input.motion }))
+        .record();
+    let inputs = SvgfInputs {
+        radiance: &radiance,
+        albedo_roughness: &albedo,
+        normal_metallic: &normal,
+        position_depth: &position,
+        motion: &motion,
+    };
+    let denoised = declare_svgf(&mut g, &inputs);
+    g.export(&denoised);
+    g.export(&radiance);
+    lower(&g, placement)
+}
+
+fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
+    let schedule = compile(graph, placement).unwrap();
+    assert_eq!(schedule.validate().errors, vec![]);
+    ExecutionPlan::from_schedule(graph, &schedule).unwrap()
+}
+
+fn one_device() -> BandedPlacement {
+    BandedPlacement { devices: 1, bands: 1 }
+}
+
+/// An executor of `plan` with the test kernels and the default scene uploaded.
+struct Run {
+    exec: Executor,
+    scene: Scene,
+    views: Vec<View>,
+}
+
+impl Run {
+    fn new(ctx: &Context, plan: ExecutionPlan, views: u32, test: &str) -> Self {
+        let scene = default_scene();
+        let bvh = SceneBvh::build(&scene);
+        let options = ExecOptions { shaders: test_shaders(test), ..ExecOptions::default() };
+        assert!(options.frame_data_bytes >= u64::from(views) * TRACE_PARAMS_BYTES);
+        let mut exec = Executor::new(ctx, plan, options).unwrap();
+        upload_scene(&mut exec, &GpuScene::new(&scene, &bvh)).unwrap();
+        let views = common::views(&scene, views, SIZE, SIZE);
+        Self { exec, scene, views }
+    }
+
+    /// Runs one frame traced at 1 spp with the noise of frame `noise`, pixel centres only (a
+    /// G-buffer that does not move between frames, like a raster one).
+    fn frame(&mut self, noise: u32) {
+        let settings = TraceSettings { spp: 1, frame: noise, jitter: false, ..TraceSettings::default() };
+        self.exec.set_frame_data(&trace_frame_data(&self.scene, &self.views, &settings).unwrap()).unwrap();
+        self.exec.run_frame().unwrap();
+    }
+
+    /// The final `slot` of `view`, as f32s (RGBA per pixel).
+    fn read(&mut self, slot: &str, view: u32) -> Vec<f32> {
+        self.exec.finish().unwrap();
+        let (device, resource) = self.exec.plan().final_output(slot, view).unwrap();
+        floats(&self.exec.read_image(device, resource).unwrap())
+    }
+}
+
+fn floats(bytes: &[u8]) -> Vec<f32> {
+    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+/// Mean squared error of two RGBA images over rgb, each value clamped to [0, 1] first (what a
+/// display can show; keeps a few fireflies from deciding the comparison).
+fn clamped_mse(a: &[f32], b: &[f32]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        for c in 0..3 {
+            let d = f64::from(pa[c].clamp(0.0, 1.0)) - f64::from(pb[c].clamp(0.0, 1.0));
+            sum += d * d;
+            n += 1;
+        }
+    }
+    sum / n as f64
+}
+
+#[test]
+fn tonemap_matches_its_cpu_twin_within_one_step_of_255() {
+    let exposure = 1.5;
+    let ctx = common::context(2);
+    let mut g = KernelGraph::with_payload(ViewTopology::all_sources(2, SIZE, SIZE));
+    let mut radiance = g.image("radiance", Format::Rgba32f);
+    g.pass(PATH_TRACE, Role::All).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
+    let display = declare_tonemap(&mut g, &radiance, exposure).unwrap();
+    g.export(&display);
+    g.export(&radiance);
+    let plan = lower(&g, &BandedPlacement { devices: 2, bands: 2 });
+    let mut run = Run::new(&ctx, plan, 2, "tonemap");
+    run.frame(0);
+    run.exec.finish().unwrap();
+    for view in 0..2 {
+        let radiance = run.read("radiance", view);
+        let (device, resource) = run.exec.plan().final_output(DISPLAY, view).unwrap();
+        let bytes = run.exec.read_image(device, resource).unwrap();
+        assert_eq!(bytes.len(), (SIZE * SIZE * 4) as usize);
+        let mut worst = 0i32;
+        for (rgb, got) in radiance.chunks_exact(4).zip(bytes.chunks_exact(4)) {
+            let expected = tonemap_pixel([rgb[0], rgb[1], rgb[2]], exposure);
+            for c in 0..4 {
+                let want = (expected[c] * 255.0).round() as i32;
+                worst = worst.max((i32::from(got[c]) - want).abs());
+            }
+        }
+        assert!(worst <= 1, "view {view}: a byte differs by {worst} from the CPU curve");
+    }
+    drop(run);
+    ctx.check_validation().unwrap();
+}
+
+#[test]
+fn svgf_gives_a_constant_input_back_on_every_frame() {
+    let ctx = common::context(1);
+    let plan = svgf_plan(1, Input { change: Change::Constant, motion: [0.0, 0.0] }, &one_device());
+    let mut run = Run::new(&ctx, plan, 1, "constant");
+    let expected = [0.3f32, 0.2, 0.1];
+    for frame in 0..6 {
+        run.frame(frame);
+        let denoised = run.read(DENOISED, 0);
+        let mut worst = 0.0f32;
+        for pixel in denoised.chunks_exact(4) {
+            assert!(pixel.iter().all(|v| v.is_finite()), "frame {frame}: {pixel:?}");
+            for c in 0..3 {
+                worst = worst.max((pixel[c] - expected[c]).abs() / expected[c]);
+            }
+        }
+        assert!(worst <= 1e-4, "frame {frame}: relative error {worst}");
+    }
+    drop(run);
+    ctx.check_validation().unwrap();
+}
+
+#[test]
+fn svgf_writes_only_finite_values_from_nan_inf_black_albedo_bad_normals_and_depths() {
+    let ctx = common::context(1);
+    // Motion half a pixel off: bilinear taps reach the spoilt neighbours through history too.
+    let plan = svgf_plan(1, Input { change: Change::Poison, motion: [0.5, 0.5] }, &one_device());
+    let mut run = Run::new(&ctx, plan, 1, "poison");
+    for frame in 0..6 {
+        run.frame(frame);
+        let denoised = run.read(DENOISED, 0);
+        let bad = denoised.iter().filter(|v| !v.is_finite()).count();
+        assert_eq!(bad, 0, "frame {frame}: {bad} values are NaN or Inf");
+    }
+    drop(run);
+    ctx.check_validation().unwrap();
+}
+
+#[test]
+fn svgf_lowers_the_error_of_one_spp_against_a_64_spp_reference_by_3x() {
+    let ctx = common::context(1);
+    let frames = 8;
+    let plan = svgf_plan(1, Input { change: Change::None, motion: [0.0, 0.0] }, &one_device());
+    let mut run = Run::new(&ctx, plan, 1, "noisy");
+    let mut timings = Vec::new();
+    for frame in 0..frames {
+        run.frame(frame);
+        run.exec.finish().unwrap();
+        timings.extend(run.exec.take_reports());
+    }
+    let noisy = run.read("radiance", 0);
+    let denoised = run.read(DENOISED, 0);
+    assert!(denoised.iter().all(|v| v.is_finite()));
+    print_svgf_timings(&timings);
+
+    let bvh = SceneBvh::build(&run.scene);
+    let mut tracer =
+        GpuTracer::new(&ctx, banded_trace_plan(1, (SIZE, SIZE), 1, 1).unwrap(), &GpuScene::new(&run.scene, &bvh))
+            .unwrap();
+    let settings = TraceSettings { spp: 64, frame: 1000, jitter: false, ..TraceSettings::default() };
+    let reference: Vec<f32> =
+        tracer.render(&run.scene, &run.views, &settings).unwrap()[0].iter().flat_map(|p| p.radiance).collect();
+    let (noisy_mse, denoised_mse) = (clamped_mse(&noisy, &reference), clamped_mse(&denoised, &reference));
+    eprintln!("MSE against 64 spp: 1 spp {noisy_mse:.5}, SVGF after {frames} frames {denoised_mse:.5}");
+    assert!(denoised_mse * 3.0 <= noisy_mse, "1 spp {noisy_mse}, denoised {denoised_mse}");
+    drop(tracer);
+    drop(run);
+    ctx.check_validation().unwrap();
+}
+
+/// GPU time of the SVGF passes, averaged over frames (a sanity check on lavapipe, not a figure).
+fn print_svgf_timings(reports: &[parallax_backend::FrameReport]) {
+    let mut total = std::collections::BTreeMap::<String, (f64, usize)>::new();
+    for report in reports {
+        for event in report.events.iter().filter(|e| e.name.starts_with("svgf")) {
+            let entry = total.entry(event.name.clone()).or_default();
+            entry.0 += (event.end_ns - event.start_ns) as f64 * 1e-6;
+            entry.1 += 1;
+        }
+    }
+    for (name, (ms, n)) in total {
+        eprintln!("{name}: {:.3} ms per frame ({SIZE}x{SIZE}, lavapipe)", ms / n as f64);
+    }
+}
+
+#[test]
+fn a_frame_after_a_history_reset_equals_a_fresh_first_frame_bit_for_bit() {
+    let ctx = common::context(1);
+    let input = Input { change: Change::None, motion: [0.0, 0.0] };
+    let mut fresh = Run::new(&ctx, svgf_plan(1, input, &one_device()), 1, "reset_fresh");
+    fresh.frame(0);
+    let first = fresh.read(DENOISED, 0);
+    drop(fresh);
+
+    let mut run = Run::new(&ctx, svgf_plan(1, input, &one_device()), 1, "reset");
+    for frame in 1..5 {
+        run.frame(frame);
+    }
+    // The same input with history: what a reset must not show.
+    run.frame(0);
+    let with_history = run.read(DENOISED, 0);
+    assert_ne!(with_history, first, "history changes the image");
+    run.exec.reset_history();
+    run.frame(0);
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&run.read(DENOISED, 0)), bits(&first));
+    drop(run);
+    ctx.check_validation().unwrap();
+}
+
+#[test]
+fn svgf_in_three_row_bands_on_three_devices_equals_one_device_bit_for_bit() {
+    // Motion 5.75 rows down: reprojection reads rows of other bands (and bilinear weights).
+    let input = Input { change: Change::None, motion: [0.25, 5.75] };
+    let frames = 4;
+    let views = 2;
+    let run = |devices: usize| -> Vec<Vec<u32>> {
+        let ctx = common::context(devices);
+        let placement = BandedPlacement { devices: devices as u32, bands: devices as u32 };
+        let plan = svgf_plan(views, input, &placement);
+        if devices > 1 {
+            assert!(!plan.copies.is_empty(), "bands of other devices are copied in");
+        }
+        let mut run = Run::new(&ctx, plan, views, &format!("bands_{devices}"));
+        let mut out = Vec::new();
+        for frame in 0..frames {
+            run.frame(frame);
+            for view in 0..views {
+                out.push(run.read(DENOISED, view).iter().map(|v| v.to_bits()).collect());
+            }
+        }
+        if devices == 1 {
+            // Not vacuous: pixels of rows 5..10 (band 0 is rows 0..10) reuse history (length
+            // >= 2, the moments' z) through rows 10..16, which band 1 wrote.
+            let moments = run.read("svgf_moments", 0);
+            let reused = (5..10usize)
+                .flat_map(|y| (0..SIZE as usize).map(move |x| y * SIZE as usize + x))
+                .filter(|&i| moments[4 * i + 2] >= 2.0)
+                .count();
+            assert!(reused > 10, "only {reused} pixels reprojected across the band border");
+        }
+        drop(run);
+        ctx.check_validation().unwrap();
+        out
+    };
+    let one = run(1);
+    let three = run(3);
+    for (k, (a, b)) in one.iter().zip(&three).enumerate() {
+        let differing = a.iter().zip(b).filter(|(x, y)| x != y).count();
+        assert_eq!(
+            differing,
+            0,
+            "frame {}, view {}: {differing} values differ",
+            k / views as usize,
+            k % views as usize
+        );
+    }
+}
