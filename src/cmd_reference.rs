@@ -25,11 +25,11 @@ use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
 
 use crate::budget::{TraceWork, check_host_bytes};
-use parallax_passes::camera::{lightfield_view, rig_of};
 use crate::options::{
     DeviceArgs, Resolution, parse_exposure, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
     parse_sun,
 };
+use parallax_passes::camera::{lightfield_view, rig_of};
 
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {

@@ -1,39 +1,66 @@
-//! `parallax render`: path trace every view of a light field of a scene, spread over devices by
-//! the planner, finished views gathered on device 0; one EXR per view and a PNG contact sheet.
-//!
-//! Every view is path traced in full: this is the reference rendering of the light field (no
-//! reprojection), the ground truth that reprojecting pipelines are compared against.
+//! `parallax render`: a light field of a scene through the paper's reconstruction pipeline
+//! (`--pipeline reproject`: G-buffer, path tracing of the sources, reprojection of the targets,
+//! hole filling, SVGF, tonemapping) or with every view path traced (`--pipeline path-trace`, the
+//! baseline), over N devices under any of the three schemes, for F frames of a camera dolly.
+//! Writes the last frame's views (EXR, linear radiance after denoising), the contact sheet, an
+//! optional Looking Glass quilt, and render.json with the paper's Table 1 / Table 4 measures.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
-use clap::Args;
-use parallax_backend::{
-    Context as VkContext, ContextDesc, EventKind, ExecutionPlan as ExecPlan, FrameReport, KernelGraph, chrome_trace,
-};
-use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig};
+use clap::{Args, ValueEnum};
+use glam::Vec3;
+use parallax_backend::{Context as VkContext, ContextDesc, ExecutionPlan, KernelGraph, chrome_trace};
+use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary};
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample};
+use parallax_passes::pipeline::{PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::renderer::LightFieldRenderer;
+use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
-use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
-use parallax_scene::{Frame, SceneBvh, TraceSettings, View, load_scene};
+use parallax_scene::output::{ExrLayers, write_exr_with};
+use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
 
 use crate::budget::TraceWork;
 use crate::cmd_plan::compile_checked;
 use crate::cmd_trace::warn_if_unlit;
-use crate::logging::{result, spinner};
+use crate::lightfield_images::{DisplayImage, quilt_file_name, write_contact_sheet, write_quilt};
+use crate::logging::{bar, result};
 use crate::options::{
-    AssignArg, DeviceArgs, Resolution, SchemeArg, assignment, parse_exposure, parse_focus, parse_layout,
-    parse_resolution, parse_spacing,
+    AssignArg, DeviceArgs, Resolution, SchemeArg, SourceList, assignment, parse_camera, parse_exposure, parse_focus,
+    parse_layout, parse_resolution, parse_sky, parse_sources, parse_spacing, parse_sun,
 };
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
+use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
+
+/// Which pipeline renders the views.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+pub enum PipelineArg {
+    /// The paper's: sources path traced, targets reprojected and their holes filled.
+    Reproject,
+    /// Every view path traced (the baseline).
+    PathTrace,
+}
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
     /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
     #[arg(long, default_value = "default")]
     scene: String,
+    /// The rig camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`;
+    /// without it the scene's first camera (or one framing the whole scene).
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
+    camera: Option<Camera>,
+    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`; replaces the
+    /// scene's sun.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
+    sun: Option<Sun>,
+    /// Remove the scene's sun.
+    #[arg(long, conflicts_with = "sun")]
+    no_sun: bool,
+    /// Constant sky `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb`.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sky)]
+    sky: Option<Sky>,
     /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
     #[arg(long, default_value = "8x4", value_parser = parse_layout)]
     lf: LayoutSpec,
@@ -48,30 +75,71 @@ pub struct RenderArgs {
     focus: Option<f64>,
     #[command(flatten)]
     devices: DeviceArgs,
+    /// What renders the views.
+    #[arg(long, value_enum, default_value_t = PipelineArg::Reproject)]
+    pipeline: PipelineArg,
     /// Partitioning scheme.
     #[arg(long, value_enum, default_value_t = SchemeArg::MultiSource)]
     scheme: SchemeArg,
     /// How views are grouped into sets (multi-source only) [default: compact]
     #[arg(long, value_enum)]
     assign: Option<AssignArg>,
-    /// Samples per pixel.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Sources per set (multi-source, the paper's k_s); each target reprojects from the
+    /// nearest source of its set.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    sources_per_set: u32,
+    /// The fine schemes' sources, view indices (default: k = N placed as in the paper).
+    #[arg(long, value_parser = parse_sources)]
+    sources: Option<SourceList>,
+    /// Skip SVGF: the display shows the radiance after reprojection and hole filling.
+    #[arg(long)]
+    no_denoise: bool,
+    /// Samples per pixel of path tracing (sources, holes, or every view).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=65536))]
     spp: u32,
     /// Maximum number of scattering events per path (0..=1024).
     #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
     max_depth: u32,
+    /// Measured frames (the camera dollies across the scene over warm-up and measured frames).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    frames: u32,
+    /// Frames rendered before measuring (timings and outputs ignore them).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    warmup: u32,
+    /// Also write the views of every N-th measured frame to frame_FFFFF/ under --out-dir.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    save_every: Option<u32>,
     /// Folder for view_NNN.exr, lightfield.png and render.json (created if missing). Every
     /// view_NNN.exr already there that this run does not write is removed, so the folder
     /// holds exactly the views render.json lists; nothing changes there if the run fails.
     #[arg(long, default_value = "out/lightfield")]
     out_dir: PathBuf,
-    /// Exposure multiplier for the contact sheet (> 0).
+    /// Exposure of the tonemapper (> 0).
     #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
     exposure: f32,
-    /// Write a Chrome trace-event JSON of the frame (open in Perfetto or chrome://tracing;
-    /// `-` = stdout).
+    /// Add the hole mask, albedo, normal and depth to every view's EXR.
+    #[arg(long)]
+    layers: bool,
+    /// Also write a Looking Glass quilt (lightfield_qs{cols}x{rows}a{aspect}.png).
+    #[arg(long)]
+    quilt: bool,
+    /// Write a Chrome trace-event JSON of the measured frames (open in Perfetto or
+    /// chrome://tracing; `-` = stdout).
     #[arg(long, value_parser = parse_sink)]
     trace: Option<Sink>,
+}
+
+/// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,
+/// eased in and out, centred on the starting camera.
+fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
+    if total <= 1 {
+        return *camera;
+    }
+    let (right, _, _) = camera.basis();
+    let t = f as f32 / (total - 1) as f32;
+    let eased = 0.5 - 0.5 * (std::f32::consts::PI * t).cos();
+    let offset: Vec3 = right * (0.1 * scene.bounds().diagonal() * (eased - 0.5));
+    Camera { eye: camera.eye + offset, ..*camera }
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -81,20 +149,57 @@ pub fn run(args: RenderArgs) -> Result<()> {
     check_outputs(&args.out_dir, &sheet, &render_json, args.trace.as_ref())?;
     let settings = TraceSettings { spp: args.spp, max_depth: args.max_depth, ..Default::default() };
     settings.validate()?;
-    // The layout's size is known without the scene: check what it costs before loading one.
-    let sized = LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), Rig::default())?;
-    let work = TraceWork { views: sized.len() as u64, width: sized.width, height: sized.height, spp: args.spp };
+    let total_frames = args.warmup + args.frames;
+    let sized = LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), Default::default())?;
+    let work = TraceWork {
+        views: sized.len() as u64 * u64::from(total_frames),
+        width: sized.width,
+        height: sized.height,
+        spp: args.spp,
+    };
     work.check_duration()?;
-    work.check_host()?;
-    let scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
+    TraceWork { views: sized.len() as u64, ..work }.check_host()?;
+
+    let mut scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
+    if let Some(sun) = args.sun {
+        scene.sun = Some(sun);
+    }
+    if args.no_sun {
+        scene.sun = None;
+    }
+    if let Some(sky) = args.sky {
+        scene.sky = Some(sky);
+    }
     warn_if_unlit(&scene);
-    let rig = rig_of(&scene.default_camera(), scene.bounds().center(), args.focus);
-    let lf = LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), rig)?;
+    let camera = args.camera.unwrap_or_else(|| scene.default_camera());
+    let centre = scene.bounds().center();
+    let lf_of = |f: u32| -> Result<LightField> {
+        let rig = rig_of(&dolly(&camera, &scene, f, total_frames), centre, args.focus);
+        Ok(LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), rig)?)
+    };
+    let lf = lf_of(0)?;
     let selection = args.devices.selection();
-    let config = PlanConfig { devices: selection.count() as u32, scheme: args.scheme.into(), assign, sources: None };
-    let plan = Plan::new(&lf, &config)?;
+    let config = PlanConfig {
+        devices: selection.count() as u32,
+        scheme: args.scheme.into(),
+        assign,
+        sources: args.sources.as_ref().map(|s| s.0.clone()),
+    };
+    let plan = Plan::with_sources_per_set(&lf, &config, args.sources_per_set)?;
+    let kind = match args.pipeline {
+        PipelineArg::Reproject => PipelineKind::Reproject,
+        PipelineArg::PathTrace => PipelineKind::PathTrace,
+    };
+    let pipeline = PipelineConfig {
+        kind,
+        tolerances: ReprojectionTolerances::default(),
+        denoise: !args.no_denoise,
+        exposure: args.exposure,
+    };
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    declare_trace(&mut graph, None);
+    let handles = declare_pipeline(&mut graph, &pipeline)?;
+    // Only the display images travel to device 0; float layers are read where they were made.
+    graph.export(&handles.display);
     let schedule = compile_checked(&graph, &plan)?;
     let summary = PlanSummary::new(&lf, &plan, &schedule);
 
@@ -102,41 +207,103 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let context = VkContext::new(&ContextDesc::from_env(selection))?;
     tracing::info!("{}", context.to_string().trim_end());
     work.check_devices(&context)?;
-    let exec_plan = ExecPlan::from_schedule(&graph, &schedule)?;
-    let mut tracer = GpuTracer::new(&context, exec_plan, &GpuScene::new(&scene, &bvh))?;
-    let views: Vec<View> = lightfield_views(&lf);
-    let progress = spinner(format!("tracing {} views of {}x{} at {} spp", views.len(), lf.width, lf.height, args.spp));
-    let started = Instant::now();
-    let pixels = tracer.render(&scene, &views, &settings)?;
-    let wall = started.elapsed();
-    progress.finish_and_clear();
-    let reports = tracer.executor().take_reports();
-    drop(tracer);
-    context.check_validation()?;
+    let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule)?;
+    let mut renderer = LightFieldRenderer::new(&context, exec_plan, lf.len() as u32, &GpuScene::new(&scene, &bvh))?;
 
-    let frames: Vec<Frame> = pixels
-        .iter()
-        .zip(&views)
-        .map(|(p, v)| Frame { width: v.width, height: v.height, pixels: p.iter().map(to_pixel_sample).collect() })
-        .collect();
-    // Everything is staged before anything is put in place, and render.json goes last: a
-    // failure (or Ctrl-C) at any point leaves the folder as it was or complete.
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let progress = bar(u64::from(total_frames));
+    let started = Instant::now();
+    let mut measured_from = None;
     let mut staged: Vec<Staged> = Vec::new();
-    for (frame, view) in frames.iter().zip(&views) {
-        let path = args.out_dir.join(view_file_name(view.index));
-        staged.push(stage(&path, |tmp| {
-            write_exr(tmp, frame, ExrLayers::default()).with_context(|| format!("cannot write {}", path.display()))
-        })?);
+    for f in 0..total_frames {
+        if f == args.warmup {
+            renderer.finish()?;
+            renderer.take_reports();
+            measured_from = Some(Instant::now());
+        }
+        let views = lightfield_views(&lf_of(f)?);
+        renderer.submit(&scene, &views, &TraceSettings { frame: f, ..settings })?;
+        let measured = f.checked_sub(args.warmup);
+        if let (Some(every), Some(m)) = (args.save_every, measured)
+            && m % every == 0
+            && f + 1 < total_frames
+        {
+            renderer.finish()?;
+            let folder = args.out_dir.join(format!("frame_{m:05}"));
+            std::fs::create_dir_all(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
+            staged.extend(stage_views(
+                &mut renderer,
+                handles.linear_slot,
+                &folder,
+                &views,
+                &handles_layers(&args, kind),
+            )?);
+        }
+        progress.inc(1);
     }
-    staged.push(stage(&sheet, |tmp| {
-        write_contact_sheet(tmp, &frames.iter().collect::<Vec<_>>(), lf.cols, args.exposure)
-            .with_context(|| format!("cannot write {}", sheet.display()))
-    })?);
-    let timing = timing_summary(&reports);
-    let json = serde_json::json!({ "plan": &summary, "spp": args.spp, "max_depth": args.max_depth,
-                                   "wall_ms": wall.as_secs_f64() * 1e3, "timing": &timing, "frames": &reports });
+    renderer.finish()?;
+    let wall = measured_from.unwrap_or(started).elapsed();
+    progress.finish_and_clear();
+    let reports = renderer.take_reports();
+    let last_views = lightfield_views(&lf_of(total_frames - 1)?);
+
+    // Everything is staged before anything is put in place, and render.json goes last: a
+    // failure (or Ctrl-C) at any point leaves the folder as it was or complete.
+    staged.extend(stage_views(
+        &mut renderer,
+        handles.linear_slot,
+        &args.out_dir,
+        &last_views,
+        &handles_layers(&args, kind),
+    )?);
+    let displays: Vec<Vec<u8>> = (0..lf.len() as u32).map(|v| renderer.read("display", v)).collect::<Result<_, _>>()?;
+    let images: Vec<DisplayImage<'_>> =
+        displays.iter().map(|d| DisplayImage { width: lf.width, height: lf.height, rgba8: d }).collect();
+    staged.push(stage(&sheet, |tmp| write_contact_sheet(tmp, &images, lf.cols))?);
+    if args.quilt {
+        let quilt = args.out_dir.join(quilt_file_name("lightfield", lf.len() as u32, lf.width, lf.height));
+        staged.push(stage(&quilt, |tmp| write_quilt(tmp, &images))?);
+    }
+    let missing = match kind {
+        PipelineKind::Reproject => {
+            let holes: Vec<Option<Vec<u32>>> = (0..lf.len() as u32)
+                .map(|v| {
+                    if plan.topology.is_source[v as usize] {
+                        return Ok(None);
+                    }
+                    let bytes = renderer.read_stitched("holes", v)?;
+                    Ok(Some(bytemuck_words(&bytes)))
+                })
+                .collect::<Result<_, parallax_passes::PassError>>()?;
+            missing_pixels(renderer.executor().plan(), &holes, lf.width)
+        }
+        PipelineKind::PathTrace => MissingPixels::default(),
+    };
+    drop(renderer);
+    context.check_validation()?;
+
+    let timing = timings(&reports);
+    let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
+    let json = serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "scene": args.scene,
+        "camera": { "eye": camera.eye.to_array(), "forward": camera.forward.to_array(), "up": camera.up.to_array(),
+                    "yfov_degrees": camera.yfov.to_degrees() },
+        "sun": scene.sun.map(|s| serde_json::json!({ "to_sun": s.to_sun.to_array(), "irradiance": s.irradiance.to_array(),
+                                                     "angular_radius": s.angular_radius })),
+        "sky": format!("{:?}", scene.sky()),
+        "layout": { "spec": format!("{:?}", args.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
+                    "width": lf.width, "height": lf.height, "spacing_m": args.spacing, "focus_m": lf.rig.focus_distance },
+        "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
+        "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
+        "spp": args.spp, "max_depth": args.max_depth, "frames": args.frames, "warmup": args.warmup,
+        "devices": device_names,
+        "plan": &summary,
+        "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
+        "timing": &timing,
+        "missing_pixels": &missing,
+    });
     let json_file = crate::outputs::stage_json(&render_json, &json)?;
     let trace = args.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
     for s in staged {
@@ -148,21 +315,93 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     json_file.commit()?;
     let say = |line: String| result(matches!(args.trace, Some(Sink::Stdout)), &line);
+    say(stage_table(&timing));
     say(format!(
-        "rendered {} views of {}x{} at {} spp ({}, {} device(s)) in {:.1} ms wall; GPU span {:.2} ms, path_trace per device {:?} ms, {} gather copies",
+        "rendered {} views of {}x{} ({:?}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
         lf.len(),
         lf.width,
         lf.height,
-        args.spp,
+        args.pipeline,
         summary.scheme,
         summary.devices,
-        wall.as_secs_f64() * 1e3,
-        timing.gpu_span_ms,
-        timing.path_trace_ms_per_device,
-        summary.gather_copies
+        args.spp,
+        args.frames,
+        wall.as_secs_f64() * 1e3 / f64::from(args.frames),
+        timing.frame_gpu.mean_ms,
+        100.0 * missing.overall
     ));
     say(format!("wrote {} view EXRs, {} and {}", lf.len(), sheet.display(), render_json.display()));
     Ok(())
+}
+
+/// Which extra EXR layers the views get.
+fn handles_layers(args: &RenderArgs, kind: PipelineKind) -> (bool, bool) {
+    (args.layers, args.layers && kind == PipelineKind::Reproject)
+}
+
+fn bytemuck_words(bytes: &[u8]) -> Vec<u32> {
+    bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+fn texels(bytes: &[u8]) -> Vec<[f32; 4]> {
+    bytes
+        .chunks_exact(16)
+        .map(|b| std::array::from_fn(|i| f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])))
+        .collect()
+}
+
+/// Stages `view_NNN.exr` of every view into `folder`: the linear radiance after denoising (or
+/// after hole filling with --no-denoise), with `(layers, holes)`: albedo, normal and depth, and
+/// the hole mask of targets as channel `holes.Y` (1 = the pixel was path traced by hole filling).
+fn stage_views(
+    renderer: &mut LightFieldRenderer,
+    linear_slot: &str,
+    folder: &Path,
+    views: &[View],
+    (layers, holes): &(bool, bool),
+) -> Result<Vec<Staged>> {
+    let mut staged = Vec::with_capacity(views.len());
+    for view in views {
+        let radiance = texels(&renderer.read_stitched(linear_slot, view.index)?);
+        let (albedo, normal, position) = if *layers {
+            (
+                texels(&renderer.read_stitched("albedo_roughness", view.index)?),
+                texels(&renderer.read_stitched("normal_metallic", view.index)?),
+                texels(&renderer.read_stitched("position_depth", view.index)?),
+            )
+        } else {
+            (Vec::new(), Vec::new(), Vec::new())
+        };
+        let mask = match renderer.read_stitched("holes", view.index) {
+            Ok(bytes) if *holes => Some(bytemuck_words(&bytes)),
+            _ => None,
+        };
+        let pixels = (0..radiance.len())
+            .map(|i| {
+                let g = |layer: &[[f32; 4]]| layer.get(i).copied().unwrap_or([0.0; 4]);
+                let (a, n, p) = (g(&albedo), g(&normal), g(&position));
+                PixelSample {
+                    radiance: Vec3::from_slice(&radiance[i][..3]),
+                    albedo: Vec3::from_slice(&a[..3]),
+                    normal: Vec3::from_slice(&n[..3]),
+                    depth: p[3],
+                    position: Vec3::from_slice(&p[..3]),
+                    roughness: a[3],
+                    metallic: n[3],
+                    hit: radiance[i][3] > 0.5,
+                }
+            })
+            .collect();
+        let frame = Frame { width: view.width, height: view.height, pixels };
+        let path = folder.join(view_file_name(view.index));
+        let exr_layers = if *layers { ExrLayers::ALL } else { ExrLayers::default() };
+        let mask: Option<Vec<f32>> = mask.map(|m| m.iter().map(|&h| h as f32).collect());
+        let extra: Vec<(&str, &[f32])> = mask.iter().map(|m| ("holes.Y", m.as_slice())).collect();
+        staged.push(stage(&path, |tmp| {
+            write_exr_with(tmp, &frame, exr_layers, &extra).with_context(|| format!("cannot write {}", path.display()))
+        })?);
+    }
+    Ok(staged)
 }
 
 fn view_file_name(index: u32) -> String {
@@ -224,28 +463,4 @@ fn parse_view_file_name(name: &str) -> Option<u32> {
     }
     let index: u32 = digits.parse().ok()?;
     (view_file_name(index) == name).then_some(index)
-}
-
-/// The rig is the scene's camera; the zero-disparity plane goes through the scene's centre
-/// unless `--focus` says otherwise.
-#[derive(serde::Serialize)]
-struct TimingSummary {
-    gpu_span_ms: f64,
-    path_trace_ms_per_device: Vec<f64>,
-    gather_ms: f64,
-}
-
-fn timing_summary(reports: &[FrameReport]) -> TimingSummary {
-    let events: Vec<_> = reports.iter().flat_map(|r| &r.events).collect();
-    let devices = events.iter().map(|e| e.device + 1).max().unwrap_or(0);
-    let ms = |filter: &dyn Fn(&&&parallax_backend::TimedEvent) -> bool| {
-        events.iter().filter(filter).map(|e| e.end_ns.saturating_sub(e.start_ns)).sum::<u64>() as f64 / 1e6
-    };
-    TimingSummary {
-        gpu_span_ms: reports.iter().map(|r| r.gpu_span_ns).sum::<u64>() as f64 / 1e6,
-        path_trace_ms_per_device: (0..devices)
-            .map(|d| ms(&|e| e.device == d && e.kind == EventKind::Pass && e.name == PATH_TRACE))
-            .collect(),
-        gather_ms: ms(&|e| e.kind != EventKind::Pass),
-    }
 }

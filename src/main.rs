@@ -9,9 +9,11 @@ mod cmd_plan;
 mod cmd_reference;
 mod cmd_render;
 mod cmd_trace;
+mod lightfield_images;
 mod logging;
 mod options;
 mod outputs;
+mod render_report;
 
 use clap::{CommandFactory, Parser, Subcommand};
 

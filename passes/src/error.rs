@@ -16,6 +16,9 @@ pub enum PassError {
     Graph(#[from] parallax_graph::GraphError),
 
     #[error(transparent)]
+    Tonemap(#[from] crate::tonemap::TonemapError),
+
+    #[error(transparent)]
     Scene(#[from] parallax_scene::SceneError),
 
     /// The trace parameters are indexed by view: `views[i].index` must be `i`.

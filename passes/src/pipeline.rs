@@ -9,9 +9,12 @@ use std::sync::Arc;
 use parallax_backend::KernelGraph;
 use parallax_graph::{Format, Handle, Image, Role};
 
+use crate::error::Result;
 use crate::gbuffer::{Gbuffer, declare_gbuffer};
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
 use crate::reproject::{ReprojectionTolerances, declare_reproject};
+use crate::svgf::{DENOISED, SvgfInputs, declare_svgf};
+use crate::tonemap::declare_tonemap;
 
 /// Which pipeline renders the light field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -27,6 +30,10 @@ pub enum PipelineKind {
 pub struct PipelineConfig {
     pub kind: PipelineKind,
     pub tolerances: ReprojectionTolerances,
+    /// SVGF between the radiance and the tonemapper.
+    pub denoise: bool,
+    /// Exposure of the tonemapper (finite, > 0).
+    pub exposure: f32,
 }
 
 /// Handles of a declared pipeline, for callers that read layers back or add passes.
@@ -36,6 +43,12 @@ pub struct PipelineHandles {
     pub radiance: Handle<Image>,
     /// Targets' hole masks (`Reproject` only).
     pub holes: Option<Handle<Image>>,
+    /// Linear radiance after denoising (`denoise` only).
+    pub denoised: Option<Handle<Image>>,
+    /// Slot of the final linear radiance: `denoised`, or `radiance` without denoising.
+    pub linear_slot: &'static str,
+    /// The tonemapped RGBA8 image of every view (not exported: the caller decides).
+    pub display: Handle<Image>,
 }
 
 /// Declares `path_trace` for every view of `role`, writing only `radiance`.
@@ -44,7 +57,7 @@ pub fn declare_path_trace(graph: &mut KernelGraph, role: Role, radiance: &mut Ha
 }
 
 /// Declares the pipeline of `config`; nothing is exported (the caller exports what it reads).
-pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> PipelineHandles {
+pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> Result<PipelineHandles> {
     let gbuffer = declare_gbuffer(graph);
     let mut radiance = graph.image("radiance", Format::Rgba32f);
     let holes = match config.kind {
@@ -57,5 +70,17 @@ pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> Pip
             Some(declare_reproject(graph, &gbuffer, &mut radiance, config.tolerances))
         }
     };
-    PipelineHandles { gbuffer, radiance, holes }
+    let denoised = config.denoise.then(|| {
+        let inputs = SvgfInputs {
+            radiance: &radiance,
+            albedo_roughness: &gbuffer.albedo_roughness,
+            normal_metallic: &gbuffer.normal_metallic,
+            position_depth: &gbuffer.position_depth,
+            motion: &gbuffer.motion,
+        };
+        declare_svgf(graph, &inputs)
+    });
+    let display = declare_tonemap(graph, denoised.as_ref().unwrap_or(&radiance), config.exposure)?;
+    let linear_slot = if denoised.is_some() { DENOISED } else { "radiance" };
+    Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear_slot, display })
 }

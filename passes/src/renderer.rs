@@ -71,6 +71,34 @@ impl LightFieldRenderer {
         Ok(self.executor.read_image(device, resource)?)
     }
 
+    /// Slot `slot` of `view` after the last frame, whole, as tightly packed rows: each row band
+    /// read on the device whose instance wrote its final version there (a fine scheme leaves
+    /// the bands of a layer that is not gathered on different devices).
+    pub fn read_stitched(&mut self, slot: &str, view: u32) -> Result<Vec<u8>> {
+        let missing = || PassError::MissingResource { name: slot.into(), view };
+        let plan = self.executor.plan();
+        let writes = || {
+            plan.passes
+                .iter()
+                .filter(move |p| p.view == view)
+                .flat_map(move |p| p.writes.iter().filter(move |w| w.slot == slot).map(move |w| (p.device, w)))
+        };
+        let version = writes().map(|(_, w)| w.version).max().ok_or_else(missing)?;
+        let bands: Vec<(usize, usize, u32, u32)> = writes()
+            .filter(|(_, w)| w.version == version)
+            .map(|(d, w)| (d, w.resource, w.rows.y0, w.rows.y1))
+            .collect();
+        let desc = plan.resources[bands[0].1].clone();
+        let row_bytes = desc.row_bytes() as usize;
+        let mut out = vec![0u8; row_bytes * desc.height as usize];
+        for (device, resource, y0, y1) in bands {
+            let bytes = self.executor.read_image(device, resource)?;
+            let (a, b) = (y0 as usize * row_bytes, y1 as usize * row_bytes);
+            out[a..b].copy_from_slice(&bytes[a..b]);
+        }
+        Ok(out)
+    }
+
     /// GPU timings of the frames that retired since the last call.
     pub fn take_reports(&mut self) -> Vec<FrameReport> {
         self.executor.take_reports()

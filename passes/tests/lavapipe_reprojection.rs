@@ -37,7 +37,8 @@ fn render(cols: u32, spacing: f64, devices: u32, kind: PipelineKind, spp: u32) -
     let config = PlanConfig { devices, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let handles = declare_pipeline(&mut graph, &PipelineConfig { kind, tolerances: ReprojectionTolerances::default() });
+    let config = PipelineConfig { kind, tolerances: ReprojectionTolerances::default(), denoise: false, exposure: 1.0 };
+    let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     let schedule = compile(&graph, &plan).unwrap();
     let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();

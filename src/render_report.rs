@@ -1,0 +1,172 @@
+//! What `parallax render` measures and writes to render.json: per-stage per-device GPU time in
+//! the layout of the paper's Table 1, frame times, busy fraction per device (Fig. 8), copies and
+//! bytes moved, and missing pixels per view and per device (Table 4).
+
+use std::collections::BTreeMap;
+
+use parallax_backend::{EventKind, ExecutionPlan, FrameReport};
+
+/// Mean GPU time of one stage on one device over the measured frames.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StageRow {
+    pub stage: String,
+    pub device: usize,
+    pub mean_ms: f64,
+    pub instances_per_frame: f64,
+}
+
+/// Statistics of a list of times.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Spread {
+    pub mean_ms: f64,
+    pub median_ms: f64,
+    pub p95_ms: f64,
+}
+
+impl Spread {
+    pub fn of(values: &[f64]) -> Self {
+        if values.is_empty() {
+            return Self::default();
+        }
+        let mut sorted = values.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
+        Self { mean_ms: values.iter().sum::<f64>() / values.len() as f64, median_ms: at(0.5), p95_ms: at(0.95) }
+    }
+}
+
+/// Everything timed about the measured frames.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Timings {
+    pub frames: usize,
+    /// GPU span of each frame (first event start to last event end over all devices).
+    pub frame_gpu_ms: Vec<f64>,
+    pub frame_gpu: Spread,
+    pub stages: Vec<StageRow>,
+    /// Per device: time covered by its events over the frame's GPU span, averaged.
+    pub busy_fraction: Vec<f64>,
+    pub copies_per_frame: f64,
+    pub copy_bytes_per_frame: f64,
+}
+
+/// Stage of an event: the pass name; `transfer` for display images moving to device 0 (Table
+/// 1's last stage), `copy` for every other transfer between devices.
+fn stage_of(name: &str, kind: EventKind) -> String {
+    match kind {
+        EventKind::Pass => name.to_string(),
+        _ if name.contains(" display view ") => "transfer".to_string(),
+        _ => "copy".to_string(),
+    }
+}
+
+pub fn timings(reports: &[FrameReport]) -> Timings {
+    let frames = reports.len().max(1) as f64;
+    let mut stages: BTreeMap<(String, usize), (u64, usize)> = BTreeMap::new();
+    let mut copies = 0usize;
+    let mut bytes = 0u64;
+    for event in reports.iter().flat_map(|r| &r.events) {
+        let entry = stages.entry((stage_of(&event.name, event.kind), event.device)).or_default();
+        entry.0 += event.duration_ns();
+        entry.1 += 1;
+        if event.kind == EventKind::CopyIn {
+            copies += 1;
+            bytes += event.bytes;
+        }
+    }
+    let devices = reports.iter().flat_map(|r| r.devices.iter().map(|d| d.device + 1)).max().unwrap_or(0);
+    let busy_fraction = (0..devices)
+        .map(|d| {
+            let fractions: Vec<f64> = reports
+                .iter()
+                .filter_map(|r| r.devices.iter().find(|s| s.device == d))
+                .map(|s| s.busy_fraction)
+                .collect();
+            fractions.iter().sum::<f64>() / fractions.len().max(1) as f64
+        })
+        .collect();
+    let frame_gpu_ms: Vec<f64> = reports.iter().map(|r| r.gpu_span_ns as f64 / 1e6).collect();
+    Timings {
+        frames: reports.len(),
+        frame_gpu: Spread::of(&frame_gpu_ms),
+        frame_gpu_ms,
+        stages: stages
+            .into_iter()
+            .map(|((stage, device), (ns, count))| StageRow {
+                stage,
+                device,
+                mean_ms: ns as f64 / 1e6 / frames,
+                instances_per_frame: count as f64 / frames,
+            })
+            .collect(),
+        busy_fraction,
+        copies_per_frame: copies as f64 / frames,
+        copy_bytes_per_frame: bytes as f64 / frames,
+    }
+}
+
+/// The stage table as markdown: one row per stage, one column per device (ms per frame).
+pub fn stage_table(t: &Timings) -> String {
+    let devices = t.stages.iter().map(|s| s.device + 1).max().unwrap_or(0);
+    let mut order: Vec<String> = Vec::new();
+    for s in &t.stages {
+        if !order.contains(&s.stage) {
+            order.push(s.stage.clone());
+        }
+    }
+    let mut out = String::from("| stage |");
+    for d in 0..devices {
+        out.push_str(&format!(" GPU {d} (ms) |"));
+    }
+    out.push('\n');
+    out.push_str(&"|---".repeat(devices + 1));
+    out.push_str("|\n");
+    for stage in order {
+        out.push_str(&format!("| {stage} |"));
+        for d in 0..devices {
+            match t.stages.iter().find(|s| s.stage == stage && s.device == d) {
+                Some(s) => out.push_str(&format!(" {:.3} |", s.mean_ms)),
+                None => out.push_str(" – |"),
+            }
+        }
+        out.push('\n');
+    }
+    out.push_str(&format!(
+        "| frame (GPU span) | {:.3} mean, {:.3} median, {:.3} p95 |\n",
+        t.frame_gpu.mean_ms, t.frame_gpu.median_ms, t.frame_gpu.p95_ms
+    ));
+    out
+}
+
+/// Missing pixels after reprojection (Table 4): per target view and per device that reprojected
+/// them, the fraction of pixels that are holes.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct MissingPixels {
+    /// (view, fraction), targets only.
+    pub per_view: Vec<(u32, f64)>,
+    /// Fraction of the pixels each device reprojected.
+    pub per_device: Vec<f64>,
+    pub overall: f64,
+}
+
+/// `holes[v]` is view v's hole mask (None for sources); `plan` says which device reprojected
+/// which rows.
+pub fn missing_pixels(plan: &ExecutionPlan, holes: &[Option<Vec<u32>>], width: u32) -> MissingPixels {
+    let devices = plan.devices.len();
+    let (mut missed, mut total) = (vec![0u64; devices], vec![0u64; devices]);
+    let mut per_view = Vec::new();
+    for (v, mask) in holes.iter().enumerate() {
+        let Some(mask) = mask else { continue };
+        per_view.push((v as u32, mask.iter().filter(|&&h| h != 0).count() as f64 / mask.len().max(1) as f64));
+        for pass in plan.passes.iter().filter(|p| p.view == v as u32 && p.name == "reproject") {
+            let rows = &mask[(pass.rows.y0 * width) as usize..(pass.rows.y1 * width) as usize];
+            missed[pass.device] += rows.iter().filter(|&&h| h != 0).count() as u64;
+            total[pass.device] += rows.len() as u64;
+        }
+    }
+    let all: u64 = total.iter().sum();
+    MissingPixels {
+        per_view,
+        per_device: missed.iter().zip(&total).map(|(&m, &t)| if t == 0 { 0.0 } else { m as f64 / t as f64 }).collect(),
+        overall: if all == 0 { 0.0 } else { missed.iter().sum::<u64>() as f64 / all as f64 },
+    }
+}
