@@ -27,7 +27,7 @@ const VIEWS: u32 = 3;
 const SOURCE: u32 = 1;
 const SETTINGS: TraceSettings = TraceSettings { spp: 1, max_depth: 3, frame: 5, russian_roulette_from: None, jitter: true };
 
-/// What a run gives back: every view's pixels and, per target view, its `hole_list` words.
+/// What a run gives back: every view's pixels and, per view that has one, its `hole_list` words.
 struct Run {
     plan: ExecutionPlan,
     pixels: Vec<Vec<GpuPixel>>,
@@ -66,8 +66,9 @@ fn run(devices: u32, plan: ExecutionPlan) -> Run {
     let mut tracer = parallax_passes::GpuTracer::new(&ctx, plan.clone(), &GpuScene::new(&scene, &bvh)).unwrap();
     let pixels = tracer.render(&scene, &views, &SETTINGS).unwrap();
     let mut lists = Vec::new();
-    for view in (0..VIEWS).filter(|&v| v != SOURCE) {
-        let (device, resource) = tracer.executor().plan().final_output(HOLE_LIST, view).unwrap();
+    for view in 0..VIEWS {
+        // Only target views have lists, and only in hole-filling plans.
+        let Some((device, resource)) = tracer.executor().plan().final_output(HOLE_LIST, view) else { continue };
         let bytes = tracer.executor().read_resource(device, resource).unwrap();
         lists.push((view, bytemuck::pod_collect_to_vec(&bytes)));
     }
