@@ -11,7 +11,7 @@ use parallax_backend::{
     BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameReport, KernelGraph,
     PassKernel, PassParams, Recorder,
 };
-use parallax_graph::{BandedPlacement, Role, ViewTopology, ViewId, compile};
+use parallax_graph::{BandedPlacement, Role, ViewId, ViewTopology, compile};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, View};
 
@@ -169,7 +169,11 @@ fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<ExecutionPlan> 
     // The targets' radiance before filling is whatever the image holds (reprojection's place).
     graph.import(&radiance);
     graph.pass(PATH_TRACE, Role::Sources).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
-    graph.pass(HOLE_MASK, Role::Targets).write(&mut holes).kernel(Arc::new(HashedHoleMaskKernel { threshold })).record();
+    graph
+        .pass(HOLE_MASK, Role::Targets)
+        .write(&mut holes)
+        .kernel(Arc::new(HashedHoleMaskKernel { threshold }))
+        .record();
     declare_hole_fill(&mut graph, &holes, &mut radiance);
     graph.export(&radiance);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?;
@@ -178,10 +182,8 @@ fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<ExecutionPlan> 
 
 /// Median over `reports` of the GPU time of the passes named `stage` in one frame, ms.
 fn median_stage_ms(reports: &[FrameReport], stage: &str) -> f64 {
-    let mut per_frame: Vec<u64> = reports
-        .iter()
-        .map(|r| r.stages.iter().filter(|s| s.stage == stage).map(|s| s.total_ns).sum())
-        .collect();
+    let mut per_frame: Vec<u64> =
+        reports.iter().map(|r| r.stages.iter().filter(|s| s.stage == stage).map(|s| s.total_ns).sum()).collect();
     per_frame.sort_unstable();
     per_frame.get(per_frame.len() / 2).map_or(0.0, |&ns| ns as f64 / 1e6)
 }

@@ -35,10 +35,19 @@ pub fn hole_list_row_bytes(width: u32) -> u64 {
 /// traces the listed pixels into `radiance` in place, so the pixels that are not holes keep
 /// what was there (the reprojected radiance). `hole_fill` reads its views' `GpuTraceParams`
 /// from the per-frame data like `path_trace` ([`crate::trace_frame_data`]).
-pub fn declare_hole_fill(graph: &mut KernelGraph, holes: &Handle<Image>, radiance: &mut Handle<Image>) -> Handle<Buffer> {
+pub fn declare_hole_fill(
+    graph: &mut KernelGraph,
+    holes: &Handle<Image>,
+    radiance: &mut Handle<Image>,
+) -> Handle<Buffer> {
     let mut list = graph.row_buffer(HOLE_LIST, hole_list_row_bytes(graph.topology().width));
     graph.reset_each_frame(&list, Vec::new());
-    graph.pass(COMPACT_HOLES, Role::Targets).read(holes).modify(&mut list).kernel(Arc::new(CompactHolesKernel)).record();
+    graph
+        .pass(COMPACT_HOLES, Role::Targets)
+        .read(holes)
+        .modify(&mut list)
+        .kernel(Arc::new(CompactHolesKernel))
+        .record();
     graph.pass(HOLE_FILL, Role::Targets).read(&list).modify(radiance).kernel(Arc::new(PathTraceKernel)).record();
     list
 }
@@ -63,7 +72,8 @@ pub struct CompactHolesKernel;
 
 impl PassKernel for CompactHolesKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let misuse = |detail: String| BackendError::KernelMisuse { kernel: COMPACT_HOLES.into(), instance: index, detail };
+        let misuse =
+            |detail: String| BackendError::KernelMisuse { kernel: COMPACT_HOLES.into(), instance: index, detail };
         let (Some(holes), Some(list)) = (pass.input(HOLES), pass.output(HOLE_LIST)) else {
             return Err(misuse(format!("reads `{HOLES}` and writes `{HOLE_LIST}`")));
         };
@@ -95,7 +105,11 @@ impl PassKernel for CompactHolesKernel {
             width,
         };
         // 8x8-pixel tiles, one workgroup each (see compact_holes.comp).
-        rec.dispatch_bytes("compact_holes", bytemuck::bytes_of(&push), [width.div_ceil(8), list.rows.len().div_ceil(8), 1])
+        rec.dispatch_bytes(
+            "compact_holes",
+            bytemuck::bytes_of(&push),
+            [width.div_ceil(8), list.rows.len().div_ceil(8), 1],
+        )
     }
 }
 

@@ -100,7 +100,9 @@ impl PassKernel for PathTraceKernel {
             list_mode: u32::from(list.is_some()),
         };
         match list {
-            Some((_, resource, offset)) => rec.dispatch_indirect("pt_trace", bytemuck::bytes_of(&push), resource, offset),
+            Some((_, resource, offset)) => {
+                rec.dispatch_indirect("pt_trace", bytemuck::bytes_of(&push), resource, offset)
+            }
             // 8x8-pixel tiles (see pt_trace.comp).
             None => rec.dispatch_bytes(
                 "pt_trace",

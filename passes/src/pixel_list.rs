@@ -110,8 +110,7 @@ mod tests {
 
     #[test]
     fn the_push_struct_matches_pixel_list_strided_comp() {
-        let glsl =
-            member_offsets(&parallax_backend::spirv("pixel_list_strided").unwrap(), "StridedListPush").unwrap();
+        let glsl = member_offsets(&parallax_backend::spirv("pixel_list_strided").unwrap(), "StridedListPush").unwrap();
         let rust = rust_layout!(StridedListPush { width, height, stride, phase, capacity, pad, list });
         assert_eq!(glsl, rust);
         assert_eq!(std::mem::size_of::<StridedListPush>(), 32);

@@ -25,7 +25,8 @@ const H: u32 = 32;
 /// A 3×1 light field whose middle view is the only source: views 0 and 2 are filled.
 const VIEWS: u32 = 3;
 const SOURCE: u32 = 1;
-const SETTINGS: TraceSettings = TraceSettings { spp: 1, max_depth: 3, frame: 5, russian_roulette_from: None, jitter: true };
+const SETTINGS: TraceSettings =
+    TraceSettings { spp: 1, max_depth: 3, frame: 5, russian_roulette_from: None, jitter: true };
 
 /// What a run gives back: every view's pixels and, per view that has one, its `hole_list` words.
 struct Run {
@@ -49,7 +50,11 @@ fn hole_fill_plan(devices: u32, threshold: u32) -> ExecutionPlan {
     graph.pass(PATH_TRACE, Role::Sources).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
     // What reprojection would leave: here a pattern every untouched pixel must keep.
     graph.pass("prefill", Role::Targets).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
-    graph.pass(HOLE_MASK, Role::Targets).write(&mut holes).kernel(Arc::new(HashedHoleMaskKernel { threshold })).record();
+    graph
+        .pass(HOLE_MASK, Role::Targets)
+        .write(&mut holes)
+        .kernel(Arc::new(HashedHoleMaskKernel { threshold }))
+        .record();
     let list = declare_hole_fill(&mut graph, &holes, &mut radiance);
     graph.export(&radiance);
     graph.export(&list);
@@ -154,7 +159,8 @@ fn fine_all_over_three_devices_fills_bands_on_every_device_and_equals_one_device
     assert_eq!(bands, 3, "each target view compacted in 3 bands");
     assert_eq!(check(&three, &full, threshold, "three devices"), BTreeSet::from([0, 1, 2]));
     for (view, (a, b)) in one.pixels.iter().zip(&three.pixels).enumerate() {
-        let (a, b): (Vec<_>, Vec<_>) = (a.iter().map(|p| bits(p.radiance)).collect(), b.iter().map(|p| bits(p.radiance)).collect());
+        let (a, b): (Vec<_>, Vec<_>) =
+            (a.iter().map(|p| bits(p.radiance)).collect(), b.iter().map(|p| bits(p.radiance)).collect());
         assert!(a == b, "view {view}: 3 devices differ from 1 device");
     }
 }
