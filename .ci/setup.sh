@@ -13,6 +13,9 @@ fi
 $SUDO apt-get update -q
 $SUDO apt-get install -y -q -t bookworm-backports mesa-vulkan-drivers
 $SUDO apt-get install -y -q libvulkan1 vulkan-tools vulkan-validationlayers glslc graphviz
+# Charts (plotters): fontconfig to find a font at build and run time, DejaVu as the font;
+# g++ builds NVIDIA's FLIP (nv-flip) and freetype from source.
+$SUDO apt-get install -y -q pkg-config libfontconfig1-dev fonts-dejavu-core g++
 
 if ! command -v cargo >/dev/null; then
   echo "error: cargo not found. Install the Rust toolchain (https://rustup.rs), then re-run." >&2

@@ -9,15 +9,15 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
-use glam::Vec2;
 use parallax_backend::{
     Context as VkContext, ContextDesc, EventKind, ExecutionPlan as ExecPlan, FrameReport, KernelGraph, chrome_trace,
 };
-use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig, ViewId};
+use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary, Rig};
+use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::{GpuTracer, PATH_TRACE, declare_trace, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
-use parallax_scene::{Camera, Frame, Scene, SceneBvh, TraceSettings, View, load_scene};
+use parallax_scene::{Frame, SceneBvh, TraceSettings, View, load_scene};
 
 use crate::budget::TraceWork;
 use crate::cmd_plan::compile_checked;
@@ -88,7 +88,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     work.check_host()?;
     let scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
     warn_if_unlit(&scene);
-    let rig = rig_of(&scene, args.focus)?;
+    let rig = rig_of(&scene.default_camera(), scene.bounds().center(), args.focus);
     let lf = LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), rig)?;
     let selection = args.devices.selection();
     let config = PlanConfig { devices: selection.count() as u32, scheme: args.scheme.into(), assign, sources: None };
@@ -104,10 +104,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     work.check_devices(&context)?;
     let exec_plan = ExecPlan::from_schedule(&graph, &schedule)?;
     let mut tracer = GpuTracer::new(&context, exec_plan, &GpuScene::new(&scene, &bvh))?;
-    let views: Vec<View> = lf
-        .views()
-        .map(|v| View { camera: camera_of(&lf, v), width: lf.width, height: lf.height, index: v.0 })
-        .collect();
+    let views: Vec<View> = lightfield_views(&lf);
     let progress = spinner(format!("tracing {} views of {}x{} at {} spp", views.len(), lf.width, lf.height, args.spp));
     let started = Instant::now();
     let pixels = tracer.render(&scene, &views, &settings)?;
@@ -231,32 +228,6 @@ fn parse_view_file_name(name: &str) -> Option<u32> {
 
 /// The rig is the scene's camera; the zero-disparity plane goes through the scene's centre
 /// unless `--focus` says otherwise.
-fn rig_of(scene: &Scene, focus: Option<f64>) -> Result<Rig> {
-    let camera = scene.default_camera();
-    let to_centre = (scene.bounds().center() - camera.eye).dot(camera.forward.normalize()) as f64;
-    let focus_distance = focus.unwrap_or(if to_centre > 0.0 { to_centre } else { 1.0 });
-    Ok(Rig {
-        eye: camera.eye.as_dvec3(),
-        forward: camera.forward.as_dvec3(),
-        up: camera.up.as_dvec3(),
-        yfov: camera.yfov as f64,
-        focus_distance,
-    })
-}
-
-/// View `v`'s camera for the renderer. The scene's camera adds its shift to the NDC point (the
-/// planner's subtracts it), hence the sign.
-fn camera_of(lf: &LightField, v: ViewId) -> Camera {
-    let c = lf.camera(v);
-    Camera {
-        eye: c.eye.as_vec3(),
-        forward: c.forward.as_vec3(),
-        up: c.up.as_vec3(),
-        yfov: c.yfov as f32,
-        shift: -Vec2::new(c.ndc_shift.x as f32, c.ndc_shift.y as f32),
-    }
-}
-
 #[derive(serde::Serialize)]
 struct TimingSummary {
     gpu_span_ms: f64,

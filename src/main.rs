@@ -3,7 +3,10 @@
 mod budget;
 mod cmd_backend;
 mod cmd_bench_rays;
+mod cmd_chart;
+mod cmd_compare;
 mod cmd_plan;
+mod cmd_reference;
 mod cmd_render;
 mod cmd_trace;
 mod logging;
@@ -37,6 +40,12 @@ enum Command {
     BenchCopy(cmd_backend::BenchCopyArgs),
     /// Measure GPU traversal: primary and diffuse-bounce rays/s, and the CWBVH build time.
     BenchRays(cmd_bench_rays::BenchRaysArgs),
+    /// Path trace a converged reference of a light field's views, progressively and resumably.
+    Reference(cmd_reference::ReferenceArgs),
+    /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders.
+    Compare(cmd_compare::CompareArgs),
+    /// Charts (SVG/PNG) of speed against accuracy, scaling, views, or a device timeline.
+    Chart(cmd_chart::ChartArgs),
 }
 
 fn main() {
@@ -59,6 +68,9 @@ fn main() {
         Command::Run(args) => cmd_backend::run(args),
         Command::BenchCopy(args) => cmd_backend::bench_copy(args),
         Command::BenchRays(args) => cmd_bench_rays::run(args),
+        Command::Reference(args) => cmd_reference::run(args),
+        Command::Compare(args) => cmd_compare::run(args),
+        Command::Chart(args) => cmd_chart::run(args),
     };
     if let Err(err) = result {
         // Flags that do not go together are usage errors like clap's own: same form, exit 2.

@@ -39,6 +39,14 @@ pub enum PlanError {
         "--sources does not apply to multi-source: it picks one medoid per set; use it with fine-sources or fine-all"
     )]
     SourcesWithMultiSource,
+    #[error(
+        "--sources-per-set {per_set} is more than the {smallest} views of the smallest set: use at most {smallest}, or fewer devices"
+    )]
+    TooManySourcesPerSet { per_set: u32, smallest: u32 },
+    #[error("--sources-per-set 0: every set needs at least one source")]
+    NoSourcesPerSet,
+    #[error("--sources-per-set applies to multi-source only: the fine schemes take --sources")]
+    SourcesPerSetWithFineScheme,
     #[error("unknown scheme '{0}': use multi-source, fine-sources or fine-all")]
     UnknownScheme(String),
     #[error("unknown assignment '{0}': use round-robin, contiguous or compact")]

@@ -65,7 +65,21 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// The plan of `config` with one source per set (multi-source) or the configured sources.
     pub fn new(lf: &LightField, config: &PlanConfig) -> Result<Plan, PlanError> {
+        Self::with_sources_per_set(lf, config, 1)
+    }
+
+    /// Like [`Plan::new`], with `per_set` sources in every multi-source set (the paper's k_s):
+    /// each set is split into `per_set` spatially compact parts whose medoids are the sources,
+    /// and every target reprojects from the nearest source of its set.
+    pub fn with_sources_per_set(lf: &LightField, config: &PlanConfig, per_set: u32) -> Result<Plan, PlanError> {
+        if per_set == 0 {
+            return Err(PlanError::NoSourcesPerSet);
+        }
+        if per_set > 1 && config.scheme != Scheme::MultiSource {
+            return Err(PlanError::SourcesPerSetWithFineScheme);
+        }
         let m = lf.len() as u32;
         if config.devices == 0 {
             return Err(PlanError::NoDevices);
@@ -79,18 +93,23 @@ impl Plan {
                     return Err(PlanError::SourcesWithMultiSource);
                 }
                 let a = assign(config.assign, &lf.positions, config.devices)?;
-                let set_sources: Vec<ViewId> = a
-                    .sets
-                    .iter()
-                    .map(|set| medoid(set, |v| lf.position(v)).expect("sets are never empty when N <= M"))
-                    .collect();
+                let smallest = a.sets.iter().map(Vec::len).min().unwrap_or(0) as u32;
+                if per_set > smallest {
+                    return Err(PlanError::TooManySourcesPerSet { per_set, smallest });
+                }
+                let set_sources: Vec<Vec<ViewId>> =
+                    a.sets.iter().map(|set| sources_of_set(lf, set, per_set)).collect::<Result<_, _>>()?;
                 let sources_of = (0..m)
                     .map(|v| {
-                        let s = set_sources[a.set_of_view[v as usize] as usize];
-                        if s == ViewId(v) { Vec::new() } else { vec![s] }
+                        let own = &set_sources[a.set_of_view[v as usize] as usize];
+                        if own.contains(&ViewId(v)) {
+                            Vec::new()
+                        } else {
+                            nearest_first(lf, ViewId(v), own)[..1].to_vec()
+                        }
                     })
                     .collect();
-                let mut sources = set_sources;
+                let mut sources: Vec<ViewId> = set_sources.into_iter().flatten().collect();
                 sources.sort();
                 (Some(a), sources, sources_of)
             }
@@ -99,8 +118,18 @@ impl Plan {
                     Some(list) => checked_sources(list, m)?,
                     None => baseline_sources(&lf.positions, lf.centre(), config.devices as usize),
                 };
+                // Every target reads every source, nearest first: the kernel tries them in this
+                // order, so a pixel one source cannot see may still come from another.
                 let sources_of =
-                    (0..m).map(|v| if sources.contains(&ViewId(v)) { Vec::new() } else { sources.clone() }).collect();
+                    (0..m)
+                        .map(|v| {
+                            if sources.contains(&ViewId(v)) {
+                                Vec::new()
+                            } else {
+                                nearest_first(lf, ViewId(v), &sources)
+                            }
+                        })
+                        .collect();
                 (None, sources, sources_of)
             }
         };
@@ -129,6 +158,33 @@ impl Plan {
             .map(|(d, r)| (DeviceId(d as u32), r))
             .collect()
     }
+}
+
+/// `per_set` sources of one set: the medoids of its spatially compact split into `per_set` parts.
+fn sources_of_set(lf: &LightField, set: &[ViewId], per_set: u32) -> Result<Vec<ViewId>, PlanError> {
+    if per_set == 1 {
+        return Ok(vec![medoid(set, |v| lf.position(v)).expect("sets are never empty when N <= M")]);
+    }
+    let positions: Vec<_> = set.iter().map(|&v| lf.position(v)).collect();
+    let parts = assign(AssignStrategy::Compact, &positions, per_set)?;
+    Ok(parts
+        .sets
+        .iter()
+        .map(|part| {
+            let members: Vec<ViewId> = part.iter().map(|local| set[local.index()]).collect();
+            medoid(&members, |v| lf.position(v)).expect("parts are never empty when k_s <= |set|")
+        })
+        .collect())
+}
+
+/// `sources` ordered by distance to `target` on the camera plane (ties by view index).
+fn nearest_first(lf: &LightField, target: ViewId, sources: &[ViewId]) -> Vec<ViewId> {
+    let at = lf.position(target);
+    let mut ordered = sources.to_vec();
+    ordered.sort_by(|&a, &b| {
+        at.distance_squared(lf.position(a)).total_cmp(&at.distance_squared(lf.position(b))).then(a.cmp(&b))
+    });
+    ordered
 }
 
 impl Placement for Plan {

@@ -112,3 +112,42 @@ fn explicit_sources_are_checked() {
     assert_eq!(parse_source_list("0, 99").unwrap(), vec![0, 99]);
     assert_eq!(parse_source_list("0;99").unwrap_err(), PlanError::BadSourceList("0;99".into()));
 }
+
+#[test]
+fn sources_per_set_gives_k_sources_per_set_and_each_target_its_nearest() {
+    let lf = grid(8, 4, 8);
+    let config = PlanConfig { devices: 2, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = Plan::with_sources_per_set(&lf, &config, 2).unwrap();
+    assert_eq!(plan.sources.len(), 4, "2 sets × 2 sources");
+    let sets = plan.assignment.as_ref().unwrap();
+    for v in 0..lf.len() as u32 {
+        let set = sets.set_of_view[v as usize];
+        let own: Vec<ViewId> = plan.sources.iter().copied().filter(|s| sets.set_of_view[s.index()] == set).collect();
+        assert_eq!(own.len(), 2, "set {set} has its two sources");
+        let of = &plan.topology.sources_of[v as usize];
+        if own.contains(&ViewId(v)) {
+            assert!(of.is_empty());
+            continue;
+        }
+        assert_eq!(of.len(), 1, "a target reads one source");
+        let d = |s: ViewId| lf.position(ViewId(v)).distance(lf.position(s));
+        assert!(own.iter().all(|&s| d(of[0]) <= d(s)), "view {v} reads its nearest source");
+    }
+    assert_eq!(
+        Plan::with_sources_per_set(&lf, &config, 17).err(),
+        Some(PlanError::TooManySourcesPerSet { per_set: 17, smallest: 16 })
+    );
+    let fine = PlanConfig { scheme: Scheme::FineAll, ..config.clone() };
+    assert_eq!(Plan::with_sources_per_set(&lf, &fine, 2).err(), Some(PlanError::SourcesPerSetWithFineScheme));
+    assert_eq!(Plan::with_sources_per_set(&lf, &config, 0).err(), Some(PlanError::NoSourcesPerSet));
+}
+
+#[test]
+fn fine_scheme_targets_read_their_sources_nearest_first() {
+    let lf = grid(5, 1, 8);
+    let config =
+        PlanConfig { devices: 1, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![0, 4]) };
+    let plan = Plan::new(&lf, &config).unwrap();
+    assert_eq!(plan.topology.sources_of[1], vec![ViewId(0), ViewId(4)]);
+    assert_eq!(plan.topology.sources_of[3], vec![ViewId(4), ViewId(0)]);
+}

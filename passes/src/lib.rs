@@ -31,12 +31,17 @@
 //! ```
 
 pub mod bench;
+pub mod camera;
 pub mod error;
+pub mod gbuffer;
 pub mod hole_bench;
 pub mod holes;
 pub mod path_trace;
+pub mod pipeline;
 pub mod pixel_list;
 pub mod raycast;
+pub mod renderer;
+pub mod reproject;
 pub mod scene_upload;
 pub mod trace;
 

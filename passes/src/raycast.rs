@@ -117,10 +117,6 @@ impl PassKernel for RaycastKernel {
             }
         };
         let capacity = rec.resource(hits).width / 4;
-        let mut push: Vec<u8> = bytemuck::cast_slice(&scene_refs(rec)?).to_vec();
-        push.extend_from_slice(&rec.buffer_address(RAYS)?.to_le_bytes());
-        push.extend_from_slice(&rec.buffer_of(hits)?.to_le_bytes());
-        push.extend_from_slice(&rec.frame_data_address().to_le_bytes());
         let (work, fetch_threshold, groups) = match self.schedule {
             RaySchedule::PerRay => {
                 let groups = capacity.div_ceil(64).max(1);
@@ -130,11 +126,37 @@ impl PassKernel for RaycastKernel {
                 (rec.buffer_address(RAYCAST_WORK)?, fetch_threshold, [workgroups, 1, 1])
             }
         };
-        push.extend_from_slice(&work.to_le_bytes());
-        push.extend_from_slice(&fetch_threshold.to_le_bytes());
+        let push = RaycastPush {
+            scene: scene_refs(rec)?,
+            rays: rec.buffer_address(RAYS)?,
+            hits: rec.buffer_of(hits)?,
+            frame: rec.frame_data_address(),
+            work,
+            fetch_threshold,
+            pad: 0,
+        };
         let shader = if self.opaque { "bvh_raycast_opaque" } else { "bvh_raycast" };
-        rec.dispatch_bytes(shader, &push, groups)
+        // The block ends at fetch_threshold; the trailing pad only rounds the struct to its
+        // 8-byte alignment and is not pushed.
+        let bytes = &bytemuck::bytes_of(&push)[..std::mem::offset_of!(RaycastPush, pad)];
+        rec.dispatch_bytes(shader, bytes, groups)
     }
+}
+
+/// Push constants of `bvh_raycast.glsl` (`RaycastPush` there; a test holds the layouts together).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct RaycastPush {
+    pub scene: [u64; 6],
+    pub rays: u64,
+    pub hits: u64,
+    pub frame: u64,
+    /// The persistent schedule's work queue (0 for one ray per invocation).
+    pub work: u64,
+    /// 0: one ray per invocation; else persistent invocations refill idle lanes once this many
+    /// lanes of a subgroup are idle.
+    pub fetch_threshold: u32,
+    pub pad: u32,
 }
 
 /// GPU time of one cast, from the pass's timestamps.
@@ -294,7 +316,19 @@ pub fn compare_with_cpu(
 
 #[cfg(test)]
 mod tests {
-    use super::RaySchedule;
+    use super::{RaySchedule, RaycastPush};
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_push_struct_matches_bvh_raycast_glsl() {
+        for shader in ["bvh_raycast", "bvh_raycast_opaque"] {
+            let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "RaycastPush").unwrap();
+            let mut rust = rust_layout!(RaycastPush { scene, rays, hits, frame, work, fetch_threshold, pad });
+            rust.pop(); // the pad is Rust's alignment, not pushed
+            assert_eq!(glsl, rust, "{shader}");
+        }
+    }
 
     #[test]
     fn ray_schedules_parse_and_print_back() {

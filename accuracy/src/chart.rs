@@ -1,0 +1,291 @@
+//! Charts with plotters, as SVG or PNG (chosen by the file extension): speed against accuracy,
+//! scaling over devices with the ideal line, frame time over views, and (in
+//! [`crate::timeline`]) a per-device timeline of a Chrome trace. 960×600 pixels, 15-18 px text:
+//! readable at 100 % zoom.
+
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::error::{AccuracyError, Result};
+use crate::points::Point;
+
+pub const SIZE: (u32, u32) = (960, 600);
+pub(crate) const FONT: &str = "sans-serif";
+
+/// How a series is drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Style {
+    /// Markers with their labels.
+    Points,
+    /// A line through the points, with markers.
+    Line,
+    /// A dashed line without markers (ideal scaling).
+    Dashed,
+}
+
+#[derive(Clone, Debug)]
+pub struct Series {
+    pub name: String,
+    /// Palette index: a measured series and its ideal line share one.
+    pub color: usize,
+    pub style: Style,
+    /// (x, y, label shown next to the marker).
+    pub points: Vec<(f64, f64, Option<String>)>,
+}
+
+/// A chart of x/y series.
+#[derive(Clone, Debug)]
+pub struct XyChart {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    /// The x axis counts things (devices, views): ticks between integers stay unlabelled.
+    pub integer_x: bool,
+}
+
+/// Which accuracy figure the speed-accuracy chart plots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AccuracyAxis {
+    Flip,
+    Psnr,
+}
+
+fn group(points: &[Point], keep: impl Fn(&Point) -> bool) -> Vec<(String, Vec<&Point>)> {
+    let mut groups: Vec<(String, Vec<&Point>)> = Vec::new();
+    for p in points.iter().filter(|p| keep(p)) {
+        match groups.iter_mut().find(|(name, _)| name == p.series_name()) {
+            Some((_, list)) => list.push(p),
+            None => groups.push((p.series_name().to_string(), vec![p])),
+        }
+    }
+    groups
+}
+
+fn none_usable(what: &str) -> AccuracyError {
+    AccuracyError::Chart(format!("no input point has {what}"))
+}
+
+/// Frame time against FLIP or PSNR, one labelled marker per configuration.
+pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
+    let y = |p: &Point| match axis {
+        AccuracyAxis::Flip => p.flip,
+        AccuracyAxis::Psnr => p.psnr.filter(|v| v.is_finite()),
+    };
+    let groups = group(points, |p| p.frame_ms.is_some() && y(p).is_some());
+    if groups.is_empty() {
+        return Err(none_usable("both frame_ms and the accuracy figure (compare's JSON of a render folder has)"));
+    }
+    Ok(XyChart {
+        title: "Speed against accuracy".into(),
+        x_label: "frame time (ms)".into(),
+        y_label: match axis {
+            AccuracyAxis::Flip => "mean FLIP (LDR, lower is better)".into(),
+            AccuracyAxis::Psnr => "PSNR, linear clamped (dB, higher is better)".into(),
+        },
+        series: groups
+            .into_iter()
+            .enumerate()
+            .map(|(color, (name, ps))| Series {
+                name,
+                color,
+                style: Style::Points,
+                points: ps.iter().map(|p| (p.frame_ms.unwrap(), y(p).unwrap(), Some(p.label.clone()))).collect(),
+            })
+            .collect(),
+        integer_x: false,
+    })
+}
+
+/// Frame time against device count per series, each with its ideal line t(d₀)·d₀/d from the
+/// series' smallest device count d₀.
+pub fn scaling(points: &[Point]) -> Result<XyChart> {
+    let groups = group(points, |p| p.frame_ms.is_some() && p.devices.is_some());
+    if groups.is_empty() {
+        return Err(none_usable("both frame_ms and devices"));
+    }
+    let mut series = Vec::new();
+    for (color, (name, mut ps)) in groups.into_iter().enumerate() {
+        ps.sort_by_key(|p| p.devices);
+        let xy: Vec<(f64, f64, Option<String>)> =
+            ps.iter().map(|p| (p.devices.unwrap() as f64, p.frame_ms.unwrap(), None)).collect();
+        let (d0, t0) = (xy[0].0, xy[0].1);
+        let ideal = xy.iter().map(|&(d, _, _)| (d, t0 * d0 / d, None)).collect();
+        let label = if name.is_empty() { String::new() } else { format!("{name}, ") };
+        series.push(Series { name: format!("{label}measured"), color, style: Style::Line, points: xy });
+        series.push(Series { name: format!("{label}ideal"), color, style: Style::Dashed, points: ideal });
+    }
+    Ok(XyChart {
+        title: "Scaling over devices".into(),
+        x_label: "devices".into(),
+        y_label: "frame time (ms)".into(),
+        series,
+        integer_x: true,
+    })
+}
+
+/// Frame time against the number of views, one line per series.
+pub fn frame_time_over_views(points: &[Point]) -> Result<XyChart> {
+    let groups = group(points, |p| p.frame_ms.is_some() && p.views.is_some());
+    if groups.is_empty() {
+        return Err(none_usable("both frame_ms and views"));
+    }
+    let series = groups
+        .into_iter()
+        .enumerate()
+        .map(|(color, (name, mut ps))| {
+            ps.sort_by_key(|p| p.views);
+            let points = ps.iter().map(|p| (p.views.unwrap() as f64, p.frame_ms.unwrap(), None)).collect();
+            let name = if name.is_empty() { "frame time".into() } else { name };
+            Series { name, color, style: Style::Line, points }
+        })
+        .collect();
+    Ok(XyChart {
+        title: "Frame time over the number of views".into(),
+        x_label: "views".into(),
+        y_label: "frame time (ms)".into(),
+        series,
+        integer_x: true,
+    })
+}
+
+pub(crate) fn chart_err(e: impl std::fmt::Display) -> AccuracyError {
+    AccuracyError::Chart(e.to_string())
+}
+
+/// Padded range covering `values` (never empty, starts at 0 when all values are positive and
+/// 0 is near).
+fn range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::ops::Range<f64> {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let lo = if from_zero && lo >= 0.0 { 0.0 } else { lo };
+    let pad = ((hi - lo) * 0.08).max(hi.abs() * 0.05).max(1e-9);
+    (lo - if from_zero && lo == 0.0 { 0.0 } else { pad })..(hi + pad)
+}
+
+pub(crate) fn color(i: usize) -> RGBColor {
+    let c = Palette99::pick(i).to_rgba();
+    RGBColor(c.0, c.1, c.2)
+}
+
+impl XyChart {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+        root.fill(&WHITE).map_err(chart_err)?;
+        let all = || self.series.iter().flat_map(|s| s.points.iter());
+        let mut xr = range(all().map(|p| p.0), true);
+        let mut yr = range(all().map(|p| p.1), true);
+        // Room for point labels on the right and for the legend at the top.
+        if all().any(|p| p.2.is_some()) {
+            xr.end += (xr.end - xr.start) * 0.3;
+        }
+        yr.end += (yr.end - yr.start) * 0.2;
+        let integer_x = self.integer_x;
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, (FONT, 22))
+            .margin(20)
+            .x_label_area_size(50)
+            .y_label_area_size(80)
+            .build_cartesian_2d(xr, yr)
+            .map_err(chart_err)?;
+        chart
+            .configure_mesh()
+            .x_desc(&self.x_label)
+            .y_desc(&self.y_label)
+            .label_style((FONT, 15))
+            .axis_desc_style((FONT, 17))
+            .x_label_formatter(&|x: &f64| {
+                if !integer_x {
+                    format!("{x}")
+                } else if (x - x.round()).abs() < 1e-6 {
+                    format!("{}", x.round())
+                } else {
+                    String::new()
+                }
+            })
+            .draw()
+            .map_err(chart_err)?;
+        // Label boxes already placed, in pixels: a label takes the first of four places beside
+        // its marker that overlaps none of them.
+        let mut placed: Vec<(i32, i32, i32, i32)> = Vec::new();
+        for s in &self.series {
+            let c = color(s.color);
+            let xy: Vec<(f64, f64)> = s.points.iter().map(|p| (p.0, p.1)).collect();
+            let legend = match s.style {
+                Style::Points => {
+                    chart.draw_series(xy.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(chart_err)?
+                }
+                Style::Line => {
+                    chart.draw_series(xy.iter().map(|&p| Circle::new(p, 4, c.filled()))).map_err(chart_err)?;
+                    chart.draw_series(LineSeries::new(xy.clone(), c.stroke_width(2))).map_err(chart_err)?
+                }
+                Style::Dashed => {
+                    chart.draw_series(DashedLineSeries::new(xy.clone(), 8, 6, c.stroke_width(2))).map_err(chart_err)?
+                }
+            };
+            let name = if s.name.is_empty() { "points".to_string() } else { s.name.clone() };
+            legend.label(name).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
+            let mut labels = Vec::new();
+            for (x, y, label) in &s.points {
+                let Some(label) = label else { continue };
+                let (px, py) = chart.backend_coord(&(*x, *y));
+                let (w, h) = (label.chars().count() as i32 * 8, 16);
+                let candidates = [(7, -16), (7, 4), (-w - 7, -16), (-w - 7, 4)];
+                let free = |&(dx, dy): &(i32, i32)| {
+                    let (x0, y0) = (px + dx, py + dy);
+                    !placed.iter().any(|&(a, b, c, d)| x0 < c && a < x0 + w && y0 < d && b < y0 + h)
+                };
+                let (dx, dy) = candidates.iter().copied().find(free).unwrap_or(candidates[0]);
+                placed.push((px + dx, py + dy, px + dx + w, py + dy + h));
+                labels.push(EmptyElement::at((*x, *y)) + Text::new(label.clone(), (dx, dy), (FONT, 14)));
+            }
+            chart.draw_series(labels).map_err(chart_err)?;
+        }
+        chart
+            .configure_series_labels()
+            .label_font((FONT, 15))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(chart_err)?;
+        root.present().map_err(chart_err)
+    }
+
+    /// Writes the chart to `path`: SVG or PNG by its extension.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        write_chart(path, |root| self.draw(root), |root| self.draw(root))
+    }
+}
+
+/// Renders with `svg` or `png` (the same drawing on either backend) and writes `path`
+/// atomically.
+pub(crate) fn write_chart(
+    path: &Path,
+    svg: impl FnOnce(&DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
+    png: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+) -> Result<()> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let bytes = match ext.as_deref() {
+        Some("svg") => {
+            let mut text = String::new();
+            svg(&SVGBackend::with_string(&mut text, SIZE).into_drawing_area())?;
+            text.into_bytes()
+        }
+        Some("png") => {
+            let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+            png(&BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area())?;
+            let mut out = Vec::new();
+            let img = image::RgbImage::from_raw(SIZE.0, SIZE.1, rgb).expect("buffer of the chart size");
+            img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png).map_err(chart_err)?;
+            out
+        }
+        _ => {
+            return Err(AccuracyError::BadInput {
+                path: path.into(),
+                detail: "a chart file must end in .svg or .png".into(),
+            });
+        }
+    };
+    crate::accumulate::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
+}

@@ -1,0 +1,77 @@
+//! The chart input: measurement points, read from the JSON that `render`, `reference` and
+//! `compare` write, or from a file of this schema (the one `bench` will write):
+//!
+//! ```json
+//! { "points": [ { "label": "multi-source, 2 GPUs", "series": "multi-source",
+//!                 "frame_ms": 12.5, "flip": 0.041, "psnr": 31.2, "devices": 2, "views": 32 } ] }
+//! ```
+//!
+//! Every field but `label` is optional; a chart uses the points that have what it plots.
+//! `frame_ms`: milliseconds per frame (render.json: the GPU span of the frame); `flip`: mean
+//! LDR-FLIP; `psnr`: dB on linear radiance clamped to [0, 1]; `series` groups points into one
+//! line or colour. Accepted files: `{"points": [...]}`, `{"point": {...}}` (what `compare --json`
+//! and `reference.json` carry) and `render.json` itself.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{AccuracyError, Result};
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Point {
+    pub label: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub series: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame_ms: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flip: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub psnr: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub devices: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub views: Option<u32>,
+}
+
+impl Point {
+    pub fn series_name(&self) -> &str {
+        self.series.as_deref().unwrap_or("")
+    }
+}
+
+/// The points of one render.json (see `parallax render`): label "<scheme>, N device(s)".
+pub fn point_of_render_json(json: &serde_json::Value) -> Option<Point> {
+    let plan = json.get("plan")?;
+    let scheme = plan.get("scheme")?.as_str()?.to_string();
+    let devices = plan.get("devices")?.as_u64()? as u32;
+    Some(Point {
+        label: format!("{scheme}, {devices} device(s)"),
+        series: Some(scheme),
+        frame_ms: json.get("timing")?.get("gpu_span_ms")?.as_f64(),
+        devices: Some(devices),
+        views: plan.get("views")?.as_u64().map(|v| v as u32),
+        ..Default::default()
+    })
+}
+
+/// Every point in a JSON file of one of the accepted shapes (module docs).
+pub fn load_points(path: &Path) -> Result<Vec<Point>> {
+    let bad = |detail: String| AccuracyError::BadInput { path: path.into(), detail };
+    let text = std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
+    let json: serde_json::Value = serde_json::from_slice(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
+    let parse = |v: &serde_json::Value| {
+        serde_json::from_value::<Point>(v.clone()).map_err(|e| bad(format!("bad point {v}: {e}")))
+    };
+    if let Some(list) = json.get("points") {
+        let list = list.as_array().ok_or_else(|| bad("`points` must be an array".into()))?;
+        return list.iter().map(parse).collect();
+    }
+    if let Some(p) = json.get("point") {
+        return Ok(vec![parse(p)?]);
+    }
+    point_of_render_json(&json).map(|p| vec![p]).ok_or_else(|| {
+        bad("no `points`, no `point` and not a render.json: see `parallax chart --help` for the schema".into())
+    })
+}

@@ -1,0 +1,123 @@
+//! Every chart kind is written as SVG and PNG; the SVG parses as XML and names the expected
+//! series (legend) and point labels, the PNG decodes at the chart size.
+
+use std::path::Path;
+
+use parallax_accuracy::Point;
+use parallax_accuracy::chart::{self, AccuracyAxis, SIZE};
+use parallax_accuracy::points::load_points;
+use parallax_accuracy::timeline::Timeline;
+
+fn point(label: &str, series: &str, frame_ms: f64, flip: f64, devices: u32, views: u32) -> Point {
+    Point {
+        label: label.into(),
+        series: Some(series.into()),
+        frame_ms: Some(frame_ms),
+        flip: Some(flip),
+        psnr: Some(30.0 - 100.0 * flip),
+        devices: Some(devices),
+        views: Some(views),
+    }
+}
+
+fn points() -> Vec<Point> {
+    vec![
+        point("multi-source 1 GPU", "multi-source", 40.0, 0.05, 1, 8),
+        point("multi-source 2 GPUs", "multi-source", 22.0, 0.05, 2, 16),
+        point("fine-all 1 GPU", "fine-all", 41.0, 0.04, 1, 8),
+        point("fine-all 2 GPUs", "fine-all", 30.0, 0.04, 2, 16),
+    ]
+}
+
+/// All text in an SVG (plotters writes labels as <text> elements).
+fn svg_texts(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap_or_else(|e| panic!("{}: not XML: {e}", path.display()));
+    assert_eq!(doc.root_element().tag_name().name(), "svg");
+    doc.descendants()
+        .filter(|n| n.has_tag_name("text"))
+        .filter_map(|n| n.text().map(|t| t.trim().to_string()))
+        .collect()
+}
+
+fn check_png(path: &Path) {
+    let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!((img.width(), img.height()), SIZE);
+}
+
+fn write_both(dir: &Path, name: &str, write: impl Fn(&Path)) -> std::path::PathBuf {
+    let svg = dir.join(format!("{name}.svg"));
+    write(&svg);
+    write(&dir.join(format!("{name}.png")));
+    check_png(&dir.join(format!("{name}.png")));
+    svg
+}
+
+#[test]
+fn every_chart_kind_as_svg_and_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let ps = points();
+
+    let sa = chart::speed_accuracy(&ps, AccuracyAxis::Flip).unwrap();
+    let texts = svg_texts(&write_both(dir.path(), "speed", |p| sa.write(p).unwrap()));
+    for want in ["multi-source", "fine-all", "multi-source 2 GPUs", "fine-all 1 GPU", "frame time (ms)"] {
+        assert!(texts.iter().any(|t| t == want), "speed-accuracy SVG lacks {want:?}: {texts:?}");
+    }
+    assert!(texts.iter().any(|t| t.starts_with("mean FLIP")));
+
+    let scaling = chart::scaling(&ps).unwrap();
+    assert_eq!(scaling.series.len(), 4, "measured and ideal per scheme");
+    // Ideal: the 1-device time halved at 2 devices.
+    assert_eq!(scaling.series[1].points[1].1, 20.0);
+    let texts = svg_texts(&write_both(dir.path(), "scaling", |p| scaling.write(p).unwrap()));
+    for want in ["multi-source, measured", "multi-source, ideal", "fine-all, ideal", "devices"] {
+        assert!(texts.iter().any(|t| t == want), "scaling SVG lacks {want:?}: {texts:?}");
+    }
+
+    let views = chart::frame_time_over_views(&ps).unwrap();
+    let texts = svg_texts(&write_both(dir.path(), "views", |p| views.write(p).unwrap()));
+    assert!(texts.iter().any(|t| t == "views") && texts.iter().any(|t| t == "fine-all"));
+
+    // Points files round-trip through the documented schema.
+    let file = dir.path().join("points.json");
+    std::fs::write(&file, serde_json::to_vec(&serde_json::json!({ "points": ps })).unwrap()).unwrap();
+    assert_eq!(load_points(&file).unwrap(), ps);
+}
+
+#[test]
+fn timeline_of_a_chrome_trace() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("trace.json");
+    let events = serde_json::json!({ "traceEvents": [
+        { "name": "thread_name", "ph": "M", "pid": 0, "tid": 0, "args": { "name": "device 0: lavapipe" } },
+        { "name": "thread_name", "ph": "M", "pid": 0, "tid": 1, "args": { "name": "device 1: lavapipe" } },
+        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 0, "ts": 0.0, "dur": 1500.0 },
+        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 1, "ts": 100.0, "dur": 1400.0 },
+        { "name": "copy out radiance view 1", "cat": "copy_out", "ph": "X", "pid": 0, "tid": 1, "ts": 1500.0, "dur": 200.0 },
+        { "name": "copy in radiance view 1", "cat": "copy_in", "ph": "X", "pid": 0, "tid": 0, "ts": 1700.0, "dur": 100.0 },
+    ]});
+    std::fs::write(&trace, serde_json::to_vec(&events).unwrap()).unwrap();
+    let timeline = Timeline::read(&trace).unwrap();
+    assert_eq!(timeline.lanes.len(), 2);
+    assert_eq!(timeline.spans.len(), 4);
+    assert_eq!(timeline.spans[3].name, "copy_in");
+    assert_eq!(timeline.spans[0].end_ms, 1.5);
+    let texts = svg_texts(&write_both(dir.path(), "timeline", |p| timeline.write(p).unwrap()));
+    for want in ["device 0: lavapipe", "device 1: lavapipe", "path_trace", "copy_out", "copy_in"] {
+        assert!(texts.iter().any(|t| t == want), "timeline SVG lacks {want:?}: {texts:?}");
+    }
+    std::fs::write(&trace, b"{\"traceEvents\": []}").unwrap();
+    assert!(Timeline::read(&trace).unwrap_err().to_string().contains("no complete"));
+}
+
+#[test]
+fn bad_chart_inputs_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("x.json");
+    std::fs::write(&file, b"{\"something\": 1}").unwrap();
+    assert!(load_points(&file).unwrap_err().to_string().contains("schema"));
+    let no_flip = vec![Point { label: "a".into(), frame_ms: Some(1.0), ..Default::default() }];
+    assert!(chart::speed_accuracy(&no_flip, AccuracyAxis::Flip).is_err());
+    let sa = chart::speed_accuracy(&points(), AccuracyAxis::Psnr).unwrap();
+    assert!(sa.write(&dir.path().join("chart.jpg")).unwrap_err().to_string().contains(".svg or .png"));
+}

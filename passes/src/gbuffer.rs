@@ -1,0 +1,126 @@
+//! The `gbuffer` pass: shaders/gbuffer_trace.comp, the first hit of each pixel's centre ray
+//! (what the path tracer's first hit records, with no jitter) and the pixel's motion from the
+//! previous frame's camera, over the instance's row band. On GPUs without fixed-function
+//! raster to speak of (H100/H200) first hits are the fast way to a G-buffer (DESIGN.md §6).
+//!
+//! Slots (docs/PIPELINE.md): writes `position_depth`, `normal_metallic`, `albedo_roughness`
+//! (Rgba32f) and `motion` (Rg32f). Reads the view's `GpuTraceParams` in the per-frame data
+//! ([`crate::trace_frame_data`]) and the frame block section.
+
+use std::sync::Arc;
+
+use parallax_backend::{BackendError, ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
+use parallax_graph::{Format, Handle, Image, Role};
+
+use crate::path_trace::TRACE_PARAMS_BYTES;
+use crate::scene_upload::scene_refs;
+
+/// Pass name.
+pub const GBUFFER: &str = "gbuffer";
+
+/// Push constants of `gbuffer_trace.comp` (`GbufferPush` there).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GbufferPush {
+    pub scene: [u64; 6],
+    pub trace: u64,
+    pub block: u64,
+    pub position_depth: u32,
+    pub normal_metallic: u32,
+    pub albedo_roughness: u32,
+    pub motion: u32,
+    pub view: u32,
+    pub y0: u32,
+    pub y1: u32,
+    pub width: u32,
+}
+
+/// Records `gbuffer` instances.
+pub struct GbufferKernel;
+
+impl PassKernel for GbufferKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let slot = |name: &str| {
+            pass.output(name).map(|w| w.resource).ok_or_else(|| BackendError::KernelMisuse {
+                kernel: GBUFFER.into(),
+                instance: index,
+                detail: format!(
+                    "writes no `{name}` slot (it writes position_depth, normal_metallic, albedo_roughness, motion)"
+                ),
+            })
+        };
+        let position_depth = slot("position_depth")?;
+        let width = rec.resource(position_depth).width;
+        let push = GbufferPush {
+            scene: scene_refs(rec)?,
+            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
+            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            position_depth: rec.image(position_depth)?,
+            normal_metallic: rec.image(slot("normal_metallic")?)?,
+            albedo_roughness: rec.image(slot("albedo_roughness")?)?,
+            motion: rec.image(slot("motion")?)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+        };
+        rec.dispatch_bytes(
+            "gbuffer_trace",
+            bytemuck::bytes_of(&push),
+            [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1],
+        )
+    }
+}
+
+/// The G-buffer of every view.
+pub struct Gbuffer {
+    pub position_depth: Handle<Image>,
+    pub normal_metallic: Handle<Image>,
+    pub albedo_roughness: Handle<Image>,
+    pub motion: Handle<Image>,
+}
+
+/// Declares the G-buffer images and the `gbuffer` pass that writes them for every view.
+pub fn declare_gbuffer(graph: &mut KernelGraph) -> Gbuffer {
+    let mut g = Gbuffer {
+        position_depth: graph.image("position_depth", Format::Rgba32f),
+        normal_metallic: graph.image("normal_metallic", Format::Rgba32f),
+        albedo_roughness: graph.image("albedo_roughness", Format::Rgba32f),
+        motion: graph.image("motion", Format::Rg32f),
+    };
+    graph
+        .pass(GBUFFER, Role::All)
+        .write(&mut g.position_depth)
+        .write(&mut g.normal_metallic)
+        .write(&mut g.albedo_roughness)
+        .write(&mut g.motion)
+        .kernel(Arc::new(GbufferKernel))
+        .record();
+    g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_push_struct_matches_gbuffer_trace_comp() {
+        let glsl = member_offsets(&parallax_backend::spirv("gbuffer_trace").unwrap(), "GbufferPush").unwrap();
+        let rust = rust_layout!(GbufferPush {
+            scene,
+            trace,
+            block,
+            position_depth,
+            normal_metallic,
+            albedo_roughness,
+            motion,
+            view,
+            y0,
+            y1,
+            width
+        });
+        assert_eq!(glsl, rust);
+    }
+}

@@ -1,0 +1,82 @@
+//! [`LightFieldRenderer`]: runs a compiled light-field pipeline frame after frame on a scene,
+//! with the per-frame data every pass reads (each view's `GpuTraceParams` as the unnamed blob,
+//! the frame block of current and previous cameras as section `frame`), and reads layers back.
+
+use parallax_backend::{
+    Context, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, FrameReport,
+};
+use parallax_scene::gpu::GpuScene;
+use parallax_scene::{Scene, TraceSettings, View};
+
+use crate::camera::frame_block;
+use crate::error::{PassError, Result};
+use crate::path_trace::{TRACE_PARAMS_BYTES, trace_frame_data};
+use crate::scene_upload::upload_scene;
+
+/// Bytes of one view's cameras in the frame block (current and previous `GpuCamera`).
+const FRAME_BLOCK_VIEW_BYTES: u64 = 2 * std::mem::size_of::<parallax_backend::GpuCamera>() as u64;
+
+/// Runs an execution plan of a light-field pipeline.
+pub struct LightFieldRenderer {
+    executor: Executor,
+    clock: FrameClock,
+    views: u32,
+    frames: u64,
+}
+
+impl LightFieldRenderer {
+    /// Creates the executor for `plan` (a pipeline over `views` views) and uploads `scene`.
+    pub fn new(context: &Context, plan: ExecutionPlan, views: u32, scene: &GpuScene<'_>) -> Result<Self> {
+        let defaults = ExecOptions::default();
+        // Every view's trace parameters, then the frame block (header + cameras), aligned.
+        let needed = u64::from(views) * (TRACE_PARAMS_BYTES + FRAME_BLOCK_VIEW_BYTES) + 2 * 256 + 16;
+        let options = ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(needed), ..defaults };
+        let mut executor = Executor::new(context, plan, options)?;
+        upload_scene(&mut executor, scene)?;
+        Ok(Self { executor, clock: FrameClock::new(), views, frames: 0 })
+    }
+
+    /// Submits one frame of every view (`views[i]` is view `i`; `settings.frame` keys the random
+    /// numbers). Up to the executor's frames in flight are queued; nothing is waited for.
+    pub fn submit(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<u64> {
+        if views.len() != self.views as usize {
+            return Err(PassError::MissingViews { plan_views: self.views, given: views.len() });
+        }
+        let mut data = FrameData::whole(&trace_frame_data(scene, views, settings)?);
+        data.section(FRAME_BLOCK_SECTION, &frame_block(&mut self.clock, views).to_bytes())?;
+        self.executor.set_frame(&data)?;
+        self.frames += 1;
+        Ok(self.executor.run_frame()?)
+    }
+
+    /// A camera cut: the next frame's history reads (SVGF) start over, and its motion is unknown.
+    pub fn cut(&mut self) {
+        self.clock.reset_history();
+        self.executor.reset_history();
+    }
+
+    /// Waits for every submitted frame.
+    pub fn finish(&mut self) -> Result<()> {
+        Ok(self.executor.finish()?)
+    }
+
+    /// The final contents of slot `slot` of `view` after the last frame (read from device 0
+    /// where it was gathered, else from the device that wrote it), as raw texels.
+    pub fn read(&mut self, slot: &str, view: u32) -> Result<Vec<u8>> {
+        let (device, resource) = self
+            .executor
+            .plan()
+            .final_output(slot, view)
+            .ok_or_else(|| PassError::MissingResource { name: slot.into(), view })?;
+        Ok(self.executor.read_image(device, resource)?)
+    }
+
+    /// GPU timings of the frames that retired since the last call.
+    pub fn take_reports(&mut self) -> Vec<FrameReport> {
+        self.executor.take_reports()
+    }
+
+    pub fn executor(&mut self) -> &mut Executor {
+        &mut self.executor
+    }
+}

@@ -1,0 +1,179 @@
+//! The `reproject` pass: shaders/reproject.comp, the paper's spatial reprojection as a gather
+//! (see the shader for the acceptance test). Targets only.
+//!
+//! Slots (docs/PIPELINE.md): reads its own `position_depth`, `normal_metallic`,
+//! `albedo_roughness` and each source's `position_depth`, `normal_metallic`, `radiance`
+//! (`read_sources`: the δ-edges); writes `radiance` and `holes`. Sources are tried in the
+//! view topology's order, nearest first; at most [`MAX_SOURCES`].
+
+use std::sync::Arc;
+
+use parallax_backend::{BackendError, ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
+use parallax_graph::{Format, Handle, Image, Role};
+
+use crate::gbuffer::Gbuffer;
+
+/// Pass name.
+pub const REPROJECT: &str = "reproject";
+/// Sources one target pixel tries.
+pub const MAX_SOURCES: usize = 4;
+
+/// When a source pixel counts as the same surface, and which surfaces are reprojected.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReprojectionTolerances {
+    /// Allowed depth and world-position difference, relative to the distance from the source.
+    pub position: f32,
+    /// Least cosine between the target's and the source's normal.
+    pub normal_cos: f32,
+    /// Diffuse gate (§4.1): only surfaces at least this rough...
+    pub min_roughness: f32,
+    /// ...and at most this metallic are reprojected; glossy and metal ones become holes.
+    pub max_metallic: f32,
+}
+
+impl Default for ReprojectionTolerances {
+    fn default() -> Self {
+        // 1 % of the distance is ~8 pixel footprints at 1024 px and 65°: enough for the
+        // sub-pixel shift between a target's pixel centre and the source pixel it lands in,
+        // small against the depth steps occlusion makes.
+        Self { position: 0.01, normal_cos: 0.9, min_roughness: 0.5, max_metallic: 0.1 }
+    }
+}
+
+/// Push constants of `reproject.comp` (`ReprojectPush` there).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ReprojectPush {
+    pub block: u64,
+    pub position_depth: u32,
+    pub normal_metallic: u32,
+    pub albedo_roughness: u32,
+    pub radiance: u32,
+    pub holes: u32,
+    pub source_count: u32,
+    pub y0: u32,
+    pub y1: u32,
+    pub width: u32,
+    pub height: u32,
+    pub position_tolerance: f32,
+    pub normal_cos: f32,
+    pub min_roughness: f32,
+    pub max_metallic: f32,
+    /// Per source: view, position_depth, normal_metallic, radiance images.
+    pub sources: [[u32; 4]; MAX_SOURCES],
+}
+
+/// Records `reproject` instances.
+pub struct ReprojectKernel {
+    pub tolerances: ReprojectionTolerances,
+}
+
+impl PassKernel for ReprojectKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let misuse = |detail: String| BackendError::KernelMisuse { kernel: REPROJECT.into(), instance: index, detail };
+        let input =
+            |name: &str| pass.input(name).map(|a| a.resource).ok_or_else(|| misuse(format!("reads no `{name}`")));
+        let output =
+            |name: &str| pass.output(name).map(|a| a.resource).ok_or_else(|| misuse(format!("writes no `{name}`")));
+        let position_depth = input("position_depth")?;
+        let (width, height) = (rec.resource(position_depth).width, rec.resource(position_depth).height);
+        let mut sources = [[0u32; 4]; MAX_SOURCES];
+        let mut count = 0;
+        for (slot, radiance) in sources.iter_mut().zip(pass.source_inputs("radiance")) {
+            let parallax_graph::Origin::Source(i) = radiance.origin else { continue };
+            let of = |name: &str| {
+                pass.source_input(name, i)
+                    .map(|a| a.resource)
+                    .ok_or_else(|| misuse(format!("reads no `{name}` of source {i}")))
+            };
+            let view = rec.resource(radiance.resource).view;
+            *slot = [
+                view,
+                rec.image(of("position_depth")?)?,
+                rec.image(of("normal_metallic")?)?,
+                rec.image(radiance.resource)?,
+            ];
+            count += 1;
+        }
+        let t = self.tolerances;
+        let push = ReprojectPush {
+            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            position_depth: rec.image(position_depth)?,
+            normal_metallic: rec.image(input("normal_metallic")?)?,
+            albedo_roughness: rec.image(input("albedo_roughness")?)?,
+            radiance: rec.image(output("radiance")?)?,
+            holes: rec.image(output("holes")?)?,
+            source_count: count,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            height,
+            position_tolerance: t.position,
+            normal_cos: t.normal_cos,
+            min_roughness: t.min_roughness,
+            max_metallic: t.max_metallic,
+            sources,
+        };
+        rec.dispatch_bytes(
+            "reproject",
+            bytemuck::bytes_of(&push),
+            [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1],
+        )
+    }
+}
+
+/// Declares `reproject` for every target: reads `gbuffer` of the target and of its sources and
+/// the sources' `radiance`; writes the targets' `radiance` and returns the `holes` handle.
+pub fn declare_reproject(
+    graph: &mut KernelGraph,
+    gbuffer: &Gbuffer,
+    radiance: &mut Handle<Image>,
+    tolerances: ReprojectionTolerances,
+) -> Handle<Image> {
+    let mut holes = graph.image("holes", Format::R32u);
+    graph
+        .pass(REPROJECT, Role::Targets)
+        .read(&gbuffer.position_depth)
+        .read(&gbuffer.normal_metallic)
+        .read(&gbuffer.albedo_roughness)
+        .read_sources(&gbuffer.position_depth)
+        .read_sources(&gbuffer.normal_metallic)
+        .read_sources(radiance)
+        .write(radiance)
+        .write(&mut holes)
+        .kernel(Arc::new(ReprojectKernel { tolerances }))
+        .record();
+    holes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_push_struct_matches_reproject_comp() {
+        let glsl = member_offsets(&parallax_backend::spirv("reproject").unwrap(), "ReprojectPush").unwrap();
+        let rust = rust_layout!(ReprojectPush {
+            block,
+            position_depth,
+            normal_metallic,
+            albedo_roughness,
+            radiance,
+            holes,
+            source_count,
+            y0,
+            y1,
+            width,
+            height,
+            position_tolerance,
+            normal_cos,
+            min_roughness,
+            max_metallic,
+            sources
+        });
+        assert_eq!(glsl, rust);
+        assert_eq!(std::mem::size_of::<ReprojectPush>(), 128, "every Vulkan device guarantees 128 push-constant bytes");
+    }
+}

@@ -1,0 +1,376 @@
+//! `parallax reference`: a converged rendering of every view of a light field (or `--views`),
+//! path traced progressively in chunks of spp on the GPU (`--gpus N` / `--fake-devices N`, each
+//! view in row bands over the devices) or on the CPU reference tracer (`--cpu`).
+//!
+//! Each chunk is an f32 mean on the device; chunks are summed in f64 by
+//! [`parallax_accuracy::Accumulator`], whose sidecar `reference.partial` makes the run
+//! resumable: run the same command again (with the same or a higher `--spp`) and it continues
+//! from the spp reached, bit-identical to an uninterrupted run. The sidecar, the EXRs and
+//! `reference.json` are written atomically at every checkpoint, so an interrupted run leaves
+//! the last checkpoint complete.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, Result, bail};
+use clap::Args;
+use indicatif::ProgressStyle;
+use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
+use parallax_backend::{Context as VkContext, ContextDesc};
+use parallax_graph::{LayoutSpec, LightField, ViewId};
+use parallax_passes::{GpuTracer, banded_trace_plan};
+use parallax_scene::gpu::GpuScene;
+use parallax_scene::output::write_contact_sheet;
+use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
+
+use crate::budget::{TraceWork, check_host_bytes};
+use parallax_passes::camera::{lightfield_view, rig_of};
+use crate::options::{
+    DeviceArgs, Resolution, parse_exposure, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
+    parse_sun,
+};
+
+#[derive(Args, Debug)]
+pub struct ReferenceArgs {
+    /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
+    #[arg(long, default_value = "default")]
+    scene: String,
+    /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
+    #[arg(long, default_value = "8x4", value_parser = parse_layout)]
+    lf: LayoutSpec,
+    /// Spacing between neighbouring views in metres (default 0.001, the paper's).
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
+    spacing: Option<f64>,
+    /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
+    resolution: Option<Resolution>,
+    /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_focus)]
+    focus: Option<f64>,
+    /// Only these views, e.g. `0,5,8-11` (default: every view).
+    #[arg(long)]
+    views: Option<String>,
+    #[command(flatten)]
+    devices: DeviceArgs,
+    /// Trace on the CPU reference path tracer instead of the GPU.
+    #[arg(long, conflicts_with_all = ["gpus", "fake_devices"])]
+    cpu: bool,
+    /// Samples per pixel to reach (a multiple of --chunk-spp).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
+    spp: u32,
+    /// Samples per pixel of one chunk: averaged in f32 on the device, chunks summed in f64.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
+    chunk_spp: u32,
+    /// Maximum number of scattering events per path (0..=1024).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
+    max_depth: u32,
+    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`; replaces the
+    /// scene's sun.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
+    sun: Option<Sun>,
+    /// Remove the scene's sun.
+    #[arg(long, conflicts_with = "sun")]
+    no_sun: bool,
+    /// Constant sky radiance `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb` (9 values).
+    #[arg(long, value_parser = parse_sky)]
+    sky: Option<Sky>,
+    /// Write the EXRs and the resumable state at least this often (seconds) and at the end.
+    #[arg(long, default_value_t = 30.0)]
+    checkpoint_secs: f64,
+    /// Folder for view_NNN.exr, reference.png, reference.json and reference.partial.
+    #[arg(long, default_value = "out/reference")]
+    out_dir: PathBuf,
+    /// Exposure multiplier for the contact sheet (> 0).
+    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
+    exposure: f32,
+}
+
+/// `0,5,8-11` into sorted, distinct view indices below `count`.
+fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
+    let mut views = Vec::new();
+    for part in s.split(',').map(str::trim) {
+        let parse = |t: &str| -> Result<u32> {
+            t.trim().parse().with_context(|| format!("--views '{s}': '{t}' is not a view number (e.g. 0,5,8-11)"))
+        };
+        let (a, b) = match part.split_once('-') {
+            Some((a, b)) => (parse(a)?, parse(b)?),
+            None => (parse(part)?, parse(part)?),
+        };
+        if a > b || b as usize >= count {
+            bail!("--views '{s}': '{part}' is not a range of views 0..={} of this light field", count - 1);
+        }
+        views.extend(a..=b);
+    }
+    views.sort_unstable();
+    views.dedup();
+    Ok(views)
+}
+
+/// The scene file's name and FNV-1a hash, so a resumed run notices an edited scene but not a
+/// different path to the same file (`default` is built in). Buffers and textures a glTF
+/// refers to are not hashed.
+fn scene_fingerprint(spec: &str) -> Result<String> {
+    if spec == "default" {
+        return Ok("default".into());
+    }
+    let bytes = std::fs::read(spec).with_context(|| format!("--scene {spec}: cannot read the file"))?;
+    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
+    let name = Path::new(spec).file_name().map_or(spec.into(), |n| n.to_string_lossy());
+    Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))
+}
+
+enum Tracer<'a> {
+    Cpu(CpuTracer<'a>),
+    Gpu { context: VkContext, tracer: Box<GpuTracer> },
+}
+
+impl Tracer<'_> {
+    /// One chunk: every view's f32 mean radiance over `settings.spp` samples.
+    fn chunk(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<[f32; 3]>>> {
+        match self {
+            Tracer::Cpu(cpu) => views
+                .iter()
+                .map(|v| {
+                    let (frame, _) = cpu.render(v, settings, &|_| {})?;
+                    Ok(frame.pixels.iter().map(|p| p.radiance.to_array()).collect())
+                })
+                .collect(),
+            Tracer::Gpu { tracer, .. } => Ok(tracer
+                .render(scene, views, settings)?
+                .into_iter()
+                .map(|pixels| pixels.iter().map(|p| [p.radiance[0], p.radiance[1], p.radiance[2]]).collect())
+                .collect()),
+        }
+    }
+}
+
+pub fn run(args: ReferenceArgs) -> Result<()> {
+    if args.chunk_spp == 0 || args.spp % args.chunk_spp != 0 {
+        bail!(
+            "--spp {} is not a multiple of --chunk-spp {}: chunks must tile the samples for a resumed run to equal an \
+             uninterrupted one; pick --spp {}",
+            args.spp,
+            args.chunk_spp,
+            args.spp.div_ceil(args.chunk_spp.max(1)) * args.chunk_spp.max(1)
+        );
+    }
+    if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
+        bail!("--checkpoint-secs must be a non-negative number of seconds");
+    }
+    let (spec, resolution, sun, sky) = (args.lf, args.resolution.map(Resolution::pair), args.sun, args.sky);
+    let mut scene = load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
+    if let Some(sun) = sun {
+        scene.sun = Some(sun);
+    }
+    if args.no_sun {
+        scene.sun = None;
+    }
+    if let Some(sky) = sky {
+        scene.sky = Some(sky);
+    }
+    let rig = rig_of(&scene.default_camera(), scene.bounds().center(), args.focus);
+    let focus = rig.focus_distance;
+    let lf = LightField::new(spec, args.spacing, resolution, rig)?;
+    let selected = match &args.views {
+        Some(list) => parse_views(list, lf.len())?,
+        None => (0..lf.len() as u32).collect(),
+    };
+    // The tracers key random numbers by a view's position in the list they are given, so a
+    // subset's views get the noise of views 0..k: a different, equally valid estimate.
+    let views: Vec<View> = selected
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| View { index: i as u32, ..lightfield_view(&lf, ViewId(v)) })
+        .collect();
+
+    // What it costs, checked before anything is allocated: the paths, the read-back views and
+    // the f64 sums (3 channels × 8 bytes per pixel of every view).
+    let work = TraceWork { views: views.len() as u64, width: lf.width, height: lf.height, spp: args.spp };
+    work.check_duration()?;
+    work.check_host()?;
+    check_host_bytes(
+        &format!("the f64 sums of {} view(s) of {}x{}", views.len(), lf.width, lf.height),
+        work.views * u64::from(lf.width) * u64::from(lf.height) * 24,
+        "lower --resolution or trace fewer --views",
+    )?;
+
+    // Everything the pixels depend on, by the flag that sets it; devices are not among them
+    // (results do not depend on the device count), so a reference can resume on other GPUs.
+    let settings_key = BTreeMap::from([
+        ("--scene".to_string(), scene_fingerprint(&args.scene)?),
+        ("--lf".to_string(), format!("{:?} ({}x{} views)", args.lf, lf.cols, lf.rows)),
+        ("--spacing".to_string(), args.spacing.map_or("(preset)".into(), |s| s.to_string())),
+        ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
+        ("--focus".to_string(), format!("{focus}")),
+        ("--views".to_string(), format!("{selected:?}")),
+        ("--cpu".to_string(), args.cpu.to_string()),
+        ("--chunk-spp".to_string(), args.chunk_spp.to_string()),
+        ("--max-depth".to_string(), args.max_depth.to_string()),
+        ("--sun".to_string(), format!("{:?}", scene.sun)),
+        ("--sky".to_string(), format!("{:?}", scene.sky)),
+    ]);
+    std::fs::create_dir_all(&args.out_dir)
+        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    remove_stale_temporaries(&args.out_dir);
+    let partial = args.out_dir.join(PARTIAL_FILE);
+    let size = (lf.width as usize, lf.height as usize);
+    let mut acc = if partial.exists() {
+        let acc = Accumulator::load(&partial)?;
+        acc.check_settings(&settings_key, &partial)?;
+        tracing::info!("resuming {} at {} spp", partial.display(), acc.header.spp);
+        acc
+    } else {
+        Accumulator::new(settings_key, views.len(), size, args.chunk_spp)
+    };
+    let target = u64::from(args.spp);
+    if acc.header.spp >= target {
+        tracing::info!(
+            "{} already holds {} spp (target {target}): nothing to trace",
+            partial.display(),
+            acc.header.spp
+        );
+        return write_outputs(&args, &acc, &selected, &lf, 0.0, None);
+    }
+
+    let bvh = SceneBvh::build(&scene);
+    let mut tracer = if args.cpu {
+        Tracer::Cpu(CpuTracer::new(&scene, &bvh))
+    } else {
+        let selection = args.devices.selection();
+        let context = VkContext::new(&ContextDesc::from_env(selection))?;
+        tracing::info!("{}", context.to_string().trim_end());
+        work.check_devices(&context)?;
+        let devices = selection.count();
+        let plan = banded_trace_plan(views.len() as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
+        let tracer = GpuTracer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
+        Tracer::Gpu { context, tracer: Box::new(tracer) }
+    };
+    let devices = if args.cpu { 0 } else { args.devices.selection().count() };
+
+    // Hidden under -q, like every progress bar of the CLI.
+    let bar = crate::logging::bar(target);
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} spp ({per_sec}, {eta} left)")
+            .context("progress bar template")?,
+    );
+    bar.set_position(acc.header.spp);
+    // The rate, and so the ETA, counts only this run's chunks.
+    bar.reset_eta();
+    let started = Instant::now();
+    let mut last_checkpoint = Instant::now();
+    while acc.header.spp < target {
+        let settings = TraceSettings {
+            spp: args.chunk_spp,
+            max_depth: args.max_depth,
+            frame: acc.next_frame(),
+            ..Default::default()
+        };
+        let t = Instant::now();
+        let chunk = tracer.chunk(&scene, &views, &settings)?;
+        acc.add_chunk(&chunk, t.elapsed().as_secs_f64());
+        bar.set_position(acc.header.spp);
+        if acc.header.spp < target && last_checkpoint.elapsed().as_secs_f64() >= args.checkpoint_secs {
+            bar.suspend(|| write_checkpoint(&args.out_dir, &acc, &selected)).context("writing a checkpoint")?;
+            last_checkpoint = Instant::now();
+        }
+    }
+    bar.finish_and_clear();
+    if let Tracer::Gpu { context, tracer } = tracer {
+        drop(tracer);
+        context.check_validation()?;
+    }
+    write_outputs(&args, &acc, &selected, &lf, started.elapsed().as_secs_f64(), Some(devices))
+}
+
+/// The EXRs of the current mean (spp in their attributes), then the sidecar: a crash between
+/// the two leaves a sidecar that is older than the EXRs, never newer, and resuming rewrites them.
+fn write_checkpoint(dir: &Path, acc: &Accumulator, selected: &[u32]) -> Result<()> {
+    let (w, h) = (acc.header.width, acc.header.height);
+    for (i, v) in selected.iter().enumerate() {
+        let image = RgbImage::new(w, h, acc.mean(i));
+        // One attribute: the EXR writer keeps attributes in a hash map, so several would be
+        // written in a different order each run.
+        let attributes = [("parallaxSpp", acc.header.spp.to_string())];
+        image.write_exr(&dir.join(format!("view_{v:03}.exr")), &attributes)?;
+    }
+    acc.save(&dir.join(PARTIAL_FILE))?;
+    Ok(())
+}
+
+fn write_outputs(
+    args: &ReferenceArgs,
+    acc: &Accumulator,
+    selected: &[u32],
+    lf: &LightField,
+    seconds_this_run: f64,
+    devices: Option<usize>,
+) -> Result<()> {
+    write_checkpoint(&args.out_dir, acc, selected)?;
+    let h = &acc.header;
+    let frames: Vec<Frame> = (0..selected.len())
+        .map(|i| Frame {
+            width: h.width as u32,
+            height: h.height as u32,
+            pixels: acc
+                .mean(i)
+                .into_iter()
+                .map(|p| PixelSample { radiance: glam::Vec3::from_array(p), ..Default::default() })
+                .collect(),
+        })
+        .collect();
+    let sheet = args.out_dir.join("reference.png");
+    let columns = if selected.len() == lf.len() { lf.cols } else { selected.len().min(8) as u32 };
+    write_contact_sheet(&sheet, &frames.iter().collect::<Vec<_>>(), columns, args.exposure)?;
+    let (mean, standard_error) = acc.mean_and_standard_error();
+    // One "frame" of the reference is one sample per pixel of every selected view.
+    let ms_per_spp = h.seconds * 1e3 / h.spp.max(1) as f64;
+    let point = Point {
+        label: format!("reference, {} spp", h.spp),
+        series: Some("reference".into()),
+        frame_ms: Some(ms_per_spp),
+        devices: devices.map(|d| d as u32),
+        views: Some(selected.len() as u32),
+        ..Default::default()
+    };
+    let json = serde_json::json!({
+            "spp": h.spp, "chunks": h.chunks, "chunk_spp": h.chunk_spp,
+            "seconds": h.seconds, "seconds_this_run": seconds_this_run, "ms_per_spp": ms_per_spp,
+            "tracer": if args.cpu { "cpu" } else { "gpu" }, "devices": devices,
+            "views": selected, "width": h.width, "height": h.height, "settings": &h.settings,
+            "mean_radiance": mean, "standard_error": standard_error, "point": point,
+    });
+    let bytes = serde_json::to_vec_pretty(&json)?;
+    write_atomically(&args.out_dir.join("reference.json"), |f| std::io::Write::write_all(f, &bytes))?;
+    println!(
+        "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {:.5?} ± {:?} (standard error)",
+        selected.len(),
+        h.width,
+        h.height,
+        h.spp,
+        h.seconds,
+        ms_per_spp,
+        mean,
+        standard_error.map(|e| format!("{e:.2e}"))
+    );
+    println!(
+        "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
+        selected.len(),
+        sheet.display(),
+        args.out_dir.display()
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_views;
+
+    #[test]
+    fn view_lists() {
+        assert_eq!(parse_views("3,0-2,2", 8).unwrap(), vec![0, 1, 2, 3]);
+        assert!(parse_views("7-9", 8).unwrap_err().to_string().contains("0..=7"));
+        assert!(parse_views("x", 8).is_err());
+        assert!(parse_views("3-1", 8).is_err());
+    }
+}
