@@ -10,8 +10,13 @@
 #include "bindless.glsl"
 #include "pt_types.glsl"
 
-// Pixel list (list mode): `count` entries of x | y << 16, written by a compaction pass.
+// Pixel list (list mode): one band's section of a pixel list (parallax_passes::holes), whose
+// header is also the indirect arguments this kernel is dispatched on; `count` entries of
+// x | y << 16 follow.
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer PixelList {
+    uint groups_x;
+    uint groups_y;
+    uint groups_z;
     uint count;
     uint data[];
 };
@@ -22,7 +27,7 @@ const uint NO_IMAGE = 0xffffffffu;
 layout(push_constant, std430) uniform PathTracePush {
     SceneRefs scene;
     TraceParamsRef trace; // this view's TraceParams in the per-frame data
-    PixelList pixel_list; // list mode only
+    PixelList pixel_list; // list mode only: the band's section (header first)
     uint radiance;        // image indices (images[] of bindless.glsl), NO_IMAGE: not written
     uint albedo_roughness;
     uint normal_metallic;
@@ -43,7 +48,8 @@ void main() {
     uint x;
     uint y;
     if (pc.list_mode == 1u) {
-        // 1D over the list, folded into 2D when it exceeds the 65535-group limit of one axis.
+        // 1D over the list, folded into 2D when it exceeds the 65535-group limit of one axis
+        // (the header's groups_y > 1); the last groups run past the count.
         uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
         if (i >= pc.pixel_list.count) {
             return;

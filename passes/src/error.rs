@@ -45,6 +45,14 @@ pub enum PassError {
     #[error("a {width}x{height} view is beyond the 65536x65536 that packed pixel lists can address")]
     ViewTooLarge { width: u32, height: u32 },
 
+    /// A hole fraction is a share of the view's pixels.
+    #[error("hole fraction {fraction} is not in [0, 1]")]
+    HoleFraction { fraction: f64 },
+
+    /// The GPU compacted another number of holes than its mask holds: a bug in compaction.
+    #[error("compaction listed {compacted} holes but the mask has {expected}")]
+    HoleCount { compacted: u64, expected: u64 },
+
     /// More rays than the raycaster was created for.
     #[error("{rays} rays exceed the raycaster's capacity of {capacity}")]
     TooManyRays { rays: usize, capacity: usize },

@@ -7,7 +7,10 @@
 //!   radiance and first-hit data into the view's images.
 //! * [`RaycastKernel`] / [`Raycaster`] (`raycast`): rays through the CWBVH, for the GPU-vs-CPU
 //!   traversal check and the rays/s benchmark ([`bench`](mod@bench)).
-//! * [`pixel_list`]: the list format of `path_trace`'s list mode and a demo list producer.
+//! * [`pixel_list`]: the list format of `path_trace`'s list mode (a header that is the indirect
+//!   arguments, then the pixels) and a test list producer.
+//! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
+//!   and `hole_fill` (`path_trace` dispatched indirectly on them); [`hole_bench`] times it.
 //! * [`trace`]: the graph declaring path tracing per view, and [`GpuTracer`], which runs it.
 //!
 //! ```no_run
@@ -31,6 +34,8 @@ pub mod bench;
 pub mod camera;
 pub mod error;
 pub mod gbuffer;
+pub mod hole_bench;
+pub mod holes;
 pub mod path_trace;
 pub mod pipeline;
 pub mod pixel_list;
@@ -43,10 +48,16 @@ pub mod tonemap;
 pub mod trace;
 
 pub use error::{PassError, Result};
-pub use path_trace::{
-    PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
+pub use hole_bench::{HOLE_MASK, HashedHoleMaskKernel, HoleBench, bench_holes, hole_threshold, is_hashed_hole};
+pub use holes::{
+    COMPACT_HOLES, CompactHolesKernel, HOLE_FILL, HOLE_LIST, HOLES, declare_hole_fill, hole_list_row_bytes,
 };
-pub use pixel_list::{PIXEL_LIST, StridedPixelListKernel, pixel_list_bytes, strided_pixels};
+pub use path_trace::{
+    LIST_SLOTS, PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
+};
+pub use pixel_list::{
+    LIST_HEADER_WORDS, PIXEL_LIST, StridedPixelListKernel, list_groups, pixel_list_bytes, strided_pixels,
+};
 pub use raycast::{
     HitOut, RAYCAST, RAYCAST_WORK, RayIn, RaySchedule, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu,
     random_rays,

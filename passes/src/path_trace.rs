@@ -5,14 +5,16 @@
 //!   and roughness, normal and metallic, position and linear depth: the [`TRACE_OUTPUTS`]
 //!   images. A pass that needs only radiance (hole filling) declares only the first.
 //! * Pixels: the instance's row band (a whole view or one device's strip), or, when the pass
-//!   reads a per-view buffer, the pixel list in it, whatever the band (word 0 = count, then x | y << 16 per
-//!   pixel; see [`crate::pixel_list`]). The dispatch covers the buffer's capacity and threads
-//!   past the count return, so the list can be produced on the GPU in the same frame.
+//!   reads a pixel list ([`LIST_SLOTS`]), the listed pixels of its band: the list in the band's
+//!   section of the buffer (a row buffer's rows `[y0, y1)`, or all of a plain buffer), whose
+//!   header holds the indirect arguments the dispatch reads (see [`crate::pixel_list`]), so a
+//!   list produced on the GPU earlier in the frame is traced with exactly the workgroups it
+//!   needs, and a band without listed pixels dispatches none.
 //! * Camera, frame index and settings come from the per-frame data, one
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
 
-use parallax_backend::{BackendError, ExecPass, Format, PassKernel, Recorder, ResourceKind};
+use parallax_backend::{BackendError, ExecAccess, ExecPass, Format, PassKernel, Recorder, ResourceKind};
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
@@ -25,12 +27,12 @@ pub const PATH_TRACE: &str = "path_trace";
 /// Images a `path_trace` pass writes, in write order, all `Rgba32f`.
 pub const TRACE_OUTPUTS: [&str; 4] = ["radiance", "albedo_roughness", "normal_metallic", "position_depth"];
 
+/// Slots of the pixel lists that switch the pass to list mode: the hole list of hole filling
+/// and the test lists of [`crate::StridedPixelListKernel`].
+pub const LIST_SLOTS: [&str; 2] = [crate::holes::HOLE_LIST, crate::pixel_list::PIXEL_LIST];
+
 /// Image index meaning "not written" in the push constants.
 const NO_IMAGE: u32 = u32::MAX;
-/// Workgroup size of pt_trace.comp.
-const GROUP: u32 = 64;
-/// Per-axis limit on workgroup counts every Vulkan device supports.
-const MAX_GROUPS: u32 = 65535;
 /// Bytes of one view's parameters in the per-frame data.
 pub const TRACE_PARAMS_BYTES: u64 = std::mem::size_of::<GpuTraceParams>() as u64;
 
@@ -50,7 +52,7 @@ pub struct PathTracePush {
     pub scene: [u64; 6],
     /// Address of this view's `TraceParams` in the per-frame data.
     pub trace: u64,
-    /// Address of the pixel list (list mode only).
+    /// Address of the band's section of the pixel list, header first (list mode only).
     pub pixel_list: u64,
     /// Image indices of the outputs, [`NO_IMAGE`] where not written.
     pub radiance: u32,
@@ -80,23 +82,14 @@ impl PassKernel for PathTraceKernel {
             }
             *slot = rec.image(write.resource)?;
         }
-        let (list_mode, pixel_list, groups) = match pass.input(crate::pixel_list::PIXEL_LIST) {
-            Some(read) => {
-                let list = rec.resource(read.resource);
-                if list.kind != ResourceKind::Buffer {
-                    return Err(misuse(index, format!("its read `{}` must be a pixel-list buffer", list.name)));
-                }
-                let capacity = list.width.saturating_sub(1);
-                let groups = capacity.div_ceil(GROUP).max(1);
-                (1u32, rec.buffer_of(read.resource)?, [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS), 1])
-            }
-            // 8x8-pixel tiles (see pt_trace.comp).
-            None => (0, 0, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1]),
+        let list = match LIST_SLOTS.iter().find_map(|slot| pass.input(slot)) {
+            Some(read) => Some(list_section(rec, read, index)?),
+            None => None,
         };
         let push = PathTracePush {
             scene: scene_refs(rec)?,
             trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
-            pixel_list,
+            pixel_list: list.map_or(0, |(address, _, _)| address),
             radiance: images[0],
             albedo_roughness: images[1],
             normal_metallic: images[2],
@@ -104,10 +97,35 @@ impl PassKernel for PathTraceKernel {
             y0: pass.rows.y0,
             y1: pass.rows.y1,
             width,
-            list_mode,
+            list_mode: u32::from(list.is_some()),
         };
-        rec.dispatch_bytes("pt_trace", bytemuck::bytes_of(&push), groups)
+        match list {
+            Some((_, resource, offset)) => {
+                rec.dispatch_indirect("pt_trace", bytemuck::bytes_of(&push), resource, offset)
+            }
+            // 8x8-pixel tiles (see pt_trace.comp).
+            None => rec.dispatch_bytes(
+                "pt_trace",
+                bytemuck::bytes_of(&push),
+                [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1],
+            ),
+        }
     }
+}
+
+/// Where the list of `read` (a pixel-list read of this instance) is: the GPU address of its
+/// band's section, the resource and the byte offset of the section (= of its indirect
+/// arguments). The section is the read's rows: the instance's band of a row buffer, or row 0,
+/// all of it, of a plain buffer.
+fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) -> parallax_backend::Result<(u64, usize, u64)> {
+    let list = rec.resource(read.resource);
+    let offset = u64::from(read.rows.y0) * list.row_bytes();
+    let section = u64::from(read.rows.len()) * list.row_bytes();
+    if list.kind != ResourceKind::Buffer || section < u64::from(crate::pixel_list::LIST_HEADER_WORDS) * 4 {
+        let detail = format!("its read `{}` must be a pixel-list buffer with room for the list header", list.name);
+        return Err(misuse(index, detail));
+    }
+    Ok((rec.buffer_of(read.resource)? + offset, read.resource, offset))
 }
 
 /// The per-frame data of `path_trace`: one [`GpuTraceParams`] per view, view `i` at

@@ -1,16 +1,39 @@
-//! Pixel lists, the input of `path_trace`'s list mode: a per-view buffer holding a count and
-//! then one x | y << 16 word per pixel. The reprojection pass will produce them from its hole
-//! mask; until then [`StridedPixelListKernel`] writes a deterministic scattered selection, which
-//! is what the subset-independence tests trace.
+//! Pixel lists, the input of `path_trace`'s list mode (shaders/pixel_list.glsl). A list lives in
+//! one band's section of a buffer: [`LIST_HEADER_WORDS`] header words `groups_x, groups_y,
+//! groups_z, count`, then `count` words `x | y << 16`. The header doubles as the indirect
+//! arguments the consumer is dispatched on, so a list produced on the GPU is traced in the same
+//! frame with exactly the workgroups it needs. A per-band list lives in a row buffer
+//! (`hole_list`, [`crate::holes`]), band `[y0, y1)` at byte `y0 * row_bytes`; a whole-view
+//! list in a plain buffer is one band at byte 0.
+//!
+//! [`StridedPixelListKernel`] writes a deterministic scattered selection into a plain buffer,
+//! which is what the subset-independence tests trace.
 
 use parallax_backend::{BackendError, ExecPass, PassKernel, Recorder, ResourceKind};
 
 /// Pass name of [`StridedPixelListKernel`].
 pub const PIXEL_LIST: &str = "pixel_list";
 
-/// Bytes of a pixel-list buffer able to hold `pixels` entries (count word included).
+/// Words before a list's entries: `groups_x, groups_y, groups_z, count`.
+pub const LIST_HEADER_WORDS: u32 = 4;
+
+/// Invocations per workgroup of the kernels that trace a list (pt_trace.comp).
+pub const LIST_GROUP: u32 = 64;
+
+/// Workgroups along one axis that every Vulkan device supports.
+const MAX_GROUPS: u32 = 65535;
+
+/// Bytes of a pixel-list buffer able to hold `pixels` entries (header included).
 pub fn pixel_list_bytes(pixels: u64) -> u64 {
-    4 * (pixels + 1)
+    4 * (pixels + u64::from(LIST_HEADER_WORDS))
+}
+
+/// The indirect arguments a list of `count` entries carries (`pixel_list_groups` of
+/// shaders/pixel_list.glsl): `[ceil(count / 64), 1, 1]`, folded into more rows of groups only
+/// beyond 65535 groups.
+pub fn list_groups(count: u32) -> [u32; 3] {
+    let groups = count.div_ceil(LIST_GROUP);
+    [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS).max(1), 1]
 }
 
 /// The pixels a [`StridedPixelListKernel`] lists for a `width`×`height` view, in list order.
@@ -19,9 +42,25 @@ pub fn strided_pixels(width: u32, height: u32, stride: u32, phase: u32) -> Vec<(
     (phase..n).step_by(stride.max(1) as usize).map(|l| (l % width, l / width)).collect()
 }
 
+/// Push constants of `pixel_list_strided.comp` (`StridedListPush` there; a test holds the two
+/// layouts together).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct StridedListPush {
+    pub width: u32,
+    pub height: u32,
+    pub stride: u32,
+    pub phase: u32,
+    /// Entries the buffer holds.
+    pub capacity: u32,
+    pub pad: u32,
+    /// Address of the list buffer.
+    pub list: u64,
+}
+
 /// Writes every `stride`-th pixel (row-major, from `phase`) of a `width`×`height` view into
-/// `writes[0]`, a per-view buffer (which has no image shape, hence the size here). Entries
-/// beyond the buffer's capacity are dropped.
+/// `writes[0]`, a per-view plain buffer (which has no image shape, hence the size here), as one
+/// whole-view list. Entries beyond the buffer's capacity are dropped.
 pub struct StridedPixelListKernel {
     pub width: u32,
     pub height: u32,
@@ -40,16 +79,54 @@ impl PassKernel for StridedPixelListKernel {
             )));
         }
         let list = pass.writes[0].resource;
-        if rec.resource(list).kind != ResourceKind::Buffer {
-            return Err(misuse(format!("`{}` must be a buffer", rec.resource(list).name)));
+        let desc = rec.resource(list);
+        if desc.kind != ResourceKind::Buffer || desc.height != 1 || desc.width < LIST_HEADER_WORDS {
+            return Err(misuse(format!("`{}` must be a plain buffer with room for the list header", desc.name)));
         }
-        let capacity = rec.resource(list).width.saturating_sub(1);
-        let mut push = Vec::with_capacity(32);
-        for word in [self.width, self.height, self.stride.max(1), self.phase, capacity, 0] {
-            push.extend_from_slice(&word.to_le_bytes());
+        let capacity = desc.width - LIST_HEADER_WORDS;
+        let push = StridedListPush {
+            width: self.width,
+            height: self.height,
+            stride: self.stride.max(1),
+            phase: self.phase,
+            capacity,
+            pad: 0,
+            list: rec.buffer_of(list)?,
+        };
+        let groups = capacity.div_ceil(LIST_GROUP).max(1);
+        rec.dispatch_bytes(
+            "pixel_list_strided",
+            bytemuck::bytes_of(&push),
+            [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS), 1],
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_push_struct_matches_pixel_list_strided_comp() {
+        let glsl = member_offsets(&parallax_backend::spirv("pixel_list_strided").unwrap(), "StridedListPush").unwrap();
+        let rust = rust_layout!(StridedListPush { width, height, stride, phase, capacity, pad, list });
+        assert_eq!(glsl, rust);
+        assert_eq!(std::mem::size_of::<StridedListPush>(), 32);
+    }
+
+    #[test]
+    fn list_groups_cover_the_count_and_fold_beyond_one_axis() {
+        assert_eq!(list_groups(0), [0, 1, 1]);
+        assert_eq!(list_groups(1), [1, 1, 1]);
+        assert_eq!(list_groups(64), [1, 1, 1]);
+        assert_eq!(list_groups(65), [2, 1, 1]);
+        assert_eq!(list_groups(65535 * 64), [65535, 1, 1]);
+        assert_eq!(list_groups(65535 * 64 + 1), [65535, 2, 1]);
+        for count in [0, 1, 63, 64, 65, 4096 * 4096, u32::MAX] {
+            let [x, y, z] = list_groups(count);
+            assert!(u64::from(x) * u64::from(y) * u64::from(z) * 64 >= u64::from(count), "{count}");
         }
-        push.extend_from_slice(&rec.buffer_of(list)?.to_le_bytes());
-        let groups = capacity.div_ceil(64).max(1);
-        rec.dispatch_bytes("pixel_list_strided", &push, [groups.min(65535), groups.div_ceil(65535), 1])
     }
 }

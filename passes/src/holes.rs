@@ -1,0 +1,129 @@
+//! Hole filling (paper §3.3, Table 1 stage 5), per row band: `compact_holes`
+//! (shaders/compact_holes.comp) turns the `holes` mask of its band into the band's pixel list in
+//! the `hole_list` row buffer, and `hole_fill` path traces exactly the listed pixels with the
+//! `path_trace` kernel's list mode, dispatched indirectly on the band's header, so no hole ray
+//! is dropped and a band without holes costs one empty dispatch. Both passes split into bands
+//! like any other, so under the fine schemes each device compacts and fills its own strips.
+//! Formats: docs/PIPELINE.md (`holes`, `hole_list`, `radiance`).
+
+use std::sync::Arc;
+
+use parallax_backend::{BackendError, ExecPass, Format, KernelGraph, PassKernel, Recorder, ResourceKind};
+use parallax_graph::{Buffer, Handle, Image, Role};
+
+use crate::path_trace::PathTraceKernel;
+use crate::pixel_list::LIST_HEADER_WORDS;
+
+/// Pass name of [`CompactHolesKernel`].
+pub const COMPACT_HOLES: &str = "compact_holes";
+/// Pass name of the hole-filling path trace.
+pub const HOLE_FILL: &str = "hole_fill";
+/// Slot of the hole mask (R32u, nonzero = hole).
+pub const HOLES: &str = "holes";
+/// Slot of the per-band hole lists.
+pub const HOLE_LIST: &str = "hole_list";
+
+/// Bytes per image row of the `hole_list` row buffer of a `width`-wide view: room for an entry
+/// per pixel plus four words, so every band, even of one row, has room for its header and an
+/// entry for each of its pixels.
+pub fn hole_list_row_bytes(width: u32) -> u64 {
+    4 * (u64::from(width) + u64::from(LIST_HEADER_WORDS))
+}
+
+/// Declares hole filling for every target view: `compact_holes` reads `holes` and accumulates
+/// into the returned `hole_list` row buffer (reset to zeros each frame), then `hole_fill` path
+/// traces the listed pixels into `radiance` in place, so the pixels that are not holes keep
+/// what was there (the reprojected radiance). `hole_fill` reads its views' `GpuTraceParams`
+/// from the per-frame data like `path_trace` ([`crate::trace_frame_data`]).
+pub fn declare_hole_fill(
+    graph: &mut KernelGraph,
+    holes: &Handle<Image>,
+    radiance: &mut Handle<Image>,
+) -> Handle<Buffer> {
+    let mut list = graph.row_buffer(HOLE_LIST, hole_list_row_bytes(graph.topology().width));
+    graph.reset_each_frame(&list, Vec::new());
+    graph
+        .pass(COMPACT_HOLES, Role::Targets)
+        .read(holes)
+        .modify(&mut list)
+        .kernel(Arc::new(CompactHolesKernel))
+        .record();
+    graph.pass(HOLE_FILL, Role::Targets).read(&list).modify(radiance).kernel(Arc::new(PathTraceKernel)).record();
+    list
+}
+
+/// Push constants of `compact_holes.comp` (`CompactHolesPush` there; a test holds the two
+/// layouts together).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct CompactHolesPush {
+    /// Address of the band's section of the hole list (`y0 * row_bytes` into the buffer).
+    pub list: u64,
+    /// Image index of the hole mask.
+    pub holes: u32,
+    pub y0: u32,
+    pub y1: u32,
+    pub width: u32,
+}
+
+/// Records `compact_holes` instances: reads slot [`HOLES`] (an R32u image) over the band and
+/// modifies slot [`HOLE_LIST`] (a row buffer of at least [`hole_list_row_bytes`] per row).
+pub struct CompactHolesKernel;
+
+impl PassKernel for CompactHolesKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let misuse =
+            |detail: String| BackendError::KernelMisuse { kernel: COMPACT_HOLES.into(), instance: index, detail };
+        let (Some(holes), Some(list)) = (pass.input(HOLES), pass.output(HOLE_LIST)) else {
+            return Err(misuse(format!("reads `{HOLES}` and writes `{HOLE_LIST}`")));
+        };
+        let mask = rec.resource(holes.resource);
+        if mask.kind != ResourceKind::Image || mask.format != Format::R32u {
+            return Err(misuse(format!("`{}` must be an R32u image", mask.name)));
+        }
+        let width = mask.width;
+        let buffer = rec.resource(list.resource);
+        // The band's section holds its header and an entry for every pixel of the band.
+        let rows = u64::from(list.rows.len());
+        let fits = rows * buffer.row_bytes() >= 4 * (rows * u64::from(width) + u64::from(LIST_HEADER_WORDS));
+        if buffer.kind != ResourceKind::Buffer || buffer.height != mask.height || !fits {
+            return Err(misuse(format!(
+                "`{}` must be a row buffer of {} rows and at least {} bytes per row",
+                buffer.name,
+                mask.height,
+                hole_list_row_bytes(width)
+            )));
+        }
+        if list.rows.is_empty() {
+            return Ok(());
+        }
+        let push = CompactHolesPush {
+            list: rec.buffer_of(list.resource)? + u64::from(list.rows.y0) * buffer.row_bytes(),
+            holes: rec.image(holes.resource)?,
+            y0: list.rows.y0,
+            y1: list.rows.y1,
+            width,
+        };
+        // 8x8-pixel tiles, one workgroup each (see compact_holes.comp).
+        rec.dispatch_bytes(
+            "compact_holes",
+            bytemuck::bytes_of(&push),
+            [width.div_ceil(8), list.rows.len().div_ceil(8), 1],
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_push_struct_matches_compact_holes_comp() {
+        let glsl = member_offsets(&parallax_backend::spirv("compact_holes").unwrap(), "CompactHolesPush").unwrap();
+        let rust = rust_layout!(CompactHolesPush { list, holes, y0, y1, width });
+        assert_eq!(glsl, rust);
+        assert_eq!(std::mem::size_of::<CompactHolesPush>(), 24);
+    }
+}

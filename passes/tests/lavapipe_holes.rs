@@ -1,0 +1,190 @@
+//! Hole filling on lavapipe, validation on: a synthetic hole mask of the target views is
+//! compacted per row band into `hole_list` and only those pixels are path traced (indirect
+//! dispatch on each band's header), in place over a known pattern. The hole pixels must equal
+//! the full path-traced view bit for bit, every other pixel must keep the pattern, and each
+//! band's header and entries must be exactly its holes. Under fine-all over 3 logical devices
+//! every device compacts and fills its own bands, and the views equal the 1-device run.
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::sync::Arc;
+
+use parallax_backend::kernels::{FillKernel, reference_fill};
+use parallax_backend::{ExecutionPlan, KernelGraph};
+use parallax_graph::{AssignStrategy, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, compile};
+use parallax_passes::{
+    COMPACT_HOLES, HOLE_FILL, HOLE_LIST, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel,
+    banded_trace_plan, bench_holes, declare_hole_fill, hole_threshold, is_hashed_hole, list_groups,
+};
+use parallax_scene::gpu::{GpuPixel, GpuScene};
+use parallax_scene::{SceneBvh, TraceSettings, default_scene};
+
+const W: u32 = 32;
+const H: u32 = 32;
+/// A 3×1 light field whose middle view is the only source: views 0 and 2 are filled.
+const VIEWS: u32 = 3;
+const SOURCE: u32 = 1;
+const SETTINGS: TraceSettings =
+    TraceSettings { spp: 1, max_depth: 3, frame: 5, russian_roulette_from: None, jitter: true };
+
+/// What a run gives back: every view's pixels and, per view that has one, its `hole_list` words.
+struct Run {
+    plan: ExecutionPlan,
+    pixels: Vec<Vec<GpuPixel>>,
+    lists: Vec<(u32, Vec<u32>)>,
+}
+
+/// Source path traced, targets filled with the fill pattern, masked with `threshold`,
+/// compacted and filled, over `devices` devices under fine-all (every pass in row bands over
+/// all devices, bands gathered on device 0).
+fn hole_fill_plan(devices: u32, threshold: u32) -> ExecutionPlan {
+    let layout = LayoutSpec::Grid { cols: VIEWS, rows: 1 };
+    let lf = LightField::new(layout, None, Some((W, H)), Rig::default()).unwrap();
+    let config =
+        PlanConfig { devices, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![SOURCE]) };
+    let placement = parallax_graph::Plan::new(&lf, &config).unwrap();
+    let mut graph = KernelGraph::with_payload(placement.topology.clone());
+    let mut radiance = graph.image("radiance", Format::Rgba32f);
+    let mut holes = graph.image(HOLES, Format::R32u);
+    graph.pass(PATH_TRACE, Role::Sources).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
+    // What reprojection would leave: here a pattern every untouched pixel must keep.
+    graph.pass("prefill", Role::Targets).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
+    graph
+        .pass(HOLE_MASK, Role::Targets)
+        .write(&mut holes)
+        .kernel(Arc::new(HashedHoleMaskKernel { threshold }))
+        .record();
+    let list = declare_hole_fill(&mut graph, &holes, &mut radiance);
+    graph.export(&radiance);
+    graph.export(&list);
+    let schedule = compile(&graph, &placement).unwrap();
+    assert_eq!(schedule.validate().errors, vec![]);
+    ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+}
+
+fn run(devices: u32, plan: ExecutionPlan) -> Run {
+    let scene = default_scene();
+    let bvh = SceneBvh::build(&scene);
+    let ctx = common::context(devices as usize);
+    let views = common::views(&scene, VIEWS, W, H);
+    let mut tracer = parallax_passes::GpuTracer::new(&ctx, plan.clone(), &GpuScene::new(&scene, &bvh)).unwrap();
+    let pixels = tracer.render(&scene, &views, &SETTINGS).unwrap();
+    let mut lists = Vec::new();
+    for view in 0..VIEWS {
+        // Only target views have lists, and only in hole-filling plans.
+        let Some((device, resource)) = tracer.executor().plan().final_output(HOLE_LIST, view) else { continue };
+        let bytes = tracer.executor().read_resource(device, resource).unwrap();
+        lists.push((view, bytemuck::pod_collect_to_vec(&bytes)));
+    }
+    drop(tracer);
+    ctx.check_validation().unwrap();
+    Run { plan, pixels, lists }
+}
+
+/// Every view path traced whole (the reference of the hole pixels).
+fn full_trace() -> Vec<Vec<GpuPixel>> {
+    run(1, banded_trace_plan(VIEWS, (W, H), 1, 1).unwrap()).pixels
+}
+
+fn bits(p: [f32; 4]) -> [u32; 4] {
+    p.map(f32::to_bits)
+}
+
+/// The hole pixels of `rows` of `view` (`width` wide), as packed list entries.
+fn holes_of(view: u32, width: u32, rows: Region, threshold: u32) -> BTreeSet<u32> {
+    (rows.y0..rows.y1)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .filter(|&(x, y)| is_hashed_hole(x, y, view, threshold))
+        .map(|(x, y)| x | y << 16)
+        .collect()
+}
+
+/// Checks a run against the full trace and the mask: pixels, and each band's list.
+/// Returns the devices that ran `compact_holes` and `hole_fill` instances.
+fn check(run: &Run, full: &[Vec<GpuPixel>], threshold: u32, what: &str) -> BTreeSet<usize> {
+    for (view, (got, traced)) in run.pixels.iter().zip(full).enumerate() {
+        let view = view as u32;
+        for y in 0..H {
+            for x in 0..W {
+                let i = (y * W + x) as usize;
+                let expected = if view == SOURCE || is_hashed_hole(x, y, view, threshold) {
+                    traced[i].radiance
+                } else {
+                    reference_fill(x, y, view)
+                };
+                assert_eq!(bits(got[i].radiance), bits(expected), "{what}: view {view}, pixel ({x}, {y})");
+            }
+        }
+    }
+    let row_words = (W + 4) as usize;
+    let mut devices = BTreeSet::new();
+    for pass in run.plan.passes.iter().filter(|p| p.name == COMPACT_HOLES || p.name == HOLE_FILL) {
+        devices.insert(pass.device);
+        if pass.name != COMPACT_HOLES {
+            continue;
+        }
+        let (_, words) = run.lists.iter().find(|(v, _)| *v == pass.view).unwrap();
+        let section = &words[pass.rows.y0 as usize * row_words..pass.rows.y1 as usize * row_words];
+        let expected = holes_of(pass.view, W, pass.rows, threshold);
+        let n = expected.len() as u32;
+        let band = format!("{what}: view {} rows {:?}", pass.view, pass.rows);
+        assert_eq!(section[..4], [n.div_ceil(64), 1, 1, n], "{band}: header");
+        assert_eq!(list_groups(n)[..], section[..3], "{band}: the CPU twin of the header");
+        let entries: Vec<u32> = section[4..4 + n as usize].to_vec();
+        assert_eq!(entries.iter().copied().collect::<BTreeSet<u32>>(), expected, "{band}: entries");
+        assert_eq!(entries.len(), n as usize, "{band}: no entry twice");
+        assert!(section[4 + n as usize..].iter().all(|&w| w == 0), "{band}: nothing written past the count");
+    }
+    devices
+}
+
+#[test]
+fn hole_filling_traces_exactly_the_holes_and_keeps_every_other_pixel() {
+    let threshold = hole_threshold(0.3).unwrap();
+    let full = full_trace();
+    let run = run(1, hole_fill_plan(1, threshold));
+    let holes: usize = [0, 2].iter().map(|&v| holes_of(v, W, Region::rows(H), threshold).len()).sum();
+    assert!((500..730).contains(&holes), "about 30 % of 2 × 1024 pixels are holes: {holes}");
+    assert_eq!(check(&run, &full, threshold, "one device"), BTreeSet::from([0]));
+}
+
+#[test]
+fn fine_all_over_three_devices_fills_bands_on_every_device_and_equals_one_device() {
+    let threshold = hole_threshold(0.3).unwrap();
+    let full = full_trace();
+    let one = run(1, hole_fill_plan(1, threshold));
+    let three = run(3, hole_fill_plan(3, threshold));
+    let bands = three.plan.passes.iter().filter(|p| p.name == COMPACT_HOLES && p.view == 0).count();
+    assert_eq!(bands, 3, "each target view compacted in 3 bands");
+    assert_eq!(check(&three, &full, threshold, "three devices"), BTreeSet::from([0, 1, 2]));
+    for (view, (a, b)) in one.pixels.iter().zip(&three.pixels).enumerate() {
+        let (a, b): (Vec<_>, Vec<_>) =
+            (a.iter().map(|p| bits(p.radiance)).collect(), b.iter().map(|p| bits(p.radiance)).collect());
+        assert!(a == b, "view {view}: 3 devices differ from 1 device");
+    }
+}
+
+#[test]
+fn a_mask_without_holes_writes_nothing_and_an_all_hole_mask_traces_every_pixel() {
+    let full = full_trace();
+    for devices in [1, 3] {
+        let none = run(devices, hole_fill_plan(devices, hole_threshold(0.0).unwrap()));
+        // Headers [0, 1, 1, 0] (no group dispatched), no entry, every target pixel untouched.
+        check(&none, &full, 0, &format!("no holes, {devices} device(s)"));
+        let all = run(devices, hole_fill_plan(devices, hole_threshold(1.0).unwrap()));
+        check(&all, &full, 1 << 16, &format!("all holes, {devices} device(s)"));
+    }
+}
+
+#[test]
+fn the_benchmark_measures_hole_filling_and_full_tracing_on_the_same_rays() {
+    let scene = default_scene();
+    let ctx = common::context(1);
+    let bench = bench_holes(&ctx, &scene, scene.default_camera(), (16, 16), 0.25, &SETTINGS, 2).unwrap();
+    assert_eq!(bench.holes as usize, holes_of(1, 16, Region::rows(16), hole_threshold(0.25).unwrap()).len());
+    assert!(bench.path_trace_ms > 0.0 && bench.hole_fill_ms > 0.0 && bench.compact_ms > 0.0, "{bench:?}");
+    assert!(bench.ratio.is_finite() && bench.ratio > 0.0, "{bench:?}");
+    let err = bench_holes(&ctx, &scene, scene.default_camera(), (16, 16), 1.5, &SETTINGS, 1).unwrap_err();
+    assert!(matches!(err, parallax_passes::PassError::HoleFraction { fraction } if fraction == 1.5), "{err}");
+}
