@@ -11,6 +11,7 @@ use parallax_graph::{Format, Handle, Image, Role};
 
 use crate::error::Result;
 use crate::gbuffer::{Gbuffer, declare_gbuffer};
+use crate::holes::declare_hole_fill;
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
 use crate::reproject::{ReprojectionTolerances, declare_reproject};
 use crate::svgf::{DENOISED, SvgfInputs, declare_svgf};
@@ -39,7 +40,7 @@ pub struct PipelineConfig {
 /// Handles of a declared pipeline, for callers that read layers back or add passes.
 pub struct PipelineHandles {
     pub gbuffer: Gbuffer,
-    /// Linear radiance before denoising (targets: reprojected, holes filled).
+    /// Linear radiance before denoising (targets: reprojected, then their holes path traced).
     pub radiance: Handle<Image>,
     /// Targets' hole masks (`Reproject` only).
     pub holes: Option<Handle<Image>>,
@@ -67,7 +68,9 @@ pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> Res
         }
         PipelineKind::Reproject => {
             declare_path_trace(graph, Role::Sources, &mut radiance);
-            Some(declare_reproject(graph, &gbuffer, &mut radiance, config.tolerances))
+            let holes = declare_reproject(graph, &gbuffer, &mut radiance, config.tolerances);
+            declare_hole_fill(graph, &holes, &mut radiance);
+            Some(holes)
         }
     };
     let denoised = config.denoise.then(|| {

@@ -143,3 +143,20 @@ fn reprojected_pixels_match_path_tracing_the_same_pixels_on_average() {
         assert!(relative < 0.02, "view {v}: reprojected mean {a} vs traced {b} over {n} pixels ({relative:.4})");
     }
 }
+
+#[test]
+fn a_wide_baseline_leaves_no_unfilled_pixel_after_hole_filling() {
+    // 10 cm between neighbours: the outer targets see plenty the source does not.
+    let reprojected = render(3, 0.1, 1, PipelineKind::Reproject, 1);
+    let traced = render(3, 0.1, 1, PipelineKind::PathTrace, 1);
+    for v in targets(&reprojected) {
+        let holes = reprojected.holes[v].as_ref().unwrap();
+        let filled: Vec<usize> = (0..holes.len()).filter(|&i| holes[i] == 1).collect();
+        assert!(filled.len() > 50, "view {v}: a wide baseline makes holes ({})", filled.len());
+        for i in filled {
+            // Hole filling path traces exactly the pixel path tracing would: same bits.
+            assert_eq!(reprojected.radiance[v][i], traced.radiance[v][i], "view {v}, pixel {i}");
+        }
+        assert!(reprojected.radiance[v].iter().flatten().all(|c| c.is_finite()));
+    }
+}
