@@ -53,6 +53,16 @@ pub(crate) fn lower(
         }
     }
 
+    // A finished output that a consumer on device 0 already receives travels once: its
+    // dependency copy grows to the whole written band and doubles as the gather.
+    gathers.retain(|key, region| match needs.get_mut(key) {
+        Some(need) => {
+            need.0 = hull(need.0, *region);
+            false
+        }
+        None => true,
+    });
+
     // Number copies in the order their producers run, so ids are stable and readable.
     let mut copies = Vec::new();
     let mut outgoing: HashMap<InstanceId, Vec<CopyId>> = HashMap::new();

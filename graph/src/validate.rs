@@ -5,7 +5,7 @@
 use std::collections::{HashMap, VecDeque};
 
 use crate::ids::{AllocId, CopyId, DeviceId, InstanceId, PassId, Region, ResourceId, ViewId};
-use crate::schedule::{CopyKind, Op, Schedule};
+use crate::schedule::{Op, Schedule};
 
 /// One broken invariant.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -288,8 +288,7 @@ impl Schedule {
                 .iter()
                 .enumerate()
                 .filter(|(c, k)| {
-                    k.kind == CopyKind::Gather
-                        && k.resource == resource
+                    k.resource == resource
                         && k.version == version
                         && k.to == primary
                         && at(Op::CopyIn(CopyId(*c as u32))).is_some_and(|(d, _)| d == primary)

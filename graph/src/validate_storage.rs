@@ -13,8 +13,8 @@ use crate::ids::{AllocId, CopyId, InstanceId, PassId, Region, ViewId};
 use crate::schedule::{Access, Op, Schedule};
 use crate::validate::ScheduleError;
 
-/// (allocation, version) pairs an op reads or writes.
-type Touches = Vec<(AllocId, u32)>;
+/// (allocation, version, rows) an op reads or writes.
+type Touches = Vec<(AllocId, u32, Region)>;
 
 impl Schedule {
     /// Every id an op, instance, access or copy names exists.
@@ -104,43 +104,50 @@ impl Schedule {
         self.check_hazards(errors);
     }
 
-    /// Per device, in op order: an allocation never sees an older version after a newer one was
-    /// written into it.
+    /// Per device, in op order: no rows of an allocation are touched at an older version after
+    /// a newer one was written over them (bands of one pass touch disjoint rows of one
+    /// allocation at their own pace).
     fn check_hazards(&self, errors: &mut Vec<ScheduleError>) {
         for program in &self.devices {
-            let mut newest: HashMap<AllocId, (u32, Op)> = HashMap::new();
+            let mut written: HashMap<AllocId, Vec<(u32, Region, Op)>> = HashMap::new();
             for &op in &program.ops {
                 let (reads, writes): (Touches, Touches) = match op {
                     Op::Pass(i) => {
                         let inst = self.instance(i);
                         (
-                            inst.reads.iter().map(|a| (a.alloc, a.version)).collect(),
-                            inst.writes.iter().map(|a| (a.alloc, a.version)).collect(),
+                            inst.reads.iter().map(|a| (a.alloc, a.version, a.region)).collect(),
+                            inst.writes.iter().map(|a| (a.alloc, a.version, a.region)).collect(),
                         )
                     }
-                    Op::CopyOut(c) => (vec![(self.copy(c).src_alloc, self.copy(c).version)], vec![]),
-                    Op::CopyIn(c) => (vec![], vec![(self.copy(c).dst_alloc, self.copy(c).version)]),
+                    Op::CopyOut(c) => {
+                        let copy = self.copy(c);
+                        (vec![(copy.src_alloc, copy.version, copy.region)], vec![])
+                    }
+                    Op::CopyIn(c) => {
+                        let copy = self.copy(c);
+                        (vec![], vec![(copy.dst_alloc, copy.version, copy.region)])
+                    }
                     Op::Signal(_) | Op::Wait(_) => continue,
                 };
-                for (alloc, version) in reads.into_iter().chain(writes.iter().copied()) {
-                    if let Some(&(written, earlier)) = newest.get(&alloc)
-                        && version < written
-                    {
+                for &(alloc, version, region) in reads.iter().chain(&writes) {
+                    let newer = written
+                        .get(&alloc)
+                        .into_iter()
+                        .flatten()
+                        .find(|(v, r, _)| *v > version && r.intersect(region).is_some());
+                    if let Some(&(newer_version, _, earlier)) = newer {
                         errors.push(ScheduleError::AllocationHazard {
                             alloc,
                             device: program.device,
                             earlier,
-                            earlier_version: written,
+                            earlier_version: newer_version,
                             later: op,
                             later_version: version,
                         });
                     }
                 }
-                for (alloc, version) in writes {
-                    let entry = newest.entry(alloc).or_insert((version, op));
-                    if version > entry.0 {
-                        *entry = (version, op);
-                    }
+                for (alloc, version, region) in writes {
+                    written.entry(alloc).or_default().push((version, region, op));
                 }
             }
         }

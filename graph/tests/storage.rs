@@ -186,3 +186,24 @@ fn an_op_naming_a_missing_instance_is_refused_before_anything_indexes_by_it() {
     let message = s.validate().errors[0].to_string();
     assert!(message.contains("missing instance 9999"), "{message}");
 }
+
+#[test]
+fn an_exported_version_read_on_device_0_travels_there_once() {
+    let plan = Plan::new(
+        &grid(3, 1, 8),
+        &PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![1]) },
+    )
+    .unwrap();
+    let mut g = Graph::new(plan.topology.clone());
+    let mut x = g.image("x", Format::Rgba32f);
+    let mut y = g.image("y", Format::Rgba32f);
+    g.pass("trace", Role::All).write(&mut x).record();
+    g.pass("reproject", Role::Targets).read_sources(&x).write(&mut y).side_effect().record();
+    g.export(&x);
+    let s = compile(&g, &plan).unwrap();
+    assert_eq!(s.validate().errors, vec![]);
+    let mut seen = std::collections::HashSet::new();
+    for c in &s.copies {
+        assert!(seen.insert((c.resource, c.version, c.from, c.to, c.region)), "copied twice: {c:?}");
+    }
+}
