@@ -1,8 +1,8 @@
 //! Benchmarks (commands, not tests): cross-device copy bandwidth and the executor's CPU cost per
 //! submitted pass. Used by `parallax bench-copy`; results go to docs/RESULTS.md.
 //!
-//! Both are declared as graphs, compiled under a placement of one view per device and lowered
-//! like any pipeline, so what they measure is what a real plan runs. Their producer is
+//! Both are declared as graphs, compiled under a placement of whole views in order over the devices
+//! and lowered like any pipeline, so what they measure is what a real plan runs. Their producer is
 //! `bench_fill` (`shaders/bench_fill.comp`), whose values nobody reads.
 
 use std::sync::Arc;
@@ -161,7 +161,8 @@ impl Placement for ViewsInOrder {
 /// device 0; view 1 on device 1 reads it as its source, so the payload crosses from device 0
 /// to device 1 every frame.
 pub fn copy_plan(width: u32, height: u32) -> Result<ExecutionPlan> {
-    let topology = ViewTopology { width, height, sources_of: vec![vec![], vec![ViewId(0)]], is_source: vec![true, false] };
+    let topology =
+        ViewTopology { width, height, sources_of: vec![vec![], vec![ViewId(0)]], is_source: vec![true, false] };
     let mut graph = KernelGraph::with_payload(topology);
     let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
     graph.pass(BENCH_FILL, Role::Sources).write(&mut payload).kernel(Arc::new(BenchFillKernel)).record();

@@ -33,8 +33,11 @@
 //! // A kernel of its own: the benchmark's producer shader over the instance's rows.
 //! struct Fill;
 //! impl PassKernel for Fill {
-//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
-//!         let dst = pass.output("payload").expect("declared below").resource;
+//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, instance: usize) -> Result<()> {
+//!         let Some(dst) = pass.output("payload").map(|a| a.resource) else {
+//!             let detail = "writes `payload`".into();
+//!             return Err(BackendError::KernelMisuse { kernel: "fill".into(), instance, detail });
+//!         };
 //!         let params = PassParams { dst: rec.image(dst)?, view: pass.view, y0: pass.rows.y0,
 //!                                   y1: pass.rows.y1, width: rec.resource(dst).width, ..Default::default() };
 //!         rec.dispatch_rows("bench_fill", params)

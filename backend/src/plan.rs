@@ -534,12 +534,8 @@ mod tests {
 
     #[test]
     fn exports_must_reach_device_0_and_reset_headers_fit_their_buffer() {
-        let mut plan = ExecutionPlan::single_pass(
-            "bench_fill",
-            BenchFillKernel,
-            ExecResource::buffer("counts", 0, 8),
-            2,
-        );
+        let mut plan =
+            ExecutionPlan::single_pass("bench_fill", BenchFillKernel, ExecResource::buffer("counts", 0, 8), 2);
         plan.resources[0].reset = Some(vec![0, 1]);
         plan.resources[0].exported = true;
         assert_eq!(plan.validate(2), Ok(()));

@@ -4,7 +4,6 @@
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use parallax_testkit::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, ExecutionPlanError, Executor,
     KernelGraph, LowerError, Validation,
@@ -12,6 +11,7 @@ use parallax_backend::{
 use parallax_graph::{
     BandedPlacement, DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile,
 };
+use parallax_testkit::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
 
 fn context(selection: DeviceSelection) -> Result<Context, BackendError> {
     Context::new(&ContextDesc { selection, validation: Validation::Core })

@@ -1,12 +1,12 @@
 //! Executor on lavapipe (or any Vulkan device): the reprojection demo on 1, 2 and 3 logical
 //! devices, with validation always on.
 
-use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
-use parallax_testkit::kernels::reference_shift_blend;
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOp, ExecOptions, Executor, FaultInjection,
     Validation, chrome_trace,
 };
+use parallax_testkit::kernels::reference_shift_blend;
+use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
 
 const VIEWS: u32 = 3;
 const SIZE: u32 = 32;

@@ -5,7 +5,6 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
-use parallax_testkit::kernels::reference_mask;
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor,
@@ -13,6 +12,7 @@ use parallax_backend::{
     Validation, ViewCameras,
 };
 use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
+use parallax_testkit::kernels::reference_mask;
 use std::mem::{offset_of, size_of};
 use std::sync::Arc;
 
@@ -81,7 +81,8 @@ fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
     );
     assert_eq!(block[4].array_stride, Some(size_of::<ViewCameras>() as u32));
     // The same check holds any kernel's parameter struct against its push-constant block.
-    let fill = struct_layout(&parallax_testkit::shaders().spirv("test_frame_fill").unwrap(), "FrameFillParams").unwrap();
+    let fill =
+        struct_layout(&parallax_testkit::shaders().spirv("test_frame_fill").unwrap(), "FrameFillParams").unwrap();
     assert_eq!(
         offsets(&fill),
         vec![

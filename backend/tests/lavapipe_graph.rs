@@ -3,13 +3,13 @@
 
 use std::sync::Arc;
 
-use parallax_testkit::kernels::{FillBufferKernel, FillKernel, ShiftBlendKernel, reference_shift_blend};
 use parallax_backend::{
     Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, ExecutionPlan, Executor, Validation,
 };
 use parallax_backend::{KernelGraph, PassKernel};
 use parallax_graph::Format;
 use parallax_graph::{AssignStrategy, LightField, PlanConfig, Rig, Role, Schedule, Scheme, ViewId, compile};
+use parallax_testkit::kernels::{FillBufferKernel, FillKernel, ShiftBlendKernel, reference_shift_blend};
 
 const SIZE: u32 = 32;
 

@@ -6,13 +6,13 @@
 
 use std::sync::Arc;
 
-use parallax_testkit::kernels::reference_mask;
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecAccess, ExecOptions, ExecPass, ExecResource,
     ExecutionPlan, ExecutionPlanError, Executor, Format, KernelGraph, PassKernel, Recorder, Region, ResourceKind,
     Validation,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
+use parallax_testkit::kernels::reference_mask;
 
 const SALT: u32 = 0x5eed;
 /// groups_x, groups_y, groups_z, count: what test_indirect_args.comp starts from each frame.
@@ -190,7 +190,8 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
         (1, 0, "is an image"),
         (7, 0, "not allocated"),
     ] {
-        let mut exec = Executor::new(&ctx, plan(MisusedKernel { resource, offset }), parallax_testkit::options()).unwrap();
+        let mut exec =
+            Executor::new(&ctx, plan(MisusedKernel { resource, offset }), parallax_testkit::options()).unwrap();
         match exec.run_frame() {
             Err(BackendError::IndirectArgs { shader, resource: r, offset: o, problem: p }) => {
                 assert_eq!((shader.as_str(), r, o), ("test_indirect_count", resource, offset));
@@ -200,7 +201,8 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
         }
     }
     // The last 12 bytes of the buffer are a valid place.
-    let mut exec = Executor::new(&ctx, plan(MisusedKernel { resource: 0, offset: 4 }), parallax_testkit::options()).unwrap();
+    let mut exec =
+        Executor::new(&ctx, plan(MisusedKernel { resource: 0, offset: 4 }), parallax_testkit::options()).unwrap();
     exec.run_frame().unwrap();
     exec.finish().unwrap();
     drop(exec);

@@ -7,13 +7,13 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use parallax_testkit::kernels::{FillKernel, reference_fill};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
     PassKernel, PassParams, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
 use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
+use parallax_testkit::kernels::{FillKernel, reference_fill};
 
 const SIZE: u32 = 16;
 const DEVICES: u32 = 2;

@@ -210,8 +210,8 @@ fn hash3(a: u32, b: u32, c: u32) -> u32 {
     pcg_hash(a ^ pcg_hash(b ^ pcg_hash(c)))
 }
 
-/// CPU value of `fill.comp` (`fill_pattern` in this crate's shaders/include/pattern.glsl) at pixel (x, y)
-/// of `view`.
+/// CPU value of `fill.comp` (`fill_pattern` in this crate's shaders/include/pattern.glsl) at
+/// pixel (x, y) of `view`.
 pub fn reference_fill(x: u32, y: u32, view: u32) -> [f32; 4] {
     let h = hash3(x, y, view);
     [(h & 0xffff) as f32 / 65536.0, (h >> 16) as f32 / 65536.0, (view & 0xffff) as f32 / 65536.0, 65535.0 / 65536.0]

@@ -7,7 +7,9 @@
 //! view), and every finished view is gathered on device 0.
 
 use parallax_backend::plan::Kernels;
-use parallax_backend::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, Region, ResourceKind};
+use parallax_backend::{
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, Region, ResourceKind,
+};
 
 use crate::kernels::{FillKernel, ShiftBlendKernel};
 
@@ -199,7 +201,6 @@ fn fill_only() -> Kernels {
     kernels.push(FillKernel);
     kernels
 }
-
 
 #[cfg(test)]
 mod tests {
