@@ -106,7 +106,8 @@ pub fn band_rows(total: u32, rows_per_chunk: u32) -> Vec<u32> {
     let mut rest = total;
     for shift in [3, 2, 1] {
         let rows = (rows_per_chunk >> shift).max(1);
-        if rest > rows_per_chunk + rows && (tail.is_empty() || tail.last() != Some(&rows)) {
+        // Saturating: one chunk for the whole copy (`bench-copy --chunk-mib 0`) is u32::MAX rows.
+        if rest > rows_per_chunk.saturating_add(rows) && (tail.is_empty() || tail.last() != Some(&rows)) {
             tail.push(rows);
             rest -= rows;
         }
@@ -243,6 +244,7 @@ mod tests {
         }
         assert_eq!(band_rows(4096, 512), [vec![64], vec![512; 7], vec![256, 128, 64]].concat());
         assert_eq!(band_rows(512, 512), vec![512], "a copy that fits one band is not cut");
+        assert_eq!(band_rows(100, u32::MAX), vec![100], "unbounded chunks: one band");
     }
 
     #[test]
