@@ -1,49 +1,74 @@
-//! Declaring a pipeline of your own as a graph and printing its schedule as DOT.
+//! A pipeline of your own, run on the GPU: two passes with their own kernels and GLSL
+//! (`examples/custom_pipeline/`, compiled by the root build.rs through parallax-glsl) joined by
+//! a δ-edge, placed over N devices by the planner, every pixel checked against the CPU, the
+//! views written as a PNG contact sheet. The pipeline itself is in `custom_pipeline/pipeline.rs`.
 //!
-//! This one is not the paper's pipeline: sources are path traced at a high sample count, every
-//! target is reprojected from all of its sources (reads of the sources' `radiance` and `depth`
-//! are what make the δ-edges), a depth-aware blur runs over each whole view, and a debug
-//! histogram pass is kept alive by `side_effect()` although nothing reads its output.
-//!
-//! Run: `cargo run --example custom_pipeline | dot -Tsvg > custom.svg`
+//! Run: `cargo run --example custom_pipeline -- --fake-devices 2 --out out/custom_pipeline.png`
+//! (`--gpus N` on GPUs); `--dot` prints the schedule as DOT instead (no GPU needed):
+//! `cargo run --example custom_pipeline -- --fake-devices 2 --dot | dot -Tsvg > custom.svg`.
 
-use parallax_graph::*;
+#[path = "custom_pipeline/pipeline.rs"]
+mod pipeline;
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let lf = LightField::new("4x2".parse()?, None, Some((64, 32)), Rig::default())?;
-    let config =
-        PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![0, 7]) };
-    let plan = Plan::new(&lf, &config)?;
+use std::path::PathBuf;
 
-    let mut g = Graph::new(plan.topology.clone());
-    let mut depth = g.image("depth", Format::R32f);
-    let mut radiance = g.image("radiance", Format::Rgba32f);
-    let mut blurred = g.image("blurred", Format::Rgba16f);
-    let mut histogram = g.buffer("histogram", 256 * 4);
+use anyhow::Result;
+use clap::Parser;
+use parallax_backend::{DeviceSelection, validation_from_env};
+use parallax_graph::Scheme;
 
-    g.pass("raster_depth", Role::All).write(&mut depth).record();
-    g.pass("trace_hq", Role::Sources).read(&depth).write(&mut radiance).record();
-    g.pass("reproject_all", Role::Targets)
-        .read(&depth)
-        .read_sources(&depth)
-        .read_sources(&radiance)
-        .write(&mut radiance)
-        .record();
-    // A blur needs neighbouring rows, so it reads the whole view and is never split in bands.
-    g.pass("depth_blur", Role::All).read_whole(&radiance).read(&depth).write(&mut blurred).whole_view().record();
-    g.pass("histogram", Role::All).read(&blurred).write(&mut histogram).side_effect().record();
-    g.export(&blurred);
+#[derive(Parser, Debug)]
+#[command(about = "Runs a two-pass pipeline with its own kernels, checks it against the CPU, writes a PNG")]
+struct Args {
+    /// Use N physical GPUs.
+    #[arg(long, conflicts_with = "fake_devices")]
+    gpus: Option<usize>,
+    /// Use N logical devices on one physical device (how lavapipe runs multi-device code).
+    #[arg(long)]
+    fake_devices: Option<usize>,
+    /// Partitioning scheme: multi-source, fine-sources or fine-all.
+    #[arg(long, default_value = "multi-source")]
+    scheme: Scheme,
+    /// The PNG contact sheet of every view.
+    #[arg(long, default_value = "out/custom_pipeline.png")]
+    out: PathBuf,
+    /// Print the compiled schedule as DOT and stop.
+    #[arg(long)]
+    dot: bool,
+}
 
-    let schedule = compile(&g, &plan)?;
-    let report = schedule.validate();
-    assert!(report.is_ok(), "{:?}", report.errors);
-    eprintln!(
-        "{} pass instances, {} δ-edges, {} copies + {} gathers",
-        schedule.instances.len(),
-        schedule.delta_edges.len(),
-        schedule.dependency_copies().count(),
-        schedule.gather_copies().count()
+fn main() {
+    if let Err(err) = run(Args::parse()) {
+        eprintln!("error: {err:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(args: Args) -> Result<()> {
+    let devices = match (args.gpus, args.fake_devices) {
+        (Some(n), _) => DeviceSelection::Gpus(n),
+        (None, Some(n)) => DeviceSelection::FakeDevices(n),
+        (None, None) => DeviceSelection::Gpus(1),
+    };
+    if args.dot {
+        print!("{}", pipeline::schedule_dot(args.scheme, devices.count() as u32)?);
+        return Ok(());
+    }
+    let report = pipeline::run(&pipeline::Options {
+        devices,
+        validation: validation_from_env(),
+        scheme: args.scheme,
+        out: args.out.clone(),
+    })?;
+    println!(
+        "{} views, {} pass instances, {} δ-edges, {} copies: every pixel equals the CPU's; wrote {} ({}x{})",
+        report.views,
+        report.instances,
+        report.delta_edges,
+        report.copies,
+        args.out.display(),
+        report.png_size.0,
+        report.png_size.1
     );
-    print!("{}", schedule.to_dot());
     Ok(())
 }

@@ -1,28 +1,14 @@
-//! Backend subcommands: `parallax devices` (which Vulkan devices would run), `parallax run`
-//! (compile a demo pipeline and execute it on the devices, with timing report and trace), and
+//! Backend subcommands: `parallax devices` (which Vulkan devices would run) and
 //! `parallax bench-copy` (cross-device copy bandwidth and executor overhead).
-//!
-//! `parallax run` executes the backend's own demo kernels (`fill` → `shift_blend` reading the
-//! view's first source → exported output), not the path tracer: the passes crate plugs in the
-//! real kernels attached where the graph declares its passes.
 
 use anyhow::{Result, bail};
 use clap::Args;
 use parallax_backend::bench::{CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead};
-use std::sync::Arc;
+use parallax_backend::{Context, ContextDesc, chrome_trace};
 
-use parallax_backend::kernels::{FillKernel, ShiftBlendKernel};
-use parallax_backend::{
-    Context, ContextDesc, ExecOptions, Executor, FrameReport, KernelGraph, PassKernel, chrome_trace,
-};
-use parallax_graph::{Format as TexelFormat, LayoutSpec, LightField, PlanConfig, Rig, Role, compile};
-
-use crate::budget::{TraceWork, check_host_bytes};
+use crate::budget::check_host_bytes;
 use crate::logging::result;
-use crate::options::{
-    AssignArg, DeviceArgs, Resolution, SchemeArg, SourceList, assignment, count_in, parse_layout, parse_resolution,
-    parse_sources,
-};
+use crate::options::{DeviceArgs, count_in};
 use crate::outputs::{Format, Output, Sink, check, parse_sink, write_json};
 
 #[derive(Args, Debug)]
@@ -42,43 +28,6 @@ pub fn devices(args: DevicesArgs) -> Result<()> {
     Ok(())
 }
 
-#[derive(Args, Debug)]
-pub struct RunArgs {
-    #[command(flatten)]
-    devices: DeviceArgs,
-    /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
-    #[arg(long, default_value = "4x1", value_parser = parse_layout)]
-    lf: LayoutSpec,
-    /// Partitioning scheme.
-    #[arg(long, value_enum, default_value_t = SchemeArg::FineAll)]
-    scheme: SchemeArg,
-    /// How views are grouped into sets (multi-source only) [default: compact]
-    #[arg(long, value_enum)]
-    assign: Option<AssignArg>,
-    /// Explicit source views for the fine-grained schemes, e.g. 0,3.
-    #[arg(long, value_parser = parse_sources)]
-    sources: Option<SourceList>,
-    /// Per-view resolution WxH.
-    #[arg(long, default_value = "64x64", value_name = "WxH", value_parser = parse_resolution)]
-    resolution: Resolution,
-    /// Frames to execute (1..=10000).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 3, value_parser = count_in(1..=10_000))]
-    frames: u64,
-    /// Frames submitted before the host waits for the oldest (1..=16).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 2, value_parser = count_in(1..=16))]
-    frames_in_flight: u64,
-    /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
-    /// used by default where the devices have one).
-    #[arg(long)]
-    copies_on_main_queue: bool,
-    /// Write the per-frame timing reports as JSON (`-` = stdout).
-    #[arg(long, value_parser = parse_sink)]
-    json: Option<Sink>,
-    /// Write a Chrome trace-event JSON (open in Perfetto or chrome://tracing; `-` = stdout).
-    #[arg(long, value_parser = parse_sink)]
-    trace: Option<Sink>,
-}
-
 /// The JSON outputs of a command, checked before any work.
 fn check_json_outputs(json: &Option<Sink>, trace: &Option<Sink>) -> Result<()> {
     let outputs: Vec<Output> = [("--json", json), ("--trace", trace)]
@@ -89,87 +38,6 @@ fn check_json_outputs(json: &Option<Sink>, trace: &Option<Sink>) -> Result<()> {
 }
 
 /// `parallax run`: plan, compile, execute, report.
-pub fn run(args: RunArgs) -> Result<()> {
-    let selection = args.devices.selection();
-    let assign = assignment(args.scheme, args.assign)?;
-    check_json_outputs(&args.json, &args.trace)?;
-    let lf = LightField::new(args.lf, None, Some(args.resolution.pair()), Rig::default())?;
-    let config = PlanConfig {
-        devices: selection.count() as u32,
-        scheme: args.scheme.into(),
-        assign,
-        sources: args.sources.map(|s| s.0),
-    };
-    let work = TraceWork { views: lf.len() as u64, width: lf.width, height: lf.height, spp: 1 };
-    work.check_host()?;
-    let plan = parallax_graph::Plan::new(&lf, &config)?;
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let mut radiance = graph.image("radiance", TexelFormat::Rgba32f);
-    let mut output = graph.image("output", TexelFormat::Rgba32f);
-    let fill: Arc<dyn PassKernel> = Arc::new(FillKernel);
-    graph.pass("fill", Role::Sources).write(&mut radiance).kernel(fill.clone()).record();
-    graph.pass("fill", Role::Targets).write(&mut radiance).kernel(fill).record();
-    graph
-        .pass("shift_blend", Role::All)
-        .read(&radiance)
-        .read_sources(&radiance)
-        .write(&mut output)
-        .kernel(Arc::new(ShiftBlendKernel))
-        .record();
-    graph.export(&output);
-    let schedule = compile(&graph, &plan)?;
-    let report = schedule.validate();
-    if !report.is_ok() {
-        bail!("internal error: the compiled schedule breaks {} invariant(s)", report.errors.len());
-    }
-
-    let context = Context::new(&ContextDesc::from_env(selection))?;
-    let stdout_taken = [&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout)));
-    result(stdout_taken, context.to_string().trim_end());
-    work.check_devices(&context)?;
-    let exec_plan = parallax_backend::ExecutionPlan::from_schedule(&graph, &schedule)?;
-    let options = ExecOptions {
-        frames_in_flight: args.frames_in_flight as usize,
-        separate_copy_queue: !args.copies_on_main_queue,
-        ..ExecOptions::default()
-    };
-    let mut executor = Executor::new(&context, exec_plan, options)?;
-    let progress = crate::logging::bar(args.frames);
-    for _ in 0..args.frames {
-        executor.run_frame()?;
-        progress.inc(1);
-    }
-    progress.finish_and_clear();
-    executor.finish()?;
-    let reports = executor.take_reports();
-    drop(executor);
-    context.check_validation()?;
-    for r in &reports {
-        result(stdout_taken, &frame_line(r));
-    }
-    if let Some(sink) = &args.trace {
-        write_json(sink, &chrome_trace(&reports, &context.device_infos()))?;
-    }
-    if let Some(sink) = &args.json {
-        write_json(sink, &reports)?;
-    }
-    Ok(())
-}
-
-fn frame_line(r: &FrameReport) -> String {
-    let busy: Vec<String> = r.devices.iter().map(|d| format!("{:.0}%", d.busy_fraction * 100.0)).collect();
-    format!(
-        "frame {}: wall {:.3} ms, GPU span {:.3} ms, {} passes in {} submissions ({:.1} µs CPU), busy {}",
-        r.frame,
-        r.frame_wall_ns as f64 / 1e6,
-        r.gpu_span_ns as f64 / 1e6,
-        r.submitted_passes,
-        r.submitted_segments,
-        r.submit_cpu_ns as f64 / 1e3,
-        busy.join(" / ")
-    )
-}
-
 #[derive(Args, Debug)]
 pub struct BenchCopyArgs {
     #[command(flatten)]

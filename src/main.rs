@@ -36,8 +36,6 @@ enum Command {
     Trace(cmd_trace::TraceArgs),
     /// List the Vulkan devices a selection would use (name, driver, API version).
     Devices(cmd_backend::DevicesArgs),
-    /// Compile the backend's demo pipeline and execute it, with a timing report and trace.
-    Run(cmd_backend::RunArgs),
     /// Measure cross-device copy bandwidth and executor overhead.
     BenchCopy(cmd_backend::BenchCopyArgs),
     /// Measure GPU traversal: primary and diffuse-bounce rays/s, and the CWBVH build time.
@@ -67,7 +65,6 @@ fn main() {
         Command::Render(args) => cmd_render::run(args),
         Command::Trace(args) => cmd_trace::run(args),
         Command::Devices(args) => cmd_backend::devices(args),
-        Command::Run(args) => cmd_backend::run(args),
         Command::BenchCopy(args) => cmd_backend::bench_copy(args),
         Command::BenchRays(args) => cmd_bench_rays::run(args),
         Command::Reference(args) => cmd_reference::run(args),

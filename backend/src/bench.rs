@@ -1,13 +1,22 @@
 //! Benchmarks (commands, not tests): cross-device copy bandwidth and the executor's CPU cost per
-//! submitted pass. Used by `examples/copy_bench.rs`; results go to docs/RESULTS.md.
+//! submitted pass. Used by `parallax bench-copy`; results go to docs/RESULTS.md.
+//!
+//! Both are declared as graphs, compiled under a placement of whole views in order over the devices
+//! and lowered like any pipeline, so what they measure is what a real plan runs. Their producer is
+//! `bench_fill` (`shaders/bench_fill.comp`), whose values nobody reads.
 
+use std::sync::Arc;
+
+use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
 use serde::Serialize;
 
 use crate::context::{Context, ContextDesc};
-use crate::demo::{copy_benchmark, overhead_benchmark};
 use crate::device::DeviceInfo;
 use crate::error::Result;
 use crate::executor::{ExecOptions, Executor};
+use crate::lower::KernelGraph;
+use crate::plan::{ExecPass, ExecutionPlan};
+use crate::recorder::{PassKernel, PassParams, Recorder};
 use crate::timing::{EventKind, FrameReport};
 
 /// Width of the benchmark payload image (RGBA32F, 16 KiB per row).
@@ -93,6 +102,86 @@ pub struct CopyBenchResult {
     pub reports: Vec<FrameReport>,
 }
 
+/// Writes the slot `payload` over the instance's rows (`bench_fill.comp`).
+pub struct BenchFillKernel;
+
+/// Name of the producer pass, its slot and its shader.
+pub const BENCH_FILL: &str = "bench_fill";
+const PAYLOAD: &str = "payload";
+
+impl PassKernel for BenchFillKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
+        let Some(dst) = pass.output(PAYLOAD) else {
+            return Err(crate::BackendError::KernelMisuse {
+                kernel: BENCH_FILL.into(),
+                instance: index,
+                detail: format!("writes the slot `{PAYLOAD}`"),
+            });
+        };
+        let dst = dst.resource;
+        let params = PassParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: rec.resource(dst).width,
+            ..Default::default()
+        };
+        rec.dispatch_rows(BENCH_FILL, params)
+    }
+}
+
+/// The consumer of the copy benchmark: it records nothing, its read of the payload is what
+/// makes the copy.
+struct ReceiveKernel;
+
+impl PassKernel for ReceiveKernel {
+    fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// View `v` whole on device `v / views_per_device`.
+struct ViewsInOrder {
+    devices: u32,
+    views_per_device: u32,
+}
+
+impl Placement for ViewsInOrder {
+    fn devices(&self) -> u32 {
+        self.devices
+    }
+
+    fn place(&self, _: PassPlacementInfo<'_>, view: ViewId, height: u32) -> Vec<(DeviceId, Region)> {
+        vec![(DeviceId(view.0 / self.views_per_device.max(1)), Region::rows(height))]
+    }
+}
+
+/// The copy benchmark: `bench_fill` writes a `width`×`height` RGBA32F payload for view 0 on
+/// device 0; view 1 on device 1 reads it as its source, so the payload crosses from device 0
+/// to device 1 every frame.
+pub fn copy_plan(width: u32, height: u32) -> Result<ExecutionPlan> {
+    let topology =
+        ViewTopology { width, height, sources_of: vec![vec![], vec![ViewId(0)]], is_source: vec![true, false] };
+    let mut graph = KernelGraph::with_payload(topology);
+    let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
+    graph.pass(BENCH_FILL, Role::Sources).write(&mut payload).kernel(Arc::new(BenchFillKernel)).record();
+    graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
+    let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: 1 })?;
+    Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
+}
+
+/// The overhead benchmark: `passes_per_device` views of `size`×`size` RGBA8 per device, each
+/// filled by one `bench_fill` and kept by `side_effect()`; no copies.
+pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<ExecutionPlan> {
+    let topology = ViewTopology::all_sources(devices * passes_per_device, size, size);
+    let mut graph = KernelGraph::with_payload(topology);
+    let mut target = graph.image(PAYLOAD, Format::Rgba8);
+    graph.pass(BENCH_FILL, Role::All).write(&mut target).side_effect().kernel(Arc::new(BenchFillKernel)).record();
+    let schedule = compile(&graph, &ViewsInOrder { devices, views_per_device: passes_per_device })?;
+    Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
+}
+
 fn sustained_rate(bytes: u64, frames: &[CopyFrame]) -> f64 {
     match (frames.first(), frames.last()) {
         (Some(first), Some(last)) if frames.len() > 1 => {
@@ -142,7 +231,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
     let context = Context::new(desc)?;
     let row_bytes = u64::from(PAYLOAD_WIDTH) * 16;
     let height = options.bytes.div_ceil(row_bytes).max(1) as u32;
-    let plan = copy_benchmark(PAYLOAD_WIDTH, height);
+    let plan = copy_plan(PAYLOAD_WIDTH, height)?;
     let bytes = plan.copy_bytes(0);
     let mut executor = Executor::new(
         &context,
@@ -233,7 +322,7 @@ pub struct OverheadBenchResult {
 pub fn executor_overhead(desc: &ContextDesc, options: &OverheadBenchOptions) -> Result<OverheadBenchResult> {
     let context = Context::new(desc)?;
     let devices = context.devices().len();
-    let plan = overhead_benchmark(devices, options.passes_per_device, 8);
+    let plan = overhead_plan(devices as u32, options.passes_per_device, 8)?;
     let passes = plan.passes.len();
     let mut executor = Executor::new(&context, plan, ExecOptions::default())?;
     for _ in 0..options.warmup + options.frames {

@@ -59,6 +59,10 @@ pub enum BackendError {
     #[error("invalid execution plan: {0}")]
     ExecutionPlan(#[from] crate::plan::ExecutionPlanError),
 
+    /// A graph the backend declares itself (the benchmarks') does not compile.
+    #[error("cannot compile the graph: {0}")]
+    Graph(#[from] parallax_graph::GraphError),
+
     /// The schedule uses something the backend cannot run yet.
     #[error("cannot lower the schedule: {0}")]
     Lower(#[from] crate::lower::LowerError),

@@ -28,20 +28,31 @@
 //! ```
 //! use std::sync::Arc;
 //! use parallax_backend::*;
-//! use parallax_backend::kernels::{FillKernel, ShiftBlendKernel};
 //! use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
 //!
-//! // Declare: fill every view, then blend each with its source (a δ-edge), kernels attached.
+//! // A kernel of its own: the benchmark's producer shader over the instance's rows.
+//! struct Fill;
+//! impl PassKernel for Fill {
+//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, instance: usize) -> Result<()> {
+//!         let Some(dst) = pass.output("payload").map(|a| a.resource) else {
+//!             let detail = "writes `payload`".into();
+//!             return Err(BackendError::KernelMisuse { kernel: "fill".into(), instance, detail });
+//!         };
+//!         let params = PassParams { dst: rec.image(dst)?, view: pass.view, y0: pass.rows.y0,
+//!                                   y1: pass.rows.y1, width: rec.resource(dst).width, ..Default::default() };
+//!         rec.dispatch_rows("bench_fill", params)
+//!     }
+//! }
+//!
+//! // Declare: fill every view in row bands over both devices (FineAll), kernel attached,
+//! // finished views gathered on device 0.
 //! let lf = LightField::new("3x1".parse()?, None, Some((32, 32)), Rig::default())?;
 //! let config = PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
 //! let placement = parallax_graph::Plan::new(&lf, &config)?;
 //! let mut graph = KernelGraph::with_payload(placement.topology.clone());
-//! let mut radiance = graph.image("radiance", Format::Rgba32f);
-//! let mut output = graph.image("output", Format::Rgba32f);
-//! graph.pass("fill", Role::All).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
-//! graph.pass("shift_blend", Role::All).read(&radiance).read_sources(&radiance)
-//!     .write(&mut output).kernel(Arc::new(ShiftBlendKernel)).record();
-//! graph.export(&output);
+//! let mut payload = graph.image("payload", Format::Rgba32f);
+//! graph.pass("fill", Role::All).write(&mut payload).kernel(Arc::new(Fill)).record();
+//! graph.export(&payload);
 //! let plan = ExecutionPlan::from_schedule(&graph, &compile(&graph, &placement)?)?;
 //!
 //! // Two logical devices on one physical device (lavapipe in CI), validation on.
@@ -49,7 +60,7 @@
 //!     selection: DeviceSelection::FakeDevices(2),
 //!     validation: Validation::Core,
 //! })?;
-//! let (device, view0) = plan.final_output("output", 0).unwrap(); // gathered on device 0
+//! let (device, view0) = plan.final_output("payload", 0).unwrap(); // gathered on device 0
 //! let mut executor = Executor::new(&context, plan, ExecOptions::default())?;
 //! for _ in 0..3 {
 //!     executor.run_frame()?; // no re-recording, up to 2 frames in flight
@@ -84,8 +95,6 @@ mod texture;
 mod timing;
 
 pub mod bench;
-pub mod demo;
-pub mod kernels;
 pub mod plan;
 pub mod reflect;
 

@@ -496,25 +496,25 @@ impl ExecutionPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::demo::{copy_benchmark, reprojection_demo};
+    use crate::bench::{BenchFillKernel, copy_plan, overhead_plan};
 
     #[test]
     fn signal_before_copy_out_is_refused() {
-        let mut plan = copy_benchmark(8, 8);
+        let mut plan = copy_plan(8, 8).unwrap();
         plan.devices[0] = vec![ExecOp::Pass(0), ExecOp::Signal(0), ExecOp::CopyOut(0)];
         assert_eq!(plan.validate(2), Err(ExecutionPlanError::CopyOpOrder { copy: 0 }));
     }
 
     #[test]
     fn pass_listed_on_another_device_is_refused() {
-        let mut plan = copy_benchmark(8, 8);
+        let mut plan = copy_plan(8, 8).unwrap();
         plan.devices[1].insert(0, ExecOp::Pass(0));
         assert_eq!(plan.validate(2), Err(ExecutionPlanError::PassOnWrongDevice { pass: 0, listed: 1, owner: 0 }));
     }
 
     #[test]
     fn rows_outside_the_image_are_refused() {
-        let mut plan = copy_benchmark(8, 8);
+        let mut plan = copy_plan(8, 8).unwrap();
         plan.copies[0].rows = Region::new(4, 9);
         assert_eq!(
             plan.validate(2),
@@ -524,22 +524,18 @@ mod tests {
 
     #[test]
     fn copy_to_self_and_unscheduled_pass_are_refused() {
-        let mut plan = copy_benchmark(8, 8);
+        let mut plan = copy_plan(8, 8).unwrap();
         plan.copies[0].to = 0;
         assert_eq!(plan.validate(2), Err(ExecutionPlanError::CopyToSelf { copy: 0, from: 0 }));
-        let (mut plan, _) = reprojection_demo(2, 1, 8, 8);
+        let mut plan = overhead_plan(1, 2, 8).unwrap();
         plan.devices[0].retain(|op| *op != ExecOp::Pass(1));
         assert_eq!(plan.validate(1), Err(ExecutionPlanError::PassNotScheduledOnce(1)));
     }
 
     #[test]
     fn exports_must_reach_device_0_and_reset_headers_fit_their_buffer() {
-        let mut plan = ExecutionPlan::single_pass(
-            "fill_buffer",
-            crate::kernels::FillBufferKernel,
-            ExecResource::buffer("counts", 0, 8),
-            2,
-        );
+        let mut plan =
+            ExecutionPlan::single_pass("bench_fill", BenchFillKernel, ExecResource::buffer("counts", 0, 8), 2);
         plan.resources[0].reset = Some(vec![0, 1]);
         plan.resources[0].exported = true;
         assert_eq!(plan.validate(2), Ok(()));
@@ -556,9 +552,10 @@ mod tests {
 
     #[test]
     fn copy_bytes_counts_only_the_band() {
-        let mut plan = copy_benchmark(8, 8);
+        let mut plan = copy_plan(8, 8).unwrap();
         plan.copies[0].rows = Region::new(2, 5);
         assert_eq!(plan.copy_bytes(0), 8 * 16 * 3);
-        assert_eq!(plan.resources_of_device(1), vec![0]);
+        // The payload's allocation on device 1 is the copy's destination.
+        assert_eq!(plan.resources_of_device(1), vec![plan.copies[0].dst]);
     }
 }

@@ -181,7 +181,7 @@ mod tests {
     #[test]
     fn the_shared_pass_params_match_bindless_glsl() {
         use crate::recorder::PassParams;
-        let glsl = member_offsets(&crate::spirv("fill").unwrap(), "PassParams").unwrap();
+        let glsl = member_offsets(&crate::spirv("bench_fill").unwrap(), "PassParams").unwrap();
         assert_eq!(glsl, rust_layout!(PassParams { dst, src0, src1, view, y0, y1, width, param }));
     }
 

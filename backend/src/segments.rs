@@ -106,7 +106,8 @@ pub fn band_rows(total: u32, rows_per_chunk: u32) -> Vec<u32> {
     let mut rest = total;
     for shift in [3, 2, 1] {
         let rows = (rows_per_chunk >> shift).max(1);
-        if rest > rows_per_chunk + rows && (tail.is_empty() || tail.last() != Some(&rows)) {
+        // Saturating: one chunk for the whole copy (`bench-copy --chunk-mib 0`) is u32::MAX rows.
+        if rest > rows_per_chunk.saturating_add(rows) && (tail.is_empty() || tail.last() != Some(&rows)) {
             tail.push(rows);
             rest -= rows;
         }
@@ -211,11 +212,11 @@ fn segment_single_queue(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::demo::copy_benchmark;
+    use crate::bench::copy_plan;
 
     #[test]
     fn large_copy_is_chunked_and_every_chunk_is_its_own_submission() {
-        let plan = copy_benchmark(256, 256); // 1 MiB
+        let plan = copy_plan(256, 256).unwrap(); // 1 MiB
         let chunks = chunks_of_copies(&plan, 256 * 1024); // 64 rows per chunk
         let heights: Vec<u32> = chunks[0].iter().map(|c| c.y1 - c.y0).collect();
         assert_eq!(heights, band_rows(256, 64));
@@ -243,11 +244,12 @@ mod tests {
         }
         assert_eq!(band_rows(4096, 512), [vec![64], vec![512; 7], vec![256, 128, 64]].concat());
         assert_eq!(band_rows(512, 512), vec![512], "a copy that fits one band is not cut");
+        assert_eq!(band_rows(100, u32::MAX), vec![100], "unbounded chunks: one band");
     }
 
     #[test]
     fn a_separate_copy_queue_never_mixes_queues_in_a_segment() {
-        let plan = copy_benchmark(256, 256);
+        let plan = copy_plan(256, 256).unwrap();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
         let producer = segment_device(&plan, 0, &chunks, None, true);
         let queues: Vec<QueueKind> = producer.iter().map(|s| s.queue).collect();
@@ -256,8 +258,9 @@ mod tests {
         assert!(producer[0].relays.is_empty(), "the fill completes no chunk");
         assert!(producer[1..].iter().all(|s| s.relays.len() == 1 && s.items.len() == 1));
         let consumer = segment_device(&plan, 1, &chunks, None, true);
-        assert_eq!(consumer.len(), n);
-        assert!(consumer.iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
+        assert_eq!(consumer.len(), n + 1, "the copy-ins, then the receiving pass");
+        assert!(consumer[..n].iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
+        assert_eq!(consumer[n].queue, QueueKind::Main);
     }
 
     #[test]

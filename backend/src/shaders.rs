@@ -150,15 +150,15 @@ mod tests {
     use super::*;
 
     fn fill_bytes() -> &'static [u8] {
-        embedded::EMBEDDED.iter().find(|(n, _)| *n == "fill").map(|(_, b)| *b).unwrap()
+        embedded::EMBEDDED.iter().find(|(n, _)| *n == "bench_fill").map(|(_, b)| *b).unwrap()
     }
 
     #[test]
     fn a_user_shader_comes_before_the_builtin_of_the_same_name() {
-        let accumulate = spirv("accumulate").unwrap();
-        let library = ShaderLibrary::new().with_spirv("fill", accumulate.clone()).unwrap();
-        assert_eq!(library.spirv("fill").unwrap(), accumulate);
-        assert_eq!(ShaderLibrary::new().spirv("fill").unwrap(), words_of(fill_bytes()).unwrap());
+        let other = spirv("pixel_list_strided").unwrap();
+        let library = ShaderLibrary::new().with_spirv("bench_fill", other.clone()).unwrap();
+        assert_eq!(library.spirv("bench_fill").unwrap(), other);
+        assert_eq!(ShaderLibrary::new().spirv("bench_fill").unwrap(), words_of(fill_bytes()).unwrap());
     }
 
     #[test]
@@ -169,7 +169,7 @@ mod tests {
                 assert_eq!(name, "missing");
                 assert_eq!(user, ["mine"]);
                 assert_eq!(builtin, shader_names().collect::<Vec<_>>());
-                assert!(builtin.iter().any(|b| b == "fill"));
+                assert!(builtin.iter().any(|b| b == "bench_fill"));
             }
             other => panic!("expected UnknownShader, got {other:?}"),
         }

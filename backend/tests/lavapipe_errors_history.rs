@@ -4,7 +4,6 @@
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use parallax_backend::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, ExecutionPlanError, Executor,
     KernelGraph, LowerError, Validation,
@@ -12,6 +11,7 @@ use parallax_backend::{
 use parallax_graph::{
     BandedPlacement, DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile,
 };
+use parallax_testkit::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
 
 fn context(selection: DeviceSelection) -> Result<Context, BackendError> {
     Context::new(&ContextDesc { selection, validation: Validation::Core })
@@ -99,7 +99,7 @@ fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u3
         plan.history_pairs.len(),
         plan.passes.iter().map(|p| p.device).collect::<BTreeSet<_>>().len() * views as usize
     );
-    let options = ExecOptions { frames_in_flight: 2, ..ExecOptions::default() };
+    let options = ExecOptions { frames_in_flight: 2, ..parallax_testkit::options() };
     let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
     for _ in 0..frames {
         exec.run_frame().unwrap();
@@ -141,7 +141,7 @@ fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
     let ctx = context(DeviceSelection::FakeDevices(1)).unwrap();
     let plan = history_plan(1, 8, &OnDevice { device: 0, devices: 1 });
     let (device, resource) = plan.final_output("acc", 0).unwrap();
-    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     let texel = |exec: &mut Executor| {
         exec.finish().unwrap();
         let t = floats(&exec.read_image(device, resource).unwrap());
@@ -164,15 +164,15 @@ fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
 #[test]
 fn plan_errors_are_reported_before_any_gpu_work() {
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let mut plan = parallax_backend::demo::copy_benchmark(8, 8);
+    let mut plan = parallax_testkit::plans::copy_plan(8, 8);
     plan.devices[1].clear();
-    let err = Executor::new(&ctx, plan, ExecOptions::default()).err().unwrap();
+    let err = Executor::new(&ctx, plan, parallax_testkit::options()).err().unwrap();
     assert!(
         matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::CopyOpMisplaced { copy: 0, op: "Wait" })),
         "{err}"
     );
     let one = context(DeviceSelection::FakeDevices(1)).unwrap();
-    let err = Executor::new(&one, parallax_backend::demo::copy_benchmark(8, 8), ExecOptions::default()).err().unwrap();
+    let err = Executor::new(&one, parallax_testkit::plans::copy_plan(8, 8), parallax_testkit::options()).err().unwrap();
     assert!(
         matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::DeviceCount { plan: 2, context: 1 })),
         "{err}"
@@ -192,7 +192,7 @@ fn plan_errors_are_reported_before_any_gpu_work() {
 
 #[test]
 fn integer_images_go_through_the_uint_binding_and_across_devices() {
-    use parallax_backend::kernels::{reference_fill, reference_mask};
+    use parallax_testkit::kernels::{reference_fill, reference_mask};
     let size = 16;
     // Device 1 writes a uint mask and a float image side by side (indices interleave the two
     // bindings); both travel to device 0.
@@ -209,7 +209,7 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     let (radiance_device, radiance_resource) = plan.final_output("radiance", 0).unwrap();
     assert_eq!((mask_device, radiance_device), (0, 0));
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     exec.run_frame().unwrap();
     let mask = exec.read_image(0, mask_resource).unwrap();
     let radiance = exec.read_image(0, radiance_resource).unwrap();
@@ -237,7 +237,7 @@ fn raster_plan(devices: usize, size: u32) -> ExecutionPlan {
 
 #[test]
 fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
-    use parallax_backend::kernels::reference_raster;
+    use parallax_testkit::kernels::reference_raster;
     let size = 32;
     let expected: Vec<f32> =
         (0..size).flat_map(|y| (0..size).flat_map(move |x| reference_raster(x, y, 5, size))).collect();
@@ -245,7 +245,7 @@ fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
         let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
         let plan = raster_plan(devices, size);
         let (device, resource) = plan.final_output("gbuffer", 5).unwrap();
-        let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
+        let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
         exec.run_frame().unwrap();
         exec.run_frame().unwrap();
         let values: Vec<f32> = exec
@@ -280,12 +280,12 @@ fn weighted_plan(size: u32) -> ExecutionPlan {
 
 #[test]
 fn global_buffers_and_frame_data_reach_kernels_by_address() {
-    use parallax_backend::kernels::reference_fill;
+    use parallax_testkit::kernels::reference_fill;
     let size = 16;
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
     let plan = weighted_plan(size);
     let outputs: Vec<usize> = (0..2).map(|v| plan.final_output("w", v).unwrap().1).collect();
-    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
     let check = |exec: &mut Executor, weights: [f32; 2], offset: f32| {
         for view in 0..2u32 {
@@ -324,7 +324,7 @@ fn global_buffers_and_frame_data_reach_kernels_by_address() {
     check(&mut exec, [0.25, 0.125], 0.5);
     assert_eq!(exec.recordings(), recorded + 1);
 
-    let too_big = vec![0u8; (ExecOptions::default().frame_data_bytes + 4) as usize];
+    let too_big = vec![0u8; (parallax_testkit::options().frame_data_bytes + 4) as usize];
     assert!(matches!(exec.set_frame_data(&too_big), Err(BackendError::FrameDataTooLarge { .. })));
     drop(exec);
     ctx.check_validation().unwrap();

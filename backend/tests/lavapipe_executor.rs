@@ -1,12 +1,12 @@
 //! Executor on lavapipe (or any Vulkan device): the reprojection demo on 1, 2 and 3 logical
 //! devices, with validation always on.
 
-use parallax_backend::demo::{demo_device_of_view, reprojection_demo};
-use parallax_backend::kernels::reference_shift_blend;
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOp, ExecOptions, Executor, FaultInjection,
     Validation, chrome_trace,
 };
+use parallax_testkit::kernels::reference_shift_blend;
+use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
 
 const VIEWS: u32 = 3;
 const SIZE: u32 = 32;
@@ -44,7 +44,7 @@ fn reference_output(view: u32) -> Vec<f32> {
 
 #[test]
 fn one_two_three_devices_give_bit_identical_images() {
-    let (single, exec1, ctx1) = run_demo(1, 3, ExecOptions::default());
+    let (single, exec1, ctx1) = run_demo(1, 3, parallax_testkit::options());
     assert_eq!(exec1.plan().copies.len(), 0);
     ctx1.check_validation().unwrap();
     for (v, bytes) in single.iter().enumerate() {
@@ -52,7 +52,7 @@ fn one_two_three_devices_give_bit_identical_images() {
     }
     drop(exec1);
     for devices in [2, 3] {
-        let (outputs, mut exec, ctx) = run_demo(devices, 3, ExecOptions::default());
+        let (outputs, mut exec, ctx) = run_demo(devices, 3, parallax_testkit::options());
         assert_eq!(outputs, single, "{devices} devices differ from 1 device");
         // Every copy of the plan ran once per frame: one copy-out and one copy-in event each.
         let copies = exec.plan().copies.len();
@@ -93,7 +93,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
         let options = ExecOptions {
             fault: Some(FaultInjection::DropCrossDeviceWait { copy }),
             separate_copy_queue,
-            ..ExecOptions::default()
+            ..parallax_testkit::options()
         };
         let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
         exec.run_frame().unwrap();
@@ -126,7 +126,7 @@ fn fault_injection_refuses_a_copy_that_would_deadlock() {
         .unwrap();
     let ctx = context(devices);
     let options =
-        ExecOptions { fault: Some(FaultInjection::DropCrossDeviceWait { copy: later }), ..ExecOptions::default() };
+        ExecOptions { fault: Some(FaultInjection::DropCrossDeviceWait { copy: later }), ..parallax_testkit::options() };
     let err = Executor::new(&ctx, plan, options).err().unwrap();
     assert!(matches!(err, BackendError::FaultInjection(_)), "{err}");
 }
@@ -134,7 +134,7 @@ fn fault_injection_refuses_a_copy_that_would_deadlock() {
 #[test]
 fn timestamps_are_ordered_and_trace_lists_every_pass() {
     let devices = 3;
-    let (_, mut exec, ctx) = run_demo(devices, 2, ExecOptions::default());
+    let (_, mut exec, ctx) = run_demo(devices, 2, parallax_testkit::options());
     let plan = exec.plan().clone();
     let reports = exec.take_reports();
     assert_eq!(reports.len(), 2);
@@ -188,7 +188,7 @@ fn frames_reuse_recorded_command_buffers() {
     let devices = 2;
     let ctx = context(devices);
     let (plan, _) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
-    let mut exec = Executor::new(&ctx, plan.clone(), ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan.clone(), parallax_testkit::options()).unwrap();
     for _ in 0..5 {
         exec.run_frame().unwrap();
     }
@@ -214,11 +214,11 @@ fn demo_device_assignment_is_round_robin() {
 fn copies_in_submissions_of_their_own_give_the_same_images() {
     // lavapipe has no transfer-only queue, so this runs the separate-copy-queue code path
     // (queue-pure segments ordered through the progress timeline) on the main queue.
-    let (reference, exec, ctx) = run_demo(1, 1, ExecOptions::default());
+    let (reference, exec, ctx) = run_demo(1, 1, parallax_testkit::options());
     drop(exec);
     ctx.check_validation().unwrap();
     for devices in [1, 2, 3] {
-        let options = ExecOptions { separate_copy_queue: true, chunk_bytes: 4096, ..ExecOptions::default() };
+        let options = ExecOptions { separate_copy_queue: true, chunk_bytes: 4096, ..parallax_testkit::options() };
         let (outputs, mut exec, ctx) = run_demo(devices, 3, options);
         assert_eq!(outputs, reference, "{devices} devices");
         let reports = exec.take_reports();

@@ -5,14 +5,14 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
-use parallax_backend::kernels::reference_mask;
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor,
     FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder,
-    Validation, ViewCameras, spirv,
+    Validation, ViewCameras,
 };
 use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
+use parallax_testkit::kernels::reference_mask;
 use std::mem::{offset_of, size_of};
 use std::sync::Arc;
 
@@ -48,7 +48,7 @@ struct FrameFillParams {
 
 #[test]
 fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
-    let probe = spirv("test_frame_block").unwrap();
+    let probe = parallax_testkit::shaders().spirv("test_frame_block").unwrap();
     let camera = struct_layout(&probe, "GpuCamera").unwrap();
     assert_eq!(
         offsets(&camera),
@@ -81,7 +81,8 @@ fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
     );
     assert_eq!(block[4].array_stride, Some(size_of::<ViewCameras>() as u32));
     // The same check holds any kernel's parameter struct against its push-constant block.
-    let fill = struct_layout(&spirv("test_frame_fill").unwrap(), "FrameFillParams").unwrap();
+    let fill =
+        struct_layout(&parallax_testkit::shaders().spirv("test_frame_fill").unwrap(), "FrameFillParams").unwrap();
     assert_eq!(
         offsets(&fill),
         vec![
@@ -159,7 +160,7 @@ fn salt_of(frame: u32) -> u32 {
 fn the_frame_loop_reads_back_every_frames_exports_with_two_frames_in_flight() {
     const FRAMES: u32 = 5;
     let ctx = context(2);
-    let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..ExecOptions::default() };
+    let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
     let plan = gather_plan();
     let view_of = |r: usize| plan.resources[r].view;
     let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
@@ -210,7 +211,7 @@ fn the_frame_loop_reads_back_every_frames_exports_with_two_frames_in_flight() {
     }
     drop(exec);
     // The frame loop is asked for, not implied.
-    let mut plain = Executor::new(&ctx, gather_plan(), ExecOptions::default()).unwrap();
+    let mut plain = Executor::new(&ctx, gather_plan(), parallax_testkit::options()).unwrap();
     assert!(matches!(plain.submit_frame(), Err(BackendError::ReadbackDisabled)));
     drop(plain);
     ctx.check_validation().unwrap();
@@ -246,7 +247,7 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
     probe.exported = true;
     let plan = ExecutionPlan::single_pass("frame_probe", FrameProbeKernel { views: VIEWS }, probe, 1);
     let ctx = context(1);
-    let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..ExecOptions::default() };
+    let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
     let mut exec = Executor::new(&ctx, plan, options).unwrap();
     let mut clock = FrameClock::new();
     let mut tickets = Vec::new();

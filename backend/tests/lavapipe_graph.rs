@@ -3,13 +3,13 @@
 
 use std::sync::Arc;
 
-use parallax_backend::kernels::{FillBufferKernel, FillKernel, ShiftBlendKernel, reference_shift_blend};
 use parallax_backend::{
     Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, ExecutionPlan, Executor, Validation,
 };
 use parallax_backend::{KernelGraph, PassKernel};
 use parallax_graph::Format;
 use parallax_graph::{AssignStrategy, LightField, PlanConfig, Rig, Role, Schedule, Scheme, ViewId, compile};
+use parallax_testkit::kernels::{FillBufferKernel, FillKernel, ShiftBlendKernel, reference_shift_blend};
 
 const SIZE: u32 = 32;
 
@@ -61,7 +61,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<f32>> {
         validation: Validation::Core,
     })
     .unwrap();
-    let mut exec = Executor::new(&ctx, plan.clone(), ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, plan.clone(), parallax_testkit::options()).unwrap();
     for _ in 0..2 {
         exec.run_frame().unwrap();
     }
@@ -128,7 +128,7 @@ fn both_schemes_really_copy_between_devices() {
 #[test]
 fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     use parallax_backend::ResourceKind;
-    use parallax_backend::kernels::reference_buffer_word;
+    use parallax_testkit::kernels::reference_buffer_word;
     let lf = LightField::new("3x1".parse().unwrap(), None, Some((8, 8)), Rig::default()).unwrap();
     let config = PlanConfig { devices: 3, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
@@ -145,7 +145,7 @@ fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     let gathered: Vec<usize> = (0..3).map(|v| exec_plan.final_output("list", v).unwrap().1).collect();
     let ctx = Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(3), validation: Validation::Core })
         .unwrap();
-    let mut exec = Executor::new(&ctx, exec_plan.clone(), ExecOptions::default()).unwrap();
+    let mut exec = Executor::new(&ctx, exec_plan.clone(), parallax_testkit::options()).unwrap();
     exec.run_frame().unwrap();
     for r in gathered {
         let resource = &exec_plan.resources[r];
@@ -180,7 +180,7 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
                     validation: Validation::Core,
                 })
                 .unwrap();
-                let options = ExecOptions { separate_copy_queue: devices == 2, ..ExecOptions::default() };
+                let options = ExecOptions { separate_copy_queue: devices == 2, ..parallax_testkit::options() };
                 let mut exec = Executor::new(&ctx, exec_plan, options).unwrap();
                 exec.run_frame().unwrap();
                 exec.run_frame().unwrap();
@@ -218,7 +218,7 @@ fn graph_exports_are_read_back_by_the_frame_loop() {
         validation: Validation::Core,
     })
     .unwrap();
-    let options = ExecOptions { read_back_exports: true, ..ExecOptions::default() };
+    let options = ExecOptions { read_back_exports: true, ..parallax_testkit::options() };
     let mut exec = Executor::new(&ctx, plan, options).unwrap();
     let tickets = [exec.submit_frame().unwrap(), exec.submit_frame().unwrap()];
     let mut frames = Vec::new();

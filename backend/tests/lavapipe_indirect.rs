@@ -6,13 +6,13 @@
 
 use std::sync::Arc;
 
-use parallax_backend::kernels::reference_mask;
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecAccess, ExecOptions, ExecPass, ExecResource,
     ExecutionPlan, ExecutionPlanError, Executor, Format, KernelGraph, PassKernel, Recorder, Region, ResourceKind,
     Validation,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
+use parallax_testkit::kernels::reference_mask;
 
 const SALT: u32 = 0x5eed;
 /// groups_x, groups_y, groups_z, count: what test_indirect_args.comp starts from each frame.
@@ -130,7 +130,7 @@ fn gpu_counts_drive_the_next_dispatch_and_resets_start_every_frame_afresh() {
     assert!(counts.windows(2).all(|w| w[0] != w[1]), "the count changes from frame to frame: {counts:?}");
     for fused in [false, true] {
         let ctx = context();
-        let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..ExecOptions::default() };
+        let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
         let plan = indirect_plan(fused);
         let name_of = |r: usize| plan.resources[r].name.clone();
         let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
@@ -190,7 +190,8 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
         (1, 0, "is an image"),
         (7, 0, "not allocated"),
     ] {
-        let mut exec = Executor::new(&ctx, plan(MisusedKernel { resource, offset }), ExecOptions::default()).unwrap();
+        let mut exec =
+            Executor::new(&ctx, plan(MisusedKernel { resource, offset }), parallax_testkit::options()).unwrap();
         match exec.run_frame() {
             Err(BackendError::IndirectArgs { shader, resource: r, offset: o, problem: p }) => {
                 assert_eq!((shader.as_str(), r, o), ("test_indirect_count", resource, offset));
@@ -200,14 +201,15 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
         }
     }
     // The last 12 bytes of the buffer are a valid place.
-    let mut exec = Executor::new(&ctx, plan(MisusedKernel { resource: 0, offset: 4 }), ExecOptions::default()).unwrap();
+    let mut exec =
+        Executor::new(&ctx, plan(MisusedKernel { resource: 0, offset: 4 }), parallax_testkit::options()).unwrap();
     exec.run_frame().unwrap();
     exec.finish().unwrap();
     drop(exec);
     // Only buffers are reset.
     let mut reset_image = plan(MisusedKernel { resource: 0, offset: 4 });
     reset_image.resources[1].reset = Some(vec![]);
-    let err = Executor::new(&ctx, reset_image, ExecOptions::default()).err().unwrap();
+    let err = Executor::new(&ctx, reset_image, parallax_testkit::options()).err().unwrap();
     assert!(matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::ResetOfImage { resource: 1 })), "{err}");
     ctx.check_validation().unwrap();
 }

@@ -1,18 +1,19 @@
 //! Kernels from outside `shaders/`: GLSL in this test's folder (`tests/user_kernels/`),
-//! compiled at run time with parallax-glsl, handed to the executor as a `ShaderLibrary` and run
-//! on two logical devices after a built-in kernel, against a CPU reference (validation on);
+//! compiled at run time with parallax-glsl, handed to the executor as a `ShaderLibrary` beside
+//! the testkit's (compiled by its build.rs) and run on two logical devices after the testkit's
+//! fill, against a CPU reference (validation on);
 //! bytes that are not SPIR-V are refused with the exact error.
 
 use std::path::Path;
 use std::sync::Arc;
 
-use parallax_backend::kernels::{FillKernel, reference_fill};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
     PassKernel, PassParams, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
 use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
+use parallax_testkit::kernels::{FillKernel, reference_fill};
 
 const SIZE: u32 = 16;
 const DEVICES: u32 = 2;
@@ -27,8 +28,9 @@ fn compile_user_shaders(test: &str) -> Vec<CompiledShader> {
     Compiler::new().compile_dir(&src, &[&includes[0], &includes[1]], &out).unwrap()
 }
 
+/// The testkit's shaders and `shaders`.
 fn user_library(shaders: &[CompiledShader]) -> ShaderLibrary {
-    shaders.iter().fold(ShaderLibrary::new(), |library, shader| {
+    shaders.iter().fold(parallax_testkit::shaders(), |library, shader| {
         library.with_spirv_bytes(&shader.name, &std::fs::read(&shader.spirv).unwrap()).unwrap()
     })
 }
@@ -61,14 +63,14 @@ impl PassKernel for ReadWriteKernel {
     }
 }
 
-/// `scale_swap.glsl` on the CPU, applied to the built-in fill pattern.
+/// `scale_swap.glsl` on the CPU, applied to the testkit's fill pattern.
 fn reference_scale_swap(x: u32, y: u32, view: u32) -> [f32; 4] {
     let v = reference_fill(x, y, view);
     let offset = view as f32 * 0.25;
     [v[1] * 0.5 + offset, v[0] * 0.5 + offset, v[3] * 0.5 + offset, v[2] * 0.5 + offset]
 }
 
-/// built-in `fill` → user pass `user` (kernel dispatching `shader`) on every view of a 2×1 light
+/// testkit `fill` → user pass `user` (kernel dispatching `shader`) on every view of a 2×1 light
 /// field over two devices, the result gathered on device 0. Returns the plan and, per view,
 /// the resource of the result.
 fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<usize>) {
@@ -135,7 +137,10 @@ fn a_kernel_naming_no_known_shader_lists_where_it_looked() {
     match exec.run_frame() {
         Err(BackendError::UnknownShader { name, user, builtin }) => {
             assert_eq!(name, "no_such_shader");
-            assert_eq!(user, ["scale_swap"]);
+            let mut expected: Vec<String> = parallax_testkit::shaders().names().map(str::to_string).collect();
+            expected.push("scale_swap".into());
+            expected.sort();
+            assert_eq!(user, expected);
             assert_eq!(builtin, shader_names().collect::<Vec<_>>());
         }
         other => panic!("expected BackendError::UnknownShader, got {other:?}"),
@@ -173,5 +178,5 @@ fn include_shaders_reads_the_table_parallax_glsl_wrote() {
     // crate's build.rs would.
     let library = parallax_backend::include_shaders!().unwrap();
     assert_eq!(library.names().collect::<Vec<_>>(), shader_names().collect::<Vec<_>>());
-    assert_eq!(library.spirv("fill").unwrap(), parallax_backend::spirv("fill").unwrap());
+    assert_eq!(library.spirv("bench_fill").unwrap(), parallax_backend::spirv("bench_fill").unwrap());
 }

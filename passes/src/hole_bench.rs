@@ -6,7 +6,6 @@
 
 use std::sync::Arc;
 
-use parallax_backend::kernels::reference_mask;
 use parallax_backend::{
     BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameReport, KernelGraph,
     PassKernel, PassParams, Recorder,
@@ -37,7 +36,7 @@ pub fn hole_threshold(fraction: f64) -> Result<u32> {
 /// Whether [`HashedHoleMaskKernel`] with `threshold` marks pixel (x, y) of `view` as a hole
 /// (its CPU twin).
 pub fn is_hashed_hole(x: u32, y: u32, view: u32, threshold: u32) -> bool {
-    (reference_mask(x, y, view) & 0xffff) < threshold
+    (hash3(x, y, view) & 0xffff) < threshold
 }
 
 /// Writes a synthetic hole mask (shaders/hole_mask_hashed.comp) into slot [`HOLES`] over the
@@ -186,4 +185,14 @@ fn median_stage_ms(reports: &[FrameReport], stage: &str) -> f64 {
         reports.iter().map(|r| r.stages.iter().filter(|s| s.stage == stage).map(|s| s.total_ns).sum()).collect();
     per_frame.sort_unstable();
     per_frame.get(per_frame.len() / 2).map_or(0.0, |&ns| ns as f64 / 1e6)
+}
+
+/// `hash3` of shaders/include/hash.glsl (PCG), what the synthetic hole mask is made of.
+fn hash3(a: u32, b: u32, c: u32) -> u32 {
+    fn pcg(v: u32) -> u32 {
+        let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+        let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+        (word >> 22) ^ word
+    }
+    pcg(a ^ pcg(b ^ pcg(c)))
 }

@@ -5,7 +5,9 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, Context, ExecOptions, ExecutionPlan, Executor, KernelGraph, ResourceKind};
+use parallax_backend::{
+    BackendError, Context, ExecOptions, ExecutionPlan, Executor, KernelGraph, ResourceKind, ShaderLibrary,
+};
 use parallax_graph::{
     AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
     Scheme, ViewTopology, compile,
@@ -96,10 +98,20 @@ pub struct GpuTracer {
 impl GpuTracer {
     /// Creates the executor for `plan` on `context` and uploads `scene`.
     pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
+        Self::with_shaders(context, plan, scene, ShaderLibrary::new())
+    }
+
+    /// [`Self::new`] for plans whose kernels dispatch shaders of `shaders` (a user library).
+    pub fn with_shaders(
+        context: &Context,
+        plan: ExecutionPlan,
+        scene: &GpuScene<'_>,
+        shaders: ShaderLibrary,
+    ) -> Result<Self> {
         // Room for every view's parameters, so a large light field is not refused for a buffer
         // size the caller never chose.
         let views = plan.resources.iter().map(|r| u64::from(r.view) + 1).max().unwrap_or(1);
-        let defaults = ExecOptions::default();
+        let defaults = ExecOptions { shaders, ..ExecOptions::default() };
         let options =
             ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(views * TRACE_PARAMS_BYTES), ..defaults };
         let frame_data_bytes = options.frame_data_bytes;

@@ -10,7 +10,6 @@ mod common;
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use parallax_backend::kernels::{FillKernel, reference_fill};
 use parallax_backend::{ExecutionPlan, KernelGraph};
 use parallax_graph::{AssignStrategy, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, compile};
 use parallax_passes::{
@@ -19,6 +18,7 @@ use parallax_passes::{
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
+use parallax_testkit::kernels::{FillKernel, reference_fill};
 
 const W: u32 = 32;
 const H: u32 = 32;
@@ -68,7 +68,13 @@ fn run(devices: u32, plan: ExecutionPlan) -> Run {
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices as usize);
     let views = common::views(&scene, VIEWS, W, H);
-    let mut tracer = parallax_passes::GpuTracer::new(&ctx, plan.clone(), &GpuScene::new(&scene, &bvh)).unwrap();
+    let mut tracer = parallax_passes::GpuTracer::with_shaders(
+        &ctx,
+        plan.clone(),
+        &GpuScene::new(&scene, &bvh),
+        parallax_testkit::shaders(),
+    )
+    .unwrap();
     let pixels = tracer.render(&scene, &views, &SETTINGS).unwrap();
     let mut lists = Vec::new();
     for view in 0..VIEWS {

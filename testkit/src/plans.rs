@@ -1,15 +1,17 @@
-//! Hand-built plans for tests, demos and benchmarks, written the way the graph compiler lays out a
+//! Hand-laid plans for the executor's tests, written the way the graph compiler lays out a
 //! schedule (op lists per device, copies only where producer and consumer differ), so the
-//! executor can be exercised without the graph crate.
+//! executor can be exercised, and its synchronisation broken on purpose, without the graph crate.
 //!
 //! The reprojection demo: every view `v` is filled (the last view in row bands spread over all
 //! devices, like a fine-grained split), then blended with view `v+1` (a gather from another
 //! view), and every finished view is gathered on device 0.
 
-use crate::kernels::{FillKernel, ShiftBlendKernel};
-use crate::plan::{
-    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, Kernels, Region, ResourceKind,
+use parallax_backend::plan::Kernels;
+use parallax_backend::{
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, Region, ResourceKind,
 };
+
+use crate::kernels::{FillKernel, ShiftBlendKernel};
 
 /// Resource ids of the reprojection demo.
 #[derive(Clone, Debug)]
@@ -159,9 +161,8 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
     (plan, DemoResources { radiance, output })
 }
 
-/// One fill on device 0 of a `width`×`height` RGBA32F image and its copy to device 1: the
-/// cross-device bandwidth benchmark (64 MiB = 2048×2048).
-pub fn copy_benchmark(width: u32, height: u32) -> ExecutionPlan {
+/// One fill on device 0 of a `width`×`height` RGBA32F image and its copy to device 1.
+pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
     let all = Region::new(0, height);
     ExecutionPlan {
         resources: vec![ExecResource {
@@ -195,42 +196,6 @@ pub fn copy_benchmark(width: u32, height: u32) -> ExecutionPlan {
     }
 }
 
-/// `passes_per_device` tiny fills per device, no copies: measures the executor's CPU cost per
-/// submitted pass.
-pub fn overhead_benchmark(devices: usize, passes_per_device: u32, size: u32) -> ExecutionPlan {
-    let mut plan =
-        ExecutionPlan { devices: vec![Vec::new(); devices], kernels: fill_only(), ..ExecutionPlan::default() };
-    let all = Region::new(0, size);
-    for d in 0..devices {
-        for i in 0..passes_per_device {
-            let view = d as u32 * passes_per_device + i;
-            plan.resources.push(ExecResource {
-                name: "target".into(),
-                view,
-                width: size,
-                height: size,
-                format: Format::Rgba8,
-                kind: ResourceKind::Image,
-                storage: 0,
-                exported: false,
-                reset: None,
-            });
-            plan.passes.push(ExecPass {
-                name: "fill".into(),
-                kernel: 0,
-                view,
-                rows: all,
-                device: d,
-                reads: vec![],
-                history_reads: vec![],
-                writes: vec![ExecAccess::own("target", plan.resources.len() - 1, 1, all)],
-            });
-            plan.devices[d].push(ExecOp::Pass(plan.passes.len() - 1));
-        }
-    }
-    plan
-}
-
 fn fill_only() -> Kernels {
     let mut kernels = Kernels::default();
     kernels.push(FillKernel);
@@ -256,7 +221,6 @@ mod tests {
             };
             assert_eq!(plan.copies.len(), expected, "devices = {devices}");
         }
-        copy_benchmark(64, 64).validate(2).unwrap();
-        overhead_benchmark(2, 4, 8).validate(2).unwrap();
+        copy_plan(64, 64).validate(2).unwrap();
     }
 }

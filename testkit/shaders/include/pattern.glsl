@@ -1,6 +1,6 @@
-// The deterministic test pattern of the backend's demo kernels. Every value is a multiple of
+// The deterministic test pattern of the test kernels. Every value is a multiple of
 // 2^-16 in [0, 1), so it survives float arithmetic on any device bit for bit;
-// `reference_fill` in backend/src/kernels.rs computes the same.
+// `reference_fill` in testkit/src/kernels.rs computes the same.
 #ifndef PARALLAX_PATTERN_GLSL
 #define PARALLAX_PATTERN_GLSL
 

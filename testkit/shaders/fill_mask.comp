@@ -1,5 +1,5 @@
 #version 460
-// Test/demo kernel for integer images (`uimages`, R32_UINT): writes hash3(x, y, view) into rows
+// Test kernel for integer images (`uimages`, R32_UINT): writes hash3(x, y, view) into rows
 // [y0, y1) of `dst`, the shape of a hole mask or an id buffer.
 #include "bindless.glsl"
 #include "hash.glsl"

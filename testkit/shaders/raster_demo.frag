@@ -1,5 +1,5 @@
 #version 460
-// Test/demo raster pass: the near quad is a constant colour, the far one the fill pattern of
+// Test raster pass: the near quad is a constant colour, the far one the fill pattern of
 // the pixel (in framebuffer coordinates, so any row band renders the same values).
 #include "bindless.glsl"
 #include "pattern.glsl"

@@ -1,12 +1,10 @@
-//! Kernels the backend ships for its own tests, demos and benchmarks, with CPU references that
-//! compute bit-identical values. Real passes (path tracing, reprojection, ...) live in the
-//! passes crate and plug in through the same [`PassKernel`] trait.
+//! Test kernels (shaders in this crate's `shaders/`), with CPU references that compute
+//! bit-identical values. They plug into the executor through [`PassKernel`] like any user
+//! kernel; real passes (path tracing, ...) live in the passes crate.
 
-use crate::error::{BackendError, Result};
-use crate::plan::{ExecPass, Format};
-use crate::recorder::{Draw, PassKernel, PassParams, Recorder};
+use parallax_backend::{BackendError, Draw, ExecPass, Format, PassKernel, PassParams, Recorder, Result};
 
-/// Writes the deterministic pattern of `shaders/fill.comp` into `writes[0]` over the instance's rows.
+/// Writes the deterministic pattern of `fill.comp` into `writes[0]` over the instance's rows.
 pub struct FillKernel;
 
 impl PassKernel for FillKernel {
@@ -17,7 +15,7 @@ impl PassKernel for FillKernel {
     }
 }
 
-/// Reprojection-shaped gather (`shaders/shift_blend.comp`): `writes[0] = 0.5 * reads[0] +
+/// Reprojection-shaped gather (`shift_blend.comp`): `writes[0] = 0.5 * reads[0] +
 /// 0.5 * reads[1]` shifted by [`shift_of_view`] columns. `reads[1]` is the first source view's
 /// image (the graph's `read_sources`), which is what makes the planner insert cross-device
 /// copies; further source reads are declared but not sampled. A view without sources (a source
@@ -51,7 +49,7 @@ impl PassKernel for ShiftBlendKernel {
     }
 }
 
-/// Raster demo (`shaders/raster_demo.{vert,frag}`): renders into `writes[0]` over the
+/// Raster demo (`raster_demo.{vert,frag}`): renders into `writes[0]` over the
 /// instance's rows a near quad (left half, constant [`RASTER_NEAR_COLOR`]) drawn before a far
 /// full-image quad (the fill pattern), with the depth test on.
 pub struct RasterDemoKernel;
@@ -88,7 +86,7 @@ pub fn reference_raster(x: u32, y: u32, view: u32, width: u32) -> [f32; 4] {
     if x < width / 2 { RASTER_NEAR_COLOR } else { reference_fill(x, y, view) }
 }
 
-/// `writes[0] = fill_pattern * weights[view] + frame_data[0]` (`shaders/weighted_fill.comp`):
+/// `writes[0] = fill_pattern * weights[view] + frame_data[0]` (`weighted_fill.comp`):
 /// reads the global buffer `weights` (f32 per view) and the per-frame data (one f32), both by
 /// buffer address.
 pub struct WeightedFillKernel;
@@ -108,7 +106,7 @@ impl PassKernel for WeightedFillKernel {
 }
 
 /// Writes `hash3(i, 0, view)` into every 32-bit word `i` of the per-view buffer `writes[0]`
-/// (`shaders/fill_buffer.comp`).
+/// (`fill_buffer.comp`).
 pub struct FillBufferKernel;
 
 impl PassKernel for FillBufferKernel {
@@ -128,7 +126,7 @@ pub fn reference_buffer_word(i: u32, view: u32) -> u32 {
     hash3(i, 0, view)
 }
 
-/// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`shaders/fill_mask.comp`).
+/// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`fill_mask.comp`).
 pub struct FillMaskKernel;
 
 impl PassKernel for FillMaskKernel {
@@ -151,7 +149,7 @@ pub fn reference_mask(x: u32, y: u32, view: u32) -> u32 {
     hash3(x, y, view)
 }
 
-/// `acc = history(acc) + frame index + 1` (`shaders/accumulate.comp`): the slot `acc` is
+/// `acc = history(acc) + frame index + 1` (`accumulate.comp`): the slot `acc` is
 /// written and read as history (last frame's final `acc`, zero when history is invalid).
 pub struct AccumulateKernel;
 
@@ -212,8 +210,8 @@ fn hash3(a: u32, b: u32, c: u32) -> u32 {
     pcg_hash(a ^ pcg_hash(b ^ pcg_hash(c)))
 }
 
-/// CPU value of `fill.comp` (`fill_pattern` in shaders/include/pattern.glsl) at pixel (x, y)
-/// of `view`.
+/// CPU value of `fill.comp` (`fill_pattern` in this crate's shaders/include/pattern.glsl) at
+/// pixel (x, y) of `view`.
 pub fn reference_fill(x: u32, y: u32, view: u32) -> [f32; 4] {
     let h = hash3(x, y, view);
     [(h & 0xffff) as f32 / 65536.0, (h >> 16) as f32 / 65536.0, (view & 0xffff) as f32 / 65536.0, 65535.0 / 65536.0]

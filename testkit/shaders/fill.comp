@@ -1,5 +1,5 @@
 #version 460
-// Test/demo kernel: writes the pattern of include/pattern.glsl into rows [y0, y1) of image
+// Test kernel: writes the pattern of include/pattern.glsl into rows [y0, y1) of image
 // `dst`.
 #include "bindless.glsl"
 #include "pattern.glsl"

@@ -1,5 +1,5 @@
 #version 460
-// Test/demo kernel for global buffers and per-frame data, both reached by buffer reference:
+// Test kernel for global buffers and per-frame data, both reached by buffer reference:
 // dst = fill_pattern * weights[view] + frame_data.offset, over rows [y0, y1).
 #extension GL_EXT_buffer_reference : require
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS

@@ -1,5 +1,5 @@
 #version 460
-// Test/demo kernel for per-view buffer resources: words[i] = hash3(i, 0, view) for every word
+// Test kernel for per-view buffer resources: words[i] = hash3(i, 0, view) for every word
 // of the buffer (reached by address).
 #extension GL_EXT_buffer_reference : require
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS

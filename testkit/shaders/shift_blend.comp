@@ -1,5 +1,5 @@
 #version 460
-// Test/demo kernel shaped like a reprojection gather: every pixel of the target view blends its
+// Test kernel shaped like a reprojection gather: every pixel of the target view blends its
 // own value with a pixel of another view (`src1`), taken `param` columns to the right
 // (wrapping). 0.5*a + 0.5*b is exact for the fill pattern, so results are bit-identical on any
 // device and match the Rust reference.

@@ -1,5 +1,5 @@
 #version 460
-// Test/demo raster pass: two quads (6 vertices each, no vertex buffer). Instance 0 covers the
+// Test raster pass: two quads (6 vertices each, no vertex buffer). Instance 0 covers the
 // left half of the image at depth 0.25, instance 1 the whole image at depth 0.75; instance 0 is
 // drawn first, so only the depth test keeps it visible.
 

@@ -1,0 +1,26 @@
+//! parallax-testkit: what Parallax's GPU tests share and the library does not ship.
+//!
+//! * [`kernels`]: small kernels with CPU references that compute bit-identical values (a fill
+//!   pattern, a reprojection-shaped gather, a raster demo, buffer and mask fills, an
+//!   accumulation over history).
+//! * [`plans`]: execution plans laid out by hand the way the graph compiler lays out a schedule,
+//!   so the executor can be tested (and fault-injected) without the graph crate.
+//! * [`shaders`] / [`options`]: the kernels' SPIR-V (`shaders/`, compiled by this crate's
+//!   build.rs through parallax-glsl), which the executor finds through `ExecOptions::shaders`.
+
+pub mod kernels;
+pub mod plans;
+
+use parallax_backend::{ExecOptions, ShaderLibrary};
+
+/// The SPIR-V of every kernel in `shaders/`, by file stem (`fill`, `shift_blend`, ...).
+pub fn shaders() -> ShaderLibrary {
+    // build.rs wrote the table from glslc's output, which glslc checked; a defect here is a
+    // broken build, not an input error.
+    parallax_backend::include_shaders!().expect("build.rs embeds valid SPIR-V")
+}
+
+/// Default executor options with [`shaders`] as the user library.
+pub fn options() -> ExecOptions {
+    ExecOptions { shaders: shaders(), ..ExecOptions::default() }
+}
