@@ -42,6 +42,10 @@ pub enum PassError {
     #[error("a {width}x{height} view is beyond the 65536x65536 that packed pixel lists can address")]
     ViewTooLarge { width: u32, height: u32 },
 
+    /// The raster camera's near plane must be a positive distance.
+    #[error("raster near plane {near} must be a finite distance > 0 (scene units)")]
+    NearPlane { near: f32 },
+
     /// More rays than the raycaster was created for.
     #[error("{rays} rays exceed the raycaster's capacity of {capacity}")]
     TooManyRays { rays: usize, capacity: usize },

@@ -7,6 +7,10 @@
 //!   radiance and first-hit data into the view's images.
 //! * [`RaycastKernel`] / [`Raycaster`] (`raycast`): rays through the CWBVH, for the GPU-vs-CPU
 //!   traversal check and the rays/s benchmark ([`bench`](mod@bench)).
+//! * [`GbufferRasterKernel`] (`gbuffer_raster`): shaders/gbuffer_raster.{vert,frag}, the
+//!   G-buffer rasterised from the uploaded scene (vertices pulled by address) into the path
+//!   tracer's first-hit layers and a `Depth32f` depth resource ([`declare_gbuffer_raster`],
+//!   camera from the frame block: [`raster_camera`]).
 //! * [`pixel_list`]: the list format of `path_trace`'s list mode and a demo list producer.
 //! * [`trace`]: the graph declaring path tracing per view, and [`GpuTracer`], which runs it.
 //!
@@ -31,6 +35,7 @@ pub mod bench;
 pub mod error;
 pub mod path_trace;
 pub mod pixel_list;
+pub mod raster_gbuffer;
 pub mod raycast;
 pub mod scene_upload;
 pub mod trace;
@@ -40,6 +45,10 @@ pub use path_trace::{
     PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
 };
 pub use pixel_list::{PIXEL_LIST, StridedPixelListKernel, pixel_list_bytes, strided_pixels};
+pub use raster_gbuffer::{
+    GBUFFER_RASTER, GbufferHandles, GbufferRasterKernel, GbufferRasterPush, RASTER_DEPTH, RASTER_OUTPUTS,
+    declare_gbuffer_raster, raster_camera,
+};
 pub use raycast::{
     HitOut, RAYCAST, RAYCAST_WORK, RayIn, RaySchedule, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu,
     random_rays,
