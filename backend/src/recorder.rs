@@ -305,7 +305,10 @@ impl Recorder<'_> {
         for &resource in draw.color_targets {
             let image = target(resource)?;
             if image.format.is_depth() {
-                return Err(misuse(format!("colour target `{}` has a depth format", self.plan.resources[resource].name)));
+                return Err(misuse(format!(
+                    "colour target `{}` has a depth format",
+                    self.plan.resources[resource].name
+                )));
             }
             color_formats.push(crate::memory::vk_format(image.format)?);
             attachments.push(

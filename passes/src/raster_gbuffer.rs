@@ -23,7 +23,8 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec2, Vec4};
 use parallax_backend::{
-    BackendError, Draw, ExecPass, FRAME_BLOCK_SECTION, Format, GpuCamera, KernelGraph, PassKernel, Recorder, ResourceKind,
+    BackendError, Draw, ExecPass, FRAME_BLOCK_SECTION, Format, GpuCamera, KernelGraph, PassKernel, Recorder,
+    ResourceKind,
 };
 use parallax_graph::{Handle, Image, Role};
 use parallax_scene::View;
@@ -70,7 +71,10 @@ impl PassKernel for GbufferRasterKernel {
             let write = pass.output(slot).ok_or_else(|| misuse(index, format!("writes no `{slot}` slot")))?;
             let desc = rec.resource(write.resource);
             if desc.kind != ResourceKind::Image || desc.format != Format::Rgba32f {
-                return Err(misuse(index, format!("its write `{slot}` must be an Rgba32f image, not {:?}", desc.format)));
+                return Err(misuse(
+                    index,
+                    format!("its write `{slot}` must be an Rgba32f image, not {:?}", desc.format),
+                ));
             }
             *target = write.resource;
         }
@@ -184,7 +188,10 @@ mod tests {
             let clip = view_proj * point.extend(1.0);
             let linear = (point - camera.eye).dot(camera.forward.normalize());
             let pixel = ((clip.x / clip.w + 1.0) * 20.0, (clip.y / clip.w + 1.0) * 15.0);
-            assert!((pixel.0 - (x as f32 + 0.5)).abs() < 1e-4 && (pixel.1 - (y as f32 + 0.5)).abs() < 1e-4, "{pixel:?}");
+            assert!(
+                (pixel.0 - (x as f32 + 0.5)).abs() < 1e-4 && (pixel.1 - (y as f32 + 0.5)).abs() < 1e-4,
+                "{pixel:?}"
+            );
             assert!((clip.w - linear).abs() < 1e-5);
             assert!((clip.z / clip.w - (1.0 - near / linear)).abs() < 1e-6);
         }

@@ -265,7 +265,8 @@ fn alpha_masked_texels_are_discarded_in_the_fragment_shader() {
     for y in 0..height {
         for x in 0..width {
             let i = (y * width + x) as usize;
-            let ndc = Vec2::new((x as f32 + 0.5) / width as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / height as f32 * 2.0);
+            let ndc =
+                Vec2::new((x as f32 + 0.5) / width as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / height as f32 * 2.0);
             let dir = camera.ray_direction(ndc, view.aspect());
             // Where the ray meets the masked quad's plane, if inside the quad.
             let p = dir * (2.0 / -dir.z);
@@ -286,7 +287,10 @@ fn alpha_masked_texels_are_discarded_in_the_fragment_shader() {
                 assert!((depth - 2.0).abs() < 1e-4, "pixel ({x}, {y}), alpha {alpha}: the quad, not {depth}");
                 kept += 1;
             } else {
-                assert!((depth - 3.0).abs() < 1e-4, "pixel ({x}, {y}), alpha {alpha}: discarded, the wall behind, not {depth}");
+                assert!(
+                    (depth - 3.0).abs() < 1e-4,
+                    "pixel ({x}, {y}), alpha {alpha}: discarded, the wall behind, not {depth}"
+                );
                 discarded += 1;
             }
             assert!((cpu_depth - depth).abs() < 1e-4, "pixel ({x}, {y}): the CPU's alpha-aware ray agrees");
