@@ -91,7 +91,8 @@ pub struct Recorder<'a> {
 }
 
 impl Recorder<'_> {
-    /// Index of `resource` in the device's image array (what shaders get in push constants).
+    /// Index of `resource` in the device's image arrays (what shaders get in push constants):
+    /// `images[]`, or `uimages[]` for `R32u`, or `depth_images[]` for `Depth32f` (bindless.glsl).
     pub fn image(&self, resource: usize) -> Result<u32> {
         let resource = self.resolve(resource);
         if let Some(&slot) = self.image_slots.get(&resource) {
