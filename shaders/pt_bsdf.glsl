@@ -5,22 +5,12 @@
 #ifndef PT_BSDF_GLSL
 #define PT_BSDF_GLSL
 
+#include "pt_surface.glsl"
+
 const float PI = 3.14159265358979;
 const float TAU = 6.28318530717959;
 const float INV_PI = 0.318309886183791;
 const float MIN_ALPHA = 1e-3;
-
-struct SurfacePoint {
-    vec3 position;
-    vec3 geometric_normal;
-    vec3 normal;
-    bool front_face;
-    vec3 base_color;
-    float metallic;
-    float roughness;
-    float specular;
-    vec3 emission;
-};
 
 struct Bsdf {
     vec3 n;

@@ -12,7 +12,7 @@ use gpu_allocator::MemoryLocation;
 use crate::device::{Device, QueueKind};
 use crate::error::{BackendError, Result, VkContext};
 use crate::executor::FaultGate;
-use crate::memory::{Buffer, Image, SharedHostBuffer, color_range};
+use crate::memory::{Buffer, Image, SharedHostBuffer};
 use crate::pipeline::Bindless;
 use crate::plan::{ExecResource, ExecutionPlan, Format, ResourceKind};
 use crate::record::{TimerLabel, timer_labels};
@@ -133,6 +133,7 @@ pub(crate) fn create_device_state(
     let placeholders = [
         Image::new(device, "float placeholder", 1, 1, Format::Rgba32f)?,
         Image::new(device, "uint placeholder", 1, 1, Format::R32u)?,
+        Image::new(device, "depth placeholder", 1, 1, Format::Depth32f)?,
     ];
     initialise_images(device, fresh.iter().map(|r| &images[r]).chain(&placeholders))?;
     let image_slots: HashMap<usize, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
@@ -212,8 +213,8 @@ fn clear_buffers<'a>(device: &Device, buffers: impl Iterator<Item = &'a Buffer>)
     })
 }
 
-/// Moves new images to `GENERAL` (their layout for life) and clears them to zero, so that a
-/// read of a never-written texel is deterministic.
+/// Moves new images to `GENERAL` (their layout for life) and clears them, colour to zero and
+/// depth to 1.0 (far), so that a read of a never-written texel is deterministic.
 fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image>) -> Result<()> {
     let images: Vec<&Image> = images.collect();
     if images.is_empty() {
@@ -231,18 +232,18 @@ fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image
                     .old_layout(vk::ImageLayout::UNDEFINED)
                     .new_layout(vk::ImageLayout::GENERAL)
                     .image(img.raw)
-                    .subresource_range(color_range())
+                    .subresource_range(img.range())
             })
             .collect();
         raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().image_memory_barriers(&to_general));
         for img in &images {
-            raw.cmd_clear_color_image(
-                cb,
-                img.raw,
-                vk::ImageLayout::GENERAL,
-                &vk::ClearColorValue::default(),
-                &[color_range()],
-            );
+            if img.format.is_depth() {
+                let far = vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 };
+                raw.cmd_clear_depth_stencil_image(cb, img.raw, vk::ImageLayout::GENERAL, &far, &[img.range()]);
+            } else {
+                let zero = vk::ClearColorValue::default();
+                raw.cmd_clear_color_image(cb, img.raw, vk::ImageLayout::GENERAL, &zero, &[img.range()]);
+            }
         }
         crate::record::full_barrier(raw, cb);
     })

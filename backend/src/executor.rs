@@ -29,7 +29,7 @@ use crate::device_state::{DeviceState, Kept, Staging, create_device_state, creat
 use crate::error::{BackendError, Result, VkContext};
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
-use crate::memory::{Buffer, color_layers};
+use crate::memory::Buffer;
 use crate::plan::ExecutionPlan;
 use crate::readback::{FrameReadback, FrameTicket, Readback};
 use crate::record::{SegmentContext, SegmentPlace, record_segment};
@@ -290,10 +290,10 @@ impl Executor {
         let started = Instant::now();
         let plan = &self.plan;
         let parity_maps = [plan.parity_map(0), plan.parity_map(1)];
-        let addresses: Vec<HashMap<String, u64>> = self
+        let addresses: Vec<HashMap<String, (u64, u64)>> = self
             .globals
             .iter()
-            .map(|g| g.iter().map(|(name, b)| (name.clone(), b.device_address())).collect())
+            .map(|g| g.iter().map(|(name, b)| (name.clone(), (b.device_address(), b.size))).collect())
             .collect();
         for (d, state) in self.states.iter_mut().enumerate() {
             let buffer_addresses: HashMap<usize, u64> =
@@ -759,7 +759,7 @@ impl Executor {
             crate::record::full_barrier(raw, cb);
             if let Some(image) = image {
                 let region = vk::BufferImageCopy::default()
-                    .image_subresource(color_layers())
+                    .image_subresource(image.layers())
                     .image_extent(vk::Extent3D { width: image.width, height: image.height, depth: 1 });
                 raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, readback.raw, &[region]);
             } else if let Some(buffer) = buffer {

@@ -10,7 +10,8 @@
 //!   [`ExecutionPlan::from_schedule`] lowers its compiled schedule (allocations become resources, history
 //!   allocations two halves swapped by frame parity, accesses keep their slot names).
 //! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
-//!   bindless image array, raster draws ([`Draw`], dynamic rendering into plan images),
+//!   bindless image array, raster draws ([`Draw`], dynamic rendering into plan images, the
+//!   depth attachment a `Format::Depth32f` resource that compute kernels sample),
 //!   per-view buffers, global buffers ([`Executor::upload_buffer`]) and per-frame data
 //!   ([`Executor::set_frame_data`], or [`FrameData`] cut into one section per pass) by buffer
 //!   address, sampled RGBA8 textures ([`Executor::upload_textures`]) by index into the

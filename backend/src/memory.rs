@@ -13,7 +13,8 @@ use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::plan::Format;
 
-/// The Vulkan format of a texel format (all are storage-image formats every Vulkan device has).
+/// The Vulkan format of a texel format: storage-image formats every Vulkan device has, and
+/// `D32_SFLOAT`, the depth format every device can render to and sample.
 pub fn vk_format(format: Format) -> Result<vk::Format> {
     Ok(match format {
         Format::Rgba32f => vk::Format::R32G32B32A32_SFLOAT,
@@ -22,6 +23,7 @@ pub fn vk_format(format: Format) -> Result<vk::Format> {
         Format::R32f => vk::Format::R32_SFLOAT,
         Format::Rgba8 => vk::Format::R8G8B8A8_UNORM,
         Format::R32u => vk::Format::R32_UINT,
+        Format::Depth32f => vk::Format::D32_SFLOAT,
     })
 }
 
@@ -30,9 +32,11 @@ fn allocation_error(what: &str) -> impl FnOnce(gpu_allocator::AllocationError) -
     move |source| BackendError::Allocation { what, source }
 }
 
-/// A 2D storage image in device-local memory, kept in `GENERAL` layout for its whole life
-/// (storage writes, storage reads and transfers are all valid there, so no pass has to track
-/// layouts).
+/// A 2D image in device-local memory, kept in `GENERAL` layout for its whole life: colour
+/// formats are storage images (storage writes, storage reads and transfers are all valid in
+/// `GENERAL`, so no pass has to track layouts); [`Format::Depth32f`] is a depth attachment that
+/// kernels sample and transfers copy, which `GENERAL` allows as well (with dynamic rendering a
+/// depth attachment may be in `GENERAL`).
 pub struct Image {
     device: Arc<Device>,
     pub(crate) raw: vk::Image,
@@ -46,30 +50,30 @@ pub struct Image {
 impl Image {
     pub fn new(device: &Arc<Device>, name: &str, width: u32, height: u32, format: Format) -> Result<Self> {
         let vk_fmt = vk_format(format)?;
-        let mut usage =
-            vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
-        // Raster passes render into the same images where the format allows it.
         let features = unsafe {
             device.instance.raw.get_physical_device_format_properties(device.physical, vk_fmt).optimal_tiling_features
         };
+        let transfer = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
+        if format.is_depth() {
+            // Depth formats cannot be storage images: kernels read them through the sampled
+            // depth array of the descriptor set (pipeline.rs).
+            let needed = vk::FormatFeatureFlags::DEPTH_STENCIL_ATTACHMENT | vk::FormatFeatureFlags::SAMPLED_IMAGE;
+            if !features.contains(needed) {
+                return Err(BackendError::MissingCapability {
+                    device: device.info.index,
+                    name: device.info.name.clone(),
+                    what: format!("D32_SFLOAT as a sampled depth attachment (image `{name}`)"),
+                });
+            }
+            let usage = vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::SAMPLED | transfer;
+            return Self::create(device, name, width, height, vk_fmt, usage, format);
+        }
+        let mut usage = vk::ImageUsageFlags::STORAGE | transfer;
+        // Raster passes render into the same images where the format allows it.
         if features.contains(vk::FormatFeatureFlags::COLOR_ATTACHMENT) {
             usage |= vk::ImageUsageFlags::COLOR_ATTACHMENT;
         }
-        Self::create(device, name, width, height, vk_fmt, usage, vk::ImageAspectFlags::COLOR, format)
-    }
-
-    /// A D32_SFLOAT depth attachment (raster passes' depth test; not a plan resource).
-    pub(crate) fn new_depth(device: &Arc<Device>, width: u32, height: u32) -> Result<Self> {
-        Self::create(
-            device,
-            "depth",
-            width,
-            height,
-            vk::Format::D32_SFLOAT,
-            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
-            vk::ImageAspectFlags::DEPTH,
-            Format::R32f,
-        )
+        Self::create(device, name, width, height, vk_fmt, usage, format)
     }
 
     /// An RGBA8 image that shaders sample, filled by a transfer (the texture array).
@@ -81,12 +85,10 @@ impl Image {
             height,
             vk::Format::R8G8B8A8_UNORM,
             vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
-            vk::ImageAspectFlags::COLOR,
             Format::Rgba8,
         )
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn create(
         device: &Arc<Device>,
         name: &str,
@@ -94,7 +96,6 @@ impl Image {
         height: u32,
         vk_fmt: vk::Format,
         usage: vk::ImageUsageFlags,
-        aspect: vk::ImageAspectFlags,
         format: Format,
     ) -> Result<Self> {
         let info = vk::ImageCreateInfo::default()
@@ -151,7 +152,7 @@ impl Image {
             .image(raw)
             .view_type(vk::ImageViewType::TYPE_2D)
             .format(vk_fmt)
-            .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, ..color_range() });
+            .subresource_range(image.range());
         image.view = unsafe { device.raw.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
         Ok(image)
     }
@@ -159,6 +160,21 @@ impl Image {
     /// Bytes of one row of texels.
     pub fn row_bytes(&self) -> u64 {
         u64::from(self.width) * self.format.bytes_per_texel()
+    }
+
+    /// The aspect transfers, views and barriers of this image name.
+    pub(crate) fn aspect(&self) -> vk::ImageAspectFlags {
+        if self.format.is_depth() { vk::ImageAspectFlags::DEPTH } else { vk::ImageAspectFlags::COLOR }
+    }
+
+    /// The image's only layer, for copies (the depth aspect of a depth image).
+    pub(crate) fn layers(&self) -> vk::ImageSubresourceLayers {
+        vk::ImageSubresourceLayers { aspect_mask: self.aspect(), ..color_layers() }
+    }
+
+    /// The image's whole subresource, for barriers and views.
+    pub(crate) fn range(&self) -> vk::ImageSubresourceRange {
+        vk::ImageSubresourceRange { aspect_mask: self.aspect(), ..color_range() }
     }
 }
 

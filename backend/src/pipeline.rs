@@ -4,9 +4,14 @@
 //! Layout (set 0): binding 0 = every float storage image of the device (an array sized by the
 //! specialisation constant `IMAGE_COUNT`), binding 1 = the frame-constants uniform buffer of the
 //! frame-in-flight slot, binding 2 = the R32_UINT images at the same indices, binding 3 = the
-//! sampled textures ([`MAX_TEXTURES`] combined image samplers, global like uploaded buffers).
-//! Each image array holds a 1x1 placeholder where the other one holds the real image, and
-//! unused texture slots hold a 1x1 white texture, so every descriptor is valid. Kernels select
+//! sampled textures ([`MAX_TEXTURES`] combined image samplers, global like uploaded buffers),
+//! binding 4 = the depth images ([`Format::Depth32f`]) as sampled images at the same indices
+//! again (`depth_images[]`, read with `texelFetch`: depth formats cannot be storage images, and
+//! a raster pass's depth attachment is a graph resource a later compute pass reads). Each image
+//! array holds a 1x1 placeholder where another one holds the real image, and unused texture
+//! slots hold a 1x1 white texture, so every descriptor is valid. Every image, depth ones
+//! included, stays in `GENERAL`: valid for storage, sampling, transfers and (with dynamic
+//! rendering) colour and depth attachments, so passes never track layouts. Kernels select
 //! images and textures by index in push constants, so one descriptor set per slot serves every
 //! pass and recorded command buffers only need new descriptors when the textures change.
 
@@ -36,7 +41,8 @@ pub(crate) struct GraphicsKey {
     pub vertex: String,
     pub fragment: String,
     pub color_formats: Vec<vk::Format>,
-    pub depth_test: bool,
+    /// A `D32_SFLOAT` depth attachment, tested LESS and written.
+    pub depth: bool,
 }
 
 /// Size of the push-constant range: `PassParams` (32 bytes) by default; kernels that define
@@ -61,10 +67,8 @@ pub(crate) struct Bindless {
     shaders: ShaderLibrary,
     pipelines: HashMap<String, vk::Pipeline>,
     graphics_pipelines: HashMap<GraphicsKey, vk::Pipeline>,
-    /// Depth attachments of raster passes, one per size: passes on a device run one after the
-    /// other, so they can share it.
-    depth_images: HashMap<(u32, u32), Image>,
-    placeholders: [Image; 2],
+    /// Float, uint and depth 1x1 images shown where a binding's array has no image of its kind.
+    placeholders: [Image; 3],
     /// What unused texture slots show, and the sampler of every slot.
     placeholder_texture: Texture,
     sampler: vk::Sampler,
@@ -72,12 +76,12 @@ pub(crate) struct Bindless {
 
 impl Bindless {
     /// Creates the layout for `images` and `slots` descriptor sets, all written.
-    /// `placeholders` are a float and a uint 1x1 image in `GENERAL` layout; they live as long
+    /// `placeholders` are a float, a uint and a depth 1x1 image in `GENERAL` layout; they live as long
     /// as the descriptor sets that name them. Pipelines take their shaders from `shaders`.
     pub(crate) fn new(
         device: &Arc<Device>,
         images: &[&Image],
-        placeholders: [Image; 2],
+        placeholders: [Image; 3],
         slots: usize,
         shaders: ShaderLibrary,
     ) -> Result<Self> {
@@ -105,6 +109,11 @@ impl Bindless {
                 .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
                 .descriptor_count(MAX_TEXTURES)
                 .stage_flags(SHADER_STAGES),
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(4)
+                .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
+                .descriptor_count(image_count)
+                .stage_flags(SHADER_STAGES),
         ];
         let placeholder_texture =
             Texture::new(device, "placeholder texture", &TextureData { width: 1, height: 1, rgba8: &[255; 4] })?;
@@ -125,7 +134,6 @@ impl Bindless {
             shaders,
             pipelines: HashMap::new(),
             graphics_pipelines: HashMap::new(),
-            depth_images: HashMap::new(),
             placeholders,
             placeholder_texture,
             sampler,
@@ -147,6 +155,9 @@ impl Bindless {
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
                 .descriptor_count(MAX_TEXTURES * slots as u32),
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::SAMPLED_IMAGE)
+                .descriptor_count(image_count * slots as u32),
         ];
         this.pool = unsafe {
             raw.create_descriptor_pool(
@@ -203,19 +214,21 @@ impl Bindless {
     }
 
     fn write_set(&self, slot: usize, images: &[&Image]) {
-        let placeholders = [&self.placeholders[0], &self.placeholders[1]];
+        let [float_placeholder, uint_placeholder, depth_placeholder] = &self.placeholders;
         let info = |img: &Image| {
             vk::DescriptorImageInfo::default().image_view(img.view).image_layout(vk::ImageLayout::GENERAL)
         };
-        let is_uint = |img: &Image| img.format == Format::R32u;
-        let mut float_infos: Vec<vk::DescriptorImageInfo> =
-            images.iter().map(|&img| info(if is_uint(img) { placeholders[0] } else { img })).collect();
-        let mut uint_infos: Vec<vk::DescriptorImageInfo> =
-            images.iter().map(|&img| info(if is_uint(img) { img } else { placeholders[1] })).collect();
-        if images.is_empty() {
-            float_infos.push(info(placeholders[0]));
-            uint_infos.push(info(placeholders[1]));
-        }
+        // Each image goes into the one array of its kind; the other arrays show a placeholder
+        // at its index.
+        let array = |own: fn(&Image) -> bool, placeholder: &Image| -> Vec<vk::DescriptorImageInfo> {
+            if images.is_empty() {
+                return vec![info(placeholder)];
+            }
+            images.iter().map(|&img| info(if own(img) { img } else { placeholder })).collect()
+        };
+        let float_infos = array(|img| img.format != Format::R32u && !img.format.is_depth(), float_placeholder);
+        let uint_infos = array(|img| img.format == Format::R32u, uint_placeholder);
+        let depth_infos = array(|img| img.format.is_depth(), depth_placeholder);
         let buffer_infos = [vk::DescriptorBufferInfo::default()
             .buffer(self.frame_constants[slot].raw)
             .offset(0)
@@ -236,6 +249,11 @@ impl Bindless {
                 .dst_binding(2)
                 .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
                 .image_info(&uint_infos),
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.sets[slot])
+                .dst_binding(4)
+                .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
+                .image_info(&depth_infos),
         ];
         unsafe { self.device.raw.update_descriptor_sets(&writes, &[]) };
     }
@@ -284,15 +302,6 @@ impl Bindless {
 }
 
 impl Bindless {
-    /// The depth attachment for a `width`×`height` raster pass, created on first use.
-    pub(crate) fn depth_image(&mut self, width: u32, height: u32) -> Result<&Image> {
-        if !self.depth_images.contains_key(&(width, height)) {
-            let image = Image::new_depth(&self.device, width, height)?;
-            self.depth_images.insert((width, height), image);
-        }
-        Ok(&self.depth_images[&(width, height)])
-    }
-
     /// The graphics pipeline of `key`, created on first use: no vertex input (vertex shaders
     /// pull what they need from storage), triangle lists, no culling, dynamic viewport and
     /// scissor, depth test LESS with writes when asked, no blending.
@@ -341,8 +350,8 @@ impl Bindless {
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
         let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-            .depth_test_enable(key.depth_test)
-            .depth_write_enable(key.depth_test)
+            .depth_test_enable(key.depth)
+            .depth_write_enable(key.depth)
             .depth_compare_op(vk::CompareOp::LESS);
         let attachments: Vec<vk::PipelineColorBlendAttachmentState> = key
             .color_formats
@@ -353,7 +362,7 @@ impl Bindless {
         let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
         let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&key.color_formats);
-        if key.depth_test {
+        if key.depth {
             rendering = rendering.depth_attachment_format(vk::Format::D32_SFLOAT);
         }
         let info = [vk::GraphicsPipelineCreateInfo::default()

@@ -15,7 +15,7 @@ use ash::vk;
 
 use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
-use crate::memory::{Image, color_layers};
+use crate::memory::Image;
 use crate::pipeline::Bindless;
 use crate::plan::ExecutionPlan;
 use crate::recorder::Recorder;
@@ -91,7 +91,7 @@ pub(crate) struct SegmentContext<'a> {
     /// The staging buffer of this slot as seen by this device, and each copy's offset in it.
     pub staging: Option<(vk::Buffer, &'a [u64])>,
     /// Addresses of the global buffers on this device, and of the slot's per-frame data.
-    pub global_buffers: &'a HashMap<String, u64>,
+    pub global_buffers: &'a HashMap<String, (u64, u64)>,
     pub frame_data_address: u64,
     pub frame_sections: &'a [(String, u64)],
     /// Per-view buffer resources of this device and their addresses.
@@ -253,7 +253,7 @@ fn record_readback(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
         unsafe {
             if let Some(image) = ctx.images.get(&r) {
                 let region = vk::BufferImageCopy::default()
-                    .image_subresource(color_layers())
+                    .image_subresource(image.layers())
                     .image_extent(vk::Extent3D { width: resource.width, height: resource.height, depth: 1 });
                 raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, target, &[region]);
             } else if let Some(buffer) = ctx.buffers.get(&r) {
@@ -303,16 +303,20 @@ fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, d
         unsafe { raw.cmd_copy_buffer(cb, src, dst, &[region]) };
         return;
     }
-    let image = ctx.images[&local].raw;
+    let image = &ctx.images[&local];
     let region = vk::BufferImageCopy::default()
         .buffer_offset(staging_offset)
-        .image_subresource(color_layers())
+        .image_subresource(image.layers())
         .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
         .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 });
     unsafe {
         match direction {
-            CopyDirection::Out => raw.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::GENERAL, staging, &[region]),
-            CopyDirection::In => raw.cmd_copy_buffer_to_image(cb, staging, image, vk::ImageLayout::GENERAL, &[region]),
+            CopyDirection::Out => {
+                raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, staging, &[region])
+            }
+            CopyDirection::In => {
+                raw.cmd_copy_buffer_to_image(cb, staging, image.raw, vk::ImageLayout::GENERAL, &[region])
+            }
         }
     }
 }

@@ -9,10 +9,9 @@ use std::collections::HashMap;
 use ash::vk;
 
 use crate::error::{BackendError, Result};
-use crate::memory::{Buffer, color_range};
+use crate::memory::{Buffer, Image};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
-use crate::plan::Region;
-use crate::plan::{ExecPass, ExecResource, ExecutionPlan};
+use crate::plan::{ExecPass, ExecResource, ExecutionPlan, Format, Region};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
 const INDIRECT_ARGS_BYTES: u64 = 12;
@@ -44,23 +43,28 @@ impl PassParams {
 }
 
 /// A draw of a raster pass: the render targets are plan images, the row band limits the render
-/// area (the viewport stays the whole image, so a band renders exactly its rows of the frame).
+/// area and the scissor (the viewport stays the whole image, so a band renders exactly its rows
+/// of the frame). Vertex shaders pull their vertices from buffers by address (no vertex input).
 #[derive(Clone, Debug)]
 pub struct Draw<'a> {
     /// Vertex and fragment shaders (`name.vert`, `name.frag`), from `ExecOptions::shaders`,
     /// else built in (shaders/).
     pub vertex_shader: &'a str,
     pub fragment_shader: &'a str,
-    /// Colour targets (resources), in fragment output location order. All the same size.
+    /// Colour targets (resources), in fragment output location order.
     pub color_targets: &'a [usize],
-    /// Clear the targets (within the band) to zero first; otherwise keep their contents.
+    /// The depth attachment: a [`Format::Depth32f`] resource, tested LESS and written. Without
+    /// one the draw has no depth test.
+    pub depth_target: Option<usize>,
+    /// Clear the targets within the band first (colour to zero, depth to 1.0); otherwise load
+    /// their contents. Every target has the same size.
     pub clear: bool,
-    /// Depth test LESS against a per-device depth attachment cleared to 1.0 for this draw.
-    pub depth_test: bool,
     pub rows: Region,
     pub vertex_count: u32,
     pub instance_count: u32,
-    pub params: PassParams,
+    /// Push constants of both stages (at most 128 bytes, a multiple of 4): `PassParams::to_bytes`
+    /// or a kernel-defined block (`PARALLAX_CUSTOM_PUSH_CONSTANTS`).
+    pub push: &'a [u8],
 }
 
 /// Records the work of one pass instance into a device's command buffer.
@@ -74,7 +78,8 @@ pub struct Recorder<'a> {
     pub(crate) images: &'a HashMap<usize, crate::memory::Image>,
     /// Frame-in-flight slot being recorded (selects the descriptor set).
     pub(crate) slot: usize,
-    pub(crate) global_buffers: &'a HashMap<String, u64>,
+    /// Address and size in bytes of every global buffer on this device.
+    pub(crate) global_buffers: &'a HashMap<String, (u64, u64)>,
     pub(crate) frame_data_address: u64,
     /// Named sections of the per-frame data and their offsets from `frame_data_address`.
     pub(crate) frame_sections: &'a [(String, u64)],
@@ -86,7 +91,8 @@ pub struct Recorder<'a> {
 }
 
 impl Recorder<'_> {
-    /// Index of `resource` in the device's image array (what shaders get in push constants).
+    /// Index of `resource` in the device's image arrays (what shaders get in push constants):
+    /// `images[]`, or `uimages[]` for `R32u`, or `depth_images[]` for `Depth32f` (bindless.glsl).
     pub fn image(&self, resource: usize) -> Result<u32> {
         let resource = self.resolve(resource);
         if let Some(&slot) = self.image_slots.get(&resource) {
@@ -221,6 +227,17 @@ impl Recorder<'_> {
 
     /// GPU address of the global buffer `name` on this device (see `Executor::upload_buffer`).
     pub fn buffer_address(&self, name: &str) -> Result<u64> {
+        self.global_buffer(name).map(|(address, _)| address)
+    }
+
+    /// Size in bytes of the global buffer `name` (what was uploaded, at least 4): how many
+    /// elements a draw or dispatch covers. Uploading another size records again, so a count
+    /// derived from it stays right.
+    pub fn buffer_bytes(&self, name: &str) -> Result<u64> {
+        self.global_buffer(name).map(|(_, bytes)| bytes)
+    }
+
+    fn global_buffer(&self, name: &str) -> Result<(u64, u64)> {
         self.global_buffers
             .get(name)
             .copied()
@@ -253,76 +270,88 @@ impl Recorder<'_> {
         self.dispatch(shader, params, [params.width.div_ceil(8), rows.div_ceil(8), 1])
     }
 
-    /// Renders `draw` with dynamic rendering into its colour targets (images stay in `GENERAL`).
+    /// Renders `draw` with dynamic rendering into its colour and depth targets (images stay in
+    /// `GENERAL`; the barrier before every pass orders the attachments against earlier passes).
     pub fn draw(&mut self, draw: &Draw<'_>) -> Result<()> {
-        let Some(&first) = draw.color_targets.first() else {
-            return Err(BackendError::KernelMisuse {
-                kernel: draw.vertex_shader.to_string(),
-                instance: usize::MAX,
-                detail: "a draw needs at least one colour target".into(),
-            });
+        let misuse = |detail: String| BackendError::KernelMisuse {
+            kernel: draw.vertex_shader.to_string(),
+            instance: usize::MAX,
+            detail,
+        };
+        if draw.push.len() > PUSH_CONSTANT_BYTES as usize || draw.push.len() % 4 != 0 {
+            return Err(misuse(format!(
+                "{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)",
+                draw.push.len()
+            )));
+        }
+        let Some(&first) = draw.color_targets.first().or(draw.depth_target.as_ref()) else {
+            return Err(misuse("a draw needs a colour or a depth target".into()));
         };
         let (width, height) = (self.plan.resources[first].width, self.plan.resources[first].height);
+        let target = |resource: usize| -> Result<&Image> {
+            let desc = &self.plan.resources[resource];
+            if (desc.width, desc.height) != (width, height) {
+                return Err(misuse(format!(
+                    "target `{}` is {}x{}, the draw's first target {width}x{height}",
+                    desc.name, desc.width, desc.height
+                )));
+            }
+            self.images
+                .get(&self.resolve(resource))
+                .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
+        };
+        let load_op = if draw.clear { vk::AttachmentLoadOp::CLEAR } else { vk::AttachmentLoadOp::LOAD };
         let mut color_formats = Vec::with_capacity(draw.color_targets.len());
         let mut attachments = Vec::with_capacity(draw.color_targets.len());
-        for &target in draw.color_targets {
-            let image = self
-                .images
-                .get(&self.resolve(target))
-                .ok_or(BackendError::ResourceNotOnDevice { resource: target, device: self.device_index })?;
+        for &resource in draw.color_targets {
+            let image = target(resource)?;
+            if image.format.is_depth() {
+                return Err(misuse(format!(
+                    "colour target `{}` has a depth format",
+                    self.plan.resources[resource].name
+                )));
+            }
             color_formats.push(crate::memory::vk_format(image.format)?);
             attachments.push(
                 vk::RenderingAttachmentInfo::default()
                     .image_view(image.view)
                     .image_layout(vk::ImageLayout::GENERAL)
-                    .load_op(if draw.clear { vk::AttachmentLoadOp::CLEAR } else { vk::AttachmentLoadOp::LOAD })
+                    .load_op(load_op)
                     .store_op(vk::AttachmentStoreOp::STORE),
             );
         }
+        let depth_attachment = match draw.depth_target {
+            Some(resource) => {
+                let image = target(resource)?;
+                if image.format != Format::Depth32f {
+                    return Err(misuse(format!(
+                        "depth target `{}` is {:?}, not Depth32f",
+                        self.plan.resources[resource].name, image.format
+                    )));
+                }
+                Some(
+                    vk::RenderingAttachmentInfo::default()
+                        .image_view(image.view)
+                        .image_layout(vk::ImageLayout::GENERAL)
+                        .load_op(load_op)
+                        .store_op(vk::AttachmentStoreOp::STORE)
+                        .clear_value(vk::ClearValue {
+                            depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 },
+                        }),
+                )
+            }
+            None => None,
+        };
         let key = GraphicsKey {
             vertex: draw.vertex_shader.to_string(),
             fragment: draw.fragment_shader.to_string(),
             color_formats,
-            depth_test: draw.depth_test,
+            depth: depth_attachment.is_some(),
         };
         let pipeline = self.bindless.graphics_pipeline(&key)?;
         let area = vk::Rect2D {
             offset: vk::Offset2D { x: 0, y: draw.rows.y0 as i32 },
             extent: vk::Extent2D { width, height: draw.rows.len() },
-        };
-        let depth_attachment = if draw.depth_test {
-            let depth = self.bindless.depth_image(width, height)?;
-            // The depth contents are per draw: discard the previous ones and clear.
-            let to_general = [vk::ImageMemoryBarrier2::default()
-                .src_stage_mask(vk::PipelineStageFlags2::LATE_FRAGMENT_TESTS)
-                .src_access_mask(vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE)
-                .dst_stage_mask(vk::PipelineStageFlags2::EARLY_FRAGMENT_TESTS)
-                .dst_access_mask(
-                    vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_READ | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE,
-                )
-                .old_layout(vk::ImageLayout::UNDEFINED)
-                .new_layout(vk::ImageLayout::GENERAL)
-                .image(depth.raw)
-                .subresource_range(vk::ImageSubresourceRange {
-                    aspect_mask: vk::ImageAspectFlags::DEPTH,
-                    ..color_range()
-                })];
-            unsafe {
-                self.raw
-                    .cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().image_memory_barriers(&to_general))
-            };
-            Some(
-                vk::RenderingAttachmentInfo::default()
-                    .image_view(depth.view)
-                    .image_layout(vk::ImageLayout::GENERAL)
-                    .load_op(vk::AttachmentLoadOp::CLEAR)
-                    .store_op(vk::AttachmentStoreOp::DONT_CARE)
-                    .clear_value(vk::ClearValue {
-                        depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 },
-                    }),
-            )
-        } else {
-            None
         };
         let mut rendering =
             vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
@@ -344,14 +373,12 @@ impl Recorder<'_> {
             );
             self.raw.cmd_set_viewport(self.cb, 0, &[viewport]);
             self.raw.cmd_set_scissor(self.cb, 0, &[area]);
-            self.raw.cmd_push_constants(
-                self.cb,
-                self.bindless.pipeline_layout,
-                SHADER_STAGES,
-                0,
-                &draw.params.to_bytes(),
-            );
-            self.raw.cmd_draw(self.cb, draw.vertex_count, draw.instance_count, 0, 0);
+            if !draw.push.is_empty() {
+                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, draw.push);
+            }
+            if draw.vertex_count > 0 && draw.instance_count > 0 {
+                self.raw.cmd_draw(self.cb, draw.vertex_count, draw.instance_count, 0, 0);
+            }
             self.raw.cmd_end_rendering(self.cb);
         }
         Ok(())

@@ -63,10 +63,13 @@ impl Default for Segment {
 }
 
 impl Item {
-    /// Queue of the item when copies have a queue of their own.
-    fn queue(self, separate_copy_queue: bool) -> QueueKind {
+    /// Queue of the item when copies have a queue of their own. A copy into a depth image stays
+    /// on the main queue: a queue without graphics may not write the depth aspect
+    /// (VUID-vkCmdCopyBufferToImage-commandBuffer-07737).
+    fn queue(self, plan: &ExecutionPlan, separate_copy_queue: bool) -> QueueKind {
         match self {
             Item::Pass(_) => QueueKind::Main,
+            Item::CopyIn(chunk) if plan.resources[plan.copies[chunk.copy].dst].format.is_depth() => QueueKind::Main,
             Item::CopyOut(_) | Item::CopyIn(_) if separate_copy_queue => QueueKind::Copy,
             Item::CopyOut(_) | Item::CopyIn(_) => QueueKind::Main,
         }
@@ -150,7 +153,7 @@ pub fn segment_device(
     for segment in segments {
         let mut pieces: Vec<Segment> = Vec::new();
         for item in segment.items {
-            let queue = item.queue(true);
+            let queue = item.queue(plan, true);
             match pieces.last_mut() {
                 Some(piece) if piece.queue == queue => piece.items.push(item),
                 _ => pieces.push(Segment { queue, items: vec![item], ..Segment::default() }),
@@ -261,6 +264,21 @@ mod tests {
         assert_eq!(consumer.len(), n + 1, "the copy-ins, then the receiving pass");
         assert!(consumer[..n].iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
         assert_eq!(consumer[n].queue, QueueKind::Main);
+    }
+
+    #[test]
+    fn copies_into_depth_images_stay_on_the_main_queue() {
+        let mut plan = copy_plan(64, 64).unwrap();
+        for resource in &mut plan.resources {
+            resource.format = crate::plan::Format::Depth32f;
+        }
+        let chunks = chunks_of_copies(&plan, 64 * 64);
+        let producer = segment_device(&plan, 0, &chunks, None, true);
+        assert!(producer[1..].iter().all(|s| s.queue == QueueKind::Copy), "copies out of depth may use the copy queue");
+        let consumer = segment_device(&plan, 1, &chunks, None, true);
+        let copy_ins: Vec<&Segment> = consumer.iter().filter(|s| !s.waits.is_empty()).collect();
+        assert!(!copy_ins.is_empty());
+        assert!(copy_ins.iter().all(|s| s.queue == QueueKind::Main), "a transfer-only queue may not write depth");
     }
 
     #[test]

@@ -225,36 +225,46 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     ctx.check_validation().unwrap();
 }
 
-/// One raster pass instance per device, each over a row band of the same image; bands gathered
-/// on device 0.
+/// One raster pass instance per device, each over a row band of the same colour image and
+/// depth resource; bands of both gathered on device 0.
 fn raster_plan(devices: usize, size: u32) -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(6, size, size));
     let mut gbuffer = graph.image("gbuffer", Format::Rgba32f);
-    graph.pass("raster_demo", Role::All).write(&mut gbuffer).kernel(Arc::new(RasterDemoKernel)).record();
+    let mut depth = graph.image("depth", Format::Depth32f);
+    graph
+        .pass("raster_demo", Role::All)
+        .write(&mut gbuffer)
+        .write(&mut depth)
+        .kernel(Arc::new(RasterDemoKernel))
+        .record();
     graph.export(&gbuffer);
+    graph.export(&depth);
     lower(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 })
 }
 
 #[test]
-fn raster_passes_render_row_bands_with_depth_test_on_any_device_count() {
-    use parallax_testkit::kernels::reference_raster;
+fn raster_passes_render_row_bands_into_a_depth_resource_on_any_device_count() {
+    use parallax_testkit::kernels::{RASTER_FAR_DEPTH, RASTER_NEAR_DEPTH, reference_raster};
     let size = 32;
     let expected: Vec<f32> =
         (0..size).flat_map(|y| (0..size).flat_map(move |x| reference_raster(x, y, 5, size))).collect();
+    let expected_depth: Vec<f32> = (0..size)
+        .flat_map(|_| (0..size).map(move |x| if x < size / 2 { RASTER_NEAR_DEPTH } else { RASTER_FAR_DEPTH }))
+        .collect();
     for devices in [1, 2, 3] {
         let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
         let plan = raster_plan(devices, size);
         let (device, resource) = plan.final_output("gbuffer", 5).unwrap();
+        let (depth_device, depth_resource) = plan.final_output("depth", 5).unwrap();
+        assert_eq!((device, depth_device), (0, 0));
         let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
         exec.run_frame().unwrap();
         exec.run_frame().unwrap();
-        let values: Vec<f32> = exec
-            .read_image(device, resource)
-            .unwrap()
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
+        let values = floats(&exec.read_image(device, resource).unwrap());
         assert_eq!(values, expected, "{devices} device(s)");
+        // The depth attachment is a graph resource: its bands crossed devices as depth copies.
+        let depth = floats(&exec.read_image(depth_device, depth_resource).unwrap());
+        assert_eq!(depth, expected_depth, "{devices} device(s)");
         drop(exec);
         ctx.check_validation().unwrap();
     }

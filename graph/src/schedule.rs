@@ -15,6 +15,9 @@ pub enum Format {
     R32f,
     R32u,
     Rgba8,
+    /// 32-bit float depth: what a raster pass's depth attachment holds (1.0 = far). Kernels
+    /// read it as a sampled image, never as a storage image (see the backend's pipeline.rs).
+    Depth32f,
 }
 
 impl Format {
@@ -22,8 +25,13 @@ impl Format {
         match self {
             Format::Rgba32f => 16,
             Format::Rgba16f | Format::Rg32f => 8,
-            Format::R32f | Format::R32u | Format::Rgba8 => 4,
+            Format::R32f | Format::R32u | Format::Rgba8 | Format::Depth32f => 4,
         }
+    }
+
+    /// Whether the format is a depth format (a depth attachment, not a colour or storage image).
+    pub fn is_depth(self) -> bool {
+        self == Format::Depth32f
     }
 }
 

@@ -52,6 +52,9 @@ pub enum PassError {
     /// The GPU compacted another number of holes than its mask holds: a bug in compaction.
     #[error("compaction listed {compacted} holes but the mask has {expected}")]
     HoleCount { compacted: u64, expected: u64 },
+    /// The raster camera's near plane must be a positive distance.
+    #[error("raster near plane {near} must be a finite distance > 0 (scene units)")]
+    NearPlane { near: f32 },
 
     /// More rays than the raycaster was created for.
     #[error("{rays} rays exceed the raycaster's capacity of {capacity}")]

@@ -7,6 +7,10 @@
 //!   radiance and first-hit data into the view's images.
 //! * [`RaycastKernel`] / [`Raycaster`] (`raycast`): rays through the CWBVH, for the GPU-vs-CPU
 //!   traversal check and the rays/s benchmark ([`bench`](mod@bench)).
+//! * [`GbufferRasterKernel`] (`gbuffer_raster`): shaders/gbuffer_raster.{vert,frag}, the
+//!   G-buffer rasterised from the uploaded scene (vertices pulled by address) into the path
+//!   tracer's first-hit layers and a `Depth32f` depth resource ([`declare_gbuffer_raster`],
+//!   camera from the frame block: [`raster_camera`]).
 //! * [`pixel_list`]: the list format of `path_trace`'s list mode (a header that is the indirect
 //!   arguments, then the pixels) and a test list producer.
 //! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
@@ -39,6 +43,7 @@ pub mod holes;
 pub mod path_trace;
 pub mod pipeline;
 pub mod pixel_list;
+pub mod raster_gbuffer;
 pub mod raycast;
 pub mod renderer;
 pub mod reproject;
@@ -57,6 +62,10 @@ pub use path_trace::{
 };
 pub use pixel_list::{
     LIST_HEADER_WORDS, PIXEL_LIST, StridedPixelListKernel, list_groups, pixel_list_bytes, strided_pixels,
+};
+pub use raster_gbuffer::{
+    GBUFFER_RASTER, GbufferHandles, GbufferRasterKernel, GbufferRasterPush, RASTER_DEPTH, RASTER_OUTPUTS,
+    declare_gbuffer_raster, raster_camera,
 };
 pub use raycast::{
     HitOut, RAYCAST, RAYCAST_WORK, RayIn, RaySchedule, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu,

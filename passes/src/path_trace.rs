@@ -77,7 +77,7 @@ impl PassKernel for PathTraceKernel {
         for (slot, write) in images.iter_mut().zip(outputs) {
             let Some(write) = write else { continue };
             let target = rec.resource(write.resource);
-            if target.kind != ResourceKind::Image || target.format == Format::R32u {
+            if target.kind != ResourceKind::Image || target.format == Format::R32u || target.format.is_depth() {
                 return Err(misuse(index, format!("its write `{}` must be a float image", target.name)));
             }
             *slot = rec.image(write.resource)?;

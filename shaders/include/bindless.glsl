@@ -22,6 +22,12 @@ layout(set = 0, binding = 2, r32ui) uniform uimage2D uimages[IMAGE_COUNT];
 #define PARALLAX_MAX_TEXTURES 1024
 layout(set = 0, binding = 3) uniform sampler2D textures[PARALLAX_MAX_TEXTURES];
 
+// Depth images (Format::Depth32f: raster passes' depth attachments) at the same indices again,
+// as sampled images: depth formats cannot be storage images. Read them with
+// texelFetch(depth_images[i], pixel, 0).r (1.0 = far); other slots hold a 1x1 placeholder.
+#extension GL_EXT_samplerless_texture_functions : require
+layout(set = 0, binding = 4) uniform texture2D depth_images[IMAGE_COUNT];
+
 // Per frame-in-flight constants, written by the host before each submission, so that recorded
 // command buffers stay valid from frame to frame.
 layout(set = 0, binding = 1, std140) uniform FrameConstants {

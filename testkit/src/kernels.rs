@@ -49,34 +49,45 @@ impl PassKernel for ShiftBlendKernel {
     }
 }
 
-/// Raster demo (`raster_demo.{vert,frag}`): renders into `writes[0]` over the
+/// Raster demo (this crate's `raster_demo.{vert,frag}`): renders into slot `gbuffer` over the
 /// instance's rows a near quad (left half, constant [`RASTER_NEAR_COLOR`]) drawn before a far
-/// full-image quad (the fill pattern), with the depth test on.
+/// full-image quad (the fill pattern), with the depth test against slot `depth` (a
+/// `Depth32f` resource, cleared first; afterwards it holds [`RASTER_NEAR_DEPTH`] on the left
+/// half and [`RASTER_FAR_DEPTH`] on the right).
 pub struct RasterDemoKernel;
 
 /// Colour of the near quad of [`RasterDemoKernel`].
 pub const RASTER_NEAR_COLOR: [f32; 4] = [0.25, 0.5, 0.75, 1.0];
+/// Depths of the near and far quads of [`RasterDemoKernel`].
+pub const RASTER_NEAR_DEPTH: f32 = 0.25;
+pub const RASTER_FAR_DEPTH: f32 = 0.75;
 
 impl PassKernel for RasterDemoKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "raster_demo", 0, 1)?;
+        let (Some(gbuffer), Some(depth)) = (pass.output("gbuffer"), pass.output("depth")) else {
+            return Err(BackendError::KernelMisuse {
+                kernel: "raster_demo".into(),
+                instance: index,
+                detail: "writes slots `gbuffer` (a colour image) and `depth` (Depth32f)".into(),
+            });
+        };
         let params = PassParams {
             view: pass.view,
             y0: pass.rows.y0,
             y1: pass.rows.y1,
-            width: rec.resource(dst).width,
+            width: rec.resource(gbuffer.resource).width,
             ..Default::default()
         };
         rec.draw(&Draw {
             vertex_shader: "raster_demo.vert",
             fragment_shader: "raster_demo.frag",
-            color_targets: &[dst],
+            color_targets: &[gbuffer.resource],
+            depth_target: Some(depth.resource),
             clear: true,
-            depth_test: true,
             rows: pass.rows,
             vertex_count: 6,
             instance_count: 2,
-            params,
+            push: &params.to_bytes(),
         })
     }
 }
