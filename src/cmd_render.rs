@@ -35,6 +35,7 @@ use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 
 /// Which pipeline renders the views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum PipelineArg {
     /// The paper's: sources path traced, targets reprojected and their holes filled.
     Reproject,

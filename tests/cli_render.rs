@@ -1,6 +1,7 @@
-//! `parallax render` end to end on lavapipe: a small light field of the default scene over 1 and
-//! 2 logical devices under every scheme gives bit-identical views (the random numbers depend on
-//! pixel, view, frame, sample and bounce, never on the device), with validation on.
+//! `parallax render` end to end on lavapipe with validation on: the reconstruction pipeline
+//! writes every output and the measures of render.json; path tracing every view gives the same
+//! bits on any number of devices under every scheme (the random numbers depend on pixel, view,
+//! frame, sample and bounce, never on the device).
 
 mod common;
 
@@ -9,29 +10,31 @@ use common::scratch;
 use std::path::Path;
 use std::process::Command;
 
-fn render(out: &Path, devices: &str, scheme: &str) {
+fn render(out: &Path, args: &[&str]) {
     let status = Command::new(env!("CARGO_BIN_EXE_parallax"))
         .env("PARALLAX_VALIDATION", "1")
         .args(["render", "--lf", "4x2", "--resolution", "16x12", "--spacing", "0.05", "--spp", "2"])
-        .args(["--fake-devices", devices, "--scheme", scheme, "--out-dir"])
+        .args(args)
+        .arg("--out-dir")
         .arg(out)
         .output()
         .unwrap();
-    assert!(status.status.success(), "{devices} devices, {scheme}: {}", String::from_utf8_lossy(&status.stderr));
+    assert!(status.status.success(), "{args:?}: {}", String::from_utf8_lossy(&status.stderr));
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
 #[test]
-fn views_are_identical_on_any_number_of_devices_and_schemes() {
+fn path_traced_views_are_identical_on_any_number_of_devices_and_schemes() {
     let dir = scratch("render", "devices");
     let reference = dir.join("one");
-    render(&reference, "1", "multi-source");
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(reference.join("render.json")).unwrap()).unwrap();
-    assert_eq!(json["plan"]["views"], 8);
-    assert!(reference.join("lightfield.png").is_file());
+    render(&reference, &["--pipeline", "path-trace", "--fake-devices", "1", "--frames", "2"]);
+    assert_eq!(json(&reference.join("render.json"))["plan"]["views"], 8);
     for (devices, scheme) in [("2", "multi-source"), ("2", "fine-all"), ("2", "fine-sources")] {
         let other = dir.join(format!("{devices}-{scheme}"));
-        render(&other, devices, scheme);
+        render(&other, &["--pipeline", "path-trace", "--fake-devices", devices, "--scheme", scheme, "--frames", "2"]);
         for v in 0..8 {
             let name = format!("view_{v:03}.exr");
             let a = std::fs::read(reference.join(&name)).unwrap();
@@ -39,4 +42,36 @@ fn views_are_identical_on_any_number_of_devices_and_schemes() {
             assert!(a == b, "{name} differs between 1 device and {devices} devices under {scheme}");
         }
     }
+}
+
+#[test]
+fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
+    let dir = scratch("render", "reproject");
+    let out = dir.join("lf");
+    render(&out, &["--fake-devices", "2", "--frames", "3", "--warmup", "1", "--quilt", "--layers"]);
+    let report = json(&out.join("render.json"));
+    assert_eq!(report["pipeline"], "reproject");
+    assert_eq!(report["frames"], 3);
+    let stages: Vec<&str> =
+        report["timing"]["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    for stage in
+        ["gbuffer", "path_trace", "reproject", "compact_holes", "hole_fill", "svgf_temporal", "tonemap", "transfer"]
+    {
+        assert!(stages.contains(&stage), "render.json times {stage}: {stages:?}");
+    }
+    assert_eq!(report["timing"]["frames"], 3, "warm-up frames are not measured");
+    assert_eq!(report["timing"]["busy_fraction"].as_array().unwrap().len(), 2);
+    let missing = &report["missing_pixels"];
+    assert_eq!(missing["per_view"].as_array().unwrap().len(), 6, "8 views, 2 sources");
+    let overall = missing["overall"].as_f64().unwrap();
+    assert!(overall > 0.0 && overall < 1.0, "{overall}");
+    assert!(out.join("lightfield.png").is_file());
+    let quilt = image::open(out.join("lightfield_qs3x3a1.3333.png")).unwrap();
+    assert_eq!((quilt.width(), quilt.height()), (3 * 16, 3 * 12));
+    // --layers: the hole mask is a channel of every target's EXR.
+    let target = missing["per_view"][0][0].as_u64().unwrap();
+    let exr = out.join(format!("view_{target:03}.exr"));
+    let (_, _, channels) = parallax_scene::output::read_exr_channels(&exr, &["R", "holes.Y", "depth.Z"]).unwrap();
+    assert!(channels[1].iter().all(|&h| h == 0.0 || h == 1.0));
+    assert!(channels[0].iter().all(|c| c.is_finite()));
 }

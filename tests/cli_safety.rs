@@ -121,8 +121,13 @@ fn nonsense_values_are_refused_or_warned_about() {
     );
     refused(&dir, &["trace", "--cpu", "--sun", "0,1,0,1e38"], 2, &["--sun", "irradiance 1e38 is outside 0..=1e6"]);
     refused(&dir, &["trace", "--cpu", "--out", "a.png"], 1, &["--out a.png", "must end in .exr"]);
-    refused(&dir, &["run", "--json", "a.json", "--trace", "a.json"], 1, &["--trace and --json both write a.json"]);
-    refused(&dir, &["run", "--frames", "0"], 2, &["--frames", "outside 1..=10000"]);
+    refused(
+        &dir,
+        &["bench-copy", "--fake-devices", "2", "--json", "a.json", "--trace", "a.json"],
+        1,
+        &["--trace and --json both write a.json"],
+    );
+    refused(&dir, &["render", "--frames", "0"], 2, &["--frames", "0 is not in 1..=100000"]);
     refused(
         &dir,
         &["plan", "--lf", "4x1", "--gpus", "2", "--scheme", "fine-all", "--assign", "round-robin"],

@@ -41,15 +41,18 @@ impl Point {
     }
 }
 
-/// The points of one render.json (see `parallax render`): label "<scheme>, N device(s)".
+/// The point of one render.json (see `parallax render`): label "<pipeline>, <scheme>, N
+/// device(s)", series the pipeline (reproject or path-trace), frame time the mean GPU span of
+/// the measured frames.
 pub fn point_of_render_json(json: &serde_json::Value) -> Option<Point> {
     let plan = json.get("plan")?;
     let scheme = plan.get("scheme")?.as_str()?.to_string();
     let devices = plan.get("devices")?.as_u64()? as u32;
+    let pipeline = json.get("pipeline").and_then(|p| p.as_str()).unwrap_or("path-trace").to_string();
     Some(Point {
-        label: format!("{scheme}, {devices} device(s)"),
-        series: Some(scheme),
-        frame_ms: json.get("timing")?.get("gpu_span_ms")?.as_f64(),
+        label: format!("{pipeline}, {scheme}, {devices} device(s)"),
+        series: Some(pipeline),
+        frame_ms: json.get("timing")?.get("frame_gpu")?.get("mean_ms")?.as_f64(),
         devices: Some(devices),
         views: plan.get("views")?.as_u64().map(|v| v as u32),
         ..Default::default()
