@@ -174,8 +174,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
     warn_if_unlit(&scene);
     let camera = args.camera.unwrap_or_else(|| scene.default_camera());
     let centre = scene.bounds().center();
+    // The scene's own camera animation, spread over the frames; else a dolly (an explicit
+    // --camera is a rig the user placed: it dollies too).
+    let animation = if args.camera.is_none() { scene.camera_animation.clone() } else { None };
+    let camera_at = |f: u32| match &animation {
+        Some(a) => a.camera_at(a.duration * f as f32 / total_frames.saturating_sub(1).max(1) as f32),
+        None => dolly(&camera, &scene, f, total_frames),
+    };
     let lf_of = |f: u32| -> Result<LightField> {
-        let rig = rig_of(&dolly(&camera, &scene, f, total_frames), centre, args.focus);
+        let rig = rig_of(&camera_at(f), centre, args.focus);
         Ok(LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), rig)?)
     };
     let lf = lf_of(0)?;
