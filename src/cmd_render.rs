@@ -33,6 +33,10 @@ use crate::options::{
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 
+/// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
+/// screen shows whole.
+const SHEET_COLUMNS: u32 = 10;
+
 /// Which pipeline renders the views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -268,7 +272,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let displays: Vec<Vec<u8>> = (0..lf.len() as u32).map(|v| renderer.read("display", v)).collect::<Result<_, _>>()?;
     let images: Vec<DisplayImage<'_>> =
         displays.iter().map(|d| DisplayImage { width: lf.width, height: lf.height, rgba8: d }).collect();
-    staged.push(stage(&sheet, |tmp| write_contact_sheet(tmp, &images, lf.cols))?);
+    staged.push(stage(&sheet, |tmp| write_contact_sheet(tmp, &images, lf.cols.min(SHEET_COLUMNS)))?);
     if args.quilt {
         let quilt = args.out_dir.join(quilt_file_name("lightfield", lf.len() as u32, lf.width, lf.height));
         staged.push(stage(&quilt, |tmp| write_quilt(tmp, &images))?);
