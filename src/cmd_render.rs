@@ -11,7 +11,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use parallax_backend::{Context as VkContext, ContextDesc, ExecutionPlan, KernelGraph, chrome_trace};
+use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecutionPlan, KernelGraph, chrome_trace};
 use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary};
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::pipeline::{PipelineConfig, PipelineKind, declare_pipeline};
@@ -36,6 +36,14 @@ use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 /// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
 /// screen shows whole.
 const SHEET_COLUMNS: u32 = 10;
+
+/// `--barriers`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BarrierArg {
+    EveryOp,
+    Tracked,
+}
 
 /// Which pipeline renders the views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -128,6 +136,11 @@ pub struct RenderArgs {
     /// Also write a Looking Glass quilt (lightfield_qs{cols}x{rows}a{aspect}.png).
     #[arg(long)]
     quilt: bool,
+    /// Barriers between GPU ops: `every-op`, or `tracked` (only where declared accesses
+    /// conflict, so the instances of one pass for many views overlap; synchronisation
+    /// validation reports false hazards with it).
+    #[arg(long, value_enum, default_value_t = BarrierArg::EveryOp)]
+    barriers: BarrierArg,
     /// Write a Chrome trace-event JSON of the measured frames (open in Perfetto or
     /// chrome://tracing; `-` = stdout).
     #[arg(long, value_parser = parse_sink)]
@@ -220,7 +233,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     tracing::info!("{}", context.to_string().trim_end());
     work.check_devices(&context)?;
     let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule)?;
-    let mut renderer = LightFieldRenderer::new(&context, exec_plan, lf.len() as u32, &GpuScene::new(&scene, &bvh))?;
+    let barriers = match args.barriers {
+        BarrierArg::EveryOp => Barriers::EveryOp,
+        BarrierArg::Tracked => Barriers::Tracked,
+    };
+    let mut renderer = LightFieldRenderer::with_barriers(
+        &context,
+        exec_plan,
+        lf.len() as u32,
+        &GpuScene::new(&scene, &bvh),
+        barriers,
+    )?;
 
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
@@ -309,6 +332,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                     "width": lf.width, "height": lf.height, "spacing_m": args.spacing, "focus_m": lf.rig.focus_distance },
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
+        "barriers": args.barriers,
         "spp": args.spp, "max_depth": args.max_depth, "frames": args.frames, "warmup": args.warmup,
         "devices": device_names,
         "plan": &summary,

@@ -79,6 +79,21 @@ pub struct ExecOptions {
     /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
     /// the built-in shaders of `shaders/`.
     pub shaders: ShaderLibrary,
+    /// Where the recorded command buffers put barriers between ops.
+    pub barriers: Barriers,
+}
+
+/// Where barriers go between the ops of a device (record.rs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Barriers {
+    /// Before every op: always right, and what synchronisation validation can check.
+    #[default]
+    EveryOp,
+    /// Before an op only where its declared accesses conflict with an op since the last
+    /// barrier, so instances of one pass for many views overlap on the GPU. Synchronisation
+    /// validation reports false hazards here: it takes every dispatch to touch the whole
+    /// bindless image array.
+    Tracked,
 }
 
 impl Default for ExecOptions {
@@ -91,6 +106,7 @@ impl Default for ExecOptions {
             read_back_exports: false,
             fault: None,
             shaders: ShaderLibrary::default(),
+            barriers: Barriers::EveryOp,
         }
     }
 }
@@ -306,6 +322,7 @@ impl Executor {
                 let staging =
                     self.staging.as_ref().and_then(|s| s.buffers[slot].buffer_on(d).map(|b| (b, s.offsets.as_slice())));
                 let mut ctx = SegmentContext {
+                    barriers: self.options.barriers,
                     raw: &state.device.raw,
                     device_index: d,
                     plan,

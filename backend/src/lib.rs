@@ -102,7 +102,7 @@ pub mod reflect;
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
-pub use executor::{ExecOptions, Executor, FaultInjection};
+pub use executor::{Barriers, ExecOptions, Executor, FaultInjection};
 pub use frame_block::{FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameHeader, GpuCamera, ViewCameras};
 pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use instance::{Instance, Validation, validation_from_env};

@@ -1,15 +1,14 @@
 //! Recording one segment of a device program into a command buffer: a barrier before every
 //! item, a timestamp pair around it, the kernel's commands or the copy.
 //!
-//! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers. One global
-//! barrier per item is coarse but always right; finer barriers (only the resources an item
-//! touches) are an optimisation for later, measured first.
-//!
-//! A device's first segment of a frame starts by resetting the buffers the plan resets every
-//! frame; device 0's last segment ends by copying the exported resources into the slot's
-//! readback buffers (the frame loop, `Executor::submit_frame`).
+//! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers: a global
+//! barrier before every item (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
+//! item of a segment and before a later one only when it reads what an earlier item since the
+//! last barrier wrote, or writes what one read or wrote (or a kernel says it touches undeclared
+//! memory), so the instances of one pass for many views, which the graph orders one after the
+//! other, run side by side.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use ash::vk;
 
@@ -80,6 +79,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment]) -> Vec<Ti
 
 /// Everything a segment recording needs from the device state.
 pub(crate) struct SegmentContext<'a> {
+    pub barriers: crate::executor::Barriers,
     pub raw: &'a ash::Device,
     pub device_index: usize,
     pub plan: &'a ExecutionPlan,
@@ -165,9 +165,19 @@ fn record_items(
         }
     }
     let mut bound = None;
+    let mut hazards = Hazards::default();
     for (i, item) in segment.items.iter().enumerate() {
         let query = (first_timer + i as u32) * 2;
-        full_barrier(raw, cb);
+        let (reads, writes, opaque) = touches(ctx, item);
+        // The first item waits for everything submitted before (other segments, the previous
+        // frame); a later one only for the items of this segment whose results it touches, so
+        // the instances of one pass for many views run side by side.
+        let tracked = ctx.barriers == crate::executor::Barriers::Tracked;
+        if i == 0 || !tracked || hazards.conflicts(&reads, &writes, opaque) {
+            full_barrier(raw, cb);
+            hazards = Hazards::default();
+        }
+        hazards.add(reads, writes, opaque);
         unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
         match *item {
             Item::Pass(p) => {
@@ -268,6 +278,46 @@ fn record_readback(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
         .dst_stage_mask(vk::PipelineStageFlags2::HOST)
         .dst_access_mask(vk::AccessFlags2::HOST_READ)];
     unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
+}
+
+/// What the items since the last barrier read and wrote (resources as this slot's parity
+/// resolves them), and whether one of them touched memory its pass does not declare.
+#[derive(Default)]
+struct Hazards {
+    read: HashSet<usize>,
+    written: HashSet<usize>,
+    opaque: bool,
+}
+
+impl Hazards {
+    /// Read-after-write, write-after-write or write-after-read on a resource, or undeclared
+    /// memory on either side.
+    fn conflicts(&self, reads: &[usize], writes: &[usize], opaque: bool) -> bool {
+        opaque
+            || self.opaque
+            || reads.iter().any(|r| self.written.contains(r))
+            || writes.iter().any(|w| self.written.contains(w) || self.read.contains(w))
+    }
+
+    fn add(&mut self, reads: Vec<usize>, writes: Vec<usize>, opaque: bool) {
+        self.read.extend(reads);
+        self.written.extend(writes);
+        self.opaque |= opaque;
+    }
+}
+
+/// The resources `item` reads and writes, and whether its kernel touches undeclared memory.
+fn touches(ctx: &SegmentContext<'_>, item: &Item) -> (Vec<usize>, Vec<usize>, bool) {
+    match *item {
+        Item::Pass(p) => {
+            let pass = &ctx.plan.passes[p];
+            let reads = pass.reads.iter().chain(&pass.history_reads).map(|a| ctx.resolve(a.resource)).collect();
+            let writes = pass.writes.iter().map(|a| ctx.resolve(a.resource)).collect();
+            (reads, writes, ctx.plan.kernels.0[pass.kernel].touches_undeclared_memory())
+        }
+        Item::CopyOut(chunk) => (vec![ctx.resolve(ctx.plan.copies[chunk.copy].resource)], vec![], false),
+        Item::CopyIn(chunk) => (vec![], vec![ctx.resolve(ctx.plan.copies[chunk.copy].dst)], false),
+    }
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]

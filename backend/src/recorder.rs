@@ -400,4 +400,11 @@ impl Recorder<'_> {
 pub trait PassKernel: Send + Sync {
     /// Records instance `index` of the plan (`pass` = `plan.passes[index]`).
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()>;
+
+    /// Whether the kernel writes memory its pass does not declare (a global buffer, say). The
+    /// executor orders an op after earlier ones only where their declared accesses conflict;
+    /// such a kernel is ordered against everything before and after it.
+    fn touches_undeclared_memory(&self) -> bool {
+        false
+    }
 }

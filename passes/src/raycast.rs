@@ -105,6 +105,12 @@ pub struct RaycastKernel {
 }
 
 impl PassKernel for RaycastKernel {
+    /// The persistent schedule's work queue is a global buffer every instance resets and
+    /// consumes.
+    fn touches_undeclared_memory(&self) -> bool {
+        true
+    }
+
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let hits = match pass.writes.as_slice() {
             [w] if rec.resource(w.resource).kind == ResourceKind::Buffer && pass.reads.is_empty() => w.resource,
