@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/setup.sh
-mkdir -p out
+mkdir -p out/lightfield
 cargo build --release
 ./target/release/parallax render --lf 8x4 --resolution 128x96 --spacing 0.05 --spp 1 \
   --fake-devices 2 --scheme multi-source --frames 8 --warmup 2 --quilt --layers \
