@@ -13,6 +13,9 @@ void main() {
     BvhTriangle tri = pc.scene.triangles.data[prim];
     vec3 position = corner == 0u ? tri.v0 : (corner == 1u ? tri.v1 : tri.v2);
     gl_Position = pc.frame.views[pc.view].current.view_proj * vec4(position, 1.0);
+    // The frame block's clip space has y up, like the path tracer's image plane; Vulkan's
+    // framebuffer rows grow downwards.
+    gl_Position.y = -gl_Position.y;
     // Weights of the second and third corners, as a ray hit reports them.
     barycentrics = vec2(corner == 1u ? 1.0 : 0.0, corner == 2u ? 1.0 : 0.0);
     primitive = prim;

@@ -14,7 +14,7 @@ use glam::Vec3;
 use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecutionPlan, KernelGraph, chrome_trace};
 use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary};
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
@@ -36,6 +36,14 @@ use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 /// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
 /// screen shows whole.
 const SHEET_COLUMNS: u32 = 10;
+
+/// `--gbuffer`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GbufferArg {
+    FirstHits,
+    Raster,
+}
 
 /// `--barriers`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -136,6 +144,10 @@ pub struct RenderArgs {
     /// Also write a Looking Glass quilt (lightfield_qs{cols}x{rows}a{aspect}.png).
     #[arg(long)]
     quilt: bool,
+    /// Where the G-buffer comes from: first hits of the pixel-centre rays (fast on compute GPUs
+    /// such as the H200), or rasterised (the paper's way; fast with fixed-function raster).
+    #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
+    gbuffer: GbufferArg,
     /// Barriers between GPU ops: `every-op`, or `tracked` (only where declared accesses
     /// conflict, so the instances of one pass for many views overlap; synchronisation
     /// validation reports false hazards with it).
@@ -217,6 +229,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     let pipeline = PipelineConfig {
         kind,
+        gbuffer: match args.gbuffer {
+            GbufferArg::FirstHits => GbufferSource::FirstHits,
+            GbufferArg::Raster => GbufferSource::Raster,
+        },
         tolerances: ReprojectionTolerances::default(),
         denoise: !args.no_denoise,
         exposure: args.exposure,
@@ -332,7 +348,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                     "width": lf.width, "height": lf.height, "spacing_m": args.spacing, "focus_m": lf.rig.focus_distance },
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
-        "barriers": args.barriers,
+        "barriers": args.barriers, "gbuffer": args.gbuffer,
         "spp": args.spp, "max_depth": args.max_depth, "frames": args.frames, "warmup": args.warmup,
         "devices": device_names,
         "plan": &summary,

@@ -48,8 +48,13 @@ pub fn lightfield_views(lf: &LightField) -> Vec<View> {
     lf.views().map(|v| lightfield_view(lf, v)).collect()
 }
 
-/// World → clip of `view` (see the module docs).
+/// World → clip of `view` (see the module docs), the depth range starting at [`NEAR`].
 pub fn view_projection(view: &View) -> Mat4 {
+    view_projection_near(view, NEAR)
+}
+
+/// [`view_projection`] with the depth range starting at `near` (> 0).
+pub fn view_projection_near(view: &View, near: f32) -> Mat4 {
     let camera = &view.camera;
     let (right, up, back) = camera.basis();
     let tan_half = (0.5 * camera.yfov).tan();
@@ -59,7 +64,7 @@ pub fn view_projection(view: &View) -> Mat4 {
     let x = r / r.length_squared() - camera.shift.x * f;
     let y = u / u.length_squared() - camera.shift.y * f;
     let row = |axis: Vec3, offset: f32| axis.extend(offset - axis.dot(camera.eye));
-    Mat4::from_cols(row(x, 0.0), row(y, 0.0), row(f, -NEAR), row(f, 0.0)).transpose()
+    Mat4::from_cols(row(x, 0.0), row(y, 0.0), row(f, -near), row(f, 0.0)).transpose()
 }
 
 /// The pixel position (pixel centre = i + 0.5) and linear depth of world point `p` in `view`,

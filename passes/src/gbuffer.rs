@@ -72,6 +72,56 @@ impl PassKernel for GbufferKernel {
     }
 }
 
+/// Pass name of [`MotionKernel`].
+pub const MOTION: &str = "motion";
+
+/// Push constants of `motion.comp` (`MotionPush` there).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MotionPush {
+    pub block: u64,
+    pub position_depth: u32,
+    pub motion: u32,
+    pub view: u32,
+    pub y0: u32,
+    pub y1: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: u32,
+}
+
+/// Records `motion` instances: motion vectors from a G-buffer's world positions and the
+/// previous camera (for G-buffers that do not come with them, such as the raster one).
+pub struct MotionKernel;
+
+impl PassKernel for MotionKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        let (Some(position), Some(motion)) = (pass.input("position_depth"), pass.output("motion")) else {
+            return Err(BackendError::KernelMisuse {
+                kernel: MOTION.into(),
+                instance: index,
+                detail: "reads `position_depth` and writes `motion`".into(),
+            });
+        };
+        let desc = rec.resource(position.resource);
+        let (width, height) = (desc.width, desc.height);
+        let push = MotionPush {
+            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            position_depth: rec.image(position.resource)?,
+            motion: rec.image(motion.resource)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            height,
+            pad: 0,
+        };
+        // The block ends at `height`; the pad only rounds the struct to its 8-byte alignment.
+        let bytes = &bytemuck::bytes_of(&push)[..std::mem::offset_of!(MotionPush, pad)];
+        rec.dispatch_bytes("motion", bytes, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
+    }
+}
+
 /// The G-buffer of every view.
 pub struct Gbuffer {
     pub position_depth: Handle<Image>,
@@ -99,11 +149,38 @@ pub fn declare_gbuffer(graph: &mut KernelGraph) -> Gbuffer {
     g
 }
 
+/// Declares the raster G-buffer (`gbuffer_raster`, with its depth resource) and the `motion`
+/// pass that completes it, for every view.
+pub fn declare_gbuffer_rasterised(graph: &mut KernelGraph) -> Gbuffer {
+    let raster = crate::raster_gbuffer::declare_gbuffer_raster(graph);
+    let mut motion = graph.image("motion", Format::Rg32f);
+    graph
+        .pass(MOTION, Role::All)
+        .read(&raster.position_depth)
+        .write(&mut motion)
+        .kernel(Arc::new(MotionKernel))
+        .record();
+    Gbuffer {
+        position_depth: raster.position_depth,
+        normal_metallic: raster.normal_metallic,
+        albedo_roughness: raster.albedo_roughness,
+        motion,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use parallax_backend::reflect::member_offsets;
     use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_motion_push_struct_matches_motion_comp() {
+        let glsl = member_offsets(&parallax_backend::spirv("motion").unwrap(), "MotionPush").unwrap();
+        let mut rust = rust_layout!(MotionPush { block, position_depth, motion, view, y0, y1, width, height, pad });
+        rust.pop(); // Rust's alignment pad, not pushed
+        assert_eq!(glsl, rust);
+    }
 
     #[test]
     fn the_push_struct_matches_gbuffer_trace_comp() {

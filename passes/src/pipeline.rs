@@ -10,7 +10,7 @@ use parallax_backend::KernelGraph;
 use parallax_graph::{Format, Handle, Image, Role};
 
 use crate::error::Result;
-use crate::gbuffer::{Gbuffer, declare_gbuffer};
+use crate::gbuffer::{Gbuffer, declare_gbuffer, declare_gbuffer_rasterised};
 use crate::holes::declare_hole_fill;
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
 use crate::reproject::{ReprojectionTolerances, declare_reproject};
@@ -26,10 +26,21 @@ pub enum PipelineKind {
     PathTrace,
 }
 
+/// Where the G-buffer comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+pub enum GbufferSource {
+    /// First hits of each pixel's centre ray (the fast way on compute GPUs such as the H200).
+    FirstHits,
+    /// Rasterised (the paper's way; fast on GPUs with fixed-function raster), motion vectors
+    /// from a compute pass.
+    Raster,
+}
+
 /// What a pipeline declaration needs to know.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PipelineConfig {
     pub kind: PipelineKind,
+    pub gbuffer: GbufferSource,
     pub tolerances: ReprojectionTolerances,
     /// SVGF between the radiance and the tonemapper.
     pub denoise: bool,
@@ -59,7 +70,10 @@ pub fn declare_path_trace(graph: &mut KernelGraph, role: Role, radiance: &mut Ha
 
 /// Declares the pipeline of `config`; nothing is exported (the caller exports what it reads).
 pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> Result<PipelineHandles> {
-    let gbuffer = declare_gbuffer(graph);
+    let gbuffer = match config.gbuffer {
+        GbufferSource::FirstHits => declare_gbuffer(graph),
+        GbufferSource::Raster => declare_gbuffer_rasterised(graph),
+    };
     let mut radiance = graph.image("radiance", Format::Rgba32f);
     let holes = match config.kind {
         PipelineKind::PathTrace => {

@@ -21,7 +21,7 @@
 
 use std::sync::Arc;
 
-use glam::{Mat4, Vec2, Vec4};
+use glam::Vec2;
 use parallax_backend::{
     BackendError, Draw, ExecPass, FRAME_BLOCK_SECTION, Format, GpuCamera, KernelGraph, PassKernel, Recorder,
     ResourceKind,
@@ -140,26 +140,20 @@ pub fn raster_camera(view: &View, near: f32) -> Result<GpuCamera> {
     if !(near.is_finite() && near > 0.0) {
         return Err(PassError::NearPlane { near });
     }
-    let camera = &view.camera;
-    let (right, up, back) = camera.basis();
-    let forward = -back;
-    let tan_half = (0.5 * camera.yfov).tan();
-    let x_axis = right / (tan_half * view.aspect()) - camera.shift.x * forward;
-    // Vulkan's framebuffer y grows downwards, the path tracer's image-plane y upwards.
-    let y_axis = -(up / tan_half - camera.shift.y * forward);
-    let row = |axis: glam::Vec3, offset: f32| Vec4::new(axis.x, axis.y, axis.z, offset - axis.dot(camera.eye));
-    let rows = [row(x_axis, 0.0), row(y_axis, 0.0), row(forward, -near), row(forward, 0.0)];
-    let view_proj = Mat4::from_cols(rows[0], rows[1], rows[2], rows[3]).transpose();
+    // The projection every pass shares (y up, as the path tracer's image plane); the vertex
+    // shader flips y for Vulkan's framebuffer, whose rows grow downwards.
+    let view_proj = crate::camera::view_projection_near(view, near);
     if !view_proj.is_finite() {
         return Err(PassError::NearPlane { near });
     }
+    let camera = &view.camera;
     Ok(GpuCamera::new(view_proj, camera.eye, Vec2::ZERO))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use glam::{Mat4, Vec3};
     use parallax_backend::reflect::member_offsets;
     use parallax_backend::rust_layout;
     use parallax_scene::Camera;
@@ -187,7 +181,8 @@ mod tests {
             let point = camera.eye + dir * 3.0;
             let clip = view_proj * point.extend(1.0);
             let linear = (point - camera.eye).dot(camera.forward.normalize());
-            let pixel = ((clip.x / clip.w + 1.0) * 20.0, (clip.y / clip.w + 1.0) * 15.0);
+            // y up in clip space (the vertex shader flips it for the framebuffer).
+            let pixel = ((clip.x / clip.w + 1.0) * 20.0, (1.0 - clip.y / clip.w) * 15.0);
             assert!(
                 (pixel.0 - (x as f32 + 0.5)).abs() < 1e-4 && (pixel.1 - (y as f32 + 0.5)).abs() < 1e-4,
                 "{pixel:?}"

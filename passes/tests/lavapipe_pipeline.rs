@@ -12,7 +12,7 @@ use parallax_graph::{
     ViewId, compile,
 };
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
@@ -68,6 +68,7 @@ fn run_with(
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let config = PipelineConfig {
         kind: PipelineKind::Reproject,
+        gbuffer: GbufferSource::FirstHits,
         tolerances: ReprojectionTolerances::default(),
         denoise: true,
         exposure: 1.0,

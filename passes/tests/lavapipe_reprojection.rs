@@ -8,7 +8,7 @@ mod common;
 use parallax_backend::{ExecutionPlan, KernelGraph};
 use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
@@ -30,6 +30,17 @@ fn texels(bytes: &[u8]) -> Vec<[f32; 4]> {
 }
 
 fn render(cols: u32, spacing: f64, devices: u32, kind: PipelineKind, spp: u32) -> Rendered {
+    render_with(cols, spacing, devices, kind, spp, GbufferSource::FirstHits)
+}
+
+fn render_with(
+    cols: u32,
+    spacing: f64,
+    devices: u32,
+    kind: PipelineKind,
+    spp: u32,
+    gbuffer: GbufferSource,
+) -> Rendered {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let rig = rig_of(&scene.default_camera(), scene.bounds().center(), None);
@@ -37,7 +48,8 @@ fn render(cols: u32, spacing: f64, devices: u32, kind: PipelineKind, spp: u32) -
     let config = PlanConfig { devices, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let config = PipelineConfig { kind, tolerances: ReprojectionTolerances::default(), denoise: false, exposure: 1.0 };
+    let config =
+        PipelineConfig { kind, gbuffer, tolerances: ReprojectionTolerances::default(), denoise: false, exposure: 1.0 };
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     let schedule = compile(&graph, &plan).unwrap();
@@ -158,5 +170,24 @@ fn a_wide_baseline_leaves_no_unfilled_pixel_after_hole_filling() {
             assert_eq!(reprojected.radiance[v][i], traced.radiance[v][i], "view {v}, pixel {i}");
         }
         assert!(reprojected.radiance[v].iter().flatten().all(|c| c.is_finite()));
+    }
+}
+
+#[test]
+fn the_raster_gbuffer_reprojects_like_first_hits() {
+    // A view at its source's position: with either G-buffer no diffuse pixel is missed, and
+    // the raster one's hole pixels are path traced to the same bits as path tracing them.
+    let raster = render_with(2, 0.0, 1, PipelineKind::Reproject, 1, GbufferSource::Raster);
+    let t = targets(&raster);
+    assert!(raster.diffuse[t[0]].iter().filter(|&&d| d).count() > 100);
+    assert!(disoccluded(&raster, t[0]) < 0.01, "{}", disoccluded(&raster, t[0]));
+    let wide = render_with(3, 0.1, 1, PipelineKind::Reproject, 1, GbufferSource::Raster);
+    let traced = render(3, 0.1, 1, PipelineKind::PathTrace, 1);
+    for v in targets(&wide) {
+        let holes = wide.holes[v].as_ref().unwrap();
+        for i in (0..holes.len()).filter(|&i| holes[i] == 1) {
+            assert_eq!(wide.radiance[v][i], traced.radiance[v][i], "view {v}, pixel {i}");
+        }
+        assert!(wide.radiance[v].iter().flatten().all(|c| c.is_finite()));
     }
 }
