@@ -2,6 +2,7 @@
 
 mod budget;
 mod cmd_backend;
+mod cmd_bench;
 mod cmd_bench_rays;
 mod cmd_chart;
 mod cmd_compare;
@@ -40,6 +41,9 @@ enum Command {
     BenchCopy(cmd_backend::BenchCopyArgs),
     /// Measure GPU traversal: primary and diffuse-bounce rays/s, and the CWBVH build time.
     BenchRays(cmd_bench_rays::BenchRaysArgs),
+    /// A matrix of renders (pipelines × schemes × sources per set × spp × denoise × devices):
+    /// frame times, stage table, busy fractions, missing pixels and accuracy per cell.
+    Bench(cmd_bench::BenchArgs),
     /// Path trace a converged reference of a light field's views, progressively and resumably.
     Reference(cmd_reference::ReferenceArgs),
     /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders.
@@ -67,6 +71,7 @@ fn main() {
         Command::Devices(args) => cmd_backend::devices(args),
         Command::BenchCopy(args) => cmd_backend::bench_copy(args),
         Command::BenchRays(args) => cmd_bench_rays::run(args),
+        Command::Bench(args) => cmd_bench::run(args),
         Command::Reference(args) => cmd_reference::run(args),
         Command::Compare(args) => cmd_compare::run(args),
         Command::Chart(args) => cmd_chart::run(args),
