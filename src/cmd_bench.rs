@@ -1,7 +1,8 @@
 //! `parallax bench`: a matrix of `render` runs (pipelines × schemes × sources per set × spp ×
 //! denoise × device counts over one scene and light field), each cell a `parallax render` child
 //! process of this binary, so a cell that fails (say, more devices than views) is reported with
-//! its error and the others still run. Writes `bench.json` (documented below) and `bench.md`.
+//! its error and the others still run. Writes `bench.json` (documented below), `bench.md`, and
+//! `points.json` (one chart point per cell, for `parallax chart speed-accuracy`).
 //!
 //! bench.json: `{"cells": [cell]}`; a cell has `id`, `args` (the render arguments), `ok`,
 //! `error` (when not ok), and when ok: `frame_ms` (mean, median, p95 of the GPU span of the
@@ -203,12 +204,25 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let json =
         serde_json::json!({ "common": args.common, "frames": args.frames, "warmup": args.warmup, "cells": entries });
     let staged_json = crate::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
+    // The chart input (`parallax chart speed-accuracy points.json`): one point per cell that ran,
+    // one series per pipeline.
+    let points: Vec<serde_json::Value> = entries
+        .iter()
+        .filter(|c| c["ok"] == true)
+        .map(|c| {
+            serde_json::json!({ "label": c["id"], "series": c["args"][1], "frame_ms": c["frame_ms"]["mean_ms"],
+                                "flip": c["flip"], "psnr": c["psnr_db"] })
+        })
+        .collect();
+    let staged_points =
+        crate::outputs::stage_json(&args.out_dir.join("points.json"), &serde_json::json!({ "points": points }))?;
     let md = table(&entries);
     let md_path = args.out_dir.join("bench.md");
     let staged_md = crate::outputs::stage(&md_path, |tmp| {
         std::fs::write(tmp, &md).with_context(|| format!("cannot write {}", md_path.display()))
     })?;
     staged_md.commit()?;
+    staged_points.commit()?;
     staged_json.commit()?;
     result(false, &md);
     let failed = entries.iter().filter(|c| c["ok"] != true).count();
