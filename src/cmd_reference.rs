@@ -26,8 +26,8 @@ use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, T
 
 use crate::budget::{TraceWork, check_host_bytes};
 use crate::options::{
-    DeviceArgs, Resolution, parse_exposure, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
-    parse_sun,
+    DeviceArgs, Resolution, parse_camera, parse_exposure, parse_focus, parse_layout, parse_resolution, parse_sky,
+    parse_spacing, parse_sun,
 };
 use parallax_passes::camera::{lightfield_view, rig_of};
 
@@ -36,6 +36,11 @@ pub struct ReferenceArgs {
     /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
     #[arg(long, default_value = "default")]
     scene: String,
+    /// The rig camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`,
+    /// as `render --camera` (default: the scene's camera). The camera is still: compare with
+    /// `render --still`.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
+    camera: Option<parallax_scene::Camera>,
     /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
     #[arg(long, default_value = "8x4", value_parser = parse_layout)]
     lf: LayoutSpec,
@@ -169,7 +174,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     if let Some(sky) = sky {
         scene.sky = Some(sky);
     }
-    let rig = rig_of(&scene.default_camera(), scene.bounds().center(), args.focus);
+    let rig = rig_of(&args.camera.unwrap_or_else(|| scene.default_camera()), scene.bounds().center(), args.focus);
     let focus = rig.focus_distance;
     let lf = LightField::new(spec, args.spacing, resolution, rig)?;
     let selected = match &args.views {
@@ -203,6 +208,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         ("--spacing".to_string(), args.spacing.map_or("(preset)".into(), |s| s.to_string())),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
+        ("--camera".to_string(), format!("{:?}", args.camera)),
         ("--views".to_string(), format!("{selected:?}")),
         ("--cpu".to_string(), args.cpu.to_string()),
         ("--chunk-spp".to_string(), args.chunk_spp.to_string()),

@@ -127,6 +127,10 @@ pub struct RenderArgs {
     /// Frames rendered before measuring (timings and outputs ignore them).
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
+    /// Keep the camera still over the frames (no dolly, no glTF animation): what accuracy
+    /// against a reference of the same camera needs.
+    #[arg(long)]
+    still: bool,
     /// Also write the views of every N-th measured frame to frame_FFFFF/ under --out-dir.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     save_every: Option<u32>,
@@ -207,6 +211,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // --camera is a rig the user placed: it dollies too).
     let animation = if args.camera.is_none() { scene.camera_animation.clone() } else { None };
     let camera_at = |f: u32| match &animation {
+        _ if args.still => camera,
         Some(a) => a.camera_at(a.duration * f as f32 / total_frames.saturating_sub(1).max(1) as f32),
         None => dolly(&camera, &scene, f, total_frames),
     };
