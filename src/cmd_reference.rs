@@ -165,15 +165,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     }
     let (spec, resolution, sun, sky) = (args.lf, args.resolution.map(Resolution::pair), args.sun, args.sky);
     let mut scene = load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
-    if let Some(sun) = sun {
-        scene.sun = Some(sun);
-    }
-    if args.no_sun {
-        scene.sun = None;
-    }
-    if let Some(sky) = sky {
-        scene.sky = Some(sky);
-    }
+    crate::cmd_trace::light_scene(&mut scene, sun, args.no_sun, sky);
     let rig = rig_of(&args.camera.unwrap_or_else(|| scene.default_camera()), scene.bounds().center(), args.focus);
     let focus = rig.focus_distance;
     let lf = LightField::new(spec, args.spacing, resolution, rig)?;

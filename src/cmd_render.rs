@@ -23,7 +23,7 @@ use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, Trac
 
 use crate::budget::TraceWork;
 use crate::cmd_plan::compile_checked;
-use crate::cmd_trace::warn_if_unlit;
+use crate::cmd_trace::light_scene;
 use crate::lightfield_images::{DisplayImage, quilt_file_name, write_contact_sheet, write_quilt};
 use crate::logging::{bar, result};
 use crate::options::{
@@ -195,16 +195,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     TraceWork { views: sized.len() as u64, ..work }.check_host()?;
 
     let mut scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
-    if let Some(sun) = args.sun {
-        scene.sun = Some(sun);
-    }
-    if args.no_sun {
-        scene.sun = None;
-    }
-    if let Some(sky) = args.sky {
-        scene.sky = Some(sky);
-    }
-    warn_if_unlit(&scene);
+    light_scene(&mut scene, args.sun, args.no_sun, args.sky);
     let camera = args.camera.unwrap_or_else(|| scene.default_camera());
     let centre = scene.bounds().center();
     // The scene's own camera animation, spread over the frames; else a dolly (an explicit
@@ -293,7 +284,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                 handles.linear_slot,
                 &folder,
                 &views,
-                &handles_layers(&args, kind),
+                &extra_layers(&args, kind),
             )?);
         }
         progress.inc(1);
@@ -311,7 +302,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         handles.linear_slot,
         &args.out_dir,
         &last_views,
-        &handles_layers(&args, kind),
+        &extra_layers(&args, kind),
     )?);
     let displays: Vec<Vec<u8>> = (0..lf.len() as u32).map(|v| renderer.read("display", v)).collect::<Result<_, _>>()?;
     let images: Vec<DisplayImage<'_>> =
@@ -392,7 +383,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
 }
 
 /// Which extra EXR layers the views get.
-fn handles_layers(args: &RenderArgs, kind: PipelineKind) -> (bool, bool) {
+fn extra_layers(args: &RenderArgs, kind: PipelineKind) -> (bool, bool) {
     (args.layers, args.layers && kind == PipelineKind::Reproject)
 }
 
@@ -429,9 +420,15 @@ fn stage_views(
         } else {
             (Vec::new(), Vec::new(), Vec::new())
         };
-        let mask = match renderer.read_stitched("holes", view.index) {
-            Ok(bytes) if *holes => Some(bytemuck_words(&bytes)),
-            _ => None,
+        // Sources have no hole mask: only targets get the channel.
+        let mask = if *holes {
+            match renderer.read_stitched("holes", view.index) {
+                Ok(bytes) => Some(bytemuck_words(&bytes)),
+                Err(parallax_passes::PassError::MissingResource { .. }) => None,
+                Err(e) => return Err(e.into()),
+            }
+        } else {
+            None
         };
         let pixels = (0..radiance.len())
             .map(|i| {

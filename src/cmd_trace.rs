@@ -93,16 +93,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
 
     let t0 = Instant::now();
     let mut scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
-    if let Some(sun) = args.sun {
-        scene.sun = Some(sun);
-    }
-    if args.no_sun {
-        scene.sun = None;
-    }
-    if let Some(sky) = args.sky {
-        scene.sky = Some(sky);
-    }
-    warn_if_unlit(&scene);
+    light_scene(&mut scene, args.sun, args.no_sun, args.sky);
     let load_time = t0.elapsed();
     let bvh = SceneBvh::build(&scene);
     tracing::info!(
@@ -151,8 +142,22 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Applies `--sun`, `--no-sun` and `--sky` to `scene`, then warns if it has no light at all.
+pub(crate) fn light_scene(scene: &mut Scene, sun: Option<Sun>, no_sun: bool, sky: Option<Sky>) {
+    if let Some(sun) = sun {
+        scene.sun = Some(sun);
+    }
+    if no_sun {
+        scene.sun = None;
+    }
+    if let Some(sky) = sky {
+        scene.sky = Some(sky);
+    }
+    warn_if_unlit(scene);
+}
+
 /// Without any light every pixel is black: say so rather than write a black image silently.
-pub(crate) fn warn_if_unlit(scene: &Scene) {
+fn warn_if_unlit(scene: &Scene) {
     if !scene.has_light() {
         tracing::warn!(
             "scene '{}' has no light (no sun, sky, punctual light or emissive material): the image will be black; add --sun or --sky",

@@ -16,7 +16,7 @@ use crate::error::Result;
 use crate::executor::{ExecOptions, Executor};
 use crate::lower::KernelGraph;
 use crate::plan::{ExecPass, ExecutionPlan};
-use crate::recorder::{PassKernel, PassParams, Recorder};
+use crate::recorder::{PassKernel, Recorder};
 use crate::timing::{EventKind, FrameReport};
 
 /// Width of the benchmark payload image (RGBA32F, 16 KiB per row).
@@ -119,14 +119,7 @@ impl PassKernel for BenchFillKernel {
             });
         };
         let dst = dst.resource;
-        let params = PassParams {
-            dst: rec.image(dst)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(dst).width,
-            ..Default::default()
-        };
+        let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows(BENCH_FILL, params)
     }
 }

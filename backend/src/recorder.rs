@@ -263,6 +263,19 @@ impl Recorder<'_> {
             })
     }
 
+    /// The [`PassParams`] of a kernel that writes image `dst` over `pass`'s row band: `dst`,
+    /// `view`, `y0`, `y1` and `width` set, the rest zero.
+    pub fn row_params(&self, pass: &ExecPass, dst: usize) -> Result<PassParams> {
+        Ok(PassParams {
+            dst: self.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width: self.resource(dst).width,
+            ..Default::default()
+        })
+    }
+
     /// Dispatches `shader` over `params.width` × rows `[y0, y1)` with the 8×8 workgroups every
     /// row-band kernel in shaders/ uses.
     pub fn dispatch_rows(&mut self, shader: &str, params: PassParams) -> Result<()> {

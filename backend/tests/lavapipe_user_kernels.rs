@@ -50,15 +50,7 @@ impl PassKernel for ReadWriteKernel {
             });
         };
         let (src, dst) = (src.resource, dst.resource);
-        let params = PassParams {
-            dst: rec.image(dst)?,
-            src0: rec.image(src)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(dst).width,
-            ..Default::default()
-        };
+        let params = PassParams { src0: rec.image(src)?, ..rec.row_params(pass, dst)? };
         rec.dispatch_rows(self.shader, params)
     }
 }

@@ -17,7 +17,7 @@ use glam::Vec3;
 use parallax_backend::reflect::member_offsets;
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
-    PassKernel, PassParams, Recorder, Validation, rust_layout,
+    PassKernel, Recorder, Validation, rust_layout,
 };
 use parallax_graph::{AssignStrategy, Format, LightField, Plan, PlanConfig, Rig, Role, Schedule, Scheme, compile};
 use parallax_scene::output::write_contact_sheet;
@@ -58,14 +58,7 @@ struct PatternKernel;
 impl PassKernel for PatternKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let dst = pass.output(RADIANCE).ok_or_else(|| misuse("pattern", index, "writes `radiance`"))?.resource;
-        let params = PassParams {
-            dst: rec.image(dst)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(dst).width,
-            ..Default::default()
-        };
+        let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows("pattern", params)
     }
 }

@@ -72,39 +72,21 @@ pub(crate) fn lower(
         let from = instances[producer.index()].device;
         let range =
             (producer, ResourceId(0), 0, DeviceId(0))..=(producer, ResourceId(u32::MAX), u32::MAX, DeviceId(u32::MAX));
-        for (&(_, resource, version, to), &(region, first)) in needs.range(range.clone()) {
+        // Allocations are assigned once every copy exists (storage.rs).
+        let mut push = |resource: ResourceId, version, region, to, kind| {
             let id = CopyId(copies.len() as u32);
             let bytes = resources[resource.index()].desc.bytes(region);
-            copies.push(CrossCopy {
-                resource,
-                version,
-                region,
-                from,
-                to,
-                src_alloc: AllocId::UNASSIGNED,
-                dst_alloc: AllocId::UNASSIGNED,
-                bytes,
-                kind: CopyKind::Dependency,
-            });
+            let (src_alloc, dst_alloc) = (AllocId::UNASSIGNED, AllocId::UNASSIGNED);
+            copies.push(CrossCopy { resource, version, region, from, to, src_alloc, dst_alloc, bytes, kind });
             outgoing.entry(producer).or_default().push(id);
+            id
+        };
+        for (&(_, resource, version, to), &(region, first)) in needs.range(range.clone()) {
+            let id = push(resource, version, region, to, CopyKind::Dependency);
             incoming.entry(first).or_default().push(id);
         }
         for (&(_, resource, version, to), &region) in gathers.range(range) {
-            let id = CopyId(copies.len() as u32);
-            let bytes = resources[resource.index()].desc.bytes(region);
-            copies.push(CrossCopy {
-                resource,
-                version,
-                region,
-                from,
-                to,
-                src_alloc: AllocId::UNASSIGNED,
-                dst_alloc: AllocId::UNASSIGNED,
-                bytes,
-                kind: CopyKind::Gather,
-            });
-            outgoing.entry(producer).or_default().push(id);
-            gathered_last.push(id);
+            gathered_last.push(push(resource, version, region, to, CopyKind::Gather));
         }
     }
 

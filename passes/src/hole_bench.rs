@@ -55,15 +55,7 @@ impl PassKernel for HashedHoleMaskKernel {
                 detail: format!("writes `{HOLES}`, an R32u image"),
             });
         };
-        let params = PassParams {
-            dst: rec.image(mask.resource)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(mask.resource).width,
-            param: self.threshold,
-            ..Default::default()
-        };
+        let params = PassParams { param: self.threshold, ..rec.row_params(pass, mask.resource)? };
         rec.dispatch_rows("hole_mask_hashed", params)
     }
 }

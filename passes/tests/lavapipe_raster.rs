@@ -47,15 +47,7 @@ impl PassKernel for DepthCopyKernel {
                 detail: "reads `depth` and writes `depth_copy`".into(),
             });
         };
-        let params = PassParams {
-            dst: rec.image(copy.resource)?,
-            src0: rec.image(depth.resource)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(copy.resource).width,
-            ..Default::default()
-        };
+        let params = PassParams { src0: rec.image(depth.resource)?, ..rec.row_params(pass, copy.resource)? };
         rec.dispatch_rows(DEPTH_TO_R32F, params)
     }
 }

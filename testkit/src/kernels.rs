@@ -10,7 +10,7 @@ pub struct FillKernel;
 impl PassKernel for FillKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "fill", 0, 1)?;
-        let params = row_params(rec, pass, dst)?;
+        let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows("fill", params)
     }
 }
@@ -38,7 +38,7 @@ impl PassKernel for ShiftBlendKernel {
         let dst = pass.writes[0].resource;
         let own = pass.reads[0].resource;
         let other = pass.reads.get(1).unwrap_or(&pass.reads[0]).resource;
-        let base = row_params(rec, pass, dst)?;
+        let base = rec.row_params(pass, dst)?;
         let params = PassParams {
             src0: rec.image(own)?,
             src1: rec.image(other)?,
@@ -150,7 +150,7 @@ impl PassKernel for FillMaskKernel {
                 detail: format!("writes an R32Uint image, not {:?}", rec.resource(dst).format),
             });
         }
-        let params = row_params(rec, pass, dst)?;
+        let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows("fill_mask", params)
     }
 }
@@ -173,21 +173,9 @@ impl PassKernel for AccumulateKernel {
                 detail: "writes slot `acc` and reads it as history (read_history)".into(),
             });
         };
-        let params = PassParams { src0: rec.image(history.resource)?, ..row_params(rec, pass, output.resource)? };
+        let params = PassParams { src0: rec.image(history.resource)?, ..rec.row_params(pass, output.resource)? };
         rec.dispatch_rows("accumulate", params)
     }
-}
-
-/// Parameters of a kernel that writes image `dst` over the pass's row band.
-fn row_params(rec: &Recorder<'_>, pass: &ExecPass, dst: usize) -> Result<PassParams> {
-    Ok(PassParams {
-        dst: rec.image(dst)?,
-        view: pass.view,
-        y0: pass.rows.y0,
-        y1: pass.rows.y1,
-        width: rec.resource(dst).width,
-        ..Default::default()
-    })
 }
 
 /// Checks the access counts a kernel relies on; returns the first written resource.
