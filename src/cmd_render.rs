@@ -11,7 +11,9 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecutionPlan, KernelGraph, chrome_trace};
+use parallax_backend::{
+    Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, KernelGraph, Timing, chrome_trace,
+};
 use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary};
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
@@ -51,6 +53,14 @@ pub enum GbufferArg {
 pub enum BarrierArg {
     EveryOp,
     Tracked,
+}
+
+/// `--timing`: what the GPU timestamp pairs cover.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TimingArg {
+    PerOp,
+    PerStage,
 }
 
 /// Which pipeline renders the views.
@@ -157,6 +167,12 @@ pub struct RenderArgs {
     /// validation reports false hazards with it).
     #[arg(long, value_enum, default_value_t = BarrierArg::EveryOp)]
     barriers: BarrierArg,
+    /// What each GPU timestamp pair times: `per-op` (every pass instance and copy; a timestamp
+    /// drains the queue on NVIDIA, so ops cannot overlap) or `per-stage` (each run of one pass's
+    /// instances; with `--barriers tracked` the instances overlap, and stage and frame times are
+    /// those of the overlapped run).
+    #[arg(long, value_enum, default_value_t = TimingArg::PerOp)]
+    timing: TimingArg,
     /// Write a Chrome trace-event JSON of the measured frames (open in Perfetto or
     /// chrome://tracing; `-` = stdout).
     #[arg(long, value_parser = parse_sink)]
@@ -249,12 +265,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
         BarrierArg::EveryOp => Barriers::EveryOp,
         BarrierArg::Tracked => Barriers::Tracked,
     };
-    let mut renderer = LightFieldRenderer::with_barriers(
+    let timing = match args.timing {
+        TimingArg::PerOp => Timing::PerOp,
+        TimingArg::PerStage => Timing::PerStage,
+    };
+    let mut renderer = LightFieldRenderer::with_options(
         &context,
         exec_plan,
         lf.len() as u32,
         &GpuScene::new(&scene, &bvh),
-        barriers,
+        ExecOptions { barriers, timing, ..ExecOptions::default() },
     )?;
 
     std::fs::create_dir_all(&args.out_dir)
@@ -344,7 +364,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                     "width": lf.width, "height": lf.height, "spacing_m": args.spacing, "focus_m": lf.rig.focus_distance },
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
-        "barriers": args.barriers, "gbuffer": args.gbuffer,
+        "barriers": args.barriers, "timing": args.timing, "gbuffer": args.gbuffer,
         "spp": args.spp, "max_depth": args.max_depth, "frames": args.frames, "warmup": args.warmup,
         "devices": device_names,
         "plan": &summary,

@@ -12,7 +12,9 @@ pub struct StageRow {
     pub stage: String,
     pub device: usize,
     pub mean_ms: f64,
-    pub instances_per_frame: f64,
+    /// Timed events per frame: pass instances and copy chunks under `--timing per-op`, runs of
+    /// one pass under `per-stage`.
+    pub events_per_frame: f64,
 }
 
 /// Statistics of a list of times.
@@ -95,7 +97,7 @@ pub fn timings(reports: &[FrameReport]) -> Timings {
                 stage,
                 device,
                 mean_ms: ns as f64 / 1e6 / frames,
-                instances_per_frame: count as f64 / frames,
+                events_per_frame: count as f64 / frames,
             })
             .collect(),
         busy_fraction,

@@ -4,6 +4,7 @@
 //! gate.
 
 use std::collections::HashMap;
+use std::ops::Range;
 use std::sync::Arc;
 
 use ash::vk;
@@ -11,13 +12,12 @@ use gpu_allocator::MemoryLocation;
 
 use crate::device::{Device, QueueKind};
 use crate::error::{BackendError, Result, VkContext};
-use crate::executor::FaultGate;
+use crate::executor::{ExecOptions, FaultGate};
 use crate::memory::{Buffer, Image, SharedHostBuffer};
 use crate::pipeline::Bindless;
 use crate::plan::{ExecResource, ExecutionPlan, Format, ResourceKind};
-use crate::record::{TimerLabel, timer_labels};
+use crate::record::{TimerLabel, timer_labels, timer_spans};
 use crate::segments::{Item, Segment};
-use crate::shaders::ShaderLibrary;
 
 /// Alignment of each copy's region inside the staging buffer.
 const STAGING_ALIGN: u64 = 256;
@@ -44,6 +44,8 @@ pub(crate) struct DeviceState {
     /// Fault injection: host-signalled semaphore holding this (producer) device back.
     pub(crate) gate: Option<vk::Semaphore>,
     pub(crate) segments: Vec<Segment>,
+    /// Per segment, the items each of its timestamp pairs covers, in order.
+    pub(crate) timer_spans: Vec<Vec<Range<usize>>>,
     pub(crate) timers: Vec<TimerLabel>,
     pub(crate) slots: Vec<SlotResources>,
 }
@@ -86,9 +88,10 @@ pub(crate) fn create_device_state(
     d: usize,
     segments: Vec<Segment>,
     slots: usize,
-    shaders: &ShaderLibrary,
+    options: &ExecOptions,
     kept: &mut Kept,
 ) -> Result<DeviceState> {
+    let shaders = &options.shaders;
     let (resources, buffer_resources): (Vec<usize>, Vec<usize>) =
         plan.resources_of_device(d).into_iter().partition(|&r| plan.resources[r].kind == ResourceKind::Image);
     let mut images = HashMap::new();
@@ -148,6 +151,7 @@ pub(crate) fn create_device_state(
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
         *pool = unsafe { raw.create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
     }
+    let timer_spans: Vec<Vec<Range<usize>>> = segments.iter().map(|s| timer_spans(plan, s, options.timing)).collect();
     let mut state = DeviceState {
         device: device.clone(),
         images,
@@ -158,7 +162,8 @@ pub(crate) fn create_device_state(
         progress: vk::Semaphore::null(),
         ready: HashMap::new(),
         gate: None,
-        timers: timer_labels(plan, &segments),
+        timers: timer_labels(plan, &segments, &timer_spans),
+        timer_spans,
         segments,
         slots: Vec::new(),
     };

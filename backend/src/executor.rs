@@ -81,6 +81,8 @@ pub struct ExecOptions {
     pub shaders: ShaderLibrary,
     /// Where the recorded command buffers put barriers between ops.
     pub barriers: Barriers,
+    /// What each GPU timestamp pair covers.
+    pub timing: Timing,
 }
 
 /// Where barriers go between the ops of a device (record.rs).
@@ -96,6 +98,20 @@ pub enum Barriers {
     Tracked,
 }
 
+/// What the GPU timestamp pairs of a frame cover (record.rs). A timestamp waits for every
+/// earlier command of its queue to finish (NVIDIA drains the queue for one), so timing every op
+/// serialises ops that `Barriers::Tracked` would let overlap.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Timing {
+    /// One pair around every op: per-view figures and timelines, at the price of the overlap.
+    #[default]
+    PerOp,
+    /// One pair around each run of consecutive instances of one pass on a queue (and around
+    /// every copy): per-stage figures, and the instances of a stage overlap under tracked
+    /// barriers. An event then stands for the run: its `view` and `index` are its first op's.
+    PerStage,
+}
+
 impl Default for ExecOptions {
     fn default() -> Self {
         Self {
@@ -107,6 +123,7 @@ impl Default for ExecOptions {
             fault: None,
             shaders: ShaderLibrary::default(),
             barriers: Barriers::EveryOp,
+            timing: Timing::PerOp,
         }
     }
 }
@@ -257,7 +274,7 @@ impl Executor {
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
-            let state = create_device_state(device, &plan, d, segments, slots, &self.options.shaders, &mut kept)?;
+            let state = create_device_state(device, &plan, d, segments, slots, &self.options, &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);
             states.push(state);
@@ -345,8 +362,9 @@ impl Executor {
                 for (j, segment) in state.segments.iter().enumerate() {
                     let cb = state.slots[slot].command_buffers[j];
                     let place = SegmentPlace { first: j == 0, last: j + 1 == segment_count };
-                    record_segment(&mut ctx, cb, segment, first_timer, place)?;
-                    first_timer += segment.items.len() as u32;
+                    let spans = &state.timer_spans[j];
+                    record_segment(&mut ctx, cb, segment, first_timer, spans, place)?;
+                    first_timer += spans.len() as u32;
                 }
             }
         }

@@ -5,7 +5,8 @@
 //! * [`ExecutionPlan`]: what the executor runs, lowered from the graph crate's `Schedule`.
 //! * [`Executor`]: records per-device command buffers once, submits frames with timeline
 //!   semaphores, moves cross-device copies through host memory imported into both devices, and
-//!   times every pass instance and copy ([`FrameReport`], [`chrome_trace`]).
+//!   times every pass instance and copy, or every run of one pass's instances ([`Timing`];
+//!   [`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
 //!   [`ExecutionPlan::from_schedule`] lowers its compiled schedule (allocations become resources, history
 //!   allocations two halves swapped by frame parity, accesses keep their slot names).
@@ -102,7 +103,7 @@ pub mod reflect;
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
-pub use executor::{Barriers, ExecOptions, Executor, FaultInjection};
+pub use executor::{Barriers, ExecOptions, Executor, FaultInjection, Timing};
 pub use frame_block::{FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameHeader, GpuCamera, ViewCameras};
 pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use instance::{Instance, Validation, validation_from_env};

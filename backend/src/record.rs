@@ -1,5 +1,6 @@
-//! Recording one segment of a device program into a command buffer: a barrier before every
-//! item, a timestamp pair around it, the kernel's commands or the copy.
+//! Recording one segment of a device program into a command buffer: barriers, timestamp pairs
+//! (around every item, or around each run of one pass's instances: `Timing`), the kernels'
+//! commands and the copies.
 //!
 //! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers: a global
 //! barrier before every item (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
@@ -9,11 +10,13 @@
 //! other, run side by side.
 
 use std::collections::{HashMap, HashSet};
+use std::ops::Range;
 
 use ash::vk;
 
 use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
+use crate::executor::Timing;
 use crate::memory::Image;
 use crate::pipeline::Bindless;
 use crate::plan::ExecutionPlan;
@@ -34,8 +37,31 @@ pub(crate) struct TimerLabel {
     pub queue: QueueKind,
 }
 
-/// Timer labels of all items of `segments`, in recording order.
-pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment]) -> Vec<TimerLabel> {
+/// The items each timestamp pair of `segment` covers, in order: every item alone
+/// (`Timing::PerOp`), or runs of consecutive instances of one pass with every copy alone
+/// (`Timing::PerStage`).
+pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timing) -> Vec<Range<usize>> {
+    let stage = |item: &Item| match item {
+        Item::Pass(p) => Some(plan.passes[*p].name.as_str()),
+        Item::CopyOut(_) | Item::CopyIn(_) => None,
+    };
+    let mut spans: Vec<Range<usize>> = Vec::new();
+    for (i, item) in segment.items.iter().enumerate() {
+        let joins = timing == Timing::PerStage
+            && spans
+                .last()
+                .is_some_and(|last| stage(item).is_some() && stage(&segment.items[last.start]) == stage(item));
+        match spans.last_mut() {
+            Some(last) if joins => last.end = i + 1,
+            _ => spans.push(i..i + 1),
+        }
+    }
+    spans
+}
+
+/// Timer labels of all timestamp pairs of `segments` (`spans[j]`: segment j's
+/// [`timer_spans`]), in recording order; a span is labelled by its first item.
+pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[Vec<Range<usize>>]) -> Vec<TimerLabel> {
     let copy_label = |chunk: &Chunk, kind, queue| {
         let copy = &plan.copies[chunk.copy];
         let resource = &plan.resources[copy.resource];
@@ -57,7 +83,8 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment]) -> Vec<Ti
     };
     segments
         .iter()
-        .flat_map(|s| s.items.iter().map(move |item| (s.queue, item)))
+        .zip(spans)
+        .flat_map(|(s, spans)| spans.iter().map(move |span| (s.queue, &s.items[span.start])))
         .map(|(queue, item)| match item {
             Item::Pass(p) => {
                 let pass = &plan.passes[*p];
@@ -118,19 +145,20 @@ pub(crate) struct SegmentPlace {
     pub last: bool,
 }
 
-/// Records `segment`; its first timer is `first_timer`.
+/// Records `segment`; its first timer is `first_timer`, and `spans` are its [`timer_spans`].
 pub(crate) fn record_segment(
     ctx: &mut SegmentContext<'_>,
     cb: vk::CommandBuffer,
     segment: &Segment,
     first_timer: u32,
+    spans: &[Range<usize>],
     place: SegmentPlace,
 ) -> Result<()> {
     unsafe { ctx.raw.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()) }.vk("vkBeginCommandBuffer")?;
     if place.first {
         record_resets(ctx, cb);
     }
-    let recorded = record_items(ctx, cb, segment, first_timer).and_then(|()| {
+    let recorded = record_items(ctx, cb, segment, first_timer, spans).and_then(|()| {
         if place.last {
             record_readback(ctx, cb);
         }
@@ -148,6 +176,7 @@ fn record_items(
     cb: vk::CommandBuffer,
     segment: &Segment,
     first_timer: u32,
+    spans: &[Range<usize>],
 ) -> Result<()> {
     let raw = ctx.raw;
     unsafe {
@@ -166,8 +195,11 @@ fn record_items(
     }
     let mut bound = None;
     let mut hazards = Hazards::default();
+    // The timestamp pair of each item (the spans tile the items in order).
+    let timer_of: Vec<usize> = spans.iter().enumerate().flat_map(|(t, span)| span.clone().map(move |_| t)).collect();
     for (i, item) in segment.items.iter().enumerate() {
-        let query = (first_timer + i as u32) * 2;
+        let span = &spans[timer_of[i]];
+        let query = (first_timer + timer_of[i] as u32) * 2;
         let (reads, writes, opaque) = touches(ctx, item);
         // The first item waits for everything submitted before (other segments, the previous
         // frame); a later one only for the items of this segment whose results it touches, so
@@ -178,7 +210,9 @@ fn record_items(
             hazards = Hazards::default();
         }
         hazards.add(reads, writes, opaque);
-        unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
+        if i == span.start {
+            unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
+        }
         match *item {
             Item::Pass(p) => {
                 let pass = &ctx.plan.passes[p];
@@ -216,7 +250,9 @@ fn record_items(
             }
             Item::CopyIn(chunk) => record_copy(ctx, cb, &chunk, CopyDirection::In),
         }
-        unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
+        if i + 1 == span.end {
+            unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
+        }
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 //! the frame block of current and previous cameras as section `frame`), and reads layers back.
 
 use parallax_backend::{
-    Barriers, Context, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, FrameReport,
+    Context, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, FrameReport,
 };
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Scene, TraceSettings, View};
@@ -27,21 +27,21 @@ pub struct LightFieldRenderer {
 impl LightFieldRenderer {
     /// Creates the executor for `plan` (a pipeline over `views` views) and uploads `scene`.
     pub fn new(context: &Context, plan: ExecutionPlan, views: u32, scene: &GpuScene<'_>) -> Result<Self> {
-        Self::with_barriers(context, plan, views, scene, Barriers::EveryOp)
+        Self::with_options(context, plan, views, scene, ExecOptions::default())
     }
 
-    /// [`Self::new`] with another barrier placement (see [`Barriers`]).
-    pub fn with_barriers(
+    /// [`Self::new`] with other executor options (barrier placement, timing, ...); the per-frame
+    /// data capacity is raised to what the views need.
+    pub fn with_options(
         context: &Context,
         plan: ExecutionPlan,
         views: u32,
         scene: &GpuScene<'_>,
-        barriers: Barriers,
+        options: ExecOptions,
     ) -> Result<Self> {
-        let defaults = ExecOptions { barriers, ..ExecOptions::default() };
         // Every view's trace parameters, then the frame block (header + cameras), aligned.
         let needed = u64::from(views) * (TRACE_PARAMS_BYTES + FRAME_BLOCK_VIEW_BYTES) + 2 * 256 + 16;
-        let options = ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(needed), ..defaults };
+        let options = ExecOptions { frame_data_bytes: options.frame_data_bytes.max(needed), ..options };
         let mut executor = Executor::new(context, plan, options)?;
         upload_scene(&mut executor, scene)?;
         Ok(Self { executor, clock: FrameClock::new(), views, frames: 0 })

@@ -6,7 +6,7 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{Barriers, ExecutionPlan, KernelGraph};
+use parallax_backend::{Barriers, EventKind, ExecOptions, ExecutionPlan, FrameReport, KernelGraph, Timing};
 use parallax_graph::{
     AssignStrategy, DeviceId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region, Scheme,
     ViewId, compile,
@@ -53,7 +53,7 @@ fn run(
     frames: std::ops::Range<u32>,
     cut: Option<(u32, &LightField)>,
 ) -> Frames {
-    run_with(scene, lf, plan, placement, frames, cut, Barriers::EveryOp)
+    run_with(scene, lf, plan, placement, frames, cut, ExecOptions::default()).0
 }
 
 fn run_with(
@@ -63,8 +63,8 @@ fn run_with(
     placement: &dyn Placement,
     frames: std::ops::Range<u32>,
     cut: Option<(u32, &LightField)>,
-    barriers: Barriers,
-) -> Frames {
+    options: ExecOptions,
+) -> (Frames, Vec<FrameReport>) {
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let config = PipelineConfig {
         kind: PipelineKind::Reproject,
@@ -80,7 +80,7 @@ fn run_with(
     let ctx = common::context(placement.devices() as usize);
     let bvh = SceneBvh::build(scene);
     let mut renderer =
-        LightFieldRenderer::with_barriers(&ctx, exec, lf.len() as u32, &GpuScene::new(scene, &bvh), barriers).unwrap();
+        LightFieldRenderer::with_options(&ctx, exec, lf.len() as u32, &GpuScene::new(scene, &bvh), options).unwrap();
     let settings = TraceSettings { spp: 1, max_depth: 3, ..Default::default() };
     let mut out = Vec::new();
     for f in frames {
@@ -101,9 +101,10 @@ fn run_with(
                 .collect(),
         );
     }
+    let reports = renderer.take_reports();
     drop(renderer);
     ctx.check_validation().unwrap();
-    out
+    (out, reports)
 }
 
 fn finite(frames: &Frames) -> bool {
@@ -184,17 +185,30 @@ fn thin_geometry_and_a_camera_inside_geometry_render_finite_images() {
 }
 
 #[test]
-fn barriers_only_where_accesses_conflict_give_the_same_bits() {
+fn barriers_only_where_accesses_conflict_and_per_stage_timing_give_the_same_bits() {
     // Three devices: core validation only (synchronisation validation takes every dispatch to
     // touch the whole bindless array, so it reports false hazards with tracked barriers).
     let scene = default_scene();
     let lf = light_field(&scene, scene.default_camera(), 0.02);
+    let tracked_per_stage = ExecOptions { barriers: Barriers::Tracked, timing: Timing::PerStage, ..Default::default() };
     for scheme in [Scheme::MultiSource, Scheme::FineAll] {
         let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
         let plan =
             Plan::new(&lf, &PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources }).unwrap();
-        let every = run_with(&scene, &lf, &plan, &plan, 0..2, None, Barriers::EveryOp);
-        let tracked = run_with(&scene, &lf, &plan, &plan, 0..2, None, Barriers::Tracked);
+        let (every, per_op) = run_with(&scene, &lf, &plan, &plan, 0..2, None, ExecOptions::default());
+        let (tracked, per_stage) = run_with(&scene, &lf, &plan, &plan, 0..2, None, tracked_per_stage.clone());
         assert!(every == tracked, "{scheme:?}");
+        // Per-stage timing times every stage of every device, with fewer events than per op.
+        let stages = |r: &FrameReport| -> Vec<(String, usize)> {
+            let mut s: Vec<(String, usize)> = r.stages.iter().map(|s| (s.stage.clone(), s.device)).collect();
+            s.dedup();
+            s
+        };
+        for (op, stage) in per_op.iter().zip(&per_stage) {
+            assert_eq!(stages(op), stages(stage), "{scheme:?}");
+            let passes = |r: &FrameReport| r.events.iter().filter(|e| e.kind == EventKind::Pass).count();
+            assert!(passes(stage) < passes(op), "{scheme:?}: {} per stage, {} per op", passes(stage), passes(op));
+            assert!(stage.events.iter().all(|e| e.end_ns >= e.start_ns));
+        }
     }
 }
