@@ -162,16 +162,16 @@ pub struct RenderArgs {
     /// such as the H200), or rasterised (the paper's way; fast with fixed-function raster).
     #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
     gbuffer: GbufferArg,
-    /// Barriers between GPU ops: `every-op`, or `tracked` (only where declared accesses
-    /// conflict, so the instances of one pass for many views overlap; synchronisation
-    /// validation reports false hazards with it).
-    #[arg(long, value_enum, default_value_t = BarrierArg::EveryOp)]
+    /// Barriers between GPU ops: `tracked` (only where declared accesses conflict, so the
+    /// instances of one pass for many views overlap; synchronisation validation reports false
+    /// hazards with it), or `every-op`.
+    #[arg(long, value_enum, default_value_t = BarrierArg::Tracked)]
     barriers: BarrierArg,
-    /// What each GPU timestamp pair times: `per-op` (every pass instance and copy; a timestamp
-    /// drains the queue on NVIDIA, so ops cannot overlap) or `per-stage` (each run of one pass's
-    /// instances; with `--barriers tracked` the instances overlap, and stage and frame times are
-    /// those of the overlapped run).
-    #[arg(long, value_enum, default_value_t = TimingArg::PerOp)]
+    /// What each GPU timestamp pair times: `per-stage` (each run of one pass's instances; with
+    /// `--barriers tracked` the instances overlap, and stage and frame times are those of the
+    /// overlapped run) or `per-op` (every pass instance and copy, for per-view timelines; a
+    /// timestamp drains the queue on NVIDIA, so ops cannot overlap).
+    #[arg(long, value_enum, default_value_t = TimingArg::PerStage)]
     timing: TimingArg,
     /// Write a Chrome trace-event JSON of the measured frames (open in Perfetto or
     /// chrome://tracing; `-` = stdout).
