@@ -17,6 +17,7 @@ fn point(label: &str, series: &str, frame_ms: f64, flip: f64, devices: u32, view
         psnr: Some(30.0 - 100.0 * flip),
         devices: Some(devices),
         views: Some(views),
+        ..Default::default()
     }
 }
 
