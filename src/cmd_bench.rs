@@ -131,15 +131,21 @@ fn render_argv(case: &Case, cell: &Cell, frames: u32, warmup: u32, folder: &Path
 
 /// Parses a cell's render arguments as `render` will, so a bad case (a typo, or a flag the
 /// matrix sets itself such as `--spp`) fails before any cell runs rather than in every cell.
-fn check_render_args(case: &Case, argv: &[OsString]) -> Result<()> {
+/// `matrix` is the file the case comes from, for the message.
+fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> Result<()> {
     let command = <RenderArgs as clap::Args>::augment_args(clap::Command::new("render").no_binary_name(true));
     if let Err(e) = command.try_get_matches_from(argv) {
         let text = e.to_string();
         let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
-        match &case.name {
-            Some(name) => bail!("case `{name}`: its args do not make a render command line: {line}"),
-            None => bail!("--common: not a render command line with the matrix's flags: {line}"),
-        }
+        let origin = match (matrix, &case.name) {
+            (Some(file), Some(name)) => format!("--matrix {}: [[case]] `{name}`: args", file.display()),
+            _ => "--common".to_string(),
+        };
+        bail!(
+            "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
+             what bench sets per cell: --pipeline, --scheme, --assign, --sources-per-set, --spp, --no-denoise, \
+             --gpus, --fake-devices, --frames, --warmup, --out-dir"
+        );
     }
     Ok(())
 }
@@ -180,8 +186,10 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
     entry["hole_fill_ms"] = match cell.pipeline {
         PipelineArg::Reproject => timing["stages"]
             .as_array()
+            // A fold from +0: `sum` over no rows (no targets, so no hole filling) gives -0.
             .map(|rows| {
-                rows.iter().filter(|r| r["stage"] == "hole_fill").filter_map(|r| r["mean_ms"].as_f64()).sum::<f64>()
+                let ms = rows.iter().filter(|r| r["stage"] == "hole_fill").filter_map(|r| r["mean_ms"].as_f64());
+                ms.fold(0.0, |a, b| a + b)
             })
             .into(),
         PipelineArg::PathTrace => serde_json::Value::Null,
@@ -223,14 +231,18 @@ fn table(cells: &[serde_json::Value]) -> String {
         let busy: Vec<String> =
             c["busy_fraction"].as_array().map_or(Vec::new(), |b| b.iter().map(|v| num(v, 2)).collect());
         out.push_str(&format!(
-            "| {case} | {id} | {} / {} / {} | {} | {} | {} | {} % | {} | {} | {} |\n",
+            "| {case} | {id} | {} / {} / {} | {} | {} | {} | {} | {} | {} | {} |\n",
             num(&f["mean_ms"], 2),
             num(&f["median_ms"], 2),
             num(&f["p95_ms"], 2),
             num(&c["views_per_s"], 1),
             busy.join(" / "),
             c["copy_bytes_per_frame"].as_f64().map_or("–".into(), |b| format!("{:.3}", b / 1e6)),
-            c["missing_pixels"]["overall"].as_f64().map_or("–".into(), |m| format!("{:.2}", 100.0 * m)),
+            // Path tracing leaves no holes to count.
+            c["missing_pixels"]["overall"]
+                .as_f64()
+                .filter(|_| c["pipeline"] == "reproject")
+                .map_or("–".into(), |m| format!("{:.2} %", 100.0 * m)),
             num(&c["hole_fill_ms"], 3),
             num(&c["flip"], 4),
             num(&c["psnr_db"], 2),
@@ -307,7 +319,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .map(|cell| {
             let case = &matrix.cases[cell.case];
             let argv = render_argv(case, cell, frames, warmup, &args.out_dir.join(&cell.id));
-            check_render_args(case, &argv).map(|()| argv)
+            check_render_args(args.matrix.as_deref(), case, &argv).map(|()| argv)
         })
         .collect::<Result<_>>()?;
     std::fs::create_dir_all(&args.out_dir)
@@ -383,9 +395,9 @@ mod tests {
                 .cells()
                 .unwrap()[0];
         let argv = render_argv(&case, cell, 1, 0, Path::new("out"));
-        let e = check_render_args(&case, &argv).unwrap_err().to_string();
-        assert!(e.contains("case `a`") && e.contains("--spp"), "{e}");
+        let e = check_render_args(Some(Path::new("m.toml")), &case, &argv).unwrap_err().to_string();
+        assert!(e.contains("--matrix m.toml: [[case]] `a`: args") && e.contains("'--spp <SPP>'"), "{e}");
         let fine = Case { args: "--lf 2x1".into(), ..case };
-        check_render_args(&fine, &render_argv(&fine, cell, 1, 0, Path::new("out"))).unwrap();
+        check_render_args(None, &fine, &render_argv(&fine, cell, 1, 0, Path::new("out"))).unwrap();
     }
 }

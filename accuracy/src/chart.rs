@@ -59,11 +59,11 @@ fn group(points: &[Point], keep: impl Fn(&Point) -> bool) -> Vec<(String, Vec<&P
 }
 
 /// The points `keep` accepts, grouped by `key` in order of first appearance.
-fn group_by<'p>(
-    points: &'p [Point],
+fn group_by(
+    points: &[Point],
     keep: impl Fn(&Point) -> bool,
     key: impl Fn(&Point) -> &str,
-) -> Vec<(String, Vec<&'p Point>)> {
+) -> Vec<(String, Vec<&Point>)> {
     let mut groups: Vec<(String, Vec<&Point>)> = Vec::new();
     for p in points.iter().filter(|p| keep(p)) {
         match groups.iter_mut().find(|(name, _)| name == key(p)) {
@@ -112,7 +112,7 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
         groups.iter().flat_map(|(_, ps)| ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?)))).collect();
     let front = Series {
         name: "Pareto front".into(),
-        color: groups.len(),
+        color: NEUTRAL,
         style: Style::Dashed,
         points: pareto_front(&all, axis == AccuracyAxis::Psnr).into_iter().map(|(x, y)| (x, y, None)).collect(),
     };
@@ -126,7 +126,8 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
             points: ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?, Some(p.label.clone())))).collect(),
         })
         .collect();
-    series.push(front);
+    // First, so that the markers are drawn over it.
+    series.insert(0, front);
     Ok(XyChart {
         title: "Speed against accuracy (dashed: Pareto front)".into(),
         x_label: "frame time (ms)".into(),
@@ -239,7 +240,14 @@ fn range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::ops::Range<
     (lo - if from_zero && lo == 0.0 { 0.0 } else { pad })..(hi + pad)
 }
 
+/// Palette index of dark grey: lines of no one series (the Pareto front), which a palette
+/// colour would tie to a series or draw too faintly.
+pub const NEUTRAL: usize = usize::MAX;
+
 pub(crate) fn color(i: usize) -> RGBColor {
+    if i == NEUTRAL {
+        return RGBColor(70, 70, 70);
+    }
     let c = Palette99::pick(i).to_rgba();
     RGBColor(c.0, c.1, c.2)
 }
