@@ -64,6 +64,9 @@ fn a_matrix_reports_a_failed_cell_and_writes_the_others() {
         assert!(!ok[field].is_null(), "bench.json cells have `{field}`: {ok}");
     }
     assert!(ok["frame_ms"]["mean_ms"].as_f64().unwrap() > 0.0);
+    // --common is one unnamed case; without --assignments the cell reports render's default.
+    assert!(ok["case"].is_null());
+    assert_eq!((ok["assignment"].as_str(), ok["views"].as_u64()), (Some("compact"), Some(2)));
     assert!(ok["flip"].as_f64().unwrap() > 0.0 && ok["flip"].as_f64().unwrap() < 1.0);
     assert_eq!(failed["ok"], false);
     assert!(failed["error"].as_str().unwrap().contains("exceeds the 2 views"), "{failed}");
