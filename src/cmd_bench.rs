@@ -1,32 +1,45 @@
-//! `parallax bench`: a matrix of `render` runs (pipelines × schemes × sources per set × spp ×
-//! denoise × device counts over one scene and light field), each cell a `parallax render` child
-//! process of this binary, so a cell that fails (say, more devices than views) is reported with
-//! its error and the others still run. Writes `bench.json` (documented below), `bench.md`, and
-//! `points.json` (one chart point per cell, for `parallax chart speed-accuracy`).
+//! `parallax bench`: a matrix of `render` runs (cases × pipelines × schemes × assignments ×
+//! sources per set × spp × denoise × device counts; see [`crate::bench_matrix`] for the
+//! `--matrix FILE.toml` form), each cell a `parallax render` child process of this binary, so a
+//! cell that fails (say, more devices than views) is reported with its error and the others
+//! still run. Every cell's render arguments are parsed before the first cell runs, so a typo
+//! in a case fails at once. Writes `bench.json` (documented below), `bench.md` (the cells, then
+//! the stages of every cell in the layout of the paper's Table 1), and `points.json` (one chart
+//! point per cell, for `parallax chart speed-accuracy`, `views` and `holes`).
 //!
-//! bench.json: `{"cells": [cell]}`; a cell has `id`, `args` (the render arguments), `ok`,
-//! `error` (when not ok), and when ok: `frame_ms` (mean, median, p95 of the GPU span of the
-//! measured frames), `views_per_s` (elemental images per second at the mean), `stages` (per
-//! stage and device, ms per frame: the paper's Table 1), `busy_fraction` (per device: Fig. 8),
-//! `missing_pixels` (Table 4), `copy_bytes_per_frame`, and with `--reference`: `flip`, `psnr_db`
-//! (linear radiance clamped to [0, 1]) against that folder's views.
+//! bench.json: `{"common", "matrix", "frames", "warmup", "cases": [{"name", "args",
+//! "reference"}], "cells": [cell]}` (`common` with `--common`, `matrix` the file with
+//! `--matrix`); a cell has `id` (`[case/]pipeline_scheme[_assignment]_kK_sppS_dnD_dN`), `case`
+//! (the case's name; null for `--common`), `args` (the render arguments beyond the case's),
+//! `pipeline`, `scheme`, `assignment` (reprojecting multi-source cells: the one asked for, or
+//! the one render used by default), `sources_per_set`, `spp`, `denoise` (bool), `devices`,
+//! `ok`, `error` (when not ok), and when ok: `views`, `frame_ms` (mean, median, p95 of the GPU
+//! span of the measured frames), `views_per_s` (elemental images per second at the mean),
+//! `stages` (per stage and device, ms per frame: the paper's Table 1), `hole_fill_ms` (the
+//! `hole_fill` stage's ms per frame summed over devices; null for path-trace), `busy_fraction`
+//! (per device: Fig. 8), `missing_pixels` (Table 4), `copy_bytes_per_frame`, and with a
+//! reference: `flip`, `psnr_db` (linear radiance clamped to [0, 1]) against its views.
+//!
+//! points.json: `{"points": [point]}`, one per ok cell: `label` (the id), `series` (the
+//! pipeline), `case`, `frame_ms`, `flip`, `psnr`, `views`, `devices`, `assignment`,
+//! `sources_per_set`, `spp`, and for reprojecting cells `missing` (overall missing-pixel ratio)
+//! and `hole_fill_ms`.
 
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context as _, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::Args;
 
-use crate::cmd_render::PipelineArg;
+use crate::bench_matrix::{self, Axes, Case, Cell, Denoise, Matrix, name_of};
+use crate::cmd_render::{PipelineArg, RenderArgs};
 use crate::logging::{bar, result};
-use crate::options::SchemeArg;
+use crate::options::{AssignArg, SchemeArg};
 
-/// `--denoise`: SVGF on or off.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Denoise {
-    On,
-    Off,
-}
+/// Measured frames and warm-up frames per cell when neither the flags nor the matrix file say.
+const DEFAULT_FRAMES: u32 = 10;
+const DEFAULT_WARMUP: u32 = 2;
 
 #[derive(Args, Debug)]
 pub struct BenchArgs {
@@ -35,12 +48,26 @@ pub struct BenchArgs {
     /// "--scene default --lf 4x2 --resolution 32x32".
     #[arg(long, default_value = "--scene default", allow_hyphen_values = true)]
     common: String,
+    /// A TOML file of cases (render arguments, optional reference) and matrix slices, instead
+    /// of --common, --reference and the axis flags: `[[case]]` tables with `name`, `args`,
+    /// `reference`; `[[matrix]]` tables with `cases`, `pipelines`, `schemes`, `assignments`,
+    /// `sources_per_set`, `spp`, `denoise`, `devices`, `fake_devices` (lists; every key
+    /// optional); top-level `frames` and `warmup`. See README.md.
+    #[arg(long, value_name = "FILE.toml", conflicts_with_all = [
+        "common", "reference", "pipelines", "schemes", "assignments", "sources_per_set", "spp", "denoise", "devices",
+        "fake_devices",
+    ])]
+    matrix: Option<PathBuf>,
     /// Pipelines, comma-separated.
     #[arg(long, value_enum, default_value = "reproject,path-trace", value_delimiter = ',')]
     pipelines: Vec<PipelineArg>,
     /// Schemes, comma-separated.
     #[arg(long, value_enum, default_value = "multi-source", value_delimiter = ',')]
     schemes: Vec<SchemeArg>,
+    /// View-to-device assignments, comma-separated (reprojecting multi-source cells only;
+    /// default: render's).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    assignments: Vec<AssignArg>,
     /// Sources per multi-source set, comma-separated (reprojecting multi-source cells only).
     #[arg(long, default_value = "1", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=64))]
     sources_per_set: Vec<u32>,
@@ -56,12 +83,12 @@ pub struct BenchArgs {
     /// The device counts are logical devices on one GPU (lavapipe, or overhead runs), not GPUs.
     #[arg(long)]
     fake_devices: bool,
-    /// Measured frames per cell, after --warmup frames.
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=100_000))]
-    frames: u32,
-    /// Frames rendered before measuring, per cell.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(0..=100_000))]
-    warmup: u32,
+    /// Measured frames per cell, after --warmup frames [default: the matrix file's `frames`, or 10].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    frames: Option<u32>,
+    /// Frames rendered before measuring, per cell [default: the matrix file's `warmup`, or 2].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    warmup: Option<u32>,
     /// A folder of reference views (`parallax reference`) to measure every cell's accuracy against.
     #[arg(long)]
     reference: Option<PathBuf>,
@@ -70,68 +97,71 @@ pub struct BenchArgs {
     out_dir: PathBuf,
 }
 
-/// Each cell's id and render arguments (beyond the common ones).
-fn cells(args: &BenchArgs) -> Vec<(String, Vec<String>)> {
-    let value = |v: &dyn ValueEnumName| v.name();
-    let mut out = Vec::new();
-    for pipeline in &args.pipelines {
-        for scheme in &args.schemes {
-            // Sources per set only shape the reprojecting pipeline under multi-source.
-            let shaped = *pipeline == PipelineArg::Reproject && *scheme == SchemeArg::MultiSource;
-            let per_set = if shaped { &args.sources_per_set[..] } else { &args.sources_per_set[..1] };
-            for &k in per_set {
-                for &spp in &args.spp {
-                    for denoise in &args.denoise {
-                        for &devices in &args.devices {
-                            let flag = if args.fake_devices { "--fake-devices" } else { "--gpus" };
-                            let (pipeline, scheme, dn) = (value(pipeline), value(scheme), value(denoise));
-                            let mut a: Vec<String> =
-                                ["--pipeline", &pipeline, "--scheme", &scheme, "--spp", &spp.to_string()]
-                                    .iter()
-                                    .map(|s| s.to_string())
-                                    .chain([flag.to_string(), devices.to_string()])
-                                    .collect();
-                            if shaped {
-                                a.extend(["--sources-per-set".into(), k.to_string()]);
-                            }
-                            if *denoise == Denoise::Off {
-                                a.push("--no-denoise".into());
-                            }
-                            out.push((format!("{pipeline}_{scheme}_k{k}_spp{spp}_dn{dn}_d{devices}"), a));
-                        }
-                    }
-                }
-            }
-        }
+/// The one case and slice of the command-line flags.
+fn matrix_of_flags(args: &BenchArgs) -> Result<Matrix> {
+    if let Some(reference) = &args.reference
+        && !reference.is_dir()
+    {
+        bail!("--reference {} is not a folder of reference views (see `parallax reference`)", reference.display());
     }
-    out
+    let axes = Axes {
+        pipelines: args.pipelines.clone(),
+        schemes: args.schemes.clone(),
+        assignments: args.assignments.clone(),
+        sources_per_set: args.sources_per_set.clone(),
+        spp: args.spp.clone(),
+        denoise: args.denoise.clone(),
+        devices: args.devices.clone(),
+        fake_devices: args.fake_devices,
+    };
+    let case = Case { name: None, args: args.common.clone(), reference: args.reference.clone() };
+    Ok(Matrix { frames: None, warmup: None, cases: vec![case], slices: vec![(vec![0], axes)] })
 }
 
-/// The command-line spelling of a value of a clap enum.
-trait ValueEnumName {
-    fn name(&self) -> String;
+/// The whole `parallax render` command line of a cell (after `render`).
+fn render_argv(case: &Case, cell: &Cell, frames: u32, warmup: u32, folder: &Path) -> Vec<OsString> {
+    let mut argv: Vec<OsString> = case.args.split_whitespace().map(OsString::from).collect();
+    argv.extend(cell.args.iter().map(OsString::from));
+    for a in ["--frames".into(), frames.to_string(), "--warmup".into(), warmup.to_string(), "--out-dir".into()] {
+        argv.push(a.into());
+    }
+    argv.push(folder.into());
+    argv
 }
 
-impl<T: ValueEnum> ValueEnumName for T {
-    fn name(&self) -> String {
-        self.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string())
+/// Parses a cell's render arguments as `render` will, so a bad case (a typo, or a flag the
+/// matrix sets itself such as `--spp`) fails before any cell runs rather than in every cell.
+/// `matrix` is the file the case comes from, for the message.
+fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> Result<()> {
+    let command = <RenderArgs as clap::Args>::augment_args(clap::Command::new("render").no_binary_name(true));
+    if let Err(e) = command.try_get_matches_from(argv) {
+        let text = e.to_string();
+        let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
+        let origin = match (matrix, &case.name) {
+            (Some(file), Some(name)) => format!("--matrix {}: [[case]] `{name}`: args", file.display()),
+            _ => "--common".to_string(),
+        };
+        bail!(
+            "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
+             what bench sets per cell: --pipeline, --scheme, --assign, --sources-per-set, --spp, --no-denoise, \
+             --gpus, --fake-devices, --frames, --warmup, --out-dir"
+        );
     }
+    Ok(())
 }
 
 /// Runs one cell; returns its bench.json entry.
-fn run_cell(args: &BenchArgs, id: &str, cell_args: &[String], folder: &Path) -> Result<serde_json::Value> {
+fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Result<serde_json::Value> {
     let exe = std::env::current_exe().context("cannot find this program to run the cells")?;
-    let common: Vec<&str> = args.common.split_whitespace().collect();
-    let output = Command::new(exe)
-        .arg("-q")
-        .arg("render")
-        .args(&common)
-        .args(cell_args)
-        .args(["--frames", &args.frames.to_string(), "--warmup", &args.warmup.to_string(), "--out-dir"])
-        .arg(folder)
-        .output()
-        .context("cannot start a cell")?;
-    let mut entry = serde_json::json!({ "id": id, "args": cell_args });
+    let output = Command::new(exe).arg("-q").arg("render").args(argv).output().context("cannot start a cell")?;
+    let id = &cell.id;
+    let shaped = Cell::shaped(cell.pipeline, cell.scheme);
+    let mut entry = serde_json::json!({
+        "id": id, "case": case.name, "args": cell.args, "pipeline": name_of(&cell.pipeline),
+        "scheme": name_of(&cell.scheme), "assignment": cell.assignment.map(|a| name_of(&a)),
+        "sources_per_set": cell.sources_per_set, "spp": cell.spp, "denoise": cell.denoise == Denoise::On,
+        "devices": cell.devices,
+    });
     if !output.status.success() {
         let error = String::from_utf8_lossy(&output.stderr).trim().to_string();
         entry["ok"] = false.into();
@@ -144,46 +174,76 @@ fn run_cell(args: &BenchArgs, id: &str, cell_args: &[String], folder: &Path) -> 
     let timing = &report["timing"];
     let mean = timing["frame_gpu"]["mean_ms"].as_f64().unwrap_or(f64::NAN);
     let views = report["layout"]["views"].as_f64().unwrap_or(0.0);
+    if shaped && cell.assignment.is_none() {
+        // Render's default, as it reports it.
+        entry["assignment"] = report["assign"].clone();
+    }
     entry["ok"] = true.into();
+    entry["views"] = report["layout"]["views"].clone();
     entry["frame_ms"] = timing["frame_gpu"].clone();
     entry["views_per_s"] = (views * 1e3 / mean).into();
     entry["stages"] = timing["stages"].clone();
+    entry["hole_fill_ms"] = match cell.pipeline {
+        PipelineArg::Reproject => timing["stages"]
+            .as_array()
+            // A fold from +0: `sum` over no rows (no targets, so no hole filling) gives -0.
+            .map(|rows| {
+                let ms = rows.iter().filter(|r| r["stage"] == "hole_fill").filter_map(|r| r["mean_ms"].as_f64());
+                ms.fold(0.0, |a, b| a + b)
+            })
+            .into(),
+        PipelineArg::PathTrace => serde_json::Value::Null,
+    };
     entry["busy_fraction"] = timing["busy_fraction"].clone();
     entry["copy_bytes_per_frame"] = timing["copy_bytes_per_frame"].clone();
     entry["missing_pixels"] = report["missing_pixels"].clone();
-    if let Some(reference) = &args.reference {
+    if let Some(reference) = &case.reference {
         let c = parallax_accuracy::compare_paths(folder, reference)
-            .with_context(|| format!("cell {id}: comparing with --reference {}", reference.display()))?;
+            .with_context(|| format!("cell {id}: comparing with the reference {}", reference.display()))?;
         entry["flip"] = c.overall.flip.into();
         entry["psnr_db"] = c.overall.psnr_linear_db.into();
     }
     Ok(entry)
 }
 
+/// A number with `digits` decimals, or a dash where there is none.
+fn num(v: &serde_json::Value, digits: usize) -> String {
+    v.as_f64().map_or("–".to_string(), |x| format!("{x:.digits$}"))
+}
+
 /// The cells as a markdown table.
 fn table(cells: &[serde_json::Value]) -> String {
-    let mut out =
-        String::from("| cell | frame ms (mean / median / p95) | views/s | missing pixels | FLIP | PSNR dB |\n");
-    out.push_str("|---|---|---:|---:|---:|---:|\n");
+    let mut out = String::from(
+        "| case | cell | frame ms (mean / median / p95) | views/s | busy fraction per device | copy MB/frame | \
+         missing pixels | hole fill ms | FLIP | PSNR dB |\n",
+    );
+    out.push_str("|---|---|---|---:|---|---:|---:|---:|---:|---:|\n");
     for c in cells {
+        let (case, id) = (c["case"].as_str().unwrap_or("–"), c["id"].as_str().unwrap_or(""));
         if c["ok"] != true {
             // The cell's one-line diagnosis (stderr may hold notes before it).
             let error = c["error"].as_str().unwrap_or("");
             let line = error.lines().find(|l| l.starts_with("error:")).unwrap_or(error);
-            out.push_str(&format!("| {} | failed: {line} | | | | |\n", c["id"].as_str().unwrap_or("")));
+            out.push_str(&format!("| {case} | {id} | failed: {line} | | | | | | | |\n"));
             continue;
         }
         let f = &c["frame_ms"];
-        let num =
-            |v: &serde_json::Value, digits: usize| v.as_f64().map_or("–".to_string(), |x| format!("{x:.digits$}"));
+        let busy: Vec<String> =
+            c["busy_fraction"].as_array().map_or(Vec::new(), |b| b.iter().map(|v| num(v, 2)).collect());
         out.push_str(&format!(
-            "| {} | {} / {} / {} | {} | {} % | {} | {} |\n",
-            c["id"].as_str().unwrap_or(""),
+            "| {case} | {id} | {} / {} / {} | {} | {} | {} | {} | {} | {} | {} |\n",
             num(&f["mean_ms"], 2),
             num(&f["median_ms"], 2),
             num(&f["p95_ms"], 2),
             num(&c["views_per_s"], 1),
-            c["missing_pixels"]["overall"].as_f64().map_or("–".into(), |m| format!("{:.2}", 100.0 * m)),
+            busy.join(" / "),
+            c["copy_bytes_per_frame"].as_f64().map_or("–".into(), |b| format!("{:.3}", b / 1e6)),
+            // Path tracing leaves no holes to count.
+            c["missing_pixels"]["overall"]
+                .as_f64()
+                .filter(|_| c["pipeline"] == "reproject")
+                .map_or("–".into(), |m| format!("{:.2} %", 100.0 * m)),
+            num(&c["hole_fill_ms"], 3),
             num(&c["flip"], 4),
             num(&c["psnr_db"], 2),
         ));
@@ -191,39 +251,101 @@ fn table(cells: &[serde_json::Value]) -> String {
     out
 }
 
-pub fn run(args: BenchArgs) -> Result<()> {
-    let cells = cells(&args);
-    if let Some(reference) = &args.reference
-        && !reference.is_dir()
-    {
-        bail!("--reference {} is not a folder of reference views (see `parallax reference`)", reference.display());
+/// The paper's Table 1 over the cells that ran: one row per stage, one column per cell, each
+/// entry the stage's ms per frame on every device of the cell, joined by ` / `.
+fn stage_table(cells: &[serde_json::Value]) -> String {
+    let ok: Vec<&serde_json::Value> = cells.iter().filter(|c| c["ok"] == true).collect();
+    let rows = |c: &serde_json::Value| c["stages"].as_array().cloned().unwrap_or_default();
+    let mut stages: Vec<String> = Vec::new();
+    for row in ok.iter().flat_map(|c| rows(c)) {
+        if let Some(stage) = row["stage"].as_str()
+            && !stages.iter().any(|s| s == stage)
+        {
+            stages.push(stage.to_string());
+        }
     }
+    let mut out = String::from("| stage |");
+    for c in &ok {
+        out.push_str(&format!(" {} |", c["id"].as_str().unwrap_or("")));
+    }
+    out.push_str(&format!("\n|---|{}\n", "---:|".repeat(ok.len())));
+    for stage in &stages {
+        out.push_str(&format!("| {stage} |"));
+        for c in &ok {
+            let of_stage: Vec<serde_json::Value> =
+                rows(c).into_iter().filter(|r| r["stage"] == stage.as_str()).collect();
+            if of_stage.is_empty() {
+                out.push_str(" – |");
+                continue;
+            }
+            let devices = c["busy_fraction"].as_array().map_or(0, Vec::len);
+            let per_device: Vec<String> = (0..devices)
+                .map(|d| of_stage.iter().find(|r| r["device"] == d).map_or("–".into(), |r| num(&r["mean_ms"], 3)))
+                .collect();
+            out.push_str(&format!(" {} |", per_device.join(" / ")));
+        }
+        out.push('\n');
+    }
+    out.push_str("| frame (GPU span, mean) |");
+    for c in &ok {
+        out.push_str(&format!(" {} |", num(&c["frame_ms"]["mean_ms"], 3)));
+    }
+    out.push('\n');
+    out
+}
+
+/// The chart point of a cell that ran (module docs).
+fn point(c: &serde_json::Value) -> serde_json::Value {
+    let reprojected = c["pipeline"] == "reproject";
+    serde_json::json!({
+        "label": c["id"], "series": c["pipeline"], "case": c["case"], "frame_ms": c["frame_ms"]["mean_ms"],
+        "flip": c["flip"], "psnr": c["psnr_db"], "views": c["views"], "devices": c["devices"],
+        "assignment": c["assignment"], "sources_per_set": c["sources_per_set"], "spp": c["spp"],
+        "missing": if reprojected { c["missing_pixels"]["overall"].clone() } else { serde_json::Value::Null },
+        "hole_fill_ms": c["hole_fill_ms"],
+    })
+}
+
+pub fn run(args: BenchArgs) -> Result<()> {
+    let matrix = match &args.matrix {
+        Some(path) => bench_matrix::load(path)?,
+        None => matrix_of_flags(&args)?,
+    };
+    let frames = args.frames.or(matrix.frames).unwrap_or(DEFAULT_FRAMES);
+    let warmup = args.warmup.or(matrix.warmup).unwrap_or(DEFAULT_WARMUP);
+    let cells = matrix.cells()?;
+    let argvs: Vec<Vec<OsString>> = cells
+        .iter()
+        .map(|cell| {
+            let case = &matrix.cases[cell.case];
+            let argv = render_argv(case, cell, frames, warmup, &args.out_dir.join(&cell.id));
+            check_render_args(args.matrix.as_deref(), case, &argv).map(|()| argv)
+        })
+        .collect::<Result<_>>()?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let progress = bar(cells.len() as u64);
     let mut entries = Vec::with_capacity(cells.len());
-    for (id, cell_args) in &cells {
-        let folder = args.out_dir.join(id);
-        entries.push(run_cell(&args, id, cell_args, &folder)?);
+    for (cell, argv) in cells.iter().zip(&argvs) {
+        let folder = args.out_dir.join(&cell.id);
+        entries.push(run_cell(&matrix.cases[cell.case], cell, argv, &folder)?);
         progress.inc(1);
     }
     progress.finish_and_clear();
-    let json =
-        serde_json::json!({ "common": args.common, "frames": args.frames, "warmup": args.warmup, "cells": entries });
-    let staged_json = crate::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
-    // The chart input (`parallax chart speed-accuracy points.json`): one point per cell that ran,
-    // one series per pipeline.
-    let points: Vec<serde_json::Value> = entries
+    let cases: Vec<serde_json::Value> = matrix
+        .cases
         .iter()
-        .filter(|c| c["ok"] == true)
-        .map(|c| {
-            serde_json::json!({ "label": c["id"], "series": c["args"][1], "frame_ms": c["frame_ms"]["mean_ms"],
-                                "flip": c["flip"], "psnr": c["psnr_db"] })
-        })
+        .map(|c| serde_json::json!({ "name": c.name, "args": c.args, "reference": c.reference }))
         .collect();
+    let json = serde_json::json!({
+        "common": args.matrix.is_none().then_some(&args.common), "matrix": args.matrix, "frames": frames,
+        "warmup": warmup, "cases": cases, "cells": entries,
+    });
+    let staged_json = crate::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
+    let points: Vec<serde_json::Value> = entries.iter().filter(|c| c["ok"] == true).map(point).collect();
     let staged_points =
         crate::outputs::stage_json(&args.out_dir.join("points.json"), &serde_json::json!({ "points": points }))?;
-    let md = table(&entries);
+    let md = format!("{}\n## Per stage, ms per frame\n\n{}", table(&entries), stage_table(&entries));
     let md_path = args.out_dir.join("bench.md");
     let staged_md = crate::outputs::stage(&md_path, |tmp| {
         std::fs::write(tmp, &md).with_context(|| format!("cannot write {}", md_path.display()))
@@ -238,4 +360,44 @@ pub fn run(args: BenchArgs) -> Result<()> {
         &format!("{} cell(s), {failed} failed; wrote {}", entries.len(), args.out_dir.join("bench.json").display()),
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        bench: BenchArgs,
+    }
+
+    #[test]
+    fn the_flags_defaults_are_the_matrix_files() {
+        let args = Cli::try_parse_from(["bench"]).unwrap().bench;
+        let m = matrix_of_flags(&args).unwrap();
+        assert_eq!(m.slices, vec![(vec![0], Axes::default())]);
+    }
+
+    #[test]
+    fn a_matrix_file_excludes_the_axis_flags() {
+        assert!(Cli::try_parse_from(["bench", "--matrix", "m.toml", "--spp", "2"]).is_err());
+        assert!(Cli::try_parse_from(["bench", "--matrix", "m.toml", "--frames", "2"]).is_ok());
+    }
+
+    #[test]
+    fn case_args_that_clash_with_the_matrix_fail_before_running() {
+        let case = Case { name: Some("a".into()), args: "--lf 2x1 --spp 4".into(), reference: None };
+        let cell =
+            &Matrix { frames: None, warmup: None, cases: vec![case.clone()], slices: vec![(vec![0], Axes::default())] }
+                .cells()
+                .unwrap()[0];
+        let argv = render_argv(&case, cell, 1, 0, Path::new("out"));
+        let e = check_render_args(Some(Path::new("m.toml")), &case, &argv).unwrap_err().to_string();
+        assert!(e.contains("--matrix m.toml: [[case]] `a`: args") && e.contains("'--spp <SPP>'"), "{e}");
+        let fine = Case { args: "--lf 2x1".into(), ..case };
+        check_render_args(None, &fine, &render_argv(&fine, cell, 1, 0, Path::new("out"))).unwrap();
+    }
 }

@@ -9,16 +9,21 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use parallax_accuracy::chart::{self, AccuracyAxis};
 use parallax_accuracy::load_points;
+use parallax_accuracy::points::of_case;
 use parallax_accuracy::timeline::Timeline;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ChartKind {
-    /// Frame time against FLIP (or `--metric psnr`), one labelled point per configuration.
+    /// Frame time against FLIP (or `--metric psnr`), one labelled point per configuration, with
+    /// the Pareto front.
     SpeedAccuracy,
     /// Frame time against device count, with the ideal line per series.
     Scaling,
     /// Frame time against the number of views.
     Views,
+    /// Missing pixels (%) against hole-filling time, one series per assignment (bench's
+    /// points.json).
+    Holes,
     /// Per-device timeline of one Chrome trace.
     Timeline,
 }
@@ -35,7 +40,7 @@ pub struct ChartArgs {
     #[arg(value_enum)]
     kind: ChartKind,
     /// JSON inputs: `{"points": [{"label", "series", "frame_ms", "flip", "psnr", "devices",
-    /// "views"}]}`, a file with a `point` (compare --json, reference.json) or a render.json;
+    /// "views", "case", "assignment", "sources_per_set", "spp", "missing", "hole_fill_ms"}]}`, a file with a `point` (compare --json, reference.json) or a render.json;
     /// for `timeline`, one Chrome trace.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
@@ -45,10 +50,17 @@ pub struct ChartArgs {
     /// Accuracy axis of speed-accuracy.
     #[arg(long, value_enum, default_value = "flip")]
     metric: Metric,
+    /// Only the points of this bench case (points.json's `case`), so that one points.json gives
+    /// one chart per case; not for `timeline`.
+    #[arg(long)]
+    case: Option<String>,
 }
 
 pub fn run(args: ChartArgs) -> Result<()> {
     if args.kind == ChartKind::Timeline {
+        if args.case.is_some() {
+            bail!("--case selects points of a points file; a timeline reads one Chrome trace: drop --case");
+        }
         let [trace] = args.inputs.as_slice() else {
             bail!("timeline takes one Chrome trace, got {} inputs", args.inputs.len());
         };
@@ -63,7 +75,10 @@ pub fn run(args: ChartArgs) -> Result<()> {
     for input in &args.inputs {
         points.extend(load_points(input)?);
     }
-    let xy = match args.kind {
+    if let Some(case) = &args.case {
+        points = of_case(points, case)?;
+    }
+    let mut xy = match args.kind {
         ChartKind::SpeedAccuracy => chart::speed_accuracy(
             &points,
             match args.metric {
@@ -73,8 +88,12 @@ pub fn run(args: ChartArgs) -> Result<()> {
         )?,
         ChartKind::Scaling => chart::scaling(&points)?,
         ChartKind::Views => chart::frame_time_over_views(&points)?,
+        ChartKind::Holes => chart::holes(&points)?,
         ChartKind::Timeline => unreachable!("handled above"),
     };
+    if let Some(case) = &args.case {
+        xy.title = format!("{}, case {case}", xy.title);
+    }
     for out in &args.out {
         xy.write(out)?;
         tracing::info!("wrote {}", out.display());

@@ -1,5 +1,6 @@
 //! The `parallax` command line.
 
+mod bench_matrix;
 mod budget;
 mod cmd_backend;
 mod cmd_bench;
@@ -41,14 +42,15 @@ enum Command {
     BenchCopy(cmd_backend::BenchCopyArgs),
     /// Measure GPU traversal: primary and diffuse-bounce rays/s, and the CWBVH build time.
     BenchRays(cmd_bench_rays::BenchRaysArgs),
-    /// A matrix of renders (pipelines × schemes × sources per set × spp × denoise × devices):
-    /// frame times, stage table, busy fractions, missing pixels and accuracy per cell.
+    /// A matrix of renders (cases × pipelines × schemes × assignments × sources per set × spp ×
+    /// denoise × devices; flags or a TOML file): frame times, stage table, busy fractions,
+    /// missing pixels, hole filling and accuracy per cell.
     Bench(cmd_bench::BenchArgs),
     /// Path trace a converged reference of a light field's views, progressively and resumably.
     Reference(cmd_reference::ReferenceArgs),
     /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders.
     Compare(cmd_compare::CompareArgs),
-    /// Charts (SVG/PNG) of speed against accuracy, scaling, views, or a device timeline.
+    /// Charts (SVG/PNG) of speed against accuracy, scaling, views, holes, or a device timeline.
     Chart(cmd_chart::ChartArgs),
 }
 

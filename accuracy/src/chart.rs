@@ -1,5 +1,6 @@
-//! Charts with plotters, as SVG or PNG (chosen by the file extension): speed against accuracy,
-//! scaling over devices with the ideal line, frame time over views, and (in
+//! Charts with plotters, as SVG or PNG (chosen by the file extension): speed against accuracy
+//! with its Pareto front, scaling over devices with the ideal line, frame time over views,
+//! missing pixels against hole-filling time, and (in
 //! [`crate::timeline`]) a per-device timeline of a Chrome trace. 960×600 pixels, 15-18 px text:
 //! readable at 100 % zoom.
 
@@ -54,21 +55,50 @@ pub enum AccuracyAxis {
 }
 
 fn group(points: &[Point], keep: impl Fn(&Point) -> bool) -> Vec<(String, Vec<&Point>)> {
+    group_by(points, keep, Point::series_name)
+}
+
+/// The points `keep` accepts, grouped by `key` in order of first appearance.
+fn group_by(
+    points: &[Point],
+    keep: impl Fn(&Point) -> bool,
+    key: impl Fn(&Point) -> &str,
+) -> Vec<(String, Vec<&Point>)> {
     let mut groups: Vec<(String, Vec<&Point>)> = Vec::new();
     for p in points.iter().filter(|p| keep(p)) {
-        match groups.iter_mut().find(|(name, _)| name == p.series_name()) {
+        match groups.iter_mut().find(|(name, _)| name == key(p)) {
             Some((_, list)) => list.push(p),
-            None => groups.push((p.series_name().to_string(), vec![p])),
+            None => groups.push((key(p).to_string(), vec![p])),
         }
     }
     groups
+}
+
+/// The points no other point beats: none has both a lower (or equal) x and a better (or equal)
+/// y, where better is lower or, with `higher_y_better`, higher. Sorted by x.
+pub fn pareto_front(xy: &[(f64, f64)], higher_y_better: bool) -> Vec<(f64, f64)> {
+    let better = |a: f64, b: f64| if higher_y_better { a > b } else { a < b };
+    let mut sorted = xy.to_vec();
+    // Among equal x, the best y first: it alone can be on the front.
+    sorted.sort_by(|a, b| {
+        let y = if higher_y_better { b.1.total_cmp(&a.1) } else { a.1.total_cmp(&b.1) };
+        a.0.total_cmp(&b.0).then(y)
+    });
+    let mut front: Vec<(f64, f64)> = Vec::new();
+    for p in sorted {
+        if front.last().is_none_or(|last| better(p.1, last.1)) {
+            front.push(p);
+        }
+    }
+    front
 }
 
 fn none_usable(what: &str) -> AccuracyError {
     AccuracyError::Chart(format!("no input point has {what}"))
 }
 
-/// Frame time against FLIP or PSNR, one labelled marker per configuration.
+/// Frame time against FLIP or PSNR, one labelled marker per configuration, and the Pareto
+/// front over all of them (faster and more accurate dominate) as a dashed line.
 pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
     let y = |p: &Point| match axis {
         AccuracyAxis::Flip => p.flip,
@@ -78,23 +108,34 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
     if groups.is_empty() {
         return Err(none_usable("both frame_ms and the accuracy figure (compare's JSON of a render folder has)"));
     }
+    let all: Vec<(f64, f64)> =
+        groups.iter().flat_map(|(_, ps)| ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?)))).collect();
+    let front = Series {
+        name: "Pareto front".into(),
+        color: NEUTRAL,
+        style: Style::Dashed,
+        points: pareto_front(&all, axis == AccuracyAxis::Psnr).into_iter().map(|(x, y)| (x, y, None)).collect(),
+    };
+    let mut series: Vec<Series> = groups
+        .into_iter()
+        .enumerate()
+        .map(|(color, (name, ps))| Series {
+            name,
+            color,
+            style: Style::Points,
+            points: ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?, Some(p.label.clone())))).collect(),
+        })
+        .collect();
+    // First, so that the markers are drawn over it.
+    series.insert(0, front);
     Ok(XyChart {
-        title: "Speed against accuracy".into(),
+        title: "Speed against accuracy (dashed: Pareto front)".into(),
         x_label: "frame time (ms)".into(),
         y_label: match axis {
             AccuracyAxis::Flip => "mean FLIP (LDR, lower is better)".into(),
             AccuracyAxis::Psnr => "PSNR, linear clamped (dB, higher is better)".into(),
         },
-        series: groups
-            .into_iter()
-            .enumerate()
-            .map(|(color, (name, ps))| Series {
-                name,
-                color,
-                style: Style::Points,
-                points: ps.iter().map(|p| (p.frame_ms.unwrap(), y(p).unwrap(), Some(p.label.clone()))).collect(),
-            })
-            .collect(),
+        series,
         integer_x: false,
     })
 }
@@ -151,6 +192,41 @@ pub fn frame_time_over_views(points: &[Point]) -> Result<XyChart> {
     })
 }
 
+/// Missing pixels (%) against hole-filling time per frame, one series per assignment, one
+/// point per configuration that has both, labelled by sources per set and spp ("k2 spp4").
+pub fn holes(points: &[Point]) -> Result<XyChart> {
+    let groups = group_by(
+        points,
+        |p| p.missing.is_some() && p.hole_fill_ms.is_some(),
+        |p| p.assignment.as_deref().unwrap_or("assignment not given"),
+    );
+    if groups.is_empty() {
+        return Err(none_usable("both missing and hole_fill_ms (bench's points.json has them for reprojecting cells)"));
+    }
+    let label = |p: &Point| match (p.sources_per_set, p.spp) {
+        (Some(k), Some(spp)) => format!("k{k} spp{spp}"),
+        (Some(k), None) => format!("k{k}"),
+        (None, _) => p.label.clone(),
+    };
+    let series = groups
+        .into_iter()
+        .enumerate()
+        .map(|(color, (name, ps))| Series {
+            name,
+            color,
+            style: Style::Points,
+            points: ps.iter().filter_map(|p| Some((100.0 * p.missing?, p.hole_fill_ms?, Some(label(p))))).collect(),
+        })
+        .collect();
+    Ok(XyChart {
+        title: "Missing pixels against hole-filling time".into(),
+        x_label: "missing pixels (%)".into(),
+        y_label: "hole filling (ms per frame, all devices)".into(),
+        series,
+        integer_x: false,
+    })
+}
+
 pub(crate) fn chart_err(e: impl std::fmt::Display) -> AccuracyError {
     AccuracyError::Chart(e.to_string())
 }
@@ -164,7 +240,14 @@ fn range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::ops::Range<
     (lo - if from_zero && lo == 0.0 { 0.0 } else { pad })..(hi + pad)
 }
 
+/// Palette index of dark grey: lines of no one series (the Pareto front), which a palette
+/// colour would tie to a series or draw too faintly.
+pub const NEUTRAL: usize = usize::MAX;
+
 pub(crate) fn color(i: usize) -> RGBColor {
+    if i == NEUTRAL {
+        return RGBColor(70, 70, 70);
+    }
     let c = Palette99::pick(i).to_rgba();
     RGBColor(c.0, c.1, c.2)
 }
@@ -288,4 +371,44 @@ pub(crate) fn write_chart(
         }
     };
     crate::accumulate::write_atomically(path, |f| std::io::Write::write_all(f, &bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cell(assignment: &str, k: u32, missing: Option<f64>, hole_fill_ms: Option<f64>) -> Point {
+        Point {
+            label: format!("{assignment} k{k}"),
+            assignment: Some(assignment.into()),
+            sources_per_set: Some(k),
+            spp: Some(1),
+            missing,
+            hole_fill_ms,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn holes_has_a_series_per_assignment_of_the_points_with_both_figures() {
+        let points = [
+            cell("compact", 1, Some(0.02), Some(0.5)),
+            cell("compact", 2, Some(0.01), Some(0.4)),
+            cell("round-robin", 1, Some(0.05), Some(0.9)),
+            cell("contiguous", 1, Some(0.03), None),
+        ];
+        let chart = holes(&points).unwrap();
+        let names: Vec<&str> = chart.series.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["compact", "round-robin"]);
+        assert_eq!(chart.series[0].points[1], (1.0, 0.4, Some("k2 spp1".into())));
+        let none = [cell("compact", 1, Some(0.02), None), cell("compact", 1, None, Some(0.5))];
+        assert!(holes(&none).unwrap_err().to_string().contains("both missing and hole_fill_ms"));
+    }
+
+    #[test]
+    fn the_pareto_front_keeps_the_undominated_points() {
+        let xy = [(10.0, 0.05), (20.0, 0.03), (15.0, 0.06), (30.0, 0.03), (10.0, 0.04), (40.0, 0.01)];
+        assert_eq!(pareto_front(&xy, false), [(10.0, 0.04), (20.0, 0.03), (40.0, 0.01)]);
+        assert_eq!(pareto_front(&[(10.0, 30.0), (20.0, 29.0), (25.0, 35.0)], true), [(10.0, 30.0), (25.0, 35.0)]);
+    }
 }

@@ -3,10 +3,15 @@
 //!
 //! ```json
 //! { "points": [ { "label": "multi-source, 2 GPUs", "series": "multi-source",
-//!                 "frame_ms": 12.5, "flip": 0.041, "psnr": 31.2, "devices": 2, "views": 32 } ] }
+//!                 "frame_ms": 12.5, "flip": 0.041, "psnr": 31.2, "devices": 2, "views": 32,
+//!                 "case": "nelf", "assignment": "compact", "sources_per_set": 2, "spp": 4,
+//!                 "missing": 0.012, "hole_fill_ms": 0.8 } ] }
 //! ```
 //!
 //! Every field but `label` is optional; a chart uses the points that have what it plots.
+//! `case`: the bench case the point belongs to (`chart --case`); `assignment`: how views were
+//! assigned to devices; `missing`: fraction of reprojected pixels that were holes;
+//! `hole_fill_ms`: hole-filling GPU time per frame, summed over devices.
 //! `frame_ms`: milliseconds per frame (render.json: the GPU span of the frame); `flip`: mean
 //! LDR-FLIP; `psnr`: dB on linear radiance clamped to [0, 1]; `series` groups points into one
 //! line or colour. Accepted files: `{"points": [...]}`, `{"point": {...}}` (what `compare --json`
@@ -33,12 +38,38 @@ pub struct Point {
     pub devices: Option<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub views: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub case: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assignment: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sources_per_set: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spp: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub missing: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hole_fill_ms: Option<f64>,
 }
 
 impl Point {
     pub fn series_name(&self) -> &str {
         self.series.as_deref().unwrap_or("")
     }
+}
+
+/// The points of case `name`; an error naming the cases there are when none is of it.
+pub fn of_case(points: Vec<Point>, name: &str) -> Result<Vec<Point>> {
+    let mut known: Vec<&str> = points.iter().filter_map(|p| p.case.as_deref()).collect();
+    known.sort_unstable();
+    known.dedup();
+    let list =
+        if known.is_empty() { "none has a case".to_string() } else { format!("the cases are {}", known.join(", ")) };
+    let kept: Vec<Point> = points.into_iter().filter(|p| p.case.as_deref() == Some(name)).collect();
+    if kept.is_empty() {
+        return Err(AccuracyError::Chart(format!("no input point is of case `{name}` ({list})")));
+    }
+    Ok(kept)
 }
 
 /// The point of one render.json (see `parallax render`): label "<pipeline>, <scheme>, N

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use parallax_accuracy::Point;
 use parallax_accuracy::chart::{self, AccuracyAxis, SIZE};
-use parallax_accuracy::points::load_points;
+use parallax_accuracy::points::{load_points, of_case};
 use parallax_accuracy::timeline::Timeline;
 
 fn point(label: &str, series: &str, frame_ms: f64, flip: f64, devices: u32, views: u32) -> Point {
@@ -17,6 +17,7 @@ fn point(label: &str, series: &str, frame_ms: f64, flip: f64, devices: u32, view
         psnr: Some(30.0 - 100.0 * flip),
         devices: Some(devices),
         views: Some(views),
+        ..Default::default()
     }
 }
 
@@ -60,7 +61,11 @@ fn every_chart_kind_as_svg_and_png() {
 
     let sa = chart::speed_accuracy(&ps, AccuracyAxis::Flip).unwrap();
     let texts = svg_texts(&write_both(dir.path(), "speed", |p| sa.write(p).unwrap()));
-    for want in ["multi-source", "fine-all", "multi-source 2 GPUs", "fine-all 1 GPU", "frame time (ms)"] {
+    // The fastest (multi-source 2 GPUs, 22 ms) and the fastest of the most accurate (fine-all 2
+    // GPUs, 0.04 at 30 ms) are undominated.
+    assert_eq!(sa.series[0].points.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>(), [(22.0, 0.05), (30.0, 0.04)]);
+    for want in ["multi-source", "fine-all", "multi-source 2 GPUs", "fine-all 1 GPU", "frame time (ms)", "Pareto front"]
+    {
         assert!(texts.iter().any(|t| t == want), "speed-accuracy SVG lacks {want:?}: {texts:?}");
     }
     assert!(texts.iter().any(|t| t.starts_with("mean FLIP")));
@@ -118,6 +123,10 @@ fn bad_chart_inputs_are_errors() {
     assert!(load_points(&file).unwrap_err().to_string().contains("schema"));
     let no_flip = vec![Point { label: "a".into(), frame_ms: Some(1.0), ..Default::default() }];
     assert!(chart::speed_accuracy(&no_flip, AccuracyAxis::Flip).is_err());
+    let cased = vec![Point { label: "a".into(), case: Some("nelf".into()), ..Default::default() }];
+    let e = of_case(cased.clone(), "multiscopic").unwrap_err().to_string();
+    assert!(e.contains("`multiscopic`") && e.contains("the cases are nelf"), "{e}");
+    assert_eq!(of_case(cased.clone(), "nelf").unwrap(), cased);
     let sa = chart::speed_accuracy(&points(), AccuracyAxis::Psnr).unwrap();
     assert!(sa.write(&dir.path().join("chart.jpg")).unwrap_err().to_string().contains(".svg or .png"));
 }

@@ -1,0 +1,431 @@
+//! What `parallax bench` runs: cases (render arguments naming a scene, light field and
+//! resolution) crossed with slices of axes, expanded into cells. The cases and slices come from
+//! the command line (`--common` and the axis flags: one case, one slice) or from a TOML file
+//! (`--matrix FILE.toml`), validated whole before any cell runs:
+//!
+//! ```toml
+//! frames = 20                 # optional: measured frames per cell (default 10)
+//! warmup = 5                  # optional: frames before measuring (default 2)
+//! [[case]]                    # one or more
+//! name = "sponza-multiscopic" # [A-Za-z0-9_-]+, unique: the cells' ids and folders start with it
+//! args = "--scene sponza_lite/Sponza.gltf --lf multiscopic --still"
+//! reference = "ref/multiscopic" # optional: reference views, relative to this file's folder
+//! [[matrix]]                  # one or more slices, each a cartesian product of its axes
+//! cases = ["sponza-multiscopic"] # optional: default every case
+//! pipelines = ["reproject", "path-trace"]
+//! schemes = ["multi-source"]
+//! assignments = ["compact"]   # reprojecting multi-source cells only (default: render's)
+//! sources_per_set = [1, 2, 4] # reprojecting multi-source cells only
+//! spp = [1, 2, 4, 8]
+//! denoise = ["on", "off"]
+//! devices = [1]
+//! fake_devices = false
+//! ```
+//!
+//! Every axis is optional, with the default of its command-line flag. A cell that two slices
+//! both produce runs once.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, Result, anyhow, bail};
+use clap::ValueEnum;
+use serde::Deserialize;
+
+use crate::cmd_render::PipelineArg;
+use crate::options::{AssignArg, SchemeArg};
+
+/// `--denoise`: SVGF on or off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Denoise {
+    On,
+    Off,
+}
+
+/// The command-line spelling of a value of a clap enum.
+pub fn name_of<T: ValueEnum>(value: &T) -> String {
+    value.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string())
+}
+
+/// Render arguments shared by a set of cells (scene, light field, resolution, ...).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Case {
+    /// None for `--common`, whose cells keep ids without a case prefix.
+    pub name: Option<String>,
+    pub args: String,
+    /// Reference views to measure the case's cells against.
+    pub reference: Option<PathBuf>,
+}
+
+/// The axes of one slice.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Axes {
+    pub pipelines: Vec<PipelineArg>,
+    pub schemes: Vec<SchemeArg>,
+    /// Empty: no `--assign`, render's default.
+    pub assignments: Vec<AssignArg>,
+    pub sources_per_set: Vec<u32>,
+    pub spp: Vec<u32>,
+    pub denoise: Vec<Denoise>,
+    pub devices: Vec<u32>,
+    pub fake_devices: bool,
+}
+
+/// The command-line flags' defaults (a test in cmd_bench keeps the two in step).
+impl Default for Axes {
+    fn default() -> Self {
+        Axes {
+            pipelines: vec![PipelineArg::Reproject, PipelineArg::PathTrace],
+            schemes: vec![SchemeArg::MultiSource],
+            assignments: Vec::new(),
+            sources_per_set: vec![1],
+            spp: vec![1],
+            denoise: vec![Denoise::On],
+            devices: vec![1],
+            fake_devices: false,
+        }
+    }
+}
+
+/// Cases crossed with slices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Matrix {
+    pub frames: Option<u32>,
+    pub warmup: Option<u32>,
+    pub cases: Vec<Case>,
+    /// (indices into `cases`, axes).
+    pub slices: Vec<(Vec<usize>, Axes)>,
+}
+
+/// One `parallax render` run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    pub id: String,
+    /// Index into [`Matrix::cases`].
+    pub case: usize,
+    /// Render arguments beyond the case's.
+    pub args: Vec<String>,
+    pub pipeline: PipelineArg,
+    pub scheme: SchemeArg,
+    /// Reprojecting multi-source cells: the assignment asked for (None: render's default).
+    pub assignment: Option<AssignArg>,
+    /// Only reprojecting multi-source cells use more than one.
+    pub sources_per_set: u32,
+    pub spp: u32,
+    pub denoise: Denoise,
+    pub devices: u32,
+    pub fake_devices: bool,
+}
+
+impl Cell {
+    /// Sources per set and the assignment only shape the reprojecting pipeline under
+    /// multi-source; other cells run once per remaining axes.
+    pub fn shaped(pipeline: PipelineArg, scheme: SchemeArg) -> bool {
+        pipeline == PipelineArg::Reproject && scheme == SchemeArg::MultiSource
+    }
+}
+
+impl Matrix {
+    /// Every cell, in slice order, each id once. Two cells with one id but different render
+    /// arguments (slices differing only in `fake_devices`) would write one folder: refused.
+    pub fn cells(&self) -> Result<Vec<Cell>> {
+        let mut out: Vec<Cell> = Vec::new();
+        let mut seen: HashMap<String, usize> = HashMap::new();
+        for (cases, axes) in &self.slices {
+            for &case in cases {
+                for cell in slice_cells(&self.cases[case], case, axes) {
+                    match seen.get(&cell.id) {
+                        Some(&i) if out[i] == cell => {}
+                        Some(_) => bail!(
+                            "two matrix slices both make cell {} with different render arguments (fake_devices differs): \
+                             put them in separate matrix files",
+                            cell.id
+                        ),
+                        None => {
+                            seen.insert(cell.id.clone(), out.len());
+                            out.push(cell);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
+    let mut out = Vec::new();
+    let prefix = case.name.as_ref().map_or_else(String::new, |n| format!("{n}/"));
+    let explicit: Vec<Option<AssignArg>> = axes.assignments.iter().copied().map(Some).collect();
+    for &pipeline in &axes.pipelines {
+        for &scheme in &axes.schemes {
+            let shaped = Cell::shaped(pipeline, scheme);
+            // Unshaped cells run with render's defaults for both.
+            let per_set: &[u32] = if shaped { &axes.sources_per_set } else { &[1] };
+            let assignments: &[Option<AssignArg>] = if shaped && !explicit.is_empty() { &explicit } else { &[None] };
+            for &assignment in assignments {
+                for &sources_per_set in per_set {
+                    for &spp in &axes.spp {
+                        for &denoise in &axes.denoise {
+                            for &devices in &axes.devices {
+                                let (p, s, dn) = (name_of(&pipeline), name_of(&scheme), name_of(&denoise));
+                                let flag = if axes.fake_devices { "--fake-devices" } else { "--gpus" };
+                                let mut args: Vec<String> = vec![
+                                    "--pipeline".into(),
+                                    p.clone(),
+                                    "--scheme".into(),
+                                    s.clone(),
+                                    "--spp".into(),
+                                    spp.to_string(),
+                                    flag.into(),
+                                    devices.to_string(),
+                                ];
+                                let mut assign_id = String::new();
+                                if let Some(a) = assignment {
+                                    args.extend(["--assign".into(), name_of(&a)]);
+                                    assign_id = format!("_{}", name_of(&a));
+                                }
+                                if shaped {
+                                    args.extend(["--sources-per-set".into(), sources_per_set.to_string()]);
+                                }
+                                if denoise == Denoise::Off {
+                                    args.push("--no-denoise".into());
+                                }
+                                out.push(Cell {
+                                    id: format!(
+                                        "{prefix}{p}_{s}{assign_id}_k{sources_per_set}_spp{spp}_dn{dn}_d{devices}"
+                                    ),
+                                    case: case_index,
+                                    args,
+                                    pipeline,
+                                    scheme,
+                                    assignment,
+                                    sources_per_set,
+                                    spp,
+                                    denoise,
+                                    devices,
+                                    fake_devices: axes.fake_devices,
+                                });
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A clap value enum spelled as on the command line (`"path-trace"`), so the file and the
+/// flags accept the same words; a bad word names the allowed ones.
+struct Named<T>(T);
+
+impl<'de, T: ValueEnum> Deserialize<'de> for Named<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let word = String::deserialize(d)?;
+        T::from_str(&word, false).map(Named).map_err(|_| {
+            let allowed: Vec<String> = T::value_variants().iter().map(name_of).collect();
+            serde::de::Error::custom(format!("`{word}` is not one of: {}", allowed.join(", ")))
+        })
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileToml {
+    frames: Option<u32>,
+    warmup: Option<u32>,
+    #[serde(default)]
+    case: Vec<CaseToml>,
+    #[serde(default)]
+    matrix: Vec<SliceToml>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CaseToml {
+    name: String,
+    args: String,
+    reference: Option<PathBuf>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SliceToml {
+    cases: Option<Vec<String>>,
+    pipelines: Option<Vec<Named<PipelineArg>>>,
+    schemes: Option<Vec<Named<SchemeArg>>>,
+    assignments: Option<Vec<Named<AssignArg>>>,
+    sources_per_set: Option<Vec<u32>>,
+    spp: Option<Vec<u32>>,
+    denoise: Option<Vec<Named<Denoise>>>,
+    devices: Option<Vec<u32>>,
+    fake_devices: Option<bool>,
+}
+
+/// Reads and validates a matrix file (module docs); every error names the file, the key and
+/// the fix.
+pub fn load(path: &Path) -> Result<Matrix> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read --matrix {}", path.display()))?;
+    let file = path.display();
+    let raw: FileToml = toml::from_str(&text).map_err(|e| {
+        anyhow!(
+            "--matrix {file}: {}\n(the keys and values are described in `parallax bench --help`)",
+            e.to_string().trim_end()
+        )
+    })?;
+    let err = |key: &str, problem: String| anyhow!("--matrix {file}: {key}: {problem}");
+    check_range(raw.frames, 1..=100_000).map_err(|p| err("frames", p))?;
+    check_range(raw.warmup, 0..=100_000).map_err(|p| err("warmup", p))?;
+    if raw.case.is_empty() {
+        return Err(err("[[case]]", "there is none: add a [[case]] with `name` and `args`".into()));
+    }
+    if raw.matrix.is_empty() {
+        return Err(err("[[matrix]]", "there is none: add a [[matrix]] (an empty one runs the default axes)".into()));
+    }
+    let folder = path.parent().unwrap_or(Path::new(""));
+    let mut cases: Vec<Case> = Vec::new();
+    for (i, c) in raw.case.into_iter().enumerate() {
+        let key = format!("[[case]] #{}: name", i + 1);
+        if c.name.is_empty() || !c.name.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_') {
+            return Err(err(&key, format!("`{}` must be letters, digits, `-` or `_` (it names folders)", c.name)));
+        }
+        if cases.iter().any(|o| o.name.as_ref() == Some(&c.name)) {
+            return Err(err(&key, format!("`{}` names two cases: give each case its own name", c.name)));
+        }
+        let reference = c.reference.map(|r| folder.join(r));
+        if let Some(r) = &reference
+            && !r.is_dir()
+        {
+            return Err(err(
+                &format!("[[case]] `{}`: reference", c.name),
+                format!(
+                    "{} is not a folder: give the reference views' folder (`parallax reference`), relative to {file}'s folder",
+                    r.display()
+                ),
+            ));
+        }
+        cases.push(Case { name: Some(c.name), args: c.args, reference });
+    }
+    let mut slices = Vec::new();
+    for (i, s) in raw.matrix.into_iter().enumerate() {
+        let key = |k: &'static str| format!("[[matrix]] #{}: {k}", i + 1);
+        let d = Axes::default();
+        let case_indices = match s.cases {
+            None => (0..cases.len()).collect(),
+            Some(names) => {
+                let names = non_empty(names).map_err(|p| err(&key("cases"), p))?;
+                names
+                    .iter()
+                    .map(|n| {
+                        cases.iter().position(|c| c.name.as_ref() == Some(n)).ok_or_else(|| {
+                            let known: Vec<&str> = cases.iter().filter_map(|c| c.name.as_deref()).collect();
+                            err(&key("cases"), format!("no [[case]] is named `{n}`: use one of {}", known.join(", ")))
+                        })
+                    })
+                    .collect::<Result<_>>()?
+            }
+        };
+        let words = |k: &'static str| move |p: String| err(&key(k), p);
+        let counts = |v: Option<Vec<u32>>, k: &'static str, range: std::ops::RangeInclusive<u32>, default: Vec<u32>| {
+            let v = v.map_or(Ok(default), non_empty).map_err(words(k))?;
+            v.iter().try_for_each(|&n| check_range(Some(n), range.clone())).map_err(words(k))?;
+            Ok::<_, anyhow::Error>(v)
+        };
+        let axes = Axes {
+            pipelines: axis(s.pipelines, d.pipelines).map_err(words("pipelines"))?,
+            schemes: axis(s.schemes, d.schemes).map_err(words("schemes"))?,
+            assignments: axis(s.assignments, d.assignments).map_err(words("assignments"))?,
+            sources_per_set: counts(s.sources_per_set, "sources_per_set", 1..=64, d.sources_per_set)?,
+            spp: counts(s.spp, "spp", 1..=65536, d.spp)?,
+            denoise: axis(s.denoise, d.denoise).map_err(words("denoise"))?,
+            devices: counts(s.devices, "devices", 1..=64, d.devices)?,
+            fake_devices: s.fake_devices.unwrap_or(d.fake_devices),
+        };
+        slices.push((case_indices, axes));
+    }
+    Ok(Matrix { frames: raw.frames, warmup: raw.warmup, cases, slices })
+}
+
+/// An axis of words: the default when the key is absent, never an empty list.
+fn axis<T>(v: Option<Vec<Named<T>>>, default: Vec<T>) -> Result<Vec<T>, String> {
+    v.map_or(Ok(default), |v| non_empty(v.into_iter().map(|n| n.0).collect()))
+}
+
+fn non_empty<T>(v: Vec<T>) -> Result<Vec<T>, String> {
+    if v.is_empty() {
+        Err("the list is empty: give at least one value, or leave the key out for its default".into())
+    } else {
+        Ok(v)
+    }
+}
+
+fn check_range(v: Option<u32>, range: std::ops::RangeInclusive<u32>) -> Result<(), String> {
+    match v {
+        Some(n) if !range.contains(&n) => Err(format!("{n} is outside {}..={}", range.start(), range.end())),
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load_text(text: &str) -> Result<Matrix> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.toml");
+        std::fs::write(&path, text).unwrap();
+        load(&path)
+    }
+
+    const CASES: &str = "[[case]]\nname = \"a\"\nargs = \"--lf 2x1\"\n[[case]]\nname = \"b\"\nargs = \"--lf 3x1\"\n";
+
+    #[test]
+    fn slices_expand_and_repeated_cells_run_once() {
+        let m = load_text(&format!(
+            "frames = 3\n{CASES}[[matrix]]\ncases = [\"a\"]\npipelines = [\"reproject\"]\nassignments = [\"compact\", \"round-robin\"]\n\
+             sources_per_set = [1, 2]\n[[matrix]]\npipelines = [\"reproject\", \"path-trace\"]\nassignments = [\"compact\"]\n"
+        ))
+        .unwrap();
+        assert_eq!(m.frames, Some(3));
+        let ids: Vec<String> = m.cells().unwrap().into_iter().map(|c| c.id).collect();
+        assert_eq!(
+            ids,
+            [
+                "a/reproject_multi-source_compact_k1_spp1_dnon_d1",
+                "a/reproject_multi-source_compact_k2_spp1_dnon_d1",
+                "a/reproject_multi-source_round-robin_k1_spp1_dnon_d1",
+                "a/reproject_multi-source_round-robin_k2_spp1_dnon_d1",
+                "a/path-trace_multi-source_k1_spp1_dnon_d1",
+                "b/reproject_multi-source_compact_k1_spp1_dnon_d1",
+                "b/path-trace_multi-source_k1_spp1_dnon_d1",
+            ]
+        );
+    }
+
+    #[test]
+    fn bad_files_name_the_key() {
+        let cases = [
+            (format!("{CASES}[[matrix]]\nspps = [1]\n"), "unknown field `spps`"),
+            (format!("{CASES}[[matrix]]\npipelines = [\"fast\"]\n"), "`fast` is not one of: reproject, path-trace"),
+            (format!("{CASES}[[matrix]]\nspp = []\n"), "[[matrix]] #1: spp: the list is empty"),
+            (format!("{CASES}[[matrix]]\ndevices = [65]\n"), "[[matrix]] #1: devices: 65 is outside 1..=64"),
+            (format!("{CASES}[[matrix]]\ncases = [\"c\"]\n"), "[[matrix]] #1: cases: no [[case]] is named `c`"),
+            (format!("{CASES}{CASES}[[matrix]]\n"), "[[case]] #3: name: `a` names two cases"),
+            ("[[case]]\nname = \"a b\"\nargs = \"\"\n[[matrix]]\n".into(), "must be letters, digits"),
+            ("[[case]]\nname = \"a\"\nargs = \"\"\nreference = \"nowhere\"\n[[matrix]]\n".into(), "reference: "),
+            (CASES.into(), "[[matrix]]: there is none"),
+            ("frames = 0\n".into(), "frames: 0 is outside 1..=100000"),
+        ];
+        for (text, want) in cases {
+            let e = load_text(&text).unwrap_err().to_string();
+            assert!(e.contains(want) && e.contains("m.toml"), "{text}\n→ {e}");
+        }
+    }
+
+    #[test]
+    fn slices_that_differ_only_in_fake_devices_are_refused() {
+        let m = load_text(&format!("{CASES}[[matrix]]\n[[matrix]]\nfake_devices = true\n")).unwrap();
+        assert!(m.cells().unwrap_err().to_string().contains("fake_devices differs"));
+    }
+}
