@@ -306,6 +306,38 @@ fn point(c: &serde_json::Value) -> serde_json::Value {
     })
 }
 
+/// Writes bench.json, points.json and bench.md for the cells run so far; returns bench.md.
+fn write_outputs(
+    args: &BenchArgs,
+    matrix: &bench_matrix::Matrix,
+    frames: u32,
+    warmup: u32,
+    entries: &[serde_json::Value],
+) -> Result<String> {
+    let cases: Vec<serde_json::Value> = matrix
+        .cases
+        .iter()
+        .map(|c| serde_json::json!({ "name": c.name, "args": c.args, "reference": c.reference }))
+        .collect();
+    let json = serde_json::json!({
+        "common": args.matrix.is_none().then_some(&args.common), "matrix": args.matrix, "frames": frames,
+        "warmup": warmup, "cases": cases, "cells": entries,
+    });
+    let staged_json = crate::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
+    let points: Vec<serde_json::Value> = entries.iter().filter(|c| c["ok"] == true).map(point).collect();
+    let staged_points =
+        crate::outputs::stage_json(&args.out_dir.join("points.json"), &serde_json::json!({ "points": points }))?;
+    let md = format!("{}\n## Per stage, ms per frame\n\n{}", table(entries), stage_table(entries));
+    let md_path = args.out_dir.join("bench.md");
+    let staged_md = crate::outputs::stage(&md_path, |tmp| {
+        std::fs::write(tmp, &md).with_context(|| format!("cannot write {}", md_path.display()))
+    })?;
+    staged_md.commit()?;
+    staged_points.commit()?;
+    staged_json.commit()?;
+    Ok(md)
+}
+
 pub fn run(args: BenchArgs) -> Result<()> {
     let matrix = match &args.matrix {
         Some(path) => bench_matrix::load(path)?,
@@ -326,33 +358,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let progress = bar(cells.len() as u64);
     let mut entries = Vec::with_capacity(cells.len());
+    let mut md = String::new();
     for (cell, argv) in cells.iter().zip(&argvs) {
         let folder = args.out_dir.join(&cell.id);
         entries.push(run_cell(&matrix.cases[cell.case], cell, argv, &folder)?);
+        // Written after every cell, so a run that is stopped keeps the cells it finished.
+        md = write_outputs(&args, &matrix, frames, warmup, &entries)?;
         progress.inc(1);
     }
     progress.finish_and_clear();
-    let cases: Vec<serde_json::Value> = matrix
-        .cases
-        .iter()
-        .map(|c| serde_json::json!({ "name": c.name, "args": c.args, "reference": c.reference }))
-        .collect();
-    let json = serde_json::json!({
-        "common": args.matrix.is_none().then_some(&args.common), "matrix": args.matrix, "frames": frames,
-        "warmup": warmup, "cases": cases, "cells": entries,
-    });
-    let staged_json = crate::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
-    let points: Vec<serde_json::Value> = entries.iter().filter(|c| c["ok"] == true).map(point).collect();
-    let staged_points =
-        crate::outputs::stage_json(&args.out_dir.join("points.json"), &serde_json::json!({ "points": points }))?;
-    let md = format!("{}\n## Per stage, ms per frame\n\n{}", table(&entries), stage_table(&entries));
-    let md_path = args.out_dir.join("bench.md");
-    let staged_md = crate::outputs::stage(&md_path, |tmp| {
-        std::fs::write(tmp, &md).with_context(|| format!("cannot write {}", md_path.display()))
-    })?;
-    staged_md.commit()?;
-    staged_points.commit()?;
-    staged_json.commit()?;
     result(false, &md);
     let failed = entries.iter().filter(|c| c["ok"] != true).count();
     result(

@@ -208,7 +208,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         spp: args.spp,
     };
     work.check_duration()?;
-    TraceWork { views: sized.len() as u64, ..work }.check_host()?;
+    // Memory is per frame: the frames reuse the same images.
+    let one_frame = TraceWork { views: sized.len() as u64, ..work };
+    one_frame.check_host()?;
 
     let mut scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
     light_scene(&mut scene, args.sun, args.no_sun, args.sky);
@@ -259,7 +261,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let bvh = SceneBvh::build(&scene);
     let context = VkContext::new(&ContextDesc::from_env(selection))?;
     tracing::info!("{}", context.to_string().trim_end());
-    work.check_devices(&context)?;
+    one_frame.check_devices(&context)?;
     let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule)?;
     let barriers = match args.barriers {
         BarrierArg::EveryOp => Barriers::EveryOp,
