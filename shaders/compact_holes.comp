@@ -1,7 +1,7 @@
 #version 460
 // The `compact_holes` pass (parallax_passes::holes::CompactHolesKernel): appends every hole
 // pixel (holes != 0) of rows [y0, y1) as x | y << 16 to the band's pixel list and keeps the
-// band's header valid indirect arguments for the hole-filling path trace (pixel_list.glsl).
+// band's header valid indirect arguments for a consumer that dispatches on them (pixel_list.glsl).
 //
 // One workgroup per 8x8-pixel tile compacts its holes locally (subgroup ballots, then a prefix
 // over the subgroups in shared memory) and reserves room with a single atomic on the band's

@@ -6,10 +6,12 @@
 //!   images. A pass that needs only radiance (hole filling) declares only the first.
 //! * Pixels: the instance's row band (a whole view or one device's strip), or, when the pass
 //!   reads a pixel list ([`LIST_SLOTS`]), the listed pixels of its band: the list in the band's
-//!   section of the buffer (a row buffer's rows `[y0, y1)`, or all of a plain buffer), whose
-//!   header holds the indirect arguments the dispatch reads (see [`crate::pixel_list`]), so a
-//!   list produced on the GPU earlier in the frame is traced with exactly the workgroups it
-//!   needs, and a band without listed pixels dispatches none.
+//!   section of the buffer (a row buffer's rows `[y0, y1)`, or all of a plain buffer; see
+//!   [`crate::pixel_list`]). The dispatch covers the section's capacity and the invocations past
+//!   the list's count return at once. It is not the indirect dispatch the list header also
+//!   describes: on an H200 each indirect dispatch ran alone, so hole filling of many targets
+//!   took one path's latency per target (docs/RESULTS.md), while direct dispatches of one
+//!   pass's instances overlap.
 //! * Camera, frame index and settings come from the per-frame data, one
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
@@ -19,6 +21,7 @@ use parallax_scene::gpu::{GpuPixel, GpuTraceParams};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
 use crate::error::{PassError, Result};
+use crate::pixel_list::list_groups;
 use crate::scene_upload::scene_refs;
 
 /// Pass name the kernel is registered under.
@@ -89,7 +92,7 @@ impl PassKernel for PathTraceKernel {
         let push = PathTracePush {
             scene: scene_refs(rec)?,
             trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
-            pixel_list: list.map_or(0, |(address, _, _)| address),
+            pixel_list: list.map_or(0, |(address, _)| address),
             radiance: images[0],
             albedo_roughness: images[1],
             normal_metallic: images[2],
@@ -100,9 +103,7 @@ impl PassKernel for PathTraceKernel {
             list_mode: u32::from(list.is_some()),
         };
         match list {
-            Some((_, resource, offset)) => {
-                rec.dispatch_indirect("pt_trace", bytemuck::bytes_of(&push), resource, offset)
-            }
+            Some((_, capacity)) => rec.dispatch_bytes("pt_trace", bytemuck::bytes_of(&push), list_groups(capacity)),
             // 8x8-pixel tiles (see pt_trace.comp).
             None => rec.dispatch_bytes(
                 "pt_trace",
@@ -114,10 +115,9 @@ impl PassKernel for PathTraceKernel {
 }
 
 /// Where the list of `read` (a pixel-list read of this instance) is: the GPU address of its
-/// band's section, the resource and the byte offset of the section (= of its indirect
-/// arguments). The section is the read's rows: the instance's band of a row buffer, or row 0,
-/// all of it, of a plain buffer.
-fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) -> parallax_backend::Result<(u64, usize, u64)> {
+/// band's section and how many entries the section holds. The section is the read's rows: the
+/// instance's band of a row buffer, or row 0, all of it, of a plain buffer.
+fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) -> parallax_backend::Result<(u64, u32)> {
     let list = rec.resource(read.resource);
     let offset = u64::from(read.rows.y0) * list.row_bytes();
     let section = u64::from(read.rows.len()) * list.row_bytes();
@@ -125,7 +125,8 @@ fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) -> parallax
         let detail = format!("its read `{}` must be a pixel-list buffer with room for the list header", list.name);
         return Err(misuse(index, detail));
     }
-    Ok((rec.buffer_of(read.resource)? + offset, read.resource, offset))
+    let capacity = u32::try_from(section / 4 - u64::from(crate::pixel_list::LIST_HEADER_WORDS)).unwrap_or(u32::MAX);
+    Ok((rec.buffer_of(read.resource)? + offset, capacity))
 }
 
 /// The per-frame data of `path_trace`: one [`GpuTraceParams`] per view, view `i` at

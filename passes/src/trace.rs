@@ -26,8 +26,8 @@ use crate::scene_upload::upload_scene;
 /// (all exported, so finished views end on device 0). With a pixel list (its capacity in
 /// entries and the kernel that fills it) the pass first gets a `pixel_list` pass writing a
 /// per-view plain buffer with one whole-view list (header and entries, see
-/// [`crate::pixel_list`]) and traces only the listed pixels, dispatched indirectly on the
-/// list's header (both passes whole-view; per-band lists are hole filling's, [`crate::holes`]).
+/// [`crate::pixel_list`]) and traces only the listed pixels (both passes whole-view; per-band
+/// lists are hole filling's, [`crate::holes`]).
 pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPixelListKernel)>) -> [Handle<Image>; 4] {
     let mut images = TRACE_OUTPUTS.map(|name| graph.image(name, Format::Rgba32f));
     let list = pixel_list.map(|(entries, kernel)| {
