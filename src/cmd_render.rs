@@ -366,7 +366,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                     "width": lf.width, "height": lf.height, "spacing_m": args.spacing, "focus_m": lf.rig.focus_distance },
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
-        "barriers": args.barriers, "timing": args.timing, "gbuffer": args.gbuffer,
+        "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
         "spp": args.spp, "max_depth": args.max_depth, "frames": args.frames, "warmup": args.warmup,
         "devices": device_names,
         "plan": &summary,
