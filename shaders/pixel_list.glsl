@@ -1,6 +1,6 @@
-// Pixel lists (parallax_passes::pixel_list): per band, a header that is at once the indirect
-// dispatch arguments of the kernel tracing the list (groups_x, groups_y, groups_z) and its
-// length (count), then `count` entries of x | y << 16. Each list shader declares the buffer
+// Pixel lists (parallax_passes::pixel_list): per band, a header that is at once indirect
+// dispatch arguments covering the list (groups_x, groups_y, groups_z) and its length (count),
+// then `count` entries of x | y << 16. pt_trace.comp dispatches the capacity and stops at count. Each list shader declares the buffer
 // with the qualifiers it needs; this is the part they share.
 #ifndef PARALLAX_PIXEL_LIST_GLSL
 #define PARALLAX_PIXEL_LIST_GLSL

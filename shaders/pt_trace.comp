@@ -48,8 +48,8 @@ void main() {
     uint x;
     uint y;
     if (pc.list_mode == 1u) {
-        // 1D over the list, folded into 2D when it exceeds the 65535-group limit of one axis
-        // (the header's groups_y > 1); the last groups run past the count.
+        // 1D over the list, folded into 2D when the capacity exceeds the 65535-group limit of
+        // one axis (parallax_passes::list_groups); the groups past the count return.
         uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
         if (i >= pc.pixel_list.count) {
             return;

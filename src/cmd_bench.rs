@@ -3,9 +3,9 @@
 //! `--matrix FILE.toml` form), each cell a `parallax render` child process of this binary, so a
 //! cell that fails (say, more devices than views) is reported with its error and the others
 //! still run. Every cell's render arguments are parsed before the first cell runs, so a typo
-//! in a case fails at once. Writes `bench.json` (documented below), `bench.md` (the cells, then
-//! the stages of every cell in the layout of the paper's Table 1), and `points.json` (one chart
-//! point per cell, for `parallax chart speed-accuracy`, `views` and `holes`).
+//! in a case fails at once. Writes `bench.json` (documented below), `bench.md` (tables in the
+//! paper's layouts, [`crate::bench_tables`]), and `points.json` (one chart point per cell, for
+//! `parallax chart speed-accuracy`, `views` and `holes`), all three after every cell.
 //!
 //! bench.json: `{"common", "matrix", "frames", "warmup", "cases": [{"name", "args",
 //! "reference"}], "cells": [cell]}` (`common` with `--common`, `matrix` the file with
@@ -16,9 +16,11 @@
 //! `ok`, `error` (when not ok), and when ok: `views`, `frame_ms` (mean, median, p95 of the GPU
 //! span of the measured frames), `views_per_s` (elemental images per second at the mean),
 //! `stages` (per stage and device, ms per frame: the paper's Table 1), `hole_fill_ms` (the
-//! `hole_fill` stage's ms per frame summed over devices; null for path-trace), `busy_fraction`
+//! `hole_fill` stage's ms per frame summed over devices; null for path-trace), `gather_ms` (the
+//! `transfer` stage, display images moving to device 0, summed over devices), `busy_fraction`
 //! (per device: Fig. 8), `missing_pixels` (Table 4), `copy_bytes_per_frame`, and with a
-//! reference: `flip`, `psnr_db` (linear radiance clamped to [0, 1]) against its views.
+//! reference: `flip`, `psnr_db` (linear radiance clamped to [0, 1]) against its views, or
+//! `accuracy_error` when the views cannot be compared with it.
 //!
 //! points.json: `{"points": [point]}`, one per ok cell: `label` (the id), `series` (the
 //! pipeline), `case`, `frame_ms`, `flip`, `psnr`, `views`, `devices`, `assignment`,
@@ -33,6 +35,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
 use crate::bench_matrix::{self, Axes, Case, Cell, Denoise, Matrix, name_of};
+use crate::bench_tables;
 use crate::cmd_render::{PipelineArg, RenderArgs};
 use crate::logging::{bar, result};
 use crate::options::{AssignArg, SchemeArg};
@@ -129,22 +132,44 @@ fn render_argv(case: &Case, cell: &Cell, frames: u32, warmup: u32, folder: &Path
     argv
 }
 
+/// The render flags bench sets per cell (clap id, spelling): a case may not give them.
+const BENCH_FLAGS: [(&str, &str); 11] = [
+    ("pipeline", "--pipeline"),
+    ("scheme", "--scheme"),
+    ("assign", "--assign"),
+    ("sources_per_set", "--sources-per-set"),
+    ("spp", "--spp"),
+    ("no_denoise", "--no-denoise"),
+    ("gpus", "--gpus"),
+    ("fake_devices", "--fake-devices"),
+    ("frames", "--frames"),
+    ("warmup", "--warmup"),
+    ("out_dir", "--out-dir"),
+];
+
 /// Parses a cell's render arguments as `render` will, so a bad case (a typo, or a flag the
-/// matrix sets itself such as `--spp`) fails before any cell runs rather than in every cell.
-/// `matrix` is the file the case comes from, for the message.
+/// matrix sets itself such as `--spp` or `--no-denoise`, which would make the cell render other
+/// than its id says) fails before any cell runs rather than in every cell. `matrix` is the file
+/// the case comes from, for the message.
 fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> Result<()> {
-    let command = <RenderArgs as clap::Args>::augment_args(clap::Command::new("render").no_binary_name(true));
-    if let Err(e) = command.try_get_matches_from(argv) {
+    let command = || <RenderArgs as clap::Args>::augment_args(clap::Command::new("render").no_binary_name(true));
+    let origin = match (matrix, &case.name) {
+        (Some(file), Some(name)) => format!("--matrix {}: [[case]] `{name}`: args", file.display()),
+        _ => "--common".to_string(),
+    };
+    let bench_flags = BENCH_FLAGS.map(|(_, flag)| flag).join(", ");
+    if let Ok(alone) = command().try_get_matches_from(case.args.split_whitespace())
+        && let Some((_, flag)) =
+            BENCH_FLAGS.iter().find(|(id, _)| alone.value_source(id) == Some(clap::parser::ValueSource::CommandLine))
+    {
+        bail!("{origin}: gives {flag}, which bench sets per cell; leave out {bench_flags}");
+    }
+    if let Err(e) = command().try_get_matches_from(argv) {
         let text = e.to_string();
         let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
-        let origin = match (matrix, &case.name) {
-            (Some(file), Some(name)) => format!("--matrix {}: [[case]] `{name}`: args", file.display()),
-            _ => "--common".to_string(),
-        };
         bail!(
             "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
-             what bench sets per cell: --pipeline, --scheme, --assign, --sources-per-set, --spp, --no-denoise, \
-             --gpus, --fake-devices, --frames, --warmup, --out-dir"
+             what bench sets per cell: {bench_flags}"
         );
     }
     Ok(())
@@ -168,9 +193,17 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
         entry["error"] = error.into();
         return Ok(entry);
     }
-    let report: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(folder.join("render.json")).with_context(|| format!("cell {id}: no render.json"))?,
-    )?;
+    let report: serde_json::Value = match std::fs::read(folder.join("render.json"))
+        .map_err(anyhow::Error::from)
+        .and_then(|bytes| serde_json::from_slice(&bytes).map_err(anyhow::Error::from))
+    {
+        Ok(report) => report,
+        Err(e) => {
+            entry["ok"] = false.into();
+            entry["error"] = format!("error: the cell ran but its render.json is unreadable: {e}").into();
+            return Ok(entry);
+        }
+    };
     let timing = &report["timing"];
     let mean = timing["frame_gpu"]["mean_ms"].as_f64().unwrap_or(f64::NAN);
     let views = report["layout"]["views"].as_f64().unwrap_or(0.0);
@@ -194,104 +227,28 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
             .into(),
         PipelineArg::PathTrace => serde_json::Value::Null,
     };
+    entry["gather_ms"] = timing["stages"]
+        .as_array()
+        .map(|rows| {
+            let ms = rows.iter().filter(|r| r["stage"] == "transfer").filter_map(|r| r["mean_ms"].as_f64());
+            ms.fold(0.0, |a, b| a + b)
+        })
+        .into();
     entry["busy_fraction"] = timing["busy_fraction"].clone();
     entry["copy_bytes_per_frame"] = timing["copy_bytes_per_frame"].clone();
     entry["missing_pixels"] = report["missing_pixels"].clone();
     if let Some(reference) = &case.reference {
-        let c = parallax_accuracy::compare_paths(folder, reference)
-            .with_context(|| format!("cell {id}: comparing with the reference {}", reference.display()))?;
-        entry["flip"] = c.overall.flip.into();
-        entry["psnr_db"] = c.overall.psnr_linear_db.into();
+        // A reference that does not fit (other views or sizes) costs this cell its accuracy,
+        // not the matrix its remaining cells.
+        match parallax_accuracy::compare_paths(folder, reference) {
+            Ok(c) => {
+                entry["flip"] = c.overall.flip.into();
+                entry["psnr_db"] = c.overall.psnr_linear_db.into();
+            }
+            Err(e) => entry["accuracy_error"] = format!("comparing with {}: {e}", reference.display()).into(),
+        }
     }
     Ok(entry)
-}
-
-/// A number with `digits` decimals, or a dash where there is none.
-fn num(v: &serde_json::Value, digits: usize) -> String {
-    v.as_f64().map_or("–".to_string(), |x| format!("{x:.digits$}"))
-}
-
-/// The cells as a markdown table.
-fn table(cells: &[serde_json::Value]) -> String {
-    let mut out = String::from(
-        "| case | cell | frame ms (mean / median / p95) | views/s | busy fraction per device | copy MB/frame | \
-         missing pixels | hole fill ms | FLIP | PSNR dB |\n",
-    );
-    out.push_str("|---|---|---|---:|---|---:|---:|---:|---:|---:|\n");
-    for c in cells {
-        let (case, id) = (c["case"].as_str().unwrap_or("–"), c["id"].as_str().unwrap_or(""));
-        if c["ok"] != true {
-            // The cell's one-line diagnosis (stderr may hold notes before it).
-            let error = c["error"].as_str().unwrap_or("");
-            let line = error.lines().find(|l| l.starts_with("error:")).unwrap_or(error);
-            out.push_str(&format!("| {case} | {id} | failed: {line} | | | | | | | |\n"));
-            continue;
-        }
-        let f = &c["frame_ms"];
-        let busy: Vec<String> =
-            c["busy_fraction"].as_array().map_or(Vec::new(), |b| b.iter().map(|v| num(v, 2)).collect());
-        out.push_str(&format!(
-            "| {case} | {id} | {} / {} / {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            num(&f["mean_ms"], 2),
-            num(&f["median_ms"], 2),
-            num(&f["p95_ms"], 2),
-            num(&c["views_per_s"], 1),
-            busy.join(" / "),
-            c["copy_bytes_per_frame"].as_f64().map_or("–".into(), |b| format!("{:.3}", b / 1e6)),
-            // Path tracing leaves no holes to count.
-            c["missing_pixels"]["overall"]
-                .as_f64()
-                .filter(|_| c["pipeline"] == "reproject")
-                .map_or("–".into(), |m| format!("{:.2} %", 100.0 * m)),
-            num(&c["hole_fill_ms"], 3),
-            num(&c["flip"], 4),
-            num(&c["psnr_db"], 2),
-        ));
-    }
-    out
-}
-
-/// The paper's Table 1 over the cells that ran: one row per stage, one column per cell, each
-/// entry the stage's ms per frame on every device of the cell, joined by ` / `.
-fn stage_table(cells: &[serde_json::Value]) -> String {
-    let ok: Vec<&serde_json::Value> = cells.iter().filter(|c| c["ok"] == true).collect();
-    let rows = |c: &serde_json::Value| c["stages"].as_array().cloned().unwrap_or_default();
-    let mut stages: Vec<String> = Vec::new();
-    for row in ok.iter().flat_map(|c| rows(c)) {
-        if let Some(stage) = row["stage"].as_str()
-            && !stages.iter().any(|s| s == stage)
-        {
-            stages.push(stage.to_string());
-        }
-    }
-    let mut out = String::from("| stage |");
-    for c in &ok {
-        out.push_str(&format!(" {} |", c["id"].as_str().unwrap_or("")));
-    }
-    out.push_str(&format!("\n|---|{}\n", "---:|".repeat(ok.len())));
-    for stage in &stages {
-        out.push_str(&format!("| {stage} |"));
-        for c in &ok {
-            let of_stage: Vec<serde_json::Value> =
-                rows(c).into_iter().filter(|r| r["stage"] == stage.as_str()).collect();
-            if of_stage.is_empty() {
-                out.push_str(" – |");
-                continue;
-            }
-            let devices = c["busy_fraction"].as_array().map_or(0, Vec::len);
-            let per_device: Vec<String> = (0..devices)
-                .map(|d| of_stage.iter().find(|r| r["device"] == d).map_or("–".into(), |r| num(&r["mean_ms"], 3)))
-                .collect();
-            out.push_str(&format!(" {} |", per_device.join(" / ")));
-        }
-        out.push('\n');
-    }
-    out.push_str("| frame (GPU span, mean) |");
-    for c in &ok {
-        out.push_str(&format!(" {} |", num(&c["frame_ms"]["mean_ms"], 3)));
-    }
-    out.push('\n');
-    out
 }
 
 /// The chart point of a cell that ran (module docs).
@@ -327,7 +284,7 @@ fn write_outputs(
     let points: Vec<serde_json::Value> = entries.iter().filter(|c| c["ok"] == true).map(point).collect();
     let staged_points =
         crate::outputs::stage_json(&args.out_dir.join("points.json"), &serde_json::json!({ "points": points }))?;
-    let md = format!("{}\n## Per stage, ms per frame\n\n{}", table(entries), stage_table(entries));
+    let md = bench_tables::markdown(entries);
     let md_path = args.out_dir.join("bench.md");
     let staged_md = crate::outputs::stage(&md_path, |tmp| {
         std::fs::write(tmp, &md).with_context(|| format!("cannot write {}", md_path.display()))

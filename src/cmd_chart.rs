@@ -40,8 +40,9 @@ pub struct ChartArgs {
     #[arg(value_enum)]
     kind: ChartKind,
     /// JSON inputs: `{"points": [{"label", "series", "frame_ms", "flip", "psnr", "devices",
-    /// "views", "case", "assignment", "sources_per_set", "spp", "missing", "hole_fill_ms"}]}`, a file with a `point` (compare --json, reference.json) or a render.json;
-    /// for `timeline`, one Chrome trace.
+    /// "views", "case", "assignment", "sources_per_set", "spp", "missing", "hole_fill_ms"}]}`,
+    /// a file with a `point` (compare --json, reference.json) or a render.json; for
+    /// `timeline`, one Chrome trace.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Output file(s), .svg or .png; repeat for both.

@@ -174,7 +174,8 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = TimingArg::PerStage)]
     timing: TimingArg,
     /// Write a Chrome trace-event JSON of the measured frames (open in Perfetto or
-    /// chrome://tracing; `-` = stdout).
+    /// chrome://tracing; `-` = stdout). With the default `--timing per-stage` an event is a
+    /// run of one pass over many views; add `--timing per-op` for one event per view.
     #[arg(long, value_parser = parse_sink)]
     trace: Option<Sink>,
 }

@@ -92,6 +92,12 @@ fn a_matrix_file_runs_each_cell_once_and_a_bad_one_nothing() {
     for (name, text, key) in [
         ("unknown_key.toml", format!("frames = 2\n{case}{slices}spps = [1]\n"), "spps"),
         ("unknown_case.toml", format!("{case}[[matrix]]\ncases = [\"huge\"]\n"), "cases: no [[case]] is named `huge`"),
+        // A flag bench sets per cell would make every cell render other than its id says.
+        (
+            "bench_flag.toml",
+            format!("{}{slices}", case.replace("--spacing 0.05", "--spacing 0.05 --no-denoise")),
+            "gives --no-denoise, which bench sets per cell",
+        ),
     ] {
         let path = write(name, &text);
         let b = parallax(&["bench", "--matrix", path.to_str().unwrap(), "--out-dir", out.to_str().unwrap()]);
@@ -124,7 +130,7 @@ fn a_matrix_file_runs_each_cell_once_and_a_bad_one_nothing() {
             (c["denoise"].as_bool(), c["devices"].as_u64(), c["views"].as_u64()),
             (Some(true), Some(1), Some(2))
         );
-        assert!(c["hole_fill_ms"].as_f64().unwrap() >= 0.0, "{c}");
+        assert!(c["hole_fill_ms"].as_f64().unwrap().is_sign_positive(), "{c}");
         assert!(out.join(c["id"].as_str().unwrap()).join("render.json").is_file());
     }
     let points: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("points.json")).unwrap()).unwrap();
@@ -135,4 +141,5 @@ fn a_matrix_file_runs_each_cell_once_and_a_bad_one_nothing() {
     }
     let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
     assert!(md.contains("| tiny |") && md.contains("Per stage, ms per frame") && md.contains("| hole_fill |"), "{md}");
+    assert!(md.contains("| multi-source, round-robin |") && md.contains("## Scaling over devices"), "{md}");
 }

@@ -52,6 +52,7 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     let report = json(&out.join("render.json"));
     assert_eq!(report["pipeline"], "reproject");
     assert_eq!(report["frames"], 3);
+    assert_eq!((&report["barriers"], &report["timestamps"]), (&"tracked".into(), &"per-stage".into()), "the defaults");
     let stages: Vec<&str> =
         report["timing"]["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
     for stage in

@@ -418,3 +418,58 @@ pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
         .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)];
     unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::ExecPass;
+
+    /// A plan whose passes are named `names` (one instance each, view = index).
+    fn plan_of(names: &[&str]) -> ExecutionPlan {
+        let pass = |(view, name): (usize, &&str)| ExecPass {
+            name: name.to_string(),
+            kernel: 0,
+            view: view as u32,
+            rows: parallax_graph::Region::new(0, 1),
+            device: 0,
+            reads: Vec::new(),
+            writes: Vec::new(),
+            history_reads: Vec::new(),
+        };
+        ExecutionPlan { passes: names.iter().enumerate().map(pass).collect(), ..ExecutionPlan::default() }
+    }
+
+    fn segment(items: Vec<Item>) -> Segment {
+        Segment { items, ..Segment::default() }
+    }
+
+    #[test]
+    fn per_op_times_every_item_and_per_stage_each_run_of_one_pass() {
+        let plan = plan_of(&["gbuffer", "gbuffer", "gbuffer", "svgf", "svgf", "gbuffer"]);
+        let chunk = Chunk { copy: 0, index: 0, y0: 0, y1: 1 };
+        let items = vec![
+            Item::Pass(0),
+            Item::Pass(1),
+            Item::Pass(2),
+            Item::CopyOut(chunk),
+            Item::CopyOut(chunk),
+            Item::Pass(3),
+            Item::Pass(4),
+            Item::Pass(5),
+        ];
+        let s = segment(items);
+        assert_eq!(timer_spans(&plan, &s, Timing::PerOp), (0..8).map(|i| i..i + 1).collect::<Vec<_>>());
+        // Copies stay alone and end a run; a pass name coming back starts a new run.
+        assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..3, 3..4, 4..5, 5..7, 7..8]);
+    }
+
+    #[test]
+    fn a_label_per_span_named_after_its_first_item() {
+        let plan = plan_of(&["gbuffer", "gbuffer", "svgf"]);
+        let segments = [segment(vec![Item::Pass(0), Item::Pass(1)]), segment(vec![Item::Pass(2)])];
+        let spans: Vec<Vec<Range<usize>>> = segments.iter().map(|s| timer_spans(&plan, s, Timing::PerStage)).collect();
+        let labels = timer_labels(&plan, &segments, &spans);
+        let named: Vec<(&str, u32)> = labels.iter().map(|l| (l.name.as_str(), l.view)).collect();
+        assert_eq!(named, [("gbuffer", 0), ("svgf", 2)]);
+    }
+}

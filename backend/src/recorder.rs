@@ -1,8 +1,9 @@
 //! The recording API that pass kernels see, and the registry that maps pass names to kernels.
 //!
 //! A kernel never touches descriptors, barriers or timestamps: the executor binds the device's
-//! descriptor set, puts a barrier before each op and a timestamp pair around it. The kernel only
-//! chooses a shader, fills [`PassParams`] from the pass instance and dispatches.
+//! descriptor set and puts the barriers ([`crate::Barriers`]) and timestamp pairs
+//! ([`crate::Timing`]) between ops. The kernel only chooses a shader, fills [`PassParams`] from
+//! the pass instance and dispatches.
 
 use std::collections::HashMap;
 

@@ -28,8 +28,8 @@ pub struct Chunk {
     pub y1: u32,
 }
 
-/// What a segment records, in order (the executor puts a barrier before each item and a
-/// timestamp pair around it).
+/// What a segment records, in order (the executor puts barriers and timestamp pairs between
+/// the items: `Barriers`, `Timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Item {
     Pass(usize),

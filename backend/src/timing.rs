@@ -156,8 +156,9 @@ fn union_length(intervals: impl Iterator<Item = (u64, u64)>) -> u64 {
 }
 
 /// Chrome trace-event JSON of `reports`: one process, one thread per device (named after it),
-/// one complete ("X") event per pass instance and copy chunk, timestamps in µs relative to the
-/// first event.
+/// one complete ("X") event per timed span (a pass instance or copy chunk under `Timing::PerOp`,
+/// a run of one pass's instances under `PerStage`), timestamps in µs relative to the first
+/// event.
 pub fn chrome_trace(reports: &[FrameReport], devices: &[DeviceInfo]) -> serde_json::Value {
     let origin =
         reports.iter().flat_map(|r| r.events.iter().map(|e| e.start_ns).chain([r.submit_start_ns])).min().unwrap_or(0);

@@ -1,6 +1,6 @@
 //! Hole filling on lavapipe, validation on: a synthetic hole mask of the target views is
-//! compacted per row band into `hole_list` and only those pixels are path traced (indirect
-//! dispatch on each band's header), in place over a known pattern. The hole pixels must equal
+//! compacted per row band into `hole_list` and only those pixels are path traced (a dispatch
+//! over each band's capacity that stops at its count), in place over a known pattern. The hole pixels must equal
 //! the full path-traced view bit for bit, every other pixel must keep the pattern, and each
 //! band's header and entries must be exactly its holes. Under fine-all over 3 logical devices
 //! every device compacts and fills its own bands, and the views equal the 1-device run.
