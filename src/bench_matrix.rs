@@ -131,6 +131,19 @@ impl Matrix {
     pub fn cells(&self) -> Result<Vec<Cell>> {
         let mut out: Vec<Cell> = Vec::new();
         let mut seen: HashMap<String, usize> = HashMap::new();
+        for (i, (_, axes)) in self.slices.iter().enumerate() {
+            let shaped = axes.pipelines.iter().any(|&p| axes.schemes.iter().any(|&s| Cell::shaped(p, s)));
+            let given =
+                [("assignments", !axes.assignments.is_empty()), ("sources_per_set", axes.sources_per_set != [1])];
+            if let (false, Some((axis, _))) = (shaped, given.iter().find(|(_, g)| *g)) {
+                bail!(
+                    "matrix slice {} sets {axis} (--{}), which only shapes reprojecting multi-source cells, \
+                     and it has none: drop {axis}, or add pipeline reproject with scheme multi-source",
+                    i + 1,
+                    axis.replace('_', "-")
+                );
+            }
+        }
         for (cases, axes) in &self.slices {
             for &case in cases {
                 for cell in slice_cells(&self.cases[case], case, axes) {
@@ -421,6 +434,15 @@ mod tests {
             let e = load_text(&text).unwrap_err().to_string();
             assert!(e.contains(want) && e.contains("m.toml"), "{text}\n→ {e}");
         }
+    }
+
+    #[test]
+    fn axes_that_shape_no_cell_of_their_slice_are_refused() {
+        let m = load_text(&format!("{CASES}[[matrix]]\npipelines = [\"path-trace\"]\nassignments = [\"compact\"]\n"))
+            .unwrap();
+        assert!(m.cells().unwrap_err().to_string().contains("matrix slice 1 sets assignments"));
+        let m = load_text(&format!("{CASES}[[matrix]]\nschemes = [\"fine-all\"]\nsources_per_set = [2]\n")).unwrap();
+        assert!(m.cells().unwrap_err().to_string().contains("sets sources_per_set (--sources-per-set)"));
     }
 
     #[test]

@@ -367,7 +367,14 @@ mod tests {
                 .unwrap()[0];
         let argv = render_argv(&case, cell, 1, 0, Path::new("out"));
         let e = check_render_args(Some(Path::new("m.toml")), &case, &argv).unwrap_err().to_string();
-        assert!(e.contains("--matrix m.toml: [[case]] `a`: args") && e.contains("'--spp <SPP>'"), "{e}");
+        assert!(
+            e.contains("--matrix m.toml: [[case]] `a`: args") && e.contains("gives --spp, which bench sets"),
+            "{e}"
+        );
+        // A typo is still reported as render's parser sees it.
+        let typo = Case { args: "--lf 2x1 --spp-typo 4".into(), ..case.clone() };
+        let e = check_render_args(None, &typo, &render_argv(&typo, cell, 1, 0, Path::new("out"))).unwrap_err();
+        assert!(e.to_string().contains("--common: not a render command line") && e.to_string().contains("--spp-typo"));
         let fine = Case { args: "--lf 2x1".into(), ..case };
         check_render_args(None, &fine, &render_argv(&fine, cell, 1, 0, Path::new("out"))).unwrap();
     }

@@ -29,8 +29,8 @@ pub enum Style {
 #[derive(Clone, Debug)]
 pub struct Series {
     pub name: String,
-    /// Palette index: a measured series and its ideal line share one.
-    pub color: usize,
+    /// A measured series and its ideal line share one colour.
+    pub color: Colour,
     pub style: Style,
     /// (x, y, label shown next to the marker).
     pub points: Vec<(f64, f64, Option<String>)>,
@@ -112,7 +112,7 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
         groups.iter().flat_map(|(_, ps)| ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?)))).collect();
     let front = Series {
         name: "Pareto front".into(),
-        color: NEUTRAL,
+        color: Colour::Neutral,
         style: Style::Dashed,
         points: pareto_front(&all, axis == AccuracyAxis::Psnr).into_iter().map(|(x, y)| (x, y, None)).collect(),
     };
@@ -121,7 +121,7 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
         .enumerate()
         .map(|(color, (name, ps))| Series {
             name,
-            color,
+            color: Colour::Palette(color),
             style: Style::Points,
             points: ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?, Some(p.label.clone())))).collect(),
         })
@@ -155,8 +155,18 @@ pub fn scaling(points: &[Point]) -> Result<XyChart> {
         let (d0, t0) = (xy[0].0, xy[0].1);
         let ideal = xy.iter().map(|&(d, _, _)| (d, t0 * d0 / d, None)).collect();
         let label = if name.is_empty() { String::new() } else { format!("{name}, ") };
-        series.push(Series { name: format!("{label}measured"), color, style: Style::Line, points: xy });
-        series.push(Series { name: format!("{label}ideal"), color, style: Style::Dashed, points: ideal });
+        series.push(Series {
+            name: format!("{label}measured"),
+            color: Colour::Palette(color),
+            style: Style::Line,
+            points: xy,
+        });
+        series.push(Series {
+            name: format!("{label}ideal"),
+            color: Colour::Palette(color),
+            style: Style::Dashed,
+            points: ideal,
+        });
     }
     Ok(XyChart {
         title: "Scaling over devices".into(),
@@ -180,7 +190,7 @@ pub fn frame_time_over_views(points: &[Point]) -> Result<XyChart> {
             ps.sort_by_key(|p| p.views);
             let points = ps.iter().map(|p| (p.views.unwrap() as f64, p.frame_ms.unwrap(), None)).collect();
             let name = if name.is_empty() { "frame time".into() } else { name };
-            Series { name, color, style: Style::Line, points }
+            Series { name, color: Colour::Palette(color), style: Style::Line, points }
         })
         .collect();
     Ok(XyChart {
@@ -213,7 +223,7 @@ pub fn holes(points: &[Point]) -> Result<XyChart> {
         .enumerate()
         .map(|(color, (name, ps))| Series {
             name,
-            color,
+            color: Colour::Palette(color),
             style: Style::Points,
             points: ps.iter().filter_map(|p| Some((100.0 * p.missing?, p.hole_fill_ms?, Some(label(p))))).collect(),
         })
@@ -240,14 +250,26 @@ fn range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::ops::Range<
     (lo - if from_zero && lo == 0.0 { 0.0 } else { pad })..(hi + pad)
 }
 
-/// Palette index of dark grey: lines of no one series (the Pareto front), which a palette
-/// colour would tie to a series or draw too faintly.
-pub const NEUTRAL: usize = usize::MAX;
+/// The colour of a series.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Colour {
+    /// Entry `i` of the palette.
+    Palette(usize),
+    /// Dark grey: lines of no one series (the Pareto front), which a palette colour would tie
+    /// to a series or draw too faintly.
+    Neutral,
+}
+
+impl Colour {
+    pub(crate) fn rgb(self) -> RGBColor {
+        match self {
+            Colour::Palette(i) => color(i),
+            Colour::Neutral => RGBColor(70, 70, 70),
+        }
+    }
+}
 
 pub(crate) fn color(i: usize) -> RGBColor {
-    if i == NEUTRAL {
-        return RGBColor(70, 70, 70);
-    }
     let c = Palette99::pick(i).to_rgba();
     RGBColor(c.0, c.1, c.2)
 }
@@ -292,7 +314,7 @@ impl XyChart {
         // its marker that overlaps none of them.
         let mut placed: Vec<(i32, i32, i32, i32)> = Vec::new();
         for s in &self.series {
-            let c = color(s.color);
+            let c = s.color.rgb();
             let xy: Vec<(f64, f64)> = s.points.iter().map(|p| (p.0, p.1)).collect();
             let legend = match s.style {
                 Style::Points => {
