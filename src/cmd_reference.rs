@@ -18,41 +18,23 @@ use clap::Args;
 use indicatif::ProgressStyle;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
 use parallax_backend::{Context as VkContext, ContextDesc};
-use parallax_graph::{LayoutSpec, LightField, ViewId};
+use parallax_graph::{LightField, ViewId};
 use parallax_passes::{GpuTracer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
-use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
+use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::{TraceWork, check_host_bytes};
-use crate::options::{
-    DeviceArgs, Resolution, parse_camera, parse_exposure, parse_focus, parse_layout, parse_resolution, parse_sky,
-    parse_spacing, parse_sun,
-};
-use parallax_passes::camera::{lightfield_view, rig_of};
+use crate::options::{DeviceArgs, parse_exposure};
+use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
+use parallax_passes::camera::lightfield_view;
 
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {
-    /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
-    #[arg(long, default_value = "default")]
-    scene: String,
-    /// The rig camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`,
-    /// as `render --camera` (default: the scene's camera). The camera is still: compare with
-    /// `render --still`.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
-    camera: Option<parallax_scene::Camera>,
-    /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
-    #[arg(long, default_value = "8x4", value_parser = parse_layout)]
-    lf: LayoutSpec,
-    /// Spacing between neighbouring views in metres (default 0.001, the paper's).
-    #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
-    spacing: Option<f64>,
-    /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
-    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
-    resolution: Option<Resolution>,
-    /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
-    #[arg(long, allow_negative_numbers = true, value_parser = parse_focus)]
-    focus: Option<f64>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    light_field: LightFieldArgs,
     /// Only these views, e.g. `0,5,8-11` (default: every view).
     #[arg(long)]
     views: Option<String>,
@@ -67,19 +49,8 @@ pub struct ReferenceArgs {
     /// Samples per pixel of one chunk: averaged in f32 on the device, chunks summed in f64.
     #[arg(long, allow_negative_numbers = true, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
     chunk_spp: u32,
-    /// Maximum number of scattering events per path (0..=1024).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
-    max_depth: u32,
-    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`; replaces the
-    /// scene's sun.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
-    sun: Option<Sun>,
-    /// Remove the scene's sun.
-    #[arg(long, conflicts_with = "sun")]
-    no_sun: bool,
-    /// Constant sky radiance `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb` (9 values).
-    #[arg(long, value_parser = parse_sky)]
-    sky: Option<Sky>,
+    #[command(flatten)]
+    depth: DepthArgs,
     /// Write the EXRs and the resumable state at least this often (seconds) and at the end.
     #[arg(long, default_value_t = 30.0)]
     checkpoint_secs: f64,
@@ -163,12 +134,9 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
         bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
-    let (spec, resolution, sun, sky) = (args.lf, args.resolution.map(Resolution::pair), args.sun, args.sky);
-    let mut scene = load_scene(&args.scene).with_context(|| format!("loading scene '{}'", args.scene))?;
-    crate::cmd_trace::light_scene(&mut scene, sun, args.no_sun, sky);
-    let rig = rig_of(&args.camera.unwrap_or_else(|| scene.default_camera()), scene.bounds().center(), args.focus);
-    let focus = rig.focus_distance;
-    let lf = LightField::new(spec, args.spacing, resolution, rig)?;
+    let scene = args.scene.load()?;
+    let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
+    let focus = lf.rig.focus_distance;
     let selected = match &args.views {
         Some(list) => parse_views(list, lf.len())?,
         None => (0..lf.len() as u32).collect(),
@@ -195,16 +163,16 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     // Everything the pixels depend on, by the flag that sets it; devices are not among them
     // (results do not depend on the device count), so a reference can resume on other GPUs.
     let settings_key = BTreeMap::from([
-        ("--scene".to_string(), scene_fingerprint(&args.scene)?),
-        ("--lf".to_string(), format!("{:?} ({}x{} views)", args.lf, lf.cols, lf.rows)),
-        ("--spacing".to_string(), args.spacing.map_or("(preset)".into(), |s| s.to_string())),
+        ("--scene".to_string(), scene_fingerprint(&args.scene.scene)?),
+        ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.lf, lf.cols, lf.rows)),
+        ("--spacing".to_string(), args.light_field.spacing.map_or("(preset)".into(), |s| s.to_string())),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
-        ("--camera".to_string(), format!("{:?}", args.camera)),
+        ("--camera".to_string(), format!("{:?}", args.scene.camera)),
         ("--views".to_string(), format!("{selected:?}")),
         ("--cpu".to_string(), args.cpu.to_string()),
         ("--chunk-spp".to_string(), args.chunk_spp.to_string()),
-        ("--max-depth".to_string(), args.max_depth.to_string()),
+        ("--max-depth".to_string(), args.depth.max_depth.to_string()),
         ("--sun".to_string(), format!("{:?}", scene.sun)),
         ("--sky".to_string(), format!("{:?}", scene.sky)),
     ]);
@@ -260,7 +228,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     while acc.header.spp < target {
         let settings = TraceSettings {
             spp: args.chunk_spp,
-            max_depth: args.max_depth,
+            max_depth: args.depth.max_depth,
             frame: acc.next_frame(),
             ..Default::default()
         };

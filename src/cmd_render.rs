@@ -14,26 +14,23 @@ use glam::Vec3;
 use parallax_backend::{
     Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, KernelGraph, Timing, chrome_trace,
 };
-use parallax_graph::{LayoutSpec, LightField, Plan, PlanConfig, PlanSummary};
-use parallax_passes::camera::{lightfield_views, rig_of};
+use parallax_graph::{LightField, Plan, PlanConfig, PlanSummary, Rig};
+use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_exr_with};
-use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
+use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::TraceWork;
 use crate::cmd_plan::compile_checked;
-use crate::cmd_trace::light_scene;
 use crate::lightfield_images::{DisplayImage, quilt_file_name, write_contact_sheet, write_quilt};
 use crate::logging::{bar, result};
-use crate::options::{
-    AssignArg, DeviceArgs, Resolution, SchemeArg, SourceList, assignment, parse_camera, parse_exposure, parse_focus,
-    parse_layout, parse_resolution, parse_sky, parse_sources, parse_spacing, parse_sun,
-};
+use crate::options::{AssignArg, DeviceArgs, SchemeArg, SourceList, assignment, parse_exposure, parse_sources};
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
+use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 
 /// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
 /// screen shows whole.
@@ -75,35 +72,10 @@ pub enum PipelineArg {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
-    #[arg(long, default_value = "default")]
-    scene: String,
-    /// The rig camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`;
-    /// without it the scene's first camera (or one framing the whole scene).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
-    camera: Option<Camera>,
-    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`; replaces the
-    /// scene's sun.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
-    sun: Option<Sun>,
-    /// Remove the scene's sun.
-    #[arg(long, conflicts_with = "sun")]
-    no_sun: bool,
-    /// Constant sky `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb`.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_sky)]
-    sky: Option<Sky>,
-    /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
-    #[arg(long, default_value = "8x4", value_parser = parse_layout)]
-    lf: LayoutSpec,
-    /// Spacing between neighbouring views in metres (default 0.001, the paper's).
-    #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
-    spacing: Option<f64>,
-    /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
-    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
-    resolution: Option<Resolution>,
-    /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
-    #[arg(long, allow_negative_numbers = true, value_parser = parse_focus)]
-    focus: Option<f64>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    light_field: LightFieldArgs,
     #[command(flatten)]
     devices: DeviceArgs,
     /// What renders the views.
@@ -128,9 +100,8 @@ pub struct RenderArgs {
     /// Samples per pixel of path tracing (sources, holes, or every view).
     #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=65536))]
     spp: u32,
-    /// Maximum number of scattering events per path (0..=1024).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
-    max_depth: u32,
+    #[command(flatten)]
+    depth: DepthArgs,
     /// Measured frames (the camera dollies across the scene over warm-up and measured frames).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
@@ -198,10 +169,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let sheet = args.out_dir.join("lightfield.png");
     let render_json = args.out_dir.join("render.json");
     check_outputs(&args.out_dir, &sheet, &render_json, args.trace.as_ref())?;
-    let settings = TraceSettings { spp: args.spp, max_depth: args.max_depth, ..Default::default() };
+    let settings = TraceSettings { spp: args.spp, max_depth: args.depth.max_depth, ..Default::default() };
     settings.validate()?;
     let total_frames = args.warmup + args.frames;
-    let sized = LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), Default::default())?;
+    let sized = args.light_field.with_rig(Rig::default())?;
     let work = TraceWork {
         views: sized.len() as u64 * u64::from(total_frames),
         width: sized.width,
@@ -213,22 +184,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let one_frame = TraceWork { views: sized.len() as u64, ..work };
     one_frame.check_host()?;
 
-    let mut scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
-    light_scene(&mut scene, args.sun, args.no_sun, args.sky);
-    let camera = args.camera.unwrap_or_else(|| scene.default_camera());
+    let scene = args.scene.load()?;
+    let camera = args.scene.camera_or_default(&scene);
     let centre = scene.bounds().center();
     // The scene's own camera animation, spread over the frames; else a dolly (an explicit
     // --camera is a rig the user placed: it dollies too).
-    let animation = if args.camera.is_none() { scene.camera_animation.clone() } else { None };
+    let animation = if args.scene.camera.is_none() { scene.camera_animation.clone() } else { None };
     let camera_at = |f: u32| match &animation {
         _ if args.still => camera,
         Some(a) => a.camera_at(a.duration * f as f32 / total_frames.saturating_sub(1).max(1) as f32),
         None => dolly(&camera, &scene, f, total_frames),
     };
-    let lf_of = |f: u32| -> Result<LightField> {
-        let rig = rig_of(&camera_at(f), centre, args.focus);
-        Ok(LightField::new(args.lf, args.spacing, args.resolution.map(Resolution::pair), rig)?)
-    };
+    let lf_of = |f: u32| -> Result<LightField> { args.light_field.around(&camera_at(f), centre) };
     let lf = lf_of(0)?;
     let selection = args.devices.selection();
     let config = PlanConfig {
@@ -357,18 +324,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
     let json = serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
-        "scene": args.scene,
+        "scene": args.scene.scene,
         "camera": { "eye": camera.eye.to_array(), "forward": camera.forward.to_array(), "up": camera.up.to_array(),
                     "yfov_degrees": camera.yfov.to_degrees() },
         "sun": scene.sun.map(|s| serde_json::json!({ "to_sun": s.to_sun.to_array(), "irradiance": s.irradiance.to_array(),
                                                      "angular_radius": s.angular_radius })),
         "sky": format!("{:?}", scene.sky()),
-        "layout": { "spec": format!("{:?}", args.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
-                    "width": lf.width, "height": lf.height, "spacing_m": args.spacing, "focus_m": lf.rig.focus_distance },
+        "layout": { "spec": format!("{:?}", args.light_field.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
+                    "width": lf.width, "height": lf.height, "spacing_m": args.light_field.spacing, "focus_m": lf.rig.focus_distance },
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
-        "spp": args.spp, "max_depth": args.max_depth, "frames": args.frames, "warmup": args.warmup,
+        "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
         "devices": device_names,
         "plan": &summary,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),

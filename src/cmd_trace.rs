@@ -10,33 +10,26 @@ use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, Event
 use parallax_passes::{GpuTracer, PATH_TRACE, banded_trace_plan, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
-use parallax_scene::{Camera, CpuTracer, Frame, Scene, SceneBvh, Sky, Sun, TraceSettings, View, load_scene};
+use parallax_scene::{CpuTracer, Frame, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::TraceWork;
 use crate::logging::{bar, spinner};
-use crate::options::{
-    MAX_DEVICES, Resolution, count_in, parse_camera, parse_exposure, parse_resolution, parse_sky, parse_sun, selection,
-};
+use crate::options::{MAX_DEVICES, Resolution, count_in, parse_exposure, parse_resolution, selection};
 use crate::outputs::{Format, Output, Sink, check, stage};
+use crate::scene_args::{DepthArgs, SceneArgs};
 
 #[derive(Debug, clap::Args)]
 pub struct TraceArgs {
-    /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
-    #[arg(long, default_value = "default")]
-    pub scene: String,
-    /// Camera as `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees`;
-    /// without it the scene's first camera (or one framing the whole scene) is used.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
-    pub camera: Option<Camera>,
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Image size as WxH.
     #[arg(long, default_value = "512x512", value_name = "WxH", value_parser = parse_resolution)]
     pub resolution: Resolution,
     /// Samples per pixel.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: u32,
-    /// Maximum number of scattering events per path (0..=1024).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
-    pub max_depth: u32,
+    #[command(flatten)]
+    pub depth: DepthArgs,
     /// Output EXR (radiance; with --layers also albedo, normal and depth).
     #[arg(long, default_value = "trace.exr")]
     pub out: PathBuf,
@@ -62,17 +55,6 @@ pub struct TraceArgs {
     /// Frame index (part of the random-number key).
     #[arg(long, default_value_t = 0)]
     pub frame: u32,
-    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]` (irradiance
-    /// 0..=1e6); replaces the scene's sun.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
-    pub sun: Option<Sun>,
-    /// Remove the scene's sun.
-    #[arg(long, conflicts_with = "sun")]
-    pub no_sun: bool,
-    /// Constant sky radiance `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb` (9
-    /// values), each 0..=1e6.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_sky)]
-    pub sky: Option<Sky>,
     /// Turn on Russian roulette from this bounce on (off by default).
     #[arg(long)]
     pub russian_roulette_from: Option<u32>,
@@ -92,8 +74,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     work.check_host()?;
 
     let t0 = Instant::now();
-    let mut scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
-    light_scene(&mut scene, args.sun, args.no_sun, args.sky);
+    let scene = args.scene.load()?;
     let load_time = t0.elapsed();
     let bvh = SceneBvh::build(&scene);
     tracing::info!(
@@ -107,10 +88,10 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         bvh.build_time
     );
 
-    let view = View { camera: args.camera.unwrap_or_else(|| scene.default_camera()), width, height, index: 0 };
+    let view = View { camera: args.scene.camera_or_default(&scene), width, height, index: 0 };
     let settings = TraceSettings {
         spp: args.spp,
-        max_depth: args.max_depth,
+        max_depth: args.depth.max_depth,
         frame: args.frame,
         russian_roulette_from: args.russian_roulette_from,
         ..Default::default()
@@ -140,30 +121,6 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         tracing::info!("wrote {}", path.display());
     }
     Ok(())
-}
-
-/// Applies `--sun`, `--no-sun` and `--sky` to `scene`, then warns if it has no light at all.
-pub(crate) fn light_scene(scene: &mut Scene, sun: Option<Sun>, no_sun: bool, sky: Option<Sky>) {
-    if let Some(sun) = sun {
-        scene.sun = Some(sun);
-    }
-    if no_sun {
-        scene.sun = None;
-    }
-    if let Some(sky) = sky {
-        scene.sky = Some(sky);
-    }
-    warn_if_unlit(scene);
-}
-
-/// Without any light every pixel is black: say so rather than write a black image silently.
-fn warn_if_unlit(scene: &Scene) {
-    if !scene.has_light() {
-        tracing::warn!(
-            "scene '{}' has no light (no sun, sky, punctual light or emissive material): the image will be black; add --sun or --sky",
-            scene.name
-        );
-    }
 }
 
 fn trace_cpu(scene: &Scene, bvh: &SceneBvh, view: &View, settings: &TraceSettings) -> anyhow::Result<Frame> {

@@ -17,6 +17,7 @@ mod logging;
 mod options;
 mod outputs;
 mod render_report;
+mod scene_args;
 
 use clap::{CommandFactory, Parser, Subcommand};
 
@@ -47,7 +48,8 @@ enum Command {
     /// denoise × devices; flags or a TOML file): frame times, stage table, busy fractions,
     /// missing pixels, hole filling and accuracy per cell.
     Bench(cmd_bench::BenchArgs),
-    /// Path trace a converged reference of a light field's views, progressively and resumably.
+    /// Path trace a converged reference of a light field's views, progressively and resumably
+    /// (the camera is still: compare with `render --still`).
     Reference(cmd_reference::ReferenceArgs),
     /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders.
     Compare(cmd_compare::CompareArgs),

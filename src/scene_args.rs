@@ -1,0 +1,145 @@
+//! The scene, light-field and path options that `render`, `reference` and `trace` share,
+//! declared once and flattened into each command's arguments with `#[command(flatten)]` (as
+//! [`DeviceArgs`](crate::options::DeviceArgs) is). The field names are the clap ids, which
+//! `conflicts_with = "sun"` and `bench`'s `value_source("...")` checks refer to.
+
+use anyhow::{Context as _, Result};
+use clap::Args;
+use glam::Vec3;
+use parallax_graph::{LayoutSpec, LightField, Rig};
+use parallax_passes::camera::rig_of;
+use parallax_scene::{Camera, Scene, Sky, Sun, load_scene};
+
+use crate::options::{
+    Resolution, parse_camera, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing, parse_sun,
+};
+
+/// `--scene`, `--camera` and the light that replaces the scene's own.
+#[derive(Args, Debug, Clone)]
+pub struct SceneArgs {
+    /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
+    #[arg(long, default_value = "default")]
+    pub scene: String,
+    /// The camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees` (of a
+    /// light field: the rig, its centre); without it the scene's first camera (or one framing the
+    /// whole scene).
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
+    pub camera: Option<Camera>,
+    /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]` (irradiance
+    /// 0..=1e6); replaces the scene's sun.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
+    pub sun: Option<Sun>,
+    /// Remove the scene's sun.
+    #[arg(long, conflicts_with = "sun")]
+    pub no_sun: bool,
+    /// Constant sky radiance `r,g,b`, or a gradient `zenith_rgb,horizon_rgb,ground_rgb` (9
+    /// values), each 0..=1e6.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sky)]
+    pub sky: Option<Sky>,
+}
+
+impl SceneArgs {
+    /// Loads `--scene` and applies `--sun`, `--no-sun` and `--sky` to it.
+    pub fn load(&self) -> Result<Scene> {
+        let mut scene = load_scene(&self.scene).with_context(|| format!("loading --scene {}", self.scene))?;
+        self.light(&mut scene);
+        Ok(scene)
+    }
+
+    /// Applies `--sun`, `--no-sun` and `--sky` to `scene`, then warns if it has no light at all.
+    pub fn light(&self, scene: &mut Scene) {
+        if let Some(sun) = self.sun {
+            scene.sun = Some(sun);
+        }
+        if self.no_sun {
+            scene.sun = None;
+        }
+        if let Some(sky) = self.sky {
+            scene.sky = Some(sky);
+        }
+        warn_if_unlit(scene);
+    }
+
+    /// `--camera`, else the scene's first camera (or one framing the whole scene).
+    pub fn camera_or_default(&self, scene: &Scene) -> Camera {
+        self.camera.unwrap_or_else(|| scene.default_camera())
+    }
+}
+
+/// Without any light every pixel is black: say so rather than write a black image silently.
+fn warn_if_unlit(scene: &Scene) {
+    if !scene.has_light() {
+        tracing::warn!(
+            "scene '{}' has no light (no sun, sky, punctual light or emissive material): the image will be black; add --sun or --sky",
+            scene.name
+        );
+    }
+}
+
+/// The light field's layout, spacing, per-view resolution and focus.
+#[derive(Args, Debug, Clone)]
+pub struct LightFieldArgs {
+    /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
+    #[arg(long, default_value = "8x4", value_parser = parse_layout)]
+    pub lf: LayoutSpec,
+    /// Spacing between neighbouring views in metres (default 0.001, the paper's).
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
+    pub spacing: Option<f64>,
+    /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
+    pub resolution: Option<Resolution>,
+    /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_focus)]
+    pub focus: Option<f64>,
+}
+
+impl LightFieldArgs {
+    /// The light field of `--lf`, `--spacing` and `--resolution` on `rig` (`--focus` is not
+    /// applied: the rig has its focus distance).
+    pub fn with_rig(&self, rig: Rig) -> Result<LightField> {
+        Ok(LightField::new(self.lf, self.spacing, self.resolution.map(Resolution::pair), rig)?)
+    }
+
+    /// The light field whose rig is `camera`, focused at `--focus` or else at the depth of
+    /// `centre` (the scene's centre) along the view.
+    pub fn around(&self, camera: &Camera, centre: Vec3) -> Result<LightField> {
+        self.with_rig(rig_of(camera, centre, self.focus))
+    }
+}
+
+/// `--max-depth`, the same for every tracer.
+#[derive(Args, Debug, Clone)]
+pub struct DepthArgs {
+    /// Maximum number of scattering events per path (0..=1024).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=1024))]
+    pub max_depth: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::{Args, Command};
+
+    /// Each command's arguments, with the shared ones flattened in, form a valid clap command
+    /// (no id declared twice, every `conflicts_with` names an argument).
+    #[test]
+    fn commands_with_the_shared_options_are_valid() {
+        <crate::cmd_render::RenderArgs as Args>::augment_args(Command::new("render")).debug_assert();
+        <crate::cmd_reference::ReferenceArgs as Args>::augment_args(Command::new("reference")).debug_assert();
+        <crate::cmd_trace::TraceArgs as Args>::augment_args(Command::new("trace")).debug_assert();
+    }
+
+    /// `--sky` takes values starting with '-' in every command, so the value's own check names
+    /// the problem.
+    #[test]
+    fn a_negative_sky_reaches_the_sky_parser() {
+        for augment in [
+            <crate::cmd_render::RenderArgs as Args>::augment_args,
+            <crate::cmd_reference::ReferenceArgs as Args>::augment_args,
+            <crate::cmd_trace::TraceArgs as Args>::augment_args,
+        ] {
+            let e =
+                augment(Command::new("c").no_binary_name(true)).try_get_matches_from(["--sky", "-1,0,0"]).unwrap_err();
+            assert!(e.to_string().contains("radiance -1 is outside 0..=1e6"), "{e}");
+        }
+    }
+}
