@@ -8,7 +8,7 @@
 //! warmup = 5                  # optional: frames before measuring (default 2)
 //! [[case]]                    # one or more
 //! name = "sponza-multiscopic" # [A-Za-z0-9_-]+, unique: the cells' ids and folders start with it
-//! args = "--scene sponza_lite/Sponza.gltf --lf multiscopic --still"
+//! args = "--scene sponza_lite/Sponza.gltf --lf multiscopic --still" # split like a shell
 //! reference = "ref/multiscopic" # optional: reference views, relative to this file's folder
 //! [[matrix]]                  # one or more slices, each a cartesian product of its axes
 //! cases = ["sponza-multiscopic"] # optional: default every case
@@ -55,6 +55,14 @@ pub struct Case {
     pub args: String,
     /// Reference views to measure the case's cells against.
     pub reference: Option<PathBuf>,
+}
+
+impl Case {
+    /// The render arguments as words, split as a POSIX shell would (quotes keep a path with
+    /// spaces in one word).
+    pub fn words(&self) -> Result<Vec<String>> {
+        shlex::split(&self.args).ok_or_else(|| anyhow!("args `{}`: a quote is not closed: close it", self.args))
+    }
 }
 
 /// The axes of one slice.

@@ -122,14 +122,14 @@ fn matrix_of_flags(args: &BenchArgs) -> Result<Matrix> {
 }
 
 /// The whole `parallax render` command line of a cell (after `render`).
-fn render_argv(case: &Case, cell: &Cell, frames: u32, warmup: u32, folder: &Path) -> Vec<OsString> {
-    let mut argv: Vec<OsString> = case.args.split_whitespace().map(OsString::from).collect();
+fn render_argv(case: &Case, cell: &Cell, frames: u32, warmup: u32, folder: &Path) -> Result<Vec<OsString>> {
+    let mut argv: Vec<OsString> = case.words()?.into_iter().map(OsString::from).collect();
     argv.extend(cell.args.iter().map(OsString::from));
     for a in ["--frames".into(), frames.to_string(), "--warmup".into(), warmup.to_string(), "--out-dir".into()] {
         argv.push(a.into());
     }
     argv.push(folder.into());
-    argv
+    Ok(argv)
 }
 
 /// The render flags bench sets per cell (clap id, spelling): a case may not give them.
@@ -158,7 +158,8 @@ fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> R
         _ => "--common".to_string(),
     };
     let bench_flags = BENCH_FLAGS.map(|(_, flag)| flag).join(", ");
-    if let Ok(alone) = command().try_get_matches_from(case.args.split_whitespace())
+    let words = case.words().map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
+    if let Ok(alone) = command().try_get_matches_from(&words)
         && let Some((_, flag)) =
             BENCH_FLAGS.iter().find(|(id, _)| alone.value_source(id) == Some(clap::parser::ValueSource::CommandLine))
     {
@@ -307,7 +308,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .iter()
         .map(|cell| {
             let case = &matrix.cases[cell.case];
-            let argv = render_argv(case, cell, frames, warmup, &args.out_dir.join(&cell.id));
+            let argv = render_argv(case, cell, frames, warmup, &args.out_dir.join(&cell.id))
+                .with_context(|| format!("case {}", case.name.as_deref().unwrap_or("--common")))?;
             check_render_args(args.matrix.as_deref(), case, &argv).map(|()| argv)
         })
         .collect::<Result<_>>()?;
@@ -365,7 +367,7 @@ mod tests {
             &Matrix { frames: None, warmup: None, cases: vec![case.clone()], slices: vec![(vec![0], Axes::default())] }
                 .cells()
                 .unwrap()[0];
-        let argv = render_argv(&case, cell, 1, 0, Path::new("out"));
+        let argv = render_argv(&case, cell, 1, 0, Path::new("out")).unwrap();
         let e = check_render_args(Some(Path::new("m.toml")), &case, &argv).unwrap_err().to_string();
         assert!(
             e.contains("--matrix m.toml: [[case]] `a`: args") && e.contains("gives --spp, which bench sets"),
@@ -373,9 +375,14 @@ mod tests {
         );
         // A typo is still reported as render's parser sees it.
         let typo = Case { args: "--lf 2x1 --spp-typo 4".into(), ..case.clone() };
-        let e = check_render_args(None, &typo, &render_argv(&typo, cell, 1, 0, Path::new("out"))).unwrap_err();
+        let e = check_render_args(None, &typo, &render_argv(&typo, cell, 1, 0, Path::new("out")).unwrap()).unwrap_err();
         assert!(e.to_string().contains("--common: not a render command line") && e.to_string().contains("--spp-typo"));
         let fine = Case { args: "--lf 2x1".into(), ..case };
-        check_render_args(None, &fine, &render_argv(&fine, cell, 1, 0, Path::new("out"))).unwrap();
+        check_render_args(None, &fine, &render_argv(&fine, cell, 1, 0, Path::new("out")).unwrap()).unwrap();
+        // Quotes keep a path with spaces in one word; an unclosed one is refused.
+        let quoted = Case { args: "--scene 'my scenes/a.gltf' --lf 2x1".into(), ..fine.clone() };
+        assert_eq!(quoted.words().unwrap(), ["--scene", "my scenes/a.gltf", "--lf", "2x1"]);
+        let open = Case { args: "--scene 'my scenes/a.gltf --lf 2x1".into(), ..fine };
+        assert!(check_render_args(None, &open, &[]).unwrap_err().to_string().contains("a quote is not closed"));
     }
 }
