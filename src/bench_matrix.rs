@@ -61,7 +61,7 @@ impl Case {
     /// The render arguments as words, split as a POSIX shell would (quotes keep a path with
     /// spaces in one word).
     pub fn words(&self) -> Result<Vec<String>> {
-        shlex::split(&self.args).ok_or_else(|| anyhow!("args `{}`: a quote is not closed: close it", self.args))
+        shlex::split(&self.args).ok_or_else(|| anyhow!("`{}`: a quote is not closed: close it", self.args))
     }
 }
 

@@ -132,6 +132,14 @@ fn render_argv(case: &Case, cell: &Cell, frames: u32, warmup: u32, folder: &Path
     Ok(argv)
 }
 
+/// Where a case comes from, for messages: its table in the matrix file, or `--common`.
+fn case_origin(matrix: Option<&Path>, case: &Case) -> String {
+    match (matrix, &case.name) {
+        (Some(file), Some(name)) => format!("--matrix {}: [[case]] `{name}`: args", file.display()),
+        _ => "--common".to_string(),
+    }
+}
+
 /// The render flags bench sets per cell (clap id, spelling): a case may not give them.
 const BENCH_FLAGS: [(&str, &str); 11] = [
     ("pipeline", "--pipeline"),
@@ -153,10 +161,7 @@ const BENCH_FLAGS: [(&str, &str); 11] = [
 /// the case comes from, for the message.
 fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> Result<()> {
     let command = || <RenderArgs as clap::Args>::augment_args(clap::Command::new("render").no_binary_name(true));
-    let origin = match (matrix, &case.name) {
-        (Some(file), Some(name)) => format!("--matrix {}: [[case]] `{name}`: args", file.display()),
-        _ => "--common".to_string(),
-    };
+    let origin = case_origin(matrix, case);
     let bench_flags = BENCH_FLAGS.map(|(_, flag)| flag).join(", ");
     let words = case.words().map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
     if let Ok(alone) = command().try_get_matches_from(&words)
@@ -174,6 +179,13 @@ fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> R
         );
     }
     Ok(())
+}
+
+/// A stage's ms per frame in render.json's `timing`, summed over devices; 0 when no device ran
+/// it. A fold from +0, because `sum` over no rows gives -0.
+fn stage_total_ms(timing: &serde_json::Value, stage: &str) -> Option<f64> {
+    let rows = timing["stages"].as_array()?;
+    Some(rows.iter().filter(|r| r["stage"] == stage).filter_map(|r| r["mean_ms"].as_f64()).fold(0.0, |a, b| a + b))
 }
 
 /// Runs one cell; returns its bench.json entry.
@@ -218,23 +230,10 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
     entry["views_per_s"] = (views * 1e3 / mean).into();
     entry["stages"] = timing["stages"].clone();
     entry["hole_fill_ms"] = match cell.pipeline {
-        PipelineArg::Reproject => timing["stages"]
-            .as_array()
-            // A fold from +0: `sum` over no rows (no targets, so no hole filling) gives -0.
-            .map(|rows| {
-                let ms = rows.iter().filter(|r| r["stage"] == "hole_fill").filter_map(|r| r["mean_ms"].as_f64());
-                ms.fold(0.0, |a, b| a + b)
-            })
-            .into(),
+        PipelineArg::Reproject => stage_total_ms(timing, "hole_fill").into(),
         PipelineArg::PathTrace => serde_json::Value::Null,
     };
-    entry["gather_ms"] = timing["stages"]
-        .as_array()
-        .map(|rows| {
-            let ms = rows.iter().filter(|r| r["stage"] == "transfer").filter_map(|r| r["mean_ms"].as_f64());
-            ms.fold(0.0, |a, b| a + b)
-        })
-        .into();
+    entry["gather_ms"] = stage_total_ms(timing, "transfer").into();
     entry["busy_fraction"] = timing["busy_fraction"].clone();
     entry["copy_bytes_per_frame"] = timing["copy_bytes_per_frame"].clone();
     entry["missing_pixels"] = report["missing_pixels"].clone();
@@ -309,7 +308,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .map(|cell| {
             let case = &matrix.cases[cell.case];
             let argv = render_argv(case, cell, frames, warmup, &args.out_dir.join(&cell.id))
-                .with_context(|| format!("case {}", case.name.as_deref().unwrap_or("--common")))?;
+                .with_context(|| case_origin(args.matrix.as_deref(), case))?;
             check_render_args(args.matrix.as_deref(), case, &argv).map(|()| argv)
         })
         .collect::<Result<_>>()?;

@@ -239,14 +239,8 @@ fn record_items(
             }
             Item::CopyOut(chunk) => {
                 record_copy(ctx, cb, &chunk, CopyDirection::Out);
-                // Make the bytes available to the host domain, where the other device reads
-                // them.
-                let to_host = [vk::MemoryBarrier2::default()
-                    .src_stage_mask(vk::PipelineStageFlags2::COPY)
-                    .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-                    .dst_stage_mask(vk::PipelineStageFlags2::HOST)
-                    .dst_access_mask(vk::AccessFlags2::HOST_READ)];
-                unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
+                // The other device reads the bytes through host memory.
+                copies_to_host_barrier(raw, cb);
             }
             Item::CopyIn(chunk) => record_copy(ctx, cb, &chunk, CopyDirection::In),
         }
@@ -308,6 +302,12 @@ fn record_readback(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
             }
         }
     }
+    copies_to_host_barrier(raw, cb);
+}
+
+/// Makes the bytes of earlier copies available to the host domain (a device reading them
+/// through shared host memory, or the host itself).
+fn copies_to_host_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
     let to_host = [vk::MemoryBarrier2::default()
         .src_stage_mask(vk::PipelineStageFlags2::COPY)
         .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
