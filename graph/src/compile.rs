@@ -5,7 +5,7 @@
 //! gives the same schedule, byte for byte.
 
 use std::cmp::Reverse;
-use std::collections::{BTreeSet, BinaryHeap, HashMap};
+use std::collections::{BTreeMap, BTreeSet, BinaryHeap, HashMap};
 
 use crate::builder::{Graph, PassDecl, ReadScope, Role};
 use crate::error::GraphError;
@@ -85,7 +85,9 @@ pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedul
     })
 }
 
-type WriterMap = HashMap<(FamilyId, ViewId, u32), usize>;
+/// Ordered, so the versions of one (family, view) are a range: `last_version` is a lookup, not a
+/// scan of every writer (which made compiling the fine schemes quadratic in the views).
+type WriterMap = BTreeMap<(FamilyId, ViewId, u32), usize>;
 
 /// (family, view, version) → declaring pass. Catches two passes writing one version.
 fn writer_map<P>(graph: &Graph<P>) -> Result<WriterMap, GraphError> {
@@ -116,7 +118,7 @@ fn writer_map<P>(graph: &Graph<P>) -> Result<WriterMap, GraphError> {
 
 /// Last version of a (family, view) written this frame; what a history read sees next frame.
 fn last_version(writers: &WriterMap, family: FamilyId, view: ViewId) -> u32 {
-    writers.keys().filter(|(f, v, _)| *f == family && *v == view).map(|k| k.2).max().unwrap_or(0)
+    writers.range((family, view, 0)..=(family, view, u32::MAX)).next_back().map_or(0, |(k, _)| k.2)
 }
 
 /// The (family, view, version) triples one declared read touches for view `v`.
