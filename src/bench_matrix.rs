@@ -32,8 +32,8 @@ use anyhow::{Context as _, Result, anyhow, bail};
 use clap::ValueEnum;
 use serde::Deserialize;
 
-use crate::cmd_render::PipelineArg;
 use crate::options::{AssignArg, SchemeArg};
+use crate::pipeline_args::PipelineArg;
 
 /// `--denoise`: SVGF on or off.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

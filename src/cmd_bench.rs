@@ -36,9 +36,10 @@ use clap::Args;
 
 use crate::bench_matrix::{self, Axes, Case, Cell, Denoise, Matrix, name_of};
 use crate::bench_tables;
-use crate::cmd_render::{PipelineArg, RenderArgs};
+use crate::cmd_render::RenderArgs;
 use crate::logging::{bar, result};
 use crate::options::{AssignArg, SchemeArg};
+use crate::pipeline_args::PipelineArg;
 
 /// Measured frames and warm-up frames per cell when neither the flags nor the matrix file say.
 const DEFAULT_FRAMES: u32 = 10;

@@ -164,8 +164,8 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     // (results do not depend on the device count), so a reference can resume on other GPUs.
     let settings_key = BTreeMap::from([
         ("--scene".to_string(), scene_fingerprint(&args.scene.scene)?),
-        ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.lf, lf.cols, lf.rows)),
-        ("--spacing".to_string(), args.light_field.spacing.map_or("(preset)".into(), |s| s.to_string())),
+        ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.layout.lf, lf.cols, lf.rows)),
+        ("--spacing".to_string(), args.light_field.layout.spacing.map_or("(preset)".into(), |s| s.to_string())),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
         ("--camera".to_string(), format!("{:?}", args.scene.camera)),

@@ -11,38 +11,27 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use parallax_backend::{
-    Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, KernelGraph, Timing, chrome_trace,
-};
-use parallax_graph::{LightField, Plan, PlanConfig, PlanSummary, Rig};
+use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, Timing, chrome_trace};
+use parallax_graph::{LightField, Rig};
 use parallax_passes::camera::lightfield_views;
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::PipelineKind;
 use parallax_passes::renderer::LightFieldRenderer;
-use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::TraceWork;
-use crate::cmd_plan::compile_checked;
 use crate::lightfield_images::{DisplayImage, quilt_file_name, write_contact_sheet, write_quilt};
 use crate::logging::{bar, result};
-use crate::options::{AssignArg, DeviceArgs, SchemeArg, SourceList, assignment, parse_exposure, parse_sources};
+use crate::options::{DeviceArgs, parse_exposure};
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
+use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 
 /// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
 /// screen shows whole.
 const SHEET_COLUMNS: u32 = 10;
-
-/// `--gbuffer`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum GbufferArg {
-    FirstHits,
-    Raster,
-}
 
 /// `--barriers`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -60,16 +49,6 @@ pub enum TimingArg {
     PerStage,
 }
 
-/// Which pipeline renders the views.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum PipelineArg {
-    /// The paper's: sources path traced, targets reprojected and their holes filled.
-    Reproject,
-    /// Every view path traced (the baseline).
-    PathTrace,
-}
-
 #[derive(Args, Debug)]
 pub struct RenderArgs {
     #[command(flatten)]
@@ -78,25 +57,8 @@ pub struct RenderArgs {
     light_field: LightFieldArgs,
     #[command(flatten)]
     devices: DeviceArgs,
-    /// What renders the views.
-    #[arg(long, value_enum, default_value_t = PipelineArg::Reproject)]
-    pipeline: PipelineArg,
-    /// Partitioning scheme.
-    #[arg(long, value_enum, default_value_t = SchemeArg::MultiSource)]
-    scheme: SchemeArg,
-    /// How views are grouped into sets (multi-source only) [default: compact]
-    #[arg(long, value_enum)]
-    assign: Option<AssignArg>,
-    /// Sources per set (multi-source, the paper's k_s); each target reprojects from the
-    /// nearest source of its set.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
-    sources_per_set: u32,
-    /// The fine schemes' sources, view indices (default: k = N placed as in the paper).
-    #[arg(long, value_parser = parse_sources)]
-    sources: Option<SourceList>,
-    /// Skip SVGF: the display shows the radiance after reprojection and hole filling.
-    #[arg(long)]
-    no_denoise: bool,
+    #[command(flatten)]
+    pipeline: PipelineArgs,
     /// Samples per pixel of path tracing (sources, holes, or every view).
     #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=65536))]
     spp: u32,
@@ -129,10 +91,6 @@ pub struct RenderArgs {
     /// Also write a Looking Glass quilt (lightfield_qs{cols}x{rows}a{aspect}.png).
     #[arg(long)]
     quilt: bool,
-    /// Where the G-buffer comes from: first hits of the pixel-centre rays (fast on compute GPUs
-    /// such as the H200), or rasterised (the paper's way; fast with fixed-function raster).
-    #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
-    gbuffer: GbufferArg,
     /// Barriers between GPU ops: `tracked` (only where declared accesses conflict, so the
     /// instances of one pass for many views overlap; synchronisation validation reports false
     /// hazards with it), or `every-op`.
@@ -149,6 +107,8 @@ pub struct RenderArgs {
     /// run of one pass over many views; add `--timing per-op` for one event per view.
     #[arg(long, value_parser = parse_sink)]
     trace: Option<Sink>,
+    #[command(flatten)]
+    dot: DotArgs,
 }
 
 /// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,
@@ -165,10 +125,10 @@ fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
-    let assign = assignment(args.scheme, args.assign)?;
+    args.pipeline.check()?;
     let sheet = args.out_dir.join("lightfield.png");
     let render_json = args.out_dir.join("render.json");
-    check_outputs(&args.out_dir, &sheet, &render_json, args.trace.as_ref())?;
+    check_outputs(&args.out_dir, &sheet, &render_json, args.trace.as_ref(), args.dot.dot.as_ref())?;
     let settings = TraceSettings { spp: args.spp, max_depth: args.depth.max_depth, ..Default::default() };
     settings.validate()?;
     let total_frames = args.warmup + args.frames;
@@ -183,6 +143,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // Memory is per frame: the frames reuse the same images.
     let one_frame = TraceWork { views: sized.len() as u64, ..work };
     one_frame.check_host()?;
+    // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
+    // positions in the rig plane, not on where the rig stands.
+    let selection = args.devices.selection();
+    let compiled = args.pipeline.compile(&sized, selection.count() as u32, args.exposure)?;
+    let dot = args.dot.render(&compiled.schedule);
+    let (plan, summary, kind) = (&compiled.plan, &compiled.summary, compiled.kind);
 
     let scene = args.scene.load()?;
     let camera = args.scene.camera_or_default(&scene);
@@ -197,40 +163,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     let lf_of = |f: u32| -> Result<LightField> { args.light_field.around(&camera_at(f), centre) };
     let lf = lf_of(0)?;
-    let selection = args.devices.selection();
-    let config = PlanConfig {
-        devices: selection.count() as u32,
-        scheme: args.scheme.into(),
-        assign,
-        sources: args.sources.as_ref().map(|s| s.0.clone()),
-    };
-    let plan = Plan::with_sources_per_set(&lf, &config, args.sources_per_set)?;
-    let kind = match args.pipeline {
-        PipelineArg::Reproject => PipelineKind::Reproject,
-        PipelineArg::PathTrace => PipelineKind::PathTrace,
-    };
-    let pipeline = PipelineConfig {
-        kind,
-        gbuffer: match args.gbuffer {
-            GbufferArg::FirstHits => GbufferSource::FirstHits,
-            GbufferArg::Raster => GbufferSource::Raster,
-        },
-        tolerances: ReprojectionTolerances::default(),
-        denoise: !args.no_denoise,
-        exposure: args.exposure,
-    };
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let handles = declare_pipeline(&mut graph, &pipeline)?;
-    // Only the display images travel to device 0; float layers are read where they were made.
-    graph.export(&handles.display);
-    let schedule = compile_checked(&graph, &plan)?;
-    let summary = PlanSummary::new(&lf, &plan, &schedule);
 
     let bvh = SceneBvh::build(&scene);
     let context = VkContext::new(&ContextDesc::from_env(selection))?;
     tracing::info!("{}", context.to_string().trim_end());
     one_frame.check_devices(&context)?;
-    let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule)?;
+    let exec_plan = ExecutionPlan::from_schedule(&compiled.graph, &compiled.schedule)?;
     let barriers = match args.barriers {
         BarrierArg::EveryOp => Barriers::EveryOp,
         BarrierArg::Tracked => Barriers::Tracked,
@@ -271,7 +209,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             std::fs::create_dir_all(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
             staged.extend(stage_views(
                 &mut renderer,
-                handles.linear_slot,
+                compiled.handles.linear_slot,
                 &folder,
                 &views,
                 &extra_layers(&args, kind),
@@ -289,7 +227,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // failure (or Ctrl-C) at any point leaves the folder as it was or complete.
     staged.extend(stage_views(
         &mut renderer,
-        handles.linear_slot,
+        compiled.handles.linear_slot,
         &args.out_dir,
         &last_views,
         &extra_layers(&args, kind),
@@ -330,14 +268,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "sun": scene.sun.map(|s| serde_json::json!({ "to_sun": s.to_sun.to_array(), "irradiance": s.irradiance.to_array(),
                                                      "angular_radius": s.angular_radius })),
         "sky": format!("{:?}", scene.sky()),
-        "layout": { "spec": format!("{:?}", args.light_field.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
-                    "width": lf.width, "height": lf.height, "spacing_m": args.light_field.spacing, "focus_m": lf.rig.focus_distance },
-        "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
-        "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
-        "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
+        "layout": { "spec": format!("{:?}", args.light_field.layout.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
+                    "width": lf.width, "height": lf.height, "spacing_m": args.light_field.layout.spacing, "focus_m": lf.rig.focus_distance },
+        "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
+        "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise, "exposure": args.exposure,
+        "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
         "devices": device_names,
-        "plan": &summary,
+        "plan": summary,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
         "timing": &timing,
         "missing_pixels": &missing,
@@ -351,15 +289,19 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let (Some(sink), Some(trace)) = (&args.trace, &trace) {
         crate::outputs::write_json(sink, trace)?;
     }
+    if let (Some(sink), Some(dot)) = (&args.dot.dot, &dot) {
+        crate::outputs::write_bytes(sink, dot.as_bytes())?;
+    }
     json_file.commit()?;
-    let say = |line: String| result(matches!(args.trace, Some(Sink::Stdout)), &line);
+    let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
+    let say = |line: String| result(stdout_taken, &line);
     say(stage_table(&timing));
     say(format!(
         "rendered {} views of {}x{} ({:?}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
         lf.len(),
         lf.width,
         lf.height,
-        args.pipeline,
+        args.pipeline.pipeline,
         summary.scheme,
         summary.devices,
         args.spp,
@@ -454,7 +396,13 @@ fn view_file_name(index: u32) -> String {
 
 /// Checks the outputs before any work. The folder may not exist yet (it is created when the
 /// views are written), but the nearest folder above it must be writable.
-fn check_outputs(out_dir: &Path, sheet: &Path, render_json: &Path, trace: Option<&Sink>) -> Result<()> {
+fn check_outputs(
+    out_dir: &Path,
+    sheet: &Path,
+    render_json: &Path,
+    trace: Option<&Sink>,
+    dot: Option<&Sink>,
+) -> Result<()> {
     if out_dir.exists() && !out_dir.is_dir() {
         bail!("--out-dir {} is a file: give a folder", out_dir.display());
     }
@@ -480,6 +428,9 @@ fn check_outputs(out_dir: &Path, sheet: &Path, render_json: &Path, trace: Option
             bail!("--trace {} would overwrite an output of --out-dir: give it another name", path.display());
         }
         outputs.push(Output { flag: "--trace", sink, format: Format::Json });
+    }
+    if let Some(sink) = dot {
+        outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
     }
     check(&outputs)
 }

@@ -16,6 +16,7 @@ mod lightfield_images;
 mod logging;
 mod options;
 mod outputs;
+mod pipeline_args;
 mod render_report;
 mod scene_args;
 

@@ -76,9 +76,10 @@ fn warn_if_unlit(scene: &Scene) {
     }
 }
 
-/// The light field's layout, spacing, per-view resolution and focus.
+/// The light field's layout, spacing and per-view resolution: all a plan depends on (`plan`
+/// takes these alone).
 #[derive(Args, Debug, Clone)]
-pub struct LightFieldArgs {
+pub struct LayoutArgs {
     /// Light-field layout: multiscopic, nelf or WxH (at most 4096 views).
     #[arg(long, default_value = "8x4", value_parser = parse_layout)]
     pub lf: LayoutSpec,
@@ -88,6 +89,20 @@ pub struct LightFieldArgs {
     /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
     #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
     pub resolution: Option<Resolution>,
+}
+
+impl LayoutArgs {
+    /// The light field of `--lf`, `--spacing` and `--resolution` on `rig`.
+    pub fn with_rig(&self, rig: Rig) -> Result<LightField> {
+        Ok(LightField::new(self.lf, self.spacing, self.resolution.map(Resolution::pair), rig)?)
+    }
+}
+
+/// The light field's layout and the focus of its rig.
+#[derive(Args, Debug, Clone)]
+pub struct LightFieldArgs {
+    #[command(flatten)]
+    pub layout: LayoutArgs,
     /// Distance of the zero-disparity plane from the rig camera (default: to the scene centre).
     #[arg(long, allow_negative_numbers = true, value_parser = parse_focus)]
     pub focus: Option<f64>,
@@ -97,7 +112,7 @@ impl LightFieldArgs {
     /// The light field of `--lf`, `--spacing` and `--resolution` on `rig` (`--focus` is not
     /// applied: the rig has its focus distance).
     pub fn with_rig(&self, rig: Rig) -> Result<LightField> {
-        Ok(LightField::new(self.lf, self.spacing, self.resolution.map(Resolution::pair), rig)?)
+        self.layout.with_rig(rig)
     }
 
     /// The light field whose rig is `camera`, focused at `--focus` or else at the depth of
@@ -123,6 +138,7 @@ mod tests {
     /// (no id declared twice, every `conflicts_with` names an argument).
     #[test]
     fn commands_with_the_shared_options_are_valid() {
+        <crate::cmd_plan::PlanArgs as Args>::augment_args(Command::new("plan")).debug_assert();
         <crate::cmd_render::RenderArgs as Args>::augment_args(Command::new("render")).debug_assert();
         <crate::cmd_reference::ReferenceArgs as Args>::augment_args(Command::new("reference")).debug_assert();
         <crate::cmd_trace::TraceArgs as Args>::augment_args(Command::new("trace")).debug_assert();

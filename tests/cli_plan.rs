@@ -82,3 +82,64 @@ fn dot_detail_summary_stays_small_for_big_schedules() {
     assert!(dot.starts_with("digraph schedule_summary {"), "{}", &dot[..80]);
     assert!(dot.len() < 64 << 10, "{} bytes", dot.len());
 }
+
+/// `plan --dot` of 3 views on 2 devices per scheme, checked byte for byte. Regenerate with
+/// `PARALLAX_UPDATE_GOLDEN=1 cargo test --test cli_plan`; `.ci/test.sh` renders every golden
+/// with Graphviz and fails on any warning.
+fn golden(name: &str, scheme: &str) {
+    let dir = scratch("plan", name);
+    let mut args = vec!["--lf", "3x1", "--resolution", "4x4", "--gpus", "2", "--scheme", scheme];
+    if scheme == "multi-source" {
+        args.extend(["--assign", "round-robin"]);
+    }
+    let out = plan(&args, &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let dot = std::fs::read_to_string(dir.join("plan.dot")).unwrap();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden").join(name);
+    if std::env::var_os("PARALLAX_UPDATE_GOLDEN").is_some() {
+        std::fs::write(&path, &dot).unwrap();
+    }
+    let expected = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert!(dot == expected, "DOT for {name} changed; inspect and regenerate if intended");
+}
+
+#[test]
+fn golden_multi_source() {
+    golden("plan_3x1_2gpu_multi_source.dot", "multi-source");
+}
+
+#[test]
+fn golden_fine_sources() {
+    golden("plan_3x1_2gpu_fine_sources.dot", "fine-sources");
+}
+
+#[test]
+fn golden_fine_all() {
+    golden("plan_3x1_2gpu_fine_all.dot", "fine-all");
+}
+
+/// `plan` declares the renderer's kernel graph but never opens Vulkan: with no driver to be
+/// found it still plans.
+#[test]
+fn plan_needs_no_gpu() {
+    let dir = scratch("plan", "nogpu");
+    let out = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .args(["plan", "--lf", "4x2", "--fake-devices", "3", "--scheme", "fine-all", "--json"])
+        .arg(dir.join("plan.json"))
+        .env("VK_DRIVER_FILES", dir.join("no_driver.json"))
+        .env("VK_ICD_FILENAMES", dir.join("no_driver.json"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("plan.json")).unwrap()).unwrap();
+    assert_eq!(json["devices"], 3);
+    // Without a driver, a command that does need a device says so.
+    let render = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .args(["render", "--lf", "2x1", "--resolution", "8x8", "--out-dir"])
+        .arg(dir.join("out"))
+        .env("VK_DRIVER_FILES", dir.join("no_driver.json"))
+        .env("VK_ICD_FILENAMES", dir.join("no_driver.json"))
+        .output()
+        .unwrap();
+    assert!(!render.status.success(), "render found a device with no driver: the check above proves nothing");
+}

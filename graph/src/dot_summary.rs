@@ -132,35 +132,3 @@ impl Schedule {
         out
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use crate::*;
-
-    fn schedule(lf: &str, devices: u32, scheme: Scheme) -> Schedule {
-        let lf = LightField::new(lf.parse().unwrap(), None, None, Rig::default()).unwrap();
-        let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
-        let plan = Plan::new(&lf, &config).unwrap();
-        let mut graph = Graph::new(plan.topology.clone());
-        declare_standard_pipeline(&mut graph);
-        compile(&graph, &plan).unwrap()
-    }
-
-    #[test]
-    fn multiscopic_on_8_devices_is_one_node_per_pass_and_device() {
-        let s = schedule("multiscopic", 8, Scheme::FineAll);
-        let dot = s.to_dot_summary();
-        assert!(dot.len() < 64 << 10, "{} bytes", dot.len());
-        let passes: std::collections::BTreeSet<(u32, &str)> =
-            s.instances.iter().map(|i| (i.device.0, i.name.as_str())).collect();
-        let nodes = dot.lines().filter(|l| l.trim_start().starts_with('p') && l.contains("instances")).count();
-        assert_eq!(nodes, passes.len());
-        // Every instance is counted once.
-        let counted: u64 = dot
-            .lines()
-            .filter_map(|l| l.split_once("\\n")?.1.split_once(" instances").map(|(n, _)| n.parse::<u64>().unwrap()))
-            .sum();
-        assert_eq!(counted, s.instances.len() as u64);
-        assert_eq!(dot, s.to_dot_summary(), "deterministic");
-    }
-}

@@ -22,7 +22,10 @@
 //! let config = PlanConfig { devices: 4, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
 //! let plan = Plan::new(&lf, &config)?;
 //! let mut graph = Graph::new(plan.topology.clone());
-//! declare_standard_pipeline(&mut graph);
+//! let mut radiance = graph.image("radiance", Format::Rgba32f);
+//! graph.pass("trace", Role::Sources).write(&mut radiance).record();
+//! graph.pass("reproject", Role::Targets).read_sources(&radiance).write(&mut radiance).record();
+//! graph.export(&radiance);
 //! let schedule = compile(&graph, &plan)?;
 //! assert!(schedule.validate().is_ok());
 //! assert_eq!(schedule.delta_edges.len(), 32 - 4); // D = M − N
@@ -40,7 +43,6 @@ pub mod ids;
 pub mod lightfield;
 mod lower;
 pub mod partition;
-pub mod pipeline;
 pub mod schedule;
 pub mod source;
 mod storage;
@@ -55,7 +57,6 @@ pub use error::{GraphError, PlanError};
 pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use partition::{Plan, PlanConfig, Scheme, parse_source_list};
-pub use pipeline::{StandardPipeline, declare_standard_pipeline};
 pub use schedule::{
     Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, Op, Origin, PassInfo, PassInstance, ResourceDesc,
     ResourceInfo, Schedule, SlotInfo,

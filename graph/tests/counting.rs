@@ -9,7 +9,7 @@ use proptest::prelude::*;
 /// Checks the counts of one configuration; `k` is the number of sources.
 fn check_counts(lf: &LightField, n: u32, scheme: Scheme, assign: AssignStrategy) {
     let m = lf.len();
-    let (plan, s) = standard(lf, n, scheme, assign, None);
+    let (plan, s) = test_schedule(lf, n, scheme, assign, None);
     let k = plan.sources.len();
     let n = n as usize;
     let report = s.validate();
@@ -56,10 +56,10 @@ fn presets_follow_the_paper_counts() {
 #[test]
 fn gather_brings_every_view_home() {
     let lf = preset(LayoutSpec::Nelf, 8);
-    let (plan, s) = standard(&lf, 3, Scheme::MultiSource, AssignStrategy::Compact, None);
+    let (plan, s) = test_schedule(&lf, 3, Scheme::MultiSource, AssignStrategy::Compact, None);
     let away = plan.set_of_view().unwrap().iter().filter(|&&d| d != 0).count();
     assert_eq!(s.gather_copies().count(), away, "one gather per view finished away from device 0");
-    let (_, s) = standard(&lf, 3, Scheme::FineAll, AssignStrategy::Compact, None);
+    let (_, s) = test_schedule(&lf, 3, Scheme::FineAll, AssignStrategy::Compact, None);
     assert_eq!(s.gather_copies().count(), 72 * 2, "each view's two remote bands");
     let bytes: u64 = s.gather_copies().map(|c| c.bytes).sum();
     assert_eq!(bytes, 72 * (8 - 2) * 8 * 4, "rows of bands 1 and 2 of every 8×8 RGBA8 display image");

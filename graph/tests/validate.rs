@@ -8,7 +8,7 @@ use parallax_graph::*;
 use proptest::prelude::*;
 
 fn fine_all() -> Schedule {
-    standard(&grid(3, 2, 6), 2, Scheme::FineAll, AssignStrategy::RoundRobin, None).1
+    test_schedule(&grid(3, 2, 6), 2, Scheme::FineAll, AssignStrategy::RoundRobin, None).1
 }
 
 fn position(s: &Schedule, op: Op) -> (usize, usize) {
@@ -121,7 +121,7 @@ fn a_copy_arriving_after_its_reader_is_reported() {
 
 #[test]
 fn swapped_producer_and_consumer_are_reported() {
-    let mut s = standard(&grid(2, 1, 4), 1, Scheme::MultiSource, AssignStrategy::RoundRobin, None).1;
+    let mut s = test_schedule(&grid(2, 1, 4), 1, Scheme::MultiSource, AssignStrategy::RoundRobin, None).1;
     let e = s.edges[0];
     let ops = &mut s.devices[0].ops;
     let (a, b) = (
@@ -190,7 +190,7 @@ proptest! {
         let lf = grid(cols, rows, res);
         prop_assume!(n as usize <= lf.len());
         let assign = [AssignStrategy::RoundRobin, AssignStrategy::Contiguous, AssignStrategy::Compact][assign];
-        let (_, s) = standard(&lf, n, Scheme::ALL[scheme], assign, None);
+        let (_, s) = test_schedule(&lf, n, Scheme::ALL[scheme], assign, None);
         let report = s.validate();
         prop_assert!(report.is_ok(), "{:?}", report.errors);
     }

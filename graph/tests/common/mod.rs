@@ -3,8 +3,54 @@
 
 use parallax_graph::*;
 
-/// Plans and compiles the standard pipeline.
-pub fn standard(
+/// A six-stage light-field graph for the partitioner's tests: G-buffer on every view, path
+/// tracing of the sources, reprojection of the targets from their sources (the δ-edges), hole
+/// filling, denoising with history and tonemapping, the display exported (so gathered on device
+/// 0). The renderer's own declaration is `parallax_passes::pipeline::declare_pipeline`, which
+/// `parallax plan` compiles; this one only needs the same shape of dependencies.
+pub fn declare_test_pipeline(g: &mut Graph) {
+    let mut position = g.image("position", Format::Rgba32f);
+    let mut normal = g.image("normal", Format::Rgba16f);
+    let mut albedo = g.image("albedo", Format::Rgba8);
+    let mut radiance = g.image("radiance", Format::Rgba32f);
+    let mut holes = g.image("holes", Format::R32u);
+    let mut denoised = g.image("denoised", Format::Rgba16f);
+    let mut display = g.image("display", Format::Rgba8);
+
+    g.pass("gbuffer", Role::All).write(&mut position).write(&mut normal).write(&mut albedo).record();
+    g.pass("path_trace", Role::Sources).write(&mut radiance).record();
+    g.pass("reproject", Role::Targets)
+        .read(&position)
+        .read(&normal)
+        .read_sources(&position)
+        .read_sources(&normal)
+        .read_sources(&radiance)
+        .write(&mut radiance)
+        .write(&mut holes)
+        .record();
+    g.pass("hole_fill", Role::Targets)
+        .read(&holes)
+        .read(&position)
+        .read(&normal)
+        .read(&radiance)
+        .write(&mut radiance)
+        .record();
+    g.pass("denoise", Role::All)
+        .read(&radiance)
+        .read(&position)
+        .read(&normal)
+        .read(&albedo)
+        .read_history(&position)
+        .read_history(&normal)
+        .read_history(&denoised)
+        .write(&mut denoised)
+        .record();
+    g.pass("tonemap", Role::All).read(&denoised).write(&mut display).record();
+    g.export(&display);
+}
+
+/// Plans and compiles the test pipeline.
+pub fn test_schedule(
     lf: &LightField,
     devices: u32,
     scheme: Scheme,
@@ -13,8 +59,8 @@ pub fn standard(
 ) -> (Plan, Schedule) {
     let plan = Plan::new(lf, &PlanConfig { devices, scheme, assign, sources }).expect("valid plan");
     let mut graph = Graph::new(plan.topology.clone());
-    declare_standard_pipeline(&mut graph);
-    let schedule = compile(&graph, &plan).expect("standard pipeline compiles");
+    declare_test_pipeline(&mut graph);
+    let schedule = compile(&graph, &plan).expect("the test pipeline compiles");
     (plan, schedule)
 }
 

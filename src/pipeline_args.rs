@@ -1,0 +1,168 @@
+//! The options that decide what `render` runs — pipeline, G-buffer source, denoising, scheme,
+//! assignment, sources — declared once and flattened into `plan` and `render`, and the one
+//! function both compile their schedule with: `plan` shows exactly the schedule `render` runs
+//! with the same flags. Declaring the pipeline's kernel graph needs no device, so `plan` runs
+//! without a GPU.
+
+use anyhow::{Result, bail};
+use clap::{Args, ValueEnum};
+use parallax_backend::KernelGraph;
+use parallax_graph::{Graph, LightField, Plan, PlanConfig, PlanSummary, Schedule, Scheme};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline};
+use parallax_passes::reproject::ReprojectionTolerances;
+
+use crate::budget::check_plan_size;
+use crate::options::{AssignArg, DotDetail, SchemeArg, SourceList, UsageError, assignment, parse_sources};
+use crate::outputs::{Sink, parse_sink};
+
+/// `--pipeline`: what renders the views.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PipelineArg {
+    /// The paper's: sources path traced, targets reprojected and their holes filled.
+    Reproject,
+    /// Every view path traced (the baseline).
+    PathTrace,
+}
+
+impl From<PipelineArg> for PipelineKind {
+    fn from(p: PipelineArg) -> PipelineKind {
+        match p {
+            PipelineArg::Reproject => PipelineKind::Reproject,
+            PipelineArg::PathTrace => PipelineKind::PathTrace,
+        }
+    }
+}
+
+/// `--gbuffer`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GbufferArg {
+    FirstHits,
+    Raster,
+}
+
+impl From<GbufferArg> for GbufferSource {
+    fn from(g: GbufferArg) -> GbufferSource {
+        match g {
+            GbufferArg::FirstHits => GbufferSource::FirstHits,
+            GbufferArg::Raster => GbufferSource::Raster,
+        }
+    }
+}
+
+/// The pipeline and its placement. The field names are the clap ids that `bench` checks with
+/// `value_source`.
+#[derive(Args, Debug, Clone)]
+pub struct PipelineArgs {
+    /// What renders the views.
+    #[arg(long, value_enum, default_value_t = PipelineArg::Reproject)]
+    pub pipeline: PipelineArg,
+    /// Where the G-buffer comes from: first hits of the pixel-centre rays (fast on compute GPUs
+    /// such as the H200), or rasterised (the paper's way; fast with fixed-function raster).
+    #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
+    pub gbuffer: GbufferArg,
+    /// Skip SVGF: the display shows the radiance after reprojection and hole filling.
+    #[arg(long)]
+    pub no_denoise: bool,
+    /// Partitioning scheme.
+    #[arg(long, value_enum, default_value_t = SchemeArg::MultiSource)]
+    pub scheme: SchemeArg,
+    /// How views are grouped into sets (multi-source only) [default: compact]
+    #[arg(long, value_enum)]
+    pub assign: Option<AssignArg>,
+    /// Sources per set (multi-source, the paper's k_s); each target reprojects from the
+    /// nearest source of its set.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub sources_per_set: u32,
+    /// The fine schemes' sources, view indices, e.g. 0,99 (default: k = N placed as in the paper).
+    #[arg(long, value_parser = parse_sources)]
+    pub sources: Option<SourceList>,
+}
+
+/// `--dot` and `--dot-detail`: the schedule drawn for Graphviz.
+#[derive(Args, Debug, Clone)]
+pub struct DotArgs {
+    /// Write the schedule as Graphviz DOT (.dot or .gv; `-` = stdout).
+    #[arg(long, value_parser = parse_sink)]
+    pub dot: Option<Sink>,
+    /// How much of the schedule the DOT shows.
+    #[arg(long, value_enum, default_value_t = DotDetail::Auto)]
+    pub dot_detail: DotDetail,
+}
+
+impl DotArgs {
+    /// The DOT text to write, if `--dot` was given.
+    pub fn render(&self, schedule: &Schedule) -> Option<String> {
+        self.dot.as_ref().map(|_| self.dot_detail.render(schedule))
+    }
+}
+
+/// A compiled, checked schedule of the pipeline, with what running it needs.
+pub struct PipelineSchedule {
+    pub plan: Plan,
+    pub graph: KernelGraph,
+    pub handles: PipelineHandles,
+    pub schedule: Schedule,
+    pub summary: PlanSummary,
+    pub kind: PipelineKind,
+}
+
+impl PipelineArgs {
+    /// Refuses flags that do not go together (a usage error), before any work.
+    pub fn check(&self) -> Result<(), UsageError> {
+        assignment(self.scheme, self.assign).map(|_| ())
+    }
+
+    /// The pipeline declaration these flags ask for.
+    pub fn config(&self, exposure: f32) -> PipelineConfig {
+        PipelineConfig {
+            kind: self.pipeline.into(),
+            gbuffer: self.gbuffer.into(),
+            tolerances: ReprojectionTolerances::default(),
+            denoise: !self.no_denoise,
+            exposure,
+        }
+    }
+
+    /// Plans `lf` over `devices`, declares the pipeline (only the display images are exported:
+    /// they travel to device 0; float layers are read where they were made) and compiles it.
+    /// The plan depends only on the views' positions in the rig plane, never on the rig's pose,
+    /// so any rig gives the same schedule.
+    pub fn compile(&self, lf: &LightField, devices: u32, exposure: f32) -> Result<PipelineSchedule> {
+        let config = PlanConfig {
+            devices,
+            scheme: self.scheme.into(),
+            assign: assignment(self.scheme, self.assign)?,
+            sources: self.sources.as_ref().map(|s| s.0.clone()),
+        };
+        let sources = match (&config.sources, config.scheme) {
+            (Some(s), _) => s.len() as u64,
+            (None, Scheme::MultiSource) => u64::from(devices) * u64::from(self.sources_per_set),
+            (None, _) => u64::from(devices),
+        };
+        check_plan_size(lf.len() as u64, u64::from(devices), sources, config.scheme)?;
+        let plan = Plan::with_sources_per_set(lf, &config, self.sources_per_set)?;
+        let mut graph = KernelGraph::with_payload(plan.topology.clone());
+        let handles = declare_pipeline(&mut graph, &self.config(exposure))?;
+        graph.export(&handles.display);
+        let schedule = compile_checked(&graph, &plan)?;
+        let summary = PlanSummary::new(lf, &plan, &schedule);
+        Ok(PipelineSchedule { plan, graph, handles, schedule, summary, kind: self.pipeline.into() })
+    }
+}
+
+/// Compiles `graph` under `plan` and checks every schedule invariant: a broken one is a bug of
+/// the compiler, reported as such rather than executed.
+fn compile_checked<P>(graph: &Graph<P>, plan: &Plan) -> Result<Schedule> {
+    let schedule = parallax_graph::compile(graph, plan)?;
+    let report = schedule.validate();
+    if !report.is_ok() {
+        bail!(
+            "internal error: the compiled schedule breaks {} invariant(s), first: {:?}",
+            report.errors.len(),
+            report.errors[0]
+        );
+    }
+    Ok(schedule)
+}

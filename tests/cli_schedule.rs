@@ -1,0 +1,101 @@
+//! `plan` shows the schedule `render` runs: for a grid of settings the plan's JSON summary and
+//! DOT equal what `render` reports in render.json and writes with `--dot`, and the main job's
+//! schedule is a golden file (`.ci/test.sh` renders every tests/golden/*.dot with Graphviz).
+//! Regenerate the golden with `PARALLAX_UPDATE_GOLDEN=1 cargo test --test cli_schedule`.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use common::{parallax_in, scratch};
+
+fn run(dir: &Path, args: &[String]) -> Output {
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = parallax_in(dir, &args);
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    out
+}
+
+fn words(s: &str) -> Vec<String> {
+    s.split_whitespace().map(str::to_string).collect()
+}
+
+/// Plans `schedule_flags` (with `plan.json`, `plan.dot`) and renders them for one frame (with
+/// `--dot render.dot`); returns (plan.json, render.json's plan, plan.dot, render.dot).
+fn plan_and_render(dir: &Path, schedule_flags: &[String]) -> (serde_json::Value, serde_json::Value, String, String) {
+    let mut plan = words("-q plan --json plan.json --dot plan.dot --dot-detail full");
+    plan.extend_from_slice(schedule_flags);
+    run(dir, &plan);
+    // --max-depth and --frames change no pass, resource or copy: they only keep the run short.
+    let mut render =
+        words("-q render --spp 1 --max-depth 1 --frames 1 --out-dir out --dot render.dot --dot-detail full");
+    render.extend_from_slice(schedule_flags);
+    run(dir, &render);
+    let json = |p: PathBuf| -> serde_json::Value { serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap() };
+    let planned = json(dir.join("plan.json"));
+    let rendered = json(dir.join("out/render.json"))["plan"].clone();
+    let text = |p: PathBuf| std::fs::read_to_string(p).unwrap();
+    (planned, rendered, text(dir.join("plan.dot")), text(dir.join("render.dot")))
+}
+
+#[test]
+fn plan_reports_the_pass_instances_copies_and_bytes_render_runs() {
+    // Every (lf, devices, scheme) cell; the pipeline, denoising and G-buffer source rotate so
+    // that each scheme meets both pipelines with and without SVGF.
+    let combos = [("reproject", true), ("reproject", false), ("path-trace", true), ("path-trace", false)];
+    let schemes = ["multi-source", "fine-sources", "fine-all"];
+    let mut met = std::collections::BTreeSet::new();
+    let mut i = 0;
+    for lf in ["4x2", "3x1"] {
+        for devices in 1..=3 {
+            for scheme in schemes {
+                let (pipeline, denoise) = combos[i % combos.len()];
+                let gbuffer = if (i / 3) % 2 == 1 { "raster" } else { "first-hits" };
+                let mut flags = words(&format!(
+                    "--lf {lf} --resolution 64x48 --fake-devices {devices} --scheme {scheme} --pipeline {pipeline} \
+                     --gbuffer {gbuffer}"
+                ));
+                if !denoise {
+                    flags.push("--no-denoise".into());
+                }
+                if scheme == "multi-source" && lf == "4x2" && devices == 2 {
+                    flags.extend(words("--sources-per-set 2"));
+                }
+                let dir = scratch("schedule", &format!("cell{i}"));
+                let (planned, rendered, plan_dot, render_dot) = plan_and_render(&dir, &flags);
+                assert_eq!(planned, rendered, "{flags:?}: plan --json and render.json's plan differ");
+                for field in ["pass_instances", "cross_device_copies", "gather_copies", "bytes_per_frame"] {
+                    assert!(planned[field].as_u64().is_some(), "{flags:?}: no {field} in {planned}");
+                }
+                assert_eq!(planned["devices"], devices, "{flags:?}");
+                assert!(plan_dot == render_dot, "{flags:?}: plan --dot and render --dot differ");
+                met.insert((scheme, pipeline, denoise));
+                i += 1;
+            }
+        }
+    }
+    assert_eq!(met.len(), schemes.len() * combos.len(), "every scheme with every pipeline, SVGF on and off");
+}
+
+/// The schedule flags of `render` in .ci/main.sh (the other flags there change no pass,
+/// resource or copy).
+const MAIN_JOB: &str = "--lf 8x4 --resolution 128x96 --spacing 0.05 --fake-devices 2 --scheme multi-source";
+
+#[test]
+fn the_main_jobs_render_dot_is_golden() {
+    let main_sh = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(".ci/main.sh")).unwrap();
+    for flag in MAIN_JOB.split(" --") {
+        assert!(main_sh.contains(flag.trim_start_matches("--")), "{flag} is no longer in .ci/main.sh: update MAIN_JOB");
+    }
+    let dir = scratch("schedule", "main");
+    let (planned, rendered, plan_dot, render_dot) = plan_and_render(&dir, &words(MAIN_JOB));
+    assert_eq!(planned, rendered);
+    assert!(plan_dot == render_dot, "plan --dot and render --dot differ");
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/render_main_job.dot");
+    if std::env::var_os("PARALLAX_UPDATE_GOLDEN").is_some() {
+        std::fs::write(&golden, &render_dot).unwrap();
+    }
+    let expected = std::fs::read_to_string(&golden).unwrap_or_else(|e| panic!("{}: {e}", golden.display()));
+    assert!(render_dot == expected, "render --dot of the main job changed; inspect and regenerate if intended");
+}
