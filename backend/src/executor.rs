@@ -34,7 +34,10 @@ use crate::plan::ExecutionPlan;
 use crate::readback::{FrameReadback, FrameTicket, Readback};
 use crate::record::{SegmentContext, SegmentPlace, record_segment};
 use crate::relay::{Relay, RelayJob};
-use crate::segments::{Chunk, chunks_of_copies, progress_value, ready_value, segment_device};
+use crate::segments::{
+    Chunk, Run, Segment, chunks_of_copies, cross_device_waits, progress_value, ready_value, segment_device,
+    submission_order,
+};
 use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData};
 use crate::timing::{FrameReport, TimedEvent};
@@ -79,6 +82,11 @@ pub struct ExecOptions {
     /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
     /// the built-in shaders of `shaders/`.
     pub shaders: ShaderLibrary,
+    /// Most segments (submissions) of one device the host keeps submitted and not yet done; the
+    /// host waits for the device before submitting more (at least 1). Drivers hold a bounded
+    /// number of pending submissions and block vkQueueSubmit beyond it; the fine schemes cut a
+    /// frame into thousands of segments per device.
+    pub max_queued_segments: usize,
     /// Where the recorded command buffers put barriers between ops.
     pub barriers: Barriers,
     /// What each GPU timestamp pair covers.
@@ -122,6 +130,7 @@ impl Default for ExecOptions {
             read_back_exports: false,
             fault: None,
             shaders: ShaderLibrary::default(),
+            max_queued_segments: 256,
             barriers: Barriers::EveryOp,
             timing: Timing::PerOp,
         }
@@ -136,6 +145,13 @@ pub(crate) struct FaultGate {
     pub(crate) producer: usize,
     pub(crate) consumer: usize,
     pub(crate) consumer_segment: usize,
+}
+
+/// What one segment's `VkSubmitInfo2` points at.
+struct SegmentSubmit {
+    waits: Vec<vk::SemaphoreSubmitInfo<'static>>,
+    signal: [vk::SemaphoreSubmitInfo<'static>; 1],
+    command_buffer: [vk::CommandBufferSubmitInfo<'static>; 1],
 }
 
 struct InFlight {
@@ -164,6 +180,10 @@ pub struct Executor {
     staging: Option<Staging>,
     relay: Option<Relay>,
     gate: Option<FaultGate>,
+    /// The order every frame's segments are submitted in (`segments::submission_order`).
+    submission_order: Vec<Run>,
+    /// A frame's submission failed part-way: frame `next_frame` is partly on the queues.
+    cut_short: bool,
     next_frame: u64,
     /// First frame of the current plan.
     plan_epoch: u64,
@@ -205,6 +225,8 @@ impl Executor {
             staging: None,
             relay: None,
             gate: None,
+            submission_order: Vec::new(),
+            cut_short: false,
             next_frame: 0,
             plan_epoch: 0,
             history_origin: 0,
@@ -291,6 +313,14 @@ impl Executor {
             Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(fault_gate(&plan, &mut states, copy)?),
             None => None,
         };
+        let segments: Vec<Vec<Segment>> = states.iter().map(|s| s.segments.clone()).collect();
+        let mut waits = cross_device_waits(&segments);
+        if let Some(gate) = &self.gate {
+            // The producer's first segment waits for the consumer's gate segment.
+            waits[gate.producer][0].push((gate.consumer, gate.consumer_segment));
+        }
+        self.submission_order =
+            submission_order(&waits).ok_or(BackendError::ExecutionPlan(crate::plan::ExecutionPlanError::WaitCycle))?;
         self.staging = create_staging(&self.devices, &plan, slots)?;
         if let Some(readback) = &mut self.readback {
             readback.allocate(&self.devices[0], &plan, slots)?;
@@ -510,116 +540,23 @@ impl Executor {
                     .copy_from_slice(frame_bytes);
             }
         }
-        let relay = self.relay.as_ref().expect("relay exists after build");
-        let mut submitted_segments = 0;
-        for (d, state) in self.states.iter().enumerate() {
-            if state.segments.is_empty() {
-                continue;
-            }
-            let segment_count = state.segments.len();
-            // The slot's previous frame has retired: its queries were read and can be reset.
+        // The slot's previous frame has retired: its queries were read and can be reset.
+        for state in &self.states {
             if !state.timers.is_empty() {
                 unsafe {
                     state.device.raw.reset_query_pool(state.slots[slot].query_pool, 0, state.timers.len() as u32 * 2)
                 };
             }
-            let mut waits: Vec<Vec<vk::SemaphoreSubmitInfo>> = Vec::with_capacity(segment_count);
-            let mut signals: Vec<[vk::SemaphoreSubmitInfo; 1]> = Vec::with_capacity(segment_count);
-            let mut buffers: Vec<[vk::CommandBufferSubmitInfo; 1]> = Vec::with_capacity(segment_count);
-            for (j, segment) in state.segments.iter().enumerate() {
-                let mut w: Vec<vk::SemaphoreSubmitInfo> = segment
-                    .waits
-                    .iter()
-                    .map(|wait| {
-                        vk::SemaphoreSubmitInfo::default()
-                            .semaphore(self.ready[wait.copy])
-                            .value(ready_value(local, self.chunks[wait.copy].len(), wait.chunk))
-                            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-                    })
-                    .collect();
-                // A segment on another queue than its predecessor (in program order, across the
-                // frame boundary too) waits for it: the two queues run one program.
-                let previous = match j {
-                    0 if local > 0 => Some((segment_count - 1, local - 1)),
-                    0 => None,
-                    _ => Some((j - 1, local)),
-                };
-                if let Some((p, p_frame)) = previous
-                    && state.segments[p].queue != segment.queue
-                {
-                    w.push(
-                        vk::SemaphoreSubmitInfo::default()
-                            .semaphore(state.progress)
-                            .value(progress_value(p_frame, segment_count, p))
-                            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS),
-                    );
-                }
-                if let (Some(gate), 0) = (state.gate, j) {
-                    w.push(
-                        vk::SemaphoreSubmitInfo::default()
-                            .semaphore(gate)
-                            .value(local + 1)
-                            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS),
-                    );
-                }
-                waits.push(w);
-                signals.push([vk::SemaphoreSubmitInfo::default()
-                    .semaphore(state.progress)
-                    .value(progress_value(local, segment_count, j))
-                    .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)]);
-                buffers.push([
-                    vk::CommandBufferSubmitInfo::default().command_buffer(state.slots[slot].command_buffers[j])
-                ]);
-            }
-            let submits: Vec<vk::SubmitInfo2> = (0..segment_count)
-                .map(|j| {
-                    vk::SubmitInfo2::default()
-                        .wait_semaphore_infos(&waits[j])
-                        .command_buffer_infos(&buffers[j])
-                        .signal_semaphore_infos(&signals[j])
-                })
-                .collect();
-            // One vkQueueSubmit2 per run of segments on the same queue, in program order.
-            let mut start = 0;
-            while start < segment_count {
-                let queue = state.segments[start].queue;
-                let end = (start..segment_count).find(|&j| state.segments[j].queue != queue).unwrap_or(segment_count);
-                state.device.submit_to(queue, &submits[start..end], vk::Fence::null())?;
-                start = end;
-            }
-            submitted_segments += segment_count;
-
-            // Relay jobs watching this device, in segment order (see relay.rs).
-            for (j, segment) in state.segments.iter().enumerate() {
-                let watch_value = progress_value(local, segment_count, j);
-                for chunk in &segment.relays {
-                    let consumer = self.plan.copies[chunk.copy].to;
-                    relay.push(
-                        d,
-                        RelayJob {
-                            watch_value,
-                            target: self.devices[consumer].clone(),
-                            semaphore: self.ready[chunk.copy],
-                            signal_value: ready_value(local, self.chunks[chunk.copy].len(), chunk.index),
-                        },
-                    )?;
-                }
-                if let Some(gate) = &self.gate
-                    && gate.consumer == d
-                    && gate.consumer_segment == j
-                {
-                    relay.push(
-                        d,
-                        RelayJob {
-                            watch_value,
-                            target: self.devices[gate.producer].clone(),
-                            semaphore: gate.semaphore,
-                            signal_value: local + 1,
-                        },
-                    )?;
-                }
-            }
         }
+        let mut submitted_segments = 0;
+        // Until the whole frame is submitted, a failure leaves its first segments on the queues,
+        // waiting for signals of segments that never come (see `Drop`).
+        self.cut_short = true;
+        for run in &self.submission_order {
+            self.submit_run(run, frame, local, slot)?;
+            submitted_segments += run.segments.len();
+        }
+        self.cut_short = false;
         self.in_flight.push_back(InFlight {
             frame,
             local,
@@ -634,6 +571,131 @@ impl Executor {
         Ok(frame)
     }
 
+    /// Submits the segments of `run` of frame `frame` (`local` to the plan): one vkQueueSubmit2
+    /// per stretch on one queue, with at most `max_queued_segments` of the device's segments
+    /// submitted and not yet done; then queues the relay jobs of the copy-outs among them.
+    fn submit_run(&self, run: &Run, frame: u64, local: u64, slot: usize) -> Result<()> {
+        let d = run.device;
+        let state = &self.states[d];
+        let segment_count = state.segments.len();
+        let window = self.options.max_queued_segments.max(1);
+        let mut start = run.segments.start;
+        while start < run.segments.end {
+            let queue = state.segments[start].queue;
+            let limit = run.segments.end.min(start + window);
+            let end = (start..limit).find(|&j| state.segments[j].queue != queue).unwrap_or(limit);
+            // Everything this waits for is submitted already (`submission_order`), so it ends.
+            let last = progress_value(local, segment_count, end - 1);
+            if let Some(done) = last.checked_sub(window as u64).filter(|&v| v > 0) {
+                self.wait_for_progress(d, done, frame)?;
+            }
+            let infos: Vec<SegmentSubmit> = (start..end).map(|j| self.segment_submit(d, j, local, slot)).collect();
+            let submits: Vec<vk::SubmitInfo2> = infos
+                .iter()
+                .map(|i| {
+                    vk::SubmitInfo2::default()
+                        .wait_semaphore_infos(&i.waits)
+                        .command_buffer_infos(&i.command_buffer)
+                        .signal_semaphore_infos(&i.signal)
+                })
+                .collect();
+            state.device.submit_to(queue, &submits, vk::Fence::null())?;
+            start = end;
+        }
+        self.queue_relays(run, local)
+    }
+
+    /// The waits, command buffer and progress signal of segment `j` of device `d`.
+    fn segment_submit(&self, d: usize, j: usize, local: u64, slot: usize) -> SegmentSubmit {
+        let state = &self.states[d];
+        let segment = &state.segments[j];
+        let segment_count = state.segments.len();
+        let on = |semaphore: vk::Semaphore, value: u64| {
+            vk::SemaphoreSubmitInfo::default()
+                .semaphore(semaphore)
+                .value(value)
+                .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        };
+        let mut waits: Vec<vk::SemaphoreSubmitInfo<'static>> = segment
+            .waits
+            .iter()
+            .map(|wait| on(self.ready[wait.copy], ready_value(local, self.chunks[wait.copy].len(), wait.chunk)))
+            .collect();
+        // A segment on another queue than its predecessor (in program order, across the frame
+        // boundary too) waits for it: the two queues run one program.
+        let previous = match j {
+            0 if local > 0 => Some((segment_count - 1, local - 1)),
+            0 => None,
+            _ => Some((j - 1, local)),
+        };
+        if let Some((p, p_frame)) = previous
+            && state.segments[p].queue != segment.queue
+        {
+            waits.push(on(state.progress, progress_value(p_frame, segment_count, p)));
+        }
+        if let (Some(gate), 0) = (state.gate, j) {
+            waits.push(on(gate, local + 1));
+        }
+        SegmentSubmit {
+            waits,
+            signal: [on(state.progress, progress_value(local, segment_count, j))],
+            command_buffer: [
+                vk::CommandBufferSubmitInfo::default().command_buffer(state.slots[slot].command_buffers[j])
+            ],
+        }
+    }
+
+    /// Relay jobs of the copy-outs in `run`, in segment order (see relay.rs).
+    fn queue_relays(&self, run: &Run, local: u64) -> Result<()> {
+        let relay = self.relay.as_ref().expect("relay exists after build");
+        let d = run.device;
+        let segment_count = self.states[d].segments.len();
+        for j in run.segments.clone() {
+            let watch_value = progress_value(local, segment_count, j);
+            for chunk in &self.states[d].segments[j].relays {
+                let consumer = self.plan.copies[chunk.copy].to;
+                relay.push(
+                    d,
+                    RelayJob {
+                        watch_value,
+                        target: self.devices[consumer].clone(),
+                        semaphore: self.ready[chunk.copy],
+                        signal_value: ready_value(local, self.chunks[chunk.copy].len(), chunk.index),
+                    },
+                )?;
+            }
+            if let Some(gate) = &self.gate
+                && gate.consumer == d
+                && gate.consumer_segment == j
+            {
+                relay.push(
+                    d,
+                    RelayJob {
+                        watch_value,
+                        target: self.devices[gate.producer].clone(),
+                        semaphore: gate.semaphore,
+                        signal_value: local + 1,
+                    },
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Waits until device `d`'s progress timeline reaches `value`, in short steps so that a
+    /// failed relay thread is reported instead of hanging, and at most `FRAME_TIMEOUT_S`.
+    fn wait_for_progress(&self, d: usize, value: u64, frame: u64) -> Result<()> {
+        let state = &self.states[d];
+        let deadline = Instant::now() + std::time::Duration::from_secs(FRAME_TIMEOUT_S);
+        while !state.device.wait_timeline(state.progress, value, 100_000_000)? {
+            self.relay.as_ref().map_or(Ok(()), Relay::check)?;
+            if Instant::now() > deadline {
+                return Err(BackendError::FrameTimeout { frame, device: d, seconds: FRAME_TIMEOUT_S });
+            }
+        }
+        Ok(())
+    }
+
     /// Waits for the oldest frame in flight and turns its timestamps into a report.
     fn retire_oldest(&mut self) -> Result<()> {
         let Some(f) = self.in_flight.pop_front() else {
@@ -645,15 +707,7 @@ impl Executor {
             if segment_count == 0 {
                 continue;
             }
-            let last = progress_value(f.local, segment_count, segment_count - 1);
-            // Wait in short steps so a failed relay thread is reported instead of hanging.
-            let deadline = Instant::now() + std::time::Duration::from_secs(FRAME_TIMEOUT_S);
-            while !state.device.wait_timeline(state.progress, last, 100_000_000)? {
-                self.relay.as_ref().map_or(Ok(()), Relay::check)?;
-                if Instant::now() > deadline {
-                    return Err(BackendError::FrameTimeout { frame: f.frame, device: d, seconds: FRAME_TIMEOUT_S });
-                }
-            }
+            self.wait_for_progress(d, progress_value(f.local, segment_count, segment_count - 1), f.frame)?;
             let timers = state.timers.len();
             if timers == 0 {
                 continue;
@@ -706,13 +760,12 @@ impl Executor {
     /// After a failure (a relay thread died, a frame timed out), submissions may wait on values
     /// nobody will signal, and waiting for the devices to go idle would hang. Signals every
     /// cross-device semaphore to the last value any submitted frame waits for, so the queues
-    /// drain (with meaningless contents) and teardown can proceed.
+    /// drain (with meaningless contents) and teardown can proceed. That includes the frame
+    /// `next_frame`, whose submission the failure may have cut short: its first segments can
+    /// be on the queues already.
     fn unblock_device_waits(&mut self) {
         self.relay = None;
-        let Some(last) = self.next_frame.checked_sub(1) else {
-            return;
-        };
-        let local = last.saturating_sub(self.plan_epoch);
+        let local = self.next_frame.saturating_sub(self.plan_epoch);
         for (c, copy) in self.plan.copies.iter().enumerate() {
             let chunks = self.chunks[c].len();
             let value = ready_value(local, chunks, chunks.saturating_sub(1) as u32);
@@ -820,7 +873,7 @@ impl Drop for Executor {
     fn drop(&mut self) {
         // Frames in flight must end before their memory and semaphores go; relay threads
         // before the semaphores they wait on.
-        if self.finish().is_err() {
+        if self.finish().is_err() || self.cut_short {
             self.unblock_device_waits();
         }
         for device in &self.devices {

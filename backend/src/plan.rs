@@ -235,6 +235,8 @@ pub enum ExecutionPlanError {
     ResetTooLong { resource: usize, words: usize, capacity: u32, max: usize },
     #[error("resource {resource} is exported but device 0 never holds it: exports are gathered on device 0")]
     ExportNotOnDevice0 { resource: usize },
+    #[error("the devices' copy-ins wait for each other's copy-outs in a cycle: no order of submissions can run")]
+    WaitCycle,
 }
 
 /// Most words a reset header may have: vkCmdUpdateBuffer writes at most 65536 bytes.

@@ -15,6 +15,9 @@
 //! the producer's device→host copy of chunk i+1 is still going (the two PCIe directions of two
 //! GPUs overlap instead of adding up).
 
+use std::collections::HashMap;
+use std::ops::Range;
+
 use crate::device::QueueKind;
 use crate::plan::{ExecOp, ExecutionPlan};
 
@@ -212,6 +215,71 @@ fn segment_single_queue(
     segments
 }
 
+/// Consecutive segments of one device that the host submits before turning to another device.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Run {
+    pub device: usize,
+    pub segments: Range<usize>,
+}
+
+/// For each device and segment, the segments of other devices whose copy-outs it waits for:
+/// `(device, segment)` of the producer of every chunk its ready waits name.
+pub fn cross_device_waits(segments: &[Vec<Segment>]) -> Vec<Vec<Vec<(usize, usize)>>> {
+    let mut producer: HashMap<(usize, u32), (usize, usize)> = HashMap::new();
+    for (d, device) in segments.iter().enumerate() {
+        for (j, segment) in device.iter().enumerate() {
+            for chunk in &segment.relays {
+                producer.insert((chunk.copy, chunk.index), (d, j));
+            }
+        }
+    }
+    segments
+        .iter()
+        .map(|device| {
+            device
+                .iter()
+                .map(|s| s.waits.iter().filter_map(|w| producer.get(&(w.copy, w.chunk)).copied()).collect())
+                .collect()
+        })
+        .collect()
+}
+
+/// The order the host submits one frame's segments in: every device's segments in program
+/// order, and each segment only after every segment it waits for (`waits`, from
+/// [`cross_device_waits`]) has been submitted. So no submitted wait ever depends on a
+/// submission the host has not made yet, and everything submitted can complete. Submitting a
+/// whole device's frame before the next device's instead leaves the first device's queue
+/// blocked on waits whose signals are not even submitted; a driver whose queue holds a bounded
+/// number of submissions then blocks vkQueueSubmit for good (NVIDIA: until the watchdog calls
+/// the device lost). Each device runs as far as it can before the next takes over, so runs are
+/// long where the waits allow. `None` when the waits form a cycle (a schedule that
+/// `Schedule::validate` refuses).
+pub fn submission_order(waits: &[Vec<Vec<(usize, usize)>>]) -> Option<Vec<Run>> {
+    let mut next = vec![0usize; waits.len()];
+    let mut runs = Vec::new();
+    loop {
+        let mut advanced = false;
+        for device in 0..waits.len() {
+            let start = next[device];
+            while next[device] < waits[device].len()
+                && waits[device][next[device]].iter().all(|&(producer, segment)| segment < next[producer])
+            {
+                next[device] += 1;
+            }
+            if next[device] > start {
+                runs.push(Run { device, segments: start..next[device] });
+                advanced = true;
+            }
+        }
+        if next.iter().zip(waits).all(|(n, w)| *n == w.len()) {
+            return Some(runs);
+        }
+        if !advanced {
+            return None;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,5 +360,38 @@ mod tests {
             }
         }
         assert_eq!(ready_value(2, 3, 1), 8);
+    }
+
+    /// Device 0 waits for device 1's copy, which device 1 sends only after waiting for device
+    /// 0's: the host must alternate, and a device never runs ahead of a segment it waits for.
+    #[test]
+    fn segments_are_submitted_after_the_segments_they_wait_for() {
+        let waits = vec![vec![vec![], vec![(1, 1)], vec![]], vec![vec![], vec![(0, 0)], vec![(0, 2)]]];
+        let order = submission_order(&waits).unwrap();
+        assert_eq!(
+            order,
+            vec![
+                Run { device: 0, segments: 0..1 },
+                Run { device: 1, segments: 0..2 },
+                Run { device: 0, segments: 1..3 },
+                Run { device: 1, segments: 2..3 },
+            ]
+        );
+        let cycle = vec![vec![vec![(1, 0)]], vec![vec![(0, 0)]]];
+        assert_eq!(submission_order(&cycle), None);
+    }
+
+    #[test]
+    fn the_consumer_of_a_copy_waits_for_the_segment_of_its_copy_out() {
+        let plan = copy_plan(256, 256).unwrap();
+        let chunks = chunks_of_copies(&plan, 256 * 1024);
+        let segments: Vec<Vec<Segment>> = (0..2).map(|d| segment_device(&plan, d, &chunks, None, false)).collect();
+        let waits = cross_device_waits(&segments);
+        assert!(waits[0].iter().all(Vec::is_empty), "the producer waits for nobody");
+        let expected: Vec<Vec<(usize, usize)>> = (0..chunks[0].len()).map(|i| vec![(0, i)]).collect();
+        assert_eq!(waits[1], expected, "chunk i is copied out by the producer's segment i");
+        let n = chunks[0].len();
+        let order = submission_order(&waits).unwrap();
+        assert_eq!(order, vec![Run { device: 0, segments: 0..n }, Run { device: 1, segments: 0..n }]);
     }
 }

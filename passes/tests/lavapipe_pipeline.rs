@@ -211,3 +211,30 @@ fn barriers_only_where_accesses_conflict_and_per_stage_timing_give_the_same_bits
         }
     }
 }
+
+/// Fine-all on four logical devices cuts a frame into hundreds of submissions per device, each
+/// copy-in waiting for another device's copy-out. With one queued submission per device (a
+/// driver whose queue is full blocks the next vkQueueSubmit until the GPU has made progress),
+/// the host may only submit a segment once everything it waits for is submitted: a whole
+/// device's frame before the next device's would wait forever on device 0 (NVIDIA: until the
+/// watchdog calls the device lost; here the 60 s frame timeout). Several frames, within a time
+/// bound, with the bits of one device.
+#[test]
+fn fine_all_on_four_devices_runs_with_one_queued_submission_per_device() {
+    let started = std::time::Instant::now();
+    let scene = default_scene();
+    let lf = light_field(&scene, scene.default_camera(), 0.02);
+    let config = PlanConfig { devices: 4, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
+    let plan = Plan::new(&lf, &config).unwrap();
+    let narrow = ExecOptions { max_queued_segments: 1, ..Default::default() };
+    let (four, reports) = run_with(&scene, &lf, &plan, &plan, 0..FRAMES, None, narrow);
+    assert_eq!(reports.len(), FRAMES as usize);
+    // More segments per device than even the default window lets queue.
+    let per_device = reports[0].submitted_segments / 4;
+    assert!(per_device > ExecOptions::default().max_queued_segments, "{per_device} segments per device");
+    let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
+    assert!(finite(&four));
+    assert!(four == one, "4 devices and 1 device differ");
+    let bound = std::time::Duration::from_secs(240);
+    assert!(started.elapsed() < bound, "took {:?} (bound {bound:?})", started.elapsed());
+}
