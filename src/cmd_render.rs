@@ -11,7 +11,9 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, Timing, chrome_trace};
+use parallax_backend::{
+    Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, FaultInjection, Timing, chrome_trace,
+};
 use parallax_graph::{LightField, Rig};
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::PipelineKind;
@@ -182,11 +184,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         exec_plan,
         lf.len() as u32,
         &GpuScene::new(&scene, &bvh),
-        ExecOptions { barriers, timing, ..ExecOptions::default() },
+        ExecOptions { barriers, timing, fault: fault_from_env()?, ..ExecOptions::default() },
     )?;
 
-    std::fs::create_dir_all(&args.out_dir)
-        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let progress = bar(u64::from(total_frames));
     let started = Instant::now();
     let mut measured_from = None;
@@ -222,6 +222,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     progress.finish_and_clear();
     let reports = renderer.take_reports();
     let last_views = lightfield_views(&lf_of(total_frames - 1)?);
+    // Created only now that every frame ran: a run that fails on the way (a lost GPU) leaves no
+    // empty folder behind.
+    std::fs::create_dir_all(&args.out_dir)
+        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
 
     // Everything is staged before anything is put in place, and render.json goes last: a
     // failure (or Ctrl-C) at any point leaves the folder as it was or complete.
@@ -312,6 +316,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
     ));
     say(format!("wrote {} view EXRs, {} and {}", lf.len(), sheet.display(), render_json.display()));
     Ok(())
+}
+
+/// `PARALLAX_FAULT=device-lost:F`: frame F's submission fails as on a lost GPU
+/// (`FaultInjection::LoseDevice`), so tests can check what a failed run leaves behind.
+fn fault_from_env() -> Result<Option<FaultInjection>> {
+    let Ok(value) = std::env::var("PARALLAX_FAULT") else {
+        return Ok(None);
+    };
+    match value.strip_prefix("device-lost:").and_then(|f| f.parse().ok()) {
+        Some(frame) => Ok(Some(FaultInjection::LoseDevice { frame })),
+        None => bail!("PARALLAX_FAULT={value}: the only fault is device-lost:FRAME (e.g. device-lost:1); unset it"),
+    }
 }
 
 /// Which extra EXR layers the views get.

@@ -417,7 +417,7 @@ impl Device {
         match unsafe { self.raw.wait_semaphores(&info, timeout_ns) } {
             Ok(()) => Ok(true),
             Err(vk::Result::TIMEOUT) => Ok(false),
-            Err(result) => Err(BackendError::Vk { call: "vkWaitSemaphores", result }),
+            Err(result) => Err(BackendError::vk("vkWaitSemaphores", result)),
         }
     }
 

@@ -42,6 +42,15 @@ pub enum BackendError {
     #[error("{call} failed: {result}")]
     Vk { call: &'static str, result: vk::Result },
 
+    /// The driver reports the device lost (`VK_ERROR_DEVICE_LOST`): it reset the GPU, and
+    /// nothing of the run can be trusted or finished.
+    #[error(
+        "the GPU was lost ({call}: VK_ERROR_DEVICE_LOST): the driver reset it, most likely because a queue waited \
+         too long for a signal (the driver's watchdog) or a shader read or wrote out of bounds; rerun small with \
+         PARALLAX_VALIDATION=1 to see which, and look for NVRM Xid lines in the kernel log (dmesg)"
+    )]
+    DeviceLost { call: &'static str },
+
     /// gpu-allocator could not allocate or free.
     // The source is not repeated here: `{:#}` prints the chain, and it would appear twice.
     #[error("memory allocation for {what} failed")]
@@ -141,6 +150,11 @@ pub enum BackendError {
     #[error("fault injection not possible: {0}")]
     FaultInjection(String),
 
+    /// A frame's submission failed part-way (a lost device, a timeout): its first segments are
+    /// on the queues and its timeline values taken, so no later frame can be submitted.
+    #[error("frame {frame}'s submission failed part-way; the executor cannot run further frames")]
+    SubmissionCutShort { frame: u64 },
+
     /// A frame did not complete in time: a lost signal or a GPU hang.
     #[error(
         "frame {frame} did not complete on device {device} within {seconds} s (lost cross-device signal or GPU hang)"
@@ -167,6 +181,35 @@ pub(crate) trait VkContext<T> {
 
 impl<T> VkContext<T> for std::result::Result<T, vk::Result> {
     fn vk(self, call: &'static str) -> Result<T> {
-        self.map_err(|result| BackendError::Vk { call, result })
+        self.map_err(|result| BackendError::vk(call, result))
+    }
+}
+
+impl BackendError {
+    /// The error of a failed Vulkan call: [`BackendError::DeviceLost`] for a lost device,
+    /// whichever call noticed it first.
+    pub(crate) fn vk(call: &'static str, result: vk::Result) -> Self {
+        match result {
+            vk::Result::ERROR_DEVICE_LOST => BackendError::DeviceLost { call },
+            result => BackendError::Vk { call, result },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lost_device_is_one_line_naming_the_call_and_the_likely_causes() {
+        let lost = BackendError::vk("vkQueueSubmit2", vk::Result::ERROR_DEVICE_LOST);
+        assert!(matches!(lost, BackendError::DeviceLost { call: "vkQueueSubmit2" }));
+        let text = lost.to_string();
+        assert_eq!(text.lines().count(), 1, "{text}");
+        for needle in ["GPU was lost", "vkQueueSubmit2", "waited too long", "out of bounds", "PARALLAX_VALIDATION=1"] {
+            assert!(text.contains(needle), "{needle} in {text}");
+        }
+        let other = BackendError::vk("vkQueueSubmit2", vk::Result::ERROR_OUT_OF_DEVICE_MEMORY);
+        assert!(matches!(other, BackendError::Vk { .. }));
     }
 }

@@ -6,6 +6,10 @@
 //!   [`crate::segments::progress_value`]).
 //! * Across devices, the consumer's copy-in waits on a per-copy "ready" timeline that a host
 //!   relay thread signals once the producer's copy-out is done ([`crate::relay`]).
+//! * The host submits a frame's segments across the devices in an order where each comes after
+//!   every segment it waits for ([`crate::segments::submission_order`]), keeping at most
+//!   `max_queued_segments` of a device's segments queued: everything submitted can complete,
+//!   so a driver that blocks vkQueueSubmit on a full queue only ever waits for progress.
 //! * Up to `frames_in_flight` frames are submitted before the host waits for the oldest; each
 //!   frame-in-flight slot has its own command buffers, query pool, descriptor set, per-frame
 //!   data and staging memory, so nothing is re-recorded unless the plan changes
@@ -54,6 +58,10 @@ pub enum FaultInjection {
     /// zero-initialised staging memory. Only possible when nothing the consumer does up to
     /// that copy-in waits for another copy.
     DropCrossDeviceWait { copy: usize },
+    /// Submitting frame `frame` fails as on a lost device ([`BackendError::DeviceLost`]) before
+    /// its last run of segments, so the rest of its segments are on the queues: what every
+    /// caller must end cleanly from (one error, no hang, nothing half-written).
+    LoseDevice { frame: u64 },
 }
 
 /// Executor settings.
@@ -292,7 +300,10 @@ impl Executor {
 
         let chunks = chunks_of_copies(&plan, self.options.chunk_bytes);
         let slots = self.slot_count();
-        let dropped_wait = self.options.fault.map(|FaultInjection::DropCrossDeviceWait { copy }| copy);
+        let dropped_wait = match self.options.fault {
+            Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(copy),
+            _ => None,
+        };
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
             let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
@@ -311,7 +322,7 @@ impl Executor {
         }
         self.gate = match self.options.fault {
             Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(fault_gate(&plan, &mut states, copy)?),
-            None => None,
+            _ => None,
         };
         let segments: Vec<Vec<Segment>> = states.iter().map(|s| s.segments.clone()).collect();
         let mut waits = cross_device_waits(&segments);
@@ -517,6 +528,9 @@ impl Executor {
     }
 
     fn submit(&mut self, read_back: bool) -> Result<u64> {
+        if self.cut_short {
+            return Err(BackendError::SubmissionCutShort { frame: self.next_frame });
+        }
         if self.in_flight.len() >= self.options.frames_in_flight {
             self.retire_oldest()?;
         }
@@ -552,7 +566,11 @@ impl Executor {
         // Until the whole frame is submitted, a failure leaves its first segments on the queues,
         // waiting for signals of segments that never come (see `Drop`).
         self.cut_short = true;
-        for run in &self.submission_order {
+        for (i, run) in self.submission_order.iter().enumerate() {
+            if self.options.fault == Some(FaultInjection::LoseDevice { frame }) && i + 1 == self.submission_order.len()
+            {
+                return Err(BackendError::DeviceLost { call: "vkQueueSubmit2 (FaultInjection::LoseDevice)" });
+            }
             self.submit_run(run, frame, local, slot)?;
             submitted_segments += run.segments.len();
         }

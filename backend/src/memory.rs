@@ -399,7 +399,7 @@ impl SharedHostBuffer {
             Ok(m) => m,
             Err(result) => {
                 unsafe { device.raw.destroy_buffer(buffer, None) };
-                return Err(BackendError::Vk { call: "vkAllocateMemory(host pointer import)", result });
+                return Err(BackendError::vk("vkAllocateMemory(host pointer import)", result));
             }
         };
         if let Err(result) = unsafe { device.raw.bind_buffer_memory(buffer, memory, 0) } {
@@ -407,7 +407,7 @@ impl SharedHostBuffer {
                 device.raw.destroy_buffer(buffer, None);
                 device.raw.free_memory(memory, None);
             }
-            return Err(BackendError::Vk { call: "vkBindBufferMemory(host pointer import)", result });
+            return Err(BackendError::vk("vkBindBufferMemory(host pointer import)", result));
         }
         Ok(HostImport { device: device.clone(), buffer, memory })
     }

@@ -291,8 +291,7 @@ impl Bindless {
         let info = [vk::ComputePipelineCreateInfo::default().flags(flags).stage(stage).layout(self.pipeline_layout)];
         let created = unsafe { raw.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
         unsafe { raw.destroy_shader_module(module, None) };
-        let pipeline =
-            created.map_err(|(_, result)| BackendError::Vk { call: "vkCreateComputePipelines", result })?.remove(0);
+        let pipeline = created.map_err(|(_, result)| BackendError::vk("vkCreateComputePipelines", result))?.remove(0);
         self.pipelines.insert(name.to_string(), pipeline);
         if let Some(stats) = &self.device.pipeline_stats {
             print_pipeline_statistics(stats, pipeline, name, self.device.info.index);
@@ -379,8 +378,7 @@ impl Bindless {
             .push_next(&mut rendering)];
         let created = unsafe { raw.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
         modules.iter().for_each(|&m| unsafe { raw.destroy_shader_module(m, None) });
-        let pipeline =
-            created.map_err(|(_, result)| BackendError::Vk { call: "vkCreateGraphicsPipelines", result })?.remove(0);
+        let pipeline = created.map_err(|(_, result)| BackendError::vk("vkCreateGraphicsPipelines", result))?.remove(0);
         self.graphics_pipelines.insert(key.clone(), pipeline);
         Ok(pipeline)
     }

@@ -36,7 +36,18 @@ struct Worker {
 pub(crate) struct Relay {
     workers: Vec<Worker>,
     stop: Arc<AtomicBool>,
-    failure: Arc<Mutex<Option<String>>>,
+    failure: Arc<Mutex<Failure>>,
+}
+
+/// What the relay threads have hit.
+#[derive(Default)]
+enum Failure {
+    #[default]
+    None,
+    /// The first error, not yet handed to the executor.
+    Pending(BackendError),
+    /// Handed over; later checks still fail.
+    Reported,
 }
 
 /// How long a relay thread blocks in one wait before checking whether it should stop.
@@ -54,7 +65,7 @@ impl Relay {
     /// Starts one relay thread per device; `progress[d]` is device d's progress timeline.
     pub(crate) fn new(devices: &[Arc<Device>], progress: &[vk::Semaphore]) -> Self {
         let stop = Arc::new(AtomicBool::new(false));
-        let failure = Arc::new(Mutex::new(None));
+        let failure = Arc::new(Mutex::new(Failure::None));
         let workers = devices
             .iter()
             .zip(progress)
@@ -83,11 +94,17 @@ impl Relay {
             .ok_or_else(|| BackendError::Relay(format!("relay thread {watched} is gone")))
     }
 
-    /// Fails if a relay thread hit an error.
+    /// Fails if a relay thread hit an error: the first time with that error (a lost device
+    /// stays [`BackendError::DeviceLost`]), later with a note that it was reported.
     pub(crate) fn check(&self) -> Result<()> {
-        match &*self.failure.lock().unwrap_or_else(|p| p.into_inner()) {
-            Some(message) => Err(BackendError::Relay(message.clone())),
-            None => Ok(()),
+        let mut failure = self.failure.lock().unwrap_or_else(|p| p.into_inner());
+        match std::mem::replace(&mut *failure, Failure::Reported) {
+            Failure::None => {
+                *failure = Failure::None;
+                Ok(())
+            }
+            Failure::Pending(error) => Err(error),
+            Failure::Reported => Err(BackendError::Relay("a relay thread failed earlier (reported above)".into())),
         }
     }
 }
@@ -111,10 +128,17 @@ fn run_worker(
     timeline: vk::Semaphore,
     jobs: &Receiver<RelayJob>,
     stop: &AtomicBool,
-    failure: &Mutex<Option<String>>,
+    failure: &Mutex<Failure>,
 ) {
-    let fail = |message: String| {
-        failure.lock().unwrap_or_else(|p| p.into_inner()).get_or_insert(message);
+    // A lost device is reported as such; other errors with what the thread was doing.
+    let fail = |doing: String, error: BackendError| {
+        let mut failure = failure.lock().unwrap_or_else(|p| p.into_inner());
+        if matches!(*failure, Failure::None) {
+            *failure = Failure::Pending(match error {
+                lost @ BackendError::DeviceLost { .. } => lost,
+                error => BackendError::Relay(format!("{doing}: {error}")),
+            });
+        }
     };
     let spin = device.info.device_type != "CPU";
     while let Ok(job) = jobs.recv() {
@@ -125,7 +149,7 @@ fn run_worker(
                     Ok(v) if v >= job.watch_value => break,
                     Ok(_) => std::thread::yield_now(),
                     Err(e) => {
-                        fail(format!("reading device {} progress: {e}", device.info.index));
+                        fail(format!("reading device {} progress", device.info.index), e);
                         return;
                     }
                 }
@@ -139,13 +163,13 @@ fn run_worker(
                 Ok(true) => break,
                 Ok(false) => continue,
                 Err(e) => {
-                    fail(format!("waiting on device {} for value {}: {e}", device.info.index, job.watch_value));
+                    fail(format!("waiting on device {} for value {}", device.info.index, job.watch_value), e);
                     return;
                 }
             }
         }
         if let Err(e) = job.target.signal_timeline(job.semaphore, job.signal_value) {
-            fail(format!("signalling device {} to value {}: {e}", job.target.info.index, job.signal_value));
+            fail(format!("signalling device {} to value {}", job.target.info.index, job.signal_value), e);
             return;
         }
     }

@@ -234,3 +234,24 @@ fn copies_in_submissions_of_their_own_give_the_same_images() {
         ctx.check_validation().unwrap();
     }
 }
+
+/// A device lost in the middle of a frame's submission ends the run with that error, and what
+/// follows is clean: no further frame is submitted, and dropping the executor does not hang on
+/// the segments already queued, which wait for copies that will never be sent.
+#[test]
+fn a_device_lost_mid_frame_is_one_error_and_teardown_does_not_hang() {
+    let started = std::time::Instant::now();
+    let devices = 2;
+    let ctx = context(devices);
+    let (plan, _) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
+    let options = ExecOptions { fault: Some(FaultInjection::LoseDevice { frame: 1 }), ..parallax_testkit::options() };
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
+    exec.run_frame().unwrap();
+    let err = exec.run_frame().unwrap_err();
+    assert!(matches!(err, BackendError::DeviceLost { .. }), "{err}");
+    assert!(err.to_string().contains("the GPU was lost"), "{err}");
+    let again = exec.run_frame().unwrap_err();
+    assert!(matches!(again, BackendError::SubmissionCutShort { frame: 1 }), "{again}");
+    drop(exec);
+    assert!(started.elapsed() < std::time::Duration::from_secs(30), "teardown took {:?}", started.elapsed());
+}
