@@ -164,6 +164,23 @@ pub fn copy_plan(width: u32, height: u32) -> Result<ExecutionPlan> {
     Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
 }
 
+/// `sources` payloads on device 0 that one target on device 1 reads: `sources` copies in a row
+/// into device 1 (segmentation tests).
+#[cfg(test)]
+pub(crate) fn gather_plan(sources: u32, width: u32, height: u32) -> Result<ExecutionPlan> {
+    let all: Vec<ViewId> = (0..sources).map(ViewId).collect();
+    let mut sources_of = vec![vec![]; sources as usize];
+    sources_of.push(all);
+    let mut is_source = vec![true; sources as usize];
+    is_source.push(false);
+    let mut graph = KernelGraph::with_payload(ViewTopology { width, height, sources_of, is_source });
+    let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
+    graph.pass(BENCH_FILL, Role::Sources).write(&mut payload).kernel(Arc::new(BenchFillKernel)).record();
+    graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
+    let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: sources })?;
+    Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
+}
+
 /// The overhead benchmark: `passes_per_device` views of `size`×`size` RGBA8 per device, each
 /// filled by one `bench_fill` and kept by `side_effect()`; no copies.
 pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<ExecutionPlan> {

@@ -306,7 +306,14 @@ impl Executor {
         };
         let mut states = Vec::with_capacity(self.devices.len());
         for (d, device) in self.devices.iter().enumerate() {
-            let segments = segment_device(&plan, d, &chunks, dropped_wait, self.options.separate_copy_queue);
+            let segments = segment_device(
+                &plan,
+                d,
+                &chunks,
+                self.options.chunk_bytes,
+                dropped_wait,
+                self.options.separate_copy_queue,
+            );
             let state = create_device_state(device, &plan, d, segments, slots, &self.options, &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);

@@ -11,6 +11,9 @@
 //! * before every chunk of a copy-in: a wait applies to a whole submission, so the chunk must
 //!   start one.
 //!
+//! except between copies of one chunk each in the same direction, which share a submission up
+//! to `merge_bytes` together (a copy-out's relay then fires when its neighbours are done too).
+//!
 //! Splitting a large copy into chunks lets the consumer's host→device copy of chunk i run while
 //! the producer's device→host copy of chunk i+1 is still going (the two PCIe directions of two
 //! GPUs overlap instead of adding up).
@@ -138,17 +141,19 @@ pub fn progress_value(frame: u64, segments: usize, segment: usize) -> u64 {
     frame * segments as u64 + segment as u64 + 1
 }
 
-/// Cuts `device`'s op list. `dropped_wait` (fault injection) leaves out the ready waits of one
+/// Cuts `device`'s op list; consecutive single-chunk copies of one direction share a segment
+/// up to `merge_bytes`. `dropped_wait` (fault injection) leaves out the ready waits of one
 /// copy. With `separate_copy_queue`, copies go to [`QueueKind::Copy`] and a segment never mixes
 /// the two queues (the executor orders segments of different queues by the progress timeline).
 pub fn segment_device(
     plan: &ExecutionPlan,
     device: usize,
     chunks: &[Vec<Chunk>],
+    merge_bytes: u64,
     dropped_wait: Option<usize>,
     separate_copy_queue: bool,
 ) -> Vec<Segment> {
-    let segments = segment_single_queue(plan, device, chunks, dropped_wait);
+    let segments = segment_single_queue(plan, device, chunks, merge_bytes, dropped_wait);
     if !separate_copy_queue {
         return segments;
     }
@@ -175,22 +180,56 @@ pub fn segment_device(
     split
 }
 
+/// What the segment being cut can still take: more small copy-ins (while it holds only those)
+/// or more small copy-outs (at its end), and how many bytes of them it holds.
+#[derive(Clone, Copy)]
+enum Tail {
+    Closed,
+    CopyIns(u64),
+    CopyOuts(u64),
+}
+
 fn segment_single_queue(
     plan: &ExecutionPlan,
     device: usize,
     chunks: &[Vec<Chunk>],
+    merge_bytes: u64,
     dropped_wait: Option<usize>,
 ) -> Vec<Segment> {
+    // A copy of one chunk shares its submission with its neighbours of the same direction, up
+    // to `merge_bytes` together: the fine schemes send thousands of small copies per frame,
+    // and a submission each is most of their cost. A chunked copy keeps a submission per chunk
+    // (its chunks overlap across the two devices); the fault's copy keeps its own.
+    let small = |c: usize| chunks[c].len() == 1 && dropped_wait != Some(c);
+    let bytes =
+        |chunk: &Chunk| plan.resources[plan.copies[chunk.copy].resource].row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let mut segments = Vec::new();
     let mut current = Segment::default();
+    let mut tail = Tail::Closed;
     for op in &plan.devices[device] {
         match *op {
-            ExecOp::Pass(p) => current.items.push(Item::Pass(p)),
+            ExecOp::Pass(p) => {
+                // A copy-out ends its segment: the relay forwards it once the segment is done.
+                if !current.relays.is_empty() {
+                    segments.push(std::mem::take(&mut current));
+                }
+                current.items.push(Item::Pass(p));
+                tail = Tail::Closed;
+            }
             ExecOp::CopyOut(c) => {
                 for &chunk in &chunks[c] {
+                    let held = match tail {
+                        Tail::CopyOuts(held) if small(c) && held.saturating_add(bytes(&chunk)) <= merge_bytes => {
+                            Some(held)
+                        }
+                        _ => None,
+                    };
+                    if !current.relays.is_empty() && held.is_none() {
+                        segments.push(std::mem::take(&mut current));
+                    }
                     current.items.push(Item::CopyOut(chunk));
                     current.relays.push(chunk);
-                    segments.push(std::mem::take(&mut current));
+                    tail = if small(c) { Tail::CopyOuts(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
                 }
             }
             // The producer's signal is sent per chunk, right after the chunk's copy; the wait is
@@ -198,13 +237,22 @@ fn segment_single_queue(
             ExecOp::Signal(_) | ExecOp::Wait(_) => {}
             ExecOp::CopyIn(c) => {
                 for &chunk in &chunks[c] {
-                    if !current.items.is_empty() {
+                    // A wait applies to a whole submission: a copy-in starts one, unless it joins
+                    // the small copy-ins that the current one starts with.
+                    let held = match tail {
+                        Tail::CopyIns(held) if small(c) && held.saturating_add(bytes(&chunk)) <= merge_bytes => {
+                            Some(held)
+                        }
+                        _ => None,
+                    };
+                    if !current.items.is_empty() && held.is_none() {
                         segments.push(std::mem::take(&mut current));
                     }
                     if dropped_wait != Some(c) {
                         current.waits.push(ReadyWait { copy: c, chunk: chunk.index });
                     }
                     current.items.push(Item::CopyIn(chunk));
+                    tail = if small(c) { Tail::CopyIns(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
                 }
             }
         }
@@ -293,16 +341,16 @@ mod tests {
         assert_eq!(heights, band_rows(256, 64));
         assert_eq!(chunks[0].last().map(|c| c.y1), Some(256));
         let n = chunks[0].len();
-        let producer = segment_device(&plan, 0, &chunks, None, false);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false);
         assert_eq!(producer.len(), n);
         assert_eq!(producer[0].items.len(), 2, "fill + first chunk");
         assert!(producer.iter().all(|s| s.relays.len() == 1 && s.waits.is_empty()));
-        let consumer = segment_device(&plan, 1, &chunks, None, false);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false);
         assert_eq!(consumer.len(), n);
         for (i, s) in consumer.iter().enumerate() {
             assert_eq!(s.waits, vec![ReadyWait { copy: 0, chunk: i as u32 }]);
         }
-        let dropped = segment_device(&plan, 1, &chunks, Some(0), false);
+        let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(0), false);
         assert!(dropped.iter().all(|s| s.waits.is_empty()));
     }
 
@@ -322,13 +370,13 @@ mod tests {
     fn a_separate_copy_queue_never_mixes_queues_in_a_segment() {
         let plan = copy_plan(256, 256).unwrap();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
-        let producer = segment_device(&plan, 0, &chunks, None, true);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true);
         let queues: Vec<QueueKind> = producer.iter().map(|s| s.queue).collect();
         let n = chunks[0].len();
         assert_eq!(queues, [vec![QueueKind::Main], vec![QueueKind::Copy; n]].concat());
         assert!(producer[0].relays.is_empty(), "the fill completes no chunk");
         assert!(producer[1..].iter().all(|s| s.relays.len() == 1 && s.items.len() == 1));
-        let consumer = segment_device(&plan, 1, &chunks, None, true);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true);
         assert_eq!(consumer.len(), n + 1, "the copy-ins, then the receiving pass");
         assert!(consumer[..n].iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
         assert_eq!(consumer[n].queue, QueueKind::Main);
@@ -341,9 +389,9 @@ mod tests {
             resource.format = crate::plan::Format::Depth32f;
         }
         let chunks = chunks_of_copies(&plan, 64 * 64);
-        let producer = segment_device(&plan, 0, &chunks, None, true);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true);
         assert!(producer[1..].iter().all(|s| s.queue == QueueKind::Copy), "copies out of depth may use the copy queue");
-        let consumer = segment_device(&plan, 1, &chunks, None, true);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true);
         let copy_ins: Vec<&Segment> = consumer.iter().filter(|s| !s.waits.is_empty()).collect();
         assert!(!copy_ins.is_empty());
         assert!(copy_ins.iter().all(|s| s.queue == QueueKind::Main), "a transfer-only queue may not write depth");
@@ -385,7 +433,8 @@ mod tests {
     fn the_consumer_of_a_copy_waits_for_the_segment_of_its_copy_out() {
         let plan = copy_plan(256, 256).unwrap();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
-        let segments: Vec<Vec<Segment>> = (0..2).map(|d| segment_device(&plan, d, &chunks, None, false)).collect();
+        let segments: Vec<Vec<Segment>> =
+            (0..2).map(|d| segment_device(&plan, d, &chunks, 256 * 1024, None, false)).collect();
         let waits = cross_device_waits(&segments);
         assert!(waits[0].iter().all(Vec::is_empty), "the producer waits for nobody");
         let expected: Vec<Vec<(usize, usize)>> = (0..chunks[0].len()).map(|i| vec![(0, i)]).collect();
@@ -393,5 +442,35 @@ mod tests {
         let n = chunks[0].len();
         let order = submission_order(&waits).unwrap();
         assert_eq!(order, vec![Run { device: 0, segments: 0..n }, Run { device: 1, segments: 0..n }]);
+    }
+
+    /// Small copies in a row share a submission up to the byte cap; chunks of a chunked copy
+    /// and the fault's copy do not.
+    #[test]
+    fn small_copies_in_a_row_share_a_segment_up_to_the_cap() {
+        let plan = crate::bench::gather_plan(3, 64, 64).unwrap(); // 64 KiB per copy
+        let chunks = chunks_of_copies(&plan, 256 * 1024);
+        assert!(chunks.iter().all(|c| c.len() == 1));
+        let copy_ins = |s: &Segment| s.items.iter().filter(|i| matches!(i, Item::CopyIn(_))).count();
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false);
+        assert_eq!(consumer.len(), 1, "three copy-ins and the receiving pass: {consumer:?}");
+        assert_eq!((copy_ins(&consumer[0]), consumer[0].waits.len()), (3, 3));
+        let capped = segment_device(&plan, 1, &chunks, 128 * 1024, None, false);
+        assert_eq!(capped.iter().map(copy_ins).collect::<Vec<_>>(), vec![2, 1]);
+        assert!(capped.iter().all(|s| s.waits.len() == copy_ins(s)));
+        let copy = match capped[0].items[0] {
+            Item::CopyIn(chunk) => chunk.copy,
+            _ => unreachable!("a copy-in starts the segment"),
+        };
+        let faulty = segment_device(&plan, 1, &chunks, 256 * 1024, Some(copy), false);
+        assert_eq!(faulty.iter().map(copy_ins).collect::<Vec<_>>(), vec![1, 2], "the fault's copy alone");
+        // Producer: a pass between the copy-outs; each copy-out ends its segment.
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false);
+        assert!(producer.iter().all(|s| s.relays.len() == 1));
+        // A chunked copy: one segment per chunk, whatever the cap.
+        let big = copy_plan(256, 256).unwrap();
+        let big_chunks = chunks_of_copies(&big, 256 * 1024);
+        let consumer = segment_device(&big, 1, &big_chunks, u64::MAX, None, false);
+        assert_eq!(consumer.len(), big_chunks[0].len());
     }
 }
