@@ -117,19 +117,20 @@ impl Comparison {
     pub fn markdown(&self) -> String {
         let mut s = format!(
             "`{}` against the reference `{}`. PSNR lin: linear radiance clamped to [0, 1]; PSNR tm, SSIM, FLIP: \
-             tonemapped 8-bit sRGB (ACES, exposure 1); relMSE: linear, ε = 0.01.\n\n",
+             tonemapped 8-bit sRGB (ACES, exposure 1); relMSE: linear, ε = 0.01; mean ratio: mean linear r, g, b of the test over the reference's.\n\n",
             self.test.display(),
             self.reference.display()
         );
-        s += "| view | size | PSNR lin (dB) | PSNR tm (dB) | SSIM | FLIP | relMSE |\n|---|---|---|---|---|---|---|\n";
+        s += "| view | size | PSNR lin (dB) | PSNR tm (dB) | SSIM | FLIP | relMSE | mean ratio r, g, b |\n|---|---|---|---|---|---|---|---|\n";
         let row = |name: &str, size: String, m: &Metrics| {
             format!(
-                "| {name} | {size} | {} | {} | {:.5} | {:.5} | {:.3e} |\n",
+                "| {name} | {size} | {} | {} | {:.5} | {:.5} | {:.3e} | {} |\n",
                 db(m.psnr_linear_db),
                 db(m.psnr_tonemapped_db),
                 m.ssim,
                 m.flip,
-                m.rel_mse
+                m.rel_mse,
+                m.mean_ratio.map(|r| format!("{r:.4}")).join(", ")
             )
         };
         for v in &self.views {

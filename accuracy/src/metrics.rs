@@ -8,6 +8,10 @@
 //! * `flip`: LDR-FLIP ([`crate::flip`]) on the tonemapped images.
 //! * `rel_mse`: mean over pixels and channels of (test − ref)² / (ref² + 0.01) on linear radiance,
 //!   unclamped (the ε = 0.01 keeps dark reference pixels from dominating, as in Rousselle et al. 2011).
+//! * `mean_ratio`: per channel (r, g, b), the mean linear radiance of the test over the
+//!   reference's, unclamped: a bias (a colour shift of a denoiser, say) shows here even where
+//!   noise dominates the squared errors. 1 where both means are zero; `null` in JSON where
+//!   only the reference's is.
 //!
 //! PSNR of identical images is +∞ (JSON: the string `"inf"`), never NaN.
 
@@ -33,6 +37,9 @@ pub struct ErrorSums {
     /// Σ of per-view SSIM × pixels and FLIP × pixels (pixel-weighted means when pooled).
     pub ssim_weighted: f64,
     pub flip_weighted: f64,
+    /// Σ test and Σ ref per channel, unclamped linear radiance.
+    pub test_sum: [f64; 3],
+    pub reference_sum: [f64; 3],
     pub pixels: u64,
 }
 
@@ -43,6 +50,10 @@ impl ErrorSums {
         self.relative_squared += other.relative_squared;
         self.ssim_weighted += other.ssim_weighted;
         self.flip_weighted += other.flip_weighted;
+        for c in 0..3 {
+            self.test_sum[c] += other.test_sum[c];
+            self.reference_sum[c] += other.reference_sum[c];
+        }
         self.pixels += other.pixels;
     }
 
@@ -56,6 +67,7 @@ impl ErrorSums {
             flip: self.flip_weighted / pixels,
             rel_mse: self.relative_squared / samples,
             mse_linear: self.squared_linear / samples,
+            mean_ratio: std::array::from_fn(|c| mean_ratio(self.test_sum[c], self.reference_sum[c])),
         }
     }
 }
@@ -71,6 +83,23 @@ pub struct Metrics {
     pub flip: f64,
     pub rel_mse: f64,
     pub mse_linear: f64,
+    #[serde(serialize_with = "serialize_ratios")]
+    pub mean_ratio: [f64; 3],
+}
+
+/// Σ test / Σ ref: 1 for two zero sums (nothing to shift), +∞ for a zero reference alone.
+fn mean_ratio(test: f64, reference: f64) -> f64 {
+    match (test == 0.0, reference == 0.0) {
+        (true, true) => 1.0,
+        (false, true) => f64::INFINITY,
+        _ => test / reference,
+    }
+}
+
+/// Finite ratios as numbers, others as `null` (JSON has no infinity).
+fn serialize_ratios<S: Serializer>(v: &[f64; 3], s: S) -> std::result::Result<S::Ok, S::Error> {
+    let finite: [Option<f64>; 3] = std::array::from_fn(|c| v[c].is_finite().then_some(v[c]));
+    finite.serialize(s)
 }
 
 /// PSNR in dB for peak 1: +∞ for zero error.
@@ -100,6 +129,8 @@ pub fn compare_images(
             let (t, r) = (t[c] as f64, r[c] as f64);
             sums.squared_linear += (t.clamp(0.0, 1.0) - r.clamp(0.0, 1.0)).powi(2);
             sums.relative_squared += (t - r).powi(2) / (r * r + REL_MSE_EPSILON);
+            sums.test_sum[c] += t;
+            sums.reference_sum[c] += r;
         }
     }
     let (t8, r8) = (test.tonemapped_srgb8(1.0), reference.tonemapped_srgb8(1.0));
@@ -130,8 +161,27 @@ mod tests {
         assert_eq!(m.ssim, 1.0);
         assert_eq!(m.flip, 0.0);
         assert_eq!(m.rel_mse, 0.0);
+        assert_eq!(m.mean_ratio, [1.0; 3]);
         let json = serde_json::to_value(m).unwrap();
         assert_eq!(json["psnr_linear_db"], "inf");
+    }
+
+    /// A test 3 % brighter in red and 5 % darker in blue shows exactly that, pooled too; a zero
+    /// reference channel gives `null`, not a number, in JSON.
+    #[test]
+    fn the_mean_ratio_shows_a_colour_shift() {
+        let a = dyadic(32, 24);
+        let b = RgbImage::new(32, 24, a.pixels.iter().map(|p| [p[0] * 1.03, p[1], p[2] * 0.95]).collect());
+        let mut sums = compare_images(&b, "b", &a, "a").unwrap();
+        sums.add(&compare_images(&b, "b", &a, "a").unwrap());
+        let ratio = sums.metrics().mean_ratio;
+        for (got, want) in ratio.iter().zip([1.03, 1.0, 0.95]) {
+            assert!((got - want).abs() < 1e-6, "{ratio:?}");
+        }
+        let black = RgbImage::new(2, 1, vec![[0.0, 0.0, 1.0]; 2]);
+        let lit = RgbImage::new(2, 1, vec![[1.0, 0.0, 1.0]; 2]);
+        let m = compare_images(&lit, "lit", &black, "black").unwrap().metrics();
+        assert_eq!(serde_json::to_value(m).unwrap()["mean_ratio"], serde_json::json!([null, 1.0, 1.0]));
     }
 
     /// +δ on every channel of values that stay inside [0, 1]: MSE = δ², PSNR = −20 log10 δ.
