@@ -332,6 +332,9 @@ impl Executor {
             let buffer_addresses: HashMap<usize, u64> =
                 state.buffers.iter().map(|(&r, b)| (r, b.device_address())).collect();
             for slot in 0..state.slots.len() {
+                // Recording happens with no frame in flight (every cause of it waits for the
+                // frames first), so the buffers of the last recording are free.
+                state.recording_buffers[slot].clear();
                 let readback = match &self.readback {
                     Some(readback) if d == 0 => readback.targets(slot),
                     _ => Vec::new(),
@@ -356,6 +359,8 @@ impl Executor {
                     frame_data_address: self.frame_data_buffers[slot][d].device_address(),
                     frame_sections: self.frame_data.sections(),
                     readback: &readback,
+                    device: &state.device,
+                    recording_buffers: &mut state.recording_buffers[slot],
                 };
                 let mut first_timer = 0u32;
                 let segment_count = state.segments.len();

@@ -114,7 +114,7 @@ pub use plan::{
     Region, ResourceKind,
 };
 pub use readback::{FrameReadback, FrameTicket};
-pub use recorder::{Draw, PassKernel, PassParams, Recorder};
+pub use recorder::{Draw, PassKernel, PassParams, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};
 pub use shaders::{ShaderLibrary, SpirvDefect, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};
