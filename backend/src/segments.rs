@@ -172,6 +172,52 @@ pub fn segment_device(
     split
 }
 
+/// Device `device`'s ops in recording order: the plan's, except that an instance of a pass
+/// whose kernel records groups (`PassKernel::records_groups`) moves up past the copy-outs and
+/// signals that separate it from the previous instance of that pass, when it writes nothing
+/// they copy. Lowering puts the gather of each band right after the pass that finishes it,
+/// which would cut a device's hole filling into one op per target band; this way consecutive
+/// instances stay one op (record.rs), and the copies start when the whole op is done. A pass
+/// never moves past a wait or a copy-in, so what it reads is there, and no wait is delayed.
+pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize) -> Vec<ExecOp> {
+    let groups = |p: usize| plan.kernels.0.get(plan.passes[p].kernel).is_some_and(|k| k.records_groups());
+    let same_pass = |a: usize, b: usize| {
+        let (a, b) = (&plan.passes[a], &plan.passes[b]);
+        a.kernel == b.kernel && a.name == b.name
+    };
+    let mut order = Vec::with_capacity(plan.devices[device].len());
+    // Copy-outs and signals held back behind the current group, and what those copies read.
+    let mut deferred: Vec<ExecOp> = Vec::new();
+    let mut copied: Vec<usize> = Vec::new();
+    let mut group: Option<usize> = None;
+    for &op in &plan.devices[device] {
+        match op {
+            ExecOp::Pass(p)
+                if group.is_some_and(|first| same_pass(first, p))
+                    && !plan.passes[p].writes.iter().any(|w| copied.contains(&w.resource)) =>
+            {
+                order.push(op);
+            }
+            ExecOp::CopyOut(c) if group.is_some() => {
+                copied.push(plan.copies[c].resource);
+                deferred.push(op);
+            }
+            ExecOp::Signal(_) if group.is_some() => deferred.push(op),
+            _ => {
+                order.append(&mut deferred);
+                copied.clear();
+                group = match op {
+                    ExecOp::Pass(p) if groups(p) => Some(p),
+                    _ => None,
+                };
+                order.push(op);
+            }
+        }
+    }
+    order.append(&mut deferred);
+    order
+}
+
 fn segment_single_queue(
     plan: &ExecutionPlan,
     device: usize,
@@ -180,7 +226,7 @@ fn segment_single_queue(
 ) -> Vec<Segment> {
     let mut segments = Vec::new();
     let mut current = Segment::default();
-    for op in &plan.devices[device] {
+    for op in &recording_order(plan, device) {
         match *op {
             ExecOp::Pass(p) => current.items.push(Item::Pass(p)),
             ExecOp::CopyOut(c) => {
