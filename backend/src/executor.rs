@@ -104,6 +104,8 @@ pub enum Barriers {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Timing {
     /// One pair around every op: per-view figures and timelines, at the price of the overlap.
+    /// Instances a kernel records as one group (`PassKernel::record_group`) are one op, timed
+    /// together; the event carries the first one's view and index.
     #[default]
     PerOp,
     /// One pair around each run of consecutive instances of one pass on a queue (and around

@@ -52,15 +52,21 @@ pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<us
         _ => None,
     };
     let mut groups: Vec<Range<usize>> = Vec::new();
+    // What the instances of the last group read and wrote.
     let mut hazards = Hazards::default();
     for (i, item) in segment.items.iter().enumerate() {
-        let (reads, writes) = declared_accesses(plan, item);
-        let joins = grouped_pass(item).is_some_and(|p| {
-            groups.last().is_some_and(|last| {
-                grouped_pass(&segment.items[last.start]).is_some_and(|first| {
-                    let (a, b) = (&plan.passes[first], &plan.passes[p]);
-                    a.kernel == b.kernel && a.name == b.name && !hazards.conflicts(&reads, &writes, false)
-                })
+        let Some(p) = grouped_pass(item) else {
+            groups.push(i..i + 1);
+            hazards = Hazards::default();
+            continue;
+        };
+        let pass = &plan.passes[p];
+        let reads: Vec<usize> = pass.reads.iter().chain(&pass.history_reads).map(|a| a.resource).collect();
+        let writes: Vec<usize> = pass.writes.iter().map(|a| a.resource).collect();
+        let joins = groups.last().is_some_and(|last| {
+            grouped_pass(&segment.items[last.start]).is_some_and(|first| {
+                let first = &plan.passes[first];
+                first.kernel == pass.kernel && first.name == pass.name && !hazards.conflicts(&reads, &writes, false)
             })
         });
         if joins {
@@ -72,21 +78,6 @@ pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<us
         hazards.add(reads, writes, false);
     }
     groups
-}
-
-/// The resources `item` reads and writes as the plan declares them (unresolved by parity).
-fn declared_accesses(plan: &ExecutionPlan, item: &Item) -> (Vec<usize>, Vec<usize>) {
-    match *item {
-        Item::Pass(p) => {
-            let pass = &plan.passes[p];
-            (
-                pass.reads.iter().chain(&pass.history_reads).map(|a| a.resource).collect(),
-                pass.writes.iter().map(|a| a.resource).collect(),
-            )
-        }
-        Item::CopyOut(chunk) => (vec![plan.copies[chunk.copy].resource], vec![]),
-        Item::CopyIn(chunk) => (vec![], vec![plan.copies[chunk.copy].dst]),
-    }
 }
 
 /// The items each timestamp pair of `segment` covers, in order: every op alone
@@ -497,10 +488,87 @@ pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
     unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
 }
 
+/// Hand-laid plans of grouped passes, for the tests of grouping here and in segments.rs.
+#[cfg(test)]
+pub(crate) mod grouping_plans {
+    use crate::plan::{ExecAccess, ExecPass, ExecutionPlan, Kernels, Region};
+    use crate::recorder::{PassKernel, Recorder};
+
+    /// Records nothing; `groups` says whether it records groups.
+    pub(crate) struct Nothing {
+        pub(crate) groups: bool,
+    }
+
+    impl PassKernel for Nothing {
+        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> crate::Result<()> {
+            Ok(())
+        }
+
+        fn records_groups(&self) -> bool {
+            self.groups
+        }
+    }
+
+    /// Passes `(name, reads, writes)` on device 0, in order, the passes named `fill` with a
+    /// kernel that records groups, the others with one that does not; every pass op in order
+    /// on device 0.
+    pub(crate) fn plan(passes: &[(&str, &[usize], &[usize])]) -> ExecutionPlan {
+        let mut kernels = Kernels::default();
+        let plain = kernels.push(Nothing { groups: false });
+        let grouped = kernels.push(Nothing { groups: true });
+        let rows = Region::new(0, 1);
+        let access = |&r: &usize| ExecAccess::own("slot", r, 1, rows);
+        let passes: Vec<ExecPass> = passes
+            .iter()
+            .enumerate()
+            .map(|(view, &(name, reads, writes))| ExecPass {
+                name: name.to_string(),
+                kernel: if name == "fill" { grouped } else { plain },
+                view: view as u32,
+                rows,
+                device: 0,
+                reads: reads.iter().map(access).collect(),
+                writes: writes.iter().map(access).collect(),
+                history_reads: Vec::new(),
+            })
+            .collect();
+        let ops = (0..passes.len()).map(crate::plan::ExecOp::Pass).collect();
+        ExecutionPlan { passes, devices: vec![ops], kernels, ..ExecutionPlan::default() }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::plan::ExecPass;
+
+    #[test]
+    fn grouped_passes_are_one_op_until_an_access_conflicts_and_per_op_timing_times_each_op() {
+        // A compaction, three fills of which the third writes what the first wrote (two bands
+        // of one view), a copy, two more fills, then another pass.
+        let mut plan = grouping_plans::plan(&[
+            ("compact", &[], &[0]),
+            ("fill", &[0], &[1]),
+            ("fill", &[2], &[3]),
+            ("fill", &[0], &[1]),
+            ("fill", &[4], &[5]),
+            ("fill", &[6], &[7]),
+            ("svgf", &[1], &[8]),
+        ]);
+        let rows = parallax_graph::Region::new(0, 1);
+        plan.copies = vec![crate::plan::ExecCopy { resource: 3, dst: 3, version: 1, rows, from: 0, to: 1 }];
+        let chunk = Chunk { copy: 0, index: 0, y0: 0, y1: 1 };
+        let mut items: Vec<Item> = (0..7).map(Item::Pass).collect();
+        items.insert(4, Item::CopyOut(chunk));
+        let s = segment(items);
+        assert_eq!(op_groups(&plan, &s), vec![0..1, 1..3, 3..4, 4..5, 5..7, 7..8]);
+        assert_eq!(timer_spans(&plan, &s, Timing::PerOp), op_groups(&plan, &s));
+        assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..1, 1..4, 4..5, 5..7, 7..8]);
+        // Without grouping kernels every item is its own op.
+        let plain = plan_of(&["fill", "fill", "fill"]);
+        let s = segment((0..3).map(Item::Pass).collect());
+        assert_eq!(op_groups(&plain, &s), vec![0..1, 1..2, 2..3]);
+    }
 
     /// A plan whose passes are named `names` (one instance each, view = index).
     fn plan_of(names: &[&str]) -> ExecutionPlan {

@@ -285,6 +285,56 @@ mod tests {
     }
 
     #[test]
+    fn grouped_passes_move_up_past_copy_outs_of_what_they_do_not_write() {
+        use crate::plan::{ExecCopy, Region};
+        // Four fills writing 1, 3, 1 (a second band of the first view) and 5, then a pass that
+        // does not record groups.
+        let mut plan = crate::record::grouping_plans::plan(&[
+            ("fill", &[0], &[1]),
+            ("fill", &[2], &[3]),
+            ("fill", &[0], &[5]),
+            ("fill", &[0], &[1]),
+            ("fill", &[6], &[7]),
+            ("tonemap", &[1], &[9]),
+        ]);
+        let copy = |resource| ExecCopy { resource, dst: resource, version: 1, rows: Region::new(0, 1), from: 0, to: 1 };
+        plan.copies = vec![copy(1), copy(3), copy(9)];
+        use ExecOp::{CopyOut, Pass, Signal, Wait};
+        plan.devices[0] = vec![
+            Pass(0),
+            CopyOut(0),
+            Signal(0),
+            Pass(1),
+            CopyOut(1),
+            Signal(1),
+            Pass(2),
+            // Writes what copy 0 reads: stays behind it, and starts the next group.
+            Pass(3),
+            Wait(2),
+            // Not past a wait.
+            Pass(4),
+            Pass(5),
+        ];
+        let expected = vec![
+            Pass(0),
+            Pass(1),
+            Pass(2),
+            CopyOut(0),
+            Signal(0),
+            CopyOut(1),
+            Signal(1),
+            Pass(3),
+            Wait(2),
+            Pass(4),
+            Pass(5),
+        ];
+        assert_eq!(recording_order(&plan, 0), expected);
+        // Copies between passes that do not record groups stay where they are.
+        plan.passes.iter_mut().for_each(|p| p.kernel = 0);
+        assert_eq!(recording_order(&plan, 0), plan.devices[0]);
+    }
+
+    #[test]
     fn bands_cover_the_copy_and_taper_at_the_end() {
         for (total, per) in [(4096, 512), (100, 7), (5, 8), (513, 512), (1, 1), (4096, 1), (0, 16)] {
             let bands = band_rows(total, per);
