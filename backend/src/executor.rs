@@ -104,6 +104,8 @@ pub enum Barriers {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Timing {
     /// One pair around every op: per-view figures and timelines, at the price of the overlap.
+    /// Instances a kernel records as one group (`PassKernel::record_group`) are one op, timed
+    /// together; the event carries the first one's view and index.
     #[default]
     PerOp,
     /// One pair around each run of consecutive instances of one pass on a queue (and around
@@ -332,6 +334,9 @@ impl Executor {
             let buffer_addresses: HashMap<usize, u64> =
                 state.buffers.iter().map(|(&r, b)| (r, b.device_address())).collect();
             for slot in 0..state.slots.len() {
+                // Recording happens with no frame in flight (every cause of it waits for the
+                // frames first), so the buffers of the last recording are free.
+                state.recording_buffers[slot].clear();
                 let readback = match &self.readback {
                     Some(readback) if d == 0 => readback.targets(slot),
                     _ => Vec::new(),
@@ -356,6 +361,8 @@ impl Executor {
                     frame_data_address: self.frame_data_buffers[slot][d].device_address(),
                     frame_sections: self.frame_data.sections(),
                     readback: &readback,
+                    device: &state.device,
+                    recording_buffers: &mut state.recording_buffers[slot],
                 };
                 let mut first_timer = 0u32;
                 let segment_count = state.segments.len();

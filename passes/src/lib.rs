@@ -39,6 +39,7 @@ pub mod camera;
 pub mod error;
 pub mod gbuffer;
 pub mod hole_bench;
+pub mod hole_fill;
 pub mod holes;
 pub mod path_trace;
 pub mod pipeline;
@@ -54,6 +55,7 @@ pub mod trace;
 
 pub use error::{PassError, Result};
 pub use hole_bench::{HOLE_MASK, HashedHoleMaskKernel, HoleBench, bench_holes, hole_threshold, is_hashed_hole};
+pub use hole_fill::HoleFillKernel;
 pub use holes::{
     COMPACT_HOLES, CompactHolesKernel, HOLE_FILL, HOLE_LIST, HOLES, declare_hole_fill, hole_list_row_bytes,
 };
