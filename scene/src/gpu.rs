@@ -403,4 +403,29 @@ mod tests {
             assert!(gpu.triangles[e.bvh_primitive as usize].flags & TRI_EMISSIVE != 0);
         }
     }
+
+    #[test]
+    fn lighting_from_the_uploaded_emissive_table_gives_the_same_parameters() {
+        let mut scene = default_scene();
+        let bvh = SceneBvh::build(&scene);
+        let emissive = GpuScene::new(&scene, &bvh).emissive.len();
+        let view = View { camera: scene.default_camera(), width: 40, height: 30, index: 3 };
+        let settings = TraceSettings { spp: 4, frame: 7, ..Default::default() };
+        let same = |scene: &Scene| {
+            let lit = TraceLighting::with_emissive_triangles(scene, emissive);
+            assert_eq!(lit, TraceLighting::new(scene));
+            let params = GpuTraceParams::with_lighting(&lit, &view, &settings, &PixelSet::All);
+            assert_eq!(params, GpuTraceParams::new(scene, &view, &settings, &PixelSet::All));
+            params
+        };
+        let params = same(&scene);
+        assert_eq!(params.counts[1], 2, "the lamp's two triangles");
+        let sun_and_sky = LIGHT_GROUP_SUN | LIGHT_GROUP_SKY;
+        assert_eq!(params.counts[2], sun_and_sky | LIGHT_GROUP_EMISSIVE | if scene.lights.is_empty() { 0 } else { LIGHT_GROUP_PUNCTUAL });
+        // Sun and sky may change between frames: the groups follow them.
+        scene.sun = None;
+        scene.sky = Some(Sky::Constant(Vec3::ZERO));
+        let dark = same(&scene);
+        assert_eq!(dark.counts[2] & sun_and_sky, 0);
+    }
 }
