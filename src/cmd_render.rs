@@ -105,6 +105,10 @@ pub struct RenderArgs {
     /// Measured frames (the camera dollies across the scene over warm-up and measured frames).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
+    /// Frames submitted before the host waits for the oldest: the host prepares and submits the
+    /// next frames while the GPU runs this one.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=8))]
+    frames_in_flight: u32,
     /// Frames rendered before measuring (timings and outputs ignore them).
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
@@ -244,7 +248,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         exec_plan,
         lf.len() as u32,
         &GpuScene::new(&scene, &bvh),
-        ExecOptions { barriers, timing, ..ExecOptions::default() },
+        ExecOptions { barriers, timing, frames_in_flight: args.frames_in_flight as usize, ..ExecOptions::default() },
     )?;
 
     std::fs::create_dir_all(&args.out_dir)
@@ -256,7 +260,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     for f in 0..total_frames {
         if f == args.warmup {
             renderer.finish()?;
-            renderer.take_reports();
+            renderer.reset_stats();
+            // Only a trace needs every event of every frame; otherwise the statistics are all.
+            renderer.keep_reports(args.trace.is_some());
             measured_from = Some(Instant::now());
         }
         let views = lightfield_views(&lf_of(f)?);
@@ -283,6 +289,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let wall = measured_from.unwrap_or(started).elapsed();
     progress.finish_and_clear();
     let reports = renderer.take_reports();
+    let prepare = renderer.prepare_ms().clone();
+    let timing = timings(renderer.stats(), &prepare);
     let last_views = lightfield_views(&lf_of(total_frames - 1)?);
 
     // Everything is staged before anything is put in place, and render.json goes last: a
@@ -320,7 +328,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     drop(renderer);
     context.check_validation()?;
 
-    let timing = timings(&reports);
     let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
     let json = serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
@@ -336,6 +343,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
+        "frames_in_flight": args.frames_in_flight,
         "devices": device_names,
         "plan": &summary,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),

@@ -147,6 +147,8 @@ struct InFlight {
     slot: usize,
     submit_start_ns: u64,
     submit_cpu_ns: u64,
+    /// Host time its submission waited for the frame it reuses the slot of to retire.
+    slot_wait_ns: u64,
     passes: usize,
     segments: usize,
     /// Submitted by `submit_frame`: its readback is kept when it retires.
@@ -494,9 +496,11 @@ impl Executor {
     }
 
     fn submit(&mut self, read_back: bool) -> Result<u64> {
+        let slot_wait = Instant::now();
         if self.in_flight.len() >= self.options.frames_in_flight {
             self.retire_oldest()?;
         }
+        let slot_wait_ns = slot_wait.elapsed().as_nanos() as u64;
         self.relay.as_ref().expect("relay exists after build").check()?;
         if self.needs_record {
             self.record_all()?;
@@ -633,6 +637,7 @@ impl Executor {
             slot,
             submit_start_ns,
             submit_cpu_ns: cpu_start.elapsed().as_nanos() as u64,
+            slot_wait_ns,
             passes: self.plan.passes.len(),
             segments: submitted_segments,
             read_back,
@@ -695,15 +700,10 @@ impl Executor {
                 });
             }
         }
-        self.reports.push(FrameReport::new(
-            f.frame,
-            f.submit_start_ns,
-            f.submit_cpu_ns,
-            f.passes,
-            f.segments,
-            self.devices.len(),
-            events,
-        ));
+        let mut report =
+            FrameReport::new(f.frame, f.submit_start_ns, f.submit_cpu_ns, f.passes, f.segments, self.devices.len(), events);
+        report.slot_wait_ns = f.slot_wait_ns;
+        self.reports.push(report);
         if let (true, Some(readback)) = (f.read_back, &mut self.readback) {
             readback.retire(f.frame, f.slot);
         }
@@ -739,7 +739,9 @@ impl Executor {
         Ok(())
     }
 
-    /// Reports of retired frames, oldest first, removed from the executor.
+    /// Reports of retired frames, oldest first, removed from the executor. They pile up until
+    /// taken: a long frame loop takes them every frame and folds them into a
+    /// [`crate::FrameStats`], so its memory stays flat.
     pub fn take_reports(&mut self) -> Vec<FrameReport> {
         std::mem::take(&mut self.reports)
     }

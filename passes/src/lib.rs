@@ -61,6 +61,7 @@ pub use holes::{
 };
 pub use path_trace::{
     LIST_SLOTS, PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
+    trace_frame_data_lit,
 };
 pub use pixel_list::{
     LIST_HEADER_WORDS, PIXEL_LIST, StridedPixelListKernel, list_groups, pixel_list_bytes, strided_pixels,

@@ -15,7 +15,7 @@
 //!   re-recording; the scene from [`crate::upload_scene`].
 
 use parallax_backend::{BackendError, ExecAccess, ExecPass, Format, PassKernel, Recorder, ResourceKind};
-use parallax_scene::gpu::{GpuPixel, GpuTraceParams};
+use parallax_scene::gpu::{GpuPixel, GpuTraceParams, TraceLighting};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
 use crate::error::{PassError, Result};
@@ -131,6 +131,12 @@ pub(crate) fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) 
 /// `i * TRACE_PARAMS_BYTES`. `views[i].index` must be `i` (it keys the random numbers and
 /// locates the view's parameters).
 pub fn trace_frame_data(scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<u8>> {
+    trace_frame_data_lit(&TraceLighting::new(scene), views, settings)
+}
+
+/// [`trace_frame_data`] with the scene's lighting gathered already (a renderer does it once,
+/// not once per view and frame: it walks every triangle).
+pub fn trace_frame_data_lit(lighting: &TraceLighting, views: &[View], settings: &TraceSettings) -> Result<Vec<u8>> {
     settings.validate()?;
     let mut bytes = Vec::with_capacity(views.len() * TRACE_PARAMS_BYTES as usize);
     for (position, view) in views.iter().enumerate() {
@@ -140,7 +146,7 @@ pub fn trace_frame_data(scene: &Scene, views: &[View], settings: &TraceSettings)
         if view.width > 1 << 16 || view.height > 1 << 16 {
             return Err(PassError::ViewTooLarge { width: view.width, height: view.height });
         }
-        let params = GpuTraceParams::new(scene, view, settings, &PixelSet::All);
+        let params = GpuTraceParams::with_lighting(lighting, view, settings, &PixelSet::All);
         bytes.extend_from_slice(bytemuck::bytes_of(&params));
     }
     Ok(bytes)
