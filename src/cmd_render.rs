@@ -133,6 +133,12 @@ pub struct RenderArgs {
     /// Also write a Looking Glass quilt (lightfield_qs{cols}x{rows}a{aspect}.png).
     #[arg(long)]
     quilt: bool,
+    /// Largest relative radiance error that view-dependence may cause in a reprojected pixel
+    /// (the bound of docs/PIPELINE.md, from the angle between target and source view
+    /// directions, the GGX lobe width and Fresnel); pixels over it are holes, path traced.
+    /// 0 reuses only sources at the target's own position.
+    #[arg(long, default_value_t = ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE, value_parser = parse_reprojection_tolerance)]
+    reprojection_tolerance: f32,
     /// Where the G-buffer comes from: first hits of the pixel-centre rays (fast on compute GPUs
     /// such as the H200), or rasterised (the paper's way; fast with fixed-function raster).
     #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
@@ -153,6 +159,15 @@ pub struct RenderArgs {
     /// run of one pass over many views; add `--timing per-op` for one event per view.
     #[arg(long, value_parser = parse_sink)]
     trace: Option<Sink>,
+}
+
+/// `--reprojection-tolerance`: a relative error, finite and at least 0.
+fn parse_reprojection_tolerance(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) => Err(format!("{v} is not a relative error >= 0 (0.05 = 5 %)")),
+        Err(_) => Err(format!("'{s}' is not a number")),
+    }
 }
 
 /// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,
@@ -219,7 +234,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             GbufferArg::FirstHits => GbufferSource::FirstHits,
             GbufferArg::Raster => GbufferSource::Raster,
         },
-        tolerances: ReprojectionTolerances::default(),
+        tolerances: ReprojectionTolerances { view_dependence: args.reprojection_tolerance, ..Default::default() },
         denoise: !args.no_denoise,
         exposure: args.exposure,
     };
@@ -342,6 +357,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
+        "reprojection_tolerance": args.reprojection_tolerance,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
         "frames_in_flight": args.frames_in_flight,
         "devices": device_names,

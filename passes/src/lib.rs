@@ -16,6 +16,8 @@
 //! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
 //!   and `hole_fill` (`path_trace` over them); [`hole_bench`] times it.
 //! * [`trace`]: the graph declaring path tracing per view, and [`GpuTracer`], which runs it.
+//! * [`reproject`] and [`view_bound`]: the gather of targets from their sources, and the bound
+//!   on view-dependence that decides which pixels it may reuse.
 //!
 //! ```no_run
 //! use parallax_backend::{Context, ContextDesc, DeviceSelection};
@@ -52,6 +54,7 @@ pub mod scene_upload;
 pub mod svgf;
 pub mod tonemap;
 pub mod trace;
+pub mod view_bound;
 
 pub use error::{PassError, Result};
 pub use hole_bench::{HOLE_MASK, HashedHoleMaskKernel, HoleBench, bench_holes, hole_threshold, is_hashed_hole};
