@@ -37,11 +37,10 @@ layout(push_constant, std430) uniform SvgfPush {
     uint width;
     uint height;
     uint step;  // à-trous: tap spacing in pixels
-    uint flags; // à-trous: SVGF_FIRST, SVGF_LAST
+    uint flags; // à-trous: SVGF_LAST
 } pc;
 
-const uint SVGF_FIRST = 1u; // first à-trous iteration: blurs the variance, writes the history
-const uint SVGF_LAST = 2u;  // last à-trous iteration: writes `denoised`
+const uint SVGF_LAST = 2u; // last à-trous iteration: writes `denoised`
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -52,6 +51,8 @@ const float MAX_VALUE = 1e8;
 const float ALBEDO_FLOOR = 1e-3;
 // À-trous luminance edge-stopping (Schied: σ_l = 4).
 const float SIGMA_L = 4.0;
+// The 5×5 B3-spline kernel of the à-trous iterations, per axis.
+const float KERNEL[3] = float[3](3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);
 
 // The pixel this invocation owns in the row-major layout of 8×8 tiles over the band, or
 // ivec2(-1) outside the band.
@@ -152,27 +153,41 @@ float svgf_depth_slope(ivec2 p, ivec2 axis, float z) {
     return best;
 }
 
-// Edge-stopping weight on depth (Schied's w_z, σ_z = 1), symmetric in p and q: the difference
-// against what both pixels' gradients predict for the offset, plus a floor relative to depth
-// for curved or slanted surfaces that the linear prediction misses.
-float svgf_depth_weight(float zp, float zq, vec2 gp, vec2 gq, vec2 offset) {
-    float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
-    return exp(-abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12));
-}
-
-// Edge-stopping weight on normals (Schied's w_n, σ_n = 128).
-// A NaN normal gives 0 (max(0, NaN) is undefined in GLSL, the comparison is not).
-float svgf_normal_weight(vec3 np, vec3 nq) {
+// The edge-stopping weight of taps p and q `offset` pixels apart (Schied's w_z · w_n · w_l with
+// σ_z = 1, σ_n = 128, σ_l = 4), symmetric in p and q, so that a filter built on it can conserve
+// energy (svgf_atrous_first.comp):
+// - depth: the difference against what both pixels' gradients predict for the offset, plus a
+//   floor relative to depth for curved or slanted surfaces that the linear prediction misses;
+// - normal: dot^128 (a NaN or back-facing normal gives 0; 7 squarings, no transcendental);
+// - illumination luminance: the difference against σ_l times √((v_p + v_q) / 2), the spread of a
+//   difference of the two. A scale of the centre's variance alone (Schied) lets a noisy bright
+//   pixel take in its dark neighbours while they refuse it: measured −3.4 % green, +2.3 % blue
+//   on a saturated checker.
+// One exponential for depth and luminance together.
+float svgf_edge_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 nq, float lp, float lq, float vp,
+                       float vq, vec2 offset) {
     float d = dot(np, nq);
-    return d > 0.0 ? pow(min(d, 1.0), 128.0) : 0.0;
+    if (!(d > 0.0)) {
+        return 0.0;
+    }
+    d = min(d, 1.0);
+    d *= d; d *= d; d *= d; d *= d; d *= d; d *= d; d *= d;
+    float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
+    float depth = abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12);
+    float luminance = abs(lp - lq) * inversesqrt(max(0.5 * (vp + vq), 1e-20)) * (1.0 / SIGMA_L);
+    return d * exp(-(depth + luminance));
 }
 
-// Edge-stopping weight on illumination luminance, symmetric in p and q: the difference against
-// σ_l times the standard deviation of a difference of the two (√((v_p + v_q) / 2) per pixel
-// scale). A scale of the centre's alone (Schied) lets a noisy bright pixel take in its dark
-// neighbours while they refuse it: measured −3.4 % green, +2.3 % blue on a saturated checker.
-float svgf_luminance_weight(float lp, float lq, float vp, float vq) {
-    return exp(-abs(lp - lq) / (SIGMA_L * sqrt(0.5 * (vp + vq)) + 1e-10));
+// The depth-and-normal part of svgf_edge_weight, for the spatial variance estimate.
+float svgf_geometry_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 nq, vec2 offset) {
+    float d = dot(np, nq);
+    if (!(d > 0.0)) {
+        return 0.0;
+    }
+    d = min(d, 1.0);
+    d *= d; d *= d; d *= d; d *= d; d *= d; d *= d; d *= d;
+    float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
+    return d * exp(-abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12));
 }
 
 // The phase-tiled layout of a pass with tap spacing `step`: workgroup (gx, gy) owns the 8×8

@@ -1,47 +1,41 @@
 #version 460
 // SVGF, step 2 (`svgf_variance`): the illumination-luminance variance that steers the à-trous
 // filter.
-//   in0 `svgf_temporal` (radiance rgb, history length), in1 `svgf_moments`, in2 `svgf_guide`,
-//   in3 `svgf_albedo`: all whole view
+//   in0 `svgf_temporal` (radiance rgb, history length), in1 `svgf_moments`, in2 `svgf_guide`:
+//   whole view
 //   out0 `svgf_variance`: (radiance rgb, variance)
 // With 4 frames of history or more the variance comes from the temporal moments; with fewer it
 // is estimated spatially, from the moments of a 7×7 neighbourhood weighted by depth, normal and
-// luminance (Schied §4.2), and the radiance is that neighbourhood's bilateral ratio estimate
-// too (svgf.glsl). A workgroup with such pixels reads its 14×14 neighbourhood into shared
-// memory once.
+// luminance (Schied §4.2). The radiance is the temporal one: Schied also replaces it by the
+// neighbourhood's bilateral mean, which is a filter that does not conserve energy (at depth
+// edges, borders, next to dark albedo), on the very frames that have the least history; the
+// energy-conserving first à-trous iteration does that smoothing instead. A workgroup with
+// short histories reads its 14×14 neighbourhood into shared memory once.
 #include "svgf.glsl"
 
 const float MIN_LENGTH = 4.0;
 const int RADIUS = 3;
 const int TILE = 8 + 2 * RADIUS;
 // Luminance edge-stopping of the spatial estimate (Schied's reference code: σ_l 10), on
-// illumination luminance; a fixed scale, so the weight is symmetric.
+// illumination luminance.
 const float SIGMA_L_SPATIAL = 10.0;
 
-shared vec4 tile_radiance[TILE * TILE];   // rgb, illumination luminance
-shared vec4 tile_albedo[TILE * TILE];     // rgb, depth (0: no hit or outside)
-shared vec4 tile_geometry[TILE * TILE];   // normal xyz, unused
-shared vec4 tile_moments[TILE * TILE];    // m1, m2, depth gradient x, y
+shared vec4 tile_moments[TILE * TILE]; // m1, m2, depth gradient x, y
+shared vec4 tile_geometry[TILE * TILE]; // normal xyz, depth (0: no hit or outside)
 shared uint any_short;
 
 void load_tile(ivec2 origin) {
     for (uint e = gl_LocalInvocationIndex; e < uint(TILE * TILE); e += 64u) {
         ivec2 q = origin + ivec2(int(e % uint(TILE)), int(e / uint(TILE)));
         vec4 guide = vec4(0.0);
-        vec3 radiance = vec3(0.0);
-        vec3 albedo = vec3(1.0);
         vec2 moments = vec2(0.0);
         if (svgf_inside(q)) {
             guide = imageLoad(images[pc.in2], q);
-            radiance = imageLoad(images[pc.in0], q).rgb;
-            albedo = imageLoad(images[pc.in3], q).rgb;
             moments = imageLoad(images[pc.in1], q).xy;
         }
         bool hit = guide.x > 0.0;
-        tile_radiance[e] = vec4(radiance, hit ? svgf_illumination_luminance(radiance, albedo) : 0.0);
-        tile_albedo[e] = vec4(albedo, hit ? guide.x : 0.0);
-        tile_geometry[e] = vec4(hit ? svgf_unpack_normal(guide.w) : vec3(0.0), 0.0);
         tile_moments[e] = vec4(moments, guide.yz);
+        tile_geometry[e] = vec4(hit ? svgf_unpack_normal(guide.w) : vec3(0.0), hit ? guide.x : 0.0);
     }
 }
 
@@ -64,45 +58,34 @@ void main() {
         atomicOr(any_short, 1u);
     }
     barrier();
-    ivec2 origin = svgf_tile_base(1u) - ivec2(RADIUS);
     if (any_short != 0u) {
-        load_tile(origin);
+        load_tile(svgf_tile_base(1u) - ivec2(RADIUS));
     }
     barrier();
     if (p.x < 0) {
         return;
     }
-    if (!(z > 0.0)) {
-        imageStore(images[pc.out0], p, vec4(centre.rgb, 0.0));
-        return;
-    }
     if (!short_history) {
-        float variance = max(0.0, centre_moments.y - centre_moments.x * centre_moments.x);
+        float variance = z > 0.0 ? max(0.0, centre_moments.y - centre_moments.x * centre_moments.x) : 0.0;
         imageStore(images[pc.out0], p, vec4(centre.rgb, min(variance, MAX_VALUE)));
         return;
     }
     int c = (int(gl_LocalInvocationID.y) + RADIUS) * TILE + int(gl_LocalInvocationID.x) + RADIUS;
     vec3 n = tile_geometry[c].xyz;
     vec2 gradient = tile_moments[c].zw;
-    float l = tile_radiance[c].w;
-    vec3 albedo = tile_albedo[c].rgb;
+    float l = centre_moments.x;
     // The centre counts with weight 1 whatever its normal, so the sums never vanish.
-    vec3 radiance_sum = centre.rgb;
-    vec3 albedo_sum = albedo;
     vec2 moment_sum = centre_moments;
     float weight_sum = 1.0;
     for (int dy = -RADIUS; dy <= RADIUS; dy++) {
         for (int dx = -RADIUS; dx <= RADIUS; dx++) {
             int e = c + dy * TILE + dx;
-            float zq = tile_albedo[e].w;
+            float zq = tile_geometry[e].w;
             if ((dx == 0 && dy == 0) || !(zq > 0.0)) {
                 continue;
             }
-            float w = svgf_depth_weight(z, zq, gradient, tile_moments[e].zw, vec2(dx, dy))
-                * svgf_normal_weight(n, tile_geometry[e].xyz)
-                * exp(-abs(l - tile_radiance[e].w) / SIGMA_L_SPATIAL);
-            radiance_sum += w * tile_radiance[e].rgb;
-            albedo_sum += w * tile_albedo[e].rgb;
+            float w = svgf_geometry_weight(z, zq, gradient, tile_moments[e].zw, n, tile_geometry[e].xyz, vec2(dx, dy))
+                * exp(-abs(l - tile_moments[e].x) / SIGMA_L_SPATIAL);
             moment_sum += w * tile_moments[e].xy;
             weight_sum += w;
         }
@@ -111,6 +94,5 @@ void main() {
     // Short histories get a larger variance (Schied's reference code: × 4 / length), so the
     // first frames are filtered harder.
     float variance = max(0.0, moment_sum.y - moment_sum.x * moment_sum.x) * (MIN_LENGTH / max(centre.a, 1.0));
-    vec3 radiance = min(albedo * (radiance_sum / albedo_sum), vec3(MAX_VALUE));
-    imageStore(images[pc.out0], p, vec4(radiance, min(variance, MAX_VALUE)));
+    imageStore(images[pc.out0], p, vec4(centre.rgb, min(variance, MAX_VALUE)));
 }

@@ -61,8 +61,6 @@ const MOTION: &str = "motion";
 
 /// Image index the shaders never read (push constants of slots a kernel does not use).
 const UNUSED: u32 = u32::MAX;
-/// `SvgfPush::flags`: the first à-trous iteration (variance blur, colour history).
-const FIRST: u32 = 1;
 /// `SvgfPush::flags`: the last à-trous iteration (writes `denoised`).
 const LAST: u32 = 2;
 
@@ -118,7 +116,6 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         .read_whole(&temporal)
         .read_whole(&moments)
         .read_whole(&guide)
-        .read_whole(&albedo)
         .write(&mut variance)
         .kernel(Arc::new(SvgfKernel(Stage::Variance)))
         .record();
@@ -174,7 +171,7 @@ pub struct SvgfPush {
     pub height: u32,
     /// À-trous tap spacing in pixels.
     pub step: u32,
-    /// À-trous: `FIRST` and/or `LAST`.
+    /// À-trous: `LAST` on the last iteration.
     pub flags: u32,
 }
 
@@ -193,7 +190,7 @@ impl Stage {
             Stage::History => "svgf_history",
             Stage::Temporal => "svgf_temporal",
             Stage::Variance => "svgf_variance",
-            Stage::Atrous { .. } => "svgf_atrous",
+            Stage::Atrous { .. } => "svgf_atrous_first",
         }
     }
 }
@@ -278,7 +275,6 @@ impl PassKernel for SvgfKernel {
                 push.in0 = image(rec, Slot::Input(TEMPORAL))?;
                 push.in1 = image(rec, Slot::Input(SVGF_MOMENTS))?;
                 push.in2 = image(rec, Slot::Input(GUIDE))?;
-                push.in3 = image(rec, Slot::Input(EFFECTIVE_ALBEDO))?;
                 push.out0 = image(rec, Slot::Output(VARIANCE))?;
             }
             Stage::Atrous { step, input, output, first, last } => {
@@ -289,7 +285,7 @@ impl PassKernel for SvgfKernel {
                 push.step = step;
                 if first {
                     push.out1 = image(rec, Slot::Output(SVGF_COLOR))?;
-                    push.flags |= FIRST;
+                    push.flags |= 4;
                 }
                 if last {
                     push.radiance = image(rec, Slot::Input(RADIANCE))?;
@@ -331,7 +327,7 @@ mod tests {
             step,
             flags
         });
-        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous"] {
+        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous_first", "svgf_atrous"] {
             let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "SvgfPush").unwrap();
             assert_eq!(glsl, rust, "{shader}");
         }
