@@ -1,14 +1,19 @@
 #version 460
-// SVGF, step 1 (`svgf_temporal`): demodulates radiance by albedo and accumulates the
-// illumination and its first two luminance moments through `motion` into history.
-//   radiance, albedo, normal, motion: own pixel; position: whole view (depth gradient)
-//   in0 `svgf_prev_color`, in1 `svgf_prev_moments`, in2 `svgf_prev_normal`: whole view
-//   out0 `svgf_illum`: (accumulated illumination rgb, history length)
-//   out1 `svgf_moments`: (m1, m2, history length, 0), read as history next frame
+// SVGF, step 1 (`svgf_temporal`): accumulates radiance and the first two moments of its
+// illumination luminance through `motion`, and packs what the later passes read of the G-buffer.
+//   radiance, albedo, normal, motion: own pixel; position: own pixel and its 4 neighbours
+//   in0 `svgf_prev_color` (illumination rgb, length), in1 `svgf_prev_moments` (m1, m2, depth,
+//   packed normal): whole view
+//   out0 `svgf_temporal`: (accumulated radiance rgb, history length)
+//   out1 `svgf_moments`: (m1, m2, linear depth, packed normal), read as history next frame
+//   out2 `svgf_guide`: (linear depth, depth gradient x, y, packed normal)
+//   out3 `svgf_albedo`: (effective albedo rgb, history length)
 // The previous frame is sampled bilinearly at the motion vector; a tap counts only if it is
 // inside the image, had history, and saw the same surface (depth against the gradient, normal
-// within ~25°). Without any valid tap the pixel restarts (length 1). Pixels without a hit keep
-// their radiance and length 0.
+// within ~25°). The history holds illumination, which is remodulated by this pixel's albedo
+// before it is blended with this frame's radiance (so a texture is never smeared by the
+// bilinear taps). Without any valid tap the pixel restarts (length 1). Pixels without a hit
+// keep their radiance and length 0; their guide depth is 0, which every later pass skips.
 #include "svgf.glsl"
 
 // Exponential moving average weights (Schied: 0.2 for colour and moments), replaced by 1/n
@@ -28,19 +33,21 @@ void main() {
     if (p.x < 0) {
         return;
     }
-    vec4 position = imageLoad(images[pc.position], p);
     vec3 radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
-    float z = position.w;
+    float z = imageLoad(images[pc.position], p).w;
     if (!(z > 0.0)) {
         imageStore(images[pc.out0], p, vec4(radiance, 0.0));
         imageStore(images[pc.out1], p, vec4(0.0));
+        imageStore(images[pc.out2], p, vec4(0.0));
+        imageStore(images[pc.out3], p, vec4(0.0));
         return;
     }
-    vec3 albedo = svgf_sanitize(imageLoad(images[pc.albedo], p).rgb);
-    vec3 illum = min(radiance / svgf_albedo_divisor(albedo), vec3(MAX_VALUE));
-    float l = svgf_luminance(illum);
+    vec3 albedo = svgf_effective_albedo(imageLoad(images[pc.albedo], p).rgb);
+    // Clamped so that its square (the second moment) stays far inside the f32 range.
+    float l = min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
     vec3 n = imageLoad(images[pc.normal], p).xyz;
-    vec2 gradient = svgf_depth_gradient(p, z);
+    float packed_normal = svgf_pack_normal(n);
+    vec2 gradient = vec2(svgf_depth_slope(p, ivec2(1, 0), z), svgf_depth_slope(p, ivec2(0, 1), z));
     float tolerance = DEPTH_GRADIENT_STEPS * (abs(gradient.x) + abs(gradient.y)) + DEPTH_RELATIVE * z;
 
     // Motion is in pixels of the previous frame with centres at i + 0.5.
@@ -63,8 +70,8 @@ void main() {
             }
             vec4 pcol = imageLoad(images[pc.in0], q);
             vec4 pm = imageLoad(images[pc.in1], q);
-            vec3 pn = imageLoad(images[pc.in2], q).xyz;
-            if (pcol.a < 1.0 || !(pm.z > 0.0) || abs(pm.z - z) > tolerance || dot(pn, n) < MIN_NORMAL_DOT) {
+            if (pcol.a < 1.0 || !(pm.z > 0.0) || abs(pm.z - z) > tolerance
+                || dot(svgf_unpack_normal(pm.w), n) < MIN_NORMAL_DOT) {
                 continue;
             }
             prev_illum += w * pcol.rgb;
@@ -74,17 +81,17 @@ void main() {
         }
     }
     float length_ = 1.0;
-    vec3 out_illum = illum;
+    vec3 out_radiance = radiance;
     vec2 moments = vec2(l, l * l);
     if (weight_sum > 1e-3) {
-        prev_illum /= weight_sum;
-        prev_moments /= weight_sum;
         length_ = min(prev_length / weight_sum + 1.0, MAX_LENGTH);
         float a = max(ALPHA_COLOR, 1.0 / length_);
         float am = max(ALPHA_MOMENTS, 1.0 / length_);
-        out_illum = mix(prev_illum, illum, a);
-        moments = mix(prev_moments, moments, am);
+        out_radiance = mix(min(albedo * (prev_illum / weight_sum), vec3(MAX_VALUE)), radiance, a);
+        moments = mix(prev_moments / weight_sum, moments, am);
     }
-    imageStore(images[pc.out0], p, vec4(out_illum, length_));
-    imageStore(images[pc.out1], p, vec4(moments, length_, 0.0));
+    imageStore(images[pc.out0], p, vec4(out_radiance, length_));
+    imageStore(images[pc.out1], p, vec4(moments, z, packed_normal));
+    imageStore(images[pc.out2], p, vec4(z, gradient, packed_normal));
+    imageStore(images[pc.out3], p, vec4(albedo, length_));
 }

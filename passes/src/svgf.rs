@@ -1,22 +1,33 @@
-//! The `svgf` passes: spatiotemporal variance-guided filtering (Schied et al., *Spatiotemporal
-//! Variance-Guided Filtering*, HPG 2017) of a view's `radiance` into `denoised`, declared by
-//! [`declare_svgf`] as a chain of passes over the view's G-buffer:
+//! The `svgf` passes: spatiotemporal variance-guided filtering (after Schied et al.,
+//! *Spatiotemporal Variance-Guided Filtering*, HPG 2017) of a view's `radiance` into `denoised`,
+//! declared by [`declare_svgf`] as a chain of passes over the view's G-buffer:
 //!
-//! 1. `svgf_history` (shaders/svgf_history.comp): last frame's colour history, moments and
-//!    G-buffer (history reads) copied into this frame's images. History reads see only the
-//!    instance's own rows, reprojection may land on any row: the copies are read whole.
-//! 2. `svgf_temporal`: radiance demodulated by albedo, accumulated through `motion` with an
-//!    exponential moving average (α = 0.2 for colour and moments, 1/n while the history is
-//!    shorter); disoccluded pixels (depth or normal differ from the previous frame's) restart.
-//! 3. `svgf_variance`: variance from the temporal moments, or a 7×7 spatial estimate while the
-//!    history is shorter than 4 frames.
+//! 1. `svgf_history` (shaders/svgf_history.comp): last frame's colour and moments history
+//!    (history reads) copied into this frame's images. History reads see only the instance's
+//!    own rows, reprojection may land on any row: the copies are read whole.
+//! 2. `svgf_temporal`: radiance accumulated through `motion` with an exponential moving
+//!    average (α = 0.2 for colour and moments, 1/n while the history is shorter), the history
+//!    (illumination) remodulated by the pixel's albedo first; disoccluded pixels (depth or
+//!    normal differ from the previous frame's) restart. It also packs what the later passes read
+//!    of the G-buffer into one guide texel (depth, depth gradient, octahedral normal) and an
+//!    albedo texel (half floats).
+//! 3. `svgf_variance`: variance of the illumination luminance from the temporal moments, or a
+//!    7×7 spatial estimate while the history is shorter than 4 frames.
 //! 4. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16) with
-//!    edge-stopping on depth, normal and luminance; the first one's output is the colour history
-//!    (`svgf_color`), the last one remodulates by albedo into `denoised`.
+//!    symmetric edge-stopping on depth, normal and illumination luminance; the first one's
+//!    illumination is the colour history (`svgf_color`), the last one writes `denoised`.
+//!
+//! Illumination is never the radiance of one pixel divided by its albedo: each iteration
+//! estimates it as Σ w·radiance / Σ w·albedo over its taps and multiplies it back by the pixel's
+//! albedo, so a channel in which a neighbour's albedo is black gets nothing from it, and a
+//! jittered sample that hit another texel than the G-buffer's pixel centre is never blown up
+//! by the centre's albedo (docs/PIPELINE.md, SVGF, has the measurements).
 //!
 //! Every pass with a footprint reads whole views (`read_whole`), so a view split into row bands
-//! over devices gives the same pixels as one device. Pixels without a hit (depth 0) keep their
-//! radiance; every output is finite (inputs are sanitised, every division is guarded).
+//! over devices gives the same pixels as one device. The à-trous passes run in phase tiles
+//! ([`phase_groups`]): a workgroup owns 8×8 pixels `step` apart and reads their taps into
+//! shared memory once. Pixels without a hit (depth 0) keep their radiance; every output is
+//! finite (inputs are sanitised, every division is guarded).
 
 use std::sync::Arc;
 
@@ -25,9 +36,9 @@ use parallax_graph::{Format, Handle, Image, Role};
 
 /// Slot name of the result (Rgba32f linear radiance, docs/PIPELINE.md).
 pub const DENOISED: &str = "denoised";
-/// Colour history: the first à-trous iteration's output (illumination rgb, variance).
+/// Colour history: the first à-trous iteration's illumination (rgb) and history length.
 pub const SVGF_COLOR: &str = "svgf_color";
-/// Moments history: (m1, m2, history length, 0) of the luminance of the illumination.
+/// Moments history: (m1, m2) of the illumination luminance, linear depth, packed normal.
 pub const SVGF_MOMENTS: &str = "svgf_moments";
 /// Tap spacing of the à-trous iterations, in pixels.
 pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
@@ -35,8 +46,9 @@ pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
 // This frame's copies of the history ([`Stage::History`]) and the intermediate images.
 const PREV_COLOR: &str = "svgf_prev_color";
 const PREV_MOMENTS: &str = "svgf_prev_moments";
-const PREV_NORMAL: &str = "svgf_prev_normal";
-const ILLUM: &str = "svgf_illum";
+const TEMPORAL: &str = "svgf_temporal";
+const GUIDE: &str = "svgf_guide";
+const EFFECTIVE_ALBEDO: &str = "svgf_albedo";
 const VARIANCE: &str = "svgf_variance";
 const ATROUS: &str = "svgf_atrous";
 
@@ -49,6 +61,8 @@ const MOTION: &str = "motion";
 
 /// Image index the shaders never read (push constants of slots a kernel does not use).
 const UNUSED: u32 = u32::MAX;
+/// `SvgfPush::flags`: the last à-trous iteration (writes `denoised`).
+const LAST: u32 = 2;
 
 /// The G-buffer and radiance of the views to denoise (formats: docs/PIPELINE.md).
 pub struct SvgfInputs<'a> {
@@ -60,16 +74,16 @@ pub struct SvgfInputs<'a> {
 }
 
 /// Declares the SVGF passes (see the module docs) for every view and returns the `denoised`
-/// handle (Rgba32f; not exported). The inputs are read in their current versions; the
-/// previous frame's `position_depth` and `normal_metallic` through history.
+/// handle (Rgba32f; not exported). The inputs are read in their current versions.
 pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<Image> {
     let mut color = graph.image(SVGF_COLOR, Format::Rgba32f);
     let mut moments = graph.image(SVGF_MOMENTS, Format::Rgba32f);
     let mut prev_color = graph.image(PREV_COLOR, Format::Rgba32f);
     let mut prev_moments = graph.image(PREV_MOMENTS, Format::Rgba32f);
-    // Normals only feed a dot-product test: half floats are plenty.
-    let mut prev_normal = graph.image(PREV_NORMAL, Format::Rgba16f);
-    let mut illum = graph.image(ILLUM, Format::Rgba32f);
+    let mut temporal = graph.image(TEMPORAL, Format::Rgba32f);
+    let mut guide = graph.image(GUIDE, Format::Rgba32f);
+    // Albedo in [0, 1] (plus a floor) weighs and remodulates: half floats' 2^-11 is plenty.
+    let mut albedo = graph.image(EFFECTIVE_ALBEDO, Format::Rgba16f);
     let mut variance = graph.image(VARIANCE, Format::Rgba32f);
     let mut atrous = graph.image(ATROUS, Format::Rgba32f);
     let mut denoised = graph.image(DENOISED, Format::Rgba32f);
@@ -78,11 +92,8 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         .pass("svgf_history", Role::All)
         .read_history(&color)
         .read_history(&moments)
-        .read_history(inputs.position_depth)
-        .read_history(inputs.normal_metallic)
         .write(&mut prev_color)
         .write(&mut prev_moments)
-        .write(&mut prev_normal)
         .kernel(Arc::new(SvgfKernel(Stage::History)))
         .record();
     graph
@@ -94,47 +105,46 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         .read(inputs.motion)
         .read_whole(&prev_color)
         .read_whole(&prev_moments)
-        .read_whole(&prev_normal)
-        .write(&mut illum)
+        .write(&mut temporal)
         .write(&mut moments)
+        .write(&mut guide)
+        .write(&mut albedo)
         .kernel(Arc::new(SvgfKernel(Stage::Temporal)))
         .record();
     graph
         .pass("svgf_variance", Role::All)
-        .read_whole(&illum)
+        .read_whole(&temporal)
         .read_whole(&moments)
-        .read_whole(inputs.normal_metallic)
-        .read_whole(inputs.position_depth)
+        .read_whole(&guide)
         .write(&mut variance)
         .kernel(Arc::new(SvgfKernel(Stage::Variance)))
         .record();
     for (i, &step) in ATROUS_STEPS.iter().enumerate() {
         let name = format!("svgf_atrous_{}", i + 1);
-        let last = i + 1 == ATROUS_STEPS.len();
-        let (input, input_slot) = match i {
-            0 => (&variance, VARIANCE),
-            1 => (&color, SVGF_COLOR),
-            _ => (&atrous, ATROUS),
-        };
-        let mut pass = graph
-            .pass(&name, Role::All)
-            .read_whole(input)
-            .read_whole(inputs.normal_metallic)
-            .read_whole(inputs.position_depth);
-        let output_slot = if last {
-            pass = pass.read(inputs.radiance).read(inputs.albedo_roughness).write(&mut denoised);
-            DENOISED
-        } else if i == 0 {
-            pass = pass.write(&mut color);
-            SVGF_COLOR
+        let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
+        let (input, input_slot) = if first { (&variance, VARIANCE) } else { (&atrous, ATROUS) };
+        let pass = graph.pass(&name, Role::All).read_whole(input).read_whole(&guide).read_whole(&albedo);
+        let (pass, output) = if last {
+            (pass.read(inputs.radiance).write(&mut denoised), DENOISED)
+        } else if first {
+            (pass.write(&mut atrous).write(&mut color), ATROUS)
         } else {
-            pass = pass.write(&mut atrous);
-            ATROUS
+            (pass.write(&mut atrous), ATROUS)
         };
-        let stage = Stage::Atrous { step, input: input_slot, output: output_slot, last };
+        let stage = Stage::Atrous { step, input: input_slot, output, first, last };
         pass.kernel(Arc::new(SvgfKernel(stage))).record();
     }
     denoised
+}
+
+/// Workgroups of a pass in the phase-tiled layout of `step` over rows `[y0, y1)` of a view
+/// `width` wide (`svgf_tile_base` in shaders/svgf.glsl): for each of the step² phases, 8×8
+/// tiles of that phase's subgrid. Rows are counted from `y0 / step` on every phase, so a band
+/// covers each of its rows exactly once, whatever its bounds. Step 1 is the plain 8×8 tiling.
+pub fn phase_groups(step: u32, width: u32, y0: u32, y1: u32) -> [u32; 3] {
+    let columns = width.div_ceil(step);
+    let rows = y1.div_ceil(step) - y0 / step;
+    [step * columns.div_ceil(8), (step * rows.div_ceil(8)).max(1), 1]
 }
 
 /// Push constants of the SVGF shaders (`SvgfPush` in shaders/svgf.glsl; a test holds the
@@ -154,14 +164,15 @@ pub struct SvgfPush {
     pub out0: u32,
     pub out1: u32,
     pub out2: u32,
+    pub out3: u32,
     pub y0: u32,
     pub y1: u32,
     pub width: u32,
     pub height: u32,
     /// À-trous tap spacing in pixels.
     pub step: u32,
-    /// 1 on the last à-trous iteration (remodulate into `denoised`).
-    pub last: u32,
+    /// À-trous: `LAST` on the last iteration.
+    pub flags: u32,
 }
 
 /// Which SVGF shader a pass runs, and with which slots.
@@ -170,7 +181,7 @@ enum Stage {
     History,
     Temporal,
     Variance,
-    Atrous { step: u32, input: &'static str, output: &'static str, last: bool },
+    Atrous { step: u32, input: &'static str, output: &'static str, first: bool, last: bool },
 }
 
 impl Stage {
@@ -179,7 +190,7 @@ impl Stage {
             Stage::History => "svgf_history",
             Stage::Temporal => "svgf_temporal",
             Stage::Variance => "svgf_variance",
-            Stage::Atrous { .. } => "svgf_atrous",
+            Stage::Atrous { .. } => "svgf_atrous_first",
         }
     }
 }
@@ -232,22 +243,20 @@ impl PassKernel for SvgfKernel {
             out0: UNUSED,
             out1: UNUSED,
             out2: UNUSED,
+            out3: UNUSED,
             y0: pass.rows.y0,
             y1: pass.rows.y1,
             width,
             height,
-            step: 0,
-            last: 0,
+            step: 1,
+            flags: 0,
         };
         match stage {
             Stage::History => {
                 push.in0 = image(rec, Slot::History(SVGF_COLOR))?;
                 push.in1 = image(rec, Slot::History(SVGF_MOMENTS))?;
-                push.in2 = image(rec, Slot::History(POSITION))?;
-                push.in3 = image(rec, Slot::History(NORMAL))?;
                 push.out0 = image(rec, Slot::Output(PREV_COLOR))?;
                 push.out1 = image(rec, Slot::Output(PREV_MOMENTS))?;
-                push.out2 = image(rec, Slot::Output(PREV_NORMAL))?;
             }
             Stage::Temporal => {
                 push.radiance = image(rec, Slot::Input(RADIANCE))?;
@@ -257,32 +266,34 @@ impl PassKernel for SvgfKernel {
                 push.motion = image(rec, Slot::Input(MOTION))?;
                 push.in0 = image(rec, Slot::Input(PREV_COLOR))?;
                 push.in1 = image(rec, Slot::Input(PREV_MOMENTS))?;
-                push.in2 = image(rec, Slot::Input(PREV_NORMAL))?;
-                push.out0 = image(rec, Slot::Output(ILLUM))?;
+                push.out0 = image(rec, Slot::Output(TEMPORAL))?;
                 push.out1 = image(rec, Slot::Output(SVGF_MOMENTS))?;
+                push.out2 = image(rec, Slot::Output(GUIDE))?;
+                push.out3 = image(rec, Slot::Output(EFFECTIVE_ALBEDO))?;
             }
             Stage::Variance => {
-                push.normal = image(rec, Slot::Input(NORMAL))?;
-                push.position = image(rec, Slot::Input(POSITION))?;
-                push.in0 = image(rec, Slot::Input(ILLUM))?;
+                push.in0 = image(rec, Slot::Input(TEMPORAL))?;
                 push.in1 = image(rec, Slot::Input(SVGF_MOMENTS))?;
+                push.in2 = image(rec, Slot::Input(GUIDE))?;
                 push.out0 = image(rec, Slot::Output(VARIANCE))?;
             }
-            Stage::Atrous { step, input, output, last } => {
-                push.normal = image(rec, Slot::Input(NORMAL))?;
-                push.position = image(rec, Slot::Input(POSITION))?;
+            Stage::Atrous { step, input, output, first, last } => {
                 push.in0 = image(rec, Slot::Input(input))?;
+                push.in1 = image(rec, Slot::Input(GUIDE))?;
+                push.in2 = image(rec, Slot::Input(EFFECTIVE_ALBEDO))?;
                 push.out0 = image(rec, Slot::Output(output))?;
                 push.step = step;
+                if first {
+                    push.out1 = image(rec, Slot::Output(SVGF_COLOR))?;
+                    push.flags |= 4;
+                }
                 if last {
                     push.radiance = image(rec, Slot::Input(RADIANCE))?;
-                    push.albedo = image(rec, Slot::Input(ALBEDO))?;
-                    push.last = 1;
+                    push.flags |= LAST;
                 }
             }
         }
-        // 8×8 workgroups over the band (see shaders/svgf.glsl).
-        let groups = [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1];
+        let groups = phase_groups(push.step, width, pass.rows.y0, pass.rows.y1);
         rec.dispatch_bytes(stage.shader(), bytemuck::bytes_of(&push), groups)
     }
 }
@@ -308,17 +319,18 @@ mod tests {
             out0,
             out1,
             out2,
+            out3,
             y0,
             y1,
             width,
             height,
             step,
-            last
+            flags
         });
-        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous"] {
+        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous_first", "svgf_atrous"] {
             let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "SvgfPush").unwrap();
             assert_eq!(glsl, rust, "{shader}");
         }
-        assert_eq!(std::mem::size_of::<SvgfPush>(), 72);
+        assert_eq!(std::mem::size_of::<SvgfPush>(), 76);
     }
 }
