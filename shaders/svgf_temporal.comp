@@ -4,7 +4,7 @@
 //   radiance, albedo, normal, motion: own pixel; position: own pixel and its 4 neighbours
 //   in0 `svgf_prev_color` (illumination rgb, length), in1 `svgf_prev_moments` (m1, m2, depth,
 //   packed normal): whole view
-//   out0 `svgf_temporal`: (accumulated radiance rgb, history length)
+//   out0 `svgf_temporal`: (accumulated radiance / albedo: illumination rgb, history length)
 //   out1 `svgf_moments`: (m1, m2, linear depth, packed normal), read as history next frame
 //   out2 `svgf_guide`: (linear depth, depth gradient x, y, packed normal)
 //   out3 `svgf_albedo`: (effective albedo rgb, history length)
@@ -36,6 +36,7 @@ void main() {
     vec3 radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
     float z = imageLoad(images[pc.position], p).w;
     if (!(z > 0.0)) {
+        // No albedo to divide by: the radiance as is (the à-trous passes let it through).
         imageStore(images[pc.out0], p, vec4(radiance, 0.0));
         imageStore(images[pc.out1], p, vec4(0.0));
         imageStore(images[pc.out2], p, vec4(0.0));
@@ -90,7 +91,7 @@ void main() {
         out_radiance = mix(min(albedo * (prev_illum / weight_sum), vec3(MAX_VALUE)), radiance, a);
         moments = mix(prev_moments / weight_sum, moments, am);
     }
-    imageStore(images[pc.out0], p, vec4(out_radiance, length_));
+    imageStore(images[pc.out0], p, vec4(min(out_radiance / albedo, vec3(MAX_VALUE)), length_));
     imageStore(images[pc.out1], p, vec4(moments, z, packed_normal));
     imageStore(images[pc.out2], p, vec4(z, gradient, packed_normal));
     imageStore(images[pc.out3], p, vec4(albedo, length_));

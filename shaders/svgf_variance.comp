@@ -1,15 +1,15 @@
 #version 460
 // SVGF, step 2 (`svgf_variance`): the illumination-luminance variance that steers the à-trous
 // filter.
-//   in0 `svgf_temporal` (radiance rgb, history length), in1 `svgf_moments`, in2 `svgf_guide`:
+//   in0 `svgf_temporal` (illumination rgb, history length), in1 `svgf_moments`, in2 `svgf_guide`:
 //   whole view
-//   out0 `svgf_variance`: (radiance rgb, variance)
+//   out0 `svgf_variance`: (illumination rgb, variance)
 // With 4 frames of history or more the variance comes from the temporal moments; with fewer it
 // is estimated spatially, from the moments of a 7×7 neighbourhood weighted by depth, normal and
-// luminance (Schied §4.2). The radiance is the temporal one: Schied also replaces it by the
-// neighbourhood's bilateral mean, which is a filter that does not conserve energy (at depth
-// edges, borders, next to dark albedo), on the very frames that have the least history; the
-// energy-conserving first à-trous iteration does that smoothing instead. A workgroup with
+// luminance (Schied §4.2). The illumination is the temporal one: Schied also replaces it by the
+// neighbourhood's bilateral mean, a filter that does not conserve energy (at depth edges,
+// borders, next to dark albedo) on the very frames that have the least history; the
+// energy-conserving à-trous iterations do that smoothing instead. A workgroup with
 // short histories reads its 14×14 neighbourhood into shared memory once.
 #include "svgf.glsl"
 

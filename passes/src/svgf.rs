@@ -61,6 +61,8 @@ const MOTION: &str = "motion";
 
 /// Image index the shaders never read (push constants of slots a kernel does not use).
 const UNUSED: u32 = u32::MAX;
+/// `SvgfPush::flags`: the first à-trous iteration (variance blur, colour history).
+const FIRST: u32 = 1;
 /// `SvgfPush::flags`: the last à-trous iteration (writes `denoised`).
 const LAST: u32 = 2;
 
@@ -171,7 +173,7 @@ pub struct SvgfPush {
     pub height: u32,
     /// À-trous tap spacing in pixels.
     pub step: u32,
-    /// À-trous: `LAST` on the last iteration.
+    /// À-trous: `FIRST` and/or `LAST`.
     pub flags: u32,
 }
 
@@ -190,7 +192,7 @@ impl Stage {
             Stage::History => "svgf_history",
             Stage::Temporal => "svgf_temporal",
             Stage::Variance => "svgf_variance",
-            Stage::Atrous { .. } => "svgf_atrous_first",
+            Stage::Atrous { .. } => "svgf_atrous",
         }
     }
 }
@@ -285,7 +287,7 @@ impl PassKernel for SvgfKernel {
                 push.step = step;
                 if first {
                     push.out1 = image(rec, Slot::Output(SVGF_COLOR))?;
-                    push.flags |= 4;
+                    push.flags |= FIRST;
                 }
                 if last {
                     push.radiance = image(rec, Slot::Input(RADIANCE))?;
@@ -327,7 +329,7 @@ mod tests {
             step,
             flags
         });
-        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous_first", "svgf_atrous"] {
+        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous"] {
             let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "SvgfPush").unwrap();
             assert_eq!(glsl, rust, "{shader}");
         }
