@@ -129,31 +129,6 @@ vec3 svgf_unpack_normal(float packed) {
     return normalize(n);
 }
 
-// One axis of the screen-space depth gradient at p (depth z > 0) from the G-buffer: of the
-// forward and backward differences, the smaller in magnitude, so that a depth edge on one side
-// does not inflate it; a side without a hit (or off the image) is not used.
-float svgf_depth_slope(ivec2 p, ivec2 axis, float z) {
-    float best = 0.0;
-    bool found = false;
-    for (int s = -1; s <= 1; s += 2) {
-        ivec2 q = p + s * axis;
-        if (!svgf_inside(q)) {
-            continue;
-        }
-        float zq = imageLoad(images[pc.position], q).w;
-        // Written so that NaN fails too.
-        if (!(zq > 0.0)) {
-            continue;
-        }
-        float d = float(s) * (zq - z);
-        if (!found || abs(d) < abs(best)) {
-            best = d;
-            found = true;
-        }
-    }
-    return best;
-}
-
 // The edge-stopping weight of taps p and q `offset` pixels apart (Schied's w_z · w_n · w_l with
 // σ_z = 1, σ_n = 128, σ_l = 4), symmetric in p and q, so that a filter built on it can conserve
 // energy (svgf_atrous_first.comp):
