@@ -37,10 +37,11 @@ layout(push_constant, std430) uniform SvgfPush {
     uint width;
     uint height;
     uint step;  // à-trous: tap spacing in pixels
-    uint flags; // à-trous: SVGF_LAST
+    uint flags; // à-trous: SVGF_FIRST, SVGF_LAST
 } pc;
 
-const uint SVGF_LAST = 2u; // last à-trous iteration: writes `denoised`
+const uint SVGF_FIRST = 1u; // first à-trous iteration: blurs the variance, writes the history
+const uint SVGF_LAST = 2u;  // last à-trous iteration: writes `denoised`
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -128,31 +129,6 @@ vec3 svgf_unpack_normal(float packed) {
     return normalize(n);
 }
 
-// One axis of the screen-space depth gradient at p (depth z > 0) from the G-buffer: of the
-// forward and backward differences, the smaller in magnitude, so that a depth edge on one side
-// does not inflate it; a side without a hit (or off the image) is not used.
-float svgf_depth_slope(ivec2 p, ivec2 axis, float z) {
-    float best = 0.0;
-    bool found = false;
-    for (int s = -1; s <= 1; s += 2) {
-        ivec2 q = p + s * axis;
-        if (!svgf_inside(q)) {
-            continue;
-        }
-        float zq = imageLoad(images[pc.position], q).w;
-        // Written so that NaN fails too.
-        if (!(zq > 0.0)) {
-            continue;
-        }
-        float d = float(s) * (zq - z);
-        if (!found || abs(d) < abs(best)) {
-            best = d;
-            found = true;
-        }
-    }
-    return best;
-}
-
 // The edge-stopping weight of taps p and q `offset` pixels apart (Schied's w_z · w_n · w_l with
 // σ_z = 1, σ_n = 128, σ_l = 4), symmetric in p and q, so that a filter built on it can conserve
 // energy (svgf_atrous_first.comp):
@@ -188,6 +164,17 @@ float svgf_geometry_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 n
     d *= d; d *= d; d *= d; d *= d; d *= d; d *= d; d *= d;
     float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
     return d * exp(-abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12));
+}
+
+// Where an à-trous iteration puts pixel p without a hit: on the last iteration its radiance,
+// else its texel as is.
+void svgf_pass_through(ivec2 p, vec4 texel) {
+    if ((pc.flags & SVGF_LAST) != 0u) {
+        vec4 radiance = imageLoad(images[pc.radiance], p);
+        imageStore(images[pc.out0], p, vec4(svgf_sanitize(radiance.rgb), radiance.a));
+    } else {
+        imageStore(images[pc.out0], p, texel);
+    }
 }
 
 // The phase-tiled layout of a pass with tap spacing `step`: workgroup (gx, gy) owns the 8×8

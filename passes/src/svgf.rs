@@ -46,7 +46,6 @@ pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
 // This frame's copies of the history ([`Stage::History`]) and the intermediate images.
 const PREV_COLOR: &str = "svgf_prev_color";
 const PREV_MOMENTS: &str = "svgf_prev_moments";
-const TEMPORAL: &str = "svgf_temporal";
 const GUIDE: &str = "svgf_guide";
 const EFFECTIVE_ALBEDO: &str = "svgf_albedo";
 const VARIANCE: &str = "svgf_variance";
@@ -61,6 +60,8 @@ const MOTION: &str = "motion";
 
 /// Image index the shaders never read (push constants of slots a kernel does not use).
 const UNUSED: u32 = u32::MAX;
+/// `SvgfPush::flags`: the first à-trous iteration (variance blur, colour history).
+const FIRST: u32 = 1;
 /// `SvgfPush::flags`: the last à-trous iteration (writes `denoised`).
 const LAST: u32 = 2;
 
@@ -80,7 +81,6 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     let mut moments = graph.image(SVGF_MOMENTS, Format::Rgba32f);
     let mut prev_color = graph.image(PREV_COLOR, Format::Rgba32f);
     let mut prev_moments = graph.image(PREV_MOMENTS, Format::Rgba32f);
-    let mut temporal = graph.image(TEMPORAL, Format::Rgba32f);
     let mut guide = graph.image(GUIDE, Format::Rgba32f);
     // Albedo in [0, 1] (plus a floor) weighs and remodulates: half floats' 2^-11 is plenty.
     let mut albedo = graph.image(EFFECTIVE_ALBEDO, Format::Rgba16f);
@@ -96,28 +96,21 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         .write(&mut prev_moments)
         .kernel(Arc::new(SvgfKernel(Stage::History)))
         .record();
+    // The G-buffer whole: the depth gradient and the spatial variance estimate read neighbours.
     graph
         .pass("svgf_temporal", Role::All)
-        .read(inputs.radiance)
-        .read(inputs.albedo_roughness)
-        .read(inputs.normal_metallic)
+        .read_whole(inputs.radiance)
+        .read_whole(inputs.albedo_roughness)
+        .read_whole(inputs.normal_metallic)
         .read_whole(inputs.position_depth)
         .read(inputs.motion)
         .read_whole(&prev_color)
         .read_whole(&prev_moments)
-        .write(&mut temporal)
+        .write(&mut variance)
         .write(&mut moments)
         .write(&mut guide)
         .write(&mut albedo)
         .kernel(Arc::new(SvgfKernel(Stage::Temporal)))
-        .record();
-    graph
-        .pass("svgf_variance", Role::All)
-        .read_whole(&temporal)
-        .read_whole(&moments)
-        .read_whole(&guide)
-        .write(&mut variance)
-        .kernel(Arc::new(SvgfKernel(Stage::Variance)))
         .record();
     for (i, &step) in ATROUS_STEPS.iter().enumerate() {
         let name = format!("svgf_atrous_{}", i + 1);
@@ -171,7 +164,7 @@ pub struct SvgfPush {
     pub height: u32,
     /// À-trous tap spacing in pixels.
     pub step: u32,
-    /// À-trous: `LAST` on the last iteration.
+    /// À-trous: `FIRST` and/or `LAST`.
     pub flags: u32,
 }
 
@@ -180,7 +173,6 @@ pub struct SvgfPush {
 enum Stage {
     History,
     Temporal,
-    Variance,
     Atrous { step: u32, input: &'static str, output: &'static str, first: bool, last: bool },
 }
 
@@ -189,8 +181,7 @@ impl Stage {
         match self {
             Stage::History => "svgf_history",
             Stage::Temporal => "svgf_temporal",
-            Stage::Variance => "svgf_variance",
-            Stage::Atrous { .. } => "svgf_atrous_first",
+            Stage::Atrous { .. } => "svgf_atrous",
         }
     }
 }
@@ -266,16 +257,10 @@ impl PassKernel for SvgfKernel {
                 push.motion = image(rec, Slot::Input(MOTION))?;
                 push.in0 = image(rec, Slot::Input(PREV_COLOR))?;
                 push.in1 = image(rec, Slot::Input(PREV_MOMENTS))?;
-                push.out0 = image(rec, Slot::Output(TEMPORAL))?;
+                push.out0 = image(rec, Slot::Output(VARIANCE))?;
                 push.out1 = image(rec, Slot::Output(SVGF_MOMENTS))?;
                 push.out2 = image(rec, Slot::Output(GUIDE))?;
                 push.out3 = image(rec, Slot::Output(EFFECTIVE_ALBEDO))?;
-            }
-            Stage::Variance => {
-                push.in0 = image(rec, Slot::Input(TEMPORAL))?;
-                push.in1 = image(rec, Slot::Input(SVGF_MOMENTS))?;
-                push.in2 = image(rec, Slot::Input(GUIDE))?;
-                push.out0 = image(rec, Slot::Output(VARIANCE))?;
             }
             Stage::Atrous { step, input, output, first, last } => {
                 push.in0 = image(rec, Slot::Input(input))?;
@@ -285,7 +270,7 @@ impl PassKernel for SvgfKernel {
                 push.step = step;
                 if first {
                     push.out1 = image(rec, Slot::Output(SVGF_COLOR))?;
-                    push.flags |= 4;
+                    push.flags |= FIRST;
                 }
                 if last {
                     push.radiance = image(rec, Slot::Input(RADIANCE))?;
@@ -327,7 +312,7 @@ mod tests {
             step,
             flags
         });
-        for shader in ["svgf_history", "svgf_temporal", "svgf_variance", "svgf_atrous_first", "svgf_atrous"] {
+        for shader in ["svgf_history", "svgf_temporal", "svgf_atrous"] {
             let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "SvgfPush").unwrap();
             assert_eq!(glsl, rust, "{shader}");
         }
