@@ -34,7 +34,9 @@ fn path_traced_views_are_identical_on_any_number_of_devices_and_schemes() {
     assert_eq!(json(&reference.join("render.json"))["plan"]["views"], 8);
     for (devices, scheme) in [("2", "multi-source"), ("2", "fine-all"), ("2", "fine-sources")] {
         let other = dir.join(format!("{devices}-{scheme}"));
-        render(&other, &["--pipeline", "path-trace", "--fake-devices", devices, "--scheme", scheme, "--frames", "2"]);
+        // Three frames in flight here, two (the default) for the reference: the same bits.
+        let args = ["--pipeline", "path-trace", "--fake-devices", devices, "--scheme", scheme, "--frames", "2"];
+        render(&other, &[&args[..], &["--frames-in-flight", "3"]].concat());
         for v in 0..8 {
             let name = format!("view_{v:03}.exr");
             let a = std::fs::read(reference.join(&name)).unwrap();
@@ -62,6 +64,16 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     }
     assert_eq!(report["timing"]["frames"], 3, "warm-up frames are not measured");
     assert_eq!(report["timing"]["busy_fraction"].as_array().unwrap().len(), 2);
+    assert_eq!(report["frames_in_flight"], 2, "the default");
+    assert_eq!(report["timing"]["frame_gpu_ms"].as_array().unwrap().len(), 3);
+    assert_eq!(report["timing"]["frame_gpu_ms_complete"], true);
+    // Where the host's time goes: every figure present; 2 intervals between 3 frames.
+    let host = &report["timing"]["host"];
+    for figure in ["frame_interval", "prepare", "submit_cpu", "slot_wait", "gpu_gap"] {
+        assert!(host[figure]["mean_ms"].as_f64().is_some_and(|ms| ms >= 0.0), "{figure}: {host}");
+    }
+    assert!(host["frame_interval"]["mean_ms"].as_f64().unwrap() > 0.0);
+    assert!(host["late_frames"].as_u64().is_some_and(|late| late <= 2));
     let missing = &report["missing_pixels"];
     assert_eq!(missing["per_view"].as_array().unwrap().len(), 6, "8 views, 2 sources");
     let overall = missing["overall"].as_f64().unwrap();
