@@ -16,8 +16,11 @@ mod lightfield_images;
 mod logging;
 mod options;
 mod outputs;
+mod render_pictures;
 mod render_report;
+mod run_setup;
 mod scene_args;
+mod viewer;
 
 use clap::{CommandFactory, Parser, Subcommand};
 
