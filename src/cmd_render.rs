@@ -103,11 +103,14 @@ pub struct RenderArgs {
     spp: u32,
     #[command(flatten)]
     depth: DepthArgs,
-    /// Measured frames (the camera dollies across the scene over warm-up and measured frames).
+    /// Measured frames (the camera dollies across the scene over the measured frames; one frame
+    /// is a still camera).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
-    /// Frames rendered before measuring (timings and outputs ignore them).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    /// Frames rendered before measuring, at the first measured frame's camera (timings and
+    /// outputs ignore them). The first frame pays for pipeline creation and first-use costs
+    /// (seconds on some drivers), so measuring from frame 0 with `--warmup 0` times those too.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
     /// Keep the camera still over the frames (no dolly, no glTF animation): what accuracy
     /// against a reference of the same camera needs.
@@ -196,13 +199,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let scene = args.scene.load()?;
     let camera = args.scene.camera_or_default(&scene);
     let centre = scene.bounds().center();
-    // The scene's own camera animation, spread over the frames; else a dolly (an explicit
-    // --camera is a rig the user placed: it dollies too).
+    // The scene's own camera animation, spread over the measured frames; else a dolly (an
+    // explicit --camera is a rig the user placed: it dollies too). Warm-up frames see the first
+    // measured frame's camera, so one measured frame is a still camera whatever the warm-up.
     let animation = if args.scene.camera.is_none() { scene.camera_animation.clone() } else { None };
-    let camera_at = |f: u32| match &animation {
-        _ if args.still => camera,
-        Some(a) => a.camera_at(a.duration * f as f32 / total_frames.saturating_sub(1).max(1) as f32),
-        None => dolly(&camera, &scene, f, total_frames),
+    let camera_at = |f: u32| {
+        let m = f.saturating_sub(args.warmup);
+        match &animation {
+            _ if args.still => camera,
+            Some(a) => a.camera_at(a.duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32),
+            None => dolly(&camera, &scene, m, args.frames),
+        }
     };
     let lf_of = |f: u32| -> Result<LightField> { args.light_field.around(&camera_at(f), centre) };
     let lf = lf_of(0)?;
@@ -326,7 +333,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
     let timing = timings(&reports);
     let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
-    let still = args.still || total_frames == 1;
+    let still = args.still || args.frames == 1;
     let last_lf = lf_of(total_frames - 1)?;
     let spacing = args.light_field.spacing;
     let setup = Setup::new(
