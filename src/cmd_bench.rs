@@ -92,9 +92,16 @@ pub struct BenchArgs {
     /// Frames rendered before measuring, per cell [default: the matrix file's `warmup`, or 2].
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: Option<u32>,
-    /// A folder of reference views (`parallax reference`) to measure every cell's accuracy against.
+    /// A folder of reference views (`parallax reference`) to measure every cell's accuracy against
+    /// (FLIP and PSNR as `parallax compare` computes them, at the reference's automatic exposure).
+    /// The settings in the first cell's render.json must match reference.json's (scene, camera,
+    /// still, layout, spacing, focus, resolution, lights, max depth), else bench stops (exit 1)
+    /// naming each difference.
     #[arg(long)]
     reference: Option<PathBuf>,
+    /// Measure accuracy against the references even where the settings differ.
+    #[arg(long)]
+    allow_mismatch: bool,
     /// Folder for bench.json, bench.md, points.json and one sub-folder per cell (created if missing).
     #[arg(long, default_value = "out/bench")]
     out_dir: PathBuf,
@@ -188,8 +195,15 @@ fn stage_total_ms(timing: &serde_json::Value, stage: &str) -> Option<f64> {
     Some(rows.iter().filter(|r| r["stage"] == stage).filter_map(|r| r["mean_ms"].as_f64()).fold(0.0, |a, b| a + b))
 }
 
-/// Runs one cell; returns its bench.json entry.
-fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Result<serde_json::Value> {
+/// Runs one cell; returns its bench.json entry. An error (the cell's settings differ from its
+/// reference's) stops the matrix.
+fn run_cell(
+    case: &Case,
+    cell: &Cell,
+    argv: &[OsString],
+    folder: &Path,
+    allow_mismatch: bool,
+) -> Result<serde_json::Value> {
     let exe = std::env::current_exe().context("cannot find this program to run the cells")?;
     let output = Command::new(exe).arg("-q").arg("render").args(argv).output().context("cannot start a cell")?;
     let id = &cell.id;
@@ -238,9 +252,13 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
     entry["copy_bytes_per_frame"] = timing["copy_bytes_per_frame"].clone();
     entry["missing_pixels"] = report["missing_pixels"].clone();
     if let Some(reference) = &case.reference {
+        // Settings that differ would make every cell of the case measure them, not its error.
+        crate::cmd_compare::check_settings(folder, reference, allow_mismatch)
+            .with_context(|| format!("cell {id}: --reference {}", reference.display()))?;
         // A reference that does not fit (other views or sizes) costs this cell its accuracy,
         // not the matrix its remaining cells.
-        match parallax_accuracy::compare_paths(folder, reference) {
+        let options = parallax_accuracy::CompareOptions::default();
+        match parallax_accuracy::compare_paths(folder, reference, &options) {
             Ok(c) => {
                 entry["flip"] = c.overall.flip.into();
                 entry["psnr_db"] = c.overall.psnr_linear_db.into();
@@ -319,7 +337,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let mut md = String::new();
     for (cell, argv) in cells.iter().zip(&argvs) {
         let folder = args.out_dir.join(&cell.id);
-        entries.push(run_cell(&matrix.cases[cell.case], cell, argv, &folder)?);
+        entries.push(run_cell(&matrix.cases[cell.case], cell, argv, &folder, args.allow_mismatch)?);
         // Written after every cell, so a run that is stopped keeps the cells it finished.
         md = write_outputs(&args, &matrix, frames, warmup, &entries)?;
         progress.inc(1);

@@ -16,6 +16,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::ProgressStyle;
+use parallax_accuracy::exposure::LogAverage;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
 use parallax_backend::{Context as VkContext, ContextDesc};
 use parallax_graph::{LightField, ViewId};
@@ -25,7 +26,8 @@ use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::{TraceWork, check_host_bytes};
-use crate::options::{DeviceArgs, parse_exposure};
+use crate::options::{DeviceArgs, Exposure, parse_exposure};
+use crate::run_setup::{Setup, scene_fingerprint};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use parallax_passes::camera::lightfield_view;
 
@@ -57,9 +59,11 @@ pub struct ReferenceArgs {
     /// Folder for view_NNN.exr, reference.png, reference.json and reference.partial.
     #[arg(long, default_value = "out/reference")]
     out_dir: PathBuf,
-    /// Exposure multiplier for the contact sheet (> 0).
-    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
-    exposure: f32,
+    /// Exposure of the contact sheet: `auto` (the log-average luminance of every view mapped to
+    /// 0.18, one exposure for all, computed on the host from the mean radiance) or a multiplier
+    /// > 0. The value used is written to reference.json.
+    #[arg(long, allow_negative_numbers = true, default_value = "auto", value_parser = parse_exposure)]
+    exposure: Exposure,
 }
 
 /// `0,5,8-11` into sorted, distinct view indices below `count`.
@@ -81,19 +85,6 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     views.sort_unstable();
     views.dedup();
     Ok(views)
-}
-
-/// The scene file's name and FNV-1a hash, so a resumed run notices an edited scene but not a
-/// different path to the same file (`default` is built in). Buffers and textures a glTF
-/// refers to are not hashed.
-fn scene_fingerprint(spec: &str) -> Result<String> {
-    if spec == "default" {
-        return Ok("default".into());
-    }
-    let bytes = std::fs::read(spec).with_context(|| format!("--scene {spec}: cannot read the file"))?;
-    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    let name = Path::new(spec).file_name().map_or(spec.into(), |n| n.to_string_lossy());
-    Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))
 }
 
 enum Tracer<'a> {
@@ -176,6 +167,15 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         ("--sun".to_string(), format!("{:?}", scene.sun)),
         ("--sky".to_string(), format!("{:?}", scene.sky)),
     ]);
+    // What compare checks: a reference is always of a still camera.
+    let setup = Setup::new(
+        &args.scene.scene,
+        &scene,
+        &args.scene.camera_or_default(&scene),
+        true,
+        (&lf, args.light_field.spacing),
+        args.depth.max_depth,
+    )?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     remove_stale_temporaries(&args.out_dir);
@@ -196,7 +196,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
             partial.display(),
             acc.header.spp
         );
-        return write_outputs(&args, &acc, &selected, &lf, 0.0, None);
+        return write_outputs(&args, &acc, &selected, (&lf, &setup), 0.0, None);
     }
 
     let bvh = SceneBvh::build(&scene);
@@ -246,7 +246,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         drop(tracer);
         context.check_validation()?;
     }
-    write_outputs(&args, &acc, &selected, &lf, started.elapsed().as_secs_f64(), Some(devices))
+    write_outputs(&args, &acc, &selected, (&lf, &setup), started.elapsed().as_secs_f64(), Some(devices))
 }
 
 /// The EXRs of the current mean (spp in their attributes), then the sidecar: a crash between
@@ -268,7 +268,7 @@ fn write_outputs(
     args: &ReferenceArgs,
     acc: &Accumulator,
     selected: &[u32],
-    lf: &LightField,
+    (lf, setup): (&LightField, &Setup),
     seconds_this_run: f64,
     devices: Option<usize>,
 ) -> Result<()> {
@@ -287,7 +287,12 @@ fn write_outputs(
         .collect();
     let sheet = args.out_dir.join("reference.png");
     let columns = if selected.len() == lf.len() { lf.cols } else { selected.len().min(8) as u32 };
-    write_contact_sheet(&sheet, &frames.iter().collect::<Vec<_>>(), columns, args.exposure)?;
+    let mut average = LogAverage::default();
+    for frame in &frames {
+        average.add_all(frame.pixels.iter().map(|p| p.radiance.as_ref()));
+    }
+    let exposure = args.exposure.resolve(&average);
+    write_contact_sheet(&sheet, &frames.iter().collect::<Vec<_>>(), columns, exposure)?;
     let (mean, standard_error) = acc.mean_and_standard_error();
     // One "frame" of the reference is one sample per pixel of every selected view.
     let ms_per_spp = h.seconds * 1e3 / h.spp.max(1) as f64;
@@ -304,6 +309,7 @@ fn write_outputs(
             "seconds": h.seconds, "seconds_this_run": seconds_this_run, "ms_per_spp": ms_per_spp,
             "tracer": if args.cpu { "cpu" } else { "gpu" }, "devices": devices,
             "views": selected, "width": h.width, "height": h.height, "settings": &h.settings,
+            "exposure": exposure, "exposure_mode": args.exposure.mode(), "setup": setup,
             "mean_radiance": mean, "standard_error": standard_error, "point": point,
     });
     let bytes = serde_json::to_vec_pretty(&json)?;

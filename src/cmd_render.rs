@@ -2,8 +2,10 @@
 //! (`--pipeline reproject`: G-buffer, path tracing of the sources, reprojection of the targets,
 //! hole filling, SVGF, tonemapping) or with every view path traced (`--pipeline path-trace`, the
 //! baseline), over N devices under any of the three schemes, for F frames of a camera dolly.
-//! Writes the last frame's views (EXR, linear radiance after denoising), the contact sheet, an
-//! optional Looking Glass quilt, and render.json with the paper's Table 1 / Table 4 measures.
+//! Writes the last frame's views (EXR, linear radiance after denoising; PNG at one exposure for
+//! the whole light field), the contact sheet, `viewer.html` (the views in a browser, with
+//! parallax), an optional Looking Glass quilt and wiggle, and render.json with the paper's
+//! Table 1 / Table 4 measures and the `setup` that comparisons check.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -25,16 +27,15 @@ use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, TraceSettings,
 
 use crate::budget::TraceWork;
 use crate::cmd_plan::compile_checked;
-use crate::lightfield_images::{DisplayImage, quilt_file_name, write_contact_sheet, write_quilt};
 use crate::logging::{bar, result};
-use crate::options::{AssignArg, DeviceArgs, SchemeArg, SourceList, assignment, parse_exposure, parse_sources};
+use crate::options::{
+    AssignArg, DeviceArgs, Exposure, SchemeArg, SourceList, assignment, parse_exposure, parse_sources,
+};
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
+use crate::render_pictures::{display_images, gpu_exposure, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
+use crate::run_setup::Setup;
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
-
-/// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
-/// screen shows whole.
-const SHEET_COLUMNS: u32 = 10;
 
 /// `--gbuffer`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -102,15 +103,18 @@ pub struct RenderArgs {
     spp: u32,
     #[command(flatten)]
     depth: DepthArgs,
-    /// Measured frames (the camera dollies across the scene over warm-up and measured frames).
+    /// Measured frames (the camera dollies across the scene over the measured frames; one frame
+    /// is a still camera).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Frames submitted before the host waits for the oldest: the host prepares and submits the
     /// next frames while the GPU runs this one.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=8))]
     frames_in_flight: u32,
-    /// Frames rendered before measuring (timings and outputs ignore them).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    /// Frames rendered before measuring, at the first measured frame's camera (timings and
+    /// outputs ignore them). The first frame pays for pipeline creation and first-use costs
+    /// (seconds on some drivers), so measuring from frame 0 with `--warmup 0` times those too.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
     /// Keep the camera still over the frames (no dolly, no glTF animation): what accuracy
     /// against a reference of the same camera needs.
@@ -119,14 +123,22 @@ pub struct RenderArgs {
     /// Also write the views of every N-th measured frame to frame_FFFFF/ under --out-dir.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     save_every: Option<u32>,
-    /// Folder for view_NNN.exr, lightfield.png and render.json (created if missing). Every
-    /// view_NNN.exr already there that this run does not write is removed, so the folder
-    /// holds exactly the views render.json lists; nothing changes there if the run fails.
+    /// Folder for view_NNN.exr and view_NNN.png, lightfield.png, viewer.html and render.json
+    /// (created if missing). Every view_NNN.exr or .png already there that this run does not
+    /// write is removed, so the folder holds exactly the views render.json lists; nothing
+    /// changes there if the run fails.
     #[arg(long, default_value = "out/lightfield")]
     out_dir: PathBuf,
-    /// Exposure of the tonemapper (> 0).
-    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
-    exposure: f32,
+    /// Exposure of the PNGs, sheet, quilt, wiggle and viewer: `auto` (the last frame's
+    /// log-average luminance over every view mapped to 0.18, computed on the host from the
+    /// read-back linear views; the value is written to render.json) or a multiplier > 0 (the
+    /// GPU tonemap pass's own output).
+    #[arg(long, allow_negative_numbers = true, default_value = "auto", value_parser = parse_exposure)]
+    exposure: Exposure,
+    /// Also write an animated PNG sweeping through the views of the middle row, there and back
+    /// (for slides and READMEs).
+    #[arg(long, value_name = "FILE.png")]
+    wiggle: Option<PathBuf>,
     /// Add the hole mask, albedo, normal and depth to every view's EXR.
     #[arg(long)]
     layers: bool,
@@ -187,7 +199,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let assign = assignment(args.scheme, args.assign)?;
     let sheet = args.out_dir.join("lightfield.png");
     let render_json = args.out_dir.join("render.json");
-    check_outputs(&args.out_dir, &sheet, &render_json, args.trace.as_ref())?;
+    check_outputs(&args.out_dir, &sheet, &render_json, args.trace.as_ref(), args.wiggle.as_deref())?;
     let settings = TraceSettings { spp: args.spp, max_depth: args.depth.max_depth, ..Default::default() };
     settings.validate()?;
     let total_frames = args.warmup + args.frames;
@@ -206,13 +218,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let scene = args.scene.load()?;
     let camera = args.scene.camera_or_default(&scene);
     let centre = scene.bounds().center();
-    // The scene's own camera animation, spread over the frames; else a dolly (an explicit
-    // --camera is a rig the user placed: it dollies too).
+    // The scene's own camera animation, spread over the measured frames; else a dolly (an
+    // explicit --camera is a rig the user placed: it dollies too). Warm-up frames see the first
+    // measured frame's camera, so one measured frame is a still camera whatever the warm-up.
     let animation = if args.scene.camera.is_none() { scene.camera_animation.clone() } else { None };
-    let camera_at = |f: u32| match &animation {
-        _ if args.still => camera,
-        Some(a) => a.camera_at(a.duration * f as f32 / total_frames.saturating_sub(1).max(1) as f32),
-        None => dolly(&camera, &scene, f, total_frames),
+    let camera_at = |f: u32| {
+        let m = f.saturating_sub(args.warmup);
+        match &animation {
+            _ if args.still => camera,
+            Some(a) => a.camera_at(a.duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32),
+            None => dolly(&camera, &scene, m, args.frames),
+        }
     };
     let lf_of = |f: u32| -> Result<LightField> { args.light_field.around(&camera_at(f), centre) };
     let lf = lf_of(0)?;
@@ -236,7 +252,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         },
         tolerances: ReprojectionTolerances { view_dependence: args.reprojection_tolerance, ..Default::default() },
         denoise: !args.no_denoise,
-        exposure: args.exposure,
+        exposure: gpu_exposure(args.exposure),
     };
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let handles = declare_pipeline(&mut graph, &pipeline)?;
@@ -317,14 +333,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         &last_views,
         &extra_layers(&args, kind),
     )?);
-    let displays: Vec<Vec<u8>> = (0..lf.len() as u32).map(|v| renderer.read("display", v)).collect::<Result<_, _>>()?;
-    let images: Vec<DisplayImage<'_>> =
-        displays.iter().map(|d| DisplayImage { width: lf.width, height: lf.height, rgba8: d }).collect();
-    staged.push(stage(&sheet, |tmp| write_contact_sheet(tmp, &images, lf.cols.min(SHEET_COLUMNS)))?);
-    if args.quilt {
-        let quilt = args.out_dir.join(quilt_file_name("lightfield", lf.len() as u32, lf.width, lf.height));
-        staged.push(stage(&quilt, |tmp| write_quilt(tmp, &images))?);
-    }
+    let (exposure, displays) = display_images(&mut renderer, handles.linear_slot, lf.len() as u32, args.exposure)?;
+    let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
+    drop(displays);
     let missing = match kind {
         PipelineKind::Reproject => {
             let holes: Vec<Option<Vec<u32>>> = (0..lf.len() as u32)
@@ -344,6 +355,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     context.check_validation()?;
 
     let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
+    let still = args.still || args.frames == 1;
+    let last_lf = lf_of(total_frames - 1)?;
+    let spacing = args.light_field.spacing;
+    let setup = Setup::new(
+        &args.scene.scene,
+        &scene,
+        &camera_at(total_frames - 1),
+        still,
+        (&last_lf, spacing),
+        args.depth.max_depth,
+    )?;
     let json = serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
         "scene": args.scene.scene,
@@ -355,7 +377,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "layout": { "spec": format!("{:?}", args.light_field.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
                     "width": lf.width, "height": lf.height, "spacing_m": args.light_field.spacing, "focus_m": lf.rig.focus_distance },
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
-        "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise, "exposure": args.exposure,
+        "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise,
+        "exposure": exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
         "reprojection_tolerance": args.reprojection_tolerance,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
@@ -366,11 +389,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "timing": &timing,
         "missing_pixels": &missing,
     });
+    let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
     let json_file = crate::outputs::stage_json(&render_json, &json)?;
     let trace = args.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
-    for s in staged {
+    for s in staged.into_iter().chain(pictures.staged) {
         s.commit()?;
     }
+    viewer.commit()?;
     remove_stale_views(&args.out_dir, lf.len())?;
     if let (Some(sink), Some(trace)) = (&args.trace, &trace) {
         crate::outputs::write_json(sink, trace)?;
@@ -392,7 +417,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
         timing.frame_gpu.mean_ms,
         100.0 * missing.overall
     ));
-    say(format!("wrote {} view EXRs, {} and {}", lf.len(), sheet.display(), render_json.display()));
+    say(format!(
+        "wrote {} views (EXR and PNG at exposure {exposure:.4}, {}), {}, {} and {}",
+        lf.len(),
+        args.exposure.mode(),
+        sheet.display(),
+        args.out_dir.join("viewer.html").display(),
+        render_json.display()
+    ));
     Ok(())
 }
 
@@ -478,7 +510,13 @@ fn view_file_name(index: u32) -> String {
 
 /// Checks the outputs before any work. The folder may not exist yet (it is created when the
 /// views are written), but the nearest folder above it must be writable.
-fn check_outputs(out_dir: &Path, sheet: &Path, render_json: &Path, trace: Option<&Sink>) -> Result<()> {
+fn check_outputs(
+    out_dir: &Path,
+    sheet: &Path,
+    render_json: &Path,
+    trace: Option<&Sink>,
+    wiggle: Option<&Path>,
+) -> Result<()> {
     if out_dir.exists() && !out_dir.is_dir() {
         bail!("--out-dir {} is a file: give a folder", out_dir.display());
     }
@@ -491,24 +529,37 @@ fn check_outputs(out_dir: &Path, sheet: &Path, render_json: &Path, trace: Option
         .with_context(|| format!("--out-dir {}: folder {} is not writable", out_dir.display(), existing.display()))?;
     let sheet_sink = Sink::File(sheet.to_path_buf());
     let json_sink = Sink::File(render_json.to_path_buf());
+    let viewer_sink = Sink::File(out_dir.join("viewer.html"));
     let mut outputs = Vec::new();
     if out_dir.is_dir() {
         outputs.push(Output { flag: "--out-dir", sink: &sheet_sink, format: Format::Png });
         outputs.push(Output { flag: "--out-dir", sink: &json_sink, format: Format::Json });
+        outputs.push(Output { flag: "--out-dir", sink: &viewer_sink, format: Format::Html });
     }
-    if let Some(sink) = trace {
-        if let Sink::File(path) = sink
-            && path.parent().is_some_and(|p| p == out_dir)
+    let in_out_dir = |flag: &str, path: &Path| {
+        if path.parent().is_some_and(|p| p == out_dir)
             && path.file_name().and_then(|n| n.to_str()).is_some_and(|n| n == "render.json" || n.starts_with("view_"))
         {
-            bail!("--trace {} would overwrite an output of --out-dir: give it another name", path.display());
+            bail!("{flag} {} would overwrite an output of --out-dir: give it another name", path.display());
+        }
+        Ok(())
+    };
+    if let Some(sink) = trace {
+        if let Sink::File(path) = sink {
+            in_out_dir("--trace", path)?;
         }
         outputs.push(Output { flag: "--trace", sink, format: Format::Json });
+    }
+    let wiggle_sink = wiggle.map(|p| Sink::File(p.to_path_buf()));
+    if let Some(sink @ Sink::File(path)) = &wiggle_sink {
+        in_out_dir("--wiggle", path)?;
+        outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
     }
     check(&outputs)
 }
 
-/// Removes `view_NNN.exr` files of an earlier run that this run of `views` views did not write.
+/// Removes `view_NNN.exr` and `view_NNN.png` files of an earlier run that this run of `views`
+/// views did not write.
 fn remove_stale_views(out_dir: &Path, views: usize) -> Result<()> {
     let entries = std::fs::read_dir(out_dir).with_context(|| format!("cannot list --out-dir {}", out_dir.display()))?;
     for entry in entries.flatten() {
@@ -523,12 +574,13 @@ fn remove_stale_views(out_dir: &Path, views: usize) -> Result<()> {
     Ok(())
 }
 
-/// The view index of a file name this command writes (`view_007.exr` → 7).
+/// The view index of a file name this command writes (`view_007.exr` or `.png` → 7).
 fn parse_view_file_name(name: &str) -> Option<u32> {
-    let digits = name.strip_prefix("view_")?.strip_suffix(".exr")?;
+    let stem = name.strip_prefix("view_")?;
+    let digits = stem.strip_suffix(".exr").or_else(|| stem.strip_suffix(".png"))?;
     if digits.len() < 3 || !digits.bytes().all(|b| b.is_ascii_digit()) {
         return None;
     }
     let index: u32 = digits.parse().ok()?;
-    (view_file_name(index) == name).then_some(index)
+    (view_file_name(index) == name || view_png_name(index) == name).then_some(index)
 }

@@ -16,8 +16,11 @@ mod lightfield_images;
 mod logging;
 mod options;
 mod outputs;
+mod render_pictures;
 mod render_report;
+mod run_setup;
 mod scene_args;
+mod viewer;
 
 use clap::{CommandFactory, Parser, Subcommand};
 
@@ -34,7 +37,10 @@ struct Cli {
 enum Command {
     /// Plan a light field over N devices: sources, δ-edges, per-device schedule, copies.
     Plan(cmd_plan::PlanArgs),
-    /// Path trace every view of a light field over N devices (reference, no reprojection).
+    /// Render a light field over N devices through the paper's reconstruction pipeline (G-buffer,
+    /// sources path traced, targets reprojected, holes filled, SVGF, tonemap) or with every view
+    /// path traced (`--pipeline path-trace`); writes the views (EXR, PNG), a contact sheet,
+    /// viewer.html and render.json with per-stage GPU times.
     Render(cmd_render::RenderArgs),
     /// Path trace one view of a scene on the GPU (`--cpu`: the CPU reference) to EXR (+ PNG).
     Trace(cmd_trace::TraceArgs),
@@ -51,7 +57,8 @@ enum Command {
     /// Path trace a converged reference of a light field's views, progressively and resumably
     /// (the camera is still: compare with `render --still`).
     Reference(cmd_reference::ReferenceArgs),
-    /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders.
+    /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders, after checking that
+    /// both were rendered with the same settings.
     Compare(cmd_compare::CompareArgs),
     /// Charts (SVG/PNG) of speed against accuracy, scaling, views, holes, or a device timeline.
     Chart(cmd_chart::ChartArgs),

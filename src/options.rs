@@ -5,6 +5,7 @@
 use std::ops::RangeInclusive;
 
 use glam::Vec3;
+pub use parallax_accuracy::exposure::Exposure;
 use parallax_backend::DeviceSelection;
 use parallax_graph::{AssignStrategy, LayoutSpec, PlanError, Scheme};
 use parallax_scene::{Camera, Sky, Sun};
@@ -260,13 +261,10 @@ pub fn parse_sky(s: &str) -> Result<Sky, String> {
     }
 }
 
-/// `--exposure`: a finite multiplier > 0 (0, negative or NaN would write a black image).
-pub fn parse_exposure(s: &str) -> Result<f32, String> {
-    match s.trim().parse::<f32>() {
-        Ok(v) if v.is_finite() && v > 0.0 && v <= 1e6 => Ok(v),
-        Ok(v) => Err(format!("{v} is not in (0, 1e6]: the tonemapped image would be black or meaningless")),
-        Err(_) => Err(format!("'{s}' is not a number")),
-    }
+/// `--exposure auto|N`: the automatic exposure of the whole light field, or a finite
+/// multiplier in (0, 1e6] (0, negative or NaN would write a black image).
+pub fn parse_exposure(s: &str) -> Result<Exposure, String> {
+    s.parse()
 }
 
 /// A usage error found after parsing (two flags that do not go together): `main` prints it
@@ -355,7 +353,8 @@ mod tests {
 
     #[test]
     fn exposure_must_be_positive_and_finite() {
-        assert_eq!(parse_exposure("2"), Ok(2.0));
+        assert_eq!(parse_exposure("2"), Ok(Exposure::Fixed(2.0)));
+        assert_eq!(parse_exposure("auto"), Ok(Exposure::Auto));
         for bad in ["0", "-1", "NaN", "inf"] {
             assert!(parse_exposure(bad).is_err(), "{bad}");
         }

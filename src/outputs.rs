@@ -41,6 +41,7 @@ pub enum Format {
     Png,
     Json,
     Dot,
+    Html,
 }
 
 impl Format {
@@ -50,6 +51,7 @@ impl Format {
             Format::Png => &["png"],
             Format::Json => &["json"],
             Format::Dot => &["dot", "gv"],
+            Format::Html => &["html"],
         }
     }
 }

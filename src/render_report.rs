@@ -83,6 +83,36 @@ fn stage_of(name: &str, kind: EventKind) -> String {
     }
 }
 
+/// The stages in the order the pipeline runs them (the paper's Table 1): a stage's rank is that
+/// of its name or of the name it extends (`svgf_atrous_2` is an `svgf_atrous`); stages not
+/// listed come after, by name.
+const PIPELINE_ORDER: [&str; 15] = [
+    "gbuffer",
+    "gbuffer_raster",
+    "motion",
+    "pixel_list",
+    "path_trace",
+    "reproject",
+    "compact_holes",
+    "hole_fill",
+    "svgf_history",
+    "svgf_temporal",
+    "svgf_variance",
+    "svgf_atrous",
+    "tonemap",
+    "copy",
+    "transfer",
+];
+
+fn pipeline_rank(stage: &str) -> usize {
+    let extends = |s: &str| stage.strip_prefix(s).is_some_and(|rest| rest.starts_with('_'));
+    PIPELINE_ORDER
+        .iter()
+        .position(|&s| s == stage)
+        .or_else(|| PIPELINE_ORDER.iter().rposition(|&s| extends(s)))
+        .unwrap_or(PIPELINE_ORDER.len())
+}
+
 /// The timings of the frames folded into `stats`; `prepare` is the renderer's frame-data time.
 pub fn timings(stats: &FrameStats, prepare: &Summary) -> Timings {
     let frames = stats.frames().max(1) as f64;
@@ -98,6 +128,9 @@ pub fn timings(stats: &FrameStats, prepare: &Summary) -> Timings {
             bytes += totals.bytes;
         }
     }
+    let mut stages: Vec<_> = stages.into_iter().collect();
+    // Stable: by name (the map's order) within a rank, so svgf_atrous_0 comes before _1.
+    stages.sort_by_key(|((stage, _), _)| pipeline_rank(stage));
     Timings {
         frames: stats.frames() as usize,
         frame_gpu_ms: stats.gpu_span_ms().sample().to_vec(),
@@ -190,5 +223,22 @@ pub fn missing_pixels(plan: &ExecutionPlan, holes: &[Option<Vec<u32>>], width: u
         per_view,
         per_device: missed.iter().zip(&total).map(|(&m, &t)| if t == 0 { 0.0 } else { m as f64 / t as f64 }).collect(),
         overall: if all == 0 { 0.0 } else { missed.iter().sum::<u64>() as f64 / all as f64 },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stages_rank_in_pipeline_order() {
+        let mut names =
+            ["transfer", "tonemap", "svgf_atrous_1", "hole_fill", "svgf_atrous_0", "zeta", "gbuffer", "copy"];
+        names.sort_by_key(|n| (pipeline_rank(n), *n));
+        assert_eq!(
+            names,
+            ["gbuffer", "hole_fill", "svgf_atrous_0", "svgf_atrous_1", "tonemap", "copy", "transfer", "zeta"]
+        );
+        assert_eq!(pipeline_rank("gbuffer_raster"), 1, "an exact name before a prefix");
     }
 }

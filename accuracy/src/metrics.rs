@@ -3,7 +3,8 @@
 //!
 //! What each figure is computed on:
 //! * `psnr_linear_db`: linear radiance clamped to [0, 1], peak 1, MSE over all three channels.
-//! * `psnr_tonemapped_db`: the 8-bit sRGB tonemapped images (the PNGs), values / 255, peak 1.
+//! * `psnr_tonemapped_db`: the 8-bit sRGB tonemapped images (the PNGs, at one exposure for both
+//!   images), values / 255, peak 1.
 //! * `ssim`: [`crate::ssim`] on the tonemapped images, mean of R, G and B.
 //! * `flip`: LDR-FLIP ([`crate::flip`]) on the tonemapped images.
 //! * `rel_mse`: mean over pixels and channels of (test − ref)² / (ref² + 0.01) on linear radiance,
@@ -18,7 +19,7 @@
 use serde::{Serialize, Serializer};
 
 use crate::error::Result;
-use crate::flip::flip_rgb8;
+use crate::flip::{flip_map_rgb8, mean};
 use crate::image::{RgbImage, check_same_size};
 use crate::ssim::ssim_rgb8;
 
@@ -112,14 +113,32 @@ fn serialize_db<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::E
     if v.is_finite() { s.serialize_f64(*v) } else { s.serialize_str(if *v > 0.0 { "inf" } else { "-inf" }) }
 }
 
-/// Compares `test` against `reference` (named in errors): same size and finite values are
-/// required, and the result is the sums to pool; `.metrics()` gives the figures.
+/// Compares `test` against `reference` (named in errors) with the perceptual figures at exposure
+/// 1: same size and finite values are required, and the result is the sums to pool;
+/// `.metrics()` gives the figures.
 pub fn compare_images(
     test: &RgbImage,
     test_name: &str,
     reference: &RgbImage,
     reference_name: &str,
 ) -> Result<ErrorSums> {
+    Ok(compare_images_at(test, test_name, reference, reference_name, 1.0)?.sums)
+}
+
+/// One comparison: the sums to pool and the per-pixel FLIP error.
+pub struct ImageComparison {
+    pub sums: ErrorSums,
+    pub flip_map: Vec<f32>,
+}
+
+/// [`compare_images`] with both images tonemapped at `exposure` for PSNR tm, SSIM and FLIP.
+pub fn compare_images_at(
+    test: &RgbImage,
+    test_name: &str,
+    reference: &RgbImage,
+    reference_name: &str,
+    exposure: f32,
+) -> Result<ImageComparison> {
     check_same_size(test, test_name, reference, reference_name)?;
     test.check_finite(test_name)?;
     reference.check_finite(reference_name)?;
@@ -133,12 +152,13 @@ pub fn compare_images(
             sums.reference_sum[c] += r;
         }
     }
-    let (t8, r8) = (test.tonemapped_srgb8(1.0), reference.tonemapped_srgb8(1.0));
+    let (t8, r8) = (test.tonemapped_srgb8(exposure), reference.tonemapped_srgb8(exposure));
     sums.squared_tonemapped = t8.iter().zip(&r8).map(|(&a, &b)| ((a as f64 - b as f64) / 255.0).powi(2)).sum();
     let (w, h) = (test.width, test.height);
     sums.ssim_weighted = ssim_rgb8(&t8, &r8, w, h) * (w * h) as f64;
-    sums.flip_weighted = flip_rgb8(&r8, &t8, w, h) * (w * h) as f64;
-    Ok(sums)
+    let flip_map = flip_map_rgb8(&r8, &t8, w, h);
+    sums.flip_weighted = mean(&flip_map) * (w * h) as f64;
+    Ok(ImageComparison { sums, flip_map })
 }
 
 #[cfg(test)]
@@ -198,6 +218,21 @@ mod tests {
         let mut pooled = compare_images(&b, "b", &a, "a").unwrap();
         pooled.add(&compare_images(&b, "b", &a, "a").unwrap());
         assert!((pooled.metrics().psnr_linear_db - analytic).abs() < 1e-6);
+    }
+
+    /// The perceptual figures see the tonemapped images: an error too dark to see at exposure 1
+    /// shows at a higher exposure, while the linear figures do not move.
+    #[test]
+    fn the_exposure_changes_what_the_perceptual_figures_see() {
+        let a = RgbImage::new(32, 24, dyadic(32, 24).pixels.iter().map(|p| p.map(|c| c / 256.0)).collect());
+        let b = RgbImage::new(32, 24, a.pixels.iter().map(|p| p.map(|c| c * 1.5)).collect());
+        let dim = compare_images_at(&b, "b", &a, "a", 1.0).unwrap();
+        let bright = compare_images_at(&b, "b", &a, "a", 64.0).unwrap();
+        let (dim_m, bright_m) = (dim.sums.metrics(), bright.sums.metrics());
+        assert!(bright_m.flip > 2.0 * dim_m.flip, "{} vs {}", bright_m.flip, dim_m.flip);
+        assert_eq!(dim_m.psnr_linear_db, bright_m.psnr_linear_db);
+        assert_eq!(dim.flip_map.len(), 32 * 24);
+        assert!((crate::flip::mean(&bright.flip_map) - bright_m.flip).abs() < 1e-12);
     }
 
     #[test]
