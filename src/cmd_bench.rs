@@ -206,9 +206,13 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
         entry["error"] = error.into();
         return Ok(entry);
     }
-    let report: serde_json::Value = match std::fs::read(folder.join("render.json"))
-        .map_err(anyhow::Error::from)
-        .and_then(|bytes| serde_json::from_slice(&bytes).map_err(anyhow::Error::from))
+    let report: serde_json::Value = match parallax_scene::input::read_bounded(
+        &folder.join("render.json"),
+        parallax_scene::input::TEXT_FILE_LIMIT,
+        "render.json",
+    )
+    .map_err(anyhow::Error::from)
+    .and_then(|bytes| serde_json::from_slice(&bytes).map_err(anyhow::Error::from))
     {
         Ok(report) => report,
         Err(e) => {
