@@ -63,12 +63,19 @@ pub fn load_gltf_bytes_with(
 ) -> Result<Scene, SceneError> {
     let path_buf = path.to_path_buf();
     // A malformed file must never take the process down: the checks below are meant to catch
-    // everything, and this is the backstop if the gltf crate panics on an input we missed.
+    // everything, and this is the backstop if the gltf crate panics on an input we missed. The
+    // panic's own text (a source line of the crate) would tell the user nothing: it is kept
+    // off stderr while the file is read, and the error says what to do.
+    let previous_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
     let result = std::panic::catch_unwind(|| import(bytes, base_dir, path, options));
+    std::panic::set_hook(previous_hook);
     result.unwrap_or_else(|_| {
         Err(SceneError::InvalidGltf {
             path: path_buf,
-            detail: "the glTF reader failed on this file (internal panic caught)".into(),
+            detail: "the glTF reader failed on a construct Parallax does not check yet; check the file with the \
+                     Khronos glTF validator"
+                .into(),
         })
     })
 }
