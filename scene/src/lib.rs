@@ -27,6 +27,7 @@ pub mod animation;
 pub mod bsdf;
 pub mod builder;
 pub mod bvh;
+mod bvh_coincident;
 pub mod default_scene;
 pub mod error;
 mod gltf_animation;
