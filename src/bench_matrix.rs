@@ -287,7 +287,8 @@ struct SliceToml {
 /// Reads and validates a matrix file (module docs); every error names the file, the key and
 /// the fix.
 pub fn load(path: &Path) -> Result<Matrix> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read --matrix {}", path.display()))?;
+    let text = parallax_scene::input::read_text(path, "bench matrix")
+        .with_context(|| format!("cannot read --matrix {}", path.display()))?;
     let file = path.display();
     let raw: FileToml = toml::from_str(&text).map_err(|e| {
         anyhow!(

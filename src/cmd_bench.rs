@@ -220,9 +220,13 @@ fn run_cell(
         entry["error"] = error.into();
         return Ok(entry);
     }
-    let report: serde_json::Value = match std::fs::read(folder.join("render.json"))
-        .map_err(anyhow::Error::from)
-        .and_then(|bytes| serde_json::from_slice(&bytes).map_err(anyhow::Error::from))
+    let report: serde_json::Value = match parallax_scene::input::read_bounded(
+        &folder.join("render.json"),
+        parallax_scene::input::TEXT_FILE_LIMIT,
+        "render.json",
+    )
+    .map_err(anyhow::Error::from)
+    .and_then(|bytes| serde_json::from_slice(&bytes).map_err(anyhow::Error::from))
     {
         Ok(report) => report,
         Err(e) => {

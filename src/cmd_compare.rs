@@ -109,7 +109,11 @@ pub fn run(args: CompareArgs) -> Result<()> {
     }
     if let Some(path) = &args.json {
         let render_json = args.test.join("render.json");
-        let timing = match std::fs::read(&render_json) {
+        let timing = match parallax_scene::input::read_bounded(
+            &render_json,
+            parallax_scene::input::TEXT_FILE_LIMIT,
+            "render.json",
+        ) {
             Ok(bytes) => serde_json::from_slice(&bytes)
                 .ok()
                 .and_then(|json| point_of_render_json(&json))

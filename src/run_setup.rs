@@ -62,7 +62,9 @@ pub fn scene_fingerprint(spec: &str) -> Result<String> {
     if spec == "default" {
         return Ok("default".into());
     }
-    let bytes = std::fs::read(spec).with_context(|| format!("--scene {spec}: cannot read the file"))?;
+    let bytes =
+        parallax_scene::input::read_bounded(Path::new(spec), parallax_scene::input::SCENE_FILE_LIMIT, "glTF scene")
+            .with_context(|| format!("--scene {spec}: cannot read the file"))?;
     let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
     let name = Path::new(spec).file_name().map_or(spec.into(), |n| n.to_string_lossy());
     Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))

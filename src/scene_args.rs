@@ -8,7 +8,8 @@ use clap::Args;
 use glam::Vec3;
 use parallax_graph::{LayoutSpec, LightField, Rig};
 use parallax_passes::camera::rig_of;
-use parallax_scene::{Camera, Scene, Sky, Sun, load_scene};
+use parallax_scene::input::UriPolicy;
+use parallax_scene::{Camera, LoadOptions, Scene, Sky, Sun, load_scene_with};
 
 use crate::options::{
     Resolution, parse_camera, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing, parse_sun,
@@ -36,12 +37,18 @@ pub struct SceneArgs {
     /// values), each 0..=1e6.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_sky)]
     pub sky: Option<Sky>,
+    /// Let the scene's buffer and image URIs name files outside its folder (`../`, absolute
+    /// paths, `file:` URIs); without it such a scene is refused.
+    #[arg(long)]
+    pub allow_outside_files: bool,
 }
 
 impl SceneArgs {
     /// Loads `--scene` and applies `--sun`, `--no-sun` and `--sky` to it.
     pub fn load(&self) -> Result<Scene> {
-        let mut scene = load_scene(&self.scene).with_context(|| format!("loading --scene {}", self.scene))?;
+        let options = LoadOptions { uris: uri_policy(self.allow_outside_files) };
+        let mut scene =
+            load_scene_with(&self.scene, options).with_context(|| format!("loading --scene {}", self.scene))?;
         self.light(&mut scene);
         Ok(scene)
     }
@@ -64,6 +71,11 @@ impl SceneArgs {
     pub fn camera_or_default(&self, scene: &Scene) -> Camera {
         self.camera.unwrap_or_else(|| scene.default_camera())
     }
+}
+
+/// `--allow-outside-files` as the loader's URI policy.
+pub fn uri_policy(allow_outside_files: bool) -> UriPolicy {
+    if allow_outside_files { UriPolicy::Anywhere } else { UriPolicy::InsideSceneFolder }
 }
 
 /// Without any light every pixel is black: say so rather than write a black image silently.

@@ -42,6 +42,21 @@ fn crashes_are_refusals() {
 }
 
 #[test]
+fn malformed_gltf_images_are_named_and_no_panic_text_is_printed() {
+    let dir = scratch("safety", "images");
+    let images = r#","images":[{"name":"a"},{"bufferView":0}]"#;
+    let scene = write_gltf(&dir, "noimage", &TRIANGLE, r#"[{"mesh":0}]"#, images);
+    refused(
+        &dir,
+        &["trace", "--cpu", "--scene", scene.to_str().unwrap()],
+        1,
+        &["noimage.gltf: image 0: has neither uri nor bufferView; glTF requires exactly one"],
+    );
+    let out = parallax_in(&dir, &["trace", "--cpu", "--scene", scene.to_str().unwrap()]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("panic"));
+}
+
+#[test]
 fn unbounded_work_is_refused_with_the_numbers() {
     let dir = scratch("safety", "unbounded");
     refused(&dir, &["render", "--lf", "100x100", "--resolution", "4096x4096"], 2, &["--lf", "at most 4096"]);

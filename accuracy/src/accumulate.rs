@@ -15,7 +15,9 @@
 //! per-chunk image means, little-endian.
 
 use std::collections::BTreeMap;
-use std::io::Write;
+use std::io::{Read, Write};
+
+use parallax_scene::input::open_regular;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -162,34 +164,54 @@ impl Accumulator {
         write_atomically(path, |f| f.write_all(&bytes))
     }
 
-    /// Reads a sidecar written by [`Accumulator::save`].
+    /// Reads a sidecar written by [`Accumulator::save`]: a regular file, its header first (at
+    /// most [`MAX_HEADER_BYTES`]), then exactly the sums the header declares, never more.
     pub fn load(path: &Path) -> Result<Self> {
         let bad = |detail: &str| AccuracyError::BadInput {
             path: path.into(),
             detail: format!("{detail}: not a partial reference of this version; delete it to start over"),
         };
-        let bytes =
-            std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
-        if bytes.len() < 16 || &bytes[..8] != MAGIC {
+        let read_err = |e: std::io::Error| AccuracyError::Read { path: path.into(), detail: e.to_string() };
+        let (mut file, size) = open_regular(path)?;
+        let mut start = [0u8; 16];
+        if size < 16 || file.read_exact(&mut start).is_err() || &start[..8] != MAGIC {
             return Err(bad("bad magic"));
         }
-        let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-        let header_end =
-            16usize.checked_add(len).filter(|&e| e <= bytes.len()).ok_or_else(|| bad("truncated header"))?;
+        let len = u64::from_le_bytes(start[8..16].try_into().expect("8 bytes"));
+        if len > MAX_HEADER_BYTES || 16 + len > size {
+            return Err(bad("truncated header"));
+        }
+        let mut header_bytes = vec![0u8; len as usize];
+        file.read_exact(&mut header_bytes).map_err(read_err)?;
         let mut header: ReferenceHeader =
-            serde_json::from_slice(&bytes[16..header_end]).map_err(|e| bad(&format!("bad header ({e})")))?;
-        let count = header.views * header.width * header.height * 3;
-        if bytes.len() - header_end != (count + 3 * header.chunks as usize) * 8 {
+            serde_json::from_slice(&header_bytes).map_err(|e| bad(&format!("bad header ({e})")))?;
+        let count = header
+            .views
+            .checked_mul(header.width)
+            .and_then(|n| n.checked_mul(header.height))
+            .and_then(|n| n.checked_mul(3));
+        let declared = count
+            .and_then(|c| c.checked_add(usize::try_from(header.chunks).ok()?.checked_mul(3)?))
+            .and_then(|values| values.checked_mul(8));
+        let (Some(count), Some(declared)) = (count, declared) else { return Err(bad("sum data of the wrong length")) };
+        if size - 16 - len != declared as u64 {
             return Err(bad("sum data of the wrong length"));
         }
-        let mut values =
-            bytes[header_end..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
+        let mut data = Vec::with_capacity(declared);
+        file.take(declared as u64).read_to_end(&mut data).map_err(read_err)?;
+        if data.len() != declared {
+            return Err(bad("sum data of the wrong length"));
+        }
+        let mut values = data.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
         let sums = values.by_ref().take(count).collect();
         header.chunk_means =
             (0..header.chunks).map(|_| [0; 3].map(|_| values.next().expect("length checked"))).collect();
         Ok(Self { header, sums })
     }
 }
+
+/// The largest JSON header a partial reference may have (its settings are a few lines).
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
 
 /// Prefix of the temporary files of [`write_atomically`]; a killed process can leave them
 /// behind, and [`remove_stale_temporaries`] clears them.

@@ -22,6 +22,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{AccuracyError, Result};
+use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Point {
@@ -93,7 +94,7 @@ pub fn point_of_render_json(json: &serde_json::Value) -> Option<Point> {
 /// Every point in a JSON file of one of the accepted shapes (module docs).
 pub fn load_points(path: &Path) -> Result<Vec<Point>> {
     let bad = |detail: String| AccuracyError::BadInput { path: path.into(), detail };
-    let text = std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
+    let text = read_bounded(path, TEXT_FILE_LIMIT, "points file")?;
     let json: serde_json::Value = serde_json::from_slice(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
     let parse = |v: &serde_json::Value| {
         serde_json::from_value::<Point>(v.clone()).map_err(|e| bad(format!("bad point {v}: {e}")))

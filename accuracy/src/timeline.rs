@@ -8,6 +8,7 @@ use plotters::prelude::*;
 
 use crate::chart::{FONT, LEGEND_WIDTH, SIZE, Swatch, chart_err, color, draw_legend, write_chart};
 use crate::error::{AccuracyError, Result};
+use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
 
 /// One bar.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,8 +30,7 @@ pub struct Timeline {
 impl Timeline {
     pub fn read(path: &Path) -> Result<Self> {
         let bad = |detail: String| AccuracyError::BadInput { path: path.into(), detail };
-        let bytes =
-            std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
+        let bytes = read_bounded(path, TEXT_FILE_LIMIT, "Chrome trace")?;
         let json: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| bad(format!("not JSON: {e}")))?;
         // Both forms of the format: {"traceEvents": [...]} and a bare array.
         let events = json

@@ -320,6 +320,8 @@ pub struct Scene {
     pub sun: Option<Sun>,
     /// Set by the caller (CLI); black unless set.
     pub sky: Option<Sky>,
+    /// Every file the scene was read from (empty for a built-in scene).
+    pub sources: Vec<crate::input::SourceFile>,
 }
 
 impl Scene {
