@@ -60,17 +60,20 @@ pub(crate) fn assign_storage(
     order: &[InstanceId],
 ) -> Vec<Allocation> {
     let mut storage = Storage::default();
+    // The first instance in `order` writing each (device, resource, version).
+    let mut first_writer: HashMap<(DeviceId, ResourceId, u32), InstanceId> = HashMap::new();
+    for &i in order {
+        let inst = &instances[i.index()];
+        for w in &inst.writes {
+            first_writer.entry((inst.device, w.resource, w.version)).or_insert(i);
+        }
+    }
     let mut arriving: HashMap<InstanceId, Vec<usize>> = HashMap::new();
     for (c, copy) in copies.iter().enumerate() {
         // A copy's destination exists before its first consumer reads it; its source after
         // its producer wrote it. Both are plain `of` lookups, so any position works for
         // numbering; copies are handled right after their producer for readable ids.
-        let producer = order.iter().copied().find(|&i| {
-            let inst = &instances[i.index()];
-            inst.device == copy.from
-                && inst.writes.iter().any(|w| w.resource == copy.resource && w.version == copy.version)
-        });
-        if let Some(p) = producer {
+        if let Some(&p) = first_writer.get(&(copy.from, copy.resource, copy.version)) {
             arriving.entry(p).or_default().push(c);
         }
     }

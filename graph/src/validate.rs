@@ -199,6 +199,12 @@ impl Schedule {
         writers: &HashMap<(ResourceId, u32), Vec<(InstanceId, Region)>>,
         errors: &mut Vec<ScheduleError>,
     ) {
+        // The copies of each (resource, version) from one device to another, built once: the
+        // fine schemes have tens of thousands of copies and reads.
+        let mut copies_between: HashMap<(ResourceId, u32, DeviceId, DeviceId), Vec<CopyId>> = HashMap::new();
+        for (c, k) in self.copies.iter().enumerate() {
+            copies_between.entry((k.resource, k.version, k.from, k.to)).or_default().push(CopyId(c as u32));
+        }
         for (i, inst) in self.instances.iter().enumerate() {
             let consumer = InstanceId(i as u32);
             let Some((device, here)) = at(Op::Pass(consumer)) else {
@@ -223,16 +229,12 @@ impl Schedule {
                         satisfied.push(overlap);
                         continue;
                     }
-                    let copies: Vec<CopyId> = (0..self.copies.len() as u32)
-                        .map(CopyId)
-                        .filter(|&c| {
-                            let k = self.copy(c);
-                            k.resource == read.resource
-                                && k.version == read.version
-                                && k.from == pd
-                                && k.to == device
-                                && k.region.contains(overlap)
-                        })
+                    let copies: Vec<CopyId> = copies_between
+                        .get(&(read.resource, read.version, pd, device))
+                        .into_iter()
+                        .flatten()
+                        .copied()
+                        .filter(|&c| self.copy(c).region.contains(overlap))
                         .collect();
                     match copies.as_slice() {
                         [] => {}
