@@ -700,8 +700,15 @@ impl Executor {
                 });
             }
         }
-        let mut report =
-            FrameReport::new(f.frame, f.submit_start_ns, f.submit_cpu_ns, f.passes, f.segments, self.devices.len(), events);
+        let mut report = FrameReport::new(
+            f.frame,
+            f.submit_start_ns,
+            f.submit_cpu_ns,
+            f.passes,
+            f.segments,
+            self.devices.len(),
+            events,
+        );
         report.slot_wait_ns = f.slot_wait_ns;
         self.reports.push(report);
         if let (true, Some(readback)) = (f.read_back, &mut self.readback) {

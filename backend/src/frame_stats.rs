@@ -34,7 +34,14 @@ pub struct Summary {
 
 impl Default for Summary {
     fn default() -> Self {
-        Self { count: 0, sum: 0.0, min: f64::INFINITY, max: f64::NEG_INFINITY, sample: Vec::new(), rng: 0x9E37_79B9_7F4A_7C15 }
+        Self {
+            count: 0,
+            sum: 0.0,
+            min: f64::INFINITY,
+            max: f64::NEG_INFINITY,
+            sample: Vec::new(),
+            rng: 0x9E37_79B9_7F4A_7C15,
+        }
     }
 }
 

@@ -11,8 +11,8 @@
 use std::time::Instant;
 
 use parallax_backend::{
-    Context, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, FrameReport,
-    FrameStats, Summary,
+    Context, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, FrameReport, FrameStats,
+    Summary,
 };
 use parallax_scene::gpu::{GpuScene, TraceLighting};
 use parallax_scene::{Scene, TraceSettings, View};

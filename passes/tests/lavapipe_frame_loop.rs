@@ -89,7 +89,11 @@ fn command_buffers_are_recorded_once_while_the_plan_is_unchanged() {
     let mut renderer = renderer(&scene, &bvh, &lf, ExecOptions { frames_in_flight: 2, ..ExecOptions::default() });
     let settings = TraceSettings { spp: 1, max_depth: 2, ..Default::default() };
     let mut moved = scene.clone();
-    moved.sun = Some(parallax_scene::Sun { to_sun: Vec3::new(0.2, 1.0, 0.1), irradiance: Vec3::splat(2.0), angular_radius: 0.0 });
+    moved.sun = Some(parallax_scene::Sun {
+        to_sun: Vec3::new(0.2, 1.0, 0.1),
+        irradiance: Vec3::splat(2.0),
+        angular_radius: 0.0,
+    });
     for f in 0..8u32 {
         if f == 4 {
             renderer.cut();

@@ -72,7 +72,11 @@ fn host_memory_stays_flat_over_two_thousand_frames() {
     assert_eq!(stats.frames(), u64::from(FRAMES), "every frame is counted");
     assert_eq!(stats.gpu_span_ms().sample().len(), (FRAMES as usize).min(SUMMARY_SAMPLE));
     assert!(stats.gpu_span_ms().mean() > 0.0);
-    eprintln!("resident set {:.1} MB at frame {SETTLED}, grew {:.1} kB by frame {FRAMES}", settled as f64 / 1e6, grown as f64 / 1e3);
+    eprintln!(
+        "resident set {:.1} MB at frame {SETTLED}, grew {:.1} kB by frame {FRAMES}",
+        settled as f64 / 1e6,
+        grown as f64 / 1e3
+    );
     assert!(grown < MAX_GROWTH_BYTES, "resident set grew {grown} bytes from frame {SETTLED} to {FRAMES}");
     context.check_validation().unwrap();
 }

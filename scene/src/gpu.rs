@@ -421,7 +421,10 @@ mod tests {
         let params = same(&scene);
         assert_eq!(params.counts[1], 2, "the lamp's two triangles");
         let sun_and_sky = LIGHT_GROUP_SUN | LIGHT_GROUP_SKY;
-        assert_eq!(params.counts[2], sun_and_sky | LIGHT_GROUP_EMISSIVE | if scene.lights.is_empty() { 0 } else { LIGHT_GROUP_PUNCTUAL });
+        assert_eq!(
+            params.counts[2],
+            sun_and_sky | LIGHT_GROUP_EMISSIVE | if scene.lights.is_empty() { 0 } else { LIGHT_GROUP_PUNCTUAL }
+        );
         // Sun and sky may change between frames: the groups follow them.
         scene.sun = None;
         scene.sky = Some(Sky::Constant(Vec3::ZERO));
