@@ -290,7 +290,8 @@ fn record_passes(
     items: &[Item],
     bound: Option<vk::Pipeline>,
 ) -> Result<Option<vk::Pipeline>> {
-    let instances: Vec<usize> = items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
+    let instances: Vec<usize> =
+        items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
     let first = instances[0];
     let kernel = ctx.plan.kernels.0[ctx.plan.passes[first].kernel].clone();
     let mut rec = Recorder {
