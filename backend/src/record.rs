@@ -7,8 +7,8 @@
 //! each alone would be too small to fill the GPU.
 //!
 //! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers: a global
-//! barrier before every item (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
-//! item of a segment and before a later one only when it reads what an earlier item since the
+//! barrier before every op (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
+//! op of a segment and before a later one only when it reads what an earlier op since the
 //! last barrier wrote, or writes what one read or wrote (or a kernel says it touches undeclared
 //! memory), so the instances of one pass for many views, which the graph orders one after the
 //! other, run side by side.
