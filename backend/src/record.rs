@@ -7,8 +7,8 @@
 //! each alone would be too small to fill the GPU.
 //!
 //! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers: a global
-//! barrier before every item (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
-//! item of a segment and before a later one only when it reads what an earlier item since the
+//! barrier before every op (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
+//! op of a segment and before a later one only when it reads what an earlier op since the
 //! last barrier wrote, or writes what one read or wrote (or a kernel says it touches undeclared
 //! memory), so the instances of one pass for many views, which the graph orders one after the
 //! other, run side by side.
@@ -290,7 +290,8 @@ fn record_passes(
     items: &[Item],
     bound: Option<vk::Pipeline>,
 ) -> Result<Option<vk::Pipeline>> {
-    let instances: Vec<usize> = items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
+    let instances: Vec<usize> =
+        items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
     let first = instances[0];
     let kernel = ctx.plan.kernels.0[ctx.plan.passes[first].kernel].clone();
     let mut rec = Recorder {

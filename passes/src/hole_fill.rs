@@ -134,7 +134,8 @@ mod tests {
         for shader in ["hole_fill", "hole_fill_prefix"] {
             let spirv = parallax_backend::spirv(shader).unwrap();
             assert_eq!(member_offsets(&spirv, "HoleFillTarget").unwrap(), target, "{shader}");
-            let table: Vec<u32> = member_offsets(&spirv, "HoleFillTable").unwrap().into_iter().map(|(_, o)| o).collect();
+            let table: Vec<u32> =
+                member_offsets(&spirv, "HoleFillTable").unwrap().into_iter().map(|(_, o)| o).collect();
             assert_eq!(table, [0, 4, 8, 12, TABLE_HEADER_BYTES as u32], "{shader}: arguments, total, targets");
         }
         assert_eq!(std::mem::size_of::<HoleFillTarget>(), 32);

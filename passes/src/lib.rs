@@ -14,7 +14,8 @@
 //! * [`pixel_list`]: the list format of `path_trace`'s list mode (a header that is the indirect
 //!   arguments, then the pixels) and a test list producer.
 //! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
-//!   and `hole_fill` (`path_trace` over them); [`hole_bench`] times it.
+//!   and `hole_fill` ([`hole_fill`]: the lists of all target bands of a device path traced by
+//!   one indirect dispatch); [`hole_bench`] times it.
 //! * [`trace`]: the graph declaring path tracing per view, and [`GpuTracer`], which runs it.
 //! * [`reproject`] and [`view_bound`]: the gather of targets from their sources, and the bound
 //!   on view-dependence that decides which pixels it may reuse.

@@ -115,7 +115,11 @@ impl PassKernel for PathTraceKernel {
 /// Where the list of `read` (a pixel-list read of this instance) is: the GPU address of its
 /// band's section and how many entries the section holds. The section is the read's rows: the
 /// instance's band of a row buffer, or row 0, all of it, of a plain buffer.
-pub(crate) fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) -> parallax_backend::Result<(u64, u32)> {
+pub(crate) fn list_section(
+    rec: &Recorder<'_>,
+    read: &ExecAccess,
+    index: usize,
+) -> parallax_backend::Result<(u64, u32)> {
     let list = rec.resource(read.resource);
     let offset = u64::from(read.rows.y0) * list.row_bytes();
     let section = u64::from(read.rows.len()) * list.row_bytes();
