@@ -194,8 +194,11 @@ fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
     let given_tolerances: Vec<Option<f32>> = axes.tolerances.iter().copied().map(Some).collect();
     for &pipeline in &axes.pipelines {
         // Only reprojection has a tolerance; other cells run with none.
-        let tolerances: &[Option<f32>] =
-            if pipeline == PipelineArg::Reproject && !given_tolerances.is_empty() { &given_tolerances } else { &[None] };
+        let tolerances: &[Option<f32>] = if pipeline == PipelineArg::Reproject && !given_tolerances.is_empty() {
+            &given_tolerances
+        } else {
+            &[None]
+        };
         for &scheme in &axes.schemes {
             let shaped = Cell::shaped(pipeline, scheme);
             // Unshaped cells run with render's defaults for both.
@@ -389,7 +392,9 @@ pub fn load(path: &Path) -> Result<Matrix> {
             tolerances: match s.reprojection_tolerances {
                 None => d.tolerances,
                 Some(v) => non_empty(v)
-                    .and_then(|v| v.into_iter().map(|t| crate::cmd_render::check_reprojection_tolerance(t as f32)).collect())
+                    .and_then(|v| {
+                        v.into_iter().map(|t| crate::cmd_render::check_reprojection_tolerance(t as f32)).collect()
+                    })
                     .map_err(words("reprojection_tolerances"))?,
             },
             devices: counts(s.devices, "devices", 1..=64, d.devices)?,
@@ -506,7 +511,8 @@ mod tests {
         );
         assert!(cells[1].args.ends_with(&["--reprojection-tolerance".into(), "1".into()]));
         assert!(!cells[4].args.iter().any(|a| a == "--reprojection-tolerance"));
-        let path_trace_only = format!("{CASES}[[matrix]]\npipelines = [\"path-trace\"]\nreprojection_tolerances = [0.1]\n");
+        let path_trace_only =
+            format!("{CASES}[[matrix]]\npipelines = [\"path-trace\"]\nreprojection_tolerances = [0.1]\n");
         let e = load_text(&path_trace_only).unwrap().cells().unwrap_err().to_string();
         assert!(e.contains("matrix slice 1 sets reprojection_tolerances"), "{e}");
         let negative = load_text(&format!("{CASES}[[matrix]]\nreprojection_tolerances = [-1.0]\n")).unwrap_err();

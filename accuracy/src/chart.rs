@@ -470,7 +470,9 @@ mod tests {
         assert_eq!(names, ["sponza", "default"]);
         assert_eq!(chart.series[0].points, [(0.05, 6.0, Some("37.80 dB".into())), (0.5, 2.0, Some("37.70 dB".into()))]);
         assert_eq!(chart.series[1].points, [(0.2, 4.0, None)]);
-        assert!(tolerance(&points[3..], AccuracyAxis::Flip).unwrap_err().to_string().contains("reprojection_tolerance"));
+        assert!(
+            tolerance(&points[3..], AccuracyAxis::Flip).unwrap_err().to_string().contains("reprojection_tolerance")
+        );
     }
 
     #[test]

@@ -116,13 +116,8 @@ fn render_setup(s: Setup<'_>) -> Rendered {
         PlanConfig { devices: s.devices, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let config = PipelineConfig {
-        kind: s.kind,
-        gbuffer: s.gbuffer,
-        tolerances: s.tolerances,
-        denoise: false,
-        exposure: 1.0,
-    };
+    let config =
+        PipelineConfig { kind: s.kind, gbuffer: s.gbuffer, tolerances: s.tolerances, denoise: false, exposure: 1.0 };
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     let schedule = compile(&graph, &plan).unwrap();
@@ -234,7 +229,8 @@ fn sky_pixels_are_never_holes_but_on_silhouettes_and_get_what_path_tracing_gives
     // Looking at the sun over the top of the glossy scene's wall: sky, sun disc and surfaces,
     // with the raster G-buffer too. 10 cm between views, so that surfaces have holes.
     let scene = glossy_scene();
-    let camera = Camera::look_at(Vec3::new(0.0, 1.2, 3.5), Vec3::new(0.0, 1.2, 3.5) + Vec3::new(0.1, 0.2, -1.0), Vec3::Y, 0.9);
+    let camera =
+        Camera::look_at(Vec3::new(0.0, 1.2, 3.5), Vec3::new(0.0, 1.2, 3.5) + Vec3::new(0.1, 0.2, -1.0), Vec3::Y, 0.9);
     for (camera, sun_in_view) in [(camera, false), (sun_camera(&scene), true)] {
         for gbuffer in [GbufferSource::FirstHits, GbufferSource::Raster] {
             let setup = Setup { camera, gbuffer, ..Setup::new(&scene, 3, 0.1, PipelineKind::Reproject, 1) };
@@ -341,7 +337,10 @@ fn the_gpus_holes_are_where_the_cpu_twin_of_the_bound_puts_them() {
             }
         }
     }
-    assert!(passed > 300 && rejected > 30, "both sides of the tolerance are tested: {passed} passed, {rejected} rejected");
+    assert!(
+        passed > 300 && rejected > 30,
+        "both sides of the tolerance are tested: {passed} passed, {rejected} rejected"
+    );
 }
 
 #[test]
@@ -448,4 +447,3 @@ fn the_raster_gbuffer_reprojects_like_first_hits() {
         assert!(wide.radiance[v].iter().flatten().all(|c| c.is_finite()));
     }
 }
-
