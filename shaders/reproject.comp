@@ -9,9 +9,12 @@
 // for the angle between the target's and the source's view directions is at most
 // `view_tolerance`, so the radiance the source saw differs from the target's by at most that
 // fraction. A pixel no source passes is a hole (holes = 1, radiance 0 with a = 1), path traced
-// afterwards by hole filling. A pixel whose centre ray misses the scene is never a hole: it gets
-// the sky and sun the path tracer would give it (pt_camera.glsl), a = 0. No division can
-// produce NaN here: every divisor is a positive clip w, and the bound rejects a NaN.
+// afterwards by hole filling. A pixel whose centre ray misses the scene is not a hole: it gets
+// the sky and sun the path tracer would give it (pt_camera.glsl), a = 0; unless it lies on a
+// silhouette (a neighbour's centre ray hits), where the path tracer's jittered samples may hit
+// the surface too: that pixel is a hole, so hole filling gives it path tracing's very value.
+// No division can produce NaN here: every divisor is a positive clip w, and the bound rejects
+// a NaN.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int8 : require
@@ -83,6 +86,24 @@ vec4 gather(uvec4 s, vec3 p, vec3 n, vec3 to_eye, ViewBound bound) {
     return vec4(imageLoad(images[s.w], at).rgb, 1.0);
 }
 
+// Whether a neighbour of sky pixel `at` has a hit. Only rows of this instance's band are
+// looked at (others may live on another device): a silhouette that runs exactly along a band
+// border is seen from one side only.
+bool on_silhouette(ivec2 at) {
+    for (int dy = -1; dy <= 1; dy++) {
+        for (int dx = -1; dx <= 1; dx++) {
+            ivec2 q = at + ivec2(dx, dy);
+            if (q.x < 0 || q.x >= int(params.dims.x) || q.y < int(pc.y0) || q.y >= int(pc.y1)) {
+                continue;
+            }
+            if (imageLoad(images[pc.position_depth], q).w > 0.0) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
 void main() {
     uint x = gl_GlobalInvocationID.x;
     uint y = pc.y0 + gl_GlobalInvocationID.y;
@@ -92,8 +113,9 @@ void main() {
     ivec2 at = ivec2(x, y);
     vec4 position = imageLoad(images[pc.position_depth], at);
     if (position.w <= 0.0) {
-        imageStore(images[pc.radiance], at, vec4(sky_pixel(x, y), 0.0));
-        imageStore(uimages[pc.holes], at, uvec4(0u));
+        bool silhouette = on_silhouette(at);
+        imageStore(images[pc.radiance], at, silhouette ? vec4(0.0) : vec4(sky_pixel(x, y), 0.0));
+        imageStore(uimages[pc.holes], at, uvec4(silhouette ? 1u : 0u));
         return;
     }
     vec4 normal = imageLoad(images[pc.normal_metallic], at);

@@ -1,5 +1,5 @@
 //! `parallax bench`: a matrix of `render` runs (cases × pipelines × schemes × assignments ×
-//! sources per set × spp × denoise × device counts; see [`crate::bench_matrix`] for the
+//! sources per set × spp × denoise × reprojection tolerances × device counts; see [`crate::bench_matrix`] for the
 //! `--matrix FILE.toml` form), each cell a `parallax render` child process of this binary, so a
 //! cell that fails (say, more devices than views) is reported with its error and the others
 //! still run. Every cell's render arguments are parsed before the first cell runs, so a typo
@@ -9,10 +9,12 @@
 //!
 //! bench.json: `{"common", "matrix", "frames", "warmup", "cases": [{"name", "args",
 //! "reference"}], "cells": [cell]}` (`common` with `--common`, `matrix` the file with
-//! `--matrix`); a cell has `id` (`[case/]pipeline_scheme[_assignment]_kK_sppS_dnD_dN`), `case`
+//! `--matrix`); a cell has `id` (`[case/]pipeline_scheme[_assignment]_kK_sppS_dnD_dN[_tolT]`), `case`
 //! (the case's name; null for `--common`), `args` (the render arguments beyond the case's),
 //! `pipeline`, `scheme`, `assignment` (reprojecting multi-source cells: the one asked for, or
-//! the one render used by default), `sources_per_set`, `spp`, `denoise` (bool), `devices`,
+//! the one render used by default), `sources_per_set`, `spp`, `denoise` (bool),
+//! `reprojection_tolerance` (reprojecting cells: the one asked for, or render's default; else
+//! null), `devices`,
 //! `ok`, `error` (when not ok), and when ok: `views`, `frame_ms` (mean, median, p95 of the GPU
 //! span of the measured frames), `views_per_s` (elemental images per second at the mean),
 //! `stages` (per stage and device, ms per frame: the paper's Table 1), `hole_fill_ms` (the
@@ -24,8 +26,8 @@
 //!
 //! points.json: `{"points": [point]}`, one per ok cell: `label` (the id), `series` (the
 //! pipeline), `case`, `frame_ms`, `flip`, `psnr`, `views`, `devices`, `assignment`,
-//! `sources_per_set`, `spp`, and for reprojecting cells `missing` (overall missing-pixel ratio)
-//! and `hole_fill_ms`.
+//! `sources_per_set`, `spp`, `reprojection_tolerance`, and for reprojecting cells `missing`
+//! (overall missing-pixel ratio) and `hole_fill_ms`.
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -54,11 +56,11 @@ pub struct BenchArgs {
     /// A TOML file of cases (render arguments, optional reference) and matrix slices, instead
     /// of --common, --reference and the axis flags: `[[case]]` tables with `name`, `args`,
     /// `reference`; `[[matrix]]` tables with `cases`, `pipelines`, `schemes`, `assignments`,
-    /// `sources_per_set`, `spp`, `denoise`, `devices`, `fake_devices` (lists; every key
+    /// `sources_per_set`, `spp`, `denoise`, `reprojection_tolerances`, `devices`, `fake_devices` (lists; every key
     /// optional); top-level `frames` and `warmup`. See README.md.
     #[arg(long, value_name = "FILE.toml", conflicts_with_all = [
-        "common", "reference", "pipelines", "schemes", "assignments", "sources_per_set", "spp", "denoise", "devices",
-        "fake_devices",
+        "common", "reference", "pipelines", "schemes", "assignments", "sources_per_set", "spp", "denoise",
+        "reprojection_tolerances", "devices", "fake_devices",
     ])]
     matrix: Option<PathBuf>,
     /// Pipelines, comma-separated.
@@ -80,6 +82,10 @@ pub struct BenchArgs {
     /// Denoising, comma-separated.
     #[arg(long, value_enum, default_value = "on", value_delimiter = ',')]
     denoise: Vec<Denoise>,
+    /// `render --reprojection-tolerance` values, comma-separated (reprojecting cells only;
+    /// default: render's): hole ratio, frame time and accuracy per tolerance.
+    #[arg(long, value_delimiter = ',', value_parser = crate::cmd_render::parse_reprojection_tolerance)]
+    reprojection_tolerances: Vec<f32>,
     /// Device counts, comma-separated.
     #[arg(long, default_value = "1", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=64))]
     devices: Vec<u32>,
@@ -121,6 +127,7 @@ fn matrix_of_flags(args: &BenchArgs) -> Result<Matrix> {
         sources_per_set: args.sources_per_set.clone(),
         spp: args.spp.clone(),
         denoise: args.denoise.clone(),
+        tolerances: args.reprojection_tolerances.clone(),
         devices: args.devices.clone(),
         fake_devices: args.fake_devices,
     };
@@ -148,13 +155,14 @@ fn case_origin(matrix: Option<&Path>, case: &Case) -> String {
 }
 
 /// The render flags bench sets per cell (clap id, spelling): a case may not give them.
-const BENCH_FLAGS: [(&str, &str); 11] = [
+const BENCH_FLAGS: [(&str, &str); 12] = [
     ("pipeline", "--pipeline"),
     ("scheme", "--scheme"),
     ("assign", "--assign"),
     ("sources_per_set", "--sources-per-set"),
     ("spp", "--spp"),
     ("no_denoise", "--no-denoise"),
+    ("reprojection_tolerance", "--reprojection-tolerance"),
     ("gpus", "--gpus"),
     ("fake_devices", "--fake-devices"),
     ("frames", "--frames"),
@@ -212,7 +220,7 @@ fn run_cell(
         "id": id, "case": case.name, "args": cell.args, "pipeline": name_of(&cell.pipeline),
         "scheme": name_of(&cell.scheme), "assignment": cell.assignment.map(|a| name_of(&a)),
         "sources_per_set": cell.sources_per_set, "spp": cell.spp, "denoise": cell.denoise == Denoise::On,
-        "devices": cell.devices,
+        "reprojection_tolerance": cell.tolerance, "devices": cell.devices,
     });
     if !output.status.success() {
         let error = String::from_utf8_lossy(&output.stderr).trim().to_string();
@@ -241,6 +249,10 @@ fn run_cell(
     if shaped && cell.assignment.is_none() {
         // Render's default, as it reports it.
         entry["assignment"] = report["assign"].clone();
+    }
+    if cell.pipeline == PipelineArg::Reproject {
+        // Render's default when the cell gave none, as it reports it.
+        entry["reprojection_tolerance"] = report["reprojection_tolerance"].clone();
     }
     entry["ok"] = true.into();
     entry["views"] = report["layout"]["views"].clone();
@@ -280,6 +292,7 @@ fn point(c: &serde_json::Value) -> serde_json::Value {
         "label": c["id"], "series": c["pipeline"], "case": c["case"], "frame_ms": c["frame_ms"]["mean_ms"],
         "flip": c["flip"], "psnr": c["psnr_db"], "views": c["views"], "devices": c["devices"],
         "assignment": c["assignment"], "sources_per_set": c["sources_per_set"], "spp": c["spp"],
+        "reprojection_tolerance": c["reprojection_tolerance"],
         "missing": if reprojected { c["missing_pixels"]["overall"].clone() } else { serde_json::Value::Null },
         "hole_fill_ms": c["hole_fill_ms"],
     })

@@ -174,12 +174,13 @@ pub struct RenderArgs {
 }
 
 /// `--reprojection-tolerance`: a relative error, finite and at least 0.
-fn parse_reprojection_tolerance(s: &str) -> Result<f32, String> {
-    match s.trim().parse::<f32>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-        Ok(v) => Err(format!("{v} is not a relative error >= 0 (0.05 = 5 %)")),
-        Err(_) => Err(format!("'{s}' is not a number")),
-    }
+pub fn parse_reprojection_tolerance(s: &str) -> Result<f32, String> {
+    s.trim().parse::<f32>().map_err(|_| format!("'{s}' is not a number")).and_then(check_reprojection_tolerance)
+}
+
+/// A reprojection tolerance is a relative error: finite and at least 0.
+pub fn check_reprojection_tolerance(v: f32) -> Result<f32, String> {
+    if v.is_finite() && v >= 0.0 { Ok(v) } else { Err(format!("{v} is not a relative error >= 0 (0.2 = 20 %)")) }
 }
 
 /// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,

@@ -1,6 +1,7 @@
 //! Charts with plotters, as SVG or PNG (chosen by the file extension): speed against accuracy
 //! with its Pareto front, scaling over devices with the ideal line, frame time over views,
-//! missing pixels against hole-filling time, and (in
+//! missing pixels against hole-filling time, missing pixels against the reprojection tolerance,
+//! and (in
 //! [`crate::timeline`]) a per-device timeline of a Chrome trace. 960×600 pixels, 15-18 px text:
 //! readable at 100 % zoom. The legend sits beside the plot, never over data, each swatch drawn
 //! as its series is (marker, line, dashes or bar); point labels are short (only what tells the
@@ -279,6 +280,43 @@ pub fn short_labels(labels: &[String]) -> Vec<String> {
         .collect()
 }
 
+/// Missing pixels (%) against the reprojection tolerance, one line per bench case (points of
+/// reprojecting cells), each point labelled with its accuracy figure of `accuracy` when it has
+/// one: where reprojecting more starts to cost accuracy.
+pub fn tolerance(points: &[Point], accuracy: AccuracyAxis) -> Result<XyChart> {
+    let groups = group_by(
+        points,
+        |p| p.missing.is_some() && p.reprojection_tolerance.is_some(),
+        |p| p.case.as_deref().unwrap_or("all"),
+    );
+    if groups.is_empty() {
+        return Err(none_usable(
+            "both missing and reprojection_tolerance (bench's points.json has them for reprojecting cells)",
+        ));
+    }
+    let label = |p: &Point| match accuracy {
+        AccuracyAxis::Flip => p.flip.map(|f| format!("FLIP {f:.4}")),
+        AccuracyAxis::Psnr => p.psnr.map(|db| format!("{db:.2} dB")),
+    };
+    let series = groups
+        .into_iter()
+        .enumerate()
+        .map(|(color, (name, ps))| {
+            let mut points: Vec<(f64, f64, Option<String>)> =
+                ps.iter().filter_map(|p| Some((p.reprojection_tolerance?, 100.0 * p.missing?, label(p)))).collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            Series { name, color: Colour::Palette(color), style: Style::Line, points }
+        })
+        .collect();
+    Ok(XyChart {
+        title: "Missing pixels against the reprojection tolerance".into(),
+        x_label: "reprojection tolerance (bound on the relative error from view-dependence)".into(),
+        y_label: "missing pixels (%)".into(),
+        series,
+        integer_x: false,
+    })
+}
+
 pub(crate) fn chart_err(e: impl std::fmt::Display) -> AccuracyError {
     AccuracyError::Chart(e.to_string())
 }
@@ -546,6 +584,32 @@ mod tests {
             hole_fill_ms,
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn tolerance_has_a_line_per_case_sorted_by_tolerance_and_labelled_with_accuracy() {
+        let point = |case: &str, t: f64, missing: f64, psnr: Option<f64>| Point {
+            label: format!("{case}/{t}"),
+            case: Some(case.into()),
+            missing: Some(missing),
+            reprojection_tolerance: Some(t),
+            psnr,
+            ..Default::default()
+        };
+        let points = [
+            point("sponza", 0.5, 0.02, Some(37.7)),
+            point("sponza", 0.05, 0.06, Some(37.8)),
+            point("default", 0.2, 0.04, None),
+            Point { reprojection_tolerance: None, ..point("sponza", 1.0, 0.01, None) },
+        ];
+        let chart = tolerance(&points, AccuracyAxis::Psnr).unwrap();
+        let names: Vec<&str> = chart.series.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["sponza", "default"]);
+        assert_eq!(chart.series[0].points, [(0.05, 6.0, Some("37.80 dB".into())), (0.5, 2.0, Some("37.70 dB".into()))]);
+        assert_eq!(chart.series[1].points, [(0.2, 4.0, None)]);
+        assert!(
+            tolerance(&points[3..], AccuracyAxis::Flip).unwrap_err().to_string().contains("reprojection_tolerance")
+        );
     }
 
     #[test]

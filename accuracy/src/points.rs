@@ -5,13 +5,14 @@
 //! { "points": [ { "label": "multi-source, 2 GPUs", "series": "multi-source",
 //!                 "frame_ms": 12.5, "flip": 0.041, "psnr": 31.2, "devices": 2, "views": 32,
 //!                 "case": "nelf", "assignment": "compact", "sources_per_set": 2, "spp": 4,
-//!                 "missing": 0.012, "hole_fill_ms": 0.8 } ] }
+//!                 "missing": 0.012, "hole_fill_ms": 0.8, "reprojection_tolerance": 0.2 } ] }
 //! ```
 //!
 //! Every field but `label` is optional; a chart uses the points that have what it plots.
 //! `case`: the bench case the point belongs to (`chart --case`); `assignment`: how views were
 //! assigned to devices; `missing`: fraction of reprojected pixels that were holes;
-//! `hole_fill_ms`: hole-filling GPU time per frame, summed over devices.
+//! `hole_fill_ms`: hole-filling GPU time per frame, summed over devices;
+//! `reprojection_tolerance`: `render --reprojection-tolerance` of a reprojecting run.
 //! `frame_ms`: milliseconds per frame (render.json: the GPU span of the frame); `flip`: mean
 //! LDR-FLIP; `psnr`: dB on linear radiance clamped to [0, 1]; `series` groups points into one
 //! line or colour. Accepted files: `{"points": [...]}`, `{"point": {...}}` (what `compare --json`
@@ -51,6 +52,8 @@ pub struct Point {
     pub missing: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hole_fill_ms: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reprojection_tolerance: Option<f64>,
 }
 
 impl Point {

@@ -44,7 +44,7 @@ pub struct ReprojectionTolerances {
 impl ReprojectionTolerances {
     /// The view-dependence tolerance `render --reprojection-tolerance` uses by default
     /// (docs/PIPELINE.md says which measurement chose it).
-    pub const DEFAULT_VIEW_DEPENDENCE: f32 = 0.05;
+    pub const DEFAULT_VIEW_DEPENDENCE: f32 = 0.2;
 
     /// Every tolerance is a finite number, the view-dependence one at least 0.
     pub fn validate(&self) -> Result<()> {

@@ -73,7 +73,8 @@ impl ViewBound {
     /// The bound of the relative radiance error for a view change of `theta` radians.
     pub fn error(&self, theta: f32) -> f32 {
         let grow = |rate: f32| (rate * theta).exp() - 1.0;
-        let e = self.lobe_share * grow(self.lobe_rate) + self.peak_share * Vec3::from_array(self.peak_rate.to_array().map(grow));
+        let e = self.lobe_share * grow(self.lobe_rate)
+            + self.peak_share * Vec3::from_array(self.peak_rate.to_array().map(grow));
         e.max_element() + grow(self.diffuse_rate)
     }
 }

@@ -70,6 +70,18 @@ impl Gbuffer {
         self.surface(i) && (self.albedo[i][3] < 0.5 || self.normal[i][3] > 0.1)
     }
 
+    /// A sky pixel next to a surface (8-neighbourhood; these tests reproject whole views):
+    /// some of its jittered camera samples may hit that surface, so reprojection leaves it to
+    /// hole filling.
+    fn silhouette(&self, i: usize) -> bool {
+        let (x, y, size) = ((i as u32 % SIZE) as i64, (i as u32 / SIZE) as i64, SIZE as i64);
+        let neighbours = (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)));
+        !self.surface(i)
+            && neighbours
+                .filter(|&(qx, qy)| (0..size).contains(&qx) && (0..size).contains(&qy))
+                .any(|(qx, qy)| self.surface((qy * size + qx) as usize))
+    }
+
     /// A metal at most 0.1 rough: a mirror to within a pixel or two.
     fn mirror(&self, i: usize) -> bool {
         self.surface(i) && self.albedo[i][3] <= 0.1 && self.normal[i][3] >= 0.9
@@ -104,13 +116,8 @@ fn render_setup(s: Setup<'_>) -> Rendered {
         PlanConfig { devices: s.devices, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let config = PipelineConfig {
-        kind: s.kind,
-        gbuffer: s.gbuffer,
-        tolerances: s.tolerances,
-        denoise: false,
-        exposure: 1.0,
-    };
+    let config =
+        PipelineConfig { kind: s.kind, gbuffer: s.gbuffer, tolerances: s.tolerances, denoise: false, exposure: 1.0 };
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     let schedule = compile(&graph, &plan).unwrap();
@@ -218,22 +225,29 @@ fn with_every_view_a_source_the_pipeline_is_path_tracing_bit_for_bit() {
 }
 
 #[test]
-fn sky_pixels_are_never_holes_and_get_what_path_tracing_gives_them() {
+fn sky_pixels_are_never_holes_but_on_silhouettes_and_get_what_path_tracing_gives_them() {
     // Looking at the sun over the top of the glossy scene's wall: sky, sun disc and surfaces,
     // with the raster G-buffer too. 10 cm between views, so that surfaces have holes.
     let scene = glossy_scene();
-    let camera = Camera::look_at(Vec3::new(0.0, 1.2, 3.5), Vec3::new(0.0, 1.2, 3.5) + Vec3::new(0.1, 0.2, -1.0), Vec3::Y, 0.9);
-    for camera in [camera, sun_camera(&scene)] {
+    let camera =
+        Camera::look_at(Vec3::new(0.0, 1.2, 3.5), Vec3::new(0.0, 1.2, 3.5) + Vec3::new(0.1, 0.2, -1.0), Vec3::Y, 0.9);
+    for (camera, sun_in_view) in [(camera, false), (sun_camera(&scene), true)] {
         for gbuffer in [GbufferSource::FirstHits, GbufferSource::Raster] {
             let setup = Setup { camera, gbuffer, ..Setup::new(&scene, 3, 0.1, PipelineKind::Reproject, 1) };
             let reprojected = render_setup(setup);
             let traced = render_setup(Setup { kind: PipelineKind::PathTrace, ..setup });
-            let (mut sky, mut sun) = (0, 0);
+            let (mut sky, mut sun, mut silhouettes) = (0, 0, 0);
             for v in reprojected.targets() {
                 let (g, holes) = (reprojected.gbuffer(v), reprojected.holes(v));
                 for i in (0..holes.len()).filter(|&i| !g.surface(i)) {
-                    assert_eq!(holes[i], 0, "{gbuffer:?}: view {v}, sky pixel {i} is a hole");
                     let (ours, theirs) = (reprojected.radiance[v][i], traced.radiance[v][i]);
+                    if g.silhouette(i) {
+                        assert_eq!(holes[i], 1, "{gbuffer:?}: view {v}, sky pixel {i} on a silhouette");
+                        assert_eq!(ours, theirs, "{gbuffer:?}: view {v}, pixel {i}: hole filling is path tracing");
+                        silhouettes += 1;
+                        continue;
+                    }
+                    assert_eq!(holes[i], 0, "{gbuffer:?}: view {v}, sky pixel {i} is a hole");
                     assert_eq!(ours[3], 0.0, "a sky pixel has no first hit");
                     // Where path tracing's (jittered) camera sample missed too, the same sum of
                     // the same sky and sun terms: equal but for the compiler's contraction of
@@ -251,15 +265,17 @@ fn sky_pixels_are_never_holes_and_get_what_path_tracing_gives_them() {
                 }
             }
             assert!(sky > 100, "{gbuffer:?}: the camera sees the sky ({sky} pixels compared)");
-            if camera.forward == sun_camera(&scene).forward {
+            if sun_in_view {
                 assert!(sun > 4, "{gbuffer:?}: the sun disc is in view ({sun} pixels)");
+            } else {
+                assert!(silhouettes > 10, "{gbuffer:?}: and silhouettes against it ({silhouettes} pixels)");
             }
         }
     }
 }
 
 #[test]
-fn a_view_at_its_sources_position_has_no_hole() {
+fn a_view_at_its_sources_position_has_no_hole_but_on_silhouettes() {
     // The same eye: the view direction does not change, so the bound is 0 even on a mirror.
     let scene = glossy_scene();
     let r = render_setup(Setup::new(&scene, 2, 0.0, PipelineKind::Reproject, 1));
@@ -267,16 +283,17 @@ fn a_view_at_its_sources_position_has_no_hole() {
     assert_eq!(t.len(), 1);
     let g = r.gbuffer(t[0]);
     assert!((0..g.position.len()).filter(|&i| g.mirror(i)).count() > 10, "the mirror sphere is in view");
-    assert!(r.holes(t[0]).iter().all(|&h| h == 0));
+    let holes = r.holes(t[0]);
+    assert!((0..holes.len()).all(|i| (holes[i] == 1) == g.silhouette(i)), "holes only on silhouettes against the sky");
     assert!(r.radiance[t[0]].iter().flatten().all(|c| c.is_finite()));
 }
 
 #[test]
 fn a_view_1mm_from_its_source_misses_almost_no_rough_glossy_pixel_and_every_mirror_pixel() {
-    // 1 mm at 2.5 to 4.5 m: theta <= 4e-4 rad. On the roughest of these materials' lobes
-    // (alpha >= 0.0625) the bound is at most ~1 % there, except on grazing floor pixels
-    // (cos < 0.1), so with the default 5 % tolerance almost no surface pixel is a hole.
-    // The mirror (alpha = MIN_ALPHA) has a bound above 30 % for any theta >= 2e-4: all holes.
+    // 1 mm at 2.5 to 4.5 m: theta <= 4e-4 rad. On these materials' lobes (alpha >= 0.0625)
+    // the bound is then at most ~3 % up to 60° off the normal, so with the default 20 %
+    // tolerance almost no surface pixel is a hole (grazing floor pixels may be). The mirror
+    // (alpha = MIN_ALPHA, 2.7 m away) has a bound above 60 % there: every pixel a hole.
     let scene = glossy_scene();
     let r = render_setup(Setup::new(&scene, 3, 0.001, PipelineKind::Reproject, 1));
     for v in r.targets() {
@@ -320,7 +337,10 @@ fn the_gpus_holes_are_where_the_cpu_twin_of_the_bound_puts_them() {
             }
         }
     }
-    assert!(passed > 300 && rejected > 30, "both sides of the tolerance are tested: {passed} passed, {rejected} rejected");
+    assert!(
+        passed > 300 && rejected > 30,
+        "both sides of the tolerance are tested: {passed} passed, {rejected} rejected"
+    );
 }
 
 #[test]
@@ -365,14 +385,14 @@ fn reprojected_means(
 
 #[test]
 fn reprojected_pixels_match_path_tracing_the_same_pixels_on_average() {
-    // 64 spp, so that a 2 % bound separates a bias from noise. The default scene at 2 cm
-    // (mostly diffuse, every reprojected pixel), and the glossy scene at 5 mm, where the
-    // bound lets its rough-glossy surfaces through.
-    let spp = 64;
+    // Enough spp that a 2 % bound separates a bias from noise: the default scene at 2 cm
+    // (mostly diffuse; every reprojected pixel) at 64 spp, and the glossy scene at 5 mm, where
+    // the bound lets most of its rough-glossy pixels through, over those pixels only, at 256
+    // spp (its sun's highlights make the mean over ~700 pixels scatter by ~2 % at 64 spp).
     let scene = default_scene();
     let glossy = glossy_scene();
-    let cases = [(&scene, 0.02, 300, false), (&glossy, 0.005, 300, true)];
-    for (scene, spacing, least, only_glossy) in cases {
+    let cases = [(&scene, 0.02, 64, 300, false), (&glossy, 0.005, 256, 500, true)];
+    for (scene, spacing, spp, least, only_glossy) in cases {
         let setup = Setup::new(scene, 3, spacing, PipelineKind::Reproject, spp);
         let reprojected = render_setup(setup);
         let traced = render_setup(Setup { kind: PipelineKind::PathTrace, ..setup });
