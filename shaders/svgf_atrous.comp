@@ -31,7 +31,8 @@ const int MAX_TILE = 14;
 
 shared vec4 tile_illumination[MAX_TILE * MAX_TILE]; // rgb, illumination luminance
 shared vec4 tile_geometry[MAX_TILE * MAX_TILE];     // normal xyz, depth (0: no hit or outside)
-// half2 depth gradient, half2 albedo rg, half2 (albedo b, 0), variance the weights use (f32 bits)
+// half2 depth gradient, half2 albedo rg, half2 (albedo b, albedo luminance), variance the weights
+// use (f32 bits)
 shared uvec4 tile_packed[MAX_TILE * MAX_TILE];
 
 // Reads the size² entries origin + step * (i, j), row-major.
@@ -50,8 +51,8 @@ void load_tile(ivec2 origin, int step, int size) {
         float l = hit ? svgf_illumination_luminance(illumination.rgb * albedo, albedo) : 0.0;
         tile_illumination[e] = vec4(illumination.rgb, l);
         tile_geometry[e] = vec4(hit ? svgf_unpack_normal(guide.w) : vec3(0.0), hit ? guide.x : 0.0);
-        tile_packed[e] = uvec4(packHalf2x16(guide.yz), packHalf2x16(albedo.rg), packHalf2x16(vec2(albedo.b, 0.0)),
-                               floatBitsToUint(illumination.a));
+        tile_packed[e] = uvec4(packHalf2x16(guide.yz), packHalf2x16(albedo.rg),
+                               packHalf2x16(vec2(albedo.b, svgf_luminance(albedo))), floatBitsToUint(illumination.a));
     }
 }
 
@@ -122,10 +123,12 @@ void main() {
     }
     uvec4 packed = tile_packed[c];
     vec2 gradient = unpackHalf2x16(packed.x);
-    vec3 albedo = vec3(unpackHalf2x16(packed.y), unpackHalf2x16(packed.z).x);
+    vec2 blue_luminance = unpackHalf2x16(packed.z);
+    vec3 albedo = vec3(unpackHalf2x16(packed.y), blue_luminance.x);
     vec3 inverse_albedo = 1.0 / albedo;
-    float albedo_luminance = svgf_luminance(albedo);
+    float inverse_albedo_luminance = 1.0 / blue_luminance.y;
     float v = uintBitsToFloat(packed.w);
+    float spacing = float(step);
     vec3 change = vec3(0.0);
     float share_sum = 0.0; // in luminance, for the variance
     float variance = 0.0;
@@ -138,13 +141,14 @@ void main() {
             }
             vec4 illumination_q = tile_illumination[e];
             uvec4 packed_q = tile_packed[e];
-            vec3 albedo_q = vec3(unpackHalf2x16(packed_q.y), unpackHalf2x16(packed_q.z).x);
+            vec2 blue_luminance_q = unpackHalf2x16(packed_q.z);
+            vec3 albedo_q = vec3(unpackHalf2x16(packed_q.y), blue_luminance_q.x);
             float v_q = uintBitsToFloat(packed_q.w);
             float w = KERNEL[abs(dx)] * KERNEL[abs(dy)]
                 * svgf_edge_weight(geometry.w, geometry_q.w, gradient, unpackHalf2x16(packed_q.x), geometry.xyz,
-                                   geometry_q.xyz, centre.w, illumination_q.w, v, v_q, vec2(step * dx, step * dy));
-            change += (w * min(albedo, albedo_q) * inverse_albedo) * (illumination_q.rgb - centre.rgb);
-            float share = w * min(albedo_luminance, svgf_luminance(albedo_q)) / albedo_luminance;
+                                   geometry_q.xyz, centre.w, illumination_q.w, v, v_q, spacing * vec2(dx, dy));
+            change += (w * min(vec3(1.0), albedo_q * inverse_albedo)) * (illumination_q.rgb - centre.rgb);
+            float share = w * min(1.0, blue_luminance_q.y * inverse_albedo_luminance);
             share_sum += share;
             variance += share * share * v_q;
         }

@@ -289,6 +289,44 @@ mod tests {
     use parallax_backend::reflect::member_offsets;
     use parallax_backend::rust_layout;
 
+    /// `svgf_tile_base` of shaders/svgf.glsl, and the pixel of invocation (lx, ly) from it.
+    fn phase_pixel(step: u32, y0: u32, group: (u32, u32), local: (u32, u32)) -> (u32, u32) {
+        let (gx, gy) = group;
+        let base = (gx % step + step * 8 * (gx / step), gy % step + step * (y0 / step + 8 * (gy / step)));
+        (base.0 + step * local.0, base.1 + step * local.1)
+    }
+
+    #[test]
+    fn the_phase_tiles_of_a_band_cover_each_of_its_pixels_once() {
+        let (width, height) = (37, 45);
+        for step in ATROUS_STEPS {
+            for (y0, y1) in [(0, height), (0, 15), (15, 30), (30, height), (7, 8), (13, 44)] {
+                let mut count = vec![0u32; (width * height) as usize];
+                let [gx, gy, gz] = phase_groups(step, width, y0, y1);
+                assert_eq!(gz, 1);
+                for group in (0..gx).flat_map(|x| (0..gy).map(move |y| (x, y))) {
+                    for local in (0..8).flat_map(|x| (0..8).map(move |y| (x, y))) {
+                        let (x, y) = phase_pixel(step, y0, group, local);
+                        // What the shader's svgf_in_band test lets through.
+                        if x < width && (y0..y1).contains(&y) {
+                            count[(y * width + x) as usize] += 1;
+                        }
+                    }
+                }
+                for y in 0..height {
+                    for x in 0..width {
+                        let expected = u32::from((y0..y1).contains(&y));
+                        assert_eq!(
+                            count[(y * width + x) as usize],
+                            expected,
+                            "step {step}, rows {y0}..{y1}: ({x}, {y})"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn the_push_struct_matches_every_svgf_shader() {
         let rust = rust_layout!(SvgfPush {
