@@ -2,13 +2,11 @@
 // block, the packed guide texel, the edge-stopping weights, the workgroup tiles and the guards
 // that keep every value finite.
 //
-// Units: every colour image of the chain holds radiance "consistent with the pixel's own
-// albedo": L = a_p * E, where E (illumination) is estimated from neighbours q as
-// sum(w L_q) / sum(w a_q) per channel (a ratio estimator). Neighbours thus count in proportion
-// to their albedo in a channel: a texel black in green tells nothing about green light and
-// adds nothing to it, and a jittered sample that landed on another texel than the pixel centre
-// (whose albedo `a` is) is never divided by that centre's albedo on its own. See
-// docs/PIPELINE.md (SVGF) for the measurements behind it.
+// Units: the images of the chain hold illumination E = radiance / a, with a the effective
+// albedo (svgf_effective_albedo), per channel; the last à-trous iteration writes a·E. Nothing
+// divides one pixel's radiance by another's albedo, and the à-trous iterations exchange E so that
+// the radiance a·E of a view is conserved (svgf_atrous.comp; docs/PIPELINE.md, SVGF, for the
+// measurements behind it).
 #ifndef PARALLAX_SVGF_GLSL
 #define PARALLAX_SVGF_GLSL
 
@@ -47,8 +45,8 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 // Values are clamped here: squares and tap sums then stay far below the f32 range.
 const float MAX_VALUE = 1e8;
-// Added to every albedo channel before it weighs or remodulates anything: a black channel still
-// gets a (tiny) weight, so sums never vanish and emitters on black bases keep their radiance.
+// Added to every albedo channel before anything divides by it or weighs with it: a black channel
+// still has a finite illumination (an emitter on a black base keeps its radiance).
 const float ALBEDO_FLOOR = 1e-3;
 // À-trous luminance edge-stopping (Schied: σ_l = 4).
 const float SIGMA_L = 4.0;
@@ -131,7 +129,7 @@ vec3 svgf_unpack_normal(float packed) {
 
 // The edge-stopping weight of taps p and q `offset` pixels apart (Schied's w_z · w_n · w_l with
 // σ_z = 1, σ_n = 128, σ_l = 4), symmetric in p and q, so that a filter built on it can conserve
-// energy (svgf_atrous_first.comp):
+// energy (svgf_atrous.comp):
 // - depth: the difference against what both pixels' gradients predict for the offset, plus a
 //   floor relative to depth for curved or slanted surfaces that the linear prediction misses;
 // - normal: dot^128 (a NaN or back-facing normal gives 0; 7 squarings, no transcendental);

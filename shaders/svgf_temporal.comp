@@ -6,7 +6,8 @@
 //   radiance, albedo, normal, position: own pixel and, for short histories, the 7×7 around it
 //   (depth also the 4 neighbours, for the gradient); motion: own pixel
 //   in0 `svgf_prev_color` (illumination rgb, length), in1 `svgf_prev_moments` (m1, m2, depth,
-//   packed normal): whole view
+//   packed normal): whole view; for an instance over its whole view, the history `svgf_color`
+//   and `svgf_moments` themselves (the same texels)
 //   out0 `svgf_variance`: (illumination rgb, variance)
 //   out1 `svgf_moments`: (m1, m2, linear depth, packed normal), read as history next frame
 //   out2 `svgf_guide`: (linear depth, depth gradient x, y, packed normal)
@@ -99,7 +100,10 @@ Temporal accumulate(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3
     vec2 prev_moments = vec2(0.0);
     float prev_length = 0.0;
     float weight_sum = 0.0;
-    if (motion.x >= 0.0 && motion.y >= 0.0 && !any(isnan(motion)) && !any(isinf(motion))) {
+    // Invalid history (first frame, a reset) has nothing to reuse: the copies are 0 then, the
+    // history itself is what the other half held before.
+    if (frame.history_valid != 0u && motion.x >= 0.0 && motion.y >= 0.0 && !any(isnan(motion))
+        && !any(isinf(motion))) {
         vec2 at = motion - 0.5;
         ivec2 base = ivec2(floor(at));
         vec2 f = at - vec2(base);

@@ -1,27 +1,28 @@
 //! The `svgf` passes: spatiotemporal variance-guided filtering (after Schied et al.,
 //! *Spatiotemporal Variance-Guided Filtering*, HPG 2017) of a view's `radiance` into `denoised`,
-//! declared by [`declare_svgf`] as a chain of passes over the view's G-buffer:
+//! declared by [`declare_svgf`] as a chain of seven passes over the view's G-buffer:
 //!
 //! 1. `svgf_history` (shaders/svgf_history.comp): last frame's colour and moments history
 //!    (history reads) copied into this frame's images. History reads see only the instance's
-//!    own rows, reprojection may land on any row: the copies are read whole.
-//! 2. `svgf_temporal`: radiance accumulated through `motion` with an exponential moving
-//!    average (α = 0.2 for colour and moments, 1/n while the history is shorter), the history
-//!    (illumination) remodulated by the pixel's albedo first; disoccluded pixels (depth or
-//!    normal differ from the previous frame's) restart. It also packs what the later passes read
-//!    of the G-buffer into one guide texel (depth, depth gradient, octahedral normal) and an
-//!    albedo texel (half floats).
-//! 3. `svgf_variance`: variance of the illumination luminance from the temporal moments, or a
-//!    7×7 spatial estimate while the history is shorter than 4 frames.
-//! 4. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16) with
+//!    own rows, reprojection may land on any row: the copies are read whole. An instance that
+//!    covers its whole view records nothing: the temporal pass reads that history itself.
+//! 2. `svgf_temporal`: illumination (radiance / albedo) and the moments of its luminance
+//!    accumulated through `motion` with an exponential moving average (α = 0.2, 1/n while the
+//!    history is shorter); disoccluded pixels (depth or normal differ from the previous frame's)
+//!    restart. In the same pass, the variance of the illumination luminance from the moments, or
+//!    a 7×7 spatial estimate while the history is shorter than 4 frames; and the G-buffer packed
+//!    for the à-trous passes: one guide texel (depth, depth gradient, octahedral normal) and the
+//!    effective albedo in half floats.
+//! 3. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16) with
 //!    symmetric edge-stopping on depth, normal and illumination luminance; the first one's
 //!    illumination is the colour history (`svgf_color`), the last one writes `denoised`.
 //!
-//! Illumination is never the radiance of one pixel divided by its albedo: each iteration
-//! estimates it as Σ w·radiance / Σ w·albedo over its taps and multiplies it back by the pixel's
-//! albedo, so a channel in which a neighbour's albedo is black gets nothing from it, and a
-//! jittered sample that hit another texel than the G-buffer's pixel centre is never blown up
-//! by the centre's albedo (docs/PIPELINE.md, SVGF, has the measurements).
+//! The à-trous iterations exchange illumination between neighbours so that radiance is
+//! conserved: the view's radiance sum after each iteration is the sum before it, whatever the
+//! textures, depth edges, image borders and weights (shaders/svgf_atrous.comp). With the
+//! temporal average this makes the per-channel mean of `denoised` exactly the running average of
+//! the path-traced input's: no bias in the mean. The normalised filter it replaces moved a
+//! channel's mean by up to 13 % on Sponza (docs/PIPELINE.md, SVGF).
 //!
 //! Every pass with a footprint reads whole views (`read_whole`), so a view split into row bands
 //! over devices gives the same pixels as one device. The à-trous passes run in phase tiles
@@ -40,6 +41,8 @@ pub const DENOISED: &str = "denoised";
 pub const SVGF_COLOR: &str = "svgf_color";
 /// Moments history: (m1, m2) of the illumination luminance, linear depth, packed normal.
 pub const SVGF_MOMENTS: &str = "svgf_moments";
+/// The temporal pass's output and the à-trous input: (illumination rgb, variance).
+pub const SVGF_VARIANCE: &str = "svgf_variance";
 /// Tap spacing of the à-trous iterations, in pixels.
 pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
 
@@ -48,7 +51,6 @@ const PREV_COLOR: &str = "svgf_prev_color";
 const PREV_MOMENTS: &str = "svgf_prev_moments";
 const GUIDE: &str = "svgf_guide";
 const EFFECTIVE_ALBEDO: &str = "svgf_albedo";
-const VARIANCE: &str = "svgf_variance";
 const ATROUS: &str = "svgf_atrous";
 
 // G-buffer slots (docs/PIPELINE.md).
@@ -84,7 +86,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     let mut guide = graph.image(GUIDE, Format::Rgba32f);
     // Albedo in [0, 1] (plus a floor) weighs and remodulates: half floats' 2^-11 is plenty.
     let mut albedo = graph.image(EFFECTIVE_ALBEDO, Format::Rgba16f);
-    let mut variance = graph.image(VARIANCE, Format::Rgba32f);
+    let mut variance = graph.image(SVGF_VARIANCE, Format::Rgba32f);
     let mut atrous = graph.image(ATROUS, Format::Rgba32f);
     let mut denoised = graph.image(DENOISED, Format::Rgba32f);
 
@@ -97,8 +99,12 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         .kernel(Arc::new(SvgfKernel(Stage::History)))
         .record();
     // The G-buffer whole: the depth gradient and the spatial variance estimate read neighbours.
+    // The history directly where an instance covers its whole view (the copy is then skipped),
+    // the copies where it is a band.
     graph
         .pass("svgf_temporal", Role::All)
+        .read_history(&color)
+        .read_history(&moments)
         .read_whole(inputs.radiance)
         .read_whole(inputs.albedo_roughness)
         .read_whole(inputs.normal_metallic)
@@ -115,7 +121,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     for (i, &step) in ATROUS_STEPS.iter().enumerate() {
         let name = format!("svgf_atrous_{}", i + 1);
         let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
-        let (input, input_slot) = if first { (&variance, VARIANCE) } else { (&atrous, ATROUS) };
+        let (input, input_slot) = if first { (&variance, SVGF_VARIANCE) } else { (&atrous, ATROUS) };
         let pass = graph.pass(&name, Role::All).read_whole(input).read_whole(&guide).read_whole(&albedo);
         let (pass, output) = if last {
             (pass.read(inputs.radiance).write(&mut denoised), DENOISED)
@@ -221,6 +227,8 @@ impl PassKernel for SvgfKernel {
         };
         let target = rec.resource(band.resource);
         let (width, height) = (target.width, target.height);
+        // The instance covers its whole view: its history reads see every row.
+        let whole_view = pass.rows.y0 == 0 && pass.rows.y1 == height;
         let mut push = SvgfPush {
             radiance: UNUSED,
             albedo: UNUSED,
@@ -243,6 +251,8 @@ impl PassKernel for SvgfKernel {
             flags: 0,
         };
         match stage {
+            // A whole view's history is all there: the temporal pass reads it directly.
+            Stage::History if whole_view => return Ok(()),
             Stage::History => {
                 push.in0 = image(rec, Slot::History(SVGF_COLOR))?;
                 push.in1 = image(rec, Slot::History(SVGF_MOMENTS))?;
@@ -255,9 +265,14 @@ impl PassKernel for SvgfKernel {
                 push.normal = image(rec, Slot::Input(NORMAL))?;
                 push.position = image(rec, Slot::Input(POSITION))?;
                 push.motion = image(rec, Slot::Input(MOTION))?;
-                push.in0 = image(rec, Slot::Input(PREV_COLOR))?;
-                push.in1 = image(rec, Slot::Input(PREV_MOMENTS))?;
-                push.out0 = image(rec, Slot::Output(VARIANCE))?;
+                let (color, moments) = if whole_view {
+                    (Slot::History(SVGF_COLOR), Slot::History(SVGF_MOMENTS))
+                } else {
+                    (Slot::Input(PREV_COLOR), Slot::Input(PREV_MOMENTS))
+                };
+                push.in0 = image(rec, color)?;
+                push.in1 = image(rec, moments)?;
+                push.out0 = image(rec, Slot::Output(SVGF_VARIANCE))?;
                 push.out1 = image(rec, Slot::Output(SVGF_MOMENTS))?;
                 push.out2 = image(rec, Slot::Output(GUIDE))?;
                 push.out3 = image(rec, Slot::Output(EFFECTIVE_ALBEDO))?;
