@@ -392,7 +392,7 @@ pub fn load(path: &Path) -> Result<Matrix> {
             tolerances: match s.reprojection_tolerances {
                 None => d.tolerances,
                 Some(v) => non_empty(v)
-                    .and_then(|v| v.into_iter().map(|t| crate::cmd_render::check_reprojection_tolerance(t)).collect())
+                    .and_then(|v| v.into_iter().map(crate::cmd_render::check_reprojection_tolerance).collect())
                     .map_err(words("reprojection_tolerances"))?,
             },
             devices: counts(s.devices, "devices", 1..=64, d.devices)?,
