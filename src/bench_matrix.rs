@@ -77,7 +77,7 @@ pub struct Axes {
     pub spp: Vec<u32>,
     pub denoise: Vec<Denoise>,
     /// `--reprojection-tolerance` values; empty: render's default (reprojecting cells only).
-    pub tolerances: Vec<f32>,
+    pub tolerances: Vec<f64>,
     pub devices: Vec<u32>,
     pub fake_devices: bool,
 }
@@ -126,7 +126,7 @@ pub struct Cell {
     pub spp: u32,
     pub denoise: Denoise,
     /// Reprojecting cells: the `--reprojection-tolerance` asked for (None: render's default).
-    pub tolerance: Option<f32>,
+    pub tolerance: Option<f64>,
     pub devices: u32,
     pub fake_devices: bool,
 }
@@ -191,10 +191,10 @@ fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
     let mut out = Vec::new();
     let prefix = case.name.as_ref().map_or_else(String::new, |n| format!("{n}/"));
     let explicit: Vec<Option<AssignArg>> = axes.assignments.iter().copied().map(Some).collect();
-    let given_tolerances: Vec<Option<f32>> = axes.tolerances.iter().copied().map(Some).collect();
+    let given_tolerances: Vec<Option<f64>> = axes.tolerances.iter().copied().map(Some).collect();
     for &pipeline in &axes.pipelines {
         // Only reprojection has a tolerance; other cells run with none.
-        let tolerances: &[Option<f32>] = if pipeline == PipelineArg::Reproject && !given_tolerances.is_empty() {
+        let tolerances: &[Option<f64>] = if pipeline == PipelineArg::Reproject && !given_tolerances.is_empty() {
             &given_tolerances
         } else {
             &[None]
@@ -393,9 +393,7 @@ pub fn load(path: &Path) -> Result<Matrix> {
             tolerances: match s.reprojection_tolerances {
                 None => d.tolerances,
                 Some(v) => non_empty(v)
-                    .and_then(|v| {
-                        v.into_iter().map(|t| crate::cmd_render::check_reprojection_tolerance(t as f32)).collect()
-                    })
+                    .and_then(|v| v.into_iter().map(crate::cmd_render::check_reprojection_tolerance).collect())
                     .map_err(words("reprojection_tolerances"))?,
             },
             devices: counts(s.devices, "devices", 1..=64, d.devices)?,

@@ -84,8 +84,9 @@ pub struct BenchArgs {
     denoise: Vec<Denoise>,
     /// `render --reprojection-tolerance` values, comma-separated (reprojecting cells only;
     /// default: render's): hole ratio, frame time and accuracy per tolerance.
-    #[arg(long, value_delimiter = ',', value_parser = crate::cmd_render::parse_reprojection_tolerance)]
-    reprojection_tolerances: Vec<f32>,
+    #[arg(long, allow_negative_numbers = true, value_delimiter = ',',
+          value_parser = crate::cmd_render::parse_reprojection_tolerance)]
+    reprojection_tolerances: Vec<f64>,
     /// Device counts, comma-separated.
     #[arg(long, default_value = "1", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=64))]
     devices: Vec<u32>,

@@ -149,8 +149,9 @@ pub struct RenderArgs {
     /// (the bound of docs/PIPELINE.md, from the angle between target and source view
     /// directions, the GGX lobe width and Fresnel); pixels over it are holes, path traced.
     /// 0 reuses only sources at the target's own position.
-    #[arg(long, default_value_t = ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE, value_parser = parse_reprojection_tolerance)]
-    reprojection_tolerance: f32,
+    #[arg(long, allow_negative_numbers = true, default_value_t = default_reprojection_tolerance(),
+          value_parser = parse_reprojection_tolerance)]
+    reprojection_tolerance: f64,
     /// Where the G-buffer comes from: first hits of the pixel-centre rays (fast on compute GPUs
     /// such as the H200), or rasterised (the paper's way; fast with fixed-function raster).
     #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
@@ -173,14 +174,24 @@ pub struct RenderArgs {
     trace: Option<Sink>,
 }
 
-/// `--reprojection-tolerance`: a relative error, finite and at least 0.
-pub fn parse_reprojection_tolerance(s: &str) -> Result<f32, String> {
-    s.trim().parse::<f32>().map_err(|_| format!("'{s}' is not a number")).and_then(check_reprojection_tolerance)
+/// `ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE` as the decimal it is written as (0.2, not
+/// the f32's 0.20000000298...), for `--help` and render.json.
+fn default_reprojection_tolerance() -> f64 {
+    ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE.to_string().parse().expect("a float prints as a float")
 }
 
-/// A reprojection tolerance is a relative error: finite and at least 0.
-pub fn check_reprojection_tolerance(v: f32) -> Result<f32, String> {
-    if v.is_finite() && v >= 0.0 { Ok(v) } else { Err(format!("{v} is not a relative error >= 0 (0.2 = 20 %)")) }
+/// `--reprojection-tolerance`: a relative error, finite and at least 0.
+pub fn parse_reprojection_tolerance(s: &str) -> Result<f64, String> {
+    s.trim().parse::<f64>().map_err(|_| format!("'{s}' is not a number")).and_then(check_reprojection_tolerance)
+}
+
+/// A reprojection tolerance is a relative error: finite (also as the shader's f32) and at least 0.
+pub fn check_reprojection_tolerance(v: f64) -> Result<f64, String> {
+    if (v as f32).is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a relative error >= 0 and < 3.4e38 (0.2 = 20 %)"))
+    }
 }
 
 /// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,
@@ -251,7 +262,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
             GbufferArg::FirstHits => GbufferSource::FirstHits,
             GbufferArg::Raster => GbufferSource::Raster,
         },
-        tolerances: ReprojectionTolerances { view_dependence: args.reprojection_tolerance, ..Default::default() },
+        tolerances: ReprojectionTolerances {
+            view_dependence: args.reprojection_tolerance as f32,
+            ..Default::default()
+        },
         denoise: !args.no_denoise,
         exposure: gpu_exposure(args.exposure),
     };

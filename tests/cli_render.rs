@@ -53,6 +53,7 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     render(&out, &["--fake-devices", "2", "--frames", "3", "--warmup", "1", "--quilt", "--layers"]);
     let report = json(&out.join("render.json"));
     assert_eq!(report["pipeline"], "reproject");
+    assert_eq!(report["reprojection_tolerance"], 0.2, "the default tolerance");
     assert_eq!(report["frames"], 3);
     assert_eq!((&report["barriers"], &report["timestamps"]), (&"tracked".into(), &"per-stage".into()), "the defaults");
     let stages: Vec<&str> =

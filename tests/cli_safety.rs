@@ -143,6 +143,14 @@ fn nonsense_values_are_refused_or_warned_about() {
         &["--trace and --json both write a.json"],
     );
     refused(&dir, &["render", "--frames", "0"], 2, &["--frames", "0 is not in 1..=100000"]);
+    for tolerance in ["-0.1", "NaN", "inf"] {
+        refused(
+            &dir,
+            &["render", "--reprojection-tolerance", tolerance],
+            2,
+            &["--reprojection-tolerance", "relative error"],
+        );
+    }
     refused(
         &dir,
         &["plan", "--lf", "4x1", "--gpus", "2", "--scheme", "fine-all", "--assign", "round-robin"],

@@ -3,7 +3,8 @@
 //! paper's diffuse-only gate (§4.1): a source's radiance is reused wherever
 //! [`crate::view_bound`] says it differs from the target's by at most
 //! [`ReprojectionTolerances::view_dependence`]. Sky pixels get the sky and sun the path tracer
-//! would give them and are never holes. Targets only.
+//! would give them and are not holes, except on silhouettes (a neighbour has a hit), where the
+//! path tracer's jittered samples may hit the surface too. Targets only.
 //!
 //! Slots (docs/PIPELINE.md): reads its own `position_depth`, `normal_metallic`,
 //! `albedo_roughness` and each source's `position_depth`, `normal_metallic`, `radiance`

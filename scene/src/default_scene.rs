@@ -3,7 +3,8 @@
 //! Small (under 2k triangles) and built to exercise reprojection: pillars and boxes at several
 //! depths in front of a back wall, so that views shifted sideways uncover different parts of the
 //! background (disocclusions); a diffuse floor and walls, glossy dielectric and metal objects
-//! (which reprojection must not reuse), an emissive ceiling panel, a gradient sky and a low sun.
+//! (which reprojection reuses only within its view-dependence bound), an emissive ceiling
+//! panel, a gradient sky and a low sun.
 
 use glam::{Vec2, Vec3};
 
