@@ -127,6 +127,23 @@ vec3 svgf_unpack_normal(float packed) {
     return normalize(n);
 }
 
+// The normal term (cosine to the power 128; 0 for normals 90° or more apart).
+float svgf_normal_weight(vec3 np, vec3 nq) {
+    float d = dot(np, nq);
+    if (!(d > 0.0)) {
+        return 0.0;
+    }
+    d = min(d, 1.0);
+    d *= d; d *= d; d *= d; d *= d; d *= d; d *= d; d *= d;
+    return d;
+}
+
+// The depth difference over what the two pixels' depth gradients expect across `offset`.
+float svgf_depth_distance(float zp, float zq, vec2 gp, vec2 gq, vec2 offset) {
+    float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
+    return abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12);
+}
+
 // The edge-stopping weight of taps p and q `offset` pixels apart (Schied's w_z · w_n · w_l with
 // σ_z = 1, σ_n = 128, σ_l = 4), symmetric in p and q, so that a filter built on it can conserve
 // energy (svgf_atrous.comp):
@@ -140,28 +157,21 @@ vec3 svgf_unpack_normal(float packed) {
 // One exponential for depth and luminance together.
 float svgf_edge_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 nq, float lp, float lq, float vp,
                        float vq, vec2 offset) {
-    float d = dot(np, nq);
-    if (!(d > 0.0)) {
+    float d = svgf_normal_weight(np, nq);
+    if (d == 0.0) {
         return 0.0;
     }
-    d = min(d, 1.0);
-    d *= d; d *= d; d *= d; d *= d; d *= d; d *= d; d *= d;
-    float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
-    float depth = abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12);
     float luminance = abs(lp - lq) * inversesqrt(max(0.5 * (vp + vq), 1e-20)) * (1.0 / SIGMA_L);
-    return d * exp(-(depth + luminance));
+    return d * exp(-(svgf_depth_distance(zp, zq, gp, gq, offset) + luminance));
 }
 
 // The depth-and-normal part of svgf_edge_weight, for the spatial variance estimate.
 float svgf_geometry_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 nq, vec2 offset) {
-    float d = dot(np, nq);
-    if (!(d > 0.0)) {
+    float d = svgf_normal_weight(np, nq);
+    if (d == 0.0) {
         return 0.0;
     }
-    d = min(d, 1.0);
-    d *= d; d *= d; d *= d; d *= d; d *= d; d *= d; d *= d;
-    float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
-    return d * exp(-abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12));
+    return d * exp(-svgf_depth_distance(zp, zq, gp, gq, offset));
 }
 
 // Where an à-trous iteration puts pixel p without a hit: on the last iteration its radiance,

@@ -6,13 +6,9 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph};
-use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Scheme, compile};
+use parallax_backend::ExecOptions;
+use parallax_graph::{LayoutSpec, LightField};
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
-use parallax_passes::renderer::LightFieldRenderer;
-use parallax_passes::reproject::ReprojectionTolerances;
-use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, default_scene};
 
 const SIZE: u32 = 24;
@@ -27,27 +23,6 @@ fn light_field(scene: &Scene, f: u32) -> LightField {
     LightField::new(LayoutSpec::Grid { cols: 3, rows: 1 }, Some(0.02), Some((SIZE, SIZE)), rig).unwrap()
 }
 
-/// The reprojection pipeline with SVGF over `lf`'s views on one device.
-fn renderer(scene: &Scene, bvh: &SceneBvh, lf: &LightField, options: ExecOptions) -> LightFieldRenderer {
-    let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(lf, &config).unwrap();
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let pipeline = PipelineConfig {
-        kind: PipelineKind::Reproject,
-        gbuffer: GbufferSource::FirstHits,
-        tolerances: ReprojectionTolerances::default(),
-        denoise: true,
-        exposure: 1.0,
-    };
-    let handles = declare_pipeline(&mut graph, &pipeline).unwrap();
-    graph.export(&handles.display);
-    let schedule = compile(&graph, &plan).unwrap();
-    let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
-    let context = common::context(1);
-    // The renderer keeps the devices alive; the context only has to outlive the set-up.
-    LightFieldRenderer::with_options(&context, exec, lf.len() as u32, &GpuScene::new(scene, bvh), options).unwrap()
-}
-
 /// Submits `frames` frames without waiting in between (the executor waits only for slots),
 /// then reads every view's denoised radiance and display image; checks there was one recording.
 fn render(frames_in_flight: usize, frames: u32) -> Vec<(Vec<u8>, Vec<u8>)> {
@@ -55,7 +30,7 @@ fn render(frames_in_flight: usize, frames: u32) -> Vec<(Vec<u8>, Vec<u8>)> {
     let bvh = SceneBvh::build(&scene);
     let lf = light_field(&scene, 0);
     let options = ExecOptions { frames_in_flight, ..ExecOptions::default() };
-    let mut renderer = renderer(&scene, &bvh, &lf, options);
+    let mut renderer = common::reprojection_renderer(&scene, &bvh, &lf, options);
     let settings = TraceSettings { spp: 1, max_depth: 3, ..Default::default() };
     for f in 0..frames {
         let views = lightfield_views(&light_field(&scene, f));
@@ -86,7 +61,8 @@ fn command_buffers_are_recorded_once_while_the_plan_is_unchanged() {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let lf = light_field(&scene, 0);
-    let mut renderer = renderer(&scene, &bvh, &lf, ExecOptions { frames_in_flight: 2, ..ExecOptions::default() });
+    let mut renderer =
+        common::reprojection_renderer(&scene, &bvh, &lf, ExecOptions { frames_in_flight: 2, ..ExecOptions::default() });
     let settings = TraceSettings { spp: 1, max_depth: 2, ..Default::default() };
     let mut moved = scene.clone();
     moved.sun = Some(parallax_scene::Sun {

@@ -5,13 +5,9 @@
 
 mod common;
 
-use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph, SUMMARY_SAMPLE};
-use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Scheme, compile};
+use parallax_backend::{ExecOptions, SUMMARY_SAMPLE};
+use parallax_graph::{LayoutSpec, LightField};
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
-use parallax_passes::renderer::LightFieldRenderer;
-use parallax_passes::reproject::ReprojectionTolerances;
-use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
 
 const FRAMES: u32 = 2_000;
@@ -38,24 +34,8 @@ fn host_memory_stays_flat_over_two_thousand_frames() {
     let bvh = SceneBvh::build(&scene);
     let rig = rig_of(&scene.default_camera(), scene.bounds().center(), None);
     let lf = LightField::new(LayoutSpec::Grid { cols: 2, rows: 1 }, Some(0.02), Some((8, 8)), rig).unwrap();
-    let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config).unwrap();
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let pipeline = PipelineConfig {
-        kind: PipelineKind::Reproject,
-        gbuffer: GbufferSource::FirstHits,
-        tolerances: ReprojectionTolerances::default(),
-        denoise: true,
-        exposure: 1.0,
-    };
-    let handles = declare_pipeline(&mut graph, &pipeline).unwrap();
-    graph.export(&handles.display);
-    let exec = ExecutionPlan::from_schedule(&graph, &compile(&graph, &plan).unwrap()).unwrap();
-    let context = common::context(1);
     let options = ExecOptions { frames_in_flight: 2, ..ExecOptions::default() };
-    let mut renderer =
-        LightFieldRenderer::with_options(&context, exec, lf.len() as u32, &GpuScene::new(&scene, &bvh), options)
-            .unwrap();
+    let mut renderer = common::reprojection_renderer(&scene, &bvh, &lf, options);
     let views = lightfield_views(&lf);
     let settings = TraceSettings { spp: 1, max_depth: 2, ..Default::default() };
     let mut settled = 0;
@@ -78,5 +58,5 @@ fn host_memory_stays_flat_over_two_thousand_frames() {
         grown as f64 / 1e3
     );
     assert!(grown < MAX_GROWTH_BYTES, "resident set grew {grown} bytes from frame {SETTLED} to {FRAMES}");
-    context.check_validation().unwrap();
+    renderer.executor().check_validation().unwrap();
 }

@@ -23,7 +23,9 @@ use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_passes::{DENOISED, GpuTracer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
-use parallax_scene::{Camera, Material, Scene, SceneBuilder, SceneBvh, Sky, Sun, Texture, TraceSettings, View};
+use parallax_scene::{
+    Camera, Material, Scene, SceneBuilder, SceneBvh, Sky, Sun, Texture, TraceSettings, View, default_lighting,
+};
 
 /// Samples per pixel of the reference.
 const REFERENCE_SPP: u32 = 256;
@@ -80,16 +82,7 @@ fn checker_room() -> Scene {
     b.camera(Camera::look_at(Vec3::new(0.0, 1.4, 5.5), Vec3::new(0.0, 0.8, 0.0), Vec3::Y, 0.75));
     let mut scene = b.build();
     scene.textures.push(checker(16, 2));
-    scene.sky = Some(Sky::Gradient {
-        zenith: Vec3::new(0.15, 0.25, 0.5),
-        horizon: Vec3::new(0.45, 0.5, 0.55),
-        ground: Vec3::new(0.15, 0.13, 0.1),
-    });
-    scene.sun = Some(Sun {
-        to_sun: Vec3::new(-0.5, 0.6, 0.45).normalize(),
-        irradiance: Vec3::new(1.3, 1.2, 1.1),
-        angular_radius: 0.02,
-    });
+    (scene.sky, scene.sun) = default_lighting();
     scene
 }
 

@@ -44,7 +44,7 @@ pub mod shading;
 
 pub use builder::SceneBuilder;
 pub use bvh::{BvhQuality, Hit, SceneBvh};
-pub use default_scene::{default_scene, white_furnace_scene};
+pub use default_scene::{default_lighting, default_scene, white_furnace_scene};
 pub use error::SceneError;
 pub use gltf_import::{LoadOptions, load_gltf, load_gltf_bytes, load_gltf_bytes_with, load_gltf_with};
 pub use model::{
