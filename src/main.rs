@@ -1,6 +1,7 @@
 //! The `parallax` command line.
 
 mod bench_matrix;
+mod bench_resume;
 mod bench_tables;
 mod budget;
 mod cmd_backend;

@@ -158,3 +158,58 @@ fn a_matrix_file_runs_each_cell_once_and_a_bad_one_nothing() {
     assert!(md.contains("| tiny |") && md.contains("Per stage, ms per frame") && md.contains("| hole_fill |"), "{md}");
     assert!(md.contains("| multi-source, round-robin |") && md.contains("## Scaling over devices"), "{md}");
 }
+
+/// A cut matrix goes on: each cell is reported on stderr as it ends (stderr is a pipe here, so
+/// no bar is drawn), and `--resume` keeps the cells bench.json has, runs the others, and
+/// refuses a bench.json of other frames.
+#[test]
+fn a_resumed_matrix_keeps_the_cells_it_has() {
+    let dir = scratch("bench", "resume");
+    let out = dir.join("bench");
+    let run = |spp: &str, frames: &str, resume: bool| {
+        let mut args = vec![
+            "bench",
+            "--common",
+            "--scene default --lf 2x1 --resolution 16x12 --spacing 0.05",
+            "--pipelines",
+            "path-trace",
+            "--spp",
+            spp,
+            "--frames",
+            frames,
+            "--warmup",
+            "0",
+            "--out-dir",
+            out.to_str().unwrap(),
+        ];
+        if resume {
+            args.push("--resume");
+        }
+        parallax(&args)
+    };
+    let cells = |out: &std::path::Path| -> Vec<serde_json::Value> {
+        let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("bench.json")).unwrap()).unwrap();
+        json["cells"].as_array().unwrap().clone()
+    };
+    let first = run("1", "1", false);
+    let stderr = String::from_utf8_lossy(&first.stderr);
+    assert!(first.status.success(), "{stderr}");
+    assert!(stderr.contains("cell 1/1 path-trace_multi-source_k1_spp1_dnon_d1: "), "{stderr}");
+    let before = cells(&out);
+
+    let second = run("1,2", "1", true);
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(second.status.success(), "{stderr}");
+    assert!(stderr.contains("cell 1/2 path-trace_multi-source_k1_spp1_dnon_d1 (kept from bench.json)"), "{stderr}");
+    assert!(stderr.contains("cell 2/2 path-trace_multi-source_k1_spp2_dnon_d1: ") && !stderr.contains("2 (kept"));
+    let after = cells(&out);
+    assert_eq!(after.len(), 2);
+    assert_eq!(after[0], before[0], "the kept cell is the first run's, not a new measurement");
+    assert_eq!(after[1]["ok"], true);
+
+    let refused = run("1,2", "2", true);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("frames = 1, this run asks 2"), "{stderr}");
+    assert_eq!(cells(&out), after, "a refused resume changes nothing");
+}
