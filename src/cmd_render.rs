@@ -34,7 +34,7 @@ use crate::options::{
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
 use crate::render_pictures::{display_images, gpu_exposure, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
-use crate::run_setup::Setup;
+use crate::run_setup::{CameraSetup, Setup};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 
 /// `--gbuffer`.
@@ -347,14 +347,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let json = serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
         "scene": args.scene.scene,
-        "camera": { "eye": camera.eye.to_array(), "forward": camera.forward.to_array(), "up": camera.up.to_array(),
-                    "yfov_degrees": camera.yfov.to_degrees() },
-        "sun": scene.sun.map(|s| serde_json::json!({ "to_sun": s.to_sun.to_array(), "irradiance": s.irradiance.to_array(),
-                                                     "angular_radius": s.angular_radius })),
-        "sky": format!("{:?}", scene.sky()),
-        "layout": { "spec": format!("{:?}", args.light_field.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
-                    "width": lf.width, "height": lf.height, "spacing_m": args.light_field.spacing, "focus_m": lf.rig.focus_distance },
-        "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
+        "camera": CameraSetup::of(&camera), "sun": &setup.sun, "sky": &setup.sky,
+        "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
+                    "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
+        // The assignment groups views only under multi-source (`--assign` is refused otherwise).
+        "pipeline": args.pipeline, "scheme": summary.scheme,
+        "assign": (args.scheme == SchemeArg::MultiSource).then_some(&summary.assign),
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise,
         "exposure": exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
@@ -380,11 +378,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let say = |line: String| result(matches!(args.trace, Some(Sink::Stdout)), &line);
     say(stage_table(&timing));
     say(format!(
-        "rendered {} views of {}x{} ({:?}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
+        "rendered {} views of {}x{} ({}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
         lf.len(),
         lf.width,
         lf.height,
-        args.pipeline,
+        crate::bench_matrix::name_of(&args.pipeline),
         summary.scheme,
         summary.devices,
         args.spp,

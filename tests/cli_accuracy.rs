@@ -318,6 +318,9 @@ fn compare_refuses_runs_of_other_settings_and_maps_the_error() {
     let table =
         ok(parallax(&["compare"], &[&still, &refdir, Path::new("--json"), &auto, Path::new("--flip-map"), &map]));
     let reference_json = json(&refdir.join("reference.json"));
+    common::assert_typed_json("reference.json", &reference_json);
+    common::assert_typed_json("compare --json", &json(&auto));
+    common::assert_typed_json("render.json", &json(&still.join("render.json")));
     let auto = json(&auto)["comparison"].clone();
     assert_eq!(auto["exposure_mode"], "auto");
     assert!(table.contains(&format!("exposure {:.4}, auto", auto["exposure"].as_f64().unwrap())), "{table}");

@@ -87,6 +87,8 @@ fn a_matrix_reports_a_failed_cell_and_writes_the_others() {
     assert!(failed["error"].as_str().unwrap().contains("exceeds the 2 views"), "{failed}");
     let points: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("points.json")).unwrap()).unwrap();
     assert_eq!(points["points"].as_array().unwrap().len(), 1, "a point per cell that ran");
+    common::assert_typed_json("bench.json", &json);
+    common::assert_typed_json("points.json", &points);
     let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
     assert!(md.contains("failed") && md.contains(ok["id"].as_str().unwrap()));
 }

@@ -35,6 +35,9 @@ fn path_traced_views_are_identical_on_any_number_of_devices_and_schemes() {
     for (devices, scheme) in [("2", "multi-source"), ("2", "fine-all"), ("2", "fine-sources")] {
         let other = dir.join(format!("{devices}-{scheme}"));
         render(&other, &["--pipeline", "path-trace", "--fake-devices", devices, "--scheme", scheme, "--frames", "2"]);
+        let report = json(&other.join("render.json"));
+        let multi = scheme == "multi-source";
+        assert_eq!(report["assign"].is_null(), !multi, "{scheme}: an assignment only where one groups views");
         for v in 0..8 {
             let name = format!("view_{v:03}.exr");
             let a = std::fs::read(reference.join(&name)).unwrap();
@@ -50,6 +53,9 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     let out = dir.join("lf");
     render(&out, &["--fake-devices", "2", "--frames", "3", "--warmup", "1", "--quilt", "--layers"]);
     let report = json(&out.join("render.json"));
+    common::assert_typed_json("render.json", &report);
+    assert_eq!((report["layout"]["lf"].as_str(), report["layout"]["spacing_m"].as_f64()), (Some("4x2"), Some(0.05)));
+    assert_eq!(report["assign"], "compact");
     assert_eq!(report["pipeline"], "reproject");
     assert_eq!(report["frames"], 3);
     assert_eq!((&report["barriers"], &report["timestamps"]), (&"tracked".into(), &"per-stage".into()), "the defaults");
@@ -89,6 +95,8 @@ fn defaults_warm_up_and_expose_the_light_field() {
     let auto = dir.join("auto");
     render(&auto, &[]);
     let report = json(&auto.join("render.json"));
+    common::assert_typed_json("render.json", &report);
+    assert!(report["sky"]["gradient"]["zenith"].is_array() && report["sun"]["angular_radius_deg"].is_number());
     assert_eq!((report["warmup"].as_u64(), report["timing"]["frames"].as_u64()), (Some(1), Some(1)));
     assert_eq!((report["setup"]["still"].as_bool(), report["exposure_mode"].as_str()), (Some(true), Some("auto")));
     let exposure = report["exposure"].as_f64().unwrap();
@@ -105,4 +113,19 @@ fn defaults_warm_up_and_expose_the_light_field() {
     }
     let help = std::process::Command::new(env!("CARGO_BIN_EXE_parallax")).arg("--help").output().unwrap();
     assert!(String::from_utf8_lossy(&help.stdout).contains("through the paper's reconstruction pipeline"));
+}
+
+/// The check the JSON tests rely on fails on what render.json used to hold.
+#[test]
+fn the_typed_json_check_catches_debug_strings() {
+    for bad in [
+        serde_json::json!({ "layout": { "spec": "Grid { cols: 4, rows: 2 }" } }),
+        serde_json::json!({ "sky": "Constant(Vec3(0.5, 0.6, 0.8))" }),
+        serde_json::json!({ "settings": { "--cpu": "false", "--sun": "None" } }),
+        serde_json::json!({ "error": ["1.08e-3"] }),
+    ] {
+        let caught = std::panic::catch_unwind(|| common::assert_typed_json("test", &bad));
+        assert!(caught.is_err(), "{bad} passed");
+    }
+    common::assert_typed_json("test", &serde_json::json!({ "psnr": "inf", "args": ["--spp", "4"], "lf": "4x2" }));
 }
