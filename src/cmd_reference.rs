@@ -159,7 +159,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         ("--spacing".to_string(), args.light_field.spacing.map_or("(preset)".into(), |s| s.to_string())),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
-        ("--camera".to_string(), format!("{:?}", args.scene.camera)),
+        ("--camera".to_string(), format!("{:?}", args.scene.camera.map(|c| c.camera))),
         ("--views".to_string(), format!("{selected:?}")),
         ("--cpu".to_string(), args.cpu.to_string()),
         ("--chunk-spp".to_string(), args.chunk_spp.to_string()),

@@ -73,6 +73,10 @@ pub enum PipelineArg {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
+    /// Repeat a run: a render.json (its `run`) or a TOML run file with the same keys (`spp = 4`,
+    /// `lf = "8x4"`, `still = true`, ...). Flags given here as well win over the file's.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
     #[command(flatten)]
     scene: SceneArgs,
     #[command(flatten)]
@@ -176,7 +180,43 @@ fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
     Camera { eye: camera.eye + offset, ..*camera }
 }
 
+impl RenderArgs {
+    /// The run's settings as a run file for `--config`: every flag that shapes the pixels and
+    /// the timing, by its long name, typed (outputs such as `--out-dir` are left to the command
+    /// line).
+    fn run_file(&self) -> serde_json::Value {
+        use crate::bench_matrix::name_of as name;
+        let (gpus, fake_devices) = self.devices.given();
+        let camera = self.scene.camera.map(|c| c.numbers);
+        let sun =
+            self.scene.sun.map(|s| [s.to_sun.x, s.to_sun.y, s.to_sun.z, s.irradiance.x, s.angular_radius.to_degrees()]);
+        let sky = self.scene.sky.map(|sky| match sky {
+            parallax_scene::Sky::Constant(c) => c.to_array().to_vec(),
+            parallax_scene::Sky::Gradient { zenith, horizon, ground } => {
+                [zenith.to_array(), horizon.to_array(), ground.to_array()].concat()
+            }
+        });
+        let lf = &self.light_field;
+        serde_json::json!({
+            "scene": self.scene.scene, "camera": camera, "sun": sun, "no_sun": self.scene.no_sun, "sky": sky,
+            "lf": crate::run_file::layout_spelling(&lf.lf), "spacing": lf.spacing,
+            "resolution": lf.resolution.map(|r| format!("{}x{}", r.width, r.height)), "focus": lf.focus,
+            "gpus": gpus, "fake_devices": fake_devices,
+            "pipeline": name(&self.pipeline), "scheme": name(&self.scheme), "assign": self.assign.map(|a| name(&a)),
+            "sources_per_set": self.sources_per_set, "sources": self.sources.as_ref().map(|s| s.0.clone()),
+            "no_denoise": self.no_denoise, "spp": self.spp, "max_depth": self.depth.max_depth,
+            "frames": self.frames, "warmup": self.warmup, "still": self.still, "save_every": self.save_every,
+            "exposure": match self.exposure { Exposure::Auto => serde_json::json!("auto"), Exposure::Fixed(v) => serde_json::json!(v) },
+            "layers": self.layers, "quilt": self.quilt, "gbuffer": name(&self.gbuffer), "barriers": name(&self.barriers),
+            "timing": name(&self.timing),
+        })
+    }
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
+    if let Some(file) = &args.config {
+        return run(crate::run_file::render_args_of(file)?);
+    }
     let assign = assignment(args.scheme, args.assign)?;
     let sheet = args.out_dir.join("lightfield.png");
     let render_json = args.out_dir.join("render.json");
@@ -358,6 +398,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
         "devices": device_names,
+        "run": args.run_file(),
         "plan": &summary,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
         "timing": &timing,

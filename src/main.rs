@@ -19,6 +19,7 @@ mod options;
 mod outputs;
 mod render_pictures;
 mod render_report;
+mod run_file;
 mod run_setup;
 mod scene_args;
 mod viewer;

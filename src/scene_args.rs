@@ -11,7 +11,8 @@ use parallax_passes::camera::rig_of;
 use parallax_scene::{Camera, Scene, Sky, Sun, load_scene};
 
 use crate::options::{
-    Resolution, parse_camera, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing, parse_sun,
+    CameraArg, Resolution, parse_camera_arg, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
+    parse_sun,
 };
 
 /// `--scene`, `--camera` and the light that replaces the scene's own.
@@ -23,8 +24,8 @@ pub struct SceneArgs {
     /// The camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees` (of a
     /// light field: the rig, its centre); without it the scene's first camera (or one framing the
     /// whole scene).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
-    pub camera: Option<Camera>,
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera_arg)]
+    pub camera: Option<CameraArg>,
     /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]` (irradiance
     /// 0..=1e6); replaces the scene's sun.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
@@ -62,7 +63,7 @@ impl SceneArgs {
 
     /// `--camera`, else the scene's first camera (or one framing the whole scene).
     pub fn camera_or_default(&self, scene: &Scene) -> Camera {
-        self.camera.unwrap_or_else(|| scene.default_camera())
+        self.camera.map_or_else(|| scene.default_camera(), |c| c.camera)
     }
 }
 

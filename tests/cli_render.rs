@@ -129,3 +129,54 @@ fn the_typed_json_check_catches_debug_strings() {
     }
     common::assert_typed_json("test", &serde_json::json!({ "psnr": "inf", "args": ["--spp", "4"], "lf": "4x2" }));
 }
+
+fn parallax(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_parallax")).env("PARALLAX_VALIDATION", "1").args(args).output().unwrap()
+}
+
+/// render.json given back with `--config` repeats the run bit for bit; a TOML run file with the
+/// same keys works too, the command line winning over it; a key that is no flag is refused.
+#[test]
+fn a_run_file_repeats_the_run() {
+    let dir = scratch("render", "config");
+    let first = dir.join("first");
+    let camera = ["--camera", "0.5,1,4,0,1,0,0,1,0,50", "--sky", "0.5,0.6,0.8", "--max-depth", "3"];
+    render(&first, &[&["--pipeline", "path-trace", "--frames", "2", "--exposure", "2"][..], &camera].concat());
+    let again = dir.join("again");
+    let config = first.join("render.json");
+    let out = parallax(&["render", "--config", config.to_str().unwrap(), "--out-dir", again.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (a, b) = (json(&first.join("render.json")), json(&again.join("render.json")));
+    assert_eq!(a["run"], b["run"]);
+    assert_eq!(a["setup"], b["setup"]);
+    for v in 0..8 {
+        let name = format!("view_{v:03}.exr");
+        assert!(std::fs::read(first.join(&name)).unwrap() == std::fs::read(again.join(&name)).unwrap(), "{name}");
+    }
+
+    let toml = dir.join("run.toml");
+    std::fs::write(&toml, "lf = \"2x1\"\nresolution = \"16x12\"\nspp = 2\nstill = true\nframes = 2\n").unwrap();
+    let third = dir.join("third");
+    let out = parallax(&[
+        "-q",
+        "render",
+        "--config",
+        toml.to_str().unwrap(),
+        "--spp",
+        "1",
+        "--out-dir",
+        third.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let c = json(&third.join("render.json"));
+    assert_eq!(
+        (c["spp"].as_u64(), c["layout"]["lf"].as_str(), c["still"].as_bool()),
+        (Some(1), Some("2x1"), Some(true))
+    );
+
+    std::fs::write(&toml, "spps = 2\n").unwrap();
+    let out = parallax(&["render", "--config", toml.to_str().unwrap(), "--out-dir", third.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--config") && stderr.contains("--spps"), "{stderr}");
+}
