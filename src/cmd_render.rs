@@ -391,8 +391,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
                     "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
         // The assignment groups views only under multi-source (`--assign` is refused otherwise).
-        "pipeline": args.pipeline, "scheme": summary.scheme,
-        "assign": (args.scheme == SchemeArg::MultiSource).then_some(&summary.assign),
+        "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise,
         "exposure": exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.gbuffer,
