@@ -401,7 +401,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "plan": &summary,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
         "timing": &timing,
-        "missing_pixels": &missing,
+        // Path tracing every view leaves no holes to count.
+        "missing_pixels": (kind == PipelineKind::Reproject).then_some(&missing),
     });
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
     let json_file = crate::outputs::stage_json(&render_json, &json)?;
