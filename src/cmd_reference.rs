@@ -289,7 +289,8 @@ fn write_outputs(
     let columns = if selected.len() == lf.len() { lf.cols } else { selected.len().min(8) as u32 };
     let mut average = LogAverage::default();
     for frame in &frames {
-        average.add_all(frame.pixels.iter().map(|p| p.radiance.as_ref()));
+        let radiance: Vec<[f32; 3]> = frame.pixels.iter().map(|p| p.radiance.to_array()).collect();
+        average.add_image(frame.width as usize, &radiance);
     }
     let exposure = args.exposure.resolve(&average);
     write_contact_sheet(&sheet, &frames.iter().collect::<Vec<_>>(), columns, exposure)?;

@@ -350,7 +350,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         &last_views,
         &extra_layers(&args, kind),
     )?);
-    let (exposure, displays) = display_images(&mut renderer, handles.linear_slot, lf.len() as u32, args.exposure)?;
+    let (exposure, displays) =
+        display_images(&mut renderer, handles.linear_slot, (lf.len() as u32, lf.width), args.exposure)?;
     let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
     drop(displays);
     let missing = match kind {

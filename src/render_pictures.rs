@@ -49,14 +49,14 @@ pub fn gpu_exposure(exposure: Exposure) -> f32 {
 pub fn display_images(
     renderer: &mut LightFieldRenderer,
     linear_slot: &str,
-    views: u32,
+    (views, width): (u32, u32),
     exposure: Exposure,
 ) -> Result<(f32, Vec<Vec<u8>>)> {
     let mut average = LogAverage::default();
     if exposure == Exposure::Auto {
         for v in 0..views {
             let bytes = renderer.read_stitched(linear_slot, v)?;
-            average.add_all(texels_rgb(&bytes).iter());
+            average.add_image(width as usize, &texels_rgb(&bytes));
         }
     }
     let value = exposure.resolve(&average);
