@@ -24,6 +24,10 @@
 //! reference: `flip`, `psnr_db` (linear radiance clamped to [0, 1]) against its views, or
 //! `accuracy_error` when the views cannot be compared with it.
 //!
+//! Each cell is reported on stderr as it ends, and the progress bar names the cell running;
+//! `--resume` keeps the cells of an earlier run's bench.json that ran well
+//! ([`crate::bench_resume`]).
+//!
 //! points.json: `{"points": [point]}`, one per ok cell: `label` (the id), `series` (the
 //! pipeline), `case`, `frame_ms`, `flip`, `psnr`, `views`, `devices`, `assignment`,
 //! `sources_per_set`, `spp`, `reprojection_tolerance`, and for reprojecting cells `missing`
@@ -37,6 +41,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
 use crate::bench_matrix::{self, Axes, Case, Cell, Denoise, Matrix, name_of};
+use crate::bench_resume;
 use crate::bench_tables;
 use crate::cmd_render::{PipelineArg, RenderArgs};
 use crate::logging::{bar, result};
@@ -112,6 +117,10 @@ pub struct BenchArgs {
     /// Folder for bench.json, bench.md, points.json and one sub-folder per cell (created if missing).
     #[arg(long, default_value = "out/bench")]
     out_dir: PathBuf,
+    /// Keep the cells that ran well in --out-dir's bench.json (of the same matrix: frames,
+    /// warm-up and case arguments are checked) and run only the others.
+    #[arg(long)]
+    resume: bool,
 }
 
 /// The one case and slice of the command-line flags.
@@ -350,12 +359,29 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .collect::<Result<_>>()?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let mut previous = if args.resume {
+        bench_resume::previous_cells(&args.out_dir, &matrix, frames, warmup)?
+    } else {
+        Default::default()
+    };
     let progress = bar(cells.len() as u64);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} ({eta} left) {msg}")
+    {
+        progress.set_style(style);
+    }
     let mut entries = Vec::with_capacity(cells.len());
     let mut md = String::new();
-    for (cell, argv) in cells.iter().zip(&argvs) {
+    for (k, (cell, argv)) in cells.iter().zip(&argvs).enumerate() {
+        progress.set_message(cell.id.clone());
         let folder = args.out_dir.join(&cell.id);
-        entries.push(run_cell(&matrix.cases[cell.case], cell, argv, &folder, args.allow_mismatch)?);
+        let (entry, kept) = match previous.remove(&cell.id) {
+            Some(entry) => (entry, true),
+            None => (run_cell(&matrix.cases[cell.case], cell, argv, &folder, args.allow_mismatch)?, false),
+        };
+        // A line per cell, so a log (stderr not a terminal, where the bar is not drawn) follows it.
+        progress.suspend(|| tracing::info!("{}", bench_resume::cell_line(k + 1, cells.len(), &entry, kept)));
+        entries.push(entry);
         // Written after every cell, so a run that is stopped keeps the cells it finished.
         md = write_outputs(&args, &matrix, frames, warmup, &entries)?;
         progress.inc(1);

@@ -92,7 +92,12 @@ pub fn run(args: PlanArgs) -> Result<()> {
 fn summary_lines(s: &PlanSummary) -> [String; 6] {
     [
         format!("light field   {} ({} views, {}x{} each)", s.layout, s.views, s.resolution[0], s.resolution[1]),
-        format!("scheme        {} on {} device(s), assignment {}", s.scheme, s.devices, s.assign),
+        format!(
+            "scheme        {} on {} device(s), assignment {}",
+            s.scheme,
+            s.devices,
+            s.assign.unwrap_or("none (row bands)")
+        ),
         format!("sources       {:?}", s.sources),
         format!("δ-edges       {} (mean baseline {:.2} mm)", s.delta_edges, s.mean_delta_distance_mm),
         format!(

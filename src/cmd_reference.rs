@@ -159,7 +159,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         ("--spacing".to_string(), args.light_field.spacing.map_or("(preset)".into(), |s| s.to_string())),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
-        ("--camera".to_string(), format!("{:?}", args.scene.camera)),
+        ("--camera".to_string(), format!("{:?}", args.scene.camera.map(|c| c.camera))),
         ("--views".to_string(), format!("{selected:?}")),
         ("--cpu".to_string(), args.cpu.to_string()),
         ("--chunk-spp".to_string(), args.chunk_spp.to_string()),
@@ -289,7 +289,8 @@ fn write_outputs(
     let columns = if selected.len() == lf.len() { lf.cols } else { selected.len().min(8) as u32 };
     let mut average = LogAverage::default();
     for frame in &frames {
-        average.add_all(frame.pixels.iter().map(|p| p.radiance.as_ref()));
+        let radiance: Vec<[f32; 3]> = frame.pixels.iter().map(|p| p.radiance.to_array()).collect();
+        average.add_image(frame.width as usize, &radiance);
     }
     let exposure = args.exposure.resolve(&average);
     write_contact_sheet(&sheet, &frames.iter().collect::<Vec<_>>(), columns, exposure)?;
@@ -308,22 +309,22 @@ fn write_outputs(
             "spp": h.spp, "chunks": h.chunks, "chunk_spp": h.chunk_spp,
             "seconds": h.seconds, "seconds_this_run": seconds_this_run, "ms_per_spp": ms_per_spp,
             "tracer": if args.cpu { "cpu" } else { "gpu" }, "devices": devices,
-            "views": selected, "width": h.width, "height": h.height, "settings": &h.settings,
+            "views": selected, "width": h.width, "height": h.height,
             "exposure": exposure, "exposure_mode": args.exposure.mode(), "setup": setup,
             "mean_radiance": mean, "standard_error": standard_error, "point": point,
     });
     let bytes = serde_json::to_vec_pretty(&json)?;
     write_atomically(&args.out_dir.join("reference.json"), |f| std::io::Write::write_all(f, &bytes))?;
     println!(
-        "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {:.5?} ± {:?} (standard error)",
+        "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {} ± {} (standard error)",
         selected.len(),
         h.width,
         h.height,
         h.spp,
         h.seconds,
         ms_per_spp,
-        mean,
-        standard_error.map(|e| format!("{e:.2e}"))
+        rgb(mean.map(|m| format!("{m:.5}"))),
+        rgb(standard_error.map(|e| format!("{e:.2e}")))
     );
     println!(
         "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
@@ -332,6 +333,11 @@ fn write_outputs(
         args.out_dir.display()
     );
     Ok(())
+}
+
+/// `(r, g, b)` of three formatted numbers.
+fn rgb(c: [String; 3]) -> String {
+    format!("({}, {}, {})", c[0], c[1], c[2])
 }
 
 #[cfg(test)]

@@ -34,7 +34,7 @@ use crate::options::{
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
 use crate::render_pictures::{display_images, gpu_exposure, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
-use crate::run_setup::Setup;
+use crate::run_setup::{CameraSetup, Setup};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 
 /// `--gbuffer`.
@@ -73,6 +73,10 @@ pub enum PipelineArg {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
+    /// Repeat a run: a render.json (its `run`) or a TOML run file with the same keys (`spp = 4`,
+    /// `lf = "8x4"`, `still = true`, ...). Flags given here as well win over the file's.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
     #[command(flatten)]
     scene: SceneArgs,
     #[command(flatten)]
@@ -207,7 +211,43 @@ fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
     Camera { eye: camera.eye + offset, ..*camera }
 }
 
+impl RenderArgs {
+    /// The run's settings as a run file for `--config`: every flag that shapes the pixels and
+    /// the timing, by its long name, typed (outputs such as `--out-dir` are left to the command
+    /// line).
+    fn run_file(&self) -> serde_json::Value {
+        use crate::bench_matrix::name_of as name;
+        let (gpus, fake_devices) = self.devices.given();
+        let camera = self.scene.camera.map(|c| c.numbers);
+        let sun =
+            self.scene.sun.map(|s| [s.to_sun.x, s.to_sun.y, s.to_sun.z, s.irradiance.x, s.angular_radius.to_degrees()]);
+        let sky = self.scene.sky.map(|sky| match sky {
+            parallax_scene::Sky::Constant(c) => c.to_array().to_vec(),
+            parallax_scene::Sky::Gradient { zenith, horizon, ground } => {
+                [zenith.to_array(), horizon.to_array(), ground.to_array()].concat()
+            }
+        });
+        let lf = &self.light_field;
+        serde_json::json!({
+            "scene": self.scene.scene, "camera": camera, "sun": sun, "no_sun": self.scene.no_sun, "sky": sky,
+            "lf": crate::run_file::layout_spelling(&lf.lf), "spacing": lf.spacing,
+            "resolution": lf.resolution.map(|r| format!("{}x{}", r.width, r.height)), "focus": lf.focus,
+            "gpus": gpus, "fake_devices": fake_devices,
+            "pipeline": name(&self.pipeline), "scheme": name(&self.scheme), "assign": self.assign.map(|a| name(&a)),
+            "sources_per_set": self.sources_per_set, "sources": self.sources.as_ref().map(|s| s.0.clone()),
+            "no_denoise": self.no_denoise, "spp": self.spp, "max_depth": self.depth.max_depth,
+            "frames": self.frames, "warmup": self.warmup, "still": self.still, "save_every": self.save_every,
+            "exposure": match self.exposure { Exposure::Auto => serde_json::json!("auto"), Exposure::Fixed(v) => serde_json::json!(v) },
+            "layers": self.layers, "quilt": self.quilt, "gbuffer": name(&self.gbuffer), "barriers": name(&self.barriers),
+            "timing": name(&self.timing),
+        })
+    }
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
+    if let Some(file) = &args.config {
+        return run(crate::run_file::render_args_of(file)?);
+    }
     let assign = assignment(args.scheme, args.assign)?;
     let sheet = args.out_dir.join("lightfield.png");
     let render_json = args.out_dir.join("render.json");
@@ -348,7 +388,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         &last_views,
         &extra_layers(&args, kind),
     )?);
-    let (exposure, displays) = display_images(&mut renderer, handles.linear_slot, lf.len() as u32, args.exposure)?;
+    let (exposure, displays) =
+        display_images(&mut renderer, handles.linear_slot, (lf.len() as u32, lf.width), args.exposure)?;
     let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
     drop(displays);
     let missing = match kind {
@@ -384,13 +425,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let json = serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
         "scene": args.scene.scene,
-        "camera": { "eye": camera.eye.to_array(), "forward": camera.forward.to_array(), "up": camera.up.to_array(),
-                    "yfov_degrees": camera.yfov.to_degrees() },
-        "sun": scene.sun.map(|s| serde_json::json!({ "to_sun": s.to_sun.to_array(), "irradiance": s.irradiance.to_array(),
-                                                     "angular_radius": s.angular_radius })),
-        "sky": format!("{:?}", scene.sky()),
-        "layout": { "spec": format!("{:?}", args.light_field.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
-                    "width": lf.width, "height": lf.height, "spacing_m": args.light_field.spacing, "focus_m": lf.rig.focus_distance },
+        "camera": CameraSetup::of(&camera), "sun": &setup.sun, "sky": &setup.sky,
+        "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
+                    "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
+        // The assignment groups views only under multi-source (`--assign` is refused otherwise).
         "pipeline": args.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.sources_per_set, "denoise": !args.no_denoise,
         "exposure": exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
@@ -399,10 +437,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
         "frames_in_flight": args.frames_in_flight,
         "devices": device_names,
+        "run": args.run_file(),
         "plan": &summary,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
         "timing": &timing,
-        "missing_pixels": &missing,
+        // Path tracing every view leaves no holes to count.
+        "missing_pixels": (kind == PipelineKind::Reproject).then_some(&missing),
     });
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
     let json_file = crate::outputs::stage_json(&render_json, &json)?;
@@ -419,11 +459,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let say = |line: String| result(matches!(args.trace, Some(Sink::Stdout)), &line);
     say(stage_table(&timing));
     say(format!(
-        "rendered {} views of {}x{} ({:?}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
+        "rendered {} views of {}x{} ({}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
         lf.len(),
         lf.width,
         lf.height,
-        args.pipeline,
+        crate::bench_matrix::name_of(&args.pipeline),
         summary.scheme,
         summary.devices,
         args.spp,

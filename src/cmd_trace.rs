@@ -112,7 +112,8 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let sheet = match &args.png {
         Some(path) => Some(stage(path, |tmp| {
             let mut average = LogAverage::default();
-            average.add_all(frame.pixels.iter().map(|p| p.radiance.as_ref()));
+            let radiance: Vec<[f32; 3]> = frame.pixels.iter().map(|p| p.radiance.to_array()).collect();
+            average.add_image(frame.width as usize, &radiance);
             let exposure = args.exposure.resolve(&average);
             tracing::info!("--png at exposure {exposure:.4} ({})", args.exposure.mode());
             write_contact_sheet(tmp, &[&frame], 1, exposure)

@@ -86,12 +86,25 @@ pub fn encode_png(view: &DisplayImage<'_>) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// The views a wiggle sweeps through, there and back: the middle row, and of a light field with
-/// two eye blocks (`eye_cols < cols`) only the left eye's columns, so that the sweep never
-/// jumps between the eyes.
+/// Most views one sweep of a wiggle shows: a longer row is stepped through evenly, so that the
+/// file stays small enough for a slide or a README.
+const WIGGLE_STEPS: u32 = 25;
+/// Widest frame of a wiggle; wider views are scaled down.
+const WIGGLE_WIDTH: u32 = 480;
+
+/// The views a wiggle sweeps through, there and back: the middle row (at most [`WIGGLE_STEPS`]
+/// of its views, evenly spaced, the last included), and of a light field with two eye blocks
+/// (`eye_cols < cols`) only the left eye's columns, so that the sweep never jumps between the
+/// eyes.
 pub fn wiggle_order(cols: u32, rows: u32, eye_cols: u32) -> Vec<u32> {
     let row = rows / 2;
-    let there: Vec<u32> = (0..eye_cols.min(cols)).map(|c| row * cols + c).collect();
+    let n = eye_cols.min(cols);
+    let step = n.div_ceil(WIGGLE_STEPS).max(1);
+    let mut columns: Vec<u32> = (0..n).step_by(step as usize).collect();
+    if columns.last() != Some(&(n - 1)) {
+        columns.push(n - 1);
+    }
+    let there: Vec<u32> = columns.iter().map(|c| row * cols + c).collect();
     let back = there.iter().rev().skip(1).take(there.len().saturating_sub(2)).copied();
     there.iter().copied().chain(back).collect()
 }
@@ -103,9 +116,18 @@ pub fn wiggle_delay_ms(frames: usize) -> u16 {
 }
 
 /// An animated PNG (APNG, shown by every current browser and by GitHub) of `views` in `order`,
-/// looping forever.
+/// looping forever; views wider than [`WIGGLE_WIDTH`] are scaled down to it.
 pub fn write_wiggle(path: &Path, views: &[DisplayImage<'_>], order: &[u32]) -> Result<()> {
-    let (w, h) = check_sizes(views)?;
+    let (vw, vh) = check_sizes(views)?;
+    let (w, h) = if vw > WIGGLE_WIDTH { (WIGGLE_WIDTH, (vh * WIGGLE_WIDTH).div_ceil(vw).max(1)) } else { (vw, vh) };
+    let frame = |v: &DisplayImage<'_>| -> Vec<u8> {
+        let rgb: Vec<u8> = v.rgba8.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        if (w, h) == (vw, vh) {
+            return rgb;
+        }
+        let image = image::RgbImage::from_raw(vw, vh, rgb).expect("the checked size");
+        image::imageops::resize(&image, w, h, image::imageops::FilterType::Triangle).into_raw()
+    };
     if order.is_empty() || order.iter().any(|&v| v as usize >= views.len()) {
         bail!("the wiggle's frames are not views of this light field");
     }
@@ -118,8 +140,7 @@ pub fn write_wiggle(path: &Path, views: &[DisplayImage<'_>], order: &[u32]) -> R
         encoder.set_frame_delay(wiggle_delay_ms(order.len()), 1000)?;
         let mut writer = encoder.write_header()?;
         for &v in order {
-            let rgb: Vec<u8> = views[v as usize].rgba8.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-            writer.write_image_data(&rgb)?;
+            writer.write_image_data(&frame(&views[v as usize]))?;
         }
         writer.finish()
     };
@@ -145,6 +166,10 @@ mod tests {
         assert_eq!(wiggle_order(12, 6, 6), [36, 37, 38, 39, 40, 41, 40, 39, 38, 37]);
         assert_eq!(wiggle_order(1, 1, 1), [0]);
         assert_eq!(wiggle_order(2, 1, 2), [0, 1]);
+        // Multiscopic: every 4th of 100 views and the last, there and back.
+        let long = wiggle_order(100, 1, 100);
+        assert_eq!(&long[..3], &[0, 4, 8]);
+        assert_eq!((long.len(), long[25], long[26]), (50, 99, 96));
         assert_eq!(wiggle_delay_ms(6), 333);
         assert_eq!(wiggle_delay_ms(200), 40);
     }
@@ -169,6 +194,12 @@ mod tests {
         }
         assert_eq!(frames, [vec![255, 0, 0], vec![0, 255, 0], vec![0, 0, 255], vec![0, 255, 0]]);
         assert!(write_wiggle(&path, &views, &[3]).is_err());
+        // Wide views are scaled down to 480 pixels across.
+        let wide = vec![200u8; 960 * 2 * 4];
+        write_wiggle(&path, &[DisplayImage { width: 960, height: 2, rgba8: &wide }], &[0]).unwrap();
+        let reader =
+            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap())).read_info().unwrap();
+        assert_eq!((reader.info().width, reader.info().height), (480, 1));
     }
 
     #[test]

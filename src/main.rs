@@ -1,6 +1,7 @@
 //! The `parallax` command line.
 
 mod bench_matrix;
+mod bench_resume;
 mod bench_tables;
 mod budget;
 mod cmd_backend;
@@ -18,6 +19,7 @@ mod options;
 mod outputs;
 mod render_pictures;
 mod render_report;
+mod run_file;
 mod run_setup;
 mod scene_args;
 mod viewer;

@@ -224,6 +224,20 @@ pub fn parse_camera(s: &str) -> Result<Camera, String> {
     Ok(Camera::look_at(eye, target, up, v[9].to_radians()))
 }
 
+/// `--camera` with the numbers as given, so that a run file can give them back exactly (the
+/// camera's target is not kept by [`Camera`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraArg {
+    pub camera: Camera,
+    pub numbers: [f32; 10],
+}
+
+pub fn parse_camera_arg(s: &str) -> Result<CameraArg, String> {
+    let camera = parse_camera(s)?;
+    let numbers = floats(s)?.try_into().map_err(|_| "expected 10 numbers".to_string())?;
+    Ok(CameraArg { camera, numbers })
+}
+
 /// `--sun to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`.
 pub fn parse_sun(s: &str) -> Result<Sun, String> {
     let v = floats(s)?;
@@ -302,6 +316,11 @@ pub struct DeviceArgs {
 impl DeviceArgs {
     pub fn selection(&self) -> DeviceSelection {
         selection(self.gpus, self.fake_devices)
+    }
+
+    /// `--gpus` and `--fake-devices` as given.
+    pub fn given(&self) -> (Option<u64>, Option<u64>) {
+        (self.gpus, self.fake_devices)
     }
 }
 

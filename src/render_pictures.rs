@@ -49,14 +49,14 @@ pub fn gpu_exposure(exposure: Exposure) -> f32 {
 pub fn display_images(
     renderer: &mut LightFieldRenderer,
     linear_slot: &str,
-    views: u32,
+    (views, width): (u32, u32),
     exposure: Exposure,
 ) -> Result<(f32, Vec<Vec<u8>>)> {
     let mut average = LogAverage::default();
     if exposure == Exposure::Auto {
         for v in 0..views {
             let bytes = renderer.read_stitched(linear_slot, v)?;
-            average.add_all(texels_rgb(&bytes).iter());
+            average.add_image(width as usize, &texels_rgb(&bytes));
         }
     }
     let value = exposure.resolve(&average);
@@ -109,9 +109,13 @@ pub fn stage_pictures(
         displays.iter().map(|d| DisplayImage { width: lf.width, height: lf.height, rgba8: d }).collect();
     let mut staged = Vec::new();
     let mut views = Vec::with_capacity(images.len());
-    for (v, image) in images.iter().enumerate() {
+    // PNG compression is the slow part of writing a large light field: one view per core.
+    let pngs: Vec<Vec<u8>> = {
+        use rayon::prelude::*;
+        images.par_iter().map(encode_png).collect::<Result<_>>()?
+    };
+    for (v, png) in pngs.into_iter().enumerate() {
         let name = view_png_name(v as u32);
-        let png = encode_png(image)?;
         let path = out_dir.join(&name);
         staged.push(stage(&path, |tmp| Ok(std::fs::write(tmp, &png)?))?);
         views.push((name, png));

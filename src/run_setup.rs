@@ -35,6 +35,17 @@ pub enum SkySetup {
     Gradient { zenith: [f64; 3], horizon: [f64; 3], ground: [f64; 3] },
 }
 
+impl CameraSetup {
+    pub fn of(camera: &Camera) -> Self {
+        CameraSetup {
+            eye: camera.eye.to_array().map(tidy),
+            forward: camera.forward.to_array().map(tidy),
+            up: camera.up.to_array().map(tidy),
+            yfov_deg: tidy(camera.yfov.to_degrees()),
+        }
+    }
+}
+
 /// See the module docs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Setup {
@@ -92,12 +103,7 @@ impl Setup {
         Ok(Setup {
             scene: spec.to_string(),
             scene_hash: scene_fingerprint(spec)?,
-            camera: CameraSetup {
-                eye: camera.eye.to_array().map(tidy),
-                forward: camera.forward.to_array().map(tidy),
-                up: camera.up.to_array().map(tidy),
-                yfov_deg: tidy(camera.yfov.to_degrees()),
-            },
+            camera: CameraSetup::of(camera),
             still,
             lf: lf.name.clone(),
             spacing_m: spacing.unwrap_or(parallax_graph::lightfield::DEFAULT_SPACING),

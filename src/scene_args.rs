@@ -12,7 +12,8 @@ use parallax_scene::input::UriPolicy;
 use parallax_scene::{Camera, LoadOptions, Scene, Sky, Sun, load_scene_with};
 
 use crate::options::{
-    Resolution, parse_camera, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing, parse_sun,
+    CameraArg, Resolution, parse_camera_arg, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
+    parse_sun,
 };
 
 /// `--scene`, `--camera` and the light that replaces the scene's own.
@@ -24,8 +25,8 @@ pub struct SceneArgs {
     /// The camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees` (of a
     /// light field: the rig, its centre); without it the scene's first camera (or one framing the
     /// whole scene).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
-    pub camera: Option<Camera>,
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera_arg)]
+    pub camera: Option<CameraArg>,
     /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]` (irradiance
     /// 0..=1e6); replaces the scene's sun.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
@@ -69,7 +70,7 @@ impl SceneArgs {
 
     /// `--camera`, else the scene's first camera (or one framing the whole scene).
     pub fn camera_or_default(&self, scene: &Scene) -> Camera {
-        self.camera.unwrap_or_else(|| scene.default_camera())
+        self.camera.map_or_else(|| scene.default_camera(), |c| c.camera)
     }
 }
 

@@ -76,12 +76,14 @@ impl ViewerPage<'_> {
     }
 }
 
-/// A number to four significant digits (JSON carries every digit of an f32 or f64).
+/// A number to four significant digits, trailing zeros dropped (JSON carries every digit of an
+/// f32 or f64).
 fn significant(v: &serde_json::Value) -> String {
     match v.as_f64() {
         Some(x) if x != 0.0 && x.is_finite() => {
             let digits = (3 - x.abs().log10().floor() as i32).max(0) as usize;
-            format!("{x:.digits$}")
+            let text = format!("{x:.digits$}");
+            if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.').to_string() } else { text }
         }
         Some(x) => x.to_string(),
         None => "—".into(),
@@ -179,7 +181,8 @@ mod tests {
         let show = |x: f64| significant(&serde_json::json!(x));
         assert_eq!(
             (show(6.382213115692139), show(0.001), show(0.593058), show(1234.4)),
-            ("6.382".into(), "0.001000".into(), "0.5931".into(), "1234".into())
+            ("6.382".into(), "0.001".into(), "0.5931".into(), "1234".into())
         );
+        assert_eq!(show(0.2), "0.2");
     }
 }

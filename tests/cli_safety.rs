@@ -229,7 +229,8 @@ fn outputs_are_checked_first_and_never_replaced_or_left_half_written() {
     let mut names: Vec<String> =
         std::fs::read_dir(dir.join("lf")).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     names.sort();
-    assert_eq!(names, ["lightfield.png", "notes.txt", "render.json", "view_000.exr", "view_001.exr"]);
+    let written = ["render.json", "view_000.exr", "view_000.png", "view_001.exr", "view_001.png", "viewer.html"];
+    assert_eq!(names, [&["lightfield.png", "notes.txt"][..], &written].concat());
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("lf/render.json")).unwrap()).unwrap();
     assert_eq!(json["plan"]["views"], 2);
 }

@@ -23,6 +23,8 @@ fn chromium(dir: &Path, page: &str, what: &str, window: (u32, u32)) -> Output {
         .arg("chromium")
         .args(["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--force-device-scale-factor=1"])
         .arg("--virtual-time-budget=5000")
+        // The controls test drives the page from a harness page on file:// around it.
+        .arg("--allow-file-access-from-files")
         .arg(format!("--user-data-dir={}", dir.join("chromium-profile").display()))
         .arg(format!("--window-size={},{}", window.0, window.1))
         .arg(what)
@@ -51,6 +53,28 @@ fn max_difference(shot: &image::RgbImage, at: (u32, u32), zoom: u32, view: &imag
     worst
 }
 
+/// Opens lf/viewer.html at view 0 in a frame, then presses keys and moves the pointer over the
+/// image (fractions of its width and height), logging the view the page shows after each.
+const HARNESS: &str = r#"<!doctype html><html><body>
+<iframe id="f" src="lf/viewer.html#view=0&zoom=2" width="480" height="360"></iframe><pre id="out"></pre>
+<script>
+const frame = document.getElementById("f");
+frame.addEventListener("load", () => {
+  const w = frame.contentWindow, d = frame.contentDocument, log = [];
+  const key = (k) => { w.dispatchEvent(new w.KeyboardEvent("keydown", { key: k })); log.push(`${k}=${d.body.dataset.view}`); };
+  ["ArrowRight", "ArrowRight", "ArrowDown", "ArrowLeft", "ArrowUp"].forEach(key);
+  const r = d.getElementById("eye0").getBoundingClientRect();
+  const move = (fx, fy) => {
+    const at = { clientX: r.left + fx * r.width, clientY: r.top + fy * r.height, bubbles: true };
+    d.getElementById("stage").dispatchEvent(new w.PointerEvent("pointermove", at));
+    log.push(`move(${fx},${fy})=${d.body.dataset.view}`);
+  };
+  move(0.9, 0.9); move(0.1, 0.1); move(0.6, 0.2);
+  log.push(`hash=${w.location.hash}`);
+  document.getElementById("out").textContent = log.join(" ");
+});
+</script></body></html>"#;
+
 /// Tolerance of a browser's copy of an sRGB PNG: 8-bit sRGB shown on an sRGB screen is
 /// unchanged in principle; 2 levels allow for a colour-managed round trip.
 const TOLERANCE: u8 = 2;
@@ -77,6 +101,19 @@ fn the_viewer_shows_the_view_its_url_names() {
     for setting in ["4x2 (8 views, 4×2), 24×16 pixels per view", "reproject, multi-source", "(auto)", "still"] {
         assert!(dom.contains(setting), "the settings show '{setting}'");
     }
+    // The page's own controls: keys step through the grid, the pointer's place picks the view,
+    // and the URL follows. A harness page beside it sends the events into it.
+    let harness = dir.join("harness.html");
+    std::fs::write(&harness, HARNESS).unwrap();
+    let dom = chromium(&dir, &format!("file://{}", harness.display()), "--dump-dom", (640, 480)).stdout;
+    let dom = String::from_utf8_lossy(&dom);
+    let log = dom.split("<pre id=\"out\">").nth(1).and_then(|s| s.split("</pre>").next()).unwrap_or("");
+    assert_eq!(
+        log,
+        "ArrowRight=1 ArrowRight=2 ArrowDown=6 ArrowLeft=5 ArrowUp=1 move(0.9,0.9)=7 move(0.1,0.1)=0 \
+         move(0.6,0.2)=2 hash=#view=2&amp;zoom=2",
+        "{dom}"
+    );
     // Small views are embedded: the page is one file.
     let html = std::fs::read_to_string(lf.join("viewer.html")).unwrap();
     assert_eq!(html.matches("data:image/png;base64,").count(), 8);

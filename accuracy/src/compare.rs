@@ -73,7 +73,8 @@ pub fn compare_paths(test: &Path, reference: &Path, options: &CompareOptions) ->
     let mut average = LogAverage::default();
     if options.exposure == Exposure::Auto {
         for (_, _, b) in &pairs {
-            average.add_all(RgbImage::read_exr(b)?.pixels.iter());
+            let image = RgbImage::read_exr(b)?;
+            average.add_image(image.width, &image.pixels);
         }
     }
     let exposure = options.exposure.resolve(&average);

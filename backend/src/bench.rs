@@ -78,8 +78,11 @@ pub struct CopyBenchResult {
     pub bytes: u64,
     pub chunk_bytes: u64,
     pub chunks: usize,
-    /// Whether copies were submitted to a queue of their own, and whether each device really
-    /// has a transfer-only queue (if not, that queue is the main queue).
+    /// Whether copies were asked to go to a queue of their own, and whether each device really
+    /// has a transfer-only queue (if not, its copies went to the main queue): in JSON
+    /// `copy_queue_requested`, so that `true` beside `[false, false]` does not read as a queue
+    /// the devices do not have.
+    #[serde(rename = "copy_queue_requested")]
     pub separate_copy_queue: bool,
     pub devices_with_copy_queue: Vec<bool>,
     pub frames: Vec<CopyFrame>,
