@@ -30,7 +30,7 @@ fn render(frames_in_flight: usize, frames: u32) -> Vec<(Vec<u8>, Vec<u8>)> {
     let bvh = SceneBvh::build(&scene);
     let lf = light_field(&scene, 0);
     let options = ExecOptions { frames_in_flight, ..ExecOptions::default() };
-    let mut renderer = common::reprojection_renderer(&scene, &bvh, &lf, options);
+    let mut renderer = common::reprojection_renderer(&common::context(1), &scene, &bvh, &lf, options);
     let settings = TraceSettings { spp: 1, max_depth: 3, ..Default::default() };
     for f in 0..frames {
         let views = lightfield_views(&light_field(&scene, f));
@@ -61,8 +61,13 @@ fn command_buffers_are_recorded_once_while_the_plan_is_unchanged() {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let lf = light_field(&scene, 0);
-    let mut renderer =
-        common::reprojection_renderer(&scene, &bvh, &lf, ExecOptions { frames_in_flight: 2, ..ExecOptions::default() });
+    let mut renderer = common::reprojection_renderer(
+        &common::context(1),
+        &scene,
+        &bvh,
+        &lf,
+        ExecOptions { frames_in_flight: 2, ..ExecOptions::default() },
+    );
     let settings = TraceSettings { spp: 1, max_depth: 2, ..Default::default() };
     let mut moved = scene.clone();
     moved.sun = Some(parallax_scene::Sun {

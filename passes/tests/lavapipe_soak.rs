@@ -17,8 +17,11 @@ const SETTLED: u32 = 200;
 /// Allowed growth of the resident set from frame `SETTLED` to the last. Reports kept until the
 /// end, as before (`keep_reports(true)`), grow it by 12.8 MB over these frames (7 kB a frame:
 /// each report holds every timed pass of its frame); what may still grow is the statistics'
-/// bounded samples (6 × 8 bytes × 1,800 frames, 86 kB) and allocator noise (61 kB measured).
-const MAX_GROWTH_BYTES: u64 = 1 << 20;
+/// bounded samples (6 × 8 bytes × 1,800 frames, 86 kB) and the allocators' steps: the driver's
+/// and malloc's arenas grow in steps of about 1 MB that then stay flat (61 kB in one build,
+/// 1.8 MB in the next one on the same machine: +0.7 MB by frame 400, +1.1 MB by frame 800, flat
+/// to frame 1800). 4 MiB stays a third of what retained reports add.
+const MAX_GROWTH_BYTES: u64 = 4 << 20;
 
 /// Resident set of this process (/proc/self/statm, second field, in pages of 4 kB: x86-64 and
 /// the usual aarch64 Linux).
@@ -34,8 +37,9 @@ fn host_memory_stays_flat_over_two_thousand_frames() {
     let bvh = SceneBvh::build(&scene);
     let rig = rig_of(&scene.default_camera(), scene.bounds().center(), None);
     let lf = LightField::new(LayoutSpec::Grid { cols: 2, rows: 1 }, Some(0.02), Some((8, 8)), rig).unwrap();
+    let context = common::context(1);
     let options = ExecOptions { frames_in_flight: 2, ..ExecOptions::default() };
-    let mut renderer = common::reprojection_renderer(&scene, &bvh, &lf, options);
+    let mut renderer = common::reprojection_renderer(&context, &scene, &bvh, &lf, options);
     let views = lightfield_views(&lf);
     let settings = TraceSettings { spp: 1, max_depth: 2, ..Default::default() };
     let mut settled = 0;
@@ -58,5 +62,5 @@ fn host_memory_stays_flat_over_two_thousand_frames() {
         grown as f64 / 1e3
     );
     assert!(grown < MAX_GROWTH_BYTES, "resident set grew {grown} bytes from frame {SETTLED} to {FRAMES}");
-    renderer.executor().check_validation().unwrap();
+    context.check_validation().unwrap();
 }

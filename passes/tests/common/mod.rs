@@ -33,9 +33,10 @@ pub fn views(scene: &Scene, count: u32, width: u32, height: u32) -> Vec<View> {
         .collect()
 }
 
-/// The reprojection pipeline with SVGF over `lf`'s views on one logical device, its display
-/// images exported, run by a [`LightFieldRenderer`] with `options`.
+/// The reprojection pipeline with SVGF over `lf`'s views on `context`'s first device, its
+/// display images exported, run by a [`LightFieldRenderer`] with `options`.
 pub fn reprojection_renderer(
+    context: &Context,
     scene: &Scene,
     bvh: &SceneBvh,
     lf: &LightField,
@@ -55,7 +56,5 @@ pub fn reprojection_renderer(
     graph.export(&handles.display);
     let schedule = compile(&graph, &plan).unwrap();
     let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
-    // The renderer keeps the devices alive; the context only has to outlive the set-up.
-    let context = context(1);
-    LightFieldRenderer::with_options(&context, exec, lf.len() as u32, &GpuScene::new(scene, bvh), options).unwrap()
+    LightFieldRenderer::with_options(context, exec, lf.len() as u32, &GpuScene::new(scene, bvh), options).unwrap()
 }
