@@ -335,6 +335,17 @@ pub fn run(args: BenchArgs) -> Result<()> {
         false,
         &format!("{} cell(s), {failed} failed; wrote {}", entries.len(), args.out_dir.join("bench.json").display()),
     );
+    // A matrix with some failed cells still measured the others (exit 0, the failures listed);
+    // one whose every cell failed measured nothing, which must not look like success.
+    if failed > 0 && failed == entries.len() {
+        bail!(
+            "every one of the {failed} cell(s) failed (their errors are in {}): nothing was measured",
+            args.out_dir.join("bench.json").display()
+        );
+    }
+    if failed > 0 {
+        tracing::warn!("{failed} of {} cell(s) failed: see their errors in bench.json", entries.len());
+    }
     Ok(())
 }
 

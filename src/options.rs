@@ -95,18 +95,33 @@ pub fn parse_sources(s: &str) -> Result<SourceList, String> {
     parallax_graph::parse_source_list(s).map(SourceList).map_err(|e| e.to_string())
 }
 
-/// `--spacing`: a finite, non-negative distance in metres.
+/// `--spacing`: a distance in metres, 0..=[`MAX_SPACING`].
 pub fn parse_spacing(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) if (0.0..=MAX_SPACING).contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > MAX_SPACING => Err(format!(
+            "{v} m is more than {MAX_SPACING} m between neighbouring views: every view would see something else \
+             (light fields space views millimetres to metres apart, e.g. 0.001)"
+        )),
         _ => Err("use a finite, non-negative distance in metres (e.g. 0.001)".into()),
     }
 }
 
-/// `--focus`: distance of the zero-disparity plane, finite and > 0.
+/// The widest `--spacing`, in metres.
+pub const MAX_SPACING: f64 = 1e3;
+/// The range of `--focus`, in metres: nearer than 0.1 mm or farther than 1e9 m the views either
+/// disagree everywhere or are identical.
+pub const FOCUS_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1e9;
+
+/// `--focus`: distance of the zero-disparity plane, within [`FOCUS_RANGE`].
 pub fn parse_focus(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) if FOCUS_RANGE.contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > 0.0 => Err(format!(
+            "{v} m is outside {:e}..={:e} m: the zero-disparity plane must lie at a distance the views can resolve",
+            FOCUS_RANGE.start(),
+            FOCUS_RANGE.end()
+        )),
         _ => Err("use a finite distance in metres greater than 0 (e.g. 2.5)".into()),
     }
 }

@@ -56,6 +56,54 @@ fn malformed_gltf_images_are_named_and_no_panic_text_is_printed() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("panic"));
 }
 
+/// Scene emission beyond what f32 sums hold used to give `inf` pixels with exit 0; a matrix
+/// whose every cell failed exited 0.
+#[test]
+fn silent_nonsense_is_refused() {
+    let dir = scratch("safety", "silent");
+    let strength = r#","materials":[{"emissiveFactor":[1,1,1],"extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":1e38}}}]"#;
+    let bright = write_gltf(&dir, "bright", &TRIANGLE, r#"[{"mesh":0}]"#, strength);
+    refused(
+        &dir,
+        &["trace", "--cpu", "--scene", bright.to_str().unwrap()],
+        1,
+        &["bright.gltf: material 0 (emissive) emits 1e38, more than the 1e6 a scene may", "lower it"],
+    );
+    let light = r#","extensions":{"KHR_lights_punctual":{"lights":[{"type":"point","intensity":1e38}]}}"#;
+    let nodes = r#"[{"mesh":0,"children":[1]},{"extensions":{"KHR_lights_punctual":{"light":0}}}]"#;
+    let lamp = write_gltf(&dir, "lamp", &TRIANGLE, nodes, light);
+    refused(
+        &dir,
+        &["trace", "--cpu", "--scene", lamp.to_str().unwrap()],
+        1,
+        &["lamp.gltf: light 0 (node 1) emits 1e38"],
+    );
+    refused(&dir, &["plan", "--spacing", "1e30"], 2, &["--spacing", "more than 1000 m between neighbouring views"]);
+    refused(&dir, &["render", "--focus", "1e-30"], 2, &["--focus", "outside 1e-4..=1e9 m"]);
+    std::fs::write(dir.join("points.json"), r#"{"points":[{"label":"a","frame_ms":-3}]}"#).unwrap();
+    refused(
+        &dir,
+        &["chart", "views", "points.json", "--out", "c.svg"],
+        1,
+        &["points.json: point 'a': frame_ms -3 is outside 0..=1000000000"],
+    );
+    std::fs::write(dir.join("huge.json"), r#"{"points":[{"label":"b","frame_ms":1,"flip":1e308}]}"#).unwrap();
+    refused(&dir, &["chart", "speed-accuracy", "huge.json", "--out", "c.svg"], 1, &["flip 1e308 is outside 0..=1"]);
+    // Every cell fails (5 devices for 2 views): exit 1 after writing bench.json with the errors.
+    let out = parallax_in(
+        &dir,
+        &["bench", "--common", "--scene default --lf 2x1 --resolution 8x8", "--devices", "5", "--fake-devices"],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("cell(s) failed (their errors are in out/bench/bench.json): nothing was measured")
+            && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert!(dir.join("out/bench/bench.json").is_file());
+}
+
 #[test]
 fn unbounded_work_is_refused_with_the_numbers() {
     let dir = scratch("safety", "unbounded");

@@ -18,7 +18,9 @@ use crate::error::SceneError;
 use crate::input::{
     IMAGE_FILE_LIMIT, IMAGE_SIDE_LIMIT, SCENE_FILE_LIMIT, SourceFile, UriPolicy, read_bounded, read_prefix, resolve_uri,
 };
-use crate::model::{AlphaMode, Camera, MAX_COORDINATE, Material, PunctualKind, PunctualLight, Scene, Texture};
+use crate::model::{
+    AlphaMode, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Texture,
+};
 
 /// Extensions a file may list in `extensionsRequired`.
 pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
@@ -223,6 +225,7 @@ impl Importer<'_> {
                     what: format!("material {}", materials.len()),
                 });
             }
+            check_emission(self.path, || format!("material {} (emissive)", materials.len()), material.emissive)?;
             materials.push(material);
         }
         self.scene.materials = materials;
@@ -304,7 +307,13 @@ impl Importer<'_> {
                 }
             }
             if let Some(light) = node.light() {
-                self.scene.lights.push(light_from_gltf(&light, world[i]));
+                let punctual = light_from_gltf(&light, world[i]);
+                let what = || format!("light {} (node {i})", light.index());
+                if !punctual.intensity.is_finite() || !punctual.color.is_finite() {
+                    return Err(SceneError::NonFinite { path: self.path.to_path_buf(), what: what() });
+                }
+                check_emission(self.path, what, punctual.color * punctual.intensity)?;
+                self.scene.lights.push(punctual);
             }
         }
         Ok(())
@@ -501,6 +510,25 @@ impl Importer<'_> {
         }
         Ok(())
     }
+}
+
+/// Emission must be non-negative and at most [`MAX_EMISSION`] per channel.
+fn check_emission(path: &Path, what: impl Fn() -> String, emission: Vec3) -> Result<(), SceneError> {
+    if emission.min_element() < 0.0 {
+        return Err(SceneError::InvalidGltf {
+            path: path.to_path_buf(),
+            detail: format!("{} has a negative emission {emission}; glTF requires non-negative values", what()),
+        });
+    }
+    if emission.max_element() > MAX_EMISSION {
+        return Err(SceneError::EmissionOutOfRange {
+            path: path.to_path_buf(),
+            what: what(),
+            value: emission.max_element(),
+            limit: MAX_EMISSION,
+        });
+    }
+    Ok(())
 }
 
 /// Tells a glTF file from anything else before the JSON parser does, whose "malformed JSON" would
