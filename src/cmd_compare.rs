@@ -3,12 +3,14 @@
 //! with `--json`, a file that also carries a chart point (frame time from the test folder's
 //! render.json when it has one).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
 use parallax_accuracy::points::point_of_render_json;
 use parallax_accuracy::{Point, compare_paths, write_atomically};
+
+use crate::outputs::{Format, Output, Sink, check, check_inputs};
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
@@ -31,12 +33,34 @@ pub struct CompareArgs {
     series: Option<String>,
 }
 
+/// `--json` and `--markdown`: the extension of their format, writable folders, two distinct
+/// paths, and neither one of the images compared (`compare a.exr b.exr --json a.exr` used to
+/// replace the test image with JSON).
+fn check_outputs(args: &CompareArgs) -> Result<()> {
+    let json = args.json.clone().map(Sink::File);
+    let markdown = args.markdown.clone().map(Sink::File);
+    let mut outputs = Vec::new();
+    if let Some(sink) = &json {
+        outputs.push(Output { flag: "--json", sink, format: Format::Json });
+    }
+    if let Some(sink) = &markdown {
+        outputs.push(Output { flag: "--markdown", sink, format: Format::Markdown });
+    }
+    check(&outputs)?;
+    let written: Vec<(&str, &Path)> = [("--json", &args.json), ("--markdown", &args.markdown)]
+        .into_iter()
+        .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+        .collect();
+    check_inputs(&written, &[("TEST", args.test.as_path()), ("REFERENCE", args.reference.as_path())])
+}
+
 pub fn run(args: CompareArgs) -> Result<()> {
     for path in [&args.test, &args.reference] {
         if !path.exists() {
             anyhow::bail!("{} does not exist: give an EXR file or a light-field folder", path.display());
         }
     }
+    check_outputs(&args)?;
     let comparison = compare_paths(&args.test, &args.reference)?;
     let table = comparison.markdown();
     print!("{table}");

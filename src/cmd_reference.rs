@@ -137,6 +137,10 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
     let scene = args.scene.load()?;
+    let written: Vec<PathBuf> =
+        ["reference.json", "reference.png", PARTIAL_FILE].iter().map(|name| args.out_dir.join(name)).collect();
+    let written: Vec<(&str, &Path)> = written.iter().map(|p| ("--out-dir", p.as_path())).collect();
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
     let focus = lf.rig.focus_distance;
     let selected = match &args.views {

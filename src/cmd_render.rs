@@ -185,6 +185,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     one_frame.check_host()?;
 
     let scene = args.scene.load()?;
+    let mut written = vec![("--out-dir", render_json.as_path()), ("--out-dir", sheet.as_path())];
+    if let Some(Sink::File(trace)) = &args.trace {
+        written.push(("--trace", trace.as_path()));
+    }
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let camera = args.scene.camera_or_default(&scene);
     let centre = scene.bounds().center();
     // The scene's own camera animation, spread over the frames; else a dolly (an explicit

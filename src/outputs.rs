@@ -41,6 +41,7 @@ pub enum Format {
     Png,
     Json,
     Dot,
+    Markdown,
 }
 
 impl Format {
@@ -50,6 +51,7 @@ impl Format {
             Format::Png => &["png"],
             Format::Json => &["json"],
             Format::Dot => &["dot", "gv"],
+            Format::Markdown => &["md", "markdown"],
         }
     }
 }
@@ -108,6 +110,27 @@ pub fn check(outputs: &[Output]) -> Result<()> {
             bail!("{} and {other} both write {shown}: give each output its own path", o.flag);
         }
         seen.push((key, o.flag));
+    }
+    Ok(())
+}
+
+/// Refuses an output that is one of the command's inputs (`render --scene s.json --trace
+/// s.json`, `compare a.exr b.exr --json a.exr`), or two outputs on one path: compared as
+/// canonical paths, so `./x/../a.exr` is `a.exr` and a symlink is its target. Called before any
+/// work, after [`check`].
+pub fn check_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> {
+    for (k, (flag, out)) in outputs.iter().enumerate() {
+        let key = identity(out);
+        if let Some((input_flag, input)) = inputs.iter().find(|(_, input)| identity(input) == key) {
+            bail!(
+                "{flag} {} is also read, as {input_flag} {}: writing it would destroy an input; give the output another path",
+                out.display(),
+                input.display()
+            );
+        }
+        if let Some((other, _)) = outputs[..k].iter().find(|(_, o)| identity(o) == key) {
+            bail!("{flag} and {other} both write {}: give each output its own path", out.display());
+        }
     }
     Ok(())
 }

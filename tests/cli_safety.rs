@@ -104,6 +104,58 @@ fn silent_nonsense_is_refused() {
     assert!(dir.join("out/bench/bench.json").is_file());
 }
 
+/// No output may replace an input or another output; compared as canonical paths.
+#[test]
+fn outputs_never_overwrite_inputs() {
+    let dir = scratch("safety", "overwrite");
+    let scene = write_gltf(&dir, "s", &TRIANGLE, r#"[{"mesh":0}]"#, r#","images":[{"uri":"tex.png"}]"#);
+    image::RgbaImage::new(1, 1).save(dir.join("tex.png")).unwrap();
+    std::fs::copy(&scene, dir.join("s.json")).unwrap();
+    refused(
+        &dir,
+        &["render", "--scene", "s.json", "--trace", "./s.json", "--lf", "2x1", "--resolution", "4x4"],
+        1,
+        &[
+            "--trace ./s.json is also read, as --scene",
+            "s.json: writing it would destroy an input; give the output another path",
+        ],
+    );
+    // A texture the scene reads is an input too.
+    refused(
+        &dir,
+        &["trace", "--cpu", "--scene", "s.gltf", "--resolution", "4x4", "--out", "x.exr", "--png", "tex.png"],
+        1,
+        &["--png tex.png is also read, as --scene", "tex.png"],
+    );
+    refused(&dir, &["trace", "--cpu", "--scene", "s.gltf", "--out", "s.bin"], 1, &["--out s.bin", "must end in .exr"]);
+    let out = parallax_in(&dir, &["trace", "--cpu", "--scene", "s.gltf", "--resolution", "4x4", "--out", "a.exr"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::copy(dir.join("a.exr"), dir.join("b.exr")).unwrap();
+    refused(&dir, &["compare", "a.exr", "b.exr", "--json", "a.exr"], 1, &["--json a.exr", "must end in .json"]);
+    refused(&dir, &["compare", "a.exr", "b.exr", "--markdown", "b.json"], 1, &["--markdown b.json", "must end in .md"]);
+    std::fs::copy(dir.join("a.exr"), dir.join("t.json")).unwrap();
+    refused(
+        &dir,
+        &["compare", "t.json", "b.exr", "--json", "t.json"],
+        1,
+        &["--json t.json is also read, as TEST t.json"],
+    );
+    std::fs::write(dir.join("a.svg"), "<svg/>").unwrap();
+    std::fs::create_dir(dir.join("x")).unwrap();
+    refused(
+        &dir,
+        &["chart", "views", "a.svg", "--out", "x/../a.svg"],
+        1,
+        &["--out x/../a.svg is also read, as INPUT a.svg"],
+    );
+    refused(
+        &dir,
+        &["chart", "views", "t.json", "--out", "c.svg", "--out", "./c.svg"],
+        1,
+        &["--out and --out both write"],
+    );
+}
+
 #[test]
 fn unbounded_work_is_refused_with_the_numbers() {
     let dir = scratch("safety", "unbounded");

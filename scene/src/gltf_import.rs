@@ -45,9 +45,8 @@ pub fn load_gltf_with(path: impl AsRef<Path>, options: LoadOptions) -> Result<Sc
     let bytes = read_bounded(path, SCENE_FILE_LIMIT, "glTF scene")?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut scene = load_gltf_bytes_with(&bytes, base, path, options)?;
-    scene
-        .sources
-        .insert(0, SourceFile::of(path.file_name().map_or(path.to_string_lossy(), |n| n.to_string_lossy()), &bytes));
+    let name = path.file_name().map_or(path.to_string_lossy(), |n| n.to_string_lossy());
+    scene.sources.insert(0, SourceFile::of(name, path, &bytes));
     Ok(scene)
 }
 
@@ -641,7 +640,7 @@ fn load_buffers(
             gltf::buffer::Source::Uri(uri) => {
                 let file = resolve_uri(base_dir, uri, policy).map_err(missing)?;
                 let bytes = read_prefix(&file, declared).map_err(|e| missing(e.to_string()))?;
-                sources.push(SourceFile::of(uri, &bytes));
+                sources.push(SourceFile::of(uri, &file, &bytes));
                 bytes
             }
         };
@@ -733,6 +732,7 @@ fn decode_images(
     let decoded: Vec<(Texture, Option<SourceFile>)> = images
         .par_iter()
         .map(|img| {
+            let mut file = None;
             let (uri, encoded): (String, Result<Vec<u8>, String>) = match img.source() {
                 gltf::image::Source::View { view, .. } => {
                     let data = &buffers[view.buffer().index()].0;
@@ -746,8 +746,10 @@ fn decode_images(
                     ("data URI".into(), Err("embedded data: URI images are not supported".into()))
                 }
                 gltf::image::Source::Uri { uri, .. } => {
-                    let bytes = resolve_uri(base_dir, uri, policy).and_then(|file| {
-                        read_bounded(&file, IMAGE_FILE_LIMIT, "glTF image").map_err(|e| e.to_string())
+                    let bytes = resolve_uri(base_dir, uri, policy).and_then(|resolved| {
+                        let bytes = read_bounded(&resolved, IMAGE_FILE_LIMIT, "glTF image").map_err(|e| e.to_string());
+                        file = Some(resolved);
+                        bytes
                     });
                     (uri.to_string(), bytes)
                 }
@@ -760,8 +762,7 @@ fn decode_images(
             };
             let encoded = encoded.map_err(bad)?;
             let rgba = decode_bounded(&encoded).map_err(bad)?;
-            let source =
-                matches!(img.source(), gltf::image::Source::Uri { .. }).then(|| SourceFile::of(&uri, &encoded));
+            let source = file.map(|file| SourceFile::of(&uri, &file, &encoded));
             Ok((Texture { width: rgba.width(), height: rgba.height(), rgba8: rgba.into_raw() }, source))
         })
         .collect::<Result<_, SceneError>>()?;

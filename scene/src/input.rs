@@ -141,13 +141,15 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
 pub struct SourceFile {
     /// As the scene names it: the scene's path, or a URI relative to its folder.
     pub name: String,
+    /// Where it was read from.
+    pub path: PathBuf,
     pub bytes: u64,
     pub fnv1a: u64,
 }
 
 impl SourceFile {
-    pub fn of(name: impl Into<String>, bytes: &[u8]) -> Self {
-        Self { name: name.into(), bytes: bytes.len() as u64, fnv1a: fnv1a(bytes) }
+    pub fn of(name: impl Into<String>, path: &Path, bytes: &[u8]) -> Self {
+        Self { name: name.into(), path: path.to_path_buf(), bytes: bytes.len() as u64, fnv1a: fnv1a(bytes) }
     }
 }
 
