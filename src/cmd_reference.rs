@@ -18,6 +18,7 @@ use clap::Args;
 use indicatif::ProgressStyle;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
 use parallax_backend::{Context as VkContext, ContextDesc};
+use parallax_graph::lightfield::DEFAULT_SPACING;
 use parallax_graph::{LightField, ViewId};
 use parallax_passes::{GpuTracer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
@@ -83,19 +84,17 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     Ok(views)
 }
 
-/// The scene file's name and FNV-1a hash, so a resumed run notices an edited scene but not a
-/// different path to the same file (`default` is built in). Buffers and textures a glTF
-/// refers to are not hashed.
-fn scene_fingerprint(spec: &str) -> Result<String> {
-    if spec == "default" {
-        return Ok("default".into());
+/// Every file the scene was read from, by name with its FNV-1a hash and size: the scene under
+/// `--scene`, each buffer and image under `--scene file NAME`, so a resumed run names the one that
+/// changed (an edited .bin used to go unnoticed). A different path to the same files is the same
+/// scene; `default` is built in.
+fn scene_fingerprint(scene: &Scene) -> BTreeMap<String, String> {
+    match scene.sources.split_first() {
+        None => BTreeMap::from([("--scene".to_string(), "default".to_string())]),
+        Some((main, others)) => std::iter::once(("--scene".to_string(), main.to_string()))
+            .chain(others.iter().map(|f| (format!("--scene file {}", f.name), f.to_string())))
+            .collect(),
     }
-    let bytes =
-        parallax_scene::input::read_bounded(Path::new(spec), parallax_scene::input::SCENE_FILE_LIMIT, "glTF scene")
-            .with_context(|| format!("--scene {spec}: cannot read the file"))?;
-    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    let name = Path::new(spec).file_name().map_or(spec.into(), |n| n.to_string_lossy());
-    Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))
 }
 
 enum Tracer<'a> {
@@ -168,10 +167,11 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
 
     // Everything the pixels depend on, by the flag that sets it; devices are not among them
     // (results do not depend on the device count), so a reference can resume on other GPUs.
-    let settings_key = BTreeMap::from([
-        ("--scene".to_string(), scene_fingerprint(&args.scene.scene)?),
+    let mut settings_key = scene_fingerprint(&scene);
+    settings_key.extend([
         ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.lf, lf.cols, lf.rows)),
-        ("--spacing".to_string(), args.light_field.spacing.map_or("(preset)".into(), |s| s.to_string())),
+        // The spacing in effect, so an explicit --spacing equal to the preset's is the same run.
+        ("--spacing".to_string(), args.light_field.spacing.unwrap_or(DEFAULT_SPACING).to_string()),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
         ("--camera".to_string(), format!("{:?}", args.scene.camera)),
@@ -190,6 +190,22 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let mut acc = if partial.exists() {
         let acc = Accumulator::load(&partial)?;
         acc.check_settings(&settings_key, &partial)?;
+        let h = &acc.header;
+        if (h.views, h.width, h.height, h.chunk_spp) != (views.len(), size.0, size.1, args.chunk_spp) {
+            bail!(
+                "{}: its header holds {} view(s) of {}x{} in chunks of {} spp, but its settings say {} of {}x{} in \
+                 chunks of {}: the file was edited; delete it to start over",
+                partial.display(),
+                h.views,
+                h.width,
+                h.height,
+                h.chunk_spp,
+                views.len(),
+                size.0,
+                size.1,
+                args.chunk_spp
+            );
+        }
         tracing::info!("resuming {} at {} spp", partial.display(), acc.header.spp);
         acc
     } else {

@@ -156,6 +156,82 @@ fn outputs_never_overwrite_inputs() {
     );
 }
 
+/// A resumed reference trusts nothing: every file the scene reads is hashed, the partial is
+/// checksummed, and a change is named.
+#[test]
+fn resumed_references_verify_the_scene_and_the_partial() {
+    let dir = scratch("safety", "resume");
+    let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let light = r#","extensions":{"KHR_lights_punctual":{"lights":[{"type":"directional","intensity":2}]}}"#;
+    let nodes = r#"[{"mesh":0,"children":[1]},{"extensions":{"KHR_lights_punctual":{"light":0}}}]"#;
+    write_gltf(&dir, "tri", &positions, nodes, light);
+    let reference = |spp: &str, extra: &[&str]| {
+        let mut args =
+            vec!["reference", "--cpu", "--scene", "tri.gltf", "--lf", "2x1", "--resolution", "4x4", "--chunk-spp", "4"];
+        args.extend_from_slice(&["--spp", spp, "--out-dir", "ref"]);
+        args.extend_from_slice(extra);
+        parallax_in(&dir, &args)
+    };
+    let first = reference("4", &[]);
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    // An explicit --spacing equal to the preset's is the same run.
+    let same = reference("8", &["--spacing", "0.001"]);
+    assert!(same.status.success(), "{}", String::from_utf8_lossy(&same.stderr));
+    // The .bin changes (same length): refused naming it.
+    let mut bin = std::fs::read(dir.join("tri.bin")).unwrap();
+    bin[12..16].copy_from_slice(&2.0f32.to_le_bytes());
+    std::fs::write(dir.join("tri.bin"), &bin).unwrap();
+    refused(
+        &dir,
+        &[
+            "reference",
+            "--cpu",
+            "--scene",
+            "tri.gltf",
+            "--lf",
+            "2x1",
+            "--resolution",
+            "4x4",
+            "--chunk-spp",
+            "4",
+            "--spp",
+            "12",
+            "--out-dir",
+            "ref",
+        ],
+        1,
+        &["was made with other settings", "--scene file tri.bin tri.bin (fnv1a"],
+    );
+    write_gltf(&dir, "tri", &positions, nodes, light);
+    // An edited partial is refused by its checksum.
+    let partial = dir.join("ref/reference.partial");
+    let mut bytes = std::fs::read(&partial).unwrap();
+    let last = bytes.len() - 9;
+    bytes[last] ^= 0x40;
+    std::fs::write(&partial, &bytes).unwrap();
+    refused(
+        &dir,
+        &[
+            "reference",
+            "--cpu",
+            "--scene",
+            "tri.gltf",
+            "--lf",
+            "2x1",
+            "--resolution",
+            "4x4",
+            "--chunk-spp",
+            "4",
+            "--spp",
+            "12",
+            "--out-dir",
+            "ref",
+        ],
+        1,
+        &["reference.partial: its checksum does not match its contents", "delete it to start over"],
+    );
+}
+
 #[test]
 fn unbounded_work_is_refused_with_the_numbers() {
     let dir = scratch("safety", "unbounded");
