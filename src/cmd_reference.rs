@@ -182,8 +182,9 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         ("--sun".to_string(), format!("{:?}", scene.sun)),
         ("--sky".to_string(), format!("{:?}", scene.sky)),
     ]);
-    std::fs::create_dir_all(&args.out_dir)
+    crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
     remove_stale_temporaries(&args.out_dir);
     let partial = args.out_dir.join(PARTIAL_FILE);
     let size = (lf.width as usize, lf.height as usize);

@@ -252,8 +252,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ExecOptions { barriers, timing, ..ExecOptions::default() },
     )?;
 
-    std::fs::create_dir_all(&args.out_dir)
+    crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
     let progress = bar(u64::from(total_frames));
     let started = Instant::now();
     let mut measured_from = None;
@@ -273,7 +274,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         {
             renderer.finish()?;
             let folder = args.out_dir.join(format!("frame_{m:05}"));
-            std::fs::create_dir_all(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
+            crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
             staged.extend(stage_views(
                 &mut renderer,
                 handles.linear_slot,
@@ -357,6 +358,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         crate::outputs::write_json(sink, trace)?;
     }
     json_file.commit()?;
+    crate::outputs::keep_folders();
     let say = |line: String| result(matches!(args.trace, Some(Sink::Stdout)), &line);
     say(stage_table(&timing));
     say(format!(

@@ -60,8 +60,9 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     logging::init(cli.verbosity);
-    // Ctrl-C ends the process before any destructor runs: remove the temporary files of
-    // outputs not yet in place, so an interrupted run leaves nothing behind.
+    // Ctrl-C, SIGTERM and SIGHUP end the process before any destructor runs: remove the
+    // temporary files of outputs not yet in place and the folders the run created, so an
+    // interrupted run leaves nothing behind.
     if let Err(err) = ctrlc::set_handler(|| {
         outputs::remove_pending();
         tracing::error!("interrupted: outputs not yet in place were removed");
@@ -82,6 +83,7 @@ fn main() {
         Command::Chart(args) => cmd_chart::run(args),
     };
     if let Err(err) = result {
+        outputs::remove_pending();
         // Flags that do not go together are usage errors like clap's own: same form, exit 2.
         if let Some(usage) = err.downcast_ref::<options::UsageError>() {
             Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();

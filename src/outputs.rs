@@ -154,11 +154,58 @@ fn identity(path: &Path) -> PathBuf {
 /// process before destructors run.
 static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// Removes every pending temporary file (called on Ctrl-C).
+/// Folders this run created that hold nothing of a finished run yet (`--out-dir`, render's
+/// `frame_NNNNN/`): removed, if still empty, when the run is interrupted or fails.
+static NEW_FOLDERS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes every pending temporary file, then every folder this run created that is still
+/// empty, innermost first (called on SIGINT, SIGTERM, SIGHUP and on a failed run).
 pub fn remove_pending() {
     let pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
     for p in pending.iter() {
         let _ = std::fs::remove_file(p);
+    }
+    let folders = NEW_FOLDERS.lock().unwrap_or_else(|e| e.into_inner());
+    for folder in folders.iter().rev() {
+        // Fails on a folder that is not empty: only what this run left empty goes.
+        let _ = std::fs::remove_dir(folder);
+    }
+}
+
+/// Creates `folder` and its missing parents, remembering the ones it created so that an
+/// interrupted or failed run removes them again (see [`remove_pending`]) until [`keep_folders`].
+pub fn create_folder(folder: &Path) -> std::io::Result<()> {
+    let missing: Vec<PathBuf> =
+        folder.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
+    std::fs::create_dir_all(folder)?;
+    NEW_FOLDERS.lock().unwrap_or_else(|e| e.into_inner()).extend(missing.into_iter().rev());
+    Ok(())
+}
+
+/// The run's outputs are in place: the folders it created stay.
+pub fn keep_folders() {
+    NEW_FOLDERS.lock().unwrap_or_else(|e| e.into_inner()).clear();
+}
+
+/// An advisory lock on an output folder a run owns, held until dropped: a second run into the
+/// same folder is refused instead of silently mixing its files with the first's. The lock is
+/// on the folder itself (flock), so no lock file is left behind, and the OS drops it when the
+/// process ends, however it ends.
+pub struct FolderLock(#[allow(dead_code)] std::fs::File);
+
+/// Locks `folder` (which exists) for this run, or says which flag names a folder in use.
+pub fn lock_folder(folder: &Path, flag: &str) -> Result<FolderLock> {
+    let shown = folder.display();
+    let handle = std::fs::File::open(folder).with_context(|| format!("{flag} {shown}: cannot open the folder"))?;
+    match handle.try_lock() {
+        Ok(()) => Ok(FolderLock(handle)),
+        Err(std::fs::TryLockError::WouldBlock) => bail!(
+            "{flag} {shown} is in use by another parallax run (it holds the folder's lock): wait for it to end, or \
+             give another {flag}"
+        ),
+        Err(std::fs::TryLockError::Error(e)) => {
+            Err(e).with_context(|| format!("{flag} {shown}: cannot lock the folder"))
+        }
     }
 }
 

@@ -420,3 +420,67 @@ fn ctrl_c_leaves_no_output() {
     assert!(stderr.contains("error: interrupted: outputs not yet in place were removed"), "{stderr}");
     assert!(snapshot(&dir).is_empty(), "files left behind: {:?}", snapshot(&dir).keys());
 }
+
+/// Waits until `done` holds, at most `limit`.
+fn wait_for(limit: std::time::Duration, done: impl Fn() -> bool) -> bool {
+    let start = std::time::Instant::now();
+    while !done() {
+        if start.elapsed() > limit {
+            return false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    true
+}
+
+/// SIGTERM (or SIGINT, SIGHUP) mid-run removes the temporary files and the folders the run
+/// created: nothing is left of a render that saved frames.
+#[test]
+fn a_terminated_render_leaves_no_temporary_files_or_empty_folders() {
+    let dir = scratch("safety", "sigterm");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .current_dir(&dir)
+        .args(["render", "--lf", "2x1", "--resolution", "8x8", "--fake-devices", "1", "--spp", "1"])
+        .args(["--frames", "100000", "--warmup", "0", "--save-every", "1", "--out-dir", "lf"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Frames are being saved: at least one frame folder exists.
+    assert!(
+        wait_for(std::time::Duration::from_secs(60), || dir.join("lf/frame_00001").exists()),
+        "the render never started saving frames"
+    );
+    assert!(std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted: outputs not yet in place were removed"), "{stderr}");
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+    assert!(left.is_empty(), "left behind: {left:?} {:?}", snapshot(&dir).keys());
+}
+
+/// Two `reference` runs into one folder: the second is refused while the first holds the
+/// folder's lock, and the first is not disturbed.
+#[test]
+fn a_second_run_into_a_locked_folder_is_refused() {
+    let dir = scratch("safety", "lock");
+    let args = ["reference", "--cpu", "--lf", "2x1", "--resolution", "64x64", "--chunk-spp", "4"];
+    let first = std::process::Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .current_dir(&dir)
+        .args(args)
+        .args(["--spp", "100000", "--out-dir", "ref"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(wait_for(std::time::Duration::from_secs(30), || dir.join("ref").exists()), "the first run never started");
+    let second = parallax_in(&dir, &[&args[..], &["--spp", "4", "--out-dir", "ref"]].concat());
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert_eq!(second.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("--out-dir ref is in use by another parallax run"), "{stderr}");
+    assert!(std::process::Command::new("kill").args(["-INT", &first.id().to_string()]).status().unwrap().success());
+    let out = first.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
+    // The lock goes with the process: a new run may use the folder.
+    let third = parallax_in(&dir, &[&args[..], &["--spp", "4", "--out-dir", "ref"]].concat());
+    assert!(third.status.success(), "{}", String::from_utf8_lossy(&third.stderr));
+}
