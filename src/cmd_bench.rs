@@ -170,13 +170,20 @@ fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> R
     {
         bail!("{origin}: gives {flag}, which bench sets per cell; leave out {bench_flags}");
     }
-    if let Err(e) = command().try_get_matches_from(argv) {
-        let text = e.to_string();
-        let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
-        bail!(
-            "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
-             what bench sets per cell: {bench_flags}"
-        );
+    let matches = match command().try_get_matches_from(argv) {
+        Ok(matches) => matches,
+        Err(e) => {
+            let text = e.to_string();
+            let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
+            bail!(
+                "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
+                 what bench sets per cell: {bench_flags}"
+            );
+        }
+    };
+    // A missing scene would otherwise be found only when its first cell runs.
+    if let Some(scene) = matches.get_one::<String>("scene").filter(|s| *s != "default") {
+        parallax_scene::input::open_regular(Path::new(scene)).with_context(|| format!("{origin}: --scene {scene}"))?;
     }
     Ok(())
 }

@@ -185,6 +185,16 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
+    // Found now rather than at the first checkpoint, after the tracing: a folder that cannot
+    // take files (read-only, immutable) or a folder where a view's file goes.
+    tempfile::NamedTempFile::new_in(&args.out_dir)
+        .with_context(|| format!("--out-dir {}: the folder is not writable", args.out_dir.display()))?;
+    let names = selected.iter().map(|v| format!("view_{v:03}.exr"));
+    crate::outputs::check_targets_in(
+        &args.out_dir,
+        names.chain(["reference.json", "reference.png", PARTIAL_FILE].map(String::from)),
+        "--out-dir",
+    )?;
     remove_stale_temporaries(&args.out_dir);
     let partial = args.out_dir.join(PARTIAL_FILE);
     let size = (lf.width as usize, lf.height as usize);

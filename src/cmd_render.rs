@@ -173,6 +173,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     settings.validate()?;
     let total_frames = args.warmup + args.frames;
     let sized = args.light_field.with_rig(Rig::default())?;
+    crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
     let work = TraceWork {
         views: sized.len() as u64 * u64::from(total_frames),
         width: sized.width,

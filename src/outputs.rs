@@ -79,6 +79,7 @@ pub fn check(outputs: &[Output]) -> Result<()> {
             continue;
         };
         let shown = path.display();
+        check_name(o.flag, path)?;
         let meta = std::fs::metadata(path).ok();
         if meta.is_none() && std::fs::symlink_metadata(path).is_ok() {
             bail!("{} {shown} is a symlink to a missing file: remove it or fix it", o.flag);
@@ -130,6 +131,46 @@ pub fn check_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Resu
         }
         if let Some((other, _)) = outputs[..k].iter().find(|(_, o)| identity(o) == key) {
             bail!("{flag} and {other} both write {}: give each output its own path", out.display());
+        }
+    }
+    Ok(())
+}
+
+/// The longest file name (bytes) and path most file systems take (Linux's NAME_MAX, PATH_MAX).
+const NAME_MAX: usize = 255;
+const PATH_MAX: usize = 4095;
+
+/// A path that names a file: no trailing `/` (which names a folder, so `--out x.exr/` would fail
+/// only after the work), a name and a path the file system can hold.
+fn check_name(flag: &str, path: &Path) -> Result<()> {
+    let shown = path.display();
+    let text = path.as_os_str().as_encoded_bytes();
+    if text.ends_with(b"/") || path.file_name().is_none() {
+        bail!("{flag} {shown} ends in '/' or '..', which names a folder: give a file name");
+    }
+    let name = path.file_name().map_or(0, |n| n.len());
+    if name > NAME_MAX {
+        bail!(
+            "{flag} {shown}: the file name is {name} bytes, more than the {NAME_MAX} a file system takes: shorten it"
+        );
+    }
+    if text.len() > PATH_MAX {
+        bail!("{flag}: the path is {} bytes, more than the {PATH_MAX} a file system takes: shorten it", text.len());
+    }
+    Ok(())
+}
+
+/// Refuses a path in `folder` that a run will write (`names`) but that is a folder or another
+/// non-file (a folder named `view_000.exr` used to be found only when the views were renamed
+/// into place, after all the tracing).
+pub fn check_targets_in(folder: &Path, names: impl IntoIterator<Item = String>, flag: &str) -> Result<()> {
+    for name in names {
+        let path = folder.join(&name);
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_dir()) {
+            bail!(
+                "{flag} {}: {name} there is a folder, and the run writes a file of that name: move it",
+                folder.display()
+            );
         }
     }
     Ok(())

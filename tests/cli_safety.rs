@@ -484,3 +484,70 @@ fn a_second_run_into_a_locked_folder_is_refused() {
     let third = parallax_in(&dir, &[&args[..], &["--spp", "4", "--out-dir", "ref"]].concat());
     assert!(third.status.success(), "{}", String::from_utf8_lossy(&third.stderr));
 }
+
+/// What would fail only after the work is found before it.
+#[test]
+fn outputs_are_checked_before_the_work() {
+    let dir = scratch("safety", "before");
+    refused(&dir, &["trace", "--cpu", "--out", "x.exr/"], 1, &["--out x.exr/ ends in '/'", "give a file name"]);
+    let long = format!("{}.exr", "a".repeat(300));
+    refused(&dir, &["trace", "--cpu", "--out", &long], 1, &["the file name is 304 bytes, more than the 255"]);
+    std::fs::create_dir_all(dir.join("lf/view_001.exr")).unwrap();
+    refused(
+        &dir,
+        &["render", "--lf", "2x1", "--resolution", "4x4", "--fake-devices", "1", "--out-dir", "lf"],
+        1,
+        &["--out-dir lf: view_001.exr there is a folder", "move it"],
+    );
+    refused(
+        &dir,
+        &[
+            "reference",
+            "--cpu",
+            "--lf",
+            "2x1",
+            "--resolution",
+            "4x4",
+            "--spp",
+            "4",
+            "--chunk-spp",
+            "4",
+            "--out-dir",
+            "lf",
+        ],
+        1,
+        &["--out-dir lf: view_001.exr there is a folder"],
+    );
+    // A bench case's missing scene is found before any cell runs (no out/bench is made).
+    refused(
+        &dir,
+        &["bench", "--common", "--scene missing.gltf --lf 2x1 --resolution 4x4", "--fake-devices", "--devices", "1"],
+        1,
+        &["--scene missing.gltf", "No such file or directory"],
+    );
+    // An immutable folder (where the file system and privileges allow making one).
+    std::fs::create_dir(dir.join("frozen")).unwrap();
+    if std::process::Command::new("chattr").args(["+i"]).arg(dir.join("frozen")).status().is_ok_and(|s| s.success()) {
+        let out = parallax_in(
+            &dir,
+            &[
+                "reference",
+                "--cpu",
+                "--lf",
+                "2x1",
+                "--resolution",
+                "4x4",
+                "--spp",
+                "4",
+                "--chunk-spp",
+                "4",
+                "--out-dir",
+                "frozen",
+            ],
+        );
+        let _ = std::process::Command::new("chattr").args(["-i"]).arg(dir.join("frozen")).status();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains("--out-dir frozen: the folder is not writable"), "{stderr}");
+    }
+}
