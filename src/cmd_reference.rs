@@ -26,7 +26,7 @@ use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::{TraceWork, check_host_bytes};
-use crate::options::{DeviceArgs, parse_exposure};
+use crate::options::{DeviceArgs, UsageError, parse_exposure};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use parallax_passes::camera::lightfield_view;
 
@@ -68,7 +68,9 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     let mut views = Vec::new();
     for part in s.split(',').map(str::trim) {
         let parse = |t: &str| -> Result<u32> {
-            t.trim().parse().with_context(|| format!("--views '{s}': '{t}' is not a view number (e.g. 0,5,8-11)"))
+            t.trim()
+                .parse()
+                .map_err(|_| UsageError(format!("--views '{s}': '{t}' is not a view number (e.g. 0,5,8-11)")).into())
         };
         let (a, b) = match part.split_once('-') {
             Some((a, b)) => (parse(a)?, parse(b)?),
@@ -124,13 +126,14 @@ impl Tracer<'_> {
 
 pub fn run(args: ReferenceArgs) -> Result<()> {
     if args.chunk_spp == 0 || args.spp % args.chunk_spp != 0 {
-        bail!(
+        return Err(UsageError(format!(
             "--spp {} is not a multiple of --chunk-spp {}: chunks must tile the samples for a resumed run to equal an \
              uninterrupted one; pick --spp {}",
             args.spp,
             args.chunk_spp,
             args.spp.div_ceil(args.chunk_spp.max(1)) * args.chunk_spp.max(1)
-        );
+        ))
+        .into());
     }
     if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
         bail!("--checkpoint-secs must be a non-negative number of seconds");

@@ -84,8 +84,9 @@ fn main() {
     };
     if let Err(err) = result {
         outputs::remove_pending();
-        // Flags that do not go together are usage errors like clap's own: same form, exit 2.
-        if let Some(usage) = err.downcast_ref::<options::UsageError>() {
+        // Flags that do not go together, or a value no run could use, are usage errors like
+        // clap's own: same form, exit 2.
+        if let Some(usage) = options::usage_error(&err) {
             Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();
         }
         tracing::error!("{err:#}");

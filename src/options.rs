@@ -225,6 +225,17 @@ pub fn parse_camera(s: &str) -> Result<Camera, String> {
     let eye = Vec3::new(v[0], v[1], v[2]);
     let target = Vec3::new(v[3], v[4], v[5]);
     let up = Vec3::new(v[6], v[7], v[8]);
+    // Beyond the scene's coordinate limit the squared distance overflows f32, and a differing
+    // eye would be reported as equal to the target.
+    for (name, p) in [("eye", eye), ("target", target)] {
+        if p.abs().max_element() > parallax_scene::MAX_COORDINATE {
+            return Err(format!(
+                "{name} coordinate {:e} is beyond ±{:e}, the limit of scene coordinates",
+                p.abs().max_element(),
+                parallax_scene::MAX_COORDINATE
+            ));
+        }
+    }
     let forward = (target - eye).normalize_or_zero();
     if forward == Vec3::ZERO {
         return Err("eye and target must differ".into());
@@ -297,6 +308,28 @@ impl std::fmt::Display for UsageError {
 
 impl std::error::Error for UsageError {}
 
+/// The message of `err` if it is a usage error: a [`UsageError`] anywhere in its chain, or a
+/// planning error about flags alone (two that do not go together, a `--sources` list that is
+/// no list). Errors that depend on the light field's size (more devices than views) are not.
+pub fn usage_error(err: &anyhow::Error) -> Option<String> {
+    err.chain().find_map(|cause| {
+        if let Some(usage) = cause.downcast_ref::<UsageError>() {
+            return Some(usage.0.clone());
+        }
+        let plan = cause.downcast_ref::<PlanError>()?;
+        matches!(
+            plan,
+            PlanError::SourcesWithMultiSource
+                | PlanError::SourcesPerSetWithFineScheme
+                | PlanError::DuplicateSource(_)
+                | PlanError::NoSources
+                | PlanError::BadSourceList(_)
+                | PlanError::NoSourcesPerSet
+        )
+        .then(|| plan.to_string())
+    })
+}
+
 /// A count within `range`, for clap; the message names the range.
 pub fn count_in(range: RangeInclusive<u64>) -> impl Fn(&str) -> Result<u64, String> + Clone {
     move |s: &str| {
@@ -358,6 +391,10 @@ mod tests {
             "up must be non-zero and not parallel to the view direction (e.g. 0,1,0)"
         );
         assert_eq!(parse_camera("1,1,1,1,1,1,0,1,0,45").unwrap_err(), "eye and target must differ");
+        assert_eq!(
+            parse_camera("0,0,1e20,0,0,0,0,1,0,45").unwrap_err(),
+            "eye coordinate 1e20 is beyond ±1e18, the limit of scene coordinates"
+        );
     }
 
     #[test]

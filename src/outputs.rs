@@ -73,14 +73,23 @@ pub fn check(outputs: &[Output]) -> Result<()> {
                 bail!("{} -: images cannot be written to stdout; give a file name", o.flag);
             }
             if let Some((_, other)) = seen.iter().find(|(p, _)| p.as_os_str() == "-") {
-                bail!("{} and {other} both write to stdout: send one of them to a file", o.flag);
+                return Err(crate::options::UsageError(format!(
+                    "{} and {other} both write to stdout: send one of them to a file",
+                    o.flag
+                ))
+                .into());
             }
             seen.push((PathBuf::from("-"), o.flag));
             continue;
         };
         let shown = path.display();
         check_name(o.flag, path)?;
-        let meta = std::fs::metadata(path).ok();
+        let meta = std::fs::metadata(path);
+        // ELOOP: the OS's "too many levels of symbolic links".
+        if meta.as_ref().is_err_and(|e| e.raw_os_error() == Some(40)) {
+            bail!("{} {shown} is a symlink loop (or a chain of more than 40 links): fix the links", o.flag);
+        }
+        let meta = meta.ok();
         if meta.is_none() && std::fs::symlink_metadata(path).is_ok() {
             bail!("{} {shown} is a symlink to a missing file: remove it or fix it", o.flag);
         }

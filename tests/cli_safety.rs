@@ -551,3 +551,42 @@ fn outputs_are_checked_before_the_work() {
         assert!(stderr.contains("--out-dir frozen: the folder is not writable"), "{stderr}");
     }
 }
+
+/// Bad values and flags that do not go together exit 2 like clap's own errors; messages say
+/// what is actually wrong.
+#[test]
+fn usage_errors_exit_2_and_messages_name_the_real_cause() {
+    let dir = scratch("safety", "usage");
+    refused(
+        &dir,
+        &["plan", "--lf", "4x1", "--scheme", "multi-source", "--sources", "0,1"],
+        2,
+        &["--sources does not apply to multi-source"],
+    );
+    refused(&dir, &["plan", "--lf", "4x1", "--json", "-", "--dot", "-"], 2, &["both write to stdout"]);
+    refused(
+        &dir,
+        &["reference", "--cpu", "--spp", "20"],
+        2,
+        &["--spp 20 is not a multiple of --chunk-spp 16", "pick --spp 32"],
+    );
+    refused(&dir, &["reference", "--cpu", "--views", "a"], 2, &["--views 'a': 'a' is not a view number"]);
+    refused(
+        &dir,
+        &["render", "--lf", "4x1", "--scheme", "fine-all", "--sources-per-set", "2", "--fake-devices", "1"],
+        2,
+        &["--sources-per-set applies to multi-source only"],
+    );
+    refused(
+        &dir,
+        &["trace", "--cpu", "--camera", "0,0,1e20,0,0,0,0,1,0,45"],
+        2,
+        &["eye coordinate 1e20 is beyond ±1e18"],
+    );
+    // An EXR that cannot be read says so (it used to say "cannot write image").
+    std::fs::write(dir.join("junk.exr"), b"not an exr").unwrap();
+    std::fs::write(dir.join("junk2.exr"), b"not an exr").unwrap();
+    refused(&dir, &["compare", "junk.exr", "junk2.exr"], 1, &["junk.exr: cannot read image: not a readable EXR"]);
+    std::os::unix::fs::symlink("loop.json", dir.join("loop.json")).unwrap();
+    refused(&dir, &["plan", "--lf", "4x1", "--json", "loop.json"], 1, &["--json loop.json is a symlink loop"]);
+}
