@@ -245,18 +245,21 @@ pub struct FolderLock(#[allow(dead_code)] std::fs::File);
 
 /// Locks `folder` (which exists) for this run, or says which flag names a folder in use.
 pub fn lock_folder(folder: &Path, flag: &str) -> Result<FolderLock> {
+    use std::os::fd::AsRawFd;
     let shown = folder.display();
     let handle = std::fs::File::open(folder).with_context(|| format!("{flag} {shown}: cannot open the folder"))?;
-    match handle.try_lock() {
-        Ok(()) => Ok(FolderLock(handle)),
-        Err(std::fs::TryLockError::WouldBlock) => bail!(
+    // flock(2) rather than std's File::try_lock, which needs Rust 1.89 (the MSRV is 1.85).
+    if unsafe { libc::flock(handle.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } == 0 {
+        return Ok(FolderLock(handle));
+    }
+    let error = std::io::Error::last_os_error();
+    if error.kind() == std::io::ErrorKind::WouldBlock {
+        bail!(
             "{flag} {shown} is in use by another parallax run (it holds the folder's lock): wait for it to end, or \
              give another {flag}"
-        ),
-        Err(std::fs::TryLockError::Error(e)) => {
-            Err(e).with_context(|| format!("{flag} {shown}: cannot lock the folder"))
-        }
+        );
     }
+    Err(error).with_context(|| format!("{flag} {shown}: cannot lock the folder"))
 }
 
 fn forget_pending(path: &Path) {
