@@ -309,24 +309,16 @@ impl std::fmt::Display for UsageError {
 impl std::error::Error for UsageError {}
 
 /// The message of `err` if it is a usage error: a [`UsageError`] anywhere in its chain, or a
-/// planning error about flags alone (two that do not go together, a `--sources` list that is
-/// no list). Errors that depend on the light field's size (more devices than views) are not.
+/// planning error about two flags that do not go together. Errors about the light field (more
+/// devices than views, a source listed twice or out of range) stay failures of the run.
 pub fn usage_error(err: &anyhow::Error) -> Option<String> {
     err.chain().find_map(|cause| {
         if let Some(usage) = cause.downcast_ref::<UsageError>() {
             return Some(usage.0.clone());
         }
         let plan = cause.downcast_ref::<PlanError>()?;
-        matches!(
-            plan,
-            PlanError::SourcesWithMultiSource
-                | PlanError::SourcesPerSetWithFineScheme
-                | PlanError::DuplicateSource(_)
-                | PlanError::NoSources
-                | PlanError::BadSourceList(_)
-                | PlanError::NoSourcesPerSet
-        )
-        .then(|| plan.to_string())
+        matches!(plan, PlanError::SourcesWithMultiSource | PlanError::SourcesPerSetWithFineScheme)
+            .then(|| plan.to_string())
     })
 }
 
