@@ -195,13 +195,20 @@ fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> R
     {
         bail!("{origin}: gives {flag}, which bench sets per cell; leave out {bench_flags}");
     }
-    if let Err(e) = command().try_get_matches_from(argv) {
-        let text = e.to_string();
-        let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
-        bail!(
-            "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
-             what bench sets per cell: {bench_flags}"
-        );
+    let matches = match command().try_get_matches_from(argv) {
+        Ok(matches) => matches,
+        Err(e) => {
+            let text = e.to_string();
+            let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
+            bail!(
+                "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
+                 what bench sets per cell: {bench_flags}"
+            );
+        }
+    };
+    // A missing scene would otherwise be found only when its first cell runs.
+    if let Some(scene) = matches.get_one::<String>("scene").filter(|s| *s != "default") {
+        parallax_scene::input::open_regular(Path::new(scene)).with_context(|| format!("{origin}: --scene {scene}"))?;
     }
     Ok(())
 }
@@ -393,6 +400,17 @@ pub fn run(args: BenchArgs) -> Result<()> {
         false,
         &format!("{} cell(s), {failed} failed; wrote {}", entries.len(), args.out_dir.join("bench.json").display()),
     );
+    // A matrix with some failed cells still measured the others (exit 0, the failures listed);
+    // one whose every cell failed measured nothing, which must not look like success.
+    if failed > 0 && failed == entries.len() {
+        bail!(
+            "every one of the {failed} cell(s) failed (their errors are in {}): nothing was measured",
+            args.out_dir.join("bench.json").display()
+        );
+    }
+    if failed > 0 {
+        tracing::warn!("{failed} of {} cell(s) failed: see their errors in bench.json", entries.len());
+    }
     Ok(())
 }
 

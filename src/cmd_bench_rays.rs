@@ -60,6 +60,11 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let options = LoadOptions { uris: crate::scene_args::uri_policy(args.allow_outside_files) };
     let scene = load_scene_with(&args.scene, options).with_context(|| format!("loading --scene {}", args.scene))?;
+    if let Some(Sink::File(json)) = &args.json {
+        let inputs: Vec<(&str, &std::path::Path)> =
+            scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect();
+        crate::outputs::check_inputs(&[("--json", json)], &inputs)?;
+    }
     tracing::info!("scene '{}': {} triangles, loaded in {:.2?}", scene.name, scene.triangle_count(), t0.elapsed());
     let selection = args.fake_devices.map_or(DeviceSelection::Gpus(1), |n| DeviceSelection::FakeDevices(n as usize));
     let context = Context::new(&ContextDesc::from_env(selection))?;

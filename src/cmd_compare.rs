@@ -18,7 +18,7 @@ use parallax_accuracy::points::point_of_render_json;
 use parallax_accuracy::{CompareOptions, Comparison, Point, compare_paths, write_atomically};
 
 use crate::options::{Exposure, parse_exposure};
-use crate::outputs::{Format, Output, Sink, check, stage};
+use crate::outputs::{Format, Output, Sink, check, check_inputs, stage};
 use crate::run_setup::{differences, setup_beside};
 
 #[derive(Args, Debug)]
@@ -84,16 +84,39 @@ pub fn check_settings(test: &Path, reference: &Path, allow_mismatch: bool) -> Re
     Ok(diffs)
 }
 
+/// `--json` and `--markdown`: the extension of their format, writable folders, two distinct
+/// paths, and neither one of the images compared (`compare a.exr b.exr --json a.exr` used to
+/// replace the test image with JSON).
+fn check_outputs(args: &CompareArgs) -> Result<()> {
+    let json = args.json.clone().map(Sink::File);
+    let markdown = args.markdown.clone().map(Sink::File);
+    let flip_map = args.flip_map.clone().map(Sink::File);
+    let mut outputs = Vec::new();
+    if let Some(sink) = &json {
+        outputs.push(Output { flag: "--json", sink, format: Format::Json });
+    }
+    if let Some(sink) = &markdown {
+        outputs.push(Output { flag: "--markdown", sink, format: Format::Markdown });
+    }
+    if let Some(sink) = &flip_map {
+        outputs.push(Output { flag: "--flip-map", sink, format: Format::Png });
+    }
+    check(&outputs)?;
+    let written: Vec<(&str, &Path)> =
+        [("--json", &args.json), ("--markdown", &args.markdown), ("--flip-map", &args.flip_map)]
+            .into_iter()
+            .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+            .collect();
+    check_inputs(&written, &[("TEST", args.test.as_path()), ("REFERENCE", args.reference.as_path())])
+}
+
 pub fn run(args: CompareArgs) -> Result<()> {
     for path in [&args.test, &args.reference] {
         if !path.exists() {
             bail!("{} does not exist: give an EXR file or a light-field folder", path.display());
         }
     }
-    let flip_sink = args.flip_map.clone().map(Sink::File);
-    if let Some(sink) = &flip_sink {
-        check(&[Output { flag: "--flip-map", sink, format: Format::Png }])?;
-    }
+    check_outputs(&args)?;
     let mismatches = check_settings(&args.test, &args.reference, args.allow_mismatch)?;
     let options = CompareOptions { exposure: args.exposure, flip_maps: args.flip_map.is_some() };
     let comparison = compare_paths(&args.test, &args.reference, &options)?;

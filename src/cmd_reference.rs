@@ -19,6 +19,7 @@ use indicatif::ProgressStyle;
 use parallax_accuracy::exposure::LogAverage;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
 use parallax_backend::{Context as VkContext, ContextDesc};
+use parallax_graph::lightfield::DEFAULT_SPACING;
 use parallax_graph::{LightField, ViewId};
 use parallax_passes::{GpuTracer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
@@ -26,8 +27,8 @@ use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::{TraceWork, check_host_bytes};
-use crate::options::{DeviceArgs, Exposure, parse_exposure};
-use crate::run_setup::{Setup, scene_fingerprint};
+use crate::options::{DeviceArgs, Exposure, UsageError, parse_exposure};
+use crate::run_setup::Setup;
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use parallax_passes::camera::lightfield_view;
 
@@ -71,7 +72,9 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     let mut views = Vec::new();
     for part in s.split(',').map(str::trim) {
         let parse = |t: &str| -> Result<u32> {
-            t.trim().parse().with_context(|| format!("--views '{s}': '{t}' is not a view number (e.g. 0,5,8-11)"))
+            t.trim()
+                .parse()
+                .map_err(|_| UsageError(format!("--views '{s}': '{t}' is not a view number (e.g. 0,5,8-11)")).into())
         };
         let (a, b) = match part.split_once('-') {
             Some((a, b)) => (parse(a)?, parse(b)?),
@@ -85,6 +88,19 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     views.sort_unstable();
     views.dedup();
     Ok(views)
+}
+
+/// Every file the scene was read from, by name with its FNV-1a hash and size: the scene under
+/// `--scene`, each buffer and image under `--scene file NAME`, so a resumed run names the one that
+/// changed (an edited .bin used to go unnoticed). A different path to the same files is the same
+/// scene; `default` is built in.
+fn scene_files_key(scene: &Scene) -> BTreeMap<String, String> {
+    match scene.sources.split_first() {
+        None => BTreeMap::from([("--scene".to_string(), "default".to_string())]),
+        Some((main, others)) => std::iter::once(("--scene".to_string(), main.to_string()))
+            .chain(others.iter().map(|f| (format!("--scene file {}", f.name), f.to_string())))
+            .collect(),
+    }
 }
 
 enum Tracer<'a> {
@@ -114,18 +130,23 @@ impl Tracer<'_> {
 
 pub fn run(args: ReferenceArgs) -> Result<()> {
     if args.chunk_spp == 0 || args.spp % args.chunk_spp != 0 {
-        bail!(
+        return Err(UsageError(format!(
             "--spp {} is not a multiple of --chunk-spp {}: chunks must tile the samples for a resumed run to equal an \
              uninterrupted one; pick --spp {}",
             args.spp,
             args.chunk_spp,
             args.spp.div_ceil(args.chunk_spp.max(1)) * args.chunk_spp.max(1)
-        );
+        ))
+        .into());
     }
     if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
         bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
     let scene = args.scene.load()?;
+    let written: Vec<PathBuf> =
+        ["reference.json", "reference.png", PARTIAL_FILE].iter().map(|name| args.out_dir.join(name)).collect();
+    let written: Vec<(&str, &Path)> = written.iter().map(|p| ("--out-dir", p.as_path())).collect();
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
     let focus = lf.rig.focus_distance;
     let selected = match &args.views {
@@ -153,10 +174,11 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
 
     // Everything the pixels depend on, by the flag that sets it; devices are not among them
     // (results do not depend on the device count), so a reference can resume on other GPUs.
-    let settings_key = BTreeMap::from([
-        ("--scene".to_string(), scene_fingerprint(&args.scene.scene)?),
+    let mut settings_key = scene_files_key(&scene);
+    settings_key.extend([
         ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.lf, lf.cols, lf.rows)),
-        ("--spacing".to_string(), args.light_field.spacing.map_or("(preset)".into(), |s| s.to_string())),
+        // The spacing in effect, so an explicit --spacing equal to the preset's is the same run.
+        ("--spacing".to_string(), args.light_field.spacing.unwrap_or(DEFAULT_SPACING).to_string()),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
         ("--camera".to_string(), format!("{:?}", args.scene.camera.map(|c| c.camera))),
@@ -176,14 +198,41 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         (&lf, args.light_field.spacing),
         args.depth.max_depth,
     )?;
-    std::fs::create_dir_all(&args.out_dir)
+    crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
+    // Found now rather than at the first checkpoint, after the tracing: a folder that cannot
+    // take files (read-only, immutable) or a folder where a view's file goes.
+    tempfile::NamedTempFile::new_in(&args.out_dir)
+        .with_context(|| format!("--out-dir {}: the folder is not writable", args.out_dir.display()))?;
+    let names = selected.iter().map(|v| format!("view_{v:03}.exr"));
+    crate::outputs::check_targets_in(
+        &args.out_dir,
+        names.chain(["reference.json", "reference.png", PARTIAL_FILE].map(String::from)),
+        "--out-dir",
+    )?;
     remove_stale_temporaries(&args.out_dir);
     let partial = args.out_dir.join(PARTIAL_FILE);
     let size = (lf.width as usize, lf.height as usize);
     let mut acc = if partial.exists() {
         let acc = Accumulator::load(&partial)?;
         acc.check_settings(&settings_key, &partial)?;
+        let h = &acc.header;
+        if (h.views, h.width, h.height, h.chunk_spp) != (views.len(), size.0, size.1, args.chunk_spp) {
+            bail!(
+                "{}: its header holds {} view(s) of {}x{} in chunks of {} spp, but its settings say {} of {}x{} in \
+                 chunks of {}: the file was edited; delete it to start over",
+                partial.display(),
+                h.views,
+                h.width,
+                h.height,
+                h.chunk_spp,
+                views.len(),
+                size.0,
+                size.1,
+                args.chunk_spp
+            );
+        }
         tracing::info!("resuming {} at {} spp", partial.display(), acc.header.spp);
         acc
     } else {

@@ -256,6 +256,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     settings.validate()?;
     let total_frames = args.warmup + args.frames;
     let sized = args.light_field.with_rig(Rig::default())?;
+    crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
     let work = TraceWork {
         views: sized.len() as u64 * u64::from(total_frames),
         width: sized.width,
@@ -268,6 +269,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     one_frame.check_host()?;
 
     let scene = args.scene.load()?;
+    let mut written = vec![("--out-dir", render_json.as_path()), ("--out-dir", sheet.as_path())];
+    if let Some(Sink::File(trace)) = &args.trace {
+        written.push(("--trace", trace.as_path()));
+    }
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let camera = args.scene.camera_or_default(&scene);
     let centre = scene.bounds().center();
     // The scene's own camera animation, spread over the measured frames; else a dolly (an
@@ -337,8 +343,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ExecOptions { barriers, timing, frames_in_flight: args.frames_in_flight as usize, ..ExecOptions::default() },
     )?;
 
-    std::fs::create_dir_all(&args.out_dir)
+    crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
     let progress = bar(u64::from(total_frames));
     let started = Instant::now();
     let mut measured_from = None;
@@ -360,7 +367,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         {
             renderer.finish()?;
             let folder = args.out_dir.join(format!("frame_{m:05}"));
-            std::fs::create_dir_all(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
+            crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
             staged.extend(stage_views(
                 &mut renderer,
                 handles.linear_slot,
@@ -456,6 +463,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         crate::outputs::write_json(sink, trace)?;
     }
     json_file.commit()?;
+    crate::outputs::keep_folders();
     let say = |line: String| result(matches!(args.trace, Some(Sink::Stdout)), &line);
     say(stage_table(&timing));
     say(format!(

@@ -77,6 +77,9 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
 
     let t0 = Instant::now();
     let scene = args.scene.load()?;
+    let mut written = vec![("--out", args.out.as_path())];
+    written.extend(args.png.as_deref().map(|p| ("--png", p)));
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let load_time = t0.elapsed();
     let bvh = SceneBvh::build(&scene);
     tracing::info!(

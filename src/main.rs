@@ -17,6 +17,7 @@ mod lightfield_images;
 mod logging;
 mod options;
 mod outputs;
+mod pending;
 mod render_pictures;
 mod render_report;
 mod run_file;
@@ -69,10 +70,12 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     logging::init(cli.verbosity);
-    // Ctrl-C ends the process before any destructor runs: remove the temporary files of
-    // outputs not yet in place, so an interrupted run leaves nothing behind.
+    // Ctrl-C, SIGTERM and SIGHUP end the process before any destructor runs: remove the
+    // temporary files of outputs not yet in place and the folders the run created, so an
+    // interrupted run leaves nothing behind.
     if let Err(err) = ctrlc::set_handler(|| {
-        outputs::remove_pending();
+        // Held until the process ends, so that the main thread creates nothing after this.
+        let _pending = pending::remove_all();
         tracing::error!("interrupted: outputs not yet in place were removed");
         std::process::exit(130);
     }) {
@@ -91,8 +94,10 @@ fn main() {
         Command::Chart(args) => cmd_chart::run(args),
     };
     if let Err(err) = result {
-        // Flags that do not go together are usage errors like clap's own: same form, exit 2.
-        if let Some(usage) = err.downcast_ref::<options::UsageError>() {
+        drop(pending::remove_all());
+        // Flags that do not go together, or a value no run could use, are usage errors like
+        // clap's own: same form, exit 2.
+        if let Some(usage) = options::usage_error(&err) {
             Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();
         }
         tracing::error!("{err:#}");

@@ -96,18 +96,33 @@ pub fn parse_sources(s: &str) -> Result<SourceList, String> {
     parallax_graph::parse_source_list(s).map(SourceList).map_err(|e| e.to_string())
 }
 
-/// `--spacing`: a finite, non-negative distance in metres.
+/// `--spacing`: a distance in metres, 0..=[`MAX_SPACING`].
 pub fn parse_spacing(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) if (0.0..=MAX_SPACING).contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > MAX_SPACING => Err(format!(
+            "{v} m is more than {MAX_SPACING} m between neighbouring views: every view would see something else \
+             (light fields space views millimetres to metres apart, e.g. 0.001)"
+        )),
         _ => Err("use a finite, non-negative distance in metres (e.g. 0.001)".into()),
     }
 }
 
-/// `--focus`: distance of the zero-disparity plane, finite and > 0.
+/// The widest `--spacing`, in metres.
+pub const MAX_SPACING: f64 = 1e3;
+/// The range of `--focus`, in metres: nearer than 0.1 mm or farther than 1e9 m the views either
+/// disagree everywhere or are identical.
+pub const FOCUS_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1e9;
+
+/// `--focus`: distance of the zero-disparity plane, within [`FOCUS_RANGE`].
 pub fn parse_focus(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) if FOCUS_RANGE.contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > 0.0 => Err(format!(
+            "{v} m is outside {:e}..={:e} m: the zero-disparity plane must lie at a distance the views can resolve",
+            FOCUS_RANGE.start(),
+            FOCUS_RANGE.end()
+        )),
         _ => Err("use a finite distance in metres greater than 0 (e.g. 2.5)".into()),
     }
 }
@@ -211,6 +226,17 @@ pub fn parse_camera(s: &str) -> Result<Camera, String> {
     let eye = Vec3::new(v[0], v[1], v[2]);
     let target = Vec3::new(v[3], v[4], v[5]);
     let up = Vec3::new(v[6], v[7], v[8]);
+    // Beyond the scene's coordinate limit the squared distance overflows f32, and a differing
+    // eye would be reported as equal to the target.
+    for (name, p) in [("eye", eye), ("target", target)] {
+        if p.abs().max_element() > parallax_scene::MAX_COORDINATE {
+            return Err(format!(
+                "{name} coordinate {:e} is beyond ±{:e}, the limit of scene coordinates",
+                p.abs().max_element(),
+                parallax_scene::MAX_COORDINATE
+            ));
+        }
+    }
     let forward = (target - eye).normalize_or_zero();
     if forward == Vec3::ZERO {
         return Err("eye and target must differ".into());
@@ -294,6 +320,20 @@ impl std::fmt::Display for UsageError {
 
 impl std::error::Error for UsageError {}
 
+/// The message of `err` if it is a usage error: a [`UsageError`] anywhere in its chain, or a
+/// planning error about two flags that do not go together. Errors about the light field (more
+/// devices than views, a source listed twice or out of range) stay failures of the run.
+pub fn usage_error(err: &anyhow::Error) -> Option<String> {
+    err.chain().find_map(|cause| {
+        if let Some(usage) = cause.downcast_ref::<UsageError>() {
+            return Some(usage.0.clone());
+        }
+        let plan = cause.downcast_ref::<PlanError>()?;
+        matches!(plan, PlanError::SourcesWithMultiSource | PlanError::SourcesPerSetWithFineScheme)
+            .then(|| plan.to_string())
+    })
+}
+
 /// A count within `range`, for clap; the message names the range.
 pub fn count_in(range: RangeInclusive<u64>) -> impl Fn(&str) -> Result<u64, String> + Clone {
     move |s: &str| {
@@ -360,6 +400,10 @@ mod tests {
             "up must be non-zero and not parallel to the view direction (e.g. 0,1,0)"
         );
         assert_eq!(parse_camera("1,1,1,1,1,1,0,1,0,45").unwrap_err(), "eye and target must differ");
+        assert_eq!(
+            parse_camera("0,0,1e20,0,0,0,0,1,0,45").unwrap_err(),
+            "eye coordinate 1e20 is beyond ±1e18, the limit of scene coordinates"
+        );
     }
 
     #[test]

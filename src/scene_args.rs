@@ -68,6 +68,12 @@ impl SceneArgs {
         warn_if_unlit(scene);
     }
 
+    /// Every file `scene` (loaded by [`SceneArgs::load`]) was read from, by the flag that named
+    /// it: what no output may overwrite ([`crate::outputs::check_inputs`]).
+    pub fn inputs<'a>(&self, scene: &'a Scene) -> Vec<(&'static str, &'a std::path::Path)> {
+        scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect()
+    }
+
     /// `--camera`, else the scene's first camera (or one framing the whole scene).
     pub fn camera_or_default(&self, scene: &Scene) -> Camera {
         self.camera.map_or_else(|| scene.default_camera(), |c| c.camera)

@@ -60,7 +60,29 @@ impl Point {
     pub fn series_name(&self) -> &str {
         self.series.as_deref().unwrap_or("")
     }
+
+    /// Every value a chart can draw: a negative time, a FLIP outside 0..=1 or a 1e308 would give
+    /// an axis of garbled ticks, so such a point is refused with the field and its range.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let fields = [
+            ("frame_ms", self.frame_ms, 0.0..=MAX_MS),
+            ("hole_fill_ms", self.hole_fill_ms, 0.0..=MAX_MS),
+            ("flip", self.flip, 0.0..=1.0),
+            ("psnr", self.psnr, -1e3..=1e3),
+            ("missing", self.missing, 0.0..=100.0),
+        ];
+        for (name, value, range) in fields {
+            if let Some(v) = value.filter(|v| !range.contains(v)) {
+                let shown = if v.abs() >= 1e6 { format!("{v:e}") } else { v.to_string() };
+                return Err(format!("{name} {shown} is outside {}..={}", range.start(), range.end()));
+            }
+        }
+        Ok(())
+    }
 }
+
+/// The longest time a point may give: 1e9 ms (11 days).
+const MAX_MS: f64 = 1e9;
 
 /// The points of case `name`; an error naming the cases there are when none is of it.
 pub fn of_case(points: Vec<Point>, name: &str) -> Result<Vec<Point>> {
@@ -100,7 +122,9 @@ pub fn load_points(path: &Path) -> Result<Vec<Point>> {
     let text = read_bounded(path, TEXT_FILE_LIMIT, "points file")?;
     let json: serde_json::Value = serde_json::from_slice(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
     let parse = |v: &serde_json::Value| {
-        serde_json::from_value::<Point>(v.clone()).map_err(|e| bad(format!("bad point {v}: {e}")))
+        let point = serde_json::from_value::<Point>(v.clone()).map_err(|e| bad(format!("bad point {v}: {e}")))?;
+        point.check().map_err(|e| bad(format!("point '{}': {e}", point.label)))?;
+        Ok(point)
     };
     if let Some(list) = json.get("points") {
         let list = list.as_array().ok_or_else(|| bad("`points` must be an array".into()))?;

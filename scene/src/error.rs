@@ -49,6 +49,10 @@ pub enum SceneError {
         "{path}: every triangle has zero area ({hint}), so nothing would be visible; fix the node scales or vertex positions"
     )]
     ZeroArea { path: PathBuf, hint: String },
+    #[error(
+        "{path}: {what} emits {value:e}, more than the {limit:e} a scene may (f32 sums would overflow to infinity): lower it"
+    )]
+    EmissionOutOfRange { path: PathBuf, what: String, value: f32, limit: f32 },
     #[error("{path}: camera {camera} (node {node}): {detail}")]
     BadCamera { path: PathBuf, camera: usize, node: usize, detail: String },
     #[error(

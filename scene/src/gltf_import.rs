@@ -18,7 +18,9 @@ use crate::error::SceneError;
 use crate::input::{
     IMAGE_FILE_LIMIT, IMAGE_SIDE_LIMIT, SCENE_FILE_LIMIT, SourceFile, UriPolicy, read_bounded, read_prefix, resolve_uri,
 };
-use crate::model::{AlphaMode, Camera, MAX_COORDINATE, Material, PunctualKind, PunctualLight, Scene, Texture};
+use crate::model::{
+    AlphaMode, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Texture,
+};
 
 /// Extensions a file may list in `extensionsRequired`.
 pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
@@ -43,9 +45,8 @@ pub fn load_gltf_with(path: impl AsRef<Path>, options: LoadOptions) -> Result<Sc
     let bytes = read_bounded(path, SCENE_FILE_LIMIT, "glTF scene")?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut scene = load_gltf_bytes_with(&bytes, base, path, options)?;
-    scene
-        .sources
-        .insert(0, SourceFile::of(path.file_name().map_or(path.to_string_lossy(), |n| n.to_string_lossy()), &bytes));
+    let name = path.file_name().map_or(path.to_string_lossy(), |n| n.to_string_lossy());
+    scene.sources.insert(0, SourceFile::of(name, path, &bytes));
     Ok(scene)
 }
 
@@ -223,6 +224,7 @@ impl Importer<'_> {
                     what: format!("material {}", materials.len()),
                 });
             }
+            check_emission(self.path, || format!("material {} (emissive)", materials.len()), material.emissive)?;
             materials.push(material);
         }
         self.scene.materials = materials;
@@ -304,7 +306,13 @@ impl Importer<'_> {
                 }
             }
             if let Some(light) = node.light() {
-                self.scene.lights.push(light_from_gltf(&light, world[i]));
+                let punctual = light_from_gltf(&light, world[i]);
+                let what = || format!("light {} (node {i})", light.index());
+                if !punctual.intensity.is_finite() || !punctual.color.is_finite() {
+                    return Err(SceneError::NonFinite { path: self.path.to_path_buf(), what: what() });
+                }
+                check_emission(self.path, what, punctual.color * punctual.intensity)?;
+                self.scene.lights.push(punctual);
             }
         }
         Ok(())
@@ -503,6 +511,25 @@ impl Importer<'_> {
     }
 }
 
+/// Emission must be non-negative and at most [`MAX_EMISSION`] per channel.
+fn check_emission(path: &Path, what: impl Fn() -> String, emission: Vec3) -> Result<(), SceneError> {
+    if emission.min_element() < 0.0 {
+        return Err(SceneError::InvalidGltf {
+            path: path.to_path_buf(),
+            detail: format!("{} has a negative emission {emission}; glTF requires non-negative values", what()),
+        });
+    }
+    if emission.max_element() > MAX_EMISSION {
+        return Err(SceneError::EmissionOutOfRange {
+            path: path.to_path_buf(),
+            what: what(),
+            value: emission.max_element(),
+            limit: MAX_EMISSION,
+        });
+    }
+    Ok(())
+}
+
 /// Tells a glTF file from anything else before the JSON parser does, whose "malformed JSON" would
 /// send the owner of an .obj or a truncated .glb looking for a syntax error.
 fn check_container(bytes: &[u8], path: &Path) -> Result<(), SceneError> {
@@ -613,7 +640,7 @@ fn load_buffers(
             gltf::buffer::Source::Uri(uri) => {
                 let file = resolve_uri(base_dir, uri, policy).map_err(missing)?;
                 let bytes = read_prefix(&file, declared).map_err(|e| missing(e.to_string()))?;
-                sources.push(SourceFile::of(uri, &bytes));
+                sources.push(SourceFile::of(uri, &file, &bytes));
                 bytes
             }
         };
@@ -705,6 +732,7 @@ fn decode_images(
     let decoded: Vec<(Texture, Option<SourceFile>)> = images
         .par_iter()
         .map(|img| {
+            let mut file = None;
             let (uri, encoded): (String, Result<Vec<u8>, String>) = match img.source() {
                 gltf::image::Source::View { view, .. } => {
                     let data = &buffers[view.buffer().index()].0;
@@ -718,8 +746,10 @@ fn decode_images(
                     ("data URI".into(), Err("embedded data: URI images are not supported".into()))
                 }
                 gltf::image::Source::Uri { uri, .. } => {
-                    let bytes = resolve_uri(base_dir, uri, policy).and_then(|file| {
-                        read_bounded(&file, IMAGE_FILE_LIMIT, "glTF image").map_err(|e| e.to_string())
+                    let bytes = resolve_uri(base_dir, uri, policy).and_then(|resolved| {
+                        let bytes = read_bounded(&resolved, IMAGE_FILE_LIMIT, "glTF image").map_err(|e| e.to_string());
+                        file = Some(resolved);
+                        bytes
                     });
                     (uri.to_string(), bytes)
                 }
@@ -732,8 +762,7 @@ fn decode_images(
             };
             let encoded = encoded.map_err(bad)?;
             let rgba = decode_bounded(&encoded).map_err(bad)?;
-            let source =
-                matches!(img.source(), gltf::image::Source::Uri { .. }).then(|| SourceFile::of(&uri, &encoded));
+            let source = file.map(|file| SourceFile::of(&uri, &file, &encoded));
             Ok((Texture { width: rgba.width(), height: rgba.height(), rgba8: rgba.into_raw() }, source))
         })
         .collect::<Result<_, SceneError>>()?;

@@ -133,7 +133,15 @@ pub fn read_text(path: &Path, what: &'static str) -> Result<String, InputError> 
 
 /// FNV-1a (64 bits) of `bytes`: how a resumed run recognises the files it was made from.
 pub fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3))
+    fnv1a_continue(FNV1A_OFFSET, bytes)
+}
+
+/// The FNV-1a of nothing, where a hash over several pieces starts.
+pub const FNV1A_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// FNV-1a continued from `hash` over `bytes`: the hash of pieces without joining them.
+pub fn fnv1a_continue(hash: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(hash, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3))
 }
 
 /// A file a scene was loaded from, as a resumed run checks it.
@@ -141,13 +149,15 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
 pub struct SourceFile {
     /// As the scene names it: the scene's path, or a URI relative to its folder.
     pub name: String,
+    /// Where it was read from.
+    pub path: PathBuf,
     pub bytes: u64,
     pub fnv1a: u64,
 }
 
 impl SourceFile {
-    pub fn of(name: impl Into<String>, bytes: &[u8]) -> Self {
-        Self { name: name.into(), bytes: bytes.len() as u64, fnv1a: fnv1a(bytes) }
+    pub fn of(name: impl Into<String>, path: &Path, bytes: &[u8]) -> Self {
+        Self { name: name.into(), path: path.to_path_buf(), bytes: bytes.len() as u64, fnv1a: fnv1a(bytes) }
     }
 }
 

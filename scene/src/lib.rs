@@ -48,7 +48,8 @@ pub use default_scene::{default_lighting, default_scene, white_furnace_scene};
 pub use error::SceneError;
 pub use gltf_import::{LoadOptions, load_gltf, load_gltf_bytes, load_gltf_bytes_with, load_gltf_with};
 pub use model::{
-    AlphaMode, Bounds, Camera, MAX_COORDINATE, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture,
+    AlphaMode, Bounds, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Sky, Sun,
+    Texture,
 };
 pub use pt::{CpuTracer, Frame, PixelSample, PixelSet, TraceSettings, TraceStats, View};
 

@@ -297,6 +297,11 @@ impl Bounds {
     }
 }
 
+/// The largest emission a scene may declare, per channel: an emissive material's radiance
+/// (emissiveFactor × KHR_materials_emissive_strength) and a punctual light's intensity × colour.
+/// The same bound as `--sun` and `--sky`: beyond it f32 sums on the GPU overflow to infinity.
+pub const MAX_EMISSION: f32 = 1e6;
+
 /// The whole scene, flat and in world space.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
