@@ -16,6 +16,8 @@ $SUDO apt-get install -y -q libvulkan1 vulkan-tools vulkan-validationlayers glsl
 # Charts (plotters): fontconfig to find a font at build and run time, DejaVu as the font;
 # g++ builds NVIDIA's FLIP (nv-flip) and freetype from source.
 $SUDO apt-get install -y -q pkg-config libfontconfig1-dev fonts-dejavu-core g++
+# The viewer test opens render's viewer.html in headless Chromium and compares its screenshot.
+$SUDO apt-get install -y -q chromium
 
 if ! command -v cargo >/dev/null; then
   echo "error: cargo not found. Install the Rust toolchain (https://rustup.rs), then re-run." >&2

@@ -39,11 +39,7 @@ void main() {
     if (x >= pc.width || y >= pc.y1) {
         return;
     }
-    float w = float(params.dims.x);
-    float h = float(params.dims.y);
-    vec2 ndc = vec2((float(x) + 0.5) / w * 2.0 - 1.0, 1.0 - (float(y) + 0.5) / h * 2.0);
-    vec2 p = ndc + params.shift.xy;
-    vec3 dir = normalize(params.right.xyz * p.x + params.up.xyz * p.y + params.forward.xyz);
+    vec3 dir = camera_direction(x, y, vec2(0.5));
     vec3 eye = params.eye.xyz;
     BvhHit hit = bvh_closest_hit(bvh_make_ray(eye, dir, 0.0, 1.0 / 0.0));
     ivec2 at = ivec2(x, y);
@@ -63,8 +59,9 @@ void main() {
         vec4 clip = pc.block.views[pc.view].previous.view_proj * vec4(sp.position, 1.0);
         if (clip.w > 0.0) {
             vec2 prev_ndc = clip.xy / clip.w;
-            vec2 pixel = vec2((prev_ndc.x + 1.0) * 0.5 * w, (1.0 - prev_ndc.y) * 0.5 * h);
-            if (all(greaterThanEqual(pixel, vec2(0.0))) && all(lessThan(pixel, vec2(w, h)))) {
+            vec2 size = vec2(params.dims.xy);
+            vec2 pixel = vec2((prev_ndc.x + 1.0) * 0.5 * size.x, (1.0 - prev_ndc.y) * 0.5 * size.y);
+            if (all(greaterThanEqual(pixel, vec2(0.0))) && all(lessThan(pixel, size))) {
                 previous_pixel = pixel;
             }
         }

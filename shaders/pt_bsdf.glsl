@@ -5,12 +5,8 @@
 #ifndef PT_BSDF_GLSL
 #define PT_BSDF_GLSL
 
+#include "pt_constants.glsl"
 #include "pt_surface.glsl"
-
-const float PI = 3.14159265358979;
-const float TAU = 6.28318530717959;
-const float INV_PI = 0.318309886183791;
-const float MIN_ALPHA = 1e-3;
 
 struct Bsdf {
     vec3 n;

@@ -1,23 +1,13 @@
-// Light sampling, the twin of parallax_scene::lights (surface evaluation: pt_surface.glsl).
+// Light sampling, the twin of parallax_scene::lights (surface evaluation: pt_surface.glsl; the
+// sky and sun a ray sees: pt_camera.glsl).
 // Expects, declared before inclusion: the scene buffers (pt_scene.glsl), the BVH traversal,
 // and `params` (TraceParams of pt_trace.glsl) holding sky, sun and light-group data.
 
 #ifndef PT_LIGHTS_GLSL
 #define PT_LIGHTS_GLSL
 
+#include "pt_camera.glsl"
 #include "pt_surface.glsl"
-
-const uint LIGHT_GROUP_SUN = 1u;
-const uint LIGHT_GROUP_SKY = 2u;
-const uint LIGHT_GROUP_PUNCTUAL = 4u;
-const uint LIGHT_GROUP_EMISSIVE = 8u;
-
-vec3 sky_radiance(vec3 dir) {
-    if (params.sky_zenith.w == 0.0) {
-        return params.sky_zenith.rgb;
-    }
-    return dir.y >= 0.0 ? mix(params.sky_horizon.rgb, params.sky_zenith.rgb, min(dir.y, 1.0)) : params.sky_ground.rgb;
-}
 
 uint light_group_count() {
     return bitCount(params.counts.z);
@@ -25,13 +15,6 @@ uint light_group_count() {
 
 float light_group_prob(uint group) {
     return (params.counts.z & group) != 0u ? 1.0 / float(light_group_count()) : 0.0;
-}
-
-// The sun disc from values the CPU computed precisely (parallax_scene::lights::sun_disc):
-// x = cos of the angular radius, y = 1 - cos (0: delta sun), z = radiance per irradiance.
-vec3 sun_disc() {
-    float one_minus_cos = params.sun_irradiance.w;
-    return vec3(params.sun_dir.w, one_minus_cos, 1.0 / (PI * one_minus_cos * (2.0 - one_minus_cos)));
 }
 
 struct LightSample {
@@ -154,14 +137,6 @@ bool sample_light(vec3 p, vec3 n, vec4 u, out LightSample ls) {
     ls.pdf = p_group * a.emissive_prob * d2 / (a.area * abs(cos_l));
     ls.distance = dist;
     return ls.pdf > 0.0 && !isinf(ls.pdf);
-}
-
-vec3 sun_radiance(vec3 dir) {
-    vec3 disc = sun_disc();
-    if (disc.y <= 0.0 || (params.counts.z & LIGHT_GROUP_SUN) == 0u) {
-        return vec3(0.0);
-    }
-    return dot(dir, normalize(params.sun_dir.xyz)) >= disc.x ? params.sun_irradiance.rgb * disc.z : vec3(0.0);
 }
 
 float pdf_sun(vec3 dir) {

@@ -10,9 +10,9 @@
 #include "bindless.glsl"
 #include "pt_types.glsl"
 
-// Pixel list (list mode): one band's section of a pixel list (parallax_passes::holes): a header
-// ending in `count`, then `count` entries of x | y << 16. The dispatch covers the section's
-// capacity; invocations past `count` return.
+// Pixel list (list mode): one band's section of a pixel list (parallax_passes::pixel_list): a
+// header ending in `count`, then `count` entries of x | y << 16. The dispatch covers the
+// section's capacity; invocations past `count` return.
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer PixelList {
     uint groups_x;
     uint groups_y;

@@ -54,11 +54,12 @@ vec3 trace_path(uvec4 key, uint sample_index, vec3 origin, vec3 dir, bool first,
     for (uint depth = 0u; depth <= max_depth; depth++) {
         BvhHit hit = bvh_closest_hit(bvh_make_ray(ro, rd, 0.0, 1.0 / 0.0));
         if (hit.primitive == 0xffffffffu) {
-            vec3 sky = sky_radiance(rd);
-            vec3 sun = sun_radiance(rd);
             if (!has_prev) {
-                radiance += throughput * (sky + sun);
+                // A camera ray that misses: what reprojection writes for sky pixels too.
+                radiance += throughput * camera_miss_radiance(rd);
             } else {
+                vec3 sky = sky_radiance(rd);
+                vec3 sun = sun_radiance(rd);
                 radiance += throughput * (sky * mis_weight(prev_pdf, pdf_sky(prev_normal, rd))
                                           + sun * mis_weight(prev_pdf, pdf_sun(rd)));
             }
@@ -136,17 +137,9 @@ PixelOut trace_pixel(uint x, uint y) {
     g.albedo_roughness = vec4(0.0);
     g.normal_metallic = vec4(0.0);
     g.position_depth = vec4(0.0);
-    float aspect_w = float(params.dims.x);
-    float aspect_h = float(params.dims.y);
     vec3 sum = vec3(0.0);
     for (uint s = 0u; s < params.sampling.x; s++) {
-        vec2 jitter = vec2(0.5);
-        if (params.sampling.w != 0u) {
-            jitter = rng_uniforms(key, s, 0u, DIM_CAMERA).xy;
-        }
-        vec2 ndc = vec2((float(x) + jitter.x) / aspect_w * 2.0 - 1.0, 1.0 - (float(y) + jitter.y) / aspect_h * 2.0);
-        vec2 p = ndc + params.shift.xy;
-        vec3 dir = normalize(params.right.xyz * p.x + params.up.xyz * p.y + params.forward.xyz);
+        vec3 dir = camera_direction(x, y, camera_jitter(key, s));
         vec3 l = trace_path(key, s, params.eye.xyz, dir, s == 0u, g);
         // Like the CPU: a non-finite sample is dropped, never written.
         if (!any(isnan(l)) && !any(isinf(l))) {

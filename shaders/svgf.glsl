@@ -1,13 +1,20 @@
-// Shared by the SVGF kernels (parallax_passes::svgf, Schied et al. 2017): the push-constant
-// block, the G-buffer reads and the guards that keep every value finite.
+// Shared by the SVGF kernels (parallax_passes::svgf, after Schied et al. 2017): the push-constant
+// block, the packed guide texel, the edge-stopping weights, the workgroup tiles and the guards
+// that keep every value finite.
+//
+// Units: the images of the chain hold illumination E = radiance / a, with a the effective
+// albedo (svgf_effective_albedo), per channel; the last à-trous iteration writes a·E. Nothing
+// divides one pixel's radiance by another's albedo, and the à-trous iterations exchange E so that
+// the radiance a·E of a view is conserved (svgf_atrous.comp; docs/PIPELINE.md, SVGF, for the
+// measurements behind it).
 #ifndef PARALLAX_SVGF_GLSL
 #define PARALLAX_SVGF_GLSL
 
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
 
-// 72 bytes; parallax_passes::svgf::SvgfPush (a test holds the layouts together). Image
-// indices into images[]; what in0..in3 and out0..out2 hold depends on the kernel (see its
+// 76 bytes; parallax_passes::svgf::SvgfPush (a test holds the layouts together). Image
+// indices into images[]; what in0..in3 and out0..out3 hold depends on the kernel (see its
 // header). Rows [y0, y1) are the instance's band; every read with a footprint may touch any row.
 layout(push_constant, std430) uniform SvgfPush {
     uint radiance;
@@ -22,24 +29,32 @@ layout(push_constant, std430) uniform SvgfPush {
     uint out0;
     uint out1;
     uint out2;
+    uint out3;
     uint y0;
     uint y1;
     uint width;
     uint height;
-    uint step; // à-trous: tap spacing in pixels
-    uint last; // à-trous: 1 on the last iteration (remodulate into `denoised`)
+    uint step;  // à-trous: tap spacing in pixels
+    uint flags; // à-trous: SVGF_FIRST, SVGF_LAST
 } pc;
+
+const uint SVGF_FIRST = 1u; // first à-trous iteration: blurs the variance, writes the history
+const uint SVGF_LAST = 2u;  // last à-trous iteration: writes `denoised`
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-// Illumination and moments are clamped here: squares and 49-tap sums then stay far below the
-// f32 range, so no sum overflows to Inf.
+// Values are clamped here: squares and tap sums then stay far below the f32 range.
 const float MAX_VALUE = 1e8;
-// Below this an albedo channel is treated as black: it is neither divided out nor multiplied
-// back (radiance on a black surface, e.g. emission, is filtered as it is, not blown up).
-const float MIN_ALBEDO = 1e-3;
+// Added to every albedo channel before anything divides by it or weighs with it: a black channel
+// still has a finite illumination (an emitter on a black base keeps its radiance).
+const float ALBEDO_FLOOR = 1e-3;
+// À-trous luminance edge-stopping (Schied: σ_l = 4).
+const float SIGMA_L = 4.0;
+// The 5×5 B3-spline kernel of the à-trous iterations, per axis.
+const float KERNEL[3] = float[3](3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);
 
-// The pixel this invocation owns, or ivec2(-1) when it lies outside the band.
+// The pixel this invocation owns in the row-major layout of 8×8 tiles over the band, or
+// ivec2(-1) outside the band.
 ivec2 svgf_pixel() {
     uint x = gl_GlobalInvocationID.x;
     uint y = pc.y0 + gl_GlobalInvocationID.y;
@@ -50,69 +65,136 @@ bool svgf_inside(ivec2 p) {
     return p.x >= 0 && p.y >= 0 && p.x < int(pc.width) && p.y < int(pc.height);
 }
 
+bool svgf_in_band(ivec2 p) {
+    return p.x >= 0 && p.x < int(pc.width) && p.y >= int(pc.y0) && p.y < int(pc.y1);
+}
+
 // NaN and Inf (and negatives) become 0, large values MAX_VALUE.
 vec3 svgf_sanitize(vec3 v) {
     bvec3 bad = bvec3(isnan(v).x || isinf(v).x, isnan(v).y || isinf(v).y, isnan(v).z || isinf(v).z);
     return clamp(mix(v, vec3(0.0), bad), vec3(0.0), vec3(MAX_VALUE));
 }
 
-// Per channel: what radiance is divided by to give illumination, and multiplied by to go back.
-vec3 svgf_albedo_divisor(vec3 albedo) {
-    return mix(albedo, vec3(1.0), lessThan(albedo, vec3(MIN_ALBEDO)));
+float svgf_sanitize(float v) {
+    return (isnan(v) || isinf(v)) ? 0.0 : clamp(v, 0.0, MAX_VALUE);
 }
 
 float svgf_luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// Linear depth of pixel p of the current frame; 0: no hit (sky).
-float svgf_depth(ivec2 p) {
-    return imageLoad(images[pc.position], p).w;
+// v (in the normal range of half floats) rounded to 10 mantissa bits: a value a half-float image
+// stores exactly, whichever rounding its conversion uses (Vulkan allows either).
+vec3 svgf_half_exact(vec3 v) {
+    return uintBitsToFloat((floatBitsToUint(v) + 0x1000u) & ~uvec3(0x1fffu));
 }
 
-// One axis of the screen-space depth gradient: of the forward and backward differences, the
-// smaller in magnitude, so that a depth edge on one side does not inflate it; a side without a
-// hit (or off the image) is not used.
-float svgf_depth_slope(ivec2 p, ivec2 axis, float z) {
-    float best = 0.0;
-    bool found = false;
-    for (int s = -1; s <= 1; s += 2) {
-        ivec2 q = p + s * axis;
-        if (!svgf_inside(q)) {
-            continue;
-        }
-        float zq = svgf_depth(q);
-        // Written so that NaN fails too.
-        if (!(zq > 0.0)) {
-            continue;
-        }
-        float d = float(s) * (zq - z);
-        if (!found || abs(d) < abs(best)) {
-            best = d;
-            found = true;
-        }
+// The albedo that weighs and remodulates: the G-buffer's base colour plus the floor, as
+// `svgf_albedo` stores it, so the temporal pass remodulates with what the others read.
+vec3 svgf_effective_albedo(vec3 base) {
+    return svgf_half_exact(svgf_sanitize(min(base, vec3(1.0))) + vec3(ALBEDO_FLOOR));
+}
+
+// Luminance of the illumination of a pixel whose radiance is `radiance` and albedo `albedo`
+// (effective, so > 0): what edge-stopping compares, free of the texture.
+float svgf_illumination_luminance(vec3 radiance, vec3 albedo) {
+    return svgf_luminance(radiance) / svgf_luminance(albedo);
+}
+
+// Octahedral encoding of a unit normal, 12 bits per axis, as an integer below 2^24 held exactly
+// in a float (float images only; integer bits in float texels could be flushed or canonicalised).
+// 12 bits: the angle error (< 0.05°) changes the power-128 normal weight by < 1e-5.
+float svgf_pack_normal(vec3 n) {
+    float l1 = abs(n.x) + abs(n.y) + abs(n.z);
+    if (!(l1 > 0.0)) {
+        return 0.0;
     }
-    return best;
+    vec2 o = n.xy / l1;
+    if (n.z < 0.0) {
+        o = (1.0 - abs(o.yx)) * vec2(o.x >= 0.0 ? 1.0 : -1.0, o.y >= 0.0 ? 1.0 : -1.0);
+    }
+    uvec2 q = uvec2(round(clamp(o * 0.5 + 0.5, 0.0, 1.0) * 4095.0));
+    return float(q.x * 4096u + q.y);
 }
 
-// Depth change per pixel along x and y at p (depth z > 0).
-vec2 svgf_depth_gradient(ivec2 p, float z) {
-    return vec2(svgf_depth_slope(p, ivec2(1, 0), z), svgf_depth_slope(p, ivec2(0, 1), z));
+vec3 svgf_unpack_normal(float packed) {
+    uint v = uint(clamp(packed, 0.0, 16777215.0));
+    vec2 o = vec2(float(v >> 12u), float(v & 4095u)) / 4095.0 * 2.0 - 1.0;
+    vec3 n = vec3(o, 1.0 - abs(o.x) - abs(o.y));
+    if (n.z < 0.0) {
+        n.xy = (1.0 - abs(n.yx)) * vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
+    }
+    return normalize(n);
 }
 
-// Edge-stopping weight on depth (Schied's w_z, σ_z = 1): the difference against what the
-// gradient predicts for the offset, plus a floor relative to depth for curved or slanted
-// surfaces that the linear prediction misses.
-float svgf_depth_weight(float zp, float zq, vec2 gradient, vec2 offset) {
-    float expected = abs(dot(gradient, offset));
-    return exp(-abs(zp - zq) / (expected + 1e-3 * zp + 1e-12));
-}
-
-// Edge-stopping weight on normals (Schied's w_n, σ_n = 128).
-// A NaN normal gives 0 (max(0, NaN) is undefined in GLSL, the comparison is not).
+// The normal term (cosine to the power 128; 0 for normals 90° or more apart).
 float svgf_normal_weight(vec3 np, vec3 nq) {
     float d = dot(np, nq);
-    return d > 0.0 ? pow(min(d, 1.0), 128.0) : 0.0;
+    if (!(d > 0.0)) {
+        return 0.0;
+    }
+    d = min(d, 1.0);
+    d *= d; d *= d; d *= d; d *= d; d *= d; d *= d; d *= d;
+    return d;
+}
+
+// The depth difference over what the two pixels' depth gradients expect across `offset`.
+float svgf_depth_distance(float zp, float zq, vec2 gp, vec2 gq, vec2 offset) {
+    float expected = 0.5 * (abs(dot(gp, offset)) + abs(dot(gq, offset)));
+    return abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12);
+}
+
+// The edge-stopping weight of taps p and q `offset` pixels apart (Schied's w_z · w_n · w_l with
+// σ_z = 1, σ_n = 128, σ_l = 4), symmetric in p and q, so that a filter built on it can conserve
+// energy (svgf_atrous.comp):
+// - depth: the difference against what both pixels' gradients predict for the offset, plus a
+//   floor relative to depth for curved or slanted surfaces that the linear prediction misses;
+// - normal: dot^128 (a NaN or back-facing normal gives 0; 7 squarings, no transcendental);
+// - illumination luminance: the difference against σ_l times √((v_p + v_q) / 2), the spread of a
+//   difference of the two. A scale of the centre's variance alone (Schied) lets a noisy bright
+//   pixel take in its dark neighbours while they refuse it: measured −3.4 % green, +2.3 % blue
+//   on a saturated checker.
+// One exponential for depth and luminance together.
+float svgf_edge_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 nq, float lp, float lq, float vp,
+                       float vq, vec2 offset) {
+    float d = svgf_normal_weight(np, nq);
+    if (d == 0.0) {
+        return 0.0;
+    }
+    float luminance = abs(lp - lq) * inversesqrt(max(0.5 * (vp + vq), 1e-20)) * (1.0 / SIGMA_L);
+    return d * exp(-(svgf_depth_distance(zp, zq, gp, gq, offset) + luminance));
+}
+
+// The depth-and-normal part of svgf_edge_weight, for the spatial variance estimate.
+float svgf_geometry_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 nq, vec2 offset) {
+    float d = svgf_normal_weight(np, nq);
+    if (d == 0.0) {
+        return 0.0;
+    }
+    return d * exp(-svgf_depth_distance(zp, zq, gp, gq, offset));
+}
+
+// Where an à-trous iteration puts pixel p without a hit: on the last iteration its radiance,
+// else its texel as is.
+void svgf_pass_through(ivec2 p, vec4 texel) {
+    if ((pc.flags & SVGF_LAST) != 0u) {
+        vec4 radiance = imageLoad(images[pc.radiance], p);
+        imageStore(images[pc.out0], p, vec4(svgf_sanitize(radiance.rgb), radiance.a));
+    } else {
+        imageStore(images[pc.out0], p, texel);
+    }
+}
+
+// The phase-tiled layout of a pass with tap spacing `step`: workgroup (gx, gy) owns the 8×8
+// pixels base + step * (lx, ly), all of one phase (x mod step, y mod step), so the taps of a
+// whole workgroup are one (8 + 2 halo)² block of that phase's subgrid and fit in shared memory
+// for every step. Rows are absolute: phase py owns rows py + step * j, j from y0 / step.
+// parallax_passes::svgf::phase_groups gives the dispatch size.
+ivec2 svgf_tile_base(uint step) {
+    uint gx = gl_WorkGroupID.x;
+    uint gy = gl_WorkGroupID.y;
+    uint j0 = pc.y0 / step;
+    return ivec2(gx % step + step * 8u * (gx / step), gy % step + step * (j0 + 8u * (gy / step)));
 }
 
 #endif

@@ -1,18 +1,35 @@
 #version 460
-// SVGF, step 1 (`svgf_temporal`): demodulates radiance by albedo and accumulates the
-// illumination and its first two luminance moments through `motion` into history.
-//   radiance, albedo, normal, motion: own pixel; position: whole view (depth gradient)
-//   in0 `svgf_prev_color`, in1 `svgf_prev_moments`, in2 `svgf_prev_normal`: whole view
-//   out0 `svgf_illum`: (accumulated illumination rgb, history length)
-//   out1 `svgf_moments`: (m1, m2, history length, 0), read as history next frame
-// The previous frame is sampled bilinearly at the motion vector; a tap counts only if it is
-// inside the image, had history, and saw the same surface (depth against the gradient, normal
-// within ~25°). Without any valid tap the pixel restarts (length 1). Pixels without a hit keep
-// their radiance and length 0.
+// SVGF, step 1 (`svgf_temporal`): temporal accumulation and variance estimate in one pass. It
+// accumulates illumination (radiance / albedo) and the first two moments of its luminance
+// through `motion`, estimates the variance that steers the à-trous iterations, and packs what
+// they read of the G-buffer.
+//   radiance, albedo, normal, position: own pixel and, for short histories, the 7×7 around it
+//   (depth also the 4 neighbours, for the gradient); motion: own pixel
+//   in0 `svgf_prev_color` (illumination rgb, length), in1 `svgf_prev_moments` (m1, m2, depth,
+//   packed normal): whole view; for an instance over its whole view, the history `svgf_color`
+//   and `svgf_moments` themselves (the same texels)
+//   out0 `svgf_variance`: (illumination rgb, variance)
+//   out1 `svgf_moments`: (m1, m2, linear depth, packed normal), read as history next frame
+//   out2 `svgf_guide`: (linear depth, depth gradient x, y, packed normal)
+//   out3 `svgf_albedo`: (effective albedo rgb, history length)
+// Temporal: the previous frame is sampled bilinearly at the motion vector; a tap counts only if
+// it is inside the image, had history, and saw the same surface (depth against the gradient,
+// normal within ~25°). Blending in illumination keeps a texture from being smeared by the
+// bilinear taps. Without any valid tap the pixel restarts (length 1). Exponential moving average
+// (Schied: α = 0.2 for colour and moments), 1/n while the history is shorter than 1/α frames.
+// Variance: from the temporal moments with 4 frames of history or more; with fewer it is
+// estimated spatially (Schied §4.2) from this frame's illumination luminance of a 7×7
+// neighbourhood weighted by depth, normal and luminance (Schied uses the neighbours' temporal
+// moments, which would need a pass of their own), times 4 / length so the first frames are
+// filtered harder. The illumination stays the pixel's own: Schied also replaces it by the
+// neighbourhood's bilateral mean, a filter that does not conserve energy (at depth edges, image
+// borders, next to dark albedo) on the very frames with the least history; the energy-conserving
+// à-trous iterations do that smoothing instead. A workgroup with short histories reads its
+// 14×14 neighbourhood into shared memory once.
+// Pixels without a hit keep their radiance (variance 0, length 0); their guide depth is 0, which
+// every later pass skips.
 #include "svgf.glsl"
 
-// Exponential moving average weights (Schied: 0.2 for colour and moments), replaced by 1/n
-// while the history is shorter than 1/α frames, so early frames are a plain mean.
 const float ALPHA_COLOR = 0.2;
 const float ALPHA_MOMENTS = 0.2;
 // History lengths are capped: beyond 1/α they change nothing but must not grow without bound.
@@ -22,34 +39,71 @@ const float MAX_LENGTH = 64.0;
 const float DEPTH_GRADIENT_STEPS = 2.0;
 const float DEPTH_RELATIVE = 0.02;
 const float MIN_NORMAL_DOT = 0.9;
+// The spatial variance estimate: below this history length, over (2 RADIUS + 1)², with
+// luminance edge-stopping σ_l (Schied's reference code: 10), on illumination luminance.
+const float MIN_LENGTH = 4.0;
+const int RADIUS = 3;
+const int TILE = 8 + 2 * RADIUS;
+const float SIGMA_L_SPATIAL = 10.0;
 
-void main() {
-    ivec2 p = svgf_pixel();
-    if (p.x < 0) {
-        return;
+shared vec4 tile_geometry[TILE * TILE]; // normal xyz, depth (0: no hit or outside)
+shared float tile_luminance[TILE * TILE];
+shared uint any_short;
+
+// What the temporal step leaves for the variance estimate.
+struct Temporal {
+    vec3 illumination;
+    float length_;
+    vec2 moments;
+};
+
+// One axis of the screen-space depth gradient at p (depth z > 0): of the forward and backward
+// differences, the smaller in magnitude, so that a depth edge on one side does not inflate it; a
+// side without a hit (or off the image) is not used.
+float depth_slope(ivec2 p, ivec2 axis, float z) {
+    float best = 0.0;
+    bool found = false;
+    for (int s = -1; s <= 1; s += 2) {
+        ivec2 q = p + s * axis;
+        if (!svgf_inside(q)) {
+            continue;
+        }
+        float zq = imageLoad(images[pc.position], q).w;
+        // Written so that NaN fails too.
+        if (!(zq > 0.0)) {
+            continue;
+        }
+        float d = float(s) * (zq - z);
+        if (!found || abs(d) < abs(best)) {
+            best = d;
+            found = true;
+        }
     }
-    vec4 position = imageLoad(images[pc.position], p);
-    vec3 radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
-    float z = position.w;
-    if (!(z > 0.0)) {
-        imageStore(images[pc.out0], p, vec4(radiance, 0.0));
-        imageStore(images[pc.out1], p, vec4(0.0));
-        return;
-    }
-    vec3 albedo = svgf_sanitize(imageLoad(images[pc.albedo], p).rgb);
-    vec3 illum = min(radiance / svgf_albedo_divisor(albedo), vec3(MAX_VALUE));
-    float l = svgf_luminance(illum);
-    vec3 n = imageLoad(images[pc.normal], p).xyz;
-    vec2 gradient = svgf_depth_gradient(p, z);
+    return best;
+}
+
+// Illumination luminance of this frame's sample at q (a pixel with a hit).
+float sample_luminance(ivec2 q) {
+    vec3 radiance = svgf_sanitize(imageLoad(images[pc.radiance], q).rgb);
+    vec3 albedo = svgf_effective_albedo(imageLoad(images[pc.albedo], q).rgb);
+    return min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
+}
+
+// The accumulated illumination and moments of pixel p (depth z > 0, normal n) from this frame's
+// radiance and the previous frame's history.
+Temporal accumulate(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3 albedo) {
+    float l = min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
     float tolerance = DEPTH_GRADIENT_STEPS * (abs(gradient.x) + abs(gradient.y)) + DEPTH_RELATIVE * z;
-
     // Motion is in pixels of the previous frame with centres at i + 0.5.
     vec2 motion = imageLoad(images[pc.motion], p).xy;
     vec3 prev_illum = vec3(0.0);
     vec2 prev_moments = vec2(0.0);
     float prev_length = 0.0;
     float weight_sum = 0.0;
-    if (motion.x >= 0.0 && motion.y >= 0.0 && !any(isnan(motion)) && !any(isinf(motion))) {
+    // Invalid history (first frame, a reset) has nothing to reuse: the copies are 0 then, the
+    // history itself is what the other half held before.
+    if (frame.history_valid != 0u && motion.x >= 0.0 && motion.y >= 0.0 && !any(isnan(motion))
+        && !any(isinf(motion))) {
         vec2 at = motion - 0.5;
         ivec2 base = ivec2(floor(at));
         vec2 f = at - vec2(base);
@@ -63,8 +117,8 @@ void main() {
             }
             vec4 pcol = imageLoad(images[pc.in0], q);
             vec4 pm = imageLoad(images[pc.in1], q);
-            vec3 pn = imageLoad(images[pc.in2], q).xyz;
-            if (pcol.a < 1.0 || !(pm.z > 0.0) || abs(pm.z - z) > tolerance || dot(pn, n) < MIN_NORMAL_DOT) {
+            if (pcol.a < 1.0 || !(pm.z > 0.0) || abs(pm.z - z) > tolerance
+                || dot(svgf_unpack_normal(pm.w), n) < MIN_NORMAL_DOT) {
                 continue;
             }
             prev_illum += w * pcol.rgb;
@@ -73,18 +127,99 @@ void main() {
             weight_sum += w;
         }
     }
-    float length_ = 1.0;
-    vec3 out_illum = illum;
-    vec2 moments = vec2(l, l * l);
+    Temporal t = Temporal(min(radiance / albedo, vec3(MAX_VALUE)), 1.0, vec2(l, l * l));
     if (weight_sum > 1e-3) {
-        prev_illum /= weight_sum;
-        prev_moments /= weight_sum;
-        length_ = min(prev_length / weight_sum + 1.0, MAX_LENGTH);
-        float a = max(ALPHA_COLOR, 1.0 / length_);
-        float am = max(ALPHA_MOMENTS, 1.0 / length_);
-        out_illum = mix(prev_illum, illum, a);
-        moments = mix(prev_moments, moments, am);
+        t.length_ = min(prev_length / weight_sum + 1.0, MAX_LENGTH);
+        t.illumination = mix(prev_illum / weight_sum, t.illumination, max(ALPHA_COLOR, 1.0 / t.length_));
+        t.moments = mix(prev_moments / weight_sum, t.moments, max(ALPHA_MOMENTS, 1.0 / t.length_));
     }
-    imageStore(images[pc.out0], p, vec4(out_illum, length_));
-    imageStore(images[pc.out1], p, vec4(moments, length_, 0.0));
+    return t;
+}
+
+void load_tile(ivec2 origin) {
+    for (uint e = gl_LocalInvocationIndex; e < uint(TILE * TILE); e += 64u) {
+        ivec2 q = origin + ivec2(int(e % uint(TILE)), int(e / uint(TILE)));
+        float zq = svgf_inside(q) ? imageLoad(images[pc.position], q).w : 0.0;
+        bool hit = zq > 0.0;
+        tile_geometry[e] = vec4(hit ? imageLoad(images[pc.normal], q).xyz : vec3(0.0), hit ? zq : 0.0);
+        tile_luminance[e] = hit ? sample_luminance(q) : 0.0;
+    }
+}
+
+// Schied's spatial variance estimate for pixel p of the workgroup (tile centre c).
+float spatial_variance(int c, Temporal t, vec2 gradient) {
+    vec4 centre = tile_geometry[c];
+    float l = t.moments.x;
+    // The centre counts with weight 1 whatever its normal, so the sums never vanish.
+    vec2 moment_sum = t.moments;
+    float weight_sum = 1.0;
+    for (int dy = -RADIUS; dy <= RADIUS; dy++) {
+        for (int dx = -RADIUS; dx <= RADIUS; dx++) {
+            int e = c + dy * TILE + dx;
+            vec4 q = tile_geometry[e];
+            if ((dx == 0 && dy == 0) || !(q.w > 0.0)) {
+                continue;
+            }
+            float lq = tile_luminance[e];
+            float w = svgf_geometry_weight(centre.w, q.w, gradient, gradient, centre.xyz, q.xyz, vec2(dx, dy))
+                * exp(-abs(l - lq) / SIGMA_L_SPATIAL);
+            moment_sum += w * vec2(lq, lq * lq);
+            weight_sum += w;
+        }
+    }
+    moment_sum /= weight_sum;
+    return max(0.0, moment_sum.y - moment_sum.x * moment_sum.x) * (MIN_LENGTH / max(t.length_, 1.0));
+}
+
+void main() {
+    ivec2 p = svgf_pixel();
+    float z = p.x >= 0 ? imageLoad(images[pc.position], p).w : 0.0;
+    bool hit = z > 0.0;
+    vec3 radiance = vec3(0.0);
+    Temporal t = Temporal(vec3(0.0), 0.0, vec2(0.0));
+    vec2 gradient = vec2(0.0);
+    if (p.x >= 0) {
+        radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
+    }
+    if (hit) {
+        vec3 albedo = svgf_effective_albedo(imageLoad(images[pc.albedo], p).rgb);
+        vec3 n = imageLoad(images[pc.normal], p).xyz;
+        float packed_normal = svgf_pack_normal(n);
+        gradient = vec2(depth_slope(p, ivec2(1, 0), z), depth_slope(p, ivec2(0, 1), z));
+        t = accumulate(p, z, n, gradient, radiance, albedo);
+        imageStore(images[pc.out1], p, vec4(t.moments, z, packed_normal));
+        imageStore(images[pc.out2], p, vec4(z, gradient, packed_normal));
+        imageStore(images[pc.out3], p, vec4(albedo, t.length_));
+    } else if (p.x >= 0) {
+        imageStore(images[pc.out1], p, vec4(0.0));
+        imageStore(images[pc.out2], p, vec4(0.0));
+        imageStore(images[pc.out3], p, vec4(0.0));
+    }
+    bool short_history = hit && t.length_ < MIN_LENGTH;
+    if (gl_LocalInvocationIndex == 0u) {
+        any_short = 0u;
+    }
+    barrier();
+    if (short_history) {
+        atomicOr(any_short, 1u);
+    }
+    barrier();
+    if (any_short != 0u) {
+        load_tile(svgf_tile_base(1u) - ivec2(RADIUS));
+    }
+    barrier();
+    if (p.x < 0) {
+        return;
+    }
+    if (!hit) {
+        // No albedo to divide by: the radiance as is (the à-trous iterations let it through).
+        imageStore(images[pc.out0], p, vec4(radiance, 0.0));
+        return;
+    }
+    float variance = max(0.0, t.moments.y - t.moments.x * t.moments.x);
+    if (short_history) {
+        int c = (int(gl_LocalInvocationID.y) + RADIUS) * TILE + int(gl_LocalInvocationID.x) + RADIUS;
+        variance = spatial_variance(c, t, gradient);
+    }
+    imageStore(images[pc.out0], p, vec4(t.illumination, min(variance, MAX_VALUE)));
 }

@@ -18,6 +18,7 @@
 //! sources_per_set = [1, 2, 4] # reprojecting multi-source cells only
 //! spp = [1, 2, 4, 8]
 //! denoise = ["on", "off"]
+//! reprojection_tolerances = [0.05, 0.2, 1.0] # reprojecting cells only (default: render's)
 //! devices = [1]
 //! fake_devices = false
 //! ```
@@ -75,6 +76,8 @@ pub struct Axes {
     pub sources_per_set: Vec<u32>,
     pub spp: Vec<u32>,
     pub denoise: Vec<Denoise>,
+    /// `--reprojection-tolerance` values; empty: render's default (reprojecting cells only).
+    pub tolerances: Vec<f64>,
     pub devices: Vec<u32>,
     pub fake_devices: bool,
 }
@@ -89,6 +92,7 @@ impl Default for Axes {
             sources_per_set: vec![1],
             spp: vec![1],
             denoise: vec![Denoise::On],
+            tolerances: Vec::new(),
             devices: vec![1],
             fake_devices: false,
         }
@@ -121,6 +125,8 @@ pub struct Cell {
     pub sources_per_set: u32,
     pub spp: u32,
     pub denoise: Denoise,
+    /// Reprojecting cells: the `--reprojection-tolerance` asked for (None: render's default).
+    pub tolerance: Option<f64>,
     pub devices: u32,
     pub fake_devices: bool,
 }
@@ -141,6 +147,13 @@ impl Matrix {
         let mut seen: HashMap<String, usize> = HashMap::new();
         for (i, (_, axes)) in self.slices.iter().enumerate() {
             let shaped = axes.pipelines.iter().any(|&p| axes.schemes.iter().any(|&s| Cell::shaped(p, s)));
+            if !axes.tolerances.is_empty() && !axes.pipelines.contains(&PipelineArg::Reproject) {
+                bail!(
+                    "matrix slice {} sets reprojection_tolerances (--reprojection-tolerances), which only shapes \
+                     reprojecting cells, and it has none: drop it, or add pipeline reproject",
+                    i + 1
+                );
+            }
             let given =
                 [("assignments", !axes.assignments.is_empty()), ("sources_per_set", axes.sources_per_set != [1])];
             if let (false, Some((axis, _))) = (shaped, given.iter().find(|(_, g)| *g)) {
@@ -178,7 +191,14 @@ fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
     let mut out = Vec::new();
     let prefix = case.name.as_ref().map_or_else(String::new, |n| format!("{n}/"));
     let explicit: Vec<Option<AssignArg>> = axes.assignments.iter().copied().map(Some).collect();
+    let given_tolerances: Vec<Option<f64>> = axes.tolerances.iter().copied().map(Some).collect();
     for &pipeline in &axes.pipelines {
+        // Only reprojection has a tolerance; other cells run with none.
+        let tolerances: &[Option<f64>] = if pipeline == PipelineArg::Reproject && !given_tolerances.is_empty() {
+            &given_tolerances
+        } else {
+            &[None]
+        };
         for &scheme in &axes.schemes {
             let shaped = Cell::shaped(pipeline, scheme);
             // Unshaped cells run with render's defaults for both.
@@ -188,7 +208,9 @@ fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
                 for &sources_per_set in per_set {
                     for &spp in &axes.spp {
                         for &denoise in &axes.denoise {
-                            for &devices in &axes.devices {
+                            for (&devices, &tolerance) in
+                                axes.devices.iter().flat_map(|d| tolerances.iter().map(move |t| (d, t)))
+                            {
                                 let (p, s, dn) = (name_of(&pipeline), name_of(&scheme), name_of(&denoise));
                                 let flag = if axes.fake_devices { "--fake-devices" } else { "--gpus" };
                                 let mut args: Vec<String> = vec![
@@ -212,9 +234,14 @@ fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
                                 if denoise == Denoise::Off {
                                     args.push("--no-denoise".into());
                                 }
+                                let mut tolerance_id = String::new();
+                                if let Some(t) = tolerance {
+                                    args.extend(["--reprojection-tolerance".into(), t.to_string()]);
+                                    tolerance_id = format!("_tol{t}");
+                                }
                                 out.push(Cell {
                                     id: format!(
-                                        "{prefix}{p}_{s}{assign_id}_k{sources_per_set}_spp{spp}_dn{dn}_d{devices}"
+                                        "{prefix}{p}_{s}{assign_id}_k{sources_per_set}_spp{spp}_dn{dn}_d{devices}{tolerance_id}"
                                     ),
                                     case: case_index,
                                     args,
@@ -224,6 +251,7 @@ fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
                                     sources_per_set,
                                     spp,
                                     denoise,
+                                    tolerance,
                                     devices,
                                     fake_devices: axes.fake_devices,
                                 });
@@ -280,6 +308,7 @@ struct SliceToml {
     sources_per_set: Option<Vec<u32>>,
     spp: Option<Vec<u32>>,
     denoise: Option<Vec<Named<Denoise>>>,
+    reprojection_tolerances: Option<Vec<f64>>,
     devices: Option<Vec<u32>>,
     fake_devices: Option<bool>,
 }
@@ -287,7 +316,8 @@ struct SliceToml {
 /// Reads and validates a matrix file (module docs); every error names the file, the key and
 /// the fix.
 pub fn load(path: &Path) -> Result<Matrix> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read --matrix {}", path.display()))?;
+    let text = parallax_scene::input::read_text(path, "bench matrix")
+        .with_context(|| format!("cannot read --matrix {}", path.display()))?;
     let file = path.display();
     let raw: FileToml = toml::from_str(&text).map_err(|e| {
         anyhow!(
@@ -360,6 +390,12 @@ pub fn load(path: &Path) -> Result<Matrix> {
             sources_per_set: counts(s.sources_per_set, "sources_per_set", 1..=64, d.sources_per_set)?,
             spp: counts(s.spp, "spp", 1..=65536, d.spp)?,
             denoise: axis(s.denoise, d.denoise).map_err(words("denoise"))?,
+            tolerances: match s.reprojection_tolerances {
+                None => d.tolerances,
+                Some(v) => non_empty(v)
+                    .and_then(|v| v.into_iter().map(crate::pipeline_args::check_reprojection_tolerance).collect())
+                    .map_err(words("reprojection_tolerances"))?,
+            },
             devices: counts(s.devices, "devices", 1..=64, d.devices)?,
             fake_devices: s.fake_devices.unwrap_or(d.fake_devices),
         };
@@ -451,6 +487,35 @@ mod tests {
         assert!(m.cells().unwrap_err().to_string().contains("matrix slice 1 sets assignments"));
         let m = load_text(&format!("{CASES}[[matrix]]\nschemes = [\"fine-all\"]\nsources_per_set = [2]\n")).unwrap();
         assert!(m.cells().unwrap_err().to_string().contains("sets sources_per_set (--sources-per-set)"));
+    }
+
+    #[test]
+    fn reprojection_tolerances_shape_only_reprojecting_cells() {
+        let m = load_text(&format!(
+            "{CASES}[[matrix]]\ncases = [\"a\"]\nreprojection_tolerances = [0.05, 1.0]\nschemes = [\"multi-source\", \"fine-all\"]\n"
+        ))
+        .unwrap();
+        let cells = m.cells().unwrap();
+        let ids: Vec<&str> = cells.iter().map(|c| c.id.as_str()).collect();
+        assert_eq!(
+            ids,
+            [
+                "a/reproject_multi-source_k1_spp1_dnon_d1_tol0.05",
+                "a/reproject_multi-source_k1_spp1_dnon_d1_tol1",
+                "a/reproject_fine-all_k1_spp1_dnon_d1_tol0.05",
+                "a/reproject_fine-all_k1_spp1_dnon_d1_tol1",
+                "a/path-trace_multi-source_k1_spp1_dnon_d1",
+                "a/path-trace_fine-all_k1_spp1_dnon_d1",
+            ]
+        );
+        assert!(cells[1].args.ends_with(&["--reprojection-tolerance".into(), "1".into()]));
+        assert!(!cells[4].args.iter().any(|a| a == "--reprojection-tolerance"));
+        let path_trace_only =
+            format!("{CASES}[[matrix]]\npipelines = [\"path-trace\"]\nreprojection_tolerances = [0.1]\n");
+        let e = load_text(&path_trace_only).unwrap().cells().unwrap_err().to_string();
+        assert!(e.contains("matrix slice 1 sets reprojection_tolerances"), "{e}");
+        let negative = load_text(&format!("{CASES}[[matrix]]\nreprojection_tolerances = [-1.0]\n")).unwrap_err();
+        assert!(negative.to_string().contains("reprojection_tolerances: -1 is not a relative error"), "{negative}");
     }
 
     #[test]

@@ -99,17 +99,23 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
     for d in &copy.devices {
         say(format!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version));
     }
+    let rate = |r: Option<f64>| r.map_or("n/a".to_string(), |r| format!("{r:.2}"));
     say(format!(
-        "copy {} MiB device 0 -> 1, {} chunk(s), {} frame(s) in flight: sustained {:.2} GB/s; per frame median {:.2} GB/s, best {:.2} GB/s (while copying: D->H {:.2}, H->D {:.2})",
+        "copy {} MiB device 0 -> 1, {} chunk(s), {} frame(s) in flight: sustained {} GB/s; per frame median {} GB/s, best {} GB/s (while copying: D->H {}, H->D {})",
         args.size_mib,
         copy.chunks,
         args.frames_in_flight,
-        copy.sustained_gb_per_s,
-        copy.median_gb_per_s,
-        copy.best_gb_per_s,
-        copy.median_device_to_host_gb_per_s,
-        copy.median_host_to_device_gb_per_s
+        rate(copy.sustained_gb_per_s),
+        rate(copy.median_gb_per_s),
+        rate(copy.best_gb_per_s),
+        rate(copy.median_device_to_host_gb_per_s),
+        rate(copy.median_host_to_device_gb_per_s)
     ));
+    if copy.sustained_gb_per_s.is_none() {
+        tracing::warn!(
+            "the copies were too short for the device timer (or too few frames) to give a rate: raise --size-mib or --frames"
+        );
+    }
     let overhead_options =
         OverheadBenchOptions { passes_per_device: args.passes_per_device as u32, ..Default::default() };
     let progress = crate::logging::spinner("measuring executor overhead".into());

@@ -1,5 +1,5 @@
 //! `parallax bench`: a matrix of `render` runs (cases × pipelines × schemes × assignments ×
-//! sources per set × spp × denoise × device counts; see [`crate::bench_matrix`] for the
+//! sources per set × spp × denoise × reprojection tolerances × device counts; see [`crate::bench_matrix`] for the
 //! `--matrix FILE.toml` form), each cell a `parallax render` child process of this binary, so a
 //! cell that fails (say, more devices than views) is reported with its error and the others
 //! still run. Every cell's render arguments are parsed before the first cell runs, so a typo
@@ -9,10 +9,12 @@
 //!
 //! bench.json: `{"common", "matrix", "frames", "warmup", "cases": [{"name", "args",
 //! "reference"}], "cells": [cell]}` (`common` with `--common`, `matrix` the file with
-//! `--matrix`); a cell has `id` (`[case/]pipeline_scheme[_assignment]_kK_sppS_dnD_dN`), `case`
+//! `--matrix`); a cell has `id` (`[case/]pipeline_scheme[_assignment]_kK_sppS_dnD_dN[_tolT]`), `case`
 //! (the case's name; null for `--common`), `args` (the render arguments beyond the case's),
 //! `pipeline`, `scheme`, `assignment` (reprojecting multi-source cells: the one asked for, or
-//! the one render used by default), `sources_per_set`, `spp`, `denoise` (bool), `devices`,
+//! the one render used by default), `sources_per_set`, `spp`, `denoise` (bool),
+//! `reprojection_tolerance` (reprojecting cells: the one asked for, or render's default; else
+//! null), `devices`,
 //! `ok`, `error` (when not ok), and when ok: `views`, `frame_ms` (mean, median, p95 of the GPU
 //! span of the measured frames), `views_per_s` (elemental images per second at the mean),
 //! `stages` (per stage and device, ms per frame: the paper's Table 1), `hole_fill_ms` (the
@@ -22,10 +24,14 @@
 //! reference: `flip`, `psnr_db` (linear radiance clamped to [0, 1]) against its views, or
 //! `accuracy_error` when the views cannot be compared with it.
 //!
+//! Each cell is reported on stderr as it ends, and the progress bar names the cell running;
+//! `--resume` keeps the cells of an earlier run's bench.json that ran well
+//! ([`crate::bench_resume`]).
+//!
 //! points.json: `{"points": [point]}`, one per ok cell: `label` (the id), `series` (the
 //! pipeline), `case`, `frame_ms`, `flip`, `psnr`, `views`, `devices`, `assignment`,
-//! `sources_per_set`, `spp`, and for reprojecting cells `missing` (overall missing-pixel ratio)
-//! and `hole_fill_ms`.
+//! `sources_per_set`, `spp`, `reprojection_tolerance`, and for reprojecting cells `missing`
+//! (overall missing-pixel ratio) and `hole_fill_ms`.
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -35,6 +41,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
 use crate::bench_matrix::{self, Axes, Case, Cell, Denoise, Matrix, name_of};
+use crate::bench_resume;
 use crate::bench_tables;
 use crate::cmd_render::RenderArgs;
 use crate::logging::{bar, result};
@@ -55,11 +62,11 @@ pub struct BenchArgs {
     /// A TOML file of cases (render arguments, optional reference) and matrix slices, instead
     /// of --common, --reference and the axis flags: `[[case]]` tables with `name`, `args`,
     /// `reference`; `[[matrix]]` tables with `cases`, `pipelines`, `schemes`, `assignments`,
-    /// `sources_per_set`, `spp`, `denoise`, `devices`, `fake_devices` (lists; every key
+    /// `sources_per_set`, `spp`, `denoise`, `reprojection_tolerances`, `devices`, `fake_devices` (lists; every key
     /// optional); top-level `frames` and `warmup`. See README.md.
     #[arg(long, value_name = "FILE.toml", conflicts_with_all = [
-        "common", "reference", "pipelines", "schemes", "assignments", "sources_per_set", "spp", "denoise", "devices",
-        "fake_devices",
+        "common", "reference", "pipelines", "schemes", "assignments", "sources_per_set", "spp", "denoise",
+        "reprojection_tolerances", "devices", "fake_devices",
     ])]
     matrix: Option<PathBuf>,
     /// Pipelines, comma-separated.
@@ -81,6 +88,11 @@ pub struct BenchArgs {
     /// Denoising, comma-separated.
     #[arg(long, value_enum, default_value = "on", value_delimiter = ',')]
     denoise: Vec<Denoise>,
+    /// `render --reprojection-tolerance` values, comma-separated (reprojecting cells only;
+    /// default: render's): hole ratio, frame time and accuracy per tolerance.
+    #[arg(long, allow_negative_numbers = true, value_delimiter = ',',
+          value_parser = crate::pipeline_args::parse_reprojection_tolerance)]
+    reprojection_tolerances: Vec<f64>,
     /// Device counts, comma-separated.
     #[arg(long, default_value = "1", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=64))]
     devices: Vec<u32>,
@@ -93,12 +105,23 @@ pub struct BenchArgs {
     /// Frames rendered before measuring, per cell [default: the matrix file's `warmup`, or 2].
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: Option<u32>,
-    /// A folder of reference views (`parallax reference`) to measure every cell's accuracy against.
+    /// A folder of reference views (`parallax reference`) to measure every cell's accuracy against
+    /// (FLIP and PSNR as `parallax compare` computes them, at the reference's automatic exposure).
+    /// The settings in the first cell's render.json must match reference.json's (scene, camera,
+    /// still, layout, spacing, focus, resolution, lights, max depth), else bench stops (exit 1)
+    /// naming each difference.
     #[arg(long)]
     reference: Option<PathBuf>,
+    /// Measure accuracy against the references even where the settings differ.
+    #[arg(long)]
+    allow_mismatch: bool,
     /// Folder for bench.json, bench.md, points.json and one sub-folder per cell (created if missing).
     #[arg(long, default_value = "out/bench")]
     out_dir: PathBuf,
+    /// Keep the cells that ran well in --out-dir's bench.json (of the same matrix: frames,
+    /// warm-up and case arguments are checked) and run only the others.
+    #[arg(long)]
+    resume: bool,
 }
 
 /// The one case and slice of the command-line flags.
@@ -115,6 +138,7 @@ fn matrix_of_flags(args: &BenchArgs) -> Result<Matrix> {
         sources_per_set: args.sources_per_set.clone(),
         spp: args.spp.clone(),
         denoise: args.denoise.clone(),
+        tolerances: args.reprojection_tolerances.clone(),
         devices: args.devices.clone(),
         fake_devices: args.fake_devices,
     };
@@ -142,13 +166,14 @@ fn case_origin(matrix: Option<&Path>, case: &Case) -> String {
 }
 
 /// The render flags bench sets per cell (clap id, spelling): a case may not give them.
-const BENCH_FLAGS: [(&str, &str); 11] = [
+const BENCH_FLAGS: [(&str, &str); 12] = [
     ("pipeline", "--pipeline"),
     ("scheme", "--scheme"),
     ("assign", "--assign"),
     ("sources_per_set", "--sources-per-set"),
     ("spp", "--spp"),
     ("no_denoise", "--no-denoise"),
+    ("reprojection_tolerance", "--reprojection-tolerance"),
     ("gpus", "--gpus"),
     ("fake_devices", "--fake-devices"),
     ("frames", "--frames"),
@@ -171,13 +196,20 @@ fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> R
     {
         bail!("{origin}: gives {flag}, which bench sets per cell; leave out {bench_flags}");
     }
-    if let Err(e) = command().try_get_matches_from(argv) {
-        let text = e.to_string();
-        let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
-        bail!(
-            "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
-             what bench sets per cell: {bench_flags}"
-        );
+    let matches = match command().try_get_matches_from(argv) {
+        Ok(matches) => matches,
+        Err(e) => {
+            let text = e.to_string();
+            let line = text.lines().next().unwrap_or("").trim_start_matches("error: ");
+            bail!(
+                "{origin}: not a render command line together with each cell's flags ({line}); fix it, and leave out \
+                 what bench sets per cell: {bench_flags}"
+            );
+        }
+    };
+    // A missing scene would otherwise be found only when its first cell runs.
+    if let Some(scene) = matches.get_one::<String>("scene").filter(|s| *s != "default") {
+        parallax_scene::input::open_regular(Path::new(scene)).with_context(|| format!("{origin}: --scene {scene}"))?;
     }
     Ok(())
 }
@@ -189,8 +221,15 @@ fn stage_total_ms(timing: &serde_json::Value, stage: &str) -> Option<f64> {
     Some(rows.iter().filter(|r| r["stage"] == stage).filter_map(|r| r["mean_ms"].as_f64()).fold(0.0, |a, b| a + b))
 }
 
-/// Runs one cell; returns its bench.json entry.
-fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Result<serde_json::Value> {
+/// Runs one cell; returns its bench.json entry. An error (the cell's settings differ from its
+/// reference's) stops the matrix.
+fn run_cell(
+    case: &Case,
+    cell: &Cell,
+    argv: &[OsString],
+    folder: &Path,
+    allow_mismatch: bool,
+) -> Result<serde_json::Value> {
     let exe = std::env::current_exe().context("cannot find this program to run the cells")?;
     let output = Command::new(exe).arg("-q").arg("render").args(argv).output().context("cannot start a cell")?;
     let id = &cell.id;
@@ -199,7 +238,7 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
         "id": id, "case": case.name, "args": cell.args, "pipeline": name_of(&cell.pipeline),
         "scheme": name_of(&cell.scheme), "assignment": cell.assignment.map(|a| name_of(&a)),
         "sources_per_set": cell.sources_per_set, "spp": cell.spp, "denoise": cell.denoise == Denoise::On,
-        "devices": cell.devices,
+        "reprojection_tolerance": cell.tolerance, "devices": cell.devices,
     });
     if !output.status.success() {
         let error = String::from_utf8_lossy(&output.stderr).trim().to_string();
@@ -207,9 +246,13 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
         entry["error"] = error.into();
         return Ok(entry);
     }
-    let report: serde_json::Value = match std::fs::read(folder.join("render.json"))
-        .map_err(anyhow::Error::from)
-        .and_then(|bytes| serde_json::from_slice(&bytes).map_err(anyhow::Error::from))
+    let report: serde_json::Value = match parallax_scene::input::read_bounded(
+        &folder.join("render.json"),
+        parallax_scene::input::TEXT_FILE_LIMIT,
+        "render.json",
+    )
+    .map_err(anyhow::Error::from)
+    .and_then(|bytes| serde_json::from_slice(&bytes).map_err(anyhow::Error::from))
     {
         Ok(report) => report,
         Err(e) => {
@@ -225,6 +268,10 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
         // Render's default, as it reports it.
         entry["assignment"] = report["assign"].clone();
     }
+    if cell.pipeline == PipelineArg::Reproject {
+        // Render's default when the cell gave none, as it reports it.
+        entry["reprojection_tolerance"] = report["reprojection_tolerance"].clone();
+    }
     entry["ok"] = true.into();
     entry["views"] = report["layout"]["views"].clone();
     entry["frame_ms"] = timing["frame_gpu"].clone();
@@ -239,9 +286,13 @@ fn run_cell(case: &Case, cell: &Cell, argv: &[OsString], folder: &Path) -> Resul
     entry["copy_bytes_per_frame"] = timing["copy_bytes_per_frame"].clone();
     entry["missing_pixels"] = report["missing_pixels"].clone();
     if let Some(reference) = &case.reference {
+        // Settings that differ would make every cell of the case measure them, not its error.
+        crate::cmd_compare::check_settings(folder, reference, allow_mismatch)
+            .with_context(|| format!("cell {id}: --reference {}", reference.display()))?;
         // A reference that does not fit (other views or sizes) costs this cell its accuracy,
         // not the matrix its remaining cells.
-        match parallax_accuracy::compare_paths(folder, reference) {
+        let options = parallax_accuracy::CompareOptions::default();
+        match parallax_accuracy::compare_paths(folder, reference, &options) {
             Ok(c) => {
                 entry["flip"] = c.overall.flip.into();
                 entry["psnr_db"] = c.overall.psnr_linear_db.into();
@@ -259,6 +310,7 @@ fn point(c: &serde_json::Value) -> serde_json::Value {
         "label": c["id"], "series": c["pipeline"], "case": c["case"], "frame_ms": c["frame_ms"]["mean_ms"],
         "flip": c["flip"], "psnr": c["psnr_db"], "views": c["views"], "devices": c["devices"],
         "assignment": c["assignment"], "sources_per_set": c["sources_per_set"], "spp": c["spp"],
+        "reprojection_tolerance": c["reprojection_tolerance"],
         "missing": if reprojected { c["missing_pixels"]["overall"].clone() } else { serde_json::Value::Null },
         "hole_fill_ms": c["hole_fill_ms"],
     })
@@ -315,12 +367,29 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .collect::<Result<_>>()?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let mut previous = if args.resume {
+        bench_resume::previous_cells(&args.out_dir, &matrix, frames, warmup)?
+    } else {
+        Default::default()
+    };
     let progress = bar(cells.len() as u64);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} ({eta} left) {msg}")
+    {
+        progress.set_style(style);
+    }
     let mut entries = Vec::with_capacity(cells.len());
     let mut md = String::new();
-    for (cell, argv) in cells.iter().zip(&argvs) {
+    for (k, (cell, argv)) in cells.iter().zip(&argvs).enumerate() {
+        progress.set_message(cell.id.clone());
         let folder = args.out_dir.join(&cell.id);
-        entries.push(run_cell(&matrix.cases[cell.case], cell, argv, &folder)?);
+        let (entry, kept) = match previous.remove(&cell.id) {
+            Some(entry) => (entry, true),
+            None => (run_cell(&matrix.cases[cell.case], cell, argv, &folder, args.allow_mismatch)?, false),
+        };
+        // A line per cell, so a log (stderr not a terminal, where the bar is not drawn) follows it.
+        progress.suspend(|| tracing::info!("{}", bench_resume::cell_line(k + 1, cells.len(), &entry, kept)));
+        entries.push(entry);
         // Written after every cell, so a run that is stopped keeps the cells it finished.
         md = write_outputs(&args, &matrix, frames, warmup, &entries)?;
         progress.inc(1);
@@ -332,6 +401,17 @@ pub fn run(args: BenchArgs) -> Result<()> {
         false,
         &format!("{} cell(s), {failed} failed; wrote {}", entries.len(), args.out_dir.join("bench.json").display()),
     );
+    // A matrix with some failed cells still measured the others (exit 0, the failures listed);
+    // one whose every cell failed measured nothing, which must not look like success.
+    if failed > 0 && failed == entries.len() {
+        bail!(
+            "every one of the {failed} cell(s) failed (their errors are in {}): nothing was measured",
+            args.out_dir.join("bench.json").display()
+        );
+    }
+    if failed > 0 {
+        tracing::warn!("{failed} of {} cell(s) failed: see their errors in bench.json", entries.len());
+    }
     Ok(())
 }
 

@@ -7,7 +7,7 @@ use anyhow::Context as _;
 use parallax_backend::{Context, ContextDesc, DeviceSelection};
 use parallax_passes::RaySchedule;
 use parallax_passes::bench::{RayRate, bench_rays};
-use parallax_scene::{Camera, load_scene};
+use parallax_scene::{Camera, LoadOptions, load_scene_with};
 
 use crate::budget::TraceWork;
 use crate::logging::{result, spinner};
@@ -19,6 +19,9 @@ pub struct BenchRaysArgs {
     /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
     #[arg(long, default_value = "default")]
     pub scene: String,
+    /// Let the scene's URIs name files outside its folder (`../`, absolute, `file:`).
+    #[arg(long)]
+    pub allow_outside_files: bool,
     /// Primary rays: one per pixel centre of a WxH image.
     #[arg(long, default_value = "1024x1024", value_name = "WxH", value_parser = parse_resolution)]
     pub resolution: Resolution,
@@ -55,7 +58,13 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     let work = TraceWork { views: 1, width, height, spp: 1 };
     work.check_host()?;
     let t0 = Instant::now();
-    let scene = load_scene(&args.scene).with_context(|| format!("loading --scene {}", args.scene))?;
+    let options = LoadOptions { uris: crate::scene_args::uri_policy(args.allow_outside_files) };
+    let scene = load_scene_with(&args.scene, options).with_context(|| format!("loading --scene {}", args.scene))?;
+    if let Some(Sink::File(json)) = &args.json {
+        let inputs: Vec<(&str, &std::path::Path)> =
+            scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect();
+        crate::outputs::check_inputs(&[("--json", json)], &inputs)?;
+    }
     tracing::info!("scene '{}': {} triangles, loaded in {:.2?}", scene.name, scene.triangle_count(), t0.elapsed());
     let selection = args.fake_devices.map_or(DeviceSelection::Gpus(1), |n| DeviceSelection::FakeDevices(n as usize));
     let context = Context::new(&ContextDesc::from_env(selection))?;

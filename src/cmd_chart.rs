@@ -3,7 +3,7 @@
 //! points schema hold (see `parallax_accuracy::points`), or, for `timeline`, a Chrome trace
 //! (`render --trace`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
@@ -24,6 +24,9 @@ pub enum ChartKind {
     /// Missing pixels (%) against hole-filling time, one series per assignment (bench's
     /// points.json).
     Holes,
+    /// Missing pixels (%) against the reprojection tolerance, one line per case, each point
+    /// labelled with its FLIP (or `--metric psnr`): bench with `--reprojection-tolerances`.
+    Tolerance,
     /// Per-device timeline of one Chrome trace.
     Timeline,
 }
@@ -40,7 +43,8 @@ pub struct ChartArgs {
     #[arg(value_enum)]
     kind: ChartKind,
     /// JSON inputs: `{"points": [{"label", "series", "frame_ms", "flip", "psnr", "devices",
-    /// "views", "case", "assignment", "sources_per_set", "spp", "missing", "hole_fill_ms"}]}`,
+    /// "views", "case", "assignment", "sources_per_set", "spp", "missing", "hole_fill_ms",
+    /// "reprojection_tolerance"}]}`,
     /// a file with a `point` (compare --json, reference.json) or a render.json; for
     /// `timeline`, one Chrome trace.
     #[arg(required = true)]
@@ -48,7 +52,7 @@ pub struct ChartArgs {
     /// Output file(s), .svg or .png; repeat for both.
     #[arg(long, short, required = true)]
     out: Vec<PathBuf>,
-    /// Accuracy axis of speed-accuracy.
+    /// Accuracy axis of speed-accuracy (and the point labels of tolerance).
     #[arg(long, value_enum, default_value = "flip")]
     metric: Metric,
     /// Only the points of this bench case (points.json's `case`), so that one points.json gives
@@ -58,6 +62,9 @@ pub struct ChartArgs {
 }
 
 pub fn run(args: ChartArgs) -> Result<()> {
+    let written: Vec<(&str, &Path)> = args.out.iter().map(|p| ("--out", p.as_path())).collect();
+    let read: Vec<(&str, &Path)> = args.inputs.iter().map(|p| ("INPUT", p.as_path())).collect();
+    crate::outputs::check_inputs(&written, &read)?;
     if args.kind == ChartKind::Timeline {
         if args.case.is_some() {
             bail!("--case selects points of a points file; a timeline reads one Chrome trace: drop --case");
@@ -79,17 +86,16 @@ pub fn run(args: ChartArgs) -> Result<()> {
     if let Some(case) = &args.case {
         points = of_case(points, case)?;
     }
+    let accuracy = match args.metric {
+        Metric::Flip => AccuracyAxis::Flip,
+        Metric::Psnr => AccuracyAxis::Psnr,
+    };
     let mut xy = match args.kind {
-        ChartKind::SpeedAccuracy => chart::speed_accuracy(
-            &points,
-            match args.metric {
-                Metric::Flip => AccuracyAxis::Flip,
-                Metric::Psnr => AccuracyAxis::Psnr,
-            },
-        )?,
+        ChartKind::SpeedAccuracy => chart::speed_accuracy(&points, accuracy)?,
         ChartKind::Scaling => chart::scaling(&points)?,
         ChartKind::Views => chart::frame_time_over_views(&points)?,
         ChartKind::Holes => chart::holes(&points)?,
+        ChartKind::Tolerance => chart::tolerance(&points, accuracy)?,
         ChartKind::Timeline => unreachable!("handled above"),
     };
     if let Some(case) = &args.case {

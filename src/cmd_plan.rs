@@ -71,7 +71,12 @@ fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 7] {
             if p.no_denoise { "no denoising" } else { "SVGF" }
         ),
         format!("light field   {} ({} views, {}x{} each)", s.layout, s.views, s.resolution[0], s.resolution[1]),
-        format!("scheme        {} on {} device(s), assignment {}", s.scheme, s.devices, s.assign),
+        format!(
+            "scheme        {} on {} device(s), assignment {}",
+            s.scheme,
+            s.devices,
+            s.assign.unwrap_or("none (row bands)")
+        ),
         format!("sources       {:?}", s.sources),
         format!("δ-edges       {} (mean baseline {:.2} mm)", s.delta_edges, s.mean_delta_distance_mm),
         format!(

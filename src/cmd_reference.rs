@@ -16,8 +16,10 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::ProgressStyle;
+use parallax_accuracy::exposure::LogAverage;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
 use parallax_backend::{Context as VkContext, ContextDesc};
+use parallax_graph::lightfield::DEFAULT_SPACING;
 use parallax_graph::{LightField, ViewId};
 use parallax_passes::{GpuTracer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
@@ -25,7 +27,8 @@ use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::{TraceWork, check_host_bytes};
-use crate::options::{DeviceArgs, parse_exposure};
+use crate::options::{DeviceArgs, Exposure, UsageError, parse_exposure};
+use crate::run_setup::Setup;
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use parallax_passes::camera::lightfield_view;
 
@@ -57,9 +60,11 @@ pub struct ReferenceArgs {
     /// Folder for view_NNN.exr, reference.png, reference.json and reference.partial.
     #[arg(long, default_value = "out/reference")]
     out_dir: PathBuf,
-    /// Exposure multiplier for the contact sheet (> 0).
-    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
-    exposure: f32,
+    /// Exposure of the contact sheet: `auto` (the log-average luminance of every view mapped to
+    /// 0.18, one exposure for all, computed on the host from the mean radiance) or a multiplier
+    /// > 0. The value used is written to reference.json.
+    #[arg(long, allow_negative_numbers = true, default_value = "auto", value_parser = parse_exposure)]
+    exposure: Exposure,
 }
 
 /// `0,5,8-11` into sorted, distinct view indices below `count`.
@@ -67,7 +72,9 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     let mut views = Vec::new();
     for part in s.split(',').map(str::trim) {
         let parse = |t: &str| -> Result<u32> {
-            t.trim().parse().with_context(|| format!("--views '{s}': '{t}' is not a view number (e.g. 0,5,8-11)"))
+            t.trim()
+                .parse()
+                .map_err(|_| UsageError(format!("--views '{s}': '{t}' is not a view number (e.g. 0,5,8-11)")).into())
         };
         let (a, b) = match part.split_once('-') {
             Some((a, b)) => (parse(a)?, parse(b)?),
@@ -83,17 +90,17 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
     Ok(views)
 }
 
-/// The scene file's name and FNV-1a hash, so a resumed run notices an edited scene but not a
-/// different path to the same file (`default` is built in). Buffers and textures a glTF
-/// refers to are not hashed.
-fn scene_fingerprint(spec: &str) -> Result<String> {
-    if spec == "default" {
-        return Ok("default".into());
+/// Every file the scene was read from, by name with its FNV-1a hash and size: the scene under
+/// `--scene`, each buffer and image under `--scene file NAME`, so a resumed run names the one that
+/// changed (an edited .bin used to go unnoticed). A different path to the same files is the same
+/// scene; `default` is built in.
+fn scene_files_key(scene: &Scene) -> BTreeMap<String, String> {
+    match scene.sources.split_first() {
+        None => BTreeMap::from([("--scene".to_string(), "default".to_string())]),
+        Some((main, others)) => std::iter::once(("--scene".to_string(), main.to_string()))
+            .chain(others.iter().map(|f| (format!("--scene file {}", f.name), f.to_string())))
+            .collect(),
     }
-    let bytes = std::fs::read(spec).with_context(|| format!("--scene {spec}: cannot read the file"))?;
-    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    let name = Path::new(spec).file_name().map_or(spec.into(), |n| n.to_string_lossy());
-    Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))
 }
 
 enum Tracer<'a> {
@@ -123,18 +130,23 @@ impl Tracer<'_> {
 
 pub fn run(args: ReferenceArgs) -> Result<()> {
     if args.chunk_spp == 0 || args.spp % args.chunk_spp != 0 {
-        bail!(
+        return Err(UsageError(format!(
             "--spp {} is not a multiple of --chunk-spp {}: chunks must tile the samples for a resumed run to equal an \
              uninterrupted one; pick --spp {}",
             args.spp,
             args.chunk_spp,
             args.spp.div_ceil(args.chunk_spp.max(1)) * args.chunk_spp.max(1)
-        );
+        ))
+        .into());
     }
     if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
         bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
     let scene = args.scene.load()?;
+    let written: Vec<PathBuf> =
+        ["reference.json", "reference.png", PARTIAL_FILE].iter().map(|name| args.out_dir.join(name)).collect();
+    let written: Vec<(&str, &Path)> = written.iter().map(|p| ("--out-dir", p.as_path())).collect();
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
     let focus = lf.rig.focus_distance;
     let selected = match &args.views {
@@ -162,13 +174,14 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
 
     // Everything the pixels depend on, by the flag that sets it; devices are not among them
     // (results do not depend on the device count), so a reference can resume on other GPUs.
-    let settings_key = BTreeMap::from([
-        ("--scene".to_string(), scene_fingerprint(&args.scene.scene)?),
+    let mut settings_key = scene_files_key(&scene);
+    settings_key.extend([
         ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.layout.lf, lf.cols, lf.rows)),
-        ("--spacing".to_string(), args.light_field.layout.spacing.map_or("(preset)".into(), |s| s.to_string())),
+        // The spacing in effect, so an explicit --spacing equal to the preset's is the same run.
+        ("--spacing".to_string(), args.light_field.layout.spacing.unwrap_or(DEFAULT_SPACING).to_string()),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
-        ("--camera".to_string(), format!("{:?}", args.scene.camera)),
+        ("--camera".to_string(), format!("{:?}", args.scene.camera.map(|c| c.camera))),
         ("--views".to_string(), format!("{selected:?}")),
         ("--cpu".to_string(), args.cpu.to_string()),
         ("--chunk-spp".to_string(), args.chunk_spp.to_string()),
@@ -176,14 +189,50 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         ("--sun".to_string(), format!("{:?}", scene.sun)),
         ("--sky".to_string(), format!("{:?}", scene.sky)),
     ]);
-    std::fs::create_dir_all(&args.out_dir)
+    // What compare checks: a reference is always of a still camera.
+    let setup = Setup::new(
+        &args.scene.scene,
+        &scene,
+        &args.scene.camera_or_default(&scene),
+        true,
+        (&lf, args.light_field.layout.spacing),
+        args.depth.max_depth,
+    )?;
+    crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
+    // Found now rather than at the first checkpoint, after the tracing: a folder that cannot
+    // take files (read-only, immutable) or a folder where a view's file goes.
+    tempfile::NamedTempFile::new_in(&args.out_dir)
+        .with_context(|| format!("--out-dir {}: the folder is not writable", args.out_dir.display()))?;
+    let names = selected.iter().map(|v| format!("view_{v:03}.exr"));
+    crate::outputs::check_targets_in(
+        &args.out_dir,
+        names.chain(["reference.json", "reference.png", PARTIAL_FILE].map(String::from)),
+        "--out-dir",
+    )?;
     remove_stale_temporaries(&args.out_dir);
     let partial = args.out_dir.join(PARTIAL_FILE);
     let size = (lf.width as usize, lf.height as usize);
     let mut acc = if partial.exists() {
         let acc = Accumulator::load(&partial)?;
         acc.check_settings(&settings_key, &partial)?;
+        let h = &acc.header;
+        if (h.views, h.width, h.height, h.chunk_spp) != (views.len(), size.0, size.1, args.chunk_spp) {
+            bail!(
+                "{}: its header holds {} view(s) of {}x{} in chunks of {} spp, but its settings say {} of {}x{} in \
+                 chunks of {}: the file was edited; delete it to start over",
+                partial.display(),
+                h.views,
+                h.width,
+                h.height,
+                h.chunk_spp,
+                views.len(),
+                size.0,
+                size.1,
+                args.chunk_spp
+            );
+        }
         tracing::info!("resuming {} at {} spp", partial.display(), acc.header.spp);
         acc
     } else {
@@ -196,7 +245,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
             partial.display(),
             acc.header.spp
         );
-        return write_outputs(&args, &acc, &selected, &lf, 0.0, None);
+        return write_outputs(&args, &acc, &selected, (&lf, &setup), 0.0, None);
     }
 
     let bvh = SceneBvh::build(&scene);
@@ -246,7 +295,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         drop(tracer);
         context.check_validation()?;
     }
-    write_outputs(&args, &acc, &selected, &lf, started.elapsed().as_secs_f64(), Some(devices))
+    write_outputs(&args, &acc, &selected, (&lf, &setup), started.elapsed().as_secs_f64(), Some(devices))
 }
 
 /// The EXRs of the current mean (spp in their attributes), then the sidecar: a crash between
@@ -268,7 +317,7 @@ fn write_outputs(
     args: &ReferenceArgs,
     acc: &Accumulator,
     selected: &[u32],
-    lf: &LightField,
+    (lf, setup): (&LightField, &Setup),
     seconds_this_run: f64,
     devices: Option<usize>,
 ) -> Result<()> {
@@ -287,7 +336,13 @@ fn write_outputs(
         .collect();
     let sheet = args.out_dir.join("reference.png");
     let columns = if selected.len() == lf.len() { lf.cols } else { selected.len().min(8) as u32 };
-    write_contact_sheet(&sheet, &frames.iter().collect::<Vec<_>>(), columns, args.exposure)?;
+    let mut average = LogAverage::default();
+    for frame in &frames {
+        let radiance: Vec<[f32; 3]> = frame.pixels.iter().map(|p| p.radiance.to_array()).collect();
+        average.add_image(frame.width as usize, &radiance);
+    }
+    let exposure = args.exposure.resolve(&average);
+    write_contact_sheet(&sheet, &frames.iter().collect::<Vec<_>>(), columns, exposure)?;
     let (mean, standard_error) = acc.mean_and_standard_error();
     // One "frame" of the reference is one sample per pixel of every selected view.
     let ms_per_spp = h.seconds * 1e3 / h.spp.max(1) as f64;
@@ -303,21 +358,22 @@ fn write_outputs(
             "spp": h.spp, "chunks": h.chunks, "chunk_spp": h.chunk_spp,
             "seconds": h.seconds, "seconds_this_run": seconds_this_run, "ms_per_spp": ms_per_spp,
             "tracer": if args.cpu { "cpu" } else { "gpu" }, "devices": devices,
-            "views": selected, "width": h.width, "height": h.height, "settings": &h.settings,
+            "views": selected, "width": h.width, "height": h.height,
+            "exposure": exposure, "exposure_mode": args.exposure.mode(), "setup": setup,
             "mean_radiance": mean, "standard_error": standard_error, "point": point,
     });
     let bytes = serde_json::to_vec_pretty(&json)?;
     write_atomically(&args.out_dir.join("reference.json"), |f| std::io::Write::write_all(f, &bytes))?;
     println!(
-        "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {:.5?} ± {:?} (standard error)",
+        "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {} ± {} (standard error)",
         selected.len(),
         h.width,
         h.height,
         h.spp,
         h.seconds,
         ms_per_spp,
-        mean,
-        standard_error.map(|e| format!("{e:.2e}"))
+        rgb(mean.map(|m| format!("{m:.5}"))),
+        rgb(standard_error.map(|e| format!("{e:.2e}")))
     );
     println!(
         "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
@@ -326,6 +382,11 @@ fn write_outputs(
         args.out_dir.display()
     );
     Ok(())
+}
+
+/// `(r, g, b)` of three formatted numbers.
+fn rgb(c: [String; 3]) -> String {
+    format!("({}, {}, {})", c[0], c[1], c[2])
 }
 
 #[cfg(test)]

@@ -2,8 +2,10 @@
 //! (`--pipeline reproject`: G-buffer, path tracing of the sources, reprojection of the targets,
 //! hole filling, SVGF, tonemapping) or with every view path traced (`--pipeline path-trace`, the
 //! baseline), over N devices under any of the three schemes, for F frames of a camera dolly.
-//! Writes the last frame's views (EXR, linear radiance after denoising), the contact sheet, an
-//! optional Looking Glass quilt, and render.json with the paper's Table 1 / Table 4 measures.
+//! Writes the last frame's views (EXR, linear radiance after denoising; PNG at one exposure for
+//! the whole light field), the contact sheet, `viewer.html` (the views in a browser, with
+//! parallax), an optional Looking Glass quilt and wiggle, and render.json with the paper's
+//! Table 1 / Table 4 measures and the `setup` that comparisons check.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -23,17 +25,14 @@ use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::TraceWork;
-use crate::lightfield_images::{DisplayImage, quilt_file_name, write_contact_sheet, write_quilt};
 use crate::logging::{bar, result};
-use crate::options::{DeviceArgs, parse_exposure};
+use crate::options::{DeviceArgs, Exposure, parse_exposure};
 use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
+use crate::render_pictures::{display_images, gpu_exposure, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
+use crate::run_setup::{CameraSetup, Setup};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
-
-/// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
-/// screen shows whole.
-const SHEET_COLUMNS: u32 = 10;
 
 /// `--barriers`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -53,6 +52,10 @@ pub enum TimingArg {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
+    /// Repeat a run: a render.json (its `run`) or a TOML run file with the same keys (`spp = 4`,
+    /// `lf = "8x4"`, `still = true`, ...). Flags given here as well win over the file's.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
     #[command(flatten)]
     scene: SceneArgs,
     #[command(flatten)]
@@ -66,11 +69,18 @@ pub struct RenderArgs {
     spp: u32,
     #[command(flatten)]
     depth: DepthArgs,
-    /// Measured frames (the camera dollies across the scene over warm-up and measured frames).
+    /// Measured frames (the camera dollies across the scene over the measured frames; one frame
+    /// is a still camera).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
-    /// Frames rendered before measuring (timings and outputs ignore them).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    /// Frames submitted before the host waits for the oldest: the host prepares and submits the
+    /// next frames while the GPU runs this one.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=8))]
+    frames_in_flight: u32,
+    /// Frames rendered before measuring, at the first measured frame's camera (timings and
+    /// outputs ignore them). The first frame pays for pipeline creation and first-use costs
+    /// (seconds on some drivers), so measuring from frame 0 with `--warmup 0` times those too.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
     /// Keep the camera still over the frames (no dolly, no glTF animation): what accuracy
     /// against a reference of the same camera needs.
@@ -79,14 +89,22 @@ pub struct RenderArgs {
     /// Also write the views of every N-th measured frame to frame_FFFFF/ under --out-dir.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     save_every: Option<u32>,
-    /// Folder for view_NNN.exr, lightfield.png and render.json (created if missing). Every
-    /// view_NNN.exr already there that this run does not write is removed, so the folder
-    /// holds exactly the views render.json lists; nothing changes there if the run fails.
+    /// Folder for view_NNN.exr and view_NNN.png, lightfield.png, viewer.html and render.json
+    /// (created if missing). Every view_NNN.exr or .png already there that this run does not
+    /// write is removed, so the folder holds exactly the views render.json lists; nothing
+    /// changes there if the run fails.
     #[arg(long, default_value = "out/lightfield")]
     out_dir: PathBuf,
-    /// Exposure of the tonemapper (> 0).
-    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
-    exposure: f32,
+    /// Exposure of the PNGs, sheet, quilt, wiggle and viewer: `auto` (the last frame's
+    /// log-average luminance over every view mapped to 0.18, computed on the host from the
+    /// read-back linear views; the value is written to render.json) or a multiplier > 0 (the
+    /// GPU tonemap pass's own output).
+    #[arg(long, allow_negative_numbers = true, default_value = "auto", value_parser = parse_exposure)]
+    exposure: Exposure,
+    /// Also write an animated PNG sweeping through the views of the middle row, there and back
+    /// (for slides and READMEs).
+    #[arg(long, value_name = "FILE.png")]
+    wiggle: Option<PathBuf>,
     /// Add the hole mask, albedo, normal and depth to every view's EXR.
     #[arg(long)]
     layers: bool,
@@ -126,15 +144,59 @@ fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
     Camera { eye: camera.eye + offset, ..*camera }
 }
 
+impl RenderArgs {
+    /// The run's settings as a run file for `--config`: every flag that shapes the pixels and
+    /// the timing, by its long name, typed (outputs such as `--out-dir` are left to the command
+    /// line).
+    fn run_file(&self) -> serde_json::Value {
+        use crate::bench_matrix::name_of as name;
+        let (gpus, fake_devices) = self.devices.given();
+        let camera = self.scene.camera.map(|c| c.numbers);
+        let sun =
+            self.scene.sun.map(|s| [s.to_sun.x, s.to_sun.y, s.to_sun.z, s.irradiance.x, s.angular_radius.to_degrees()]);
+        let sky = self.scene.sky.map(|sky| match sky {
+            parallax_scene::Sky::Constant(c) => c.to_array().to_vec(),
+            parallax_scene::Sky::Gradient { zenith, horizon, ground } => {
+                [zenith.to_array(), horizon.to_array(), ground.to_array()].concat()
+            }
+        });
+        let (lf, p) = (&self.light_field, &self.pipeline);
+        serde_json::json!({
+            "scene": self.scene.scene, "camera": camera, "sun": sun, "no_sun": self.scene.no_sun, "sky": sky,
+            "lf": crate::run_file::layout_spelling(&lf.layout.lf), "spacing": lf.layout.spacing,
+            "resolution": lf.layout.resolution.map(|r| format!("{}x{}", r.width, r.height)), "focus": lf.focus,
+            "gpus": gpus, "fake_devices": fake_devices,
+            "pipeline": name(&p.pipeline), "scheme": name(&p.scheme), "assign": p.assign.map(|a| name(&a)),
+            "sources_per_set": p.sources_per_set, "sources": p.sources.as_ref().map(|s| s.0.clone()),
+            "no_denoise": p.no_denoise, "reprojection_tolerance": p.reprojection_tolerance, "spp": self.spp, "max_depth": self.depth.max_depth,
+            "frames": self.frames, "warmup": self.warmup, "still": self.still, "save_every": self.save_every,
+            "exposure": match self.exposure { Exposure::Auto => serde_json::json!("auto"), Exposure::Fixed(v) => serde_json::json!(v) },
+            "layers": self.layers, "quilt": self.quilt, "gbuffer": name(&p.gbuffer), "barriers": name(&self.barriers),
+            "timing": name(&self.timing),
+        })
+    }
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
+    if let Some(file) = &args.config {
+        return run(crate::run_file::render_args_of(file)?);
+    }
     args.pipeline.check()?;
     let sheet = args.out_dir.join("lightfield.png");
     let render_json = args.out_dir.join("render.json");
-    check_outputs(&args.out_dir, &sheet, &render_json, args.trace.as_ref(), args.dot.dot.as_ref())?;
+    check_outputs(
+        &args.out_dir,
+        &sheet,
+        &render_json,
+        args.trace.as_ref(),
+        args.dot.dot.as_ref(),
+        args.wiggle.as_deref(),
+    )?;
     let settings = TraceSettings { spp: args.spp, max_depth: args.depth.max_depth, ..Default::default() };
     settings.validate()?;
     let total_frames = args.warmup + args.frames;
     let sized = args.light_field.with_rig(Rig::default())?;
+    crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
     let work = TraceWork {
         views: sized.len() as u64 * u64::from(total_frames),
         width: sized.width,
@@ -148,20 +210,29 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
     // positions in the rig plane, not on where the rig stands.
     let selection = args.devices.selection();
-    let compiled = args.pipeline.compile(&sized, selection.count() as u32, args.exposure)?;
+    let compiled = args.pipeline.compile(&sized, selection.count() as u32, gpu_exposure(args.exposure))?;
     let dot = args.dot.render(&compiled.schedule);
     let (plan, summary, kind) = (&compiled.plan, &compiled.summary, compiled.kind);
 
     let scene = args.scene.load()?;
+    let mut written = vec![("--out-dir", render_json.as_path()), ("--out-dir", sheet.as_path())];
+    if let Some(Sink::File(trace)) = &args.trace {
+        written.push(("--trace", trace.as_path()));
+    }
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let camera = args.scene.camera_or_default(&scene);
     let centre = scene.bounds().center();
-    // The scene's own camera animation, spread over the frames; else a dolly (an explicit
-    // --camera is a rig the user placed: it dollies too).
+    // The scene's own camera animation, spread over the measured frames; else a dolly (an
+    // explicit --camera is a rig the user placed: it dollies too). Warm-up frames see the first
+    // measured frame's camera, so one measured frame is a still camera whatever the warm-up.
     let animation = if args.scene.camera.is_none() { scene.camera_animation.clone() } else { None };
-    let camera_at = |f: u32| match &animation {
-        _ if args.still => camera,
-        Some(a) => a.camera_at(a.duration * f as f32 / total_frames.saturating_sub(1).max(1) as f32),
-        None => dolly(&camera, &scene, f, total_frames),
+    let camera_at = |f: u32| {
+        let m = f.saturating_sub(args.warmup);
+        match &animation {
+            _ if args.still => camera,
+            Some(a) => a.camera_at(a.duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32),
+            None => dolly(&camera, &scene, m, args.frames),
+        }
     };
     let lf_of = |f: u32| -> Result<LightField> { args.light_field.around(&camera_at(f), centre) };
     let lf = lf_of(0)?;
@@ -184,9 +255,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
         exec_plan,
         lf.len() as u32,
         &GpuScene::new(&scene, &bvh),
-        ExecOptions { barriers, timing, fault: fault_from_env()?, ..ExecOptions::default() },
+        ExecOptions {
+            barriers,
+            timing,
+            frames_in_flight: args.frames_in_flight as usize,
+            fault: fault_from_env()?,
+            ..ExecOptions::default()
+        },
     )?;
 
+    crate::outputs::create_folder(&args.out_dir)
+        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
     let progress = bar(u64::from(total_frames));
     let started = Instant::now();
     let mut measured_from = None;
@@ -194,7 +274,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     for f in 0..total_frames {
         if f == args.warmup {
             renderer.finish()?;
-            renderer.take_reports();
+            renderer.reset_stats();
+            // Only a trace needs every event of every frame; otherwise the statistics are all.
+            renderer.keep_reports(args.trace.is_some());
             measured_from = Some(Instant::now());
         }
         let views = lightfield_views(&lf_of(f)?);
@@ -206,7 +288,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         {
             renderer.finish()?;
             let folder = args.out_dir.join(format!("frame_{m:05}"));
-            std::fs::create_dir_all(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
+            crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
             staged.extend(stage_views(
                 &mut renderer,
                 compiled.handles.linear_slot,
@@ -221,11 +303,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let wall = measured_from.unwrap_or(started).elapsed();
     progress.finish_and_clear();
     let reports = renderer.take_reports();
+    let prepare = renderer.prepare_ms().clone();
+    let timing = timings(renderer.stats(), &prepare);
     let last_views = lightfield_views(&lf_of(total_frames - 1)?);
-    // Created only now that every frame ran: a run that fails on the way (a lost GPU) leaves no
-    // empty folder behind.
-    std::fs::create_dir_all(&args.out_dir)
-        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
 
     // Everything is staged before anything is put in place, and render.json goes last: a
     // failure (or Ctrl-C) at any point leaves the folder as it was or complete.
@@ -236,14 +316,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         &last_views,
         &extra_layers(&args, kind),
     )?);
-    let displays: Vec<Vec<u8>> = (0..lf.len() as u32).map(|v| renderer.read("display", v)).collect::<Result<_, _>>()?;
-    let images: Vec<DisplayImage<'_>> =
-        displays.iter().map(|d| DisplayImage { width: lf.width, height: lf.height, rgba8: d }).collect();
-    staged.push(stage(&sheet, |tmp| write_contact_sheet(tmp, &images, lf.cols.min(SHEET_COLUMNS)))?);
-    if args.quilt {
-        let quilt = args.out_dir.join(quilt_file_name("lightfield", lf.len() as u32, lf.width, lf.height));
-        staged.push(stage(&quilt, |tmp| write_quilt(tmp, &images))?);
-    }
+    let (exposure, displays) =
+        display_images(&mut renderer, compiled.handles.linear_slot, (lf.len() as u32, lf.width), args.exposure)?;
+    let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
+    drop(displays);
     let missing = match kind {
         PipelineKind::Reproject => {
             let holes: Vec<Option<Vec<u32>>> = (0..lf.len() as u32)
@@ -262,33 +338,47 @@ pub fn run(args: RenderArgs) -> Result<()> {
     drop(renderer);
     context.check_validation()?;
 
-    let timing = timings(&reports);
     let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
+    let still = args.still || args.frames == 1;
+    let last_lf = lf_of(total_frames - 1)?;
+    let spacing = args.light_field.layout.spacing;
+    let setup = Setup::new(
+        &args.scene.scene,
+        &scene,
+        &camera_at(total_frames - 1),
+        still,
+        (&last_lf, spacing),
+        args.depth.max_depth,
+    )?;
     let json = serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
         "scene": args.scene.scene,
-        "camera": { "eye": camera.eye.to_array(), "forward": camera.forward.to_array(), "up": camera.up.to_array(),
-                    "yfov_degrees": camera.yfov.to_degrees() },
-        "sun": scene.sun.map(|s| serde_json::json!({ "to_sun": s.to_sun.to_array(), "irradiance": s.irradiance.to_array(),
-                                                     "angular_radius": s.angular_radius })),
-        "sky": format!("{:?}", scene.sky()),
-        "layout": { "spec": format!("{:?}", args.light_field.layout.lf), "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
-                    "width": lf.width, "height": lf.height, "spacing_m": args.light_field.layout.spacing, "focus_m": lf.rig.focus_distance },
+        "camera": CameraSetup::of(&camera), "sun": &setup.sun, "sky": &setup.sky,
+        "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
+                    "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
+        // The assignment groups views only under multi-source (`--assign` is refused otherwise).
         "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
-        "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise, "exposure": args.exposure,
+        "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
+        "exposure": exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
+        "reprojection_tolerance": args.pipeline.reprojection_tolerance,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
+        "frames_in_flight": args.frames_in_flight,
         "devices": device_names,
+        "run": args.run_file(),
         "plan": summary,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
         "timing": &timing,
-        "missing_pixels": &missing,
+        // Path tracing every view leaves no holes to count.
+        "missing_pixels": (kind == PipelineKind::Reproject).then_some(&missing),
     });
+    let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
     let json_file = crate::outputs::stage_json(&render_json, &json)?;
     let trace = args.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
-    for s in staged {
+    for s in staged.into_iter().chain(pictures.staged) {
         s.commit()?;
     }
+    viewer.commit()?;
     remove_stale_views(&args.out_dir, lf.len())?;
     if let (Some(sink), Some(trace)) = (&args.trace, &trace) {
         crate::outputs::write_json(sink, trace)?;
@@ -297,15 +387,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
         crate::outputs::write_bytes(sink, dot.as_bytes())?;
     }
     json_file.commit()?;
+    crate::outputs::keep_folders();
     let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     let say = |line: String| result(stdout_taken, &line);
     say(stage_table(&timing));
     say(format!(
-        "rendered {} views of {}x{} ({:?}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
+        "rendered {} views of {}x{} ({}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
         lf.len(),
         lf.width,
         lf.height,
-        args.pipeline.pipeline,
+        crate::bench_matrix::name_of(&args.pipeline.pipeline),
         summary.scheme,
         summary.devices,
         args.spp,
@@ -314,7 +405,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
         timing.frame_gpu.mean_ms,
         100.0 * missing.overall
     ));
-    say(format!("wrote {} view EXRs, {} and {}", lf.len(), sheet.display(), render_json.display()));
+    say(format!(
+        "wrote {} views (EXR and PNG at exposure {exposure:.4}, {}), {}, {} and {}",
+        lf.len(),
+        args.exposure.mode(),
+        sheet.display(),
+        args.out_dir.join("viewer.html").display(),
+        render_json.display()
+    ));
     Ok(())
 }
 
@@ -418,6 +516,7 @@ fn check_outputs(
     render_json: &Path,
     trace: Option<&Sink>,
     dot: Option<&Sink>,
+    wiggle: Option<&Path>,
 ) -> Result<()> {
     if out_dir.exists() && !out_dir.is_dir() {
         bail!("--out-dir {} is a file: give a folder", out_dir.display());
@@ -431,27 +530,40 @@ fn check_outputs(
         .with_context(|| format!("--out-dir {}: folder {} is not writable", out_dir.display(), existing.display()))?;
     let sheet_sink = Sink::File(sheet.to_path_buf());
     let json_sink = Sink::File(render_json.to_path_buf());
+    let viewer_sink = Sink::File(out_dir.join("viewer.html"));
     let mut outputs = Vec::new();
     if out_dir.is_dir() {
         outputs.push(Output { flag: "--out-dir", sink: &sheet_sink, format: Format::Png });
         outputs.push(Output { flag: "--out-dir", sink: &json_sink, format: Format::Json });
+        outputs.push(Output { flag: "--out-dir", sink: &viewer_sink, format: Format::Html });
     }
-    if let Some(sink) = trace {
-        if let Sink::File(path) = sink
-            && path.parent().is_some_and(|p| p == out_dir)
+    let in_out_dir = |flag: &str, path: &Path| {
+        if path.parent().is_some_and(|p| p == out_dir)
             && path.file_name().and_then(|n| n.to_str()).is_some_and(|n| n == "render.json" || n.starts_with("view_"))
         {
-            bail!("--trace {} would overwrite an output of --out-dir: give it another name", path.display());
+            bail!("{flag} {} would overwrite an output of --out-dir: give it another name", path.display());
+        }
+        Ok(())
+    };
+    if let Some(sink) = trace {
+        if let Sink::File(path) = sink {
+            in_out_dir("--trace", path)?;
         }
         outputs.push(Output { flag: "--trace", sink, format: Format::Json });
     }
     if let Some(sink) = dot {
         outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
     }
+    let wiggle_sink = wiggle.map(|p| Sink::File(p.to_path_buf()));
+    if let Some(sink @ Sink::File(path)) = &wiggle_sink {
+        in_out_dir("--wiggle", path)?;
+        outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
+    }
     check(&outputs)
 }
 
-/// Removes `view_NNN.exr` files of an earlier run that this run of `views` views did not write.
+/// Removes `view_NNN.exr` and `view_NNN.png` files of an earlier run that this run of `views`
+/// views did not write.
 fn remove_stale_views(out_dir: &Path, views: usize) -> Result<()> {
     let entries = std::fs::read_dir(out_dir).with_context(|| format!("cannot list --out-dir {}", out_dir.display()))?;
     for entry in entries.flatten() {
@@ -466,12 +578,13 @@ fn remove_stale_views(out_dir: &Path, views: usize) -> Result<()> {
     Ok(())
 }
 
-/// The view index of a file name this command writes (`view_007.exr` → 7).
+/// The view index of a file name this command writes (`view_007.exr` or `.png` → 7).
 fn parse_view_file_name(name: &str) -> Option<u32> {
-    let digits = name.strip_prefix("view_")?.strip_suffix(".exr")?;
+    let stem = name.strip_prefix("view_")?;
+    let digits = stem.strip_suffix(".exr").or_else(|| stem.strip_suffix(".png"))?;
     if digits.len() < 3 || !digits.bytes().all(|b| b.is_ascii_digit()) {
         return None;
     }
     let index: u32 = digits.parse().ok()?;
-    (view_file_name(index) == name).then_some(index)
+    (view_file_name(index) == name || view_png_name(index) == name).then_some(index)
 }

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+use parallax_accuracy::exposure::LogAverage;
 use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, EventKind};
 use parallax_passes::{GpuTracer, PATH_TRACE, banded_trace_plan, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
@@ -14,7 +15,7 @@ use parallax_scene::{CpuTracer, Frame, Scene, SceneBvh, TraceSettings, View};
 
 use crate::budget::TraceWork;
 use crate::logging::{bar, spinner};
-use crate::options::{MAX_DEVICES, Resolution, count_in, parse_exposure, parse_resolution, selection};
+use crate::options::{Exposure, MAX_DEVICES, Resolution, count_in, parse_exposure, parse_resolution, selection};
 use crate::outputs::{Format, Output, Sink, check, stage};
 use crate::scene_args::{DepthArgs, SceneArgs};
 
@@ -39,9 +40,10 @@ pub struct TraceArgs {
     /// Also write a tonemapped PNG.
     #[arg(long)]
     pub png: Option<PathBuf>,
-    /// Exposure multiplier for the PNG (> 0).
-    #[arg(long, allow_negative_numbers = true, default_value = "1", value_parser = parse_exposure)]
-    pub exposure: f32,
+    /// Exposure of the PNG: `auto` (the log-average luminance of the image mapped to 0.18,
+    /// computed on the host from the traced radiance) or a multiplier > 0.
+    #[arg(long, allow_negative_numbers = true, default_value = "auto", value_parser = parse_exposure)]
+    pub exposure: Exposure,
     /// Trace on the CPU reference path tracer instead of the GPU.
     #[arg(long)]
     pub cpu: bool,
@@ -75,6 +77,9 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
 
     let t0 = Instant::now();
     let scene = args.scene.load()?;
+    let mut written = vec![("--out", args.out.as_path())];
+    written.extend(args.png.as_deref().map(|p| ("--png", p)));
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let load_time = t0.elapsed();
     let bvh = SceneBvh::build(&scene);
     tracing::info!(
@@ -109,7 +114,12 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     })?;
     let sheet = match &args.png {
         Some(path) => Some(stage(path, |tmp| {
-            write_contact_sheet(tmp, &[&frame], 1, args.exposure)
+            let mut average = LogAverage::default();
+            let radiance: Vec<[f32; 3]> = frame.pixels.iter().map(|p| p.radiance.to_array()).collect();
+            average.add_image(frame.width as usize, &radiance);
+            let exposure = args.exposure.resolve(&average);
+            tracing::info!("--png at exposure {exposure:.4} ({})", args.exposure.mode());
+            write_contact_sheet(tmp, &[&frame], 1, exposure)
                 .with_context(|| format!("cannot write --png {}", path.display()))
         })?),
         None => None,

@@ -1,6 +1,7 @@
 //! The `parallax` command line.
 
 mod bench_matrix;
+mod bench_resume;
 mod bench_tables;
 mod budget;
 mod cmd_backend;
@@ -16,9 +17,14 @@ mod lightfield_images;
 mod logging;
 mod options;
 mod outputs;
+mod pending;
 mod pipeline_args;
+mod render_pictures;
 mod render_report;
+mod run_file;
+mod run_setup;
 mod scene_args;
+mod viewer;
 
 use clap::{CommandFactory, Parser, Subcommand};
 
@@ -35,7 +41,10 @@ struct Cli {
 enum Command {
     /// Plan a light field over N devices: sources, δ-edges, per-device schedule, copies.
     Plan(cmd_plan::PlanArgs),
-    /// Path trace every view of a light field over N devices (reference, no reprojection).
+    /// Render a light field over N devices through the paper's reconstruction pipeline (G-buffer,
+    /// sources path traced, targets reprojected, holes filled, SVGF, tonemap) or with every view
+    /// path traced (`--pipeline path-trace`); writes the views (EXR, PNG), a contact sheet,
+    /// viewer.html and render.json with per-stage GPU times.
     Render(cmd_render::RenderArgs),
     /// Path trace one view of a scene on the GPU (`--cpu`: the CPU reference) to EXR (+ PNG).
     Trace(cmd_trace::TraceArgs),
@@ -52,7 +61,8 @@ enum Command {
     /// Path trace a converged reference of a light field's views, progressively and resumably
     /// (the camera is still: compare with `render --still`).
     Reference(cmd_reference::ReferenceArgs),
-    /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders.
+    /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders, after checking that
+    /// both were rendered with the same settings.
     Compare(cmd_compare::CompareArgs),
     /// Charts (SVG/PNG) of speed against accuracy, scaling, views, holes, or a device timeline.
     Chart(cmd_chart::ChartArgs),
@@ -61,10 +71,12 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     logging::init(cli.verbosity);
-    // Ctrl-C ends the process before any destructor runs: remove the temporary files of
-    // outputs not yet in place, so an interrupted run leaves nothing behind.
+    // Ctrl-C, SIGTERM and SIGHUP end the process before any destructor runs: remove the
+    // temporary files of outputs not yet in place and the folders the run created, so an
+    // interrupted run leaves nothing behind.
     if let Err(err) = ctrlc::set_handler(|| {
-        outputs::remove_pending();
+        // Held until the process ends, so that the main thread creates nothing after this.
+        let _pending = pending::remove_all();
         tracing::error!("interrupted: outputs not yet in place were removed");
         std::process::exit(130);
     }) {
@@ -83,8 +95,10 @@ fn main() {
         Command::Chart(args) => cmd_chart::run(args),
     };
     if let Err(err) = result {
-        // Flags that do not go together are usage errors like clap's own: same form, exit 2.
-        if let Some(usage) = err.downcast_ref::<options::UsageError>() {
+        drop(pending::remove_all());
+        // Flags that do not go together, or a value no run could use, are usage errors like
+        // clap's own: same form, exit 2.
+        if let Some(usage) = options::usage_error(&err) {
             Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();
         }
         tracing::error!("{err:#}");

@@ -5,6 +5,7 @@
 use std::ops::RangeInclusive;
 
 use glam::Vec3;
+pub use parallax_accuracy::exposure::Exposure;
 use parallax_backend::DeviceSelection;
 use parallax_graph::{AssignStrategy, LayoutSpec, PlanError, Scheme};
 use parallax_scene::{Camera, Sky, Sun};
@@ -95,18 +96,33 @@ pub fn parse_sources(s: &str) -> Result<SourceList, String> {
     parallax_graph::parse_source_list(s).map(SourceList).map_err(|e| e.to_string())
 }
 
-/// `--spacing`: a finite, non-negative distance in metres.
+/// `--spacing`: a distance in metres, 0..=[`MAX_SPACING`].
 pub fn parse_spacing(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) if (0.0..=MAX_SPACING).contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > MAX_SPACING => Err(format!(
+            "{v} m is more than {MAX_SPACING} m between neighbouring views: every view would see something else \
+             (light fields space views millimetres to metres apart, e.g. 0.001)"
+        )),
         _ => Err("use a finite, non-negative distance in metres (e.g. 0.001)".into()),
     }
 }
 
-/// `--focus`: distance of the zero-disparity plane, finite and > 0.
+/// The widest `--spacing`, in metres.
+pub const MAX_SPACING: f64 = 1e3;
+/// The range of `--focus`, in metres: nearer than 0.1 mm or farther than 1e9 m the views either
+/// disagree everywhere or are identical.
+pub const FOCUS_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1e9;
+
+/// `--focus`: distance of the zero-disparity plane, within [`FOCUS_RANGE`].
 pub fn parse_focus(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) if FOCUS_RANGE.contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > 0.0 => Err(format!(
+            "{v} m is outside {:e}..={:e} m: the zero-disparity plane must lie at a distance the views can resolve",
+            FOCUS_RANGE.start(),
+            FOCUS_RANGE.end()
+        )),
         _ => Err("use a finite distance in metres greater than 0 (e.g. 2.5)".into()),
     }
 }
@@ -210,6 +226,17 @@ pub fn parse_camera(s: &str) -> Result<Camera, String> {
     let eye = Vec3::new(v[0], v[1], v[2]);
     let target = Vec3::new(v[3], v[4], v[5]);
     let up = Vec3::new(v[6], v[7], v[8]);
+    // Beyond the scene's coordinate limit the squared distance overflows f32, and a differing
+    // eye would be reported as equal to the target.
+    for (name, p) in [("eye", eye), ("target", target)] {
+        if p.abs().max_element() > parallax_scene::MAX_COORDINATE {
+            return Err(format!(
+                "{name} coordinate {:e} is beyond ±{:e}, the limit of scene coordinates",
+                p.abs().max_element(),
+                parallax_scene::MAX_COORDINATE
+            ));
+        }
+    }
     let forward = (target - eye).normalize_or_zero();
     if forward == Vec3::ZERO {
         return Err("eye and target must differ".into());
@@ -221,6 +248,20 @@ pub fn parse_camera(s: &str) -> Result<Camera, String> {
         return Err(format!("yfov {} degrees is outside 0.1..179", v[9]));
     }
     Ok(Camera::look_at(eye, target, up, v[9].to_radians()))
+}
+
+/// `--camera` with the numbers as given, so that a run file can give them back exactly (the
+/// camera's target is not kept by [`Camera`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraArg {
+    pub camera: Camera,
+    pub numbers: [f32; 10],
+}
+
+pub fn parse_camera_arg(s: &str) -> Result<CameraArg, String> {
+    let camera = parse_camera(s)?;
+    let numbers = floats(s)?.try_into().map_err(|_| "expected 10 numbers".to_string())?;
+    Ok(CameraArg { camera, numbers })
 }
 
 /// `--sun to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]`.
@@ -260,13 +301,10 @@ pub fn parse_sky(s: &str) -> Result<Sky, String> {
     }
 }
 
-/// `--exposure`: a finite multiplier > 0 (0, negative or NaN would write a black image).
-pub fn parse_exposure(s: &str) -> Result<f32, String> {
-    match s.trim().parse::<f32>() {
-        Ok(v) if v.is_finite() && v > 0.0 && v <= 1e6 => Ok(v),
-        Ok(v) => Err(format!("{v} is not in (0, 1e6]: the tonemapped image would be black or meaningless")),
-        Err(_) => Err(format!("'{s}' is not a number")),
-    }
+/// `--exposure auto|N`: the automatic exposure of the whole light field, or a finite
+/// multiplier in (0, 1e6] (0, negative or NaN would write a black image).
+pub fn parse_exposure(s: &str) -> Result<Exposure, String> {
+    s.parse()
 }
 
 /// A usage error found after parsing (two flags that do not go together): `main` prints it
@@ -281,6 +319,20 @@ impl std::fmt::Display for UsageError {
 }
 
 impl std::error::Error for UsageError {}
+
+/// The message of `err` if it is a usage error: a [`UsageError`] anywhere in its chain, or a
+/// planning error about two flags that do not go together. Errors about the light field (more
+/// devices than views, a source listed twice or out of range) stay failures of the run.
+pub fn usage_error(err: &anyhow::Error) -> Option<String> {
+    err.chain().find_map(|cause| {
+        if let Some(usage) = cause.downcast_ref::<UsageError>() {
+            return Some(usage.0.clone());
+        }
+        let plan = cause.downcast_ref::<PlanError>()?;
+        matches!(plan, PlanError::SourcesWithMultiSource | PlanError::SourcesPerSetWithFineScheme)
+            .then(|| plan.to_string())
+    })
+}
 
 /// A count within `range`, for clap; the message names the range.
 pub fn count_in(range: RangeInclusive<u64>) -> impl Fn(&str) -> Result<u64, String> + Clone {
@@ -304,6 +356,11 @@ pub struct DeviceArgs {
 impl DeviceArgs {
     pub fn selection(&self) -> DeviceSelection {
         selection(self.gpus, self.fake_devices)
+    }
+
+    /// `--gpus` and `--fake-devices` as given.
+    pub fn given(&self) -> (Option<u64>, Option<u64>) {
+        (self.gpus, self.fake_devices)
     }
 }
 
@@ -343,6 +400,10 @@ mod tests {
             "up must be non-zero and not parallel to the view direction (e.g. 0,1,0)"
         );
         assert_eq!(parse_camera("1,1,1,1,1,1,0,1,0,45").unwrap_err(), "eye and target must differ");
+        assert_eq!(
+            parse_camera("0,0,1e20,0,0,0,0,1,0,45").unwrap_err(),
+            "eye coordinate 1e20 is beyond ±1e18, the limit of scene coordinates"
+        );
     }
 
     #[test]
@@ -355,7 +416,8 @@ mod tests {
 
     #[test]
     fn exposure_must_be_positive_and_finite() {
-        assert_eq!(parse_exposure("2"), Ok(2.0));
+        assert_eq!(parse_exposure("2"), Ok(Exposure::Fixed(2.0)));
+        assert_eq!(parse_exposure("auto"), Ok(Exposure::Auto));
         for bad in ["0", "-1", "NaN", "inf"] {
             assert!(parse_exposure(bad).is_err(), "{bad}");
         }

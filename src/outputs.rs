@@ -4,8 +4,8 @@
 //! - [`Sink`]: `-` is stdout, anything else a path.
 //! - [`check`]: the folder exists and is writable, the extension matches the format, no two
 //!   outputs share a path, the target is not a folder.
-//! - [`stage`] then [`Staged::commit`]: the bytes go to a temporary file in the target's folder
-//!   and are renamed over the target, so a reader (or a full disk, or Ctrl-C) never leaves a
+//! - [`stage`] then [`Staged::commit`]: the bytes go to a temporary file in a staging folder
+//!   inside the target's folder (see [`crate::pending`]) and are renamed over the target, so a reader (or a full disk, or Ctrl-C) never leaves a
 //!   truncated file and a failed run keeps the previous good one. A target that exists and is
 //!   not a regular file (a device such as /dev/null, a FIFO) is written through instead; a
 //!   symlink is followed and its target replaced, the link kept.
@@ -13,7 +13,6 @@
 use std::ffi::OsStr;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
 use anyhow::{Context, Result, bail};
 use tempfile::NamedTempFile;
@@ -41,6 +40,8 @@ pub enum Format {
     Png,
     Json,
     Dot,
+    Html,
+    Markdown,
 }
 
 impl Format {
@@ -50,6 +51,8 @@ impl Format {
             Format::Png => &["png"],
             Format::Json => &["json"],
             Format::Dot => &["dot", "gv"],
+            Format::Html => &["html"],
+            Format::Markdown => &["md", "markdown"],
         }
     }
 }
@@ -71,13 +74,23 @@ pub fn check(outputs: &[Output]) -> Result<()> {
                 bail!("{} -: images cannot be written to stdout; give a file name", o.flag);
             }
             if let Some((_, other)) = seen.iter().find(|(p, _)| p.as_os_str() == "-") {
-                bail!("{} and {other} both write to stdout: send one of them to a file", o.flag);
+                return Err(crate::options::UsageError(format!(
+                    "{} and {other} both write to stdout: send one of them to a file",
+                    o.flag
+                ))
+                .into());
             }
             seen.push((PathBuf::from("-"), o.flag));
             continue;
         };
         let shown = path.display();
-        let meta = std::fs::metadata(path).ok();
+        check_name(o.flag, path)?;
+        let meta = std::fs::metadata(path);
+        // ELOOP: the OS's "too many levels of symbolic links".
+        if meta.as_ref().is_err_and(|e| e.raw_os_error() == Some(40)) {
+            bail!("{} {shown} is a symlink loop (or a chain of more than 40 links): fix the links", o.flag);
+        }
+        let meta = meta.ok();
         if meta.is_none() && std::fs::symlink_metadata(path).is_ok() {
             bail!("{} {shown} is a symlink to a missing file: remove it or fix it", o.flag);
         }
@@ -112,6 +125,67 @@ pub fn check(outputs: &[Output]) -> Result<()> {
     Ok(())
 }
 
+/// Refuses an output that is one of the command's inputs (`render --scene s.json --trace
+/// s.json`, `compare a.exr b.exr --json a.exr`), or two outputs on one path: compared as
+/// canonical paths, so `./x/../a.exr` is `a.exr` and a symlink is its target. Called before any
+/// work, after [`check`].
+pub fn check_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> {
+    for (k, (flag, out)) in outputs.iter().enumerate() {
+        let key = identity(out);
+        if let Some((input_flag, input)) = inputs.iter().find(|(_, input)| identity(input) == key) {
+            bail!(
+                "{flag} {} is also read, as {input_flag} {}: writing it would destroy an input; give the output another path",
+                out.display(),
+                input.display()
+            );
+        }
+        if let Some((other, _)) = outputs[..k].iter().find(|(_, o)| identity(o) == key) {
+            bail!("{flag} and {other} both write {}: give each output its own path", out.display());
+        }
+    }
+    Ok(())
+}
+
+/// The longest file name (bytes) and path most file systems take (Linux's NAME_MAX, PATH_MAX).
+const NAME_MAX: usize = 255;
+const PATH_MAX: usize = 4095;
+
+/// A path that names a file: no trailing `/` (which names a folder, so `--out x.exr/` would fail
+/// only after the work), a name and a path the file system can hold.
+fn check_name(flag: &str, path: &Path) -> Result<()> {
+    let shown = path.display();
+    let text = path.as_os_str().as_encoded_bytes();
+    if text.ends_with(b"/") || path.file_name().is_none() {
+        bail!("{flag} {shown} ends in '/' or '..', which names a folder: give a file name");
+    }
+    let name = path.file_name().map_or(0, |n| n.len());
+    if name > NAME_MAX {
+        bail!(
+            "{flag} {shown}: the file name is {name} bytes, more than the {NAME_MAX} a file system takes: shorten it"
+        );
+    }
+    if text.len() > PATH_MAX {
+        bail!("{flag}: the path is {} bytes, more than the {PATH_MAX} a file system takes: shorten it", text.len());
+    }
+    Ok(())
+}
+
+/// Refuses a path in `folder` that a run will write (`names`) but that is a folder or another
+/// non-file (a folder named `view_000.exr` used to be found only when the views were renamed
+/// into place, after all the tracing).
+pub fn check_targets_in(folder: &Path, names: impl IntoIterator<Item = String>, flag: &str) -> Result<()> {
+    for name in names {
+        let path = folder.join(&name);
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_dir()) {
+            bail!(
+                "{flag} {}: {name} there is a folder, and the run writes a file of that name: move it",
+                folder.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// The folder a file path lives in (`.` for a bare name).
 fn folder_of(path: &Path) -> PathBuf {
     path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new(".")).to_path_buf()
@@ -127,20 +201,31 @@ fn identity(path: &Path) -> PathBuf {
     folder.join(path.file_name().unwrap_or_default())
 }
 
-/// Temporary files not yet renamed into place: removed by the Ctrl-C handler, which ends the
-/// process before destructors run.
-static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+pub use crate::pending::{create_folder, keep_folders};
 
-/// Removes every pending temporary file (called on Ctrl-C).
-pub fn remove_pending() {
-    let pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
-    for p in pending.iter() {
-        let _ = std::fs::remove_file(p);
+/// An advisory lock on an output folder a run owns, held until dropped: a second run into the
+/// same folder is refused instead of silently mixing its files with the first's. The lock is
+/// on the folder itself (flock), so no lock file is left behind, and the OS drops it when the
+/// process ends, however it ends.
+pub struct FolderLock(#[allow(dead_code)] std::fs::File);
+
+/// Locks `folder` (which exists) for this run, or says which flag names a folder in use.
+pub fn lock_folder(folder: &Path, flag: &str) -> Result<FolderLock> {
+    use std::os::fd::AsRawFd;
+    let shown = folder.display();
+    let handle = std::fs::File::open(folder).with_context(|| format!("{flag} {shown}: cannot open the folder"))?;
+    // flock(2) rather than std's File::try_lock, which needs Rust 1.89 (the MSRV is 1.85).
+    if unsafe { libc::flock(handle.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } == 0 {
+        return Ok(FolderLock(handle));
     }
-}
-
-fn forget_pending(path: &Path) {
-    PENDING.lock().unwrap_or_else(|e| e.into_inner()).retain(|p| p != path);
+    let error = std::io::Error::last_os_error();
+    if error.kind() == std::io::ErrorKind::WouldBlock {
+        bail!(
+            "{flag} {shown} is in use by another parallax run (it holds the folder's lock): wait for it to end, or \
+             give another {flag}"
+        );
+    }
+    Err(error).with_context(|| format!("{flag} {shown}: cannot lock the folder"))
 }
 
 /// An output written to a temporary file and not yet in place. Dropped without a commit, the
@@ -149,6 +234,8 @@ pub struct Staged {
     /// `None` once persisted.
     temp: Option<NamedTempFile>,
     temp_path: PathBuf,
+    /// The staging folder that holds the temporary file (see [`crate::pending`]).
+    staging: PathBuf,
     target: PathBuf,
     /// The target exists and is not a regular file: copy the bytes into it, never replace it.
     write_through: bool,
@@ -156,7 +243,9 @@ pub struct Staged {
 
 impl Drop for Staged {
     fn drop(&mut self) {
-        forget_pending(&self.temp_path);
+        // The temporary file goes before its staging folder is released.
+        drop(self.temp.take());
+        crate::pending::release_staging(&self.staging);
     }
 }
 
@@ -171,13 +260,17 @@ pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<Sta
     };
     let write_through = std::fs::metadata(&target).is_ok_and(|m| !m.is_file());
     let folder = if write_through { std::env::temp_dir() } else { folder_of(&target) };
-    let temp = tempfile::Builder::new()
-        .prefix(".parallax-")
-        .tempfile_in(&folder)
-        .with_context(|| format!("cannot write {}: folder {} is not writable", path.display(), folder.display()))?;
+    let not_writable = || format!("cannot write {}: folder {} is not writable", path.display(), folder.display());
+    let staging = crate::pending::staging_folder(&folder).with_context(not_writable)?;
+    let temp = match tempfile::Builder::new().prefix("output-").tempfile_in(&staging) {
+        Ok(temp) => temp,
+        Err(e) => {
+            crate::pending::release_staging(&staging);
+            return Err(e).with_context(not_writable);
+        }
+    };
     let temp_path = temp.path().to_path_buf();
-    PENDING.lock().unwrap_or_else(|e| e.into_inner()).push(temp_path.clone());
-    let staged = Staged { temp: Some(temp), temp_path, target, write_through };
+    let staged = Staged { temp: Some(temp), temp_path, staging, target, write_through };
     write(&staged.temp_path)?;
     std::fs::File::open(&staged.temp_path)
         .and_then(|f| f.sync_all())
@@ -294,7 +387,6 @@ mod tests {
         // A failed writer leaves the old file and no temporary file.
         assert!(stage(&path, |_| anyhow::bail!("disk full")).is_err());
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-        assert!(PENDING.lock().unwrap().is_empty());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "no staging folder is left");
     }
 }

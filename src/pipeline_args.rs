@@ -78,6 +78,33 @@ pub struct PipelineArgs {
     /// The fine schemes' sources, view indices, e.g. 0,99 (default: k = N placed as in the paper).
     #[arg(long, value_parser = parse_sources)]
     pub sources: Option<SourceList>,
+    /// Largest relative radiance error that view-dependence may cause in a reprojected pixel
+    /// (the bound of docs/PIPELINE.md, from the angle between target and source view
+    /// directions, the GGX lobe width and Fresnel); pixels over it are holes, path traced.
+    /// 0 reuses only sources at the target's own position.
+    #[arg(long, allow_negative_numbers = true, default_value_t = default_reprojection_tolerance(),
+          value_parser = parse_reprojection_tolerance)]
+    pub reprojection_tolerance: f64,
+}
+
+/// `ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE` as the decimal it is written as (0.2, not
+/// the f32's 0.20000000298...), for `--help` and render.json.
+fn default_reprojection_tolerance() -> f64 {
+    ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE.to_string().parse().expect("a float prints as a float")
+}
+
+/// `--reprojection-tolerance`: a relative error, finite and at least 0.
+pub fn parse_reprojection_tolerance(s: &str) -> Result<f64, String> {
+    s.trim().parse::<f64>().map_err(|_| format!("'{s}' is not a number")).and_then(check_reprojection_tolerance)
+}
+
+/// A reprojection tolerance is a relative error: finite (also as the shader's f32) and at least 0.
+pub fn check_reprojection_tolerance(v: f64) -> Result<f64, String> {
+    if (v as f32).is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a relative error >= 0 and < 3.4e38 (0.2 = 20 %)"))
+    }
 }
 
 /// `--dot` and `--dot-detail`: the schedule drawn for Graphviz.
@@ -119,7 +146,10 @@ impl PipelineArgs {
         PipelineConfig {
             kind: self.pipeline.into(),
             gbuffer: self.gbuffer.into(),
-            tolerances: ReprojectionTolerances::default(),
+            tolerances: ReprojectionTolerances {
+                view_dependence: self.reprojection_tolerance as f32,
+                ..Default::default()
+            },
             denoise: !self.no_denoise,
             exposure,
         }

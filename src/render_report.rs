@@ -1,10 +1,12 @@
 //! What `parallax render` measures and writes to render.json: per-stage per-device GPU time in
 //! the layout of the paper's Table 1, frame times, busy fraction per device (Fig. 8), copies and
-//! bytes moved, and missing pixels per view and per device (Table 4).
+//! bytes moved, where the host's time per frame goes, and missing pixels per view and per
+//! device (Table 4). Built from running statistics of the frames ([`FrameStats`]), not from
+//! every frame's report.
 
 use std::collections::BTreeMap;
 
-use parallax_backend::{EventKind, ExecutionPlan, FrameReport};
+use parallax_backend::{EventKind, ExecutionPlan, FrameStats, Summary};
 
 /// Mean GPU time of one stage on one device over the measured frames.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -26,29 +28,49 @@ pub struct Spread {
 }
 
 impl Spread {
-    pub fn of(values: &[f64]) -> Self {
-        if values.is_empty() {
-            return Self::default();
-        }
-        let mut sorted = values.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
-        Self { mean_ms: values.iter().sum::<f64>() / values.len() as f64, median_ms: at(0.5), p95_ms: at(0.95) }
+    /// Mean (exact), median and p95 (exact up to `SUMMARY_SAMPLE` frames, from a uniform
+    /// sample after that) of a running summary of times in ms.
+    pub fn of(summary: &Summary) -> Self {
+        Self { mean_ms: summary.mean(), median_ms: summary.quantile(0.5), p95_ms: summary.quantile(0.95) }
     }
+}
+
+/// Where the host's time per frame goes, and whether it kept the GPU fed.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct HostTimings {
+    /// From one frame's submission to the next's: the frame period the host sees (compare with
+    /// `frame_gpu`: equal when the GPU is the bottleneck and is never left waiting).
+    pub frame_interval: Spread,
+    /// Building and setting each frame's data (views' trace parameters, camera block).
+    pub prepare: Spread,
+    /// Executor CPU time to submit a frame (command buffers are recorded once, not per frame).
+    pub submit_cpu: Spread,
+    /// Time a submission waited for the frame whose slot it reuses (frames in flight full):
+    /// the host is ahead of the GPU.
+    pub slot_wait: Spread,
+    /// From the last GPU event of a frame to the first of the next: idle GPU, or GPU work no
+    /// timestamp covers (the per-frame buffer resets).
+    pub gpu_gap: Spread,
+    /// Frames submitted only after the previous frame's GPU work had ended (the GPU ran dry).
+    pub late_frames: u64,
 }
 
 /// Everything timed about the measured frames.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Timings {
     pub frames: usize,
-    /// GPU span of each frame (first event start to last event end over all devices).
+    /// GPU span of each frame (first event start to last event end over all devices), in
+    /// frame order; beyond `SUMMARY_SAMPLE` frames a uniform sample of them (memory stays flat).
     pub frame_gpu_ms: Vec<f64>,
+    /// Whether `frame_gpu_ms` holds every measured frame.
+    pub frame_gpu_ms_complete: bool,
     pub frame_gpu: Spread,
     pub stages: Vec<StageRow>,
     /// Per device: time covered by its events over the frame's GPU span, averaged.
     pub busy_fraction: Vec<f64>,
     pub copies_per_frame: f64,
     pub copy_bytes_per_frame: f64,
+    pub host: HostTimings,
 }
 
 /// Stage of an event: the pass name; `transfer` for display images moving to device 0 (Table
@@ -61,36 +83,59 @@ fn stage_of(name: &str, kind: EventKind) -> String {
     }
 }
 
-pub fn timings(reports: &[FrameReport]) -> Timings {
-    let frames = reports.len().max(1) as f64;
-    let mut stages: BTreeMap<(String, usize), (u64, usize)> = BTreeMap::new();
-    let mut copies = 0usize;
+/// The stages in the order the pipeline runs them (the paper's Table 1): a stage's rank is that
+/// of its name or of the name it extends (`svgf_atrous_2` is an `svgf_atrous`); stages not
+/// listed come after, by name.
+const PIPELINE_ORDER: [&str; 15] = [
+    "gbuffer",
+    "gbuffer_raster",
+    "motion",
+    "pixel_list",
+    "path_trace",
+    "reproject",
+    "compact_holes",
+    "hole_fill",
+    "svgf_history",
+    "svgf_temporal",
+    "svgf_variance",
+    "svgf_atrous",
+    "tonemap",
+    "copy",
+    "transfer",
+];
+
+fn pipeline_rank(stage: &str) -> usize {
+    let extends = |s: &str| stage.strip_prefix(s).is_some_and(|rest| rest.starts_with('_'));
+    PIPELINE_ORDER
+        .iter()
+        .position(|&s| s == stage)
+        .or_else(|| PIPELINE_ORDER.iter().rposition(|&s| extends(s)))
+        .unwrap_or(PIPELINE_ORDER.len())
+}
+
+/// The timings of the frames folded into `stats`; `prepare` is the renderer's frame-data time.
+pub fn timings(stats: &FrameStats, prepare: &Summary) -> Timings {
+    let frames = stats.frames().max(1) as f64;
+    let mut stages: BTreeMap<(String, usize), (u64, u64)> = BTreeMap::new();
+    let mut copies = 0u64;
     let mut bytes = 0u64;
-    for event in reports.iter().flat_map(|r| &r.events) {
-        let entry = stages.entry((stage_of(&event.name, event.kind), event.device)).or_default();
-        entry.0 += event.duration_ns();
-        entry.1 += 1;
-        if event.kind == EventKind::CopyIn {
-            copies += 1;
-            bytes += event.bytes;
+    for totals in stats.event_totals() {
+        let entry = stages.entry((stage_of(&totals.name, totals.kind), totals.device)).or_default();
+        entry.0 += totals.total_ns;
+        entry.1 += totals.count;
+        if totals.kind == EventKind::CopyIn {
+            copies += totals.count;
+            bytes += totals.bytes;
         }
     }
-    let devices = reports.iter().flat_map(|r| r.devices.iter().map(|d| d.device + 1)).max().unwrap_or(0);
-    let busy_fraction = (0..devices)
-        .map(|d| {
-            let fractions: Vec<f64> = reports
-                .iter()
-                .filter_map(|r| r.devices.iter().find(|s| s.device == d))
-                .map(|s| s.busy_fraction)
-                .collect();
-            fractions.iter().sum::<f64>() / fractions.len().max(1) as f64
-        })
-        .collect();
-    let frame_gpu_ms: Vec<f64> = reports.iter().map(|r| r.gpu_span_ns as f64 / 1e6).collect();
+    let mut stages: Vec<_> = stages.into_iter().collect();
+    // Stable: by name (the map's order) within a rank, so svgf_atrous_0 comes before _1.
+    stages.sort_by_key(|((stage, _), _)| pipeline_rank(stage));
     Timings {
-        frames: reports.len(),
-        frame_gpu: Spread::of(&frame_gpu_ms),
-        frame_gpu_ms,
+        frames: stats.frames() as usize,
+        frame_gpu_ms: stats.gpu_span_ms().sample().to_vec(),
+        frame_gpu_ms_complete: stats.gpu_span_ms().is_complete(),
+        frame_gpu: Spread::of(stats.gpu_span_ms()),
         stages: stages
             .into_iter()
             .map(|((stage, device), (ns, count))| StageRow {
@@ -100,9 +145,17 @@ pub fn timings(reports: &[FrameReport]) -> Timings {
                 events_per_frame: count as f64 / frames,
             })
             .collect(),
-        busy_fraction,
+        busy_fraction: stats.busy_fraction(),
         copies_per_frame: copies as f64 / frames,
         copy_bytes_per_frame: bytes as f64 / frames,
+        host: HostTimings {
+            frame_interval: Spread::of(stats.interval_ms()),
+            prepare: Spread::of(prepare),
+            submit_cpu: Spread::of(stats.submit_cpu_ms()),
+            slot_wait: Spread::of(stats.slot_wait_ms()),
+            gpu_gap: Spread::of(stats.gpu_gap_ms()),
+            late_frames: stats.host_late_frames(),
+        },
     }
 }
 
@@ -170,5 +223,22 @@ pub fn missing_pixels(plan: &ExecutionPlan, holes: &[Option<Vec<u32>>], width: u
         per_view,
         per_device: missed.iter().zip(&total).map(|(&m, &t)| if t == 0 { 0.0 } else { m as f64 / t as f64 }).collect(),
         overall: if all == 0 { 0.0 } else { missed.iter().sum::<u64>() as f64 / all as f64 },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stages_rank_in_pipeline_order() {
+        let mut names =
+            ["transfer", "tonemap", "svgf_atrous_1", "hole_fill", "svgf_atrous_0", "zeta", "gbuffer", "copy"];
+        names.sort_by_key(|n| (pipeline_rank(n), *n));
+        assert_eq!(
+            names,
+            ["gbuffer", "hole_fill", "svgf_atrous_0", "svgf_atrous_1", "tonemap", "copy", "transfer", "zeta"]
+        );
+        assert_eq!(pipeline_rank("gbuffer_raster"), 1, "an exact name before a prefix");
     }
 }

@@ -8,10 +8,12 @@ use clap::Args;
 use glam::Vec3;
 use parallax_graph::{LayoutSpec, LightField, Rig};
 use parallax_passes::camera::rig_of;
-use parallax_scene::{Camera, Scene, Sky, Sun, load_scene};
+use parallax_scene::input::UriPolicy;
+use parallax_scene::{Camera, LoadOptions, Scene, Sky, Sun, load_scene_with};
 
 use crate::options::{
-    Resolution, parse_camera, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing, parse_sun,
+    CameraArg, Resolution, parse_camera_arg, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
+    parse_sun,
 };
 
 /// `--scene`, `--camera` and the light that replaces the scene's own.
@@ -23,8 +25,8 @@ pub struct SceneArgs {
     /// The camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees` (of a
     /// light field: the rig, its centre); without it the scene's first camera (or one framing the
     /// whole scene).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
-    pub camera: Option<Camera>,
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera_arg)]
+    pub camera: Option<CameraArg>,
     /// Sun as `to_sun_x,to_sun_y,to_sun_z,irradiance[,angular_radius_degrees]` (irradiance
     /// 0..=1e6); replaces the scene's sun.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_sun)]
@@ -36,12 +38,18 @@ pub struct SceneArgs {
     /// values), each 0..=1e6.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_sky)]
     pub sky: Option<Sky>,
+    /// Let the scene's buffer and image URIs name files outside its folder (`../`, absolute
+    /// paths, `file:` URIs); without it such a scene is refused.
+    #[arg(long)]
+    pub allow_outside_files: bool,
 }
 
 impl SceneArgs {
     /// Loads `--scene` and applies `--sun`, `--no-sun` and `--sky` to it.
     pub fn load(&self) -> Result<Scene> {
-        let mut scene = load_scene(&self.scene).with_context(|| format!("loading --scene {}", self.scene))?;
+        let options = LoadOptions { uris: uri_policy(self.allow_outside_files) };
+        let mut scene =
+            load_scene_with(&self.scene, options).with_context(|| format!("loading --scene {}", self.scene))?;
         self.light(&mut scene);
         Ok(scene)
     }
@@ -60,10 +68,21 @@ impl SceneArgs {
         warn_if_unlit(scene);
     }
 
+    /// Every file `scene` (loaded by [`SceneArgs::load`]) was read from, by the flag that named
+    /// it: what no output may overwrite ([`crate::outputs::check_inputs`]).
+    pub fn inputs<'a>(&self, scene: &'a Scene) -> Vec<(&'static str, &'a std::path::Path)> {
+        scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect()
+    }
+
     /// `--camera`, else the scene's first camera (or one framing the whole scene).
     pub fn camera_or_default(&self, scene: &Scene) -> Camera {
-        self.camera.unwrap_or_else(|| scene.default_camera())
+        self.camera.map_or_else(|| scene.default_camera(), |c| c.camera)
     }
+}
+
+/// `--allow-outside-files` as the loader's URI policy.
+pub fn uri_policy(allow_outside_files: bool) -> UriPolicy {
+    if allow_outside_files { UriPolicy::Anywhere } else { UriPolicy::InsideSceneFolder }
 }
 
 /// Without any light every pixel is black: say so rather than write a black image silently.

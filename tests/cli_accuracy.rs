@@ -283,3 +283,56 @@ fn an_unbounded_reference_is_refused_before_it_starts() {
     assert!(err.contains("paths") && err.contains("--spp"), "{err}");
     assert!(!out.exists());
 }
+
+/// compare reads the settings beside both sides: a moving camera, another depth or other
+/// lights against a still reference are refused naming each, unless --allow-mismatch; a
+/// `render --still` of the reference's settings compares, at an exposure it reports, with a
+/// FLIP error map laid out as the contact sheet.
+#[test]
+fn compare_refuses_runs_of_other_settings_and_maps_the_error() {
+    let dir = scratch("accuracy", "mismatch");
+    let refdir = dir.join("ref");
+    ok(reference(&["--spp", "8", "--fake-devices", "1"], &refdir));
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let lf = ["render", "--lf", "2x1", "--resolution", "16x12", "--spacing", "0.05", "--spp", "2"];
+        ok(parallax(&[&lf[..], extra, &["--out-dir"]].concat(), &[&out]));
+        out
+    };
+    let moving = render("moving", &["--frames", "2"]);
+    let err = fails(parallax(&["compare"], &[&moving, &refdir]));
+    assert!(err.contains("still: moving (no --still) vs still") && err.contains("camera: eye"), "{err}");
+    assert!(err.contains("--allow-mismatch") && !err.contains("layout:"), "{err}");
+    let allowed = parallax(&["compare", "--allow-mismatch"], &[&moving, &refdir]);
+    assert!(String::from_utf8_lossy(&allowed.stderr).contains("although the settings differ"));
+    ok(allowed);
+
+    let other = render("other", &["--still", "--max-depth", "2", "--sun", "0,1,0,3"]);
+    // Single views are checked by the sidecars of their folders.
+    let err = fails(parallax(&["compare"], &[&other.join("view_000.exr"), &refdir.join("view_000.exr")]));
+    assert!(err.contains("max depth: 2 vs 6") && err.contains("lights: sun towards (0, 1, 0)"), "{err}");
+    assert!(!err.contains("still:") && !err.contains("camera:"), "{err}");
+
+    let still = render("still", &["--still", "--frames", "2"]);
+    let (auto, fixed, map) = (dir.join("auto.json"), dir.join("fixed.json"), dir.join("flip.png"));
+    let table =
+        ok(parallax(&["compare"], &[&still, &refdir, Path::new("--json"), &auto, Path::new("--flip-map"), &map]));
+    let reference_json = json(&refdir.join("reference.json"));
+    common::assert_typed_json("reference.json", &reference_json);
+    common::assert_typed_json("compare --json", &json(&auto));
+    common::assert_typed_json("render.json", &json(&still.join("render.json")));
+    let auto = json(&auto)["comparison"].clone();
+    assert_eq!(auto["exposure_mode"], "auto");
+    assert!(table.contains(&format!("exposure {:.4}, auto", auto["exposure"].as_f64().unwrap())), "{table}");
+    assert_eq!(reference_json["exposure_mode"], "auto");
+    assert_eq!(auto["exposure"], reference_json["exposure"], "the reference's own automatic exposure");
+    ok(parallax(&["compare", "--exposure", "16"], &[&still, &refdir, Path::new("--json"), &fixed]));
+    let fixed = json(&fixed)["comparison"].clone();
+    assert_eq!((fixed["exposure"].as_f64(), fixed["exposure_mode"].as_str()), (Some(16.0), Some("fixed")));
+    assert_ne!(fixed["overall"]["flip"], auto["overall"]["flip"]);
+    assert_eq!(fixed["overall"]["psnr_linear_db"], auto["overall"]["psnr_linear_db"], "linear figures ignore it");
+    // Two 16x12 views side by side, 2 pixels apart; some error, none of it maximal.
+    let map = image::open(&map).unwrap().to_rgb8();
+    assert_eq!(map.dimensions(), (34, 12));
+    assert!(map.pixels().any(|p| p.0 != [0, 0, 4]), "the error map is not all zero error");
+}

@@ -24,25 +24,40 @@ fn a_matrix_reports_a_failed_cell_and_writes_the_others() {
             .concat(),
     );
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let common = format!("--scene default {}", lf.join(" "));
-    let b = parallax(&[
-        "bench",
-        "--common",
-        &common,
-        "--pipelines",
-        "reproject",
-        "--devices",
-        "1,3",
-        "--fake-devices",
-        "--frames",
-        "2",
-        "--warmup",
-        "1",
-        "--reference",
-        reference.to_str().unwrap(),
-        "--out-dir",
-        out.to_str().unwrap(),
-    ]);
+    // A moving camera (no --still) against a still reference: refused after the first cell,
+    // naming the settings, before the others run.
+    let moving = format!("--scene default {}", lf.join(" "));
+    let run = |common: &str| {
+        parallax(&[
+            "bench",
+            "--common",
+            common,
+            "--pipelines",
+            "reproject",
+            "--devices",
+            "1,3",
+            "--fake-devices",
+            "--frames",
+            "2",
+            "--warmup",
+            "1",
+            "--reference",
+            reference.to_str().unwrap(),
+            "--out-dir",
+            out.to_str().unwrap(),
+        ])
+    };
+    let b = run(&moving);
+    let stderr = String::from_utf8_lossy(&b.stderr);
+    assert_eq!(b.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("still: moving (no --still) vs still")
+            && stderr.contains("camera: ")
+            && stderr.contains("--allow-mismatch"),
+        "{stderr}"
+    );
+    assert!(!out.join("reproject_multi-source_compact_k1_spp1_dnon_d3").exists(), "no cell ran after the refusal");
+    let b = run(&format!("{moving} --still"));
     assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("bench.json")).unwrap()).unwrap();
     let cells = json["cells"].as_array().unwrap();
@@ -72,6 +87,8 @@ fn a_matrix_reports_a_failed_cell_and_writes_the_others() {
     assert!(failed["error"].as_str().unwrap().contains("exceeds the 2 views"), "{failed}");
     let points: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("points.json")).unwrap()).unwrap();
     assert_eq!(points["points"].as_array().unwrap().len(), 1, "a point per cell that ran");
+    common::assert_typed_json("bench.json", &json);
+    common::assert_typed_json("points.json", &points);
     let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
     assert!(md.contains("failed") && md.contains(ok["id"].as_str().unwrap()));
 }
@@ -142,4 +159,59 @@ fn a_matrix_file_runs_each_cell_once_and_a_bad_one_nothing() {
     let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
     assert!(md.contains("| tiny |") && md.contains("Per stage, ms per frame") && md.contains("| hole_fill |"), "{md}");
     assert!(md.contains("| multi-source, round-robin |") && md.contains("## Scaling over devices"), "{md}");
+}
+
+/// A cut matrix goes on: each cell is reported on stderr as it ends (stderr is a pipe here, so
+/// no bar is drawn), and `--resume` keeps the cells bench.json has, runs the others, and
+/// refuses a bench.json of other frames.
+#[test]
+fn a_resumed_matrix_keeps_the_cells_it_has() {
+    let dir = scratch("bench", "resume");
+    let out = dir.join("bench");
+    let run = |spp: &str, frames: &str, resume: bool| {
+        let mut args = vec![
+            "bench",
+            "--common",
+            "--scene default --lf 2x1 --resolution 16x12 --spacing 0.05",
+            "--pipelines",
+            "path-trace",
+            "--spp",
+            spp,
+            "--frames",
+            frames,
+            "--warmup",
+            "0",
+            "--out-dir",
+            out.to_str().unwrap(),
+        ];
+        if resume {
+            args.push("--resume");
+        }
+        parallax(&args)
+    };
+    let cells = |out: &std::path::Path| -> Vec<serde_json::Value> {
+        let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("bench.json")).unwrap()).unwrap();
+        json["cells"].as_array().unwrap().clone()
+    };
+    let first = run("1", "1", false);
+    let stderr = String::from_utf8_lossy(&first.stderr);
+    assert!(first.status.success(), "{stderr}");
+    assert!(stderr.contains("cell 1/1 path-trace_multi-source_k1_spp1_dnon_d1: "), "{stderr}");
+    let before = cells(&out);
+
+    let second = run("1,2", "1", true);
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(second.status.success(), "{stderr}");
+    assert!(stderr.contains("cell 1/2 path-trace_multi-source_k1_spp1_dnon_d1 (kept from bench.json)"), "{stderr}");
+    assert!(stderr.contains("cell 2/2 path-trace_multi-source_k1_spp2_dnon_d1: ") && !stderr.contains("2 (kept"));
+    let after = cells(&out);
+    assert_eq!(after.len(), 2);
+    assert_eq!(after[0], before[0], "the kept cell is the first run's, not a new measurement");
+    assert_eq!(after[1]["ok"], true);
+
+    let refused = run("1,2", "2", true);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("frames = 1, this run asks 2"), "{stderr}");
+    assert_eq!(cells(&out), after, "a refused resume changes nothing");
 }

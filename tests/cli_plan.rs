@@ -30,6 +30,11 @@ fn json_summary_has_the_documented_fields() {
     assert_eq!(json["devices"], 4);
     assert_eq!(json["scheme"], "multi-source");
     assert_eq!(json["assign"], "contiguous");
+    // A fine scheme places row bands: no assignment to report (`--assign` is refused with it).
+    let fine = scratch("plan", "json-fine");
+    assert!(plan(&["--lf", "4x1", "--gpus", "2", "--scheme", "fine-all"], &fine).status.success());
+    let json_fine: serde_json::Value = serde_json::from_slice(&std::fs::read(fine.join("plan.json")).unwrap()).unwrap();
+    assert!(json_fine["assign"].is_null(), "{json_fine}");
     assert_eq!(json["sources"].as_array().unwrap().len(), 4);
     let sets = json["set_of_view"].as_array().unwrap();
     assert_eq!(sets.len(), 100);

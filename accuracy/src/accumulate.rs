@@ -12,10 +12,14 @@
 //! The f32 EXRs of the mean are not enough to resume (the f64 sum cannot be recovered from
 //! them), so the state lives in a sidecar, `reference.partial`, written atomically after every
 //! chunk: magic, a JSON header (settings, sizes, spp reached), then the f64 sums and the
-//! per-chunk image means, little-endian.
+//! per-chunk image means, little-endian, then the FNV-1a (64 bits) of everything before it. A
+//! resumed run trusts nothing it reads: the checksum, the size the header declares, header
+//! values that agree (spp = chunks × chunk_spp, finite seconds) and finite, non-negative sums.
 
 use std::collections::BTreeMap;
-use std::io::Write;
+use std::io::{Read, Write};
+
+use parallax_scene::input::{FNV1A_OFFSET, fnv1a, fnv1a_continue, open_regular};
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -26,7 +30,8 @@ use crate::error::{AccuracyError, Result};
 /// reference's noise is independent of the renderings it is compared with.
 pub const FRAME_BASE: u32 = 1 << 30;
 
-const MAGIC: &[u8; 8] = b"PLXREF01";
+/// Version 2 ends in a checksum; version 1 files are refused ("delete it to start over").
+const MAGIC: &[u8; 8] = b"PLXREF02";
 
 /// File name of the sidecar in a reference folder.
 pub const PARTIAL_FILE: &str = "reference.partial";
@@ -159,37 +164,103 @@ impl Accumulator {
         for s in self.sums.iter().chain(self.header.chunk_means.iter().flatten()) {
             bytes.extend_from_slice(&s.to_le_bytes());
         }
+        let checksum = fnv1a(&bytes);
+        bytes.extend_from_slice(&checksum.to_le_bytes());
         write_atomically(path, |f| f.write_all(&bytes))
     }
 
-    /// Reads a sidecar written by [`Accumulator::save`].
+    /// Reads a sidecar written by [`Accumulator::save`]: a regular file, its header first (at
+    /// most [`MAX_HEADER_BYTES`]), then exactly the sums the header declares, never more.
     pub fn load(path: &Path) -> Result<Self> {
         let bad = |detail: &str| AccuracyError::BadInput {
             path: path.into(),
             detail: format!("{detail}: not a partial reference of this version; delete it to start over"),
         };
-        let bytes =
-            std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
-        if bytes.len() < 16 || &bytes[..8] != MAGIC {
+        let read_err = |e: std::io::Error| AccuracyError::Read { path: path.into(), detail: e.to_string() };
+        let (mut file, size) = open_regular(path)?;
+        let mut start = [0u8; 16];
+        if size < 16 || file.read_exact(&mut start).is_err() || &start[..8] != MAGIC {
             return Err(bad("bad magic"));
         }
-        let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-        let header_end =
-            16usize.checked_add(len).filter(|&e| e <= bytes.len()).ok_or_else(|| bad("truncated header"))?;
+        let len = u64::from_le_bytes(start[8..16].try_into().expect("8 bytes"));
+        if len > MAX_HEADER_BYTES || 16 + len > size {
+            return Err(bad("truncated header"));
+        }
+        let mut header_bytes = vec![0u8; len as usize];
+        file.read_exact(&mut header_bytes).map_err(read_err)?;
         let mut header: ReferenceHeader =
-            serde_json::from_slice(&bytes[16..header_end]).map_err(|e| bad(&format!("bad header ({e})")))?;
-        let count = header.views * header.width * header.height * 3;
-        if bytes.len() - header_end != (count + 3 * header.chunks as usize) * 8 {
+            serde_json::from_slice(&header_bytes).map_err(|e| bad(&format!("bad header ({e})")))?;
+        let count = header
+            .views
+            .checked_mul(header.width)
+            .and_then(|n| n.checked_mul(header.height))
+            .and_then(|n| n.checked_mul(3));
+        let declared = count
+            .and_then(|c| c.checked_add(usize::try_from(header.chunks).ok()?.checked_mul(3)?))
+            .and_then(|values| values.checked_mul(8));
+        let (Some(count), Some(declared)) = (count, declared) else { return Err(bad("sum data of the wrong length")) };
+        if size - 16 - len != declared as u64 + 8 {
             return Err(bad("sum data of the wrong length"));
         }
-        let mut values =
-            bytes[header_end..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
+        let mut data = Vec::with_capacity(declared + 8);
+        file.take(declared as u64 + 8).read_to_end(&mut data).map_err(read_err)?;
+        if data.len() != declared + 8 {
+            return Err(bad("sum data of the wrong length"));
+        }
+        let stored = u64::from_le_bytes(data[declared..].try_into().expect("8 bytes"));
+        let computed =
+            [&start[..], &header_bytes, &data[..declared]].iter().fold(FNV1A_OFFSET, |h, part| fnv1a_continue(h, part));
+        if stored != computed {
+            return Err(AccuracyError::BadInput {
+                path: path.into(),
+                detail:
+                    "its checksum does not match its contents (the file was edited or damaged); delete it to start over"
+                        .into(),
+            });
+        }
+        check_header(&header).map_err(|e| AccuracyError::BadInput {
+            path: path.into(),
+            detail: format!("{e}; delete it to start over"),
+        })?;
+        let mut values = data[..declared].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
         let sums = values.by_ref().take(count).collect();
         header.chunk_means =
             (0..header.chunks).map(|_| [0; 3].map(|_| values.next().expect("length checked"))).collect();
-        Ok(Self { header, sums })
+        let acc = Self { header, sums };
+        if let Some(bad_value) =
+            acc.sums.iter().chain(acc.header.chunk_means.iter().flatten()).find(|v| !(v.is_finite() && **v >= 0.0))
+        {
+            return Err(AccuracyError::BadInput {
+                path: path.into(),
+                detail: format!(
+                    "it holds a radiance sum of {bad_value}, not a finite non-negative number; delete it to start over"
+                ),
+            });
+        }
+        Ok(acc)
     }
 }
+
+/// Header values that agree with each other: what a checksum cannot vouch for if the file was
+/// rewritten whole by something else.
+fn check_header(h: &ReferenceHeader) -> std::result::Result<(), String> {
+    if h.views == 0 || h.width == 0 || h.height == 0 || h.chunk_spp == 0 {
+        return Err(format!(
+            "its header has {} views of {}x{} in chunks of {} spp",
+            h.views, h.width, h.height, h.chunk_spp
+        ));
+    }
+    if h.chunks.checked_mul(u64::from(h.chunk_spp)) != Some(h.spp) {
+        return Err(format!("its header says {} spp from {} chunk(s) of {} spp", h.spp, h.chunks, h.chunk_spp));
+    }
+    if !(h.seconds.is_finite() && h.seconds >= 0.0 && h.seconds <= 1e9) {
+        return Err(format!("its header says {} seconds of tracing", h.seconds));
+    }
+    Ok(())
+}
+
+/// The largest JSON header a partial reference may have (its settings are a few lines).
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
 
 /// Prefix of the temporary files of [`write_atomically`]; a killed process can leave them
 /// behind, and [`remove_stale_temporaries`] clears them.
@@ -305,5 +376,42 @@ mod tests {
         assert!(matches!(Accumulator::load(&path), Err(AccuracyError::BadInput { .. })));
         std::fs::write(&path, b"junk").unwrap();
         assert!(matches!(Accumulator::load(&path), Err(AccuracyError::BadInput { .. })));
+    }
+
+    /// An edited sum, an spp that is not chunks × chunk_spp, NaN sums or seconds of 1e308 are
+    /// refused, each with what is wrong.
+    #[test]
+    fn an_edited_sidecar_is_refused_naming_what_is_wrong() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(PARTIAL_FILE);
+        let detail = |acc: &Accumulator| {
+            acc.save(&path).unwrap();
+            match Accumulator::load(&path) {
+                Err(AccuracyError::BadInput { detail, .. }) => detail,
+                other => panic!("{other:?}"),
+            }
+        };
+        let mut acc = Accumulator::new(settings("6"), 2, (3, 2), 4);
+        acc.add_chunk(&chunk(1), 0.5);
+        acc.save(&path).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        let last_sum = bytes.len() - 16;
+        bytes[last_sum] ^= 1;
+        std::fs::write(&path, &bytes).unwrap();
+        assert!(
+            matches!(Accumulator::load(&path), Err(AccuracyError::BadInput { detail, .. }) if detail.contains("checksum"))
+        );
+        let mut odd = acc.clone();
+        odd.header.spp = 177;
+        assert!(detail(&odd).contains("177 spp from 1 chunk(s) of 4 spp"));
+        let mut slow = acc.clone();
+        slow.header.seconds = 1e308;
+        assert!(detail(&slow).contains("seconds of tracing"));
+        let mut nan = acc.clone();
+        nan.add_chunk(&vec![vec![[f32::NAN, 0.0, 0.0]; 6]; 2], 0.5);
+        assert!(detail(&nan).contains("radiance sum of NaN"));
+        let mut negative = acc.clone();
+        negative.add_chunk(&vec![vec![[-1e5, 0.0, 0.0]; 6]; 2], 0.5);
+        assert!(detail(&negative).contains("not a finite non-negative number"));
     }
 }

@@ -1,8 +1,12 @@
 //! Charts with plotters, as SVG or PNG (chosen by the file extension): speed against accuracy
 //! with its Pareto front, scaling over devices with the ideal line, frame time over views,
-//! missing pixels against hole-filling time, and (in
+//! missing pixels against hole-filling time, missing pixels against the reprojection tolerance,
+//! and (in
 //! [`crate::timeline`]) a per-device timeline of a Chrome trace. 960×600 pixels, 15-18 px text:
-//! readable at 100 % zoom.
+//! readable at 100 % zoom. The legend sits beside the plot, never over data, each swatch drawn
+//! as its series is (marker, line, dashes or bar); point labels are short (only what tells the
+//! points apart), stay inside the plot, and a label that would overlap another label or a
+//! marker is left out rather than drawn over it.
 
 use std::path::Path;
 
@@ -110,12 +114,17 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
     }
     let all: Vec<(f64, f64)> =
         groups.iter().flat_map(|(_, ps)| ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?)))).collect();
+    let front_xy = pareto_front(&all, axis == AccuracyAxis::Psnr);
     let front = Series {
         name: "Pareto front".into(),
         color: Colour::Neutral,
         style: Style::Dashed,
-        points: pareto_front(&all, axis == AccuracyAxis::Psnr).into_iter().map(|(x, y)| (x, y, None)).collect(),
+        points: front_xy.iter().map(|&(x, y)| (x, y, None)).collect(),
     };
+    let names = short_labels(&groups.iter().flat_map(|(_, ps)| ps.iter().map(|p| p.label.clone())).collect::<Vec<_>>());
+    let mut names = names.into_iter();
+    // Only the front's points are labelled: the others are dominated, and labelling all of
+    // them crowds the plot past reading.
     let mut series: Vec<Series> = groups
         .into_iter()
         .enumerate()
@@ -123,13 +132,20 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
             name,
             color: Colour::Palette(color),
             style: Style::Points,
-            points: ps.iter().filter_map(|p| Some((p.frame_ms?, y(p)?, Some(p.label.clone())))).collect(),
+            points: ps
+                .iter()
+                .map(|p| (p, names.next()))
+                .filter_map(|(p, label)| {
+                    let (x, y) = (p.frame_ms?, y(p)?);
+                    Some((x, y, label.filter(|_| front_xy.contains(&(x, y)))))
+                })
+                .collect(),
         })
         .collect();
     // First, so that the markers are drawn over it.
     series.insert(0, front);
     Ok(XyChart {
-        title: "Speed against accuracy (dashed: Pareto front)".into(),
+        title: "Speed against accuracy (labelled: the Pareto front)".into(),
         x_label: "frame time (ms)".into(),
         y_label: match axis {
             AccuracyAxis::Flip => "mean FLIP (LDR, lower is better)".into(),
@@ -213,11 +229,10 @@ pub fn holes(points: &[Point]) -> Result<XyChart> {
     if groups.is_empty() {
         return Err(none_usable("both missing and hole_fill_ms (bench's points.json has them for reprojecting cells)"));
     }
-    let label = |p: &Point| match (p.sources_per_set, p.spp) {
-        (Some(k), Some(spp)) => format!("k{k} spp{spp}"),
-        (Some(k), None) => format!("k{k}"),
-        (None, _) => p.label.clone(),
-    };
+    // What tells the points apart (their ids less what all share), so no two read the same.
+    let mut names =
+        short_labels(&groups.iter().flat_map(|(_, ps)| ps.iter().map(|p| p.label.clone())).collect::<Vec<_>>())
+            .into_iter();
     let series = groups
         .into_iter()
         .enumerate()
@@ -225,13 +240,78 @@ pub fn holes(points: &[Point]) -> Result<XyChart> {
             name,
             color: Colour::Palette(color),
             style: Style::Points,
-            points: ps.iter().filter_map(|p| Some((100.0 * p.missing?, p.hole_fill_ms?, Some(label(p))))).collect(),
+            points: ps
+                .iter()
+                .map(|p| (p, names.next()))
+                .filter_map(|(p, label)| Some((100.0 * p.missing?, p.hole_fill_ms?, label)))
+                .collect(),
         })
         .collect();
     Ok(XyChart {
         title: "Missing pixels against hole-filling time".into(),
         x_label: "missing pixels (%)".into(),
         y_label: "hole filling (ms per frame, all devices)".into(),
+        series,
+        integer_x: false,
+    })
+}
+
+/// Labels shortened to what tells them apart: a `case/` prefix all share is dropped, and so is
+/// every `_`-separated word all of them have (`reproject_multi-source_k1_spp4_dnon_d1` among
+/// cells that differ only in pipeline and spp reads `reproject spp4`). Labels that would read
+/// alike keep their words.
+pub fn short_labels(labels: &[String]) -> Vec<String> {
+    let prefix = labels.first().and_then(|l| l.split_once('/')).map(|(p, _)| format!("{p}/"));
+    let prefix = prefix.filter(|p| labels.iter().all(|l| l.starts_with(p.as_str()))).unwrap_or_default();
+    let words: Vec<Vec<&str>> =
+        labels.iter().map(|l| l[prefix.len()..].split(['_', ' ']).filter(|w| !w.is_empty()).collect()).collect();
+    let shared = |w: &str| words.iter().all(|ws| ws.contains(&w));
+    let short: Vec<String> = words
+        .iter()
+        .map(|ws| {
+            let kept: Vec<&str> = ws.iter().copied().filter(|w| !shared(w)).collect();
+            if kept.is_empty() { ws.join(" ") } else { kept.join(" ") }
+        })
+        .collect();
+    short
+        .iter()
+        .zip(&words)
+        .map(|(s, ws)| if short.iter().filter(|t| *t == s).count() > 1 { ws.join(" ") } else { s.clone() })
+        .collect()
+}
+
+/// Missing pixels (%) against the reprojection tolerance, one line per bench case (points of
+/// reprojecting cells), each point labelled with its accuracy figure of `accuracy` when it has
+/// one: where reprojecting more starts to cost accuracy.
+pub fn tolerance(points: &[Point], accuracy: AccuracyAxis) -> Result<XyChart> {
+    let groups = group_by(
+        points,
+        |p| p.missing.is_some() && p.reprojection_tolerance.is_some(),
+        |p| p.case.as_deref().unwrap_or("all"),
+    );
+    if groups.is_empty() {
+        return Err(none_usable(
+            "both missing and reprojection_tolerance (bench's points.json has them for reprojecting cells)",
+        ));
+    }
+    let label = |p: &Point| match accuracy {
+        AccuracyAxis::Flip => p.flip.map(|f| format!("FLIP {f:.4}")),
+        AccuracyAxis::Psnr => p.psnr.map(|db| format!("{db:.2} dB")),
+    };
+    let series = groups
+        .into_iter()
+        .enumerate()
+        .map(|(color, (name, ps))| {
+            let mut points: Vec<(f64, f64, Option<String>)> =
+                ps.iter().filter_map(|p| Some((p.reprojection_tolerance?, 100.0 * p.missing?, label(p)))).collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            Series { name, color: Colour::Palette(color), style: Style::Line, points }
+        })
+        .collect();
+    Ok(XyChart {
+        title: "Missing pixels against the reprojection tolerance".into(),
+        x_label: "reprojection tolerance (bound on the relative error from view-dependence)".into(),
+        y_label: "missing pixels (%)".into(),
         series,
         integer_x: false,
     })
@@ -274,20 +354,111 @@ pub(crate) fn color(i: usize) -> RGBColor {
     RGBColor(c.0, c.1, c.2)
 }
 
+/// Width of the legend beside the plot, in pixels.
+pub(crate) const LEGEND_WIDTH: u32 = 240;
+
+/// How a legend entry's swatch is drawn: as its series is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Swatch {
+    Marker,
+    LineWithMarker,
+    Dashed,
+    Bar,
+}
+
+/// The legend in its own area beside the plot: one entry per series, its swatch, then its name
+/// wrapped to the area's width; then the key of the numbered points.
+pub(crate) fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[(String, RGBColor, Swatch)],
+    key: &[(usize, String)],
+) -> Result<()> {
+    let font = (FONT, 15).into_font();
+    let chars_per_line = ((LEGEND_WIDTH as i32 - 50) / 8).max(8) as usize;
+    let mut y = 70;
+    for (name, c, swatch) in entries {
+        let (x0, x1) = (8, 36);
+        match swatch {
+            Swatch::Marker => area.draw(&Circle::new((22, y), 5, c.filled())),
+            Swatch::LineWithMarker => area
+                .draw(&PathElement::new(vec![(x0, y), (x1, y)], c.stroke_width(2)))
+                .and_then(|_| area.draw(&Circle::new((22, y), 4, c.filled()))),
+            Swatch::Dashed => (0..3).try_for_each(|k| {
+                let a = x0 + k * 11;
+                area.draw(&PathElement::new(vec![(a, y), (a + 6, y)], c.stroke_width(2)))
+            }),
+            Swatch::Bar => area.draw(&Rectangle::new([(x0 + 4, y - 6), (x1 - 4, y + 6)], c.mix(0.8).filled())),
+        }
+        .map_err(chart_err)?;
+        for line in wrap(name, chars_per_line) {
+            area.draw(&Text::new(line, (44, y - 8), font.clone())).map_err(chart_err)?;
+            y += 19;
+        }
+        y += 6;
+    }
+    y += 10;
+    let small = (FONT, 14).into_font();
+    for (n, label) in key {
+        area.draw(&Text::new(n.to_string(), (14, y - 8), small.clone())).map_err(chart_err)?;
+        for line in wrap(label, chars_per_line) {
+            area.draw(&Text::new(line, (44, y - 8), small.clone())).map_err(chart_err)?;
+            y += 17;
+        }
+    }
+    Ok(())
+}
+
+/// `text` in lines of at most `width` characters, broken at spaces where it can be.
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    for word in text.split(' ') {
+        match lines.last_mut() {
+            Some(line) if line.chars().count() + 1 + word.chars().count() <= width => {
+                line.push(' ');
+                line.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
+        }
+    }
+    lines
+}
+
+/// Pixel boxes (x0, y0, x1, y1) overlap.
+fn overlaps(a: (i32, i32, i32, i32), b: (i32, i32, i32, i32)) -> bool {
+    a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3
+}
+
+/// Where a `w`×`h` label of a marker at pixel `(px, py)` goes: the first of eight places around
+/// it, near ones first, inside `bounds` that overlaps nothing in `taken`; `None` when every place
+/// does.
+fn label_place(
+    (px, py): (i32, i32),
+    (w, h): (i32, i32),
+    bounds: (i32, i32, i32, i32),
+    taken: &[(i32, i32, i32, i32)],
+) -> Option<(i32, i32)> {
+    let near = [(7, -h - 1), (7, 1), (-w - 7, -h - 1), (-w - 7, 1)];
+    let far = [(-w / 2, -h - 8), (-w / 2, 8), (16, -h / 2), (-w - 16, -h / 2)];
+    near.into_iter().chain(far).find(|&(dx, dy)| {
+        let b = (px + dx, py + dy, px + dx + w, py + dy + h);
+        b.0 >= bounds.0
+            && b.1 >= bounds.1
+            && b.2 <= bounds.2
+            && b.3 <= bounds.3
+            && !taken.iter().any(|&t| overlaps(b, t))
+    })
+}
+
 impl XyChart {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         root.fill(&WHITE).map_err(chart_err)?;
+        let (plot, legend) = root.split_horizontally(SIZE.0 - LEGEND_WIDTH);
         let all = || self.series.iter().flat_map(|s| s.points.iter());
-        let mut xr = range(all().map(|p| p.0), true);
-        let mut yr = range(all().map(|p| p.1), true);
-        // Room for point labels on the right and for the legend at the top.
-        if all().any(|p| p.2.is_some()) {
-            xr.end += (xr.end - xr.start) * 0.3;
-        }
-        yr.end += (yr.end - yr.start) * 0.2;
+        let xr = range(all().map(|p| p.0), true);
+        let yr = range(all().map(|p| p.1), true);
         let integer_x = self.integer_x;
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, (FONT, 22))
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(&self.title, (FONT, 20))
             .margin(20)
             .x_label_area_size(50)
             .y_label_area_size(80)
@@ -310,50 +481,54 @@ impl XyChart {
             })
             .draw()
             .map_err(chart_err)?;
-        // Label boxes already placed, in pixels: a label takes the first of four places beside
-        // its marker that overlaps none of them.
-        let mut placed: Vec<(i32, i32, i32, i32)> = Vec::new();
+        let (xs, ys) = chart.plotting_area().get_pixel_range();
+        let bounds = (xs.start, ys.start, xs.end, ys.end);
+        // Every marker's box is taken before any label is placed, so no label covers a marker.
+        let mut taken: Vec<(i32, i32, i32, i32)> = all()
+            .map(|p| {
+                let (x, y) = chart.backend_coord(&(p.0, p.1));
+                (x - 5, y - 5, x + 5, y + 5)
+            })
+            .collect();
+        let mut entries = Vec::new();
+        let mut key: Vec<(usize, String)> = Vec::new();
         for s in &self.series {
             let c = s.color.rgb();
             let xy: Vec<(f64, f64)> = s.points.iter().map(|p| (p.0, p.1)).collect();
-            let legend = match s.style {
+            let swatch = match s.style {
                 Style::Points => {
-                    chart.draw_series(xy.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(chart_err)?
+                    chart.draw_series(xy.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(chart_err)?;
+                    Swatch::Marker
                 }
                 Style::Line => {
                     chart.draw_series(xy.iter().map(|&p| Circle::new(p, 4, c.filled()))).map_err(chart_err)?;
-                    chart.draw_series(LineSeries::new(xy.clone(), c.stroke_width(2))).map_err(chart_err)?
+                    chart.draw_series(LineSeries::new(xy.clone(), c.stroke_width(2))).map_err(chart_err)?;
+                    Swatch::LineWithMarker
                 }
                 Style::Dashed => {
-                    chart.draw_series(DashedLineSeries::new(xy.clone(), 8, 6, c.stroke_width(2))).map_err(chart_err)?
+                    chart.draw_series(DashedLineSeries::new(xy.clone(), 8, 6, c.stroke_width(2))).map_err(chart_err)?;
+                    Swatch::Dashed
                 }
             };
-            let name = if s.name.is_empty() { "points".to_string() } else { s.name.clone() };
-            legend.label(name).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
-            let mut labels = Vec::new();
+            entries.push((if s.name.is_empty() { "points".to_string() } else { s.name.clone() }, c, swatch));
+            // A labelled point shows a number beside its marker; the legend's key says what it is.
+            let mut numbers = Vec::new();
             for (x, y, label) in &s.points {
                 let Some(label) = label else { continue };
-                let (px, py) = chart.backend_coord(&(*x, *y));
-                let (w, h) = (label.chars().count() as i32 * 8, 16);
-                let candidates = [(7, -16), (7, 4), (-w - 7, -16), (-w - 7, 4)];
-                let free = |&(dx, dy): &(i32, i32)| {
-                    let (x0, y0) = (px + dx, py + dy);
-                    !placed.iter().any(|&(a, b, c, d)| x0 < c && a < x0 + w && y0 < d && b < y0 + h)
+                let n = key.len() + 1;
+                let pixel = chart.backend_coord(&(*x, *y));
+                let size = (n.to_string().len() as i32 * 8 + 2, 15);
+                let Some((dx, dy)) = label_place(pixel, size, bounds, &taken) else {
+                    key.push((n, format!("{label} (not shown: no room)")));
+                    continue;
                 };
-                let (dx, dy) = candidates.iter().copied().find(free).unwrap_or(candidates[0]);
-                placed.push((px + dx, py + dy, px + dx + w, py + dy + h));
-                labels.push(EmptyElement::at((*x, *y)) + Text::new(label.clone(), (dx, dy), (FONT, 14)));
+                taken.push((pixel.0 + dx, pixel.1 + dy, pixel.0 + dx + size.0, pixel.1 + dy + size.1));
+                key.push((n, label.clone()));
+                numbers.push(EmptyElement::at((*x, *y)) + Text::new(n.to_string(), (dx + 1, dy), (FONT, 14)));
             }
-            chart.draw_series(labels).map_err(chart_err)?;
+            chart.draw_series(numbers).map_err(chart_err)?;
         }
-        chart
-            .configure_series_labels()
-            .label_font((FONT, 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(chart_err)?;
+        draw_legend(&legend, &entries, &key)?;
         root.present().map_err(chart_err)
     }
 
@@ -412,6 +587,32 @@ mod tests {
     }
 
     #[test]
+    fn tolerance_has_a_line_per_case_sorted_by_tolerance_and_labelled_with_accuracy() {
+        let point = |case: &str, t: f64, missing: f64, psnr: Option<f64>| Point {
+            label: format!("{case}/{t}"),
+            case: Some(case.into()),
+            missing: Some(missing),
+            reprojection_tolerance: Some(t),
+            psnr,
+            ..Default::default()
+        };
+        let points = [
+            point("sponza", 0.5, 0.02, Some(37.7)),
+            point("sponza", 0.05, 0.06, Some(37.8)),
+            point("default", 0.2, 0.04, None),
+            Point { reprojection_tolerance: None, ..point("sponza", 1.0, 0.01, None) },
+        ];
+        let chart = tolerance(&points, AccuracyAxis::Psnr).unwrap();
+        let names: Vec<&str> = chart.series.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["sponza", "default"]);
+        assert_eq!(chart.series[0].points, [(0.05, 6.0, Some("37.80 dB".into())), (0.5, 2.0, Some("37.70 dB".into()))]);
+        assert_eq!(chart.series[1].points, [(0.2, 4.0, None)]);
+        assert!(
+            tolerance(&points[3..], AccuracyAxis::Flip).unwrap_err().to_string().contains("reprojection_tolerance")
+        );
+    }
+
+    #[test]
     fn holes_has_a_series_per_assignment_of_the_points_with_both_figures() {
         let points = [
             cell("compact", 1, Some(0.02), Some(0.5)),
@@ -422,9 +623,50 @@ mod tests {
         let chart = holes(&points).unwrap();
         let names: Vec<&str> = chart.series.iter().map(|s| s.name.as_str()).collect();
         assert_eq!(names, ["compact", "round-robin"]);
-        assert_eq!(chart.series[0].points[1], (1.0, 0.4, Some("k2 spp1".into())));
+        assert_eq!(chart.series[0].points[1], (1.0, 0.4, Some("compact k2".into())));
         let none = [cell("compact", 1, Some(0.02), None), cell("compact", 1, None, Some(0.5))];
         assert!(holes(&none).unwrap_err().to_string().contains("both missing and hole_fill_ms"));
+    }
+
+    #[test]
+    fn short_labels_keep_what_tells_points_apart() {
+        let ids = [
+            "sponza/reproject_multi-source_k1_spp1_dnon_d1",
+            "sponza/reproject_multi-source_k1_spp4_dnon_d1",
+            "sponza/path-trace_multi-source_k1_spp1_dnon_d1",
+        ]
+        .map(String::from);
+        assert_eq!(short_labels(&ids), ["reproject spp1", "reproject spp4", "path-trace spp1"]);
+        // Two that differ only in a word they both have elsewhere keep every word.
+        let alike = ["a_x_y", "a_y_x"].map(String::from);
+        assert_eq!(short_labels(&alike), ["a x y", "a y x"]);
+        assert_eq!(short_labels(&["one_label".to_string()]), ["one label"]);
+    }
+
+    #[test]
+    fn labels_go_where_nothing_else_is_or_nowhere() {
+        let bounds = (0, 0, 200, 100);
+        assert_eq!(label_place((50, 50), (40, 16), bounds, &[]), Some((7, -17)), "above right first");
+        assert_eq!(label_place((50, 50), (40, 16), bounds, &[(57, 33, 97, 49)]), Some((7, 1)));
+        assert_eq!(label_place((190, 50), (40, 16), bounds, &[]), Some((-47, -17)), "not past the right edge");
+        assert_eq!(label_place((50, 50), (40, 16), bounds, &[(0, 0, 200, 100)]), None, "left out, not overlapped");
+    }
+
+    #[test]
+    fn speed_accuracy_labels_only_the_front() {
+        let p = |label: &str, frame_ms: f64, flip: f64| Point {
+            label: label.into(),
+            frame_ms: Some(frame_ms),
+            flip: Some(flip),
+            ..Default::default()
+        };
+        let chart = speed_accuracy(
+            &[p("a_fast", 10.0, 0.05), p("a_slow", 20.0, 0.08), p("a_good", 30.0, 0.01)],
+            AccuracyAxis::Flip,
+        )
+        .unwrap();
+        let labels: Vec<Option<String>> = chart.series[1].points.iter().map(|p| p.2.clone()).collect();
+        assert_eq!(labels, [Some("fast".into()), None, Some("good".into())]);
     }
 
     #[test]

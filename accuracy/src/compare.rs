@@ -1,5 +1,8 @@
 //! Comparing two EXR files, or two light-field folders view by view (matched by file name,
-//! `view_NNN.exr`), into per-view and pooled [`Metrics`], as JSON or a markdown table.
+//! `view_NNN.exr`), into per-view and pooled [`Metrics`], as JSON or a markdown table. The
+//! perceptual figures see both sides tonemapped at one exposure: a fixed one, or by default the
+//! automatic exposure of the whole reference ([`crate::exposure`]), so they measure the error
+//! as the images show at a visible brightness.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -7,8 +10,9 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::error::{AccuracyError, Result};
+use crate::exposure::{Exposure, LogAverage};
 use crate::image::RgbImage;
-use crate::metrics::{ErrorSums, Metrics, compare_images};
+use crate::metrics::{ErrorSums, Metrics, compare_images_at};
 
 /// One view's figures.
 #[derive(Clone, Debug, Serialize)]
@@ -26,13 +30,28 @@ pub struct ViewMetrics {
 pub struct Comparison {
     pub test: PathBuf,
     pub reference: PathBuf,
+    /// The exposure both sides were tonemapped at for PSNR tm, SSIM and FLIP.
+    pub exposure: f32,
+    /// `auto` (the reference's) or `fixed`.
+    pub exposure_mode: &'static str,
     pub views: Vec<ViewMetrics>,
     pub overall: Metrics,
+    /// Each view's per-pixel FLIP error (row-major), in `views` order, when asked for.
+    #[serde(skip)]
+    pub flip_maps: Vec<Vec<f32>>,
+}
+
+/// How to compare.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CompareOptions {
+    pub exposure: Exposure,
+    /// Keep each view's FLIP error map in [`Comparison::flip_maps`].
+    pub flip_maps: bool,
 }
 
 /// Compares `test` against `reference`: two EXR files, or two folders whose `view_*.exr` sets
 /// must be equal.
-pub fn compare_paths(test: &Path, reference: &Path) -> Result<Comparison> {
+pub fn compare_paths(test: &Path, reference: &Path, options: &CompareOptions) -> Result<Comparison> {
     let pairs = match (test.is_dir(), reference.is_dir()) {
         (true, true) => matched_views(test, reference)?,
         (false, false) => {
@@ -49,8 +68,19 @@ pub fn compare_paths(test: &Path, reference: &Path) -> Result<Comparison> {
             });
         }
     };
+    // The automatic exposure is the reference's, over all its views: one pass to find it, one
+    // to compare (a light field is too large to hold whole).
+    let mut average = LogAverage::default();
+    if options.exposure == Exposure::Auto {
+        for (_, _, b) in &pairs {
+            let image = RgbImage::read_exr(b)?;
+            average.add_image(image.width, &image.pixels);
+        }
+    }
+    let exposure = options.exposure.resolve(&average);
     let mut pooled = ErrorSums::default();
     let mut views = Vec::new();
+    let mut flip_maps = Vec::new();
     // Non-finite pixels are counted over every image first, so one error reports them all.
     let (mut non_finite, mut total) = (Vec::new(), 0);
     for (name, a, b) in pairs {
@@ -66,14 +96,25 @@ pub fn compare_paths(test: &Path, reference: &Path) -> Result<Comparison> {
         if !finite {
             continue;
         }
-        let sums = compare_images(&ta, &a.display().to_string(), &tb, &b.display().to_string())?;
-        pooled.add(&sums);
-        views.push(ViewMetrics { name, width: ta.width, height: ta.height, metrics: sums.metrics() });
+        let one = compare_images_at(&ta, &a.display().to_string(), &tb, &b.display().to_string(), exposure)?;
+        pooled.add(&one.sums);
+        views.push(ViewMetrics { name, width: ta.width, height: ta.height, metrics: one.sums.metrics() });
+        if options.flip_maps {
+            flip_maps.push(one.flip_map);
+        }
     }
     if !non_finite.is_empty() {
         return Err(AccuracyError::NonFiniteViews { total, report: non_finite.join("; ") });
     }
-    Ok(Comparison { test: test.into(), reference: reference.into(), views, overall: pooled.metrics() })
+    Ok(Comparison {
+        test: test.into(),
+        reference: reference.into(),
+        exposure,
+        exposure_mode: options.exposure.mode(),
+        views,
+        overall: pooled.metrics(),
+        flip_maps,
+    })
 }
 
 fn view_names(folder: &Path) -> Result<BTreeSet<String>> {
@@ -117,19 +158,23 @@ impl Comparison {
     pub fn markdown(&self) -> String {
         let mut s = format!(
             "`{}` against the reference `{}`. PSNR lin: linear radiance clamped to [0, 1]; PSNR tm, SSIM, FLIP: \
-             tonemapped 8-bit sRGB (ACES, exposure 1); relMSE: linear, ε = 0.01.\n\n",
+             tonemapped 8-bit sRGB (ACES, exposure {:.4}, {}); relMSE: linear, ε = 0.01; mean ratio: mean linear r, g, b \
+             of the test over the reference's.\n\n",
             self.test.display(),
-            self.reference.display()
+            self.reference.display(),
+            self.exposure,
+            self.exposure_mode
         );
-        s += "| view | size | PSNR lin (dB) | PSNR tm (dB) | SSIM | FLIP | relMSE |\n|---|---|---|---|---|---|---|\n";
+        s += "| view | size | PSNR lin (dB) | PSNR tm (dB) | SSIM | FLIP | relMSE | mean ratio r, g, b |\n|---|---|---|---|---|---|---|---|\n";
         let row = |name: &str, size: String, m: &Metrics| {
             format!(
-                "| {name} | {size} | {} | {} | {:.5} | {:.5} | {:.3e} |\n",
+                "| {name} | {size} | {} | {} | {:.5} | {:.5} | {:.3e} | {} |\n",
                 db(m.psnr_linear_db),
                 db(m.psnr_tonemapped_db),
                 m.ssim,
                 m.flip,
-                m.rel_mse
+                m.rel_mse,
+                m.mean_ratio.map(|r| format!("{r:.4}")).join(", ")
             )
         };
         for v in &self.views {

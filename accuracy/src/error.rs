@@ -37,6 +37,9 @@ pub enum AccuracyError {
         /// Every flag that differs, as `--flag stored (this run: --flag given)`, `; `-separated.
         differences: String,
     },
+    /// Not a regular file, too large, a symlink loop.
+    #[error(transparent)]
+    Input(#[from] parallax_scene::input::InputError),
     #[error("chart: {0}")]
     Chart(String),
 }

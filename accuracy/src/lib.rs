@@ -25,6 +25,7 @@ pub mod accumulate;
 pub mod chart;
 pub mod compare;
 pub mod error;
+pub mod exposure;
 pub mod flip;
 pub mod image;
 pub mod metrics;
@@ -35,8 +36,8 @@ pub mod timeline;
 pub use accumulate::{
     Accumulator, FRAME_BASE, PARTIAL_FILE, ReferenceHeader, remove_stale_temporaries, write_atomically,
 };
-pub use compare::{Comparison, ViewMetrics, compare_paths};
+pub use compare::{CompareOptions, Comparison, ViewMetrics, compare_paths};
 pub use error::{AccuracyError, Result};
 pub use image::RgbImage;
-pub use metrics::{ErrorSums, Metrics, compare_images};
+pub use metrics::{ErrorSums, ImageComparison, Metrics, compare_images, compare_images_at};
 pub use points::{Point, load_points};

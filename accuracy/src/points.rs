@@ -5,13 +5,14 @@
 //! { "points": [ { "label": "multi-source, 2 GPUs", "series": "multi-source",
 //!                 "frame_ms": 12.5, "flip": 0.041, "psnr": 31.2, "devices": 2, "views": 32,
 //!                 "case": "nelf", "assignment": "compact", "sources_per_set": 2, "spp": 4,
-//!                 "missing": 0.012, "hole_fill_ms": 0.8 } ] }
+//!                 "missing": 0.012, "hole_fill_ms": 0.8, "reprojection_tolerance": 0.2 } ] }
 //! ```
 //!
 //! Every field but `label` is optional; a chart uses the points that have what it plots.
 //! `case`: the bench case the point belongs to (`chart --case`); `assignment`: how views were
 //! assigned to devices; `missing`: fraction of reprojected pixels that were holes;
-//! `hole_fill_ms`: hole-filling GPU time per frame, summed over devices.
+//! `hole_fill_ms`: hole-filling GPU time per frame, summed over devices;
+//! `reprojection_tolerance`: `render --reprojection-tolerance` of a reprojecting run.
 //! `frame_ms`: milliseconds per frame (render.json: the GPU span of the frame); `flip`: mean
 //! LDR-FLIP; `psnr`: dB on linear radiance clamped to [0, 1]; `series` groups points into one
 //! line or colour. Accepted files: `{"points": [...]}`, `{"point": {...}}` (what `compare --json`
@@ -22,6 +23,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{AccuracyError, Result};
+use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Point {
@@ -50,13 +52,37 @@ pub struct Point {
     pub missing: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hole_fill_ms: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reprojection_tolerance: Option<f64>,
 }
 
 impl Point {
     pub fn series_name(&self) -> &str {
         self.series.as_deref().unwrap_or("")
     }
+
+    /// Every value a chart can draw: a negative time, a FLIP outside 0..=1 or a 1e308 would give
+    /// an axis of garbled ticks, so such a point is refused with the field and its range.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let fields = [
+            ("frame_ms", self.frame_ms, 0.0..=MAX_MS),
+            ("hole_fill_ms", self.hole_fill_ms, 0.0..=MAX_MS),
+            ("flip", self.flip, 0.0..=1.0),
+            ("psnr", self.psnr, -1e3..=1e3),
+            ("missing", self.missing, 0.0..=100.0),
+        ];
+        for (name, value, range) in fields {
+            if let Some(v) = value.filter(|v| !range.contains(v)) {
+                let shown = if v.abs() >= 1e6 { format!("{v:e}") } else { v.to_string() };
+                return Err(format!("{name} {shown} is outside {}..={}", range.start(), range.end()));
+            }
+        }
+        Ok(())
+    }
 }
+
+/// The longest time a point may give: 1e9 ms (11 days).
+const MAX_MS: f64 = 1e9;
 
 /// The points of case `name`; an error naming the cases there are when none is of it.
 pub fn of_case(points: Vec<Point>, name: &str) -> Result<Vec<Point>> {
@@ -93,10 +119,12 @@ pub fn point_of_render_json(json: &serde_json::Value) -> Option<Point> {
 /// Every point in a JSON file of one of the accepted shapes (module docs).
 pub fn load_points(path: &Path) -> Result<Vec<Point>> {
     let bad = |detail: String| AccuracyError::BadInput { path: path.into(), detail };
-    let text = std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
+    let text = read_bounded(path, TEXT_FILE_LIMIT, "points file")?;
     let json: serde_json::Value = serde_json::from_slice(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
     let parse = |v: &serde_json::Value| {
-        serde_json::from_value::<Point>(v.clone()).map_err(|e| bad(format!("bad point {v}: {e}")))
+        let point = serde_json::from_value::<Point>(v.clone()).map_err(|e| bad(format!("bad point {v}: {e}")))?;
+        point.check().map_err(|e| bad(format!("point '{}': {e}", point.label)))?;
+        Ok(point)
     };
     if let Some(list) = json.get("points") {
         let list = list.as_array().ok_or_else(|| bad("`points` must be an array".into()))?;

@@ -6,8 +6,9 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::chart::{FONT, chart_err, color, write_chart};
+use crate::chart::{FONT, LEGEND_WIDTH, SIZE, Swatch, chart_err, color, draw_legend, write_chart};
 use crate::error::{AccuracyError, Result};
+use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
 
 /// One bar.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,8 +30,7 @@ pub struct Timeline {
 impl Timeline {
     pub fn read(path: &Path) -> Result<Self> {
         let bad = |detail: String| AccuracyError::BadInput { path: path.into(), detail };
-        let bytes =
-            std::fs::read(path).map_err(|e| AccuracyError::Read { path: path.into(), detail: e.to_string() })?;
+        let bytes = read_bounded(path, TEXT_FILE_LIMIT, "Chrome trace")?;
         let json: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| bad(format!("not JSON: {e}")))?;
         // Both forms of the format: {"traceEvents": [...]} and a bare array.
         let events = json
@@ -75,10 +75,12 @@ impl Timeline {
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         root.fill(&WHITE).map_err(chart_err)?;
+        // The legend beside the lanes, never over them.
+        let (plot, legend) = root.split_horizontally(SIZE.0 - LEGEND_WIDTH);
         let end = self.spans.iter().map(|s| s.end_ms).fold(0.0, f64::max);
         let start = self.spans.iter().map(|s| s.start_ms).fold(f64::INFINITY, f64::min).min(0.0);
         let n = self.lanes.len();
-        let mut chart = ChartBuilder::on(root)
+        let mut chart = ChartBuilder::on(&plot)
             .caption("Per-device timeline", (FONT, 22))
             .margin(20)
             .x_label_area_size(50)
@@ -105,6 +107,7 @@ impl Timeline {
             .draw()
             .map_err(chart_err)?;
         let mut names: Vec<&str> = Vec::new();
+        let mut entries = Vec::new();
         for s in &self.spans {
             if !names.contains(&s.name.as_str()) {
                 names.push(&s.name);
@@ -116,20 +119,10 @@ impl Timeline {
                 let lane = self.lanes.iter().position(|l| l.0 == s.lane).expect("every lane is listed");
                 Rectangle::new([(s.start_ms, lane as f64 + 0.05), (s.end_ms, lane as f64 + 0.95)], c.mix(0.8).filled())
             });
-            chart
-                .draw_series(bars)
-                .map_err(chart_err)?
-                .label(name.to_string())
-                .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 16, y + 6)], c.filled()));
+            chart.draw_series(bars).map_err(chart_err)?;
+            entries.push((name.to_string(), c, Swatch::Bar));
         }
-        chart
-            .configure_series_labels()
-            .label_font((FONT, 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(chart_err)?;
+        draw_legend(&legend, &entries, &[])?;
         root.present().map_err(chart_err)
     }
 

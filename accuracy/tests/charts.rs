@@ -64,10 +64,20 @@ fn every_chart_kind_as_svg_and_png() {
     // The fastest (multi-source 2 GPUs, 22 ms) and the fastest of the most accurate (fine-all 2
     // GPUs, 0.04 at 30 ms) are undominated.
     assert_eq!(sa.series[0].points.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>(), [(22.0, 0.05), (30.0, 0.04)]);
-    for want in ["multi-source", "fine-all", "multi-source 2 GPUs", "fine-all 1 GPU", "frame time (ms)", "Pareto front"]
-    {
+    // The front's points are numbered on the plot and keyed in the legend; dominated ones are not.
+    for want in [
+        "multi-source",
+        "fine-all",
+        "1",
+        "2",
+        "multi-source 2 GPUs",
+        "fine-all 2 GPUs",
+        "frame time (ms)",
+        "Pareto front",
+    ] {
         assert!(texts.iter().any(|t| t == want), "speed-accuracy SVG lacks {want:?}: {texts:?}");
     }
+    assert!(!texts.iter().any(|t| t == "fine-all 1 GPU"), "a dominated point is labelled: {texts:?}");
     assert!(texts.iter().any(|t| t.starts_with("mean FLIP")));
 
     let scaling = chart::scaling(&ps).unwrap();

@@ -49,7 +49,7 @@ impl Default for CopyBenchOptions {
 }
 
 /// One frame of the copy benchmark, from GPU timestamps on the host clock.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct CopyFrame {
     pub frame: u64,
     /// First copy-out start to last copy-in end: what a consumer waits for.
@@ -78,23 +78,29 @@ pub struct CopyBenchResult {
     pub bytes: u64,
     pub chunk_bytes: u64,
     pub chunks: usize,
-    /// Whether copies were submitted to a queue of their own, and whether each device really
-    /// has a transfer-only queue (if not, that queue is the main queue).
+    /// Whether copies were asked to go to a queue of their own, and whether each device really
+    /// has a transfer-only queue (if not, its copies went to the main queue): in JSON
+    /// `copy_queue_requested`, so that `true` beside `[false, false]` does not read as a queue
+    /// the devices do not have.
+    #[serde(rename = "copy_queue_requested")]
     pub separate_copy_queue: bool,
     pub devices_with_copy_queue: Vec<bool>,
     pub frames: Vec<CopyFrame>,
     /// Median over frames of bytes / end_to_end (GB/s, 1 GB = 1e9 bytes). With several frames
     /// in flight a frame's copy can queue behind the previous frame's upload, so this is the
     /// latency-bound rate; with one frame in flight it is the rate of an isolated copy.
-    pub median_gb_per_s: f64,
+    ///
+    /// Each rate is `None` (JSON `null`) when it could not be measured: copies too short for the
+    /// device timer (0 ns), or fewer than two frames for the sustained rate. Never a made-up 0.
+    pub median_gb_per_s: Option<f64>,
     /// Bytes delivered per second over all measured frames: bytes × (frames − 1) / (time between
     /// the first and the last frame's last copy-in end). The throughput a stream of frames gets.
-    pub sustained_gb_per_s: f64,
-    pub best_gb_per_s: f64,
+    pub sustained_gb_per_s: Option<f64>,
+    pub best_gb_per_s: Option<f64>,
     /// Median rate of the device→host copies while they run (bytes / busy time).
-    pub median_device_to_host_gb_per_s: f64,
+    pub median_device_to_host_gb_per_s: Option<f64>,
     /// Median rate of the host→device copies while they run.
-    pub median_host_to_device_gb_per_s: f64,
+    pub median_host_to_device_gb_per_s: Option<f64>,
     /// Median over frames of the per-chunk handoff latency (µs).
     pub median_handoff_us: f64,
     /// The measured frames' full reports (for `--trace`).
@@ -192,17 +198,18 @@ pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<
     Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
 }
 
-fn sustained_rate(bytes: u64, frames: &[CopyFrame]) -> f64 {
+fn sustained_rate(bytes: u64, frames: &[CopyFrame]) -> Option<f64> {
     match (frames.first(), frames.last()) {
         (Some(first), Some(last)) if frames.len() > 1 => {
             gb_per_s(bytes * (frames.len() as u64 - 1), last.copy_in_end_ns.saturating_sub(first.copy_in_end_ns))
         }
-        _ => 0.0,
+        _ => None,
     }
 }
 
-fn gb_per_s(bytes: u64, ns: u64) -> f64 {
-    if ns == 0 { 0.0 } else { bytes as f64 / ns as f64 }
+/// None for a span the timer did not resolve.
+fn gb_per_s(bytes: u64, ns: u64) -> Option<f64> {
+    (ns > 0).then(|| bytes as f64 / ns as f64)
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -279,7 +286,10 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
             }
         })
         .collect();
-    let rate = |f: fn(&CopyFrame) -> u64| median(frames.iter().map(|fr| gb_per_s(bytes, f(fr))).collect());
+    let rate = |f: fn(&CopyFrame) -> u64| {
+        let rates: Vec<f64> = frames.iter().filter_map(|fr| gb_per_s(bytes, f(fr))).collect();
+        (!rates.is_empty()).then(|| median(rates))
+    };
     Ok(CopyBenchResult {
         devices: context.device_infos(),
         bytes,
@@ -289,7 +299,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
         devices_with_copy_queue: context.devices().iter().map(|d| d.has_copy_queue()).collect(),
         median_gb_per_s: rate(|f| f.end_to_end_ns),
         sustained_gb_per_s: sustained_rate(bytes, &frames),
-        best_gb_per_s: frames.iter().map(|f| gb_per_s(bytes, f.end_to_end_ns)).fold(0.0, f64::max),
+        best_gb_per_s: frames.iter().filter_map(|f| gb_per_s(bytes, f.end_to_end_ns)).reduce(f64::max),
         median_device_to_host_gb_per_s: rate(|f| f.device_to_host_busy_ns),
         median_host_to_device_gb_per_s: rate(|f| f.host_to_device_busy_ns),
         median_handoff_us: median(frames.iter().map(|f| f.median_handoff_ns as f64 / 1000.0).collect()),
@@ -353,4 +363,20 @@ pub fn executor_overhead(desc: &ContextDesc, options: &OverheadBenchOptions) -> 
         median_frame_wall_us: median(walls),
         record_us_per_pass: executor.last_record_ns() as f64 / 1000.0 / passes.max(1) as f64,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Copies too short for the timer used to report 0.0 GB/s; they report no rate.
+    #[test]
+    fn an_unresolved_span_gives_no_rate_rather_than_zero() {
+        assert_eq!(gb_per_s(1 << 20, 0), None);
+        assert_eq!(gb_per_s(2_000, 1_000), Some(2.0));
+        let frame = |copy_in_end_ns| CopyFrame { copy_in_end_ns, ..Default::default() };
+        assert_eq!(sustained_rate(1000, &[frame(5)]), None, "one frame");
+        assert_eq!(sustained_rate(1000, &[frame(5), frame(5)]), None, "no time between frames");
+        assert_eq!(sustained_rate(1000, &[frame(5), frame(505)]), Some(2.0));
+    }
 }

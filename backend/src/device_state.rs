@@ -48,6 +48,9 @@ pub(crate) struct DeviceState {
     pub(crate) timer_spans: Vec<Vec<Range<usize>>>,
     pub(crate) timers: Vec<TimerLabel>,
     pub(crate) slots: Vec<SlotResources>,
+    /// Per slot, the buffers its recorded ops own (`Recorder::recording_buffer`); apart from
+    /// `slots`, so a recording can fill them while it reads the slot's command buffers.
+    pub(crate) recording_buffers: Vec<Vec<Buffer>>,
 }
 
 impl Drop for DeviceState {
@@ -166,6 +169,7 @@ pub(crate) fn create_device_state(
         timer_spans,
         segments,
         slots: Vec::new(),
+        recording_buffers: (0..slots).map(|_| Vec::new()).collect(),
     };
     state.progress = device.create_timeline(0)?;
     for _ in 0..slots {

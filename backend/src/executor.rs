@@ -120,6 +120,8 @@ pub enum Barriers {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Timing {
     /// One pair around every op: per-view figures and timelines, at the price of the overlap.
+    /// Instances a kernel records as one group (`PassKernel::record_group`) are one op, timed
+    /// together; the event carries the first one's view and index.
     #[default]
     PerOp,
     /// One pair around each run of consecutive instances of one pass on a queue (and around
@@ -169,6 +171,8 @@ struct InFlight {
     slot: usize,
     submit_start_ns: u64,
     submit_cpu_ns: u64,
+    /// Host time its submission waited for the frame it reuses the slot of to retire.
+    slot_wait_ns: u64,
     passes: usize,
     segments: usize,
     /// Submitted by `submit_frame`: its readback is kept when it retires.
@@ -380,6 +384,9 @@ impl Executor {
             let buffer_addresses: HashMap<usize, u64> =
                 state.buffers.iter().map(|(&r, b)| (r, b.device_address())).collect();
             for slot in 0..state.slots.len() {
+                // Recording happens with no frame in flight (every cause of it waits for the
+                // frames first), so the buffers of the last recording are free.
+                state.recording_buffers[slot].clear();
                 let readback = match &self.readback {
                     Some(readback) if d == 0 => readback.targets(slot),
                     _ => Vec::new(),
@@ -404,6 +411,8 @@ impl Executor {
                     frame_data_address: self.frame_data_buffers[slot][d].device_address(),
                     frame_sections: self.frame_data.sections(),
                     readback: &readback,
+                    device: &state.device,
+                    recording_buffers: &mut state.recording_buffers[slot],
                 };
                 let mut first_timer = 0u32;
                 let segment_count = state.segments.len();
@@ -538,9 +547,11 @@ impl Executor {
         if self.cut_short {
             return Err(BackendError::SubmissionCutShort { frame: self.next_frame });
         }
+        let slot_wait = Instant::now();
         if self.in_flight.len() >= self.options.frames_in_flight {
             self.retire_oldest()?;
         }
+        let slot_wait_ns = slot_wait.elapsed().as_nanos() as u64;
         self.relay.as_ref().expect("relay exists after build").check()?;
         if self.needs_record {
             self.record_all()?;
@@ -588,6 +599,7 @@ impl Executor {
             slot,
             submit_start_ns,
             submit_cpu_ns: cpu_start.elapsed().as_nanos() as u64,
+            slot_wait_ns,
             passes: self.plan.passes.len(),
             segments: submitted_segments,
             read_back,
@@ -767,7 +779,7 @@ impl Executor {
                 });
             }
         }
-        self.reports.push(FrameReport::new(
+        let mut report = FrameReport::new(
             f.frame,
             f.submit_start_ns,
             f.submit_cpu_ns,
@@ -775,7 +787,9 @@ impl Executor {
             f.segments,
             self.devices.len(),
             events,
-        ));
+        );
+        report.slot_wait_ns = f.slot_wait_ns;
+        self.reports.push(report);
         if let (true, Some(readback)) = (f.read_back, &mut self.readback) {
             readback.retire(f.frame, f.slot);
         }
@@ -810,7 +824,9 @@ impl Executor {
         Ok(())
     }
 
-    /// Reports of retired frames, oldest first, removed from the executor.
+    /// Reports of retired frames, oldest first, removed from the executor. They pile up until
+    /// taken: a long frame loop takes them every frame and folds them into a
+    /// [`crate::FrameStats`], so its memory stays flat.
     pub fn take_reports(&mut self) -> Vec<FrameReport> {
         std::mem::take(&mut self.reports)
     }

@@ -17,7 +17,9 @@
 //!   ([`Executor::set_frame_data`], or [`FrameData`] cut into one section per pass) by buffer
 //!   address, sampled RGBA8 textures ([`Executor::upload_textures`]) by index into the
 //!   `textures[]` array of set 0; indirect dispatches on counts a pass wrote
-//!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `ExecResource::reset`).
+//!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `ExecResource::reset`);
+//!   consecutive instances of one pass recorded as one op ([`PassKernel::record_group`]) with
+//!   data fixed at record time in a [`RecordingBuffer`].
 //! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera and the frame
 //!   index, as `shaders/include/frame_block.glsl` declares them.
 //! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
@@ -83,6 +85,7 @@ mod error;
 mod executor;
 mod frame_block;
 mod frame_data;
+mod frame_stats;
 mod instance;
 mod lower;
 mod memory;
@@ -106,6 +109,7 @@ pub use error::{BackendError, Result};
 pub use executor::{Barriers, ExecOptions, Executor, FaultInjection, Timing};
 pub use frame_block::{FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameHeader, GpuCamera, ViewCameras};
 pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
+pub use frame_stats::{EventTotals, FrameStats, SUMMARY_SAMPLE, Summary};
 pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
@@ -114,7 +118,7 @@ pub use plan::{
     Region, ResourceKind,
 };
 pub use readback::{FrameReadback, FrameTicket};
-pub use recorder::{Draw, PassKernel, PassParams, Recorder};
+pub use recorder::{Draw, PassKernel, PassParams, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};
 pub use shaders::{ShaderLibrary, SpirvDefect, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};

@@ -1,10 +1,14 @@
 //! Recording one segment of a device program into a command buffer: barriers, timestamp pairs
-//! (around every item, or around each run of one pass's instances: `Timing`), the kernels'
+//! (around every op, or around each run of one pass's instances: `Timing`), the kernels'
 //! commands and the copies.
 //!
+//! An op is one item, or a group of consecutive instances of one pass that its kernel records
+//! together (`PassKernel::records_groups`, [`op_groups`]): one dispatch for all of them, where
+//! each alone would be too small to fill the GPU.
+//!
 //! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers: a global
-//! barrier before every item (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
-//! item of a segment and before a later one only when it reads what an earlier item since the
+//! barrier before every op (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
+//! op of a segment and before a later one only when it reads what an earlier op since the
 //! last barrier wrote, or writes what one read or wrote (or a kernel says it touches undeclared
 //! memory), so the instances of one pass for many views, which the graph orders one after the
 //! other, run side by side.
@@ -37,23 +41,63 @@ pub(crate) struct TimerLabel {
     pub queue: QueueKind,
 }
 
-/// The items each timestamp pair of `segment` covers, in order: every item alone
-/// (`Timing::PerOp`), or runs of consecutive instances of one pass with every copy alone
-/// (`Timing::PerStage`).
+/// The ops of `segment`, as ranges of its items in order: every item alone, but for runs of
+/// consecutive instances of one pass whose kernel records groups, which end where an instance
+/// reads or writes what an earlier one of the run writes, or writes what one reads (declared
+/// accesses; the frame parity's swap of history halves maps distinct resources to distinct
+/// ones, so it changes no conflict).
+pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<usize>> {
+    let grouped_pass = |item: &Item| match *item {
+        Item::Pass(p) if plan.kernels.0.get(plan.passes[p].kernel).is_some_and(|k| k.records_groups()) => Some(p),
+        _ => None,
+    };
+    let mut groups: Vec<Range<usize>> = Vec::new();
+    // What the instances of the last group read and wrote.
+    let mut hazards = Hazards::default();
+    for (i, item) in segment.items.iter().enumerate() {
+        let Some(p) = grouped_pass(item) else {
+            groups.push(i..i + 1);
+            hazards = Hazards::default();
+            continue;
+        };
+        let pass = &plan.passes[p];
+        let reads: Vec<usize> = pass.reads.iter().chain(&pass.history_reads).map(|a| a.resource).collect();
+        let writes: Vec<usize> = pass.writes.iter().map(|a| a.resource).collect();
+        let joins = groups.last().is_some_and(|last| {
+            grouped_pass(&segment.items[last.start]).is_some_and(|first| {
+                let first = &plan.passes[first];
+                first.kernel == pass.kernel && first.name == pass.name && !hazards.conflicts(&reads, &writes, false)
+            })
+        });
+        if joins {
+            groups.last_mut().expect("joins an existing group").end = i + 1;
+        } else {
+            groups.push(i..i + 1);
+            hazards = Hazards::default();
+        }
+        hazards.add(reads, writes, false);
+    }
+    groups
+}
+
+/// The items each timestamp pair of `segment` covers, in order: every op alone
+/// (`Timing::PerOp`; a group of instances is one op, [`op_groups`]), or runs of consecutive
+/// instances of one pass with every copy alone (`Timing::PerStage`). Spans never split an op.
 pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timing) -> Vec<Range<usize>> {
     let stage = |item: &Item| match item {
         Item::Pass(p) => Some(plan.passes[*p].name.as_str()),
         Item::CopyOut(_) | Item::CopyIn(_) => None,
     };
     let mut spans: Vec<Range<usize>> = Vec::new();
-    for (i, item) in segment.items.iter().enumerate() {
+    for op in op_groups(plan, segment) {
+        let item = &segment.items[op.start];
         let joins = timing == Timing::PerStage
             && spans
                 .last()
                 .is_some_and(|last| stage(item).is_some() && stage(&segment.items[last.start]) == stage(item));
         match spans.last_mut() {
-            Some(last) if joins => last.end = i + 1,
-            _ => spans.push(i..i + 1),
+            Some(last) if joins => last.end = op.end,
+            _ => spans.push(op),
         }
     }
     spans
@@ -129,6 +173,9 @@ pub(crate) struct SegmentContext<'a> {
     /// Exported resources and the slot's host-visible buffer each is read back into (device 0
     /// with `ExecOptions::read_back_exports`; empty otherwise).
     pub readback: &'a [(usize, vk::Buffer)],
+    pub device: &'a std::sync::Arc<crate::device::Device>,
+    /// The slot's recording buffers (`Recorder::recording_buffer`), emptied before it records.
+    pub recording_buffers: &'a mut Vec<crate::memory::Buffer>,
 }
 
 impl SegmentContext<'_> {
@@ -197,46 +244,30 @@ fn record_items(
     let mut hazards = Hazards::default();
     // The timestamp pair of each item (the spans tile the items in order).
     let timer_of: Vec<usize> = spans.iter().enumerate().flat_map(|(t, span)| span.clone().map(move |_| t)).collect();
-    for (i, item) in segment.items.iter().enumerate() {
-        let span = &spans[timer_of[i]];
-        let query = (first_timer + timer_of[i] as u32) * 2;
-        let (reads, writes, opaque) = touches(ctx, item);
-        // The first item waits for everything submitted before (other segments, the previous
-        // frame); a later one only for the items of this segment whose results it touches, so
+    for (g, op) in op_groups(ctx.plan, segment).into_iter().enumerate() {
+        let span = &spans[timer_of[op.start]];
+        let query = (first_timer + timer_of[op.start] as u32) * 2;
+        let (mut reads, mut writes, mut opaque) = (Vec::new(), Vec::new(), false);
+        for item in &segment.items[op.clone()] {
+            let (r, w, o) = touches(ctx, item);
+            reads.extend(r);
+            writes.extend(w);
+            opaque |= o;
+        }
+        // The first op waits for everything submitted before (other segments, the previous
+        // frame); a later one only for the ops of this segment whose results it touches, so
         // the instances of one pass for many views run side by side.
         let tracked = ctx.barriers == crate::executor::Barriers::Tracked;
-        if i == 0 || !tracked || hazards.conflicts(&reads, &writes, opaque) {
+        if g == 0 || !tracked || hazards.conflicts(&reads, &writes, opaque) {
             full_barrier(raw, cb);
             hazards = Hazards::default();
         }
         hazards.add(reads, writes, opaque);
-        if i == span.start {
+        if op.start == span.start {
             unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
         }
-        match *item {
-            Item::Pass(p) => {
-                let pass = &ctx.plan.passes[p];
-                let kernel = ctx.plan.kernels.0[pass.kernel].clone();
-                let mut rec = Recorder {
-                    parity_map: ctx.parity_map,
-                    raw,
-                    cb,
-                    bindless: ctx.bindless,
-                    image_slots: ctx.image_slots,
-                    images: ctx.images,
-                    slot: ctx.slot,
-                    global_buffers: ctx.global_buffers,
-                    frame_data_address: ctx.frame_data_address,
-                    frame_sections: ctx.frame_sections,
-                    buffers: ctx.buffers,
-                    buffer_addresses: ctx.buffer_addresses,
-                    plan: ctx.plan,
-                    device_index: ctx.device_index,
-                    bound,
-                };
-                kernel.record(&mut rec, pass, p)?;
-                bound = rec.bound;
-            }
+        match segment.items[op.start] {
+            Item::Pass(_) => bound = record_passes(ctx, cb, &segment.items[op.clone()], bound)?,
             Item::CopyOut(chunk) => {
                 record_copy(ctx, cb, &chunk, CopyDirection::Out);
                 // The other device reads the bytes through host memory.
@@ -244,11 +275,50 @@ fn record_items(
             }
             Item::CopyIn(chunk) => record_copy(ctx, cb, &chunk, CopyDirection::In),
         }
-        if i + 1 == span.end {
+        if op.end == span.end {
             unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
         }
     }
     Ok(())
+}
+
+/// Records the pass instances of one op (one item, or a group of [`op_groups`]) through their
+/// kernel; returns the pipeline left bound.
+fn record_passes(
+    ctx: &mut SegmentContext<'_>,
+    cb: vk::CommandBuffer,
+    items: &[Item],
+    bound: Option<vk::Pipeline>,
+) -> Result<Option<vk::Pipeline>> {
+    let instances: Vec<usize> =
+        items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
+    let first = instances[0];
+    let kernel = ctx.plan.kernels.0[ctx.plan.passes[first].kernel].clone();
+    let mut rec = Recorder {
+        parity_map: ctx.parity_map,
+        raw: ctx.raw,
+        cb,
+        bindless: ctx.bindless,
+        image_slots: ctx.image_slots,
+        images: ctx.images,
+        slot: ctx.slot,
+        global_buffers: ctx.global_buffers,
+        frame_data_address: ctx.frame_data_address,
+        frame_sections: ctx.frame_sections,
+        buffers: ctx.buffers,
+        buffer_addresses: ctx.buffer_addresses,
+        plan: ctx.plan,
+        device_index: ctx.device_index,
+        bound,
+        device: ctx.device,
+        recording_buffers: ctx.recording_buffers,
+    };
+    if kernel.records_groups() {
+        kernel.record_group(&mut rec, &instances)?;
+    } else {
+        kernel.record(&mut rec, &ctx.plan.passes[first], first)?;
+    }
+    Ok(rec.bound)
 }
 
 /// Rewrites the buffers the plan resets every frame (`ExecResource::reset`): the header words,
@@ -419,10 +489,87 @@ pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
     unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
 }
 
+/// Hand-laid plans of grouped passes, for the tests of grouping here and in segments.rs.
+#[cfg(test)]
+pub(crate) mod grouping_plans {
+    use crate::plan::{ExecAccess, ExecPass, ExecutionPlan, Kernels, Region};
+    use crate::recorder::{PassKernel, Recorder};
+
+    /// Records nothing; `groups` says whether it records groups.
+    pub(crate) struct Nothing {
+        pub(crate) groups: bool,
+    }
+
+    impl PassKernel for Nothing {
+        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> crate::Result<()> {
+            Ok(())
+        }
+
+        fn records_groups(&self) -> bool {
+            self.groups
+        }
+    }
+
+    /// Passes `(name, reads, writes)` on device 0, in order, the passes named `fill` with a
+    /// kernel that records groups, the others with one that does not; every pass op in order
+    /// on device 0.
+    pub(crate) fn plan(passes: &[(&str, &[usize], &[usize])]) -> ExecutionPlan {
+        let mut kernels = Kernels::default();
+        let plain = kernels.push(Nothing { groups: false });
+        let grouped = kernels.push(Nothing { groups: true });
+        let rows = Region::new(0, 1);
+        let access = |&r: &usize| ExecAccess::own("slot", r, 1, rows);
+        let passes: Vec<ExecPass> = passes
+            .iter()
+            .enumerate()
+            .map(|(view, &(name, reads, writes))| ExecPass {
+                name: name.to_string(),
+                kernel: if name == "fill" { grouped } else { plain },
+                view: view as u32,
+                rows,
+                device: 0,
+                reads: reads.iter().map(access).collect(),
+                writes: writes.iter().map(access).collect(),
+                history_reads: Vec::new(),
+            })
+            .collect();
+        let ops = (0..passes.len()).map(crate::plan::ExecOp::Pass).collect();
+        ExecutionPlan { passes, devices: vec![ops], kernels, ..ExecutionPlan::default() }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::plan::ExecPass;
+
+    #[test]
+    fn grouped_passes_are_one_op_until_an_access_conflicts_and_per_op_timing_times_each_op() {
+        // A compaction, three fills of which the third writes what the first wrote (two bands
+        // of one view), a copy, two more fills, then another pass.
+        let mut plan = grouping_plans::plan(&[
+            ("compact", &[], &[0]),
+            ("fill", &[0], &[1]),
+            ("fill", &[2], &[3]),
+            ("fill", &[0], &[1]),
+            ("fill", &[4], &[5]),
+            ("fill", &[6], &[7]),
+            ("svgf", &[1], &[8]),
+        ]);
+        let rows = parallax_graph::Region::new(0, 1);
+        plan.copies = vec![crate::plan::ExecCopy { resource: 3, dst: 3, version: 1, rows, from: 0, to: 1 }];
+        let chunk = Chunk { copy: 0, index: 0, y0: 0, y1: 1 };
+        let mut items: Vec<Item> = (0..7).map(Item::Pass).collect();
+        items.insert(4, Item::CopyOut(chunk));
+        let s = segment(items);
+        assert_eq!(op_groups(&plan, &s), vec![0..1, 1..3, 3..4, 4..5, 5..7, 7..8]);
+        assert_eq!(timer_spans(&plan, &s, Timing::PerOp), op_groups(&plan, &s));
+        assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..1, 1..4, 4..5, 5..7, 7..8]);
+        // Without grouping kernels every item is its own op.
+        let plain = plan_of(&["fill", "fill", "fill"]);
+        let s = segment((0..3).map(Item::Pass).collect());
+        assert_eq!(op_groups(&plain, &s), vec![0..1, 1..2, 2..3]);
+    }
 
     /// A plan whose passes are named `names` (one instance each, view = index).
     fn plan_of(names: &[&str]) -> ExecutionPlan {

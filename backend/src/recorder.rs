@@ -6,9 +6,12 @@
 //! the pass instance and dispatches.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use ash::vk;
+use gpu_allocator::MemoryLocation;
 
+use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
@@ -68,7 +71,29 @@ pub struct Draw<'a> {
     pub push: &'a [u8],
 }
 
-/// Records the work of one pass instance into a device's command buffer.
+/// A buffer that one op of a recording owns ([`Recorder::recording_buffer`]): host-written at
+/// record time, then read and written by the op's shaders by address, and a source of indirect
+/// arguments ([`Recorder::dispatch_indirect_from`]).
+#[derive(Clone, Copy, Debug)]
+pub struct RecordingBuffer {
+    address: u64,
+    bytes: u64,
+    raw: vk::Buffer,
+}
+
+impl RecordingBuffer {
+    /// GPU address of its first byte.
+    pub fn address(&self) -> u64 {
+        self.address
+    }
+
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+}
+
+/// Records the work of one pass instance (or of a group of them, [`PassKernel::record_group`])
+/// into a device's command buffer.
 pub struct Recorder<'a> {
     /// History pairs swapped for an odd frame (see `ExecutionPlan::history_pairs`).
     pub(crate) parity_map: &'a HashMap<usize, usize>,
@@ -89,9 +114,12 @@ pub struct Recorder<'a> {
     pub(crate) plan: &'a ExecutionPlan,
     pub(crate) device_index: usize,
     pub(crate) bound: Option<vk::Pipeline>,
+    pub(crate) device: &'a Arc<Device>,
+    /// The recording buffers of this device and frame slot, dropped when it records again.
+    pub(crate) recording_buffers: &'a mut Vec<Buffer>,
 }
 
-impl Recorder<'_> {
+impl<'a> Recorder<'a> {
     /// Index of `resource` in the device's image arrays (what shaders get in push constants):
     /// `images[]`, or `uimages[]` for `R32u`, or `depth_images[]` for `Depth32f` (bindless.glsl).
     pub fn image(&self, resource: usize) -> Result<u32> {
@@ -127,6 +155,36 @@ impl Recorder<'_> {
     /// Index of the device being recorded.
     pub fn device_index(&self) -> usize {
         self.device_index
+    }
+
+    /// The plan being recorded (pass instance `i` is `plan().passes[i]`).
+    pub fn plan(&self) -> &'a ExecutionPlan {
+        self.plan
+    }
+
+    /// A buffer of `bytes.len()` bytes (at least 4) holding `bytes`, for the op being recorded
+    /// on this device and frame-in-flight slot: data a kernel knows only at record time and
+    /// that does not fit its push constants (addresses and image indices of many instances,
+    /// say), and room its shaders write every frame (counts, indirect arguments). It lives
+    /// until the command buffers are recorded again, so the host never writes it while a frame
+    /// runs; each slot records its own, so frames in flight never share one. Host-visible
+    /// memory (device-local where the device allows). It is memory the pass does not declare:
+    /// only the op that asked for it may touch it, and orders its own accesses to it (the
+    /// barrier of [`Self::dispatch_indirect_from`] orders the dispatches before it).
+    pub fn recording_buffer(&mut self, name: &str, bytes: &[u8]) -> Result<RecordingBuffer> {
+        let mut buffer = Buffer::new(
+            self.device,
+            name,
+            (bytes.len() as u64).max(4),
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+                | vk::BufferUsageFlags::INDIRECT_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?;
+        buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..bytes.len()].copy_from_slice(bytes);
+        let handle = RecordingBuffer { address: buffer.device_address(), bytes: buffer.size, raw: buffer.raw };
+        self.recording_buffers.push(buffer);
+        Ok(handle)
     }
 
     /// Binds compute shader `shader` (from `ExecOptions::shaders`, else built in), pushes
@@ -165,16 +223,43 @@ impl Recorder<'_> {
             .buffers
             .get(&resource)
             .ok_or_else(|| invalid(format!("it is not allocated on device {}", self.device_index)))?;
+        let (raw, size) = (buffer.raw, buffer.size);
+        self.indirect(shader, push, raw, size, byte_offset, invalid)
+    }
+
+    /// [`Self::dispatch_indirect`] with the arguments in a [`RecordingBuffer`] of this op.
+    pub fn dispatch_indirect_from(
+        &mut self,
+        shader: &str,
+        push: &[u8],
+        args: &RecordingBuffer,
+        byte_offset: u64,
+    ) -> Result<()> {
+        let invalid = |problem: String| BackendError::KernelMisuse {
+            kernel: shader.to_string(),
+            instance: usize::MAX,
+            detail: format!("indirect arguments at byte {byte_offset} of a recording buffer: {problem}"),
+        };
+        self.indirect(shader, push, args.raw, args.bytes, byte_offset, invalid)
+    }
+
+    /// Checks that `byte_offset` holds arguments in the `size`-byte buffer `raw`, then binds,
+    /// puts the barrier and dispatches (see [`Self::dispatch_indirect`]).
+    fn indirect(
+        &mut self,
+        shader: &str,
+        push: &[u8],
+        raw: vk::Buffer,
+        size: u64,
+        byte_offset: u64,
+        invalid: impl Fn(String) -> BackendError,
+    ) -> Result<()> {
         if byte_offset % 4 != 0 {
             return Err(invalid("the offset is not a multiple of 4".into()));
         }
-        if byte_offset.checked_add(INDIRECT_ARGS_BYTES).is_none_or(|end| end > buffer.size) {
-            return Err(invalid(format!(
-                "{INDIRECT_ARGS_BYTES} bytes of arguments do not fit the {}-byte buffer",
-                buffer.size
-            )));
+        if byte_offset.checked_add(INDIRECT_ARGS_BYTES).is_none_or(|end| end > size) {
+            return Err(invalid(format!("{INDIRECT_ARGS_BYTES} bytes of arguments do not fit the {size}-byte buffer")));
         }
-        let raw_buffer = buffer.raw;
         self.bind_compute(shader, push)?;
         // Earlier dispatches of this pass → the argument read and the indirect shader itself
         // (which typically reads the count next to the arguments).
@@ -189,7 +274,7 @@ impl Recorder<'_> {
             )];
         unsafe {
             self.raw.cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().memory_barriers(&args_ready));
-            self.raw.cmd_dispatch_indirect(self.cb, raw_buffer, byte_offset);
+            self.raw.cmd_dispatch_indirect(self.cb, raw, byte_offset);
         }
         Ok(())
     }
@@ -414,6 +499,25 @@ impl Recorder<'_> {
 pub trait PassKernel: Send + Sync {
     /// Records instance `index` of the plan (`pass` = `plan.passes[index]`).
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()>;
+
+    /// Whether the executor hands this kernel's instances to [`Self::record_group`] in groups
+    /// rather than one by one to [`Self::record`]: for work whose instances are too small to
+    /// fill a GPU alone (hole filling of many targets), which one dispatch can do for all.
+    fn records_groups(&self) -> bool {
+        false
+    }
+
+    /// Records `instances` (indices into `rec.plan().passes`) as one op, with no barrier and
+    /// no timestamp between them: consecutive instances of one pass in a submission of one
+    /// device, of which none reads or writes what another one writes (so any order of their
+    /// work is right), within one timestamp pair. Only called when [`Self::records_groups`];
+    /// a group may have one instance. The default records each instance alone.
+    fn record_group(&self, rec: &mut Recorder<'_>, instances: &[usize]) -> Result<()> {
+        for &index in instances {
+            self.record(rec, &rec.plan().passes[index], index)?;
+        }
+        Ok(())
+    }
 
     /// Whether the kernel writes memory its pass does not declare (a global buffer, say). The
     /// executor orders an op after earlier ones only where their declared accesses conflict;

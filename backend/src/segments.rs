@@ -189,6 +189,52 @@ enum Tail {
     CopyOuts(u64),
 }
 
+/// Device `device`'s ops in recording order: the plan's, except that an instance of a pass
+/// whose kernel records groups (`PassKernel::records_groups`) moves up past the copy-outs and
+/// signals that separate it from the previous instance of that pass, when it writes nothing
+/// they copy. Lowering puts the gather of each band right after the pass that finishes it,
+/// which would cut a device's hole filling into one op per target band; this way consecutive
+/// instances stay one op (record.rs), and the copies start when the whole op is done. A pass
+/// never moves past a wait or a copy-in, so what it reads is there, and no wait is delayed.
+pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize) -> Vec<ExecOp> {
+    let groups = |p: usize| plan.kernels.0.get(plan.passes[p].kernel).is_some_and(|k| k.records_groups());
+    let same_pass = |a: usize, b: usize| {
+        let (a, b) = (&plan.passes[a], &plan.passes[b]);
+        a.kernel == b.kernel && a.name == b.name
+    };
+    let mut order = Vec::with_capacity(plan.devices[device].len());
+    // Copy-outs and signals held back behind the current group, and what those copies read.
+    let mut deferred: Vec<ExecOp> = Vec::new();
+    let mut copied: Vec<usize> = Vec::new();
+    let mut group: Option<usize> = None;
+    for &op in &plan.devices[device] {
+        match op {
+            ExecOp::Pass(p)
+                if group.is_some_and(|first| same_pass(first, p))
+                    && !plan.passes[p].writes.iter().any(|w| copied.contains(&w.resource)) =>
+            {
+                order.push(op);
+            }
+            ExecOp::CopyOut(c) if group.is_some() => {
+                copied.push(plan.copies[c].resource);
+                deferred.push(op);
+            }
+            ExecOp::Signal(_) if group.is_some() => deferred.push(op),
+            _ => {
+                order.append(&mut deferred);
+                copied.clear();
+                group = match op {
+                    ExecOp::Pass(p) if groups(p) => Some(p),
+                    _ => None,
+                };
+                order.push(op);
+            }
+        }
+    }
+    order.append(&mut deferred);
+    order
+}
+
 fn segment_single_queue(
     plan: &ExecutionPlan,
     device: usize,
@@ -206,7 +252,7 @@ fn segment_single_queue(
     let mut segments = Vec::new();
     let mut current = Segment::default();
     let mut tail = Tail::Closed;
-    for op in &plan.devices[device] {
+    for op in &recording_order(plan, device) {
         match *op {
             ExecOp::Pass(p) => {
                 // A copy-out ends its segment: the relay forwards it once the segment is done.
@@ -352,6 +398,56 @@ mod tests {
         }
         let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(0), false);
         assert!(dropped.iter().all(|s| s.waits.is_empty()));
+    }
+
+    #[test]
+    fn grouped_passes_move_up_past_copy_outs_of_what_they_do_not_write() {
+        use crate::plan::{ExecCopy, Region};
+        // Four fills writing 1, 3, 1 (a second band of the first view) and 5, then a pass that
+        // does not record groups.
+        let mut plan = crate::record::grouping_plans::plan(&[
+            ("fill", &[0], &[1]),
+            ("fill", &[2], &[3]),
+            ("fill", &[0], &[5]),
+            ("fill", &[0], &[1]),
+            ("fill", &[6], &[7]),
+            ("tonemap", &[1], &[9]),
+        ]);
+        let copy = |resource| ExecCopy { resource, dst: resource, version: 1, rows: Region::new(0, 1), from: 0, to: 1 };
+        plan.copies = vec![copy(1), copy(3), copy(9)];
+        use ExecOp::{CopyOut, Pass, Signal, Wait};
+        plan.devices[0] = vec![
+            Pass(0),
+            CopyOut(0),
+            Signal(0),
+            Pass(1),
+            CopyOut(1),
+            Signal(1),
+            Pass(2),
+            // Writes what copy 0 reads: stays behind it, and starts the next group.
+            Pass(3),
+            Wait(2),
+            // Not past a wait.
+            Pass(4),
+            Pass(5),
+        ];
+        let expected = vec![
+            Pass(0),
+            Pass(1),
+            Pass(2),
+            CopyOut(0),
+            Signal(0),
+            CopyOut(1),
+            Signal(1),
+            Pass(3),
+            Wait(2),
+            Pass(4),
+            Pass(5),
+        ];
+        assert_eq!(recording_order(&plan, 0), expected);
+        // Copies between passes that do not record groups stay where they are.
+        plan.passes.iter_mut().for_each(|p| p.kernel = 0);
+        assert_eq!(recording_order(&plan, 0), plan.devices[0]);
     }
 
     #[test]

@@ -69,6 +69,9 @@ pub struct FrameReport {
     /// CPU time the executor spent recording-free submission of this frame (excludes the
     /// frames-in-flight throttle wait).
     pub submit_cpu_ns: u64,
+    /// Host time the submission waited for a frame in flight to retire before it could reuse
+    /// its slot (the frames-in-flight throttle; 0 while fewer frames are in flight).
+    pub slot_wait_ns: u64,
     pub submitted_passes: usize,
     pub submitted_segments: usize,
     /// From `submit_start_ns` to the end of the last GPU event.
@@ -122,6 +125,7 @@ impl FrameReport {
             frame,
             submit_start_ns,
             submit_cpu_ns,
+            slot_wait_ns: 0,
             submitted_passes,
             submitted_segments,
             frame_wall_ns: last.saturating_sub(submit_start_ns),

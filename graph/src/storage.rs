@@ -60,23 +60,6 @@ pub(crate) fn assign_storage(
     order: &[InstanceId],
 ) -> Vec<Allocation> {
     let mut storage = Storage::default();
-    // The first instance in `order` writing each (device, resource, version).
-    let mut first_writer: HashMap<(DeviceId, ResourceId, u32), InstanceId> = HashMap::new();
-    for &i in order {
-        let inst = &instances[i.index()];
-        for w in &inst.writes {
-            first_writer.entry((inst.device, w.resource, w.version)).or_insert(i);
-        }
-    }
-    let mut arriving: HashMap<InstanceId, Vec<usize>> = HashMap::new();
-    for (c, copy) in copies.iter().enumerate() {
-        // A copy's destination exists before its first consumer reads it; its source after
-        // its producer wrote it. Both are plain `of` lookups, so any position works for
-        // numbering; copies are handled right after their producer for readable ids.
-        if let Some(&p) = first_writer.get(&(copy.from, copy.resource, copy.version)) {
-            arriving.entry(p).or_default().push(c);
-        }
-    }
     for &id in order {
         let inst = &mut instances[id.index()];
         let device = inst.device;
@@ -90,13 +73,13 @@ pub(crate) fn assign_storage(
                 storage.of(write.resource, device, write.version)
             };
         }
-        for &c in arriving.get(&id).into_iter().flatten() {
-            let copy = &mut copies[c];
-            copy.src_alloc = storage.of(copy.resource, copy.from, copy.version);
-            copy.dst_alloc = storage.of(copy.resource, copy.to, copy.version);
-        }
     }
-    for copy in copies.iter_mut().filter(|c| c.src_alloc == AllocId::UNASSIGNED) {
+    // Copies after every instance: a copy into a device that also writes the version in place
+    // (its own band of a `modify`) must land in that in-place allocation. Assigned at its
+    // producer instead, a copy that came first in the order made the version a fresh allocation
+    // there, and the in-place write then went into it rather than into the allocation that holds
+    // the rows it did not touch.
+    for copy in copies.iter_mut() {
         copy.src_alloc = storage.of(copy.resource, copy.from, copy.version);
         copy.dst_alloc = storage.of(copy.resource, copy.to, copy.version);
     }

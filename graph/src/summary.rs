@@ -13,7 +13,8 @@ pub struct PlanSummary {
     pub views: u32,
     pub devices: u32,
     pub scheme: &'static str,
-    pub assign: &'static str,
+    /// How views were grouped into sets: multi-source only (the fine schemes place row bands).
+    pub assign: Option<&'static str>,
     pub sources: Vec<u32>,
     /// Device of each view's set (multi-source only).
     pub set_of_view: Option<Vec<u32>>,
@@ -40,7 +41,7 @@ impl PlanSummary {
             views: lf.len() as u32,
             devices: plan.devices,
             scheme: plan.scheme.name(),
-            assign: plan.assign.name(),
+            assign: (plan.scheme == crate::Scheme::MultiSource).then(|| plan.assign.name()),
             sources: plan.sources.iter().map(|v| v.0).collect(),
             set_of_view: plan.set_of_view().map(<[u32]>::to_vec),
             delta_edges: schedule.delta_edges.len(),

@@ -55,6 +55,10 @@ pub enum ScheduleError {
     #[error("{instance} reads and writes allocation {alloc} without declaring the write in place")]
     UndeclaredInPlace { instance: InstanceId, alloc: AllocId },
     #[error(
+        "{instance} writes version {version} of {resource} in place into allocation {written}, not into {read}, which holds the version it replaces"
+    )]
+    InPlaceElsewhere { instance: InstanceId, resource: ResourceId, version: u32, read: AllocId, written: AllocId },
+    #[error(
         "allocation {alloc} on {device}: {later:?} touches version {later_version} after {earlier:?} wrote version {earlier_version} there"
     )]
     AllocationHazard {

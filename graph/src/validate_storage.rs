@@ -91,6 +91,18 @@ impl Schedule {
                     errors.push(ScheduleError::UndeclaredInPlace { instance, alloc: w.alloc });
                 }
             }
+            for w in inst.writes.iter().filter(|w| w.in_place) {
+                let replaced = inst.reads.iter().find(|r| r.resource == w.resource && r.version + 1 == w.version);
+                if let Some(r) = replaced.filter(|r| r.alloc != w.alloc) {
+                    errors.push(ScheduleError::InPlaceElsewhere {
+                        instance,
+                        resource: w.resource,
+                        version: w.version,
+                        read: r.alloc,
+                        written: w.alloc,
+                    });
+                }
+            }
         }
         for (c, copy) in self.copies.iter().enumerate() {
             let (src, dst) = (self.allocation(copy.src_alloc), self.allocation(copy.dst_alloc));

@@ -55,6 +55,39 @@ fn a_new_version_gets_its_own_allocation_and_an_in_place_one_shares() {
 }
 
 #[test]
+fn a_band_modified_in_place_stays_in_place_when_a_whole_view_read_copies_the_other_bands_in() {
+    // `tint` modifies each band of `color` in place on its device, `gather` then reads the whole
+    // view: the other bands' final rows are copied into the allocation the in-place band lives
+    // in, whichever device's `tint` comes first in the frame's order.
+    let plan = Plan::new(
+        &grid(3, 1, 8),
+        &PlanConfig { devices: 3, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None },
+    )
+    .unwrap();
+    let mut g = Graph::new(plan.topology.clone());
+    let mut color = g.image("color", Format::Rgba32f);
+    let mut out = g.image("out", Format::Rgba32f);
+    g.pass("shade", Role::All).write(&mut color).record();
+    g.pass("tint", Role::All).modify(&mut color).record();
+    g.pass("gather", Role::All).read_whole(&color).write(&mut out).record();
+    g.export(&out);
+    let s = compile(&g, &plan).unwrap();
+    assert_eq!(s.validate().errors, vec![]);
+    assert!(!s.copies.is_empty(), "bands of other devices are copied in");
+    for tint in s.instances.iter().filter(|i| i.name == "tint") {
+        assert_eq!(tint.writes[0].alloc, tint.reads[0].alloc, "{} on {}", tint.name, tint.device.0);
+    }
+    for gather in s.instances.iter().filter(|i| i.name == "gather") {
+        let tint = s.instances.iter().find(|i| i.name == "tint" && i.view == gather.view && i.device == gather.device);
+        assert_eq!(
+            Some(gather.reads[0].alloc),
+            tint.map(|t| t.writes[0].alloc),
+            "gather reads the in-place allocation"
+        );
+    }
+}
+
+#[test]
 fn history_reads_the_double_buffered_allocation_of_the_final_version_on_its_device() {
     let s = temporal(3, Scheme::FineAll);
     for inst in s.instances.iter().filter(|i| i.name == "accumulate") {

@@ -52,6 +52,13 @@ pub enum PassError {
     /// The GPU compacted another number of holes than its mask holds: a bug in compaction.
     #[error("compaction listed {compacted} holes but the mask has {expected}")]
     HoleCount { compacted: u64, expected: u64 },
+    /// A reprojection tolerance out of its range (`ReprojectionTolerances::validate`).
+    #[error(
+        "reprojection tolerance `{name}` is {value}: it must be a finite number (view_dependence and position \
+         at least 0, normal_cos at most 1)"
+    )]
+    ReprojectionTolerance { name: &'static str, value: f32 },
+
     /// The raster camera's near plane must be a positive distance.
     #[error("raster near plane {near} must be a finite distance > 0 (scene units)")]
     NearPlane { near: f32 },

@@ -1,11 +1,9 @@
 //! Hole filling (paper §3.3, Table 1 stage 5), per row band: `compact_holes`
 //! (shaders/compact_holes.comp) turns the `holes` mask of its band into the band's pixel list in
-//! the `hole_list` row buffer, and `hole_fill` path traces exactly the listed pixels with the
-//! `path_trace` kernel's list mode, so no hole ray is dropped. The fill dispatches the band's
-//! capacity, not the indirect arguments in the list header: the direct dispatches of the many
-//! targets overlap on the GPU, where indirect ones ran one after another on an H200 (hole
-//! filling 81.4 → 31.0 ms for 99 targets, docs/RESULTS.md). Both passes split into bands
-//! like any other, so under the fine schemes each device compacts and fills its own strips.
+//! the `hole_list` row buffer, and `hole_fill` path traces exactly the listed pixels
+//! ([`crate::hole_fill`]: one indirect dispatch for all target bands of a device, sized by the
+//! lists' counts), so no hole ray is dropped. Both passes split into bands like any other, so
+//! under the fine schemes each device compacts and fills its own strips.
 //! Formats: docs/PIPELINE.md (`holes`, `hole_list`, `radiance`).
 
 use std::sync::Arc;
@@ -13,7 +11,7 @@ use std::sync::Arc;
 use parallax_backend::{BackendError, ExecPass, Format, KernelGraph, PassKernel, Recorder, ResourceKind};
 use parallax_graph::{Buffer, Handle, Image, Role};
 
-use crate::path_trace::PathTraceKernel;
+use crate::hole_fill::HoleFillKernel;
 use crate::pixel_list::LIST_HEADER_WORDS;
 
 /// Pass name of [`CompactHolesKernel`].
@@ -50,7 +48,7 @@ pub fn declare_hole_fill(
         .modify(&mut list)
         .kernel(Arc::new(CompactHolesKernel))
         .record();
-    graph.pass(HOLE_FILL, Role::Targets).read(&list).modify(radiance).kernel(Arc::new(PathTraceKernel)).record();
+    graph.pass(HOLE_FILL, Role::Targets).read(&list).modify(radiance).kernel(Arc::new(HoleFillKernel)).record();
     list
 }
 

@@ -14,8 +14,11 @@
 //! * [`pixel_list`]: the list format of `path_trace`'s list mode (a header that is the indirect
 //!   arguments, then the pixels) and a test list producer.
 //! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
-//!   and `hole_fill` (`path_trace` over them); [`hole_bench`] times it.
+//!   and `hole_fill` ([`hole_fill`]: the lists of all target bands of a device path traced by
+//!   one indirect dispatch); [`hole_bench`] times it.
 //! * [`trace`]: the graph declaring path tracing per view, and [`GpuTracer`], which runs it.
+//! * [`reproject`] and [`view_bound`]: the gather of targets from their sources, and the bound
+//!   on view-dependence that decides which pixels it may reuse.
 //!
 //! ```no_run
 //! use parallax_backend::{Context, ContextDesc, DeviceSelection};
@@ -39,6 +42,7 @@ pub mod camera;
 pub mod error;
 pub mod gbuffer;
 pub mod hole_bench;
+pub mod hole_fill;
 pub mod holes;
 pub mod path_trace;
 pub mod pipeline;
@@ -51,14 +55,17 @@ pub mod scene_upload;
 pub mod svgf;
 pub mod tonemap;
 pub mod trace;
+pub mod view_bound;
 
 pub use error::{PassError, Result};
 pub use hole_bench::{HOLE_MASK, HashedHoleMaskKernel, HoleBench, bench_holes, hole_threshold, is_hashed_hole};
+pub use hole_fill::HoleFillKernel;
 pub use holes::{
     COMPACT_HOLES, CompactHolesKernel, HOLE_FILL, HOLE_LIST, HOLES, declare_hole_fill, hole_list_row_bytes,
 };
 pub use path_trace::{
     LIST_SLOTS, PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
+    trace_frame_data_lit,
 };
 pub use pixel_list::{
     LIST_HEADER_WORDS, PIXEL_LIST, StridedPixelListKernel, list_groups, pixel_list_bytes, strided_pixels,

@@ -3,21 +3,19 @@
 //!
 //! * Writes (1 to 4, in this order): radiance (rgb, a = 1 where the first hit exists), albedo
 //!   and roughness, normal and metallic, position and linear depth: the [`TRACE_OUTPUTS`]
-//!   images. A pass that needs only radiance (hole filling) declares only the first.
+//!   images.
 //! * Pixels: the instance's row band (a whole view or one device's strip), or, when the pass
 //!   reads a pixel list ([`LIST_SLOTS`]), the listed pixels of its band: the list in the band's
 //!   section of the buffer (a row buffer's rows `[y0, y1)`, or all of a plain buffer; see
 //!   [`crate::pixel_list`]). The dispatch covers the section's capacity and the invocations past
-//!   the list's count return at once. It is not the indirect dispatch the list header also
-//!   describes: on an H200 each indirect dispatch ran alone, so hole filling of many targets
-//!   took one path's latency per target (docs/RESULTS.md), while direct dispatches of one
-//!   pass's instances overlap.
+//!   the list's count return at once. Hole filling traces its lists with its own kernel, one
+//!   dispatch for all targets of a device ([`crate::hole_fill`]), the same `trace_pixel`.
 //! * Camera, frame index and settings come from the per-frame data, one
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
 
 use parallax_backend::{BackendError, ExecAccess, ExecPass, Format, PassKernel, Recorder, ResourceKind};
-use parallax_scene::gpu::{GpuPixel, GpuTraceParams};
+use parallax_scene::gpu::{GpuPixel, GpuTraceParams, TraceLighting};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
 use crate::error::{PassError, Result};
@@ -30,9 +28,9 @@ pub const PATH_TRACE: &str = "path_trace";
 /// Images a `path_trace` pass writes, in write order, all `Rgba32f`.
 pub const TRACE_OUTPUTS: [&str; 4] = ["radiance", "albedo_roughness", "normal_metallic", "position_depth"];
 
-/// Slots of the pixel lists that switch the pass to list mode: the hole list of hole filling
-/// and the test lists of [`crate::StridedPixelListKernel`].
-pub const LIST_SLOTS: [&str; 2] = [crate::holes::HOLE_LIST, crate::pixel_list::PIXEL_LIST];
+/// Slots of the pixel lists that switch the pass to list mode: the test lists of
+/// [`crate::StridedPixelListKernel`].
+pub const LIST_SLOTS: [&str; 1] = [crate::pixel_list::PIXEL_LIST];
 
 /// Image index meaning "not written" in the push constants.
 const NO_IMAGE: u32 = u32::MAX;
@@ -117,7 +115,11 @@ impl PassKernel for PathTraceKernel {
 /// Where the list of `read` (a pixel-list read of this instance) is: the GPU address of its
 /// band's section and how many entries the section holds. The section is the read's rows: the
 /// instance's band of a row buffer, or row 0, all of it, of a plain buffer.
-fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) -> parallax_backend::Result<(u64, u32)> {
+pub(crate) fn list_section(
+    rec: &Recorder<'_>,
+    read: &ExecAccess,
+    index: usize,
+) -> parallax_backend::Result<(u64, u32)> {
     let list = rec.resource(read.resource);
     let offset = u64::from(read.rows.y0) * list.row_bytes();
     let section = u64::from(read.rows.len()) * list.row_bytes();
@@ -133,6 +135,12 @@ fn list_section(rec: &Recorder<'_>, read: &ExecAccess, index: usize) -> parallax
 /// `i * TRACE_PARAMS_BYTES`. `views[i].index` must be `i` (it keys the random numbers and
 /// locates the view's parameters).
 pub fn trace_frame_data(scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<u8>> {
+    trace_frame_data_lit(&TraceLighting::new(scene), views, settings)
+}
+
+/// [`trace_frame_data`] with the scene's lighting gathered already (a renderer does it once,
+/// not once per view and frame: it walks every triangle).
+pub fn trace_frame_data_lit(lighting: &TraceLighting, views: &[View], settings: &TraceSettings) -> Result<Vec<u8>> {
     settings.validate()?;
     let mut bytes = Vec::with_capacity(views.len() * TRACE_PARAMS_BYTES as usize);
     for (position, view) in views.iter().enumerate() {
@@ -142,7 +150,7 @@ pub fn trace_frame_data(scene: &Scene, views: &[View], settings: &TraceSettings)
         if view.width > 1 << 16 || view.height > 1 << 16 {
             return Err(PassError::ViewTooLarge { width: view.width, height: view.height });
         }
-        let params = GpuTraceParams::new(scene, view, settings, &PixelSet::All);
+        let params = GpuTraceParams::with_lighting(lighting, view, settings, &PixelSet::All);
         bytes.extend_from_slice(bytemuck::bytes_of(&params));
     }
     Ok(bytes)

@@ -82,7 +82,7 @@ pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> Res
         }
         PipelineKind::Reproject => {
             declare_path_trace(graph, Role::Sources, &mut radiance);
-            let holes = declare_reproject(graph, &gbuffer, &mut radiance, config.tolerances);
+            let holes = declare_reproject(graph, &gbuffer, &mut radiance, config.tolerances)?;
             declare_hole_fill(graph, &holes, &mut radiance);
             Some(holes)
         }

@@ -1,11 +1,12 @@
-//! Pixel lists, the input of `path_trace`'s list mode (shaders/pixel_list.glsl). A list lives in
-//! one band's section of a buffer: [`LIST_HEADER_WORDS`] header words `groups_x, groups_y,
-//! groups_z, count`, then `count` words `x | y << 16`. The header doubles as indirect arguments
-//! covering exactly the listed entries, for a consumer dispatched indirectly; `path_trace`
-//! dispatches the section's capacity instead and stops at `count` (indirect dispatches of many
-//! views ran one after another on an H200, see [`crate::holes`]). A per-band list lives in a
-//! row buffer (`hole_list`, [`crate::holes`]), band `[y0, y1)` at byte `y0 * row_bytes`; a
-//! whole-view list in a plain buffer is one band at byte 0.
+//! Pixel lists, the input of `path_trace`'s list mode and of hole filling
+//! (shaders/pixel_list.glsl). A list lives in one band's section of a buffer:
+//! [`LIST_HEADER_WORDS`] header words `groups_x, groups_y, groups_z, count`, then `count` words
+//! `x | y << 16`. The header doubles as indirect arguments covering exactly the listed entries,
+//! for a consumer dispatched indirectly on one list; `path_trace` dispatches the section's
+//! capacity instead and stops at `count`, and hole filling sums the counts of all its lists
+//! into one indirect dispatch ([`crate::hole_fill`]). A per-band list lives in a row buffer
+//! (`hole_list`, [`crate::holes`]), band `[y0, y1)` at byte `y0 * row_bytes`; a whole-view list
+//! in a plain buffer is one band at byte 0.
 //!
 //! [`StridedPixelListKernel`] writes a deterministic scattered selection into a plain buffer,
 //! which is what the subset-independence tests trace.

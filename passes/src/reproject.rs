@@ -1,34 +1,65 @@
 //! The `reproject` pass: shaders/reproject.comp, the paper's spatial reprojection as a gather
-//! (see the shader for the acceptance test). Targets only.
+//! (see the shader for the acceptance test), with a bound on view-dependence in place of the
+//! paper's diffuse-only gate (§4.1): a source's radiance is reused wherever
+//! [`crate::view_bound`] says it differs from the target's by at most
+//! [`ReprojectionTolerances::view_dependence`]. Sky pixels get the sky and sun the path tracer
+//! would give them and are not holes, except on silhouettes (a neighbour has a hit), where the
+//! path tracer's jittered samples may hit the surface too. Targets only.
 //!
 //! Slots (docs/PIPELINE.md): reads its own `position_depth`, `normal_metallic`,
 //! `albedo_roughness` and each source's `position_depth`, `normal_metallic`, `radiance`
-//! (`read_sources`: the δ-edges); writes `radiance` and `holes`. Sources are tried in the
-//! view topology's order, nearest first; at most [`MAX_SOURCES`].
+//! (`read_sources`: the δ-edges), the view's `GpuTraceParams` in the per-frame data (camera,
+//! sky, sun, sampling) and the frame block (the sources' cameras); writes `radiance` and
+//! `holes`. Sources are tried in the view topology's order, nearest first; at most
+//! [`MAX_SOURCES`].
 
 use std::sync::Arc;
 
 use parallax_backend::{BackendError, ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, Role};
 
+use crate::error::{PassError, Result};
 use crate::gbuffer::Gbuffer;
+use crate::path_trace::TRACE_PARAMS_BYTES;
 
 /// Pass name.
 pub const REPROJECT: &str = "reproject";
 /// Sources one target pixel tries.
 pub const MAX_SOURCES: usize = 4;
 
-/// When a source pixel counts as the same surface, and which surfaces are reprojected.
+/// When a source pixel counts as the same surface, and when its radiance is close enough to
+/// the target's to be reused.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReprojectionTolerances {
     /// Allowed depth and world-position difference, relative to the distance from the source.
     pub position: f32,
     /// Least cosine between the target's and the source's normal.
     pub normal_cos: f32,
-    /// Diffuse gate (§4.1): only surfaces at least this rough...
-    pub min_roughness: f32,
-    /// ...and at most this metallic are reprojected; glossy and metal ones become holes.
-    pub max_metallic: f32,
+    /// Largest relative radiance error that view-dependence may cause: the bound of
+    /// [`crate::view_bound::ViewBound::error`] for the angle between the target's and the
+    /// source's view directions. 0 reprojects only from a source at the target's own position;
+    /// mirror-like metals stay holes at any useful value.
+    pub view_dependence: f32,
+}
+
+impl ReprojectionTolerances {
+    /// The view-dependence tolerance `render --reprojection-tolerance` uses by default
+    /// (docs/PIPELINE.md says which measurement chose it).
+    pub const DEFAULT_VIEW_DEPENDENCE: f32 = 0.2;
+
+    /// Every tolerance is a finite number, the view-dependence one at least 0.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.view_dependence.is_finite() && self.view_dependence >= 0.0) {
+            return Err(PassError::ReprojectionTolerance { name: "view_dependence", value: self.view_dependence });
+        }
+        if !(self.position.is_finite() && self.position >= 0.0) {
+            return Err(PassError::ReprojectionTolerance { name: "position", value: self.position });
+        }
+        if !(self.normal_cos.is_finite() && self.normal_cos <= 1.0) {
+            return Err(PassError::ReprojectionTolerance { name: "normal_cos", value: self.normal_cos });
+        }
+        Ok(())
+    }
 }
 
 impl Default for ReprojectionTolerances {
@@ -36,7 +67,7 @@ impl Default for ReprojectionTolerances {
         // 1 % of the distance is ~8 pixel footprints at 1024 px and 65°: enough for the
         // sub-pixel shift between a target's pixel centre and the source pixel it lands in,
         // small against the depth steps occlusion makes.
-        Self { position: 0.01, normal_cos: 0.9, min_roughness: 0.5, max_metallic: 0.1 }
+        Self { position: 0.01, normal_cos: 0.9, view_dependence: Self::DEFAULT_VIEW_DEPENDENCE }
     }
 }
 
@@ -45,6 +76,8 @@ impl Default for ReprojectionTolerances {
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ReprojectPush {
     pub block: u64,
+    /// The target view's `GpuTraceParams` (its size, camera, sky, sun and sampling).
+    pub trace: u64,
     pub position_depth: u32,
     pub normal_metallic: u32,
     pub albedo_roughness: u32,
@@ -53,12 +86,10 @@ pub struct ReprojectPush {
     pub source_count: u32,
     pub y0: u32,
     pub y1: u32,
-    pub width: u32,
-    pub height: u32,
     pub position_tolerance: f32,
     pub normal_cos: f32,
-    pub min_roughness: f32,
-    pub max_metallic: f32,
+    pub view_tolerance: f32,
+    pub pad: u32,
     /// Per source: view, position_depth, normal_metallic, radiance images.
     pub sources: [[u32; 4]; MAX_SOURCES],
 }
@@ -76,7 +107,7 @@ impl PassKernel for ReprojectKernel {
         let output =
             |name: &str| pass.output(name).map(|a| a.resource).ok_or_else(|| misuse(format!("writes no `{name}`")));
         let position_depth = input("position_depth")?;
-        let (width, height) = (rec.resource(position_depth).width, rec.resource(position_depth).height);
+        let width = rec.resource(position_depth).width;
         let mut sources = [[0u32; 4]; MAX_SOURCES];
         let mut count = 0;
         for (slot, radiance) in sources.iter_mut().zip(pass.source_inputs("radiance")) {
@@ -98,6 +129,7 @@ impl PassKernel for ReprojectKernel {
         let t = self.tolerances;
         let push = ReprojectPush {
             block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
             position_depth: rec.image(position_depth)?,
             normal_metallic: rec.image(input("normal_metallic")?)?,
             albedo_roughness: rec.image(input("albedo_roughness")?)?,
@@ -106,12 +138,10 @@ impl PassKernel for ReprojectKernel {
             source_count: count,
             y0: pass.rows.y0,
             y1: pass.rows.y1,
-            width,
-            height,
             position_tolerance: t.position,
             normal_cos: t.normal_cos,
-            min_roughness: t.min_roughness,
-            max_metallic: t.max_metallic,
+            view_tolerance: t.view_dependence,
+            pad: 0,
             sources,
         };
         rec.dispatch_bytes(
@@ -124,12 +154,14 @@ impl PassKernel for ReprojectKernel {
 
 /// Declares `reproject` for every target: reads `gbuffer` of the target and of its sources and
 /// the sources' `radiance`; writes the targets' `radiance` and returns the `holes` handle.
+/// Tolerances that are not numbers in range are refused ([`ReprojectionTolerances::validate`]).
 pub fn declare_reproject(
     graph: &mut KernelGraph,
     gbuffer: &Gbuffer,
     radiance: &mut Handle<Image>,
     tolerances: ReprojectionTolerances,
-) -> Handle<Image> {
+) -> Result<Handle<Image>> {
+    tolerances.validate()?;
     let mut holes = graph.image("holes", Format::R32u);
     graph
         .pass(REPROJECT, Role::Targets)
@@ -143,7 +175,7 @@ pub fn declare_reproject(
         .write(&mut holes)
         .kernel(Arc::new(ReprojectKernel { tolerances }))
         .record();
-    holes
+    Ok(holes)
 }
 
 #[cfg(test)]
@@ -157,6 +189,7 @@ mod tests {
         let glsl = member_offsets(&parallax_backend::spirv("reproject").unwrap(), "ReprojectPush").unwrap();
         let rust = rust_layout!(ReprojectPush {
             block,
+            trace,
             position_depth,
             normal_metallic,
             albedo_roughness,
@@ -165,12 +198,10 @@ mod tests {
             source_count,
             y0,
             y1,
-            width,
-            height,
             position_tolerance,
             normal_cos,
-            min_roughness,
-            max_metallic,
+            view_tolerance,
+            pad,
             sources
         });
         assert_eq!(glsl, rust);

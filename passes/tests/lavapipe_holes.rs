@@ -1,16 +1,17 @@
 //! Hole filling on lavapipe, validation on: a synthetic hole mask of the target views is
-//! compacted per row band into `hole_list` and only those pixels are path traced (a dispatch
-//! over each band's capacity that stops at its count), in place over a known pattern. The hole pixels must equal
-//! the full path-traced view bit for bit, every other pixel must keep the pattern, and each
-//! band's header and entries must be exactly its holes. Under fine-all over 3 logical devices
-//! every device compacts and fills its own bands, and the views equal the 1-device run.
+//! compacted per row band into `hole_list` and only those pixels are path traced (one indirect
+//! dispatch per device over the lists of all its target bands), in place over a known pattern.
+//! The hole pixels must equal the full path-traced view bit for bit, every other pixel must keep
+//! the pattern, and each band's header and entries must be exactly its holes. Under fine-all
+//! over 3 logical devices every device compacts and fills its own bands, and the views equal
+//! the 1-device run.
 
 mod common;
 
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use parallax_backend::{ExecutionPlan, KernelGraph};
+use parallax_backend::{EventKind, ExecPass, ExecutionPlan, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{AssignStrategy, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, compile};
 use parallax_passes::{
     COMPACT_HOLES, HOLE_FILL, HOLE_LIST, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel,
@@ -33,41 +34,78 @@ struct Run {
     plan: ExecutionPlan,
     pixels: Vec<Vec<GpuPixel>>,
     lists: Vec<(u32, Vec<u32>)>,
+    /// Per frame, the devices of its timed `hole_fill` ops (a timestamp pair around each op).
+    fill_ops: Vec<Vec<usize>>,
 }
 
-/// Source path traced, targets filled with the fill pattern, masked with `threshold`,
-/// compacted and filled, over `devices` devices under fine-all (every pass in row bands over
-/// all devices, bands gathered on device 0).
+/// The synthetic mask of [`HashedHoleMaskKernel`] with a threshold per view.
+struct PerViewMask(Vec<u32>);
+
+impl PassKernel for PerViewMask {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+        HashedHoleMaskKernel { threshold: self.0[pass.view as usize] }.record(rec, pass, index)
+    }
+}
+
+/// A hole-filling light field: a `cols`×`rows` grid of W×H views whose only source is `source`.
+struct Case {
+    cols: u32,
+    rows: u32,
+    source: u32,
+    /// Per view, the threshold of its mask (the source's is unused).
+    thresholds: Vec<u32>,
+}
+
+impl Case {
+    /// The 3×1 light field of most tests, its middle view the source, one threshold for both
+    /// targets.
+    fn three(threshold: u32) -> Self {
+        Case { cols: VIEWS, rows: 1, source: SOURCE, thresholds: vec![threshold; VIEWS as usize] }
+    }
+
+    fn views(&self) -> u32 {
+        self.cols * self.rows
+    }
+
+    /// Source path traced, targets filled with the fill pattern, masked with their thresholds,
+    /// compacted and filled, over `devices` devices under `scheme`.
+    fn plan(&self, devices: u32, scheme: Scheme) -> ExecutionPlan {
+        let layout = LayoutSpec::Grid { cols: self.cols, rows: self.rows };
+        let lf = LightField::new(layout, None, Some((W, H)), Rig::default()).unwrap();
+        let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![self.source]) };
+        let placement = parallax_graph::Plan::new(&lf, &config).unwrap();
+        let mut graph = KernelGraph::with_payload(placement.topology.clone());
+        let mut radiance = graph.image("radiance", Format::Rgba32f);
+        let mut holes = graph.image(HOLES, Format::R32u);
+        graph.pass(PATH_TRACE, Role::Sources).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
+        // What reprojection would leave: here a pattern every untouched pixel must keep.
+        graph.pass("prefill", Role::Targets).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
+        let mask = PerViewMask(self.thresholds.clone());
+        graph.pass(HOLE_MASK, Role::Targets).write(&mut holes).kernel(Arc::new(mask)).record();
+        let list = declare_hole_fill(&mut graph, &holes, &mut radiance);
+        graph.export(&radiance);
+        graph.export(&list);
+        let schedule = compile(&graph, &placement).unwrap();
+        assert_eq!(schedule.validate().errors, vec![]);
+        ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+    }
+}
+
+/// [`Case::three`] over `devices` devices under fine-all (every pass in row bands over all
+/// devices, bands gathered on device 0).
 fn hole_fill_plan(devices: u32, threshold: u32) -> ExecutionPlan {
-    let layout = LayoutSpec::Grid { cols: VIEWS, rows: 1 };
-    let lf = LightField::new(layout, None, Some((W, H)), Rig::default()).unwrap();
-    let config =
-        PlanConfig { devices, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![SOURCE]) };
-    let placement = parallax_graph::Plan::new(&lf, &config).unwrap();
-    let mut graph = KernelGraph::with_payload(placement.topology.clone());
-    let mut radiance = graph.image("radiance", Format::Rgba32f);
-    let mut holes = graph.image(HOLES, Format::R32u);
-    graph.pass(PATH_TRACE, Role::Sources).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
-    // What reprojection would leave: here a pattern every untouched pixel must keep.
-    graph.pass("prefill", Role::Targets).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
-    graph
-        .pass(HOLE_MASK, Role::Targets)
-        .write(&mut holes)
-        .kernel(Arc::new(HashedHoleMaskKernel { threshold }))
-        .record();
-    let list = declare_hole_fill(&mut graph, &holes, &mut radiance);
-    graph.export(&radiance);
-    graph.export(&list);
-    let schedule = compile(&graph, &placement).unwrap();
-    assert_eq!(schedule.validate().errors, vec![]);
-    ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+    Case::three(threshold).plan(devices, Scheme::FineAll)
 }
 
 fn run(devices: u32, plan: ExecutionPlan) -> Run {
+    run_views(devices, plan, VIEWS)
+}
+
+fn run_views(devices: u32, plan: ExecutionPlan, view_count: u32) -> Run {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices as usize);
-    let views = common::views(&scene, VIEWS, W, H);
+    let views = common::views(&scene, view_count, W, H);
     let mut tracer = parallax_passes::GpuTracer::with_shaders(
         &ctx,
         plan.clone(),
@@ -77,20 +115,33 @@ fn run(devices: u32, plan: ExecutionPlan) -> Run {
     .unwrap();
     let pixels = tracer.render(&scene, &views, &SETTINGS).unwrap();
     let mut lists = Vec::new();
-    for view in 0..VIEWS {
+    for view in 0..view_count {
         // Only target views have lists, and only in hole-filling plans.
         let Some((device, resource)) = tracer.executor().plan().final_output(HOLE_LIST, view) else { continue };
         let bytes = tracer.executor().read_resource(device, resource).unwrap();
         lists.push((view, bytemuck::pod_collect_to_vec(&bytes)));
     }
+    let fill_ops = tracer
+        .executor()
+        .reports()
+        .iter()
+        .map(|r| {
+            let fills = r.events.iter().filter(|e| e.kind == EventKind::Pass && e.name == HOLE_FILL);
+            fills.map(|e| e.device).collect()
+        })
+        .collect();
     drop(tracer);
     ctx.check_validation().unwrap();
-    Run { plan, pixels, lists }
+    Run { plan, pixels, lists, fill_ops }
 }
 
 /// Every view path traced whole (the reference of the hole pixels).
 fn full_trace() -> Vec<Vec<GpuPixel>> {
-    run(1, banded_trace_plan(VIEWS, (W, H), 1, 1).unwrap()).pixels
+    full_trace_of(VIEWS)
+}
+
+fn full_trace_of(views: u32) -> Vec<Vec<GpuPixel>> {
+    run_views(1, banded_trace_plan(views, (W, H), 1, 1).unwrap(), views).pixels
 }
 
 fn bits(p: [f32; 4]) -> [u32; 4] {
@@ -106,15 +157,21 @@ fn holes_of(view: u32, width: u32, rows: Region, threshold: u32) -> BTreeSet<u32
         .collect()
 }
 
-/// Checks a run against the full trace and the mask: pixels, and each band's list.
-/// Returns the devices that ran `compact_holes` and `hole_fill` instances.
+/// Checks a run of [`Case::three`] against the full trace and the mask (see [`check_case`]).
 fn check(run: &Run, full: &[Vec<GpuPixel>], threshold: u32, what: &str) -> BTreeSet<usize> {
+    check_case(run, full, &Case::three(threshold), what)
+}
+
+/// Checks a run of `case` against the full trace and the masks: pixels, and each band's list.
+/// Returns the devices that ran `compact_holes` and `hole_fill` instances.
+fn check_case(run: &Run, full: &[Vec<GpuPixel>], case: &Case, what: &str) -> BTreeSet<usize> {
     for (view, (got, traced)) in run.pixels.iter().zip(full).enumerate() {
         let view = view as u32;
+        let threshold = case.thresholds[view as usize];
         for y in 0..H {
             for x in 0..W {
                 let i = (y * W + x) as usize;
-                let expected = if view == SOURCE || is_hashed_hole(x, y, view, threshold) {
+                let expected = if view == case.source || is_hashed_hole(x, y, view, threshold) {
                     traced[i].radiance
                 } else {
                     reference_fill(x, y, view)
@@ -132,7 +189,7 @@ fn check(run: &Run, full: &[Vec<GpuPixel>], threshold: u32, what: &str) -> BTree
         }
         let (_, words) = run.lists.iter().find(|(v, _)| *v == pass.view).unwrap();
         let section = &words[pass.rows.y0 as usize * row_words..pass.rows.y1 as usize * row_words];
-        let expected = holes_of(pass.view, W, pass.rows, threshold);
+        let expected = holes_of(pass.view, W, pass.rows, case.thresholds[pass.view as usize]);
         let n = expected.len() as u32;
         let band = format!("{what}: view {} rows {:?}", pass.view, pass.rows);
         assert_eq!(section[..4], [n.div_ceil(64), 1, 1, n], "{band}: header");
@@ -168,6 +225,33 @@ fn fine_all_over_three_devices_fills_bands_on_every_device_and_equals_one_device
         let (a, b): (Vec<_>, Vec<_>) =
             (a.iter().map(|p| bits(p.radiance)).collect(), b.iter().map(|p| bits(p.radiance)).collect());
         assert!(a == b, "view {view}: 3 devices differ from 1 device");
+    }
+}
+
+#[test]
+fn one_op_per_device_fills_every_target_band_with_the_bits_of_path_tracing() {
+    // 71 targets: more than the 64 a workgroup of hole_fill_prefix.comp sums at once. Targets
+    // without holes, with a few, with many and with nothing but holes (whole 8×8 tiles, counts
+    // that are multiples of the fill's 64-entry workgroups).
+    let fractions = [0.0, 0.05, 0.3, 1.0, 0.6];
+    let thresholds = (0..72).map(|v| hole_threshold(fractions[v % fractions.len()]).unwrap()).collect();
+    let case = Case { cols: 9, rows: 8, source: 40, thresholds };
+    let full = full_trace_of(case.views());
+    for (devices, scheme) in [(1, Scheme::FineAll), (3, Scheme::FineAll), (3, Scheme::FineSources)] {
+        let what = format!("{devices} device(s), {}", scheme.name());
+        let run = run_views(devices, case.plan(devices, scheme), case.views());
+        check_case(&run, &full, &case, &what);
+        // A timestamp pair around every op (the default per-op timing): each device that holds
+        // target bands fills all of them in one op.
+        let fills = || run.plan.passes.iter().filter(|p| p.name == HOLE_FILL);
+        let holders: BTreeSet<usize> = fills().map(|p| p.device).collect();
+        // Fine-all fills a band of every target on every device; fine-sources whole targets.
+        let bands = if scheme == Scheme::FineAll { 71 * devices as usize } else { 71 };
+        assert_eq!(fills().count(), bands, "{what}: target bands");
+        assert!(scheme != Scheme::FineAll || holders.len() == devices as usize, "{what}: every device fills");
+        for (frame, ops) in run.fill_ops.iter().enumerate() {
+            assert_eq!(ops, &holders.iter().copied().collect::<Vec<_>>(), "{what}: frame {frame}");
+        }
     }
 }
 

@@ -81,6 +81,7 @@ fn run_with(
     let bvh = SceneBvh::build(scene);
     let mut renderer =
         LightFieldRenderer::with_options(&ctx, exec, lf.len() as u32, &GpuScene::new(scene, &bvh), options).unwrap();
+    renderer.keep_reports(true);
     let settings = TraceSettings { spp: 1, max_depth: 3, ..Default::default() };
     let mut out = Vec::new();
     for f in frames {

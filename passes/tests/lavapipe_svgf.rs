@@ -387,11 +387,11 @@ fn svgf_in_three_row_bands_on_three_devices_equals_one_device_bit_for_bit() {
         }
         if devices == 1 {
             // Not vacuous: pixels of rows 5..10 (band 0 is rows 0..10) reuse history (length
-            // >= 2, the moments' z) through rows 10..16, which band 1 wrote.
-            let moments = run.read("svgf_moments", 0);
+            // >= 2, the colour history's alpha) through rows 10..16, which band 1 wrote.
+            let color = run.read("svgf_color", 0);
             let reused = (5..10usize)
                 .flat_map(|y| (0..SIZE as usize).map(move |x| y * SIZE as usize + x))
-                .filter(|&i| moments[4 * i + 2] >= 2.0)
+                .filter(|&i| color[4 * i + 3] >= 2.0)
                 .count();
             assert!(reused > 10, "only {reused} pixels reprojected across the band border");
         }

@@ -8,11 +8,13 @@
 use std::time::{Duration, Instant};
 
 use glam::{Vec2, Vec3, Vec3A};
-use obvhs::BvhBuildParams;
+use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
+use obvhs::{Boundable, BvhBuildParams};
 
+use crate::bvh_coincident::{LARGEST_PLAIN_GROUP, build_grouped, centroid_groups};
 use crate::model::{AlphaMode, Scene};
 use crate::shading::base_color_alpha;
 
@@ -91,8 +93,16 @@ impl SceneBvh {
             })
             .collect();
         let mut core = Duration::ZERO;
+        let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
+        let groups = centroid_groups(&aabbs);
         let cwbvh = if tris.is_empty() {
             CwBvh::default()
+        } else if groups.iter().any(|g| g.len() > LARGEST_PLAIN_GROUP) {
+            // Quality is moot for such a scene; pre-splitting (slow presets) is skipped.
+            let start = Instant::now();
+            let cwbvh = build_grouped(&aabbs, &groups, &quality.params());
+            core = start.elapsed();
+            cwbvh
         } else {
             obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, quality.params(), &mut core)
         };

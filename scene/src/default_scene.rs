@@ -3,7 +3,8 @@
 //! Small (under 2k triangles) and built to exercise reprojection: pillars and boxes at several
 //! depths in front of a back wall, so that views shifted sideways uncover different parts of the
 //! background (disocclusions); a diffuse floor and walls, glossy dielectric and metal objects
-//! (which reprojection must not reuse), an emissive ceiling panel, a gradient sky and a low sun.
+//! (which reprojection reuses only within its view-dependence bound), an emissive ceiling
+//! panel, a gradient sky and a low sun.
 
 use glam::{Vec2, Vec3};
 
@@ -48,17 +49,24 @@ pub fn default_scene() -> Scene {
         shift: Vec2::ZERO,
     });
     let mut scene = b.build();
-    scene.sky = Some(Sky::Gradient {
+    (scene.sky, scene.sun) = default_lighting();
+    scene
+}
+
+/// The default scene's lighting, a gradient sky and a low sun, for scenes built in code that
+/// should be lit like it.
+pub fn default_lighting() -> (Option<Sky>, Option<Sun>) {
+    let sky = Sky::Gradient {
         zenith: Vec3::new(0.15, 0.25, 0.5),
         horizon: Vec3::new(0.45, 0.5, 0.55),
         ground: Vec3::new(0.15, 0.13, 0.1),
-    });
-    scene.sun = Some(Sun {
+    };
+    let sun = Sun {
         to_sun: Vec3::new(-0.5, 0.6, 0.45).normalize(),
         irradiance: Vec3::new(1.3, 1.2, 1.1),
         angular_radius: 0.02,
-    });
-    scene
+    };
+    (Some(sky), Some(sun))
 }
 
 /// The white-furnace scene: a sphere and a box of albedo-1 Lambert material close together

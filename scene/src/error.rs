@@ -14,13 +14,16 @@ pub enum SceneError {
         #[source]
         source: std::io::Error,
     },
+    /// Not a regular file, too large, a symlink loop.
+    #[error(transparent)]
+    Input(crate::input::InputError),
     #[error("{path}: malformed glTF JSON: {detail}")]
     MalformedJson { path: PathBuf, detail: String },
     #[error("{path}: requires glTF extension {extension}, which Parallax does not support (supported: {supported})")]
     UnsupportedExtension { path: PathBuf, extension: String, supported: &'static str },
     #[error("{path}: invalid glTF: {detail}")]
     InvalidGltf { path: PathBuf, detail: String },
-    #[error("{path}: buffer {buffer} ({uri}) is missing or too short: {detail}")]
+    #[error("{path}: buffer {buffer} ({uri}) cannot be read: {detail}")]
     MissingBuffer { path: PathBuf, buffer: usize, uri: String, detail: String },
     #[error("{path}: image {image} ({uri}) cannot be read: {detail}")]
     BadImage { path: PathBuf, image: usize, uri: String, detail: String },
@@ -46,14 +49,31 @@ pub enum SceneError {
         "{path}: every triangle has zero area ({hint}), so nothing would be visible; fix the node scales or vertex positions"
     )]
     ZeroArea { path: PathBuf, hint: String },
+    #[error(
+        "{path}: {what} emits {value:e}, more than the {limit:e} a scene may (f32 sums would overflow to infinity): lower it"
+    )]
+    EmissionOutOfRange { path: PathBuf, what: String, value: f32, limit: f32 },
     #[error("{path}: camera {camera} (node {node}): {detail}")]
     BadCamera { path: PathBuf, camera: usize, node: usize, detail: String },
     #[error(
         "{path}: not a glTF file ({detail}); Parallax reads .gltf (JSON) and .glb (binary glTF): convert other formats such as .obj first, e.g. with Blender"
     )]
     NotGltf { path: PathBuf, detail: String },
+    #[error("{path}: cannot read image: {detail}")]
+    ImageRead { path: PathBuf, detail: String },
     #[error("{path}: cannot write image: {detail}")]
     ImageWrite { path: PathBuf, detail: String },
+    #[error("{path}: image {image}: {detail}")]
+    MalformedImage { path: PathBuf, image: usize, detail: String },
     #[error("invalid trace settings: {0}")]
     InvalidSettings(String),
+}
+
+impl From<crate::input::InputError> for SceneError {
+    fn from(e: crate::input::InputError) -> Self {
+        match e {
+            crate::input::InputError::Io { path, error } => SceneError::Io { path, source: error },
+            other => SceneError::Input(other),
+        }
+    }
 }

@@ -9,6 +9,7 @@ use gltf::animation::util::ReadOutputs;
 
 use crate::animation::{AnimatedNode, CameraAnimation, Interpolation, Track};
 use crate::error::SceneError;
+use crate::model::MAX_COORDINATE;
 
 /// The animation of camera node `camera_node` (yfov `yfov`), or None when nothing animates it
 /// or a node above it.
@@ -62,9 +63,14 @@ pub(crate) fn camera_animation(
     for animation in doc.animations() {
         for (c, channel) in animation.channels().enumerate() {
             let Some(k) = chain.iter().position(|&i| i == channel.target().node().index()) else { continue };
+            let sampler = channel.sampler().index();
             let bad = |detail: String| SceneError::InvalidGltf {
                 path: path.to_path_buf(),
-                detail: format!("animation {} channel {c} (node {}): {detail}", animation.index(), chain[k]),
+                detail: format!(
+                    "animation {} sampler {sampler} (channel {c}, node {}): {detail}",
+                    animation.index(),
+                    chain[k]
+                ),
             };
             let interpolation = match channel.sampler().interpolation() {
                 gltf::animation::Interpolation::Step => Interpolation::Step,
@@ -73,10 +79,17 @@ pub(crate) fn camera_animation(
             };
             let reader = channel.reader(|b| Some(&buffers[b.index()].0[..]));
             let times: Vec<f32> = reader.read_inputs().ok_or_else(|| bad("no keyframe times".into()))?.collect();
+            if let Some(t) = times.iter().find(|t| !(0.0..=MAX_KEYFRAME_TIME).contains(*t)) {
+                return Err(bad(format!("keyframe time {t:e} s is outside 0..={MAX_KEYFRAME_TIME:e} s")));
+            }
             let node = &mut animated[k];
             let well_formed = match reader.read_outputs() {
                 Some(ReadOutputs::Translations(v)) => {
                     let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
+                    check_values(&track.values, "translation", |p| {
+                        p.is_finite() && p.abs().max_element() <= MAX_COORDINATE
+                    })
+                    .map_err(bad)?;
                     let ok = track.is_well_formed();
                     node.translation_track = Some(track);
                     ok
@@ -84,12 +97,16 @@ pub(crate) fn camera_animation(
                 Some(ReadOutputs::Rotations(v)) => {
                     let values = v.into_f32().map(Quat::from_array).collect();
                     let track = Track { times: times.clone(), values, interpolation };
+                    check_values(&track.values, "rotation", |q| q.is_finite() && q.length_squared() > 1e-12)
+                        .map_err(bad)?;
                     let ok = track.is_well_formed();
                     node.rotation_track = Some(track);
                     ok
                 }
                 Some(ReadOutputs::Scales(v)) => {
                     let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
+                    check_values(&track.values, "scale", |s| s.is_finite() && s.abs().max_element() <= MAX_COORDINATE)
+                        .map_err(bad)?;
                     let ok = track.is_well_formed();
                     node.scale_track = Some(track);
                     ok
@@ -109,4 +126,18 @@ pub(crate) fn camera_animation(
         }
     }
     Ok(any.then_some(CameraAnimation { nodes: animated, yfov, duration }))
+}
+
+/// The longest keyframe time a camera animation may have: 1e6 s (11 days).
+pub const MAX_KEYFRAME_TIME: f32 = 1e6;
+
+/// Every keyframe value is finite and within range (`ok`): a NaN or 1e30 would render black
+/// frames while render.json reported a camera path.
+fn check_values<T: std::fmt::Debug>(values: &[T], what: &str, ok: impl Fn(&T) -> bool) -> Result<(), String> {
+    match values.iter().position(|v| !ok(v)) {
+        None => Ok(()),
+        Some(i) => {
+            Err(format!("{what} keyframe value {i} is {:?}: not finite, zero or beyond ±{MAX_COORDINATE:e}", values[i]))
+        }
+    }
 }

@@ -9,36 +9,74 @@
 //! Every failure is a [`SceneError`] naming the file. The gltf crate's accessor readers slice
 //! buffers without checking, so every accessor is bounds-checked here before any is read.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::error::SceneError;
-use crate::model::{AlphaMode, Camera, MAX_COORDINATE, Material, PunctualKind, PunctualLight, Scene, Texture};
+use crate::input::{
+    IMAGE_FILE_LIMIT, IMAGE_SIDE_LIMIT, SCENE_FILE_LIMIT, SourceFile, UriPolicy, read_bounded, read_prefix, resolve_uri,
+};
+use crate::model::{
+    AlphaMode, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Texture,
+};
 
 /// Extensions a file may list in `extensionsRequired`.
 pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
 const SUPPORTED_LIST: &str = "KHR_materials_emissive_strength, KHR_lights_punctual";
 
+/// How a glTF file is read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Where buffer and image URIs may point (default: inside the scene's folder tree).
+    pub uris: UriPolicy,
+}
+
 /// Loads a `.gltf` (with external or embedded buffers) or `.glb` file.
 pub fn load_gltf(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
+    load_gltf_with(path, LoadOptions::default())
+}
+
+/// [`load_gltf`] with `options`. [`Scene::sources`] lists every file read: the scene file, then
+/// the buffers and images it names.
+pub fn load_gltf_with(path: impl AsRef<Path>, options: LoadOptions) -> Result<Scene, SceneError> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let bytes = read_bounded(path, SCENE_FILE_LIMIT, "glTF scene")?;
     let base = path.parent().unwrap_or(Path::new("."));
-    load_gltf_bytes(&bytes, base, path)
+    let mut scene = load_gltf_bytes_with(&bytes, base, path, options)?;
+    let name = path.file_name().map_or(path.to_string_lossy(), |n| n.to_string_lossy());
+    scene.sources.insert(0, SourceFile::of(name, path, &bytes));
+    Ok(scene)
 }
 
 /// Loads glTF from memory; relative URIs resolve against `base_dir`; errors name `path`.
 pub fn load_gltf_bytes(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneError> {
+    load_gltf_bytes_with(bytes, base_dir, path, LoadOptions::default())
+}
+
+/// [`load_gltf_bytes`] with `options`.
+pub fn load_gltf_bytes_with(
+    bytes: &[u8],
+    base_dir: &Path,
+    path: &Path,
+    options: LoadOptions,
+) -> Result<Scene, SceneError> {
     let path_buf = path.to_path_buf();
     // A malformed file must never take the process down: the checks below are meant to catch
-    // everything, and this is the backstop if the gltf crate panics on an input we missed.
-    let result = std::panic::catch_unwind(|| import(bytes, base_dir, path));
+    // everything, and this is the backstop if the gltf crate panics on an input we missed. The
+    // panic's own text (a source line of the crate) would tell the user nothing: it is kept
+    // off stderr while the file is read, and the error says what to do.
+    let previous_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let result = std::panic::catch_unwind(|| import(bytes, base_dir, path, options));
+    std::panic::set_hook(previous_hook);
     result.unwrap_or_else(|_| {
         Err(SceneError::InvalidGltf {
             path: path_buf,
-            detail: "the glTF reader failed on this file (internal panic caught)".into(),
+            detail: "the glTF reader failed on a construct Parallax does not check yet; check the file with the \
+                     Khronos glTF validator"
+                .into(),
         })
     })
 }
@@ -57,7 +95,7 @@ struct Importer<'a> {
     first_camera: Option<(usize, f32)>,
 }
 
-fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneError> {
+fn import(bytes: &[u8], base_dir: &Path, path: &Path, options: LoadOptions) -> Result<Scene, SceneError> {
     let p = || path.to_path_buf();
     check_container(bytes, path)?;
     // Parse without validation first, so that an unsupported required extension is reported
@@ -88,6 +126,7 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
             }
         }
     }
+    check_images(root, path)?;
     drop(raw);
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| match e {
         gltf::Error::Validation(errors) => SceneError::InvalidGltf {
@@ -97,9 +136,11 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
         other => SceneError::MalformedJson { path: p(), detail: other.to_string() },
     })?;
     let gltf::Gltf { document, blob } = gltf;
-    let buffers = load_buffers(&document, base_dir, blob, path)?;
+    let mut sources = Vec::new();
+    let buffers = load_buffers(&document, base_dir, blob, path, options.uris, &mut sources)?;
     check_accessors(&document, &buffers, path)?;
-    let textures = decode_images(&document, &buffers, base_dir, path)?;
+    let (textures, image_sources) = decode_images(&document, &buffers, base_dir, path, options.uris)?;
+    sources.extend(image_sources.into_iter().flatten());
 
     let mut imp = Importer {
         path,
@@ -108,6 +149,7 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path) -> Result<Scene, SceneErro
         scene: Scene {
             name: path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
             textures,
+            sources,
             ..Default::default()
         },
         default_material: None,
@@ -182,6 +224,7 @@ impl Importer<'_> {
                     what: format!("material {}", materials.len()),
                 });
             }
+            check_emission(self.path, || format!("material {} (emissive)", materials.len()), material.emissive)?;
             materials.push(material);
         }
         self.scene.materials = materials;
@@ -263,7 +306,13 @@ impl Importer<'_> {
                 }
             }
             if let Some(light) = node.light() {
-                self.scene.lights.push(light_from_gltf(&light, world[i]));
+                let punctual = light_from_gltf(&light, world[i]);
+                let what = || format!("light {} (node {i})", light.index());
+                if !punctual.intensity.is_finite() || !punctual.color.is_finite() {
+                    return Err(SceneError::NonFinite { path: self.path.to_path_buf(), what: what() });
+                }
+                check_emission(self.path, what, punctual.color * punctual.intensity)?;
+                self.scene.lights.push(punctual);
             }
         }
         Ok(())
@@ -462,6 +511,25 @@ impl Importer<'_> {
     }
 }
 
+/// Emission must be non-negative and at most [`MAX_EMISSION`] per channel.
+fn check_emission(path: &Path, what: impl Fn() -> String, emission: Vec3) -> Result<(), SceneError> {
+    if emission.min_element() < 0.0 {
+        return Err(SceneError::InvalidGltf {
+            path: path.to_path_buf(),
+            detail: format!("{} has a negative emission {emission}; glTF requires non-negative values", what()),
+        });
+    }
+    if emission.max_element() > MAX_EMISSION {
+        return Err(SceneError::EmissionOutOfRange {
+            path: path.to_path_buf(),
+            what: what(),
+            value: emission.max_element(),
+            limit: MAX_EMISSION,
+        });
+    }
+    Ok(())
+}
+
 /// Tells a glTF file from anything else before the JSON parser does, whose "malformed JSON" would
 /// send the owner of an .obj or a truncated .glb looking for a syntax error.
 fn check_container(bytes: &[u8], path: &Path) -> Result<(), SceneError> {
@@ -537,32 +605,73 @@ fn buffer_uri(buffer: &gltf::Buffer) -> String {
     }
 }
 
+/// Each buffer's bytes: the GLB chunk, a data: URI, or a file inside the scene's folder read up
+/// to its declared `byteLength` (never more, whatever the file is). The gltf crate's own
+/// `import_buffers` reads a whole file of any kind and panics on bad percent-encoding.
 fn load_buffers(
     doc: &gltf::Document,
     base_dir: &Path,
-    blob: Option<Vec<u8>>,
+    mut blob: Option<Vec<u8>>,
     path: &Path,
+    policy: UriPolicy,
+    sources: &mut Vec<SourceFile>,
 ) -> Result<Vec<gltf::buffer::Data>, SceneError> {
-    gltf::import_buffers(doc, Some(base_dir), blob).map_err(|e| {
-        let (buffer, detail) = match &e {
-            gltf::Error::BufferLength { buffer, expected, actual } => {
-                (*buffer, format!("expected {expected} bytes, found {actual}"))
-            }
-            // import_buffers stops at the first failing buffer: find which one it was.
-            _ => (first_unreadable_buffer(doc, base_dir), e.to_string()),
+    let mut buffers = Vec::new();
+    for buffer in doc.buffers() {
+        let missing = |detail: String| SceneError::MissingBuffer {
+            path: path.to_path_buf(),
+            buffer: buffer.index(),
+            uri: buffer_uri(&buffer),
+            detail,
         };
-        let uri = doc.buffers().nth(buffer).map(|b| buffer_uri(&b)).unwrap_or_default();
-        SceneError::MissingBuffer { path: path.to_path_buf(), buffer, uri, detail }
-    })
+        let declared = buffer.length() as u64;
+        if declared > SCENE_FILE_LIMIT {
+            return Err(missing(format!(
+                "its byteLength {declared} is more than the {SCENE_FILE_LIMIT} bytes a buffer may have"
+            )));
+        }
+        let mut data = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                blob.take().ok_or_else(|| missing("the file has no GLB binary chunk".into()))?
+            }
+            source @ gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                gltf::buffer::Data::from_source(source, None).map_err(|e| missing(e.to_string()))?.0
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let file = resolve_uri(base_dir, uri, policy).map_err(missing)?;
+                let bytes = read_prefix(&file, declared).map_err(|e| missing(e.to_string()))?;
+                sources.push(SourceFile::of(uri, &file, &bytes));
+                bytes
+            }
+        };
+        if (data.len() as u64) < declared {
+            return Err(missing(format!("expected {declared} bytes, found {}", data.len())));
+        }
+        // As the gltf crate pads them: its readers may read whole 4-byte words.
+        data.resize(data.len().next_multiple_of(4), 0);
+        buffers.push(gltf::buffer::Data(data));
+    }
+    Ok(buffers)
 }
 
-fn first_unreadable_buffer(doc: &gltf::Document, base_dir: &Path) -> usize {
-    doc.buffers()
-        .position(|b| match b.source() {
-            gltf::buffer::Source::Uri(u) if !u.starts_with("data:") => !base_dir.join(u).is_file(),
-            _ => false,
-        })
-        .unwrap_or(0)
+/// What the gltf crate's `Image::source` unwraps: exactly one of `uri` and `bufferView` (glTF
+/// 2.0, 5.18), a `mimeType` with a `bufferView`, and a view that exists.
+fn check_images(root: &gltf::json::Root, path: &Path) -> Result<(), SceneError> {
+    for (image, json) in root.images.iter().enumerate() {
+        let bad = |detail: &str| SceneError::MalformedImage { path: path.to_path_buf(), image, detail: detail.into() };
+        match (&json.uri, &json.buffer_view) {
+            (None, None) => return Err(bad("has neither uri nor bufferView; glTF requires exactly one")),
+            (Some(_), Some(_)) => return Err(bad("has both uri and bufferView; glTF requires exactly one")),
+            (None, Some(view)) if view.value() >= root.buffer_views.len() => {
+                return Err(bad(&format!("names bufferView {} of {}", view.value(), root.buffer_views.len())));
+            }
+            (None, Some(_)) if json.mime_type.is_none() => {
+                return Err(bad("has a bufferView but no mimeType; glTF requires one (image/png or image/jpeg)"));
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// Every accessor must lie inside its buffer view and every view inside its buffer: the gltf
@@ -609,16 +718,21 @@ fn check_accessors(doc: &gltf::Document, buffers: &[gltf::buffer::Data], path: &
     Ok(())
 }
 
+/// Each image decoded to RGBA8, with the file it was read from (none for a buffer view).
+type Decoded = (Vec<Texture>, Vec<Option<SourceFile>>);
+
 fn decode_images(
     doc: &gltf::Document,
     buffers: &[gltf::buffer::Data],
     base_dir: &Path,
     path: &Path,
-) -> Result<Vec<Texture>, SceneError> {
+    policy: UriPolicy,
+) -> Result<Decoded, SceneError> {
     let images: Vec<gltf::Image> = doc.images().collect();
-    images
+    let decoded: Vec<(Texture, Option<SourceFile>)> = images
         .par_iter()
         .map(|img| {
+            let mut file = None;
             let (uri, encoded): (String, Result<Vec<u8>, String>) = match img.source() {
                 gltf::image::Source::View { view, .. } => {
                     let data = &buffers[view.buffer().index()].0;
@@ -632,8 +746,12 @@ fn decode_images(
                     ("data URI".into(), Err("embedded data: URI images are not supported".into()))
                 }
                 gltf::image::Source::Uri { uri, .. } => {
-                    let file: PathBuf = base_dir.join(uri);
-                    (uri.to_string(), std::fs::read(&file).map_err(|e| e.to_string()))
+                    let bytes = resolve_uri(base_dir, uri, policy).and_then(|resolved| {
+                        let bytes = read_bounded(&resolved, IMAGE_FILE_LIMIT, "glTF image").map_err(|e| e.to_string());
+                        file = Some(resolved);
+                        bytes
+                    });
+                    (uri.to_string(), bytes)
                 }
             };
             let bad = |detail: String| SceneError::BadImage {
@@ -643,9 +761,30 @@ fn decode_images(
                 detail,
             };
             let encoded = encoded.map_err(bad)?;
-            let decoded = image::load_from_memory(&encoded).map_err(|e| bad(e.to_string()))?;
-            let rgba = decoded.to_rgba8();
-            Ok(Texture { width: rgba.width(), height: rgba.height(), rgba8: rgba.into_raw() })
+            let rgba = decode_bounded(&encoded).map_err(bad)?;
+            let source = file.map(|file| SourceFile::of(&uri, &file, &encoded));
+            Ok((Texture { width: rgba.width(), height: rgba.height(), rgba8: rgba.into_raw() }, source))
         })
-        .collect()
+        .collect::<Result<_, SceneError>>()?;
+    Ok(decoded.into_iter().unzip())
+}
+
+/// Decodes a PNG or JPEG of at most [`IMAGE_SIDE_LIMIT`] pixels a side, so a header that
+/// declares a huge image is refused before anything is allocated for it.
+fn decode_bounded(encoded: &[u8]) -> Result<image::RgbaImage, String> {
+    let mut reader =
+        image::ImageReader::new(std::io::Cursor::new(encoded)).with_guessed_format().map_err(|e| e.to_string())?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(IMAGE_SIDE_LIMIT);
+    limits.max_image_height = Some(IMAGE_SIDE_LIMIT);
+    // A 16-bit RGBA image of the largest size.
+    limits.max_alloc = Some(u64::from(IMAGE_SIDE_LIMIT).pow(2) * 8);
+    reader.limits(limits);
+    let decoded = reader.decode().map_err(|e| match e {
+        image::ImageError::Limits(_) => {
+            format!("larger than {IMAGE_SIDE_LIMIT}x{IMAGE_SIDE_LIMIT} pixels (the limit for a texture)")
+        }
+        other => other.to_string(),
+    })?;
+    Ok(decoded.to_rgba8())
 }

@@ -138,10 +138,64 @@ pub struct GpuTraceParams {
     pub sun_irradiance: [f32; 4],
 }
 
+/// The part of [`GpuTraceParams`] that only the scene decides: light counts and groups, sky and
+/// sun. Counting the emissive triangles walks every triangle of the scene; a renderer that has
+/// uploaded a [`GpuScene`] knows the count (its emissive table) and builds this per frame with
+/// [`Self::with_emissive_triangles`] instead, in constant time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TraceLighting {
+    /// punctual light count, emissive triangle count, light-group bits.
+    counts: [u32; 3],
+    sky_zenith: [f32; 4],
+    sky_horizon: [f32; 4],
+    sky_ground: [f32; 4],
+    sun_dir: [f32; 4],
+    sun_irradiance: [f32; 4],
+}
+
+impl TraceLighting {
+    pub fn new(scene: &Scene) -> Self {
+        Self::with_emissive_triangles(scene, LightSet::new(scene).emissive_triangle_count())
+    }
+
+    /// The lighting of `scene` whose light set has `emissive_triangles` emissive triangles (the
+    /// length of [`GpuScene::emissive`]).
+    pub fn with_emissive_triangles(scene: &Scene, emissive_triangles: usize) -> Self {
+        let (sky_kind, zenith, horizon, ground) = match scene.sky() {
+            Sky::Constant(c) => (0.0, c, c, c),
+            Sky::Gradient { zenith, horizon, ground } => (1.0, zenith, horizon, ground),
+        };
+        let sun = scene.sun.unwrap_or(Sun { to_sun: Vec3::Y, irradiance: Vec3::ZERO, angular_radius: 0.0 });
+        let disc = sun_disc(sun.angular_radius.max(0.0));
+        Self {
+            counts: [
+                scene.lights.len() as u32,
+                emissive_triangles as u32,
+                LightSet::group_mask_of(scene, emissive_triangles),
+            ],
+            sky_zenith: zenith.extend(sky_kind).into(),
+            sky_horizon: horizon.extend(0.0).into(),
+            sky_ground: ground.extend(0.0).into(),
+            sun_dir: sun.to_sun.normalize_or(Vec3::Y).extend(disc.cos_max).into(),
+            sun_irradiance: sun
+                .irradiance
+                .extend(if sun.angular_radius > 0.0 { disc.one_minus_cos } else { 0.0 })
+                .into(),
+        }
+    }
+}
+
 impl GpuTraceParams {
     /// Parameters for tracing `pixels` of `view`; a pixel list itself goes in its own buffer
-    /// (x | y << 16 per pixel), of which this records only the length.
+    /// (x | y << 16 per pixel), of which this records only the length. Walks the scene's
+    /// triangles for its lights: for many views, build a [`TraceLighting`] once and use
+    /// [`Self::with_lighting`].
     pub fn new(scene: &Scene, view: &View, settings: &TraceSettings, pixels: &PixelSet) -> Self {
+        Self::with_lighting(&TraceLighting::new(scene), view, settings, pixels)
+    }
+
+    /// [`Self::new`] with the scene's lighting already gathered.
+    pub fn with_lighting(lighting: &TraceLighting, view: &View, settings: &TraceSettings, pixels: &PixelSet) -> Self {
         let (right, up, back) = view.camera.basis();
         let tan_half = (0.5 * view.camera.yfov).tan();
         let (mode, range) = match pixels {
@@ -149,13 +203,7 @@ impl GpuTraceParams {
             PixelSet::Rows { start, end } => (PIXELS_ROWS, [*start, (*end).min(view.height), 0, 0]),
             PixelSet::List(l) => (PIXELS_LIST, [0, 0, l.len() as u32, 0]),
         };
-        let lights = LightSet::new(scene);
-        let (sky_kind, zenith, horizon, ground) = match scene.sky() {
-            Sky::Constant(c) => (0.0, c, c, c),
-            Sky::Gradient { zenith, horizon, ground } => (1.0, zenith, horizon, ground),
-        };
-        let sun = scene.sun.unwrap_or(Sun { to_sun: Vec3::Y, irradiance: Vec3::ZERO, angular_radius: 0.0 });
-        let disc = sun_disc(sun.angular_radius.max(0.0));
+        let [punctual, emissive, groups] = lighting.counts;
         Self {
             eye: view.camera.eye.extend(0.0).into(),
             right: (right * (tan_half * view.aspect())).extend(0.0).into(),
@@ -169,16 +217,13 @@ impl GpuTraceParams {
                 settings.russian_roulette_from.unwrap_or(u32::MAX),
                 settings.jitter as u32,
             ],
-            counts: [scene.lights.len() as u32, lights.emissive_triangle_count() as u32, lights.group_mask(), mode],
+            counts: [punctual, emissive, groups, mode],
             pixels: range,
-            sky_zenith: zenith.extend(sky_kind).into(),
-            sky_horizon: horizon.extend(0.0).into(),
-            sky_ground: ground.extend(0.0).into(),
-            sun_dir: sun.to_sun.normalize_or(Vec3::Y).extend(disc.cos_max).into(),
-            sun_irradiance: sun
-                .irradiance
-                .extend(if sun.angular_radius > 0.0 { disc.one_minus_cos } else { 0.0 })
-                .into(),
+            sky_zenith: lighting.sky_zenith,
+            sky_horizon: lighting.sky_horizon,
+            sky_ground: lighting.sky_ground,
+            sun_dir: lighting.sun_dir,
+            sun_irradiance: lighting.sun_irradiance,
         }
     }
 }
@@ -357,5 +402,33 @@ mod tests {
         for e in &gpu.emissive {
             assert!(gpu.triangles[e.bvh_primitive as usize].flags & TRI_EMISSIVE != 0);
         }
+    }
+
+    #[test]
+    fn lighting_from_the_uploaded_emissive_table_gives_the_same_parameters() {
+        let mut scene = default_scene();
+        let bvh = SceneBvh::build(&scene);
+        let emissive = GpuScene::new(&scene, &bvh).emissive.len();
+        let view = View { camera: scene.default_camera(), width: 40, height: 30, index: 3 };
+        let settings = TraceSettings { spp: 4, frame: 7, ..Default::default() };
+        let same = |scene: &Scene| {
+            let lit = TraceLighting::with_emissive_triangles(scene, emissive);
+            assert_eq!(lit, TraceLighting::new(scene));
+            let params = GpuTraceParams::with_lighting(&lit, &view, &settings, &PixelSet::All);
+            assert_eq!(params, GpuTraceParams::new(scene, &view, &settings, &PixelSet::All));
+            params
+        };
+        let params = same(&scene);
+        assert_eq!(params.counts[1], 2, "the lamp's two triangles");
+        let sun_and_sky = LIGHT_GROUP_SUN | LIGHT_GROUP_SKY;
+        assert_eq!(
+            params.counts[2],
+            sun_and_sky | LIGHT_GROUP_EMISSIVE | if scene.lights.is_empty() { 0 } else { LIGHT_GROUP_PUNCTUAL }
+        );
+        // Sun and sky may change between frames: the groups follow them.
+        scene.sun = None;
+        scene.sky = Some(Sky::Constant(Vec3::ZERO));
+        let dark = same(&scene);
+        assert_eq!(dark.counts[2] & sun_and_sky, 0);
     }
 }

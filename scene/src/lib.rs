@@ -27,11 +27,13 @@ pub mod animation;
 pub mod bsdf;
 pub mod builder;
 pub mod bvh;
+mod bvh_coincident;
 pub mod default_scene;
 pub mod error;
 mod gltf_animation;
 pub mod gltf_import;
 pub mod gpu;
+pub mod input;
 pub mod lights;
 pub mod metrics;
 pub mod model;
@@ -42,15 +44,21 @@ pub mod shading;
 
 pub use builder::SceneBuilder;
 pub use bvh::{BvhQuality, Hit, SceneBvh};
-pub use default_scene::{default_scene, white_furnace_scene};
+pub use default_scene::{default_lighting, default_scene, white_furnace_scene};
 pub use error::SceneError;
-pub use gltf_import::{load_gltf, load_gltf_bytes};
+pub use gltf_import::{LoadOptions, load_gltf, load_gltf_bytes, load_gltf_bytes_with, load_gltf_with};
 pub use model::{
-    AlphaMode, Bounds, Camera, MAX_COORDINATE, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture,
+    AlphaMode, Bounds, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Sky, Sun,
+    Texture,
 };
 pub use pt::{CpuTracer, Frame, PixelSample, PixelSet, TraceSettings, TraceStats, View};
 
 /// Loads a scene: `"default"` is the embedded default scene, anything else a glTF path.
 pub fn load_scene(spec: &str) -> Result<Scene, SceneError> {
-    if spec == "default" { Ok(default_scene()) } else { load_gltf(spec) }
+    load_scene_with(spec, LoadOptions::default())
+}
+
+/// [`load_scene`] with `options` for a glTF file.
+pub fn load_scene_with(spec: &str, options: LoadOptions) -> Result<Scene, SceneError> {
+    if spec == "default" { Ok(default_scene()) } else { load_gltf_with(spec, options) }
 }

@@ -84,6 +84,37 @@ pub struct SunDisc {
     pub radiance_scale: f32,
 }
 
+/// The NEE groups of `scene` (in sampling order) and its sun if it shines.
+fn groups_of(scene: &Scene, has_emissive: bool) -> (Vec<Group>, Option<Sun>) {
+    let sun = scene.sun.filter(|s| s.irradiance.max_element() > 0.0 && s.to_sun.is_finite());
+    let mut groups = Vec::new();
+    if sun.is_some() {
+        groups.push(Group::Sun);
+    }
+    if !scene.sky().is_black() {
+        groups.push(Group::Sky);
+    }
+    if !scene.lights.is_empty() {
+        groups.push(Group::Punctual);
+    }
+    if has_emissive {
+        groups.push(Group::Emissive);
+    }
+    (groups, sun)
+}
+
+fn group_bits(groups: &[Group]) -> u32 {
+    groups
+        .iter()
+        .map(|g| match g {
+            Group::Sun => 1,
+            Group::Sky => 2,
+            Group::Punctual => 4,
+            Group::Emissive => 8,
+        })
+        .sum()
+}
+
 impl LightSet {
     pub fn new(scene: &Scene) -> Self {
         let mut emissive = Vec::new();
@@ -115,21 +146,14 @@ impl LightSet {
         if let Some(last) = emissive_cdf.last_mut() {
             *last = 1.0;
         }
-        let sun = scene.sun.filter(|s| s.irradiance.max_element() > 0.0 && s.to_sun.is_finite());
-        let mut groups = Vec::new();
-        if sun.is_some() {
-            groups.push(Group::Sun);
-        }
-        if !scene.sky().is_black() {
-            groups.push(Group::Sky);
-        }
-        if !scene.lights.is_empty() {
-            groups.push(Group::Punctual);
-        }
-        if !emissive.is_empty() {
-            groups.push(Group::Emissive);
-        }
+        let (groups, sun) = groups_of(scene, !emissive.is_empty());
         Self { groups, emissive, emissive_cdf, emissive_prob, area, sun }
+    }
+
+    /// [`Self::group_mask`] of the light set of `scene` with `emissive_triangles` emissive
+    /// triangles, without walking the triangles again.
+    pub fn group_mask_of(scene: &Scene, emissive_triangles: usize) -> u32 {
+        group_bits(&groups_of(scene, emissive_triangles > 0).0)
     }
 
     pub fn is_empty(&self) -> bool {
@@ -150,15 +174,7 @@ impl LightSet {
     /// Light groups present, as bits: 1 sun, 2 sky, 4 punctual, 8 emissive (the GPU's
     /// `LIGHT_GROUP_*`); NEE picks one uniformly in this order.
     pub fn group_mask(&self) -> u32 {
-        self.groups
-            .iter()
-            .map(|g| match g {
-                Group::Sun => 1,
-                Group::Sky => 2,
-                Group::Punctual => 4,
-                Group::Emissive => 8,
-            })
-            .sum()
+        group_bits(&self.groups)
     }
 
     pub fn emissive_triangle_count(&self) -> usize {

@@ -297,6 +297,11 @@ impl Bounds {
     }
 }
 
+/// The largest emission a scene may declare, per channel: an emissive material's radiance
+/// (emissiveFactor × KHR_materials_emissive_strength) and a punctual light's intensity × colour.
+/// The same bound as `--sun` and `--sky`: beyond it f32 sums on the GPU overflow to infinity.
+pub const MAX_EMISSION: f32 = 1e6;
+
 /// The whole scene, flat and in world space.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
@@ -320,6 +325,8 @@ pub struct Scene {
     pub sun: Option<Sun>,
     /// Set by the caller (CLI); black unless set.
     pub sky: Option<Sky>,
+    /// Every file the scene was read from (empty for a built-in scene).
+    pub sources: Vec<crate::input::SourceFile>,
 }
 
 impl Scene {

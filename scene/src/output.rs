@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use crate::input::{EXR_FILE_LIMIT, read_bounded};
 use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, WritableImage,
 };
@@ -85,9 +86,39 @@ pub fn write_exr_with(
 }
 
 /// Reads the named channels of the first layer of an EXR (row-major), e.g. `["R","G","B"]`.
+/// The file must be a regular file of at most [`EXR_FILE_LIMIT`] bytes whose headers declare at
+/// most [`EXR_PIXEL_BYTES_LIMIT`] bytes of pixels: checked before any pixel is decoded.
 pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, Vec<Vec<f32>>), SceneError> {
-    let bad = |detail: String| SceneError::ImageWrite { path: path.to_path_buf(), detail };
-    let image = exr::prelude::read_first_flat_layer_from_file(path).map_err(|e| bad(e.to_string()))?;
+    let bad = |detail: String| SceneError::ImageRead { path: path.to_path_buf(), detail };
+    let bytes = read_bounded(path, EXR_FILE_LIMIT, "EXR image")?;
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
+        .map_err(|e| bad(format!("not a readable EXR ({e})")))?;
+    for header in &meta.headers {
+        let declared = header
+            .layer_size
+            .width()
+            .checked_mul(header.layer_size.height())
+            .and_then(|pixels| pixels.checked_mul(header.channels.bytes_per_pixel))
+            .filter(|&b| b as u64 <= EXR_PIXEL_BYTES_LIMIT);
+        if declared.is_none() {
+            return Err(bad(format!(
+                "its header declares a {}x{} layer of {} bytes a pixel, more than the {EXR_PIXEL_BYTES_LIMIT} bytes of pixels an EXR may have",
+                header.layer_size.width(),
+                header.layer_size.height(),
+                header.channels.bytes_per_pixel
+            )));
+        }
+    }
+    use exr::prelude::ReadChannels as _;
+    use exr::prelude::ReadLayers as _;
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(&bytes))
+        .map_err(|e| bad(e.to_string()))?;
     let size = image.layer_data.size;
     let mut out = Vec::new();
     for name in names {
@@ -102,6 +133,9 @@ pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, V
     }
     Ok((size.width(), size.height(), out))
 }
+
+/// The pixels an EXR's headers may declare: 4 GiB (e.g. 16384x16384 of RGBA f32).
+pub const EXR_PIXEL_BYTES_LIMIT: u64 = 4 << 30;
 
 /// ACES filmic curve (Narkowicz 2015 fit) followed by the sRGB transfer function.
 pub fn tonemap_to_srgb8(c: Vec3, exposure: f32) -> [u8; 3] {

@@ -86,5 +86,26 @@ fn keyframes_out_of_order_are_refused_naming_the_channel() {
     let text = gltf(&[2.0, 0.0], &[0.0, 0.0, 0.0, 0.0, 0.0, 10.0]);
     let err = load_gltf_bytes(text.as_bytes(), Path::new("."), Path::new("bad.gltf")).err().unwrap();
     let message = err.to_string();
-    assert!(message.contains("animation 0 channel 0") && message.contains("increasing"), "{message}");
+    assert!(
+        message.contains("animation 0 sampler 0 (channel 0, node 2)") && message.contains("increasing"),
+        "{message}"
+    );
+}
+
+/// NaN, infinity or 1e30 in a camera path used to render black frames while render.json
+/// reported a moving camera; such a path is refused naming the sampler and the value.
+#[test]
+fn non_finite_or_huge_keyframes_are_refused_naming_the_sampler() {
+    for (times, translations, needle) in [
+        ([0.0, 2.0], [0.0, 0.0, 0.0, 0.0, f32::NAN, 10.0], "translation keyframe value 1"),
+        ([0.0, 2.0], [0.0, 0.0, 0.0, 0.0, 0.0, f32::INFINITY], "translation keyframe value 1"),
+        ([0.0, 2.0], [1e30, 0.0, 0.0, 0.0, 0.0, 10.0], "translation keyframe value 0"),
+        ([0.0, 1e30], [0.0, 0.0, 0.0, 0.0, 0.0, 10.0], "keyframe time 1e30 s is outside 0..=1e6 s"),
+    ] {
+        let text = gltf(&times, &translations);
+        let err = load_gltf_bytes(text.as_bytes(), Path::new("."), Path::new("bad.gltf")).err().unwrap();
+        let message = err.to_string();
+        assert!(message.contains("bad.gltf: invalid glTF: animation 0 sampler 0"), "{message}");
+        assert!(message.contains(needle), "{needle}: {message}");
+    }
 }

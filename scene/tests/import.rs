@@ -414,3 +414,34 @@ fn files_that_are_not_gltf_are_named_as_such() {
     let empty = load_gltf_bytes(b"  \n", &dir, Path::new("x.gltf"));
     assert!(matches!(&empty, Err(SceneError::NotGltf { detail, .. }) if detail == "the file is empty"));
 }
+
+/// What the gltf crate's `Image::source` would unwrap (a panic) is refused first, naming the
+/// image and what the spec requires.
+#[test]
+fn malformed_images_are_named_before_the_gltf_crate_sees_them() {
+    let dir = scratch_dir("malformed-images");
+    let p = write_triangle_gltf(&dir, &[0, 1, 2]);
+    let base = std::fs::read_to_string(&p).unwrap();
+    let cases = [
+        (r#"[{"name":"a"}]"#, 0, "has neither uri nor bufferView"),
+        (
+            r#"[{"uri":"a.png"},{"uri":"b.png","bufferView":0,"mimeType":"image/png"}]"#,
+            1,
+            "has both uri and bufferView",
+        ),
+        (r#"[{"bufferView":0}]"#, 0, "has a bufferView but no mimeType"),
+        (r#"[{"bufferView":7,"mimeType":"image/png"}]"#, 0, "names bufferView 7 of 2"),
+    ];
+    for (images, index, needle) in cases {
+        let json = base.replacen(r#""buffers""#, &format!(r#""images":{images},"buffers""#), 1);
+        let err = load_gltf_bytes(json.as_bytes(), &dir, &p).unwrap_err();
+        match &err {
+            SceneError::MalformedImage { path, image, detail } => {
+                assert_eq!((path.as_path(), *image), (p.as_path(), index), "{images}");
+                assert!(detail.contains(needle), "{images}: {detail}");
+            }
+            other => panic!("{images}: {other:?}"),
+        }
+        assert!(!err.to_string().contains("panic"), "{err}");
+    }
+}

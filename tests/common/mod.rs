@@ -109,3 +109,34 @@ pub fn write_gltf(dir: &Path, name: &str, positions: &[[f32; 3]], nodes: &str, e
     std::fs::write(&path, json).unwrap();
     path
 }
+
+/// Fails if any string in `json` reads as Rust's Debug form (`Grid { cols: 4 }`, `Some(…)`,
+/// `Vec3(…)`, `None`) or is a number or boolean written as a string: every setting the tool
+/// writes is a typed value (command-line words under `args` excepted). `what` names the file.
+/// PSNR's documented `"inf"` is allowed.
+pub fn assert_typed_json(what: &str, json: &serde_json::Value) {
+    fn debug_like(s: &str) -> bool {
+        let name_len = s.chars().take_while(|c| c.is_ascii_alphanumeric()).count();
+        let starts_upper = s.chars().next().is_some_and(|c| c.is_ascii_uppercase());
+        let rest = &s[name_len..];
+        s == "None" || (starts_upper && name_len > 0 && (rest.starts_with('(') || rest.starts_with(" {")))
+    }
+    fn walk(what: &str, at: &str, v: &serde_json::Value) {
+        match v {
+            serde_json::Value::String(s) => {
+                assert!(!debug_like(s), "{what}: {at} is a Debug string: {s:?}");
+                let scalar = s.parse::<f64>().is_ok_and(f64::is_finite) || s == "true" || s == "false";
+                assert!(!scalar, "{what}: {at} is a number or boolean written as a string: {s:?}");
+            }
+            serde_json::Value::Array(items) => {
+                items.iter().enumerate().for_each(|(i, item)| walk(what, &format!("{at}[{i}]"), item))
+            }
+            // `args` are command-line words, strings by nature.
+            serde_json::Value::Object(map) => {
+                map.iter().filter(|(k, _)| *k != "args").for_each(|(k, item)| walk(what, &format!("{at}.{k}"), item))
+            }
+            _ => {}
+        }
+    }
+    walk(what, "$", json);
+}

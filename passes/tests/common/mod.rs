@@ -3,8 +3,13 @@
 #![allow(dead_code)]
 
 use glam::Vec3;
-use parallax_backend::{Context, ContextDesc, DeviceSelection, Validation};
-use parallax_scene::{Camera, Scene, View};
+use parallax_backend::{Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, KernelGraph, Validation};
+use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::renderer::LightFieldRenderer;
+use parallax_passes::reproject::ReprojectionTolerances;
+use parallax_scene::gpu::GpuScene;
+use parallax_scene::{Camera, Scene, SceneBvh, View};
 
 /// `devices` logical devices on the first Vulkan device (lavapipe in CI), with core
 /// validation; synchronisation validation too on one device (see the backend's Known limits).
@@ -26,4 +31,30 @@ pub fn views(scene: &Scene, count: u32, width: u32, height: u32) -> Vec<View> {
             View { camera, width, height, index }
         })
         .collect()
+}
+
+/// The reprojection pipeline with SVGF over `lf`'s views on `context`'s first device, its
+/// display images exported, run by a [`LightFieldRenderer`] with `options`.
+pub fn reprojection_renderer(
+    context: &Context,
+    scene: &Scene,
+    bvh: &SceneBvh,
+    lf: &LightField,
+    options: ExecOptions,
+) -> LightFieldRenderer {
+    let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = Plan::new(lf, &config).unwrap();
+    let mut graph = KernelGraph::with_payload(plan.topology.clone());
+    let pipeline = PipelineConfig {
+        kind: PipelineKind::Reproject,
+        gbuffer: GbufferSource::FirstHits,
+        tolerances: ReprojectionTolerances::default(),
+        denoise: true,
+        exposure: 1.0,
+    };
+    let handles = declare_pipeline(&mut graph, &pipeline).unwrap();
+    graph.export(&handles.display);
+    let schedule = compile(&graph, &plan).unwrap();
+    let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    LightFieldRenderer::with_options(context, exec, lf.len() as u32, &GpuScene::new(scene, bvh), options).unwrap()
 }
