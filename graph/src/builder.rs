@@ -10,6 +10,7 @@ use std::marker::PhantomData;
 use std::panic::Location;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use crate::error::GraphError;
 use crate::ids::{FamilyId, PassId, ViewId};
 use crate::schedule::{Format, ResourceDesc};
 
@@ -98,6 +99,39 @@ pub enum ReadScope {
     History,
 }
 
+/// How a pass touches a slot; a pass touches each family at most once in each way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SlotAccess {
+    /// The own view's current version (over the own rows or the whole view).
+    Read,
+    /// Each source view's current version.
+    SourceRead,
+    /// Last frame's final version.
+    HistoryRead,
+    Write,
+}
+
+impl SlotAccess {
+    fn of_read(scope: ReadScope) -> Self {
+        match scope {
+            ReadScope::Own | ReadScope::OwnWhole => SlotAccess::Read,
+            ReadScope::Sources => SlotAccess::SourceRead,
+            ReadScope::History => SlotAccess::HistoryRead,
+        }
+    }
+}
+
+impl std::fmt::Display for SlotAccess {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SlotAccess::Read => "read",
+            SlotAccess::SourceRead => "source read",
+            SlotAccess::HistoryRead => "history read",
+            SlotAccess::Write => "write",
+        })
+    }
+}
+
 #[derive(Clone, Debug)]
 pub(crate) struct ReadDecl {
     pub family: FamilyId,
@@ -129,6 +163,7 @@ pub(crate) struct FamilyDecl {
     pub reset: Option<Vec<u32>>,
     /// Per view, the version gathered to device 0, and where `export` was called.
     pub exported: Option<(Vec<u32>, &'static Location<'static>)>,
+    pub at: &'static Location<'static>,
 }
 
 /// A declared pass, before instantiation.
@@ -155,8 +190,9 @@ pub struct Graph<P = ()> {
     pub(crate) passes: Vec<PassDecl>,
     /// Per pass (by `PassId`), the payload attached with [`PassBuilder::kernel`].
     pub(crate) payloads: Vec<Option<P>>,
-    /// Handles from another graph used by a pass: reported at compile time.
-    pub(crate) foreign_uses: Vec<(PassId, FamilyId)>,
+    /// Mistakes found while declaring (a handle of another graph, a name given twice), in
+    /// declaration order: the first is what [`crate::compile`] reports.
+    pub(crate) refused: Vec<GraphError>,
 }
 
 static NEXT_GRAPH: AtomicU64 = AtomicU64::new(1);
@@ -178,7 +214,7 @@ impl<P> Graph<P> {
             families: Vec::new(),
             passes: Vec::new(),
             payloads: Vec::new(),
-            foreign_uses: Vec::new(),
+            refused: Vec::new(),
         }
     }
 
@@ -195,25 +231,46 @@ impl<P> Graph<P> {
         self.payloads.get(pass.index()).and_then(Option::as_ref)
     }
 
+    /// The first mistake found while declaring, which [`crate::compile`] reports.
+    pub fn declaration_error(&self) -> Option<&GraphError> {
+        self.refused.first()
+    }
+
+    /// Kernels, reports and slot lookups tell families apart by name, so a name is given once.
+    #[track_caller]
     fn family<K>(&mut self, name: &str, desc: ResourceDesc) -> Handle<K> {
+        let at = Location::caller();
+        if let Some(first) = self.families.iter().find(|f| f.name == name) {
+            self.refused.push(GraphError::DuplicateResource { name: name.to_string(), first: first.at, at });
+        }
         let family = FamilyId(self.families.len() as u32);
-        self.families.push(FamilyDecl { name: name.to_string(), desc, imported: false, reset: None, exported: None });
+        self.families.push(FamilyDecl {
+            name: name.to_string(),
+            desc,
+            imported: false,
+            reset: None,
+            exported: None,
+            at,
+        });
         Handle { graph: self.id, family, versions: vec![0; self.topology.views() as usize], _kind: PhantomData }
     }
 
     /// One image per view, at the light field's resolution.
+    #[track_caller]
     pub fn image(&mut self, name: &str, format: Format) -> Handle<Image> {
         let desc = ResourceDesc::Image { width: self.topology.width, height: self.topology.height, format };
         self.family(name, desc)
     }
 
     /// One buffer per view.
+    #[track_caller]
     pub fn buffer(&mut self, name: &str, bytes: u64) -> Handle<Buffer> {
         self.family(name, ResourceDesc::Buffer { bytes })
     }
 
     /// One buffer per view with `row_bytes` per image row, split into row bands like an image
     /// (see [`ResourceDesc::RowBuffer`]).
+    #[track_caller]
     pub fn row_buffer(&mut self, name: &str, row_bytes: u64) -> Handle<Buffer> {
         self.family(name, ResourceDesc::RowBuffer { rows: self.topology.height, row_bytes })
     }
@@ -253,7 +310,7 @@ impl<P> Graph<P> {
             reads: Vec::new(),
             writes: Vec::new(),
         };
-        PassBuilder { graph: self, decl, payload: None, foreign: None }
+        PassBuilder { graph: self, decl, payload: None, refused: None }
     }
 }
 
@@ -263,13 +320,30 @@ pub struct PassBuilder<'g, P = ()> {
     graph: &'g mut Graph<P>,
     decl: PassDecl,
     payload: Option<P>,
-    foreign: Option<FamilyId>,
+    /// The first mistake in this declaration, handed to the graph by `record`.
+    refused: Option<GraphError>,
 }
 
 impl<P> PassBuilder<'_, P> {
     fn check<K>(&mut self, h: &Handle<K>) {
-        if h.graph != self.graph.id && self.foreign.is_none() {
-            self.foreign = Some(h.family);
+        if h.graph != self.graph.id {
+            self.refuse(GraphError::ForeignHandle { pass: self.decl.name.clone(), family: h.family, at: self.decl.at });
+        }
+    }
+
+    fn refuse(&mut self, error: GraphError) {
+        self.refused.get_or_insert(error);
+    }
+
+    /// A kernel finds an access by its family and kind, so a pass declares each pair once.
+    fn check_slot(&mut self, family: FamilyId, access: SlotAccess) {
+        let taken = match access {
+            SlotAccess::Write => self.decl.writes.iter().any(|w| w.family == family),
+            _ => self.decl.reads.iter().any(|r| r.family == family && SlotAccess::of_read(r.scope) == access),
+        };
+        if taken {
+            let slot = self.family_name(family);
+            self.refuse(GraphError::DuplicateSlot { pass: self.decl.name.clone(), slot, access, at: self.decl.at });
         }
     }
 
@@ -279,6 +353,7 @@ impl<P> PassBuilder<'_, P> {
 
     fn push_read<K>(mut self, h: &Handle<K>, scope: ReadScope) -> Self {
         self.check(h);
+        self.check_slot(h.family, SlotAccess::of_read(scope));
         let slot = self.family_name(h.family);
         self.decl.reads.push(ReadDecl { family: h.family, versions: h.versions.clone(), scope, slot });
         self
@@ -309,6 +384,7 @@ impl<P> PassBuilder<'_, P> {
     /// through handles; versions that nothing writes are reported at compile time.
     pub fn read_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
+        self.check_slot(h.family, SlotAccess::Read);
         let versions = vec![version; h.versions.len()];
         let slot = self.family_name(h.family);
         self.decl.reads.push(ReadDecl { family: h.family, versions, scope: ReadScope::Own, slot });
@@ -317,6 +393,7 @@ impl<P> PassBuilder<'_, P> {
 
     fn push_write<K>(mut self, h: &mut Handle<K>, in_place: bool) -> Self {
         self.check(h);
+        self.check_slot(h.family, SlotAccess::Write);
         let topo = &self.graph.topology;
         for v in 0..topo.views() {
             if topo.in_role(self.decl.role, ViewId(v)) {
@@ -345,6 +422,7 @@ impl<P> PassBuilder<'_, P> {
     /// declared from data; conflicting writes are reported at compile time.
     pub fn write_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
+        self.check_slot(h.family, SlotAccess::Write);
         let versions = vec![version; h.versions.len()];
         let slot = self.family_name(h.family);
         self.decl.writes.push(WriteDecl { family: h.family, versions, slot, in_place: false });
@@ -372,8 +450,8 @@ impl<P> PassBuilder<'_, P> {
     /// Adds the pass to the graph.
     pub fn record(self) -> PassId {
         let id = PassId(self.graph.passes.len() as u32);
-        if let Some(family) = self.foreign {
-            self.graph.foreign_uses.push((id, family));
+        if let Some(error) = self.refused {
+            self.graph.refused.push(error);
         }
         self.graph.passes.push(self.decl);
         self.graph.payloads.push(self.payload);

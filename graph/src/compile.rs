@@ -36,9 +36,8 @@ pub trait Placement {
 
 /// Compiles `graph` under `placement` into a schedule.
 pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedule, GraphError> {
-    if let Some(&(pass, family)) = graph.foreign_uses.first() {
-        let decl = &graph.passes[pass.index()];
-        return Err(GraphError::ForeignHandle { pass: decl.name.clone(), family, at: decl.at });
+    if let Some(error) = graph.declaration_error() {
+        return Err(error.clone());
     }
     let views = graph.topology.views();
     let writers = writer_map(graph)?;

@@ -4,6 +4,7 @@ use std::panic::Location;
 
 use thiserror::Error;
 
+use crate::builder::SlotAccess;
 use crate::ids::{FamilyId, ViewId};
 
 /// Bad planning input: layouts, device counts, source lists, strategy names.
@@ -86,6 +87,14 @@ pub enum GraphError {
         "pass '{pass}' reads the history of '{resource}' of {view} on {reader}, but its last writer runs on {writer}: history must stay on the device that wrote it"
     )]
     HistoryAcrossDevices { pass: String, resource: String, view: ViewId, reader: u32, writer: u32 },
+    #[error(
+        "resource '{name}' is declared twice (first at {first}, again at {at}): give each resource its own name, kernels and reports tell resources apart by it"
+    )]
+    DuplicateResource { name: String, first: &'static Location<'static>, at: &'static Location<'static> },
+    #[error(
+        "pass '{pass}' (declared at {at}) declares the {access} of '{slot}' twice: declare each access once, the kernel binds it through one slot"
+    )]
+    DuplicateSlot { pass: String, slot: String, access: SlotAccess, at: &'static Location<'static> },
     #[error("the graph has no roots: export a resource or mark a pass side_effect(), otherwise every pass is culled")]
     NoRoots,
 }

@@ -92,6 +92,62 @@ fn handles_of_another_graph_are_rejected() {
 }
 
 #[test]
+fn two_resources_with_one_name_are_refused_where_the_second_is_declared() {
+    let mut g = Graph::new(topology());
+    let mut a = g.image("radiance", Format::Rgba32f);
+    let twin = g.buffer("radiance", 64);
+    g.import(&twin);
+    g.pass("trace", Role::All).read(&twin).write(&mut a).record();
+    g.export(&a);
+    let err = compile(&g, &Single).unwrap_err();
+    assert!(
+        matches!(err, GraphError::DuplicateResource { ref name, first, at } if name == "radiance" && first.line() < at.line()),
+        "{err}"
+    );
+    assert_eq!(g.declaration_error(), Some(&err), "refused when declared, before compiling");
+    assert!(err.to_string().contains("graph_errors.rs"), "error names both declarations: {err}");
+}
+
+#[test]
+fn a_pass_declaring_one_access_twice_is_refused() {
+    let mut g = Graph::new(topology());
+    let a = g.image("a", Format::R32f);
+    g.import(&a);
+    let mut out = g.image("out", Format::R32f);
+    g.pass("blur", Role::All).read(&a).read_whole(&a).write(&mut out).record();
+    g.export(&out);
+    let err = compile(&g, &Single).unwrap_err();
+    assert!(
+        matches!(err, GraphError::DuplicateSlot { ref pass, ref slot, access: SlotAccess::Read, .. } if pass == "blur" && slot == "a"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_pass_writing_one_resource_twice_is_refused() {
+    let mut g = Graph::new(topology());
+    let mut a = g.image("a", Format::R32f);
+    g.pass("twice", Role::All).write(&mut a).write(&mut a).record();
+    g.export(&a);
+    let err = compile(&g, &Single).unwrap_err();
+    assert!(
+        matches!(err, GraphError::DuplicateSlot { ref pass, ref slot, access: SlotAccess::Write, .. } if pass == "twice" && slot == "a"),
+        "{err}"
+    );
+}
+
+#[test]
+fn one_resource_read_as_own_view_history_and_in_place_is_one_slot_each() {
+    let mut g = Graph::new(topology());
+    let mut acc = g.image("acc", Format::R32f);
+    g.import(&acc);
+    g.pass("accumulate", Role::All).read_history(&acc).modify(&mut acc).record();
+    g.export(&acc);
+    assert_eq!(g.declaration_error(), None);
+    assert!(compile(&g, &Single).is_ok());
+}
+
+#[test]
 fn a_graph_without_roots_is_an_error() {
     let mut g = Graph::new(topology());
     let mut a = g.image("a", Format::R32f);
