@@ -92,6 +92,18 @@ pub enum BackendError {
     #[error("shader `{shader}` is not SPIR-V: {defect}")]
     InvalidSpirv { shader: String, defect: crate::shaders::SpirvDefect },
 
+    /// A shader's push-constant block cannot be read from its SPIR-V.
+    #[error("cannot read the push-constant block of shader `{shader}`: {defect}")]
+    Reflection { shader: String, defect: crate::reflect::ReflectError },
+
+    /// A kernel's push-constant struct does not match the block its shader declares (found
+    /// when the pipeline is created and at every dispatch, before anything runs).
+    #[error(
+        "pass `{pass}` pushes `{rust_type}` to shader `{shader}`, whose push-constant block differs at `{field}`: \
+         {problem}; make the #[repr(C)] struct and its push_constants! list match the GLSL block"
+    )]
+    PushConstantLayout { pass: String, shader: String, rust_type: &'static str, field: String, problem: String },
+
     /// A kernel's use of the instance does not match what the kernel expects.
     #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
     KernelMisuse { kernel: String, instance: usize, detail: String },

@@ -20,6 +20,9 @@
 //!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `ExecResource::reset`);
 //!   consecutive instances of one pass recorded as one op ([`PassKernel::record_group`]) with
 //!   data fixed at record time in a [`RecordingBuffer`].
+//! * [`PushConstants`] ([`push_constants!`]): a kernel's push-constant struct names its fields;
+//!   each pipeline's shader block is reflected from the SPIR-V when it is created, and a
+//!   struct that differs is refused with [`BackendError::PushConstantLayout`].
 //! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera and the frame
 //!   index, as `shaders/include/frame_block.glsl` declares them.
 //! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
@@ -90,6 +93,7 @@ mod instance;
 mod lower;
 mod memory;
 mod pipeline;
+mod push;
 mod readback;
 mod record;
 mod recorder;
@@ -117,6 +121,7 @@ pub use plan::{
     ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError, Format, MAX_RESET_WORDS,
     Region, ResourceKind,
 };
+pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};
 pub use recorder::{Draw, PassKernel, PassParams, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};

@@ -25,6 +25,7 @@ use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::memory::{Buffer, Image};
 use crate::plan::Format;
+use crate::reflect::{MemberLayout, push_constant_block};
 use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData, create_sampler};
 
@@ -52,6 +53,16 @@ pub const PUSH_CONSTANT_BYTES: u32 = 128;
 /// Size of the frame-constants uniform block.
 const FRAME_CONSTANT_BYTES: u64 = 16;
 
+/// The members of a shader's push-constant block (`None`: it declares none), reflected when its
+/// pipeline is created, which every dispatch's or draw's push constants are held to.
+pub(crate) type PushBlock = Option<Vec<MemberLayout>>;
+
+/// A pipeline and the push-constant blocks of its shaders (by shader name).
+pub(crate) struct Pipeline {
+    pub(crate) raw: vk::Pipeline,
+    pub(crate) push_blocks: Vec<(String, PushBlock)>,
+}
+
 /// Descriptor layout, sets and pipelines of one device for one plan.
 pub(crate) struct Bindless {
     device: Arc<Device>,
@@ -65,8 +76,8 @@ pub(crate) struct Bindless {
     image_count: u32,
     /// Where pipelines' shaders come from: the user's, then the built-in ones.
     shaders: ShaderLibrary,
-    pipelines: HashMap<String, vk::Pipeline>,
-    graphics_pipelines: HashMap<GraphicsKey, vk::Pipeline>,
+    pipelines: HashMap<String, Pipeline>,
+    graphics_pipelines: HashMap<GraphicsKey, Pipeline>,
     /// Float, uint and depth 1x1 images shown where a binding's array has no image of its kind.
     placeholders: [Image; 3],
     /// What unused texture slots show, and the sampler of every slot.
@@ -267,11 +278,12 @@ impl Bindless {
     }
 
     /// The compute pipeline of shader `name`, created on first use.
-    pub(crate) fn pipeline(&mut self, name: &str) -> Result<vk::Pipeline> {
-        if let Some(&p) = self.pipelines.get(name) {
-            return Ok(p);
+    pub(crate) fn pipeline(&mut self, name: &str) -> Result<&Pipeline> {
+        if self.pipelines.contains_key(name) {
+            return Ok(&self.pipelines[name]);
         }
         let code = self.shaders.spirv(name)?;
+        let push_blocks = vec![(name.to_string(), reflect_push_block(name, &code)?)];
         let raw = &self.device.raw;
         let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
             .vk("vkCreateShaderModule")?;
@@ -292,11 +304,10 @@ impl Bindless {
         let created = unsafe { raw.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
         unsafe { raw.destroy_shader_module(module, None) };
         let pipeline = created.map_err(|(_, result)| BackendError::vk("vkCreateComputePipelines", result))?.remove(0);
-        self.pipelines.insert(name.to_string(), pipeline);
         if let Some(stats) = &self.device.pipeline_stats {
             print_pipeline_statistics(stats, pipeline, name, self.device.info.index);
         }
-        Ok(pipeline)
+        Ok(self.pipelines.entry(name.to_string()).or_insert(Pipeline { raw: pipeline, push_blocks }))
     }
 }
 
@@ -304,13 +315,18 @@ impl Bindless {
     /// The graphics pipeline of `key`, created on first use: no vertex input (vertex shaders
     /// pull what they need from storage), triangle lists, no culling, dynamic viewport and
     /// scissor, depth test LESS with writes when asked, no blending.
-    pub(crate) fn graphics_pipeline(&mut self, key: &GraphicsKey) -> Result<vk::Pipeline> {
-        if let Some(&p) = self.graphics_pipelines.get(key) {
-            return Ok(p);
+    pub(crate) fn graphics_pipeline(&mut self, key: &GraphicsKey) -> Result<&Pipeline> {
+        if self.graphics_pipelines.contains_key(key) {
+            return Ok(&self.graphics_pipelines[key]);
         }
         let raw = &self.device.raw;
-        // Both shaders are looked up before either module exists, so an unknown name leaks none.
+        // Both shaders are looked up (and reflected) before either module exists, so an unknown
+        // name leaks none.
         let codes = [self.shaders.spirv(&key.vertex)?, self.shaders.spirv(&key.fragment)?];
+        let push_blocks = vec![
+            (key.vertex.clone(), reflect_push_block(&key.vertex, &codes[0])?),
+            (key.fragment.clone(), reflect_push_block(&key.fragment, &codes[1])?),
+        ];
         let mut modules = Vec::new();
         for code in &codes {
             let module = unsafe { raw.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(code), None) }
@@ -379,9 +395,15 @@ impl Bindless {
         let created = unsafe { raw.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
         modules.iter().for_each(|&m| unsafe { raw.destroy_shader_module(m, None) });
         let pipeline = created.map_err(|(_, result)| BackendError::vk("vkCreateGraphicsPipelines", result))?.remove(0);
-        self.graphics_pipelines.insert(key.clone(), pipeline);
-        Ok(pipeline)
+        Ok(self.graphics_pipelines.entry(key.clone()).or_insert(Pipeline { raw: pipeline, push_blocks }))
     }
+}
+
+/// The push-constant block of shader `name`.
+fn reflect_push_block(name: &str, code: &[u32]) -> Result<PushBlock> {
+    let block =
+        push_constant_block(code).map_err(|defect| BackendError::Reflection { shader: name.to_string(), defect })?;
+    Ok(block.map(|(_, members)| members))
 }
 
 impl Drop for Bindless {
@@ -389,10 +411,10 @@ impl Drop for Bindless {
         let raw = &self.device.raw;
         unsafe {
             for (_, p) in self.pipelines.drain() {
-                raw.destroy_pipeline(p, None);
+                raw.destroy_pipeline(p.raw, None);
             }
             for (_, p) in self.graphics_pipelines.drain() {
-                raw.destroy_pipeline(p, None);
+                raw.destroy_pipeline(p.raw, None);
             }
             raw.destroy_descriptor_pool(self.pool, None);
             raw.destroy_sampler(self.sampler, None);

@@ -295,6 +295,7 @@ fn record_passes(
     let first = instances[0];
     let kernel = ctx.plan.kernels.0[ctx.plan.passes[first].kernel].clone();
     let mut rec = Recorder {
+        pass: &ctx.plan.passes[first].name,
         parity_map: ctx.parity_map,
         raw: ctx.raw,
         cb,

@@ -14,15 +14,16 @@ use gpu_allocator::MemoryLocation;
 use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
-use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES};
+use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
 use crate::plan::{ExecPass, ExecResource, ExecutionPlan, Format, Region};
+use crate::push::{self, PushConstants};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
 const INDIRECT_ARGS_BYTES: u64 = 12;
 
 /// Push constants of every kernel (`PassParams` in shaders/include/bindless.glsl).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PassParams {
     pub dst: u32,
     pub src0: u32,
@@ -34,17 +35,7 @@ pub struct PassParams {
     pub param: u32,
 }
 
-impl PassParams {
-    /// The 32 bytes the shaders' `PassParams` block reads.
-    pub fn to_bytes(self) -> [u8; 32] {
-        let words = [self.dst, self.src0, self.src1, self.view, self.y0, self.y1, self.width, self.param];
-        let mut bytes = [0u8; 32];
-        for (chunk, w) in bytes.chunks_exact_mut(4).zip(words) {
-            chunk.copy_from_slice(&w.to_le_bytes());
-        }
-        bytes
-    }
-}
+crate::push_constants!(PassParams { dst, src0, src1, view, y0, y1, width, param });
 
 /// A draw of a raster pass: the render targets are plan images, the row band limits the render
 /// area and the scissor (the viewport stays the whole image, so a band renders exactly its rows
@@ -66,9 +57,6 @@ pub struct Draw<'a> {
     pub rows: Region,
     pub vertex_count: u32,
     pub instance_count: u32,
-    /// Push constants of both stages (at most 128 bytes, a multiple of 4): `PassParams::to_bytes`
-    /// or a kernel-defined block (`PARALLAX_CUSTOM_PUSH_CONSTANTS`).
-    pub push: &'a [u8],
 }
 
 /// A buffer that one op of a recording owns ([`Recorder::recording_buffer`]): host-written at
@@ -95,6 +83,8 @@ impl RecordingBuffer {
 /// Records the work of one pass instance (or of a group of them, [`PassKernel::record_group`])
 /// into a device's command buffer.
 pub struct Recorder<'a> {
+    /// Name of the pass being recorded, for errors.
+    pub(crate) pass: &'a str,
     /// History pairs swapped for an odd frame (see `ExecutionPlan::history_pairs`).
     pub(crate) parity_map: &'a HashMap<usize, usize>,
     pub(crate) raw: &'a ash::Device,
@@ -188,20 +178,16 @@ impl<'a> Recorder<'a> {
     }
 
     /// Binds compute shader `shader` (from `ExecOptions::shaders`, else built in), pushes
-    /// `params` and dispatches `groups`.
-    pub fn dispatch(&mut self, shader: &str, params: PassParams, groups: [u32; 3]) -> Result<()> {
-        self.dispatch_bytes(shader, &params.to_bytes(), groups)
-    }
-
-    /// Like [`Self::dispatch`] with a kernel-defined push-constant block (at most 128 bytes, a
-    /// multiple of 4; the shader defines `PARALLAX_CUSTOM_PUSH_CONSTANTS` and declares it).
-    pub fn dispatch_bytes(&mut self, shader: &str, push: &[u8], groups: [u32; 3]) -> Result<()> {
+    /// `push` and dispatches `groups`. `push` is [`PassParams`] or a kernel-defined block (the
+    /// shader defines `PARALLAX_CUSTOM_PUSH_CONSTANTS` and declares it); either way its layout
+    /// must match the shader's block ([`PushConstants`]).
+    pub fn dispatch<P: PushConstants>(&mut self, shader: &str, push: &P, groups: [u32; 3]) -> Result<()> {
         self.bind_compute(shader, push)?;
         unsafe { self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]) };
         Ok(())
     }
 
-    /// Like [`Self::dispatch_bytes`], with the workgroup counts read on the GPU from the
+    /// Like [`Self::dispatch`], with the workgroup counts read on the GPU from the
     /// per-view buffer `resource` at `byte_offset`: three `u32` (x, y, z), as a pass of the same
     /// frame wrote them (compaction counts; see `ExecResource::reset` for counters that start
     /// from zero every frame).
@@ -209,7 +195,13 @@ impl<'a> Recorder<'a> {
     /// Writes of earlier passes are ordered by the barrier before every pass; this also orders
     /// the writes of this pass's own earlier dispatches, so a kernel may compute its counts and
     /// dispatch on them in one pass.
-    pub fn dispatch_indirect(&mut self, shader: &str, push: &[u8], resource: usize, byte_offset: u64) -> Result<()> {
+    pub fn dispatch_indirect<P: PushConstants>(
+        &mut self,
+        shader: &str,
+        push: &P,
+        resource: usize,
+        byte_offset: u64,
+    ) -> Result<()> {
         let invalid = |problem: String| BackendError::IndirectArgs {
             shader: shader.to_string(),
             resource,
@@ -228,10 +220,10 @@ impl<'a> Recorder<'a> {
     }
 
     /// [`Self::dispatch_indirect`] with the arguments in a [`RecordingBuffer`] of this op.
-    pub fn dispatch_indirect_from(
+    pub fn dispatch_indirect_from<P: PushConstants>(
         &mut self,
         shader: &str,
-        push: &[u8],
+        push: &P,
         args: &RecordingBuffer,
         byte_offset: u64,
     ) -> Result<()> {
@@ -245,10 +237,10 @@ impl<'a> Recorder<'a> {
 
     /// Checks that `byte_offset` holds arguments in the `size`-byte buffer `raw`, then binds,
     /// puts the barrier and dispatches (see [`Self::dispatch_indirect`]).
-    fn indirect(
+    fn indirect<P: PushConstants>(
         &mut self,
         shader: &str,
-        push: &[u8],
+        push: &P,
         raw: vk::Buffer,
         size: u64,
         byte_offset: u64,
@@ -280,23 +272,26 @@ impl<'a> Recorder<'a> {
     }
 
     /// Binds compute shader `shader` (unless bound already) and pushes `push` (at most 128
-    /// bytes, a multiple of 4).
-    fn bind_compute(&mut self, shader: &str, push: &[u8]) -> Result<()> {
-        if push.len() > PUSH_CONSTANT_BYTES as usize || push.len() % 4 != 0 {
+    /// bytes, a multiple of 4), once its layout is found to match the shader's block.
+    fn bind_compute<P: PushConstants>(&mut self, shader: &str, push: &P) -> Result<()> {
+        let bytes = bytemuck::bytes_of(push);
+        if bytes.len() > PUSH_CONSTANT_BYTES as usize || bytes.len() % 4 != 0 {
             return Err(BackendError::KernelMisuse {
                 kernel: shader.to_string(),
                 instance: usize::MAX,
-                detail: format!("{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)", push.len()),
+                detail: format!("{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)", bytes.len()),
             });
         }
         let pipeline = self.bindless.pipeline(shader)?;
+        check_push::<P>(self.pass, pipeline)?;
+        let pipeline = pipeline.raw;
         unsafe {
             if self.bound != Some(pipeline) {
                 self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
                 self.bound = Some(pipeline);
             }
-            if !push.is_empty() {
-                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push);
+            if !bytes.is_empty() {
+                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, bytes);
             }
         }
         Ok(())
@@ -366,21 +361,23 @@ impl<'a> Recorder<'a> {
     /// row-band kernel in shaders/ uses.
     pub fn dispatch_rows(&mut self, shader: &str, params: PassParams) -> Result<()> {
         let rows = params.y1.saturating_sub(params.y0);
-        self.dispatch(shader, params, [params.width.div_ceil(8), rows.div_ceil(8), 1])
+        self.dispatch(shader, &params, [params.width.div_ceil(8), rows.div_ceil(8), 1])
     }
 
     /// Renders `draw` with dynamic rendering into its colour and depth targets (images stay in
     /// `GENERAL`; the barrier before every pass orders the attachments against earlier passes).
-    pub fn draw(&mut self, draw: &Draw<'_>) -> Result<()> {
+    /// `push` goes to both stages, and must match the block of each that declares one.
+    pub fn draw<P: PushConstants>(&mut self, draw: &Draw<'_>, push: &P) -> Result<()> {
         let misuse = |detail: String| BackendError::KernelMisuse {
             kernel: draw.vertex_shader.to_string(),
             instance: usize::MAX,
             detail,
         };
-        if draw.push.len() > PUSH_CONSTANT_BYTES as usize || draw.push.len() % 4 != 0 {
+        let push_bytes = bytemuck::bytes_of(push);
+        if push_bytes.len() > PUSH_CONSTANT_BYTES as usize || push_bytes.len() % 4 != 0 {
             return Err(misuse(format!(
                 "{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)",
-                draw.push.len()
+                push_bytes.len()
             )));
         }
         let Some(&first) = draw.color_targets.first().or(draw.depth_target.as_ref()) else {
@@ -448,6 +445,8 @@ impl<'a> Recorder<'a> {
             depth: depth_attachment.is_some(),
         };
         let pipeline = self.bindless.graphics_pipeline(&key)?;
+        check_push::<P>(self.pass, pipeline)?;
+        let pipeline = pipeline.raw;
         let area = vk::Rect2D {
             offset: vk::Offset2D { x: 0, y: draw.rows.y0 as i32 },
             extent: vk::Extent2D { width, height: draw.rows.len() },
@@ -472,8 +471,8 @@ impl<'a> Recorder<'a> {
             );
             self.raw.cmd_set_viewport(self.cb, 0, &[viewport]);
             self.raw.cmd_set_scissor(self.cb, 0, &[area]);
-            if !draw.push.is_empty() {
-                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, draw.push);
+            if !push_bytes.is_empty() {
+                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push_bytes);
             }
             if draw.vertex_count > 0 && draw.instance_count > 0 {
                 self.raw.cmd_draw(self.cb, draw.vertex_count, draw.instance_count, 0, 0);
@@ -492,6 +491,24 @@ impl<'a> Recorder<'a> {
     pub fn raw_device(&self) -> &ash::Device {
         self.raw
     }
+}
+
+/// Holds `P` against the push-constant block of each of `pipeline`'s shaders. A shader without
+/// a block reads none of the bytes, so none can be misread.
+fn check_push<P: PushConstants>(pass: &str, pipeline: &Pipeline) -> Result<()> {
+    let size = std::mem::size_of::<P>();
+    for (shader, block) in &pipeline.push_blocks {
+        if let Some(members) = block {
+            push::compare(P::FIELDS, size, members).map_err(|mismatch| BackendError::PushConstantLayout {
+                pass: pass.to_string(),
+                shader: shader.clone(),
+                rust_type: std::any::type_name::<P>(),
+                field: mismatch.field,
+                problem: mismatch.problem,
+            })?;
+        }
+    }
+    Ok(())
 }
 
 /// The GPU work of one pass (by name). Implemented by the passes crate for path tracing,

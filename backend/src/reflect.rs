@@ -1,8 +1,10 @@
 //! Struct layouts read from SPIR-V: the byte offset of every member (`OpMemberDecorate …
 //! Offset`) and the stride of array members (`OpDecorate … ArrayStride`), found by the names
-//! the compiler keeps with debug info (build.rs compiles with `-g`). A test holds a
-//! `#[repr(C)]` parameter struct against the GLSL block a kernel declares by comparing these
-//! with `std::mem::offset_of!`, without running anything on a GPU.
+//! the compiler keeps with debug info (build.rs compiles with `-g`), and the block of a module's
+//! push constants ([`push_constant_block`]), which pipeline creation holds a kernel's
+//! [`crate::PushConstants`] against. A test holds other `#[repr(C)]` structs (buffer contents)
+//! against the GLSL by comparing these with `std::mem::offset_of!` ([`rust_layout!`]), without
+//! running anything on a GPU.
 //!
 //! Only explicitly laid-out types carry offsets: blocks (push constants, buffers, buffer
 //! references) and the structs inside them.
@@ -13,10 +15,13 @@ const MAGIC: u32 = 0x0723_0203;
 const OP_NAME: u32 = 5;
 const OP_MEMBER_NAME: u32 = 6;
 const OP_TYPE_STRUCT: u32 = 30;
+const OP_TYPE_POINTER: u32 = 32;
+const OP_VARIABLE: u32 = 59;
 const OP_DECORATE: u32 = 71;
 const OP_MEMBER_DECORATE: u32 = 72;
 const DECORATION_ARRAY_STRIDE: u32 = 6;
 const DECORATION_OFFSET: u32 = 35;
+const STORAGE_CLASS_PUSH_CONSTANT: u32 = 9;
 
 /// What can go wrong reading a layout.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -45,24 +50,12 @@ pub struct MemberLayout {
 pub fn struct_layout(words: &[u32], name: &str) -> Result<Vec<MemberLayout>, ReflectError> {
     let module = Module::parse(words)?;
     let mut layouts: Vec<Vec<MemberLayout>> = Vec::new();
-    for (&id, members) in &module.struct_members {
+    for &id in module.struct_members.keys() {
         if module.names.get(&id).map(String::as_str) != Some(name) {
             continue;
         }
-        let layout: Option<Vec<MemberLayout>> = members
-            .iter()
-            .enumerate()
-            .map(|(i, member_type)| {
-                let offset = *module.offsets.get(&(id, i as u32))?;
-                Some(MemberLayout {
-                    name: module.member_names.get(&(id, i as u32)).cloned().unwrap_or_default(),
-                    offset,
-                    array_stride: module.array_strides.get(member_type).copied(),
-                })
-            })
-            .collect();
         // A struct without offsets is the same type used where no layout applies.
-        if let Some(layout) = layout
+        if let Some(layout) = module.layout(id)
             && !layouts.contains(&layout)
         {
             layouts.push(layout);
@@ -75,9 +68,25 @@ pub fn struct_layout(words: &[u32], name: &str) -> Result<Vec<MemberLayout>, Ref
     }
 }
 
+/// The push-constant block of a module: its type's name (empty without debug info) and
+/// members, or `None` when the shader declares no push constants.
+pub fn push_constant_block(words: &[u32]) -> Result<Option<(String, Vec<MemberLayout>)>, ReflectError> {
+    let module = Module::parse(words)?;
+    let Some(block) = module.push_constant_block else {
+        return Ok(None);
+    };
+    let name = module.names.get(&block).cloned().unwrap_or_default();
+    let members = module.layout(block).ok_or_else(|| ReflectError::NoStruct(name.clone()))?;
+    Ok(Some((name, members)))
+}
+
 /// The instructions a layout needs, by id.
 #[derive(Default)]
 struct Module {
+    /// The struct type of the `PushConstant` variable (a module has at most one).
+    push_constant_block: Option<u32>,
+    /// Pointer type id → (storage class, pointee type id).
+    pointers: HashMap<u32, (u32, u32)>,
     names: HashMap<u32, String>,
     member_names: HashMap<(u32, u32), String>,
     /// Struct id → member type ids.
@@ -117,11 +126,37 @@ impl Module {
                 (OP_MEMBER_DECORATE, [id, member, DECORATION_OFFSET, offset]) => {
                     module.offsets.insert((*id, *member), *offset);
                 }
+                (OP_TYPE_POINTER, [id, storage, pointee]) => {
+                    module.pointers.insert(*id, (*storage, *pointee));
+                }
+                // Types precede variables, so the pointer type is known here.
+                (OP_VARIABLE, [pointer, _, STORAGE_CLASS_PUSH_CONSTANT, ..]) => {
+                    module.push_constant_block = module.pointers.get(pointer).map(|&(_, pointee)| pointee);
+                }
                 _ => {}
             }
             at += count;
         }
         Ok(module)
+    }
+}
+
+impl Module {
+    /// The members of struct `id`, if it is a struct and every member has an explicit offset.
+    fn layout(&self, id: u32) -> Option<Vec<MemberLayout>> {
+        self.struct_members
+            .get(&id)?
+            .iter()
+            .enumerate()
+            .map(|(i, member_type)| {
+                let offset = *self.offsets.get(&(id, i as u32))?;
+                Some(MemberLayout {
+                    name: self.member_names.get(&(id, i as u32)).cloned().unwrap_or_default(),
+                    offset,
+                    array_stride: self.array_strides.get(member_type).copied(),
+                })
+            })
+            .collect()
     }
 }
 
@@ -180,9 +215,10 @@ mod tests {
 
     #[test]
     fn the_shared_pass_params_match_bindless_glsl() {
-        use crate::recorder::PassParams;
-        let glsl = member_offsets(&crate::spirv("bench_fill").unwrap(), "PassParams").unwrap();
-        assert_eq!(glsl, rust_layout!(PassParams { dst, src0, src1, view, y0, y1, width, param }));
+        let spirv = crate::spirv("bench_fill").unwrap();
+        assert_eq!(crate::check_push_constants::<crate::PassParams>(&spirv), Ok(()));
+        let (block, members) = push_constant_block(&spirv).unwrap().unwrap();
+        assert_eq!((block.as_str(), members.len()), ("PassParams", 8));
     }
 
     #[test]

@@ -9,7 +9,7 @@ use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor,
     FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder,
-    Validation, ViewCameras,
+    Validation, ViewCameras, check_push_constants,
 };
 use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
 use parallax_testkit::kernels::reference_mask;
@@ -46,6 +46,21 @@ struct FrameFillParams {
     section: u64,
 }
 
+parallax_backend::push_constants!(FrameFillParams { dst, view, width, height, block, section });
+
+/// Push constants of test_frame_block.comp (`FrameBlockProbe`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FrameBlockProbe {
+    block: u64,
+    target: u64,
+    max_views: u32,
+    /// Rounds the struct to its 8-byte alignment; the shader's block ends before it.
+    pad: u32,
+}
+
+parallax_backend::push_constants!(FrameBlockProbe { block, target, max_views });
+
 #[test]
 fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
     let probe = parallax_testkit::shaders().spirv("test_frame_block").unwrap();
@@ -80,20 +95,10 @@ fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
         ]
     );
     assert_eq!(block[4].array_stride, Some(size_of::<ViewCameras>() as u32));
-    // The same check holds any kernel's parameter struct against its push-constant block.
-    let fill =
-        struct_layout(&parallax_testkit::shaders().spirv("test_frame_fill").unwrap(), "FrameFillParams").unwrap();
-    assert_eq!(
-        offsets(&fill),
-        vec![
-            ("dst", offset_of!(FrameFillParams, dst) as u32),
-            ("view", offset_of!(FrameFillParams, view) as u32),
-            ("width", offset_of!(FrameFillParams, width) as u32),
-            ("height", offset_of!(FrameFillParams, height) as u32),
-            ("block", offset_of!(FrameFillParams, block) as u32),
-            ("section", offset_of!(FrameFillParams, section) as u32),
-        ]
-    );
+    // Kernels' parameter structs are held against their push-constant blocks as a dispatch does.
+    let fill = parallax_testkit::shaders().spirv("test_frame_fill").unwrap();
+    assert_eq!(check_push_constants::<FrameFillParams>(&fill), Ok(()));
+    assert_eq!(check_push_constants::<FrameBlockProbe>(&probe), Ok(()));
 }
 
 /// Camera of view `view` in frame `frame`: every frame and view different.
@@ -117,7 +122,7 @@ impl PassKernel for FrameFillKernel {
             block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
             section: rec.frame_section_address(FILL_SECTION)?,
         };
-        rec.dispatch_bytes("test_frame_fill", bytemuck::bytes_of(&params), [SIZE.div_ceil(8), SIZE.div_ceil(8), 1])
+        rec.dispatch("test_frame_fill", &params, [SIZE.div_ceil(8), SIZE.div_ceil(8), 1])
     }
 }
 
@@ -224,10 +229,13 @@ struct FrameProbeKernel {
 
 impl PassKernel for FrameProbeKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
-        let mut push = rec.frame_section_address(FRAME_BLOCK_SECTION)?.to_le_bytes().to_vec();
-        push.extend_from_slice(&rec.buffer_of(pass.writes[0].resource)?.to_le_bytes());
-        push.extend_from_slice(&self.views.to_le_bytes());
-        rec.dispatch_bytes("test_frame_block", &push, [1, 1, 1])
+        let push = FrameBlockProbe {
+            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            target: rec.buffer_of(pass.writes[0].resource)?,
+            max_views: self.views,
+            pad: 0,
+        };
+        rec.dispatch("test_frame_block", &push, [1, 1, 1])
     }
 }
 

@@ -34,9 +34,27 @@ fn words(bytes: &[u8]) -> Vec<u32> {
     bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
 }
 
-fn push(address: u64, word: &[u8]) -> Vec<u8> {
-    [address.to_le_bytes().as_slice(), word].concat()
+/// Push constants of test_indirect_args.comp.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct IndirectArgsParams {
+    args: u64,
+    salt: u32,
+    /// Rounds the struct to its 8-byte alignment; the shader's block ends before it.
+    pad: u32,
 }
+
+parallax_backend::push_constants!(IndirectArgsParams { args, salt });
+
+/// Push constants of test_indirect_count.comp.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct IndirectCountParams {
+    args: u64,
+    counter: u64,
+}
+
+parallax_backend::push_constants!(IndirectCountParams { args, counter });
 
 fn slot(pass: &ExecPass, name: &str) -> usize {
     pass.output(name).or_else(|| pass.input(name)).expect("the test graph declares the slot").resource
@@ -45,12 +63,12 @@ fn slot(pass: &ExecPass, name: &str) -> usize {
 /// Records the arguments pass (one workgroup) into slot `indirect args`.
 fn record_args(rec: &mut Recorder<'_>, pass: &ExecPass) -> parallax_backend::Result<()> {
     let args = rec.buffer_of(slot(pass, ARGS))?;
-    rec.dispatch_bytes("test_indirect_args", &push(args, &SALT.to_le_bytes()), [1, 1, 1])
+    rec.dispatch("test_indirect_args", &IndirectArgsParams { args, salt: SALT, pad: 0 }, [1, 1, 1])
 }
 
 /// Records the indirect dispatch on the arguments `args` into the counter `counter`.
 fn record_count(rec: &mut Recorder<'_>, args: usize, counter: usize) -> parallax_backend::Result<()> {
-    let push = push(rec.buffer_of(args)?, &rec.buffer_of(counter)?.to_le_bytes());
+    let push = IndirectCountParams { args: rec.buffer_of(args)?, counter: rec.buffer_of(counter)? };
     rec.dispatch_indirect("test_indirect_count", &push, args, 0)
 }
 
@@ -93,7 +111,8 @@ struct MisusedKernel {
 
 impl PassKernel for MisusedKernel {
     fn record(&self, rec: &mut Recorder<'_>, _: &ExecPass, _: usize) -> parallax_backend::Result<()> {
-        rec.dispatch_indirect("test_indirect_count", &[0; 16], self.resource, self.offset)
+        let push = IndirectCountParams { args: 0, counter: 0 };
+        rec.dispatch_indirect("test_indirect_count", &push, self.resource, self.offset)
     }
 }
 

@@ -2,7 +2,8 @@
 //! compiled at run time with parallax-glsl, handed to the executor as a `ShaderLibrary` beside
 //! the testkit's (compiled by its build.rs) and run on two logical devices after the testkit's
 //! fill, against a CPU reference (validation on);
-//! bytes that are not SPIR-V are refused with the exact error.
+//! bytes that are not SPIR-V are refused with the exact error, and so is a kernel whose
+//! push-constant struct does not match its shader's block.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -138,6 +139,57 @@ fn a_kernel_naming_no_known_shader_lists_where_it_looked() {
         other => panic!("expected BackendError::UnknownShader, got {other:?}"),
     }
     drop(exec);
+    ctx.check_validation().unwrap();
+}
+
+/// `PassParams` with `y0` and `y1` swapped: the mistake a hand-packed struct makes.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct SwappedRows {
+    dst: u32,
+    src0: u32,
+    src1: u32,
+    view: u32,
+    y1: u32,
+    y0: u32,
+    width: u32,
+    param: u32,
+}
+
+parallax_backend::push_constants!(SwappedRows { dst, src0, src1, view, y1, y0, width, param });
+
+/// Dispatches the testkit's `fill` with [`SwappedRows`].
+struct SwappedRowsKernel;
+
+impl PassKernel for SwappedRowsKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let dst = pass.writes[0].resource;
+        let p = rec.row_params(pass, dst)?;
+        let push =
+            SwappedRows { dst: p.dst, src0: 0, src1: 0, view: p.view, y1: p.y1, y0: p.y0, width: p.width, param: 0 };
+        rec.dispatch("fill", &push, [p.width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+    }
+}
+
+#[test]
+fn a_push_constant_struct_unlike_the_shaders_block_is_refused_naming_the_pass_and_field() {
+    let ctx = context();
+    let topology = parallax_graph::ViewTopology::all_sources(1, SIZE, SIZE);
+    let mut g = KernelGraph::with_payload(topology);
+    let mut out = g.image("out", Format::Rgba32f);
+    g.pass("swapped", Role::All).write(&mut out).kernel(Arc::new(SwappedRowsKernel)).record();
+    g.export(&out);
+    let placement = parallax_graph::BandedPlacement { devices: DEVICES, bands: 1 };
+    let plan = ExecutionPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();
+    let options = ExecOptions { shaders: parallax_testkit::shaders(), ..ExecOptions::default() };
+    let result = Executor::new(&ctx, plan, options).and_then(|mut exec| exec.run_frame());
+    match result {
+        Err(BackendError::PushConstantLayout { pass, shader, rust_type, field, .. }) => {
+            assert_eq!((pass.as_str(), shader.as_str(), field.as_str()), ("swapped", "fill", "y0"));
+            assert!(rust_type.ends_with("SwappedRows"), "{rust_type}");
+        }
+        other => panic!("expected BackendError::PushConstantLayout, got {other:?}"),
+    }
     ctx.check_validation().unwrap();
 }
 

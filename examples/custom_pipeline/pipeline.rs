@@ -14,10 +14,9 @@ use std::sync::Arc;
 use anyhow::{Context as _, Result, bail, ensure};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use parallax_backend::reflect::member_offsets;
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
-    PassKernel, Recorder, Validation, rust_layout,
+    PassKernel, Recorder, Validation,
 };
 use parallax_graph::{AssignStrategy, Format, LightField, Plan, PlanConfig, Rig, Role, Schedule, Scheme, compile};
 use parallax_scene::output::write_contact_sheet;
@@ -63,7 +62,8 @@ impl PassKernel for PatternKernel {
     }
 }
 
-/// Push constants of `blend.comp`, held against its SPIR-V by [`check_blend_layout`].
+/// Push constants of `blend.comp`; the backend holds them against its SPIR-V when it creates
+/// the pipeline.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 struct BlendParams {
@@ -76,6 +76,8 @@ struct BlendParams {
     source_image: [u32; MAX_SOURCES],
     shift: [u32; MAX_SOURCES],
 }
+
+parallax_backend::push_constants!(BlendParams { dst, own, y0, y1, width, sources, source_image, shift });
 
 /// Pass `blend`: `blend.comp` with the target's own `radiance` and every source's.
 struct BlendKernel {
@@ -105,7 +107,7 @@ impl PassKernel for BlendKernel {
             params.shift[i] = shift(pass.view, rec.resource(source.resource).view, self.cols, width);
             params.sources += 1;
         }
-        rec.dispatch_bytes("blend", bytemuck::bytes_of(&params), [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+        rec.dispatch("blend", &params, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
     }
 }
 
@@ -176,21 +178,12 @@ pub fn schedule_dot(scheme: Scheme, devices: u32) -> Result<String> {
     Ok(schedule(&graph, &plan)?.to_dot())
 }
 
-/// `BlendParams` must sit where blend.comp reads it, or every pixel would be garbage.
-fn check_blend_layout(spirv: &[u32]) -> Result<()> {
-    let glsl = member_offsets(spirv, "BlendParams")?;
-    let rust = rust_layout!(BlendParams { dst, own, y0, y1, width, sources, source_image, shift });
-    ensure!(glsl == rust, "BlendParams differs from blend.comp: GLSL {glsl:?}, Rust {rust:?}");
-    Ok(())
-}
-
 /// Runs the pipeline on the devices, checks every pixel against the CPU and writes the PNG.
 pub fn run(options: &Options) -> Result<Report> {
     let (lf, plan, graph) = declare(options.scheme, options.devices.count() as u32)?;
     let schedule = schedule(&graph, &plan)?;
     let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule)?;
     let shaders = parallax_backend::include_shaders!()?;
-    check_blend_layout(&shaders.spirv("blend")?)?;
 
     let context = Context::new(&ContextDesc { selection: options.devices, validation: options.validation })?;
     let outputs: Vec<(usize, usize)> = lf

@@ -35,6 +35,20 @@ pub struct GbufferPush {
     pub width: u32,
 }
 
+parallax_backend::push_constants!(GbufferPush {
+    scene,
+    trace,
+    block,
+    position_depth,
+    normal_metallic,
+    albedo_roughness,
+    motion,
+    view,
+    y0,
+    y1,
+    width
+});
+
 /// Records `gbuffer` instances.
 pub struct GbufferKernel;
 
@@ -64,11 +78,7 @@ impl PassKernel for GbufferKernel {
             y1: pass.rows.y1,
             width,
         };
-        rec.dispatch_bytes(
-            "gbuffer_trace",
-            bytemuck::bytes_of(&push),
-            [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1],
-        )
+        rec.dispatch("gbuffer_trace", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
     }
 }
 
@@ -89,6 +99,9 @@ pub struct MotionPush {
     pub height: u32,
     pub pad: u32,
 }
+
+// The pad only rounds the struct to its 8-byte alignment: the shader's block ends before it.
+parallax_backend::push_constants!(MotionPush { block, position_depth, motion, view, y0, y1, width, height });
 
 /// Records `motion` instances: motion vectors from a G-buffer's world positions and the
 /// previous camera (for G-buffers that do not come with them, such as the raster one).
@@ -116,9 +129,7 @@ impl PassKernel for MotionKernel {
             height,
             pad: 0,
         };
-        // The block ends at `height`; the pad only rounds the struct to its 8-byte alignment.
-        let bytes = &bytemuck::bytes_of(&push)[..std::mem::offset_of!(MotionPush, pad)];
-        rec.dispatch_bytes("motion", bytes, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
+        rec.dispatch("motion", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
     }
 }
 
@@ -171,33 +182,15 @@ pub fn declare_gbuffer_rasterised(graph: &mut KernelGraph) -> Gbuffer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     #[test]
     fn the_motion_push_struct_matches_motion_comp() {
-        let glsl = member_offsets(&parallax_backend::spirv("motion").unwrap(), "MotionPush").unwrap();
-        let mut rust = rust_layout!(MotionPush { block, position_depth, motion, view, y0, y1, width, height, pad });
-        rust.pop(); // Rust's alignment pad, not pushed
-        assert_eq!(glsl, rust);
+        assert_eq!(check_push_constants::<MotionPush>(&spirv("motion").unwrap()), Ok(()));
     }
 
     #[test]
     fn the_push_struct_matches_gbuffer_trace_comp() {
-        let glsl = member_offsets(&parallax_backend::spirv("gbuffer_trace").unwrap(), "GbufferPush").unwrap();
-        let rust = rust_layout!(GbufferPush {
-            scene,
-            trace,
-            block,
-            position_depth,
-            normal_metallic,
-            albedo_roughness,
-            motion,
-            view,
-            y0,
-            y1,
-            width
-        });
-        assert_eq!(glsl, rust);
+        assert_eq!(check_push_constants::<GbufferPush>(&spirv("gbuffer_trace").unwrap()), Ok(()));
     }
 }

@@ -54,6 +54,8 @@ pub struct HoleFillPrefixPush {
     pub pad: u32,
 }
 
+parallax_backend::push_constants!(HoleFillPrefixPush { table, target_count, pad });
+
 /// Push constants of hole_fill.comp (`HoleFillPush` there).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -64,6 +66,8 @@ pub struct HoleFillPush {
     pub target_count: u32,
     pub pad: u32,
 }
+
+parallax_backend::push_constants!(HoleFillPush { scene, table, target_count, pad });
 
 /// Records `hole_fill` instances: each reads slot [`HOLE_LIST`] (its band's section, as
 /// `compact_holes` writes it) and modifies slot `radiance` (a float image), writing nothing
@@ -94,10 +98,10 @@ impl PassKernel for HoleFillKernel {
         })?;
         let table = rec.recording_buffer("hole fill targets", &table)?;
         let prefix = HoleFillPrefixPush { table: table.address(), target_count, pad: 0 };
-        rec.dispatch_bytes("hole_fill_prefix", bytemuck::bytes_of(&prefix), [1, 1, 1])?;
+        rec.dispatch("hole_fill_prefix", &prefix, [1, 1, 1])?;
         let fill = HoleFillPush { scene: scene_refs(rec)?, table: table.address(), target_count, pad: 0 };
         // The arguments are the table's first words.
-        rec.dispatch_indirect_from("hole_fill", bytemuck::bytes_of(&fill), &table, 0)
+        rec.dispatch_indirect_from("hole_fill", &fill, &table, 0)
     }
 }
 
@@ -126,7 +130,7 @@ fn target_of(rec: &Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_back
 mod tests {
     use super::*;
     use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, rust_layout};
 
     #[test]
     fn the_structs_match_hole_fill_glsl() {
@@ -143,10 +147,8 @@ mod tests {
 
     #[test]
     fn the_push_structs_match_the_shaders() {
-        let prefix = member_offsets(&parallax_backend::spirv("hole_fill_prefix").unwrap(), "HoleFillPrefixPush");
-        assert_eq!(prefix.unwrap(), rust_layout!(HoleFillPrefixPush { table, target_count, pad }));
-        let fill = member_offsets(&parallax_backend::spirv("hole_fill").unwrap(), "HoleFillPush");
-        assert_eq!(fill.unwrap(), rust_layout!(HoleFillPush { scene, table, target_count, pad }));
-        assert_eq!(std::mem::size_of::<HoleFillPush>(), 64);
+        let spirv = |shader| parallax_backend::spirv(shader).unwrap();
+        assert_eq!(check_push_constants::<HoleFillPrefixPush>(&spirv("hole_fill_prefix")), Ok(()));
+        assert_eq!(check_push_constants::<HoleFillPush>(&spirv("hole_fill")), Ok(()));
     }
 }

@@ -66,6 +66,8 @@ pub struct CompactHolesPush {
     pub width: u32,
 }
 
+parallax_backend::push_constants!(CompactHolesPush { list, holes, y0, y1, width });
+
 /// Records `compact_holes` instances: reads slot [`HOLES`] (an R32u image) over the band and
 /// modifies slot [`HOLE_LIST`] (a row buffer of at least [`hole_list_row_bytes`] per row).
 pub struct CompactHolesKernel;
@@ -105,25 +107,17 @@ impl PassKernel for CompactHolesKernel {
             width,
         };
         // 8x8-pixel tiles, one workgroup each (see compact_holes.comp).
-        rec.dispatch_bytes(
-            "compact_holes",
-            bytemuck::bytes_of(&push),
-            [width.div_ceil(8), list.rows.len().div_ceil(8), 1],
-        )
+        rec.dispatch("compact_holes", &push, [width.div_ceil(8), list.rows.len().div_ceil(8), 1])
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     #[test]
     fn the_push_struct_matches_compact_holes_comp() {
-        let glsl = member_offsets(&parallax_backend::spirv("compact_holes").unwrap(), "CompactHolesPush").unwrap();
-        let rust = rust_layout!(CompactHolesPush { list, holes, y0, y1, width });
-        assert_eq!(glsl, rust);
-        assert_eq!(std::mem::size_of::<CompactHolesPush>(), 24);
+        assert_eq!(check_push_constants::<CompactHolesPush>(&spirv("compact_holes").unwrap()), Ok(()));
     }
 }

@@ -67,6 +67,20 @@ pub struct PathTracePush {
     pub list_mode: u32,
 }
 
+parallax_backend::push_constants!(PathTracePush {
+    scene,
+    trace,
+    pixel_list,
+    radiance,
+    albedo_roughness,
+    normal_metallic,
+    position_depth,
+    y0,
+    y1,
+    width,
+    list_mode
+});
+
 impl PassKernel for PathTraceKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let outputs = TRACE_OUTPUTS.map(|slot| pass.output(slot));
@@ -101,13 +115,9 @@ impl PassKernel for PathTraceKernel {
             list_mode: u32::from(list.is_some()),
         };
         match list {
-            Some((_, capacity)) => rec.dispatch_bytes("pt_trace", bytemuck::bytes_of(&push), list_groups(capacity)),
+            Some((_, capacity)) => rec.dispatch("pt_trace", &push, list_groups(capacity)),
             // 8x8-pixel tiles (see pt_trace.comp).
-            None => rec.dispatch_bytes(
-                "pt_trace",
-                bytemuck::bytes_of(&push),
-                [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1],
-            ),
+            None => rec.dispatch("pt_trace", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1]),
         }
     }
 }
@@ -191,26 +201,10 @@ pub fn to_pixel_sample(p: &GpuPixel) -> parallax_scene::PixelSample {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     #[test]
     fn the_push_struct_matches_pt_trace_comp() {
-        let glsl = member_offsets(&parallax_backend::spirv("pt_trace").unwrap(), "PathTracePush").unwrap();
-        let rust = rust_layout!(PathTracePush {
-            scene,
-            trace,
-            pixel_list,
-            radiance,
-            albedo_roughness,
-            normal_metallic,
-            position_depth,
-            y0,
-            y1,
-            width,
-            list_mode
-        });
-        assert_eq!(glsl, rust);
-        assert_eq!(std::mem::size_of::<PathTracePush>(), 96);
+        assert_eq!(check_push_constants::<PathTracePush>(&spirv("pt_trace").unwrap()), Ok(()));
     }
 }

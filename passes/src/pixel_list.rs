@@ -60,6 +60,8 @@ pub struct StridedListPush {
     pub list: u64,
 }
 
+parallax_backend::push_constants!(StridedListPush { width, height, stride, phase, capacity, pad, list });
+
 /// Writes every `stride`-th pixel (row-major, from `phase`) of a `width`×`height` view into
 /// `writes[0]`, a per-view plain buffer (which has no image shape, hence the size here), as one
 /// whole-view list. Entries beyond the buffer's capacity are dropped.
@@ -96,26 +98,18 @@ impl PassKernel for StridedPixelListKernel {
             list: rec.buffer_of(list)?,
         };
         let groups = capacity.div_ceil(LIST_GROUP).max(1);
-        rec.dispatch_bytes(
-            "pixel_list_strided",
-            bytemuck::bytes_of(&push),
-            [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS), 1],
-        )
+        rec.dispatch("pixel_list_strided", &push, [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS), 1])
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     #[test]
     fn the_push_struct_matches_pixel_list_strided_comp() {
-        let glsl = member_offsets(&parallax_backend::spirv("pixel_list_strided").unwrap(), "StridedListPush").unwrap();
-        let rust = rust_layout!(StridedListPush { width, height, stride, phase, capacity, pad, list });
-        assert_eq!(glsl, rust);
-        assert_eq!(std::mem::size_of::<StridedListPush>(), 32);
+        assert_eq!(check_push_constants::<StridedListPush>(&spirv("pixel_list_strided").unwrap()), Ok(()));
     }
 
     #[test]

@@ -57,6 +57,8 @@ pub struct GbufferRasterPush {
     pub pad: u32,
 }
 
+parallax_backend::push_constants!(GbufferRasterPush { scene, frame, view, pad });
+
 /// Records `gbuffer_raster` instances (see the module docs).
 pub struct GbufferRasterKernel;
 
@@ -91,17 +93,19 @@ impl PassKernel for GbufferRasterKernel {
             view: pass.view,
             pad: 0,
         };
-        rec.draw(&Draw {
-            vertex_shader: "gbuffer_raster.vert",
-            fragment_shader: "gbuffer_raster.frag",
-            color_targets: &color_targets,
-            depth_target: Some(depth.resource),
-            clear: true,
-            rows: pass.rows,
-            vertex_count,
-            instance_count: 1,
-            push: bytemuck::bytes_of(&push),
-        })
+        rec.draw(
+            &Draw {
+                vertex_shader: "gbuffer_raster.vert",
+                fragment_shader: "gbuffer_raster.frag",
+                color_targets: &color_targets,
+                depth_target: Some(depth.resource),
+                clear: true,
+                rows: pass.rows,
+                vertex_count,
+                instance_count: 1,
+            },
+            &push,
+        )
     }
 }
 
@@ -154,18 +158,15 @@ pub fn raster_camera(view: &View, near: f32) -> Result<GpuCamera> {
 mod tests {
     use super::*;
     use glam::{Mat4, Vec3};
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::check_push_constants;
     use parallax_scene::Camera;
 
     #[test]
     fn the_push_struct_matches_both_stages() {
-        let rust = rust_layout!(GbufferRasterPush { scene, frame, view, pad });
         for stage in ["gbuffer_raster.vert", "gbuffer_raster.frag"] {
-            let glsl = member_offsets(&parallax_backend::spirv(stage).unwrap(), "GbufferRasterPush").unwrap();
-            assert_eq!(glsl, rust, "{stage}");
+            let spirv = parallax_backend::spirv(stage).unwrap();
+            assert_eq!(check_push_constants::<GbufferRasterPush>(&spirv), Ok(()), "{stage}");
         }
-        assert_eq!(std::mem::size_of::<GbufferRasterPush>(), 64);
     }
 
     #[test]

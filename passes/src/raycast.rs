@@ -142,10 +142,7 @@ impl PassKernel for RaycastKernel {
             pad: 0,
         };
         let shader = if self.opaque { "bvh_raycast_opaque" } else { "bvh_raycast" };
-        // The block ends at fetch_threshold; the trailing pad only rounds the struct to its
-        // 8-byte alignment and is not pushed.
-        let bytes = &bytemuck::bytes_of(&push)[..std::mem::offset_of!(RaycastPush, pad)];
-        rec.dispatch_bytes(shader, bytes, groups)
+        rec.dispatch(shader, &push, groups)
     }
 }
 
@@ -164,6 +161,9 @@ pub struct RaycastPush {
     pub fetch_threshold: u32,
     pub pad: u32,
 }
+
+// The pad only rounds the struct to its 8-byte alignment: the shader's block ends before it.
+parallax_backend::push_constants!(RaycastPush { scene, rays, hits, frame, work, fetch_threshold });
 
 /// GPU time of one cast, from the pass's timestamps.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -323,16 +323,12 @@ pub fn compare_with_cpu(
 #[cfg(test)]
 mod tests {
     use super::{RaySchedule, RaycastPush};
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     #[test]
     fn the_push_struct_matches_bvh_raycast_glsl() {
         for shader in ["bvh_raycast", "bvh_raycast_opaque"] {
-            let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "RaycastPush").unwrap();
-            let mut rust = rust_layout!(RaycastPush { scene, rays, hits, frame, work, fetch_threshold, pad });
-            rust.pop(); // the pad is Rust's alignment, not pushed
-            assert_eq!(glsl, rust, "{shader}");
+            assert_eq!(check_push_constants::<RaycastPush>(&spirv(shader).unwrap()), Ok(()), "{shader}");
         }
     }
 

@@ -94,6 +94,24 @@ pub struct ReprojectPush {
     pub sources: [[u32; 4]; MAX_SOURCES],
 }
 
+parallax_backend::push_constants!(ReprojectPush {
+    block,
+    trace,
+    position_depth,
+    normal_metallic,
+    albedo_roughness,
+    radiance,
+    holes,
+    source_count,
+    y0,
+    y1,
+    position_tolerance,
+    normal_cos,
+    view_tolerance,
+    pad,
+    sources
+});
+
 /// Records `reproject` instances.
 pub struct ReprojectKernel {
     pub tolerances: ReprojectionTolerances,
@@ -144,11 +162,7 @@ impl PassKernel for ReprojectKernel {
             pad: 0,
             sources,
         };
-        rec.dispatch_bytes(
-            "reproject",
-            bytemuck::bytes_of(&push),
-            [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1],
-        )
+        rec.dispatch("reproject", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
     }
 }
 
@@ -181,30 +195,10 @@ pub fn declare_reproject(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     #[test]
     fn the_push_struct_matches_reproject_comp() {
-        let glsl = member_offsets(&parallax_backend::spirv("reproject").unwrap(), "ReprojectPush").unwrap();
-        let rust = rust_layout!(ReprojectPush {
-            block,
-            trace,
-            position_depth,
-            normal_metallic,
-            albedo_roughness,
-            radiance,
-            holes,
-            source_count,
-            y0,
-            y1,
-            position_tolerance,
-            normal_cos,
-            view_tolerance,
-            pad,
-            sources
-        });
-        assert_eq!(glsl, rust);
-        assert_eq!(std::mem::size_of::<ReprojectPush>(), 128, "every Vulkan device guarantees 128 push-constant bytes");
+        assert_eq!(check_push_constants::<ReprojectPush>(&spirv("reproject").unwrap()), Ok(()));
     }
 }

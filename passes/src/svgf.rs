@@ -174,6 +174,28 @@ pub struct SvgfPush {
     pub flags: u32,
 }
 
+parallax_backend::push_constants!(SvgfPush {
+    radiance,
+    albedo,
+    normal,
+    position,
+    motion,
+    in0,
+    in1,
+    in2,
+    in3,
+    out0,
+    out1,
+    out2,
+    out3,
+    y0,
+    y1,
+    width,
+    height,
+    step,
+    flags
+});
+
 /// Which SVGF shader a pass runs, and with which slots.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stage {
@@ -294,15 +316,14 @@ impl PassKernel for SvgfKernel {
             }
         }
         let groups = phase_groups(push.step, width, pass.rows.y0, pass.rows.y1);
-        rec.dispatch_bytes(stage.shader(), bytemuck::bytes_of(&push), groups)
+        rec.dispatch(stage.shader(), &push, groups)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     /// `svgf_tile_base` of shaders/svgf.glsl, and the pixel of invocation (lx, ly) from it.
     fn phase_pixel(step: u32, y0: u32, group: (u32, u32), local: (u32, u32)) -> (u32, u32) {
@@ -344,31 +365,8 @@ mod tests {
 
     #[test]
     fn the_push_struct_matches_every_svgf_shader() {
-        let rust = rust_layout!(SvgfPush {
-            radiance,
-            albedo,
-            normal,
-            position,
-            motion,
-            in0,
-            in1,
-            in2,
-            in3,
-            out0,
-            out1,
-            out2,
-            out3,
-            y0,
-            y1,
-            width,
-            height,
-            step,
-            flags
-        });
         for shader in ["svgf_history", "svgf_temporal", "svgf_atrous"] {
-            let glsl = member_offsets(&parallax_backend::spirv(shader).unwrap(), "SvgfPush").unwrap();
-            assert_eq!(glsl, rust, "{shader}");
+            assert_eq!(check_push_constants::<SvgfPush>(&spirv(shader).unwrap()), Ok(()), "{shader}");
         }
-        assert_eq!(std::mem::size_of::<SvgfPush>(), 76);
     }
 }

@@ -53,6 +53,8 @@ pub struct TonemapPush {
     pub exposure: f32,
 }
 
+parallax_backend::push_constants!(TonemapPush { src, dst, y0, y1, width, exposure });
+
 /// Records `tonemap` instances: the pass's one read into its `display` write.
 struct TonemapKernel {
     exposure: f32,
@@ -85,7 +87,7 @@ impl PassKernel for TonemapKernel {
             exposure: self.exposure,
         };
         let groups = [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1];
-        rec.dispatch_bytes(TONEMAP, bytemuck::bytes_of(&push), groups)
+        rec.dispatch(TONEMAP, &push, groups)
     }
 }
 
@@ -112,14 +114,11 @@ pub fn tonemap_pixel(rgb: [f32; 3], exposure: f32) -> [f32; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::reflect::member_offsets;
-    use parallax_backend::rust_layout;
+    use parallax_backend::{check_push_constants, spirv};
 
     #[test]
     fn the_push_struct_matches_tonemap_comp() {
-        let glsl = member_offsets(&parallax_backend::spirv(TONEMAP).unwrap(), "TonemapPush").unwrap();
-        assert_eq!(glsl, rust_layout!(TonemapPush { src, dst, y0, y1, width, exposure }));
-        assert_eq!(std::mem::size_of::<TonemapPush>(), 24);
+        assert_eq!(check_push_constants::<TonemapPush>(&spirv(TONEMAP).unwrap()), Ok(()));
     }
 
     #[test]

@@ -53,16 +53,33 @@ impl PassKernel for MotionKernel {
             return Err(misuse("test_motion", index, "reads `position_depth`, writes `motion`"));
         };
         let width = rec.resource(dst.resource).width;
-        let mut push = Vec::new();
-        for word in [rec.image(dst.resource)?, rec.image(position.resource)?, pass.rows.y0, pass.rows.y1, width] {
-            push.extend_from_slice(&word.to_le_bytes());
-        }
-        for value in self.offset {
-            push.extend_from_slice(&value.to_le_bytes());
-        }
-        rec.dispatch_bytes("test_motion", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+        let push = MotionPush {
+            dst: rec.image(dst.resource)?,
+            position: rec.image(position.resource)?,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            offset_x: self.offset[0],
+            offset_y: self.offset[1],
+        };
+        rec.dispatch("test_motion", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
     }
 }
+
+/// Push constants of `test_motion.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct MotionPush {
+    dst: u32,
+    position: u32,
+    y0: u32,
+    y1: u32,
+    width: u32,
+    offset_x: f32,
+    offset_y: f32,
+}
+
+parallax_backend::push_constants!(MotionPush { dst, position, y0, y1, width, offset_x, offset_y });
 
 /// `test_constant.comp` or `test_poison.comp` (the shader named): radiance (dst), albedo
 /// (src0) and, where declared, normal (src1) and position (param) changed in place.

@@ -78,17 +78,19 @@ impl PassKernel for RasterDemoKernel {
             width: rec.resource(gbuffer.resource).width,
             ..Default::default()
         };
-        rec.draw(&Draw {
-            vertex_shader: "raster_demo.vert",
-            fragment_shader: "raster_demo.frag",
-            color_targets: &[gbuffer.resource],
-            depth_target: Some(depth.resource),
-            clear: true,
-            rows: pass.rows,
-            vertex_count: 6,
-            instance_count: 2,
-            push: &params.to_bytes(),
-        })
+        rec.draw(
+            &Draw {
+                vertex_shader: "raster_demo.vert",
+                fragment_shader: "raster_demo.frag",
+                color_targets: &[gbuffer.resource],
+                depth_target: Some(depth.resource),
+                clear: true,
+                rows: pass.rows,
+                vertex_count: 6,
+                instance_count: 2,
+            },
+            &params,
+        )
     }
 }
 
@@ -106,15 +108,35 @@ impl PassKernel for WeightedFillKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "weighted_fill", 0, 1)?;
         let width = rec.resource(dst).width;
-        let mut push = Vec::with_capacity(40);
-        for word in [rec.image(dst)?, pass.view, pass.rows.y0, pass.rows.y1, width, 0] {
-            push.extend_from_slice(&word.to_le_bytes());
-        }
-        push.extend_from_slice(&rec.buffer_address("weights")?.to_le_bytes());
-        push.extend_from_slice(&rec.frame_data_address().to_le_bytes());
-        rec.dispatch_bytes("weighted_fill", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+        let push = WeightedFillParams {
+            dst: rec.image(dst)?,
+            view: pass.view,
+            y0: pass.rows.y0,
+            y1: pass.rows.y1,
+            width,
+            pad: 0,
+            weights: rec.buffer_address("weights")?,
+            frame_data: rec.frame_data_address(),
+        };
+        rec.dispatch("weighted_fill", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
     }
 }
+
+/// Push constants of `weighted_fill.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct WeightedFillParams {
+    dst: u32,
+    view: u32,
+    y0: u32,
+    y1: u32,
+    width: u32,
+    pad: u32,
+    weights: u64,
+    frame_data: u64,
+}
+
+parallax_backend::push_constants!(WeightedFillParams { dst, view, y0, y1, width, pad, weights, frame_data });
 
 /// Writes `hash3(i, 0, view)` into every 32-bit word `i` of the per-view buffer `writes[0]`
 /// (`fill_buffer.comp`).
@@ -124,13 +146,21 @@ impl PassKernel for FillBufferKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
         let dst = expect_accesses(pass, index, "fill_buffer", 0, 1)?;
         let words = rec.resource(dst).width;
-        let mut push = Vec::with_capacity(16);
-        push.extend_from_slice(&pass.view.to_le_bytes());
-        push.extend_from_slice(&words.to_le_bytes());
-        push.extend_from_slice(&rec.buffer_of(dst)?.to_le_bytes());
-        rec.dispatch_bytes("fill_buffer", &push, [words.div_ceil(64), 1, 1])
+        let push = FillBufferParams { view: pass.view, count: words, target: rec.buffer_of(dst)? };
+        rec.dispatch("fill_buffer", &push, [words.div_ceil(64), 1, 1])
     }
 }
+
+/// Push constants of `fill_buffer.comp`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FillBufferParams {
+    view: u32,
+    count: u32,
+    target: u64,
+}
+
+parallax_backend::push_constants!(FillBufferParams { view, count, target });
 
 /// CPU value of word `i` written by [`FillBufferKernel`] for `view`.
 pub fn reference_buffer_word(i: u32, view: u32) -> u32 {
