@@ -108,6 +108,11 @@ pub enum BackendError {
     #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
     KernelMisuse { kernel: String, instance: usize, detail: String },
 
+    /// A kernel bound a slot token its pass instance does not have (one another pass's
+    /// declaration returned).
+    #[error("pass `{pass}` has no access for {slot}: bind through the slots the pass's own declaration returned")]
+    UnboundSlot { pass: String, slot: String },
+
     /// A kernel asked for a global buffer that was never uploaded.
     #[error("no global buffer `{name}` on device {device}; upload it with Executor::upload_buffer before running")]
     UnknownBuffer { name: String, device: usize },

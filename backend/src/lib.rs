@@ -118,8 +118,8 @@ pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
-    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError, Format, MAX_RESET_WORDS,
-    Region, ResourceKind,
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError, Format, HistorySlot,
+    MAX_RESET_WORDS, ReadSlot, Region, ResourceKind, SourcesSlot, WriteSlot,
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};

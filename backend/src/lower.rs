@@ -106,6 +106,7 @@ impl ExecutionPlan {
                     version: a.version,
                     rows: rows_of(a),
                     slot: names[a.decl as usize].name.clone(),
+                    decl: a.decl,
                     origin: a.origin,
                 };
                 ExecPass {

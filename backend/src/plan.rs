@@ -6,7 +6,9 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-pub use parallax_graph::{Format, Origin, Region};
+pub use parallax_graph::{Format, HistorySlot, Origin, ReadSlot, Region, SourcesSlot, WriteSlot};
+
+use crate::error::BackendError;
 
 use crate::recorder::PassKernel;
 
@@ -80,13 +82,17 @@ pub struct ExecAccess {
     pub rows: Region,
     /// The slot the kernel finds it under: the declared resource's name.
     pub slot: String,
+    /// Index of the declared read (or write) this access instantiates among its pass's reads
+    /// (or writes): what a slot token ([`ReadSlot`], ...) names.
+    pub decl: u16,
     pub origin: Origin,
 }
 
 impl ExecAccess {
-    /// An access of the instance's own view under slot `slot`.
-    pub fn own(slot: impl Into<String>, resource: usize, version: u32, rows: Region) -> Self {
-        Self { resource, version, rows, slot: slot.into(), origin: Origin::Own }
+    /// An access of the instance's own view under slot `slot`, the pass's declared read or
+    /// write number `decl`.
+    pub fn own(slot: impl Into<String>, decl: u16, resource: usize, version: u32, rows: Region) -> Self {
+        Self { resource, version, rows, slot: slot.into(), decl, origin: Origin::Own }
     }
 }
 
@@ -108,6 +114,33 @@ pub struct ExecPass {
 }
 
 impl ExecPass {
+    /// The own-view read its pass declared as `slot`.
+    pub fn read(&self, slot: ReadSlot) -> crate::Result<&ExecAccess> {
+        let found = self.reads.iter().find(|a| a.decl == slot.index() && a.origin == Origin::Own);
+        found.ok_or_else(|| self.unbound(format!("{slot:?}")))
+    }
+
+    /// The reads of every source (in the view's source order) its pass declared as `slot`;
+    /// none for a view without sources.
+    pub fn sources(&self, slot: SourcesSlot) -> impl Iterator<Item = &ExecAccess> + '_ {
+        self.reads.iter().filter(move |a| a.decl == slot.index() && matches!(a.origin, Origin::Source(_)))
+    }
+
+    /// Last frame's final version its pass declared as `slot`.
+    pub fn history_read(&self, slot: HistorySlot) -> crate::Result<&ExecAccess> {
+        let found = self.history_reads.iter().find(|a| a.decl == slot.index());
+        found.ok_or_else(|| self.unbound(format!("{slot:?}")))
+    }
+
+    /// The write its pass declared as `slot`.
+    pub fn write(&self, slot: WriteSlot) -> crate::Result<&ExecAccess> {
+        self.writes.iter().find(|a| a.decl == slot.index()).ok_or_else(|| self.unbound(format!("{slot:?}")))
+    }
+
+    fn unbound(&self, slot: String) -> BackendError {
+        BackendError::UnboundSlot { pass: self.name.clone(), slot }
+    }
+
     /// The own-view read in slot `slot`.
     pub fn input(&self, slot: &str) -> Option<&ExecAccess> {
         self.reads.iter().find(|a| a.slot == slot && a.origin == Origin::Own)
@@ -261,7 +294,7 @@ impl ExecutionPlan {
                 rows: all,
                 device: 0,
                 reads: vec![],
-                writes: vec![ExecAccess::own(resource.name.clone(), 0, 1, all)],
+                writes: vec![ExecAccess::own(resource.name.clone(), 0, 0, 1, all)],
                 history_reads: vec![],
             }],
             resources: vec![resource],

@@ -519,7 +519,7 @@ pub(crate) mod grouping_plans {
         let plain = kernels.push(Nothing { groups: false });
         let grouped = kernels.push(Nothing { groups: true });
         let rows = Region::new(0, 1);
-        let access = |&r: &usize| ExecAccess::own("slot", r, 1, rows);
+        let access = |&r: &usize| ExecAccess::own("slot", 0, r, 1, rows);
         let passes: Vec<ExecPass> = passes
             .iter()
             .enumerate()

@@ -199,7 +199,7 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     let plan = |kernel: MisusedKernel| {
         let mut plan = ExecutionPlan::single_pass("misused", kernel, ExecResource::buffer("args", 0, 16), 1);
         plan.resources.push(image.clone());
-        plan.passes[0].writes.push(ExecAccess::own("image", 1, 1, Region::new(0, 4)));
+        plan.passes[0].writes.push(ExecAccess::own("image", 1, 1, 1, Region::new(0, 4)));
         plan
     };
     let ctx = context();

@@ -18,7 +18,10 @@ use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
     PassKernel, Recorder, Validation,
 };
-use parallax_graph::{AssignStrategy, Format, LightField, Plan, PlanConfig, Rig, Role, Schedule, Scheme, compile};
+use parallax_graph::{
+    AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme, SourcesSlot,
+    WriteSlot, compile,
+};
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{Frame, PixelSample};
 
@@ -51,12 +54,14 @@ pub struct Report {
     pub png_size: (u32, u32),
 }
 
-/// Pass `pattern`: `pattern.comp` into slot `radiance` over the instance's rows.
-struct PatternKernel;
+/// Pass `pattern`: `pattern.comp` into its `radiance` write over the instance's rows.
+struct PatternKernel {
+    radiance: WriteSlot,
+}
 
 impl PassKernel for PatternKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let dst = pass.output(RADIANCE).ok_or_else(|| misuse("pattern", index, "writes `radiance`"))?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let dst = pass.write(self.radiance)?.resource;
         let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows("pattern", params)
     }
@@ -81,15 +86,16 @@ parallax_backend::push_constants!(BlendParams { dst, own, y0, y1, width, sources
 
 /// Pass `blend`: `blend.comp` with the target's own `radiance` and every source's.
 struct BlendKernel {
+    own: ReadSlot,
+    sources: SourcesSlot,
+    blended: WriteSlot,
     /// Views per row of the grid, for the disparity of a source.
     cols: u32,
 }
 
 impl PassKernel for BlendKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let (Some(own), Some(dst)) = (pass.input(RADIANCE), pass.output(RADIANCE)) else {
-            return Err(misuse("blend", index, "reads and writes `radiance` of its own view"));
-        };
+        let (own, dst) = (pass.read(self.own)?, pass.write(self.blended)?);
         let width = rec.resource(dst.resource).width;
         let mut params = BlendParams {
             dst: rec.image(dst.resource)?,
@@ -99,7 +105,7 @@ impl PassKernel for BlendKernel {
             width,
             ..Default::default()
         };
-        for (i, source) in pass.source_inputs(RADIANCE).enumerate() {
+        for (i, source) in pass.sources(self.sources).enumerate() {
             if i == MAX_SOURCES {
                 return Err(misuse("blend", index, &format!("blends at most {MAX_SOURCES} sources")));
             }
@@ -150,14 +156,14 @@ fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGrap
     let plan = Plan::new(&lf, &config)?;
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = graph.image(RADIANCE, Format::Rgba32f);
-    graph.pass("pattern", Role::All).write(&mut radiance).kernel(Arc::new(PatternKernel)).record();
-    graph
-        .pass("blend", Role::Targets)
-        .read(&radiance)
-        .read_sources(&radiance) // the δ-edges
-        .write(&mut radiance)
-        .kernel(Arc::new(BlendKernel { cols: lf.cols }))
-        .record();
+    let mut pass = graph.pass("pattern", Role::All);
+    let pattern = PatternKernel { radiance: pass.write_slot(&mut radiance) };
+    pass.kernel(Arc::new(pattern)).record();
+    let mut pass = graph.pass("blend", Role::Targets);
+    let own = pass.read_slot(&radiance);
+    let sources = pass.read_sources_slot(&radiance); // the δ-edges
+    let blended = pass.write_slot(&mut radiance);
+    pass.kernel(Arc::new(BlendKernel { own, sources, blended, cols: lf.cols })).record();
     graph.export(&radiance);
     Ok((lf, plan, graph))
 }

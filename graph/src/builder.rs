@@ -99,6 +99,48 @@ pub enum ReadScope {
     History,
 }
 
+/// What a kernel keeps of its pass's declaration and binds through (the backend's
+/// `ExecPass::read`, `sources`, `history_read`, `write`): one declared access, by its index
+/// among the pass's reads or writes. Only the pass builder makes them, so a kernel binds only
+/// what its pass declared, and a misspelt slot does not compile.
+macro_rules! slot_token {
+    ($(#[$doc:meta])* $name:ident) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub struct $name(u16);
+
+        impl $name {
+            /// Index of the declared access among the pass's reads (writes for a write).
+            pub fn index(self) -> u16 {
+                self.0
+            }
+        }
+    };
+}
+
+slot_token!(
+    /// A read of the instance's own view ([`PassBuilder::read_slot`], `read_whole_slot`, the
+    /// read of `modify_slot`). Only a pass builder makes one, so a kernel cannot name a read
+    /// its pass did not declare:
+    ///
+    /// ```compile_fail
+    /// let forged = parallax_graph::ReadSlot(0);
+    /// ```
+    ReadSlot
+);
+slot_token!(
+    /// A read of every source view of a target ([`PassBuilder::read_sources_slot`]).
+    SourcesSlot
+);
+slot_token!(
+    /// Last frame's final version ([`PassBuilder::read_history_slot`]).
+    HistorySlot
+);
+slot_token!(
+    /// A write ([`PassBuilder::write_slot`], the write of `modify_slot`).
+    WriteSlot
+);
+
 /// How a pass touches a slot; a pass touches each family at most once in each way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SlotAccess {
@@ -351,33 +393,99 @@ impl<P> PassBuilder<'_, P> {
         self.graph.families[family.index()].name.clone()
     }
 
-    fn push_read<K>(mut self, h: &Handle<K>, scope: ReadScope) -> Self {
+    /// Declares a read; returns its index among the pass's reads (what its slot token names).
+    fn push_read<K>(&mut self, h: &Handle<K>, scope: ReadScope) -> u16 {
         self.check(h);
         self.check_slot(h.family, SlotAccess::of_read(scope));
         let slot = self.family_name(h.family);
         self.decl.reads.push(ReadDecl { family: h.family, versions: h.versions.clone(), scope, slot });
-        self
+        (self.decl.reads.len() - 1) as u16
     }
 
-    /// Reads this view's current version over the instance's own rows.
-    pub fn read<K>(self, h: &Handle<K>) -> Self {
-        self.push_read(h, ReadScope::Own)
+    /// Declares a write; returns its index among the pass's writes.
+    fn push_write<K>(&mut self, h: &mut Handle<K>, in_place: bool) -> u16 {
+        self.check(h);
+        self.check_slot(h.family, SlotAccess::Write);
+        let topo = &self.graph.topology;
+        for v in 0..topo.views() {
+            if topo.in_role(self.decl.role, ViewId(v)) {
+                h.versions[v as usize] += 1;
+            }
+        }
+        let slot = self.family_name(h.family);
+        self.decl.writes.push(WriteDecl { family: h.family, versions: h.versions.clone(), slot, in_place });
+        (self.decl.writes.len() - 1) as u16
+    }
+
+    /// Reads this view's current version over the instance's own rows; the kernel binds it
+    /// through the returned slot.
+    pub fn read_slot<K>(&mut self, h: &Handle<K>) -> ReadSlot {
+        ReadSlot(self.push_read(h, ReadScope::Own))
     }
 
     /// Reads this view's current version, every row.
-    pub fn read_whole<K>(self, h: &Handle<K>) -> Self {
-        self.push_read(h, ReadScope::OwnWhole)
+    pub fn read_whole_slot<K>(&mut self, h: &Handle<K>) -> ReadSlot {
+        ReadSlot(self.push_read(h, ReadScope::OwnWhole))
     }
 
     /// Reads the current version of the resource of each source of this (target) view: a
     /// reprojection read. Each such read yields a δ-edge source → target.
-    pub fn read_sources<K>(self, h: &Handle<K>) -> Self {
-        self.push_read(h, ReadScope::Sources)
+    pub fn read_sources_slot<K>(&mut self, h: &Handle<K>) -> SourcesSlot {
+        SourcesSlot(self.push_read(h, ReadScope::Sources))
     }
 
     /// Reads the previous frame's last version of this view's resource.
-    pub fn read_history<K>(self, h: &Handle<K>) -> Self {
-        self.push_read(h, ReadScope::History)
+    pub fn read_history_slot<K>(&mut self, h: &Handle<K>) -> HistorySlot {
+        HistorySlot(self.push_read(h, ReadScope::History))
+    }
+
+    /// Writes this view's resource over the instance's rows, making a new version in an
+    /// allocation of its own (so passes still reading the old version are unaffected).
+    pub fn write_slot<K>(&mut self, h: &mut Handle<K>) -> WriteSlot {
+        WriteSlot(self.push_write(h, false))
+    }
+
+    /// Reads and writes this view's resource in place over the instance's rows: the pass reads
+    /// the current version and leaves the next one in the same allocation. Only a pass whose
+    /// every invocation reads exactly the texels it writes may declare this.
+    pub fn modify_slot<K>(&mut self, h: &mut Handle<K>) -> (ReadSlot, WriteSlot) {
+        (ReadSlot(self.push_read(h, ReadScope::Own)), WriteSlot(self.push_write(h, true)))
+    }
+
+    /// [`Self::read_slot`] for a pass whose kernel binds by position or none (planning).
+    pub fn read<K>(mut self, h: &Handle<K>) -> Self {
+        self.read_slot(h);
+        self
+    }
+
+    /// [`Self::read_whole_slot`], chained.
+    pub fn read_whole<K>(mut self, h: &Handle<K>) -> Self {
+        self.read_whole_slot(h);
+        self
+    }
+
+    /// [`Self::read_sources_slot`], chained.
+    pub fn read_sources<K>(mut self, h: &Handle<K>) -> Self {
+        self.read_sources_slot(h);
+        self
+    }
+
+    /// [`Self::read_history_slot`], chained.
+    pub fn read_history<K>(mut self, h: &Handle<K>) -> Self {
+        self.read_history_slot(h);
+        self
+    }
+
+    /// [`Self::write_slot`], chained.
+    pub fn write<K>(mut self, h: &mut Handle<K>) -> Self {
+        self.write_slot(h);
+        self
+    }
+
+    /// [`Self::modify_slot`], chained.
+    pub fn modify<K>(mut self, h: &mut Handle<K>) -> Self {
+        self.modify_slot(h);
+        self
     }
 
     /// Reads an explicit version for every view. For graphs declared from data rather than
@@ -389,33 +497,6 @@ impl<P> PassBuilder<'_, P> {
         let slot = self.family_name(h.family);
         self.decl.reads.push(ReadDecl { family: h.family, versions, scope: ReadScope::Own, slot });
         self
-    }
-
-    fn push_write<K>(mut self, h: &mut Handle<K>, in_place: bool) -> Self {
-        self.check(h);
-        self.check_slot(h.family, SlotAccess::Write);
-        let topo = &self.graph.topology;
-        for v in 0..topo.views() {
-            if topo.in_role(self.decl.role, ViewId(v)) {
-                h.versions[v as usize] += 1;
-            }
-        }
-        let slot = self.family_name(h.family);
-        self.decl.writes.push(WriteDecl { family: h.family, versions: h.versions.clone(), slot, in_place });
-        self
-    }
-
-    /// Writes this view's resource over the instance's rows, making a new version in an
-    /// allocation of its own (so passes still reading the old version are unaffected).
-    pub fn write<K>(self, h: &mut Handle<K>) -> Self {
-        self.push_write(h, false)
-    }
-
-    /// Reads and writes this view's resource in place over the instance's rows: the pass reads
-    /// the current version and leaves the next one in the same allocation. Only a pass whose
-    /// every invocation reads exactly the texels it writes may declare this.
-    pub fn modify<K>(self, h: &mut Handle<K>) -> Self {
-        self.push_read(h, ReadScope::Own).push_write(h, true)
     }
 
     /// Writes an explicit version for every view, without touching the handle. For graphs

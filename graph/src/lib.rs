@@ -51,7 +51,10 @@ pub mod validate;
 mod validate_storage;
 
 pub use assign::{AssignStrategy, Assignment, assign};
-pub use builder::{Buffer, Graph, Handle, Image, PassBuilder, Role, SlotAccess, ViewTopology};
+pub use builder::{
+    Buffer, Graph, Handle, HistorySlot, Image, PassBuilder, ReadSlot, Role, SlotAccess, SourcesSlot, ViewTopology,
+    WriteSlot,
+};
 pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile};
 pub use error::{GraphError, PlanError};
 pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};

@@ -15,14 +15,12 @@
 //! another. The table ([`HoleFillTarget`] per band) is a recording buffer: addresses and image
 //! indices are known when the op is recorded, the counts only on the GPU.
 
-use parallax_backend::{BackendError, ExecPass, Format, PassKernel, Recorder, ResourceKind};
+use parallax_backend::{BackendError, ExecPass, Format, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot};
 
-use crate::holes::{HOLE_FILL, HOLE_LIST};
+use crate::holes::HOLE_FILL;
 use crate::path_trace::{TRACE_PARAMS_BYTES, list_section};
 use crate::scene_upload::scene_refs;
 
-/// Slot of the radiance `hole_fill` modifies in place.
-const RADIANCE: &str = "radiance";
 /// Bytes of the target table before its [`HoleFillTarget`]s: the indirect arguments and the
 /// workgroup total (`HoleFillTable` in shaders/hole_fill.glsl).
 pub const TABLE_HEADER_BYTES: usize = 16;
@@ -69,11 +67,14 @@ pub struct HoleFillPush {
 
 parallax_backend::push_constants!(HoleFillPush { scene, table, target_count, pad });
 
-/// Records `hole_fill` instances: each reads slot [`HOLE_LIST`] (its band's section, as
-/// `compact_holes` writes it) and modifies slot `radiance` (a float image), writing nothing
+/// Records `hole_fill` instances: each reads its band's section of [`crate::HOLE_LIST`] (as
+/// `compact_holes` writes it) and modifies the view's radiance (a float image), writing nothing
 /// else; the views' `GpuTraceParams` come from the per-frame data like `path_trace`'s
 /// ([`crate::trace_frame_data`]).
-pub struct HoleFillKernel;
+pub struct HoleFillKernel {
+    pub(crate) list: ReadSlot,
+    pub(crate) radiance: WriteSlot,
+}
 
 impl PassKernel for HoleFillKernel {
     fn record(&self, rec: &mut Recorder<'_>, _pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
@@ -88,7 +89,7 @@ impl PassKernel for HoleFillKernel {
         let plan = rec.plan();
         let mut table = vec![0u8; TABLE_HEADER_BYTES];
         for &index in instances {
-            let target = target_of(rec, &plan.passes[index], index)?;
+            let target = self.target_of(rec, &plan.passes[index], index)?;
             table.extend_from_slice(bytemuck::bytes_of(&target));
         }
         let target_count = u32::try_from(instances.len()).map_err(|_| BackendError::KernelMisuse {
@@ -105,25 +106,28 @@ impl PassKernel for HoleFillKernel {
     }
 }
 
-/// The table entry of instance `index`, after checking its slots.
-fn target_of(rec: &Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<HoleFillTarget> {
-    let misuse = |detail: String| BackendError::KernelMisuse { kernel: HOLE_FILL.into(), instance: index, detail };
-    let (Some(list), Some(radiance), 1) = (pass.input(HOLE_LIST), pass.output(RADIANCE), pass.writes.len()) else {
-        return Err(misuse(format!("reads `{HOLE_LIST}` and writes `{RADIANCE}` only")));
-    };
-    let image = rec.resource(radiance.resource);
-    if image.kind != ResourceKind::Image || image.format == Format::R32u || image.format.is_depth() {
-        return Err(misuse(format!("its write `{}` must be a float image", image.name)));
+impl HoleFillKernel {
+    /// The table entry of instance `index`, after checking its slots.
+    fn target_of(&self, rec: &Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<HoleFillTarget> {
+        let misuse = |detail: String| BackendError::KernelMisuse { kernel: HOLE_FILL.into(), instance: index, detail };
+        let (list, radiance) = (pass.read(self.list)?, pass.write(self.radiance)?);
+        if pass.writes.len() != 1 {
+            return Err(misuse("writes its radiance only".into()));
+        }
+        let image = rec.resource(radiance.resource);
+        if image.kind != ResourceKind::Image || image.format == Format::R32u || image.format.is_depth() {
+            return Err(misuse(format!("its write `{}` must be a float image", image.name)));
+        }
+        let (list, _capacity) = list_section(rec, list, index)?;
+        Ok(HoleFillTarget {
+            list,
+            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
+            radiance: rec.image(radiance.resource)?,
+            first_group: 0,
+            count: 0,
+            pad: 0,
+        })
     }
-    let (list, _capacity) = list_section(rec, list, index)?;
-    Ok(HoleFillTarget {
-        list,
-        trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
-        radiance: rec.image(radiance.resource)?,
-        first_group: 0,
-        count: 0,
-        pad: 0,
-    })
 }
 
 #[cfg(test)]

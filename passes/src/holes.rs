@@ -9,7 +9,7 @@
 use std::sync::Arc;
 
 use parallax_backend::{BackendError, ExecPass, Format, KernelGraph, PassKernel, Recorder, ResourceKind};
-use parallax_graph::{Buffer, Handle, Image, Role};
+use parallax_graph::{Buffer, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::hole_fill::HoleFillKernel;
 use crate::pixel_list::LIST_HEADER_WORDS;
@@ -42,13 +42,12 @@ pub fn declare_hole_fill(
 ) -> Handle<Buffer> {
     let mut list = graph.row_buffer(HOLE_LIST, hole_list_row_bytes(graph.topology().width));
     graph.reset_each_frame(&list, Vec::new());
-    graph
-        .pass(COMPACT_HOLES, Role::Targets)
-        .read(holes)
-        .modify(&mut list)
-        .kernel(Arc::new(CompactHolesKernel))
-        .record();
-    graph.pass(HOLE_FILL, Role::Targets).read(&list).modify(radiance).kernel(Arc::new(HoleFillKernel)).record();
+    let mut pass = graph.pass(COMPACT_HOLES, Role::Targets);
+    let (holes, (_, written_list)) = (pass.read_slot(holes), pass.modify_slot(&mut list));
+    pass.kernel(Arc::new(CompactHolesKernel { holes, list: written_list })).record();
+    let mut pass = graph.pass(HOLE_FILL, Role::Targets);
+    let (read_list, (_, radiance)) = (pass.read_slot(&list), pass.modify_slot(radiance));
+    pass.kernel(Arc::new(HoleFillKernel { list: read_list, radiance })).record();
     list
 }
 
@@ -70,15 +69,16 @@ parallax_backend::push_constants!(CompactHolesPush { list, holes, y0, y1, width 
 
 /// Records `compact_holes` instances: reads slot [`HOLES`] (an R32u image) over the band and
 /// modifies slot [`HOLE_LIST`] (a row buffer of at least [`hole_list_row_bytes`] per row).
-pub struct CompactHolesKernel;
+pub struct CompactHolesKernel {
+    holes: ReadSlot,
+    list: WriteSlot,
+}
 
 impl PassKernel for CompactHolesKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let misuse =
             |detail: String| BackendError::KernelMisuse { kernel: COMPACT_HOLES.into(), instance: index, detail };
-        let (Some(holes), Some(list)) = (pass.input(HOLES), pass.output(HOLE_LIST)) else {
-            return Err(misuse(format!("reads `{HOLES}` and writes `{HOLE_LIST}`")));
-        };
+        let (holes, list) = (pass.read(self.holes)?, pass.write(self.list)?);
         let mask = rec.resource(holes.resource);
         if mask.kind != ResourceKind::Image || mask.format != Format::R32u {
             return Err(misuse(format!("`{}` must be an R32u image", mask.name)));

@@ -15,8 +15,8 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
-use parallax_graph::{Format, Handle, Image, Role};
+use parallax_backend::{ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
+use parallax_graph::{Format, Handle, Image, ReadSlot, Role, SourcesSlot, WriteSlot};
 
 use crate::error::{PassError, Result};
 use crate::gbuffer::Gbuffer;
@@ -113,35 +113,40 @@ parallax_backend::push_constants!(ReprojectPush {
 });
 
 /// Records `reproject` instances.
-pub struct ReprojectKernel {
-    pub tolerances: ReprojectionTolerances,
+struct ReprojectKernel {
+    tolerances: ReprojectionTolerances,
+    slots: ReprojectSlots,
+}
+
+/// What `reproject` declares: the target's G-buffer, the sources' G-buffer and radiance, and
+/// its two outputs.
+struct ReprojectSlots {
+    position_depth: ReadSlot,
+    normal_metallic: ReadSlot,
+    albedo_roughness: ReadSlot,
+    source_position_depth: SourcesSlot,
+    source_normal_metallic: SourcesSlot,
+    source_radiance: SourcesSlot,
+    radiance: WriteSlot,
+    holes: WriteSlot,
 }
 
 impl PassKernel for ReprojectKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let misuse = |detail: String| BackendError::KernelMisuse { kernel: REPROJECT.into(), instance: index, detail };
-        let input =
-            |name: &str| pass.input(name).map(|a| a.resource).ok_or_else(|| misuse(format!("reads no `{name}`")));
-        let output =
-            |name: &str| pass.output(name).map(|a| a.resource).ok_or_else(|| misuse(format!("writes no `{name}`")));
-        let position_depth = input("position_depth")?;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let slots = &self.slots;
+        let image = |rec: &Recorder<'_>, slot| pass.read(slot).and_then(|a| rec.image(a.resource));
+        let position_depth = pass.read(slots.position_depth)?.resource;
         let width = rec.resource(position_depth).width;
         let mut sources = [[0u32; 4]; MAX_SOURCES];
         let mut count = 0;
-        for (slot, radiance) in sources.iter_mut().zip(pass.source_inputs("radiance")) {
-            let parallax_graph::Origin::Source(i) = radiance.origin else { continue };
-            let of = |name: &str| {
-                pass.source_input(name, i)
-                    .map(|a| a.resource)
-                    .ok_or_else(|| misuse(format!("reads no `{name}` of source {i}")))
-            };
+        // One read of each per source, all in the view's source order.
+        let source_reads = pass
+            .sources(slots.source_radiance)
+            .zip(pass.sources(slots.source_position_depth))
+            .zip(pass.sources(slots.source_normal_metallic));
+        for (slot, ((radiance, position), normal)) in sources.iter_mut().zip(source_reads) {
             let view = rec.resource(radiance.resource).view;
-            *slot = [
-                view,
-                rec.image(of("position_depth")?)?,
-                rec.image(of("normal_metallic")?)?,
-                rec.image(radiance.resource)?,
-            ];
+            *slot = [view, rec.image(position.resource)?, rec.image(normal.resource)?, rec.image(radiance.resource)?];
             count += 1;
         }
         let t = self.tolerances;
@@ -149,10 +154,10 @@ impl PassKernel for ReprojectKernel {
             block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
             trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
             position_depth: rec.image(position_depth)?,
-            normal_metallic: rec.image(input("normal_metallic")?)?,
-            albedo_roughness: rec.image(input("albedo_roughness")?)?,
-            radiance: rec.image(output("radiance")?)?,
-            holes: rec.image(output("holes")?)?,
+            normal_metallic: image(rec, slots.normal_metallic)?,
+            albedo_roughness: image(rec, slots.albedo_roughness)?,
+            radiance: rec.image(pass.write(slots.radiance)?.resource)?,
+            holes: rec.image(pass.write(slots.holes)?.resource)?,
             source_count: count,
             y0: pass.rows.y0,
             y1: pass.rows.y1,
@@ -177,18 +182,18 @@ pub fn declare_reproject(
 ) -> Result<Handle<Image>> {
     tolerances.validate()?;
     let mut holes = graph.image("holes", Format::R32u);
-    graph
-        .pass(REPROJECT, Role::Targets)
-        .read(&gbuffer.position_depth)
-        .read(&gbuffer.normal_metallic)
-        .read(&gbuffer.albedo_roughness)
-        .read_sources(&gbuffer.position_depth)
-        .read_sources(&gbuffer.normal_metallic)
-        .read_sources(radiance)
-        .write(radiance)
-        .write(&mut holes)
-        .kernel(Arc::new(ReprojectKernel { tolerances }))
-        .record();
+    let mut pass = graph.pass(REPROJECT, Role::Targets);
+    let slots = ReprojectSlots {
+        position_depth: pass.read_slot(&gbuffer.position_depth),
+        normal_metallic: pass.read_slot(&gbuffer.normal_metallic),
+        albedo_roughness: pass.read_slot(&gbuffer.albedo_roughness),
+        source_position_depth: pass.read_sources_slot(&gbuffer.position_depth),
+        source_normal_metallic: pass.read_sources_slot(&gbuffer.normal_metallic),
+        source_radiance: pass.read_sources_slot(radiance),
+        radiance: pass.write_slot(radiance),
+        holes: pass.write_slot(&mut holes),
+    };
+    pass.kernel(Arc::new(ReprojectKernel { tolerances, slots })).record();
     Ok(holes)
 }
 

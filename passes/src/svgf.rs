@@ -32,8 +32,8 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, KernelGraph, PassKernel, Recorder};
-use parallax_graph::{Format, Handle, Image, Role};
+use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_graph::{Format, Handle, HistorySlot, Image, ReadSlot, Role, WriteSlot};
 
 /// Slot name of the result (Rgba32f linear radiance, docs/PIPELINE.md).
 pub const DENOISED: &str = "denoised";
@@ -52,13 +52,6 @@ const PREV_MOMENTS: &str = "svgf_prev_moments";
 const GUIDE: &str = "svgf_guide";
 const EFFECTIVE_ALBEDO: &str = "svgf_albedo";
 const ATROUS: &str = "svgf_atrous";
-
-// G-buffer slots (docs/PIPELINE.md).
-const RADIANCE: &str = "radiance";
-const ALBEDO: &str = "albedo_roughness";
-const NORMAL: &str = "normal_metallic";
-const POSITION: &str = "position_depth";
-const MOTION: &str = "motion";
 
 /// Image index the shaders never read (push constants of slots a kernel does not use).
 const UNUSED: u32 = u32::MAX;
@@ -90,47 +83,49 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     let mut atrous = graph.image(ATROUS, Format::Rgba32f);
     let mut denoised = graph.image(DENOISED, Format::Rgba32f);
 
-    graph
-        .pass("svgf_history", Role::All)
-        .read_history(&color)
-        .read_history(&moments)
-        .write(&mut prev_color)
-        .write(&mut prev_moments)
-        .kernel(Arc::new(SvgfKernel(Stage::History)))
-        .record();
+    let mut pass = graph.pass("svgf_history", Role::All);
+    let history = Stage::History {
+        color: pass.read_history_slot(&color),
+        moments: pass.read_history_slot(&moments),
+        prev_color: pass.write_slot(&mut prev_color),
+        prev_moments: pass.write_slot(&mut prev_moments),
+    };
+    pass.kernel(Arc::new(SvgfKernel(history))).record();
     // The G-buffer whole: the depth gradient and the spatial variance estimate read neighbours.
     // The history directly where an instance covers its whole view (the copy is then skipped),
     // the copies where it is a band.
-    graph
-        .pass("svgf_temporal", Role::All)
-        .read_history(&color)
-        .read_history(&moments)
-        .read_whole(inputs.radiance)
-        .read_whole(inputs.albedo_roughness)
-        .read_whole(inputs.normal_metallic)
-        .read_whole(inputs.position_depth)
-        .read(inputs.motion)
-        .read_whole(&prev_color)
-        .read_whole(&prev_moments)
-        .write(&mut variance)
-        .write(&mut moments)
-        .write(&mut guide)
-        .write(&mut albedo)
-        .kernel(Arc::new(SvgfKernel(Stage::Temporal)))
-        .record();
+    let mut pass = graph.pass("svgf_temporal", Role::All);
+    let temporal = Stage::Temporal(TemporalSlots {
+        history_color: pass.read_history_slot(&color),
+        history_moments: pass.read_history_slot(&moments),
+        radiance: pass.read_whole_slot(inputs.radiance),
+        albedo: pass.read_whole_slot(inputs.albedo_roughness),
+        normal: pass.read_whole_slot(inputs.normal_metallic),
+        position: pass.read_whole_slot(inputs.position_depth),
+        motion: pass.read_slot(inputs.motion),
+        prev_color: pass.read_whole_slot(&prev_color),
+        prev_moments: pass.read_whole_slot(&prev_moments),
+        variance: pass.write_slot(&mut variance),
+        moments: pass.write_slot(&mut moments),
+        guide: pass.write_slot(&mut guide),
+        effective_albedo: pass.write_slot(&mut albedo),
+    });
+    pass.kernel(Arc::new(SvgfKernel(temporal))).record();
     for (i, &step) in ATROUS_STEPS.iter().enumerate() {
         let name = format!("svgf_atrous_{}", i + 1);
         let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
-        let (input, input_slot) = if first { (&variance, SVGF_VARIANCE) } else { (&atrous, ATROUS) };
-        let pass = graph.pass(&name, Role::All).read_whole(input).read_whole(&guide).read_whole(&albedo);
-        let (pass, output) = if last {
-            (pass.read(inputs.radiance).write(&mut denoised), DENOISED)
+        let mut pass = graph.pass(&name, Role::All);
+        let input = pass.read_whole_slot(if first { &variance } else { &atrous });
+        let guide_slot = pass.read_whole_slot(&guide);
+        let albedo_slot = pass.read_whole_slot(&albedo);
+        let (radiance, output, color) = if last {
+            (Some(pass.read_slot(inputs.radiance)), pass.write_slot(&mut denoised), None)
         } else if first {
-            (pass.write(&mut atrous).write(&mut color), ATROUS)
+            (None, pass.write_slot(&mut atrous), Some(pass.write_slot(&mut color)))
         } else {
-            (pass.write(&mut atrous), ATROUS)
+            (None, pass.write_slot(&mut atrous), None)
         };
-        let stage = Stage::Atrous { step, input: input_slot, output, first, last };
+        let stage = Stage::Atrous { step, input, guide: guide_slot, albedo: albedo_slot, output, color, radiance };
         pass.kernel(Arc::new(SvgfKernel(stage))).record();
     }
     denoised
@@ -196,20 +191,63 @@ parallax_backend::push_constants!(SvgfPush {
     flags
 });
 
-/// Which SVGF shader a pass runs, and with which slots.
+/// Which SVGF shader a pass runs, and the slots its declaration returned.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stage {
-    History,
-    Temporal,
-    Atrous { step: u32, input: &'static str, output: &'static str, first: bool, last: bool },
+    History {
+        color: HistorySlot,
+        moments: HistorySlot,
+        prev_color: WriteSlot,
+        prev_moments: WriteSlot,
+    },
+    Temporal(TemporalSlots),
+    /// `color` (the colour history) is written by the first iteration only, `radiance` (to
+    /// remodulate) read by the last only.
+    Atrous {
+        step: u32,
+        input: ReadSlot,
+        guide: ReadSlot,
+        albedo: ReadSlot,
+        output: WriteSlot,
+        color: Option<WriteSlot>,
+        radiance: Option<ReadSlot>,
+    },
+}
+
+/// The slots of `svgf_temporal`: last frame's histories, the G-buffer and radiance, this
+/// frame's history copies, and its four outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct TemporalSlots {
+    history_color: HistorySlot,
+    history_moments: HistorySlot,
+    radiance: ReadSlot,
+    albedo: ReadSlot,
+    normal: ReadSlot,
+    position: ReadSlot,
+    motion: ReadSlot,
+    prev_color: ReadSlot,
+    prev_moments: ReadSlot,
+    variance: WriteSlot,
+    moments: WriteSlot,
+    guide: WriteSlot,
+    effective_albedo: WriteSlot,
 }
 
 impl Stage {
-    fn shader(self) -> &'static str {
+    fn shader(&self) -> &'static str {
         match self {
-            Stage::History => "svgf_history",
-            Stage::Temporal => "svgf_temporal",
+            Stage::History { .. } => "svgf_history",
+            Stage::Temporal(_) => "svgf_temporal",
             Stage::Atrous { .. } => "svgf_atrous",
+        }
+    }
+
+    /// A write of the stage: every write covers the instance's band of one view's image.
+    fn band(&self) -> WriteSlot {
+        match self {
+            Stage::History { prev_color, .. } => *prev_color,
+            Stage::Temporal(slots) => slots.variance,
+            Stage::Atrous { output, .. } => *output,
         }
     }
 }
@@ -217,40 +255,16 @@ impl Stage {
 /// Records one SVGF pass instance over its row band.
 struct SvgfKernel(Stage);
 
-/// An image slot of a pass instance: its access (own view, history or output) by name.
-enum Slot {
-    Input(&'static str),
-    History(&'static str),
-    Output(&'static str),
-}
-
 impl PassKernel for SvgfKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let stage = self.0;
-        let image = |rec: &Recorder<'_>, slot: Slot| -> parallax_backend::Result<u32> {
-            let (access, name) = match slot {
-                Slot::Input(name) => (pass.input(name), name),
-                Slot::History(name) => (pass.history(name), name),
-                Slot::Output(name) => (pass.output(name), name),
-            };
-            let access = access.ok_or_else(|| BackendError::KernelMisuse {
-                kernel: stage.shader().into(),
-                instance: index,
-                detail: format!("has no `{name}` slot (declare the pass with parallax_passes::declare_svgf)"),
-            })?;
-            rec.image(access.resource)
-        };
-        let Some(band) = pass.writes.first() else {
-            return Err(BackendError::KernelMisuse {
-                kernel: stage.shader().into(),
-                instance: index,
-                detail: "writes nothing".into(),
-            });
-        };
-        let target = rec.resource(band.resource);
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let stage = &self.0;
+        let target = rec.resource(pass.write(stage.band())?.resource);
         let (width, height) = (target.width, target.height);
         // The instance covers its whole view: its history reads see every row.
         let whole_view = pass.rows.y0 == 0 && pass.rows.y1 == height;
+        let read = |rec: &Recorder<'_>, slot: ReadSlot| rec.image(pass.read(slot)?.resource);
+        let history = |rec: &Recorder<'_>, slot: HistorySlot| rec.image(pass.history_read(slot)?.resource);
+        let write = |rec: &Recorder<'_>, slot: WriteSlot| rec.image(pass.write(slot)?.resource);
         let mut push = SvgfPush {
             radiance: UNUSED,
             albedo: UNUSED,
@@ -274,43 +288,43 @@ impl PassKernel for SvgfKernel {
         };
         match stage {
             // A whole view's history is all there: the temporal pass reads it directly.
-            Stage::History if whole_view => return Ok(()),
-            Stage::History => {
-                push.in0 = image(rec, Slot::History(SVGF_COLOR))?;
-                push.in1 = image(rec, Slot::History(SVGF_MOMENTS))?;
-                push.out0 = image(rec, Slot::Output(PREV_COLOR))?;
-                push.out1 = image(rec, Slot::Output(PREV_MOMENTS))?;
+            Stage::History { .. } if whole_view => return Ok(()),
+            &Stage::History { color, moments, prev_color, prev_moments } => {
+                push.in0 = history(rec, color)?;
+                push.in1 = history(rec, moments)?;
+                push.out0 = write(rec, prev_color)?;
+                push.out1 = write(rec, prev_moments)?;
             }
-            Stage::Temporal => {
-                push.radiance = image(rec, Slot::Input(RADIANCE))?;
-                push.albedo = image(rec, Slot::Input(ALBEDO))?;
-                push.normal = image(rec, Slot::Input(NORMAL))?;
-                push.position = image(rec, Slot::Input(POSITION))?;
-                push.motion = image(rec, Slot::Input(MOTION))?;
-                let (color, moments) = if whole_view {
-                    (Slot::History(SVGF_COLOR), Slot::History(SVGF_MOMENTS))
+            Stage::Temporal(slots) => {
+                push.radiance = read(rec, slots.radiance)?;
+                push.albedo = read(rec, slots.albedo)?;
+                push.normal = read(rec, slots.normal)?;
+                push.position = read(rec, slots.position)?;
+                push.motion = read(rec, slots.motion)?;
+                if whole_view {
+                    push.in0 = history(rec, slots.history_color)?;
+                    push.in1 = history(rec, slots.history_moments)?;
                 } else {
-                    (Slot::Input(PREV_COLOR), Slot::Input(PREV_MOMENTS))
-                };
-                push.in0 = image(rec, color)?;
-                push.in1 = image(rec, moments)?;
-                push.out0 = image(rec, Slot::Output(SVGF_VARIANCE))?;
-                push.out1 = image(rec, Slot::Output(SVGF_MOMENTS))?;
-                push.out2 = image(rec, Slot::Output(GUIDE))?;
-                push.out3 = image(rec, Slot::Output(EFFECTIVE_ALBEDO))?;
+                    push.in0 = read(rec, slots.prev_color)?;
+                    push.in1 = read(rec, slots.prev_moments)?;
+                }
+                push.out0 = write(rec, slots.variance)?;
+                push.out1 = write(rec, slots.moments)?;
+                push.out2 = write(rec, slots.guide)?;
+                push.out3 = write(rec, slots.effective_albedo)?;
             }
-            Stage::Atrous { step, input, output, first, last } => {
-                push.in0 = image(rec, Slot::Input(input))?;
-                push.in1 = image(rec, Slot::Input(GUIDE))?;
-                push.in2 = image(rec, Slot::Input(EFFECTIVE_ALBEDO))?;
-                push.out0 = image(rec, Slot::Output(output))?;
+            &Stage::Atrous { step, input, guide, albedo, output, color, radiance } => {
+                push.in0 = read(rec, input)?;
+                push.in1 = read(rec, guide)?;
+                push.in2 = read(rec, albedo)?;
+                push.out0 = write(rec, output)?;
                 push.step = step;
-                if first {
-                    push.out1 = image(rec, Slot::Output(SVGF_COLOR))?;
+                if let Some(color) = color {
+                    push.out1 = write(rec, color)?;
                     push.flags |= FIRST;
                 }
-                if last {
-                    push.radiance = image(rec, Slot::Input(RADIANCE))?;
+                if let Some(radiance) = radiance {
+                    push.radiance = read(rec, radiance)?;
                     push.flags |= LAST;
                 }
             }

@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use parallax_backend::{BackendError, ExecPass, KernelGraph, PassKernel, Recorder};
-use parallax_graph::{Format, Handle, Image, Role};
+use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 /// Pass name, and the slot of its output (docs/PIPELINE.md).
 pub const TONEMAP: &str = "tonemap";
@@ -32,12 +32,9 @@ pub fn declare_tonemap(
         return Err(TonemapError::Exposure { exposure });
     }
     let mut display = graph.image(DISPLAY, Format::Rgba8);
-    graph
-        .pass(TONEMAP, Role::All)
-        .read(input)
-        .write(&mut display)
-        .kernel(Arc::new(TonemapKernel { exposure }))
-        .record();
+    let mut pass = graph.pass(TONEMAP, Role::All);
+    let (src, dst) = (pass.read_slot(input), pass.write_slot(&mut display));
+    pass.kernel(Arc::new(TonemapKernel { src, dst, exposure })).record();
     Ok(display)
 }
 
@@ -55,20 +52,16 @@ pub struct TonemapPush {
 
 parallax_backend::push_constants!(TonemapPush { src, dst, y0, y1, width, exposure });
 
-/// Records `tonemap` instances: the pass's one read into its `display` write.
+/// Records `tonemap` instances: the radiance read into the `display` write.
 struct TonemapKernel {
+    src: ReadSlot,
+    dst: WriteSlot,
     exposure: f32,
 }
 
 impl PassKernel for TonemapKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let (Some(src), Some(dst)) = (pass.reads.first(), pass.output(DISPLAY)) else {
-            return Err(BackendError::KernelMisuse {
-                kernel: TONEMAP.into(),
-                instance: index,
-                detail: format!("reads one image and writes `{DISPLAY}`"),
-            });
-        };
+        let (src, dst) = (pass.read(self.src)?, pass.write(self.dst)?);
         let target = rec.resource(dst.resource);
         if target.format != Format::Rgba8 {
             return Err(BackendError::KernelMisuse {

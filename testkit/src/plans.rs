@@ -91,7 +91,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                     device,
                     reads: vec![],
                     history_reads: vec![],
-                    writes: vec![ExecAccess::own("radiance", radiance[v as usize], 1, rows)],
+                    writes: vec![ExecAccess::own("radiance", 0, radiance[v as usize], 1, rows)],
                 },
             );
             phases[device][0].push(ExecOp::Pass(p));
@@ -126,7 +126,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
     // Phase 2: blends, then the gather of finished views to device 0 (phase 2→3).
     for v in 0..views {
         let source = (v + 1) % views;
-        let access = |slot: &str, resource: usize| ExecAccess::own(slot, resource, 1, all);
+        let access = |slot: &str, decl: u16, resource: usize| ExecAccess::own(slot, decl, resource, 1, all);
         let p = add_pass(
             &mut plan,
             ExecPass {
@@ -135,9 +135,12 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                 view: v,
                 rows: all,
                 device: owner(v),
-                reads: vec![access("radiance", radiance[v as usize]), access("source", radiance[source as usize])],
+                reads: vec![
+                    access("radiance", 0, radiance[v as usize]),
+                    access("source", 1, radiance[source as usize]),
+                ],
                 history_reads: vec![],
-                writes: vec![access("output", output[v as usize])],
+                writes: vec![access("output", 0, output[v as usize])],
             },
         );
         phases[owner(v)][2].push(ExecOp::Pass(p));
@@ -184,7 +187,7 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
             device: 0,
             reads: vec![],
             history_reads: vec![],
-            writes: vec![ExecAccess::own("payload", 0, 1, all)],
+            writes: vec![ExecAccess::own("payload", 0, 0, 1, all)],
         }],
         copies: vec![ExecCopy { resource: 0, dst: 0, version: 1, rows: all, from: 0, to: 1 }],
         devices: vec![
