@@ -7,7 +7,10 @@
 
 use std::sync::Arc;
 
-use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
+use parallax_graph::{
+    DeviceId, Format, Handle, Image, PassBuilder, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology,
+    WriteSlot, compile,
+};
 use serde::Serialize;
 
 use crate::context::{Context, ContextDesc};
@@ -108,26 +111,33 @@ pub struct CopyBenchResult {
     pub reports: Vec<FrameReport>,
 }
 
-/// Writes the slot `payload` over the instance's rows (`bench_fill.comp`).
-pub struct BenchFillKernel;
+/// Writes its `payload` write over the instance's rows (`bench_fill.comp`).
+pub struct BenchFillKernel {
+    payload: WriteSlot,
+}
 
 /// Name of the producer pass, its slot and its shader.
 pub const BENCH_FILL: &str = "bench_fill";
 const PAYLOAD: &str = "payload";
 
 impl PassKernel for BenchFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let Some(dst) = pass.output(PAYLOAD) else {
-            return Err(crate::BackendError::KernelMisuse {
-                kernel: BENCH_FILL.into(),
-                instance: index,
-                detail: format!("writes the slot `{PAYLOAD}`"),
-            });
-        };
-        let dst = dst.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+        let dst = pass.write(self.payload)?.resource;
         let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows(BENCH_FILL, params)
     }
+}
+
+/// Declares `bench_fill` writing `payload` for the views of `role`, its kernel attached; the
+/// caller records it.
+fn declare_fill<'g>(
+    graph: &'g mut KernelGraph,
+    role: Role,
+    payload: &mut Handle<Image>,
+) -> PassBuilder<'g, Arc<dyn PassKernel>> {
+    let mut pass = graph.pass(BENCH_FILL, role);
+    let kernel = BenchFillKernel { payload: pass.write_slot(payload) };
+    pass.kernel(Arc::new(kernel))
 }
 
 /// The consumer of the copy benchmark: it records nothing, its read of the payload is what
@@ -164,7 +174,7 @@ pub fn copy_plan(width: u32, height: u32) -> Result<ExecutionPlan> {
         ViewTopology { width, height, sources_of: vec![vec![], vec![ViewId(0)]], is_source: vec![true, false] };
     let mut graph = KernelGraph::with_payload(topology);
     let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
-    graph.pass(BENCH_FILL, Role::Sources).write(&mut payload).kernel(Arc::new(BenchFillKernel)).record();
+    declare_fill(&mut graph, Role::Sources, &mut payload).record();
     graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
     let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: 1 })?;
     Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
@@ -181,7 +191,7 @@ pub(crate) fn gather_plan(sources: u32, width: u32, height: u32) -> Result<Execu
     is_source.push(false);
     let mut graph = KernelGraph::with_payload(ViewTopology { width, height, sources_of, is_source });
     let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
-    graph.pass(BENCH_FILL, Role::Sources).write(&mut payload).kernel(Arc::new(BenchFillKernel)).record();
+    declare_fill(&mut graph, Role::Sources, &mut payload).record();
     graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
     let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: sources })?;
     Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
@@ -193,7 +203,7 @@ pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<
     let topology = ViewTopology::all_sources(devices * passes_per_device, size, size);
     let mut graph = KernelGraph::with_payload(topology);
     let mut target = graph.image(PAYLOAD, Format::Rgba8);
-    graph.pass(BENCH_FILL, Role::All).write(&mut target).side_effect().kernel(Arc::new(BenchFillKernel)).record();
+    declare_fill(&mut graph, Role::All, &mut target).side_effect().record();
     let schedule = compile(&graph, &ViewsInOrder { devices, views_per_device: passes_per_device })?;
     Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
 }

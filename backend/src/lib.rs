@@ -9,7 +9,7 @@
 //!   [`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
 //!   [`ExecutionPlan::from_schedule`] lowers its compiled schedule (allocations become resources, history
-//!   allocations two halves swapped by frame parity, accesses keep their slot names).
+//!   allocations two halves swapped by frame parity, accesses keep their declaration index, which slot tokens name).
 //! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
 //!   bindless image array, raster draws ([`Draw`], dynamic rendering into plan images, the
 //!   depth attachment a `Format::Depth32f` resource that compute kernels sample),
@@ -37,14 +37,14 @@
 //! use parallax_backend::*;
 //! use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
 //!
-//! // A kernel of its own: the benchmark's producer shader over the instance's rows.
-//! struct Fill;
+//! // A kernel of its own: the benchmark's producer shader over the instance's rows, into the
+//! // write its pass declared.
+//! struct Fill {
+//!     payload: WriteSlot,
+//! }
 //! impl PassKernel for Fill {
-//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, instance: usize) -> Result<()> {
-//!         let Some(dst) = pass.output("payload").map(|a| a.resource) else {
-//!             let detail = "writes `payload`".into();
-//!             return Err(BackendError::KernelMisuse { kernel: "fill".into(), instance, detail });
-//!         };
+//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+//!         let dst = pass.write(self.payload)?.resource;
 //!         let params = PassParams { dst: rec.image(dst)?, view: pass.view, y0: pass.rows.y0,
 //!                                   y1: pass.rows.y1, width: rec.resource(dst).width, ..Default::default() };
 //!         rec.dispatch_rows("bench_fill", params)
@@ -58,7 +58,9 @@
 //! let placement = parallax_graph::Plan::new(&lf, &config)?;
 //! let mut graph = KernelGraph::with_payload(placement.topology.clone());
 //! let mut payload = graph.image("payload", Format::Rgba32f);
-//! graph.pass("fill", Role::All).write(&mut payload).kernel(Arc::new(Fill)).record();
+//! let mut pass = graph.pass("fill", Role::All);
+//! let fill = Fill { payload: pass.write_slot(&mut payload) };
+//! pass.kernel(Arc::new(fill)).record();
 //! graph.export(&payload);
 //! let plan = ExecutionPlan::from_schedule(&graph, &compile(&graph, &placement)?)?;
 //!

@@ -1,7 +1,8 @@
 //! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
 //! [`ExecutionPlan`]: allocations become resources (history allocations two: the halves swapped by frame
-//! parity), accesses keep their slot name and origin, each pass instance points at the kernel
-//! its pass was declared with, device programs are ordered by device id. Nothing is re-planned;
+//! parity), accesses keep their resource name, declaration index (what slot tokens name) and
+//! origin, each pass instance points at the kernel its pass was declared with, device programs
+//! are ordered by device id. Nothing is re-planned;
 //! the schedule's op order is kept exactly.
 
 use std::collections::HashMap;

@@ -81,7 +81,10 @@ fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
 fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, size, size));
     let mut acc = graph.image("acc", Format::Rgba32f);
-    graph.pass("accumulate", Role::All).read_history(&acc).write(&mut acc).kernel(Arc::new(AccumulateKernel)).record();
+    let mut pass = graph.pass("accumulate", Role::All);
+    let history = pass.read_history_slot(&acc);
+    let kernel = AccumulateKernel { acc: pass.write_slot(&mut acc), history };
+    pass.kernel(Arc::new(kernel)).record();
     graph.export(&acc);
     lower(&graph, placement)
 }
@@ -109,7 +112,8 @@ fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u3
         let (device, resource) = plan.final_output("acc", v).unwrap();
         let current = floats(&exec.read_image(device, resource).unwrap());
         let writer = plan.passes.iter().find(|p| p.view == v).unwrap();
-        let own = writer.output("acc").unwrap().resource;
+        // `accumulate` writes only `acc`.
+        let own = writer.writes[0].resource;
         // Reads resolve through the last frame's parity: `own` is what it wrote, its twin what
         // the frame before wrote (what its history reads saw).
         let other = plan.history_pairs.iter().find(|(a, _)| *a == own).unwrap().1;
@@ -231,12 +235,9 @@ fn raster_plan(devices: usize, size: u32) -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(6, size, size));
     let mut gbuffer = graph.image("gbuffer", Format::Rgba32f);
     let mut depth = graph.image("depth", Format::Depth32f);
-    graph
-        .pass("raster_demo", Role::All)
-        .write(&mut gbuffer)
-        .write(&mut depth)
-        .kernel(Arc::new(RasterDemoKernel))
-        .record();
+    let mut pass = graph.pass("raster_demo", Role::All);
+    let kernel = RasterDemoKernel { gbuffer: pass.write_slot(&mut gbuffer), depth: pass.write_slot(&mut depth) };
+    pass.kernel(Arc::new(kernel)).record();
     graph.export(&gbuffer);
     graph.export(&depth);
     lower(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 })

@@ -11,7 +11,7 @@ use parallax_backend::{
     ExecutionPlan, ExecutionPlanError, Executor, Format, KernelGraph, PassKernel, Recorder, Region, ResourceKind,
     Validation,
 };
-use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
+use parallax_graph::{BandedPlacement, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_testkit::kernels::reference_mask;
 
 const SALT: u32 = 0x5eed;
@@ -56,13 +56,9 @@ struct IndirectCountParams {
 
 parallax_backend::push_constants!(IndirectCountParams { args, counter });
 
-fn slot(pass: &ExecPass, name: &str) -> usize {
-    pass.output(name).or_else(|| pass.input(name)).expect("the test graph declares the slot").resource
-}
-
-/// Records the arguments pass (one workgroup) into slot `indirect args`.
-fn record_args(rec: &mut Recorder<'_>, pass: &ExecPass) -> parallax_backend::Result<()> {
-    let args = rec.buffer_of(slot(pass, ARGS))?;
+/// Records the arguments pass (one workgroup) into the buffer `args`.
+fn record_args(rec: &mut Recorder<'_>, args: usize) -> parallax_backend::Result<()> {
+    let args = rec.buffer_of(args)?;
     rec.dispatch("test_indirect_args", &IndirectArgsParams { args, salt: SALT, pad: 0 }, [1, 1, 1])
 }
 
@@ -73,20 +69,25 @@ fn record_count(rec: &mut Recorder<'_>, args: usize, counter: usize) -> parallax
 }
 
 /// Pass `indirect_args`: writes the arguments.
-struct ArgsKernel;
+struct ArgsKernel {
+    args: WriteSlot,
+}
 
 impl PassKernel for ArgsKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
-        record_args(rec, pass)
+        record_args(rec, pass.write(self.args)?.resource)
     }
 }
 
 /// Pass `indirect_count`: reads the arguments, writes the counter.
-struct CountKernel;
+struct CountKernel {
+    args: ReadSlot,
+    counter: WriteSlot,
+}
 
 impl PassKernel for CountKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
-        record_count(rec, slot(pass, ARGS), slot(pass, COUNTER))
+        record_count(rec, pass.read(self.args)?.resource, pass.write(self.counter)?.resource)
     }
 }
 
@@ -94,12 +95,16 @@ impl PassKernel for CountKernel {
 /// orders the arguments before their use. (Lavapipe runs dispatches in order, and
 /// synchronisation validation cannot see accesses through buffer addresses, so this shows the
 /// one-pass form works; it cannot show the barrier is needed.)
-struct FusedKernel;
+struct FusedKernel {
+    args: WriteSlot,
+    counter: WriteSlot,
+}
 
 impl PassKernel for FusedKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
-        record_args(rec, pass)?;
-        record_count(rec, slot(pass, ARGS), slot(pass, COUNTER))
+        let args = pass.write(self.args)?.resource;
+        record_args(rec, args)?;
+        record_count(rec, args, pass.write(self.counter)?.resource)
     }
 }
 
@@ -125,15 +130,16 @@ fn indirect_plan(fused: bool) -> ExecutionPlan {
     graph.reset_each_frame(&args, ARGS_HEADER.to_vec());
     graph.reset_each_frame(&counter, vec![]);
     if fused {
-        graph
-            .pass("indirect_fused", Role::All)
-            .modify(&mut args)
-            .modify(&mut counter)
-            .kernel(Arc::new(FusedKernel))
-            .record();
+        let mut pass = graph.pass("indirect_fused", Role::All);
+        let kernel = FusedKernel { args: pass.modify_slot(&mut args).1, counter: pass.modify_slot(&mut counter).1 };
+        pass.kernel(Arc::new(kernel)).record();
     } else {
-        graph.pass("indirect_args", Role::All).modify(&mut args).kernel(Arc::new(ArgsKernel)).record();
-        graph.pass("indirect_count", Role::All).read(&args).modify(&mut counter).kernel(Arc::new(CountKernel)).record();
+        let mut pass = graph.pass("indirect_args", Role::All);
+        let kernel = ArgsKernel { args: pass.modify_slot(&mut args).1 };
+        pass.kernel(Arc::new(kernel)).record();
+        let mut pass = graph.pass("indirect_count", Role::All);
+        let kernel = CountKernel { args: pass.read_slot(&args), counter: pass.modify_slot(&mut counter).1 };
+        pass.kernel(Arc::new(kernel)).record();
     }
     graph.export(&args);
     graph.export(&counter);

@@ -13,7 +13,7 @@ use parallax_backend::{
     PassKernel, PassParams, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
-use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
+use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, ReadSlot, Rig, Role, Scheme, WriteSlot, compile};
 use parallax_testkit::kernels::{FillKernel, reference_fill};
 
 const SIZE: u32 = 16;
@@ -36,21 +36,16 @@ fn user_library(shaders: &[CompiledShader]) -> ShaderLibrary {
     })
 }
 
-/// Dispatches the user shader `shader` with slot `pattern` as `src0` and `output` as `dst`.
+/// Dispatches the user shader `shader` with its read as `src0` and its write as `dst`.
 struct ReadWriteKernel {
     shader: &'static str,
+    src: ReadSlot,
+    dst: WriteSlot,
 }
 
 impl PassKernel for ReadWriteKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let (Some(src), Some(dst)) = (pass.input("pattern"), pass.output("output")) else {
-            return Err(BackendError::KernelMisuse {
-                kernel: self.shader.into(),
-                instance: index,
-                detail: "reads `pattern` and writes `output`".into(),
-            });
-        };
-        let (src, dst) = (src.resource, dst.resource);
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let (src, dst) = (pass.read(self.src)?.resource, pass.write(self.dst)?.resource);
         let params = PassParams { src0: rec.image(src)?, ..rec.row_params(pass, dst)? };
         rec.dispatch_rows(self.shader, params)
     }
@@ -75,7 +70,9 @@ fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<usize>) {
     let mut pattern = g.image("pattern", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
     g.pass("fill", Role::All).write(&mut pattern).kernel(Arc::new(FillKernel)).record();
-    g.pass("user", Role::All).read(&pattern).write(&mut output).kernel(Arc::new(ReadWriteKernel { shader })).record();
+    let mut pass = g.pass("user", Role::All);
+    let (src, dst) = (pass.read_slot(&pattern), pass.write_slot(&mut output));
+    pass.kernel(Arc::new(ReadWriteKernel { shader, src, dst })).record();
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
     let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
@@ -158,13 +155,14 @@ struct SwappedRows {
 
 parallax_backend::push_constants!(SwappedRows { dst, src0, src1, view, y1, y0, width, param });
 
-/// Dispatches the testkit's `fill` with [`SwappedRows`].
-struct SwappedRowsKernel;
+/// Dispatches the testkit's `fill` with [`SwappedRows`] into its write.
+struct SwappedRowsKernel {
+    dst: WriteSlot,
+}
 
 impl PassKernel for SwappedRowsKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
-        let dst = pass.writes[0].resource;
-        let p = rec.row_params(pass, dst)?;
+        let p = rec.row_params(pass, pass.write(self.dst)?.resource)?;
         let push =
             SwappedRows { dst: p.dst, src0: 0, src1: 0, view: p.view, y1: p.y1, y0: p.y0, width: p.width, param: 0 };
         rec.dispatch("fill", &push, [p.width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
@@ -177,7 +175,9 @@ fn a_push_constant_struct_unlike_the_shaders_block_is_refused_naming_the_pass_an
     let topology = parallax_graph::ViewTopology::all_sources(1, SIZE, SIZE);
     let mut g = KernelGraph::with_payload(topology);
     let mut out = g.image("out", Format::Rgba32f);
-    g.pass("swapped", Role::All).write(&mut out).kernel(Arc::new(SwappedRowsKernel)).record();
+    let mut pass = g.pass("swapped", Role::All);
+    let kernel = SwappedRowsKernel { dst: pass.write_slot(&mut out) };
+    pass.kernel(Arc::new(kernel)).record();
     g.export(&out);
     let placement = parallax_graph::BandedPlacement { devices: DEVICES, bands: 1 };
     let plan = ExecutionPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();

@@ -9,8 +9,8 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
-use parallax_graph::{Format, Handle, Image, Role};
+use parallax_backend::{ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
+use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::path_trace::TRACE_PARAMS_BYTES;
 use crate::scene_upload::scene_refs;
@@ -49,30 +49,27 @@ parallax_backend::push_constants!(GbufferPush {
     width
 });
 
-/// Records `gbuffer` instances.
-pub struct GbufferKernel;
+/// Records `gbuffer` instances into the G-buffer writes its pass declared.
+struct GbufferKernel {
+    position_depth: WriteSlot,
+    normal_metallic: WriteSlot,
+    albedo_roughness: WriteSlot,
+    motion: WriteSlot,
+}
 
 impl PassKernel for GbufferKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let slot = |name: &str| {
-            pass.output(name).map(|w| w.resource).ok_or_else(|| BackendError::KernelMisuse {
-                kernel: GBUFFER.into(),
-                instance: index,
-                detail: format!(
-                    "writes no `{name}` slot (it writes position_depth, normal_metallic, albedo_roughness, motion)"
-                ),
-            })
-        };
-        let position_depth = slot("position_depth")?;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let image = |rec: &Recorder<'_>, slot| pass.write(slot).and_then(|w| rec.image(w.resource));
+        let position_depth = pass.write(self.position_depth)?.resource;
         let width = rec.resource(position_depth).width;
         let push = GbufferPush {
             scene: scene_refs(rec)?,
             trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
             block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
             position_depth: rec.image(position_depth)?,
-            normal_metallic: rec.image(slot("normal_metallic")?)?,
-            albedo_roughness: rec.image(slot("albedo_roughness")?)?,
-            motion: rec.image(slot("motion")?)?,
+            normal_metallic: image(rec, self.normal_metallic)?,
+            albedo_roughness: image(rec, self.albedo_roughness)?,
+            motion: image(rec, self.motion)?,
             view: pass.view,
             y0: pass.rows.y0,
             y1: pass.rows.y1,
@@ -105,17 +102,14 @@ parallax_backend::push_constants!(MotionPush { block, position_depth, motion, vi
 
 /// Records `motion` instances: motion vectors from a G-buffer's world positions and the
 /// previous camera (for G-buffers that do not come with them, such as the raster one).
-pub struct MotionKernel;
+struct MotionKernel {
+    position_depth: ReadSlot,
+    motion: WriteSlot,
+}
 
 impl PassKernel for MotionKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let (Some(position), Some(motion)) = (pass.input("position_depth"), pass.output("motion")) else {
-            return Err(BackendError::KernelMisuse {
-                kernel: MOTION.into(),
-                instance: index,
-                detail: "reads `position_depth` and writes `motion`".into(),
-            });
-        };
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let (position, motion) = (pass.read(self.position_depth)?, pass.write(self.motion)?);
         let desc = rec.resource(position.resource);
         let (width, height) = (desc.width, desc.height);
         let push = MotionPush {
@@ -149,14 +143,14 @@ pub fn declare_gbuffer(graph: &mut KernelGraph) -> Gbuffer {
         albedo_roughness: graph.image("albedo_roughness", Format::Rgba32f),
         motion: graph.image("motion", Format::Rg32f),
     };
-    graph
-        .pass(GBUFFER, Role::All)
-        .write(&mut g.position_depth)
-        .write(&mut g.normal_metallic)
-        .write(&mut g.albedo_roughness)
-        .write(&mut g.motion)
-        .kernel(Arc::new(GbufferKernel))
-        .record();
+    let mut pass = graph.pass(GBUFFER, Role::All);
+    let kernel = GbufferKernel {
+        position_depth: pass.write_slot(&mut g.position_depth),
+        normal_metallic: pass.write_slot(&mut g.normal_metallic),
+        albedo_roughness: pass.write_slot(&mut g.albedo_roughness),
+        motion: pass.write_slot(&mut g.motion),
+    };
+    pass.kernel(Arc::new(kernel)).record();
     g
 }
 
@@ -165,12 +159,10 @@ pub fn declare_gbuffer(graph: &mut KernelGraph) -> Gbuffer {
 pub fn declare_gbuffer_rasterised(graph: &mut KernelGraph) -> Gbuffer {
     let raster = crate::raster_gbuffer::declare_gbuffer_raster(graph);
     let mut motion = graph.image("motion", Format::Rg32f);
-    graph
-        .pass(MOTION, Role::All)
-        .read(&raster.position_depth)
-        .write(&mut motion)
-        .kernel(Arc::new(MotionKernel))
-        .record();
+    let mut pass = graph.pass(MOTION, Role::All);
+    let position_depth = pass.read_slot(&raster.position_depth);
+    let kernel = MotionKernel { position_depth, motion: pass.write_slot(&mut motion) };
+    pass.kernel(Arc::new(kernel)).record();
     Gbuffer {
         position_depth: raster.position_depth,
         normal_metallic: raster.normal_metallic,

@@ -10,7 +10,7 @@ use parallax_backend::{
     BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameReport, KernelGraph,
     PassKernel, PassParams, Recorder,
 };
-use parallax_graph::{BandedPlacement, Role, ViewId, ViewTopology, compile};
+use parallax_graph::{BandedPlacement, Role, ViewId, ViewTopology, WriteSlot, compile};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, View};
 
@@ -39,22 +39,24 @@ pub fn is_hashed_hole(x: u32, y: u32, view: u32, threshold: u32) -> bool {
     (hash3(x, y, view) & 0xffff) < threshold
 }
 
-/// Writes a synthetic hole mask (shaders/hole_mask_hashed.comp) into slot [`HOLES`] over the
-/// instance's rows: 1 where [`is_hashed_hole`], else 0. `threshold` 0 gives no hole, 65536
-/// (fraction 1) every pixel.
+/// Writes a synthetic hole mask (shaders/hole_mask_hashed.comp) into its `mask` write (an
+/// R32u image) over the instance's rows: 1 where [`is_hashed_hole`], else 0. `threshold` 0
+/// gives no hole, 65536 (fraction 1) every pixel.
 pub struct HashedHoleMaskKernel {
+    pub mask: WriteSlot,
     pub threshold: u32,
 }
 
 impl PassKernel for HashedHoleMaskKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let Some(mask) = pass.output(HOLES).filter(|w| rec.resource(w.resource).format == Format::R32u) else {
+        let mask = pass.write(self.mask)?;
+        if rec.resource(mask.resource).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: HOLE_MASK.into(),
                 instance: index,
-                detail: format!("writes `{HOLES}`, an R32u image"),
+                detail: "writes its mask into an R32u image".into(),
             });
-        };
+        }
         let params = PassParams { param: self.threshold, ..rec.row_params(pass, mask.resource)? };
         rec.dispatch_rows("hole_mask_hashed", params)
     }
@@ -159,12 +161,12 @@ fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<ExecutionPlan> 
     let mut holes = graph.image(HOLES, Format::R32u);
     // The targets' radiance before filling is whatever the image holds (reprojection's place).
     graph.import(&radiance);
-    graph.pass(PATH_TRACE, Role::Sources).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
-    graph
-        .pass(HOLE_MASK, Role::Targets)
-        .write(&mut holes)
-        .kernel(Arc::new(HashedHoleMaskKernel { threshold }))
-        .record();
+    let mut pass = graph.pass(PATH_TRACE, Role::Sources);
+    let kernel = PathTraceKernel::new(pass.write_slot(&mut radiance));
+    pass.kernel(Arc::new(kernel)).record();
+    let mut pass = graph.pass(HOLE_MASK, Role::Targets);
+    let mask = pass.write_slot(&mut holes);
+    pass.kernel(Arc::new(HashedHoleMaskKernel { mask, threshold })).record();
     declare_hole_fill(&mut graph, &holes, &mut radiance);
     graph.export(&radiance);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?;

@@ -64,7 +64,7 @@ pub use holes::{
     COMPACT_HOLES, CompactHolesKernel, HOLE_FILL, HOLE_LIST, HOLES, declare_hole_fill, hole_list_row_bytes,
 };
 pub use path_trace::{
-    LIST_SLOTS, PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
+    PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
     trace_frame_data_lit,
 };
 pub use pixel_list::{

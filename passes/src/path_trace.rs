@@ -4,8 +4,8 @@
 //! * Writes (1 to 4, in this order): radiance (rgb, a = 1 where the first hit exists), albedo
 //!   and roughness, normal and metallic, position and linear depth: the [`TRACE_OUTPUTS`]
 //!   images.
-//! * Pixels: the instance's row band (a whole view or one device's strip), or, when the pass
-//!   reads a pixel list ([`LIST_SLOTS`]), the listed pixels of its band: the list in the band's
+//! * Pixels: the instance's row band (a whole view or one device's strip), or, when its kernel
+//!   is given a pixel-list read ([`PathTraceKernel::with_list`]), the listed pixels of its band: the list in the band's
 //!   section of the buffer (a row buffer's rows `[y0, y1)`, or all of a plain buffer; see
 //!   [`crate::pixel_list`]). The dispatch covers the section's capacity and the invocations past
 //!   the list's count return at once. Hole filling traces its lists with its own kernel, one
@@ -14,7 +14,9 @@
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
 
-use parallax_backend::{BackendError, ExecAccess, ExecPass, Format, PassKernel, Recorder, ResourceKind};
+use parallax_backend::{
+    BackendError, ExecAccess, ExecPass, Format, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
+};
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams, TraceLighting};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
@@ -28,17 +30,38 @@ pub const PATH_TRACE: &str = "path_trace";
 /// Images a `path_trace` pass writes, in write order, all `Rgba32f`.
 pub const TRACE_OUTPUTS: [&str; 4] = ["radiance", "albedo_roughness", "normal_metallic", "position_depth"];
 
-/// Slots of the pixel lists that switch the pass to list mode: the test lists of
-/// [`crate::StridedPixelListKernel`].
-pub const LIST_SLOTS: [&str; 1] = [crate::pixel_list::PIXEL_LIST];
-
 /// Image index meaning "not written" in the push constants.
 const NO_IMAGE: u32 = u32::MAX;
 /// Bytes of one view's parameters in the per-frame data.
 pub const TRACE_PARAMS_BYTES: u64 = std::mem::size_of::<GpuTraceParams>() as u64;
 
-/// Records `path_trace` instances (see the module docs).
-pub struct PathTraceKernel;
+/// Records `path_trace` instances (see the module docs) through the slots its pass declared:
+/// the radiance write, optionally the G-buffer writes and a pixel list.
+pub struct PathTraceKernel {
+    /// In [`TRACE_OUTPUTS`] order; radiance always, the G-buffer layers where declared.
+    outputs: [Option<WriteSlot>; 4],
+    list: Option<ReadSlot>,
+}
+
+impl PathTraceKernel {
+    /// Traces the band's pixels into the `radiance` write.
+    pub fn new(radiance: WriteSlot) -> Self {
+        Self { outputs: [Some(radiance), None, None, None], list: None }
+    }
+
+    /// Also writes the first hit's albedo and roughness, normal and metallic, position and
+    /// linear depth.
+    pub fn with_gbuffer(mut self, [albedo_roughness, normal_metallic, position_depth]: [WriteSlot; 3]) -> Self {
+        self.outputs[1..].copy_from_slice(&[Some(albedo_roughness), Some(normal_metallic), Some(position_depth)]);
+        self
+    }
+
+    /// Traces only the pixels of the list `list` reads (see the module docs).
+    pub fn with_list(mut self, list: ReadSlot) -> Self {
+        self.list = Some(list);
+        self
+    }
+}
 
 fn misuse(index: usize, detail: String) -> BackendError {
     BackendError::KernelMisuse { kernel: PATH_TRACE.into(), instance: index, detail }
@@ -83,22 +106,20 @@ parallax_backend::push_constants!(PathTracePush {
 
 impl PassKernel for PathTraceKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let outputs = TRACE_OUTPUTS.map(|slot| pass.output(slot));
-        let Some(radiance) = outputs[0] else {
-            return Err(misuse(index, format!("writes no `{}` slot", TRACE_OUTPUTS[0])));
-        };
-        let width = rec.resource(radiance.resource).width;
         let mut images = [NO_IMAGE; 4];
-        for (slot, write) in images.iter_mut().zip(outputs) {
-            let Some(write) = write else { continue };
+        let mut width = 0;
+        for (image, slot) in images.iter_mut().zip(self.outputs) {
+            let Some(slot) = slot else { continue };
+            let write = pass.write(slot)?;
             let target = rec.resource(write.resource);
+            width = target.width;
             if target.kind != ResourceKind::Image || target.format == Format::R32u || target.format.is_depth() {
                 return Err(misuse(index, format!("its write `{}` must be a float image", target.name)));
             }
-            *slot = rec.image(write.resource)?;
+            *image = rec.image(write.resource)?;
         }
-        let list = match LIST_SLOTS.iter().find_map(|slot| pass.input(slot)) {
-            Some(read) => Some(list_section(rec, read, index)?),
+        let list = match self.list {
+            Some(slot) => Some(list_section(rec, pass.read(slot)?, index)?),
             None => None,
         };
         let push = PathTracePush {

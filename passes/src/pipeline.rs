@@ -65,7 +65,9 @@ pub struct PipelineHandles {
 
 /// Declares `path_trace` for every view of `role`, writing only `radiance`.
 pub fn declare_path_trace(graph: &mut KernelGraph, role: Role, radiance: &mut Handle<Image>) {
-    graph.pass(PATH_TRACE, role).write(radiance).kernel(Arc::new(PathTraceKernel)).record();
+    let mut pass = graph.pass(PATH_TRACE, role);
+    let kernel = PathTraceKernel::new(pass.write_slot(radiance));
+    pass.kernel(Arc::new(kernel)).record();
 }
 
 /// Declares the pipeline of `config`; nothing is exported (the caller exports what it reads).

@@ -26,7 +26,7 @@ use parallax_backend::{
     BackendError, Draw, ExecPass, FRAME_BLOCK_SECTION, Format, GpuCamera, KernelGraph, PassKernel, Recorder,
     ResourceKind,
 };
-use parallax_graph::{Handle, Image, Role};
+use parallax_graph::{Handle, Image, Role, WriteSlot};
 use parallax_scene::View;
 use parallax_scene::gpu::GpuTriangle;
 
@@ -59,8 +59,12 @@ pub struct GbufferRasterPush {
 
 parallax_backend::push_constants!(GbufferRasterPush { scene, frame, view, pad });
 
-/// Records `gbuffer_raster` instances (see the module docs).
-pub struct GbufferRasterKernel;
+/// Records `gbuffer_raster` instances (see the module docs) into the colour targets (the
+/// [`RASTER_OUTPUTS`] writes, in that order) and the depth write its pass declared.
+pub struct GbufferRasterKernel {
+    color_targets: [WriteSlot; 3],
+    depth: WriteSlot,
+}
 
 fn misuse(index: usize, detail: String) -> BackendError {
     BackendError::KernelMisuse { kernel: GBUFFER_RASTER.into(), instance: index, detail }
@@ -69,20 +73,18 @@ fn misuse(index: usize, detail: String) -> BackendError {
 impl PassKernel for GbufferRasterKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let mut color_targets = [0usize; 3];
-        for (target, slot) in color_targets.iter_mut().zip(RASTER_OUTPUTS) {
-            let write = pass.output(slot).ok_or_else(|| misuse(index, format!("writes no `{slot}` slot")))?;
+        for (target, &slot) in color_targets.iter_mut().zip(&self.color_targets) {
+            let write = pass.write(slot)?;
             let desc = rec.resource(write.resource);
             if desc.kind != ResourceKind::Image || desc.format != Format::Rgba32f {
                 return Err(misuse(
                     index,
-                    format!("its write `{slot}` must be an Rgba32f image, not {:?}", desc.format),
+                    format!("its write `{}` must be an Rgba32f image, not {:?}", desc.name, desc.format),
                 ));
             }
             *target = write.resource;
         }
-        let depth = pass
-            .output(RASTER_DEPTH)
-            .ok_or_else(|| misuse(index, format!("writes no `{RASTER_DEPTH}` slot (a Depth32f image)")))?;
+        let depth = pass.write(self.depth)?;
         let triangle_bytes = rec.buffer_bytes(crate::SCENE_BUFFERS[1])?;
         let triangles = triangle_bytes / std::mem::size_of::<GpuTriangle>() as u64;
         let vertex_count = u32::try_from(3 * triangles)
@@ -124,14 +126,16 @@ pub fn declare_gbuffer_raster(graph: &mut KernelGraph) -> GbufferHandles {
     let [mut albedo_roughness, mut normal_metallic, mut position_depth] =
         RASTER_OUTPUTS.map(|name| graph.image(name, Format::Rgba32f));
     let mut depth = graph.image(RASTER_DEPTH, Format::Depth32f);
-    graph
-        .pass(GBUFFER_RASTER, Role::All)
-        .write(&mut albedo_roughness)
-        .write(&mut normal_metallic)
-        .write(&mut position_depth)
-        .write(&mut depth)
-        .kernel(Arc::new(GbufferRasterKernel))
-        .record();
+    let mut pass = graph.pass(GBUFFER_RASTER, Role::All);
+    let kernel = GbufferRasterKernel {
+        color_targets: [
+            pass.write_slot(&mut albedo_roughness),
+            pass.write_slot(&mut normal_metallic),
+            pass.write_slot(&mut position_depth),
+        ],
+        depth: pass.write_slot(&mut depth),
+    };
+    pass.kernel(Arc::new(kernel)).record();
     GbufferHandles { albedo_roughness, normal_metallic, position_depth, depth }
 }
 

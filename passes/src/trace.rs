@@ -35,14 +35,15 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
         graph.pass(PIXEL_LIST, Role::All).write(&mut list).whole_view().kernel(Arc::new(kernel)).record();
         list
     });
-    let mut pass = graph.pass(PATH_TRACE, Role::All).kernel(Arc::new(PathTraceKernel));
-    if let Some(list) = &list {
-        pass = pass.read_whole(list).whole_view();
+    let mut pass = graph.pass(PATH_TRACE, Role::All);
+    let list_slot = list.as_ref().map(|list| pass.read_whole_slot(list));
+    let [radiance, gbuffer @ ..] = images.each_mut().map(|image| pass.write_slot(image));
+    let mut kernel = PathTraceKernel::new(radiance).with_gbuffer(gbuffer);
+    if let Some(list) = list_slot {
+        kernel = kernel.with_list(list);
+        pass = pass.whole_view();
     }
-    for image in &mut images {
-        pass = pass.write(image);
-    }
-    pass.record();
+    pass.kernel(Arc::new(kernel)).record();
     for image in &images {
         graph.export(image);
     }

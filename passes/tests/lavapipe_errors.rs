@@ -3,7 +3,10 @@
 
 mod common;
 
-use parallax_backend::{BackendError, ExecOptions, ExecResource, ExecutionPlan, Executor, MAX_TEXTURES, TextureData};
+use std::sync::Arc;
+
+use parallax_backend::{BackendError, ExecOptions, ExecutionPlan, Executor, KernelGraph, MAX_TEXTURES, TextureData};
+use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
 use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
@@ -49,7 +52,14 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     drop(tracer);
 
     // A path_trace pass whose only write is a buffer: the kernel says what it expects.
-    let plan = ExecutionPlan::single_pass(PATH_TRACE, PathTraceKernel, ExecResource::buffer("list", 0, 64), 1);
+    let mut g = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 8));
+    let mut list = g.buffer("list", 64);
+    let mut pass = g.pass(PATH_TRACE, Role::All);
+    let kernel = PathTraceKernel::new(pass.write_slot(&mut list));
+    pass.kernel(Arc::new(kernel)).record();
+    g.export(&list);
+    let schedule = compile(&g, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
+    let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
     let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
     match exec.run_frame() {

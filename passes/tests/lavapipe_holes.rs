@@ -12,7 +12,9 @@ use std::collections::BTreeSet;
 use std::sync::Arc;
 
 use parallax_backend::{EventKind, ExecPass, ExecutionPlan, KernelGraph, PassKernel, Recorder};
-use parallax_graph::{AssignStrategy, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, compile};
+use parallax_graph::{
+    AssignStrategy, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, WriteSlot, compile,
+};
 use parallax_passes::{
     COMPACT_HOLES, HOLE_FILL, HOLE_LIST, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel,
     banded_trace_plan, bench_holes, declare_hole_fill, hole_threshold, is_hashed_hole, list_groups,
@@ -39,11 +41,15 @@ struct Run {
 }
 
 /// The synthetic mask of [`HashedHoleMaskKernel`] with a threshold per view.
-struct PerViewMask(Vec<u32>);
+struct PerViewMask {
+    mask: WriteSlot,
+    thresholds: Vec<u32>,
+}
 
 impl PassKernel for PerViewMask {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        HashedHoleMaskKernel { threshold: self.0[pass.view as usize] }.record(rec, pass, index)
+        let threshold = self.thresholds[pass.view as usize];
+        HashedHoleMaskKernel { mask: self.mask, threshold }.record(rec, pass, index)
     }
 }
 
@@ -77,11 +83,14 @@ impl Case {
         let mut graph = KernelGraph::with_payload(placement.topology.clone());
         let mut radiance = graph.image("radiance", Format::Rgba32f);
         let mut holes = graph.image(HOLES, Format::R32u);
-        graph.pass(PATH_TRACE, Role::Sources).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
+        let mut pass = graph.pass(PATH_TRACE, Role::Sources);
+        let kernel = PathTraceKernel::new(pass.write_slot(&mut radiance));
+        pass.kernel(Arc::new(kernel)).record();
         // What reprojection would leave: here a pattern every untouched pixel must keep.
         graph.pass("prefill", Role::Targets).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
-        let mask = PerViewMask(self.thresholds.clone());
-        graph.pass(HOLE_MASK, Role::Targets).write(&mut holes).kernel(Arc::new(mask)).record();
+        let mut pass = graph.pass(HOLE_MASK, Role::Targets);
+        let mask = PerViewMask { mask: pass.write_slot(&mut holes), thresholds: self.thresholds.clone() };
+        pass.kernel(Arc::new(mask)).record();
         let list = declare_hole_fill(&mut graph, &holes, &mut radiance);
         graph.export(&radiance);
         graph.export(&list);

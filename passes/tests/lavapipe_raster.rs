@@ -10,10 +10,10 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use parallax_backend::{
-    BackendError, ExecOptions, ExecPass, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData,
-    KernelGraph, PassKernel, PassParams, Recorder, ShaderLibrary,
+    ExecOptions, ExecPass, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, KernelGraph,
+    PassKernel, PassParams, Recorder, ShaderLibrary,
 };
-use parallax_graph::{BandedPlacement, Format, Role, ViewTopology, compile};
+use parallax_graph::{BandedPlacement, Format, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_passes::{RASTER_OUTPUTS, declare_gbuffer_raster, raster_camera, upload_scene};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::shading::surface_point;
@@ -35,18 +35,15 @@ fn test_shaders() -> ShaderLibrary {
     })
 }
 
-/// Reads slot `depth` (Depth32f) and writes it into slot `depth_copy` (R32f).
-struct DepthCopyKernel;
+/// Reads the raster depth (Depth32f) and writes it into `depth_copy` (R32f).
+struct DepthCopyKernel {
+    depth: ReadSlot,
+    copy: WriteSlot,
+}
 
 impl PassKernel for DepthCopyKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let (Some(depth), Some(copy)) = (pass.input("depth"), pass.output(DEPTH_COPY)) else {
-            return Err(BackendError::KernelMisuse {
-                kernel: DEPTH_TO_R32F.into(),
-                instance: index,
-                detail: "reads `depth` and writes `depth_copy`".into(),
-            });
-        };
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let (depth, copy) = (pass.read(self.depth)?, pass.write(self.copy)?);
         let params = PassParams { src0: rec.image(depth.resource)?, ..rec.row_params(pass, copy.resource)? };
         rec.dispatch_rows(DEPTH_TO_R32F, params)
     }
@@ -59,7 +56,9 @@ fn raster_plan(views: u32, (width, height): (u32, u32), devices: u32) -> Executi
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, width, height));
     let g = declare_gbuffer_raster(&mut graph);
     let mut copy = graph.image(DEPTH_COPY, Format::R32f);
-    graph.pass(DEPTH_TO_R32F, Role::All).read(&g.depth).write(&mut copy).kernel(Arc::new(DepthCopyKernel)).record();
+    let mut pass = graph.pass(DEPTH_TO_R32F, Role::All);
+    let kernel = DepthCopyKernel { depth: pass.read_slot(&g.depth), copy: pass.write_slot(&mut copy) };
+    pass.kernel(Arc::new(kernel)).record();
     for image in [&g.albedo_roughness, &g.normal_metallic, &g.position_depth, &g.depth, &copy] {
         graph.export(image);
     }

@@ -12,10 +12,12 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams,
-    Recorder, ShaderLibrary,
+    Context, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams, Recorder,
+    ShaderLibrary,
 };
-use parallax_graph::{BandedPlacement, Format, Handle, Image, Placement, Role, ViewTopology, compile};
+use parallax_graph::{
+    BandedPlacement, Format, Handle, Image, Placement, ReadSlot, Role, ViewTopology, WriteSlot, compile,
+};
 use parallax_passes::path_trace::TRACE_PARAMS_BYTES;
 use parallax_passes::{
     DENOISED, DISPLAY, GpuTracer, PATH_TRACE, PathTraceKernel, SvgfInputs, TRACE_OUTPUTS, banded_trace_plan,
@@ -38,20 +40,16 @@ fn test_shaders(test: &str) -> ShaderLibrary {
     })
 }
 
-fn misuse(kernel: &str, index: usize, detail: &str) -> BackendError {
-    BackendError::KernelMisuse { kernel: kernel.into(), instance: index, detail: detail.into() }
-}
-
 /// `test_motion.comp`: motion = own pixel centre + `offset` where there is a hit.
 struct MotionKernel {
+    position: ReadSlot,
+    motion: WriteSlot,
     offset: [f32; 2],
 }
 
 impl PassKernel for MotionKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let (Some(dst), Some(position)) = (pass.output("motion"), pass.input("position_depth")) else {
-            return Err(misuse("test_motion", index, "reads `position_depth`, writes `motion`"));
-        };
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let (dst, position) = (pass.write(self.motion)?, pass.read(self.position)?);
         let width = rec.resource(dst.resource).width;
         let push = MotionPush {
             dst: rec.image(dst.resource)?,
@@ -83,15 +81,19 @@ parallax_backend::push_constants!(MotionPush { dst, position, y0, y1, width, off
 
 /// `test_constant.comp` or `test_poison.comp` (the shader named): radiance (dst), albedo
 /// (src0) and, where declared, normal (src1) and position (param) changed in place.
-struct ChangeKernel(&'static str);
+struct ChangeKernel {
+    shader: &'static str,
+    radiance: WriteSlot,
+    albedo: WriteSlot,
+    normal: Option<WriteSlot>,
+    position: Option<WriteSlot>,
+}
 
 impl PassKernel for ChangeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let (Some(radiance), Some(albedo)) = (pass.output("radiance"), pass.output("albedo_roughness")) else {
-            return Err(misuse(self.0, index, "modifies `radiance` and `albedo_roughness`"));
-        };
-        let optional = |slot: &str| pass.output(slot).map_or(Ok(0), |access| rec.image(access.resource));
-        let (normal, position) = (optional("normal_metallic")?, optional("position_depth")?);
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let (radiance, albedo) = (pass.write(self.radiance)?, pass.write(self.albedo)?);
+        let optional = |slot: Option<WriteSlot>| slot.map_or(Ok(0), |slot| rec.image(pass.write(slot)?.resource));
+        let (normal, position) = (optional(self.normal)?, optional(self.position)?);
         let params = PassParams {
             dst: rec.image(radiance.resource)?,
             src0: rec.image(albedo.resource)?,
@@ -102,7 +104,7 @@ impl PassKernel for ChangeKernel {
             width: rec.resource(radiance.resource).width,
             ..Default::default()
         };
-        rec.dispatch_rows(self.0, params)
+        rec.dispatch_rows(self.shader, params)
     }
 }
 
@@ -130,38 +132,39 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> ExecutionPl
     let mut g = KernelGraph::with_payload(ViewTopology::all_sources(views, SIZE, SIZE));
     let [mut radiance, mut albedo, mut normal, mut position]: [Handle<Image>; 4] =
         TRACE_OUTPUTS.map(|name| g.image(name, Format::Rgba32f));
-    g.pass(PATH_TRACE, Role::All)
-        .write(&mut radiance)
-        .write(&mut albedo)
-        .write(&mut normal)
-        .write(&mut position)
-        .kernel(Arc::new(PathTraceKernel))
-        .record();
+    let mut pass = g.pass(PATH_TRACE, Role::All);
+    let traced = PathTraceKernel::new(pass.write_slot(&mut radiance)).with_gbuffer([
+        pass.write_slot(&mut albedo),
+        pass.write_slot(&mut normal),
+        pass.write_slot(&mut position),
+    ]);
+    pass.kernel(Arc::new(traced)).record();
     match input.change {
         Change::None => {}
         Change::Constant => {
-            g.pass("test_constant", Role::All)
-                .modify(&mut radiance)
-                .modify(&mut albedo)
-                .kernel(Arc::new(ChangeKernel("test_constant")))
-                .record();
+            let mut pass = g.pass("test_constant", Role::All);
+            let (_, radiance) = pass.modify_slot(&mut radiance);
+            let (_, albedo) = pass.modify_slot(&mut albedo);
+            let kernel = ChangeKernel { shader: "test_constant", radiance, albedo, normal: None, position: None };
+            pass.kernel(Arc::new(kernel)).record();
         }
         Change::Poison => {
-            g.pass("test_poison", Role::All)
-                .modify(&mut radiance)
-                .modify(&mut albedo)
-                .modify(&mut normal)
-                .modify(&mut position)
-                .kernel(Arc::new(ChangeKernel("test_poison")))
-                .record();
+            let mut pass = g.pass("test_poison", Role::All);
+            let kernel = ChangeKernel {
+                shader: "test_poison",
+                radiance: pass.modify_slot(&mut radiance).1,
+                albedo: pass.modify_slot(&mut albedo).1,
+                normal: Some(pass.modify_slot(&mut normal).1),
+                position: Some(pass.modify_slot(&mut position).1),
+            };
+            pass.kernel(Arc::new(kernel)).record();
         }
     }
     let mut motion = g.image("motion", Format::Rg32f);
-    g.pass("test_motion", Role::All)
-        .read(&position)
-        .write(&mut motion)
-        .kernel(Arc::new(MotionKernel { offset: input.motion }))
-        .record();
+    let mut pass = g.pass("test_motion", Role::All);
+    let (position_slot, motion_slot) = (pass.read_slot(&position), pass.write_slot(&mut motion));
+    let kernel = MotionKernel { position: position_slot, motion: motion_slot, offset: input.motion };
+    pass.kernel(Arc::new(kernel)).record();
     let inputs = SvgfInputs {
         radiance: &radiance,
         albedo_roughness: &albedo,
@@ -244,7 +247,9 @@ fn tonemap_matches_its_cpu_twin_within_one_step_of_255() {
     let ctx = common::context(2);
     let mut g = KernelGraph::with_payload(ViewTopology::all_sources(2, SIZE, SIZE));
     let mut radiance = g.image("radiance", Format::Rgba32f);
-    g.pass(PATH_TRACE, Role::All).write(&mut radiance).kernel(Arc::new(PathTraceKernel)).record();
+    let mut pass = g.pass(PATH_TRACE, Role::All);
+    let kernel = PathTraceKernel::new(pass.write_slot(&mut radiance));
+    pass.kernel(Arc::new(kernel)).record();
     let display = declare_tonemap(&mut g, &radiance, exposure).unwrap();
     g.export(&display);
     g.export(&radiance);

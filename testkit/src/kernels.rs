@@ -2,7 +2,9 @@
 //! bit-identical values. They plug into the executor through [`PassKernel`] like any user
 //! kernel; real passes (path tracing, ...) live in the passes crate.
 
-use parallax_backend::{BackendError, Draw, ExecPass, Format, PassKernel, PassParams, Recorder, Result};
+use parallax_backend::{
+    BackendError, Draw, ExecPass, Format, HistorySlot, PassKernel, PassParams, Recorder, Result, WriteSlot,
+};
 
 /// Writes the deterministic pattern of `fill.comp` into `writes[0]` over the instance's rows.
 pub struct FillKernel;
@@ -49,12 +51,15 @@ impl PassKernel for ShiftBlendKernel {
     }
 }
 
-/// Raster demo (this crate's `raster_demo.{vert,frag}`): renders into slot `gbuffer` over the
-/// instance's rows a near quad (left half, constant [`RASTER_NEAR_COLOR`]) drawn before a far
-/// full-image quad (the fill pattern), with the depth test against slot `depth` (a
+/// Raster demo (this crate's `raster_demo.{vert,frag}`): renders into its `gbuffer` write over
+/// the instance's rows a near quad (left half, constant [`RASTER_NEAR_COLOR`]) drawn before a far
+/// full-image quad (the fill pattern), with the depth test against its `depth` write (a
 /// `Depth32f` resource, cleared first; afterwards it holds [`RASTER_NEAR_DEPTH`] on the left
 /// half and [`RASTER_FAR_DEPTH`] on the right).
-pub struct RasterDemoKernel;
+pub struct RasterDemoKernel {
+    pub gbuffer: WriteSlot,
+    pub depth: WriteSlot,
+}
 
 /// Colour of the near quad of [`RasterDemoKernel`].
 pub const RASTER_NEAR_COLOR: [f32; 4] = [0.25, 0.5, 0.75, 1.0];
@@ -63,14 +68,8 @@ pub const RASTER_NEAR_DEPTH: f32 = 0.25;
 pub const RASTER_FAR_DEPTH: f32 = 0.75;
 
 impl PassKernel for RasterDemoKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let (Some(gbuffer), Some(depth)) = (pass.output("gbuffer"), pass.output("depth")) else {
-            return Err(BackendError::KernelMisuse {
-                kernel: "raster_demo".into(),
-                instance: index,
-                detail: "writes slots `gbuffer` (a colour image) and `depth` (Depth32f)".into(),
-            });
-        };
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+        let (gbuffer, depth) = (pass.write(self.gbuffer)?, pass.write(self.depth)?);
         let params = PassParams {
             view: pass.view,
             y0: pass.rows.y0,
@@ -190,19 +189,16 @@ pub fn reference_mask(x: u32, y: u32, view: u32) -> u32 {
     hash3(x, y, view)
 }
 
-/// `acc = history(acc) + frame index + 1` (`accumulate.comp`): the slot `acc` is
-/// written and read as history (last frame's final `acc`, zero when history is invalid).
-pub struct AccumulateKernel;
+/// `acc = history(acc) + frame index + 1` (`accumulate.comp`): `acc` is written and read as
+/// history (last frame's final `acc`, zero when history is invalid).
+pub struct AccumulateKernel {
+    pub acc: WriteSlot,
+    pub history: HistorySlot,
+}
 
 impl PassKernel for AccumulateKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let (Some(output), Some(history)) = (pass.output("acc"), pass.history("acc")) else {
-            return Err(BackendError::KernelMisuse {
-                kernel: "accumulate".into(),
-                instance: index,
-                detail: "writes slot `acc` and reads it as history (read_history)".into(),
-            });
-        };
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+        let (output, history) = (pass.write(self.acc)?, pass.history_read(self.history)?);
         let params = PassParams { src0: rec.image(history.resource)?, ..rec.row_params(pass, output.resource)? };
         rec.dispatch_rows("accumulate", params)
     }
