@@ -121,7 +121,7 @@ pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
     ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError, Format, HistorySlot,
-    MAX_RESET_WORDS, ReadSlot, Region, ResourceKind, SourcesSlot, WriteSlot,
+    MAX_RESET_WORDS, PassId, ReadSlot, Region, ResourceKind, SourcesSlot, WriteSlot,
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};

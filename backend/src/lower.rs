@@ -113,6 +113,7 @@ impl ExecutionPlan {
                 ExecPass {
                     name: p.name.clone(),
                     kernel: kernel_of[&p.pass],
+                    pass: p.pass,
                     view: p.view.0,
                     rows: Region::new(p.region.y0, p.region.y1),
                     device: p.device.index(),

@@ -6,7 +6,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-pub use parallax_graph::{Format, HistorySlot, Origin, ReadSlot, Region, SourcesSlot, WriteSlot};
+pub use parallax_graph::{Format, HistorySlot, Origin, PassId, ReadSlot, Region, SourcesSlot, WriteSlot};
 
 use crate::error::BackendError;
 
@@ -103,6 +103,8 @@ pub struct ExecPass {
     pub name: String,
     /// Index of the pass's kernel in [`ExecutionPlan::kernels`].
     pub kernel: usize,
+    /// The declared pass this instantiates: the one whose slot tokens bind here.
+    pub pass: PassId,
     pub view: u32,
     pub rows: Region,
     pub device: usize,
@@ -117,24 +119,28 @@ impl ExecPass {
     /// The own-view read its pass declared as `slot`.
     pub fn read(&self, slot: ReadSlot) -> crate::Result<&ExecAccess> {
         let found = self.reads.iter().find(|a| a.decl == slot.index() && a.origin == Origin::Own);
-        found.ok_or_else(|| self.unbound(format!("{slot:?}")))
+        found.filter(|_| slot.pass() == self.pass).ok_or_else(|| self.unbound(format!("{slot:?}")))
     }
 
     /// The reads of every source (in the view's source order) its pass declared as `slot`;
     /// none for a view without sources.
-    pub fn sources(&self, slot: SourcesSlot) -> impl Iterator<Item = &ExecAccess> + '_ {
-        self.reads.iter().filter(move |a| a.decl == slot.index() && matches!(a.origin, Origin::Source(_)))
+    pub fn sources(&self, slot: SourcesSlot) -> crate::Result<impl Iterator<Item = &ExecAccess> + '_> {
+        if slot.pass() != self.pass {
+            return Err(self.unbound(format!("{slot:?}")));
+        }
+        Ok(self.reads.iter().filter(move |a| a.decl == slot.index() && matches!(a.origin, Origin::Source(_))))
     }
 
     /// Last frame's final version its pass declared as `slot`.
     pub fn history_read(&self, slot: HistorySlot) -> crate::Result<&ExecAccess> {
         let found = self.history_reads.iter().find(|a| a.decl == slot.index());
-        found.ok_or_else(|| self.unbound(format!("{slot:?}")))
+        found.filter(|_| slot.pass() == self.pass).ok_or_else(|| self.unbound(format!("{slot:?}")))
     }
 
     /// The write its pass declared as `slot`.
     pub fn write(&self, slot: WriteSlot) -> crate::Result<&ExecAccess> {
-        self.writes.iter().find(|a| a.decl == slot.index()).ok_or_else(|| self.unbound(format!("{slot:?}")))
+        let found = self.writes.iter().find(|a| a.decl == slot.index());
+        found.filter(|_| slot.pass() == self.pass).ok_or_else(|| self.unbound(format!("{slot:?}")))
     }
 
     fn unbound(&self, slot: String) -> BackendError {
@@ -265,6 +271,7 @@ impl ExecutionPlan {
             passes: vec![ExecPass {
                 name: name.into(),
                 kernel: kernels.push(kernel),
+                pass: PassId(0),
                 view: resource.view,
                 rows: all,
                 device: 0,

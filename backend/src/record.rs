@@ -526,6 +526,7 @@ pub(crate) mod grouping_plans {
             .map(|(view, &(name, reads, writes))| ExecPass {
                 name: name.to_string(),
                 kernel: if name == "fill" { grouped } else { plain },
+                pass: parallax_graph::PassId(view as u32),
                 view: view as u32,
                 rows,
                 device: 0,
@@ -577,6 +578,7 @@ mod tests {
         let pass = |(view, name): (usize, &&str)| ExecPass {
             name: name.to_string(),
             kernel: 0,
+            pass: parallax_graph::PassId(view as u32),
             view: view as u32,
             rows: parallax_graph::Region::new(0, 1),
             device: 0,

@@ -1,6 +1,6 @@
 //! Kernels bind through the slot tokens their pass's declaration returned (no GPU needed): each
 //! token finds its own access in every instance, and a token of another pass is refused
-//! naming the pass that lacks it.
+//! naming the pass that lacks it, even where that pass has an access at the same index.
 
 use std::sync::Arc;
 
@@ -48,7 +48,7 @@ fn each_token_binds_its_own_access_and_a_foreign_one_is_refused() {
     let name = |access: &parallax_backend::ExecAccess| plan.resources[access.resource].name.clone();
     assert_eq!(name(blend.read(own).unwrap()), "radiance");
     assert_eq!(blend.read(own).unwrap().origin, Origin::Own);
-    let source_views: Vec<u32> = blend.sources(sources).map(|a| plan.resources[a.resource].view).collect();
+    let source_views: Vec<u32> = blend.sources(sources).unwrap().map(|a| plan.resources[a.resource].view).collect();
     assert_eq!(source_views, [0]);
     assert_eq!(name(blend.history_read(history).unwrap()), "acc");
     assert_eq!(name(blend.write(accumulated).unwrap()), "acc");
@@ -58,6 +58,11 @@ fn each_token_binds_its_own_access_and_a_foreign_one_is_refused() {
     // `trace` declared no reads: `blend`'s read token names nothing there.
     match pass_named(&plan, "trace", 1).read(own) {
         Err(BackendError::UnboundSlot { pass, .. }) => assert_eq!(pass, "trace"),
+        other => panic!("expected BackendError::UnboundSlot, got {other:?}"),
+    }
+    // `blend` has a write at `trace`'s write's index, but the token is `trace`'s.
+    match blend.write(traced) {
+        Err(BackendError::UnboundSlot { pass, .. }) => assert_eq!(pass, "blend"),
         other => panic!("expected BackendError::UnboundSlot, got {other:?}"),
     }
 }

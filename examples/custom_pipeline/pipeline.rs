@@ -105,7 +105,7 @@ impl PassKernel for BlendKernel {
             width,
             ..Default::default()
         };
-        for (i, source) in pass.sources(self.sources).enumerate() {
+        for (i, source) in pass.sources(self.sources)?.enumerate() {
             if i == MAX_SOURCES {
                 return Err(misuse("blend", index, &format!("blends at most {MAX_SOURCES} sources")));
             }

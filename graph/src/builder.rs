@@ -100,19 +100,24 @@ pub enum ReadScope {
 }
 
 /// What a kernel keeps of its pass's declaration and binds through (the backend's
-/// `ExecPass::read`, `sources`, `history_read`, `write`): one declared access, by its index
-/// among the pass's reads or writes. Only the pass builder makes them, so a kernel binds only
-/// what its pass declared, and a misspelt slot does not compile.
+/// `ExecPass::read`, `sources`, `history_read`, `write`): one declared access of one pass, by
+/// the pass and the access's index among its reads or writes. Only the pass builder makes them,
+/// so a kernel binds only what its pass declared, and a misspelt slot does not compile.
 macro_rules! slot_token {
     ($(#[$doc:meta])* $name:ident) => {
         $(#[$doc])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-        pub struct $name(u16);
+        pub struct $name(PassId, u16);
 
         impl $name {
+            /// The pass that declared the access.
+            pub fn pass(self) -> PassId {
+                self.0
+            }
+
             /// Index of the declared access among the pass's reads (writes for a write).
             pub fn index(self) -> u16 {
-                self.0
+                self.1
             }
         }
     };
@@ -124,7 +129,7 @@ slot_token!(
     /// its pass did not declare:
     ///
     /// ```compile_fail
-    /// let forged = parallax_graph::ReadSlot(0);
+    /// let forged = parallax_graph::ReadSlot(parallax_graph::PassId(0), 0);
     /// ```
     ReadSlot
 );
@@ -352,7 +357,9 @@ impl<P> Graph<P> {
             reads: Vec::new(),
             writes: Vec::new(),
         };
-        PassBuilder { graph: self, decl, payload: None, refused: None }
+        // A builder borrows the graph until it records, so the pass gets the next id.
+        let id = PassId(self.passes.len() as u32);
+        PassBuilder { graph: self, id, decl, payload: None, refused: None }
     }
 }
 
@@ -360,6 +367,8 @@ impl<P> Graph<P> {
 #[must_use = "a pass is only added to the graph by .record()"]
 pub struct PassBuilder<'g, P = ()> {
     graph: &'g mut Graph<P>,
+    /// The id `record` gives the pass, which its slot tokens carry.
+    id: PassId,
     decl: PassDecl,
     payload: Option<P>,
     /// The first mistake in this declaration, handed to the graph by `record`.
@@ -420,36 +429,36 @@ impl<P> PassBuilder<'_, P> {
     /// Reads this view's current version over the instance's own rows; the kernel binds it
     /// through the returned slot.
     pub fn read_slot<K>(&mut self, h: &Handle<K>) -> ReadSlot {
-        ReadSlot(self.push_read(h, ReadScope::Own))
+        ReadSlot(self.id, self.push_read(h, ReadScope::Own))
     }
 
     /// Reads this view's current version, every row.
     pub fn read_whole_slot<K>(&mut self, h: &Handle<K>) -> ReadSlot {
-        ReadSlot(self.push_read(h, ReadScope::OwnWhole))
+        ReadSlot(self.id, self.push_read(h, ReadScope::OwnWhole))
     }
 
     /// Reads the current version of the resource of each source of this (target) view: a
     /// reprojection read. Each such read yields a δ-edge source → target.
     pub fn read_sources_slot<K>(&mut self, h: &Handle<K>) -> SourcesSlot {
-        SourcesSlot(self.push_read(h, ReadScope::Sources))
+        SourcesSlot(self.id, self.push_read(h, ReadScope::Sources))
     }
 
     /// Reads the previous frame's last version of this view's resource.
     pub fn read_history_slot<K>(&mut self, h: &Handle<K>) -> HistorySlot {
-        HistorySlot(self.push_read(h, ReadScope::History))
+        HistorySlot(self.id, self.push_read(h, ReadScope::History))
     }
 
     /// Writes this view's resource over the instance's rows, making a new version in an
     /// allocation of its own (so passes still reading the old version are unaffected).
     pub fn write_slot<K>(&mut self, h: &mut Handle<K>) -> WriteSlot {
-        WriteSlot(self.push_write(h, false))
+        WriteSlot(self.id, self.push_write(h, false))
     }
 
     /// Reads and writes this view's resource in place over the instance's rows: the pass reads
     /// the current version and leaves the next one in the same allocation. Only a pass whose
     /// every invocation reads exactly the texels it writes may declare this.
     pub fn modify_slot<K>(&mut self, h: &mut Handle<K>) -> (ReadSlot, WriteSlot) {
-        (ReadSlot(self.push_read(h, ReadScope::Own)), WriteSlot(self.push_write(h, true)))
+        (ReadSlot(self.id, self.push_read(h, ReadScope::Own)), WriteSlot(self.id, self.push_write(h, true)))
     }
 
     /// [`Self::read_slot`] for a pass whose kernel binds by position or none (planning).
@@ -530,7 +539,7 @@ impl<P> PassBuilder<'_, P> {
 
     /// Adds the pass to the graph.
     pub fn record(self) -> PassId {
-        let id = PassId(self.graph.passes.len() as u32);
+        let id = self.id;
         if let Some(error) = self.refused {
             self.graph.refused.push(error);
         }

@@ -141,9 +141,9 @@ impl PassKernel for ReprojectKernel {
         let mut count = 0;
         // One read of each per source, all in the view's source order.
         let source_reads = pass
-            .sources(slots.source_radiance)
-            .zip(pass.sources(slots.source_position_depth))
-            .zip(pass.sources(slots.source_normal_metallic));
+            .sources(slots.source_radiance)?
+            .zip(pass.sources(slots.source_position_depth)?)
+            .zip(pass.sources(slots.source_normal_metallic)?);
         for (slot, ((radiance, position), normal)) in sources.iter_mut().zip(source_reads) {
             let view = rec.resource(radiance.resource).view;
             *slot = [view, rec.image(position.resource)?, rec.image(normal.resource)?, rec.image(radiance.resource)?];

@@ -8,7 +8,7 @@
 
 use parallax_backend::plan::Kernels;
 use parallax_backend::{
-    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, Region, ResourceKind,
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, PassId, Region, ResourceKind,
 };
 
 use crate::kernels::{FillKernel, ShiftBlendKernel};
@@ -85,6 +85,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                 &mut plan,
                 ExecPass {
                     name: "fill".into(),
+                    pass: PassId(0),
                     kernel: 0,
                     view: v,
                     rows,
@@ -131,6 +132,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
             &mut plan,
             ExecPass {
                 name: "shift_blend".into(),
+                pass: PassId(1),
                 kernel: 1,
                 view: v,
                 rows: all,
@@ -181,6 +183,7 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
         }],
         passes: vec![ExecPass {
             name: "fill".into(),
+            pass: PassId(0),
             kernel: 0,
             view: 0,
             rows: all,
