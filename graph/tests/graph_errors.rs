@@ -88,7 +88,9 @@ fn handles_of_another_graph_are_rejected() {
     let mut out = g.image("out", Format::R32f);
     g.pass("mix", Role::All).read(&foreign).write(&mut out).record();
     g.export(&out);
-    assert!(matches!(compile(&g, &Single).unwrap_err(), GraphError::ForeignHandle { ref pass, .. } if pass == "mix"));
+    let refused = |err: &GraphError| matches!(err, GraphError::ForeignHandle { pass, .. } if pass == "mix");
+    assert!(g.declaration_error().is_some_and(refused), "refused when declared, before compiling");
+    assert!(refused(&compile(&g, &Single).unwrap_err()));
 }
 
 #[test]
