@@ -68,7 +68,7 @@ pub use path_trace::{
     trace_frame_data_lit,
 };
 pub use pixel_list::{
-    LIST_HEADER_WORDS, PIXEL_LIST, StridedPixelListKernel, list_groups, pixel_list_bytes, strided_pixels,
+    LIST_HEADER_WORDS, PIXEL_LIST, StridedPixelListKernel, StridedPixels, list_groups, pixel_list_bytes, strided_pixels,
 };
 pub use raster_gbuffer::{
     GBUFFER_RASTER, GbufferHandles, GbufferRasterKernel, GbufferRasterPush, RASTER_DEPTH, RASTER_OUTPUTS,

@@ -11,7 +11,7 @@
 //! [`StridedPixelListKernel`] writes a deterministic scattered selection into a plain buffer,
 //! which is what the subset-independence tests trace.
 
-use parallax_backend::{BackendError, ExecPass, PassKernel, Recorder, ResourceKind};
+use parallax_backend::{BackendError, ExecPass, PassKernel, Recorder, ResourceKind, WriteSlot};
 
 /// Pass name of [`StridedPixelListKernel`].
 pub const PIXEL_LIST: &str = "pixel_list";
@@ -62,37 +62,39 @@ pub struct StridedListPush {
 
 parallax_backend::push_constants!(StridedListPush { width, height, stride, phase, capacity, pad, list });
 
-/// Writes every `stride`-th pixel (row-major, from `phase`) of a `width`×`height` view into
-/// `writes[0]`, a per-view plain buffer (which has no image shape, hence the size here), as one
-/// whole-view list. Entries beyond the buffer's capacity are dropped.
-pub struct StridedPixelListKernel {
+/// Every `stride`-th pixel (row-major, from `phase`) of a `width`×`height` view: the list a
+/// [`StridedPixelListKernel`] writes (the view's size is given here because the list is a plain
+/// buffer, which has no image shape).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StridedPixels {
     pub width: u32,
     pub height: u32,
     pub stride: u32,
     pub phase: u32,
 }
 
+/// Writes the [`StridedPixels`] of `pixels` into its `list` write, a per-view plain buffer, as
+/// one whole-view list. Entries beyond the buffer's capacity are dropped.
+pub struct StridedPixelListKernel {
+    pub pixels: StridedPixels,
+    pub list: WriteSlot,
+}
+
 impl PassKernel for StridedPixelListKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
         let misuse = |detail: String| BackendError::KernelMisuse { kernel: PIXEL_LIST.into(), instance: index, detail };
-        if pass.writes.len() != 1 || !pass.reads.is_empty() {
-            return Err(misuse(format!(
-                "expects 1 write (the list buffer) and no read, got {} and {}",
-                pass.writes.len(),
-                pass.reads.len()
-            )));
-        }
-        let list = pass.writes[0].resource;
+        let list = pass.write(self.list)?.resource;
         let desc = rec.resource(list);
         if desc.kind != ResourceKind::Buffer || desc.height != 1 || desc.width < LIST_HEADER_WORDS {
             return Err(misuse(format!("`{}` must be a plain buffer with room for the list header", desc.name)));
         }
         let capacity = desc.width - LIST_HEADER_WORDS;
+        let StridedPixels { width, height, stride, phase } = self.pixels;
         let push = StridedListPush {
-            width: self.width,
-            height: self.height,
-            stride: self.stride.max(1),
-            phase: self.phase,
+            width,
+            height,
+            stride: stride.max(1),
+            phase,
             capacity,
             pad: 0,
             list: rec.buffer_of(list)?,

@@ -19,20 +19,22 @@ use crate::error::{PassError, Result};
 use crate::path_trace::{
     PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, TRACE_PARAMS_BYTES, pixels_from_images, trace_frame_data,
 };
-use crate::pixel_list::{PIXEL_LIST, StridedPixelListKernel, pixel_list_bytes};
+use crate::pixel_list::{PIXEL_LIST, StridedPixelListKernel, StridedPixels, pixel_list_bytes};
 use crate::scene_upload::upload_scene;
 
 /// Declares, for every view, one `path_trace` pass writing the four [`TRACE_OUTPUTS`] images
 /// (all exported, so finished views end on device 0). With a pixel list (its capacity in
-/// entries and the kernel that fills it) the pass first gets a `pixel_list` pass writing a
+/// entries and the pixels it holds) the pass first gets a `pixel_list` pass writing a
 /// per-view plain buffer with one whole-view list (header and entries, see
 /// [`crate::pixel_list`]) and traces only the listed pixels (both passes whole-view; per-band
 /// lists are hole filling's, [`crate::holes`]).
-pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPixelListKernel)>) -> [Handle<Image>; 4] {
+pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPixels)>) -> [Handle<Image>; 4] {
     let mut images = TRACE_OUTPUTS.map(|name| graph.image(name, Format::Rgba32f));
-    let list = pixel_list.map(|(entries, kernel)| {
+    let list = pixel_list.map(|(entries, pixels)| {
         let mut list = graph.buffer(PIXEL_LIST, pixel_list_bytes(entries));
-        graph.pass(PIXEL_LIST, Role::All).write(&mut list).whole_view().kernel(Arc::new(kernel)).record();
+        let mut pass = graph.pass(PIXEL_LIST, Role::All);
+        let kernel = StridedPixelListKernel { pixels, list: pass.write_slot(&mut list) };
+        pass.whole_view().kernel(Arc::new(kernel)).record();
         list
     });
     let mut pass = graph.pass(PATH_TRACE, Role::All);
@@ -60,7 +62,7 @@ pub fn trace_plan(
     (width, height): (u32, u32),
     devices: u32,
     scheme: Scheme,
-    pixel_list: Option<(u64, StridedPixelListKernel)>,
+    pixel_list: Option<(u64, StridedPixels)>,
 ) -> Result<ExecutionPlan> {
     let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
     // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
@@ -82,7 +84,7 @@ pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, de
 fn lower_trace(
     topology: ViewTopology,
     placement: &dyn Placement,
-    pixel_list: Option<(u64, StridedPixelListKernel)>,
+    pixel_list: Option<(u64, StridedPixels)>,
 ) -> Result<ExecutionPlan> {
     let mut graph = KernelGraph::with_payload(topology);
     declare_trace(&mut graph, pixel_list);

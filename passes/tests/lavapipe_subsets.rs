@@ -7,7 +7,7 @@ mod common;
 
 use parallax_backend::ExecutionPlan;
 use parallax_graph::Scheme;
-use parallax_passes::{GpuTracer, PATH_TRACE, StridedPixelListKernel, banded_trace_plan, strided_pixels, trace_plan};
+use parallax_passes::{GpuTracer, PATH_TRACE, StridedPixels, banded_trace_plan, strided_pixels, trace_plan};
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
 
@@ -30,8 +30,8 @@ fn render(devices: usize, plan: ExecutionPlan) -> Vec<Vec<GpuPixel>> {
     pixels
 }
 
-fn list(capacity: u64) -> Option<(u64, StridedPixelListKernel)> {
-    Some((capacity, StridedPixelListKernel { width: W, height: H, stride: STRIDE, phase: PHASE }))
+fn list(capacity: u64) -> Option<(u64, StridedPixels)> {
+    Some((capacity, StridedPixels { width: W, height: H, stride: STRIDE, phase: PHASE }))
 }
 
 #[test]
