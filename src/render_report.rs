@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 
-use parallax_backend::{EventKind, ExecutionPlan, FrameStats, Summary};
+use parallax_backend::{EventKind, EventTotals, ExecutionPlan, FrameStats, Summary};
 
 /// Mean GPU time of one stage on one device over the measured frames.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -75,10 +75,10 @@ pub struct Timings {
 
 /// Stage of an event: the pass name; `transfer` for display images moving to device 0 (Table
 /// 1's last stage), `copy` for every other transfer between devices.
-fn stage_of(name: &str, kind: EventKind) -> String {
-    match kind {
-        EventKind::Pass => name.to_string(),
-        _ if name.contains(" display view ") => "transfer".to_string(),
+fn stage_of(totals: &EventTotals) -> String {
+    match totals.kind {
+        EventKind::Pass => totals.name.clone(),
+        _ if totals.gather => "transfer".to_string(),
         _ => "copy".to_string(),
     }
 }
@@ -120,7 +120,7 @@ pub fn timings(stats: &FrameStats, prepare: &Summary) -> Timings {
     let mut copies = 0u64;
     let mut bytes = 0u64;
     for totals in stats.event_totals() {
-        let entry = stages.entry((stage_of(&totals.name, totals.kind), totals.device)).or_default();
+        let entry = stages.entry((stage_of(totals), totals.device)).or_default();
         entry.0 += totals.total_ns;
         entry.1 += totals.count;
         if totals.kind == EventKind::CopyIn {

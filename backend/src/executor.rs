@@ -774,6 +774,7 @@ impl Executor {
                     index: label.index,
                     chunk: label.chunk,
                     bytes: label.bytes,
+                    gather: label.gather,
                     start_ns: to_host(ticks[2 * t]),
                     end_ns: to_host(ticks[2 * t + 1]),
                 });

@@ -121,6 +121,8 @@ pub struct EventTotals {
     pub name: String,
     pub kind: EventKind,
     pub device: usize,
+    /// A copy of a finished view to device 0 ([`TimedEvent::gather`]).
+    pub gather: bool,
     /// Events (one per frame, or several where a label repeats within a frame).
     pub count: u64,
     pub total_ns: u64,
@@ -168,6 +170,7 @@ impl FrameStats {
                         name: event.name.clone(),
                         kind: event.kind,
                         device: event.device,
+                        gather: event.gather,
                         count: 0,
                         total_ns: 0,
                         bytes: 0,
@@ -274,6 +277,7 @@ mod tests {
                 index: 0,
                 chunk: 0,
                 bytes: 0,
+                gather: false,
                 start_ns,
                 end_ns,
             })

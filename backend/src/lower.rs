@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{Access, Format, Graph, Op, PassId, ResourceDesc, Schedule};
+use parallax_graph::{Access, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule};
 
 use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
 use crate::recorder::PassKernel;
@@ -137,6 +137,7 @@ impl ExecutionPlan {
                 rows: Region::new(c.region.y0, c.region.y1),
                 from: c.from.index(),
                 to: c.to.index(),
+                gather: c.kind == CopyKind::Gather,
             })
             .collect();
         let mut programs: Vec<_> = schedule.devices.iter().collect();

@@ -159,6 +159,9 @@ pub struct ExecCopy {
     pub rows: Region,
     pub from: usize,
     pub to: usize,
+    /// A finished view on its way to device 0 (the schedule's `CopyKind::Gather`, Table 1's
+    /// "transfer"), not an intermediate result another device reads.
+    pub gather: bool,
 }
 
 /// One step of a device program.

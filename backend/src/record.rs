@@ -37,6 +37,8 @@ pub(crate) struct TimerLabel {
     pub index: usize,
     pub chunk: u32,
     pub bytes: u64,
+    /// A copy of a finished view to device 0 ([`crate::ExecCopy::gather`]).
+    pub gather: bool,
     /// Queue the item runs on (timestamp width differs between queue families).
     pub queue: QueueKind,
 }
@@ -122,6 +124,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
             index: chunk.copy,
             chunk: chunk.index,
             bytes: resource.row_bytes() * u64::from(chunk.y1 - chunk.y0),
+            gather: copy.gather,
             queue,
         }
     };
@@ -139,6 +142,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
                     index: *p,
                     chunk: 0,
                     bytes: 0,
+                    gather: false,
                     queue,
                 }
             }
@@ -559,7 +563,8 @@ mod tests {
             ("svgf", &[1], &[8]),
         ]);
         let rows = parallax_graph::Region::new(0, 1);
-        plan.copies = vec![crate::plan::ExecCopy { resource: 3, dst: 3, version: 1, rows, from: 0, to: 1 }];
+        plan.copies =
+            vec![crate::plan::ExecCopy { resource: 3, dst: 3, version: 1, rows, from: 0, to: 1, gather: false }];
         let chunk = Chunk { copy: 0, index: 0, y0: 0, y1: 1 };
         let mut items: Vec<Item> = (0..7).map(Item::Pass).collect();
         items.insert(4, Item::CopyOut(chunk));

@@ -413,7 +413,15 @@ mod tests {
             ("fill", &[6], &[7]),
             ("tonemap", &[1], &[9]),
         ]);
-        let copy = |resource| ExecCopy { resource, dst: resource, version: 1, rows: Region::new(0, 1), from: 0, to: 1 };
+        let copy = |resource| ExecCopy {
+            resource,
+            dst: resource,
+            version: 1,
+            rows: Region::new(0, 1),
+            from: 0,
+            to: 1,
+            gather: false,
+        };
         plan.copies = vec![copy(1), copy(3), copy(9)];
         use ExecOp::{CopyOut, Pass, Signal, Wait};
         plan.devices[0] = vec![

@@ -30,6 +30,9 @@ pub struct TimedEvent {
     /// Chunk index for copies (0 for passes).
     pub chunk: u32,
     pub bytes: u64,
+    /// A copy of a finished view to device 0 ([`crate::ExecCopy::gather`]): Table 1's
+    /// "transfer" rather than a copy between stages.
+    pub gather: bool,
     pub start_ns: u64,
     pub end_ns: u64,
 }

@@ -104,6 +104,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                     rows,
                     from: device,
                     to: owner(v),
+                    gather: false,
                 };
                 add_copy(&mut plan, &mut phases, copy, 0);
             }
@@ -120,6 +121,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                 rows: all,
                 from: owner(source),
                 to: owner(v),
+                gather: false,
             };
             add_copy(&mut plan, &mut phases, copy, 1);
         }
@@ -156,6 +158,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                 rows: all,
                 from: owner(v),
                 to: 0,
+                gather: true,
             };
             add_copy(&mut plan, &mut phases, copy, 2);
         }
@@ -192,7 +195,7 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
             history_reads: vec![],
             writes: vec![ExecAccess::own("payload", 0, 0, 1, all)],
         }],
-        copies: vec![ExecCopy { resource: 0, dst: 0, version: 1, rows: all, from: 0, to: 1 }],
+        copies: vec![ExecCopy { resource: 0, dst: 0, version: 1, rows: all, from: 0, to: 1, gather: false }],
         devices: vec![
             vec![ExecOp::Pass(0), ExecOp::CopyOut(0), ExecOp::Signal(0)],
             vec![ExecOp::Wait(0), ExecOp::CopyIn(0)],
