@@ -495,6 +495,11 @@ fn a_second_run_into_a_locked_folder_is_refused() {
 }
 
 /// What would fail only after the work is found before it.
+/// A 4-spp CPU reference of 2 views of 4x4 into `out_dir`: the smallest run that writes views.
+fn tiny_reference(out_dir: &str) -> [&str; 12] {
+    ["reference", "--cpu", "--lf", "2x1", "--resolution", "4x4", "--spp", "4", "--chunk-spp", "4", "--out-dir", out_dir]
+}
+
 #[test]
 fn outputs_are_checked_before_the_work() {
     let dir = scratch("safety", "before");
@@ -508,25 +513,7 @@ fn outputs_are_checked_before_the_work() {
         1,
         &["--out-dir lf: view_001.exr there is a folder", "move it"],
     );
-    refused(
-        &dir,
-        &[
-            "reference",
-            "--cpu",
-            "--lf",
-            "2x1",
-            "--resolution",
-            "4x4",
-            "--spp",
-            "4",
-            "--chunk-spp",
-            "4",
-            "--out-dir",
-            "lf",
-        ],
-        1,
-        &["--out-dir lf: view_001.exr there is a folder"],
-    );
+    refused(&dir, &tiny_reference("lf"), 1, &["--out-dir lf: view_001.exr there is a folder"]);
     // A bench case's missing scene is found before any cell runs (no out/bench is made).
     refused(
         &dir,
@@ -537,23 +524,7 @@ fn outputs_are_checked_before_the_work() {
     // An immutable folder (where the file system and privileges allow making one).
     std::fs::create_dir(dir.join("frozen")).unwrap();
     if std::process::Command::new("chattr").args(["+i"]).arg(dir.join("frozen")).status().is_ok_and(|s| s.success()) {
-        let out = parallax_in(
-            &dir,
-            &[
-                "reference",
-                "--cpu",
-                "--lf",
-                "2x1",
-                "--resolution",
-                "4x4",
-                "--spp",
-                "4",
-                "--chunk-spp",
-                "4",
-                "--out-dir",
-                "frozen",
-            ],
-        );
+        let out = parallax_in(&dir, &tiny_reference("frozen"));
         let _ = std::process::Command::new("chattr").args(["-i"]).arg(dir.join("frozen")).status();
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{stderr}");

@@ -10,9 +10,8 @@
 //! (`parallax_scene::bsdf::Bsdf`), and the lavapipe tests that the GPU twin gives the same holes.
 
 use glam::Vec3;
+use parallax_scene::bsdf::{MIN_ALPHA, schlick_weight};
 
-/// Smallest GGX alpha of the material model (parallax_scene::bsdf, pt_constants.glsl).
-const MIN_ALPHA: f32 = 1e-3;
 /// Least Fresnel F0 the bound assumes (below it, black metal, the relative change of Schlick's
 /// Fresnel has no bound).
 const MIN_F0: f32 = 0.02;
@@ -36,10 +35,6 @@ pub struct ViewBound {
     pub diffuse_rate: f32,
 }
 
-fn schlick(c: f32) -> f32 {
-    (1.0 - c).clamp(0.0, 1.0).powi(5)
-}
-
 impl ViewBound {
     /// The bound at a surface of shading normal `n` seen along the unit `v` (towards the eye),
     /// of `base` colour, `metallic` and perceptual `roughness`; the dielectric specular factor
@@ -50,7 +45,7 @@ impl ViewBound {
         let c = n.dot(v).clamp(1e-4, 1.0);
         // The least cos(v, h) over every wi of the hemisphere: wi at grazing, opposite v.
         let c_min = 0.5 * ((1.0 + c).sqrt() - (1.0 - c).sqrt());
-        let fw = schlick(c);
+        let fw = schlick_weight(c);
         let f0 = Vec3::splat(0.04).lerp(base, metallic).max(Vec3::splat(MIN_F0));
         let f_v = f0 + (Vec3::ONE - f0) * fw;
         let diffuse = (1.0 - metallic) * base * (0.96 - 0.96 * fw);
@@ -59,7 +54,7 @@ impl ViewBound {
             if x >= 1.0 { 5.0 * (1.0 - f0) } else { (1.0 - f0) * x.powi(4) / f0 }
         });
         let tan_v = (1.0 - c * c).max(0.0).sqrt() / c;
-        let cd = schlick(c_min);
+        let cd = schlick_weight(c_min);
         let diffuse_slope = 5.0 * (cd / (1.0 - c_min)) * (1.0 - c_min * c_min).max(0.0).sqrt() / (1.0 - cd);
         Self {
             lobe_share: f_v / (f_v + LOBE_SHARE_K * a2 * c * c * diffuse),

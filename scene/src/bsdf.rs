@@ -13,7 +13,7 @@ use glam::Vec3;
 use crate::shading::SurfacePoint;
 
 /// Smallest GGX alpha: keeps the distribution finite for roughness 0 (near-mirror).
-const MIN_ALPHA: f32 = 1e-3;
+pub const MIN_ALPHA: f32 = 1e-3;
 
 /// Orthonormal basis around `n` (Duff et al., "Building an Orthonormal Basis, Revisited", 2017).
 pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
@@ -35,7 +35,7 @@ fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
-fn schlick_weight(cos: f32) -> f32 {
+pub fn schlick_weight(cos: f32) -> f32 {
     (1.0 - cos).clamp(0.0, 1.0).powi(5)
 }
 
