@@ -39,7 +39,7 @@ use crate::readback::{FrameReadback, FrameTicket, Readback};
 use crate::record::{SegmentContext, SegmentPlace, record_segment};
 use crate::relay::{Relay, RelayJob};
 use crate::segments::{
-    Chunk, Run, Segment, chunks_of_copies, cross_device_waits, progress_value, ready_value, segment_device,
+    Chunk, Run, Segment, chunks_of_copies, cross_device_waits, progress_value, ready_value, segment_devices,
     submission_order,
 };
 use crate::shaders::ShaderLibrary;
@@ -309,15 +309,9 @@ impl Executor {
             _ => None,
         };
         let mut states = Vec::with_capacity(self.devices.len());
-        for (d, device) in self.devices.iter().enumerate() {
-            let segments = segment_device(
-                &plan,
-                d,
-                &chunks,
-                self.options.chunk_bytes,
-                dropped_wait,
-                self.options.separate_copy_queue,
-            );
+        let cut =
+            segment_devices(&plan, &chunks, self.options.chunk_bytes, dropped_wait, self.options.separate_copy_queue);
+        for ((d, device), segments) in self.devices.iter().enumerate().zip(cut) {
             let state = create_device_state(device, &plan, d, segments, slots, &self.options, &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);

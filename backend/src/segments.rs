@@ -141,10 +141,31 @@ pub fn progress_value(frame: u64, segments: usize, segment: usize) -> u64 {
     frame * segments as u64 + segment as u64 + 1
 }
 
+/// Cuts every device's op list ([`segment_device`]), with the small copies of each pass's runs
+/// batched ([`recording_order`]) unless that makes the devices wait on each other in a cycle
+/// (a run's hoisted wait for a copy whose producer needs the run's own deferred output); then
+/// every copy stays in place, as the schedule lowered it.
+pub fn segment_devices(
+    plan: &ExecutionPlan,
+    chunks: &[Vec<Chunk>],
+    merge_bytes: u64,
+    dropped_wait: Option<usize>,
+    separate_copy_queue: bool,
+) -> Vec<Vec<Segment>> {
+    let cut = |batched: bool| -> Vec<Vec<Segment>> {
+        (0..plan.devices.len())
+            .map(|d| segment_device(plan, d, chunks, merge_bytes, dropped_wait, separate_copy_queue, batched))
+            .collect()
+    };
+    let batched = cut(true);
+    if submission_order(&cross_device_waits(&batched)).is_some() { batched } else { cut(false) }
+}
+
 /// Cuts `device`'s op list; consecutive single-chunk copies of one direction share a segment
-/// up to `merge_bytes`. `dropped_wait` (fault injection) leaves out the ready waits of one
-/// copy. With `separate_copy_queue`, copies go to [`QueueKind::Copy`] and a segment never mixes
-/// the two queues (the executor orders segments of different queues by the progress timeline).
+/// up to `merge_bytes`, and with `batched` they gather at the ends of each pass's runs.
+/// `dropped_wait` (fault injection) leaves out the ready waits of one copy. With
+/// `separate_copy_queue`, copies go to [`QueueKind::Copy`] and a segment never mixes the two
+/// queues (the executor orders segments of different queues by the progress timeline).
 pub fn segment_device(
     plan: &ExecutionPlan,
     device: usize,
@@ -152,8 +173,9 @@ pub fn segment_device(
     merge_bytes: u64,
     dropped_wait: Option<usize>,
     separate_copy_queue: bool,
+    batched: bool,
 ) -> Vec<Segment> {
-    let segments = segment_single_queue(plan, device, chunks, merge_bytes, dropped_wait);
+    let segments = segment_single_queue(plan, device, chunks, merge_bytes, dropped_wait, batched);
     if !separate_copy_queue {
         return segments;
     }
@@ -189,50 +211,125 @@ enum Tail {
     CopyOuts(u64),
 }
 
-/// Device `device`'s ops in recording order: the plan's, except that an instance of a pass
-/// whose kernel records groups (`PassKernel::records_groups`) moves up past the copy-outs and
-/// signals that separate it from the previous instance of that pass, when it writes nothing
-/// they copy. Lowering puts the gather of each band right after the pass that finishes it,
-/// which would cut a device's hole filling into one op per target band; this way consecutive
-/// instances stay one op (record.rs), and the copies start when the whole op is done. A pass
-/// never moves past a wait or a copy-in, so what it reads is there, and no wait is delayed.
-pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize) -> Vec<ExecOp> {
+/// Device `device`'s ops in recording order: the plan's, except within a run of instances of
+/// one pass (one kernel and name), which is recorded as a batch:
+/// * the copy-outs and signals that separate two instances move down to the end of the run,
+///   when the later instances write nothing they copy;
+/// * with `batch(c)` for a copy `c` (small copies when the schedule is batched, see
+///   [`segment_devices`]), its wait and copy-in move up to the start of the run, when no
+///   instance they pass reads or writes what it copies into.
+///
+/// Copies that are not batched keep their place: a wait for one ends the run. Always batched
+/// are the copy-outs of kernels that record groups ([`PassKernel::records_groups`]): lowering
+/// puts the gather of each band right after the pass that finishes it, which would cut a
+/// device's hole filling into one op per target band.
+///
+/// Why batch at all: the fine schemes give every (view, stage) its own copies; recorded in
+/// place, one stage of a 100-view light field on 4 devices is hundreds of submissions per
+/// device, each a cross-device hop whose latency (not its bytes) sets the frame time. Batched,
+/// a stage is a few submissions: its copy-ins, its passes, its copy-outs.
+///
+/// [`PassKernel::records_groups`]: crate::PassKernel::records_groups
+pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn Fn(usize) -> bool) -> Vec<ExecOp> {
     let groups = |p: usize| plan.kernels.0.get(plan.passes[p].kernel).is_some_and(|k| k.records_groups());
     let same_pass = |a: usize, b: usize| {
         let (a, b) = (&plan.passes[a], &plan.passes[b]);
         a.kernel == b.kernel && a.name == b.name
     };
-    let mut order = Vec::with_capacity(plan.devices[device].len());
-    // Copy-outs and signals held back behind the current group, and what those copies read.
-    let mut deferred: Vec<ExecOp> = Vec::new();
-    let mut copied: Vec<usize> = Vec::new();
-    let mut group: Option<usize> = None;
-    for &op in &plan.devices[device] {
+    let touches = |p: usize, resource: usize| {
+        let pass = &plan.passes[p];
+        pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).any(|a| a.resource == resource)
+    };
+    let ops = &plan.devices[device];
+    let mut order: Vec<ExecOp> = Vec::with_capacity(ops.len());
+    let mut run = Batch::default();
+    let mut i = 0;
+    while i < ops.len() {
+        let op = ops[i];
         match op {
             ExecOp::Pass(p)
-                if group.is_some_and(|first| same_pass(first, p))
-                    && !plan.passes[p].writes.iter().any(|w| copied.contains(&w.resource)) =>
+                if run.first.is_some_and(|first| same_pass(first, p))
+                    && !plan.passes[p].writes.iter().any(|w| run.copied.contains(&w.resource)) =>
             {
                 order.push(op);
             }
-            ExecOp::CopyOut(c) if group.is_some() => {
-                copied.push(plan.copies[c].resource);
-                deferred.push(op);
+            ExecOp::CopyOut(c) if run.defers(groups, batch, c) => {
+                run.copied.push(plan.copies[c].resource);
+                run.deferred.push(op);
             }
-            ExecOp::Signal(_) if group.is_some() => deferred.push(op),
+            ExecOp::Signal(c) if run.defers(groups, batch, c) => run.deferred.push(op),
+            ExecOp::Wait(c)
+                if run.first.is_some()
+                    && batch(c)
+                    && ops.get(i + 1) == Some(&ExecOp::CopyIn(c))
+                    && next_pass_continues(ops, i + 2, run.first, &same_pass)
+                    && !order[run.start..]
+                        .iter()
+                        .any(|&o| matches!(o, ExecOp::Pass(p) if touches(p, plan.copies[c].dst)))
+                    && !run.copied.contains(&plan.copies[c].dst) =>
+            {
+                run.hoisted.extend([op, ExecOp::CopyIn(c)]);
+                i += 1;
+            }
             _ => {
-                order.append(&mut deferred);
-                copied.clear();
-                group = match op {
-                    ExecOp::Pass(p) if groups(p) => Some(p),
-                    _ => None,
-                };
+                run.close(&mut order);
+                if let ExecOp::Pass(p) = op {
+                    run.first = Some(p);
+                    run.start = order.len();
+                }
                 order.push(op);
             }
         }
+        i += 1;
     }
-    order.append(&mut deferred);
+    run.close(&mut order);
     order
+}
+
+/// The run of one pass that [`recording_order`] is batching.
+#[derive(Default)]
+struct Batch {
+    /// Its first instance; `None` between runs.
+    first: Option<usize>,
+    /// Where that instance is in the recording order.
+    start: usize,
+    /// Copy-outs and signals held back to the end of the run, and the resources they read.
+    deferred: Vec<ExecOp>,
+    copied: Vec<usize>,
+    /// Waits and copy-ins moved up to the start of the run.
+    hoisted: Vec<ExecOp>,
+}
+
+impl Batch {
+    fn defers(&self, groups: impl Fn(usize) -> bool, batch: &dyn Fn(usize) -> bool, copy: usize) -> bool {
+        self.first.is_some_and(|first| groups(first) || batch(copy))
+    }
+
+    fn close(&mut self, order: &mut Vec<ExecOp>) {
+        let start = self.start.min(order.len());
+        order.splice(start..start, self.hoisted.drain(..));
+        order.append(&mut self.deferred);
+        self.copied.clear();
+        self.first = None;
+    }
+}
+
+/// Whether the op after a wait and its copy-in (at `next`) is another instance of the run's
+/// pass (or more copy-ins that lead to one): only then is the copy-in part of the run.
+fn next_pass_continues(
+    ops: &[ExecOp],
+    mut next: usize,
+    first: Option<usize>,
+    same_pass: &dyn Fn(usize, usize) -> bool,
+) -> bool {
+    while let Some(op) = ops.get(next) {
+        match *op {
+            ExecOp::Wait(_) | ExecOp::CopyIn(_) => next += 1,
+            ExecOp::Pass(p) => return first.is_some_and(|f| same_pass(f, p)),
+            ExecOp::CopyOut(_) | ExecOp::Signal(_) => return false,
+        }
+    }
+    false
 }
 
 fn segment_single_queue(
@@ -241,6 +338,7 @@ fn segment_single_queue(
     chunks: &[Vec<Chunk>],
     merge_bytes: u64,
     dropped_wait: Option<usize>,
+    batched: bool,
 ) -> Vec<Segment> {
     // A copy of one chunk shares its submission with its neighbours of the same direction, up
     // to `merge_bytes` together: the fine schemes send thousands of small copies per frame,
@@ -252,7 +350,8 @@ fn segment_single_queue(
     let mut segments = Vec::new();
     let mut current = Segment::default();
     let mut tail = Tail::Closed;
-    for op in &recording_order(plan, device) {
+    let batch = |c: usize| batched && small(c);
+    for op in &recording_order(plan, device, &batch) {
         match *op {
             ExecOp::Pass(p) => {
                 // A copy-out ends its segment: the relay forwards it once the segment is done.
@@ -387,16 +486,16 @@ mod tests {
         assert_eq!(heights, band_rows(256, 64));
         assert_eq!(chunks[0].last().map(|c| c.y1), Some(256));
         let n = chunks[0].len();
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false, false);
         assert_eq!(producer.len(), n);
         assert_eq!(producer[0].items.len(), 2, "fill + first chunk");
         assert!(producer.iter().all(|s| s.relays.len() == 1 && s.waits.is_empty()));
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false, false);
         assert_eq!(consumer.len(), n);
         for (i, s) in consumer.iter().enumerate() {
             assert_eq!(s.waits, vec![ReadyWait { copy: 0, chunk: i as u32 }]);
         }
-        let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(0), false);
+        let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(0), false, false);
         assert!(dropped.iter().all(|s| s.waits.is_empty()));
     }
 
@@ -452,10 +551,105 @@ mod tests {
             Pass(4),
             Pass(5),
         ];
-        assert_eq!(recording_order(&plan, 0), expected);
+        assert_eq!(recording_order(&plan, 0, &|_| false), expected);
         // Copies between passes that do not record groups stay where they are.
         plan.passes.iter_mut().for_each(|p| p.kernel = 0);
-        assert_eq!(recording_order(&plan, 0), plan.devices[0]);
+        assert_eq!(recording_order(&plan, 0, &|_| false), plan.devices[0]);
+    }
+
+    #[test]
+    fn batched_small_copies_gather_at_the_ends_of_a_run_unless_an_instance_touches_them() {
+        use crate::plan::{ExecCopy, Region};
+        use ExecOp::{CopyIn, CopyOut, Pass, Signal, Wait};
+        // A pass that does not record groups, over four views: each reads a band copied in
+        // (resources 10..13) and writes what is copied out (1, 3, 5, 7); view 2 also reads 13,
+        // which view 3's copy-in writes; then another pass.
+        let mut plan = crate::record::grouping_plans::plan(&[
+            ("atrous", &[10], &[1]),
+            ("atrous", &[11], &[3]),
+            ("atrous", &[12, 13], &[5]),
+            ("atrous", &[13], &[7]),
+            ("tonemap", &[7], &[9]),
+        ]);
+        let copy = |resource, dst| ExecCopy {
+            resource,
+            dst,
+            version: 1,
+            rows: Region::new(0, 1),
+            from: 0,
+            to: 1,
+            gather: false,
+        };
+        plan.copies = vec![copy(1, 1), copy(3, 3), copy(5, 5), copy(7, 7), copy(20, 11), copy(21, 12), copy(22, 13)];
+        plan.devices[0] = vec![
+            Pass(0),
+            CopyOut(0),
+            Signal(0),
+            Wait(4),
+            CopyIn(4),
+            Pass(1),
+            CopyOut(1),
+            Signal(1),
+            Wait(5),
+            CopyIn(5),
+            Pass(2),
+            CopyOut(2),
+            Signal(2),
+            Wait(6),
+            CopyIn(6),
+            Pass(3),
+            CopyOut(3),
+            Signal(3),
+            Pass(4),
+        ];
+        let batched = vec![
+            Wait(4),
+            CopyIn(4),
+            Wait(5),
+            CopyIn(5),
+            Pass(0),
+            Pass(1),
+            Pass(2),
+            CopyOut(0),
+            Signal(0),
+            CopyOut(1),
+            Signal(1),
+            CopyOut(2),
+            Signal(2),
+            // Pass 2 reads 13, which copy 6 writes: it stays after pass 2 and ends the run.
+            Wait(6),
+            CopyIn(6),
+            Pass(3),
+            CopyOut(3),
+            Signal(3),
+            Pass(4),
+        ];
+        assert_eq!(recording_order(&plan, 0, &|_| true), batched);
+        // A copy that is not batched (a large one) keeps its place, and its wait ends the run.
+        let one_kept = vec![
+            Wait(4),
+            CopyIn(4),
+            Pass(0),
+            Pass(1),
+            CopyOut(0),
+            Signal(0),
+            CopyOut(1),
+            Signal(1),
+            Wait(5),
+            CopyIn(5),
+            Pass(2),
+            CopyOut(2),
+            Signal(2),
+            Wait(6),
+            CopyIn(6),
+            Pass(3),
+            CopyOut(3),
+            Signal(3),
+            Pass(4),
+        ];
+        assert_eq!(recording_order(&plan, 0, &|c| c != 5), one_kept);
+        // Nothing batched: the plan's order.
+        assert_eq!(recording_order(&plan, 0, &|_| false), plan.devices[0]);
     }
 
     #[test]
@@ -474,13 +668,13 @@ mod tests {
     fn a_separate_copy_queue_never_mixes_queues_in_a_segment() {
         let plan = copy_plan(256, 256).unwrap();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true, false);
         let queues: Vec<QueueKind> = producer.iter().map(|s| s.queue).collect();
         let n = chunks[0].len();
         assert_eq!(queues, [vec![QueueKind::Main], vec![QueueKind::Copy; n]].concat());
         assert!(producer[0].relays.is_empty(), "the fill completes no chunk");
         assert!(producer[1..].iter().all(|s| s.relays.len() == 1 && s.items.len() == 1));
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true, false);
         assert_eq!(consumer.len(), n + 1, "the copy-ins, then the receiving pass");
         assert!(consumer[..n].iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
         assert_eq!(consumer[n].queue, QueueKind::Main);
@@ -493,9 +687,9 @@ mod tests {
             resource.format = crate::plan::Format::Depth32f;
         }
         let chunks = chunks_of_copies(&plan, 64 * 64);
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true, false);
         assert!(producer[1..].iter().all(|s| s.queue == QueueKind::Copy), "copies out of depth may use the copy queue");
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true, false);
         let copy_ins: Vec<&Segment> = consumer.iter().filter(|s| !s.waits.is_empty()).collect();
         assert!(!copy_ins.is_empty());
         assert!(copy_ins.iter().all(|s| s.queue == QueueKind::Main), "a transfer-only queue may not write depth");
@@ -538,7 +732,7 @@ mod tests {
         let plan = copy_plan(256, 256).unwrap();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
         let segments: Vec<Vec<Segment>> =
-            (0..2).map(|d| segment_device(&plan, d, &chunks, 256 * 1024, None, false)).collect();
+            (0..2).map(|d| segment_device(&plan, d, &chunks, 256 * 1024, None, false, false)).collect();
         let waits = cross_device_waits(&segments);
         assert!(waits[0].iter().all(Vec::is_empty), "the producer waits for nobody");
         let expected: Vec<Vec<(usize, usize)>> = (0..chunks[0].len()).map(|i| vec![(0, i)]).collect();
@@ -556,25 +750,25 @@ mod tests {
         let chunks = chunks_of_copies(&plan, 256 * 1024);
         assert!(chunks.iter().all(|c| c.len() == 1));
         let copy_ins = |s: &Segment| s.items.iter().filter(|i| matches!(i, Item::CopyIn(_))).count();
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false, false);
         assert_eq!(consumer.len(), 1, "three copy-ins and the receiving pass: {consumer:?}");
         assert_eq!((copy_ins(&consumer[0]), consumer[0].waits.len()), (3, 3));
-        let capped = segment_device(&plan, 1, &chunks, 128 * 1024, None, false);
+        let capped = segment_device(&plan, 1, &chunks, 128 * 1024, None, false, false);
         assert_eq!(capped.iter().map(copy_ins).collect::<Vec<_>>(), vec![2, 1]);
         assert!(capped.iter().all(|s| s.waits.len() == copy_ins(s)));
         let copy = match capped[0].items[0] {
             Item::CopyIn(chunk) => chunk.copy,
             _ => unreachable!("a copy-in starts the segment"),
         };
-        let faulty = segment_device(&plan, 1, &chunks, 256 * 1024, Some(copy), false);
+        let faulty = segment_device(&plan, 1, &chunks, 256 * 1024, Some(copy), false, false);
         assert_eq!(faulty.iter().map(copy_ins).collect::<Vec<_>>(), vec![1, 2], "the fault's copy alone");
         // Producer: a pass between the copy-outs; each copy-out ends its segment.
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false, false);
         assert!(producer.iter().all(|s| s.relays.len() == 1));
         // A chunked copy: one segment per chunk, whatever the cap.
         let big = copy_plan(256, 256).unwrap();
         let big_chunks = chunks_of_copies(&big, 256 * 1024);
-        let consumer = segment_device(&big, 1, &big_chunks, u64::MAX, None, false);
+        let consumer = segment_device(&big, 1, &big_chunks, u64::MAX, None, false, false);
         assert_eq!(consumer.len(), big_chunks[0].len());
     }
 }

@@ -213,8 +213,8 @@ fn barriers_only_where_accesses_conflict_and_per_stage_timing_give_the_same_bits
     }
 }
 
-/// Fine-all on four logical devices cuts a frame into hundreds of submissions per device, the
-/// copy-ins waiting for other devices' copy-outs. With one queued submission per device (a
+/// Fine-all on four logical devices cuts a frame into submissions per device whose copy-ins
+/// wait for other devices' copy-outs. With one queued submission per device (a
 /// driver whose queue is full blocks the next vkQueueSubmit until the GPU has made progress),
 /// the host may only submit a segment once everything it waits for is submitted: a whole
 /// device's frame before the next device's would wait forever on device 0 (NVIDIA: until the
@@ -230,9 +230,11 @@ fn fine_all_on_four_devices_runs_with_one_queued_submission_per_device() {
     let narrow = ExecOptions { max_queued_segments: 1, ..Default::default() };
     let (four, reports) = run_with(&scene, &lf, &plan, &plan, 0..FRAMES, None, narrow);
     assert_eq!(reports.len(), FRAMES as usize);
-    // Hundreds of submissions per device (212 at this size), most of them waiting for others.
+    // The small copies of each stage are batched at the ends of its runs: a few submissions
+    // per stage (27 per device at this size, 13 stages), most of them waiting for other
+    // devices, instead of one per view and stage (212 before batching).
     let per_device = reports[0].submitted_segments / 4;
-    assert!(per_device > 100, "{per_device} segments per device");
+    assert!((13..=40).contains(&per_device), "{per_device} segments per device");
     let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
     assert!(finite(&four));
     assert!(four == one, "4 devices and 1 device differ");
