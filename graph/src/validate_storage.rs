@@ -1,7 +1,7 @@
 //! The storage and shape rules of `Schedule::validate()`: ids that point nowhere, accesses whose
 //! allocation is not where they run, writes that share an allocation with a read without saying
-//! so, write-after-read and write-after-write hazards on an allocation, history read away from
-//! its device, and row bands that do not tile a view.
+//! so, write-after-read and write-after-write hazards on an allocation, and row bands that do
+//! not tile a view (history pairs: validate_history.rs).
 //!
 //! Within a device every op is ordered (the executor puts a barrier before each op and chains
 //! its queues), so a hazard is an op order in which an allocation is touched at an older
@@ -64,6 +64,13 @@ impl Schedule {
                 dangling("allocation", a, "resource", alloc.resource.0);
             }
         }
+        for (p, pair) in self.history.iter().enumerate() {
+            for id in [pair.current, pair.previous] {
+                if id.index() >= self.allocations.len() {
+                    dangling("history pair", p, "allocation", id.0);
+                }
+            }
+        }
         errors
     }
 
@@ -78,12 +85,6 @@ impl Schedule {
                 if !holds(a.alloc, a, inst.device) {
                     let (resource, version, alloc) = (a.resource, a.version, a.alloc);
                     errors.push(ScheduleError::AllocationMismatch { instance, resource, version, alloc });
-                }
-            }
-            for h in &inst.history_reads {
-                let info = self.allocation(h.alloc);
-                if info.device != inst.device || !info.history || info.resource != h.resource {
-                    errors.push(ScheduleError::HistoryOnOtherDevice { instance, resource: h.resource, alloc: h.alloc });
                 }
             }
             for w in inst.writes.iter().filter(|w| !w.in_place) {
