@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{Access, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule};
+use parallax_graph::{Access, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule, ScheduleError};
 
 use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
 use crate::recorder::PassKernel;
@@ -23,18 +23,20 @@ pub enum LowerError {
     DevicePrograms { found: Vec<u32>, expected: usize },
     #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
     MissingKernel { pass: String },
-    #[error("the schedule does not validate: {0}")]
-    Invalid(String),
+    #[error("the schedule does not validate: {first} ({problems} problem(s) in all)")]
+    Invalid { first: ScheduleError, problems: usize },
 }
 
 impl ExecutionPlan {
-    /// Lowers `schedule`, compiled from `graph`. The schedule must pass
-    /// `Schedule::validate()` (checked here: a plan that breaks the storage rules would race);
-    /// `ExecutionPlan::validate` (the executor runs it) checks the execution invariants.
+    /// Lowers `schedule`, compiled from `graph`. The schedule must pass `Schedule::validate()`,
+    /// checked here: it is the one proof of the plan's ids, rows, op order, copies, history pairs
+    /// and storage; `ExecutionPlan::validate` (the executor runs it) adds only what the backend
+    /// knows (device count, kernels, resets).
     pub fn from_schedule(graph: &KernelGraph, schedule: &Schedule) -> Result<ExecutionPlan, LowerError> {
-        let report = schedule.validate();
-        if let Some(first) = report.errors.first() {
-            return Err(LowerError::Invalid(format!("{first} ({} problem(s) in all)", report.errors.len())));
+        let mut errors = schedule.validate().errors;
+        if !errors.is_empty() {
+            let problems = errors.len();
+            return Err(LowerError::Invalid { first: errors.swap_remove(0), problems });
         }
         let mut kernels = Kernels::default();
         let mut kernel_of: HashMap<PassId, usize> = HashMap::new();

@@ -93,6 +93,10 @@ pub enum ScheduleError {
     PreviousHalfHoldsVersions { alloc: AllocId, versions: Vec<u32> },
     #[error("{op:?} touches allocation {alloc}, the previous half of a history pair: only history reads may see it")]
     PreviousHalfTouched { alloc: AllocId, op: Op },
+    #[error("{resource} has no texels or bytes")]
+    EmptyResource { resource: ResourceId },
+    #[error("{what} {index}: rows {rows} are empty or outside the {height} rows of {resource}")]
+    RowsOutsideResource { what: &'static str, index: u32, resource: ResourceId, rows: Region, height: u32 },
     #[error("the instances of {pass} for view {view} do not tile its rows exactly (rows 0..{height})")]
     BandsDoNotTile { pass: PassId, view: ViewId, height: u32 },
 }
@@ -155,6 +159,7 @@ impl Schedule {
         self.check_storage(&mut errors);
         self.check_history(&mut errors);
         self.check_bands(&mut errors);
+        self.check_shapes(&mut errors);
         ValidationReport { errors }
     }
 
