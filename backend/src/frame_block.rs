@@ -6,6 +6,10 @@
 //!
 //! [`FrameClock`] turns each frame's cameras into a block, remembering last frame's; the block
 //! travels as the [`FRAME_BLOCK_SECTION`] section of the per-frame data ([`crate::FrameData`]).
+//! The frame index and the history flag have one source, the executor ([`FrameConstants`]): it
+//! writes them into the frame constants every kernel sees and into this block's header when it
+//! submits the frame, so the two always agree (a plan change or `Executor::reset_history` clears
+//! the flag in both).
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
@@ -42,15 +46,40 @@ impl GpuCamera {
     }
 }
 
+/// The frame index and history flag of one frame, as the executor writes them at submission:
+/// the frame constants of bindless.glsl (`frame.frame_index`, `frame.history_valid`) and the first
+/// two words of the frame block's header ([`FrameHeader`]) have this layout.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct FrameConstants {
+    /// Frames the executor submitted before this one (wraps at 2³²).
+    pub frame_index: u32,
+    /// 0 on the first frame of a plan and after `Executor::reset_history` (a camera cut): what
+    /// history reads and the previous cameras hold then must not be reused; 1 otherwise.
+    pub history_valid: u32,
+}
+
+impl FrameConstants {
+    pub fn new(frame: u64, history_valid: bool) -> Self {
+        Self { frame_index: frame as u32, history_valid: u32::from(history_valid) }
+    }
+
+    /// Writes these constants over the first 8 bytes of `header` (a frame block's header, or the
+    /// frame constants buffer), if it is that long.
+    pub(crate) fn write_into(&self, header: &mut [u8]) {
+        if let Some(words) = header.get_mut(..size_of::<Self>()) {
+            words.copy_from_slice(bytemuck::bytes_of(self));
+        }
+    }
+}
+
 /// The block's header (the first four members of `FrameBlock` in frame_block.glsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct FrameHeader {
-    /// Frames since the clock started (wraps at 2³²).
-    pub frame_index: u32,
-    /// 1 if every view's `previous` camera is last frame's, 0 on the first frame and after a
-    /// camera cut (then `previous` equals `current`, and history must not be reused).
-    pub history_valid: u32,
+    /// Written by the executor when it submits the frame ([`FrameConstants`]); a block built on
+    /// the host carries zeros here.
+    pub constants: FrameConstants,
     pub view_count: u32,
     pub pad: u32,
 }
@@ -80,10 +109,10 @@ impl FrameBlock {
 }
 
 /// Camera history from frame to frame: last frame's current camera of each view becomes this
-/// frame's previous one.
+/// frame's previous one. Whether kernels may use it is the executor's history flag
+/// ([`FrameConstants::history_valid`]).
 #[derive(Clone, Debug, Default)]
 pub struct FrameClock {
-    frame_index: u32,
     last: Option<Vec<GpuCamera>>,
 }
 
@@ -92,8 +121,8 @@ impl FrameClock {
         Self::default()
     }
 
-    /// The block of the next frame, whose views see `cameras`. History is invalid on the first
-    /// frame, after [`Self::reset_history`], and when the number of views changed.
+    /// The block of the next frame, whose views see `cameras`. A view's previous camera is its
+    /// current one on the first frame and when the number of views changed.
     pub fn advance(&mut self, cameras: &[GpuCamera]) -> FrameBlock {
         let previous = self.last.as_ref().filter(|last| last.len() == cameras.len());
         let views = cameras
@@ -102,24 +131,12 @@ impl FrameClock {
             .map(|(v, &current)| ViewCameras { current, previous: previous.map_or(current, |p| p[v]) })
             .collect();
         let header = FrameHeader {
-            frame_index: self.frame_index,
-            history_valid: u32::from(previous.is_some()),
+            constants: FrameConstants::default(),
             view_count: u32::try_from(cameras.len()).unwrap_or(u32::MAX),
             pad: 0,
         };
         self.last = Some(cameras.to_vec());
-        self.frame_index = self.frame_index.wrapping_add(1);
         FrameBlock { header, views }
-    }
-
-    /// A camera cut: the next frame has no usable history.
-    pub fn reset_history(&mut self) {
-        self.last = None;
-    }
-
-    /// Index the next [`Self::advance`] gives its block.
-    pub fn next_frame_index(&self) -> u32 {
-        self.frame_index
     }
 }
 
@@ -132,22 +149,26 @@ mod tests {
     }
 
     #[test]
-    fn previous_is_last_frames_current_until_a_cut() {
+    fn previous_is_last_frames_current_while_the_views_stay() {
         let mut clock = FrameClock::new();
         let first = clock.advance(&[camera(1.0), camera(2.0)]);
-        assert_eq!(first.header, FrameHeader { frame_index: 0, history_valid: 0, view_count: 2, pad: 0 });
+        assert_eq!(first.header, FrameHeader { constants: FrameConstants::default(), view_count: 2, pad: 0 });
         assert!(first.views.iter().all(|v| v.previous == v.current));
         let second = clock.advance(&[camera(3.0), camera(4.0)]);
-        assert_eq!((second.header.frame_index, second.header.history_valid), (1, 1));
         assert_eq!(second.views[0].previous, camera(1.0));
         assert_eq!(second.views[1].previous, camera(2.0));
-        clock.reset_history();
-        let cut = clock.advance(&[camera(5.0), camera(6.0)]);
-        assert_eq!((cut.header.frame_index, cut.header.history_valid), (2, 0));
-        assert!(cut.views.iter().all(|v| v.previous == v.current));
         let fewer = clock.advance(&[camera(7.0)]);
-        assert_eq!(fewer.header.history_valid, 0, "a view that did not exist last frame has no history");
-        assert_eq!(clock.next_frame_index(), 4);
+        assert_eq!(fewer.views[0].previous, camera(7.0), "a view that did not exist last frame has no history");
+    }
+
+    #[test]
+    fn the_executors_constants_go_over_the_headers_first_words() {
+        let mut bytes = FrameClock::new().advance(&[camera(1.0)]).to_bytes();
+        FrameConstants::new(u64::from(u32::MAX) + 3, true).write_into(&mut bytes);
+        assert_eq!(&bytes[..12], &[2u32.to_le_bytes(), 1u32.to_le_bytes(), 1u32.to_le_bytes()].concat());
+        let mut short = [0u8; 4];
+        FrameConstants::new(1, true).write_into(&mut short);
+        assert_eq!(short, [0; 4], "too short to hold them: left alone");
     }
 
     #[test]

@@ -23,8 +23,9 @@
 //! * [`PushConstants`] ([`push_constants!`]): a kernel's push-constant struct names its fields;
 //!   each pipeline's shader block is reflected from the SPIR-V when it is created, and a
 //!   struct that differs is refused with [`BackendError::PushConstantLayout`].
-//! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera and the frame
-//!   index, as `shaders/include/frame_block.glsl` declares them.
+//! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera, as
+//!   `shaders/include/frame_block.glsl` declares them; the executor writes its frame index and
+//!   history flag ([`FrameConstants`]) into the block's header and the frame constants.
 //! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
 //!   [`Executor::wait_readback`] returns one frame's exported resources.
 //! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]);
@@ -113,7 +114,9 @@ pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
 pub use executor::{Barriers, ExecOptions, Executor, FaultInjection, Timing};
-pub use frame_block::{FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameHeader, GpuCamera, ViewCameras};
+pub use frame_block::{
+    FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameConstants, FrameHeader, GpuCamera, ViewCameras,
+};
 pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use frame_stats::{EventTotals, FrameStats, SUMMARY_SAMPLE, Summary};
 pub use instance::{Instance, Validation, validation_from_env};

@@ -1,6 +1,6 @@
 //! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
-//! [`ExecutionPlan`]: allocations become resources (history allocations two: the halves swapped by frame
-//! parity), accesses keep their resource name, declaration index (what slot tokens name) and
+//! [`ExecutionPlan`]: allocations become resources (a history pair's halves, swapped by frame parity, are
+//! its `history_pairs`), accesses keep their resource name, declaration index (what slot tokens name) and
 //! origin, each pass instance points at the kernel its pass was declared with, device programs
 //! are ordered by device id. Nothing is re-planned;
 //! the schedule's op order is kept exactly.
@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{Access, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule};
+use parallax_graph::{Access, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule, ScheduleError};
 
 use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
 use crate::recorder::PassKernel;
@@ -23,18 +23,20 @@ pub enum LowerError {
     DevicePrograms { found: Vec<u32>, expected: usize },
     #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
     MissingKernel { pass: String },
-    #[error("the schedule does not validate: {0}")]
-    Invalid(String),
+    #[error("the schedule does not validate: {first} ({problems} problem(s) in all)")]
+    Invalid { first: ScheduleError, problems: usize },
 }
 
 impl ExecutionPlan {
-    /// Lowers `schedule`, compiled from `graph`. The schedule must pass
-    /// `Schedule::validate()` (checked here: a plan that breaks the storage rules would race);
-    /// `ExecutionPlan::validate` (the executor runs it) checks the execution invariants.
+    /// Lowers `schedule`, compiled from `graph`. The schedule must pass `Schedule::validate()`,
+    /// checked here: it is the one proof of the plan's ids, rows, op order, copies, history pairs
+    /// and storage; `ExecutionPlan::validate` (the executor runs it) adds only what the backend
+    /// knows (device count, kernels, resets).
     pub fn from_schedule(graph: &KernelGraph, schedule: &Schedule) -> Result<ExecutionPlan, LowerError> {
-        let report = schedule.validate();
-        if let Some(first) = report.errors.first() {
-            return Err(LowerError::Invalid(format!("{first} ({} problem(s) in all)", report.errors.len())));
+        let mut errors = schedule.validate().errors;
+        if !errors.is_empty() {
+            let problems = errors.len();
+            return Err(LowerError::Invalid { first: errors.swap_remove(0), problems });
         }
         let mut kernels = Kernels::default();
         let mut kernel_of: HashMap<PassId, usize> = HashMap::new();
@@ -48,53 +50,17 @@ impl ExecutionPlan {
             kernel_of.insert(inst.pass, kernels.0.len() - 1);
         }
 
-        let mut resources: Vec<ExecResource> = schedule
-            .allocations
-            .iter()
-            .enumerate()
-            .map(|(a, alloc)| {
-                let info = schedule.resource(alloc.resource);
-                let (width, height, format, kind) = match info.desc {
-                    ResourceDesc::Image { width, height, format } => (width, height, format, ResourceKind::Image),
-                    // A buffer is rows of 32-bit words: one row, or one per image row for a row
-                    // buffer, so its bands are copied like an image's.
-                    ResourceDesc::Buffer { .. } | ResourceDesc::RowBuffer { .. } => {
-                        let words = info.desc.row_bytes().div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;
-                        (words, info.desc.rows(), Format::R32u, ResourceKind::Buffer)
-                    }
-                };
-                ExecResource {
-                    name: info.name.clone(),
-                    view: info.view.0,
-                    width,
-                    height,
-                    format,
-                    kind,
-                    storage: a as u32,
-                    // The allocation on device 0 holding a view's finished version is what
-                    // the frame loop reads back.
-                    exported: alloc.device.index() == 0 && info.exported.is_some_and(|v| alloc.versions.contains(&v)),
-                    // Only the allocation holding the frame's starting contents is reset.
-                    reset: info.reset.clone().filter(|_| alloc.versions.contains(&0)),
-                }
+        // A history pair's previous half holds no version of the frame: it is its current half's
+        // twin, read back through the parity map as the half the frame wrote.
+        let twin_of: HashMap<usize, usize> =
+            schedule.history.iter().map(|p| (p.previous.index(), p.current.index())).collect();
+        let resources: Vec<ExecResource> = (0..schedule.allocations.len())
+            .map(|a| match twin_of.get(&a) {
+                Some(&current) => ExecResource { storage: a as u32, exported: false, ..resource_of(schedule, current) },
+                None => resource_of(schedule, a),
             })
             .collect();
-        // The other half of each history allocation.
-        let mut history_pairs = Vec::new();
-        let mut previous_of: HashMap<usize, usize> = HashMap::new();
-        for (a, alloc) in schedule.allocations.iter().enumerate().filter(|(_, alloc)| alloc.history) {
-            let twin = ExecResource {
-                storage: (schedule.allocations.len() + history_pairs.len()) as u32,
-                // Read back through the parity map, as the half the frame wrote.
-                exported: false,
-                ..resources[a].clone()
-            };
-            resources.push(twin);
-            let b = resources.len() - 1;
-            history_pairs.push((a, b));
-            previous_of.insert(a, b);
-            debug_assert!(alloc.history);
-        }
+        let history_pairs = schedule.history.iter().map(|p| (p.current.index(), p.previous.index())).collect();
 
         let rows_of = |a: &Access| Region::new(a.region.y0, a.region.y1);
         let passes = schedule
@@ -119,11 +85,7 @@ impl ExecutionPlan {
                     device: p.device.index(),
                     reads: p.reads.iter().map(|a| access(a, &info.reads, a.alloc.index())).collect(),
                     writes: p.writes.iter().map(|a| access(a, &info.writes, a.alloc.index())).collect(),
-                    history_reads: p
-                        .history_reads
-                        .iter()
-                        .map(|a| access(a, &info.reads, previous_of[&a.alloc.index()]))
-                        .collect(),
+                    history_reads: p.history_reads.iter().map(|a| access(a, &info.reads, a.alloc.index())).collect(),
                 }
             })
             .collect();
@@ -162,5 +124,34 @@ impl ExecutionPlan {
             })
             .collect();
         Ok(ExecutionPlan { resources, passes, copies, devices, history_pairs, kernels })
+    }
+}
+
+/// The executor resource of allocation `a`.
+fn resource_of(schedule: &Schedule, a: usize) -> ExecResource {
+    let alloc = &schedule.allocations[a];
+    let info = schedule.resource(alloc.resource);
+    let (width, height, format, kind) = match info.desc {
+        ResourceDesc::Image { width, height, format } => (width, height, format, ResourceKind::Image),
+        // A buffer is rows of 32-bit words: one row, or one per image row for a row buffer, so
+        // its bands are copied like an image's.
+        ResourceDesc::Buffer { .. } | ResourceDesc::RowBuffer { .. } => {
+            let words = info.desc.row_bytes().div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;
+            (words, info.desc.rows(), Format::R32u, ResourceKind::Buffer)
+        }
+    };
+    ExecResource {
+        name: info.name.clone(),
+        view: info.view.0,
+        width,
+        height,
+        format,
+        kind,
+        storage: a as u32,
+        // The allocation on device 0 holding a view's finished version is what the frame loop
+        // reads back.
+        exported: alloc.device.index() == 0 && info.exported.is_some_and(|v| alloc.versions.contains(&v)),
+        // Only the allocation holding the frame's starting contents is reset.
+        reset: info.reset.clone().filter(|_| alloc.versions.contains(&0)),
     }
 }

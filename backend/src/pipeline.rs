@@ -23,6 +23,7 @@ use gpu_allocator::MemoryLocation;
 
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
+use crate::frame_block::FrameConstants;
 use crate::memory::{Buffer, Image};
 use crate::plan::Format;
 use crate::reflect::{MemberLayout, push_constant_block};
@@ -270,10 +271,9 @@ impl Bindless {
     }
 
     /// Writes the frame constants of `slot` (the slot must not be in flight).
-    pub(crate) fn set_frame_constants(&mut self, slot: usize, frame_index: u64, history_valid: bool) {
+    pub(crate) fn set_frame_constants(&mut self, slot: usize, constants: FrameConstants) {
         if let Some(bytes) = self.frame_constants[slot].mapped_mut() {
-            bytes[..4].copy_from_slice(&(frame_index as u32).to_le_bytes());
-            bytes[4..8].copy_from_slice(&u32::from(history_valid).to_le_bytes());
+            constants.write_into(bytes);
         }
     }
 

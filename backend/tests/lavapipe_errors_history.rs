@@ -9,7 +9,8 @@ use parallax_backend::{
     KernelGraph, LowerError, Validation,
 };
 use parallax_graph::{
-    BandedPlacement, DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile,
+    BandedPlacement, CopyId, DeviceId, Format, Op, PassPlacementInfo, Placement, Region, Role, ScheduleError, ViewId,
+    ViewTopology, compile,
 };
 use parallax_testkit::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
 
@@ -77,8 +78,8 @@ fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
 }
 
 /// `views` views of `size`², each accumulating into `acc` from its own history (`read_history`),
-/// exported; under `placement`.
-fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> ExecutionPlan {
+/// exported.
+fn history_graph(views: u32, size: u32) -> KernelGraph {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, size, size));
     let mut acc = graph.image("acc", Format::Rgba32f);
     let mut pass = graph.pass("accumulate", Role::All);
@@ -86,7 +87,12 @@ fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> ExecutionPl
     let kernel = AccumulateKernel { acc: pass.write_slot(&mut acc), history };
     pass.kernel(Arc::new(kernel)).record();
     graph.export(&acc);
-    lower(&graph, placement)
+    graph
+}
+
+/// [`history_graph`] under `placement`.
+fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> ExecutionPlan {
+    lower(&history_graph(views, size), placement)
 }
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
@@ -167,14 +173,16 @@ fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
 
 #[test]
 fn plan_errors_are_reported_before_any_gpu_work() {
-    let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let mut plan = parallax_testkit::plans::copy_plan(8, 8);
-    plan.devices[1].clear();
-    let err = Executor::new(&ctx, plan, parallax_testkit::options()).err().unwrap();
-    assert!(
-        matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::CopyOpMisplaced { copy: 0, op: "Wait" })),
-        "{err}"
-    );
+    // A schedule that does not validate is not lowered; the error is the validator's own.
+    let graph = history_graph(1, 8);
+    let mut schedule = compile(&graph, &OnDevice { device: 1, devices: 2 }).unwrap();
+    let c = schedule.copies.iter().position(|c| c.to == DeviceId(0)).expect("exports are gathered on device 0");
+    schedule.devices[0].ops.retain(|op| *op != Op::Wait(CopyId(c as u32)));
+    let first = ScheduleError::CopyOpMissing { copy: CopyId(c as u32), op: "Wait" };
+    assert!(matches!(
+        ExecutionPlan::from_schedule(&graph, &schedule),
+        Err(LowerError::Invalid { first: f, problems: _ }) if f == first
+    ));
     let one = context(DeviceSelection::FakeDevices(1)).unwrap();
     let err = Executor::new(&one, parallax_testkit::plans::copy_plan(8, 8), parallax_testkit::options()).err().unwrap();
     assert!(

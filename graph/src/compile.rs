@@ -67,7 +67,7 @@ pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedul
     let delta_edges = delta_edges(&instances, &resources);
     let order = topological_order(&instances, &edges)?;
     let (devices, mut copies) = lower(placement.devices(), &instances, &edges, &resources, &order);
-    let allocations = assign_storage(&mut instances, &mut copies, &order);
+    let (allocations, history) = assign_storage(&mut instances, &mut copies, &order);
     let passes = pass_infos(graph);
     Ok(Schedule {
         views,
@@ -76,6 +76,7 @@ pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedul
         passes,
         resources,
         allocations,
+        history,
         instances,
         edges,
         delta_edges,

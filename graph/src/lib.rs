@@ -48,6 +48,7 @@ pub mod source;
 mod storage;
 pub mod summary;
 pub mod validate;
+mod validate_history;
 mod validate_storage;
 
 pub use assign::{AssignStrategy, Assignment, assign};
@@ -61,8 +62,8 @@ pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, R
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use partition::{Plan, PlanConfig, Scheme, parse_source_list};
 pub use schedule::{
-    Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, Op, Origin, PassInfo, PassInstance, ResourceDesc,
-    ResourceInfo, Schedule, SlotInfo,
+    Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, HistoryPair, Op, Origin, PassInfo, PassInstance,
+    ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
 pub use summary::PlanSummary;
 pub use validate::{ScheduleError, ValidationReport};

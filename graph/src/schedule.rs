@@ -133,15 +133,27 @@ pub struct Access {
 
 /// Storage for versions of one resource on one device. Versions that are alive at the same
 /// time never share one; a version written in place shares the allocation of the version it
-/// replaces. A `history` allocation is double buffered by frame parity: frame f writes one
-/// half and reads last frame's final version from the other, with no re-recording.
+/// replaces. The previous half of a [`HistoryPair`] is an allocation that holds no version of
+/// the frame (`versions` empty): only history reads see it.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
 pub struct Allocation {
     pub resource: ResourceId,
     pub device: DeviceId,
     /// Versions stored here, in increasing order.
     pub versions: Vec<u32>,
-    pub history: bool,
+}
+
+/// A resource read as history on one device, double buffered: a frame writes its final version
+/// into `current` and its history reads see last frame's final version in `previous`. The
+/// executor swaps the two roles by frame parity (both command buffers are recorded once), so
+/// the two must be distinct storage of one description on one device: `Schedule::validate()`
+/// proves it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct HistoryPair {
+    /// Holds this frame's final version (and whatever versions share its allocation).
+    pub current: AllocId,
+    /// Holds last frame's final version; nothing but history reads touches it.
+    pub previous: AllocId,
 }
 
 /// A declared slot of a pass: the name its kernel looks it up by.
@@ -256,6 +268,8 @@ pub struct Schedule {
     pub passes: Vec<PassInfo>,
     pub resources: Vec<ResourceInfo>,
     pub allocations: Vec<Allocation>,
+    /// The double-buffered history allocations (both halves are in `allocations`).
+    pub history: Vec<HistoryPair>,
     pub instances: Vec<PassInstance>,
     pub edges: Vec<Edge>,
     pub delta_edges: Vec<DeltaEdge>,
@@ -278,6 +292,11 @@ impl Schedule {
 
     pub fn allocation(&self, id: AllocId) -> &Allocation {
         &self.allocations[id.index()]
+    }
+
+    /// The history pair whose previous half is `alloc`, if any.
+    pub fn history_pair_of_previous(&self, alloc: AllocId) -> Option<&HistoryPair> {
+        self.history.iter().find(|p| p.previous == alloc)
     }
 
     /// Copies between devices before the final gather.

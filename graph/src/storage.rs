@@ -8,14 +8,15 @@
 //! memory and needs a liveness proof per device; it is left for when a pipeline's footprint
 //! asks for it.
 //!
-//! A resource read as history keeps its final version in a double-buffered allocation: frame
-//! f writes one half, history reads see the other half (frame f − 1's), and the halves swap by
-//! frame parity.
+//! A resource read as history keeps its final version in a [`HistoryPair`]: the allocation of the
+//! final version is the current half, and a second allocation of the same resource on the same
+//! device, holding no version of the frame, is the previous half that history reads see (frame
+//! f − 1's final version); the executor swaps the halves' roles by frame parity.
 
 use std::collections::HashMap;
 
 use crate::ids::{AllocId, DeviceId, InstanceId, ResourceId};
-use crate::schedule::{Allocation, CrossCopy, PassInstance};
+use crate::schedule::{Allocation, CrossCopy, HistoryPair, PassInstance};
 
 type Key = (ResourceId, DeviceId, u32);
 
@@ -32,7 +33,7 @@ impl Storage {
             return id;
         }
         let id = AllocId(self.allocations.len() as u32);
-        self.allocations.push(Allocation { resource, device, versions: vec![version], history: false });
+        self.allocations.push(Allocation { resource, device, versions: vec![version] });
         self.by_version.insert((resource, device, version), id);
         id
     }
@@ -51,14 +52,14 @@ impl Storage {
     }
 }
 
-/// Gives every access and copy of a compiled frame its allocation; returns the allocations.
-/// `order` is the frame's topological order (in-place writes need the allocation of the version
-/// they replace, which an earlier instance created).
+/// Gives every access and copy of a compiled frame its allocation; returns the allocations and
+/// the history pairs among them. `order` is the frame's topological order (in-place writes need
+/// the allocation of the version they replace, which an earlier instance created).
 pub(crate) fn assign_storage(
     instances: &mut [PassInstance],
     copies: &mut [CrossCopy],
     order: &[InstanceId],
-) -> Vec<Allocation> {
+) -> (Vec<Allocation>, Vec<HistoryPair>) {
     let mut storage = Storage::default();
     for &id in order {
         let inst = &mut instances[id.index()];
@@ -83,13 +84,31 @@ pub(crate) fn assign_storage(
         copy.src_alloc = storage.of(copy.resource, copy.from, copy.version);
         copy.dst_alloc = storage.of(copy.resource, copy.to, copy.version);
     }
-    // History last: the version it reads is written later in the frame.
-    for inst in instances.iter_mut() {
-        let device = inst.device;
-        for read in &mut inst.history_reads {
-            read.alloc = storage.of(read.resource, device, read.version);
-            storage.allocations[read.alloc.index()].history = true;
+    // History last: the version it reads is written later in the frame. The previous halves are
+    // created after every other allocation, in the order of their current halves.
+    let mut currents: Vec<AllocId> = Vec::new();
+    for inst in instances.iter() {
+        for read in &inst.history_reads {
+            currents.push(storage.of(read.resource, inst.device, read.version));
         }
     }
-    storage.allocations
+    currents.sort_unstable();
+    currents.dedup();
+    let mut allocations = storage.allocations;
+    let history: Vec<HistoryPair> = currents
+        .into_iter()
+        .map(|current| {
+            let previous = AllocId(allocations.len() as u32);
+            let Allocation { resource, device, .. } = allocations[current.index()];
+            allocations.push(Allocation { resource, device, versions: Vec::new() });
+            HistoryPair { current, previous }
+        })
+        .collect();
+    for inst in instances.iter_mut() {
+        for read in &mut inst.history_reads {
+            let current = storage.by_version[&(read.resource, inst.device, read.version)];
+            read.alloc = history.iter().find(|p| p.current == current).expect("paired above").previous;
+        }
+    }
+    (allocations, history)
 }

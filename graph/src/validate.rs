@@ -70,9 +70,33 @@ pub enum ScheduleError {
         later_version: u32,
     },
     #[error(
-        "{instance} reads history of {resource} from allocation {alloc}, which is not a history allocation of its own device"
+        "{instance} reads history of {resource} from allocation {alloc}, which is not storage of that resource on its own device"
     )]
     HistoryOnOtherDevice { instance: InstanceId, resource: ResourceId, alloc: AllocId },
+    #[error(
+        "{instance} reads history of {resource} from allocation {alloc}, which is not the previous half of a history pair"
+    )]
+    HistoryReadOutsidePair { instance: InstanceId, resource: ResourceId, alloc: AllocId },
+    #[error(
+        "{instance} reads history of {resource} version {version}, which the current half {current} of its pair does not hold"
+    )]
+    HistoryVersionNotCurrent { instance: InstanceId, resource: ResourceId, version: u32, current: AllocId },
+    #[error("history pair {pair}: its current and previous halves are one allocation, {alloc}")]
+    HistoryHalvesAlias { pair: u32, alloc: AllocId },
+    #[error("history pair {pair}: halves {current} and {previous} are not storage of one resource on one device")]
+    HistoryHalvesDiffer { pair: u32, current: AllocId, previous: AllocId },
+    #[error("allocation {alloc} is a half of more than one history pair")]
+    HistoryHalfShared { alloc: AllocId },
+    #[error(
+        "allocation {alloc}, the previous half of a history pair, holds versions {versions:?} of the frame: it holds only last frame's"
+    )]
+    PreviousHalfHoldsVersions { alloc: AllocId, versions: Vec<u32> },
+    #[error("{op:?} touches allocation {alloc}, the previous half of a history pair: only history reads may see it")]
+    PreviousHalfTouched { alloc: AllocId, op: Op },
+    #[error("{resource} has no texels or bytes")]
+    EmptyResource { resource: ResourceId },
+    #[error("{what} {index}: rows {rows} are empty or outside the {height} rows of {resource}")]
+    RowsOutsideResource { what: &'static str, index: u32, resource: ResourceId, rows: Region, height: u32 },
     #[error("the instances of {pass} for view {view} do not tile its rows exactly (rows 0..{height})")]
     BandsDoNotTile { pass: PassId, view: ViewId, height: u32 },
 }
@@ -133,7 +157,9 @@ impl Schedule {
             errors.push(ScheduleError::Deadlock);
         }
         self.check_storage(&mut errors);
+        self.check_history(&mut errors);
         self.check_bands(&mut errors);
+        self.check_shapes(&mut errors);
         ValidationReport { errors }
     }
 

@@ -1,7 +1,7 @@
 //! The storage and shape rules of `Schedule::validate()`: ids that point nowhere, accesses whose
 //! allocation is not where they run, writes that share an allocation with a read without saying
-//! so, write-after-read and write-after-write hazards on an allocation, history read away from
-//! its device, and row bands that do not tile a view.
+//! so, write-after-read and write-after-write hazards on an allocation, row bands that do not
+//! tile a view, empty resources and rows outside a resource (history pairs: validate_history.rs).
 //!
 //! Within a device every op is ordered (the executor puts a barrier before each op and chains
 //! its queues), so a hazard is an op order in which an allocation is touched at an older
@@ -9,8 +9,8 @@
 
 use std::collections::HashMap;
 
-use crate::ids::{AllocId, CopyId, InstanceId, PassId, Region, ViewId};
-use crate::schedule::{Access, Op, Schedule};
+use crate::ids::{AllocId, CopyId, InstanceId, PassId, Region, ResourceId, ViewId};
+use crate::schedule::{Access, Op, ResourceDesc, Schedule};
 use crate::validate::ScheduleError;
 
 /// (allocation, version, rows) an op reads or writes.
@@ -64,6 +64,13 @@ impl Schedule {
                 dangling("allocation", a, "resource", alloc.resource.0);
             }
         }
+        for (p, pair) in self.history.iter().enumerate() {
+            for id in [pair.current, pair.previous] {
+                if id.index() >= self.allocations.len() {
+                    dangling("history pair", p, "allocation", id.0);
+                }
+            }
+        }
         errors
     }
 
@@ -78,12 +85,6 @@ impl Schedule {
                 if !holds(a.alloc, a, inst.device) {
                     let (resource, version, alloc) = (a.resource, a.version, a.alloc);
                     errors.push(ScheduleError::AllocationMismatch { instance, resource, version, alloc });
-                }
-            }
-            for h in &inst.history_reads {
-                let info = self.allocation(h.alloc);
-                if info.device != inst.device || !info.history || info.resource != h.resource {
-                    errors.push(ScheduleError::HistoryOnOtherDevice { instance, resource: h.resource, alloc: h.alloc });
                 }
             }
             for w in inst.writes.iter().filter(|w| !w.in_place) {
@@ -190,5 +191,34 @@ impl Schedule {
             view,
             height: self.height,
         }));
+    }
+
+    /// Every resource has texels (or bytes), and every access and copy covers a non-empty band
+    /// of its resource's rows: the executor records barriers and copies of exactly those rows.
+    pub(crate) fn check_shapes(&self, errors: &mut Vec<ScheduleError>) {
+        for (r, info) in self.resources.iter().enumerate() {
+            let empty = match info.desc {
+                ResourceDesc::Image { width, height, .. } => width == 0 || height == 0,
+                ResourceDesc::Buffer { .. } => false,
+                ResourceDesc::RowBuffer { rows, row_bytes } => rows == 0 || row_bytes == 0,
+            };
+            if empty {
+                errors.push(ScheduleError::EmptyResource { resource: ResourceId(r as u32) });
+            }
+        }
+        let mut outside = |what, index: usize, resource: ResourceId, rows: Region| {
+            let height = self.resource(resource).desc.rows();
+            if rows.y0 >= rows.y1 || rows.y1 > height {
+                errors.push(ScheduleError::RowsOutsideResource { what, index: index as u32, resource, rows, height });
+            }
+        };
+        for (i, inst) in self.instances.iter().enumerate() {
+            for a in inst.reads.iter().chain(&inst.writes).chain(&inst.history_reads) {
+                outside("instance", i, a.resource, a.region);
+            }
+        }
+        for (c, copy) in self.copies.iter().enumerate() {
+            outside("copy", c, copy.resource, copy.region);
+        }
     }
 }

@@ -88,19 +88,20 @@ fn a_band_modified_in_place_stays_in_place_when_a_whole_view_read_copies_the_oth
 }
 
 #[test]
-fn history_reads_the_double_buffered_allocation_of_the_final_version_on_its_device() {
+fn history_reads_the_previous_half_of_the_pair_whose_current_half_the_final_write_fills() {
     let s = temporal(3, Scheme::FineAll);
     for inst in s.instances.iter().filter(|i| i.name == "accumulate") {
         let history = &inst.history_reads[0];
         let write = &inst.writes[0];
         assert_eq!(history.origin, Origin::History);
-        assert_eq!(history.alloc, write.alloc, "the halves of one allocation swap by frame parity");
-        let alloc = s.allocation(history.alloc);
-        assert!(alloc.history);
-        assert_eq!(alloc.device, inst.device);
+        let pair = s.history_pair_of_previous(history.alloc).expect("history reads see a previous half");
+        assert_eq!(pair.current, write.alloc, "the final write fills the current half");
+        assert_ne!(pair.current, pair.previous);
+        assert_eq!(s.allocation(history.alloc).device, inst.device);
+        assert!(s.allocation(pair.previous).versions.is_empty(), "the previous half holds no version of the frame");
     }
     // Only the history resource is double buffered.
-    assert!(s.allocations.iter().filter(|a| a.history).all(|a| s.resource(a.resource).name == "accum"));
+    assert!(s.history.iter().all(|p| s.resource(s.allocation(p.current).resource).name == "accum"));
 }
 
 #[test]
@@ -186,10 +187,10 @@ fn history_from_another_devices_allocation_is_refused() {
         s.instances.iter().enumerate().find(|(_, i)| i.name == "accumulate" && i.device == DeviceId(1)).unwrap();
     let (id, resource) = (InstanceId(id as u32), inst.history_reads[0].resource);
     let elsewhere = s
-        .allocations
+        .history
         .iter()
-        .position(|a| a.history && a.resource == resource && a.device != DeviceId(1))
-        .map(|a| AllocId(a as u32))
+        .map(|p| p.previous)
+        .find(|&a| s.allocation(a).resource == resource && s.allocation(a).device != DeviceId(1))
         .unwrap();
     s.instances[id.index()].history_reads[0].alloc = elsewhere;
     assert!(s.validate().errors.contains(&ScheduleError::HistoryOnOtherDevice {

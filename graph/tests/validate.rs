@@ -195,3 +195,41 @@ proptest! {
         prop_assert!(report.is_ok(), "{:?}", report.errors);
     }
 }
+
+#[test]
+fn an_empty_resource_is_reported() {
+    let mut s = fine_all();
+    let ResourceDesc::Image { height, format, .. } = s.resources[0].desc else { panic!("images only") };
+    s.resources[0].desc = ResourceDesc::Image { width: 0, height, format };
+    assert!(s.validate().errors.contains(&ScheduleError::EmptyResource { resource: ResourceId(0) }));
+}
+
+#[test]
+fn rows_outside_their_resource_are_reported() {
+    let mut s = fine_all();
+    let height = s.height;
+    let c = first_dependency_copy(&s);
+    let copy = &mut s.copies[c.index()];
+    let resource = copy.resource;
+    copy.region = Region::new(copy.region.y0, height + 1);
+    let rows = copy.region;
+    assert!(s.validate().errors.contains(&ScheduleError::RowsOutsideResource {
+        what: "copy",
+        index: c.0,
+        resource,
+        rows,
+        height
+    }));
+
+    let mut s = fine_all();
+    let write = &mut s.instances[0].writes[0];
+    write.region = Region::new(2, 2);
+    let (resource, rows) = (write.resource, write.region);
+    assert!(s.validate().errors.contains(&ScheduleError::RowsOutsideResource {
+        what: "instance",
+        index: 0,
+        resource,
+        rows,
+        height
+    }));
+}

@@ -106,7 +106,6 @@ impl LightFieldRenderer {
 
     /// A camera cut: the next frame's history reads (SVGF) start over, and its motion is unknown.
     pub fn cut(&mut self) {
-        self.clock.reset_history();
         self.executor.reset_history();
     }
 

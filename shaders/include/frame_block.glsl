@@ -18,12 +18,12 @@ struct GpuCamera {
 
 struct ViewCameras {
     GpuCamera current;
-    GpuCamera previous;   // last frame's current; equals current when history_valid == 0
+    GpuCamera previous;   // last frame's current (current on a view's first frame); use only when history_valid != 0
 };
 
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer FrameBlock {
-    uint frame_index;
-    uint history_valid;   // 0 on the first frame and after a camera cut
+    uint frame_index;     // the executor's frame index
+    uint history_valid;   // the executor's flag: 0 on a plan's first frame and after a camera cut
     uint view_count;
     uint pad;
     ViewCameras views[];

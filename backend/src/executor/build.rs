@@ -1,0 +1,100 @@
+//! Building the executor's state for a plan: device states (images kept across plan changes),
+//! copy chunks and their ready timelines, the fault gate, the submission order, staging and
+//! readback memory, relay threads.
+
+use ash::vk;
+
+use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
+use crate::error::{BackendError, Result};
+use crate::plan::ExecutionPlan;
+use crate::relay::Relay;
+use crate::segments::{Segment, chunks_of_copies, cross_device_waits, segment_devices, submission_order};
+use crate::texture::Texture;
+
+use super::{Executor, FaultInjection};
+
+impl Executor {
+    /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the
+    /// current one; otherwise waits for all frames, keeps the images whose resource description
+    /// is unchanged (their contents survive), and records everything anew at the next frame.
+    pub fn set_plan(&mut self, plan: ExecutionPlan) -> Result<bool> {
+        if plan == self.plan {
+            return Ok(false);
+        }
+        self.finish()?;
+        self.build(plan)?;
+        Ok(true)
+    }
+
+    pub(super) fn build(&mut self, plan: ExecutionPlan) -> Result<()> {
+        plan.validate(self.devices.len())?;
+        // Threads first (they use the old semaphores), then the old states.
+        self.relay = None;
+        let mut kept = Kept::default();
+        for (d, mut state) in std::mem::take(&mut self.states).into_iter().enumerate() {
+            for (resource, image) in state.images.drain() {
+                kept.images.insert((d, self.plan.resources[resource].clone()), image);
+            }
+            for (resource, buffer) in state.buffers.drain() {
+                kept.buffers.insert((d, self.plan.resources[resource].clone()), buffer);
+            }
+        }
+        self.staging = None;
+
+        let chunks = chunks_of_copies(&plan, self.options.chunk_bytes);
+        let slots = self.slot_count();
+        let dropped_wait = match self.options.fault {
+            Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(copy),
+            _ => None,
+        };
+        let mut states = Vec::with_capacity(self.devices.len());
+        let cut =
+            segment_devices(&plan, &chunks, self.options.chunk_bytes, dropped_wait, self.options.separate_copy_queue);
+        for ((d, device), segments) in self.devices.iter().enumerate().zip(cut) {
+            let state = create_device_state(device, &plan, d, segments, slots, &self.options, &mut kept)?;
+            let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
+            state.bindless.set_textures(&views);
+            states.push(state);
+        }
+        drop(kept);
+        let mut ready = Vec::with_capacity(plan.copies.len());
+        for (c, copy) in plan.copies.iter().enumerate() {
+            let consumer = &mut states[copy.to];
+            let semaphore = consumer.device.create_timeline(0)?;
+            consumer.ready.insert(c, semaphore);
+            ready.push(semaphore);
+        }
+        self.gate = match self.options.fault {
+            Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(fault_gate(&plan, &mut states, copy)?),
+            _ => None,
+        };
+        let segments: Vec<Vec<Segment>> = states.iter().map(|s| s.segments.clone()).collect();
+        let mut waits = cross_device_waits(&segments);
+        if let Some(gate) = &self.gate {
+            // The producer's first segment waits for the consumer's gate segment.
+            waits[gate.producer][0].push((gate.consumer, gate.consumer_segment));
+        }
+        self.submission_order =
+            submission_order(&waits).ok_or(BackendError::ExecutionPlan(crate::plan::ExecutionPlanError::WaitCycle))?;
+        self.staging = create_staging(&self.devices, &plan, slots)?;
+        if let Some(readback) = &mut self.readback {
+            readback.allocate(&self.devices[0], &plan, slots)?;
+        }
+        self.plan = plan;
+        self.chunks = chunks;
+        self.states = states;
+        self.ready = ready;
+        self.needs_record = true;
+        let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
+        self.relay = Some(Relay::new(&self.devices, &progress));
+        self.plan_epoch = self.next_frame;
+        self.history_origin = self.next_frame;
+        Ok(())
+    }
+
+    /// Recorded frame slots: frames in flight rounded up to even, so a slot's frame parity never
+    /// changes and history pairs can be swapped in the recording (see `ExecutionPlan::history_pairs`).
+    pub(super) fn slot_count(&self) -> usize {
+        self.options.frames_in_flight.div_ceil(2) * 2
+    }
+}

@@ -1,0 +1,215 @@
+//! The executor: turns an [`ExecutionPlan`] into per-device command buffers recorded once, and submits
+//! them frame after frame.
+//!
+//! * Within a device, submissions are ordered by the queue and made memory-safe by barriers;
+//!   each submission signals the device's progress timeline (values from
+//!   [`crate::segments::progress_value`]).
+//! * Across devices, the consumer's copy-in waits on a per-copy "ready" timeline that a host
+//!   relay thread signals once the producer's copy-out is done ([`crate::relay`]).
+//! * The host submits a frame's segments across the devices in an order where each comes after
+//!   every segment it waits for ([`crate::segments::submission_order`]), keeping at most
+//!   `max_queued_segments` of a device's segments queued: everything submitted can complete,
+//!   so a driver that blocks vkQueueSubmit on a full queue only ever waits for progress.
+//! * Up to `frames_in_flight` frames are submitted before the host waits for the oldest; each
+//!   frame-in-flight slot has its own command buffers, query pool, descriptor set, per-frame
+//!   data and staging memory, so nothing is re-recorded unless the plan changes
+//!   ([`Executor::set_plan`]) or a global buffer is reallocated ([`Executor::upload_buffer`]).
+//! * Images and buffers live as long as the plan's resources: their contents carry over from
+//!   frame to frame (history), and over a plan change for resources that keep their
+//!   description; buffers the plan resets are rewritten at the start of every frame.
+//! * The frame loop ([`Executor::submit_frame`], [`Executor::wait_readback`]) reads back the
+//!   exported resources of each frame without waiting for any later frame (readback.rs).
+//!
+//! Rooms: `options` (settings), `build` (state for a plan), `record` (command buffers),
+//! `upload` (global buffers, textures, per-frame data), `submit` (a frame's segments),
+//! `retire` (waiting, reports), `read` (reading a resource back), `teardown` (drop, recovery).
+
+mod build;
+mod options;
+mod read;
+mod record;
+mod retire;
+mod submit;
+mod teardown;
+mod upload;
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use crate::context::Context;
+use crate::device::{ClockCalibration, Device};
+use crate::device_state::{DeviceState, Staging};
+use crate::error::Result;
+use crate::frame_data::FrameData;
+use crate::instance::Instance;
+use crate::memory::Buffer;
+use crate::plan::ExecutionPlan;
+use crate::readback::Readback;
+use crate::relay::Relay;
+use crate::segments::{Chunk, Run};
+use crate::texture::Texture;
+use crate::timing::FrameReport;
+
+pub use options::{Barriers, ExecOptions, FaultInjection, Timing};
+
+/// Fault-injection gate: producer's first submission of a frame waits until the consumer's
+/// segment `consumer_segment` of the same frame is done.
+pub(crate) struct FaultGate {
+    /// Semaphore on the producer device.
+    pub(crate) semaphore: vk::Semaphore,
+    pub(crate) producer: usize,
+    pub(crate) consumer: usize,
+    pub(crate) consumer_segment: usize,
+}
+
+struct InFlight {
+    frame: u64,
+    /// Frame index relative to the current plan (timeline values restart with each plan).
+    local: u64,
+    slot: usize,
+    submit_start_ns: u64,
+    submit_cpu_ns: u64,
+    /// Host time its submission waited for the frame it reuses the slot of to retire.
+    slot_wait_ns: u64,
+    passes: usize,
+    segments: usize,
+    /// Submitted by `submit_frame`: its readback is kept when it retires.
+    read_back: bool,
+}
+
+/// Executes an [`ExecutionPlan`] on the devices of a [`Context`].
+pub struct Executor {
+    instance: Arc<Instance>,
+    devices: Vec<Arc<Device>>,
+    plan: ExecutionPlan,
+    options: ExecOptions,
+    chunks: Vec<Vec<Chunk>>,
+    states: Vec<DeviceState>,
+    /// Ready timeline of each copy (owned by the consumer's state).
+    ready: Vec<vk::Semaphore>,
+    staging: Option<Staging>,
+    relay: Option<Relay>,
+    gate: Option<FaultGate>,
+    /// The order every frame's segments are submitted in (`segments::submission_order`).
+    submission_order: Vec<Run>,
+    /// A frame's submission failed part-way: frame `next_frame` is partly on the queues.
+    cut_short: bool,
+    next_frame: u64,
+    /// First frame of the current plan.
+    plan_epoch: u64,
+    /// First frame whose history reads are not last frame's output (plan start, reset): history
+    /// is valid from the frame after it.
+    history_origin: u64,
+    in_flight: VecDeque<InFlight>,
+    reports: Vec<FrameReport>,
+    calibration: Vec<ClockCalibration>,
+    recordings: u64,
+    last_record_ns: u64,
+    /// Command buffers must be (re-)recorded before the next frame: after a plan change or a
+    /// global buffer that moved.
+    needs_record: bool,
+    /// Global buffers per device, by name; they outlive plan changes.
+    globals: Vec<HashMap<String, Buffer>>,
+    /// Sampled textures per device (the `textures[]` array); they outlive plan changes.
+    textures: Vec<Vec<Texture>>,
+    /// Per frame-in-flight slot and device: host-visible copy of the per-frame data.
+    frame_data_buffers: Vec<Vec<Buffer>>,
+    frame_data: FrameData,
+    /// With `ExecOptions::read_back_exports`.
+    readback: Option<Readback>,
+}
+
+impl Executor {
+    /// Validates `plan` and allocates its resources. Command buffers are recorded at the first
+    /// frame (so global buffers can be uploaded first) and then reused.
+    pub fn new(context: &Context, plan: ExecutionPlan, options: ExecOptions) -> Result<Self> {
+        let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
+        let mut executor = Self {
+            instance: context.instance.clone(),
+            devices: context.devices.clone(),
+            plan: ExecutionPlan::default(),
+            options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
+            chunks: Vec::new(),
+            states: Vec::new(),
+            ready: Vec::new(),
+            staging: None,
+            relay: None,
+            gate: None,
+            submission_order: Vec::new(),
+            cut_short: false,
+            next_frame: 0,
+            plan_epoch: 0,
+            history_origin: 0,
+            in_flight: VecDeque::new(),
+            reports: Vec::new(),
+            calibration,
+            recordings: 0,
+            last_record_ns: 0,
+            needs_record: true,
+            globals: context.devices.iter().map(|_| HashMap::new()).collect(),
+            textures: context.devices.iter().map(|_| Vec::new()).collect(),
+            frame_data_buffers: Vec::new(),
+            frame_data: FrameData::new(),
+            readback: options.read_back_exports.then(Readback::new),
+        };
+        executor.frame_data_buffers = (0..executor.slot_count())
+            .map(|_| {
+                executor
+                    .devices
+                    .iter()
+                    .map(|d| {
+                        Buffer::new(
+                            d,
+                            "frame data",
+                            executor.options.frame_data_bytes.max(16),
+                            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                            MemoryLocation::CpuToGpu,
+                        )
+                    })
+                    .collect::<Result<Vec<_>>>()
+            })
+            .collect::<Result<Vec<_>>>()?;
+        executor.build(plan)?;
+        Ok(executor)
+    }
+
+    /// Reports of retired frames, oldest first, removed from the executor. They pile up until
+    /// taken: a long frame loop takes them every frame and folds them into a
+    /// [`crate::FrameStats`], so its memory stays flat.
+    pub fn take_reports(&mut self) -> Vec<FrameReport> {
+        std::mem::take(&mut self.reports)
+    }
+
+    /// Reports of retired frames so far.
+    pub fn reports(&self) -> &[FrameReport] {
+        &self.reports
+    }
+
+    /// How many times the command buffers were recorded (once per plan).
+    pub fn recordings(&self) -> u64 {
+        self.recordings
+    }
+
+    /// CPU time of the last recording of all command buffers (every slot), in ns.
+    pub fn last_record_ns(&self) -> u64 {
+        self.last_record_ns
+    }
+
+    /// The plan being executed.
+    pub fn plan(&self) -> &ExecutionPlan {
+        &self.plan
+    }
+
+    /// Clock calibration of each device (GPU → host CLOCK_MONOTONIC).
+    pub fn calibration(&self) -> &[ClockCalibration] {
+        &self.calibration
+    }
+
+    /// Fails if the validation layer reported anything since the last check.
+    pub fn check_validation(&self) -> Result<()> {
+        self.instance.check_validation()
+    }
+}

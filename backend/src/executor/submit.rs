@@ -1,0 +1,229 @@
+//! Submitting a frame: frame constants and per-frame data into the slot, then every segment in
+//! the submission order, each with its waits and progress signal, and the relay jobs of its
+//! copy-outs.
+
+use std::time::Instant;
+
+use ash::vk;
+
+use crate::device::host_now_ns;
+use crate::error::{BackendError, Result};
+use crate::frame_block::{FRAME_BLOCK_SECTION, FrameConstants};
+use crate::readback::FrameTicket;
+use crate::relay::RelayJob;
+use crate::segments::{Run, progress_value, ready_value};
+
+use super::{Executor, FaultInjection, InFlight};
+
+/// What one segment's `VkSubmitInfo2` points at.
+struct SegmentSubmit {
+    waits: Vec<vk::SemaphoreSubmitInfo<'static>>,
+    signal: [vk::SemaphoreSubmitInfo<'static>; 1],
+    command_buffer: [vk::CommandBufferSubmitInfo<'static>; 1],
+}
+
+impl Executor {
+    /// Submits one frame; returns its index. Waits only if `frames_in_flight` frames are
+    /// already in flight (for the oldest of them).
+    pub fn run_frame(&mut self) -> Result<u64> {
+        self.submit(false)
+    }
+
+    /// Submits one frame like [`Self::run_frame`]; its exported resources (`ExecResource::exported`)
+    /// can then be waited for with [`Self::wait_readback`]. Needs
+    /// `ExecOptions::read_back_exports`.
+    pub fn submit_frame(&mut self) -> Result<FrameTicket> {
+        if self.readback.is_none() {
+            return Err(BackendError::ReadbackDisabled);
+        }
+        Ok(FrameTicket { frame: self.submit(true)? })
+    }
+
+    /// Marks history invalid for the next frame (a camera cut, a teleport): its kernels see
+    /// `history_valid = 0` (in the frame constants and the frame block's header) and must not
+    /// blend in what their history reads or previous cameras hold.
+    pub fn reset_history(&mut self) {
+        self.history_origin = self.next_frame;
+    }
+
+    fn submit(&mut self, read_back: bool) -> Result<u64> {
+        if self.cut_short {
+            return Err(BackendError::SubmissionCutShort { frame: self.next_frame });
+        }
+        let slot_wait = Instant::now();
+        if self.in_flight.len() >= self.options.frames_in_flight {
+            self.retire_oldest()?;
+        }
+        let slot_wait_ns = slot_wait.elapsed().as_nanos() as u64;
+        self.relay.as_ref().expect("relay exists after build").check()?;
+        if self.needs_record {
+            self.record_all()?;
+        }
+        let submit_start_ns = host_now_ns();
+        let cpu_start = Instant::now();
+        let frame = self.next_frame;
+        let local = frame - self.plan_epoch;
+        let slot = (frame % self.slot_count() as u64) as usize;
+        // The one frame index and history flag, in both places kernels read them.
+        let constants = FrameConstants::new(frame, frame > self.history_origin);
+        for state in &mut self.states {
+            state.bindless.set_frame_constants(slot, constants);
+        }
+        let frame_bytes = self.frame_data.bytes();
+        let block_at = self.frame_data.offset_of(FRAME_BLOCK_SECTION).map(|at| at as usize);
+        if !frame_bytes.is_empty() {
+            for buffer in &mut self.frame_data_buffers[slot] {
+                let mapped = &mut buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..frame_bytes.len()];
+                mapped.copy_from_slice(frame_bytes);
+                if let Some(at) = block_at {
+                    constants.write_into(&mut mapped[at..]);
+                }
+            }
+        }
+        // The slot's previous frame has retired: its queries were read and can be reset.
+        for state in &self.states {
+            if !state.timers.is_empty() {
+                unsafe {
+                    state.device.raw.reset_query_pool(state.slots[slot].query_pool, 0, state.timers.len() as u32 * 2)
+                };
+            }
+        }
+        let mut submitted_segments = 0;
+        // Until the whole frame is submitted, a failure leaves its first segments on the queues,
+        // waiting for signals of segments that never come (see `Drop`).
+        self.cut_short = true;
+        for (i, run) in self.submission_order.iter().enumerate() {
+            if self.options.fault == Some(FaultInjection::LoseDevice { frame }) && i + 1 == self.submission_order.len()
+            {
+                return Err(BackendError::DeviceLost { call: "vkQueueSubmit2 (FaultInjection::LoseDevice)" });
+            }
+            self.submit_run(run, frame, local, slot)?;
+            submitted_segments += run.segments.len();
+        }
+        self.cut_short = false;
+        self.in_flight.push_back(InFlight {
+            frame,
+            local,
+            slot,
+            submit_start_ns,
+            submit_cpu_ns: cpu_start.elapsed().as_nanos() as u64,
+            slot_wait_ns,
+            passes: self.plan.passes.len(),
+            segments: submitted_segments,
+            read_back,
+        });
+        self.next_frame += 1;
+        Ok(frame)
+    }
+
+    /// Submits the segments of `run` of frame `frame` (`local` to the plan): one vkQueueSubmit2
+    /// per stretch on one queue, with at most `max_queued_segments` of the device's segments
+    /// submitted and not yet done; then queues the relay jobs of the copy-outs among them.
+    fn submit_run(&self, run: &Run, frame: u64, local: u64, slot: usize) -> Result<()> {
+        let d = run.device;
+        let state = &self.states[d];
+        let segment_count = state.segments.len();
+        let window = self.options.max_queued_segments.max(1);
+        let mut start = run.segments.start;
+        while start < run.segments.end {
+            let queue = state.segments[start].queue;
+            let limit = run.segments.end.min(start + window);
+            let end = (start..limit).find(|&j| state.segments[j].queue != queue).unwrap_or(limit);
+            // Everything this waits for is submitted already (`submission_order`), so it ends.
+            let last = progress_value(local, segment_count, end - 1);
+            if let Some(done) = last.checked_sub(window as u64).filter(|&v| v > 0) {
+                self.wait_for_progress(d, done, frame)?;
+            }
+            let infos: Vec<SegmentSubmit> = (start..end).map(|j| self.segment_submit(d, j, local, slot)).collect();
+            let submits: Vec<vk::SubmitInfo2> = infos
+                .iter()
+                .map(|i| {
+                    vk::SubmitInfo2::default()
+                        .wait_semaphore_infos(&i.waits)
+                        .command_buffer_infos(&i.command_buffer)
+                        .signal_semaphore_infos(&i.signal)
+                })
+                .collect();
+            state.device.submit_to(queue, &submits, vk::Fence::null())?;
+            start = end;
+        }
+        self.queue_relays(run, local)
+    }
+
+    /// The waits, command buffer and progress signal of segment `j` of device `d`.
+    fn segment_submit(&self, d: usize, j: usize, local: u64, slot: usize) -> SegmentSubmit {
+        let state = &self.states[d];
+        let segment = &state.segments[j];
+        let segment_count = state.segments.len();
+        let on = |semaphore: vk::Semaphore, value: u64| {
+            vk::SemaphoreSubmitInfo::default()
+                .semaphore(semaphore)
+                .value(value)
+                .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        };
+        let mut waits: Vec<vk::SemaphoreSubmitInfo<'static>> = segment
+            .waits
+            .iter()
+            .map(|wait| on(self.ready[wait.copy], ready_value(local, self.chunks[wait.copy].len(), wait.chunk)))
+            .collect();
+        // A segment on another queue than its predecessor (in program order, across the frame
+        // boundary too) waits for it: the two queues run one program.
+        let previous = match j {
+            0 if local > 0 => Some((segment_count - 1, local - 1)),
+            0 => None,
+            _ => Some((j - 1, local)),
+        };
+        if let Some((p, p_frame)) = previous
+            && state.segments[p].queue != segment.queue
+        {
+            waits.push(on(state.progress, progress_value(p_frame, segment_count, p)));
+        }
+        if let (Some(gate), 0) = (state.gate, j) {
+            waits.push(on(gate, local + 1));
+        }
+        SegmentSubmit {
+            waits,
+            signal: [on(state.progress, progress_value(local, segment_count, j))],
+            command_buffer: [
+                vk::CommandBufferSubmitInfo::default().command_buffer(state.slots[slot].command_buffers[j])
+            ],
+        }
+    }
+
+    /// Relay jobs of the copy-outs in `run`, in segment order (see relay.rs).
+    fn queue_relays(&self, run: &Run, local: u64) -> Result<()> {
+        let relay = self.relay.as_ref().expect("relay exists after build");
+        let d = run.device;
+        let segment_count = self.states[d].segments.len();
+        for j in run.segments.clone() {
+            let watch_value = progress_value(local, segment_count, j);
+            for chunk in &self.states[d].segments[j].relays {
+                let consumer = self.plan.copies[chunk.copy].to;
+                relay.push(
+                    d,
+                    RelayJob {
+                        watch_value,
+                        target: self.devices[consumer].clone(),
+                        semaphore: self.ready[chunk.copy],
+                        signal_value: ready_value(local, self.chunks[chunk.copy].len(), chunk.index),
+                    },
+                )?;
+            }
+            if let Some(gate) = &self.gate
+                && gate.consumer == d
+                && gate.consumer_segment == j
+            {
+                relay.push(
+                    d,
+                    RelayJob {
+                        watch_value,
+                        target: self.devices[gate.producer].clone(),
+                        semaphore: gate.semaphore,
+                        signal_value: local + 1,
+                    },
+                )?;
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,58 @@
+//! Ending an executor: waiting for its frames, and after a failure unblocking the device waits
+//! nobody will signal, so the queues drain before memory and semaphores go.
+
+use ash::vk;
+
+use crate::device::Device;
+use crate::segments::ready_value;
+
+use super::Executor;
+
+impl Executor {
+    /// After a failure (a relay thread died, a frame timed out), submissions may wait on values
+    /// nobody will signal, and waiting for the devices to go idle would hang. Signals every
+    /// cross-device semaphore to the last value any submitted frame waits for, so the queues
+    /// drain (with meaningless contents) and teardown can proceed. That includes the frame
+    /// `next_frame`, whose submission the failure may have cut short: its first segments can
+    /// be on the queues already.
+    fn unblock_device_waits(&mut self) {
+        self.relay = None;
+        let local = self.next_frame.saturating_sub(self.plan_epoch);
+        for (c, copy) in self.plan.copies.iter().enumerate() {
+            let chunks = self.chunks[c].len();
+            let value = ready_value(local, chunks, chunks.saturating_sub(1) as u32);
+            raise_timeline(&self.devices[copy.to], self.ready[c], value);
+        }
+        if let Some(gate) = &self.gate {
+            raise_timeline(&self.devices[gate.producer], gate.semaphore, local + 1);
+        }
+        self.in_flight.clear();
+    }
+}
+
+impl Drop for Executor {
+    fn drop(&mut self) {
+        // Frames in flight must end before their memory and semaphores go; relay threads
+        // before the semaphores they wait on.
+        if self.finish().is_err() || self.cut_short {
+            self.unblock_device_waits();
+        }
+        for device in &self.devices {
+            let _ = device.wait_idle();
+        }
+        self.relay = None;
+        self.staging = None;
+        self.states.clear();
+        self.globals.clear();
+        self.textures.clear();
+        self.frame_data_buffers.clear();
+    }
+}
+
+/// Host-signals `semaphore` to `value` unless it is already there (a timeline never goes back).
+/// Errors are ignored: this only runs while tearing down after a failure.
+fn raise_timeline(device: &Device, semaphore: vk::Semaphore, value: u64) {
+    if device.timeline_value(semaphore).is_ok_and(|current| current < value) {
+        let _ = device.signal_timeline(semaphore, value);
+    }
+}
