@@ -75,6 +75,12 @@ pub enum ScheduleError {
     HistoryOnOtherDevice { instance: InstanceId, resource: ResourceId, alloc: AllocId },
     #[error("the instances of {pass} for view {view} do not tile its rows exactly (rows 0..{height})")]
     BandsDoNotTile { pass: PassId, view: ViewId, height: u32 },
+    #[error("{instance} writes global resource {resource} but its pass runs per view, not as a global pass")]
+    GlobalWrittenPerView { instance: InstanceId, resource: ResourceId },
+    #[error("{instance} touches rows {rows} of global resource {resource}, not all of it")]
+    GlobalAccessedInPart { instance: InstanceId, resource: ResourceId, rows: Region },
+    #[error("global pass {pass} has {instances} instances; a global pass runs once per frame")]
+    GlobalPassInstances { pass: PassId, instances: u32 },
 }
 
 /// Every broken invariant found; empty when the schedule is sound.
@@ -134,6 +140,7 @@ impl Schedule {
         }
         self.check_storage(&mut errors);
         self.check_bands(&mut errors);
+        self.check_globals(&mut errors);
         ValidationReport { errors }
     }
 
