@@ -27,7 +27,12 @@ fn global_graph(scheme: Scheme, devices: u32) -> (KernelGraph, Schedule) {
     g.pass("fill", Role::All).write(&mut pattern).kernel(Arc::new(FillKernel)).record();
     g.global_pass("fill_global").write(&mut shared).kernel(Arc::new(FillKernel)).record();
     g.global_pass("fill_words").write(&mut words).kernel(Arc::new(FillBufferKernel)).side_effect().record();
-    g.pass("blend", Role::All).read(&pattern).read(&shared).write(&mut output).kernel(Arc::new(ShiftBlendKernel)).record();
+    g.pass("blend", Role::All)
+        .read(&pattern)
+        .read(&shared)
+        .write(&mut output)
+        .kernel(Arc::new(ShiftBlendKernel))
+        .record();
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
     assert_eq!(schedule.validate().errors, vec![], "{scheme:?} on {devices}");
