@@ -182,17 +182,22 @@ impl RenderArgs {
     }
 }
 
+/// Extends the pipeline a builder declares (a user crate's stages).
+pub type ExtendPipeline = Box<dyn Fn(PipelineBuilder) -> PipelineBuilder>;
+/// Looks at the renderer once the last frame is finished.
+pub type AfterFrames = Box<dyn FnMut(&mut LightFieldRenderer) -> Result<()>>;
+
 /// What a user crate adds to `render`: stages of its own in the standard pipeline, the shaders
 /// they dispatch, and a look at the renderer after the last frame (before any output is
 /// written). [`run_extended`] runs it with `render`'s frame loop, reports and outputs.
 #[derive(Default)]
 pub struct RenderExtension {
     /// Adds stages to (or replaces stages of) the pipeline the flags declare.
-    pub stages: Option<Box<dyn Fn(PipelineBuilder) -> PipelineBuilder>>,
+    pub stages: Option<ExtendPipeline>,
     /// The stages' kernels (`parallax_backend::include_shaders!()`), beside the built-in ones.
     pub shaders: ShaderLibrary,
     /// Called once the last frame is finished, e.g. to read back a layer the stages made.
-    pub after_frames: Option<Box<dyn FnMut(&mut LightFieldRenderer) -> Result<()>>>,
+    pub after_frames: Option<AfterFrames>,
 }
 
 /// `parallax render`.

@@ -161,10 +161,6 @@ impl PipelineBuilder {
         PipelineBuilder { config, inserted: Vec::new(), denoiser: None, tonemapper: None }
     }
 
-    pub fn config(&self) -> &PipelineConfig {
-        &self.config
-    }
-
     /// Runs `stage` at `at`, after the stages already inserted there.
     pub fn insert(
         mut self,
@@ -268,4 +264,89 @@ pub fn declare_path_trace(graph: &mut KernelGraph, role: Role, radiance: &mut Ha
 /// caller's); nothing is exported (the caller exports what it reads).
 pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> Result<PipelineHandles> {
     PipelineBuilder::new(*config).declare(graph)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::{Arc, Mutex};
+
+    use parallax_graph::ViewTopology;
+
+    use super::*;
+
+    /// Two sources and two targets of 8×8, each target reprojecting from both sources.
+    fn topology() -> ViewTopology {
+        let sources = vec![parallax_graph::ViewId(0), parallax_graph::ViewId(1)];
+        ViewTopology {
+            width: 8,
+            height: 8,
+            sources_of: vec![vec![], vec![], sources.clone(), sources],
+            is_source: vec![true, true, false, false],
+        }
+    }
+
+    /// The names of the declared passes.
+    fn pass_names(graph: &KernelGraph) -> Vec<String> {
+        graph.passes().iter().map(|p| p.name.clone()).collect()
+    }
+
+    #[test]
+    fn inserted_stages_run_at_their_points_in_insertion_order() {
+        let seen: Arc<Mutex<Vec<(InsertionPoint, String)>>> = Arc::default();
+        let mut builder = PipelineBuilder::new(PipelineConfig::default());
+        // Inserted out of pipeline order, two at one point.
+        for at in [
+            InsertionPoint::BeforeTonemap,
+            InsertionPoint::AfterHoleFill,
+            InsertionPoint::AfterGbuffer,
+            InsertionPoint::AfterDenoise,
+            InsertionPoint::AfterReprojection,
+            InsertionPoint::AfterTrace,
+            InsertionPoint::BeforeTonemap,
+        ] {
+            let seen = seen.clone();
+            builder = builder.insert(at, move |graph, _| {
+                let last = graph.passes().last().map(|p| p.name.clone()).unwrap_or_default();
+                seen.lock().unwrap().push((at, last));
+                Ok(())
+            });
+        }
+        let mut graph = KernelGraph::with_payload(topology());
+        builder.declare(&mut graph).unwrap();
+        let seen = seen.lock().unwrap().clone();
+        let points: Vec<InsertionPoint> = seen.iter().map(|(at, _)| *at).collect();
+        let mut sorted = points.clone();
+        sorted.sort();
+        assert_eq!(points, sorted, "stages run in pipeline order");
+        let last_before = |at| seen.iter().find(|(p, _)| *p == at).unwrap().1.clone();
+        assert_eq!(last_before(InsertionPoint::AfterTrace), crate::path_trace::PATH_TRACE);
+        assert_eq!(last_before(InsertionPoint::AfterHoleFill), crate::holes::HOLE_FILL);
+        assert!(!pass_names(&graph).is_empty() && pass_names(&graph).last().unwrap() == crate::tonemap::TONEMAP);
+    }
+
+    #[test]
+    fn the_builder_with_nothing_added_declares_the_standard_pipeline() {
+        let (mut a, mut b) = (KernelGraph::with_payload(topology()), KernelGraph::with_payload(topology()));
+        let config = PipelineConfig::default();
+        declare_pipeline(&mut a, &config).unwrap();
+        PipelineBuilder::new(config).insert(InsertionPoint::AfterDenoise, |_, _| Ok(())).declare(&mut b).unwrap();
+        assert_eq!(pass_names(&a), pass_names(&b));
+    }
+
+    #[test]
+    fn a_replaced_tonemapper_is_declared_instead_of_tonemap() {
+        let mut graph = KernelGraph::with_payload(topology());
+        let handles = PipelineBuilder::new(PipelineConfig { denoise: false, ..PipelineConfig::default() })
+            .replace_tonemapper(|graph, layers| {
+                let mut display = graph.image("my_display", Format::Rgba8);
+                graph.pass("my_tonemap", Role::All).read(layers.linear()).write(&mut display).record();
+                Ok(display)
+            })
+            .declare(&mut graph)
+            .unwrap();
+        let names = pass_names(&graph);
+        assert!(!names.iter().any(|n| n == crate::tonemap::TONEMAP), "{names:?}");
+        assert_eq!(names.last().map(String::as_str), Some("my_tonemap"));
+        assert_eq!(handles.linear_slot, "radiance");
+    }
 }
