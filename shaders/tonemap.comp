@@ -5,7 +5,7 @@
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
 
-// 24 bytes; parallax_passes::tonemap::TonemapPush.
+// 32 bytes; parallax_passes::tonemap::TonemapPush.
 layout(push_constant, std430) uniform TonemapPush {
     uint src;
     uint dst;
@@ -13,6 +13,10 @@ layout(push_constant, std430) uniform TonemapPush {
     uint y1;
     uint width;
     float exposure;
+    // With scaled = 1, exposure is multiplied by texel (0, 0) of images[scale]: a global 1x1
+    // image an earlier pass of the frame measured (auto-exposure).
+    uint scale;
+    uint scaled;
 } pc;
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -31,7 +35,11 @@ void main() {
     if (x >= pc.width || y >= pc.y1) {
         return;
     }
-    vec3 rgb = imageLoad(images[pc.src], ivec2(x, y)).rgb * pc.exposure;
+    float exposure = pc.exposure;
+    if (pc.scaled != 0u) {
+        exposure *= imageLoad(images[pc.scale], ivec2(0, 0)).r;
+    }
+    vec3 rgb = imageLoad(images[pc.src], ivec2(x, y)).rgb * exposure;
     // NaN and negatives show as black, +Inf as white (the curve saturates at 1; 1e6 keeps its
     // squares finite).
     rgb = mix(rgb, vec3(0.0), isnan(rgb));

@@ -6,33 +6,32 @@
 //! the whole light field), the contact sheet, `viewer.html` (the views in a browser, with
 //! parallax), an optional Looking Glass quilt and wiggle, and render.json with the paper's
 //! Table 1 / Table 4 measures and the `setup` that comparisons check.
+//!
+//! Three rooms: [`plan`] (flags, outputs and work checked, the pipeline compiled, the scene
+//! loaded), [`frames`] (devices, executor, the frame loop) and [`report`] (read-back, outputs,
+//! render.json). A user crate runs all three over its own stages with [`run_extended`].
 
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+mod frames;
+mod plan;
+mod report;
 
-use anyhow::{Context as _, Result, bail};
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use parallax_backend::{
-    Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, FaultInjection, Timing, chrome_trace,
-};
-use parallax_graph::{LightField, Rig};
-use parallax_passes::camera::lightfield_views;
-use parallax_passes::pipeline::PipelineKind;
+use parallax_backend::{FaultInjection, ShaderLibrary};
+use parallax_passes::pipeline::PipelineBuilder;
 use parallax_passes::renderer::LightFieldRenderer;
-use parallax_scene::gpu::GpuScene;
-use parallax_scene::output::{ExrLayers, write_exr_with};
-use parallax_scene::{Camera, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
+use parallax_scene::{Camera, Scene};
 
-use crate::budget::TraceWork;
-use crate::logging::{bar, result};
 use crate::options::{DeviceArgs, Exposure, parse_exposure};
-use crate::outputs::{Format, Output, Sink, Staged, check, parse_sink, stage};
+use crate::outputs::{Sink, parse_sink};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
-use crate::render_pictures::{display_images, gpu_exposure, stage_pictures, view_png_name};
-use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
-use crate::run_setup::{CameraSetup, Setup};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
+use frames::render_frames;
+use plan::RenderJob;
+use report::write_outputs;
 
 /// `--barriers`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -145,6 +144,12 @@ fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
 }
 
 impl RenderArgs {
+    /// The exposure the GPU's tonemap pass runs at: `--exposure N`, or 1 under `auto` (whose
+    /// pictures are tonemapped on the host).
+    pub fn tonemap_exposure(&self) -> f32 {
+        crate::render_pictures::gpu_exposure(self.exposure)
+    }
+
     /// The run's settings as a run file for `--config`: every flag that shapes the pixels and
     /// the timing, by its long name, typed (outputs such as `--out-dir` are left to the command
     /// line).
@@ -177,243 +182,39 @@ impl RenderArgs {
     }
 }
 
+/// Extends the pipeline a builder declares (a user crate's stages).
+pub type ExtendPipeline = Box<dyn Fn(PipelineBuilder) -> PipelineBuilder>;
+/// Looks at the renderer once the last frame is finished.
+pub type AfterFrames = Box<dyn FnMut(&mut LightFieldRenderer) -> Result<()>>;
+
+/// What a user crate adds to `render`: stages of its own in the standard pipeline, the shaders
+/// they dispatch, and a look at the renderer after the last frame (before any output is
+/// written). [`run_extended`] runs it with `render`'s frame loop, reports and outputs.
+#[derive(Default)]
+pub struct RenderExtension {
+    /// Adds stages to (or replaces stages of) the pipeline the flags declare.
+    pub stages: Option<ExtendPipeline>,
+    /// The stages' kernels (`parallax_backend::include_shaders!()`), beside the built-in ones.
+    pub shaders: ShaderLibrary,
+    /// Called once the last frame is finished, e.g. to read back a layer the stages made.
+    pub after_frames: Option<AfterFrames>,
+}
+
+/// `parallax render`.
 pub fn run(args: RenderArgs) -> Result<()> {
+    run_extended(args, RenderExtension::default())
+}
+
+/// `parallax render` over the standard pipeline extended by `extension`: plan, frames, report.
+pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<()> {
     if let Some(file) = &args.config {
-        return run(crate::run_file::render_args_of(file)?);
+        return run_extended(crate::run_file::render_args_of(file)?, extension);
     }
-    args.pipeline.check()?;
-    let sheet = args.out_dir.join("lightfield.png");
-    let render_json = args.out_dir.join("render.json");
-    check_outputs(
-        &args.out_dir,
-        &sheet,
-        &render_json,
-        args.trace.as_ref(),
-        args.dot.dot.as_ref(),
-        args.wiggle.as_deref(),
-    )?;
-    let settings = TraceSettings { spp: args.spp, max_depth: args.depth.max_depth, ..Default::default() };
-    settings.validate()?;
-    let total_frames = args.warmup + args.frames;
-    let sized = args.light_field.with_rig(Rig::default())?;
-    crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
-    let work = TraceWork {
-        views: sized.len() as u64 * u64::from(total_frames),
-        width: sized.width,
-        height: sized.height,
-        spp: args.spp,
-    };
-    work.check_duration()?;
-    // Memory is per frame: the frames reuse the same images.
-    let one_frame = TraceWork { views: sized.len() as u64, ..work };
-    one_frame.check_host()?;
-    // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
-    // positions in the rig plane, not on where the rig stands.
-    let selection = args.devices.selection();
-    let compiled = args.pipeline.compile(&sized, selection.count() as u32, gpu_exposure(args.exposure))?;
-    let dot = args.dot.render(&compiled.schedule);
-    let (plan, summary, kind) = (&compiled.plan, &compiled.summary, compiled.kind);
-
-    let scene = args.scene.load()?;
-    let mut written = vec![("--out-dir", render_json.as_path()), ("--out-dir", sheet.as_path())];
-    if let Some(Sink::File(trace)) = &args.trace {
-        written.push(("--trace", trace.as_path()));
-    }
-    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
-    let camera = args.scene.camera_or_default(&scene);
-    let centre = scene.bounds().center();
-    // The scene's own camera animation, spread over the measured frames; else a dolly (an
-    // explicit --camera is a rig the user placed: it dollies too). Warm-up frames see the first
-    // measured frame's camera, so one measured frame is a still camera whatever the warm-up.
-    let animation = if args.scene.camera.is_none() { scene.camera_animation.clone() } else { None };
-    let camera_at = |f: u32| {
-        let m = f.saturating_sub(args.warmup);
-        match &animation {
-            _ if args.still => camera,
-            Some(a) => a.camera_at(a.duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32),
-            None => dolly(&camera, &scene, m, args.frames),
-        }
-    };
-    let lf_of = |f: u32| -> Result<LightField> { args.light_field.around(&camera_at(f), centre) };
-    let lf = lf_of(0)?;
-
-    let bvh = SceneBvh::build(&scene);
-    let context = VkContext::new(&ContextDesc::from_env(selection))?;
-    tracing::info!("{}", context.to_string().trim_end());
-    one_frame.check_devices(&context)?;
-    let exec_plan = ExecutionPlan::from_schedule(&compiled.graph, &compiled.schedule)?;
-    let barriers = match args.barriers {
-        BarrierArg::EveryOp => Barriers::EveryOp,
-        BarrierArg::Tracked => Barriers::Tracked,
-    };
-    let timing = match args.timing {
-        TimingArg::PerOp => Timing::PerOp,
-        TimingArg::PerStage => Timing::PerStage,
-    };
-    let mut renderer = LightFieldRenderer::with_options(
-        &context,
-        exec_plan,
-        lf.len() as u32,
-        &GpuScene::new(&scene, &bvh),
-        ExecOptions {
-            barriers,
-            timing,
-            frames_in_flight: args.frames_in_flight as usize,
-            fault: fault_from_env()?,
-            ..ExecOptions::default()
-        },
-    )?;
-
-    crate::outputs::create_folder(&args.out_dir)
-        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
-    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
-    let progress = bar(u64::from(total_frames));
-    let started = Instant::now();
-    let mut measured_from = None;
-    let mut staged: Vec<Staged> = Vec::new();
-    for f in 0..total_frames {
-        if f == args.warmup {
-            renderer.finish()?;
-            renderer.reset_stats();
-            // Only a trace needs every event of every frame; otherwise the statistics are all.
-            renderer.keep_reports(args.trace.is_some());
-            measured_from = Some(Instant::now());
-        }
-        let views = lightfield_views(&lf_of(f)?);
-        renderer.submit(&scene, &views, &TraceSettings { frame: f, ..settings })?;
-        let measured = f.checked_sub(args.warmup);
-        if let (Some(every), Some(m)) = (args.save_every, measured)
-            && m % every == 0
-            && f + 1 < total_frames
-        {
-            renderer.finish()?;
-            let folder = args.out_dir.join(format!("frame_{m:05}"));
-            crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
-            staged.extend(stage_views(
-                &mut renderer,
-                compiled.handles.linear_slot,
-                &folder,
-                &views,
-                &extra_layers(&args, kind),
-            )?);
-        }
-        progress.inc(1);
-    }
-    renderer.finish()?;
-    let wall = measured_from.unwrap_or(started).elapsed();
-    progress.finish_and_clear();
-    let reports = renderer.take_reports();
-    let prepare = renderer.prepare_ms().clone();
-    let timing = timings(renderer.stats(), &prepare);
-    let last_views = lightfield_views(&lf_of(total_frames - 1)?);
-
-    // Everything is staged before anything is put in place, and render.json goes last: a
-    // failure (or Ctrl-C) at any point leaves the folder as it was or complete.
-    staged.extend(stage_views(
-        &mut renderer,
-        compiled.handles.linear_slot,
-        &args.out_dir,
-        &last_views,
-        &extra_layers(&args, kind),
-    )?);
-    let (exposure, displays) =
-        display_images(&mut renderer, compiled.handles.linear_slot, (lf.len() as u32, lf.width), args.exposure)?;
-    let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
-    drop(displays);
-    let missing = match kind {
-        PipelineKind::Reproject => {
-            let holes: Vec<Option<Vec<u32>>> = (0..lf.len() as u32)
-                .map(|v| {
-                    if plan.topology.is_source[v as usize] {
-                        return Ok(None);
-                    }
-                    let bytes = renderer.read_stitched("holes", v)?;
-                    Ok(Some(bytemuck_words(&bytes)))
-                })
-                .collect::<Result<_, parallax_passes::PassError>>()?;
-            missing_pixels(renderer.executor().plan(), &holes, lf.width)
-        }
-        PipelineKind::PathTrace => MissingPixels::default(),
-    };
-    drop(renderer);
-    context.check_validation()?;
-
-    let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
-    let still = args.still || args.frames == 1;
-    let last_lf = lf_of(total_frames - 1)?;
-    let spacing = args.light_field.layout.spacing;
-    let setup = Setup::new(
-        &args.scene.scene,
-        &scene,
-        &camera_at(total_frames - 1),
-        still,
-        (&last_lf, spacing),
-        args.depth.max_depth,
-    )?;
-    let json = serde_json::json!({
-        "version": env!("CARGO_PKG_VERSION"),
-        "scene": args.scene.scene,
-        "camera": CameraSetup::of(&camera), "sun": &setup.sun, "sky": &setup.sky,
-        "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
-                    "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
-        // The assignment groups views only under multi-source (`--assign` is refused otherwise).
-        "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
-        "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
-        "exposure": exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
-        "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
-        "reprojection_tolerance": args.pipeline.reprojection_tolerance,
-        "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
-        "frames_in_flight": args.frames_in_flight,
-        "devices": device_names,
-        "run": args.run_file(),
-        "plan": summary,
-        "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
-        "timing": &timing,
-        // Path tracing every view leaves no holes to count.
-        "missing_pixels": (kind == PipelineKind::Reproject).then_some(&missing),
-    });
-    let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
-    let json_file = crate::outputs::stage_json(&render_json, &json)?;
-    let trace = args.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
-    for s in staged.into_iter().chain(pictures.staged) {
-        s.commit()?;
-    }
-    viewer.commit()?;
-    remove_stale_views(&args.out_dir, lf.len())?;
-    if let (Some(sink), Some(trace)) = (&args.trace, &trace) {
-        crate::outputs::write_json(sink, trace)?;
-    }
-    if let (Some(sink), Some(dot)) = (&args.dot.dot, &dot) {
-        crate::outputs::write_bytes(sink, dot.as_bytes())?;
-    }
-    json_file.commit()?;
-    crate::outputs::keep_folders();
-    let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
-    let say = |line: String| result(stdout_taken, &line);
-    say(stage_table(&timing));
-    say(format!(
-        "rendered {} views of {}x{} ({}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
-        lf.len(),
-        lf.width,
-        lf.height,
-        crate::bench_matrix::name_of(&args.pipeline.pipeline),
-        summary.scheme,
-        summary.devices,
-        args.spp,
-        args.frames,
-        wall.as_secs_f64() * 1e3 / f64::from(args.frames),
-        timing.frame_gpu.mean_ms,
-        100.0 * missing.overall
-    ));
-    say(format!(
-        "wrote {} views (EXR and PNG at exposure {exposure:.4}, {}), {}, {} and {}",
-        lf.len(),
-        args.exposure.mode(),
-        sheet.display(),
-        args.out_dir.join("viewer.html").display(),
-        render_json.display()
-    ));
-    Ok(())
+    let identity = |builder: PipelineBuilder| builder;
+    let extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder = extension.stages.as_deref().unwrap_or(&identity);
+    let job = RenderJob::prepare(&args, extend)?;
+    let rendered = render_frames(&args, &job, &mut extension)?;
+    write_outputs(&args, &job, rendered)
 }
 
 /// `PARALLAX_FAULT=device-lost:F`: frame F's submission fails as on a lost GPU
@@ -426,165 +227,4 @@ fn fault_from_env() -> Result<Option<FaultInjection>> {
         Some(frame) => Ok(Some(FaultInjection::LoseDevice { frame })),
         None => bail!("PARALLAX_FAULT={value}: the only fault is device-lost:FRAME (e.g. device-lost:1); unset it"),
     }
-}
-
-/// Which extra EXR layers the views get.
-fn extra_layers(args: &RenderArgs, kind: PipelineKind) -> (bool, bool) {
-    (args.layers, args.layers && kind == PipelineKind::Reproject)
-}
-
-fn bytemuck_words(bytes: &[u8]) -> Vec<u32> {
-    bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
-}
-
-fn texels(bytes: &[u8]) -> Vec<[f32; 4]> {
-    bytes
-        .chunks_exact(16)
-        .map(|b| std::array::from_fn(|i| f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])))
-        .collect()
-}
-
-/// Stages `view_NNN.exr` of every view into `folder`: the linear radiance after denoising (or
-/// after hole filling with --no-denoise), with `(layers, holes)`: albedo, normal and depth, and
-/// the hole mask of targets as channel `holes.Y` (1 = the pixel was path traced by hole filling).
-fn stage_views(
-    renderer: &mut LightFieldRenderer,
-    linear_slot: &str,
-    folder: &Path,
-    views: &[View],
-    (layers, holes): &(bool, bool),
-) -> Result<Vec<Staged>> {
-    let mut staged = Vec::with_capacity(views.len());
-    for view in views {
-        let radiance = texels(&renderer.read_stitched(linear_slot, view.index)?);
-        let (albedo, normal, position) = if *layers {
-            (
-                texels(&renderer.read_stitched("albedo_roughness", view.index)?),
-                texels(&renderer.read_stitched("normal_metallic", view.index)?),
-                texels(&renderer.read_stitched("position_depth", view.index)?),
-            )
-        } else {
-            (Vec::new(), Vec::new(), Vec::new())
-        };
-        // Sources have no hole mask: only targets get the channel.
-        let mask = if *holes {
-            match renderer.read_stitched("holes", view.index) {
-                Ok(bytes) => Some(bytemuck_words(&bytes)),
-                Err(parallax_passes::PassError::MissingResource { .. }) => None,
-                Err(e) => return Err(e.into()),
-            }
-        } else {
-            None
-        };
-        let pixels = (0..radiance.len())
-            .map(|i| {
-                let g = |layer: &[[f32; 4]]| layer.get(i).copied().unwrap_or([0.0; 4]);
-                let (a, n, p) = (g(&albedo), g(&normal), g(&position));
-                PixelSample {
-                    radiance: Vec3::from_slice(&radiance[i][..3]),
-                    albedo: Vec3::from_slice(&a[..3]),
-                    normal: Vec3::from_slice(&n[..3]),
-                    depth: p[3],
-                    position: Vec3::from_slice(&p[..3]),
-                    roughness: a[3],
-                    metallic: n[3],
-                    hit: radiance[i][3] > 0.5,
-                }
-            })
-            .collect();
-        let frame = Frame { width: view.width, height: view.height, pixels };
-        let path = folder.join(view_file_name(view.index));
-        let exr_layers = if *layers { ExrLayers::ALL } else { ExrLayers::default() };
-        let mask: Option<Vec<f32>> = mask.map(|m| m.iter().map(|&h| h as f32).collect());
-        let extra: Vec<(&str, &[f32])> = mask.iter().map(|m| ("holes.Y", m.as_slice())).collect();
-        staged.push(stage(&path, |tmp| {
-            write_exr_with(tmp, &frame, exr_layers, &extra).with_context(|| format!("cannot write {}", path.display()))
-        })?);
-    }
-    Ok(staged)
-}
-
-fn view_file_name(index: u32) -> String {
-    format!("view_{index:03}.exr")
-}
-
-/// Checks the outputs before any work. The folder may not exist yet (it is created when the
-/// views are written), but the nearest folder above it must be writable.
-fn check_outputs(
-    out_dir: &Path,
-    sheet: &Path,
-    render_json: &Path,
-    trace: Option<&Sink>,
-    dot: Option<&Sink>,
-    wiggle: Option<&Path>,
-) -> Result<()> {
-    if out_dir.exists() && !out_dir.is_dir() {
-        bail!("--out-dir {} is a file: give a folder", out_dir.display());
-    }
-    let existing = out_dir.ancestors().find(|a| a.as_os_str().is_empty() || a.exists()).unwrap_or(Path::new("."));
-    let existing = if existing.as_os_str().is_empty() { Path::new(".") } else { existing };
-    if !existing.is_dir() {
-        bail!("--out-dir {}: {} is not a folder", out_dir.display(), existing.display());
-    }
-    tempfile::NamedTempFile::new_in(existing)
-        .with_context(|| format!("--out-dir {}: folder {} is not writable", out_dir.display(), existing.display()))?;
-    let sheet_sink = Sink::File(sheet.to_path_buf());
-    let json_sink = Sink::File(render_json.to_path_buf());
-    let viewer_sink = Sink::File(out_dir.join("viewer.html"));
-    let mut outputs = Vec::new();
-    if out_dir.is_dir() {
-        outputs.push(Output { flag: "--out-dir", sink: &sheet_sink, format: Format::Png });
-        outputs.push(Output { flag: "--out-dir", sink: &json_sink, format: Format::Json });
-        outputs.push(Output { flag: "--out-dir", sink: &viewer_sink, format: Format::Html });
-    }
-    let in_out_dir = |flag: &str, path: &Path| {
-        if path.parent().is_some_and(|p| p == out_dir)
-            && path.file_name().and_then(|n| n.to_str()).is_some_and(|n| n == "render.json" || n.starts_with("view_"))
-        {
-            bail!("{flag} {} would overwrite an output of --out-dir: give it another name", path.display());
-        }
-        Ok(())
-    };
-    if let Some(sink) = trace {
-        if let Sink::File(path) = sink {
-            in_out_dir("--trace", path)?;
-        }
-        outputs.push(Output { flag: "--trace", sink, format: Format::Json });
-    }
-    if let Some(sink) = dot {
-        outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
-    }
-    let wiggle_sink = wiggle.map(|p| Sink::File(p.to_path_buf()));
-    if let Some(sink @ Sink::File(path)) = &wiggle_sink {
-        in_out_dir("--wiggle", path)?;
-        outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
-    }
-    check(&outputs)
-}
-
-/// Removes `view_NNN.exr` and `view_NNN.png` files of an earlier run that this run of `views`
-/// views did not write.
-fn remove_stale_views(out_dir: &Path, views: usize) -> Result<()> {
-    let entries = std::fs::read_dir(out_dir).with_context(|| format!("cannot list --out-dir {}", out_dir.display()))?;
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let Some(index) = name.to_str().and_then(parse_view_file_name) else { continue };
-        if index as usize >= views && entry.file_type().is_ok_and(|t| t.is_file()) {
-            std::fs::remove_file(entry.path())
-                .with_context(|| format!("cannot remove stale {}", entry.path().display()))?;
-            tracing::info!("removed {} of an earlier run", entry.path().display());
-        }
-    }
-    Ok(())
-}
-
-/// The view index of a file name this command writes (`view_007.exr` or `.png` → 7).
-fn parse_view_file_name(name: &str) -> Option<u32> {
-    let stem = name.strip_prefix("view_")?;
-    let digits = stem.strip_suffix(".exr").or_else(|| stem.strip_suffix(".png"))?;
-    if digits.len() < 3 || !digits.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    let index: u32 = digits.parse().ok()?;
-    (view_file_name(index) == name || view_png_name(index) == name).then_some(index)
 }

@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use parallax_backend::KernelGraph;
 use parallax_graph::{Graph, LightField, Plan, PlanConfig, PlanSummary, Schedule, Scheme};
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
 
 use crate::budget::check_plan_size;
@@ -160,6 +160,17 @@ impl PipelineArgs {
     /// The plan depends only on the views' positions in the rig plane, never on the rig's pose,
     /// so any rig gives the same schedule.
     pub fn compile(&self, lf: &LightField, devices: u32, exposure: f32) -> Result<PipelineSchedule> {
+        self.compile_with(lf, devices, exposure, &|builder| builder)
+    }
+
+    /// [`Self::compile`] of the pipeline extended by `extend` (a user crate's stages).
+    pub fn compile_with(
+        &self,
+        lf: &LightField,
+        devices: u32,
+        exposure: f32,
+        extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
+    ) -> Result<PipelineSchedule> {
         let config = PlanConfig {
             devices,
             scheme: self.scheme.into(),
@@ -174,7 +185,7 @@ impl PipelineArgs {
         check_plan_size(lf.len() as u64, u64::from(devices), sources, config.scheme)?;
         let plan = Plan::with_sources_per_set(lf, &config, self.sources_per_set)?;
         let mut graph = KernelGraph::with_payload(plan.topology.clone());
-        let handles = declare_pipeline(&mut graph, &self.config(exposure))?;
+        let handles = extend(PipelineBuilder::new(self.config(exposure))).declare(&mut graph)?;
         graph.export(&handles.display);
         let schedule = compile_checked(&graph, &plan)?;
         let summary = PlanSummary::new(lf, &plan, &schedule);

@@ -8,8 +8,8 @@
 //! the linear views read back for the EXRs; the views are then tonemapped on the host by the
 //! pass's CPU twin ([`tonemap_pixel`], the same curve) from a second read-back, and the GPU's
 //! display images of that frame are not used (the pass ran at exposure 1, and costs the same at
-//! any exposure). A GPU pass for the automatic exposure needs resources shared by all views,
-//! which the one-schedule work brings.
+//! any exposure). The same measure as a GPU pass before the tonemapper, through a global
+//! resource, is `examples/auto_exposure.rs`.
 
 use std::path::Path;
 

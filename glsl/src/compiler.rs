@@ -92,6 +92,37 @@ impl Compiler {
     /// them, [`crate::TABLE_FILE`], into `out_dir`. Prints nothing: [`crate::compile_dir`] adds
     /// what cargo needs.
     pub fn compile_dir(&self, src_dir: &Path, include_dirs: &[&Path], out_dir: &Path) -> Result<Vec<CompiledShader>> {
+        self.compile_dirs(&[src_dir], include_dirs, out_dir)
+    }
+
+    /// [`Self::compile_dir`] over several folders into one table, so one crate embeds kernels
+    /// kept in several places (each example beside its code). Two shaders of one name in
+    /// different folders are refused: a dispatch names a shader by its file stem alone.
+    pub fn compile_dirs(
+        &self,
+        src_dirs: &[&Path],
+        include_dirs: &[&Path],
+        out_dir: &Path,
+    ) -> Result<Vec<CompiledShader>> {
+        let mut shaders: Vec<CompiledShader> = Vec::new();
+        for src_dir in src_dirs {
+            for shader in self.compile_sources(src_dir, include_dirs, out_dir)? {
+                if let Some(first) = shaders.iter().find(|s| s.name == shader.name) {
+                    return Err(GlslError::DuplicateName {
+                        name: shader.name,
+                        first: first.source.clone(),
+                        second: shader.source,
+                    });
+                }
+                shaders.push(shader);
+            }
+        }
+        table::write(&shaders, &out_dir.join(crate::TABLE_FILE))?;
+        Ok(shaders)
+    }
+
+    /// Compiles the shaders of one folder, without writing a table.
+    fn compile_sources(&self, src_dir: &Path, include_dirs: &[&Path], out_dir: &Path) -> Result<Vec<CompiledShader>> {
         let entries =
             std::fs::read_dir(src_dir).map_err(|source| GlslError::Read { path: src_dir.to_path_buf(), source })?;
         let mut sources = Vec::new();
@@ -111,7 +142,6 @@ impl Compiler {
             let dependencies = self.compile_file(&source, include_dirs, &spirv, &out_dir.join(format!("{file}.d")))?;
             shaders.push(CompiledShader { name, source, spirv, dependencies });
         }
-        table::write(&shaders, &out_dir.join(crate::TABLE_FILE))?;
         Ok(shaders)
     }
 }

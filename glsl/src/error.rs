@@ -28,6 +28,10 @@ pub enum GlslError {
     /// A shader whose file name is not UTF-8 cannot be named in the Rust table.
     #[error("shader file name {} is not UTF-8; rename it", .0.display())]
     NonUtf8Name(PathBuf),
+
+    /// Two folders compiled into one table hold shaders of one name.
+    #[error("two shaders are named `{name}`: {} and {}; rename one", .first.display(), .second.display())]
+    DuplicateName { name: String, first: PathBuf, second: PathBuf },
 }
 
 /// Shorthand used across the crate.

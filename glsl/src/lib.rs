@@ -40,15 +40,28 @@ pub fn parallax_include_dir() -> &'static Path {
 /// run the build script again when a shader changes: `rerun-if-changed` for the folders (a new
 /// shader), every source and every `#include`d file, and `rerun-if-env-changed=GLSLC`.
 pub fn compile_dir(src_dir: &Path, include_dirs: &[&Path], out_dir: &Path) -> Result<Vec<CompiledShader>> {
+    compile_dirs(&[src_dir], include_dirs, out_dir)
+}
+
+/// [`compile_dir`] over several folders into one table ([`Compiler::compile_dirs`]).
+pub fn compile_dirs(src_dirs: &[&Path], include_dirs: &[&Path], out_dir: &Path) -> Result<Vec<CompiledShader>> {
     println!("cargo:rerun-if-env-changed=GLSLC");
-    for dir in std::iter::once(&src_dir).chain(include_dirs) {
+    for dir in src_dirs.iter().chain(include_dirs) {
         println!("cargo:rerun-if-changed={}", dir.display());
     }
-    let shaders = Compiler::new().compile_dir(src_dir, include_dirs, out_dir)?;
+    let shaders = Compiler::new().compile_dirs(src_dirs, include_dirs, out_dir)?;
     for dependency in shaders.iter().flat_map(|s| &s.dependencies) {
         println!("cargo:rerun-if-changed={}", dependency.display());
     }
     Ok(shaders)
+}
+
+/// [`compile_dirs`] for a build script's `main`, failing as [`compile_dir_or_exit`] does.
+pub fn compile_dirs_or_exit(src_dirs: &[&Path], include_dirs: &[&Path], out_dir: &Path) -> Vec<CompiledShader> {
+    compile_dirs(src_dirs, include_dirs, out_dir).unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    })
 }
 
 /// [`compile_dir`] for a build script's `main`: on failure prints the error (glslc's report,

@@ -22,6 +22,10 @@ pub enum Role {
     Sources,
     /// Views synthesised from their sources.
     Targets,
+    /// One instance for the whole light field (placed where view 0 runs, never split): what
+    /// writes a global resource ([`Graph::global_buffer`], [`Graph::global_image`]), e.g. a
+    /// reduction over every view ([`PassBuilder::read_every_view_slot`]).
+    Global,
 }
 
 /// Which views are sources and which sources each target reprojects from.
@@ -54,6 +58,7 @@ impl ViewTopology {
             Role::All => true,
             Role::Sources => self.is_source[v.index()],
             Role::Targets => !self.is_source[v.index()],
+            Role::Global => v == ViewId(0),
         }
     }
 }
@@ -97,6 +102,8 @@ pub enum ReadScope {
     Sources,
     /// The previous frame's last version of the instance's own view, own rows.
     History,
+    /// Every view of the light field, every row: what a global pass reduces over.
+    EveryView,
 }
 
 /// What a kernel keeps of its pass's declaration and binds through (the backend's
@@ -162,7 +169,7 @@ impl SlotAccess {
     fn of_read(scope: ReadScope) -> Self {
         match scope {
             ReadScope::Own | ReadScope::OwnWhole => SlotAccess::Read,
-            ReadScope::Sources => SlotAccess::SourceRead,
+            ReadScope::Sources | ReadScope::EveryView => SlotAccess::SourceRead,
             ReadScope::History => SlotAccess::HistoryRead,
         }
     }
@@ -210,7 +217,23 @@ pub(crate) struct FamilyDecl {
     pub reset: Option<Vec<u32>>,
     /// Per view, the version gathered to device 0, and where `export` was called.
     pub exported: Option<(Vec<u32>, &'static Location<'static>)>,
+    /// One resource for the whole light field rather than one per view.
+    pub global: bool,
     pub at: &'static Location<'static>,
+}
+
+impl FamilyDecl {
+    /// Whether the family's rows are the view's rows, so a pass split into row bands touches
+    /// only its band of it (a view-sized image, a row buffer). Anything else (a buffer, an
+    /// image of its own size, a global resource) is touched whole.
+    pub(crate) fn banded(&self, view_height: u32) -> bool {
+        !self.global
+            && match self.desc {
+                ResourceDesc::Image { height, .. } => height == view_height,
+                ResourceDesc::RowBuffer { .. } => true,
+                ResourceDesc::Buffer { .. } => false,
+            }
+    }
 }
 
 /// A declared pass, before instantiation.
@@ -286,6 +309,11 @@ impl<P> Graph<P> {
     /// Kernels, reports and slot lookups tell families apart by name, so a name is given once.
     #[track_caller]
     fn family<K>(&mut self, name: &str, desc: ResourceDesc) -> Handle<K> {
+        self.declare_family(name, desc, false)
+    }
+
+    #[track_caller]
+    fn declare_family<K>(&mut self, name: &str, desc: ResourceDesc, global: bool) -> Handle<K> {
         let at = Location::caller();
         if let Some(first) = self.families.iter().find(|f| f.name == name) {
             self.refused.push(GraphError::DuplicateResource { name: name.to_string(), first: first.at, at });
@@ -297,9 +325,12 @@ impl<P> Graph<P> {
             imported: false,
             reset: None,
             exported: None,
+            global,
             at,
         });
-        Handle { graph: self.id, family, versions: vec![0; self.topology.views() as usize], _kind: PhantomData }
+        // A global family has one resource, so one version counter.
+        let counters = if global { 1 } else { self.topology.views() as usize };
+        Handle { graph: self.id, family, versions: vec![0; counters], _kind: PhantomData }
     }
 
     /// One image per view, at the light field's resolution.
@@ -307,6 +338,33 @@ impl<P> Graph<P> {
     pub fn image(&mut self, name: &str, format: Format) -> Handle<Image> {
         let desc = ResourceDesc::Image { width: self.topology.width, height: self.topology.height, format };
         self.family(name, desc)
+    }
+
+    /// One image per view of its own size (not the view's), e.g. a 1×1 per-view reduction.
+    /// Passes touch it whole, even when they are split into row bands.
+    #[track_caller]
+    pub fn image_sized(&mut self, name: &str, width: u32, height: u32, format: Format) -> Handle<Image> {
+        self.family(name, ResourceDesc::Image { width, height, format })
+    }
+
+    /// One buffer for the whole light field: written only by a [`Role::Global`] pass, read
+    /// whole by any pass. The planner keeps one instance where its writer runs and copies it to
+    /// every other device that reads it.
+    #[track_caller]
+    pub fn global_buffer(&mut self, name: &str, bytes: u64) -> Handle<Buffer> {
+        self.declare_family(name, ResourceDesc::Buffer { bytes }, true)
+    }
+
+    /// One image of its own size for the whole light field (see [`Self::global_buffer`]).
+    #[track_caller]
+    pub fn global_image(&mut self, name: &str, width: u32, height: u32, format: Format) -> Handle<Image> {
+        self.declare_family(name, ResourceDesc::Image { width, height, format }, true)
+    }
+
+    /// Starts declaring a [`Role::Global`] pass: one instance for the whole light field.
+    #[track_caller]
+    pub fn global_pass(&mut self, name: &str) -> PassBuilder<'_, P> {
+        self.pass(name, Role::Global)
     }
 
     /// One buffer per view.
@@ -398,6 +456,43 @@ impl<P> PassBuilder<'_, P> {
         }
     }
 
+    /// A global resource is one resource, so it has no source views and no other view to
+    /// reduce over; a global pass has no view of its own, so it reads views only all at once.
+    fn check_read_scope(&mut self, family: FamilyId, scope: ReadScope) {
+        let global = self.graph.families[family.index()].global;
+        let fits = match scope {
+            ReadScope::Own | ReadScope::OwnWhole => global || self.decl.role != Role::Global,
+            ReadScope::History => global == (self.decl.role == Role::Global),
+            ReadScope::Sources => !global && self.decl.role != Role::Global,
+            ReadScope::EveryView => !global && self.decl.role == Role::Global,
+        };
+        if !fits {
+            let error = GraphError::ReadScope {
+                pass: self.decl.name.clone(),
+                resource: self.family_name(family),
+                global,
+                scope: format!("{scope:?}"),
+                at: self.decl.at,
+            };
+            self.refuse(error);
+        }
+    }
+
+    /// A global resource has one version per frame step, so one pass instance writes it: a
+    /// global pass. A global pass has no view, so it writes only global resources.
+    fn check_write_scope(&mut self, family: FamilyId) {
+        let global = self.graph.families[family.index()].global;
+        if global != (self.decl.role == Role::Global) {
+            let error = GraphError::WriteScope {
+                pass: self.decl.name.clone(),
+                resource: self.family_name(family),
+                global,
+                at: self.decl.at,
+            };
+            self.refuse(error);
+        }
+    }
+
     fn family_name(&self, family: FamilyId) -> String {
         self.graph.families[family.index()].name.clone()
     }
@@ -405,6 +500,7 @@ impl<P> PassBuilder<'_, P> {
     /// Declares a read; returns its index among the pass's reads (what its slot token names).
     fn push_read<K>(&mut self, h: &Handle<K>, scope: ReadScope) -> u16 {
         self.check(h);
+        self.check_read_scope(h.family, scope);
         self.check_slot(h.family, SlotAccess::of_read(scope));
         let slot = self.family_name(h.family);
         self.decl.reads.push(ReadDecl { family: h.family, versions: h.versions.clone(), scope, slot });
@@ -415,9 +511,10 @@ impl<P> PassBuilder<'_, P> {
     fn push_write<K>(&mut self, h: &mut Handle<K>, in_place: bool) -> u16 {
         self.check(h);
         self.check_slot(h.family, SlotAccess::Write);
+        self.check_write_scope(h.family);
         let topo = &self.graph.topology;
         for v in 0..topo.views() {
-            if topo.in_role(self.decl.role, ViewId(v)) {
+            if topo.in_role(self.decl.role, ViewId(v)) && (v as usize) < h.versions.len() {
                 h.versions[v as usize] += 1;
             }
         }
@@ -441,6 +538,12 @@ impl<P> PassBuilder<'_, P> {
     /// reprojection read. Each such read yields a δ-edge source → target.
     pub fn read_sources_slot<K>(&mut self, h: &Handle<K>) -> SourcesSlot {
         SourcesSlot(self.id, self.push_read(h, ReadScope::Sources))
+    }
+
+    /// Reads every view's current version of a per-view resource, every row, from a
+    /// [`Role::Global`] pass; the kernel sees view `i` as source `i` (`ExecPass::sources`).
+    pub fn read_every_view_slot<K>(&mut self, h: &Handle<K>) -> SourcesSlot {
+        SourcesSlot(self.id, self.push_read(h, ReadScope::EveryView))
     }
 
     /// Reads the previous frame's last version of this view's resource.
@@ -501,6 +604,7 @@ impl<P> PassBuilder<'_, P> {
     /// through handles; versions that nothing writes are reported at compile time.
     pub fn read_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
+        self.check_read_scope(h.family, ReadScope::Own);
         self.check_slot(h.family, SlotAccess::Read);
         let versions = vec![version; h.versions.len()];
         let slot = self.family_name(h.family);
@@ -513,6 +617,7 @@ impl<P> PassBuilder<'_, P> {
     pub fn write_version<K>(mut self, h: &Handle<K>, version: u32) -> Self {
         self.check(h);
         self.check_slot(h.family, SlotAccess::Write);
+        self.check_write_scope(h.family);
         let versions = vec![version; h.versions.len()];
         let slot = self.family_name(h.family);
         self.decl.writes.push(WriteDecl { family: h.family, versions, slot, in_place: false });

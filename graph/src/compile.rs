@@ -43,7 +43,18 @@ pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedul
     let writers = writer_map(graph)?;
     let needed = cull(graph, &writers)?;
     let resources = resource_infos(graph, &writers);
-    let rid = |f: FamilyId, v: ViewId| ResourceId(f.0 * views + v.0);
+    // Resources are numbered family by family, a view's after another: a per-view family has
+    // one per view, a global family one (its view 0).
+    let first: Vec<u32> = graph
+        .families
+        .iter()
+        .scan(0, |next, fam| {
+            let first = *next;
+            *next += if fam.global { 1 } else { views };
+            Some(first)
+        })
+        .collect();
+    let rid = |f: FamilyId, v: ViewId| ResourceId(first[f.index()] + home(graph, f, v).0);
 
     let mut instances = Vec::new();
     let mut culled = Vec::new();
@@ -64,7 +75,7 @@ pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedul
     }
 
     let edges = derive_edges(graph, &instances, &resources)?;
-    let delta_edges = delta_edges(&instances, &resources);
+    let delta_edges = delta_edges(graph, &instances, &resources);
     let order = topological_order(&instances, &edges)?;
     let (devices, mut copies) = lower(placement.devices(), &instances, &edges, &resources, &order);
     let (allocations, history) = assign_storage(&mut instances, &mut copies, &order);
@@ -121,6 +132,12 @@ fn last_version(writers: &WriterMap, family: FamilyId, view: ViewId) -> u32 {
     writers.range((family, view, 0)..=(family, view, u32::MAX)).next_back().map_or(0, |(k, _)| k.2)
 }
 
+/// The view whose resource of `family` stands for view `v`: `v` itself, or view 0 for a global
+/// family (its only resource).
+fn home<P>(graph: &Graph<P>, family: FamilyId, v: ViewId) -> ViewId {
+    if graph.families[family.index()].global { ViewId(0) } else { v }
+}
+
 /// The (family, view, version) triples one declared read touches for view `v`.
 fn read_targets<P>(
     graph: &Graph<P>,
@@ -131,11 +148,20 @@ fn read_targets<P>(
     v: ViewId,
 ) -> Vec<(FamilyId, ViewId, u32)> {
     match scope {
-        ReadScope::Own | ReadScope::OwnWhole => vec![(family, v, versions[v.index()])],
+        ReadScope::Own | ReadScope::OwnWhole => {
+            let at = home(graph, family, v);
+            vec![(family, at, versions[at.index()])]
+        }
         ReadScope::Sources => {
             graph.topology.sources_of[v.index()].iter().map(|&s| (family, s, versions[s.index()])).collect()
         }
-        ReadScope::History => vec![(family, v, last_version(writers, family, v))],
+        ReadScope::EveryView => {
+            (0..graph.topology.views()).map(|u| (family, ViewId(u), versions[u as usize])).collect()
+        }
+        ReadScope::History => {
+            let at = home(graph, family, v);
+            vec![(family, at, last_version(writers, family, at))]
+        }
     }
 }
 
@@ -209,11 +235,20 @@ fn cull<P>(graph: &Graph<P>, writers: &WriterMap) -> Result<BTreeSet<(u32, u32)>
     Ok(needed)
 }
 
+/// A pass splits into row bands unless it writes something touched whole (one writer per
+/// version), or reads a per-view buffer pixel-locally (which has no rows to split). Reading a
+/// global resource or an image of its own size is a whole read from every band.
 fn splittable<P>(graph: &Graph<P>, decl: &PassDecl) -> bool {
-    let is_buffer = |f: FamilyId| matches!(graph.families[f.index()].desc, ResourceDesc::Buffer { .. });
+    let height = graph.topology.height;
+    let whole = |f: FamilyId| !graph.families[f.index()].banded(height);
+    let view_buffer = |f: FamilyId| {
+        let fam = &graph.families[f.index()];
+        !fam.global && matches!(fam.desc, ResourceDesc::Buffer { .. })
+    };
     !decl.whole_view
-        && !decl.writes.iter().any(|w| is_buffer(w.family))
-        && !decl.reads.iter().any(|r| matches!(r.scope, ReadScope::Own | ReadScope::History) && is_buffer(r.family))
+        && decl.role != Role::Global
+        && !decl.writes.iter().any(|w| whole(w.family))
+        && !decl.reads.iter().any(|r| matches!(r.scope, ReadScope::Own | ReadScope::History) && view_buffer(r.family))
 }
 
 fn resource_infos<P>(graph: &Graph<P>, writers: &WriterMap) -> Vec<ResourceInfo> {
@@ -229,7 +264,8 @@ fn resource_infos<P>(graph: &Graph<P>, writers: &WriterMap) -> Vec<ResourceInfo>
         .flat_map(|(f, fam)| {
             let family = FamilyId(f as u32);
             let history = history.contains(&family);
-            (0..graph.topology.views()).map(move |v| ResourceInfo {
+            let views = if fam.global { 1 } else { graph.topology.views() };
+            (0..views).map(move |v| ResourceInfo {
                 name: fam.name.clone(),
                 family,
                 view: ViewId(v),
@@ -238,17 +274,17 @@ fn resource_infos<P>(graph: &Graph<P>, writers: &WriterMap) -> Vec<ResourceInfo>
                 history,
                 versions: last_version(writers, family, ViewId(v)),
                 reset: fam.reset.clone(),
+                global: fam.global,
             })
         })
         .collect()
 }
 
-/// Resource rows covered by an instance band (buffers are always their single row).
-fn rows_of(desc: ResourceDesc, band: Region) -> Region {
-    match desc {
-        ResourceDesc::Image { .. } | ResourceDesc::RowBuffer { .. } => band,
-        ResourceDesc::Buffer { .. } => desc.full(),
-    }
+/// Resource rows covered by an instance band: the band of a banded resource (a view-sized
+/// image, a row buffer), every row of anything else.
+fn rows_of<P>(graph: &Graph<P>, family: FamilyId, band: Region) -> Region {
+    let fam = &graph.families[family.index()];
+    if fam.banded(graph.topology.height) { band } else { fam.desc.full() }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -262,19 +298,19 @@ fn instantiate<P>(
     region: Region,
     rid: &dyn Fn(FamilyId, ViewId) -> ResourceId,
 ) -> PassInstance {
-    let desc = |f: FamilyId| graph.families[f.index()].desc;
+    let full = |f: FamilyId| graph.families[f.index()].desc.full();
     let mut reads = Vec::new();
     let mut history_reads = Vec::new();
     for (k, r) in decl.reads.iter().enumerate() {
         let targets = read_targets(graph, writers, r.scope, r.family, &r.versions, view);
         for (i, (family, u, version)) in targets.into_iter().enumerate() {
             let rows = match r.scope {
-                ReadScope::Own | ReadScope::History => rows_of(desc(family), region),
-                ReadScope::OwnWhole | ReadScope::Sources => desc(family).full(),
+                ReadScope::Own | ReadScope::History => rows_of(graph, family, region),
+                ReadScope::OwnWhole | ReadScope::Sources | ReadScope::EveryView => full(family),
             };
             let origin = match r.scope {
                 ReadScope::Own | ReadScope::OwnWhole => Origin::Own,
-                ReadScope::Sources => Origin::Source(i as u32),
+                ReadScope::Sources | ReadScope::EveryView => Origin::Source(i as u32),
                 ReadScope::History => Origin::History,
             };
             let access = Access {
@@ -296,7 +332,7 @@ fn instantiate<P>(
         .map(|(k, w)| Access {
             resource: rid(w.family, view),
             version: w.versions[view.index()],
-            region: rows_of(desc(w.family), region),
+            region: rows_of(graph, w.family, region),
             alloc: AllocId::UNASSIGNED,
             origin: Origin::Own,
             decl: k as u16,
@@ -368,15 +404,23 @@ fn derive_edges<P>(
     Ok(edges)
 }
 
-/// δ-edges: reads of another view's resource, once per (source view, consuming instance).
-fn delta_edges(instances: &[PassInstance], resources: &[ResourceInfo]) -> Vec<DeltaEdge> {
+/// δ-edges: reads of another view's resource, once per (source view, consuming instance). A
+/// global resource belongs to no view and a global pass reduces over views rather than
+/// reprojecting them, so neither makes a δ-edge.
+fn delta_edges<P>(graph: &Graph<P>, instances: &[PassInstance], resources: &[ResourceInfo]) -> Vec<DeltaEdge> {
     let set: BTreeSet<DeltaEdge> = instances
         .iter()
         .enumerate()
+        .filter(|(_, inst)| graph.passes[inst.pass.index()].role != Role::Global)
         .flat_map(|(i, inst)| {
             inst.reads.iter().filter_map(move |r| {
-                let source = resources[r.resource.index()].view;
-                (source != inst.view).then_some(DeltaEdge { source, target: inst.view, consumer: InstanceId(i as u32) })
+                let info = &resources[r.resource.index()];
+                let source = info.view;
+                (source != inst.view && !info.global).then_some(DeltaEdge {
+                    source,
+                    target: inst.view,
+                    consumer: InstanceId(i as u32),
+                })
             })
         })
         .collect();

@@ -95,6 +95,21 @@ pub enum GraphError {
         "pass '{pass}' (declared at {at}) declares the {access} of '{slot}' twice: declare each access once, the kernel binds it through one slot"
     )]
     DuplicateSlot { pass: String, slot: String, access: SlotAccess, at: &'static Location<'static> },
+    #[error(
+        "pass '{pass}' (declared at {at}) reads {}'{resource}' as {scope}: a per-view pass reads a global resource whole (read, read_whole), a global pass reads per-view resources with read_every_view and global ones with read or read_history",
+        kind_of(.global)
+    )]
+    ReadScope { pass: String, resource: String, global: bool, scope: String, at: &'static Location<'static> },
+    #[error(
+        "pass '{pass}' (declared at {at}) writes {}'{resource}': a global resource is written only by a global pass (Graph::global_pass), which writes only global resources",
+        kind_of(.global)
+    )]
+    WriteScope { pass: String, resource: String, global: bool, at: &'static Location<'static> },
     #[error("the graph has no roots: export a resource or mark a pass side_effect(), otherwise every pass is culled")]
     NoRoots,
+}
+
+/// "global " or "per-view ", as the scope errors name a resource.
+fn kind_of(global: &bool) -> &'static str {
+    if *global { "global " } else { "per-view " }
 }

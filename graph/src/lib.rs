@@ -48,6 +48,7 @@ pub mod source;
 mod storage;
 pub mod summary;
 pub mod validate;
+mod validate_global;
 mod validate_history;
 mod validate_storage;
 

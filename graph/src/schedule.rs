@@ -102,6 +102,9 @@ pub struct ResourceInfo {
     /// Rewritten at the start of every frame (`Graph::reset_each_frame`): these leading words,
     /// the rest zero.
     pub reset: Option<Vec<u32>>,
+    /// One resource for the whole light field (`Graph::global_buffer`, `global_image`), listed
+    /// as view 0's; written only by a `Role::Global` pass.
+    pub global: bool,
 }
 
 /// Where an access of a pass instance comes from, as its kernel sees it.

@@ -99,6 +99,12 @@ pub enum ScheduleError {
     RowsOutsideResource { what: &'static str, index: u32, resource: ResourceId, rows: Region, height: u32 },
     #[error("the instances of {pass} for view {view} do not tile its rows exactly (rows 0..{height})")]
     BandsDoNotTile { pass: PassId, view: ViewId, height: u32 },
+    #[error("{instance} writes global resource {resource} but its pass runs per view, not as a global pass")]
+    GlobalWrittenPerView { instance: InstanceId, resource: ResourceId },
+    #[error("{instance} touches rows {rows} of global resource {resource}, not all of it")]
+    GlobalAccessedInPart { instance: InstanceId, resource: ResourceId, rows: Region },
+    #[error("global pass {pass} has {instances} instances; a global pass runs once per frame")]
+    GlobalPassInstances { pass: PassId, instances: u32 },
 }
 
 /// Every broken invariant found; empty when the schedule is sound.
@@ -160,6 +166,7 @@ impl Schedule {
         self.check_history(&mut errors);
         self.check_bands(&mut errors);
         self.check_shapes(&mut errors);
+        self.check_globals(&mut errors);
         ValidationReport { errors }
     }
 

@@ -3,6 +3,32 @@
 //! tonemap) and the baseline that path traces every view (`PathTrace`), declared once and
 //! placed by any of the three schemes. What differs between the schemes is only the plan's
 //! sources and placement, which is what makes the comparison side by side fair.
+//!
+//! [`PipelineBuilder`] declares it stage by stage; a caller adds stages of its own at named
+//! [`InsertionPoint`]s and replaces the denoiser or the tonemapper, and gets the standard
+//! pipeline, pass for pass, when it does neither ([`declare_pipeline`]):
+//!
+//! ```
+//! # use parallax_backend::KernelGraph;
+//! # use parallax_graph::{Format, Role, ViewTopology};
+//! use parallax_passes::pipeline::{InsertionPoint, PipelineBuilder, PipelineConfig};
+//!
+//! let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, 16, 16));
+//! let handles = PipelineBuilder::new(PipelineConfig::default())
+//!     .insert(InsertionPoint::BeforeTonemap, |graph, layers| {
+//!         let mut exposure = graph.global_image("exposure", 1, 1, Format::R32f);
+//!         let mut pass = graph.global_pass("expose");
+//!         pass.read_every_view_slot(layers.linear());
+//!         pass.write_slot(&mut exposure);
+//!         // ... .kernel(...) and .record(); tonemap then scales by it:
+//!         # drop(pass);
+//!         layers.exposure = Some(exposure);
+//!         Ok(())
+//!     })
+//!     .declare(&mut graph)?;
+//! assert!(handles.exposure.is_some());
+//! # Ok::<(), parallax_passes::PassError>(())
+//! ```
 
 use std::sync::Arc;
 
@@ -15,7 +41,7 @@ use crate::holes::declare_hole_fill;
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
 use crate::reproject::{ReprojectionTolerances, declare_reproject};
 use crate::svgf::{DENOISED, SvgfInputs, declare_svgf};
-use crate::tonemap::declare_tonemap;
+use crate::tonemap::declare_tonemap_scaled;
 
 /// Which pipeline renders the light field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -59,8 +85,172 @@ pub struct PipelineHandles {
     pub denoised: Option<Handle<Image>>,
     /// Slot of the final linear radiance: `denoised`, or `radiance` without denoising.
     pub linear_slot: &'static str,
+    /// The global 1×1 image the tonemapper scaled its exposure by, if a stage declared one.
+    pub exposure: Option<Handle<Image>>,
     /// The tonemapped RGBA8 image of every view (not exported: the caller decides).
     pub display: Handle<Image>,
+}
+
+/// Where [`PipelineBuilder::insert`] puts a stage, in pipeline order. Stages at one point run
+/// in the order they were inserted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum InsertionPoint {
+    /// The G-buffer is written; nothing is traced yet.
+    AfterGbuffer,
+    /// The radiance of the path-traced views (sources; every view for `PathTrace`) is written.
+    AfterTrace,
+    /// Targets' radiance is reprojected and their hole masks written (`Reproject` only).
+    AfterReprojection,
+    /// Targets' holes are path traced (`Reproject` only).
+    AfterHoleFill,
+    /// The radiance is denoised (with `denoise`; else the same place as [`Self::BeforeTonemap`]).
+    AfterDenoise,
+    /// Last before the tonemapper: where an exposure is measured ([`Layers::exposure`]).
+    BeforeTonemap,
+}
+
+/// The pipeline's layers while it is declared: what an inserted stage reads, and writes new
+/// versions of (through `&mut`), so the stages after it see what it wrote.
+pub struct Layers {
+    pub gbuffer: Gbuffer,
+    pub radiance: Handle<Image>,
+    pub holes: Option<Handle<Image>>,
+    pub denoised: Option<Handle<Image>>,
+    /// A global 1×1 `R32f` image whose texel the tonemapper multiplies its exposure by; none
+    /// (the default) tonemaps at the configured exposure alone.
+    pub exposure: Option<Handle<Image>>,
+}
+
+impl Layers {
+    /// The linear radiance the next stage sees: denoised once the denoiser ran, else the radiance.
+    pub fn linear(&mut self) -> &mut Handle<Image> {
+        self.denoised.as_mut().unwrap_or(&mut self.radiance)
+    }
+}
+
+/// A stage a caller inserts: declares its passes into the graph, reading and writing layers.
+pub type Stage = Box<dyn FnOnce(&mut KernelGraph, &mut Layers) -> Result<()>>;
+/// A stage that replaces one of the pipeline's own and returns the image it makes.
+pub type Replacement = Box<dyn FnOnce(&mut KernelGraph, &mut Layers) -> Result<Handle<Image>>>;
+
+/// Declares the standard pipeline of a [`PipelineConfig`], with stages of the caller's own.
+#[must_use = "nothing is declared until .declare(graph)"]
+pub struct PipelineBuilder {
+    config: PipelineConfig,
+    inserted: Vec<(InsertionPoint, Stage)>,
+    denoiser: Option<Replacement>,
+    tonemapper: Option<Replacement>,
+}
+
+impl Default for PipelineConfig {
+    /// What `parallax render` runs without flags: the paper's pipeline with first-hit G-buffer,
+    /// SVGF and exposure 1.
+    fn default() -> Self {
+        PipelineConfig {
+            kind: PipelineKind::Reproject,
+            gbuffer: GbufferSource::FirstHits,
+            tolerances: ReprojectionTolerances::default(),
+            denoise: true,
+            exposure: 1.0,
+        }
+    }
+}
+
+impl PipelineBuilder {
+    pub fn new(config: PipelineConfig) -> Self {
+        PipelineBuilder { config, inserted: Vec::new(), denoiser: None, tonemapper: None }
+    }
+
+    /// Runs `stage` at `at`, after the stages already inserted there.
+    pub fn insert(
+        mut self,
+        at: InsertionPoint,
+        stage: impl FnOnce(&mut KernelGraph, &mut Layers) -> Result<()> + 'static,
+    ) -> Self {
+        self.inserted.push((at, Box::new(stage)));
+        self
+    }
+
+    /// Declares `denoiser` instead of SVGF (when the config denoises): it returns the denoised
+    /// radiance.
+    pub fn replace_denoiser(
+        mut self,
+        denoiser: impl FnOnce(&mut KernelGraph, &mut Layers) -> Result<Handle<Image>> + 'static,
+    ) -> Self {
+        self.denoiser = Some(Box::new(denoiser));
+        self
+    }
+
+    /// Declares `tonemapper` instead of `tonemap`: it returns every view's display image.
+    pub fn replace_tonemapper(
+        mut self,
+        tonemapper: impl FnOnce(&mut KernelGraph, &mut Layers) -> Result<Handle<Image>> + 'static,
+    ) -> Self {
+        self.tonemapper = Some(Box::new(tonemapper));
+        self
+    }
+
+    /// Declares the pipeline; nothing is exported (the caller exports what it reads).
+    pub fn declare(mut self, graph: &mut KernelGraph) -> Result<PipelineHandles> {
+        let config = self.config;
+        let gbuffer = match config.gbuffer {
+            GbufferSource::FirstHits => declare_gbuffer(graph),
+            GbufferSource::Raster => declare_gbuffer_rasterised(graph),
+        };
+        let radiance = graph.image("radiance", Format::Rgba32f);
+        let mut layers = Layers { gbuffer, radiance, holes: None, denoised: None, exposure: None };
+        self.run_stages(InsertionPoint::AfterGbuffer, graph, &mut layers)?;
+        let traced = if config.kind == PipelineKind::PathTrace { Role::All } else { Role::Sources };
+        declare_path_trace(graph, traced, &mut layers.radiance);
+        self.run_stages(InsertionPoint::AfterTrace, graph, &mut layers)?;
+        if config.kind == PipelineKind::Reproject {
+            layers.holes = Some(declare_reproject(graph, &layers.gbuffer, &mut layers.radiance, config.tolerances)?);
+            self.run_stages(InsertionPoint::AfterReprojection, graph, &mut layers)?;
+            let holes = layers.holes.as_ref().expect("declared just above");
+            declare_hole_fill(graph, holes, &mut layers.radiance);
+            self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
+        }
+        if config.denoise {
+            let denoised = match self.denoiser.take() {
+                Some(denoiser) => denoiser(graph, &mut layers)?,
+                None => declare_standard_svgf(graph, &layers),
+            };
+            layers.denoised = Some(denoised);
+        }
+        self.run_stages(InsertionPoint::AfterDenoise, graph, &mut layers)?;
+        self.run_stages(InsertionPoint::BeforeTonemap, graph, &mut layers)?;
+        let display = match self.tonemapper.take() {
+            Some(tonemapper) => tonemapper(graph, &mut layers)?,
+            None => {
+                let linear = layers.denoised.as_ref().unwrap_or(&layers.radiance);
+                declare_tonemap_scaled(graph, linear, config.exposure, layers.exposure.as_ref())?
+            }
+        };
+        let linear_slot = if layers.denoised.is_some() { DENOISED } else { "radiance" };
+        let Layers { gbuffer, radiance, holes, denoised, exposure } = layers;
+        Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear_slot, exposure, display })
+    }
+
+    /// Runs the stages inserted at `at`, in insertion order.
+    fn run_stages(&mut self, at: InsertionPoint, graph: &mut KernelGraph, layers: &mut Layers) -> Result<()> {
+        let (here, later): (Vec<_>, Vec<_>) =
+            std::mem::take(&mut self.inserted).into_iter().partition(|(p, _)| *p == at);
+        self.inserted = later;
+        here.into_iter().try_for_each(|(_, stage)| stage(graph, layers))
+    }
+}
+
+/// SVGF over the pipeline's radiance and G-buffer.
+fn declare_standard_svgf(graph: &mut KernelGraph, layers: &Layers) -> Handle<Image> {
+    let gbuffer = &layers.gbuffer;
+    let inputs = SvgfInputs {
+        radiance: &layers.radiance,
+        albedo_roughness: &gbuffer.albedo_roughness,
+        normal_metallic: &gbuffer.normal_metallic,
+        position_depth: &gbuffer.position_depth,
+        motion: &gbuffer.motion,
+    };
+    declare_svgf(graph, &inputs)
 }
 
 /// Declares `path_trace` for every view of `role`, writing only `radiance`.
@@ -70,36 +260,93 @@ pub fn declare_path_trace(graph: &mut KernelGraph, role: Role, radiance: &mut Ha
     pass.kernel(Arc::new(kernel)).record();
 }
 
-/// Declares the pipeline of `config`; nothing is exported (the caller exports what it reads).
+/// Declares the standard pipeline of `config` (a [`PipelineBuilder`] with no stage of the
+/// caller's); nothing is exported (the caller exports what it reads).
 pub fn declare_pipeline(graph: &mut KernelGraph, config: &PipelineConfig) -> Result<PipelineHandles> {
-    let gbuffer = match config.gbuffer {
-        GbufferSource::FirstHits => declare_gbuffer(graph),
-        GbufferSource::Raster => declare_gbuffer_rasterised(graph),
-    };
-    let mut radiance = graph.image("radiance", Format::Rgba32f);
-    let holes = match config.kind {
-        PipelineKind::PathTrace => {
-            declare_path_trace(graph, Role::All, &mut radiance);
-            None
+    PipelineBuilder::new(*config).declare(graph)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::{Arc, Mutex};
+
+    use parallax_graph::ViewTopology;
+
+    use super::*;
+
+    /// Two sources and two targets of 8×8, each target reprojecting from both sources.
+    fn topology() -> ViewTopology {
+        let sources = vec![parallax_graph::ViewId(0), parallax_graph::ViewId(1)];
+        ViewTopology {
+            width: 8,
+            height: 8,
+            sources_of: vec![vec![], vec![], sources.clone(), sources],
+            is_source: vec![true, true, false, false],
         }
-        PipelineKind::Reproject => {
-            declare_path_trace(graph, Role::Sources, &mut radiance);
-            let holes = declare_reproject(graph, &gbuffer, &mut radiance, config.tolerances)?;
-            declare_hole_fill(graph, &holes, &mut radiance);
-            Some(holes)
+    }
+
+    /// The names of the declared passes.
+    fn pass_names(graph: &KernelGraph) -> Vec<String> {
+        graph.passes().iter().map(|p| p.name.clone()).collect()
+    }
+
+    #[test]
+    fn inserted_stages_run_at_their_points_in_insertion_order() {
+        let seen: Arc<Mutex<Vec<(InsertionPoint, String)>>> = Arc::default();
+        let mut builder = PipelineBuilder::new(PipelineConfig::default());
+        // Inserted out of pipeline order, two at one point.
+        for at in [
+            InsertionPoint::BeforeTonemap,
+            InsertionPoint::AfterHoleFill,
+            InsertionPoint::AfterGbuffer,
+            InsertionPoint::AfterDenoise,
+            InsertionPoint::AfterReprojection,
+            InsertionPoint::AfterTrace,
+            InsertionPoint::BeforeTonemap,
+        ] {
+            let seen = seen.clone();
+            builder = builder.insert(at, move |graph, _| {
+                let last = graph.passes().last().map(|p| p.name.clone()).unwrap_or_default();
+                seen.lock().unwrap().push((at, last));
+                Ok(())
+            });
         }
-    };
-    let denoised = config.denoise.then(|| {
-        let inputs = SvgfInputs {
-            radiance: &radiance,
-            albedo_roughness: &gbuffer.albedo_roughness,
-            normal_metallic: &gbuffer.normal_metallic,
-            position_depth: &gbuffer.position_depth,
-            motion: &gbuffer.motion,
-        };
-        declare_svgf(graph, &inputs)
-    });
-    let display = declare_tonemap(graph, denoised.as_ref().unwrap_or(&radiance), config.exposure)?;
-    let linear_slot = if denoised.is_some() { DENOISED } else { "radiance" };
-    Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear_slot, display })
+        let mut graph = KernelGraph::with_payload(topology());
+        builder.declare(&mut graph).unwrap();
+        let seen = seen.lock().unwrap().clone();
+        let points: Vec<InsertionPoint> = seen.iter().map(|(at, _)| *at).collect();
+        let mut sorted = points.clone();
+        sorted.sort();
+        assert_eq!(points, sorted, "stages run in pipeline order");
+        let last_before = |at| seen.iter().find(|(p, _)| *p == at).unwrap().1.clone();
+        assert_eq!(last_before(InsertionPoint::AfterTrace), crate::path_trace::PATH_TRACE);
+        assert_eq!(last_before(InsertionPoint::AfterHoleFill), crate::holes::HOLE_FILL);
+        assert!(!pass_names(&graph).is_empty() && pass_names(&graph).last().unwrap() == crate::tonemap::TONEMAP);
+    }
+
+    #[test]
+    fn the_builder_with_nothing_added_declares_the_standard_pipeline() {
+        let (mut a, mut b) = (KernelGraph::with_payload(topology()), KernelGraph::with_payload(topology()));
+        let config = PipelineConfig::default();
+        declare_pipeline(&mut a, &config).unwrap();
+        PipelineBuilder::new(config).insert(InsertionPoint::AfterDenoise, |_, _| Ok(())).declare(&mut b).unwrap();
+        assert_eq!(pass_names(&a), pass_names(&b));
+    }
+
+    #[test]
+    fn a_replaced_tonemapper_is_declared_instead_of_tonemap() {
+        let mut graph = KernelGraph::with_payload(topology());
+        let handles = PipelineBuilder::new(PipelineConfig { denoise: false, ..PipelineConfig::default() })
+            .replace_tonemapper(|graph, layers| {
+                let mut display = graph.image("my_display", Format::Rgba8);
+                graph.pass("my_tonemap", Role::All).read(layers.linear()).write(&mut display).record();
+                Ok(display)
+            })
+            .declare(&mut graph)
+            .unwrap();
+        let names = pass_names(&graph);
+        assert!(!names.iter().any(|n| n == crate::tonemap::TONEMAP), "{names:?}");
+        assert_eq!(names.last().map(String::as_str), Some("my_tonemap"));
+        assert_eq!(handles.linear_slot, "radiance");
+    }
 }

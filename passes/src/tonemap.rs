@@ -1,7 +1,9 @@
 //! The `tonemap` pass (shaders/tonemap.comp): a view's linear radiance to display bytes,
 //! `display = srgb_encode(aces(exposure * rgb))`, alpha 1, in an Rgba8 (UNORM) image. The
 //! curve is Krzysztof Narkowicz's fit of the ACES filmic tone curve ("ACES Filmic Tone
-//! Mapping Curve", 2016), per channel; [`tonemap_pixel`] is its CPU twin.
+//! Mapping Curve", 2016), per channel; [`tonemap_pixel`] is its CPU twin. The exposure is the
+//! configured one, optionally scaled by the texel of a global 1×1 image a stage of the frame
+//! measured ([`declare_tonemap_scaled`]: an auto-exposure pass).
 
 use std::sync::Arc;
 
@@ -28,13 +30,25 @@ pub fn declare_tonemap(
     input: &Handle<Image>,
     exposure: f32,
 ) -> Result<Handle<Image>, TonemapError> {
+    declare_tonemap_scaled(graph, input, exposure, None)
+}
+
+/// [`declare_tonemap`], with the exposure multiplied on the GPU by the texel of `scale`, a
+/// global 1×1 `R32f` image written earlier in the frame (what an auto-exposure pass measures).
+pub fn declare_tonemap_scaled(
+    graph: &mut KernelGraph,
+    input: &Handle<Image>,
+    exposure: f32,
+    scale: Option<&Handle<Image>>,
+) -> Result<Handle<Image>, TonemapError> {
     if !(exposure.is_finite() && exposure > 0.0) {
         return Err(TonemapError::Exposure { exposure });
     }
     let mut display = graph.image(DISPLAY, Format::Rgba8);
     let mut pass = graph.pass(TONEMAP, Role::All);
     let (src, dst) = (pass.read_slot(input), pass.write_slot(&mut display));
-    pass.kernel(Arc::new(TonemapKernel { src, dst, exposure })).record();
+    let scale = scale.map(|s| pass.read_slot(s));
+    pass.kernel(Arc::new(TonemapKernel { src, dst, scale, exposure })).record();
     Ok(display)
 }
 
@@ -48,14 +62,18 @@ pub struct TonemapPush {
     pub y1: u32,
     pub width: u32,
     pub exposure: f32,
+    /// Image whose texel (0, 0) scales `exposure`, read only when `scaled` is 1.
+    pub scale: u32,
+    pub scaled: u32,
 }
 
-parallax_backend::push_constants!(TonemapPush { src, dst, y0, y1, width, exposure });
+parallax_backend::push_constants!(TonemapPush { src, dst, y0, y1, width, exposure, scale, scaled });
 
 /// Records `tonemap` instances: the radiance read into the `display` write.
 struct TonemapKernel {
     src: ReadSlot,
     dst: WriteSlot,
+    scale: Option<ReadSlot>,
     exposure: f32,
 }
 
@@ -78,6 +96,11 @@ impl PassKernel for TonemapKernel {
             y1: pass.rows.y1,
             width,
             exposure: self.exposure,
+            scale: match self.scale {
+                Some(slot) => rec.image(pass.read(slot)?.resource)?,
+                None => 0,
+            },
+            scaled: u32::from(self.scale.is_some()),
         };
         let groups = [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1];
         rec.dispatch(TONEMAP, &push, groups)

@@ -1,0 +1,194 @@
+//! Auto-exposure on the GPU, added to the standard pipeline and run with `parallax render`'s
+//! frame loop, reports and outputs. This file and its kernel, `auto_exposure.comp` beside it
+//! (compiled by the root build.rs with every example's shaders), are all it takes.
+//!
+//! Before the tonemapper ([`InsertionPoint::BeforeTonemap`]) two passes are inserted:
+//! `measure_luminance` reduces each view's linear radiance to a per-view 1×1 image (the sum of
+//! the logarithms of its 8×8 tiles' mean luminance, and how many tiles are lit), and the global
+//! pass `expose` reads every view's and writes one global 1×1 image: the log-average luminance
+//! mapped to middle grey. The tonemapper multiplies its exposure by it ([`Layers::exposure`]).
+//! Over several devices the planner copies the per-view measures to the device of `expose` and
+//! the exposure to every device that tonemaps.
+//!
+//! After the last frame the example reads the exposure back and checks it against the host's
+//! log-average of the read-back radiance (`parallax_accuracy::exposure::LogAverage`, what
+//! `render --exposure auto` uses), and every display pixel against the tonemap curve at that
+//! exposure.
+//!
+//! Run: `cargo run --example auto_exposure -- --lf 4x2 --resolution 64x48 --fake-devices 2
+//! --frames 2 --exposure 1 --out-dir out/auto_exposure` (every `render` flag applies; with
+//! `--exposure 1` the PNGs are the GPU's display images).
+
+use std::sync::{Arc, Mutex};
+
+use anyhow::{Result, ensure};
+use bytemuck::{Pod, Zeroable};
+use clap::Parser;
+use parallax::cmd_render::{RenderArgs, RenderExtension, run_extended};
+use parallax_accuracy::exposure::LogAverage;
+use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_graph::{Format, ReadSlot, Role, SourcesSlot, WriteSlot};
+use parallax_passes::pipeline::{InsertionPoint, Layers, PipelineBuilder};
+use parallax_passes::renderer::LightFieldRenderer;
+use parallax_passes::svgf::DENOISED;
+use parallax_passes::tonemap::tonemap_pixel;
+
+/// The kernel, `auto_exposure.comp`.
+const SHADER: &str = "auto_exposure";
+/// The global 1×1 image the tonemapper scales its exposure by.
+const EXPOSURE: &str = "exposure";
+
+/// Push constants of `auto_exposure.comp`; the backend holds them against its SPIR-V when it
+/// creates the pipeline.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct ExposurePush {
+    mode: u32,
+    src: u32,
+    dst: u32,
+    width: u32,
+    height: u32,
+    views: u32,
+    list: u64,
+}
+
+parallax_backend::push_constants!(ExposurePush { mode, src, dst, width, height, views, list });
+
+/// `measure_luminance`: one view's radiance into its 1×1 measure (mode 0).
+struct MeasureKernel {
+    radiance: ReadSlot,
+    measure: WriteSlot,
+}
+
+impl PassKernel for MeasureKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let src = pass.read(self.radiance)?.resource;
+        let (width, height) = (rec.resource(src).width, rec.resource(src).height);
+        let push = ExposurePush {
+            mode: 0,
+            src: rec.image(src)?,
+            dst: rec.image(pass.write(self.measure)?.resource)?,
+            width,
+            height,
+            ..Default::default()
+        };
+        rec.dispatch(SHADER, &push, [1, 1, 1])
+    }
+}
+
+/// `expose`: every view's measure into the global exposure (mode 1). The measures' image
+/// indices go to the shader in a buffer recorded with the command buffer.
+struct ExposeKernel {
+    measures: SourcesSlot,
+    exposure: WriteSlot,
+}
+
+impl PassKernel for ExposeKernel {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let images: Vec<u32> =
+            pass.sources(self.measures)?.map(|a| rec.image(a.resource)).collect::<parallax_backend::Result<_>>()?;
+        let list = rec.recording_buffer("expose: measures", bytemuck::cast_slice(&images))?;
+        let push = ExposurePush {
+            mode: 1,
+            dst: rec.image(pass.write(self.exposure)?.resource)?,
+            views: images.len() as u32,
+            list: list.address(),
+            ..Default::default()
+        };
+        rec.dispatch(SHADER, &push, [1, 1, 1])
+    }
+}
+
+/// The stage inserted before the tonemapper: measure every view, expose once, hand the
+/// exposure to the tonemapper.
+fn declare_auto_exposure(graph: &mut KernelGraph, layers: &mut Layers) -> parallax_passes::Result<()> {
+    let mut measure = graph.image_sized("view_luminance", 1, 1, Format::Rgba32f);
+    let mut exposure = graph.global_image(EXPOSURE, 1, 1, Format::R32f);
+    let mut pass = graph.pass("measure_luminance", Role::All);
+    let kernel =
+        MeasureKernel { radiance: pass.read_whole_slot(layers.linear()), measure: pass.write_slot(&mut measure) };
+    pass.kernel(Arc::new(kernel)).record();
+    let mut pass = graph.global_pass("expose");
+    let kernel =
+        ExposeKernel { measures: pass.read_every_view_slot(&measure), exposure: pass.write_slot(&mut exposure) };
+    pass.kernel(Arc::new(kernel)).record();
+    layers.exposure = Some(exposure);
+    Ok(())
+}
+
+/// What the GPU measured in the last frame, and the host's check of it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ExposureCheck {
+    /// The exposure `expose` wrote.
+    pub gpu: f32,
+    /// `LogAverage::exposure` of the read-back linear radiance of every view.
+    pub host: f32,
+    /// Largest difference, in 8-bit steps, between a display pixel and the tonemap curve of
+    /// the read-back radiance at the GPU's exposure.
+    pub display_steps: u32,
+}
+
+/// `render`'s extension: the stage, the example's shaders, and the check after the last
+/// frame, whose result lands in `check`. `exposure` is the `--exposure` the tonemapper scales.
+pub fn extension(exposure: f32, check: Arc<Mutex<ExposureCheck>>) -> Result<RenderExtension> {
+    let stages = |builder: PipelineBuilder| builder.insert(InsertionPoint::BeforeTonemap, declare_auto_exposure);
+    Ok(RenderExtension {
+        stages: Some(Box::new(stages)),
+        shaders: parallax_backend::include_shaders!()?,
+        after_frames: Some(Box::new(move |renderer: &mut LightFieldRenderer| {
+            *check.lock().expect("not poisoned") = check_exposure(renderer, exposure)?;
+            Ok(())
+        })),
+    })
+}
+
+/// Reads the last frame's exposure, linear radiance and display images back and checks them.
+fn check_exposure(renderer: &mut LightFieldRenderer, exposure: f32) -> Result<ExposureCheck> {
+    let gpu = f32::from_le_bytes(renderer.read_stitched(EXPOSURE, 0)?[..4].try_into()?);
+    ensure!(gpu.is_finite() && gpu > 0.0, "the GPU exposure {gpu} is not a positive number");
+    let plan = renderer.executor().plan();
+    let linear = if plan.resources.iter().any(|r| r.name == DENOISED) { DENOISED } else { "radiance" };
+    let width = plan.resources.iter().find(|r| r.name == linear).map_or(1, |r| r.width as usize);
+    let views = plan.passes.iter().map(|p| p.view + 1).max().unwrap_or(0);
+    let mut average = LogAverage::default();
+    let mut display_steps = 0;
+    for v in 0..views {
+        let rgb = rgb_texels(&renderer.read_stitched(linear, v)?);
+        average.add_image(width, &rgb);
+        let display = renderer.read("display", v)?;
+        for (texel, pixel) in rgb.iter().zip(display.chunks_exact(4)) {
+            let expected = tonemap_pixel(*texel, exposure * gpu);
+            for (want, &got) in expected.iter().zip(pixel).take(3) {
+                let want = (want.clamp(0.0, 1.0) * 255.0).round() as i32;
+                display_steps = display_steps.max((want - i32::from(got)).unsigned_abs());
+            }
+        }
+    }
+    Ok(ExposureCheck { gpu, host: average.exposure(), display_steps })
+}
+
+/// The RGB of Rgba32f texels.
+fn rgb_texels(bytes: &[u8]) -> Vec<[f32; 3]> {
+    bytemuck::pod_collect_to_vec::<u8, f32>(bytes).chunks_exact(4).map(|t| [t[0], t[1], t[2]]).collect()
+}
+
+/// Every `parallax render` flag.
+#[derive(Parser, Debug)]
+#[command(about = "parallax render with a GPU auto-exposure pass before the tonemapper")]
+struct Cli {
+    #[command(flatten)]
+    render: RenderArgs,
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    let check = Arc::new(Mutex::new(ExposureCheck::default()));
+    let exposure = cli.render.tonemap_exposure();
+    run_extended(cli.render, extension(exposure, check.clone())?)?;
+    let check = *check.lock().expect("not poisoned");
+    println!(
+        "GPU exposure {:.6}, host log-average {:.6}; display within {} step(s) of the curve",
+        check.gpu, check.host, check.display_steps
+    );
+    Ok(())
+}

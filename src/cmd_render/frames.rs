@@ -1,0 +1,111 @@
+//! `render`'s run room: the devices, the executor and the frame loop. Warm-up frames run
+//! first at the first measured frame's camera, then the statistics restart and the measured
+//! frames run (the camera dollies or follows the scene's animation); `--save-every` stages the
+//! views of some measured frames on the way. A user crate's [`RenderExtension`] brings the
+//! shaders of its stages and looks at the renderer once the last frame is done.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result};
+use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, Timing};
+use parallax_graph::LightField;
+use parallax_passes::camera::lightfield_views;
+use parallax_passes::renderer::LightFieldRenderer;
+use parallax_scene::gpu::GpuScene;
+use parallax_scene::{SceneBvh, TraceSettings};
+
+use super::plan::RenderJob;
+use super::report::{extra_layers, stage_views};
+use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
+use crate::logging::bar;
+use crate::outputs::{FolderLock, Staged};
+
+/// What the frame loop leaves for the report: the renderer after the last frame (its
+/// statistics and final images), the context it ran on, the views already staged by
+/// `--save-every`, and the wall time of the measured frames.
+pub(super) struct Rendered {
+    pub context: VkContext,
+    pub renderer: LightFieldRenderer,
+    pub staged: Vec<Staged>,
+    pub wall: Duration,
+    /// The light field of frame 0 (its layout is every frame's).
+    pub lf: LightField,
+    /// Held until the outputs are in place: no other run writes into --out-dir meanwhile.
+    pub lock: FolderLock,
+}
+
+/// Creates the devices and the executor for `job` and runs every frame.
+pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut RenderExtension) -> Result<Rendered> {
+    let lf = job.lf_of(args, 0)?;
+    let bvh = SceneBvh::build(&job.scene);
+    let context = VkContext::new(&ContextDesc::from_env(args.devices.selection()))?;
+    tracing::info!("{}", context.to_string().trim_end());
+    job.one_frame.check_devices(&context)?;
+    let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
+    let options = ExecOptions {
+        barriers: match args.barriers {
+            BarrierArg::EveryOp => Barriers::EveryOp,
+            BarrierArg::Tracked => Barriers::Tracked,
+        },
+        timing: match args.timing {
+            TimingArg::PerOp => Timing::PerOp,
+            TimingArg::PerStage => Timing::PerStage,
+        },
+        frames_in_flight: args.frames_in_flight as usize,
+        fault: fault_from_env()?,
+        shaders: extension.shaders.clone(),
+        ..ExecOptions::default()
+    };
+    let scene = GpuScene::new(&job.scene, &bvh);
+    let mut renderer = LightFieldRenderer::with_options(&context, exec_plan, lf.len() as u32, &scene, options)?;
+
+    crate::outputs::create_folder(&args.out_dir)
+        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+    let lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
+    let (staged, wall) = frame_loop(args, job, &mut renderer)?;
+    if let Some(after) = extension.after_frames.as_mut() {
+        after(&mut renderer)?;
+    }
+    Ok(Rendered { context, renderer, staged, wall, lf, lock })
+}
+
+/// Submits the warm-up and measured frames; returns the views `--save-every` staged and the
+/// wall time of the measured frames.
+fn frame_loop(
+    args: &RenderArgs,
+    job: &RenderJob,
+    renderer: &mut LightFieldRenderer,
+) -> Result<(Vec<Staged>, Duration)> {
+    let progress = bar(u64::from(job.total_frames));
+    let started = Instant::now();
+    let mut measured_from = None;
+    let mut staged: Vec<Staged> = Vec::new();
+    let linear_slot = job.compiled.handles.linear_slot;
+    for f in 0..job.total_frames {
+        if f == args.warmup {
+            renderer.finish()?;
+            renderer.reset_stats();
+            // Only a trace needs every event of every frame; otherwise the statistics are all.
+            renderer.keep_reports(args.trace.is_some());
+            measured_from = Some(Instant::now());
+        }
+        let views = lightfield_views(&job.lf_of(args, f)?);
+        renderer.submit(&job.scene, &views, &TraceSettings { frame: f, ..job.settings })?;
+        let measured = f.checked_sub(args.warmup);
+        if let (Some(every), Some(m)) = (args.save_every, measured)
+            && m % every == 0
+            && f + 1 < job.total_frames
+        {
+            renderer.finish()?;
+            let folder = args.out_dir.join(format!("frame_{m:05}"));
+            crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
+            let layers = extra_layers(args, job.compiled.kind);
+            staged.extend(stage_views(renderer, linear_slot, &folder, &views, &layers)?);
+        }
+        progress.inc(1);
+    }
+    renderer.finish()?;
+    let wall = measured_from.unwrap_or(started).elapsed();
+    progress.finish_and_clear();
+    Ok((staged, wall))
+}

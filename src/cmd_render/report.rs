@@ -1,0 +1,324 @@
+//! `render`'s report room: what a finished run leaves behind. The last frame's views (EXR, and
+//! PNG at one exposure), the contact sheet, quilt, wiggle and viewer, render.json with the
+//! plan, the stage table and the missing pixels, the trace and the DOT; every file is staged
+//! first and put in place at the end, render.json last, so a failure (or Ctrl-C) leaves the
+//! folder as it was or complete. Also the checks of those outputs that run before any work.
+
+use std::path::Path;
+
+use anyhow::{Context as _, Result, bail};
+use glam::Vec3;
+use parallax_backend::chrome_trace;
+use parallax_passes::camera::lightfield_views;
+use parallax_passes::pipeline::PipelineKind;
+use parallax_passes::renderer::LightFieldRenderer;
+use parallax_scene::output::{ExrLayers, write_exr_with};
+use parallax_scene::{Frame, PixelSample, View};
+
+use super::RenderArgs;
+use super::frames::Rendered;
+use super::plan::RenderJob;
+use crate::logging::result;
+use crate::outputs::{Format, Output, Sink, Staged, check, stage};
+use crate::render_pictures::{display_images, stage_pictures, view_png_name};
+use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
+use crate::run_setup::{CameraSetup, Setup};
+
+/// Reads the last frame back, writes every output and says what was rendered.
+pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<()> {
+    let Rendered { context, mut renderer, mut staged, wall, lf, lock } = rendered;
+    let reports = renderer.take_reports();
+    let prepare = renderer.prepare_ms().clone();
+    let timing = timings(renderer.stats(), &prepare);
+    let (kind, linear_slot) = (job.compiled.kind, job.compiled.handles.linear_slot);
+    let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
+    staged.extend(stage_views(&mut renderer, linear_slot, &args.out_dir, &last_views, &extra_layers(args, kind))?);
+    let (exposure, displays) = display_images(&mut renderer, linear_slot, (lf.len() as u32, lf.width), args.exposure)?;
+    let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
+    drop(displays);
+    let missing = match kind {
+        PipelineKind::Reproject => missing_of_targets(job, &mut renderer, lf.len() as u32, lf.width)?,
+        PipelineKind::PathTrace => MissingPixels::default(),
+    };
+    drop(renderer);
+    context.check_validation()?;
+
+    let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
+    let json = render_json(
+        args,
+        job,
+        &Measured { exposure, wall_ms: wall_ms(args, wall), timing: &timing, missing: &missing, device_names },
+    )?;
+    let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
+    let json_file = crate::outputs::stage_json(&job.render_json, &json)?;
+    let trace = args.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
+    for s in staged.into_iter().chain(pictures.staged) {
+        s.commit()?;
+    }
+    viewer.commit()?;
+    remove_stale_views(&args.out_dir, lf.len())?;
+    if let (Some(sink), Some(trace)) = (&args.trace, &trace) {
+        crate::outputs::write_json(sink, trace)?;
+    }
+    if let (Some(sink), Some(dot)) = (&args.dot.dot, &job.dot) {
+        crate::outputs::write_bytes(sink, dot.as_bytes())?;
+    }
+    json_file.commit()?;
+    crate::outputs::keep_folders();
+    drop(lock);
+    let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
+    let say = |line: String| result(stdout_taken, &line);
+    say(stage_table(&timing));
+    say(format!(
+        "rendered {} views of {}x{} ({}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
+        lf.len(),
+        lf.width,
+        lf.height,
+        crate::bench_matrix::name_of(&args.pipeline.pipeline),
+        job.compiled.summary.scheme,
+        job.compiled.summary.devices,
+        args.spp,
+        args.frames,
+        wall_ms(args, wall),
+        timing.frame_gpu.mean_ms,
+        100.0 * missing.overall
+    ));
+    say(format!(
+        "wrote {} views (EXR and PNG at exposure {exposure:.4}, {}), {}, {} and {}",
+        lf.len(),
+        args.exposure.mode(),
+        job.sheet.display(),
+        args.out_dir.join("viewer.html").display(),
+        job.render_json.display()
+    ));
+    Ok(())
+}
+
+/// Wall time per measured frame, in milliseconds.
+fn wall_ms(args: &RenderArgs, wall: std::time::Duration) -> f64 {
+    wall.as_secs_f64() * 1e3 / f64::from(args.frames)
+}
+
+/// What the run measured, for render.json.
+struct Measured<'a> {
+    exposure: f32,
+    wall_ms: f64,
+    timing: &'a crate::render_report::Timings,
+    missing: &'a MissingPixels,
+    device_names: Vec<String>,
+}
+
+/// The pixels of the targets that no source covered and hole filling did not reach.
+fn missing_of_targets(
+    job: &RenderJob,
+    renderer: &mut LightFieldRenderer,
+    views: u32,
+    width: u32,
+) -> Result<MissingPixels> {
+    let holes: Vec<Option<Vec<u32>>> = (0..views)
+        .map(|v| {
+            if job.compiled.plan.topology.is_source[v as usize] {
+                return Ok(None);
+            }
+            let bytes = renderer.read_stitched("holes", v)?;
+            Ok(Some(bytemuck_words(&bytes)))
+        })
+        .collect::<Result<_, parallax_passes::PassError>>()?;
+    Ok(missing_pixels(renderer.executor().plan(), &holes, width))
+}
+
+/// render.json: the setup that comparisons check, the plan and what was measured.
+fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> Result<serde_json::Value> {
+    let last = job.total_frames - 1;
+    let lf = job.lf_of(args, 0)?;
+    let still = args.still || args.frames == 1;
+    let last_lf = job.lf_of(args, last)?;
+    let spacing = args.light_field.layout.spacing;
+    let camera_last = job.camera_at(args, last);
+    let setup =
+        Setup::new(&args.scene.scene, &job.scene, &camera_last, still, (&last_lf, spacing), args.depth.max_depth)?;
+    let (summary, kind) = (&job.compiled.summary, job.compiled.kind);
+    Ok(serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "scene": args.scene.scene,
+        "camera": CameraSetup::of(&job.camera), "sun": &setup.sun, "sky": &setup.sky,
+        "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
+                    "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
+        // The assignment groups views only under multi-source (`--assign` is refused otherwise).
+        "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
+        "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
+        "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
+        "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
+        "reprojection_tolerance": args.pipeline.reprojection_tolerance,
+        "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
+        "frames_in_flight": args.frames_in_flight,
+        "devices": measured.device_names,
+        "run": args.run_file(),
+        "plan": summary,
+        "wall_ms_per_frame": measured.wall_ms,
+        "timing": measured.timing,
+        // Path tracing every view leaves no holes to count.
+        "missing_pixels": (kind == PipelineKind::Reproject).then_some(measured.missing),
+    }))
+}
+
+/// Which extra EXR layers the views get.
+pub(super) fn extra_layers(args: &RenderArgs, kind: PipelineKind) -> (bool, bool) {
+    (args.layers, args.layers && kind == PipelineKind::Reproject)
+}
+
+fn bytemuck_words(bytes: &[u8]) -> Vec<u32> {
+    bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+fn texels(bytes: &[u8]) -> Vec<[f32; 4]> {
+    bytes
+        .chunks_exact(16)
+        .map(|b| std::array::from_fn(|i| f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])))
+        .collect()
+}
+
+/// Stages `view_NNN.exr` of every view into `folder`: the linear radiance after denoising (or
+/// after hole filling with --no-denoise), with `(layers, holes)`: albedo, normal and depth, and
+/// the hole mask of targets as channel `holes.Y` (1 = the pixel was path traced by hole filling).
+pub(super) fn stage_views(
+    renderer: &mut LightFieldRenderer,
+    linear_slot: &str,
+    folder: &Path,
+    views: &[View],
+    (layers, holes): &(bool, bool),
+) -> Result<Vec<Staged>> {
+    let mut staged = Vec::with_capacity(views.len());
+    for view in views {
+        let radiance = texels(&renderer.read_stitched(linear_slot, view.index)?);
+        let (albedo, normal, position) = if *layers {
+            (
+                texels(&renderer.read_stitched("albedo_roughness", view.index)?),
+                texels(&renderer.read_stitched("normal_metallic", view.index)?),
+                texels(&renderer.read_stitched("position_depth", view.index)?),
+            )
+        } else {
+            (Vec::new(), Vec::new(), Vec::new())
+        };
+        // Sources have no hole mask: only targets get the channel.
+        let mask = if *holes {
+            match renderer.read_stitched("holes", view.index) {
+                Ok(bytes) => Some(bytemuck_words(&bytes)),
+                Err(parallax_passes::PassError::MissingResource { .. }) => None,
+                Err(e) => return Err(e.into()),
+            }
+        } else {
+            None
+        };
+        let pixels = (0..radiance.len())
+            .map(|i| {
+                let g = |layer: &[[f32; 4]]| layer.get(i).copied().unwrap_or([0.0; 4]);
+                let (a, n, p) = (g(&albedo), g(&normal), g(&position));
+                PixelSample {
+                    radiance: Vec3::from_slice(&radiance[i][..3]),
+                    albedo: Vec3::from_slice(&a[..3]),
+                    normal: Vec3::from_slice(&n[..3]),
+                    depth: p[3],
+                    position: Vec3::from_slice(&p[..3]),
+                    roughness: a[3],
+                    metallic: n[3],
+                    hit: radiance[i][3] > 0.5,
+                }
+            })
+            .collect();
+        let frame = Frame { width: view.width, height: view.height, pixels };
+        let path = folder.join(view_file_name(view.index));
+        let exr_layers = if *layers { ExrLayers::ALL } else { ExrLayers::default() };
+        let mask: Option<Vec<f32>> = mask.map(|m| m.iter().map(|&h| h as f32).collect());
+        let extra: Vec<(&str, &[f32])> = mask.iter().map(|m| ("holes.Y", m.as_slice())).collect();
+        staged.push(stage(&path, |tmp| {
+            write_exr_with(tmp, &frame, exr_layers, &extra).with_context(|| format!("cannot write {}", path.display()))
+        })?);
+    }
+    Ok(staged)
+}
+
+pub(super) fn view_file_name(index: u32) -> String {
+    format!("view_{index:03}.exr")
+}
+
+/// Checks the outputs before any work. The folder may not exist yet (it is created when the
+/// views are written), but the nearest folder above it must be writable.
+pub(super) fn check_outputs(
+    out_dir: &Path,
+    sheet: &Path,
+    render_json: &Path,
+    trace: Option<&Sink>,
+    dot: Option<&Sink>,
+    wiggle: Option<&Path>,
+) -> Result<()> {
+    if out_dir.exists() && !out_dir.is_dir() {
+        bail!("--out-dir {} is a file: give a folder", out_dir.display());
+    }
+    let existing = out_dir.ancestors().find(|a| a.as_os_str().is_empty() || a.exists()).unwrap_or(Path::new("."));
+    let existing = if existing.as_os_str().is_empty() { Path::new(".") } else { existing };
+    if !existing.is_dir() {
+        bail!("--out-dir {}: {} is not a folder", out_dir.display(), existing.display());
+    }
+    tempfile::NamedTempFile::new_in(existing)
+        .with_context(|| format!("--out-dir {}: folder {} is not writable", out_dir.display(), existing.display()))?;
+    let sheet_sink = Sink::File(sheet.to_path_buf());
+    let json_sink = Sink::File(render_json.to_path_buf());
+    let viewer_sink = Sink::File(out_dir.join("viewer.html"));
+    let mut outputs = Vec::new();
+    if out_dir.is_dir() {
+        outputs.push(Output { flag: "--out-dir", sink: &sheet_sink, format: Format::Png });
+        outputs.push(Output { flag: "--out-dir", sink: &json_sink, format: Format::Json });
+        outputs.push(Output { flag: "--out-dir", sink: &viewer_sink, format: Format::Html });
+    }
+    let in_out_dir = |flag: &str, path: &Path| {
+        if path.parent().is_some_and(|p| p == out_dir)
+            && path.file_name().and_then(|n| n.to_str()).is_some_and(|n| n == "render.json" || n.starts_with("view_"))
+        {
+            bail!("{flag} {} would overwrite an output of --out-dir: give it another name", path.display());
+        }
+        Ok(())
+    };
+    if let Some(sink) = trace {
+        if let Sink::File(path) = sink {
+            in_out_dir("--trace", path)?;
+        }
+        outputs.push(Output { flag: "--trace", sink, format: Format::Json });
+    }
+    if let Some(sink) = dot {
+        outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
+    }
+    let wiggle_sink = wiggle.map(|p| Sink::File(p.to_path_buf()));
+    if let Some(sink @ Sink::File(path)) = &wiggle_sink {
+        in_out_dir("--wiggle", path)?;
+        outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
+    }
+    check(&outputs)
+}
+
+/// Removes `view_NNN.exr` and `view_NNN.png` files of an earlier run that this run of `views`
+/// views did not write.
+fn remove_stale_views(out_dir: &Path, views: usize) -> Result<()> {
+    let entries = std::fs::read_dir(out_dir).with_context(|| format!("cannot list --out-dir {}", out_dir.display()))?;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(index) = name.to_str().and_then(parse_view_file_name) else { continue };
+        if index as usize >= views && entry.file_type().is_ok_and(|t| t.is_file()) {
+            std::fs::remove_file(entry.path())
+                .with_context(|| format!("cannot remove stale {}", entry.path().display()))?;
+            tracing::info!("removed {} of an earlier run", entry.path().display());
+        }
+    }
+    Ok(())
+}
+
+/// The view index of a file name this command writes (`view_007.exr` or `.png` → 7).
+fn parse_view_file_name(name: &str) -> Option<u32> {
+    let stem = name.strip_prefix("view_")?;
+    let digits = stem.strip_suffix(".exr").or_else(|| stem.strip_suffix(".png"))?;
+    if digits.len() < 3 || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    let index: u32 = digits.parse().ok()?;
+    (view_file_name(index) == name || view_png_name(index) == name).then_some(index)
+}

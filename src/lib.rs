@@ -1,0 +1,112 @@
+//! The `parallax` command line as a library: the binary (`src/main.rs`) runs [`cli_main`], and a
+//! crate of its own runs `render`'s frame loop, reports and outputs over the standard pipeline
+//! extended with stages and kernels of its own ([`cmd_render::run_extended`] with a
+//! [`cmd_render::RenderExtension`]; `examples/auto_exposure.rs` shows how).
+
+mod bench_matrix;
+mod bench_resume;
+mod bench_tables;
+mod budget;
+mod cmd_backend;
+mod cmd_bench;
+mod cmd_bench_rays;
+mod cmd_chart;
+mod cmd_compare;
+mod cmd_plan;
+mod cmd_reference;
+pub mod cmd_render;
+mod cmd_trace;
+mod lightfield_images;
+mod logging;
+mod options;
+mod outputs;
+mod pending;
+mod pipeline_args;
+mod render_pictures;
+mod render_report;
+mod run_file;
+mod run_setup;
+mod scene_args;
+mod viewer;
+
+use clap::{CommandFactory, Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "parallax", version, about = "Multi-GPU light-field path tracing as a render graph")]
+struct Cli {
+    #[command(flatten)]
+    verbosity: logging::Verbosity,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Plan a light field over N devices: sources, δ-edges, per-device schedule, copies.
+    Plan(cmd_plan::PlanArgs),
+    /// Render a light field over N devices through the paper's reconstruction pipeline (G-buffer,
+    /// sources path traced, targets reprojected, holes filled, SVGF, tonemap) or with every view
+    /// path traced (`--pipeline path-trace`); writes the views (EXR, PNG), a contact sheet,
+    /// viewer.html and render.json with per-stage GPU times.
+    Render(cmd_render::RenderArgs),
+    /// Path trace one view of a scene on the GPU (`--cpu`: the CPU reference) to EXR (+ PNG).
+    Trace(cmd_trace::TraceArgs),
+    /// List the Vulkan devices a selection would use (name, driver, API version).
+    Devices(cmd_backend::DevicesArgs),
+    /// Measure cross-device copy bandwidth and executor overhead.
+    BenchCopy(cmd_backend::BenchCopyArgs),
+    /// Measure GPU traversal: primary and diffuse-bounce rays/s, and the CWBVH build time.
+    BenchRays(cmd_bench_rays::BenchRaysArgs),
+    /// A matrix of renders (cases × pipelines × schemes × assignments × sources per set × spp ×
+    /// denoise × devices; flags or a TOML file): frame times, stage table, busy fractions,
+    /// missing pixels, hole filling and accuracy per cell.
+    Bench(cmd_bench::BenchArgs),
+    /// Path trace a converged reference of a light field's views, progressively and resumably
+    /// (the camera is still: compare with `render --still`).
+    Reference(cmd_reference::ReferenceArgs),
+    /// PSNR, SSIM, FLIP and relMSE of two EXRs or two light-field folders, after checking that
+    /// both were rendered with the same settings.
+    Compare(cmd_compare::CompareArgs),
+    /// Charts (SVG/PNG) of speed against accuracy, scaling, views, holes, or a device timeline.
+    Chart(cmd_chart::ChartArgs),
+}
+
+/// Parses the command line and runs the command, exiting with its status: what the `parallax`
+/// binary does.
+pub fn cli_main() {
+    let cli = Cli::parse();
+    logging::init(cli.verbosity);
+    // Ctrl-C, SIGTERM and SIGHUP end the process before any destructor runs: remove the
+    // temporary files of outputs not yet in place and the folders the run created, so an
+    // interrupted run leaves nothing behind.
+    if let Err(err) = ctrlc::set_handler(|| {
+        // Held until the process ends, so that the main thread creates nothing after this.
+        let _pending = pending::remove_all();
+        tracing::error!("interrupted: outputs not yet in place were removed");
+        std::process::exit(130);
+    }) {
+        tracing::debug!("no Ctrl-C handler ({err}): an interrupted run may leave a temporary file");
+    }
+    let result = match cli.command {
+        Command::Plan(args) => cmd_plan::run(args),
+        Command::Render(args) => cmd_render::run(args),
+        Command::Trace(args) => cmd_trace::run(args),
+        Command::Devices(args) => cmd_backend::devices(args),
+        Command::BenchCopy(args) => cmd_backend::bench_copy(args),
+        Command::BenchRays(args) => cmd_bench_rays::run(args),
+        Command::Bench(args) => cmd_bench::run(args),
+        Command::Reference(args) => cmd_reference::run(args),
+        Command::Compare(args) => cmd_compare::run(args),
+        Command::Chart(args) => cmd_chart::run(args),
+    };
+    if let Err(err) = result {
+        drop(pending::remove_all());
+        // Flags that do not go together, or a value no run could use, are usage errors like
+        // clap's own: same form, exit 2.
+        if let Some(usage) = options::usage_error(&err) {
+            Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();
+        }
+        tracing::error!("{err:#}");
+        std::process::exit(1);
+    }
+}
