@@ -86,6 +86,7 @@
 mod context;
 mod device;
 mod device_state;
+mod device_support;
 mod error;
 mod executor;
 mod frame_block;
