@@ -5,13 +5,39 @@
 //! The reprojection demo: every view `v` is filled (the last view in row bands spread over all
 //! devices, like a fine-grained split), then blended with view `v+1` (a gather from another
 //! view), and every finished view is gathered on device 0.
+//!
+//! The passes are laid by hand, but their kernels bind through slot tokens like any other: the
+//! tokens come from a declaration of the demo's two passes ([`demo_kernels`]), which the
+//! hand-laid instances instantiate (same pass ids, same access numbers).
 
 use parallax_backend::plan::Kernels;
 use parallax_backend::{
-    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, PassId, Region, ResourceKind,
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, KernelGraph, PassId, Region,
+    ResourceKind,
 };
+use parallax_graph::{Origin, Role, ViewTopology};
 
 use crate::kernels::{FillKernel, ShiftBlendKernel};
+
+/// The demo's kernels, bound to the slots of the declaration its passes instantiate: `fill`
+/// (pass 0) writes `radiance` (write 0); `shift_blend` (pass 1) reads its own view's `radiance`
+/// (read 0) and its sources' (read 1) and writes `output` (write 0).
+fn demo_kernels() -> (FillKernel, ShiftBlendKernel) {
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 1, 1));
+    let mut radiance = graph.image("radiance", Format::Rgba32f);
+    let mut output = graph.image("output", Format::Rgba32f);
+    let mut fill = graph.pass("fill", Role::All);
+    let fill_kernel = FillKernel { out: fill.write_slot(&mut radiance) };
+    assert_eq!(fill.record(), PassId(0));
+    let mut blend = graph.pass("shift_blend", Role::All);
+    let blend_kernel = ShiftBlendKernel {
+        own: blend.read_slot(&radiance),
+        sources: blend.read_sources_slot(&radiance),
+        out: blend.write_slot(&mut output),
+    };
+    assert_eq!(blend.record(), PassId(1));
+    (fill_kernel, blend_kernel)
+}
 
 /// Resource ids of the reprojection demo.
 #[derive(Clone, Debug)]
@@ -50,9 +76,10 @@ struct Demo {
 
 impl Demo {
     fn new(views: u32, devices: usize, width: u32, height: u32) -> Self {
+        let (fill, blend) = demo_kernels();
         let mut kernels = Kernels::default();
-        kernels.push(FillKernel);
-        kernels.push(ShiftBlendKernel);
+        kernels.push(fill);
+        kernels.push(blend);
         let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
         let mut image = |name: &str, view: u32| {
             plan.resources.push(ExecResource {
@@ -180,7 +207,7 @@ impl Demo {
                 device: self.owner(v),
                 reads: vec![
                     access("radiance", 0, r.radiance[v as usize]),
-                    access("source", 1, r.radiance[source as usize]),
+                    ExecAccess { origin: Origin::Source(0), ..access("source", 1, r.radiance[source as usize]) },
                 ],
                 history_reads: vec![],
                 writes: vec![access("output", 0, r.output[v as usize])],
@@ -243,9 +270,10 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
     }
 }
 
+/// The demo's `fill` alone (pass 0, writing its payload as write 0).
 fn fill_only() -> Kernels {
     let mut kernels = Kernels::default();
-    kernels.push(FillKernel);
+    kernels.push(demo_kernels().0);
     kernels
 }
 
@@ -269,5 +297,24 @@ mod tests {
             assert_eq!(plan.copies.len(), expected, "devices = {devices}");
         }
         copy_plan(64, 64).validate(2).unwrap();
+    }
+
+    #[test]
+    fn the_demo_kernels_tokens_bind_the_hand_laid_accesses() {
+        let views = 3;
+        let (plan, ids) = reprojection_demo(views, 2, 8, 8);
+        let (fill, blend) = demo_kernels();
+        for p in &plan.passes {
+            let v = p.view as usize;
+            if p.name == "fill" {
+                assert_eq!(p.write(fill.out).unwrap().resource, ids.radiance[v]);
+                assert!(p.read(blend.own).is_err(), "a token of shift_blend binds nothing in fill");
+            } else {
+                assert_eq!(p.read(blend.own).unwrap().resource, ids.radiance[v]);
+                let sources: Vec<usize> = p.sources(blend.sources).unwrap().map(|a| a.resource).collect();
+                assert_eq!(sources, [ids.radiance[(v + 1) % views as usize]]);
+                assert_eq!(p.write(blend.out).unwrap().resource, ids.output[v]);
+            }
+        }
     }
 }
