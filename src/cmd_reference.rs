@@ -108,6 +108,31 @@ enum Tracer<'a> {
     Gpu { context: VkContext, tracer: Box<GpuTracer> },
 }
 
+impl<'a> Tracer<'a> {
+    /// The CPU reference tracer under `--cpu`, else a GPU tracer over the selected devices, each
+    /// view in row bands over them.
+    fn start(
+        args: &ReferenceArgs,
+        scene: &'a Scene,
+        bvh: &'a SceneBvh,
+        work: TraceWork,
+        lf: &LightField,
+        views: usize,
+    ) -> Result<Self> {
+        if args.cpu {
+            return Ok(Tracer::Cpu(CpuTracer::new(scene, bvh)));
+        }
+        let selection = args.devices.selection();
+        let context = VkContext::new(&ContextDesc::from_env(selection))?;
+        tracing::info!("{}", context.to_string().trim_end());
+        work.check_devices(&context)?;
+        let devices = selection.count();
+        let plan = banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
+        let tracer = GpuTracer::new(&context, plan, &GpuScene::new(scene, bvh))?;
+        Ok(Tracer::Gpu { context, tracer: Box::new(tracer) })
+    }
+}
+
 impl Tracer<'_> {
     /// One chunk: every view's f32 mean radiance over `settings.spp` samples.
     fn chunk(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<[f32; 3]>>> {
@@ -129,6 +154,63 @@ impl Tracer<'_> {
 }
 
 pub fn run(args: ReferenceArgs) -> Result<()> {
+    check_sampling_args(&args)?;
+    let scene = args.scene.load()?;
+    let written: Vec<PathBuf> =
+        ["reference.json", "reference.png", PARTIAL_FILE].iter().map(|name| args.out_dir.join(name)).collect();
+    let written: Vec<(&str, &Path)> = written.iter().map(|p| ("--out-dir", p.as_path())).collect();
+    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+    let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
+    let selected = match &args.views {
+        Some(list) => parse_views(list, lf.len())?,
+        None => (0..lf.len() as u32).collect(),
+    };
+    // The tracers key random numbers by a view's position in the list they are given, so a
+    // subset's views get the noise of views 0..k: a different, equally valid estimate.
+    let views: Vec<View> = selected
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| View { index: i as u32, ..lightfield_view(&lf, ViewId(v)) })
+        .collect();
+    let work = check_cost(&lf, views.len(), args.spp)?;
+    let settings_key = settings_key(&args, &scene, &lf, &selected);
+    // What compare checks: a reference is always of a still camera.
+    let setup = Setup::new(
+        &args.scene.scene,
+        &scene,
+        &args.scene.camera_or_default(&scene),
+        true,
+        (&lf, args.light_field.layout.spacing),
+        args.depth.max_depth,
+    )?;
+    let _lock = prepare_out_dir(&args.out_dir, &selected)?;
+    let partial = args.out_dir.join(PARTIAL_FILE);
+    let size = (lf.width as usize, lf.height as usize);
+    let mut acc = resume_or_start(&partial, settings_key, views.len(), size, args.chunk_spp)?;
+    let target = u64::from(args.spp);
+    if acc.header.spp >= target {
+        tracing::info!(
+            "{} already holds {} spp (target {target}): nothing to trace",
+            partial.display(),
+            acc.header.spp
+        );
+        return write_outputs(&args, &acc, &selected, (&lf, &setup), 0.0, None);
+    }
+
+    let bvh = SceneBvh::build(&scene);
+    let mut tracer = Tracer::start(&args, &scene, &bvh, work, &lf, views.len())?;
+    let devices = if args.cpu { 0 } else { args.devices.selection().count() };
+    let started = Instant::now();
+    trace_to_target(&args, &mut tracer, &scene, &views, &mut acc, &selected)?;
+    if let Tracer::Gpu { context, tracer } = tracer {
+        drop(tracer);
+        context.check_validation()?;
+    }
+    write_outputs(&args, &acc, &selected, (&lf, &setup), started.elapsed().as_secs_f64(), Some(devices))
+}
+
+/// Refuses chunks that do not tile `--spp` and a checkpoint interval that is not a duration.
+fn check_sampling_args(args: &ReferenceArgs) -> Result<()> {
     if args.chunk_spp == 0 || args.spp % args.chunk_spp != 0 {
         return Err(UsageError(format!(
             "--spp {} is not a multiple of --chunk-spp {}: chunks must tile the samples for a resumed run to equal an \
@@ -142,39 +224,28 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
         bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
-    let scene = args.scene.load()?;
-    let written: Vec<PathBuf> =
-        ["reference.json", "reference.png", PARTIAL_FILE].iter().map(|name| args.out_dir.join(name)).collect();
-    let written: Vec<(&str, &Path)> = written.iter().map(|p| ("--out-dir", p.as_path())).collect();
-    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
-    let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
-    let focus = lf.rig.focus_distance;
-    let selected = match &args.views {
-        Some(list) => parse_views(list, lf.len())?,
-        None => (0..lf.len() as u32).collect(),
-    };
-    // The tracers key random numbers by a view's position in the list they are given, so a
-    // subset's views get the noise of views 0..k: a different, equally valid estimate.
-    let views: Vec<View> = selected
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| View { index: i as u32, ..lightfield_view(&lf, ViewId(v)) })
-        .collect();
+    Ok(())
+}
 
-    // What it costs, checked before anything is allocated: the paths, the read-back views and
-    // the f64 sums (3 channels × 8 bytes per pixel of every view).
-    let work = TraceWork { views: views.len() as u64, width: lf.width, height: lf.height, spp: args.spp };
+/// What it costs, checked before anything is allocated: the paths, the read-back views and the
+/// f64 sums (3 channels × 8 bytes per pixel of every view).
+fn check_cost(lf: &LightField, views: usize, spp: u32) -> Result<TraceWork> {
+    let work = TraceWork { views: views as u64, width: lf.width, height: lf.height, spp };
     work.check_duration()?;
     work.check_host()?;
     check_host_bytes(
-        &format!("the f64 sums of {} view(s) of {}x{}", views.len(), lf.width, lf.height),
+        &format!("the f64 sums of {} view(s) of {}x{}", views, lf.width, lf.height),
         work.views * u64::from(lf.width) * u64::from(lf.height) * 24,
         "lower --resolution or trace fewer --views",
     )?;
+    Ok(work)
+}
 
-    // Everything the pixels depend on, by the flag that sets it; devices are not among them
-    // (results do not depend on the device count), so a reference can resume on other GPUs.
-    let mut settings_key = scene_files_key(&scene);
+/// Everything the pixels depend on, by the flag that sets it; devices are not among them
+/// (results do not depend on the device count), so a reference can resume on other GPUs.
+fn settings_key(args: &ReferenceArgs, scene: &Scene, lf: &LightField, selected: &[u32]) -> BTreeMap<String, String> {
+    let focus = lf.rig.focus_distance;
+    let mut settings_key = scene_files_key(scene);
     settings_key.extend([
         ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.layout.lf, lf.cols, lf.rows)),
         // The spacing in effect, so an explicit --spacing equal to the preset's is the same run.
@@ -189,80 +260,73 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         ("--sun".to_string(), format!("{:?}", scene.sun)),
         ("--sky".to_string(), format!("{:?}", scene.sky)),
     ]);
-    // What compare checks: a reference is always of a still camera.
-    let setup = Setup::new(
-        &args.scene.scene,
-        &scene,
-        &args.scene.camera_or_default(&scene),
-        true,
-        (&lf, args.light_field.layout.spacing),
-        args.depth.max_depth,
-    )?;
-    crate::outputs::create_folder(&args.out_dir)
-        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
-    let _lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
+    settings_key
+}
+
+/// Creates and locks `--out-dir` and checks, before any tracing, that it can take every file
+/// the run writes; removes temporaries an interrupted run left. The lock lives as long as the
+/// returned guard.
+fn prepare_out_dir(out_dir: &Path, selected: &[u32]) -> Result<crate::outputs::FolderLock> {
+    crate::outputs::create_folder(out_dir).with_context(|| format!("cannot create --out-dir {}", out_dir.display()))?;
+    let lock = crate::outputs::lock_folder(out_dir, "--out-dir")?;
     // Found now rather than at the first checkpoint, after the tracing: a folder that cannot
     // take files (read-only, immutable) or a folder where a view's file goes.
-    tempfile::NamedTempFile::new_in(&args.out_dir)
-        .with_context(|| format!("--out-dir {}: the folder is not writable", args.out_dir.display()))?;
+    tempfile::NamedTempFile::new_in(out_dir)
+        .with_context(|| format!("--out-dir {}: the folder is not writable", out_dir.display()))?;
     let names = selected.iter().map(|v| format!("view_{v:03}.exr"));
     crate::outputs::check_targets_in(
-        &args.out_dir,
+        out_dir,
         names.chain(["reference.json", "reference.png", PARTIAL_FILE].map(String::from)),
         "--out-dir",
     )?;
-    remove_stale_temporaries(&args.out_dir);
-    let partial = args.out_dir.join(PARTIAL_FILE);
-    let size = (lf.width as usize, lf.height as usize);
-    let mut acc = if partial.exists() {
-        let acc = Accumulator::load(&partial)?;
-        acc.check_settings(&settings_key, &partial)?;
-        let h = &acc.header;
-        if (h.views, h.width, h.height, h.chunk_spp) != (views.len(), size.0, size.1, args.chunk_spp) {
-            bail!(
-                "{}: its header holds {} view(s) of {}x{} in chunks of {} spp, but its settings say {} of {}x{} in \
-                 chunks of {}: the file was edited; delete it to start over",
-                partial.display(),
-                h.views,
-                h.width,
-                h.height,
-                h.chunk_spp,
-                views.len(),
-                size.0,
-                size.1,
-                args.chunk_spp
-            );
-        }
-        tracing::info!("resuming {} at {} spp", partial.display(), acc.header.spp);
-        acc
-    } else {
-        Accumulator::new(settings_key, views.len(), size, args.chunk_spp)
-    };
-    let target = u64::from(args.spp);
-    if acc.header.spp >= target {
-        tracing::info!(
-            "{} already holds {} spp (target {target}): nothing to trace",
-            partial.display(),
-            acc.header.spp
-        );
-        return write_outputs(&args, &acc, &selected, (&lf, &setup), 0.0, None);
+    remove_stale_temporaries(out_dir);
+    Ok(lock)
+}
+
+/// The sums of an earlier run of the same settings from `partial`, or empty ones.
+fn resume_or_start(
+    partial: &Path,
+    settings_key: BTreeMap<String, String>,
+    views: usize,
+    size: (usize, usize),
+    chunk_spp: u32,
+) -> Result<Accumulator> {
+    if !partial.exists() {
+        return Ok(Accumulator::new(settings_key, views, size, chunk_spp));
     }
+    let acc = Accumulator::load(partial)?;
+    acc.check_settings(&settings_key, partial)?;
+    let h = &acc.header;
+    if (h.views, h.width, h.height, h.chunk_spp) != (views, size.0, size.1, chunk_spp) {
+        bail!(
+            "{}: its header holds {} view(s) of {}x{} in chunks of {} spp, but its settings say {} of {}x{} in \
+             chunks of {}: the file was edited; delete it to start over",
+            partial.display(),
+            h.views,
+            h.width,
+            h.height,
+            h.chunk_spp,
+            views,
+            size.0,
+            size.1,
+            chunk_spp
+        );
+    }
+    tracing::info!("resuming {} at {} spp", partial.display(), acc.header.spp);
+    Ok(acc)
+}
 
-    let bvh = SceneBvh::build(&scene);
-    let mut tracer = if args.cpu {
-        Tracer::Cpu(CpuTracer::new(&scene, &bvh))
-    } else {
-        let selection = args.devices.selection();
-        let context = VkContext::new(&ContextDesc::from_env(selection))?;
-        tracing::info!("{}", context.to_string().trim_end());
-        work.check_devices(&context)?;
-        let devices = selection.count();
-        let plan = banded_trace_plan(views.len() as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
-        let tracer = GpuTracer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
-        Tracer::Gpu { context, tracer: Box::new(tracer) }
-    };
-    let devices = if args.cpu { 0 } else { args.devices.selection().count() };
-
+/// Traces chunks until `acc` reaches `--spp`, writing a checkpoint every `--checkpoint-secs`
+/// (the last one is written by the caller, with the outputs).
+fn trace_to_target(
+    args: &ReferenceArgs,
+    tracer: &mut Tracer<'_>,
+    scene: &Scene,
+    views: &[View],
+    acc: &mut Accumulator,
+    selected: &[u32],
+) -> Result<()> {
+    let target = u64::from(args.spp);
     // Hidden under -q, like every progress bar of the CLI.
     let bar = crate::logging::bar(target);
     bar.set_style(
@@ -272,7 +336,6 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     bar.set_position(acc.header.spp);
     // The rate, and so the ETA, counts only this run's chunks.
     bar.reset_eta();
-    let started = Instant::now();
     let mut last_checkpoint = Instant::now();
     while acc.header.spp < target {
         let settings = TraceSettings {
@@ -282,20 +345,16 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
             ..Default::default()
         };
         let t = Instant::now();
-        let chunk = tracer.chunk(&scene, &views, &settings)?;
+        let chunk = tracer.chunk(scene, views, &settings)?;
         acc.add_chunk(&chunk, t.elapsed().as_secs_f64());
         bar.set_position(acc.header.spp);
         if acc.header.spp < target && last_checkpoint.elapsed().as_secs_f64() >= args.checkpoint_secs {
-            bar.suspend(|| write_checkpoint(&args.out_dir, &acc, &selected)).context("writing a checkpoint")?;
+            bar.suspend(|| write_checkpoint(&args.out_dir, acc, selected)).context("writing a checkpoint")?;
             last_checkpoint = Instant::now();
         }
     }
     bar.finish_and_clear();
-    if let Tracer::Gpu { context, tracer } = tracer {
-        drop(tracer);
-        context.check_validation()?;
-    }
-    write_outputs(&args, &acc, &selected, (&lf, &setup), started.elapsed().as_secs_f64(), Some(devices))
+    Ok(())
 }
 
 /// The EXRs of the current mean (spp in their attributes), then the sidecar: a crash between

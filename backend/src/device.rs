@@ -5,12 +5,12 @@
 //! physical device (`--fake-devices`); nothing above this module can tell the two apart, which is
 //! what lets lavapipe exercise every multi-device path.
 
-use std::ffi::CStr;
 use std::sync::{Arc, Mutex};
 
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 
+use crate::device_support::{Extensions, Features, PhysicalProperties, QueueFamilies};
 use crate::error::{BackendError, Result, VkContext};
 use crate::instance::Instance;
 
@@ -88,223 +88,50 @@ impl Device {
         need_host_import: bool,
     ) -> Result<Arc<Self>> {
         let raw_instance = &instance.raw;
-        let props = unsafe { raw_instance.get_physical_device_properties(physical) };
-        let mut driver_props = vk::PhysicalDeviceDriverProperties::default();
-        let mut host_props = vk::PhysicalDeviceExternalMemoryHostPropertiesEXT::default();
-        let mut subgroup_props = vk::PhysicalDeviceSubgroupProperties::default();
-        let mut props2 = vk::PhysicalDeviceProperties2::default()
-            .push_next(&mut driver_props)
-            .push_next(&mut host_props)
-            .push_next(&mut subgroup_props);
-        unsafe { raw_instance.get_physical_device_properties2(physical, &mut props2) };
-        let name = props.device_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        let missing =
-            |what: &str| BackendError::MissingCapability { device: index, name: name.clone(), what: what.to_string() };
-
-        let extensions = unsafe { raw_instance.enumerate_device_extension_properties(physical) }
-            .vk("vkEnumerateDeviceExtensionProperties")?;
-        let has_ext = |ext: &CStr| extensions.iter().any(|e| e.extension_name_as_c_str() == Ok(ext));
-        let mut enabled: Vec<*const std::ffi::c_char> = Vec::new();
-        let host_import = has_ext(ash::ext::external_memory_host::NAME);
-        if host_import {
-            enabled.push(ash::ext::external_memory_host::NAME.as_ptr());
-        } else if need_host_import {
-            return Err(missing("VK_EXT_external_memory_host (cross-device copies)"));
-        }
-        // EXT first: the two are the same functions, and the Khronos validation layer that
-        // Debian 12 ships (1.3.239) predates the KHR name and warns about it on NVIDIA, which
-        // offers both.
-        let calibrated_ext = if has_ext(ash::ext::calibrated_timestamps::NAME) {
-            Some(ash::ext::calibrated_timestamps::NAME)
-        } else if has_ext(ash::khr::calibrated_timestamps::NAME) {
-            Some(ash::khr::calibrated_timestamps::NAME)
-        } else {
-            None
+        let props = PhysicalProperties::query(raw_instance, physical);
+        let missing = |what: &str| BackendError::MissingCapability {
+            device: index,
+            name: props.name.clone(),
+            what: what.to_string(),
         };
-        // Calibration is only useful when the device can sample CLOCK_MONOTONIC, the clock the
-        // host side of every report uses.
-        let calibrated_ext = calibrated_ext.filter(|ext| {
-            let domains = unsafe {
-                if *ext == ash::khr::calibrated_timestamps::NAME {
-                    ash::khr::calibrated_timestamps::Instance::new(&instance.entry, raw_instance)
-                        .get_physical_device_calibrateable_time_domains(physical)
-                } else {
-                    ash::ext::calibrated_timestamps::Instance::new(&instance.entry, raw_instance)
-                        .get_physical_device_calibrateable_time_domains(physical)
-                }
-            }
-            .unwrap_or_default();
-            domains.contains(&vk::TimeDomainKHR::DEVICE) && domains.contains(&vk::TimeDomainKHR::CLOCK_MONOTONIC)
-        });
-        if let Some(ext) = calibrated_ext {
-            enabled.push(ext.as_ptr());
-        }
-        let want_stats = std::env::var_os("PARALLAX_PIPELINE_STATS").is_some_and(|v| !v.is_empty() && v != "0");
-        let pipeline_stats_ext = want_stats && has_ext(ash::khr::pipeline_executable_properties::NAME);
-        if pipeline_stats_ext {
-            enabled.push(ash::khr::pipeline_executable_properties::NAME.as_ptr());
-        }
+        let extensions = Extensions::choose(instance, physical, need_host_import, &missing)?;
+        let features = Features::query(raw_instance, physical);
+        features.require_core(&missing)?;
+        let families = QueueFamilies::choose(raw_instance, physical, &missing)?;
+        features.require_queries_and_ray_kernels(&props, &missing)?;
 
-        // Features: timeline semaphores and sync2 carry all synchronisation; storage images
-        // without a format qualifier let one bindless array hold every float format.
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
-        let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f12).push_next(&mut f13);
-        unsafe { raw_instance.get_physical_device_features2(physical, &mut f2) };
-        let core = f2.features;
-        // Global buffers (scene data, per-frame data) reach shaders as buffer references.
-        if f12.buffer_device_address == vk::FALSE {
-            return Err(missing("bufferDeviceAddress"));
-        }
-        if f12.timeline_semaphore == vk::FALSE {
-            return Err(missing("timelineSemaphore"));
-        }
-        if f13.synchronization2 == vk::FALSE {
-            return Err(missing("synchronization2"));
-        }
-        // glslc targeting Vulkan 1.3 declares workgroup sizes with LocalSizeId, which needs
-        // maintenance4.
-        if f13.maintenance4 == vk::FALSE {
-            return Err(missing("maintenance4"));
-        }
-        // Raster passes render without render-pass objects.
-        if f13.dynamic_rendering == vk::FALSE {
-            return Err(missing("dynamicRendering"));
-        }
-        // Scene textures are sampled from one array with a per-material (non-uniform) index.
-        if f12.shader_sampled_image_array_non_uniform_indexing == vk::FALSE {
-            return Err(missing("shaderSampledImageArrayNonUniformIndexing"));
-        }
-        if core.shader_storage_image_read_without_format == vk::FALSE
-            || core.shader_storage_image_write_without_format == vk::FALSE
-        {
-            return Err(missing("shaderStorageImage{Read,Write}WithoutFormat"));
-        }
-
-        let families = unsafe { raw_instance.get_physical_device_queue_family_properties(physical) };
-        let queue_family = families
-            .iter()
-            .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0)
-            .ok_or_else(|| missing("a compute queue with timestamps"))?;
-        let valid_bits = families[queue_family].timestamp_valid_bits;
-        // Transfer-only families are the copy engines on discrete GPUs; lavapipe has none.
-        let copy_family = families.iter().position(|f| {
-            f.queue_flags.contains(vk::QueueFlags::TRANSFER)
-                && !f.queue_flags.intersects(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE)
-                && f.timestamp_valid_bits > 0
-                && f.queue_count > 0
-        });
-        let copy_bits = copy_family.map_or(valid_bits, |f| families[f].timestamp_valid_bits);
-        if f12.host_query_reset == vk::FALSE {
-            return Err(missing("hostQueryReset"));
-        }
-        // The persistent ray schedule (shaders/bvh_raycast.glsl) hands out rays and tests
-        // triangles by subgroup.
-        let needed_subgroup_ops = vk::SubgroupFeatureFlags::BASIC
-            | vk::SubgroupFeatureFlags::BALLOT
-            | vk::SubgroupFeatureFlags::VOTE
-            | vk::SubgroupFeatureFlags::SHUFFLE
-            | vk::SubgroupFeatureFlags::SHUFFLE_RELATIVE
-            | vk::SubgroupFeatureFlags::ARITHMETIC;
-        if !subgroup_props.supported_operations.contains(needed_subgroup_ops)
-            || !subgroup_props.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
-        {
-            return Err(missing(
-                "subgroup basic, ballot, vote, shuffle, relative shuffle and arithmetic operations in compute shaders",
-            ));
-        }
-        // BVH node bytes are converted to floats from 8-bit lanes (shaders/bvh_traverse.glsl).
-        if f12.shader_int8 == vk::FALSE {
-            return Err(missing("shaderInt8"));
-        }
-
-        let priorities = [1.0f32];
-        let mut queue_infos = vec![
-            vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family as u32).queue_priorities(&priorities),
-        ];
-        if let Some(f) = copy_family {
-            queue_infos
-                .push(vk::DeviceQueueCreateInfo::default().queue_family_index(f as u32).queue_priorities(&priorities));
-        }
-        let features = vk::PhysicalDeviceFeatures::default()
-            .shader_storage_image_read_without_format(true)
-            .shader_storage_image_write_without_format(true);
-        let mut e12 = vk::PhysicalDeviceVulkan12Features::default()
-            .timeline_semaphore(true)
-            .host_query_reset(true)
-            .buffer_device_address(true)
-            .shader_int8(true)
-            .shader_sampled_image_array_non_uniform_indexing(true);
-        let mut e13 = vk::PhysicalDeviceVulkan13Features::default()
-            .synchronization2(true)
-            .maintenance4(true)
-            .dynamic_rendering(true);
-        let mut executable_info =
-            vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default().pipeline_executable_info(true);
-        let mut create_info = vk::DeviceCreateInfo::default()
-            .queue_create_infos(&queue_infos)
-            .enabled_extension_names(&enabled)
-            .enabled_features(&features)
-            .push_next(&mut e12)
-            .push_next(&mut e13);
-        if pipeline_stats_ext {
-            create_info = create_info.push_next(&mut executable_info);
-        }
-        let raw = unsafe { raw_instance.create_device(physical, &create_info, None) }.vk("vkCreateDevice")?;
-        let queue = unsafe { raw.get_device_queue(queue_family as u32, 0) };
-        let copy_queue = copy_family.map(|f| (f as u32, Mutex::new(unsafe { raw.get_device_queue(f as u32, 0) })));
-
-        let allocator = Allocator::new(&AllocatorCreateDesc {
-            instance: raw_instance.clone(),
-            device: raw.clone(),
-            physical_device: physical,
-            debug_settings: Default::default(),
-            buffer_device_address: true,
-            allocation_sizes: Default::default(),
-        })
-        .map_err(|source| BackendError::Allocation { what: "allocator".into(), source });
-        let allocator = match allocator {
-            Ok(a) => a,
-            Err(e) => {
-                unsafe { raw.destroy_device(None) };
-                return Err(e);
-            }
-        };
+        let raw = create_logical_device(raw_instance, physical, &families, &extensions)?;
+        let queue = unsafe { raw.get_device_queue(families.main, 0) };
+        let copy_queue = families.copy.map(|f| (f, Mutex::new(unsafe { raw.get_device_queue(f, 0) })));
+        let allocator = create_allocator(raw_instance, &raw, physical)?;
         let pool_info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(queue_family as u32)
+            .queue_family_index(families.main)
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
         let one_shot_pool = unsafe { raw.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
 
-        let calibrated = calibrated_ext.map(|ext| {
+        let calibrated = extensions.calibrated.map(|ext| {
             if ext == ash::khr::calibrated_timestamps::NAME {
                 CalibratedFns::Khr(ash::khr::calibrated_timestamps::Device::new(raw_instance, &raw))
             } else {
                 CalibratedFns::Ext(ash::ext::calibrated_timestamps::Device::new(raw_instance, &raw))
             }
         });
-        let external_memory_host = host_import.then(|| ash::ext::external_memory_host::Device::new(raw_instance, &raw));
-        let pipeline_stats =
-            pipeline_stats_ext.then(|| ash::khr::pipeline_executable_properties::Device::new(raw_instance, &raw));
+        let external_memory_host =
+            extensions.host_import.then(|| ash::ext::external_memory_host::Device::new(raw_instance, &raw));
+        let pipeline_stats = extensions
+            .pipeline_stats
+            .then(|| ash::khr::pipeline_executable_properties::Device::new(raw_instance, &raw));
 
-        let v = props.api_version;
         let info = DeviceInfo {
             index,
             physical_index,
-            name,
-            driver: driver_props.driver_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
-            driver_info: driver_props
-                .driver_info_as_c_str()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
-            api_version: format!(
-                "{}.{}.{}",
-                vk::api_version_major(v),
-                vk::api_version_minor(v),
-                vk::api_version_patch(v)
-            ),
-            device_type: format!("{:?}", props.device_type),
+            name: props.name.clone(),
+            driver: props.driver.clone(),
+            driver_info: props.driver_info.clone(),
+            api_version: props.api_version(),
+            device_type: format!("{:?}", props.core.device_type),
             calibrated_timestamps: calibrated.is_some(),
-            max_image_dimension_2d: props.limits.max_image_dimension2_d,
+            max_image_dimension_2d: props.core.limits.max_image_dimension2_d,
             device_local_heap_bytes: largest_device_local_heap(raw_instance, physical),
         };
         Ok(Arc::new(Self {
@@ -312,17 +139,17 @@ impl Device {
             instance: instance.clone(),
             physical,
             raw,
-            queue_family: queue_family as u32,
+            queue_family: families.main,
             queue: Mutex::new(queue),
             copy_queue,
-            timestamp_bits: [valid_bits, copy_bits],
+            timestamp_bits: families.timestamp_bits,
             allocator: Mutex::new(Some(allocator)),
             one_shot_pool: Mutex::new(one_shot_pool),
             external_memory_host,
-            min_host_pointer_alignment: host_props.min_imported_host_pointer_alignment.max(1),
+            min_host_pointer_alignment: props.min_imported_host_pointer_alignment.max(1),
             calibrated,
             pipeline_stats,
-            timestamp_period: f64::from(props.limits.timestamp_period),
+            timestamp_period: f64::from(props.core.limits.timestamp_period),
         }))
     }
 
@@ -557,6 +384,68 @@ pub fn host_now_ns() -> u64 {
     // clock_gettime(CLOCK_MONOTONIC) cannot fail with a valid pointer.
     unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// Creates the `VkDevice` with one queue of each chosen family and the features every kernel
+/// relies on.
+fn create_logical_device(
+    raw_instance: &ash::Instance,
+    physical: vk::PhysicalDevice,
+    families: &QueueFamilies,
+    extensions: &Extensions,
+) -> Result<ash::Device> {
+    let priorities = [1.0f32];
+    let mut queue_infos =
+        vec![vk::DeviceQueueCreateInfo::default().queue_family_index(families.main).queue_priorities(&priorities)];
+    if let Some(f) = families.copy {
+        queue_infos.push(vk::DeviceQueueCreateInfo::default().queue_family_index(f).queue_priorities(&priorities));
+    }
+    let enabled = extensions.names();
+    let features = vk::PhysicalDeviceFeatures::default()
+        .shader_storage_image_read_without_format(true)
+        .shader_storage_image_write_without_format(true);
+    let mut e12 = vk::PhysicalDeviceVulkan12Features::default()
+        .timeline_semaphore(true)
+        .host_query_reset(true)
+        .buffer_device_address(true)
+        .shader_int8(true)
+        .shader_sampled_image_array_non_uniform_indexing(true);
+    let mut e13 =
+        vk::PhysicalDeviceVulkan13Features::default().synchronization2(true).maintenance4(true).dynamic_rendering(true);
+    let mut executable_info =
+        vk::PhysicalDevicePipelineExecutablePropertiesFeaturesKHR::default().pipeline_executable_info(true);
+    let mut create_info = vk::DeviceCreateInfo::default()
+        .queue_create_infos(&queue_infos)
+        .enabled_extension_names(&enabled)
+        .enabled_features(&features)
+        .push_next(&mut e12)
+        .push_next(&mut e13);
+    if extensions.pipeline_stats {
+        create_info = create_info.push_next(&mut executable_info);
+    }
+    unsafe { raw_instance.create_device(physical, &create_info, None) }.vk("vkCreateDevice")
+}
+
+/// The device's memory allocator; on failure the device, which nothing else holds yet, is
+/// destroyed.
+fn create_allocator(
+    raw_instance: &ash::Instance,
+    raw: &ash::Device,
+    physical: vk::PhysicalDevice,
+) -> Result<Allocator> {
+    let allocator = Allocator::new(&AllocatorCreateDesc {
+        instance: raw_instance.clone(),
+        device: raw.clone(),
+        physical_device: physical,
+        debug_settings: Default::default(),
+        buffer_device_address: true,
+        allocation_sizes: Default::default(),
+    })
+    .map_err(|source| BackendError::Allocation { what: "allocator".into(), source });
+    if allocator.is_err() {
+        unsafe { raw.destroy_device(None) };
+    }
+    allocator
 }
 
 /// The largest DEVICE_LOCAL heap (lavapipe's one heap is system memory and is flagged so).

@@ -97,44 +97,8 @@ pub(crate) fn create_device_state(
     let shaders = &options.shaders;
     let (resources, buffer_resources): (Vec<usize>, Vec<usize>) =
         plan.resources_of_device(d).into_iter().partition(|&r| plan.resources[r].kind == ResourceKind::Image);
-    let mut images = HashMap::new();
-    let mut fresh = Vec::new();
-    for &r in &resources {
-        let desc = &plan.resources[r];
-        let image = match kept.images.remove(&(d, desc.clone())) {
-            Some(image) => image,
-            None => {
-                fresh.push(r);
-                Image::new(device, &format!("{} view {}", desc.name, desc.view), desc.width, desc.height, desc.format)?
-            }
-        };
-        images.insert(r, image);
-    }
-    let mut buffers = HashMap::new();
-    let mut fresh_buffers = Vec::new();
-    for &r in &buffer_resources {
-        let desc = &plan.resources[r];
-        let buffer = match kept.buffers.remove(&(d, desc.clone())) {
-            Some(buffer) => buffer,
-            None => {
-                fresh_buffers.push(r);
-                Buffer::new(
-                    device,
-                    &format!("{} view {}", desc.name, desc.view),
-                    desc.bytes(),
-                    // INDIRECT_BUFFER: passes write dispatch arguments into their own buffers
-                    // (Recorder::dispatch_indirect).
-                    vk::BufferUsageFlags::STORAGE_BUFFER
-                        | vk::BufferUsageFlags::TRANSFER_SRC
-                        | vk::BufferUsageFlags::TRANSFER_DST
-                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
-                        | vk::BufferUsageFlags::INDIRECT_BUFFER,
-                    MemoryLocation::GpuOnly,
-                )?
-            }
-        };
-        buffers.insert(r, buffer);
-    }
+    let (images, fresh) = take_or_create_images(device, plan, d, &resources, kept)?;
+    let (buffers, fresh_buffers) = take_or_create_buffers(device, plan, d, &buffer_resources, kept)?;
     clear_buffers(device, fresh_buffers.iter().map(|r| &buffers[r]))?;
     let placeholders = [
         Image::new(device, "float placeholder", 1, 1, Format::Rgba32f)?,
@@ -145,15 +109,7 @@ pub(crate) fn create_device_state(
     let image_slots: HashMap<usize, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
     let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
     let bindless = Bindless::new(device, &ordered, placeholders, slots, shaders.clone())?;
-    let raw = &device.raw;
-    let mut command_pools = [vk::CommandPool::null(); 2];
-    for (pool, kind) in command_pools.iter_mut().zip([QueueKind::Main, QueueKind::Copy]) {
-        // Command buffers are recorded again in place when a global buffer moves.
-        let info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(device.family_of(kind))
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        *pool = unsafe { raw.create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
-    }
+    let command_pools = create_command_pools(device)?;
     let timer_spans: Vec<Vec<Range<usize>>> = segments.iter().map(|s| timer_spans(plan, s, options.timing)).collect();
     let mut state = DeviceState {
         device: device.clone(),
@@ -173,31 +129,117 @@ pub(crate) fn create_device_state(
     };
     state.progress = device.create_timeline(0)?;
     for _ in 0..slots {
-        let mut command_buffers = Vec::with_capacity(state.segments.len());
-        for segment in &state.segments {
-            let pool = command_pools[segment.queue as usize];
-            let info = vk::CommandBufferAllocateInfo::default()
-                .command_pool(pool)
-                .level(vk::CommandBufferLevel::PRIMARY)
-                .command_buffer_count(1);
-            command_buffers.push(unsafe { raw.allocate_command_buffers(&info) }.vk("vkAllocateCommandBuffers")?[0]);
-        }
-        let query_pool = if state.timers.is_empty() {
-            vk::QueryPool::null()
-        } else {
-            unsafe {
-                raw.create_query_pool(
-                    &vk::QueryPoolCreateInfo::default()
-                        .query_type(vk::QueryType::TIMESTAMP)
-                        .query_count(state.timers.len() as u32 * 2),
-                    None,
-                )
-            }
-            .vk("vkCreateQueryPool")?
-        };
-        state.slots.push(SlotResources { command_buffers, query_pool });
+        let slot = create_slot_resources(device, &command_pools, &state.segments, state.timers.len())?;
+        state.slots.push(slot);
     }
     Ok(state)
+}
+
+/// The images of `resources` on device `d`: kept ones taken over, the others created (listed in
+/// the second value: they need initialising).
+fn take_or_create_images(
+    device: &Arc<Device>,
+    plan: &ExecutionPlan,
+    d: usize,
+    resources: &[usize],
+    kept: &mut Kept,
+) -> Result<(HashMap<usize, Image>, Vec<usize>)> {
+    let mut images = HashMap::new();
+    let mut fresh = Vec::new();
+    for &r in resources {
+        let desc = &plan.resources[r];
+        let image = match kept.images.remove(&(d, desc.clone())) {
+            Some(image) => image,
+            None => {
+                fresh.push(r);
+                Image::new(device, &format!("{} view {}", desc.name, desc.view), desc.width, desc.height, desc.format)?
+            }
+        };
+        images.insert(r, image);
+    }
+    Ok((images, fresh))
+}
+
+/// The buffers of `resources` on device `d`: kept ones taken over, the others created (listed in
+/// the second value: they need clearing).
+fn take_or_create_buffers(
+    device: &Arc<Device>,
+    plan: &ExecutionPlan,
+    d: usize,
+    resources: &[usize],
+    kept: &mut Kept,
+) -> Result<(HashMap<usize, Buffer>, Vec<usize>)> {
+    let mut buffers = HashMap::new();
+    let mut fresh = Vec::new();
+    for &r in resources {
+        let desc = &plan.resources[r];
+        let buffer = match kept.buffers.remove(&(d, desc.clone())) {
+            Some(buffer) => buffer,
+            None => {
+                fresh.push(r);
+                Buffer::new(
+                    device,
+                    &format!("{} view {}", desc.name, desc.view),
+                    desc.bytes(),
+                    // INDIRECT_BUFFER: passes write dispatch arguments into their own buffers
+                    // (Recorder::dispatch_indirect).
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::TRANSFER_SRC
+                        | vk::BufferUsageFlags::TRANSFER_DST
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+                        | vk::BufferUsageFlags::INDIRECT_BUFFER,
+                    MemoryLocation::GpuOnly,
+                )?
+            }
+        };
+        buffers.insert(r, buffer);
+    }
+    Ok((buffers, fresh))
+}
+
+/// One command pool for the main queue and one for the copy queue.
+fn create_command_pools(device: &Device) -> Result<[vk::CommandPool; 2]> {
+    let mut command_pools = [vk::CommandPool::null(); 2];
+    for (pool, kind) in command_pools.iter_mut().zip([QueueKind::Main, QueueKind::Copy]) {
+        // Command buffers are recorded again in place when a global buffer moves.
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(device.family_of(kind))
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        *pool = unsafe { device.raw.create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
+    }
+    Ok(command_pools)
+}
+
+/// One slot's command buffers (one per segment, from its queue's pool) and its query pool of
+/// two timestamps per timer (none without timers).
+fn create_slot_resources(
+    device: &Device,
+    command_pools: &[vk::CommandPool; 2],
+    segments: &[Segment],
+    timers: usize,
+) -> Result<SlotResources> {
+    let raw = &device.raw;
+    let mut command_buffers = Vec::with_capacity(segments.len());
+    for segment in segments {
+        let pool = command_pools[segment.queue as usize];
+        let info = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        command_buffers.push(unsafe { raw.allocate_command_buffers(&info) }.vk("vkAllocateCommandBuffers")?[0]);
+    }
+    let query_pool = if timers == 0 {
+        vk::QueryPool::null()
+    } else {
+        unsafe {
+            raw.create_query_pool(
+                &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(timers as u32 * 2),
+                None,
+            )
+        }
+        .vk("vkCreateQueryPool")?
+    };
+    Ok(SlotResources { command_buffers, query_pool })
 }
 
 /// Resources of the previous plan that the next one may take over, by device and description.

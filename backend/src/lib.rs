@@ -87,6 +87,7 @@
 mod context;
 mod device;
 mod device_state;
+mod device_support;
 mod error;
 mod executor;
 mod frame_block;

@@ -86,6 +86,73 @@ pub(crate) struct Bindless {
     sampler: vk::Sampler,
 }
 
+/// Set 0 (see the module documentation), with image arrays of `image_count`.
+fn set_bindings(image_count: u32) -> [vk::DescriptorSetLayoutBinding<'static>; 5] {
+    [
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(0)
+            .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+            .descriptor_count(image_count)
+            .stage_flags(SHADER_STAGES),
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(1)
+            .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+            .descriptor_count(1)
+            .stage_flags(SHADER_STAGES),
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(2)
+            .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
+            .descriptor_count(image_count)
+            .stage_flags(SHADER_STAGES),
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(3)
+            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+            .descriptor_count(MAX_TEXTURES)
+            .stage_flags(SHADER_STAGES),
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(4)
+            .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
+            .descriptor_count(image_count)
+            .stage_flags(SHADER_STAGES),
+    ]
+}
+
+/// The layout of set 0 and the push-constant range every pipeline shares.
+fn create_pipeline_layout(raw: &ash::Device, set_layout: vk::DescriptorSetLayout) -> Result<vk::PipelineLayout> {
+    let ranges = [vk::PushConstantRange::default().stage_flags(SHADER_STAGES).offset(0).size(PUSH_CONSTANT_BYTES)];
+    let set_layouts = [set_layout];
+    unsafe {
+        raw.create_pipeline_layout(
+            &vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges),
+            None,
+        )
+    }
+    .vk("vkCreatePipelineLayout")
+}
+
+/// A pool for `slots` sets of set 0 with image arrays of `image_count`.
+fn create_descriptor_pool(raw: &ash::Device, image_count: u32, slots: usize) -> Result<vk::DescriptorPool> {
+    let sizes = [
+        vk::DescriptorPoolSize::default()
+            .ty(vk::DescriptorType::STORAGE_IMAGE)
+            .descriptor_count(2 * image_count * slots as u32),
+        vk::DescriptorPoolSize::default().ty(vk::DescriptorType::UNIFORM_BUFFER).descriptor_count(slots as u32),
+        vk::DescriptorPoolSize::default()
+            .ty(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+            .descriptor_count(MAX_TEXTURES * slots as u32),
+        vk::DescriptorPoolSize::default()
+            .ty(vk::DescriptorType::SAMPLED_IMAGE)
+            .descriptor_count(image_count * slots as u32),
+    ];
+    unsafe {
+        raw.create_descriptor_pool(
+            &vk::DescriptorPoolCreateInfo::default().max_sets(slots as u32).pool_sizes(&sizes),
+            None,
+        )
+    }
+    .vk("vkCreateDescriptorPool")
+}
+
 impl Bindless {
     /// Creates the layout for `images` and `slots` descriptor sets, all written.
     /// `placeholders` are a float, a uint and a depth 1x1 image in `GENERAL` layout; they live as long
@@ -100,33 +167,7 @@ impl Bindless {
         // A zero-sized descriptor array is invalid; a device with no image still gets one slot
         // (never indexed), holding the placeholders.
         let image_count = images.len().max(1) as u32;
-        let bindings = [
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(0)
-                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
-                .descriptor_count(image_count)
-                .stage_flags(SHADER_STAGES),
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(1)
-                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(SHADER_STAGES),
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(2)
-                .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
-                .descriptor_count(image_count)
-                .stage_flags(SHADER_STAGES),
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(3)
-                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                .descriptor_count(MAX_TEXTURES)
-                .stage_flags(SHADER_STAGES),
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(4)
-                .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
-                .descriptor_count(image_count)
-                .stage_flags(SHADER_STAGES),
-        ];
+        let bindings = set_bindings(image_count);
         let placeholder_texture =
             Texture::new(device, "placeholder texture", &TextureData { width: 1, height: 1, rgba8: &[255; 4] })?;
         let sampler = create_sampler(device)?;
@@ -150,34 +191,8 @@ impl Bindless {
             placeholder_texture,
             sampler,
         };
-        let ranges = [vk::PushConstantRange::default().stage_flags(SHADER_STAGES).offset(0).size(PUSH_CONSTANT_BYTES)];
-        let set_layouts = [set_layout];
-        this.pipeline_layout = unsafe {
-            raw.create_pipeline_layout(
-                &vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges),
-                None,
-            )
-        }
-        .vk("vkCreatePipelineLayout")?;
-        let sizes = [
-            vk::DescriptorPoolSize::default()
-                .ty(vk::DescriptorType::STORAGE_IMAGE)
-                .descriptor_count(2 * image_count * slots as u32),
-            vk::DescriptorPoolSize::default().ty(vk::DescriptorType::UNIFORM_BUFFER).descriptor_count(slots as u32),
-            vk::DescriptorPoolSize::default()
-                .ty(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                .descriptor_count(MAX_TEXTURES * slots as u32),
-            vk::DescriptorPoolSize::default()
-                .ty(vk::DescriptorType::SAMPLED_IMAGE)
-                .descriptor_count(image_count * slots as u32),
-        ];
-        this.pool = unsafe {
-            raw.create_descriptor_pool(
-                &vk::DescriptorPoolCreateInfo::default().max_sets(slots as u32).pool_sizes(&sizes),
-                None,
-            )
-        }
-        .vk("vkCreateDescriptorPool")?;
+        this.pipeline_layout = create_pipeline_layout(raw, set_layout)?;
+        this.pool = create_descriptor_pool(raw, image_count, slots)?;
         let layouts = vec![set_layout; slots];
         this.sets = unsafe {
             raw.allocate_descriptor_sets(

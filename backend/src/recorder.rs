@@ -383,6 +383,28 @@ impl<'a> Recorder<'a> {
         let Some(&first) = draw.color_targets.first().or(draw.depth_target.as_ref()) else {
             return Err(misuse("a draw needs a colour or a depth target".into()));
         };
+        let targets = self.draw_targets(draw, first, &misuse)?;
+        let key = GraphicsKey {
+            vertex: draw.vertex_shader.to_string(),
+            fragment: draw.fragment_shader.to_string(),
+            color_formats: targets.color_formats.clone(),
+            depth: targets.depth.is_some(),
+        };
+        let pipeline = self.bindless.graphics_pipeline(&key)?;
+        check_push::<P>(self.pass, pipeline)?;
+        let pipeline = pipeline.raw;
+        self.record_draw(draw, &targets, pipeline, push_bytes);
+        Ok(())
+    }
+
+    /// The draw's attachments, all of the size of its `first` target: colour targets of a
+    /// colour format, the depth target `Depth32f`.
+    fn draw_targets(
+        &self,
+        draw: &Draw<'_>,
+        first: usize,
+        misuse: &dyn Fn(String) -> BackendError,
+    ) -> Result<DrawTargets> {
         let (width, height) = (self.plan.resources[first].width, self.plan.resources[first].height);
         let target = |resource: usize| -> Result<&Image> {
             let desc = &self.plan.resources[resource];
@@ -398,7 +420,7 @@ impl<'a> Recorder<'a> {
         };
         let load_op = if draw.clear { vk::AttachmentLoadOp::CLEAR } else { vk::AttachmentLoadOp::LOAD };
         let mut color_formats = Vec::with_capacity(draw.color_targets.len());
-        let mut attachments = Vec::with_capacity(draw.color_targets.len());
+        let mut colors = Vec::with_capacity(draw.color_targets.len());
         for &resource in draw.color_targets {
             let image = target(resource)?;
             if image.format.is_depth() {
@@ -408,7 +430,7 @@ impl<'a> Recorder<'a> {
                 )));
             }
             color_formats.push(crate::memory::vk_format(image.format)?);
-            attachments.push(
+            colors.push(
                 vk::RenderingAttachmentInfo::default()
                     .image_view(image.view)
                     .image_layout(vk::ImageLayout::GENERAL)
@@ -416,7 +438,7 @@ impl<'a> Recorder<'a> {
                     .store_op(vk::AttachmentStoreOp::STORE),
             );
         }
-        let depth_attachment = match draw.depth_target {
+        let depth = match draw.depth_target {
             Some(resource) => {
                 let image = target(resource)?;
                 if image.format != Format::Depth32f {
@@ -438,22 +460,19 @@ impl<'a> Recorder<'a> {
             }
             None => None,
         };
-        let key = GraphicsKey {
-            vertex: draw.vertex_shader.to_string(),
-            fragment: draw.fragment_shader.to_string(),
-            color_formats,
-            depth: depth_attachment.is_some(),
-        };
-        let pipeline = self.bindless.graphics_pipeline(&key)?;
-        check_push::<P>(self.pass, pipeline)?;
-        let pipeline = pipeline.raw;
+        Ok(DrawTargets { width, height, color_formats, colors, depth })
+    }
+
+    /// Records the draw over its rows with `pipeline` into checked `targets`.
+    fn record_draw(&self, draw: &Draw<'_>, targets: &DrawTargets, pipeline: vk::Pipeline, push_bytes: &[u8]) {
+        let (width, height) = (targets.width, targets.height);
         let area = vk::Rect2D {
             offset: vk::Offset2D { x: 0, y: draw.rows.y0 as i32 },
             extent: vk::Extent2D { width, height: draw.rows.len() },
         };
         let mut rendering =
-            vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
-        if let Some(depth) = &depth_attachment {
+            vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&targets.colors);
+        if let Some(depth) = &targets.depth {
             rendering = rendering.depth_attachment(depth);
         }
         let viewport =
@@ -479,7 +498,6 @@ impl<'a> Recorder<'a> {
             }
             self.raw.cmd_end_rendering(self.cb);
         }
-        Ok(())
     }
 
     /// The raw command buffer, for kernels that need a command the recorder does not wrap.
@@ -542,4 +560,13 @@ pub trait PassKernel: Send + Sync {
     fn touches_undeclared_memory(&self) -> bool {
         false
     }
+}
+
+/// The checked attachments of one draw and their common size.
+struct DrawTargets {
+    width: u32,
+    height: u32,
+    color_formats: Vec<vk::Format>,
+    colors: Vec<vk::RenderingAttachmentInfo<'static>>,
+    depth: Option<vk::RenderingAttachmentInfo<'static>>,
 }

@@ -12,7 +12,9 @@ use parallax_graph::{
     BandedPlacement, CopyId, DeviceId, Format, Op, PassPlacementInfo, Placement, Region, Role, ScheduleError, ViewId,
     ViewTopology, compile,
 };
-use parallax_testkit::kernels::{AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel};
+use parallax_testkit::kernels::{
+    AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel, declare_writer,
+};
 
 fn context(selection: DeviceSelection) -> Result<Context, BackendError> {
     Context::new(&ContextDesc { selection, validation: Validation::Core })
@@ -211,8 +213,8 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, size, size));
     let mut mask = graph.image("mask", Format::R32u);
     let mut radiance = graph.image("radiance", Format::Rgba32f);
-    graph.pass("fill_mask", Role::All).write(&mut mask).kernel(Arc::new(FillMaskKernel)).record();
-    graph.pass("fill", Role::All).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
+    declare_writer(&mut graph, "fill_mask", Role::All, &mut mask, |out| FillMaskKernel { out }).record();
+    declare_writer(&mut graph, "fill", Role::All, &mut radiance, |out| FillKernel { out }).record();
     graph.export(&mask);
     graph.export(&radiance);
     let plan = lower(&graph, &OnDevice { device: 1, devices: 2 });
@@ -292,7 +294,7 @@ fn weighted_plan(size: u32) -> ExecutionPlan {
     }
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, size, size));
     let mut w = graph.image("w", Format::Rgba32f);
-    graph.pass("weighted_fill", Role::All).write(&mut w).kernel(Arc::new(WeightedFillKernel)).record();
+    declare_writer(&mut graph, "weighted_fill", Role::All, &mut w, |out| WeightedFillKernel { out }).record();
     graph.export(&w);
     lower(&graph, &ViewPerDevice)
 }

@@ -9,7 +9,7 @@ use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor,
     FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder,
-    Validation, ViewCameras, check_push_constants,
+    Validation, ViewCameras, WriteSlot, check_push_constants,
 };
 use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
 use parallax_testkit::kernels::reference_mask;
@@ -108,14 +108,16 @@ fn camera(frame: u32, view: u32) -> GpuCamera {
     GpuCamera::new(view_proj, Vec3::new(x, 1.0, 2.0), Vec2::new(0.5 - 0.25 * frame as f32, 0.125 * view as f32))
 }
 
-/// Pass `frame_fill`: test_frame_fill.comp into `writes[0]`, with the frame block and the
+/// Pass `frame_fill`: test_frame_fill.comp into its `out` write, with the frame block and the
 /// pass's own section.
-struct FrameFillKernel;
+struct FrameFillKernel {
+    out: WriteSlot,
+}
 
 impl PassKernel for FrameFillKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         let params = FrameFillParams {
-            dst: rec.image(pass.writes[0].resource)?,
+            dst: rec.image(pass.write(self.out)?.resource)?,
             view: pass.view,
             width: SIZE,
             height: SIZE,
@@ -143,7 +145,9 @@ impl Placement for ViewPerDevice {
 fn gather_plan() -> ExecutionPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, SIZE, SIZE));
     let mut fill = graph.image("fill", Format::R32u);
-    graph.pass("frame_fill", Role::All).write(&mut fill).kernel(Arc::new(FrameFillKernel)).record();
+    let mut pass = graph.pass("frame_fill", Role::All);
+    let kernel = FrameFillKernel { out: pass.write_slot(&mut fill) };
+    pass.kernel(Arc::new(kernel)).record();
     graph.export(&fill);
     let schedule = compile(&graph, &ViewPerDevice).unwrap();
     ExecutionPlan::from_schedule(&graph, &schedule).unwrap()

@@ -3,13 +3,15 @@
 
 use std::sync::Arc;
 
+use parallax_backend::KernelGraph;
 use parallax_backend::{
     Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, ExecutionPlan, Executor, Validation,
 };
-use parallax_backend::{KernelGraph, PassKernel};
 use parallax_graph::Format;
 use parallax_graph::{AssignStrategy, LightField, PlanConfig, Rig, Role, Schedule, Scheme, ViewId, compile};
-use parallax_testkit::kernels::{FillBufferKernel, FillKernel, ShiftBlendKernel, reference_shift_blend};
+use parallax_testkit::kernels::{
+    FillBufferKernel, FillKernel, ShiftBlendKernel, declare_writer, reference_shift_blend,
+};
 
 const SIZE: u32 = 32;
 
@@ -27,15 +29,15 @@ fn fill_and_blend(plan: &parallax_graph::Plan) -> (KernelGraph, Schedule) {
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
-    let fill: Arc<dyn PassKernel> = Arc::new(FillKernel);
-    g.pass("fill", Role::Sources).write(&mut radiance).kernel(fill.clone()).record();
-    g.pass("fill", Role::Targets).write(&mut radiance).kernel(fill).record();
-    g.pass("shift_blend", Role::All)
-        .read(&radiance)
-        .read_sources(&radiance)
-        .write(&mut output)
-        .kernel(Arc::new(ShiftBlendKernel))
-        .record();
+    declare_writer(&mut g, "fill", Role::Sources, &mut radiance, |out| FillKernel { out }).record();
+    declare_writer(&mut g, "fill", Role::Targets, &mut radiance, |out| FillKernel { out }).record();
+    let mut blend = g.pass("shift_blend", Role::All);
+    let kernel = ShiftBlendKernel {
+        own: blend.read_slot(&radiance),
+        sources: blend.read_sources_slot(&radiance),
+        out: blend.write_slot(&mut output),
+    };
+    blend.kernel(Arc::new(kernel)).record();
     g.export(&output);
     let schedule = compile(&g, plan).unwrap();
     assert!(schedule.validate().is_ok(), "{:?}", schedule.validate());
@@ -135,7 +137,7 @@ fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let bytes = 1000; // not a multiple of 4 on purpose: rounded up to 250 words
     let mut list = g.buffer("list", bytes);
-    g.pass("fill_buffer", Role::All).write(&mut list).kernel(Arc::new(FillBufferKernel)).record();
+    declare_writer(&mut g, "fill_buffer", Role::All, &mut list, |out| FillBufferKernel { out }).record();
     g.export(&list);
     let schedule = compile(&g, &plan).unwrap();
     assert!(schedule.validate().is_ok());

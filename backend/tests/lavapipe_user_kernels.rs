@@ -14,7 +14,7 @@ use parallax_backend::{
 };
 use parallax_glsl::{CompiledShader, Compiler};
 use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, ReadSlot, Rig, Role, Scheme, WriteSlot, compile};
-use parallax_testkit::kernels::{FillKernel, reference_fill};
+use parallax_testkit::kernels::{FillKernel, declare_writer, reference_fill};
 
 const SIZE: u32 = 16;
 const DEVICES: u32 = 2;
@@ -69,7 +69,7 @@ fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<usize>) {
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut pattern = g.image("pattern", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
-    g.pass("fill", Role::All).write(&mut pattern).kernel(Arc::new(FillKernel)).record();
+    declare_writer(&mut g, "fill", Role::All, &mut pattern, |out| FillKernel { out }).record();
     let mut pass = g.pass("user", Role::All);
     let (src, dst) = (pass.read_slot(&pattern), pass.write_slot(&mut output));
     pass.kernel(Arc::new(ReadWriteKernel { shader, src, dst })).record();

@@ -12,6 +12,10 @@ use crate::schedule::{CopyKind, Op, Schedule};
 const DEVICE_COLOURS: [&str; 8] =
     ["#fde0dd", "#e0f3db", "#deebf7", "#fff7bc", "#efedf5", "#fee6ce", "#e5f5f9", "#f0f0f0"];
 
+/// Arrows by (from, to) node: whether any read it stands for is a δ-edge, and whether it
+/// leads into or out of a copy node.
+type Arrows = BTreeMap<(String, String), (bool, bool)>;
+
 impl Schedule {
     pub fn to_dot(&self) -> String {
         let mut out = String::new();
@@ -20,6 +24,25 @@ impl Schedule {
         writeln!(w, "  graph [rankdir=TB, fontname=\"Helvetica\", newrank=true];").unwrap();
         writeln!(w, "  node [shape=box, style=\"rounded,filled\", fontname=\"Helvetica\", fontsize=10];").unwrap();
         writeln!(w, "  edge [color=\"#777777\", arrowsize=0.6];").unwrap();
+        self.write_device_clusters(w);
+        self.write_copy_nodes(w);
+        for ((from, to), (delta, cross)) in self.dependency_arrows() {
+            let attrs = match (delta, cross) {
+                (true, true) => " [style=dashed, color=\"#cc0000\", label=\"δ\"]",
+                (true, false) => " [style=dashed, color=\"#1f5fbf\", label=\"δ\"]",
+                (false, true) => " [color=\"#cc0000\"]",
+                (false, false) => "",
+            };
+            writeln!(w, "  {from} -> {to}{attrs};").unwrap();
+        }
+        self.write_gather_arrows(w);
+        writeln!(w, "}}").unwrap();
+        out
+    }
+
+    /// One cluster per device with its pass instances in program order (and, on device 0, the
+    /// finished views).
+    fn write_device_clusters(&self, w: &mut String) {
         for program in &self.devices {
             let d = program.device;
             writeln!(w, "  subgraph cluster_{d} {{").unwrap();
@@ -48,6 +71,9 @@ impl Schedule {
             }
             writeln!(w, "  }}").unwrap();
         }
+    }
+
+    fn write_copy_nodes(&self, w: &mut String) {
         for (c, copy) in self.copies.iter().enumerate() {
             let id = CopyId(c as u32);
             let res = self.resource(copy.resource);
@@ -64,9 +90,13 @@ impl Schedule {
             )
             .unwrap();
         }
-        // One arrow per pair of nodes however many resources flow between them; an arrow is a
-        // δ-edge when any of its reads is of another view.
-        let mut arrows: BTreeMap<(String, String), (bool, bool)> = BTreeMap::new();
+    }
+
+    /// One arrow per pair of nodes however many resources flow between them; an arrow is a
+    /// δ-edge when any of its reads is of another view. A dependency across devices goes
+    /// through the copy that carries it.
+    fn dependency_arrows(&self) -> Arrows {
+        let mut arrows = Arrows::new();
         for e in &self.edges {
             let (p, c) = (self.instance(e.producer), self.instance(e.consumer));
             let delta = self.resource(e.access.resource).view != c.view;
@@ -92,15 +122,11 @@ impl Schedule {
                 arrow(k, e.consumer.to_string(), delta, true);
             }
         }
-        for ((from, to), (delta, cross)) in arrows {
-            let attrs = match (delta, cross) {
-                (true, true) => " [style=dashed, color=\"#cc0000\", label=\"δ\"]",
-                (true, false) => " [style=dashed, color=\"#1f5fbf\", label=\"δ\"]",
-                (false, true) => " [color=\"#cc0000\"]",
-                (false, false) => "",
-            };
-            writeln!(w, "  {from} -> {to}{attrs};").unwrap();
-        }
+        arrows
+    }
+
+    /// Each gather, in program order: from the pass that wrote it to the finished views.
+    fn write_gather_arrows(&self, w: &mut String) {
         for program in &self.devices {
             for op in &program.ops {
                 if let Op::CopyOut(k) = op
@@ -114,8 +140,6 @@ impl Schedule {
                 }
             }
         }
-        writeln!(w, "}}").unwrap();
-        out
     }
 
     /// The instance on the copy's source device that wrote the copied rows.

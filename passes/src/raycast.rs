@@ -7,12 +7,15 @@
 //! write, and the ray count and query kind come from the per-frame data, so the same recorded
 //! frame casts any batch up to the plan's capacity.
 
+use std::sync::Arc;
+
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    BackendError, Context, EventKind, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor, PassKernel,
-    Recorder, ResourceKind,
+    BackendError, Context, EventKind, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel,
+    Recorder, ResourceKind, WriteSlot,
 };
+use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
 use parallax_scene::Scene;
 use parallax_scene::gpu::GpuScene;
 
@@ -94,14 +97,15 @@ impl std::str::FromStr for RaySchedule {
     }
 }
 
-/// Records `raycast` instances. `opaque` selects the kernel compiled without textures
-/// (bvh_raycast_opaque.comp): what the rays/s benchmark measures on opaque geometry. A
-/// persistent `schedule` needs the global buffer [`RAYCAST_WORK`] (zeroed once; the kernel
-/// leaves it zeroed). Instances on one device may share it: the executor puts a barrier
-/// between ops, so one dispatch has reset the queue before the next starts.
+/// Records `raycast` instances into their `hits` write, a buffer. `opaque` selects the kernel
+/// compiled without textures (bvh_raycast_opaque.comp): what the rays/s benchmark measures on
+/// opaque geometry. A persistent `schedule` needs the global buffer [`RAYCAST_WORK`] (zeroed
+/// once; the kernel leaves it zeroed). Instances on one device may share it: the executor puts a
+/// barrier between ops, so one dispatch has reset the queue before the next starts.
 pub struct RaycastKernel {
     pub opaque: bool,
     pub schedule: RaySchedule,
+    pub hits: WriteSlot,
 }
 
 impl PassKernel for RaycastKernel {
@@ -112,16 +116,14 @@ impl PassKernel for RaycastKernel {
     }
 
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let hits = match pass.writes.as_slice() {
-            [w] if rec.resource(w.resource).kind == ResourceKind::Buffer && pass.reads.is_empty() => w.resource,
-            _ => {
-                return Err(BackendError::KernelMisuse {
-                    kernel: RAYCAST.into(),
-                    instance: index,
-                    detail: "expects exactly one write (the hit buffer) and no read".into(),
-                });
-            }
-        };
+        let hits = pass.write(self.hits)?.resource;
+        if rec.resource(hits).kind != ResourceKind::Buffer {
+            return Err(BackendError::KernelMisuse {
+                kernel: RAYCAST.into(),
+                instance: index,
+                detail: "its hits write must be a buffer".into(),
+            });
+        }
         let capacity = rec.resource(hits).width / 4;
         let (work, fetch_threshold, groups) = match self.schedule {
             RaySchedule::PerRay => {
@@ -189,9 +191,7 @@ impl Raycaster {
         schedule: RaySchedule,
     ) -> Result<Self> {
         let capacity = capacity.max(1);
-        let hits = ExecResource::buffer("hits", 0, (capacity * std::mem::size_of::<HitOut>()) as u64);
-        let plan =
-            ExecutionPlan::single_pass(RAYCAST, RaycastKernel { opaque, schedule }, hits, context.devices().len());
+        let plan = raycast_plan(capacity, opaque, schedule, context.devices().len() as u32)?;
         let mut executor = Executor::new(context, plan, ExecOptions::default())?;
         upload_scene(&mut executor, scene)?;
         executor.upload_buffer(RAYCAST_WORK, &[0u8; 8])?;
@@ -235,6 +235,19 @@ impl Raycaster {
     pub fn check_validation(&self) -> Result<()> {
         Ok(self.executor.check_validation()?)
     }
+}
+
+/// One `raycast` instance on device 0 (the others idle) writing the hits of up to `capacity` rays
+/// to `hits`, the plan's only resource (0).
+fn raycast_plan(capacity: usize, opaque: bool, schedule: RaySchedule, devices: u32) -> Result<ExecutionPlan> {
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 1, 1));
+    let mut hits = graph.buffer("hits", (capacity * std::mem::size_of::<HitOut>()) as u64);
+    let mut pass = graph.pass(RAYCAST, Role::All);
+    let kernel = RaycastKernel { opaque, schedule, hits: pass.write_slot(&mut hits) };
+    // Nothing in the plan reads the hits: the host does.
+    pass.side_effect().kernel(Arc::new(kernel)).record();
+    let schedule = compile(&graph, &BandedPlacement { devices, bands: 1 })?;
+    Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
 }
 
 fn xorshift(s: &mut u64) -> f32 {

@@ -53,8 +53,6 @@ const GUIDE: &str = "svgf_guide";
 const EFFECTIVE_ALBEDO: &str = "svgf_albedo";
 const ATROUS: &str = "svgf_atrous";
 
-/// Image index the shaders never read (push constants of slots a kernel does not use).
-const UNUSED: u32 = u32::MAX;
 /// `SvgfPush::flags`: the first à-trous iteration (variance blur, colour history).
 const FIRST: u32 = 1;
 /// `SvgfPush::flags`: the last à-trous iteration (writes `denoised`).
@@ -143,6 +141,11 @@ pub fn phase_groups(step: u32, width: u32, y0: u32, y1: u32) -> [u32; 3] {
 
 /// Push constants of the SVGF shaders (`SvgfPush` in shaders/svgf.glsl; a test holds the
 /// layouts together). Image indices; `in*` and `out*` mean what the stage's shader says.
+///
+/// The three shaders share this one block, and every SPIR-V module keeps all of its members, so
+/// each stage's push constants carry all of them, also those it does not bind. Those stay zero:
+/// a shader reads only the members its stage binds (`radiance` and `out1` of an à-trous
+/// iteration only under `LAST` and `FIRST`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SvgfPush {
@@ -265,27 +268,8 @@ impl PassKernel for SvgfKernel {
         let read = |rec: &Recorder<'_>, slot: ReadSlot| rec.image(pass.read(slot)?.resource);
         let history = |rec: &Recorder<'_>, slot: HistorySlot| rec.image(pass.history_read(slot)?.resource);
         let write = |rec: &Recorder<'_>, slot: WriteSlot| rec.image(pass.write(slot)?.resource);
-        let mut push = SvgfPush {
-            radiance: UNUSED,
-            albedo: UNUSED,
-            normal: UNUSED,
-            position: UNUSED,
-            motion: UNUSED,
-            in0: UNUSED,
-            in1: UNUSED,
-            in2: UNUSED,
-            in3: UNUSED,
-            out0: UNUSED,
-            out1: UNUSED,
-            out2: UNUSED,
-            out3: UNUSED,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width,
-            height,
-            step: 1,
-            flags: 0,
-        };
+        let mut push =
+            SvgfPush { y0: pass.rows.y0, y1: pass.rows.y1, width, height, step: 1, ..bytemuck::Zeroable::zeroed() };
         match stage {
             // A whole view's history is all there: the temporal pass reads it directly.
             Stage::History { .. } if whole_view => return Ok(()),

@@ -21,7 +21,7 @@ use parallax_passes::{
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
-use parallax_testkit::kernels::{FillKernel, reference_fill};
+use parallax_testkit::kernels::{FillKernel, declare_writer, reference_fill};
 
 const W: u32 = 32;
 const H: u32 = 32;
@@ -87,7 +87,7 @@ impl Case {
         let kernel = PathTraceKernel::new(pass.write_slot(&mut radiance));
         pass.kernel(Arc::new(kernel)).record();
         // What reprojection would leave: here a pattern every untouched pixel must keep.
-        graph.pass("prefill", Role::Targets).write(&mut radiance).kernel(Arc::new(FillKernel)).record();
+        declare_writer(&mut graph, "prefill", Role::Targets, &mut radiance, |out| FillKernel { out }).record();
         let mut pass = graph.pass(HOLE_MASK, Role::Targets);
         let mask = PerViewMask { mask: pass.write_slot(&mut holes), thresholds: self.thresholds.clone() };
         pass.kernel(Arc::new(mask)).record();

@@ -20,44 +20,9 @@ pub(crate) fn camera_animation(
     yfov: f32,
     path: &Path,
 ) -> Result<Option<CameraAnimation>, SceneError> {
-    let mut parent = vec![None; doc.nodes().len()];
-    for n in doc.nodes() {
-        for c in n.children() {
-            parent[c.index()] = Some(n.index());
-        }
-    }
-    let mut chain = vec![camera_node];
-    while let Some(p) = parent[*chain.last().expect("never empty")] {
-        if chain.contains(&p) || chain.len() > parent.len() {
-            break; // a cycle: the node walk reports it
-        }
-        chain.push(p);
-    }
-    chain.reverse();
+    let chain = chain_from_root(doc, camera_node);
     let nodes: Vec<gltf::Node> = doc.nodes().collect();
-    let mut animated: Vec<AnimatedNode> = chain
-        .iter()
-        .map(|&i| match nodes[i].transform() {
-            gltf::scene::Transform::Matrix { matrix } => AnimatedNode {
-                translation: Vec3::ZERO,
-                rotation: Quat::IDENTITY,
-                scale: Vec3::ONE,
-                matrix: Some(Mat4::from_cols_array_2d(&matrix)),
-                translation_track: None,
-                rotation_track: None,
-                scale_track: None,
-            },
-            gltf::scene::Transform::Decomposed { translation, rotation, scale } => AnimatedNode {
-                translation: Vec3::from(translation),
-                rotation: Quat::from_array(rotation),
-                scale: Vec3::from(scale),
-                matrix: None,
-                translation_track: None,
-                rotation_track: None,
-                scale_track: None,
-            },
-        })
-        .collect();
+    let mut animated: Vec<AnimatedNode> = chain.iter().map(|&i| rest_pose(&nodes[i])).collect();
     let mut duration = 0.0f32;
     let mut any = false;
     for animation in doc.animations() {
@@ -72,60 +37,112 @@ pub(crate) fn camera_animation(
                     chain[k]
                 ),
             };
-            let interpolation = match channel.sampler().interpolation() {
-                gltf::animation::Interpolation::Step => Interpolation::Step,
-                gltf::animation::Interpolation::Linear => Interpolation::Linear,
-                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
-            };
-            let reader = channel.reader(|b| Some(&buffers[b.index()].0[..]));
-            let times: Vec<f32> = reader.read_inputs().ok_or_else(|| bad("no keyframe times".into()))?.collect();
-            if let Some(t) = times.iter().find(|t| !(0.0..=MAX_KEYFRAME_TIME).contains(*t)) {
-                return Err(bad(format!("keyframe time {t:e} s is outside 0..={MAX_KEYFRAME_TIME:e} s")));
+            if let Some(end) = add_track(&mut animated[k], &channel, buffers, &bad)? {
+                duration = duration.max(end);
+                any = true;
             }
-            let node = &mut animated[k];
-            let well_formed = match reader.read_outputs() {
-                Some(ReadOutputs::Translations(v)) => {
-                    let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
-                    check_values(&track.values, "translation", |p| {
-                        p.is_finite() && p.abs().max_element() <= MAX_COORDINATE
-                    })
-                    .map_err(bad)?;
-                    let ok = track.is_well_formed();
-                    node.translation_track = Some(track);
-                    ok
-                }
-                Some(ReadOutputs::Rotations(v)) => {
-                    let values = v.into_f32().map(Quat::from_array).collect();
-                    let track = Track { times: times.clone(), values, interpolation };
-                    check_values(&track.values, "rotation", |q| q.is_finite() && q.length_squared() > 1e-12)
-                        .map_err(bad)?;
-                    let ok = track.is_well_formed();
-                    node.rotation_track = Some(track);
-                    ok
-                }
-                Some(ReadOutputs::Scales(v)) => {
-                    let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
-                    check_values(&track.values, "scale", |s| s.is_finite() && s.abs().max_element() <= MAX_COORDINATE)
-                        .map_err(bad)?;
-                    let ok = track.is_well_formed();
-                    node.scale_track = Some(track);
-                    ok
-                }
-                // Morph weights do not move a camera.
-                Some(ReadOutputs::MorphTargetWeights(_)) => continue,
-                None => return Err(bad("no output values".into())),
-            };
-            if !well_formed {
-                return Err(bad("keyframe times are not finite and increasing, or do not match the values".into()));
-            }
-            if node.matrix.is_some() {
-                return Err(bad("the node has a matrix, which glTF does not allow to animate".into()));
-            }
-            duration = duration.max(*times.last().expect("well formed tracks have keyframes"));
-            any = true;
         }
     }
     Ok(any.then_some(CameraAnimation { nodes: animated, yfov, duration }))
+}
+
+/// The nodes from a root down to `node`, in that order.
+fn chain_from_root(doc: &gltf::Document, node: usize) -> Vec<usize> {
+    let mut parent = vec![None; doc.nodes().len()];
+    for n in doc.nodes() {
+        for c in n.children() {
+            parent[c.index()] = Some(n.index());
+        }
+    }
+    let mut chain = vec![node];
+    while let Some(p) = parent[*chain.last().expect("never empty")] {
+        if chain.contains(&p) || chain.len() > parent.len() {
+            break; // a cycle: the node walk reports it
+        }
+        chain.push(p);
+    }
+    chain.reverse();
+    chain
+}
+
+/// The node's own transform, without tracks.
+fn rest_pose(node: &gltf::Node) -> AnimatedNode {
+    match node.transform() {
+        gltf::scene::Transform::Matrix { matrix } => AnimatedNode {
+            translation: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            scale: Vec3::ONE,
+            matrix: Some(Mat4::from_cols_array_2d(&matrix)),
+            translation_track: None,
+            rotation_track: None,
+            scale_track: None,
+        },
+        gltf::scene::Transform::Decomposed { translation, rotation, scale } => AnimatedNode {
+            translation: Vec3::from(translation),
+            rotation: Quat::from_array(rotation),
+            scale: Vec3::from(scale),
+            matrix: None,
+            translation_track: None,
+            rotation_track: None,
+            scale_track: None,
+        },
+    }
+}
+
+/// Reads `channel` into the track of `node` it targets and checks it; returns its last keyframe
+/// time, or None for a channel that does not move a camera (morph weights).
+fn add_track(
+    node: &mut AnimatedNode,
+    channel: &gltf::animation::Channel,
+    buffers: &[gltf::buffer::Data],
+    bad: &dyn Fn(String) -> SceneError,
+) -> Result<Option<f32>, SceneError> {
+    let interpolation = match channel.sampler().interpolation() {
+        gltf::animation::Interpolation::Step => Interpolation::Step,
+        gltf::animation::Interpolation::Linear => Interpolation::Linear,
+        gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+    };
+    let reader = channel.reader(|b| Some(&buffers[b.index()].0[..]));
+    let times: Vec<f32> = reader.read_inputs().ok_or_else(|| bad("no keyframe times".into()))?.collect();
+    if let Some(t) = times.iter().find(|t| !(0.0..=MAX_KEYFRAME_TIME).contains(*t)) {
+        return Err(bad(format!("keyframe time {t:e} s is outside 0..={MAX_KEYFRAME_TIME:e} s")));
+    }
+    let well_formed = match reader.read_outputs() {
+        Some(ReadOutputs::Translations(v)) => {
+            let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
+            check_values(&track.values, "translation", |p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE)
+                .map_err(bad)?;
+            let ok = track.is_well_formed();
+            node.translation_track = Some(track);
+            ok
+        }
+        Some(ReadOutputs::Rotations(v)) => {
+            let values = v.into_f32().map(Quat::from_array).collect();
+            let track = Track { times: times.clone(), values, interpolation };
+            check_values(&track.values, "rotation", |q| q.is_finite() && q.length_squared() > 1e-12).map_err(bad)?;
+            let ok = track.is_well_formed();
+            node.rotation_track = Some(track);
+            ok
+        }
+        Some(ReadOutputs::Scales(v)) => {
+            let track = Track { times: times.clone(), values: v.map(Vec3::from).collect(), interpolation };
+            check_values(&track.values, "scale", |s| s.is_finite() && s.abs().max_element() <= MAX_COORDINATE)
+                .map_err(bad)?;
+            let ok = track.is_well_formed();
+            node.scale_track = Some(track);
+            ok
+        }
+        // Morph weights do not move a camera.
+        Some(ReadOutputs::MorphTargetWeights(_)) => return Ok(None),
+        None => return Err(bad("no output values".into())),
+    };
+    if !well_formed {
+        return Err(bad("keyframe times are not finite and increasing, or do not match the values".into()));
+    }
+    if node.matrix.is_some() {
+        return Err(bad("the node has a matrix, which glTF does not allow to animate".into()));
+    }
+    Ok(Some(*times.last().expect("well formed tracks have keyframes")))
 }
 
 /// The longest keyframe time a camera animation may have: 1e6 s (11 days).

@@ -11,10 +11,11 @@
 
 use std::path::Path;
 
-use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use glam::{Mat3, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::error::SceneError;
+use crate::gltf_primitive::{PrimitiveAt, append_triangles, pose, read_vertices, skinning_matrices};
 use crate::input::{
     IMAGE_FILE_LIMIT, IMAGE_SIDE_LIMIT, SCENE_FILE_LIMIT, SourceFile, UriPolicy, read_bounded, read_prefix, resolve_uri,
 };
@@ -365,93 +366,15 @@ impl Importer<'_> {
         world: Mat4,
         joints: Option<&[Mat4]>,
     ) -> Result<(), SceneError> {
-        let bad = |what: String| SceneError::BadPrimitive {
-            path: self.path.to_path_buf(),
-            mesh: mesh.index(),
-            primitive: prim.index(),
-            what,
-        };
+        let at = PrimitiveAt { path: self.path, mesh: mesh.index(), primitive: prim.index() };
         if prim.mode() != gltf::mesh::Mode::Triangles {
-            return Err(bad(format!("mode {:?} (only TRIANGLES is supported)", prim.mode())));
+            return Err(at.bad(format!("mode {:?} (only TRIANGLES is supported)", prim.mode())));
         }
-        check_attribute_types(prim).map_err(bad)?;
-        let buffers = &self.buffers;
-        let reader = prim.reader(|b| Some(&buffers[b.index()].0[..]));
-        let mut positions: Vec<Vec3> =
-            reader.read_positions().ok_or_else(|| bad("no POSITION attribute".into()))?.map(Vec3::from).collect();
-        let vertex_count = positions.len();
-        let mut normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(Vec3::from).collect());
-        let uvs: Vec<Vec2> = match reader.read_tex_coords(0) {
-            Some(t) => t.into_f32().map(Vec2::from).collect(),
-            None => vec![Vec2::ZERO; vertex_count],
-        };
-        let indices: Vec<u32> = match reader.read_indices() {
-            Some(i) => i.into_u32().collect(),
-            None => (0..vertex_count as u32).collect(),
-        };
-        if indices.len() % 3 != 0 {
-            return Err(bad(format!("{} indices, not a multiple of 3", indices.len())));
-        }
-        if let Some(&index) = indices.iter().find(|&&i| i as usize >= vertex_count) {
-            return Err(SceneError::IndexOutOfRange {
-                path: self.path.to_path_buf(),
-                mesh: mesh.index(),
-                primitive: prim.index(),
-                index,
-                vertex_count,
-            });
-        }
-        if normals.as_ref().is_some_and(|n| n.len() != vertex_count) || uvs.len() != vertex_count {
-            return Err(bad("attribute counts differ from the POSITION count".into()));
-        }
-
-        // Skinned meshes: the node's own transform is ignored (glTF spec); the joints place them.
-        let skinning = match (joints, reader.read_joints(0), reader.read_weights(0)) {
-            (Some(js), Some(j), Some(w)) => {
-                let j: Vec<[u16; 4]> = j.into_u16().collect();
-                let w: Vec<[f32; 4]> = w.into_f32().collect();
-                if j.len() != vertex_count || w.len() != vertex_count {
-                    return Err(bad("JOINTS_0/WEIGHTS_0 counts differ from POSITION".into()));
-                }
-                let mut per_vertex = Vec::with_capacity(vertex_count);
-                for (jv, wv) in j.iter().zip(&w) {
-                    let mut m = Mat4::ZERO;
-                    for k in 0..4 {
-                        let joint = *js
-                            .get(jv[k] as usize)
-                            .ok_or_else(|| bad(format!("joint index {} out of range ({} joints)", jv[k], js.len())))?;
-                        m += joint * wv[k];
-                    }
-                    per_vertex.push(m);
-                }
-                Some(per_vertex)
-            }
-            _ => None,
-        };
-        let normal_matrix = |m: Mat4| Mat3::from_mat4(m).inverse().transpose();
-        match &skinning {
-            Some(ms) => {
-                for (k, p) in positions.iter_mut().enumerate() {
-                    *p = ms[k].transform_point3(*p);
-                }
-                if let Some(ns) = normals.as_mut() {
-                    for (k, n) in ns.iter_mut().enumerate() {
-                        *n = (normal_matrix(ms[k]) * *n).normalize_or_zero();
-                    }
-                }
-            }
-            None => {
-                for p in positions.iter_mut() {
-                    *p = world.transform_point3(*p);
-                }
-                if let Some(ns) = normals.as_mut() {
-                    let nm = normal_matrix(world);
-                    for n in ns.iter_mut() {
-                        *n = (nm * *n).normalize_or_zero();
-                    }
-                }
-            }
-        }
+        check_attribute_types(prim).map_err(|what| at.bad(what))?;
+        let mut vertices = read_vertices(prim, self.buffers, &at)?;
+        let skinning = skinning_matrices(prim, self.buffers, joints, vertices.positions.len(), &at)?;
+        pose(&mut vertices, skinning.as_deref(), world);
+        let positions = &vertices.positions;
         if positions.iter().any(|p| !p.is_finite()) {
             return Err(SceneError::NonFinite {
                 path: self.path.to_path_buf(),
@@ -477,36 +400,7 @@ impl Importer<'_> {
         // counter-clockwise stays front-facing.
         let mirrored = skinning.is_none() && Mat3::from_mat4(world).determinant() < 0.0;
         let material = self.material_index(prim);
-        let s = &mut self.scene;
-        let corner = |t: &[u32], k: usize| if mirrored { t[[0, 2, 1][k]] } else { t[k] };
-        match normals {
-            Some(ns) => {
-                let base = s.positions.len() as u32;
-                s.positions.extend_from_slice(&positions);
-                s.normals.extend(ns);
-                s.uvs.extend_from_slice(&uvs);
-                for t in indices.chunks_exact(3) {
-                    s.triangles.push([0, 1, 2].map(|k| base + corner(t, k)));
-                    s.triangle_materials.push(material);
-                }
-            }
-            None => {
-                // Flat normals need one vertex per triangle corner.
-                for t in indices.chunks_exact(3) {
-                    let c = [0, 1, 2].map(|k| corner(t, k) as usize);
-                    let [a, b, d] = c.map(|i| positions[i]);
-                    let n = (b - a).cross(d - a).normalize_or_zero();
-                    let base = s.positions.len() as u32;
-                    for &i in &c {
-                        s.positions.push(positions[i]);
-                        s.normals.push(n);
-                        s.uvs.push(uvs[i]);
-                    }
-                    s.triangles.push([base, base + 1, base + 2]);
-                    s.triangle_materials.push(material);
-                }
-            }
-        }
+        append_triangles(&mut self.scene, vertices, mirrored, material);
         Ok(())
     }
 }

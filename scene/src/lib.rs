@@ -32,6 +32,7 @@ pub mod default_scene;
 pub mod error;
 mod gltf_animation;
 pub mod gltf_import;
+mod gltf_primitive;
 pub mod gpu;
 pub mod input;
 pub mod lights;

@@ -115,6 +115,79 @@ fn group_bits(groups: &[Group]) -> u32 {
         .sum()
 }
 
+/// The sun: its direction when it has no size (a delta light), else a direction uniform in the
+/// cone of its disc by `u[1]`, `u[2]`.
+fn sample_sun(sun: Sun, u: [f32; 4], p_group: f32) -> Option<LightSample> {
+    let to_sun = sun.to_sun.normalize();
+    if sun.angular_radius <= 0.0 {
+        return Some(LightSample {
+            wi: to_sun,
+            distance: f32::INFINITY,
+            radiance: sun.irradiance,
+            pdf: p_group,
+            is_delta: true,
+        });
+    }
+    let disc = sun_disc(sun.angular_radius);
+    let cos_t = 1.0 - u[1] * disc.one_minus_cos;
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = TAU * u[2];
+    let (t, b) = orthonormal_basis(to_sun);
+    let wi = (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + to_sun * cos_t).normalize();
+    Some(LightSample {
+        wi,
+        distance: f32::INFINITY,
+        radiance: sun.irradiance * disc.radiance_scale,
+        pdf: p_group / (TAU * disc.one_minus_cos),
+        is_delta: false,
+    })
+}
+
+/// The sky: a cosine-weighted direction about `n` by `u[1]`, `u[2]`.
+fn sample_sky(scene: &Scene, n: Vec3, u: [f32; 4], p_group: f32) -> Option<LightSample> {
+    let wi = sample_cosine_hemisphere(n, u[1], u[2]);
+    let pdf = p_group * wi.dot(n).max(0.0) * FRAC_1_PI;
+    (pdf > 0.0).then(|| LightSample {
+        wi,
+        distance: f32::INFINITY,
+        radiance: scene.sky().radiance(wi),
+        pdf,
+        is_delta: false,
+    })
+}
+
+/// A punctual light chosen uniformly by `u_within`; a spot light's radiance falls off between
+/// its cone angles.
+fn sample_punctual(scene: &Scene, p: Vec3, u_within: f32, p_group: f32) -> Option<LightSample> {
+    let k = ((u_within * scene.lights.len() as f32) as usize).min(scene.lights.len() - 1);
+    let light = &scene.lights[k];
+    let pdf = p_group / scene.lights.len() as f32;
+    let power = light.color * light.intensity;
+    match light.kind {
+        PunctualKind::Directional => {
+            Some(LightSample { wi: -light.direction, distance: f32::INFINITY, radiance: power, pdf, is_delta: true })
+        }
+        PunctualKind::Point | PunctualKind::Spot { .. } => {
+            let to_light = light.position - p;
+            let d2 = to_light.length_squared();
+            if d2 <= 0.0 {
+                return None;
+            }
+            let wi = to_light / d2.sqrt();
+            let mut radiance = power / d2;
+            if let PunctualKind::Spot { inner_cone, outer_cone } = light.kind {
+                // glTF's recommended falloff between the cone angles.
+                let (ci, co) = (inner_cone.cos(), outer_cone.cos());
+                let scale = 1.0 / (ci - co).max(1e-3);
+                let cd = light.direction.dot(-wi);
+                let a = ((cd - co) * scale).clamp(0.0, 1.0);
+                radiance *= a * a;
+            }
+            Some(LightSample { wi, distance: d2.sqrt(), radiance, pdf, is_delta: true })
+        }
+    }
+}
+
 impl LightSet {
     pub fn new(scene: &Scene) -> Self {
         let mut emissive = Vec::new();
@@ -196,116 +269,46 @@ impl LightSet {
         // Reuse the part of u[0] left after the group choice for the choice within the group.
         let u_within = (u[0] * count as f32 - gi as f32).clamp(0.0, 0.999_999_9);
         match self.groups[gi] {
-            Group::Sun => {
-                let sun = self.sun?;
-                let to_sun = sun.to_sun.normalize();
-                if sun.angular_radius <= 0.0 {
-                    return Some(LightSample {
-                        wi: to_sun,
-                        distance: f32::INFINITY,
-                        radiance: sun.irradiance,
-                        pdf: p_group,
-                        is_delta: true,
-                    });
-                }
-                let disc = sun_disc(sun.angular_radius);
-                let cos_t = 1.0 - u[1] * disc.one_minus_cos;
-                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-                let phi = TAU * u[2];
-                let (t, b) = orthonormal_basis(to_sun);
-                let wi = (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + to_sun * cos_t).normalize();
-                Some(LightSample {
-                    wi,
-                    distance: f32::INFINITY,
-                    radiance: sun.irradiance * disc.radiance_scale,
-                    pdf: p_group / (TAU * disc.one_minus_cos),
-                    is_delta: false,
-                })
-            }
-            Group::Sky => {
-                let wi = sample_cosine_hemisphere(n, u[1], u[2]);
-                let pdf = p_group * wi.dot(n).max(0.0) * FRAC_1_PI;
-                (pdf > 0.0).then(|| LightSample {
-                    wi,
-                    distance: f32::INFINITY,
-                    radiance: scene.sky().radiance(wi),
-                    pdf,
-                    is_delta: false,
-                })
-            }
-            Group::Punctual => {
-                let k = ((u_within * scene.lights.len() as f32) as usize).min(scene.lights.len() - 1);
-                let light = &scene.lights[k];
-                let pdf = p_group / scene.lights.len() as f32;
-                let power = light.color * light.intensity;
-                match light.kind {
-                    PunctualKind::Directional => Some(LightSample {
-                        wi: -light.direction,
-                        distance: f32::INFINITY,
-                        radiance: power,
-                        pdf,
-                        is_delta: true,
-                    }),
-                    PunctualKind::Point | PunctualKind::Spot { .. } => {
-                        let to_light = light.position - p;
-                        let d2 = to_light.length_squared();
-                        if d2 <= 0.0 {
-                            return None;
-                        }
-                        let wi = to_light / d2.sqrt();
-                        let mut radiance = power / d2;
-                        if let PunctualKind::Spot { inner_cone, outer_cone } = light.kind {
-                            // glTF's recommended falloff between the cone angles.
-                            let (ci, co) = (inner_cone.cos(), outer_cone.cos());
-                            let scale = 1.0 / (ci - co).max(1e-3);
-                            let cd = light.direction.dot(-wi);
-                            let a = ((cd - co) * scale).clamp(0.0, 1.0);
-                            radiance *= a * a;
-                        }
-                        Some(LightSample { wi, distance: d2.sqrt(), radiance, pdf, is_delta: true })
-                    }
-                }
-            }
-            Group::Emissive => {
-                let k = self.emissive_cdf.partition_point(|&c| c <= u_within).min(self.emissive.len() - 1);
-                let tri = self.emissive[k] as usize;
-                let [a, b, c] = scene.triangle_positions(tri);
-                let su = u[1].sqrt();
-                let (b1, b2) = (su * (1.0 - u[2]), su * u[2]);
-                let q = a * (1.0 - b1 - b2) + b * b1 + c * b2;
-                let to_light = q - p;
-                let d2 = to_light.length_squared();
-                if d2 <= 0.0 {
-                    return None;
-                }
-                let dist = d2.sqrt();
-                let wi = to_light / dist;
-                let m = &scene.materials[scene.triangle_materials[tri] as usize];
-                let ln = oriented_face_normal(scene, tri);
-                let cos_l = ln.dot(-wi);
-                let facing = cos_l > 0.0 || (m.double_sided && cos_l < 0.0);
-                if !facing {
-                    return None;
-                }
-                let mut radiance = m.emissive;
-                if let Some(tex) = m.emissive_texture {
-                    let [i, j, k2] = scene.triangles[tri];
-                    let uv: Vec2 = scene.uvs[i as usize] * (1.0 - b1 - b2)
-                        + scene.uvs[j as usize] * b1
-                        + scene.uvs[k2 as usize] * b2;
-                    let t = scene.textures[tex as usize].sample_bilinear(uv);
-                    radiance *= Vec3::new(srgb_to_linear(t.x), srgb_to_linear(t.y), srgb_to_linear(t.z));
-                }
-                let pdf = p_group * self.emissive_prob[tri] * d2 / (self.area[tri] * cos_l.abs());
-                (pdf.is_finite() && pdf > 0.0).then_some(LightSample {
-                    wi,
-                    distance: dist,
-                    radiance,
-                    pdf,
-                    is_delta: false,
-                })
-            }
+            Group::Sun => sample_sun(self.sun?, u, p_group),
+            Group::Sky => sample_sky(scene, n, u, p_group),
+            Group::Punctual => sample_punctual(scene, p, u_within, p_group),
+            Group::Emissive => self.sample_emissive(scene, p, u, u_within, p_group),
         }
+    }
+
+    /// An emissive triangle chosen by `u_within` (area times luminance), a point on it uniform
+    /// in area by `u[1]`, `u[2]`; `None` when it faces away or the pdf degenerates.
+    fn sample_emissive(&self, scene: &Scene, p: Vec3, u: [f32; 4], u_within: f32, p_group: f32) -> Option<LightSample> {
+        let k = self.emissive_cdf.partition_point(|&c| c <= u_within).min(self.emissive.len() - 1);
+        let tri = self.emissive[k] as usize;
+        let [a, b, c] = scene.triangle_positions(tri);
+        let su = u[1].sqrt();
+        let (b1, b2) = (su * (1.0 - u[2]), su * u[2]);
+        let q = a * (1.0 - b1 - b2) + b * b1 + c * b2;
+        let to_light = q - p;
+        let d2 = to_light.length_squared();
+        if d2 <= 0.0 {
+            return None;
+        }
+        let dist = d2.sqrt();
+        let wi = to_light / dist;
+        let m = &scene.materials[scene.triangle_materials[tri] as usize];
+        let ln = oriented_face_normal(scene, tri);
+        let cos_l = ln.dot(-wi);
+        let facing = cos_l > 0.0 || (m.double_sided && cos_l < 0.0);
+        if !facing {
+            return None;
+        }
+        let mut radiance = m.emissive;
+        if let Some(tex) = m.emissive_texture {
+            let [i, j, k2] = scene.triangles[tri];
+            let uv: Vec2 =
+                scene.uvs[i as usize] * (1.0 - b1 - b2) + scene.uvs[j as usize] * b1 + scene.uvs[k2 as usize] * b2;
+            let t = scene.textures[tex as usize].sample_bilinear(uv);
+            radiance *= Vec3::new(srgb_to_linear(t.x), srgb_to_linear(t.y), srgb_to_linear(t.z));
+        }
+        let pdf = p_group * self.emissive_prob[tri] * d2 / (self.area[tri] * cos_l.abs());
+        (pdf.is_finite() && pdf > 0.0).then_some(LightSample { wi, distance: dist, radiance, pdf, is_delta: false })
     }
 
     /// Radiance of the sun disc seen along `dir` (zero outside it or for a delta sun).

@@ -2,44 +2,57 @@
 //! bit-identical values. They plug into the executor through [`PassKernel`] like any user
 //! kernel; real passes (path tracing, ...) live in the passes crate.
 
-use parallax_backend::{
-    BackendError, Draw, ExecPass, Format, HistorySlot, PassKernel, PassParams, Recorder, Result, WriteSlot,
-};
+use std::sync::Arc;
 
-/// Writes the deterministic pattern of `fill.comp` into `writes[0]` over the instance's rows.
-pub struct FillKernel;
+use parallax_backend::{
+    BackendError, Draw, ExecPass, Format, HistorySlot, KernelGraph, PassKernel, PassParams, ReadSlot, Recorder, Result,
+    SourcesSlot, WriteSlot,
+};
+use parallax_graph::{Handle, PassBuilder, Role};
+
+/// Declares pass `name` for the views of `role` with one write, of `target`, and attaches the
+/// kernel `bind` makes from that write's slot; the caller records it (after `side_effect()`,
+/// say). What every single-write kernel below is declared with.
+pub fn declare_writer<'g, R, K: PassKernel + 'static>(
+    graph: &'g mut KernelGraph,
+    name: &str,
+    role: Role,
+    target: &mut Handle<R>,
+    bind: impl FnOnce(WriteSlot) -> K,
+) -> PassBuilder<'g, Arc<dyn PassKernel>> {
+    let mut pass = graph.pass(name, role);
+    let kernel = bind(pass.write_slot(target));
+    pass.kernel(Arc::new(kernel))
+}
+
+/// Writes the deterministic pattern of `fill.comp` into its `out` write over the instance's rows.
+pub struct FillKernel {
+    pub out: WriteSlot,
+}
 
 impl PassKernel for FillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "fill", 0, 1)?;
-        let params = rec.row_params(pass, dst)?;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+        let params = rec.row_params(pass, pass.write(self.out)?.resource)?;
         rec.dispatch_rows("fill", params)
     }
 }
 
-/// Reprojection-shaped gather (`shift_blend.comp`): `writes[0] = 0.5 * reads[0] +
-/// 0.5 * reads[1]` shifted by [`shift_of_view`] columns. `reads[1]` is the first source view's
-/// image (the graph's `read_sources`), which is what makes the planner insert cross-device
-/// copies; further source reads are declared but not sampled. A view without sources (a source
-/// view) blends with itself.
-pub struct ShiftBlendKernel;
+/// Reprojection-shaped gather (`shift_blend.comp`): `out = 0.5 * own + 0.5 * source` shifted by
+/// [`shift_of_view`] columns, where `source` is the first source view's image (the graph's
+/// `read_sources`), which is what makes the planner insert cross-device copies; further source
+/// reads are declared but not sampled. A view without sources (a source view) blends with
+/// itself.
+pub struct ShiftBlendKernel {
+    pub own: ReadSlot,
+    pub sources: SourcesSlot,
+    pub out: WriteSlot,
+}
 
 impl PassKernel for ShiftBlendKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        if pass.reads.is_empty() || pass.writes.len() != 1 {
-            return Err(BackendError::KernelMisuse {
-                kernel: "shift_blend".into(),
-                instance: index,
-                detail: format!(
-                    "expects at least 1 read and 1 write, got {} and {}",
-                    pass.reads.len(),
-                    pass.writes.len()
-                ),
-            });
-        }
-        let dst = pass.writes[0].resource;
-        let own = pass.reads[0].resource;
-        let other = pass.reads.get(1).unwrap_or(&pass.reads[0]).resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+        let dst = pass.write(self.out)?.resource;
+        let own = pass.read(self.own)?.resource;
+        let other = pass.sources(self.sources)?.next().map_or(own, |source| source.resource);
         let base = rec.row_params(pass, dst)?;
         let params = PassParams {
             src0: rec.image(own)?,
@@ -98,14 +111,16 @@ pub fn reference_raster(x: u32, y: u32, view: u32, width: u32) -> [f32; 4] {
     if x < width / 2 { RASTER_NEAR_COLOR } else { reference_fill(x, y, view) }
 }
 
-/// `writes[0] = fill_pattern * weights[view] + frame_data[0]` (`weighted_fill.comp`):
-/// reads the global buffer `weights` (f32 per view) and the per-frame data (one f32), both by
-/// buffer address.
-pub struct WeightedFillKernel;
+/// `out = fill_pattern * weights[view] + frame_data[0]` (`weighted_fill.comp`): reads the
+/// global buffer `weights` (f32 per view) and the per-frame data (one f32), both by buffer
+/// address.
+pub struct WeightedFillKernel {
+    pub out: WriteSlot,
+}
 
 impl PassKernel for WeightedFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "weighted_fill", 0, 1)?;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+        let dst = pass.write(self.out)?.resource;
         let width = rec.resource(dst).width;
         let push = WeightedFillParams {
             dst: rec.image(dst)?,
@@ -137,13 +152,15 @@ struct WeightedFillParams {
 
 parallax_backend::push_constants!(WeightedFillParams { dst, view, y0, y1, width, pad, weights, frame_data });
 
-/// Writes `hash3(i, 0, view)` into every 32-bit word `i` of the per-view buffer `writes[0]`
+/// Writes `hash3(i, 0, view)` into every 32-bit word `i` of its `out` write, a per-view buffer
 /// (`fill_buffer.comp`).
-pub struct FillBufferKernel;
+pub struct FillBufferKernel {
+    pub out: WriteSlot,
+}
 
 impl PassKernel for FillBufferKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "fill_buffer", 0, 1)?;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+        let dst = pass.write(self.out)?.resource;
         let words = rec.resource(dst).width;
         let push = FillBufferParams { view: pass.view, count: words, target: rec.buffer_of(dst)? };
         rec.dispatch("fill_buffer", &push, [words.div_ceil(64), 1, 1])
@@ -166,12 +183,14 @@ pub fn reference_buffer_word(i: u32, view: u32) -> u32 {
     hash3(i, 0, view)
 }
 
-/// Writes `hash3(x, y, view)` into the R32_UINT image `writes[0]` (`fill_mask.comp`).
-pub struct FillMaskKernel;
+/// Writes `hash3(x, y, view)` into its `out` write, an R32_UINT image (`fill_mask.comp`).
+pub struct FillMaskKernel {
+    pub out: WriteSlot,
+}
 
 impl PassKernel for FillMaskKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
-        let dst = expect_accesses(pass, index, "fill_mask", 0, 1)?;
+        let dst = pass.write(self.out)?.resource;
         if rec.resource(dst).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: "fill_mask".into(),
@@ -202,22 +221,6 @@ impl PassKernel for AccumulateKernel {
         let params = PassParams { src0: rec.image(history.resource)?, ..rec.row_params(pass, output.resource)? };
         rec.dispatch_rows("accumulate", params)
     }
-}
-
-/// Checks the access counts a kernel relies on; returns the first written resource.
-fn expect_accesses(pass: &ExecPass, index: usize, kernel: &str, reads: usize, writes: usize) -> Result<usize> {
-    if pass.reads.len() != reads || pass.writes.len() != writes {
-        return Err(BackendError::KernelMisuse {
-            kernel: kernel.to_string(),
-            instance: index,
-            detail: format!(
-                "expects {reads} read(s) and {writes} write(s), got {} and {}",
-                pass.reads.len(),
-                pass.writes.len()
-            ),
-        });
-    }
-    Ok(pass.writes[0].resource)
 }
 
 /// Column shift used by `shift_blend` for `view`.

@@ -5,13 +5,39 @@
 //! The reprojection demo: every view `v` is filled (the last view in row bands spread over all
 //! devices, like a fine-grained split), then blended with view `v+1` (a gather from another
 //! view), and every finished view is gathered on device 0.
+//!
+//! The passes are laid by hand, but their kernels bind through slot tokens like any other: the
+//! tokens come from a declaration of the demo's two passes ([`demo_kernels`]), which the
+//! hand-laid instances instantiate (same pass ids, same access numbers).
 
 use parallax_backend::plan::Kernels;
 use parallax_backend::{
-    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, PassId, Region, ResourceKind,
+    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, KernelGraph, PassId, Region,
+    ResourceKind,
 };
+use parallax_graph::{Origin, Role, ViewTopology};
 
 use crate::kernels::{FillKernel, ShiftBlendKernel};
+
+/// The demo's kernels, bound to the slots of the declaration its passes instantiate: `fill`
+/// (pass 0) writes `radiance` (write 0); `shift_blend` (pass 1) reads its own view's `radiance`
+/// (read 0) and its sources' (read 1) and writes `output` (write 0).
+fn demo_kernels() -> (FillKernel, ShiftBlendKernel) {
+    let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 1, 1));
+    let mut radiance = graph.image("radiance", Format::Rgba32f);
+    let mut output = graph.image("output", Format::Rgba32f);
+    let mut fill = graph.pass("fill", Role::All);
+    let fill_kernel = FillKernel { out: fill.write_slot(&mut radiance) };
+    assert_eq!(fill.record(), PassId(0));
+    let mut blend = graph.pass("shift_blend", Role::All);
+    let blend_kernel = ShiftBlendKernel {
+        own: blend.read_slot(&radiance),
+        sources: blend.read_sources_slot(&radiance),
+        out: blend.write_slot(&mut output),
+    };
+    assert_eq!(blend.record(), PassId(1));
+    (fill_kernel, blend_kernel)
+}
 
 /// Resource ids of the reprojection demo.
 #[derive(Clone, Debug)]
@@ -30,60 +56,102 @@ pub fn demo_device_of_view(view: u32, devices: usize) -> usize {
 /// Builds the reprojection demo for `views` views of `width`×`height` on `devices` devices.
 pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) -> (ExecutionPlan, DemoResources) {
     assert!(views >= 1 && devices >= 1 && height >= devices as u32);
-    let mut kernels = Kernels::default();
-    kernels.push(FillKernel);
-    kernels.push(ShiftBlendKernel);
-    let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
-    let all = Region::new(0, height);
-    let mut image = |name: &str, view: u32| {
-        plan.resources.push(ExecResource {
-            name: name.to_string(),
-            view,
-            width,
-            height,
-            format: Format::Rgba32f,
-            kind: ResourceKind::Image,
-            storage: 0,
-            exported: false,
-            reset: None,
-        });
-        plan.resources.len() - 1
-    };
-    let radiance: Vec<usize> = (0..views).map(|v| image("radiance", v)).collect();
-    let output: Vec<usize> = (0..views).map(|v| image("output", v)).collect();
-    let owner = |v: u32| demo_device_of_view(v, devices);
-    let split_view = views - 1;
-    // Phase lists per device; concatenated at the end so every wait follows its signal's phase.
-    let mut phases: Vec<[Vec<ExecOp>; 4]> = (0..devices).map(|_| Default::default()).collect();
+    let mut demo = Demo::new(views, devices, width, height);
+    demo.fills();
+    demo.neighbour_copies();
+    demo.blends();
+    demo.gathers();
+    demo.finish()
+}
 
-    let add_pass = |plan: &mut ExecutionPlan, pass: ExecPass| {
-        plan.passes.push(pass);
-        plan.passes.len() - 1
-    };
-    let add_copy = |plan: &mut ExecutionPlan, phases: &mut Vec<[Vec<ExecOp>; 4]>, copy: ExecCopy, out: usize| {
-        plan.copies.push(copy);
-        let c = plan.copies.len() - 1;
-        phases[copy.from][out].extend([ExecOp::CopyOut(c), ExecOp::Signal(c)]);
-        phases[copy.to][out + 1].extend([ExecOp::Wait(c), ExecOp::CopyIn(c)]);
-    };
+/// The reprojection demo while it is laid out.
+struct Demo {
+    plan: ExecutionPlan,
+    /// Phase lists per device; concatenated at the end so every wait follows its signal's phase.
+    phases: Vec<[Vec<ExecOp>; 4]>,
+    views: u32,
+    height: u32,
+    resources: DemoResources,
+}
 
-    // Phase 0: fills; the split view's bands go to its owner.
-    for v in 0..views {
-        let bands: Vec<(usize, Region)> = if v == split_view {
-            (0..devices)
-                .map(|d| {
-                    let y0 = height * d as u32 / devices as u32;
-                    let y1 = height * (d as u32 + 1) / devices as u32;
-                    (d, Region::new(y0, y1))
-                })
-                .collect()
-        } else {
-            vec![(owner(v), all)]
+impl Demo {
+    fn new(views: u32, devices: usize, width: u32, height: u32) -> Self {
+        let (fill, blend) = demo_kernels();
+        let mut kernels = Kernels::default();
+        kernels.push(fill);
+        kernels.push(blend);
+        let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
+        let mut image = |name: &str, view: u32| {
+            plan.resources.push(ExecResource {
+                name: name.to_string(),
+                view,
+                width,
+                height,
+                format: Format::Rgba32f,
+                kind: ResourceKind::Image,
+                storage: 0,
+                exported: false,
+                reset: None,
+            });
+            plan.resources.len() - 1
         };
-        for (device, rows) in bands {
-            let p = add_pass(
-                &mut plan,
-                ExecPass {
+        let radiance: Vec<usize> = (0..views).map(|v| image("radiance", v)).collect();
+        let output: Vec<usize> = (0..views).map(|v| image("output", v)).collect();
+        let phases = (0..devices).map(|_| Default::default()).collect();
+        Self { plan, phases, views, height, resources: DemoResources { radiance, output } }
+    }
+
+    fn devices(&self) -> usize {
+        self.phases.len()
+    }
+
+    fn owner(&self, v: u32) -> usize {
+        demo_device_of_view(v, self.devices())
+    }
+
+    fn all(&self) -> Region {
+        Region::new(0, self.height)
+    }
+
+    fn add_pass(&mut self, pass: ExecPass, phase: usize) {
+        let device = pass.device;
+        self.plan.passes.push(pass);
+        self.phases[device][phase].push(ExecOp::Pass(self.plan.passes.len() - 1));
+    }
+
+    /// The copy's producer side in phase `out`, its consumer side in the next one.
+    fn add_copy(&mut self, copy: ExecCopy, out: usize) {
+        self.plan.copies.push(copy);
+        let c = self.plan.copies.len() - 1;
+        self.phases[copy.from][out].extend([ExecOp::CopyOut(c), ExecOp::Signal(c)]);
+        self.phases[copy.to][out + 1].extend([ExecOp::Wait(c), ExecOp::CopyIn(c)]);
+    }
+
+    /// A copy of the whole of version 1 of `resource`.
+    fn whole_copy(&self, resource: usize, from: usize, to: usize, gather: bool) -> ExecCopy {
+        ExecCopy { resource, dst: resource, version: 1, rows: self.all(), from, to, gather }
+    }
+
+    /// Phase 0: fills; the last view in row bands over every device, each band sent to the
+    /// view's owner.
+    fn fills(&mut self) {
+        let (devices, height) = (self.devices(), self.height);
+        let split_view = self.views - 1;
+        for v in 0..self.views {
+            let bands: Vec<(usize, Region)> = if v == split_view {
+                (0..devices)
+                    .map(|d| {
+                        let y0 = height * d as u32 / devices as u32;
+                        let y1 = height * (d as u32 + 1) / devices as u32;
+                        (d, Region::new(y0, y1))
+                    })
+                    .collect()
+            } else {
+                vec![(self.owner(v), self.all())]
+            };
+            let radiance = self.resources.radiance[v as usize];
+            for (device, rows) in bands {
+                let fill = ExecPass {
                     name: "fill".into(),
                     pass: PassId(0),
                     kernel: 0,
@@ -92,81 +160,78 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
                     device,
                     reads: vec![],
                     history_reads: vec![],
-                    writes: vec![ExecAccess::own("radiance", 0, radiance[v as usize], 1, rows)],
-                },
-            );
-            phases[device][0].push(ExecOp::Pass(p));
-            if device != owner(v) {
-                let copy = ExecCopy {
-                    resource: radiance[v as usize],
-                    dst: radiance[v as usize],
-                    version: 1,
-                    rows,
-                    from: device,
-                    to: owner(v),
-                    gather: false,
+                    writes: vec![ExecAccess::own("radiance", 0, radiance, 1, rows)],
                 };
-                add_copy(&mut plan, &mut phases, copy, 0);
+                self.add_pass(fill, 0);
+                if device != self.owner(v) {
+                    let copy = ExecCopy {
+                        resource: radiance,
+                        dst: radiance,
+                        version: 1,
+                        rows,
+                        from: device,
+                        to: self.owner(v),
+                        gather: false,
+                    };
+                    self.add_copy(copy, 0);
+                }
             }
         }
     }
-    // Phase 1→2: each view's radiance goes to the device of the view that reads it.
-    for v in 0..views {
-        let source = (v + 1) % views;
-        if owner(source) != owner(v) {
-            let copy = ExecCopy {
-                resource: radiance[source as usize],
-                dst: radiance[source as usize],
-                version: 1,
-                rows: all,
-                from: owner(source),
-                to: owner(v),
-                gather: false,
-            };
-            add_copy(&mut plan, &mut phases, copy, 1);
+
+    /// Phase 1→2: each view's radiance goes to the device of the view that reads it.
+    fn neighbour_copies(&mut self) {
+        for v in 0..self.views {
+            let source = (v + 1) % self.views;
+            if self.owner(source) != self.owner(v) {
+                let copy =
+                    self.whole_copy(self.resources.radiance[source as usize], self.owner(source), self.owner(v), false);
+                self.add_copy(copy, 1);
+            }
         }
     }
-    // Phase 2: blends, then the gather of finished views to device 0 (phase 2→3).
-    for v in 0..views {
-        let source = (v + 1) % views;
-        let access = |slot: &str, decl: u16, resource: usize| ExecAccess::own(slot, decl, resource, 1, all);
-        let p = add_pass(
-            &mut plan,
-            ExecPass {
+
+    /// Phase 2: each view blended with the next one.
+    fn blends(&mut self) {
+        for v in 0..self.views {
+            let source = (v + 1) % self.views;
+            let all = self.all();
+            let access = |slot: &str, decl: u16, resource: usize| ExecAccess::own(slot, decl, resource, 1, all);
+            let r = &self.resources;
+            let blend = ExecPass {
                 name: "shift_blend".into(),
                 pass: PassId(1),
                 kernel: 1,
                 view: v,
                 rows: all,
-                device: owner(v),
+                device: self.owner(v),
                 reads: vec![
-                    access("radiance", 0, radiance[v as usize]),
-                    access("source", 1, radiance[source as usize]),
+                    access("radiance", 0, r.radiance[v as usize]),
+                    ExecAccess { origin: Origin::Source(0), ..access("source", 1, r.radiance[source as usize]) },
                 ],
                 history_reads: vec![],
-                writes: vec![access("output", 0, output[v as usize])],
-            },
-        );
-        phases[owner(v)][2].push(ExecOp::Pass(p));
-    }
-    for v in 0..views {
-        if owner(v) != 0 {
-            let copy = ExecCopy {
-                resource: output[v as usize],
-                dst: output[v as usize],
-                version: 1,
-                rows: all,
-                from: owner(v),
-                to: 0,
-                gather: true,
+                writes: vec![access("output", 0, r.output[v as usize])],
             };
-            add_copy(&mut plan, &mut phases, copy, 2);
+            self.add_pass(blend, 2);
         }
     }
-    for (d, device_phases) in phases.into_iter().enumerate() {
-        plan.devices[d] = device_phases.into_iter().flatten().collect();
+
+    /// Phase 2→3: the gather of finished views to device 0.
+    fn gathers(&mut self) {
+        for v in 0..self.views {
+            if self.owner(v) != 0 {
+                let copy = self.whole_copy(self.resources.output[v as usize], self.owner(v), 0, true);
+                self.add_copy(copy, 2);
+            }
+        }
     }
-    (plan, DemoResources { radiance, output })
+
+    fn finish(mut self) -> (ExecutionPlan, DemoResources) {
+        for (d, device_phases) in self.phases.into_iter().enumerate() {
+            self.plan.devices[d] = device_phases.into_iter().flatten().collect();
+        }
+        (self.plan, self.resources)
+    }
 }
 
 /// One fill on device 0 of a `width`×`height` RGBA32F image and its copy to device 1.
@@ -205,9 +270,10 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
     }
 }
 
+/// The demo's `fill` alone (pass 0, writing its payload as write 0).
 fn fill_only() -> Kernels {
     let mut kernels = Kernels::default();
-    kernels.push(FillKernel);
+    kernels.push(demo_kernels().0);
     kernels
 }
 
@@ -231,5 +297,24 @@ mod tests {
             assert_eq!(plan.copies.len(), expected, "devices = {devices}");
         }
         copy_plan(64, 64).validate(2).unwrap();
+    }
+
+    #[test]
+    fn the_demo_kernels_tokens_bind_the_hand_laid_accesses() {
+        let views = 3;
+        let (plan, ids) = reprojection_demo(views, 2, 8, 8);
+        let (fill, blend) = demo_kernels();
+        for p in &plan.passes {
+            let v = p.view as usize;
+            if p.name == "fill" {
+                assert_eq!(p.write(fill.out).unwrap().resource, ids.radiance[v]);
+                assert!(p.read(blend.own).is_err(), "a token of shift_blend binds nothing in fill");
+            } else {
+                assert_eq!(p.read(blend.own).unwrap().resource, ids.radiance[v]);
+                let sources: Vec<usize> = p.sources(blend.sources).unwrap().map(|a| a.resource).collect();
+                assert_eq!(sources, [ids.radiance[(v + 1) % views as usize]]);
+                assert_eq!(p.write(blend.out).unwrap().resource, ids.output[v]);
+            }
+        }
     }
 }
