@@ -6,10 +6,13 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    Context, ContextDesc, DeviceSelection, ExecutionPlan, Executor, KernelGraph, ResourceKind, Validation,
+    Context, ContextDesc, DeviceSelection, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams,
+    Recorder, ResourceKind, Validation,
 };
-use parallax_graph::{AssignStrategy, Format, LightField, Plan, PlanConfig, Rig, Role, Schedule, Scheme, compile};
-use parallax_testkit::kernels::{FillBufferKernel, FillKernel, ShiftBlendKernel, reference_shift_blend};
+use parallax_graph::{
+    AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme, WriteSlot, compile,
+};
+use parallax_testkit::kernels::{FillBufferKernel, FillKernel, reference_shift_blend, shift_of_view};
 
 const SIZE: u32 = 16;
 
@@ -24,19 +27,44 @@ fn global_graph(scheme: Scheme, devices: u32) -> (KernelGraph, Schedule) {
     let mut shared = g.global_image("shared", SIZE, SIZE, Format::Rgba32f);
     let mut words = g.global_buffer("shared_words", 64);
     let mut output = g.image("output", Format::Rgba32f);
-    g.pass("fill", Role::All).write(&mut pattern).kernel(Arc::new(FillKernel)).record();
-    g.global_pass("fill_global").write(&mut shared).kernel(Arc::new(FillKernel)).record();
-    g.global_pass("fill_words").write(&mut words).kernel(Arc::new(FillBufferKernel)).side_effect().record();
-    g.pass("blend", Role::All)
-        .read(&pattern)
-        .read(&shared)
-        .write(&mut output)
-        .kernel(Arc::new(ShiftBlendKernel))
-        .record();
+    let mut fill = g.pass("fill", Role::All);
+    let out = fill.write_slot(&mut pattern);
+    fill.kernel(Arc::new(FillKernel { out })).record();
+    let mut fill_global = g.global_pass("fill_global");
+    let out = fill_global.write_slot(&mut shared);
+    fill_global.kernel(Arc::new(FillKernel { out })).record();
+    let mut fill_words = g.global_pass("fill_words");
+    let out = fill_words.write_slot(&mut words);
+    fill_words.kernel(Arc::new(FillBufferKernel { out })).side_effect().record();
+    let mut blend = g.pass("blend", Role::All);
+    let (own, other, out) = (blend.read_slot(&pattern), blend.read_slot(&shared), blend.write_slot(&mut output));
+    blend.kernel(Arc::new(BlendWithGlobal { own, other, out })).record();
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
     assert_eq!(schedule.validate().errors, vec![], "{scheme:?} on {devices}");
     (g, schedule)
+}
+
+/// `shift_blend.comp` of the view's own pattern with the global image (the testkit's
+/// `ShiftBlendKernel` blends with a source view instead).
+struct BlendWithGlobal {
+    own: ReadSlot,
+    other: ReadSlot,
+    out: WriteSlot,
+}
+
+impl PassKernel for BlendWithGlobal {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        let dst = pass.write(self.out)?.resource;
+        let base = rec.row_params(pass, dst)?;
+        let params = PassParams {
+            src0: rec.image(pass.read(self.own)?.resource)?,
+            src1: rec.image(pass.read(self.other)?.resource)?,
+            param: shift_of_view(pass.view, base.width),
+            ..base
+        };
+        rec.dispatch_rows("shift_blend", params)
+    }
 }
 
 fn run(scheme: Scheme, devices: u32) -> Vec<Vec<u8>> {
