@@ -50,12 +50,8 @@ enum Failure {
     Reported,
 }
 
-/// How long a relay thread blocks in one wait before it looks at the timeline again (and
-/// whether it should stop). Short, because a wait is not always woken by the signal: fine-all
-/// on four logical devices of one H200 left the GPU 97 % idle with 50 ms slices, about one
-/// slice per cross-device hop (docs/RESULTS.md, "fine-all on four logical devices"). A woken
-/// wait returns at once either way; an idle relay thread costs 1,000 wake-ups a second.
-const POLL_NS: u64 = 1_000_000;
+/// How long a relay thread blocks in one wait before checking whether it should stop.
+const POLL_NS: u64 = 50_000_000;
 
 /// How long a relay thread polls the producer's timeline before it blocks. A blocking
 /// vkWaitSemaphores on NVIDIA wakes 50–250 µs after the signal (measured on H200), which is a

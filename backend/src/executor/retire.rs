@@ -17,10 +17,6 @@ use super::Executor;
 /// How long the host waits for a frame before declaring it lost.
 const FRAME_TIMEOUT_S: u64 = 60;
 
-/// How long one wait for a device's progress blocks before the host looks again (and checks
-/// the relay threads): short for the reason of `relay::POLL_NS`.
-const PROGRESS_SLICE_NS: u64 = 1_000_000;
-
 impl Executor {
     /// Waits for the frame of `ticket` (and so for the frames submitted before it, which finish
     /// first) — not for later frames — and returns its exported resources.
@@ -111,7 +107,7 @@ impl Executor {
     pub(super) fn wait_for_progress(&self, d: usize, value: u64, frame: u64) -> Result<()> {
         let state = &self.states[d];
         let deadline = Instant::now() + std::time::Duration::from_secs(FRAME_TIMEOUT_S);
-        while !state.device.wait_timeline(state.progress, value, PROGRESS_SLICE_NS)? {
+        while !state.device.wait_timeline(state.progress, value, 100_000_000)? {
             self.relay.as_ref().map_or(Ok(()), Relay::check)?;
             if Instant::now() > deadline {
                 return Err(BackendError::FrameTimeout { frame, device: d, seconds: FRAME_TIMEOUT_S });
