@@ -75,7 +75,7 @@
 //! for _ in 0..3 {
 //!     executor.run_frame()?; // no re-recording, up to 2 frames in flight
 //! }
-//! assert_eq!(executor.read_image(device, view0)?.len(), 32 * 32 * 16);
+//! assert_eq!(executor.read_resource(device, view0)?.len(), 32 * 32 * 16);
 //! let reports = executor.take_reports(); // GPU timestamps of every pass and copy
 //! let trace = chrome_trace(&reports, &context.device_infos());
 //! assert!(trace["traceEvents"].as_array().unwrap().len() > 3);

@@ -30,7 +30,7 @@ impl FrameTicket {
 }
 
 /// The exported resources of one frame: `(resource, bytes)` in resource order; images as
-/// tightly packed rows (as `Executor::read_image`), buffers whole.
+/// tightly packed rows (as `Executor::read_resource`), buffers whole.
 pub type FrameReadback = Vec<(usize, Vec<u8>)>;
 
 pub(crate) struct Readback {

@@ -118,14 +118,14 @@ fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u3
     let mut out = Vec::new();
     for v in 0..views {
         let (device, resource) = plan.final_output("acc", v).unwrap();
-        let current = floats(&exec.read_image(device, resource).unwrap());
+        let current = floats(&exec.read_resource(device, resource).unwrap());
         let writer = plan.passes.iter().find(|p| p.view == v).unwrap();
         // `accumulate` writes only `acc`.
         let own = writer.writes[0].resource;
         // Reads resolve through the last frame's parity: `own` is what it wrote, its twin what
         // the frame before wrote (what its history reads saw).
         let other = plan.history_pairs.iter().find(|(a, _)| *a == own).unwrap().1;
-        let previous = floats(&exec.read_image(writer.device, other).unwrap());
+        let previous = floats(&exec.read_resource(writer.device, other).unwrap());
         out.push((current, previous));
     }
     assert_eq!(exec.recordings(), 1, "parity swaps need no re-recording");
@@ -156,7 +156,7 @@ fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
     let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     let texel = |exec: &mut Executor| {
         exec.finish().unwrap();
-        let t = floats(&exec.read_image(device, resource).unwrap());
+        let t = floats(&exec.read_resource(device, resource).unwrap());
         (t[0], t[1])
     };
     exec.run_frame().unwrap();
@@ -225,8 +225,8 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
     let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     exec.run_frame().unwrap();
-    let mask = exec.read_image(0, mask_resource).unwrap();
-    let radiance = exec.read_image(0, radiance_resource).unwrap();
+    let mask = exec.read_resource(0, mask_resource).unwrap();
+    let radiance = exec.read_resource(0, radiance_resource).unwrap();
     let words = |b: &[u8]| b.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>();
     let mask: Vec<u32> = words(&mask).into_iter().map(u32::from_le_bytes).collect();
     let radiance: Vec<f32> = words(&radiance).into_iter().map(f32::from_le_bytes).collect();
@@ -271,10 +271,10 @@ fn raster_passes_render_row_bands_into_a_depth_resource_on_any_device_count() {
         let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
         exec.run_frame().unwrap();
         exec.run_frame().unwrap();
-        let values = floats(&exec.read_image(device, resource).unwrap());
+        let values = floats(&exec.read_resource(device, resource).unwrap());
         assert_eq!(values, expected, "{devices} device(s)");
         // The depth attachment is a graph resource: its bands crossed devices as depth copies.
-        let depth = floats(&exec.read_image(depth_device, depth_resource).unwrap());
+        let depth = floats(&exec.read_resource(depth_device, depth_resource).unwrap());
         assert_eq!(depth, expected_depth, "{devices} device(s)");
         drop(exec);
         ctx.check_validation().unwrap();
@@ -310,7 +310,7 @@ fn global_buffers_and_frame_data_reach_kernels_by_address() {
     let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
     let check = |exec: &mut Executor, weights: [f32; 2], offset: f32| {
         for view in 0..2u32 {
-            let bytes = exec.read_image(0, outputs[view as usize]).unwrap();
+            let bytes = exec.read_resource(0, outputs[view as usize]).unwrap();
             let got: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
             let expected: Vec<f32> = (0..size)
                 .flat_map(|y| (0..size).flat_map(move |x| reference_fill(x, y, view)))

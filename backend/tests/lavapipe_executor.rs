@@ -33,7 +33,7 @@ fn run_demo(devices: usize, frames: usize, options: ExecOptions) -> (Vec<Vec<u8>
         exec.run_frame().unwrap();
     }
     exec.finish().unwrap();
-    let outputs = ids.output.iter().map(|&r| exec.read_image(0, r).unwrap()).collect();
+    let outputs = ids.output.iter().map(|&r| exec.read_resource(0, r).unwrap()).collect();
     (outputs, exec, ctx)
 }
 
@@ -100,7 +100,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
         exec.finish().unwrap();
         let wrong: Vec<usize> = (0..VIEWS)
             .filter(|&v| {
-                let bytes = exec.read_image(0, ids.output[v as usize]).unwrap();
+                let bytes = exec.read_resource(0, ids.output[v as usize]).unwrap();
                 floats(&bytes) != reference_output(v)
             })
             .map(|v| v as usize)

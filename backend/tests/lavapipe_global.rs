@@ -90,7 +90,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<u8>> {
     let outputs = (0..2)
         .map(|view| {
             let (device, resource) = plan.final_output("output", view).unwrap();
-            let bytes = exec.read_image(device, resource).unwrap();
+            let bytes = exec.read_resource(device, resource).unwrap();
             let expected: Vec<u8> = (0..SIZE)
                 .flat_map(|y| (0..SIZE).flat_map(move |x| reference_shift_blend(x, y, view, 0, SIZE)))
                 .flat_map(f32::to_le_bytes)

@@ -78,7 +78,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<f32>> {
     let outputs: Vec<Vec<f32>> = output_resources(&plan, schedule.views)
         .into_iter()
         .map(|(view, r)| {
-            let bytes = exec.read_image(0, r).unwrap();
+            let bytes = exec.read_resource(0, r).unwrap();
             let values: Vec<f32> =
                 bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
             let other = sources_of[view as usize].first().map_or(view, |s| s.0);
@@ -230,7 +230,7 @@ fn graph_exports_are_read_back_by_the_frame_loop() {
     assert_eq!(frames[0].len(), outputs.len());
     assert_eq!(frames[0], frames[1], "the demo renders the same every frame");
     for (r, bytes) in &frames[0] {
-        assert_eq!(*bytes, exec.read_image(0, *r).unwrap(), "resource {r}");
+        assert_eq!(*bytes, exec.read_resource(0, *r).unwrap(), "resource {r}");
     }
     drop(exec);
     ctx.check_validation().unwrap();

@@ -107,7 +107,7 @@ fn a_kernel_compiled_outside_shaders_runs_on_every_device_like_the_cpu() {
     }
     exec.finish().unwrap();
     for (view, &resource) in outputs.iter().enumerate() {
-        let bytes = exec.read_image(0, resource).unwrap();
+        let bytes = exec.read_resource(0, resource).unwrap();
         let values: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         let view = view as u32;
         let expected: Vec<f32> =

@@ -202,7 +202,7 @@ pub fn run(options: &Options) -> Result<Report> {
     executor.finish()?;
     let mut frames = Vec::with_capacity(outputs.len());
     for (view, &(device, resource)) in outputs.iter().enumerate() {
-        let bytes = executor.read_image(device, resource)?;
+        let bytes = executor.read_resource(device, resource)?;
         let view = view as u32;
         frames.push(check_view(&bytes, view, &plan.topology.sources_of[view as usize], &lf)?);
     }

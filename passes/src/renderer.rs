@@ -156,7 +156,7 @@ impl LightFieldRenderer {
             .plan()
             .final_output(slot, view)
             .ok_or_else(|| PassError::MissingResource { name: slot.into(), view })?;
-        Ok(self.executor.read_image(device, resource)?)
+        Ok(self.executor.read_resource(device, resource)?)
     }
 
     /// Slot `slot` of `view` after the last frame, whole, as tightly packed rows: each row band
@@ -180,7 +180,7 @@ impl LightFieldRenderer {
         let row_bytes = desc.row_bytes() as usize;
         let mut out = vec![0u8; row_bytes * desc.height as usize];
         for (device, resource, y0, y1) in bands {
-            let bytes = self.executor.read_image(device, resource)?;
+            let bytes = self.executor.read_resource(device, resource)?;
             let (a, b) = (y0 as usize * row_bytes, y1 as usize * row_bytes);
             out[a..b].copy_from_slice(&bytes[a..b]);
         }

@@ -157,7 +157,7 @@ impl GpuTracer {
             let Some((device, resource)) = self.executor.plan().final_output(name, view.index) else {
                 continue;
             };
-            *layer = Some(self.executor.read_image(device, resource)?);
+            *layer = Some(self.executor.read_resource(device, resource)?);
         }
         if layers[0].is_none() {
             return Err(PassError::MissingResource { name: TRACE_OUTPUTS[0].into(), view: view.index });

@@ -98,7 +98,7 @@ fn render(scene: &Scene, views: &[View], devices: u32) -> Rendered {
             .map(|v| {
                 let (device, resource) = plan.final_output(name, v).unwrap();
                 assert_eq!(device, 0, "finished views are gathered on device 0");
-                let bytes = exec.read_image(device, resource).unwrap();
+                let bytes = exec.read_resource(device, resource).unwrap();
                 bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
             })
             .collect();

@@ -219,7 +219,7 @@ impl Run {
     fn read(&mut self, slot: &str, view: u32) -> Vec<f32> {
         self.exec.finish().unwrap();
         let (device, resource) = self.exec.plan().final_output(slot, view).unwrap();
-        floats(&self.exec.read_image(device, resource).unwrap())
+        floats(&self.exec.read_resource(device, resource).unwrap())
     }
 }
 
@@ -260,7 +260,7 @@ fn tonemap_matches_its_cpu_twin_within_one_step_of_255() {
     for view in 0..2 {
         let radiance = run.read("radiance", view);
         let (device, resource) = run.exec.plan().final_output(DISPLAY, view).unwrap();
-        let bytes = run.exec.read_image(device, resource).unwrap();
+        let bytes = run.exec.read_resource(device, resource).unwrap();
         assert_eq!(bytes.len(), (SIZE * SIZE * 4) as usize);
         let mut worst = 0i32;
         for (rgb, got) in radiance.chunks_exact(4).zip(bytes.chunks_exact(4)) {

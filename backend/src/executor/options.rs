@@ -38,7 +38,7 @@ pub struct ExecOptions {
     /// Copy the plan's exported resources to host memory at the end of every frame, for
     /// [`Executor::submit_frame`]. Off by default: it costs a host-visible copy of every export
     /// per frame in flight and a device→host copy per frame, which callers that read results
-    /// once with [`Executor::read_image`] do not need.
+    /// once with [`Executor::read_resource`] do not need.
     pub read_back_exports: bool,
     pub fault: Option<FaultInjection>,
     /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
@@ -47,7 +47,7 @@ pub struct ExecOptions {
     /// Most segments (submissions) of one device the host keeps submitted and not yet done; the
     /// host waits for the device before submitting more (at least 1). Drivers hold a bounded
     /// number of pending submissions and block vkQueueSubmit beyond it; the fine schemes cut a
-    /// frame into thousands of segments per device.
+    /// frame into hundreds of segments per device (a few per stage once small copies are batched).
     pub max_queued_segments: usize,
     /// Where the recorded command buffers put barriers between ops.
     pub barriers: Barriers,

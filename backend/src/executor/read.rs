@@ -9,11 +9,6 @@ use crate::memory::Buffer;
 use super::Executor;
 
 impl Executor {
-    /// Reads `resource` back from `device` as tightly packed rows (waits for all frames).
-    pub fn read_image(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
-        self.read_resource(device, resource)
-    }
-
     /// Reads an image (tightly packed rows) or a buffer back from `device` (waits for all
     /// frames).
     pub fn read_resource(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
