@@ -180,8 +180,14 @@ struct Cli {
     render: RenderArgs,
 }
 
-fn main() -> Result<()> {
-    let cli = Cli::parse();
+fn main() {
+    if let Err(err) = run(Cli::parse()) {
+        eprintln!("error: {err:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
     let check = Arc::new(Mutex::new(ExposureCheck::default()));
     let exposure = cli.render.tonemap_exposure();
     run_extended(cli.render, extension(exposure, check.clone())?)?;

@@ -259,10 +259,8 @@ pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn F
             }
             ExecOp::Signal(c) if run.defers(groups, batch, c) => run.deferred.push(op),
             ExecOp::Wait(c)
-                if run.first.is_some()
-                    && batch(c)
+                if run.first.is_some_and(|first| batch(c) && next_pass_continues(ops, i + 2, first, &same_pass))
                     && ops.get(i + 1) == Some(&ExecOp::CopyIn(c))
-                    && next_pass_continues(ops, i + 2, run.first, &same_pass)
                     && !order[run.start..]
                         .iter()
                         .any(|&o| matches!(o, ExecOp::Pass(p) if touches(p, plan.copies[c].dst)))
@@ -306,8 +304,7 @@ impl Batch {
     }
 
     fn close(&mut self, order: &mut Vec<ExecOp>) {
-        let start = self.start.min(order.len());
-        order.splice(start..start, self.hoisted.drain(..));
+        order.splice(self.start..self.start, self.hoisted.drain(..));
         order.append(&mut self.deferred);
         self.copied.clear();
         self.first = None;
@@ -319,13 +316,13 @@ impl Batch {
 fn next_pass_continues(
     ops: &[ExecOp],
     mut next: usize,
-    first: Option<usize>,
+    first: usize,
     same_pass: &dyn Fn(usize, usize) -> bool,
 ) -> bool {
     while let Some(op) = ops.get(next) {
         match *op {
             ExecOp::Wait(_) | ExecOp::CopyIn(_) => next += 1,
-            ExecOp::Pass(p) => return first.is_some_and(|f| same_pass(f, p)),
+            ExecOp::Pass(p) => return same_pass(first, p),
             ExecOp::CopyOut(_) | ExecOp::Signal(_) => return false,
         }
     }

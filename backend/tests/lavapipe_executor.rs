@@ -1,10 +1,7 @@
 //! Executor on lavapipe (or any Vulkan device): the reprojection demo on 1, 2 and 3 logical
 //! devices, with validation always on.
 
-use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, EventKind, ExecOp, ExecOptions, Executor, FaultInjection,
-    Validation, chrome_trace,
-};
+use parallax_backend::{BackendError, Context, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, chrome_trace};
 use parallax_testkit::kernels::reference_shift_blend;
 use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
 
@@ -14,9 +11,7 @@ const SIZE: u32 = 32;
 /// Validation always on; synchronisation validation where the layer copes (one device, see
 /// `Validation::CoreAndSync`).
 fn context(devices: usize) -> Context {
-    let validation = if devices == 1 { Validation::CoreAndSync } else { Validation::Core };
-    Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(devices), validation })
-        .expect("a Vulkan device (apt-get install mesa-vulkan-drivers) and validation layers")
+    parallax_testkit::lavapipe_context(devices)
 }
 
 fn floats(bytes: &[u8]) -> Vec<f32> {

@@ -7,9 +7,9 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor,
-    FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder,
-    Validation, ViewCameras, WriteSlot, check_push_constants,
+    BackendError, Context, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor, FRAME_BLOCK_SECTION,
+    FrameBlock, FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder, ViewCameras,
+    WriteSlot, check_push_constants,
 };
 use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
 use parallax_testkit::kernels::reference_mask;
@@ -20,9 +20,7 @@ const SIZE: u32 = 16;
 const FILL_SECTION: &str = "fill";
 
 fn context(devices: usize) -> Context {
-    let validation = if devices == 1 { Validation::CoreAndSync } else { Validation::Core };
-    Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(devices), validation })
-        .expect("a Vulkan device (apt-get install mesa-vulkan-drivers) and validation layers")
+    parallax_testkit::lavapipe_context(devices)
 }
 
 fn words(bytes: &[u8]) -> Vec<u32> {

@@ -6,8 +6,7 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    Context, ContextDesc, DeviceSelection, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams,
-    Recorder, ResourceKind, Validation,
+    ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams, Recorder, ResourceKind,
 };
 use parallax_graph::{
     AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme, WriteSlot, compile,
@@ -77,11 +76,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<u8>> {
     let words: Vec<_> = plan.resources.iter().filter(|r| r.name == "shared_words").collect();
     assert_eq!(words.len(), 1, "nothing reads the buffer elsewhere: one allocation");
     assert_eq!((words[0].kind, words[0].width), (ResourceKind::Buffer, 16));
-    let ctx = Context::new(&ContextDesc {
-        selection: DeviceSelection::FakeDevices(devices as usize),
-        validation: Validation::Core,
-    })
-    .unwrap();
+    let ctx = parallax_testkit::lavapipe_context(devices as usize);
     let mut exec = Executor::new(&ctx, plan.clone(), parallax_testkit::options()).unwrap();
     for _ in 0..2 {
         exec.run_frame().unwrap();

@@ -7,11 +7,12 @@
 //!   so the executor can be tested (and fault-injected) without the graph crate.
 //! * [`shaders`] / [`options`]: the kernels' SPIR-V (`shaders/`, compiled by this crate's
 //!   build.rs through parallax-glsl), which the executor finds through `ExecOptions::shaders`.
+//! * [`lavapipe_context`]: the logical devices a test runs on.
 
 pub mod kernels;
 pub mod plans;
 
-use parallax_backend::{ExecOptions, ShaderLibrary};
+use parallax_backend::{Context, ContextDesc, DeviceSelection, ExecOptions, ShaderLibrary, Validation};
 
 /// The SPIR-V of every kernel in `shaders/`, by file stem (`fill`, `shift_blend`, ...).
 pub fn shaders() -> ShaderLibrary {
@@ -23,4 +24,12 @@ pub fn shaders() -> ShaderLibrary {
 /// Default executor options with [`shaders`] as the user library.
 pub fn options() -> ExecOptions {
     ExecOptions { shaders: shaders(), ..ExecOptions::default() }
+}
+
+/// `devices` logical devices on the first physical one (lavapipe in CI) under Khronos validation,
+/// with synchronisation validation too when there is one device.
+pub fn lavapipe_context(devices: usize) -> Context {
+    let validation = if devices == 1 { Validation::CoreAndSync } else { Validation::Core };
+    Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(devices), validation })
+        .expect("a Vulkan device (apt-get install mesa-vulkan-drivers) and validation layers")
 }

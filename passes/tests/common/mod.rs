@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use glam::Vec3;
-use parallax_backend::{Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, KernelGraph, Validation};
+use parallax_backend::{Context, ExecOptions, ExecutionPlan, KernelGraph};
 use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::renderer::LightFieldRenderer;
@@ -14,9 +14,7 @@ use parallax_scene::{Camera, Scene, SceneBvh, View};
 /// `devices` logical devices on the first Vulkan device (lavapipe in CI), with core
 /// validation; synchronisation validation too on one device (see the backend's Known limits).
 pub fn context(devices: usize) -> Context {
-    let validation = if devices == 1 { Validation::CoreAndSync } else { Validation::Core };
-    Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(devices), validation })
-        .expect("a Vulkan device (apt-get install mesa-vulkan-drivers) and validation layers")
+    parallax_testkit::lavapipe_context(devices)
 }
 
 /// `count` views of `scene`'s default camera, each moved sideways by 5 % of the scene's size.
