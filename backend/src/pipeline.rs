@@ -88,32 +88,19 @@ pub(crate) struct Bindless {
 
 /// Set 0 (see the module documentation), with image arrays of `image_count`.
 fn set_bindings(image_count: u32) -> [vk::DescriptorSetLayoutBinding<'static>; 5] {
+    let binding = |binding: u32, descriptor_type: vk::DescriptorType, count: u32| {
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(binding)
+            .descriptor_type(descriptor_type)
+            .descriptor_count(count)
+            .stage_flags(SHADER_STAGES)
+    };
     [
-        vk::DescriptorSetLayoutBinding::default()
-            .binding(0)
-            .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
-            .descriptor_count(image_count)
-            .stage_flags(SHADER_STAGES),
-        vk::DescriptorSetLayoutBinding::default()
-            .binding(1)
-            .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
-            .descriptor_count(1)
-            .stage_flags(SHADER_STAGES),
-        vk::DescriptorSetLayoutBinding::default()
-            .binding(2)
-            .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
-            .descriptor_count(image_count)
-            .stage_flags(SHADER_STAGES),
-        vk::DescriptorSetLayoutBinding::default()
-            .binding(3)
-            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-            .descriptor_count(MAX_TEXTURES)
-            .stage_flags(SHADER_STAGES),
-        vk::DescriptorSetLayoutBinding::default()
-            .binding(4)
-            .descriptor_type(vk::DescriptorType::SAMPLED_IMAGE)
-            .descriptor_count(image_count)
-            .stage_flags(SHADER_STAGES),
+        binding(0, vk::DescriptorType::STORAGE_IMAGE, image_count),
+        binding(1, vk::DescriptorType::UNIFORM_BUFFER, 1),
+        binding(2, vk::DescriptorType::STORAGE_IMAGE, image_count),
+        binding(3, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, MAX_TEXTURES),
+        binding(4, vk::DescriptorType::SAMPLED_IMAGE, image_count),
     ]
 }
 

@@ -47,6 +47,21 @@ pub struct ExecResource {
 }
 
 impl ExecResource {
+    /// A per-view `width`×`height` image of `format` (storage 0, not exported, never reset).
+    pub fn image(name: impl Into<String>, view: u32, width: u32, height: u32, format: Format) -> Self {
+        Self {
+            name: name.into(),
+            view,
+            width,
+            height,
+            format,
+            kind: ResourceKind::Image,
+            storage: 0,
+            exported: false,
+            reset: None,
+        }
+    }
+
     /// A per-view buffer of at least `bytes` bytes (rounded up to whole 32-bit words).
     pub fn buffer(name: impl Into<String>, view: u32, bytes: u64) -> Self {
         let words = bytes.div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;

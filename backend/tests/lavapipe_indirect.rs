@@ -8,8 +8,7 @@ use std::sync::Arc;
 
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecAccess, ExecOptions, ExecPass, ExecResource,
-    ExecutionPlan, ExecutionPlanError, Executor, Format, KernelGraph, PassKernel, Recorder, Region, ResourceKind,
-    Validation,
+    ExecutionPlan, ExecutionPlanError, Executor, Format, KernelGraph, PassKernel, Recorder, Region, Validation,
 };
 use parallax_graph::{BandedPlacement, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_testkit::kernels::reference_mask;
@@ -191,17 +190,7 @@ fn gpu_counts_drive_the_next_dispatch_and_resets_start_every_frame_afresh() {
 #[test]
 fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     // Resource 0: a 16-byte buffer; resource 1: an image.
-    let image = ExecResource {
-        name: "image".into(),
-        view: 0,
-        width: 4,
-        height: 4,
-        format: Format::R32u,
-        kind: ResourceKind::Image,
-        storage: 1,
-        exported: false,
-        reset: None,
-    };
+    let image = ExecResource { storage: 1, ..ExecResource::image("image", 0, 4, 4, Format::R32u) };
     let plan = |kernel: MisusedKernel| {
         let mut plan = ExecutionPlan::single_pass("misused", kernel, ExecResource::buffer("args", 0, 16), 1);
         plan.resources.push(image.clone());

@@ -13,7 +13,6 @@
 use parallax_backend::plan::Kernels;
 use parallax_backend::{
     ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, KernelGraph, PassId, Region,
-    ResourceKind,
 };
 use parallax_graph::{Origin, Role, ViewTopology};
 
@@ -82,17 +81,7 @@ impl Demo {
         kernels.push(blend);
         let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
         let mut image = |name: &str, view: u32| {
-            plan.resources.push(ExecResource {
-                name: name.to_string(),
-                view,
-                width,
-                height,
-                format: Format::Rgba32f,
-                kind: ResourceKind::Image,
-                storage: 0,
-                exported: false,
-                reset: None,
-            });
+            plan.resources.push(ExecResource::image(name, view, width, height, Format::Rgba32f));
             plan.resources.len() - 1
         };
         let radiance: Vec<usize> = (0..views).map(|v| image("radiance", v)).collect();
@@ -238,17 +227,7 @@ impl Demo {
 pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
     let all = Region::new(0, height);
     ExecutionPlan {
-        resources: vec![ExecResource {
-            name: "payload".into(),
-            view: 0,
-            width,
-            height,
-            format: Format::Rgba32f,
-            kind: ResourceKind::Image,
-            storage: 0,
-            exported: false,
-            reset: None,
-        }],
+        resources: vec![ExecResource::image("payload", 0, width, height, Format::Rgba32f)],
         passes: vec![ExecPass {
             name: "fill".into(),
             pass: PassId(0),
