@@ -275,6 +275,12 @@ impl Graph {
 }
 
 impl<P> Graph<P> {
+    /// The name `handle`'s resource was declared with: the slot name kernels and readback find
+    /// it by.
+    pub fn name_of<K>(&self, handle: &Handle<K>) -> &str {
+        &self.families[handle.family.index()].name
+    }
+
     /// A graph whose passes carry a `P` each (attached with [`PassBuilder::kernel`]), e.g. the
     /// backend's kernels, so the executor never looks a kernel up by pass name.
     pub fn with_payload(topology: ViewTopology) -> Self {

@@ -40,7 +40,7 @@ use crate::gbuffer::{Gbuffer, declare_gbuffer, declare_gbuffer_rasterised};
 use crate::holes::declare_hole_fill;
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
 use crate::reproject::{ReprojectionTolerances, declare_reproject};
-use crate::svgf::{DENOISED, SvgfInputs, declare_svgf};
+use crate::svgf::{SvgfInputs, declare_svgf};
 use crate::tonemap::declare_tonemap_scaled;
 
 /// Which pipeline renders the light field.
@@ -83,8 +83,9 @@ pub struct PipelineHandles {
     pub holes: Option<Handle<Image>>,
     /// Linear radiance after denoising (`denoise` only).
     pub denoised: Option<Handle<Image>>,
-    /// Slot of the final linear radiance: `denoised`, or `radiance` without denoising.
-    pub linear_slot: &'static str,
+    /// Slot of the final linear radiance, what the tonemapper reads: the denoiser's output
+    /// (`denoised` for SVGF), or `radiance` without denoising.
+    pub linear_slot: String,
     /// The global 1×1 image the tonemapper scaled its exposure by, if a stage declared one.
     pub exposure: Option<Handle<Image>>,
     /// The tonemapped RGBA8 image of every view (not exported: the caller decides).
@@ -226,7 +227,7 @@ impl PipelineBuilder {
                 declare_tonemap_scaled(graph, linear, config.exposure, layers.exposure.as_ref())?
             }
         };
-        let linear_slot = if layers.denoised.is_some() { DENOISED } else { "radiance" };
+        let linear_slot = graph.name_of(layers.denoised.as_ref().unwrap_or(&layers.radiance)).to_string();
         let Layers { gbuffer, radiance, holes, denoised, exposure } = layers;
         Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear_slot, exposure, display })
     }
@@ -292,10 +293,10 @@ mod tests {
 
     #[test]
     fn inserted_stages_run_at_their_points_in_insertion_order() {
-        let seen: Arc<Mutex<Vec<(InsertionPoint, String)>>> = Arc::default();
+        let seen: Arc<Mutex<Vec<(InsertionPoint, usize, String)>>> = Arc::default();
         let mut builder = PipelineBuilder::new(PipelineConfig::default());
         // Inserted out of pipeline order, two at one point.
-        for at in [
+        for (i, at) in [
             InsertionPoint::BeforeTonemap,
             InsertionPoint::AfterHoleFill,
             InsertionPoint::AfterGbuffer,
@@ -303,22 +304,28 @@ mod tests {
             InsertionPoint::AfterReprojection,
             InsertionPoint::AfterTrace,
             InsertionPoint::BeforeTonemap,
-        ] {
+        ]
+        .into_iter()
+        .enumerate()
+        {
             let seen = seen.clone();
             builder = builder.insert(at, move |graph, _| {
                 let last = graph.passes().last().map(|p| p.name.clone()).unwrap_or_default();
-                seen.lock().unwrap().push((at, last));
+                seen.lock().unwrap().push((at, i, last));
                 Ok(())
             });
         }
         let mut graph = KernelGraph::with_payload(topology());
         builder.declare(&mut graph).unwrap();
         let seen = seen.lock().unwrap().clone();
-        let points: Vec<InsertionPoint> = seen.iter().map(|(at, _)| *at).collect();
+        let points: Vec<InsertionPoint> = seen.iter().map(|(at, ..)| *at).collect();
         let mut sorted = points.clone();
         sorted.sort();
         assert_eq!(points, sorted, "stages run in pipeline order");
-        let last_before = |at| seen.iter().find(|(p, _)| *p == at).unwrap().1.clone();
+        let at_tonemap: Vec<usize> =
+            seen.iter().filter(|(at, ..)| *at == InsertionPoint::BeforeTonemap).map(|(_, i, _)| *i).collect();
+        assert_eq!(at_tonemap, [0, 6], "two stages at one point run in insertion order");
+        let last_before = |at| seen.iter().find(|(p, ..)| *p == at).unwrap().2.clone();
         assert_eq!(last_before(InsertionPoint::AfterTrace), crate::path_trace::PATH_TRACE);
         assert_eq!(last_before(InsertionPoint::AfterHoleFill), crate::holes::HOLE_FILL);
         assert!(!pass_names(&graph).is_empty() && pass_names(&graph).last().unwrap() == crate::tonemap::TONEMAP);
@@ -328,9 +335,42 @@ mod tests {
     fn the_builder_with_nothing_added_declares_the_standard_pipeline() {
         let (mut a, mut b) = (KernelGraph::with_payload(topology()), KernelGraph::with_payload(topology()));
         let config = PipelineConfig::default();
-        declare_pipeline(&mut a, &config).unwrap();
+        let handles = declare_pipeline(&mut a, &config).unwrap();
         PipelineBuilder::new(config).insert(InsertionPoint::AfterDenoise, |_, _| Ok(())).declare(&mut b).unwrap();
-        assert_eq!(pass_names(&a), pass_names(&b));
+        // The paper's pipeline, as Table 1 lists its stages.
+        let standard = [
+            "gbuffer",
+            "path_trace",
+            "reproject",
+            "compact_holes",
+            "hole_fill",
+            "svgf_history",
+            "svgf_temporal",
+            "svgf_atrous_1",
+            "svgf_atrous_2",
+            "svgf_atrous_3",
+            "svgf_atrous_4",
+            "svgf_atrous_5",
+            "tonemap",
+        ];
+        assert_eq!(pass_names(&a), standard);
+        assert_eq!(pass_names(&b), standard);
+        assert_eq!(handles.linear_slot, crate::svgf::DENOISED);
+    }
+
+    #[test]
+    fn a_replaced_denoiser_is_what_the_tonemapper_and_the_readback_see() {
+        let mut graph = KernelGraph::with_payload(topology());
+        let handles = PipelineBuilder::new(PipelineConfig::default())
+            .replace_denoiser(|graph, layers| {
+                let mut denoised = graph.image("my_denoised", Format::Rgba32f);
+                graph.pass("my_denoiser", Role::All).read(&layers.radiance).write(&mut denoised).record();
+                Ok(denoised)
+            })
+            .declare(&mut graph)
+            .unwrap();
+        assert_eq!(handles.linear_slot, "my_denoised");
+        assert!(!pass_names(&graph).iter().any(|p| p.starts_with("svgf")));
     }
 
     #[test]

@@ -80,7 +80,7 @@ fn frame_loop(
     let started = Instant::now();
     let mut measured_from = None;
     let mut staged: Vec<Staged> = Vec::new();
-    let linear_slot = job.compiled.handles.linear_slot;
+    let linear_slot = job.compiled.handles.linear_slot.as_str();
     for f in 0..job.total_frames {
         if f == args.warmup {
             renderer.finish()?;

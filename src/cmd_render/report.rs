@@ -30,7 +30,7 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     let reports = renderer.take_reports();
     let prepare = renderer.prepare_ms().clone();
     let timing = timings(renderer.stats(), &prepare);
-    let (kind, linear_slot) = (job.compiled.kind, job.compiled.handles.linear_slot);
+    let (kind, linear_slot) = (job.compiled.kind, job.compiled.handles.linear_slot.as_str());
     let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
     staged.extend(stage_views(&mut renderer, linear_slot, &args.out_dir, &last_views, &extra_layers(args, kind))?);
     let (exposure, displays) = display_images(&mut renderer, linear_slot, (lf.len() as u32, lf.width), args.exposure)?;
