@@ -28,8 +28,8 @@ use parallax::cmd_render::{RenderArgs, RenderExtension, run_extended};
 use parallax_accuracy::exposure::LogAverage;
 use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, ReadSlot, Role, SourcesSlot, WriteSlot};
+use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::{InsertionPoint, Layers, PipelineBuilder};
-use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::svgf::DENOISED;
 use parallax_passes::tonemap::tonemap_pixel;
 
@@ -144,7 +144,7 @@ pub fn extension(exposure: f32, check: Arc<Mutex<ExposureCheck>>) -> Result<Rend
 
 /// Reads the last frame's exposure, linear radiance and display images back and checks them.
 fn check_exposure(renderer: &mut LightFieldRenderer, exposure: f32) -> Result<ExposureCheck> {
-    let gpu = f32::from_le_bytes(renderer.read_stitched(EXPOSURE, 0)?[..4].try_into()?);
+    let gpu = f32::from_le_bytes(renderer.read(EXPOSURE, 0)?[..4].try_into()?);
     ensure!(gpu.is_finite() && gpu > 0.0, "the GPU exposure {gpu} is not a positive number");
     let plan = renderer.executor().plan();
     let linear = if plan.resources.iter().any(|r| r.name == DENOISED) { DENOISED } else { "radiance" };
@@ -153,7 +153,7 @@ fn check_exposure(renderer: &mut LightFieldRenderer, exposure: f32) -> Result<Ex
     let mut average = LogAverage::default();
     let mut display_steps = 0;
     for v in 0..views {
-        let rgb = rgb_texels(&renderer.read_stitched(linear, v)?);
+        let rgb = rgb_texels(&renderer.read(linear, v)?);
         average.add_image(width, &rgb);
         let display = renderer.read("display", v)?;
         for (texel, pixel) in rgb.iter().zip(display.chunks_exact(4)) {

@@ -55,7 +55,7 @@ void main() {
     imageStore(images[pc.position_depth], at, vec4(sp.position, dot(sp.position - eye, params.forward.xyz)));
     imageStore(images[pc.normal_metallic], at, vec4(sp.normal, sp.metallic));
     imageStore(images[pc.albedo_roughness], at, vec4(sp.base_color, sp.roughness));
-    if (pc.block.history_valid != 0u) {
+    if (frame.history_valid != 0u) {
         vec4 clip = pc.block.views[pc.view].previous.view_proj * vec4(sp.position, 1.0);
         if (clip.w > 0.0) {
             vec2 prev_ndc = clip.xy / clip.w;

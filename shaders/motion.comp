@@ -33,7 +33,7 @@ void main() {
     ivec2 at = ivec2(x, y);
     vec4 position = imageLoad(images[pc.position_depth], at);
     vec2 previous_pixel = vec2(-1.0);
-    if (position.w > 0.0 && pc.block.history_valid != 0u) {
+    if (position.w > 0.0 && frame.history_valid != 0u) {
         vec4 clip = pc.block.views[pc.view].previous.view_proj * vec4(position.xyz, 1.0);
         if (clip.w > 0.0) {
             vec2 ndc = clip.xy / clip.w;

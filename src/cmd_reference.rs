@@ -21,7 +21,7 @@ use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale
 use parallax_backend::{Context as VkContext, ContextDesc};
 use parallax_graph::lightfield::DEFAULT_SPACING;
 use parallax_graph::{LightField, ViewId};
-use parallax_passes::{GpuTracer, banded_trace_plan};
+use parallax_passes::{LightFieldRenderer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
@@ -105,7 +105,7 @@ fn scene_files_key(scene: &Scene) -> BTreeMap<String, String> {
 
 enum Tracer<'a> {
     Cpu(CpuTracer<'a>),
-    Gpu { context: VkContext, tracer: Box<GpuTracer> },
+    Gpu { context: VkContext, tracer: Box<LightFieldRenderer> },
 }
 
 impl<'a> Tracer<'a> {
@@ -128,7 +128,7 @@ impl<'a> Tracer<'a> {
         work.check_devices(&context)?;
         let devices = selection.count();
         let plan = banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
-        let tracer = GpuTracer::new(&context, plan, &GpuScene::new(scene, bvh))?;
+        let tracer = LightFieldRenderer::new(&context, plan, &GpuScene::new(scene, bvh))?;
         Ok(Tracer::Gpu { context, tracer: Box::new(tracer) })
     }
 }
@@ -145,7 +145,7 @@ impl Tracer<'_> {
                 })
                 .collect(),
             Tracer::Gpu { tracer, .. } => Ok(tracer
-                .render(scene, views, settings)?
+                .trace(scene, views, settings)?
                 .into_iter()
                 .map(|pixels| pixels.iter().map(|p| [p.radiance[0], p.radiance[1], p.radiance[2]]).collect())
                 .collect()),

@@ -21,8 +21,8 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
 use parallax_backend::{FaultInjection, ShaderLibrary};
+use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::PipelineBuilder;
-use parallax_passes::renderer::LightFieldRenderer;
 use parallax_scene::{Camera, Scene};
 
 use crate::options::{DeviceArgs, Exposure, parse_exposure};

@@ -16,7 +16,7 @@ use std::path::Path;
 use anyhow::Result;
 use parallax_accuracy::exposure::{Exposure, LogAverage};
 use parallax_graph::LightField;
-use parallax_passes::renderer::LightFieldRenderer;
+use parallax_passes::LightFieldRenderer;
 use parallax_passes::tonemap::tonemap_pixel;
 
 use crate::lightfield_images::{
@@ -55,7 +55,7 @@ pub fn display_images(
     let mut average = LogAverage::default();
     if exposure == Exposure::Auto {
         for v in 0..views {
-            let bytes = renderer.read_stitched(linear_slot, v)?;
+            let bytes = renderer.read(linear_slot, v)?;
             average.add_image(width as usize, &texels_rgb(&bytes));
         }
     }
@@ -63,7 +63,7 @@ pub fn display_images(
     let displays = (0..views)
         .map(|v| match exposure {
             Exposure::Fixed(_) => Ok(renderer.read("display", v)?),
-            Exposure::Auto => Ok(tonemap_rgba8(&renderer.read_stitched(linear_slot, v)?, value)),
+            Exposure::Auto => Ok(tonemap_rgba8(&renderer.read(linear_slot, v)?, value)),
         })
         .collect::<Result<_>>()?;
     Ok((value, displays))

@@ -143,6 +143,16 @@ pub enum BackendError {
     #[error("per-frame data section `{0}` is added twice")]
     DuplicateFrameSection(String),
 
+    /// A kernel asked for the frame block of cameras, and the frame data has none.
+    #[error(
+        "pass `{pass}` reads the frame block of cameras, but the per-frame data has none; add it with FrameData::frame_block and Executor::set_frame before the first frame"
+    )]
+    NoFrameBlock { pass: String },
+
+    /// `FrameData::frame_block` twice on one frame.
+    #[error("the frame block is added twice to one frame's data")]
+    DuplicateFrameBlock,
+
     /// `Executor::submit_frame` without `ExecOptions::read_back_exports`.
     #[error("submit_frame reads exported resources back, which needs ExecOptions::read_back_exports = true")]
     ReadbackDisabled,

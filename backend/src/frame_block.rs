@@ -5,17 +5,13 @@
 //! two declarations together through the SPIR-V's member offsets.
 //!
 //! [`FrameClock`] turns each frame's cameras into a block, remembering last frame's; the block
-//! travels as the [`FRAME_BLOCK_SECTION`] section of the per-frame data ([`crate::FrameData`]).
-//! The frame index and the history flag have one source, the executor ([`FrameConstants`]): it
-//! writes them into the frame constants every kernel sees and into this block's header when it
-//! submits the frame, so the two always agree (a plan change or `Executor::reset_history` clears
-//! the flag in both).
+//! travels in the per-frame data ([`crate::FrameData::frame_block`]), and kernels find it with
+//! [`crate::Recorder::frame_block_address`]. The frame index and the history flag are not in
+//! the block: the executor alone writes them, once per frame, into the frame constants every
+//! kernel sees ([`FrameConstants`]; a plan change or `Executor::reset_history` clears the flag).
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
-
-/// Name of the per-frame data section that holds the frame block, by convention.
-pub const FRAME_BLOCK_SECTION: &str = "frame";
 
 /// One camera as shaders see it (`GpuCamera` in frame_block.glsl). Matrices are column-major,
 /// as GLSL's `mat4`.
@@ -46,9 +42,8 @@ impl GpuCamera {
     }
 }
 
-/// The frame index and history flag of one frame, as the executor writes them at submission:
-/// the frame constants of bindless.glsl (`frame.frame_index`, `frame.history_valid`) and the first
-/// two words of the frame block's header ([`FrameHeader`]) have this layout.
+/// The frame index and history flag of one frame, as the executor writes them at submission
+/// into the frame constants of bindless.glsl (`frame.frame_index`, `frame.history_valid`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct FrameConstants {
@@ -64,8 +59,8 @@ impl FrameConstants {
         Self { frame_index: frame as u32, history_valid: u32::from(history_valid) }
     }
 
-    /// Writes these constants over the first 8 bytes of `header` (a frame block's header, or the
-    /// frame constants buffer), if it is that long.
+    /// Writes these constants over the first 8 bytes of `header` (the frame constants buffer),
+    /// if it is that long.
     pub(crate) fn write_into(&self, header: &mut [u8]) {
         if let Some(words) = header.get_mut(..size_of::<Self>()) {
             words.copy_from_slice(bytemuck::bytes_of(self));
@@ -77,11 +72,9 @@ impl FrameConstants {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct FrameHeader {
-    /// Written by the executor when it submits the frame ([`FrameConstants`]); a block built on
-    /// the host carries zeros here.
-    pub constants: FrameConstants,
     pub view_count: u32,
-    pub pad: u32,
+    /// Keeps the views 16-byte aligned, as their matrices are in GLSL.
+    pub pad: [u32; 3],
 }
 
 /// The cameras of one view (`ViewCameras` in frame_block.glsl).
@@ -130,11 +123,7 @@ impl FrameClock {
             .enumerate()
             .map(|(v, &current)| ViewCameras { current, previous: previous.map_or(current, |p| p[v]) })
             .collect();
-        let header = FrameHeader {
-            constants: FrameConstants::default(),
-            view_count: u32::try_from(cameras.len()).unwrap_or(u32::MAX),
-            pad: 0,
-        };
+        let header = FrameHeader { view_count: u32::try_from(cameras.len()).unwrap_or(u32::MAX), pad: [0; 3] };
         self.last = Some(cameras.to_vec());
         FrameBlock { header, views }
     }
@@ -152,7 +141,7 @@ mod tests {
     fn previous_is_last_frames_current_while_the_views_stay() {
         let mut clock = FrameClock::new();
         let first = clock.advance(&[camera(1.0), camera(2.0)]);
-        assert_eq!(first.header, FrameHeader { constants: FrameConstants::default(), view_count: 2, pad: 0 });
+        assert_eq!(first.header, FrameHeader { view_count: 2, pad: [0; 3] });
         assert!(first.views.iter().all(|v| v.previous == v.current));
         let second = clock.advance(&[camera(3.0), camera(4.0)]);
         assert_eq!(second.views[0].previous, camera(1.0));
@@ -162,10 +151,10 @@ mod tests {
     }
 
     #[test]
-    fn the_executors_constants_go_over_the_headers_first_words() {
-        let mut bytes = FrameClock::new().advance(&[camera(1.0)]).to_bytes();
+    fn the_executors_constants_are_the_frame_index_modulo_two_to_the_32_then_the_flag() {
+        let mut bytes = [0xffu8; 12];
         FrameConstants::new(u64::from(u32::MAX) + 3, true).write_into(&mut bytes);
-        assert_eq!(&bytes[..12], &[2u32.to_le_bytes(), 1u32.to_le_bytes(), 1u32.to_le_bytes()].concat());
+        assert_eq!(bytes.to_vec(), [2u32.to_le_bytes(), 1u32.to_le_bytes(), [0xff; 4]].concat());
         let mut short = [0u8; 4];
         FrameConstants::new(1, true).write_into(&mut short);
         assert_eq!(short, [0; 4], "too short to hold them: left alone");
@@ -176,7 +165,7 @@ mod tests {
         let block = FrameClock::new().advance(&[camera(1.0)]);
         let bytes = block.to_bytes();
         assert_eq!(bytes.len(), 16 + 320);
-        assert_eq!(&bytes[8..12], &1u32.to_le_bytes());
+        assert_eq!(&bytes[..4], &1u32.to_le_bytes());
         // The inverse really is one: the translation's inverse moves back.
         let inverse = Mat4::from_cols_array_2d(&block.views[0].current.inv_view_proj);
         assert_eq!(inverse.transform_point3(Vec3::new(1.0, 0.0, 0.0)), Vec3::ZERO);

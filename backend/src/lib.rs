@@ -115,9 +115,7 @@ pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, Result};
 pub use executor::{Barriers, ExecOptions, Executor, FaultInjection, Timing};
-pub use frame_block::{
-    FRAME_BLOCK_SECTION, FrameBlock, FrameClock, FrameConstants, FrameHeader, GpuCamera, ViewCameras,
-};
+pub use frame_block::{FrameBlock, FrameClock, FrameConstants, FrameHeader, GpuCamera, ViewCameras};
 pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use frame_stats::{EventTotals, FrameStats, SUMMARY_SAMPLE, Summary};
 pub use instance::{Instance, Validation, validation_from_env};

@@ -169,6 +169,7 @@ pub(crate) struct SegmentContext<'a> {
     pub global_buffers: &'a HashMap<String, (u64, u64)>,
     pub frame_data_address: u64,
     pub frame_sections: &'a [(String, u64)],
+    pub frame_block: Option<u64>,
     /// Per-view buffer resources of this device and their addresses.
     pub buffers: &'a HashMap<usize, crate::memory::Buffer>,
     pub buffer_addresses: &'a HashMap<usize, u64>,
@@ -310,6 +311,7 @@ fn record_passes(
         global_buffers: ctx.global_buffers,
         frame_data_address: ctx.frame_data_address,
         frame_sections: ctx.frame_sections,
+        frame_block: ctx.frame_block,
         buffers: ctx.buffers,
         buffer_addresses: ctx.buffer_addresses,
         plan: ctx.plan,
@@ -359,30 +361,47 @@ fn record_readback(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
     if ctx.readback.is_empty() {
         return;
     }
-    let raw = ctx.raw;
-    full_barrier(raw, cb);
+    full_barrier(ctx.raw, cb);
     for &(exported, target) in ctx.readback {
         // A history allocation's frame writes the half its parity selects.
         let r = ctx.resolve(exported);
-        let resource = &ctx.plan.resources[r];
-        unsafe {
-            if let Some(image) = ctx.images.get(&r) {
-                let region = vk::BufferImageCopy::default()
-                    .image_subresource(image.layers())
-                    .image_extent(vk::Extent3D { width: resource.width, height: resource.height, depth: 1 });
-                raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, target, &[region]);
-            } else if let Some(buffer) = ctx.buffers.get(&r) {
-                let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: resource.bytes() };
-                raw.cmd_copy_buffer(cb, buffer.raw, target, &[region]);
-            }
+        record_copy_to_host_buffer(ctx.raw, cb, (ctx.images, ctx.buffers), r, &ctx.plan.resources[r], target);
+    }
+    copies_to_host_barrier(ctx.raw, cb);
+}
+
+/// Records the copy of the whole of `resource` of this device (`desc` describes it) into
+/// `target`: an image as tightly packed rows, a buffer byte for byte. Both readbacks copy
+/// through it — the frame loop's ([`record_readback`]) and `Executor::read_resource` — so they
+/// lay the bytes out alike. The caller orders it after the writes ([`full_barrier`]) and before
+/// the host's read ([`copies_to_host_barrier`]); a resource the device does not hold copies
+/// nothing.
+pub(crate) fn record_copy_to_host_buffer(
+    raw: &ash::Device,
+    cb: vk::CommandBuffer,
+    (images, buffers): (&HashMap<usize, Image>, &HashMap<usize, crate::memory::Buffer>),
+    resource: usize,
+    desc: &crate::plan::ExecResource,
+    target: vk::Buffer,
+) {
+    unsafe {
+        if let Some(image) = images.get(&resource) {
+            let region = vk::BufferImageCopy::default().image_subresource(image.layers()).image_extent(vk::Extent3D {
+                width: desc.width,
+                height: desc.height,
+                depth: 1,
+            });
+            raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, target, &[region]);
+        } else if let Some(buffer) = buffers.get(&resource) {
+            let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: desc.bytes() };
+            raw.cmd_copy_buffer(cb, buffer.raw, target, &[region]);
         }
     }
-    copies_to_host_barrier(raw, cb);
 }
 
 /// Makes the bytes of earlier copies available to the host domain (a device reading them
 /// through shared host memory, or the host itself).
-fn copies_to_host_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
+pub(crate) fn copies_to_host_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
     let to_host = [vk::MemoryBarrier2::default()
         .src_stage_mask(vk::PipelineStageFlags2::COPY)
         .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)

@@ -99,6 +99,8 @@ pub struct Recorder<'a> {
     pub(crate) frame_data_address: u64,
     /// Named sections of the per-frame data and their offsets from `frame_data_address`.
     pub(crate) frame_sections: &'a [(String, u64)],
+    /// Offset of the frame block from `frame_data_address`, if the frame data has one.
+    pub(crate) frame_block: Option<u64>,
     pub(crate) buffers: &'a HashMap<usize, Buffer>,
     pub(crate) buffer_addresses: &'a HashMap<usize, u64>,
     pub(crate) plan: &'a ExecutionPlan,
@@ -342,6 +344,14 @@ impl<'a> Recorder<'a> {
                 name: name.to_string(),
                 known: self.frame_sections.iter().map(|(n, _)| n.clone()).collect(),
             })
+    }
+
+    /// GPU address of the frame block of cameras (see `FrameData::frame_block`), in this
+    /// frame-in-flight slot's copy.
+    pub fn frame_block_address(&self) -> Result<u64> {
+        self.frame_block
+            .map(|offset| self.frame_data_address + offset)
+            .ok_or_else(|| BackendError::NoFrameBlock { pass: self.pass.to_string() })
     }
 
     /// The [`PassParams`] of a kernel that writes image `dst` over `pass`'s row band: `dst`,

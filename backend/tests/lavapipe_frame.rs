@@ -7,9 +7,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor, FRAME_BLOCK_SECTION,
-    FrameBlock, FrameClock, FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder, ViewCameras,
-    WriteSlot, check_push_constants,
+    BackendError, Context, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor, FrameBlock, FrameClock,
+    FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder, ViewCameras, WriteSlot, check_push_constants,
 };
 use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
 use parallax_testkit::kernels::reference_mask;
@@ -85,14 +84,12 @@ fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
     assert_eq!(
         offsets(&block),
         vec![
-            ("frame_index", offset_of!(FrameHeader, constants.frame_index) as u32),
-            ("history_valid", offset_of!(FrameHeader, constants.history_valid) as u32),
             ("view_count", offset_of!(FrameHeader, view_count) as u32),
             ("pad", offset_of!(FrameHeader, pad) as u32),
             ("views", size_of::<FrameHeader>() as u32),
         ]
     );
-    assert_eq!(block[4].array_stride, Some(size_of::<ViewCameras>() as u32));
+    assert_eq!(block[2].array_stride, Some(size_of::<ViewCameras>() as u32));
     // Kernels' parameter structs are held against their push-constant blocks as a dispatch does.
     let fill = parallax_testkit::shaders().spirv("test_frame_fill").unwrap();
     assert_eq!(check_push_constants::<FrameFillParams>(&fill), Ok(()));
@@ -119,7 +116,7 @@ impl PassKernel for FrameFillKernel {
             view: pass.view,
             width: SIZE,
             height: SIZE,
-            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            block: rec.frame_block_address()?,
             section: rec.frame_section_address(FILL_SECTION)?,
         };
         rec.dispatch("test_frame_fill", &params, [SIZE.div_ceil(8), SIZE.div_ceil(8), 1])
@@ -154,7 +151,7 @@ fn gather_plan() -> ExecutionPlan {
 /// This frame's data: the frame block, then the fill pass's salt.
 fn frame_data(block: &FrameBlock, salt: u32) -> FrameData {
     let mut data = FrameData::new();
-    data.section(FRAME_BLOCK_SECTION, &block.to_bytes()).unwrap();
+    data.frame_block(block).unwrap();
     data.section(FILL_SECTION, &salt.to_le_bytes()).unwrap();
     data
 }
@@ -208,11 +205,11 @@ fn the_frame_loop_reads_back_every_frames_exports_with_two_frames_in_flight() {
     assert_eq!(exec.recordings(), 1, "the same sections every frame: recorded once");
     // Another layout is recorded again; a missing section is an error naming it.
     let mut only_block = FrameData::new();
-    only_block.section(FRAME_BLOCK_SECTION, &clock.advance(&[camera(9, 0), camera(9, 1)]).to_bytes()).unwrap();
+    only_block.frame_block(&clock.advance(&[camera(9, 0), camera(9, 1)])).unwrap();
     exec.set_frame(&only_block).unwrap();
     match exec.submit_frame() {
         Err(BackendError::UnknownFrameSection { name, known }) => {
-            assert_eq!((name.as_str(), known), (FILL_SECTION, vec![FRAME_BLOCK_SECTION.to_string()]));
+            assert_eq!((name.as_str(), known), (FILL_SECTION, Vec::<String>::new()));
         }
         other => panic!("expected UnknownFrameSection, got {other:?}"),
     }
@@ -232,7 +229,7 @@ struct FrameProbeKernel {
 impl PassKernel for FrameProbeKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
         let push = FrameBlockProbe {
-            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            block: rec.frame_block_address()?,
             target: rec.buffer_of(pass.writes[0].resource)?,
             max_views: self.views,
             pad: 0,
@@ -258,7 +255,7 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
     let plan = ExecutionPlan::single_pass("frame_probe", FrameProbeKernel { views: VIEWS }, probe, 1);
     let ctx = context(1);
     let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
-    let mut exec = Executor::new(&ctx, plan, options).unwrap();
+    let mut exec = Executor::new(&ctx, plan.clone(), options.clone()).unwrap();
     let mut clock = FrameClock::new();
     let mut tickets = Vec::new();
     for frame in 0..FRAMES {
@@ -267,7 +264,7 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
         }
         let cameras: Vec<GpuCamera> = (0..VIEWS).map(|v| camera(frame, v)).collect();
         let mut data = FrameData::new();
-        data.section(FRAME_BLOCK_SECTION, &clock.advance(&cameras).to_bytes()).unwrap();
+        data.frame_block(&clock.advance(&cameras)).unwrap();
         exec.set_frame(&data).unwrap();
         tickets.push(exec.submit_frame().unwrap());
     }
@@ -275,7 +272,7 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
         let readback = exec.wait_readback(ticket).unwrap();
         let got = words(&readback[0].1);
         let history = frame != 0 && frame != CUT;
-        assert_eq!(got[..3], [frame, u32::from(history), VIEWS], "header of frame {frame}");
+        assert_eq!(got[..3], [frame, u32::from(history), VIEWS], "frame constants and view count of frame {frame}");
         for view in 0..VIEWS {
             let at = 3 + (view * 76) as usize;
             // The clock keeps last frame's camera over a cut; the executor's flag says not to use it.
@@ -290,5 +287,13 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
     }
     assert!(exec.recordings() == 1);
     drop(exec);
+    // A frame whose data has no block is refused when recorded, naming the pass that reads it.
+    let mut without_block = Executor::new(&ctx, plan, options).unwrap();
+    without_block.set_frame(&FrameData::whole(&[0; 16])).unwrap();
+    match without_block.run_frame() {
+        Err(BackendError::NoFrameBlock { pass }) => assert_eq!(pass, "frame_probe"),
+        other => panic!("expected NoFrameBlock, got {other:?}"),
+    }
+    drop(without_block);
     ctx.check_validation().unwrap();
 }

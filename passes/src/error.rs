@@ -25,13 +25,9 @@ pub enum PassError {
     #[error("view {position} of the list has index {index}; trace parameters must list views 0, 1, 2, ... in order")]
     ViewOrder { position: usize, index: u32 },
 
-    /// Every view a pass of the plan traces needs its parameters.
-    #[error("the plan traces views 0..{plan_views} but parameters were given for {given}")]
+    /// Every frame gives the parameters of every view of the plan, no more and no fewer.
+    #[error("the plan has views 0..{plan_views} but a frame gave {given} views")]
     MissingViews { plan_views: u32, given: usize },
-
-    /// Per-view trace parameters do not fit into the executor's per-frame data.
-    #[error("{views} views need {bytes} bytes of per-frame data (ExecOptions::frame_data_bytes is {capacity})")]
-    TooManyViews { views: usize, bytes: usize, capacity: u64 },
 
     /// A plan lacks an image or buffer this crate looks up by name.
     #[error("the plan has no resource `{name}` for view {view}")]

@@ -9,7 +9,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::path_trace::TRACE_PARAMS_BYTES;
@@ -65,7 +65,7 @@ impl PassKernel for GbufferKernel {
         let push = GbufferPush {
             scene: scene_refs(rec)?,
             trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
-            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            block: rec.frame_block_address()?,
             position_depth: rec.image(position_depth)?,
             normal_metallic: image(rec, self.normal_metallic)?,
             albedo_roughness: image(rec, self.albedo_roughness)?,
@@ -113,7 +113,7 @@ impl PassKernel for MotionKernel {
         let desc = rec.resource(position.resource);
         let (width, height) = (desc.width, desc.height);
         let push = MotionPush {
-            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            block: rec.frame_block_address()?,
             position_depth: rec.image(position.resource)?,
             motion: rec.image(motion.resource)?,
             view: pass.view,

@@ -16,13 +16,14 @@
 //! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
 //!   and `hole_fill` ([`hole_fill`]: the lists of all target bands of a device path traced by
 //!   one indirect dispatch); [`hole_bench`] times it.
-//! * [`trace`]: the graph declaring path tracing per view, and [`GpuTracer`], which runs it.
+//! * [`trace`]: the graph declaring path tracing per view; [`LightFieldRenderer`] (the one
+//!   runner of plans, [`renderer`]) traces it ([`LightFieldRenderer::trace`]).
 //! * [`reproject`] and [`view_bound`]: the gather of targets from their sources, and the bound
 //!   on view-dependence that decides which pixels it may reuse.
 //!
 //! ```no_run
 //! use parallax_backend::{Context, ContextDesc, DeviceSelection};
-//! use parallax_passes::{GpuTracer, trace_plan};
+//! use parallax_passes::{LightFieldRenderer, trace_plan};
 //! use parallax_scene::{default_scene, gpu::GpuScene, SceneBvh, TraceSettings, View};
 //!
 //! let scene = default_scene();
@@ -30,9 +31,9 @@
 //! let context = Context::new(&ContextDesc::from_env(DeviceSelection::FakeDevices(2)))?;
 //! // One 64x48 view in row bands over two devices, gathered on device 0.
 //! let plan = trace_plan(1, 1, (64, 48), 2, parallax_graph::Scheme::FineAll, None)?;
-//! let mut tracer = GpuTracer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
+//! let mut renderer = LightFieldRenderer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
 //! let view = View { camera: scene.default_camera(), width: 64, height: 48, index: 0 };
-//! let pixels = tracer.render(&scene, &[view], &TraceSettings::default())?;
+//! let pixels = renderer.trace(&scene, &[view], &TraceSettings::default())?;
 //! assert_eq!(pixels[0].len(), 64 * 48);
 //! # Ok::<(), parallax_passes::PassError>(())
 //! ```
@@ -78,7 +79,8 @@ pub use raycast::{
     HitOut, RAYCAST, RAYCAST_WORK, RayIn, RaySchedule, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu,
     random_rays,
 };
+pub use renderer::LightFieldRenderer;
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
 pub use svgf::{DENOISED, SvgfInputs, declare_svgf};
 pub use tonemap::{DISPLAY, TONEMAP, TonemapError, declare_tonemap, declare_tonemap_scaled, tonemap_pixel};
-pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_plan};
+pub use trace::{banded_trace_plan, declare_trace, trace_plan};

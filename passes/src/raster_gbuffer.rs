@@ -10,8 +10,8 @@
 //!   in depth.
 //! * Vertices come from the uploaded scene ([`crate::upload_scene`]) by buffer address: one
 //!   non-indexed draw of three vertices per BVH-ordered triangle.
-//! * The camera is this view's current one in the frame block ([`FRAME_BLOCK_SECTION`] of the
-//!   per-frame data, `FrameClock::advance`); [`raster_camera`] builds the one whose pixel
+//! * The camera is this view's current one in the frame block (`FrameData::frame_block`,
+//!   `FrameClock::advance`); [`raster_camera`] builds the one whose pixel
 //!   centres see exactly the path tracer's primary rays (jitter off), with a near plane and
 //!   no far plane, so the depth attachment holds `1 - near / linear_depth`.
 //! * A row band renders its rows only: the scissor and render area are the band, the viewport
@@ -23,8 +23,7 @@ use std::sync::Arc;
 
 use glam::Vec2;
 use parallax_backend::{
-    BackendError, Draw, ExecPass, FRAME_BLOCK_SECTION, Format, GpuCamera, KernelGraph, PassKernel, Recorder,
-    ResourceKind,
+    BackendError, Draw, ExecPass, Format, GpuCamera, KernelGraph, PassKernel, Recorder, ResourceKind,
 };
 use parallax_graph::{Handle, Image, Role, WriteSlot};
 use parallax_scene::View;
@@ -89,12 +88,8 @@ impl PassKernel for GbufferRasterKernel {
         let triangles = triangle_bytes / std::mem::size_of::<GpuTriangle>() as u64;
         let vertex_count = u32::try_from(3 * triangles)
             .map_err(|_| misuse(index, format!("{triangles} triangles exceed one draw's vertex count")))?;
-        let push = GbufferRasterPush {
-            scene: scene_refs(rec)?,
-            frame: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
-            view: pass.view,
-            pad: 0,
-        };
+        let push =
+            GbufferRasterPush { scene: scene_refs(rec)?, frame: rec.frame_block_address()?, view: pass.view, pad: 0 };
         rec.draw(
             &Draw {
                 vertex_shader: "gbuffer_raster.vert",

@@ -1,6 +1,8 @@
-//! [`LightFieldRenderer`]: runs a compiled light-field pipeline frame after frame on a scene,
-//! with the per-frame data every pass reads (each view's `GpuTraceParams` as the unnamed blob,
-//! the frame block of current and previous cameras as section `frame`), and reads layers back.
+//! [`LightFieldRenderer`], the one runner of execution plans over views: it runs a compiled
+//! plan (a light-field pipeline, or path tracing alone: [`crate::trace`]) frame after frame on a
+//! scene, with the per-frame data every pass reads (each view's `GpuTraceParams` as the unnamed
+//! blob, the frame block of current and previous cameras after it), and reads a
+//! layer's final version back ([`LightFieldRenderer::read`]), whichever devices wrote its bands.
 //!
 //! The frame loop keeps the GPU fed: the command buffers are recorded once and resubmitted
 //! while the plan is unchanged (only the per-frame data changes), up to the executor's
@@ -11,8 +13,7 @@
 use std::time::Instant;
 
 use parallax_backend::{
-    Context, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, FrameReport, FrameStats,
-    Summary,
+    Context, ExecOptions, ExecutionPlan, Executor, FrameClock, FrameData, FrameReport, FrameStats, Region, Summary,
 };
 use parallax_scene::gpu::{GpuScene, TraceLighting};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -25,7 +26,7 @@ use crate::scene_upload::upload_scene;
 /// Bytes of one view's cameras in the frame block (current and previous `GpuCamera`).
 const FRAME_BLOCK_VIEW_BYTES: u64 = 2 * std::mem::size_of::<parallax_backend::GpuCamera>() as u64;
 
-/// Runs an execution plan of a light-field pipeline.
+/// Runs an execution plan over views: a light-field pipeline, or path tracing alone.
 pub struct LightFieldRenderer {
     executor: Executor,
     clock: FrameClock,
@@ -42,20 +43,21 @@ pub struct LightFieldRenderer {
 }
 
 impl LightFieldRenderer {
-    /// Creates the executor for `plan` (a pipeline over `views` views) and uploads `scene`.
-    pub fn new(context: &Context, plan: ExecutionPlan, views: u32, scene: &GpuScene<'_>) -> Result<Self> {
-        Self::with_options(context, plan, views, scene, ExecOptions::default())
+    /// Creates the executor for `plan` and uploads `scene`. The plan's views are those its
+    /// passes and resources name (views `0..n`): every frame gives that many.
+    pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
+        Self::with_options(context, plan, scene, ExecOptions::default())
     }
 
-    /// [`Self::new`] with other executor options (barrier placement, timing, ...); the per-frame
-    /// data capacity is raised to what the views need.
+    /// [`Self::new`] with other executor options (user shaders, barrier placement, timing, ...);
+    /// the per-frame data capacity is raised to what the views need.
     pub fn with_options(
         context: &Context,
         plan: ExecutionPlan,
-        views: u32,
         scene: &GpuScene<'_>,
         options: ExecOptions,
     ) -> Result<Self> {
+        let views = plan_views(&plan);
         // Every view's trace parameters, then the frame block (header + cameras), aligned.
         let needed = u64::from(views) * (TRACE_PARAMS_BYTES + FRAME_BLOCK_VIEW_BYTES) + 2 * 256 + 16;
         let options = ExecOptions { frame_data_bytes: options.frame_data_bytes.max(needed), ..options };
@@ -84,7 +86,7 @@ impl LightFieldRenderer {
         let started = Instant::now();
         let lighting = TraceLighting::with_emissive_triangles(scene, self.emissive_triangles);
         let mut data = FrameData::whole(&trace_frame_data_lit(&lighting, views, settings)?);
-        data.section(FRAME_BLOCK_SECTION, &frame_block(&mut self.clock, views).to_bytes())?;
+        data.frame_block(&frame_block(&mut self.clock, views))?;
         self.executor.set_frame(&data)?;
         self.prepare_ms.add(started.elapsed().as_secs_f64() * 1e3);
         self.frames += 1;
@@ -148,40 +150,28 @@ impl LightFieldRenderer {
         self.kept = keep.then(Vec::new);
     }
 
-    /// The final contents of slot `slot` of `view` after the last frame (read from device 0
-    /// where it was gathered, else from the device that wrote it), as raw texels.
+    /// The final version of slot `slot` of `view` after the last frame, whole, as tightly packed
+    /// rows (images) or bytes (buffers). Each row band comes from device 0 where it was written
+    /// there or gathered, else from the device whose instance wrote it (a fine scheme leaves the
+    /// bands of a layer that is not gathered on different devices); a layer whole in one
+    /// allocation is read once, without stitching.
     pub fn read(&mut self, slot: &str, view: u32) -> Result<Vec<u8>> {
-        let (device, resource) = self
-            .executor
-            .plan()
-            .final_output(slot, view)
+        let bands = final_bands(self.executor.plan(), slot, view)
             .ok_or_else(|| PassError::MissingResource { name: slot.into(), view })?;
-        Ok(self.executor.read_resource(device, resource)?)
-    }
-
-    /// Slot `slot` of `view` after the last frame, whole, as tightly packed rows: each row band
-    /// read on the device whose instance wrote its final version there (a fine scheme leaves
-    /// the bands of a layer that is not gathered on different devices).
-    pub fn read_stitched(&mut self, slot: &str, view: u32) -> Result<Vec<u8>> {
-        let missing = || PassError::MissingResource { name: slot.into(), view };
-        let plan = self.executor.plan();
-        let writes = || {
-            plan.passes
-                .iter()
-                .filter(move |p| p.view == view)
-                .flat_map(move |p| p.writes.iter().filter(move |w| w.slot == slot).map(move |w| (p.device, w)))
-        };
-        let version = writes().map(|(_, w)| w.version).max().ok_or_else(missing)?;
-        let bands: Vec<(usize, usize, u32, u32)> = writes()
-            .filter(|(_, w)| w.version == version)
-            .map(|(d, w)| (d, w.resource, w.rows.y0, w.rows.y1))
-            .collect();
-        let desc = plan.resources[bands[0].1].clone();
-        let row_bytes = desc.row_bytes() as usize;
-        let mut out = vec![0u8; row_bytes * desc.height as usize];
-        for (device, resource, y0, y1) in bands {
-            let bytes = self.executor.read_resource(device, resource)?;
-            let (a, b) = (y0 as usize * row_bytes, y1 as usize * row_bytes);
+        let (device, resource, _) = bands[0];
+        if bands.iter().all(|&(d, r, _)| (d, r) == (device, resource)) {
+            return Ok(self.executor.read_resource(device, resource)?);
+        }
+        let row_bytes = self.executor.plan().resources[resource].row_bytes() as usize;
+        let mut out = vec![0u8; row_bytes * self.executor.plan().resources[resource].height as usize];
+        let mut read: Option<((usize, usize), Vec<u8>)> = None;
+        for (device, resource, rows) in bands {
+            // Bands are in write order, so the bands of one allocation are read together.
+            if read.as_ref().is_none_or(|(at, _)| *at != (device, resource)) {
+                read = Some(((device, resource), self.executor.read_resource(device, resource)?));
+            }
+            let bytes = &read.as_ref().expect("read above").1;
+            let (a, b) = (rows.y0 as usize * row_bytes, rows.y1 as usize * row_bytes);
             out[a..b].copy_from_slice(&bytes[a..b]);
         }
         Ok(out)
@@ -196,5 +186,95 @@ impl LightFieldRenderer {
 
     pub fn executor(&mut self) -> &mut Executor {
         &mut self.executor
+    }
+}
+
+/// Views of `plan`: one more than the highest view its passes and resources name.
+fn plan_views(plan: &ExecutionPlan) -> u32 {
+    let passes = plan.passes.iter().map(|p| p.view + 1);
+    passes.chain(plan.resources.iter().map(|r| r.view + 1)).max().unwrap_or(0)
+}
+
+/// Where each row band of the final version of `slot` of `view` can be read after a frame, as
+/// `(device, resource, rows)` in write order: on device 0 where the band was written or
+/// gathered there, else on the device that wrote it. `None` when no pass writes `slot` there.
+pub(crate) fn final_bands(plan: &ExecutionPlan, slot: &str, view: u32) -> Option<Vec<(usize, usize, Region)>> {
+    let writes = || {
+        plan.passes
+            .iter()
+            .filter(move |p| p.view == view)
+            .flat_map(move |p| p.writes.iter().filter(move |w| w.slot == slot).map(move |w| (p.device, w)))
+    };
+    let version = writes().map(|(_, w)| w.version).max()?;
+    let bands = writes()
+        .filter(|(_, w)| w.version == version)
+        .map(|(device, w)| {
+            let gathered = (device != 0)
+                .then(|| {
+                    plan.copies
+                        .iter()
+                        .find(|c| c.to == 0 && c.resource == w.resource && c.version == w.version && c.rows == w.rows)
+                })
+                .flatten();
+            match gathered {
+                Some(copy) => (0, copy.dst, w.rows),
+                None => (device, w.resource, w.rows),
+            }
+        })
+        .collect();
+    Some(bands)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+    use parallax_graph::{BandedPlacement, Format, Role, ViewTopology, compile};
+
+    use super::*;
+
+    /// Records nothing: these plans are only inspected.
+    struct Idle;
+
+    impl PassKernel for Idle {
+        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// One 8×6 view written in three row bands over three devices, `gathered` on device 0 or not.
+    fn banded(gathered: bool) -> ExecutionPlan {
+        let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 6));
+        let mut layer = graph.image("layer", Format::Rgba32f);
+        graph.pass("write", Role::All).write(&mut layer).kernel(Arc::new(Idle)).record();
+        if gathered {
+            graph.export(&layer);
+        } else {
+            // Something must read the layer for it to be live.
+            graph.pass("read", Role::All).read(&layer).side_effect().kernel(Arc::new(Idle)).record();
+        }
+        let schedule = compile(&graph, &BandedPlacement { devices: 3, bands: 3 }).unwrap();
+        ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+    }
+
+    #[test]
+    fn a_gathered_layer_is_read_whole_from_device_0() {
+        let plan = banded(true);
+        let bands = final_bands(&plan, "layer", 0).unwrap();
+        assert_eq!(bands.iter().map(|b| b.2).collect::<Vec<_>>(), Region::bands(6, 3));
+        assert!(bands.iter().all(|&(d, r, _)| (d, r) == (0, bands[0].1)), "{bands:?}");
+    }
+
+    #[test]
+    fn bands_left_where_they_were_written_are_read_from_their_devices() {
+        let plan = banded(false);
+        let bands = final_bands(&plan, "layer", 0).unwrap();
+        assert_eq!(bands.iter().map(|&(d, _, rows)| (d, rows)).collect::<Vec<_>>(), {
+            let rows = Region::bands(6, 3);
+            vec![(0, rows[0]), (1, rows[1]), (2, rows[2])]
+        });
+        assert_eq!(final_bands(&plan, "missing", 0), None);
+        assert_eq!(final_bands(&plan, "layer", 1), None, "the plan has one view");
     }
 }

@@ -15,7 +15,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, FRAME_BLOCK_SECTION, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, SourcesSlot, WriteSlot};
 
 use crate::error::{PassError, Result};
@@ -151,7 +151,7 @@ impl PassKernel for ReprojectKernel {
         }
         let t = self.tolerances;
         let push = ReprojectPush {
-            block: rec.frame_section_address(FRAME_BLOCK_SECTION)?,
+            block: rec.frame_block_address()?,
             trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
             position_depth: rec.image(position_depth)?,
             normal_metallic: image(rec, slots.normal_metallic)?,

@@ -1,26 +1,22 @@
-//! Path tracing views through the framework: the graphs that declare it, and [`GpuTracer`],
-//! which runs a plan of `path_trace` (and `pixel_list`) passes on a scene and reads the views
-//! back. `parallax trace` and the GPU tests use it; the light-field pipelines will declare the
-//! same pass among their others.
+//! Path tracing views through the framework: the graphs that declare it, and the runner's
+//! methods for a plan of `path_trace` (and `pixel_list`) passes ([`LightFieldRenderer::trace`]),
+//! which trace the views and decode their pixels. `parallax trace`, `parallax reference` and
+//! the GPU tests use them; the light-field pipelines declare the same pass among their others.
 
 use std::sync::Arc;
 
-use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecutionPlan, Executor, KernelGraph, ResourceKind, ShaderLibrary,
-};
+use parallax_backend::{BackendError, ExecutionPlan, KernelGraph, ResourceKind};
 use parallax_graph::{
     AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
     Scheme, ViewTopology, compile,
 };
-use parallax_scene::gpu::{GpuPixel, GpuScene};
+use parallax_scene::gpu::GpuPixel;
 use parallax_scene::{Scene, TraceSettings, View};
 
 use crate::error::{PassError, Result};
-use crate::path_trace::{
-    PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, TRACE_PARAMS_BYTES, pixels_from_images, trace_frame_data,
-};
+use crate::path_trace::{PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images};
 use crate::pixel_list::{PIXEL_LIST, StridedPixelListKernel, StridedPixels, pixel_list_bytes};
-use crate::scene_upload::upload_scene;
+use crate::renderer::{LightFieldRenderer, final_bands};
 
 /// Declares, for every view, one `path_trace` pass writing the four [`TRACE_OUTPUTS`] images
 /// (all exported, so finished views end on device 0). With a pixel list (its capacity in
@@ -92,72 +88,29 @@ fn lower_trace(
     Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
 }
 
-/// Runs plans of `path_trace` passes on a scene and reads the traced views back.
-pub struct GpuTracer {
-    executor: Executor,
-    frame_data_bytes: u64,
-}
-
-impl GpuTracer {
-    /// Creates the executor for `plan` on `context` and uploads `scene`.
-    pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
-        Self::with_shaders(context, plan, scene, ShaderLibrary::new())
-    }
-
-    /// [`Self::new`] for plans whose kernels dispatch shaders of `shaders` (a user library).
-    pub fn with_shaders(
-        context: &Context,
-        plan: ExecutionPlan,
-        scene: &GpuScene<'_>,
-        shaders: ShaderLibrary,
-    ) -> Result<Self> {
-        // Room for every view's parameters, so a large light field is not refused for a buffer
-        // size the caller never chose.
-        let views = plan.resources.iter().map(|r| u64::from(r.view) + 1).max().unwrap_or(1);
-        let defaults = ExecOptions { shaders, ..ExecOptions::default() };
-        let options =
-            ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(views * TRACE_PARAMS_BYTES), ..defaults };
-        let frame_data_bytes = options.frame_data_bytes;
-        let mut executor = Executor::new(context, plan, options)?;
-        upload_scene(&mut executor, scene)?;
-        Ok(Self { executor, frame_data_bytes })
-    }
-
-    /// Traces one frame of every view of the plan (`views[i]` describes plan view `i`; its
-    /// size must match the plan's images) and returns each view's pixels, row-major. Pixels a
-    /// pass did not trace (outside a pixel list) keep their previous contents (zero at first).
-    pub fn render(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<GpuPixel>>> {
-        let plan_views = self.executor.plan().passes.iter().map(|p| p.view + 1).max().unwrap_or(0);
-        if (views.len() as u64) < u64::from(plan_views) {
-            return Err(PassError::MissingViews { plan_views, given: views.len() });
-        }
+impl LightFieldRenderer {
+    /// Traces one frame of every view of a plan of `path_trace` passes (`views[i]` describes
+    /// plan view `i`; its size must match the plan's images), waits for it, and returns each
+    /// view's pixels, row-major. Pixels a pass did not trace (outside a pixel list) keep their
+    /// previous contents (zero at first).
+    pub fn trace(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<GpuPixel>>> {
         for view in views {
-            self.check_view(view)?;
+            self.check_trace_view(view)?;
         }
-        let data = trace_frame_data(scene, views, settings)?;
-        if data.len() as u64 > self.frame_data_bytes {
-            return Err(PassError::TooManyViews {
-                views: views.len(),
-                bytes: views.len() * TRACE_PARAMS_BYTES as usize,
-                capacity: self.frame_data_bytes,
-            });
-        }
-        self.executor.set_frame_data(&data)?;
-        self.executor.run_frame()?;
-        self.executor.finish()?;
-        views.iter().map(|view| self.read_view(view)).collect()
+        self.submit(scene, views, settings)?;
+        self.finish()?;
+        views.iter().map(|view| self.read_pixels(view)).collect()
     }
 
-    /// The traced pixels of `view` (from device 0 where the view was gathered, else from the
-    /// device that traced it).
-    pub fn read_view(&mut self, view: &View) -> Result<Vec<GpuPixel>> {
-        self.check_view(view)?;
+    /// The traced pixels of `view` after the last frame: its [`TRACE_OUTPUTS`] decoded, the
+    /// first-hit layers the plan lacks left empty.
+    pub fn read_pixels(&mut self, view: &View) -> Result<Vec<GpuPixel>> {
+        self.check_trace_view(view)?;
         let mut layers: [Option<Vec<u8>>; 4] = Default::default();
         for (layer, name) in layers.iter_mut().zip(TRACE_OUTPUTS) {
-            let Some((device, resource)) = self.executor.plan().final_output(name, view.index) else {
-                continue;
-            };
-            *layer = Some(self.executor.read_resource(device, resource)?);
+            if final_bands(self.executor().plan(), name, view.index).is_some() {
+                *layer = Some(self.read(name, view.index)?);
+            }
         }
         if layers[0].is_none() {
             return Err(PassError::MissingResource { name: TRACE_OUTPUTS[0].into(), view: view.index });
@@ -165,13 +118,14 @@ impl GpuTracer {
         Ok(pixels_from_images(view.width, view.height, [0, 1, 2, 3].map(|k| layers[k].as_deref())))
     }
 
-    /// Every output image the plan has for `view` must be `view`-sized RGBA32F.
-    fn check_view(&self, view: &View) -> Result<()> {
+    /// Every trace output the plan has for `view` must be `view`-sized RGBA32F.
+    fn check_trace_view(&mut self, view: &View) -> Result<()> {
+        let plan = self.executor().plan();
         for name in TRACE_OUTPUTS {
-            let Some((_, resource)) = self.executor.plan().final_output(name, view.index) else {
+            let Some(bands) = final_bands(plan, name, view.index) else {
                 continue;
             };
-            let desc = &self.executor.plan().resources[resource];
+            let desc = &plan.resources[bands[0].1];
             if (desc.width, desc.height) != (view.width, view.height)
                 || desc.kind != ResourceKind::Image
                 || desc.format != Format::Rgba32f
@@ -188,10 +142,5 @@ impl GpuTracer {
             }
         }
         Ok(())
-    }
-
-    /// The executor (timing reports, validation).
-    pub fn executor(&mut self) -> &mut Executor {
-        &mut self.executor
     }
 }

@@ -39,13 +39,13 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
 
     // Views must have the size of the plan's images.
     let plan = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
-    let mut tracer = parallax_passes::GpuTracer::new(&ctx, plan, &gpu_scene).unwrap();
+    let mut tracer = parallax_passes::LightFieldRenderer::new(&ctx, plan, &gpu_scene).unwrap();
     let view = parallax_scene::View { camera: scene.default_camera(), width: 8, height: 4, index: 0 };
-    match tracer.render(&scene, &[view], &TraceSettings::default()) {
+    match tracer.trace(&scene, &[view], &TraceSettings::default()) {
         Err(PassError::ViewSize { view: 0, width: 8, height: 4, plan_width: 8, plan_height: 8, .. }) => {}
         other => panic!("expected ViewSize, got {other:?}"),
     }
-    match tracer.render(&scene, &[], &TraceSettings::default()) {
+    match tracer.trace(&scene, &[], &TraceSettings::default()) {
         Err(PassError::MissingViews { plan_views: 1, given: 0 }) => {}
         other => panic!("expected MissingViews, got {other:?}"),
     }

@@ -39,7 +39,7 @@ fn render(frames_in_flight: usize, frames: u32) -> Vec<(Vec<u8>, Vec<u8>)> {
     renderer.finish().unwrap();
     assert_eq!(renderer.stats().frames(), u64::from(frames), "every retired frame is folded");
     let out = (0..lf.len() as u32)
-        .map(|v| (renderer.read_stitched("denoised", v).unwrap(), renderer.read("display", v).unwrap()))
+        .map(|v| (renderer.read("denoised", v).unwrap(), renderer.read("display", v).unwrap()))
         .collect();
     assert_eq!(renderer.executor().recordings(), 1, "{frames_in_flight} in flight: recorded once");
     renderer.executor().check_validation().unwrap();

@@ -11,7 +11,7 @@ mod common;
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use parallax_backend::{EventKind, ExecPass, ExecutionPlan, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{EventKind, ExecOptions, ExecPass, ExecutionPlan, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{
     AssignStrategy, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, WriteSlot, compile,
 };
@@ -115,24 +115,24 @@ fn run_views(devices: u32, plan: ExecutionPlan, view_count: u32) -> Run {
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices as usize);
     let views = common::views(&scene, view_count, W, H);
-    let mut tracer = parallax_passes::GpuTracer::with_shaders(
-        &ctx,
-        plan.clone(),
-        &GpuScene::new(&scene, &bvh),
-        parallax_testkit::shaders(),
-    )
-    .unwrap();
-    let pixels = tracer.render(&scene, &views, &SETTINGS).unwrap();
+    let options = ExecOptions { shaders: parallax_testkit::shaders(), ..ExecOptions::default() };
+    let mut tracer =
+        parallax_passes::LightFieldRenderer::with_options(&ctx, plan.clone(), &GpuScene::new(&scene, &bvh), options)
+            .unwrap();
+    tracer.keep_reports(true);
+    let pixels = tracer.trace(&scene, &views, &SETTINGS).unwrap();
     let mut lists = Vec::new();
     for view in 0..view_count {
         // Only target views have lists, and only in hole-filling plans.
-        let Some((device, resource)) = tracer.executor().plan().final_output(HOLE_LIST, view) else { continue };
-        let bytes = tracer.executor().read_resource(device, resource).unwrap();
+        let bytes = match tracer.read(HOLE_LIST, view) {
+            Ok(bytes) => bytes,
+            Err(parallax_passes::PassError::MissingResource { .. }) => continue,
+            Err(other) => panic!("reading view {view}'s hole list: {other}"),
+        };
         lists.push((view, bytemuck::pod_collect_to_vec(&bytes)));
     }
     let fill_ops = tracer
-        .executor()
-        .reports()
+        .take_reports()
         .iter()
         .map(|r| {
             let fills = r.events.iter().filter(|e| e.kind == EventKind::Pass && e.name == HOLE_FILL);

@@ -11,9 +11,9 @@ use parallax_graph::{
     AssignStrategy, DeviceId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region, Scheme,
     ViewId, compile,
 };
+use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
-use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, default_scene};
@@ -79,8 +79,7 @@ fn run_with(
     let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(placement.devices() as usize);
     let bvh = SceneBvh::build(scene);
-    let mut renderer =
-        LightFieldRenderer::with_options(&ctx, exec, lf.len() as u32, &GpuScene::new(scene, &bvh), options).unwrap();
+    let mut renderer = LightFieldRenderer::with_options(&ctx, exec, &GpuScene::new(scene, &bvh), options).unwrap();
     renderer.keep_reports(true);
     let settings = TraceSettings { spp: 1, max_depth: 3, ..Default::default() };
     let mut out = Vec::new();
@@ -98,7 +97,7 @@ fn run_with(
         renderer.finish().unwrap();
         out.push(
             (0..lf.len() as u32)
-                .map(|v| (renderer.read_stitched("denoised", v).unwrap(), renderer.read("display", v).unwrap()))
+                .map(|v| (renderer.read("denoised", v).unwrap(), renderer.read("display", v).unwrap()))
                 .collect(),
         );
     }

@@ -10,8 +10,8 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use parallax_backend::{
-    ExecOptions, ExecPass, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, KernelGraph,
-    PassKernel, PassParams, Recorder, ShaderLibrary,
+    ExecOptions, ExecPass, ExecutionPlan, Executor, FrameClock, FrameData, KernelGraph, PassKernel, PassParams,
+    Recorder, ShaderLibrary,
 };
 use parallax_graph::{BandedPlacement, Format, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_passes::{RASTER_OUTPUTS, declare_gbuffer_raster, raster_camera, upload_scene};
@@ -89,7 +89,7 @@ fn render(scene: &Scene, views: &[View], devices: u32) -> Rendered {
     upload_scene(&mut exec, &GpuScene::new(scene, &bvh)).unwrap();
     let cameras: Vec<_> = views.iter().map(|v| raster_camera(v, NEAR).unwrap()).collect();
     let mut frame = FrameData::new();
-    frame.section(FRAME_BLOCK_SECTION, &FrameClock::new().advance(&cameras).to_bytes()).unwrap();
+    frame.frame_block(&FrameClock::new().advance(&cameras)).unwrap();
     exec.set_frame(&frame).unwrap();
     exec.run_frame().unwrap();
     let mut layers = Vec::new();

@@ -7,7 +7,7 @@ mod common;
 
 use parallax_backend::ExecutionPlan;
 use parallax_graph::Scheme;
-use parallax_passes::{GpuTracer, PATH_TRACE, StridedPixels, banded_trace_plan, strided_pixels, trace_plan};
+use parallax_passes::{LightFieldRenderer, PATH_TRACE, StridedPixels, banded_trace_plan, strided_pixels, trace_plan};
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
 
@@ -23,8 +23,8 @@ fn render(devices: usize, plan: ExecutionPlan) -> Vec<Vec<GpuPixel>> {
     let ctx = common::context(devices);
     let views = common::views(&scene, VIEWS, W, H);
     let settings = TraceSettings { spp: 2, max_depth: 3, frame: 7, ..Default::default() };
-    let mut tracer = GpuTracer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
-    let pixels = tracer.render(&scene, &views, &settings).unwrap();
+    let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
+    let pixels = tracer.trace(&scene, &views, &settings).unwrap();
     drop(tracer);
     ctx.check_validation().unwrap();
     pixels

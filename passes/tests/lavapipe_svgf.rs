@@ -20,7 +20,7 @@ use parallax_graph::{
 };
 use parallax_passes::path_trace::TRACE_PARAMS_BYTES;
 use parallax_passes::{
-    DENOISED, DISPLAY, GpuTracer, PATH_TRACE, PathTraceKernel, SvgfInputs, TRACE_OUTPUTS, banded_trace_plan,
+    DENOISED, DISPLAY, LightFieldRenderer, PATH_TRACE, PathTraceKernel, SvgfInputs, TRACE_OUTPUTS, banded_trace_plan,
     declare_svgf, declare_tonemap, tonemap_pixel, trace_frame_data, upload_scene,
 };
 use parallax_scene::gpu::GpuScene;
@@ -332,12 +332,15 @@ fn svgf_lowers_the_error_of_one_spp_against_a_64_spp_reference_by_3x() {
     print_svgf_timings(&timings);
 
     let bvh = SceneBvh::build(&run.scene);
-    let mut tracer =
-        GpuTracer::new(&ctx, banded_trace_plan(1, (SIZE, SIZE), 1, 1).unwrap(), &GpuScene::new(&run.scene, &bvh))
-            .unwrap();
+    let mut tracer = LightFieldRenderer::new(
+        &ctx,
+        banded_trace_plan(1, (SIZE, SIZE), 1, 1).unwrap(),
+        &GpuScene::new(&run.scene, &bvh),
+    )
+    .unwrap();
     let settings = TraceSettings { spp: 64, frame: 1000, jitter: false, ..TraceSettings::default() };
     let reference: Vec<f32> =
-        tracer.render(&run.scene, &run.views, &settings).unwrap()[0].iter().flat_map(|p| p.radiance).collect();
+        tracer.trace(&run.scene, &run.views, &settings).unwrap()[0].iter().flat_map(|p| p.radiance).collect();
     let (noisy_mse, denoised_mse) = (clamped_mse(&noisy, &reference), clamped_mse(&denoised, &reference));
     eprintln!("MSE against 64 spp: 1 spp {noisy_mse:.5}, SVGF after {frames} frames {denoised_mse:.5}");
     assert!(denoised_mse * 3.0 <= noisy_mse, "1 spp {noisy_mse}, denoised {denoised_mse}");

@@ -19,9 +19,8 @@ use glam::{Vec3, Vec4};
 use parallax_backend::{ExecutionPlan, KernelGraph};
 use parallax_graph::{BandedPlacement, ViewTopology, compile};
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
-use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
-use parallax_passes::{DENOISED, GpuTracer, banded_trace_plan};
+use parallax_passes::{DENOISED, LightFieldRenderer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{
     Camera, Material, Scene, SceneBuilder, SceneBvh, Sky, Sun, Texture, TraceSettings, View, default_lighting,
@@ -110,7 +109,7 @@ fn reference(case: &Case) -> [f64; 3] {
     let ctx = common::context(1);
     let bvh = SceneBvh::build(&case.scene);
     let plan = banded_trace_plan(case.views.len() as u32, (width, height), 1, 1).unwrap();
-    let mut tracer = GpuTracer::new(&ctx, plan, &GpuScene::new(&case.scene, &bvh)).unwrap();
+    let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&case.scene, &bvh)).unwrap();
     let chunks = REFERENCE_SPP / 64;
     let mut sum = [0.0f64; 3];
     for chunk in 0..chunks {
@@ -121,7 +120,7 @@ fn reference(case: &Case) -> [f64; 3] {
             jitter: true,
             ..Default::default()
         };
-        let views = tracer.render(&case.scene, &case.views, &settings).unwrap();
+        let views = tracer.trace(&case.scene, &case.views, &settings).unwrap();
         let images: Vec<Vec<f32>> = views.iter().map(|v| v.iter().flat_map(|p| p.radiance).collect()).collect();
         let mean = mean_rgb(images.iter().map(Vec::as_slice));
         for c in 0..3 {
@@ -189,7 +188,7 @@ fn denoise(case: &Case) -> Measured {
     let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(1);
     let bvh = SceneBvh::build(&case.scene);
-    let mut renderer = LightFieldRenderer::new(&ctx, plan, views, &GpuScene::new(&case.scene, &bvh)).unwrap();
+    let mut renderer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&case.scene, &bvh)).unwrap();
     let mut average = TemporalAverage { pixels: vec![Vec::new(); views as usize] };
     let mut denoised = [0.0f64; 3];
     let mut worst_conservation = 0.0f64;

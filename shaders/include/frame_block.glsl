@@ -1,8 +1,9 @@
-// The per-frame block (parallax_backend::FrameBlock), reached by address: the frame index,
-// whether last frame's data may be reused, and per view the current and previous camera.
+// The per-frame block (parallax_backend::FrameBlock), reached by address: per view the current
+// and previous camera. The frame index and whether last frame's data may be reused are the
+// frame constants of bindless.glsl (frame.frame_index, frame.history_valid).
 // std430; the explicit pads make every offset the same under the scalar layout too, and match
 // the #[repr(C)] Rust types (checked by backend/tests/lavapipe_frame.rs from this SPIR-V).
-// A kernel gets the address from Recorder::frame_section_address(FRAME_BLOCK_SECTION).
+// A kernel gets the address from Recorder::frame_block_address().
 #ifndef PARALLAX_FRAME_BLOCK_GLSL
 #define PARALLAX_FRAME_BLOCK_GLSL
 
@@ -18,14 +19,12 @@ struct GpuCamera {
 
 struct ViewCameras {
     GpuCamera current;
-    GpuCamera previous;   // last frame's current (current on a view's first frame); use only when history_valid != 0
+    GpuCamera previous;   // last frame's current (current on a view's first frame); use only when frame.history_valid != 0
 };
 
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer FrameBlock {
-    uint frame_index;     // the executor's frame index
-    uint history_valid;   // the executor's flag: 0 on a plan's first frame and after a camera cut
     uint view_count;
-    uint pad;
+    uint pad[3];          // the views start 16-byte aligned, as their matrices
     ViewCameras views[];
 };
 

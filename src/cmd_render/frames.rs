@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result};
 use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, Timing};
 use parallax_graph::LightField;
+use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
-use parallax_passes::renderer::LightFieldRenderer;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings};
 
@@ -57,7 +57,7 @@ pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut 
         ..ExecOptions::default()
     };
     let scene = GpuScene::new(&job.scene, &bvh);
-    let mut renderer = LightFieldRenderer::with_options(&context, exec_plan, lf.len() as u32, &scene, options)?;
+    let mut renderer = LightFieldRenderer::with_options(&context, exec_plan, &scene, options)?;
 
     crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;

@@ -9,9 +9,9 @@ use std::path::Path;
 use anyhow::{Context as _, Result, bail};
 use glam::Vec3;
 use parallax_backend::chrome_trace;
+use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::PipelineKind;
-use parallax_passes::renderer::LightFieldRenderer;
 use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Frame, PixelSample, View};
 
@@ -120,7 +120,7 @@ fn missing_of_targets(
             if job.compiled.plan.topology.is_source[v as usize] {
                 return Ok(None);
             }
-            let bytes = renderer.read_stitched("holes", v)?;
+            let bytes = renderer.read("holes", v)?;
             Ok(Some(bytemuck_words(&bytes)))
         })
         .collect::<Result<_, parallax_passes::PassError>>()?;
@@ -190,19 +190,19 @@ pub(super) fn stage_views(
 ) -> Result<Vec<Staged>> {
     let mut staged = Vec::with_capacity(views.len());
     for view in views {
-        let radiance = texels(&renderer.read_stitched(linear_slot, view.index)?);
+        let radiance = texels(&renderer.read(linear_slot, view.index)?);
         let (albedo, normal, position) = if *layers {
             (
-                texels(&renderer.read_stitched("albedo_roughness", view.index)?),
-                texels(&renderer.read_stitched("normal_metallic", view.index)?),
-                texels(&renderer.read_stitched("position_depth", view.index)?),
+                texels(&renderer.read("albedo_roughness", view.index)?),
+                texels(&renderer.read("normal_metallic", view.index)?),
+                texels(&renderer.read("position_depth", view.index)?),
             )
         } else {
             (Vec::new(), Vec::new(), Vec::new())
         };
         // Sources have no hole mask: only targets get the channel.
         let mask = if *holes {
-            match renderer.read_stitched("holes", view.index) {
+            match renderer.read("holes", view.index) {
                 Ok(bytes) => Some(bytemuck_words(&bytes)),
                 Err(parallax_passes::PassError::MissingResource { .. }) => None,
                 Err(e) => return Err(e.into()),

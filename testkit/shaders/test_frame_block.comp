@@ -1,8 +1,9 @@
 #version 460
-// Test kernel of the frame block: writes the header and every camera of the block, member by
-// member, into a buffer of words in a fixed order (frame_index, history_valid, view_count, then
-// per view current and previous: view_proj, inv_view_proj, position, jitter), so that a wrong
-// offset on either side shows up as wrong values on the host.
+// Test kernel of the frame block: writes the executor's frame constants, the block's view count
+// and every camera of the block, member by member, into a buffer of words in a fixed order
+// (frame_index, history_valid, view_count, then per view current and previous: view_proj,
+// inv_view_proj, position, jitter), so that a wrong offset on either side shows up as wrong
+// values on the host.
 #extension GL_EXT_buffer_reference : require
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
@@ -36,8 +37,8 @@ uint put_camera(uint at, GpuCamera camera) {
 }
 
 void main() {
-    pc.target.words[0] = pc.block.frame_index;
-    pc.target.words[1] = pc.block.history_valid;
+    pc.target.words[0] = frame.frame_index;
+    pc.target.words[1] = frame.history_valid;
     pc.target.words[2] = pc.block.view_count;
     uint at = 3;
     for (uint v = 0; v < min(pc.block.view_count, pc.max_views); v++) {

@@ -1,7 +1,7 @@
 #version 460
 // Test kernel of the frame loop and of per-pass frame-data sections: the R32_UINT image dst gets
-// hash3(x, y, 8 * frame_index + view) ^ salt, where frame_index comes from the frame block and
-// salt from the pass's own section of the per-frame data.
+// hash3(x, y, 8 * frame_index + view) ^ salt, where frame_index is the executor's frame constant
+// and salt comes from the pass's own section of the per-frame data.
 #extension GL_EXT_buffer_reference : require
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
@@ -28,6 +28,6 @@ void main() {
     if (p.x >= pc.width || p.y >= pc.height) {
         return;
     }
-    uint value = hash3(p.x, p.y, 8u * pc.block.frame_index + pc.view) ^ pc.section.salt;
+    uint value = hash3(p.x, p.y, 8u * frame.frame_index + pc.view) ^ pc.section.salt;
     imageStore(uimages[pc.dst], ivec2(p), uvec4(value));
 }

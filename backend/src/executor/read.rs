@@ -1,10 +1,12 @@
-//! Reading a resource back outside the frame loop (waits for every frame).
+//! Reading a resource back outside the frame loop (waits for every frame), copied as the frame
+//! loop's readback copies ([`crate::record::record_copy_to_host_buffer`]).
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use crate::error::{BackendError, Result};
 use crate::memory::Buffer;
+use crate::record;
 
 use super::Executor;
 
@@ -18,36 +20,22 @@ impl Executor {
         let last_parity = self.next_frame.saturating_sub(1) % 2;
         let resource = self.plan.parity_map(last_parity as usize).get(&resource).copied().unwrap_or(resource);
         let state = &self.states[device];
-        let image = state.images.get(&resource);
-        let buffer = state.buffers.get(&resource);
-        if image.is_none() && buffer.is_none() {
+        if !state.images.contains_key(&resource) && !state.buffers.contains_key(&resource) {
             return Err(BackendError::ResourceNotOnDevice { resource, device });
         }
-        let size = self.plan.resources[resource].bytes();
-        let readback =
-            Buffer::new(&state.device, "readback", size, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?;
+        let desc = &self.plan.resources[resource];
+        let readback = Buffer::new(
+            &state.device,
+            "readback",
+            desc.bytes(),
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
         let raw = &state.device.raw;
-        state.device.one_shot(|cb| unsafe {
-            crate::record::full_barrier(raw, cb);
-            if let Some(image) = image {
-                let region = vk::BufferImageCopy::default()
-                    .image_subresource(image.layers())
-                    .image_extent(vk::Extent3D { width: image.width, height: image.height, depth: 1 });
-                raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, readback.raw, &[region]);
-            } else if let Some(buffer) = buffer {
-                raw.cmd_copy_buffer(
-                    cb,
-                    buffer.raw,
-                    readback.raw,
-                    &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size }],
-                );
-            }
-            let to_host = [vk::MemoryBarrier2::default()
-                .src_stage_mask(vk::PipelineStageFlags2::COPY)
-                .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-                .dst_stage_mask(vk::PipelineStageFlags2::HOST)
-                .dst_access_mask(vk::AccessFlags2::HOST_READ)];
-            raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host));
+        state.device.one_shot(|cb| {
+            record::full_barrier(raw, cb);
+            record::record_copy_to_host_buffer(raw, cb, (&state.images, &state.buffers), resource, desc, readback.raw);
+            record::copies_to_host_barrier(raw, cb);
         })?;
         Ok(readback.mapped().expect("GpuToCpu buffers are mapped").to_vec())
     }

@@ -49,6 +49,7 @@ impl Executor {
                     buffer_addresses: &buffer_addresses,
                     frame_data_address: self.frame_data_buffers[slot][d].device_address(),
                     frame_sections: self.frame_data.sections(),
+                    frame_block: self.frame_data.frame_block_offset(),
                     readback: &readback,
                     device: &state.device,
                     recording_buffers: &mut state.recording_buffers[slot],

@@ -8,7 +8,7 @@ use ash::vk;
 
 use crate::device::host_now_ns;
 use crate::error::{BackendError, Result};
-use crate::frame_block::{FRAME_BLOCK_SECTION, FrameConstants};
+use crate::frame_block::FrameConstants;
 use crate::readback::FrameTicket;
 use crate::relay::RelayJob;
 use crate::segments::{Run, progress_value, ready_value};
@@ -40,7 +40,7 @@ impl Executor {
     }
 
     /// Marks history invalid for the next frame (a camera cut, a teleport): its kernels see
-    /// `history_valid = 0` (in the frame constants and the frame block's header) and must not
+    /// `history_valid = 0` (in the frame constants) and must not
     /// blend in what their history reads or previous cameras hold.
     pub fn reset_history(&mut self) {
         self.history_origin = self.next_frame;
@@ -64,20 +64,16 @@ impl Executor {
         let frame = self.next_frame;
         let local = frame - self.plan_epoch;
         let slot = (frame % self.slot_count() as u64) as usize;
-        // The one frame index and history flag, in both places kernels read them.
+        // The one frame index and history flag, in the one place kernels read them.
         let constants = FrameConstants::new(frame, frame > self.history_origin);
         for state in &mut self.states {
             state.bindless.set_frame_constants(slot, constants);
         }
         let frame_bytes = self.frame_data.bytes();
-        let block_at = self.frame_data.offset_of(FRAME_BLOCK_SECTION).map(|at| at as usize);
         if !frame_bytes.is_empty() {
             for buffer in &mut self.frame_data_buffers[slot] {
                 let mapped = &mut buffer.mapped_mut().expect("CpuToGpu buffers are mapped")[..frame_bytes.len()];
                 mapped.copy_from_slice(frame_bytes);
-                if let Some(at) = block_at {
-                    constants.write_into(&mut mapped[at..]);
-                }
             }
         }
         // The slot's previous frame has retired: its queries were read and can be reset.

@@ -88,7 +88,7 @@ impl Executor {
         if bytes as u64 > self.options.frame_data_bytes {
             return Err(BackendError::FrameDataTooLarge { bytes, capacity: self.options.frame_data_bytes });
         }
-        if data.sections() != self.frame_data.sections() {
+        if !data.same_layout(&self.frame_data) {
             self.finish()?;
             self.needs_record = true;
         }

@@ -5,8 +5,8 @@
 use glam::Vec3;
 use parallax_backend::{Context, ExecOptions, ExecutionPlan, KernelGraph};
 use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
+use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
-use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, View};
@@ -54,5 +54,5 @@ pub fn reprojection_renderer(
     graph.export(&handles.display);
     let schedule = compile(&graph, &plan).unwrap();
     let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
-    LightFieldRenderer::with_options(context, exec, lf.len() as u32, &GpuScene::new(scene, bvh), options).unwrap()
+    LightFieldRenderer::with_options(context, exec, &GpuScene::new(scene, bvh), options).unwrap()
 }
