@@ -104,7 +104,8 @@ impl GpuTracer {
         Self::with_shaders(context, plan, scene, ShaderLibrary::new())
     }
 
-    /// [`Self::new`] for plans whose kernels dispatch shaders of `shaders` (a user library).
+    /// [`Self::new`] for plans whose kernels dispatch shaders of `shaders` (a user library,
+    /// layered over the passes' [`crate::shader_library`]).
     pub fn with_shaders(
         context: &Context,
         plan: ExecutionPlan,
@@ -114,7 +115,7 @@ impl GpuTracer {
         // Room for every view's parameters, so a large light field is not refused for a buffer
         // size the caller never chose.
         let views = plan.resources.iter().map(|r| u64::from(r.view) + 1).max().unwrap_or(1);
-        let defaults = ExecOptions { shaders, ..ExecOptions::default() };
+        let defaults = ExecOptions { shaders: shaders.layered_over(crate::shader_library()), ..ExecOptions::default() };
         let options =
             ExecOptions { frame_data_bytes: defaults.frame_data_bytes.max(views * TRACE_PARAMS_BYTES), ..defaults };
         let frame_data_bytes = options.frame_data_bytes;

@@ -60,7 +60,8 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     g.export(&list);
     let schedule = compile(&g, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
-    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
+    let options = ExecOptions { shaders: parallax_passes::shader_library(), ..ExecOptions::default() };
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
     match exec.run_frame() {
         Err(BackendError::KernelMisuse { kernel, instance: 0, .. }) => assert_eq!(kernel, "path_trace"),
