@@ -7,10 +7,13 @@ use parallax_backend::ShaderLibrary;
 
 /// The SPIR-V of every shader the passes' kernels dispatch, as the "the shaders of
 /// parallax-passes" layer of a [`ShaderLibrary`]. Built once; a call after the first clones
-/// shared words. [`crate::renderer::LightFieldRenderer`] and [`crate::GpuTracer`] put it beneath the
-/// library of their options, so a user's shader of the same name replaces a pass's.
+/// shared words. [`crate::renderer::LightFieldRenderer`] and [`crate::GpuTracer`] put it
+/// beneath the library of their options, so a user's shader of the same name replaces a pass's;
+/// an executor of other passes' kernels takes it in `ExecOptions::shaders`.
 pub fn shader_library() -> ShaderLibrary {
     static LIBRARY: OnceLock<ShaderLibrary> = OnceLock::new();
+    // build.rs wrote the table from glslc's output, which glslc checked; a defect here is a
+    // broken build, not an input error.
     LIBRARY.get_or_init(|| parallax_backend::include_shaders!().expect("build.rs embeds valid SPIR-V")).clone()
 }
 
