@@ -66,7 +66,7 @@ struct Layer {
 /// One place [`ShaderLibrary::spirv`] looked for a shader, for [`BackendError::UnknownShader`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SearchedShaders {
-    /// Where the shaders come from: [`USER_SHADERS`], a crate's ("the shaders of <crate>",
+    /// Where the shaders come from: [`USER_SHADERS`], a crate's ("the shaders of" and its name,
     /// from [`crate::include_shaders!`]) or [`BACKEND_SHADERS`].
     pub origin: String,
     /// The shader names found there, sorted.
@@ -176,8 +176,8 @@ impl ShaderLibrary {
 }
 
 /// Includes the shader table that parallax-glsl's `compile_dir` wrote into the calling crate's
-/// `OUT_DIR` (from its build.rs) and returns it as a [`ShaderLibrary`] of "the shaders of
-/// <the crate>":
+/// `OUT_DIR` (from its build.rs) and returns it as a [`ShaderLibrary`] of "the shaders of" and
+/// the crate's name:
 /// `ExecOptions { shaders: parallax_backend::include_shaders!()?, ..Default::default() }`.
 #[macro_export]
 macro_rules! include_shaders {
