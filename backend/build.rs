@@ -1,12 +1,12 @@
-//! Compiles every `shaders/*.{comp,vert,frag}` (GLSL 460, `#include` from `shaders/include`) to
-//! SPIR-V with glslc (through parallax-glsl, which user crates use the same way) and writes
-//! `shaders.rs` into OUT_DIR, which embeds them by name.
+//! Compiles the backend's own shaders, `backend/shaders/*.comp` (GLSL 460, `#include` from
+//! Parallax's shared `shaders/include`), through parallax-glsl as any crate that brings its own
+//! kernels does, and writes their table into OUT_DIR: the shaders the backend itself dispatches
+//! (its benchmark's), which every `ShaderLibrary` falls back to. The pipeline's shaders, in
+//! the top-level `shaders/`, are the passes crate's.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 fn main() {
-    let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("set by cargo"));
-    let shader_dir = manifest.join("..").join("shaders");
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("set by cargo"));
-    parallax_glsl::compile_dir_or_exit(&shader_dir, &[&shader_dir.join("include")], &out);
+    parallax_glsl::compile_dir_or_exit(Path::new("shaders"), &[parallax_glsl::parallax_include_dir()], &out);
 }

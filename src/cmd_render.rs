@@ -194,7 +194,8 @@ pub type AfterFrames = Box<dyn FnMut(&mut LightFieldRenderer) -> Result<()>>;
 pub struct RenderExtension {
     /// Adds stages to (or replaces stages of) the pipeline the flags declare.
     pub stages: Option<ExtendPipeline>,
-    /// The stages' kernels (`parallax_backend::include_shaders!()`), beside the built-in ones.
+    /// The stages' kernels (`parallax_backend::include_shaders!()`), layered over the passes'
+    /// (`parallax_passes::shader_library()`): a shader of the same name replaces a pass's.
     pub shaders: ShaderLibrary,
     /// Called once the last frame is finished, e.g. to read back a layer the stages made.
     pub after_frames: Option<AfterFrames>,

@@ -3,7 +3,7 @@
 //!
 //! Both are declared as graphs, compiled under a placement of whole views in order over the devices
 //! and lowered like any pipeline, so what they measure is what a real plan runs. Their producer is
-//! `bench_fill` (`shaders/bench_fill.comp`), whose values nobody reads.
+//! `bench_fill` (`backend/shaders/bench_fill.comp`), whose values nobody reads.
 
 use std::sync::Arc;
 

@@ -80,13 +80,14 @@ pub enum BackendError {
     #[error("no kernel registered for pass `{pass}` (registered: {registered:?})")]
     UnknownPass { pass: String, registered: Vec<String> },
 
-    /// A kernel asked for a shader that neither the user's library nor the build has.
+    /// A kernel asked for a shader that no layer of its library (ExecOptions::shaders) nor the
+    /// backend's own shaders have.
     #[error(
-        "no shader named `{name}`: not among the user shaders of ExecOptions::shaders ({}) nor the built-in \
-         shaders of shaders/ ({}); add it with ShaderLibrary::with_spirv or include_shaders!",
-        list(.user), list(.builtin)
+        "no shader named `{name}`: looked in {}; add it to ExecOptions::shaders with \
+         ShaderLibrary::with_spirv or include_shaders!",
+        searched_list(.searched)
     )]
-    UnknownShader { name: String, user: Vec<String>, builtin: Vec<String> },
+    UnknownShader { name: String, searched: Vec<crate::shaders::SearchedShaders> },
 
     /// Bytes or words handed over as a shader are not SPIR-V.
     #[error("shader `{shader}` is not SPIR-V: {defect}")]
@@ -194,6 +195,12 @@ pub enum BackendError {
 }
 
 /// `a, b, c`, or `none` for an empty list.
+/// "origin (a, b), origin (none)" for an unknown shader's message.
+fn searched_list(searched: &[crate::shaders::SearchedShaders]) -> String {
+    let places: Vec<String> = searched.iter().map(|s| format!("{} ({})", s.origin, list(&s.names))).collect();
+    places.join(", then ")
+}
+
 fn list(names: &[String]) -> String {
     if names.is_empty() { "none".into() } else { names.join(", ") }
 }

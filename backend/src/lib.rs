@@ -28,10 +28,12 @@
 //!   history flag ([`FrameConstants`]) into the block's header and the frame constants.
 //! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
 //!   [`Executor::wait_readback`] returns one frame's exported resources.
-//! * Shaders: GLSL 460 in `shaders/`, compiled by `glslc` in build.rs and embedded ([`spirv`]);
-//!   kernels of other crates bring their own SPIR-V in a [`ShaderLibrary`]
-//!   ([`ExecOptions::shaders`]), compiled by their build.rs with parallax-glsl
-//!   ([`include_shaders!`]) or loaded at run time.
+//! * Shaders: the kernels of each crate bring their own SPIR-V in a [`ShaderLibrary`]
+//!   ([`ExecOptions::shaders`]), compiled from GLSL 460 by the crate's build.rs with
+//!   parallax-glsl ([`include_shaders!`]; the pipeline's, in the top-level `shaders/`, are
+//!   parallax-passes') or loaded at run time; a user's library is layered over another
+//!   ([`ShaderLibrary::layered_over`]). Only the backend's own shaders (`backend/shaders/`, its
+//!   benchmark's) are compiled in build.rs and embedded, as every library's fallback ([`spirv`]).
 //!
 //! ```
 //! use std::sync::Arc;
@@ -129,6 +131,6 @@ pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};
 pub use recorder::{Draw, PassKernel, PassParams, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};
-pub use shaders::{ShaderLibrary, SpirvDefect, shader_names, spirv};
+pub use shaders::{BACKEND_SHADERS, SearchedShaders, ShaderLibrary, SpirvDefect, USER_SHADERS, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

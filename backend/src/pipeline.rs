@@ -75,7 +75,7 @@ pub(crate) struct Bindless {
     /// Host-visible frame constants, one buffer per slot.
     frame_constants: Vec<Buffer>,
     image_count: u32,
-    /// Where pipelines' shaders come from: the user's, then the built-in ones.
+    /// Where pipelines' shaders come from: the library's layers, then the backend's own.
     shaders: ShaderLibrary,
     pipelines: HashMap<String, Pipeline>,
     graphics_pipelines: HashMap<GraphicsKey, Pipeline>,

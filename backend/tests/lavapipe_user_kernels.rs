@@ -9,8 +9,9 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
-    PassKernel, PassParams, Recorder, ShaderLibrary, SpirvDefect, Validation, shader_names,
+    BACKEND_SHADERS, BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan,
+    Executor, KernelGraph, PassKernel, PassParams, Recorder, SearchedShaders, ShaderLibrary, SpirvDefect, Validation,
+    shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
 use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, ReadSlot, Rig, Role, Scheme, WriteSlot, compile};
@@ -125,13 +126,16 @@ fn a_kernel_naming_no_known_shader_lists_where_it_looked() {
     let options = ExecOptions { shaders: user_library(&compile_user_shaders("unknown")), ..ExecOptions::default() };
     let mut exec = Executor::new(&ctx, plan, options).unwrap();
     match exec.run_frame() {
-        Err(BackendError::UnknownShader { name, user, builtin }) => {
+        Err(BackendError::UnknownShader { name, searched }) => {
             assert_eq!(name, "no_such_shader");
             let mut expected: Vec<String> = parallax_testkit::shaders().names().map(str::to_string).collect();
             expected.push("scale_swap".into());
             expected.sort();
-            assert_eq!(user, expected);
-            assert_eq!(builtin, shader_names().collect::<Vec<_>>());
+            // The user's library (the testkit's, with scale_swap added), then the backend's own.
+            let builtin =
+                SearchedShaders { origin: BACKEND_SHADERS.into(), names: shader_names().map(str::to_string).collect() };
+            let user = SearchedShaders { origin: "the shaders of parallax-testkit".into(), names: expected };
+            assert_eq!(searched, [user, builtin]);
         }
         other => panic!("expected BackendError::UnknownShader, got {other:?}"),
     }

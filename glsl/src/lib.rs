@@ -1,5 +1,6 @@
 //! parallax-glsl: compiles a folder of GLSL kernels with glslc from a build script, for
-//! Parallax's own `shaders/` and for crates that bring their own kernels.
+//! Parallax's own (the passes' `shaders/`, the backend's and testkit's few) and for crates that
+//! bring their own kernels.
 //!
 //! In the `build.rs` of a crate with its kernels in `shaders/` (GLSL 460, `#include`):
 //!

@@ -174,7 +174,8 @@ pub fn declare_gbuffer_rasterised(graph: &mut KernelGraph) -> Gbuffer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     #[test]
     fn the_motion_push_struct_matches_motion_comp() {

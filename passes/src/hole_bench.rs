@@ -105,7 +105,8 @@ pub fn bench_holes(
     let frames = frames.max(1);
     let plan = bench_plan(width, height, threshold)?;
     let bvh = SceneBvh::build(scene);
-    let mut executor = Executor::new(context, plan, ExecOptions::default())?;
+    let mut executor =
+        Executor::new(context, plan, ExecOptions { shaders: crate::shader_library(), ..ExecOptions::default() })?;
     upload_scene(&mut executor, &GpuScene::new(scene, &bvh))?;
     let views: Vec<View> = (0..2).map(|index| View { camera, width, height, index }).collect();
     for f in 0..frames {

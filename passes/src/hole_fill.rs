@@ -140,7 +140,7 @@ mod tests {
     fn the_structs_match_hole_fill_glsl() {
         let target = rust_layout!(HoleFillTarget { list, trace, radiance, first_group, count, pad });
         for shader in ["hole_fill", "hole_fill_prefix"] {
-            let spirv = parallax_backend::spirv(shader).unwrap();
+            let spirv = crate::shaders::spirv(shader).unwrap();
             assert_eq!(member_offsets(&spirv, "HoleFillTarget").unwrap(), target, "{shader}");
             let table: Vec<u32> =
                 member_offsets(&spirv, "HoleFillTable").unwrap().into_iter().map(|(_, o)| o).collect();
@@ -151,7 +151,7 @@ mod tests {
 
     #[test]
     fn the_push_structs_match_the_shaders() {
-        let spirv = |shader| parallax_backend::spirv(shader).unwrap();
+        let spirv = |shader| crate::shaders::spirv(shader).unwrap();
         assert_eq!(check_push_constants::<HoleFillPrefixPush>(&spirv("hole_fill_prefix")), Ok(()));
         assert_eq!(check_push_constants::<HoleFillPush>(&spirv("hole_fill")), Ok(()));
     }

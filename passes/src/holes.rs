@@ -114,7 +114,8 @@ impl PassKernel for CompactHolesKernel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     #[test]
     fn the_push_struct_matches_compact_holes_comp() {

@@ -2,6 +2,9 @@
 //!
 //! * [`upload_scene`]: a `parallax_scene::gpu::GpuScene` as global buffers and textures of the
 //!   executor.
+//! * [`shader_library`]: the SPIR-V of the passes' shaders (the top-level `shaders/`, compiled by
+//!   this crate's build.rs with parallax-glsl), which every executor of passes' kernels is given
+//!   ([`LightFieldRenderer`] layers it beneath its options' library).
 //! * [`PathTraceKernel`] (`path_trace`): shaders/pt_trace.comp, the GPU twin of the CPU
 //!   reference path tracer, over a whole view, a row band or a compacted pixel list, writing
 //!   radiance and first-hit data into the view's images.
@@ -53,6 +56,7 @@ pub mod raycast;
 pub mod renderer;
 pub mod reproject;
 pub mod scene_upload;
+pub mod shaders;
 pub mod svgf;
 pub mod tonemap;
 pub mod trace;
@@ -81,6 +85,7 @@ pub use raycast::{
 };
 pub use renderer::LightFieldRenderer;
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
+pub use shaders::shader_library;
 pub use svgf::{DENOISED, SvgfInputs, declare_svgf};
 pub use tonemap::{DISPLAY, TONEMAP, TonemapError, declare_tonemap, declare_tonemap_scaled, tonemap_pixel};
 pub use trace::{banded_trace_plan, declare_trace, trace_plan};

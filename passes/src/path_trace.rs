@@ -222,7 +222,8 @@ pub fn to_pixel_sample(p: &GpuPixel) -> parallax_scene::PixelSample {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     #[test]
     fn the_push_struct_matches_pt_trace_comp() {

@@ -107,7 +107,8 @@ impl PassKernel for StridedPixelListKernel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     #[test]
     fn the_push_struct_matches_pixel_list_strided_comp() {

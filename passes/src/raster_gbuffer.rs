@@ -163,7 +163,7 @@ mod tests {
     #[test]
     fn the_push_struct_matches_both_stages() {
         for stage in ["gbuffer_raster.vert", "gbuffer_raster.frag"] {
-            let spirv = parallax_backend::spirv(stage).unwrap();
+            let spirv = crate::shaders::spirv(stage).unwrap();
             assert_eq!(check_push_constants::<GbufferRasterPush>(&spirv), Ok(()), "{stage}");
         }
     }

@@ -192,7 +192,8 @@ impl Raycaster {
     ) -> Result<Self> {
         let capacity = capacity.max(1);
         let plan = raycast_plan(capacity, opaque, schedule, context.devices().len() as u32)?;
-        let mut executor = Executor::new(context, plan, ExecOptions::default())?;
+        let mut executor =
+            Executor::new(context, plan, ExecOptions { shaders: crate::shader_library(), ..ExecOptions::default() })?;
         upload_scene(&mut executor, scene)?;
         executor.upload_buffer(RAYCAST_WORK, &[0u8; 8])?;
         Ok(Self { executor, capacity })
@@ -336,7 +337,8 @@ pub fn compare_with_cpu(
 #[cfg(test)]
 mod tests {
     use super::{RaySchedule, RaycastPush};
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     #[test]
     fn the_push_struct_matches_bvh_raycast_glsl() {

@@ -49,8 +49,9 @@ impl LightFieldRenderer {
         Self::with_options(context, plan, scene, ExecOptions::default())
     }
 
-    /// [`Self::new`] with other executor options (user shaders, barrier placement, timing, ...);
-    /// the per-frame data capacity is raised to what the views need.
+    /// [`Self::new`] with other executor options (user shaders, barrier placement, timing, ...):
+    /// the per-frame data capacity is raised to what the views need, and the options' shaders
+    /// are layered over the passes' ([`crate::shader_library`]).
     pub fn with_options(
         context: &Context,
         plan: ExecutionPlan,
@@ -60,7 +61,11 @@ impl LightFieldRenderer {
         let views = plan_views(&plan);
         // Every view's trace parameters, then the frame block (header + cameras), aligned.
         let needed = u64::from(views) * (TRACE_PARAMS_BYTES + FRAME_BLOCK_VIEW_BYTES) + 2 * 256 + 16;
-        let options = ExecOptions { frame_data_bytes: options.frame_data_bytes.max(needed), ..options };
+        let options = ExecOptions {
+            frame_data_bytes: options.frame_data_bytes.max(needed),
+            shaders: options.shaders.layered_over(crate::shader_library()),
+            ..options
+        };
         let mut executor = Executor::new(context, plan, options)?;
         upload_scene(&mut executor, scene)?;
         Ok(Self {

@@ -200,7 +200,8 @@ pub fn declare_reproject(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     #[test]
     fn the_push_struct_matches_reproject_comp() {

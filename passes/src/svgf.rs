@@ -321,7 +321,8 @@ impl PassKernel for SvgfKernel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     /// `svgf_tile_base` of shaders/svgf.glsl, and the pixel of invocation (lx, ly) from it.
     fn phase_pixel(step: u32, y0: u32, group: (u32, u32), local: (u32, u32)) -> (u32, u32) {

@@ -130,7 +130,8 @@ pub fn tonemap_pixel(rgb: [f32; 3], exposure: f32) -> [f32; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use parallax_backend::{check_push_constants, spirv};
+    use crate::shaders::spirv;
+    use parallax_backend::check_push_constants;
 
     #[test]
     fn the_push_struct_matches_tonemap_comp() {

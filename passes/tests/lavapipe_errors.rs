@@ -5,9 +5,13 @@ mod common;
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecOptions, ExecutionPlan, Executor, KernelGraph, MAX_TEXTURES, TextureData};
+use parallax_backend::{
+    BackendError, ExecOptions, ExecutionPlan, Executor, KernelGraph, MAX_TEXTURES, ShaderLibrary, TextureData,
+};
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
-use parallax_passes::{PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data};
+use parallax_passes::{
+    LightFieldRenderer, PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data,
+};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
 
@@ -60,7 +64,8 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     g.export(&list);
     let schedule = compile(&g, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
-    let mut exec = Executor::new(&ctx, plan, ExecOptions::default()).unwrap();
+    let options = ExecOptions { shaders: parallax_passes::shader_library(), ..ExecOptions::default() };
+    let mut exec = Executor::new(&ctx, plan, options).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
     match exec.run_frame() {
         Err(BackendError::KernelMisuse { kernel, instance: 0, .. }) => assert_eq!(kernel, "path_trace"),
@@ -80,4 +85,28 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     }
     drop(exec);
     ctx.check_validation().unwrap();
+}
+
+#[test]
+fn a_user_shader_replaces_the_pass_shader_of_its_name() {
+    // The benchmark's fill shader under the name `pt_trace`: the tracer looks in the user's
+    // library before the passes', so its push-constant block is the one checked, and refused.
+    let scene = default_scene();
+    let bvh = SceneBvh::build(&scene);
+    let ctx = common::context(1);
+    let fill = parallax_backend::spirv("bench_fill").unwrap();
+    let user = ShaderLibrary::new().with_spirv("pt_trace", fill).unwrap();
+    let plan = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
+    let options = ExecOptions { shaders: user, ..ExecOptions::default() };
+    let mut tracer = LightFieldRenderer::with_options(&ctx, plan, &GpuScene::new(&scene, &bvh), options).unwrap();
+    let views = common::views(&scene, 1, 8, 8);
+    match tracer.trace(&scene, &views, &TraceSettings::default()) {
+        Err(PassError::Backend(BackendError::PushConstantLayout { shader, .. })) => assert_eq!(shader, "pt_trace"),
+        other => panic!("expected the user's pt_trace to be refused, got {other:?}"),
+    }
+    drop(tracer);
+    // Without it, the passes' own.
+    let plan = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
+    let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
+    assert_eq!(tracer.trace(&scene, &views, &TraceSettings::default()).unwrap()[0].len(), 64);
 }

@@ -23,16 +23,17 @@ const NEAR: f32 = 0.05;
 const DEPTH_COPY: &str = "depth_copy";
 const DEPTH_TO_R32F: &str = "depth_to_r32f";
 
-/// The test kernel of `tests/raster_kernels/`, compiled at run time.
+/// The test kernel of `tests/raster_kernels/`, compiled at run time, over the passes' shaders.
 fn test_shaders() -> ShaderLibrary {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("raster_kernels");
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("raster_kernels");
     std::fs::create_dir_all(&out).unwrap();
     let includes = [parallax_glsl::parallax_include_dir()];
     let compiled = parallax_glsl::Compiler::new().compile_dir(&src, &includes, &out).unwrap();
-    compiled.iter().fold(ShaderLibrary::new(), |library, shader| {
+    let test = compiled.iter().fold(ShaderLibrary::new(), |library, shader| {
         library.with_spirv_bytes(&shader.name, &std::fs::read(&shader.spirv).unwrap()).unwrap()
-    })
+    });
+    test.layered_over(parallax_passes::shader_library())
 }
 
 /// Reads the raster depth (Depth32f) and writes it into `depth_copy` (R32f).

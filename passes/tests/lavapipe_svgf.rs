@@ -28,16 +28,18 @@ use parallax_scene::{Scene, SceneBvh, TraceSettings, View, default_scene};
 
 const SIZE: u32 = 32;
 
-/// The test kernels of `tests/svgf_kernels/`, compiled into a folder of `test`'s own.
+/// The test kernels of `tests/svgf_kernels/`, compiled into a folder of `test`'s own, over the
+/// passes' shaders.
 fn test_shaders(test: &str) -> ShaderLibrary {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("svgf_kernels");
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("svgf_kernels").join(test);
     std::fs::create_dir_all(&out).unwrap();
     let shaders =
         parallax_glsl::Compiler::new().compile_dir(&src, &[parallax_glsl::parallax_include_dir()], &out).unwrap();
-    shaders.iter().fold(ShaderLibrary::new(), |library, shader| {
+    let test = shaders.iter().fold(ShaderLibrary::new(), |library, shader| {
         library.with_spirv_bytes(&shader.name, &std::fs::read(&shader.spirv).unwrap()).unwrap()
-    })
+    });
+    test.layered_over(parallax_passes::shader_library())
 }
 
 /// `test_motion.comp`: motion = own pixel centre + `offset` where there is a hit.

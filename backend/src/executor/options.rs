@@ -41,8 +41,9 @@ pub struct ExecOptions {
     /// once with [`Executor::read_resource`] do not need.
     pub read_back_exports: bool,
     pub fault: Option<FaultInjection>,
-    /// SPIR-V of kernels outside this repository, by the name they dispatch; looked up before
-    /// the built-in shaders of `shaders/`.
+    /// SPIR-V of the plan's kernels, by the name they dispatch: the crates' libraries layered
+    /// over one another (a user's over `parallax_passes::shader_library()`, which the passes'
+    /// runners layer beneath it themselves), then the backend's own shaders.
     pub shaders: ShaderLibrary,
     /// Most segments (submissions) of one device the host keeps submitted and not yet done; the
     /// host waits for the device before submitting more (at least 1). Drivers hold a bounded
