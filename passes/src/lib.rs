@@ -81,4 +81,4 @@ pub use raycast::{
 pub use scene_upload::{SCENE_BUFFERS, upload_scene};
 pub use svgf::{DENOISED, SvgfInputs, declare_svgf};
 pub use tonemap::{DISPLAY, TONEMAP, TonemapError, declare_tonemap, declare_tonemap_scaled, tonemap_pixel};
-pub use trace::{GpuTracer, banded_trace_plan, declare_trace, trace_plan};
+pub use trace::{GpuTracer, TracePlan, banded_trace_plan, declare_trace, trace_plan};

@@ -11,8 +11,8 @@
 use std::time::Instant;
 
 use parallax_backend::{
-    Context, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FrameClock, FrameData, FrameReport, FrameStats,
-    Summary,
+    AllocId, Context, DeviceId, ExecOptions, ExecutionPlan, Executor, FRAME_BLOCK_SECTION, FamilyId, FrameClock,
+    FrameData, FrameReport, FrameStats, Summary,
 };
 use parallax_scene::gpu::{GpuScene, TraceLighting};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -148,35 +148,32 @@ impl LightFieldRenderer {
         self.kept = keep.then(Vec::new);
     }
 
-    /// The final contents of slot `slot` of `view` after the last frame (read from device 0
-    /// where it was gathered, else from the device that wrote it), as raw texels.
-    pub fn read(&mut self, slot: &str, view: u32) -> Result<Vec<u8>> {
-        let (device, resource) = self
-            .executor
-            .plan()
-            .final_output(slot, view)
-            .ok_or_else(|| PassError::MissingResource { name: slot.into(), view })?;
+    /// The final contents of the declared resource `family` (a handle's `family()`) of `view`
+    /// after the last frame (read from device 0 where it was gathered, else from the device
+    /// that wrote it), as raw texels.
+    pub fn read(&mut self, family: FamilyId, view: u32) -> Result<Vec<u8>> {
+        let (device, resource) =
+            self.executor.plan().final_output(family, view).ok_or(PassError::MissingOutput { family, view })?;
         Ok(self.executor.read_resource(device, resource)?)
     }
 
-    /// Slot `slot` of `view` after the last frame, whole, as tightly packed rows: each row band
-    /// read on the device whose instance wrote its final version there (a fine scheme leaves
-    /// the bands of a layer that is not gathered on different devices).
-    pub fn read_stitched(&mut self, slot: &str, view: u32) -> Result<Vec<u8>> {
-        let missing = || PassError::MissingResource { name: slot.into(), view };
+    /// The declared resource `family` of `view` after the last frame, whole, as tightly packed
+    /// rows: each row band read on the device whose instance wrote its final version there (a
+    /// fine scheme leaves the bands of a layer that is not gathered on different devices).
+    pub fn read_stitched(&mut self, family: FamilyId, view: u32) -> Result<Vec<u8>> {
+        let missing = || PassError::MissingOutput { family, view };
         let plan = self.executor.plan();
         let writes = || {
-            plan.passes
-                .iter()
-                .filter(move |p| p.view == view)
-                .flat_map(move |p| p.writes.iter().filter(move |w| w.slot == slot).map(move |w| (p.device, w)))
+            plan.passes.iter().filter(move |p| p.view == view).flat_map(move |p| {
+                p.writes.iter().filter(move |w| plan.resource(w.resource).family == family).map(move |w| (p.device, w))
+            })
         };
         let version = writes().map(|(_, w)| w.version).max().ok_or_else(missing)?;
-        let bands: Vec<(usize, usize, u32, u32)> = writes()
+        let bands: Vec<(DeviceId, AllocId, u32, u32)> = writes()
             .filter(|(_, w)| w.version == version)
             .map(|(d, w)| (d, w.resource, w.rows.y0, w.rows.y1))
             .collect();
-        let desc = plan.resources[bands[0].1].clone();
+        let desc = plan.resource(bands[0].1).clone();
         let row_bytes = desc.row_bytes() as usize;
         let mut out = vec![0u8; row_bytes * desc.height as usize];
         for (device, resource, y0, y1) in bands {

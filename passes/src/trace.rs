@@ -9,8 +9,8 @@ use parallax_backend::{
     BackendError, Context, ExecOptions, ExecutionPlan, Executor, KernelGraph, ResourceKind, ShaderLibrary,
 };
 use parallax_graph::{
-    AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
-    Scheme, ViewTopology, compile,
+    AssignStrategy, BandedPlacement, FamilyId, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig,
+    Rig, Role, Scheme, ViewTopology, compile,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -52,6 +52,15 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
     images
 }
 
+/// A plan of `path_trace` passes and the declared resources of its [`TRACE_OUTPUTS`] images, in
+/// that order (radiance always; a G-buffer layer where the graph declares it): what
+/// [`GpuTracer`] reads the traced views from.
+#[derive(Clone, Debug)]
+pub struct TracePlan {
+    pub plan: ExecutionPlan,
+    pub outputs: [Option<FamilyId>; 4],
+}
+
 /// The executor plan for tracing a `cols`×`rows` grid of `width`×`height` views on `devices`
 /// devices under `scheme` (fine-all: every view in row bands over all devices; multi-source:
 /// whole views spread over the devices), as [`declare_trace`] declares it. View 0 is the
@@ -63,7 +72,7 @@ pub fn trace_plan(
     devices: u32,
     scheme: Scheme,
     pixel_list: Option<(u64, StridedPixels)>,
-) -> Result<ExecutionPlan> {
+) -> Result<TracePlan> {
     let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
     // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
     let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
@@ -76,7 +85,7 @@ pub fn trace_plan(
 /// on device `b % devices`, every band traced away from device 0 gathered there: the shape of
 /// a fine-all schedule without the light-field rule of at least one view per device.
 /// `parallax trace` splits its single view over any number of devices this way.
-pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<ExecutionPlan> {
+pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<TracePlan> {
     let topology = ViewTopology::all_sources(views, width, height);
     lower_trace(topology, &BandedPlacement { devices, bands }, None)
 }
@@ -85,29 +94,31 @@ fn lower_trace(
     topology: ViewTopology,
     placement: &dyn Placement,
     pixel_list: Option<(u64, StridedPixels)>,
-) -> Result<ExecutionPlan> {
+) -> Result<TracePlan> {
     let mut graph = KernelGraph::with_payload(topology);
-    declare_trace(&mut graph, pixel_list);
+    let outputs = declare_trace(&mut graph, pixel_list).map(|image| Some(image.family()));
     let schedule = compile(&graph, placement)?;
-    Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
+    let plan = ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
+    Ok(TracePlan { plan, outputs })
 }
 
 /// Runs plans of `path_trace` passes on a scene and reads the traced views back.
 pub struct GpuTracer {
     executor: Executor,
     frame_data_bytes: u64,
+    outputs: [Option<FamilyId>; 4],
 }
 
 impl GpuTracer {
     /// Creates the executor for `plan` on `context` and uploads `scene`.
-    pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
+    pub fn new(context: &Context, plan: TracePlan, scene: &GpuScene<'_>) -> Result<Self> {
         Self::with_shaders(context, plan, scene, ShaderLibrary::new())
     }
 
     /// [`Self::new`] for plans whose kernels dispatch shaders of `shaders` (a user library).
     pub fn with_shaders(
         context: &Context,
-        plan: ExecutionPlan,
+        TracePlan { plan, outputs }: TracePlan,
         scene: &GpuScene<'_>,
         shaders: ShaderLibrary,
     ) -> Result<Self> {
@@ -120,7 +131,7 @@ impl GpuTracer {
         let frame_data_bytes = options.frame_data_bytes;
         let mut executor = Executor::new(context, plan, options)?;
         upload_scene(&mut executor, scene)?;
-        Ok(Self { executor, frame_data_bytes })
+        Ok(Self { executor, frame_data_bytes, outputs })
     }
 
     /// Traces one frame of every view of the plan (`views[i]` describes plan view `i`; its
@@ -153,8 +164,8 @@ impl GpuTracer {
     pub fn read_view(&mut self, view: &View) -> Result<Vec<GpuPixel>> {
         self.check_view(view)?;
         let mut layers: [Option<Vec<u8>>; 4] = Default::default();
-        for (layer, name) in layers.iter_mut().zip(TRACE_OUTPUTS) {
-            let Some((device, resource)) = self.executor.plan().final_output(name, view.index) else {
+        for (layer, family) in layers.iter_mut().zip(self.outputs) {
+            let Some((device, resource)) = family.and_then(|f| self.executor.plan().final_output(f, view.index)) else {
                 continue;
             };
             *layer = Some(self.executor.read_resource(device, resource)?);
@@ -167,11 +178,11 @@ impl GpuTracer {
 
     /// Every output image the plan has for `view` must be `view`-sized RGBA32F.
     fn check_view(&self, view: &View) -> Result<()> {
-        for name in TRACE_OUTPUTS {
-            let Some((_, resource)) = self.executor.plan().final_output(name, view.index) else {
+        for (name, family) in TRACE_OUTPUTS.into_iter().zip(self.outputs) {
+            let Some((_, resource)) = family.and_then(|f| self.executor.plan().final_output(f, view.index)) else {
                 continue;
             };
-            let desc = &self.executor.plan().resources[resource];
+            let desc = self.executor.plan().resource(resource);
             if (desc.width, desc.height) != (view.width, view.height)
                 || desc.kind != ResourceKind::Image
                 || desc.format != Format::Rgba32f

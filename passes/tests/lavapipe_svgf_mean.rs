@@ -21,7 +21,7 @@ use parallax_graph::{BandedPlacement, ViewTopology, compile};
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::renderer::LightFieldRenderer;
 use parallax_passes::reproject::ReprojectionTolerances;
-use parallax_passes::{DENOISED, GpuTracer, banded_trace_plan};
+use parallax_passes::{GpuTracer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{
     Camera, Material, Scene, SceneBuilder, SceneBvh, Sky, Sun, Texture, TraceSettings, View, default_lighting,
@@ -184,6 +184,8 @@ fn denoise(case: &Case) -> Measured {
     graph.export(handles.denoised.as_ref().unwrap());
     graph.export(&handles.radiance);
     graph.export(&handles.gbuffer.position_depth);
+    let read_back = [&handles.radiance, &handles.gbuffer.position_depth, handles.denoised.as_ref().unwrap()];
+    let [radiance_of, depth_of, denoised_of] = read_back.map(|handle| handle.family());
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
     let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
@@ -199,11 +201,11 @@ fn denoise(case: &Case) -> Measured {
         renderer.finish().unwrap();
         let mut outputs = Vec::new();
         for view in 0..views {
-            let radiance = floats(&renderer.read("radiance", view).unwrap());
+            let radiance = floats(&renderer.read(radiance_of, view).unwrap());
             let depth: Vec<f32> =
-                floats(&renderer.read("position_depth", view).unwrap()).chunks_exact(4).map(|p| p[3]).collect();
+                floats(&renderer.read(depth_of, view).unwrap()).chunks_exact(4).map(|p| p[3]).collect();
             average.add(view as usize, frame, &radiance, &depth);
-            outputs.push(floats(&renderer.read(DENOISED, view).unwrap()));
+            outputs.push(floats(&renderer.read(denoised_of, view).unwrap()));
         }
         let mean = mean_rgb(outputs.iter().map(Vec::as_slice));
         let expected = average.mean();

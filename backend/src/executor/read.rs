@@ -5,25 +5,26 @@ use gpu_allocator::MemoryLocation;
 
 use crate::error::{BackendError, Result};
 use crate::memory::Buffer;
+use crate::plan::{AllocId, DeviceId};
 
 use super::Executor;
 
 impl Executor {
     /// Reads an image (tightly packed rows) or a buffer back from `device` (waits for all
     /// frames).
-    pub fn read_resource(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
+    pub fn read_resource(&mut self, device: DeviceId, resource: AllocId) -> Result<Vec<u8>> {
         self.finish()?;
         // A history allocation's halves swap by frame parity: read the half the last frame
         // wrote in `resource`'s place (and its other half for the pair's other member).
         let last_parity = self.next_frame.saturating_sub(1) % 2;
         let resource = self.plan.parity_map(last_parity as usize).get(&resource).copied().unwrap_or(resource);
-        let state = &self.states[device];
+        let state = &self.states[device.index()];
         let image = state.images.get(&resource);
         let buffer = state.buffers.get(&resource);
         if image.is_none() && buffer.is_none() {
-            return Err(BackendError::ResourceNotOnDevice { resource, device });
+            return Err(BackendError::ResourceNotOnDevice { resource, device: device.index() });
         }
-        let size = self.plan.resources[resource].bytes();
+        let size = self.plan.resource(resource).bytes();
         let readback =
             Buffer::new(&state.device, "readback", size, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?;
         let raw = &state.device.raw;
