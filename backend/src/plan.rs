@@ -292,6 +292,8 @@ impl ExecutionPlan {
         resource: ExecResource,
         devices: usize,
     ) -> Self {
+        // Only a pass builder mints slot tokens: a one-pass declaration gives the write's, and the
+        // pass id the instance must carry for the token to bind.
         let mut graph = parallax_graph::Graph::new(ViewTopology::all_sources(1, 1, 1));
         let mut target = graph.image(&resource.name, resource.format);
         let mut declared = graph.pass(name, Role::All);
@@ -475,6 +477,19 @@ mod tests {
             plan.validate(2),
             Err(ExecutionPlanError::ResetTooLong { resource: AllocId(0), words: 3, capacity: 2, max: MAX_RESET_WORDS })
         );
+    }
+
+    #[test]
+    fn ids_serialise_as_the_plain_numbers_they_index() {
+        let json = serde_json::to_value(copy_plan(8, 8).unwrap()).unwrap();
+        assert_eq!(
+            (&json["devices"][0][0], &json["devices"][1][0]),
+            (&serde_json::json!({ "Pass": 0 }), &serde_json::json!({ "Wait": 0 }))
+        );
+        let copy = &json["copies"][0];
+        assert_eq!((copy["from"].as_u64(), copy["to"].as_u64()), (Some(0), Some(1)));
+        assert!(copy["resource"].is_u64() && json["passes"][0]["writes"][0]["resource"].is_u64());
+        assert_eq!(json["resources"][0]["family"].as_u64(), Some(0));
     }
 
     #[test]
