@@ -21,16 +21,15 @@
 
 use std::sync::{Arc, Mutex};
 
-use anyhow::{Result, ensure};
+use anyhow::{Context as _, Result, ensure};
 use bytemuck::{Pod, Zeroable};
 use clap::Parser;
 use parallax::cmd_render::{RenderArgs, RenderExtension, run_extended};
 use parallax_accuracy::exposure::LogAverage;
-use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, ReadSlot, Role, SourcesSlot, WriteSlot};
 use parallax_passes::LightFieldRenderer;
-use parallax_passes::pipeline::{InsertionPoint, Layers, PipelineBuilder};
-use parallax_passes::svgf::DENOISED;
+use parallax_passes::pipeline::{InsertionPoint, Layers, PipelineBuilder, PipelineHandles};
 use parallax_passes::tonemap::tonemap_pixel;
 
 /// The kernel, `auto_exposure.comp`.
@@ -61,7 +60,7 @@ struct MeasureKernel {
 }
 
 impl PassKernel for MeasureKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let src = pass.read(self.radiance)?.resource;
         let (width, height) = (rec.resource(src).width, rec.resource(src).height);
         let push = ExposurePush {
@@ -84,7 +83,7 @@ struct ExposeKernel {
 }
 
 impl PassKernel for ExposeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let images: Vec<u32> =
             pass.sources(self.measures)?.map(|a| rec.image(a.resource)).collect::<parallax_backend::Result<_>>()?;
         let list = rec.recording_buffer("expose: measures", bytemuck::cast_slice(&images))?;
@@ -135,27 +134,32 @@ pub fn extension(exposure: f32, check: Arc<Mutex<ExposureCheck>>) -> Result<Rend
     Ok(RenderExtension {
         stages: Some(Box::new(stages)),
         shaders: parallax_backend::include_shaders!()?,
-        after_frames: Some(Box::new(move |renderer: &mut LightFieldRenderer| {
-            *check.lock().expect("not poisoned") = check_exposure(renderer, exposure)?;
+        after_frames: Some(Box::new(move |renderer: &mut LightFieldRenderer, handles: &PipelineHandles| {
+            *check.lock().expect("not poisoned") = check_exposure(renderer, handles, exposure)?;
             Ok(())
         })),
     })
 }
 
 /// Reads the last frame's exposure, linear radiance and display images back and checks them.
-fn check_exposure(renderer: &mut LightFieldRenderer, exposure: f32) -> Result<ExposureCheck> {
-    let gpu = f32::from_le_bytes(renderer.read(EXPOSURE, 0)?[..4].try_into()?);
+fn check_exposure(
+    renderer: &mut LightFieldRenderer,
+    handles: &PipelineHandles,
+    exposure: f32,
+) -> Result<ExposureCheck> {
+    let exposure_image = handles.exposure.as_ref().context("the stage declares the exposure image")?;
+    let gpu = f32::from_le_bytes(renderer.read(exposure_image.family(), 0)?[..4].try_into()?);
     ensure!(gpu.is_finite() && gpu > 0.0, "the GPU exposure {gpu} is not a positive number");
     let plan = renderer.executor().plan();
-    let linear = if plan.resources.iter().any(|r| r.name == DENOISED) { DENOISED } else { "radiance" };
-    let width = plan.resources.iter().find(|r| r.name == linear).map_or(1, |r| r.width as usize);
+    let linear = handles.linear;
+    let width = plan.resources.iter().find(|r| r.family == linear).map_or(1, |r| r.width as usize);
     let views = plan.passes.iter().map(|p| p.view + 1).max().unwrap_or(0);
     let mut average = LogAverage::default();
     let mut display_steps = 0;
     for v in 0..views {
         let rgb = rgb_texels(&renderer.read(linear, v)?);
         average.add_image(width, &rgb);
-        let display = renderer.read("display", v)?;
+        let display = renderer.read(handles.display.family(), v)?;
         for (texel, pixel) in rgb.iter().zip(display.chunks_exact(4)) {
             let expected = tonemap_pixel(*texel, exposure * gpu);
             for (want, &got) in expected.iter().zip(pixel).take(3) {

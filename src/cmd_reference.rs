@@ -21,7 +21,7 @@ use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale
 use parallax_backend::{Context as VkContext, ContextDesc};
 use parallax_graph::lightfield::DEFAULT_SPACING;
 use parallax_graph::{LightField, ViewId};
-use parallax_passes::{LightFieldRenderer, banded_trace_plan};
+use parallax_passes::{LightFieldRenderer, TraceOutputs, TracePlan, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
@@ -105,7 +105,7 @@ fn scene_files_key(scene: &Scene) -> BTreeMap<String, String> {
 
 enum Tracer<'a> {
     Cpu(CpuTracer<'a>),
-    Gpu { context: VkContext, tracer: Box<LightFieldRenderer> },
+    Gpu { context: VkContext, tracer: Box<LightFieldRenderer>, outputs: TraceOutputs },
 }
 
 impl<'a> Tracer<'a> {
@@ -127,9 +127,10 @@ impl<'a> Tracer<'a> {
         tracing::info!("{}", context.to_string().trim_end());
         work.check_devices(&context)?;
         let devices = selection.count();
-        let plan = banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
+        let TracePlan { plan, outputs } =
+            banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
         let tracer = LightFieldRenderer::new(&context, plan, &GpuScene::new(scene, bvh))?;
-        Ok(Tracer::Gpu { context, tracer: Box::new(tracer) })
+        Ok(Tracer::Gpu { context, tracer: Box::new(tracer), outputs })
     }
 }
 
@@ -144,8 +145,8 @@ impl Tracer<'_> {
                     Ok(frame.pixels.iter().map(|p| p.radiance.to_array()).collect())
                 })
                 .collect(),
-            Tracer::Gpu { tracer, .. } => Ok(tracer
-                .trace(scene, views, settings)?
+            Tracer::Gpu { tracer, outputs, .. } => Ok(tracer
+                .trace(outputs, scene, views, settings)?
                 .into_iter()
                 .map(|pixels| pixels.iter().map(|p| [p.radiance[0], p.radiance[1], p.radiance[2]]).collect())
                 .collect()),
@@ -202,7 +203,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let devices = if args.cpu { 0 } else { args.devices.selection().count() };
     let started = Instant::now();
     trace_to_target(&args, &mut tracer, &scene, &views, &mut acc, &selected)?;
-    if let Tracer::Gpu { context, tracer } = tracer {
+    if let Tracer::Gpu { context, tracer, .. } = tracer {
         drop(tracer);
         context.check_validation()?;
     }

@@ -22,7 +22,7 @@ use clap::{Args, ValueEnum};
 use glam::Vec3;
 use parallax_backend::{FaultInjection, ShaderLibrary};
 use parallax_passes::LightFieldRenderer;
-use parallax_passes::pipeline::PipelineBuilder;
+use parallax_passes::pipeline::{PipelineBuilder, PipelineHandles};
 use parallax_scene::{Camera, Scene};
 
 use crate::options::{DeviceArgs, Exposure, parse_exposure};
@@ -184,8 +184,9 @@ impl RenderArgs {
 
 /// Extends the pipeline a builder declares (a user crate's stages).
 pub type ExtendPipeline = Box<dyn Fn(PipelineBuilder) -> PipelineBuilder>;
-/// Looks at the renderer once the last frame is finished.
-pub type AfterFrames = Box<dyn FnMut(&mut LightFieldRenderer) -> Result<()>>;
+/// Looks at the renderer once the last frame is finished; the handles of the pipeline it runs
+/// say where each layer is read back.
+pub type AfterFrames = Box<dyn FnMut(&mut LightFieldRenderer, &PipelineHandles) -> Result<()>>;
 
 /// What a user crate adds to `render`: stages of its own in the standard pipeline, the shaders
 /// they dispatch, and a look at the renderer after the last frame (before any output is

@@ -17,6 +17,7 @@ use anyhow::Result;
 use parallax_accuracy::exposure::{Exposure, LogAverage};
 use parallax_graph::LightField;
 use parallax_passes::LightFieldRenderer;
+use parallax_passes::pipeline::PipelineHandles;
 use parallax_passes::tonemap::tonemap_pixel;
 
 use crate::lightfield_images::{
@@ -48,22 +49,22 @@ pub fn gpu_exposure(exposure: Exposure) -> f32 {
 /// all held in memory at once (a NELF light field is over a gigabyte of Rgba32f).
 pub fn display_images(
     renderer: &mut LightFieldRenderer,
-    linear_slot: &str,
+    handles: &PipelineHandles,
     (views, width): (u32, u32),
     exposure: Exposure,
 ) -> Result<(f32, Vec<Vec<u8>>)> {
     let mut average = LogAverage::default();
     if exposure == Exposure::Auto {
         for v in 0..views {
-            let bytes = renderer.read(linear_slot, v)?;
+            let bytes = renderer.read(handles.linear, v)?;
             average.add_image(width as usize, &texels_rgb(&bytes));
         }
     }
     let value = exposure.resolve(&average);
     let displays = (0..views)
         .map(|v| match exposure {
-            Exposure::Fixed(_) => Ok(renderer.read("display", v)?),
-            Exposure::Auto => Ok(tonemap_rgba8(&renderer.read(linear_slot, v)?, value)),
+            Exposure::Fixed(_) => Ok(renderer.read(handles.display.family(), v)?),
+            Exposure::Auto => Ok(tonemap_rgba8(&renderer.read(handles.linear, v)?, value)),
         })
         .collect::<Result<_>>()?;
     Ok((value, displays))

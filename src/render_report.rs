@@ -214,8 +214,8 @@ pub fn missing_pixels(plan: &ExecutionPlan, holes: &[Option<Vec<u32>>], width: u
         per_view.push((v as u32, mask.iter().filter(|&&h| h != 0).count() as f64 / mask.len().max(1) as f64));
         for pass in plan.passes.iter().filter(|p| p.view == v as u32 && p.name == "reproject") {
             let rows = &mask[(pass.rows.y0 * width) as usize..(pass.rows.y1 * width) as usize];
-            missed[pass.device] += rows.iter().filter(|&&h| h != 0).count() as u64;
-            total[pass.device] += rows.len() as u64;
+            missed[pass.device.index()] += rows.iter().filter(|&&h| h != 0).count() as u64;
+            total[pass.device.index()] += rows.len() as u64;
         }
     }
     let all: u64 = total.iter().sum();

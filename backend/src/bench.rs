@@ -18,7 +18,7 @@ use crate::device::DeviceInfo;
 use crate::error::Result;
 use crate::executor::{ExecOptions, Executor};
 use crate::lower::KernelGraph;
-use crate::plan::{ExecPass, ExecutionPlan};
+use crate::plan::{CopyId, ExecPass, ExecutionPlan, InstanceId};
 use crate::recorder::{PassKernel, Recorder};
 use crate::timing::{EventKind, FrameReport};
 
@@ -121,7 +121,7 @@ pub const BENCH_FILL: &str = "bench_fill";
 const PAYLOAD: &str = "payload";
 
 impl PassKernel for BenchFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
         let dst = pass.write(self.payload)?.resource;
         let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows(BENCH_FILL, params)
@@ -145,7 +145,7 @@ fn declare_fill<'g>(
 struct ReceiveKernel;
 
 impl PassKernel for ReceiveKernel {
-    fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> Result<()> {
         Ok(())
     }
 }
@@ -259,7 +259,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
     let row_bytes = u64::from(PAYLOAD_WIDTH) * 16;
     let height = options.bytes.div_ceil(row_bytes).max(1) as u32;
     let plan = copy_plan(PAYLOAD_WIDTH, height)?;
-    let bytes = plan.copy_bytes(0);
+    let bytes = plan.copy_bytes(CopyId(0));
     let mut executor = Executor::new(
         &context,
         plan,

@@ -15,7 +15,7 @@ use crate::error::{BackendError, Result, VkContext};
 use crate::executor::{ExecOptions, FaultGate};
 use crate::memory::{Buffer, Image, SharedHostBuffer};
 use crate::pipeline::Bindless;
-use crate::plan::{ExecResource, ExecutionPlan, Format, ResourceKind};
+use crate::plan::{AllocId, CopyId, DeviceId, ExecResource, ExecutionPlan, Format, ResourceKind};
 use crate::record::{TimerLabel, timer_labels, timer_spans};
 use crate::segments::{Item, Segment};
 
@@ -31,16 +31,16 @@ pub(crate) struct SlotResources {
 /// Everything the executor keeps for one device.
 pub(crate) struct DeviceState {
     pub(crate) device: Arc<Device>,
-    pub(crate) images: HashMap<usize, Image>,
+    pub(crate) images: HashMap<AllocId, Image>,
     /// Per-view buffer resources (ResourceKind::Buffer).
-    pub(crate) buffers: HashMap<usize, Buffer>,
-    pub(crate) image_slots: HashMap<usize, u32>,
+    pub(crate) buffers: HashMap<AllocId, Buffer>,
+    pub(crate) image_slots: HashMap<AllocId, u32>,
     pub(crate) bindless: Bindless,
     /// Command pools of the main and of the copy queue family.
     pub(crate) command_pools: [vk::CommandPool; 2],
     pub(crate) progress: vk::Semaphore,
     /// Ready timelines of the copies this device consumes.
-    pub(crate) ready: HashMap<usize, vk::Semaphore>,
+    pub(crate) ready: HashMap<CopyId, vk::Semaphore>,
     /// Fault injection: host-signalled semaphore holding this (producer) device back.
     pub(crate) gate: Option<vk::Semaphore>,
     pub(crate) segments: Vec<Segment>,
@@ -95,8 +95,10 @@ pub(crate) fn create_device_state(
     kept: &mut Kept,
 ) -> Result<DeviceState> {
     let shaders = &options.shaders;
-    let (resources, buffer_resources): (Vec<usize>, Vec<usize>) =
-        plan.resources_of_device(d).into_iter().partition(|&r| plan.resources[r].kind == ResourceKind::Image);
+    let (resources, buffer_resources): (Vec<AllocId>, Vec<AllocId>) = plan
+        .resources_of_device(DeviceId(d as u32))
+        .into_iter()
+        .partition(|&r| plan.resource(r).kind == ResourceKind::Image);
     let (images, fresh) = take_or_create_images(device, plan, d, &resources, kept)?;
     let (buffers, fresh_buffers) = take_or_create_buffers(device, plan, d, &buffer_resources, kept)?;
     clear_buffers(device, fresh_buffers.iter().map(|r| &buffers[r]))?;
@@ -106,7 +108,7 @@ pub(crate) fn create_device_state(
         Image::new(device, "depth placeholder", 1, 1, Format::Depth32f)?,
     ];
     initialise_images(device, fresh.iter().map(|r| &images[r]).chain(&placeholders))?;
-    let image_slots: HashMap<usize, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
+    let image_slots: HashMap<AllocId, u32> = resources.iter().enumerate().map(|(slot, &r)| (r, slot as u32)).collect();
     let ordered: Vec<&Image> = resources.iter().map(|r| &images[r]).collect();
     let bindless = Bindless::new(device, &ordered, placeholders, slots, shaders.clone())?;
     let command_pools = create_command_pools(device)?;
@@ -141,13 +143,13 @@ fn take_or_create_images(
     device: &Arc<Device>,
     plan: &ExecutionPlan,
     d: usize,
-    resources: &[usize],
+    resources: &[AllocId],
     kept: &mut Kept,
-) -> Result<(HashMap<usize, Image>, Vec<usize>)> {
+) -> Result<(HashMap<AllocId, Image>, Vec<AllocId>)> {
     let mut images = HashMap::new();
     let mut fresh = Vec::new();
     for &r in resources {
-        let desc = &plan.resources[r];
+        let desc = plan.resource(r);
         let image = match kept.images.remove(&(d, desc.clone())) {
             Some(image) => image,
             None => {
@@ -166,13 +168,13 @@ fn take_or_create_buffers(
     device: &Arc<Device>,
     plan: &ExecutionPlan,
     d: usize,
-    resources: &[usize],
+    resources: &[AllocId],
     kept: &mut Kept,
-) -> Result<(HashMap<usize, Buffer>, Vec<usize>)> {
+) -> Result<(HashMap<AllocId, Buffer>, Vec<AllocId>)> {
     let mut buffers = HashMap::new();
     let mut fresh = Vec::new();
     for &r in resources {
-        let desc = &plan.resources[r];
+        let desc = plan.resource(r);
         let buffer = match kept.buffers.remove(&(d, desc.clone())) {
             Some(buffer) => buffer,
             None => {
@@ -308,23 +310,25 @@ pub(crate) fn create_staging(devices: &[Arc<Device>], plan: &ExecutionPlan, slot
     }
     let mut offsets = Vec::with_capacity(plan.copies.len());
     let mut total = 0u64;
-    for c in 0..plan.copies.len() {
+    for c in 0..plan.copies.len() as u32 {
         offsets.push(total);
-        total += plan.copy_bytes(c).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
+        total += plan.copy_bytes(CopyId(c)).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
     }
-    let mut participants: Vec<usize> = plan.copies.iter().flat_map(|c| [c.from, c.to]).collect();
+    let mut participants: Vec<DeviceId> = plan.copies.iter().flat_map(|c| [c.from, c.to]).collect();
     participants.sort_unstable();
     participants.dedup();
-    let participants: Vec<&Arc<Device>> = participants.iter().map(|&d| &devices[d]).collect();
+    let participants: Vec<&Arc<Device>> = participants.iter().map(|&d| &devices[d.index()]).collect();
     let buffers = (0..slots).map(|_| SharedHostBuffer::new(&participants, total)).collect::<Result<Vec<_>>>()?;
     Ok(Some(Staging { buffers, offsets }))
 }
 
 /// Sets up [`FaultInjection::DropCrossDeviceWait`] for `copy`.
-pub(crate) fn fault_gate(plan: &ExecutionPlan, states: &mut [DeviceState], copy: usize) -> Result<FaultGate> {
-    let target =
-        plan.copies.get(copy).ok_or_else(|| BackendError::FaultInjection(format!("the plan has no copy {copy}")))?;
-    let consumer = &states[target.to];
+pub(crate) fn fault_gate(plan: &ExecutionPlan, states: &mut [DeviceState], copy: CopyId) -> Result<FaultGate> {
+    let target = plan
+        .copies
+        .get(copy.index())
+        .ok_or_else(|| BackendError::FaultInjection(format!("the plan has no copy {copy}")))?;
+    let consumer = &states[target.to.index()];
     let consumer_segment = consumer
         .segments
         .iter()
@@ -336,8 +340,8 @@ pub(crate) fn fault_gate(plan: &ExecutionPlan, states: &mut [DeviceState], copy:
             target.to
         )));
     }
-    let producer = &mut states[target.from];
+    let producer = &mut states[target.from.index()];
     let semaphore = producer.device.create_timeline(0)?;
     producer.gate = Some(semaphore);
-    Ok(FaultGate { semaphore, producer: target.from, consumer: target.to, consumer_segment })
+    Ok(FaultGate { semaphore, producer: target.from.index(), consumer: target.to.index(), consumer_segment })
 }

@@ -132,7 +132,7 @@ pub enum BackendError {
 
     /// `Recorder::dispatch_indirect` was pointed at something that cannot hold its arguments.
     #[error("indirect dispatch of `{shader}` from resource {resource} at byte {offset}: {problem}")]
-    IndirectArgs { shader: String, resource: usize, offset: u64, problem: String },
+    IndirectArgs { shader: String, resource: crate::plan::AllocId, offset: u64, problem: String },
 
     /// A kernel asked for a section of the per-frame data that the frame data does not have.
     #[error(
@@ -164,7 +164,7 @@ pub enum BackendError {
 
     /// A resource is not present on the device where it was asked for.
     #[error("resource {resource} is not allocated on device {device}")]
-    ResourceNotOnDevice { resource: usize, device: usize },
+    ResourceNotOnDevice { resource: crate::plan::AllocId, device: usize },
 
     /// A texel format the backend cannot use as a storage image.
     #[error("format {0:?} is not supported as a storage image by the backend yet")]

@@ -46,7 +46,7 @@
 //!     payload: WriteSlot,
 //! }
 //! impl PassKernel for Fill {
-//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
 //!         let dst = pass.write(self.payload)?.resource;
 //!         let params = PassParams { dst: rec.image(dst)?, view: pass.view, y0: pass.rows.y0,
 //!                                   y1: pass.rows.y1, width: rec.resource(dst).width, ..Default::default() };
@@ -72,7 +72,7 @@
 //!     selection: DeviceSelection::FakeDevices(2),
 //!     validation: Validation::Core,
 //! })?;
-//! let (device, view0) = plan.final_output("payload", 0).unwrap(); // gathered on device 0
+//! let (device, view0) = plan.final_output(payload.family(), 0).unwrap(); // gathered on device 0
 //! let mut executor = Executor::new(&context, plan, ExecOptions::default())?;
 //! for _ in 0..3 {
 //!     executor.run_frame()?; // no re-recording, up to 2 frames in flight
@@ -124,8 +124,9 @@ pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
-    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError, Format, HistorySlot,
-    MAX_RESET_WORDS, PassId, ReadSlot, Region, ResourceKind, SourcesSlot, WriteSlot,
+    AllocId, CopyId, DeviceId, ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError,
+    FamilyId, Format, HistorySlot, InstanceId, MAX_RESET_WORDS, PassId, ReadSlot, Region, ResourceKind, SourcesSlot,
+    WriteSlot,
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};

@@ -1,6 +1,6 @@
 //! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
-//! [`ExecutionPlan`]: allocations become resources (a history pair's halves, swapped by frame parity, are
-//! its `history_pairs`), accesses keep their resource name, declaration index (what slot tokens name) and
+//! [`ExecutionPlan`]: allocations become resources of their declared resource's family (a history pair's
+//! halves, swapped by frame parity, are its `history_pairs`), ids keep the schedule's types and numbers, accesses keep their resource name, declaration index (what slot tokens name) and
 //! origin, each pass instance points at the kernel its pass was declared with, device programs
 //! are ordered by device id. Nothing is re-planned;
 //! the schedule's op order is kept exactly.
@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{Access, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule, ScheduleError};
+use parallax_graph::{Access, AllocId, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule, ScheduleError};
 
 use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
 use crate::recorder::PassKernel;
@@ -52,15 +52,15 @@ impl ExecutionPlan {
 
         // A history pair's previous half holds no version of the frame: it is its current half's
         // twin, read back through the parity map as the half the frame wrote.
-        let twin_of: HashMap<usize, usize> =
-            schedule.history.iter().map(|p| (p.previous.index(), p.current.index())).collect();
-        let resources: Vec<ExecResource> = (0..schedule.allocations.len())
+        let twin_of: HashMap<AllocId, AllocId> = schedule.history.iter().map(|p| (p.previous, p.current)).collect();
+        let resources: Vec<ExecResource> = (0..schedule.allocations.len() as u32)
+            .map(AllocId)
             .map(|a| match twin_of.get(&a) {
-                Some(&current) => ExecResource { storage: a as u32, exported: false, ..resource_of(schedule, current) },
+                Some(&current) => ExecResource { storage: a.0, exported: false, ..resource_of(schedule, current) },
                 None => resource_of(schedule, a),
             })
             .collect();
-        let history_pairs = schedule.history.iter().map(|p| (p.current.index(), p.previous.index())).collect();
+        let history_pairs = schedule.history.iter().map(|p| (p.current, p.previous)).collect();
 
         let rows_of = |a: &Access| Region::new(a.region.y0, a.region.y1);
         let passes = schedule
@@ -68,8 +68,8 @@ impl ExecutionPlan {
             .iter()
             .map(|p| {
                 let info = &schedule.passes[p.pass.index()];
-                let access = |a: &Access, names: &[parallax_graph::SlotInfo], resource: usize| ExecAccess {
-                    resource,
+                let access = |a: &Access, names: &[parallax_graph::SlotInfo]| ExecAccess {
+                    resource: a.alloc,
                     version: a.version,
                     rows: rows_of(a),
                     slot: names[a.decl as usize].name.clone(),
@@ -82,10 +82,10 @@ impl ExecutionPlan {
                     pass: p.pass,
                     view: p.view.0,
                     rows: Region::new(p.region.y0, p.region.y1),
-                    device: p.device.index(),
-                    reads: p.reads.iter().map(|a| access(a, &info.reads, a.alloc.index())).collect(),
-                    writes: p.writes.iter().map(|a| access(a, &info.writes, a.alloc.index())).collect(),
-                    history_reads: p.history_reads.iter().map(|a| access(a, &info.reads, a.alloc.index())).collect(),
+                    device: p.device,
+                    reads: p.reads.iter().map(|a| access(a, &info.reads)).collect(),
+                    writes: p.writes.iter().map(|a| access(a, &info.writes)).collect(),
+                    history_reads: p.history_reads.iter().map(|a| access(a, &info.reads)).collect(),
                 }
             })
             .collect();
@@ -93,12 +93,12 @@ impl ExecutionPlan {
             .copies
             .iter()
             .map(|c| ExecCopy {
-                resource: c.src_alloc.index(),
-                dst: c.dst_alloc.index(),
+                resource: c.src_alloc,
+                dst: c.dst_alloc,
                 version: c.version,
                 rows: Region::new(c.region.y0, c.region.y1),
-                from: c.from.index(),
-                to: c.to.index(),
+                from: c.from,
+                to: c.to,
                 gather: c.kind == CopyKind::Gather,
             })
             .collect();
@@ -114,11 +114,11 @@ impl ExecutionPlan {
                 p.ops
                     .iter()
                     .map(|op| match *op {
-                        Op::Pass(i) => ExecOp::Pass(i.index()),
-                        Op::CopyOut(c) => ExecOp::CopyOut(c.index()),
-                        Op::Signal(c) => ExecOp::Signal(c.index()),
-                        Op::Wait(c) => ExecOp::Wait(c.index()),
-                        Op::CopyIn(c) => ExecOp::CopyIn(c.index()),
+                        Op::Pass(i) => ExecOp::Pass(i),
+                        Op::CopyOut(c) => ExecOp::CopyOut(c),
+                        Op::Signal(c) => ExecOp::Signal(c),
+                        Op::Wait(c) => ExecOp::Wait(c),
+                        Op::CopyIn(c) => ExecOp::CopyIn(c),
                     })
                     .collect()
             })
@@ -128,8 +128,8 @@ impl ExecutionPlan {
 }
 
 /// The executor resource of allocation `a`.
-fn resource_of(schedule: &Schedule, a: usize) -> ExecResource {
-    let alloc = &schedule.allocations[a];
+fn resource_of(schedule: &Schedule, a: AllocId) -> ExecResource {
+    let alloc = &schedule.allocations[a.index()];
     let info = schedule.resource(alloc.resource);
     let (width, height, format, kind) = match info.desc {
         ResourceDesc::Image { width, height, format } => (width, height, format, ResourceKind::Image),
@@ -142,12 +142,13 @@ fn resource_of(schedule: &Schedule, a: usize) -> ExecResource {
     };
     ExecResource {
         name: info.name.clone(),
+        family: info.family,
         view: info.view.0,
         width,
         height,
         format,
         kind,
-        storage: a as u32,
+        storage: a.0,
         // The allocation on device 0 holding a view's finished version is what the frame loop
         // reads back.
         exported: alloc.device.index() == 0 && info.exported.is_some_and(|v| alloc.versions.contains(&v)),

@@ -6,7 +6,12 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-pub use parallax_graph::{Format, HistorySlot, Origin, PassId, ReadSlot, Region, SourcesSlot, WriteSlot};
+pub use parallax_graph::{
+    AllocId, CopyId, DeviceId, FamilyId, Format, HistorySlot, InstanceId, Origin, PassId, ReadSlot, Region,
+    SourcesSlot, WriteSlot,
+};
+
+use parallax_graph::{Role, ViewTopology};
 
 use crate::error::BackendError;
 
@@ -28,6 +33,9 @@ pub enum ResourceKind {
 #[derive(Clone, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub struct ExecResource {
     pub name: String,
+    /// The declared resource this is an allocation of (what [`ExecutionPlan::final_output`]
+    /// finds outputs by).
+    pub family: FamilyId,
     pub view: u32,
     pub width: u32,
     pub height: u32,
@@ -47,10 +55,19 @@ pub struct ExecResource {
 }
 
 impl ExecResource {
-    /// A per-view `width`×`height` image of `format` (storage 0, not exported, never reset).
-    pub fn image(name: impl Into<String>, view: u32, width: u32, height: u32, format: Format) -> Self {
+    /// A `width`×`height` image of `format` of family `family` for `view` (storage 0, not
+    /// exported, never reset).
+    pub fn image(
+        name: impl Into<String>,
+        family: FamilyId,
+        view: u32,
+        width: u32,
+        height: u32,
+        format: Format,
+    ) -> Self {
         Self {
             name: name.into(),
+            family,
             view,
             width,
             height,
@@ -62,11 +79,13 @@ impl ExecResource {
         }
     }
 
-    /// A per-view buffer of at least `bytes` bytes (rounded up to whole 32-bit words).
-    pub fn buffer(name: impl Into<String>, view: u32, bytes: u64) -> Self {
+    /// A buffer of family `family` for `view` of at least `bytes` bytes (rounded up to whole
+    /// 32-bit words).
+    pub fn buffer(name: impl Into<String>, family: FamilyId, view: u32, bytes: u64) -> Self {
         let words = bytes.div_ceil(4).clamp(1, u64::from(u32::MAX)) as u32;
         Self {
             name: name.into(),
+            family,
             view,
             width: words,
             height: 1,
@@ -91,11 +110,11 @@ impl ExecResource {
 /// One access of a pass instance to a resource version, over a row band.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct ExecAccess {
-    /// The allocation (index into [`ExecutionPlan::resources`]).
-    pub resource: usize,
+    /// The allocation ([`ExecutionPlan::resource`]).
+    pub resource: AllocId,
     pub version: u32,
     pub rows: Region,
-    /// The declared resource's name (what [`ExecutionPlan::final_output`] finds outputs by).
+    /// The declared slot's name (for messages).
     pub slot: String,
     /// Index of the declared read (or write) this access instantiates among its pass's reads
     /// (or writes): what a slot token ([`ReadSlot`], ...) names.
@@ -106,7 +125,7 @@ pub struct ExecAccess {
 impl ExecAccess {
     /// An access of the instance's own view under slot `slot`, the pass's declared read or
     /// write number `decl`.
-    pub fn own(slot: impl Into<String>, decl: u16, resource: usize, version: u32, rows: Region) -> Self {
+    pub fn own(slot: impl Into<String>, decl: u16, resource: AllocId, version: u32, rows: Region) -> Self {
         Self { resource, version, rows, slot: slot.into(), decl, origin: Origin::Own }
     }
 }
@@ -122,7 +141,7 @@ pub struct ExecPass {
     pub pass: PassId,
     pub view: u32,
     pub rows: Region,
-    pub device: usize,
+    pub device: DeviceId,
     /// Reads in declaration order (sources of one read in source order).
     pub reads: Vec<ExecAccess>,
     pub writes: Vec<ExecAccess>,
@@ -167,13 +186,13 @@ impl ExecPass {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct ExecCopy {
     /// The version's allocation on `from`.
-    pub resource: usize,
+    pub resource: AllocId,
     /// Its allocation on `to` (the same description as `resource`).
-    pub dst: usize,
+    pub dst: AllocId,
     pub version: u32,
     pub rows: Region,
-    pub from: usize,
-    pub to: usize,
+    pub from: DeviceId,
+    pub to: DeviceId,
     /// A finished view on its way to device 0 (the schedule's `CopyKind::Gather`, Table 1's
     /// "transfer"), not an intermediate result another device reads.
     pub gather: bool,
@@ -183,29 +202,34 @@ pub struct ExecCopy {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub enum ExecOp {
     /// Run pass instance `i`.
-    Pass(usize),
+    Pass(InstanceId),
     /// Producer side of copy `c`: device → shared host buffer.
-    CopyOut(usize),
+    CopyOut(CopyId),
     /// Producer announces that copy `c` is in the host buffer.
-    Signal(usize),
+    Signal(CopyId),
     /// Consumer waits for the producer's signal of copy `c`.
-    Wait(usize),
+    Wait(CopyId),
     /// Consumer side of copy `c`: shared host buffer → device.
-    CopyIn(usize),
+    CopyIn(CopyId),
 }
 
-/// A whole frame: resources, pass instances, copies and one op list per device.
+/// A whole frame: resources, pass instances, copies and one op list per device, each indexed by
+/// its id ([`ExecutionPlan::resource`], [`ExecutionPlan::pass`], [`ExecutionPlan::copy`],
+/// [`ExecutionPlan::program`]).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ExecutionPlan {
+    /// `resources[a]` is allocation `AllocId(a)`.
     pub resources: Vec<ExecResource>,
+    /// `passes[i]` is instance `InstanceId(i)`.
     pub passes: Vec<ExecPass>,
+    /// `copies[c]` is copy `CopyId(c)`.
     pub copies: Vec<ExecCopy>,
     /// `devices[d]` is device d's op list in submission order.
     pub devices: Vec<Vec<ExecOp>>,
     /// Double-buffered history allocations as (current, previous) resource pairs: passes of an
     /// even frame write `current` and read history from `previous`; odd frames swap the two.
     /// Command buffers are recorded once per parity, so the swap costs nothing per frame.
-    pub history_pairs: Vec<(usize, usize)>,
+    pub history_pairs: Vec<(AllocId, AllocId)>,
     /// The kernels passes run, by [`ExecPass::kernel`].
     #[serde(skip)]
     pub kernels: Kernels,
@@ -244,13 +268,13 @@ pub enum ExecutionPlanError {
     #[error("plan has {plan} device programs but the context has {context} devices")]
     DeviceCount { plan: usize, context: usize },
     #[error("pass instance {index} (`{pass}`) runs kernel {kernel}, which the plan does not have")]
-    MissingKernel { pass: String, index: usize, kernel: usize },
+    MissingKernel { pass: String, index: InstanceId, kernel: usize },
     #[error("resource {resource} is an image: only buffers can be reset each frame")]
-    ResetOfImage { resource: usize },
+    ResetOfImage { resource: AllocId },
     #[error(
         "resource {resource}: a reset header of {words} words is longer than its {capacity}-word buffer or than the {max} words vkCmdUpdateBuffer writes"
     )]
-    ResetTooLong { resource: usize, words: usize, capacity: u32, max: usize },
+    ResetTooLong { resource: AllocId, words: usize, capacity: u32, max: usize },
     #[error("the devices' copy-ins wait for each other's copy-outs in a cycle: no order of submissions can run")]
     WaitCycle,
 }
@@ -260,33 +284,73 @@ pub const MAX_RESET_WORDS: usize = 65536 / 4;
 
 impl ExecutionPlan {
     /// One pass instance `name` on device 0 writing all of `resource` (version 1) and nothing
-    /// else; the other `devices - 1` devices stay idle. What a kernel that runs alone needs.
-    pub fn single_pass(
-        name: impl Into<String>,
-        kernel: impl PassKernel + 'static,
+    /// else; the other `devices - 1` devices stay idle. What a kernel that runs alone needs:
+    /// `kernel` makes it from the slot token of that write, declared like any pass's.
+    pub fn single_pass<K: PassKernel + 'static>(
+        name: &str,
+        kernel: impl FnOnce(WriteSlot) -> K,
         resource: ExecResource,
         devices: usize,
     ) -> Self {
+        // Only a pass builder mints slot tokens: a one-pass declaration gives the write's, and the
+        // pass id the instance must carry for the token to bind.
+        let mut graph = parallax_graph::Graph::new(ViewTopology::all_sources(1, 1, 1));
+        let mut target = graph.image(&resource.name, resource.format);
+        let mut declared = graph.pass(name, Role::All);
+        let write = declared.write_slot(&mut target);
+        let pass = declared.record();
         let all = Region::new(0, resource.height);
         let mut kernels = Kernels::default();
         ExecutionPlan {
             passes: vec![ExecPass {
-                name: name.into(),
-                kernel: kernels.push(kernel),
-                pass: PassId(0),
+                name: name.to_string(),
+                kernel: kernels.push(kernel(write)),
+                pass,
                 view: resource.view,
                 rows: all,
-                device: 0,
+                device: DeviceId(0),
                 reads: vec![],
-                writes: vec![ExecAccess::own(resource.name.clone(), 0, 0, 1, all)],
+                writes: vec![ExecAccess::own(resource.name.clone(), write.index(), AllocId(0), 1, all)],
                 history_reads: vec![],
             }],
             resources: vec![resource],
             copies: vec![],
-            devices: (0..devices.max(1)).map(|d| if d == 0 { vec![ExecOp::Pass(0)] } else { vec![] }).collect(),
+            devices: (0..devices.max(1))
+                .map(|d| if d == 0 { vec![ExecOp::Pass(InstanceId(0))] } else { vec![] })
+                .collect(),
             history_pairs: vec![],
             kernels,
         }
+    }
+
+    /// Allocation `a`.
+    pub fn resource(&self, a: AllocId) -> &ExecResource {
+        &self.resources[a.index()]
+    }
+
+    /// Pass instance `i`.
+    pub fn pass(&self, i: InstanceId) -> &ExecPass {
+        &self.passes[i.index()]
+    }
+
+    /// Copy `c`.
+    pub fn copy(&self, c: CopyId) -> &ExecCopy {
+        &self.copies[c.index()]
+    }
+
+    /// Device `d`'s op list, in submission order.
+    pub fn program(&self, d: DeviceId) -> &[ExecOp] {
+        &self.devices[d.index()]
+    }
+
+    /// Every allocation with its id, in id order.
+    pub fn resource_ids(&self) -> impl Iterator<Item = (AllocId, &ExecResource)> + '_ {
+        self.resources.iter().enumerate().map(|(a, r)| (AllocId(a as u32), r))
+    }
+
+    /// Every pass instance with its id, in id order.
+    pub fn pass_ids(&self) -> impl Iterator<Item = (InstanceId, &ExecPass)> + '_ {
+        self.passes.iter().enumerate().map(|(i, p)| (InstanceId(i as u32), p))
     }
 
     /// Checks what only the backend knows: the context's device count, the kernels, and that
@@ -295,19 +359,19 @@ impl ExecutionPlan {
         if self.devices.len() != context_devices {
             return Err(ExecutionPlanError::DeviceCount { plan: self.devices.len(), context: context_devices });
         }
-        if let Some((index, p)) = self.passes.iter().enumerate().find(|(_, p)| p.kernel >= self.kernels.0.len()) {
+        if let Some((index, p)) = self.pass_ids().find(|(_, p)| p.kernel >= self.kernels.0.len()) {
             return Err(ExecutionPlanError::MissingKernel { pass: p.name.clone(), index, kernel: p.kernel });
         }
-        for (i, r) in self.resources.iter().enumerate() {
+        for (a, r) in self.resource_ids() {
             let Some(header) = &r.reset else {
                 continue;
             };
             if r.kind != ResourceKind::Buffer {
-                return Err(ExecutionPlanError::ResetOfImage { resource: i });
+                return Err(ExecutionPlanError::ResetOfImage { resource: a });
             }
             if header.len() > r.width as usize || header.len() > MAX_RESET_WORDS {
                 return Err(ExecutionPlanError::ResetTooLong {
-                    resource: i,
+                    resource: a,
                     words: header.len(),
                     capacity: r.width,
                     max: MAX_RESET_WORDS,
@@ -318,16 +382,16 @@ impl ExecutionPlan {
     }
 
     /// Resources each device touches (reads, writes, copies in or out), sorted.
-    pub fn resources_of_device(&self, device: usize) -> Vec<usize> {
-        let mut used: Vec<usize> = Vec::new();
-        for op in &self.devices[device] {
+    pub fn resources_of_device(&self, device: DeviceId) -> Vec<AllocId> {
+        let mut used: Vec<AllocId> = Vec::new();
+        for op in self.program(device) {
             match *op {
                 ExecOp::Pass(p) => {
-                    let pass = &self.passes[p];
+                    let pass = self.pass(p);
                     used.extend(pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).map(|a| a.resource));
                 }
-                ExecOp::CopyOut(c) => used.push(self.copies[c].resource),
-                ExecOp::CopyIn(c) => used.push(self.copies[c].dst),
+                ExecOp::CopyOut(c) => used.push(self.copy(c).resource),
+                ExecOp::CopyIn(c) => used.push(self.copy(c).dst),
                 ExecOp::Signal(_) | ExecOp::Wait(_) => {}
             }
         }
@@ -344,36 +408,36 @@ impl ExecutionPlan {
 
     /// Where each resource reads from and writes to in a frame of `parity` (0 even, 1 odd): the
     /// identity but for history pairs, which swap on odd frames.
-    pub fn parity_map(&self, parity: usize) -> HashMap<usize, usize> {
+    pub fn parity_map(&self, parity: usize) -> HashMap<AllocId, AllocId> {
         if parity % 2 == 0 {
             return HashMap::new();
         }
         self.history_pairs.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect()
     }
 
-    /// Where the final version of the resource written under slot `slot` for `view` can be
-    /// read after a frame: `(device, resource)`, on device 0 when it is there (written there or
+    /// Where the final version of the declared resource `family` for `view` can be read after
+    /// a frame: `(device, resource)`, on device 0 when it is there (written there or
     /// gathered), else on the device that wrote it.
-    pub fn final_output(&self, slot: &str, view: u32) -> Option<(usize, usize)> {
+    pub fn final_output(&self, family: FamilyId, view: u32) -> Option<(DeviceId, AllocId)> {
         let writes = || {
-            self.passes
-                .iter()
-                .filter(move |p| p.view == view)
-                .flat_map(|p| p.writes.iter().filter(|w| w.slot == slot).map(move |w| (p.device, w)))
+            self.passes.iter().filter(move |p| p.view == view).flat_map(move |p| {
+                p.writes.iter().filter(move |w| self.resource(w.resource).family == family).map(move |w| (p.device, w))
+            })
         };
         let version = writes().map(|(_, w)| w.version).max()?;
         let finals = || writes().filter(move |(_, w)| w.version == version);
-        let on_primary = finals().find(|(d, _)| *d == 0).map(|(_, w)| w.resource).or_else(|| {
-            let sources: Vec<usize> = finals().map(|(_, w)| w.resource).collect();
-            self.copies.iter().find(|c| c.to == 0 && sources.contains(&c.resource)).map(|c| c.dst)
+        let primary = DeviceId(0);
+        let on_primary = finals().find(|(d, _)| *d == primary).map(|(_, w)| w.resource).or_else(|| {
+            let sources: Vec<AllocId> = finals().map(|(_, w)| w.resource).collect();
+            self.copies.iter().find(|c| c.to == primary && sources.contains(&c.resource)).map(|c| c.dst)
         });
-        on_primary.map(|r| (0, r)).or_else(|| finals().next().map(|(d, w)| (d, w.resource)))
+        on_primary.map(|r| (primary, r)).or_else(|| finals().next().map(|(d, w)| (d, w.resource)))
     }
 
     /// Bytes moved by copy `c` (only the copied rows).
-    pub fn copy_bytes(&self, c: usize) -> u64 {
-        let copy = &self.copies[c];
-        self.resources[copy.resource].row_bytes() * u64::from(copy.rows.len())
+    pub fn copy_bytes(&self, c: CopyId) -> u64 {
+        let copy = self.copy(c);
+        self.resource(copy.resource).row_bytes() * u64::from(copy.rows.len())
     }
 }
 
@@ -390,36 +454,50 @@ mod tests {
         let kernel = plan.kernels.0.len();
         plan.passes[1].kernel = kernel;
         let pass = plan.passes[1].name.clone();
-        assert_eq!(plan.validate(1), Err(ExecutionPlanError::MissingKernel { pass, index: 1, kernel }));
+        assert_eq!(plan.validate(1), Err(ExecutionPlanError::MissingKernel { pass, index: InstanceId(1), kernel }));
     }
 
     /// A kernel for plans that are validated, never recorded.
     struct Nothing;
 
     impl PassKernel for Nothing {
-        fn record(&self, _: &mut crate::Recorder<'_>, _: &ExecPass, _: usize) -> crate::Result<()> {
+        fn record(&self, _: &mut crate::Recorder<'_>, _: &ExecPass, _: InstanceId) -> crate::Result<()> {
             Ok(())
         }
     }
 
     #[test]
     fn reset_headers_fit_their_buffer() {
-        let mut plan = ExecutionPlan::single_pass("count", Nothing, ExecResource::buffer("counts", 0, 8), 2);
+        let mut plan =
+            ExecutionPlan::single_pass("count", |_| Nothing, ExecResource::buffer("counts", FamilyId(0), 0, 8), 2);
         plan.resources[0].reset = Some(vec![0, 1]);
         assert_eq!(plan.validate(2), Ok(()));
         plan.resources[0].reset = Some(vec![0, 1, 1]);
         assert_eq!(
             plan.validate(2),
-            Err(ExecutionPlanError::ResetTooLong { resource: 0, words: 3, capacity: 2, max: MAX_RESET_WORDS })
+            Err(ExecutionPlanError::ResetTooLong { resource: AllocId(0), words: 3, capacity: 2, max: MAX_RESET_WORDS })
         );
+    }
+
+    #[test]
+    fn ids_serialise_as_the_plain_numbers_they_index() {
+        let json = serde_json::to_value(copy_plan(8, 8).unwrap()).unwrap();
+        assert_eq!(
+            (&json["devices"][0][0], &json["devices"][1][0]),
+            (&serde_json::json!({ "Pass": 0 }), &serde_json::json!({ "Wait": 0 }))
+        );
+        let copy = &json["copies"][0];
+        assert_eq!((copy["from"].as_u64(), copy["to"].as_u64()), (Some(0), Some(1)));
+        assert!(copy["resource"].is_u64() && json["passes"][0]["writes"][0]["resource"].is_u64());
+        assert_eq!(json["resources"][0]["family"].as_u64(), Some(0));
     }
 
     #[test]
     fn copy_bytes_counts_only_the_band() {
         let mut plan = copy_plan(8, 8).unwrap();
         plan.copies[0].rows = Region::new(2, 5);
-        assert_eq!(plan.copy_bytes(0), 8 * 16 * 3);
+        assert_eq!(plan.copy_bytes(CopyId(0)), 8 * 16 * 3);
         // The payload's allocation on device 1 is the copy's destination.
-        assert_eq!(plan.resources_of_device(1), vec![plan.copies[0].dst]);
+        assert_eq!(plan.resources_of_device(DeviceId(1)), vec![plan.copies[0].dst]);
     }
 }

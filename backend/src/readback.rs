@@ -13,7 +13,7 @@ use gpu_allocator::MemoryLocation;
 use crate::device::Device;
 use crate::error::Result;
 use crate::memory::Buffer;
-use crate::plan::ExecutionPlan;
+use crate::plan::{AllocId, ExecResource, ExecutionPlan};
 
 /// A submitted frame whose exported resources can be waited for, once.
 #[derive(Debug, PartialEq, Eq)]
@@ -31,11 +31,11 @@ impl FrameTicket {
 
 /// The exported resources of one frame: `(resource, bytes)` in resource order; images as
 /// tightly packed rows (as `Executor::read_resource`), buffers whole.
-pub type FrameReadback = Vec<(usize, Vec<u8>)>;
+pub type FrameReadback = Vec<(AllocId, Vec<u8>)>;
 
 pub(crate) struct Readback {
     /// Per frame-in-flight slot: each exported resource and its buffer on device 0.
-    slots: Vec<Vec<(usize, Buffer)>>,
+    slots: Vec<Vec<(AllocId, Buffer)>>,
     /// Bytes of retired frames, by frame, until their ticket takes them.
     retired: HashMap<u64, FrameReadback>,
 }
@@ -48,13 +48,12 @@ impl Readback {
     /// Buffers for `plan`'s exports in each of `slots` slots, replacing the previous plan's (no
     /// frame may be in flight). Bytes of retired frames stay.
     pub(crate) fn allocate(&mut self, device0: &Arc<Device>, plan: &ExecutionPlan, slots: usize) -> Result<()> {
-        let exported: Vec<usize> = (0..plan.resources.len()).filter(|&r| plan.resources[r].exported).collect();
+        let exported: Vec<(AllocId, &ExecResource)> = plan.resource_ids().filter(|(_, r)| r.exported).collect();
         self.slots = (0..slots)
             .map(|_| {
                 exported
                     .iter()
-                    .map(|&r| {
-                        let desc = &plan.resources[r];
+                    .map(|&(r, desc)| {
                         let name = format!("readback of {} view {}", desc.name, desc.view);
                         let buffer = Buffer::new(
                             device0,
@@ -72,7 +71,7 @@ impl Readback {
     }
 
     /// What device 0's last segment of `slot` copies into.
-    pub(crate) fn targets(&self, slot: usize) -> Vec<(usize, vk::Buffer)> {
+    pub(crate) fn targets(&self, slot: usize) -> Vec<(AllocId, vk::Buffer)> {
         self.slots.get(slot).map_or_else(Vec::new, |s| s.iter().map(|(r, b)| (*r, b.raw)).collect())
     }
 

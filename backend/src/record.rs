@@ -23,7 +23,7 @@ use crate::error::{Result, VkContext};
 use crate::executor::Timing;
 use crate::memory::Image;
 use crate::pipeline::Bindless;
-use crate::plan::ExecutionPlan;
+use crate::plan::{AllocId, ExecutionPlan, InstanceId};
 use crate::recorder::Recorder;
 use crate::segments::{Chunk, Item, Segment};
 use crate::timing::EventKind;
@@ -50,7 +50,7 @@ pub(crate) struct TimerLabel {
 /// ones, so it changes no conflict).
 pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<usize>> {
     let grouped_pass = |item: &Item| match *item {
-        Item::Pass(p) if plan.kernels.0.get(plan.passes[p].kernel).is_some_and(|k| k.records_groups()) => Some(p),
+        Item::Pass(p) if plan.kernels.0.get(plan.pass(p).kernel).is_some_and(|k| k.records_groups()) => Some(p),
         _ => None,
     };
     let mut groups: Vec<Range<usize>> = Vec::new();
@@ -62,12 +62,12 @@ pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<us
             hazards = Hazards::default();
             continue;
         };
-        let pass = &plan.passes[p];
-        let reads: Vec<usize> = pass.reads.iter().chain(&pass.history_reads).map(|a| a.resource).collect();
-        let writes: Vec<usize> = pass.writes.iter().map(|a| a.resource).collect();
+        let pass = plan.pass(p);
+        let reads: Vec<AllocId> = pass.reads.iter().chain(&pass.history_reads).map(|a| a.resource).collect();
+        let writes: Vec<AllocId> = pass.writes.iter().map(|a| a.resource).collect();
         let joins = groups.last().is_some_and(|last| {
             grouped_pass(&segment.items[last.start]).is_some_and(|first| {
-                let first = &plan.passes[first];
+                let first = plan.pass(first);
                 first.kernel == pass.kernel && first.name == pass.name && !hazards.conflicts(&reads, &writes, false)
             })
         });
@@ -87,7 +87,7 @@ pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<us
 /// instances of one pass with every copy alone (`Timing::PerStage`). Spans never split an op.
 pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timing) -> Vec<Range<usize>> {
     let stage = |item: &Item| match item {
-        Item::Pass(p) => Some(plan.passes[*p].name.as_str()),
+        Item::Pass(p) => Some(plan.pass(*p).name.as_str()),
         Item::CopyOut(_) | Item::CopyIn(_) => None,
     };
     let mut spans: Vec<Range<usize>> = Vec::new();
@@ -109,8 +109,8 @@ pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timin
 /// [`timer_spans`]), in recording order; a span is labelled by its first item.
 pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[Vec<Range<usize>>]) -> Vec<TimerLabel> {
     let copy_label = |chunk: &Chunk, kind, queue| {
-        let copy = &plan.copies[chunk.copy];
-        let resource = &plan.resources[copy.resource];
+        let copy = plan.copy(chunk.copy);
+        let resource = plan.resource(copy.resource);
         TimerLabel {
             name: format!(
                 "{} {} view {} → device {}",
@@ -121,7 +121,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
             ),
             kind,
             view: resource.view,
-            index: chunk.copy,
+            index: chunk.copy.index(),
             chunk: chunk.index,
             bytes: resource.row_bytes() * u64::from(chunk.y1 - chunk.y0),
             gather: copy.gather,
@@ -134,12 +134,12 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
         .flat_map(|(s, spans)| spans.iter().map(move |span| (s.queue, &s.items[span.start])))
         .map(|(queue, item)| match item {
             Item::Pass(p) => {
-                let pass = &plan.passes[*p];
+                let pass = plan.pass(*p);
                 TimerLabel {
                     name: pass.name.clone(),
                     kind: EventKind::Pass,
                     view: pass.view,
-                    index: *p,
+                    index: p.index(),
                     chunk: 0,
                     bytes: 0,
                     gather: false,
@@ -159,8 +159,8 @@ pub(crate) struct SegmentContext<'a> {
     pub device_index: usize,
     pub plan: &'a ExecutionPlan,
     pub bindless: &'a mut Bindless,
-    pub images: &'a HashMap<usize, Image>,
-    pub image_slots: &'a HashMap<usize, u32>,
+    pub images: &'a HashMap<AllocId, Image>,
+    pub image_slots: &'a HashMap<AllocId, u32>,
     pub slot: usize,
     pub query_pool: vk::QueryPool,
     /// The staging buffer of this slot as seen by this device, and each copy's offset in it.
@@ -171,13 +171,13 @@ pub(crate) struct SegmentContext<'a> {
     pub frame_sections: &'a [(String, u64)],
     pub frame_block: Option<u64>,
     /// Per-view buffer resources of this device and their addresses.
-    pub buffers: &'a HashMap<usize, crate::memory::Buffer>,
-    pub buffer_addresses: &'a HashMap<usize, u64>,
+    pub buffers: &'a HashMap<AllocId, crate::memory::Buffer>,
+    pub buffer_addresses: &'a HashMap<AllocId, u64>,
     /// The plan's history pairs swapped for an odd frame (empty for an even one).
-    pub parity_map: &'a HashMap<usize, usize>,
+    pub parity_map: &'a HashMap<AllocId, AllocId>,
     /// Exported resources and the slot's host-visible buffer each is read back into (device 0
     /// with `ExecOptions::read_back_exports`; empty otherwise).
-    pub readback: &'a [(usize, vk::Buffer)],
+    pub readback: &'a [(AllocId, vk::Buffer)],
     pub device: &'a std::sync::Arc<crate::device::Device>,
     /// The slot's recording buffers (`Recorder::recording_buffer`), emptied before it records.
     pub recording_buffers: &'a mut Vec<crate::memory::Buffer>,
@@ -185,7 +185,7 @@ pub(crate) struct SegmentContext<'a> {
 
 impl SegmentContext<'_> {
     /// The resource an access to `resource` touches in this slot's frame parity.
-    fn resolve(&self, resource: usize) -> usize {
+    fn resolve(&self, resource: AllocId) -> AllocId {
         self.parity_map.get(&resource).copied().unwrap_or(resource)
     }
 }
@@ -295,12 +295,12 @@ fn record_passes(
     items: &[Item],
     bound: Option<vk::Pipeline>,
 ) -> Result<Option<vk::Pipeline>> {
-    let instances: Vec<usize> =
+    let instances: Vec<InstanceId> =
         items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
     let first = instances[0];
-    let kernel = ctx.plan.kernels.0[ctx.plan.passes[first].kernel].clone();
+    let kernel = ctx.plan.kernels.0[ctx.plan.pass(first).kernel].clone();
     let mut rec = Recorder {
-        pass: &ctx.plan.passes[first].name,
+        pass: &ctx.plan.pass(first).name,
         parity_map: ctx.parity_map,
         raw: ctx.raw,
         cb,
@@ -323,7 +323,7 @@ fn record_passes(
     if kernel.records_groups() {
         kernel.record_group(&mut rec, &instances)?;
     } else {
-        kernel.record(&mut rec, &ctx.plan.passes[first], first)?;
+        kernel.record(&mut rec, ctx.plan.pass(first), first)?;
     }
     Ok(rec.bound)
 }
@@ -332,8 +332,8 @@ fn record_passes(
 /// zeros after them. Runs before the first item's barrier, so every pass of the frame sees the
 /// reset values; the barrier in front orders it after last frame's uses of the buffers.
 fn record_resets(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
-    let mut resets: Vec<(usize, &[u32])> =
-        ctx.buffers.keys().filter_map(|&r| ctx.plan.resources[r].reset.as_deref().map(|header| (r, header))).collect();
+    let mut resets: Vec<(AllocId, &[u32])> =
+        ctx.buffers.keys().filter_map(|&r| ctx.plan.resource(r).reset.as_deref().map(|header| (r, header))).collect();
     if resets.is_empty() {
         return;
     }
@@ -365,7 +365,7 @@ fn record_readback(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
     for &(exported, target) in ctx.readback {
         // A history allocation's frame writes the half its parity selects.
         let r = ctx.resolve(exported);
-        record_copy_to_host_buffer(ctx.raw, cb, (ctx.images, ctx.buffers), r, &ctx.plan.resources[r], target);
+        record_copy_to_host_buffer(ctx.raw, cb, (ctx.images, ctx.buffers), r, ctx.plan.resource(r), target);
     }
     copies_to_host_barrier(ctx.raw, cb);
 }
@@ -379,8 +379,8 @@ fn record_readback(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer) {
 pub(crate) fn record_copy_to_host_buffer(
     raw: &ash::Device,
     cb: vk::CommandBuffer,
-    (images, buffers): (&HashMap<usize, Image>, &HashMap<usize, crate::memory::Buffer>),
-    resource: usize,
+    (images, buffers): (&HashMap<AllocId, Image>, &HashMap<AllocId, crate::memory::Buffer>),
+    resource: AllocId,
     desc: &crate::plan::ExecResource,
     target: vk::Buffer,
 ) {
@@ -414,22 +414,22 @@ pub(crate) fn copies_to_host_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
 /// resolves them), and whether one of them touched memory its pass does not declare.
 #[derive(Default)]
 struct Hazards {
-    read: HashSet<usize>,
-    written: HashSet<usize>,
+    read: HashSet<AllocId>,
+    written: HashSet<AllocId>,
     opaque: bool,
 }
 
 impl Hazards {
     /// Read-after-write, write-after-write or write-after-read on a resource, or undeclared
     /// memory on either side.
-    fn conflicts(&self, reads: &[usize], writes: &[usize], opaque: bool) -> bool {
+    fn conflicts(&self, reads: &[AllocId], writes: &[AllocId], opaque: bool) -> bool {
         opaque
             || self.opaque
             || reads.iter().any(|r| self.written.contains(r))
             || writes.iter().any(|w| self.written.contains(w) || self.read.contains(w))
     }
 
-    fn add(&mut self, reads: Vec<usize>, writes: Vec<usize>, opaque: bool) {
+    fn add(&mut self, reads: Vec<AllocId>, writes: Vec<AllocId>, opaque: bool) {
         self.read.extend(reads);
         self.written.extend(writes);
         self.opaque |= opaque;
@@ -437,16 +437,16 @@ impl Hazards {
 }
 
 /// The resources `item` reads and writes, and whether its kernel touches undeclared memory.
-fn touches(ctx: &SegmentContext<'_>, item: &Item) -> (Vec<usize>, Vec<usize>, bool) {
+fn touches(ctx: &SegmentContext<'_>, item: &Item) -> (Vec<AllocId>, Vec<AllocId>, bool) {
     match *item {
         Item::Pass(p) => {
-            let pass = &ctx.plan.passes[p];
+            let pass = ctx.plan.pass(p);
             let reads = pass.reads.iter().chain(&pass.history_reads).map(|a| ctx.resolve(a.resource)).collect();
             let writes = pass.writes.iter().map(|a| ctx.resolve(a.resource)).collect();
             (reads, writes, ctx.plan.kernels.0[pass.kernel].touches_undeclared_memory())
         }
-        Item::CopyOut(chunk) => (vec![ctx.resolve(ctx.plan.copies[chunk.copy].resource)], vec![], false),
-        Item::CopyIn(chunk) => (vec![], vec![ctx.resolve(ctx.plan.copies[chunk.copy].dst)], false),
+        Item::CopyOut(chunk) => (vec![ctx.resolve(ctx.plan.copy(chunk.copy).resource)], vec![], false),
+        Item::CopyIn(chunk) => (vec![], vec![ctx.resolve(ctx.plan.copy(chunk.copy).dst)], false),
     }
 }
 
@@ -461,14 +461,14 @@ enum CopyDirection {
 /// Copies one chunk between the resource and its place in the staging buffer.
 fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, direction: CopyDirection) {
     let raw = ctx.raw;
-    let copy = &ctx.plan.copies[chunk.copy];
+    let copy = ctx.plan.copy(chunk.copy);
     let local = ctx.resolve(match direction {
         CopyDirection::Out => copy.resource,
         CopyDirection::In => copy.dst,
     });
-    let resource = &ctx.plan.resources[local];
+    let resource = ctx.plan.resource(local);
     let (staging, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
-    let staging_offset = offsets[chunk.copy] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
+    let staging_offset = offsets[chunk.copy.index()] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
     if let Some(buffer) = ctx.buffers.get(&local) {
         let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
         let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
@@ -516,7 +516,7 @@ pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
 /// Hand-laid plans of grouped passes, for the tests of grouping here and in segments.rs.
 #[cfg(test)]
 pub(crate) mod grouping_plans {
-    use crate::plan::{ExecAccess, ExecPass, ExecutionPlan, Kernels, Region};
+    use crate::plan::{AllocId, DeviceId, ExecAccess, ExecOp, ExecPass, ExecutionPlan, InstanceId, Kernels, Region};
     use crate::recorder::{PassKernel, Recorder};
 
     /// Records nothing; `groups` says whether it records groups.
@@ -525,7 +525,7 @@ pub(crate) mod grouping_plans {
     }
 
     impl PassKernel for Nothing {
-        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> crate::Result<()> {
+        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> crate::Result<()> {
             Ok(())
         }
 
@@ -536,13 +536,13 @@ pub(crate) mod grouping_plans {
 
     /// Passes `(name, reads, writes)` on device 0, in order, the passes named `fill` with a
     /// kernel that records groups, the others with one that does not; every pass op in order
-    /// on device 0.
-    pub(crate) fn plan(passes: &[(&str, &[usize], &[usize])]) -> ExecutionPlan {
+    /// on device 0; reads and writes are allocation numbers.
+    pub(crate) fn plan(passes: &[(&str, &[u32], &[u32])]) -> ExecutionPlan {
         let mut kernels = Kernels::default();
         let plain = kernels.push(Nothing { groups: false });
         let grouped = kernels.push(Nothing { groups: true });
         let rows = Region::new(0, 1);
-        let access = |&r: &usize| ExecAccess::own("slot", 0, r, 1, rows);
+        let access = |&r: &u32| ExecAccess::own("slot", 0, AllocId(r), 1, rows);
         let passes: Vec<ExecPass> = passes
             .iter()
             .enumerate()
@@ -552,13 +552,13 @@ pub(crate) mod grouping_plans {
                 pass: parallax_graph::PassId(view as u32),
                 view: view as u32,
                 rows,
-                device: 0,
+                device: DeviceId(0),
                 reads: reads.iter().map(access).collect(),
                 writes: writes.iter().map(access).collect(),
                 history_reads: Vec::new(),
             })
             .collect();
-        let ops = (0..passes.len()).map(crate::plan::ExecOp::Pass).collect();
+        let ops = (0..passes.len() as u32).map(|i| ExecOp::Pass(InstanceId(i))).collect();
         ExecutionPlan { passes, devices: vec![ops], kernels, ..ExecutionPlan::default() }
     }
 }
@@ -566,7 +566,7 @@ pub(crate) mod grouping_plans {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plan::ExecPass;
+    use crate::plan::{AllocId, CopyId, DeviceId, ExecPass};
 
     #[test]
     fn grouped_passes_are_one_op_until_an_access_conflicts_and_per_op_timing_times_each_op() {
@@ -582,10 +582,17 @@ mod tests {
             ("svgf", &[1], &[8]),
         ]);
         let rows = parallax_graph::Region::new(0, 1);
-        plan.copies =
-            vec![crate::plan::ExecCopy { resource: 3, dst: 3, version: 1, rows, from: 0, to: 1, gather: false }];
-        let chunk = Chunk { copy: 0, index: 0, y0: 0, y1: 1 };
-        let mut items: Vec<Item> = (0..7).map(Item::Pass).collect();
+        plan.copies = vec![crate::plan::ExecCopy {
+            resource: AllocId(3),
+            dst: AllocId(3),
+            version: 1,
+            rows,
+            from: DeviceId(0),
+            to: DeviceId(1),
+            gather: false,
+        }];
+        let chunk = Chunk { copy: CopyId(0), index: 0, y0: 0, y1: 1 };
+        let mut items: Vec<Item> = (0..7).map(|i| Item::Pass(InstanceId(i))).collect();
         items.insert(4, Item::CopyOut(chunk));
         let s = segment(items);
         assert_eq!(op_groups(&plan, &s), vec![0..1, 1..3, 3..4, 4..5, 5..7, 7..8]);
@@ -593,7 +600,7 @@ mod tests {
         assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..1, 1..4, 4..5, 5..7, 7..8]);
         // Without grouping kernels every item is its own op.
         let plain = plan_of(&["fill", "fill", "fill"]);
-        let s = segment((0..3).map(Item::Pass).collect());
+        let s = segment((0..3).map(|i| Item::Pass(InstanceId(i))).collect());
         assert_eq!(op_groups(&plain, &s), vec![0..1, 1..2, 2..3]);
     }
 
@@ -605,7 +612,7 @@ mod tests {
             pass: parallax_graph::PassId(view as u32),
             view: view as u32,
             rows: parallax_graph::Region::new(0, 1),
-            device: 0,
+            device: DeviceId(0),
             reads: Vec::new(),
             writes: Vec::new(),
             history_reads: Vec::new(),
@@ -620,16 +627,16 @@ mod tests {
     #[test]
     fn per_op_times_every_item_and_per_stage_each_run_of_one_pass() {
         let plan = plan_of(&["gbuffer", "gbuffer", "gbuffer", "svgf", "svgf", "gbuffer"]);
-        let chunk = Chunk { copy: 0, index: 0, y0: 0, y1: 1 };
+        let chunk = Chunk { copy: CopyId(0), index: 0, y0: 0, y1: 1 };
         let items = vec![
-            Item::Pass(0),
-            Item::Pass(1),
-            Item::Pass(2),
+            Item::Pass(InstanceId(0)),
+            Item::Pass(InstanceId(1)),
+            Item::Pass(InstanceId(2)),
             Item::CopyOut(chunk),
             Item::CopyOut(chunk),
-            Item::Pass(3),
-            Item::Pass(4),
-            Item::Pass(5),
+            Item::Pass(InstanceId(3)),
+            Item::Pass(InstanceId(4)),
+            Item::Pass(InstanceId(5)),
         ];
         let s = segment(items);
         assert_eq!(timer_spans(&plan, &s, Timing::PerOp), (0..8).map(|i| i..i + 1).collect::<Vec<_>>());
@@ -640,7 +647,10 @@ mod tests {
     #[test]
     fn a_label_per_span_named_after_its_first_item() {
         let plan = plan_of(&["gbuffer", "gbuffer", "svgf"]);
-        let segments = [segment(vec![Item::Pass(0), Item::Pass(1)]), segment(vec![Item::Pass(2)])];
+        let segments = [
+            segment(vec![Item::Pass(InstanceId(0)), Item::Pass(InstanceId(1))]),
+            segment(vec![Item::Pass(InstanceId(2))]),
+        ];
         let spans: Vec<Vec<Range<usize>>> = segments.iter().map(|s| timer_spans(&plan, s, Timing::PerStage)).collect();
         let labels = timer_labels(&plan, &segments, &spans);
         let named: Vec<(&str, u32)> = labels.iter().map(|l| (l.name.as_str(), l.view)).collect();

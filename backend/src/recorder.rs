@@ -15,7 +15,7 @@ use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
-use crate::plan::{ExecPass, ExecResource, ExecutionPlan, Format, Region};
+use crate::plan::{AllocId, ExecPass, ExecResource, ExecutionPlan, Format, InstanceId, Region};
 use crate::push::{self, PushConstants};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
@@ -47,10 +47,10 @@ pub struct Draw<'a> {
     pub vertex_shader: &'a str,
     pub fragment_shader: &'a str,
     /// Colour targets (resources), in fragment output location order.
-    pub color_targets: &'a [usize],
+    pub color_targets: &'a [AllocId],
     /// The depth attachment: a [`Format::Depth32f`] resource, tested LESS and written. Without
     /// one the draw has no depth test.
-    pub depth_target: Option<usize>,
+    pub depth_target: Option<AllocId>,
     /// Clear the targets within the band first (colour to zero, depth to 1.0); otherwise load
     /// their contents. Every target has the same size.
     pub clear: bool,
@@ -86,12 +86,12 @@ pub struct Recorder<'a> {
     /// Name of the pass being recorded, for errors.
     pub(crate) pass: &'a str,
     /// History pairs swapped for an odd frame (see `ExecutionPlan::history_pairs`).
-    pub(crate) parity_map: &'a HashMap<usize, usize>,
+    pub(crate) parity_map: &'a HashMap<AllocId, AllocId>,
     pub(crate) raw: &'a ash::Device,
     pub(crate) cb: vk::CommandBuffer,
     pub(crate) bindless: &'a mut Bindless,
-    pub(crate) image_slots: &'a HashMap<usize, u32>,
-    pub(crate) images: &'a HashMap<usize, crate::memory::Image>,
+    pub(crate) image_slots: &'a HashMap<AllocId, u32>,
+    pub(crate) images: &'a HashMap<AllocId, crate::memory::Image>,
     /// Frame-in-flight slot being recorded (selects the descriptor set).
     pub(crate) slot: usize,
     /// Address and size in bytes of every global buffer on this device.
@@ -101,8 +101,8 @@ pub struct Recorder<'a> {
     pub(crate) frame_sections: &'a [(String, u64)],
     /// Offset of the frame block from `frame_data_address`, if the frame data has one.
     pub(crate) frame_block: Option<u64>,
-    pub(crate) buffers: &'a HashMap<usize, Buffer>,
-    pub(crate) buffer_addresses: &'a HashMap<usize, u64>,
+    pub(crate) buffers: &'a HashMap<AllocId, Buffer>,
+    pub(crate) buffer_addresses: &'a HashMap<AllocId, u64>,
     pub(crate) plan: &'a ExecutionPlan,
     pub(crate) device_index: usize,
     pub(crate) bound: Option<vk::Pipeline>,
@@ -114,7 +114,7 @@ pub struct Recorder<'a> {
 impl<'a> Recorder<'a> {
     /// Index of `resource` in the device's image arrays (what shaders get in push constants):
     /// `images[]`, or `uimages[]` for `R32u`, or `depth_images[]` for `Depth32f` (bindless.glsl).
-    pub fn image(&self, resource: usize) -> Result<u32> {
+    pub fn image(&self, resource: AllocId) -> Result<u32> {
         let resource = self.resolve(resource);
         if let Some(&slot) = self.image_slots.get(&resource) {
             return Ok(slot);
@@ -130,7 +130,7 @@ impl<'a> Recorder<'a> {
     }
 
     /// The resource an access to `resource` touches in the frame parity being recorded.
-    fn resolve(&self, resource: usize) -> usize {
+    fn resolve(&self, resource: AllocId) -> AllocId {
         self.parity_map.get(&resource).copied().unwrap_or(resource)
     }
 
@@ -140,8 +140,8 @@ impl<'a> Recorder<'a> {
     }
 
     /// The plan's description of `resource`.
-    pub fn resource(&self, resource: usize) -> &ExecResource {
-        &self.plan.resources[resource]
+    pub fn resource(&self, resource: AllocId) -> &ExecResource {
+        self.plan.resource(resource)
     }
 
     /// Index of the device being recorded.
@@ -149,7 +149,7 @@ impl<'a> Recorder<'a> {
         self.device_index
     }
 
-    /// The plan being recorded (pass instance `i` is `plan().passes[i]`).
+    /// The plan being recorded (pass instance `i` is `plan().pass(i)`).
     pub fn plan(&self) -> &'a ExecutionPlan {
         self.plan
     }
@@ -201,7 +201,7 @@ impl<'a> Recorder<'a> {
         &mut self,
         shader: &str,
         push: &P,
-        resource: usize,
+        resource: AllocId,
         byte_offset: u64,
     ) -> Result<()> {
         let invalid = |problem: String| BackendError::IndirectArgs {
@@ -301,7 +301,7 @@ impl<'a> Recorder<'a> {
 
     /// GPU address of the per-view buffer `resource` (a `ResourceKind::Buffer` of the plan) on
     /// this device.
-    pub fn buffer_of(&self, resource: usize) -> Result<u64> {
+    pub fn buffer_of(&self, resource: AllocId) -> Result<u64> {
         self.buffer_addresses
             .get(&self.resolve(resource))
             .copied()
@@ -356,7 +356,7 @@ impl<'a> Recorder<'a> {
 
     /// The [`PassParams`] of a kernel that writes image `dst` over `pass`'s row band: `dst`,
     /// `view`, `y0`, `y1` and `width` set, the rest zero.
-    pub fn row_params(&self, pass: &ExecPass, dst: usize) -> Result<PassParams> {
+    pub fn row_params(&self, pass: &ExecPass, dst: AllocId) -> Result<PassParams> {
         Ok(PassParams {
             dst: self.image(dst)?,
             view: pass.view,
@@ -412,12 +412,12 @@ impl<'a> Recorder<'a> {
     fn draw_targets(
         &self,
         draw: &Draw<'_>,
-        first: usize,
+        first: AllocId,
         misuse: &dyn Fn(String) -> BackendError,
     ) -> Result<DrawTargets> {
-        let (width, height) = (self.plan.resources[first].width, self.plan.resources[first].height);
-        let target = |resource: usize| -> Result<&Image> {
-            let desc = &self.plan.resources[resource];
+        let (width, height) = (self.resource(first).width, self.resource(first).height);
+        let target = |resource: AllocId| -> Result<&Image> {
+            let desc = self.resource(resource);
             if (desc.width, desc.height) != (width, height) {
                 return Err(misuse(format!(
                     "target `{}` is {}x{}, the draw's first target {width}x{height}",
@@ -434,10 +434,7 @@ impl<'a> Recorder<'a> {
         for &resource in draw.color_targets {
             let image = target(resource)?;
             if image.format.is_depth() {
-                return Err(misuse(format!(
-                    "colour target `{}` has a depth format",
-                    self.plan.resources[resource].name
-                )));
+                return Err(misuse(format!("colour target `{}` has a depth format", self.resource(resource).name)));
             }
             color_formats.push(crate::memory::vk_format(image.format)?);
             colors.push(
@@ -454,7 +451,8 @@ impl<'a> Recorder<'a> {
                 if image.format != Format::Depth32f {
                     return Err(misuse(format!(
                         "depth target `{}` is {:?}, not Depth32f",
-                        self.plan.resources[resource].name, image.format
+                        self.resource(resource).name,
+                        image.format
                     )));
                 }
                 Some(
@@ -542,8 +540,8 @@ fn check_push<P: PushConstants>(pass: &str, pipeline: &Pipeline) -> Result<()> {
 /// The GPU work of one pass (by name). Implemented by the passes crate for path tracing,
 /// reprojection, denoising, ...; the backend ships the small kernels its own tests use.
 pub trait PassKernel: Send + Sync {
-    /// Records instance `index` of the plan (`pass` = `plan.passes[index]`).
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()>;
+    /// Records instance `index` of the plan (`pass` = `plan.pass(index)`).
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> Result<()>;
 
     /// Whether the executor hands this kernel's instances to [`Self::record_group`] in groups
     /// rather than one by one to [`Self::record`]: for work whose instances are too small to
@@ -552,14 +550,14 @@ pub trait PassKernel: Send + Sync {
         false
     }
 
-    /// Records `instances` (indices into `rec.plan().passes`) as one op, with no barrier and
+    /// Records `instances` (of `rec.plan()`) as one op, with no barrier and
     /// no timestamp between them: consecutive instances of one pass in a submission of one
     /// device, of which none reads or writes what another one writes (so any order of their
     /// work is right), within one timestamp pair. Only called when [`Self::records_groups`];
     /// a group may have one instance. The default records each instance alone.
-    fn record_group(&self, rec: &mut Recorder<'_>, instances: &[usize]) -> Result<()> {
+    fn record_group(&self, rec: &mut Recorder<'_>, instances: &[InstanceId]) -> Result<()> {
         for &index in instances {
-            self.record(rec, &rec.plan().passes[index], index)?;
+            self.record(rec, rec.plan().pass(index), index)?;
         }
         Ok(())
     }

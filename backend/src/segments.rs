@@ -22,12 +22,12 @@ use std::collections::HashMap;
 use std::ops::Range;
 
 use crate::device::QueueKind;
-use crate::plan::{ExecOp, ExecutionPlan};
+use crate::plan::{AllocId, CopyId, ExecOp, ExecutionPlan, InstanceId};
 
 /// A row band of a copy moved by one submission.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Chunk {
-    pub copy: usize,
+    pub copy: CopyId,
     pub index: u32,
     /// Region relative to the image (absolute `y`).
     pub y0: u32,
@@ -38,7 +38,7 @@ pub struct Chunk {
 /// the items: `Barriers`, `Timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Item {
-    Pass(usize),
+    Pass(InstanceId),
     CopyOut(Chunk),
     CopyIn(Chunk),
 }
@@ -46,7 +46,7 @@ pub enum Item {
 /// A wait on the consumer-side "ready" timeline of a copy.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ReadyWait {
-    pub copy: usize,
+    pub copy: CopyId,
     pub chunk: u32,
 }
 
@@ -75,20 +75,22 @@ impl Item {
     fn queue(self, plan: &ExecutionPlan, separate_copy_queue: bool) -> QueueKind {
         match self {
             Item::Pass(_) => QueueKind::Main,
-            Item::CopyIn(chunk) if plan.resources[plan.copies[chunk.copy].dst].format.is_depth() => QueueKind::Main,
+            Item::CopyIn(chunk) if plan.resource(plan.copy(chunk.copy).dst).format.is_depth() => QueueKind::Main,
             Item::CopyOut(_) | Item::CopyIn(_) if separate_copy_queue => QueueKind::Copy,
             Item::CopyOut(_) | Item::CopyIn(_) => QueueKind::Main,
         }
     }
 }
 
-/// Row bands of each copy: at most `chunk_bytes` per band (at least one row), see [`band_rows`].
+/// Row bands of each copy (`[c]` for copy `CopyId(c)`): at most `chunk_bytes` per band (at
+/// least one row), see [`band_rows`].
 pub fn chunks_of_copies(plan: &ExecutionPlan, chunk_bytes: u64) -> Vec<Vec<Chunk>> {
     plan.copies
         .iter()
         .enumerate()
         .map(|(c, copy)| {
-            let row_bytes = plan.resources[copy.resource].row_bytes().max(1);
+            let c = CopyId(c as u32);
+            let row_bytes = plan.resource(copy.resource).row_bytes().max(1);
             let rows_per_chunk = (chunk_bytes / row_bytes).clamp(1, u64::from(u32::MAX)) as u32;
             let mut y0 = copy.rows.y0;
             band_rows(copy.rows.y1 - copy.rows.y0, rows_per_chunk)
@@ -149,7 +151,7 @@ pub fn segment_devices(
     plan: &ExecutionPlan,
     chunks: &[Vec<Chunk>],
     merge_bytes: u64,
-    dropped_wait: Option<usize>,
+    dropped_wait: Option<CopyId>,
     separate_copy_queue: bool,
 ) -> Vec<Vec<Segment>> {
     let cut = |batched: bool| -> Vec<Vec<Segment>> {
@@ -176,7 +178,7 @@ pub fn segment_device(
     device: usize,
     chunks: &[Vec<Chunk>],
     merge_bytes: u64,
-    dropped_wait: Option<usize>,
+    dropped_wait: Option<CopyId>,
     separate_copy_queue: bool,
     batched: bool,
 ) -> Vec<Segment> {
@@ -235,14 +237,14 @@ enum Tail {
 /// a stage is a few submissions: its copy-ins, its passes, its copy-outs.
 ///
 /// [`PassKernel::records_groups`]: crate::PassKernel::records_groups
-pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn Fn(usize) -> bool) -> Vec<ExecOp> {
-    let groups = |p: usize| plan.kernels.0.get(plan.passes[p].kernel).is_some_and(|k| k.records_groups());
-    let same_pass = |a: usize, b: usize| {
-        let (a, b) = (&plan.passes[a], &plan.passes[b]);
+pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn Fn(CopyId) -> bool) -> Vec<ExecOp> {
+    let groups = |p: InstanceId| plan.kernels.0.get(plan.pass(p).kernel).is_some_and(|k| k.records_groups());
+    let same_pass = |a: InstanceId, b: InstanceId| {
+        let (a, b) = (plan.pass(a), plan.pass(b));
         a.kernel == b.kernel && a.name == b.name
     };
-    let touches = |p: usize, resource: usize| {
-        let pass = &plan.passes[p];
+    let touches = |p: InstanceId, resource: AllocId| {
+        let pass = plan.pass(p);
         pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).any(|a| a.resource == resource)
     };
     let ops = &plan.devices[device];
@@ -254,12 +256,12 @@ pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn F
         match op {
             ExecOp::Pass(p)
                 if run.first.is_some_and(|first| same_pass(first, p))
-                    && !plan.passes[p].writes.iter().any(|w| run.copied.contains(&w.resource)) =>
+                    && !plan.pass(p).writes.iter().any(|w| run.copied.contains(&w.resource)) =>
             {
                 order.push(op);
             }
             ExecOp::CopyOut(c) if run.defers(groups, batch, c) => {
-                run.copied.push(plan.copies[c].resource);
+                run.copied.push(plan.copy(c).resource);
                 run.deferred.push(op);
             }
             ExecOp::Signal(c) if run.defers(groups, batch, c) => run.deferred.push(op),
@@ -268,8 +270,8 @@ pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn F
                     && ops.get(i + 1) == Some(&ExecOp::CopyIn(c))
                     && !order[run.start..]
                         .iter()
-                        .any(|&o| matches!(o, ExecOp::Pass(p) if touches(p, plan.copies[c].dst)))
-                    && !run.copied.contains(&plan.copies[c].dst) =>
+                        .any(|&o| matches!(o, ExecOp::Pass(p) if touches(p, plan.copy(c).dst)))
+                    && !run.copied.contains(&plan.copy(c).dst) =>
             {
                 run.hoisted.extend([op, ExecOp::CopyIn(c)]);
                 i += 1;
@@ -293,18 +295,18 @@ pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn F
 #[derive(Default)]
 struct Batch {
     /// Its first instance; `None` between runs.
-    first: Option<usize>,
+    first: Option<InstanceId>,
     /// Where that instance is in the recording order.
     start: usize,
     /// Copy-outs and signals held back to the end of the run, and the resources they read.
     deferred: Vec<ExecOp>,
-    copied: Vec<usize>,
+    copied: Vec<AllocId>,
     /// Waits and copy-ins moved up to the start of the run.
     hoisted: Vec<ExecOp>,
 }
 
 impl Batch {
-    fn defers(&self, groups: impl Fn(usize) -> bool, batch: &dyn Fn(usize) -> bool, copy: usize) -> bool {
+    fn defers(&self, groups: impl Fn(InstanceId) -> bool, batch: &dyn Fn(CopyId) -> bool, copy: CopyId) -> bool {
         self.first.is_some_and(|first| groups(first) || batch(copy))
     }
 
@@ -321,8 +323,8 @@ impl Batch {
 fn next_pass_continues(
     ops: &[ExecOp],
     mut next: usize,
-    first: usize,
-    same_pass: &dyn Fn(usize, usize) -> bool,
+    first: InstanceId,
+    same_pass: &dyn Fn(InstanceId, InstanceId) -> bool,
 ) -> bool {
     while let Some(op) = ops.get(next) {
         match *op {
@@ -339,20 +341,20 @@ fn segment_single_queue(
     device: usize,
     chunks: &[Vec<Chunk>],
     merge_bytes: u64,
-    dropped_wait: Option<usize>,
+    dropped_wait: Option<CopyId>,
     batched: bool,
 ) -> Vec<Segment> {
     // A copy of one chunk shares its submission with its neighbours of the same direction, up
     // to `merge_bytes` together: the fine schemes send thousands of small copies per frame,
     // and a submission each is most of their cost. A chunked copy keeps a submission per chunk
     // (its chunks overlap across the two devices); the fault's copy keeps its own.
-    let small = |c: usize| chunks[c].len() == 1 && dropped_wait != Some(c);
+    let small = |c: CopyId| chunks[c.index()].len() == 1 && dropped_wait != Some(c);
     let bytes =
-        |chunk: &Chunk| plan.resources[plan.copies[chunk.copy].resource].row_bytes() * u64::from(chunk.y1 - chunk.y0);
+        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).resource).row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let mut segments = Vec::new();
     let mut current = Segment::default();
     let mut tail = Tail::Closed;
-    let batch = |c: usize| batched && small(c);
+    let batch = |c: CopyId| batched && small(c);
     for op in &recording_order(plan, device, &batch) {
         match *op {
             ExecOp::Pass(p) => {
@@ -364,7 +366,7 @@ fn segment_single_queue(
                 tail = Tail::Closed;
             }
             ExecOp::CopyOut(c) => {
-                for &chunk in &chunks[c] {
+                for &chunk in &chunks[c.index()] {
                     let held = match tail {
                         Tail::CopyOuts(held) if small(c) && held.saturating_add(bytes(&chunk)) <= merge_bytes => {
                             Some(held)
@@ -383,7 +385,7 @@ fn segment_single_queue(
             // placed on the copy-in itself, the only command that reads the host buffer.
             ExecOp::Signal(_) | ExecOp::Wait(_) => {}
             ExecOp::CopyIn(c) => {
-                for &chunk in &chunks[c] {
+                for &chunk in &chunks[c.index()] {
                     // A wait applies to a whole submission: a copy-in starts one, unless it joins
                     // the small copy-ins that the current one starts with.
                     let held = match tail {
@@ -420,7 +422,7 @@ pub struct Run {
 /// For each device and segment, the segments of other devices whose copy-outs it waits for:
 /// `(device, segment)` of the producer of every chunk its ready waits name.
 pub fn cross_device_waits(segments: &[Vec<Segment>]) -> Vec<Vec<Vec<(usize, usize)>>> {
-    let mut producer: HashMap<(usize, u32), (usize, usize)> = HashMap::new();
+    let mut producer: HashMap<(CopyId, u32), (usize, usize)> = HashMap::new();
     for (d, device) in segments.iter().enumerate() {
         for (j, segment) in device.iter().enumerate() {
             for chunk in &segment.relays {
@@ -495,15 +497,15 @@ mod tests {
         let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false, false);
         assert_eq!(consumer.len(), n);
         for (i, s) in consumer.iter().enumerate() {
-            assert_eq!(s.waits, vec![ReadyWait { copy: 0, chunk: i as u32 }]);
+            assert_eq!(s.waits, vec![ReadyWait { copy: CopyId(0), chunk: i as u32 }]);
         }
-        let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(0), false, false);
+        let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(CopyId(0)), false, false);
         assert!(dropped.iter().all(|s| s.waits.is_empty()));
     }
 
     #[test]
     fn grouped_passes_move_up_past_copy_outs_of_what_they_do_not_write() {
-        use crate::plan::{ExecCopy, Region};
+        use crate::plan::{DeviceId, ExecCopy, Region};
         // Four fills writing 1, 3, 1 (a second band of the first view) and 5, then a pass that
         // does not record groups.
         let mut plan = crate::record::grouping_plans::plan(&[
@@ -515,43 +517,43 @@ mod tests {
             ("tonemap", &[1], &[9]),
         ]);
         let copy = |resource| ExecCopy {
-            resource,
-            dst: resource,
+            resource: AllocId(resource),
+            dst: AllocId(resource),
             version: 1,
             rows: Region::new(0, 1),
-            from: 0,
-            to: 1,
+            from: DeviceId(0),
+            to: DeviceId(1),
             gather: false,
         };
         plan.copies = vec![copy(1), copy(3), copy(9)];
         use ExecOp::{CopyOut, Pass, Signal, Wait};
         plan.devices[0] = vec![
-            Pass(0),
-            CopyOut(0),
-            Signal(0),
-            Pass(1),
-            CopyOut(1),
-            Signal(1),
-            Pass(2),
+            Pass(InstanceId(0)),
+            CopyOut(CopyId(0)),
+            Signal(CopyId(0)),
+            Pass(InstanceId(1)),
+            CopyOut(CopyId(1)),
+            Signal(CopyId(1)),
+            Pass(InstanceId(2)),
             // Writes what copy 0 reads: stays behind it, and starts the next group.
-            Pass(3),
-            Wait(2),
+            Pass(InstanceId(3)),
+            Wait(CopyId(2)),
             // Not past a wait.
-            Pass(4),
-            Pass(5),
+            Pass(InstanceId(4)),
+            Pass(InstanceId(5)),
         ];
         let expected = vec![
-            Pass(0),
-            Pass(1),
-            Pass(2),
-            CopyOut(0),
-            Signal(0),
-            CopyOut(1),
-            Signal(1),
-            Pass(3),
-            Wait(2),
-            Pass(4),
-            Pass(5),
+            Pass(InstanceId(0)),
+            Pass(InstanceId(1)),
+            Pass(InstanceId(2)),
+            CopyOut(CopyId(0)),
+            Signal(CopyId(0)),
+            CopyOut(CopyId(1)),
+            Signal(CopyId(1)),
+            Pass(InstanceId(3)),
+            Wait(CopyId(2)),
+            Pass(InstanceId(4)),
+            Pass(InstanceId(5)),
         ];
         assert_eq!(recording_order(&plan, 0, &|_| false), expected);
         // Copies between passes that do not record groups stay where they are.
@@ -561,7 +563,7 @@ mod tests {
 
     #[test]
     fn batched_small_copies_gather_at_the_ends_of_a_run_unless_an_instance_touches_them() {
-        use crate::plan::{ExecCopy, Region};
+        use crate::plan::{DeviceId, ExecCopy, Region};
         use ExecOp::{CopyIn, CopyOut, Pass, Signal, Wait};
         // A pass that does not record groups, over four views: each reads a band copied in
         // (resources 10..13) and writes what is copied out (1, 3, 5, 7); view 2 also reads 13,
@@ -574,82 +576,82 @@ mod tests {
             ("tonemap", &[7], &[9]),
         ]);
         let copy = |resource, dst| ExecCopy {
-            resource,
-            dst,
+            resource: AllocId(resource),
+            dst: AllocId(dst),
             version: 1,
             rows: Region::new(0, 1),
-            from: 0,
-            to: 1,
+            from: DeviceId(0),
+            to: DeviceId(1),
             gather: false,
         };
         plan.copies = vec![copy(1, 1), copy(3, 3), copy(5, 5), copy(7, 7), copy(20, 11), copy(21, 12), copy(22, 13)];
         plan.devices[0] = vec![
-            Pass(0),
-            CopyOut(0),
-            Signal(0),
-            Wait(4),
-            CopyIn(4),
-            Pass(1),
-            CopyOut(1),
-            Signal(1),
-            Wait(5),
-            CopyIn(5),
-            Pass(2),
-            CopyOut(2),
-            Signal(2),
-            Wait(6),
-            CopyIn(6),
-            Pass(3),
-            CopyOut(3),
-            Signal(3),
-            Pass(4),
+            Pass(InstanceId(0)),
+            CopyOut(CopyId(0)),
+            Signal(CopyId(0)),
+            Wait(CopyId(4)),
+            CopyIn(CopyId(4)),
+            Pass(InstanceId(1)),
+            CopyOut(CopyId(1)),
+            Signal(CopyId(1)),
+            Wait(CopyId(5)),
+            CopyIn(CopyId(5)),
+            Pass(InstanceId(2)),
+            CopyOut(CopyId(2)),
+            Signal(CopyId(2)),
+            Wait(CopyId(6)),
+            CopyIn(CopyId(6)),
+            Pass(InstanceId(3)),
+            CopyOut(CopyId(3)),
+            Signal(CopyId(3)),
+            Pass(InstanceId(4)),
         ];
         let batched = vec![
-            Wait(4),
-            CopyIn(4),
-            Wait(5),
-            CopyIn(5),
-            Pass(0),
-            Pass(1),
-            Pass(2),
-            CopyOut(0),
-            Signal(0),
-            CopyOut(1),
-            Signal(1),
-            CopyOut(2),
-            Signal(2),
+            Wait(CopyId(4)),
+            CopyIn(CopyId(4)),
+            Wait(CopyId(5)),
+            CopyIn(CopyId(5)),
+            Pass(InstanceId(0)),
+            Pass(InstanceId(1)),
+            Pass(InstanceId(2)),
+            CopyOut(CopyId(0)),
+            Signal(CopyId(0)),
+            CopyOut(CopyId(1)),
+            Signal(CopyId(1)),
+            CopyOut(CopyId(2)),
+            Signal(CopyId(2)),
             // Pass 2 reads 13, which copy 6 writes: it stays after pass 2 and ends the run.
-            Wait(6),
-            CopyIn(6),
-            Pass(3),
-            CopyOut(3),
-            Signal(3),
-            Pass(4),
+            Wait(CopyId(6)),
+            CopyIn(CopyId(6)),
+            Pass(InstanceId(3)),
+            CopyOut(CopyId(3)),
+            Signal(CopyId(3)),
+            Pass(InstanceId(4)),
         ];
         assert_eq!(recording_order(&plan, 0, &|_| true), batched);
         // A copy that is not batched (a large one) keeps its place, and its wait ends the run.
         let one_kept = vec![
-            Wait(4),
-            CopyIn(4),
-            Pass(0),
-            Pass(1),
-            CopyOut(0),
-            Signal(0),
-            CopyOut(1),
-            Signal(1),
-            Wait(5),
-            CopyIn(5),
-            Pass(2),
-            CopyOut(2),
-            Signal(2),
-            Wait(6),
-            CopyIn(6),
-            Pass(3),
-            CopyOut(3),
-            Signal(3),
-            Pass(4),
+            Wait(CopyId(4)),
+            CopyIn(CopyId(4)),
+            Pass(InstanceId(0)),
+            Pass(InstanceId(1)),
+            CopyOut(CopyId(0)),
+            Signal(CopyId(0)),
+            CopyOut(CopyId(1)),
+            Signal(CopyId(1)),
+            Wait(CopyId(5)),
+            CopyIn(CopyId(5)),
+            Pass(InstanceId(2)),
+            CopyOut(CopyId(2)),
+            Signal(CopyId(2)),
+            Wait(CopyId(6)),
+            CopyIn(CopyId(6)),
+            Pass(InstanceId(3)),
+            CopyOut(CopyId(3)),
+            Signal(CopyId(3)),
+            Pass(InstanceId(4)),
         ];
-        assert_eq!(recording_order(&plan, 0, &|c| c != 5), one_kept);
+        assert_eq!(recording_order(&plan, 0, &|c| c != CopyId(5)), one_kept);
         // Nothing batched: the plan's order.
         assert_eq!(recording_order(&plan, 0, &|_| false), plan.devices[0]);
     }

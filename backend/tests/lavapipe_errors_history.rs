@@ -9,8 +9,8 @@ use parallax_backend::{
     KernelGraph, LowerError, Validation,
 };
 use parallax_graph::{
-    BandedPlacement, CopyId, DeviceId, Format, Op, PassPlacementInfo, Placement, Region, Role, ScheduleError, ViewId,
-    ViewTopology, compile,
+    AllocId, BandedPlacement, CopyId, DeviceId, FamilyId, Format, Op, PassPlacementInfo, Placement, Region, Role,
+    ScheduleError, ViewId, ViewTopology, compile,
 };
 use parallax_testkit::kernels::{
     AccumulateKernel, FillKernel, FillMaskKernel, RasterDemoKernel, WeightedFillKernel, declare_writer,
@@ -80,8 +80,8 @@ fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
 }
 
 /// `views` views of `size`², each accumulating into `acc` from its own history (`read_history`),
-/// exported.
-fn history_graph(views: u32, size: u32) -> KernelGraph {
+/// exported; and the family of `acc`.
+fn history_graph(views: u32, size: u32) -> (KernelGraph, FamilyId) {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, size, size));
     let mut acc = graph.image("acc", Format::Rgba32f);
     let mut pass = graph.pass("accumulate", Role::All);
@@ -89,12 +89,13 @@ fn history_graph(views: u32, size: u32) -> KernelGraph {
     let kernel = AccumulateKernel { acc: pass.write_slot(&mut acc), history };
     pass.kernel(Arc::new(kernel)).record();
     graph.export(&acc);
-    graph
+    (graph, acc.family())
 }
 
-/// [`history_graph`] under `placement`.
-fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> ExecutionPlan {
-    lower(&history_graph(views, size), placement)
+/// [`history_graph`] under `placement`, and the family of its `acc`.
+fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> (ExecutionPlan, FamilyId) {
+    let (graph, acc) = history_graph(views, size);
+    (lower(&graph, placement), acc)
 }
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
@@ -105,7 +106,7 @@ fn floats(bytes: &[u8]) -> Vec<f32> {
 /// and the other half of its history allocation on the device that wrote it (last frame's).
 fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u32) -> Vec<(Vec<f32>, Vec<f32>)> {
     let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
-    let plan = history_plan(views, 8, placement);
+    let (plan, acc) = history_plan(views, 8, placement);
     assert_eq!(
         plan.history_pairs.len(),
         plan.passes.iter().map(|p| p.device).collect::<BTreeSet<_>>().len() * views as usize
@@ -117,11 +118,10 @@ fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u3
     }
     let mut out = Vec::new();
     for v in 0..views {
-        let (device, resource) = plan.final_output("acc", v).unwrap();
+        let (device, resource) = plan.final_output(acc, v).unwrap();
         let current = floats(&exec.read_resource(device, resource).unwrap());
         let writer = plan.passes.iter().find(|p| p.view == v).unwrap();
-        // `accumulate` writes only `acc`.
-        let own = writer.writes[0].resource;
+        let own = writer.writes.iter().map(|w| w.resource).find(|&w| plan.resource(w).family == acc).unwrap();
         // Reads resolve through the last frame's parity: `own` is what it wrote, its twin what
         // the frame before wrote (what its history reads saw).
         let other = plan.history_pairs.iter().find(|(a, _)| *a == own).unwrap().1;
@@ -151,8 +151,8 @@ fn history_reads_see_exactly_last_frames_output_on_one_and_three_devices() {
 #[test]
 fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
     let ctx = context(DeviceSelection::FakeDevices(1)).unwrap();
-    let plan = history_plan(1, 8, &OnDevice { device: 0, devices: 1 });
-    let (device, resource) = plan.final_output("acc", 0).unwrap();
+    let (plan, acc) = history_plan(1, 8, &OnDevice { device: 0, devices: 1 });
+    let (device, resource) = plan.final_output(acc, 0).unwrap();
     let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     let texel = |exec: &mut Executor| {
         exec.finish().unwrap();
@@ -176,7 +176,7 @@ fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
 #[test]
 fn plan_errors_are_reported_before_any_gpu_work() {
     // A schedule that does not validate is not lowered; the error is the validator's own.
-    let graph = history_graph(1, 8);
+    let (graph, _) = history_graph(1, 8);
     let mut schedule = compile(&graph, &OnDevice { device: 1, devices: 2 }).unwrap();
     let c = schedule.copies.iter().position(|c| c.to == DeviceId(0)).expect("exports are gathered on device 0");
     schedule.devices[0].ops.retain(|op| *op != Op::Wait(CopyId(c as u32)));
@@ -219,14 +219,14 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     graph.export(&radiance);
     let plan = lower(&graph, &OnDevice { device: 1, devices: 2 });
     assert_eq!(plan.copies.len(), 2);
-    let (mask_device, mask_resource) = plan.final_output("mask", 0).unwrap();
-    let (radiance_device, radiance_resource) = plan.final_output("radiance", 0).unwrap();
-    assert_eq!((mask_device, radiance_device), (0, 0));
+    let (mask_device, mask_resource) = plan.final_output(mask.family(), 0).unwrap();
+    let (radiance_device, radiance_resource) = plan.final_output(radiance.family(), 0).unwrap();
+    assert_eq!((mask_device, radiance_device), (DeviceId(0), DeviceId(0)));
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
     let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     exec.run_frame().unwrap();
-    let mask = exec.read_resource(0, mask_resource).unwrap();
-    let radiance = exec.read_resource(0, radiance_resource).unwrap();
+    let mask = exec.read_resource(DeviceId(0), mask_resource).unwrap();
+    let radiance = exec.read_resource(DeviceId(0), radiance_resource).unwrap();
     let words = |b: &[u8]| b.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>();
     let mask: Vec<u32> = words(&mask).into_iter().map(u32::from_le_bytes).collect();
     let radiance: Vec<f32> = words(&radiance).into_iter().map(f32::from_le_bytes).collect();
@@ -240,8 +240,9 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
 }
 
 /// One raster pass instance per device, each over a row band of the same colour image and
-/// depth resource; bands of both gathered on device 0.
-fn raster_plan(devices: usize, size: u32) -> ExecutionPlan {
+/// depth resource; bands of both gathered on device 0. Returns the plan and the families of the
+/// image and the depth resource.
+fn raster_plan(devices: usize, size: u32) -> (ExecutionPlan, [FamilyId; 2]) {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(6, size, size));
     let mut gbuffer = graph.image("gbuffer", Format::Rgba32f);
     let mut depth = graph.image("depth", Format::Depth32f);
@@ -250,7 +251,8 @@ fn raster_plan(devices: usize, size: u32) -> ExecutionPlan {
     pass.kernel(Arc::new(kernel)).record();
     graph.export(&gbuffer);
     graph.export(&depth);
-    lower(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 })
+    let plan = lower(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 });
+    (plan, [gbuffer.family(), depth.family()])
 }
 
 #[test]
@@ -264,10 +266,10 @@ fn raster_passes_render_row_bands_into_a_depth_resource_on_any_device_count() {
         .collect();
     for devices in [1, 2, 3] {
         let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
-        let plan = raster_plan(devices, size);
-        let (device, resource) = plan.final_output("gbuffer", 5).unwrap();
-        let (depth_device, depth_resource) = plan.final_output("depth", 5).unwrap();
-        assert_eq!((device, depth_device), (0, 0));
+        let (plan, [gbuffer, depth]) = raster_plan(devices, size);
+        let (device, resource) = plan.final_output(gbuffer, 5).unwrap();
+        let (depth_device, depth_resource) = plan.final_output(depth, 5).unwrap();
+        assert_eq!((device, depth_device), (DeviceId(0), DeviceId(0)));
         let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
         exec.run_frame().unwrap();
         exec.run_frame().unwrap();
@@ -281,8 +283,9 @@ fn raster_passes_render_row_bands_into_a_depth_resource_on_any_device_count() {
     }
 }
 
-/// Two views, view v on device v, each `weighted_fill`ed; view 1 gathered on device 0.
-fn weighted_plan(size: u32) -> ExecutionPlan {
+/// Two views, view v on device v, each `weighted_fill`ed; view 1 gathered on device 0. Returns
+/// the plan and the family of `w`.
+fn weighted_plan(size: u32) -> (ExecutionPlan, FamilyId) {
     struct ViewPerDevice;
     impl Placement for ViewPerDevice {
         fn devices(&self) -> u32 {
@@ -296,7 +299,7 @@ fn weighted_plan(size: u32) -> ExecutionPlan {
     let mut w = graph.image("w", Format::Rgba32f);
     declare_writer(&mut graph, "weighted_fill", Role::All, &mut w, |out| WeightedFillKernel { out }).record();
     graph.export(&w);
-    lower(&graph, &ViewPerDevice)
+    (lower(&graph, &ViewPerDevice), w.family())
 }
 
 #[test]
@@ -304,13 +307,13 @@ fn global_buffers_and_frame_data_reach_kernels_by_address() {
     use parallax_testkit::kernels::reference_fill;
     let size = 16;
     let ctx = context(DeviceSelection::FakeDevices(2)).unwrap();
-    let plan = weighted_plan(size);
-    let outputs: Vec<usize> = (0..2).map(|v| plan.final_output("w", v).unwrap().1).collect();
+    let (plan, w) = weighted_plan(size);
+    let outputs: Vec<AllocId> = (0..2).map(|v| plan.final_output(w, v).unwrap().1).collect();
     let mut exec = Executor::new(&ctx, plan, parallax_testkit::options()).unwrap();
     let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
     let check = |exec: &mut Executor, weights: [f32; 2], offset: f32| {
         for view in 0..2u32 {
-            let bytes = exec.read_resource(0, outputs[view as usize]).unwrap();
+            let bytes = exec.read_resource(DeviceId(0), outputs[view as usize]).unwrap();
             let got: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
             let expected: Vec<f32> = (0..size)
                 .flat_map(|y| (0..size).flat_map(move |x| reference_fill(x, y, view)))

@@ -1,7 +1,9 @@
 //! Executor on lavapipe (or any Vulkan device): the reprojection demo on 1, 2 and 3 logical
 //! devices, with validation always on.
 
-use parallax_backend::{BackendError, Context, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, chrome_trace};
+use parallax_backend::{
+    BackendError, Context, DeviceId, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, chrome_trace,
+};
 use parallax_testkit::kernels::reference_shift_blend;
 use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
 
@@ -28,7 +30,7 @@ fn run_demo(devices: usize, frames: usize, options: ExecOptions) -> (Vec<Vec<u8>
         exec.run_frame().unwrap();
     }
     exec.finish().unwrap();
-    let outputs = ids.output.iter().map(|&r| exec.read_resource(0, r).unwrap()).collect();
+    let outputs = ids.output.iter().map(|&r| exec.read_resource(DeviceId(0), r).unwrap()).collect();
     (outputs, exec, ctx)
 }
 
@@ -75,7 +77,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
         })
         .unwrap();
     // Views whose blend reads the copied resource on the consumer are the ones that go wrong.
-    let dropped = plan.copies[copy];
+    let dropped = *plan.copy(copy);
     let expected: Vec<usize> = plan
         .passes
         .iter()
@@ -95,7 +97,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
         exec.finish().unwrap();
         let wrong: Vec<usize> = (0..VIEWS)
             .filter(|&v| {
-                let bytes = exec.read_resource(0, ids.output[v as usize]).unwrap();
+                let bytes = exec.read_resource(DeviceId(0), ids.output[v as usize]).unwrap();
                 floats(&bytes) != reference_output(v)
             })
             .map(|v| v as usize)
@@ -172,9 +174,9 @@ fn timestamps_are_ordered_and_trace_lists_every_pass() {
 fn demo_tid_check(plan: &parallax_backend::ExecutionPlan, e: &serde_json::Value) -> usize {
     let index = e["args"]["index"].as_u64().unwrap() as usize;
     match e["cat"].as_str().unwrap() {
-        "pass" => plan.passes[index].device,
-        "copy_out" => plan.copies[index].from,
-        _ => plan.copies[index].to,
+        "pass" => plan.passes[index].device.index(),
+        "copy_out" => plan.copies[index].from.index(),
+        _ => plan.copies[index].to.index(),
     }
 }
 
@@ -202,7 +204,7 @@ fn frames_reuse_recorded_command_buffers() {
 
 #[test]
 fn demo_device_assignment_is_round_robin() {
-    assert_eq!(demo_device_of_view(4, 3), 1);
+    assert_eq!(demo_device_of_view(4, 3), DeviceId(1));
 }
 
 #[test]

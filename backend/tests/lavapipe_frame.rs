@@ -8,9 +8,12 @@ use glam::{Mat4, Vec2, Vec3};
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
     BackendError, Context, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor, FrameBlock, FrameClock,
-    FrameData, FrameHeader, GpuCamera, KernelGraph, PassKernel, Recorder, ViewCameras, WriteSlot, check_push_constants,
+    FrameData, FrameHeader, GpuCamera, InstanceId, KernelGraph, PassKernel, Recorder, ViewCameras, WriteSlot,
+    check_push_constants,
 };
-use parallax_graph::{DeviceId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile};
+use parallax_graph::{
+    AllocId, DeviceId, FamilyId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile,
+};
 use parallax_testkit::kernels::reference_mask;
 use std::mem::{offset_of, size_of};
 use std::sync::Arc;
@@ -110,7 +113,7 @@ struct FrameFillKernel {
 }
 
 impl PassKernel for FrameFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let params = FrameFillParams {
             dst: rec.image(pass.write(self.out)?.resource)?,
             view: pass.view,
@@ -166,7 +169,7 @@ fn the_frame_loop_reads_back_every_frames_exports_with_two_frames_in_flight() {
     let ctx = context(2);
     let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
     let plan = gather_plan();
-    let view_of = |r: usize| plan.resources[r].view;
+    let view_of = |r: AllocId| plan.resource(r).view;
     let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
     let mut clock = FrameClock::new();
     let expected = |frame: u32, view: u32| -> Vec<u32> {
@@ -221,16 +224,17 @@ fn the_frame_loop_reads_back_every_frames_exports_with_two_frames_in_flight() {
     ctx.check_validation().unwrap();
 }
 
-/// Pass `frame_probe`: test_frame_block.comp writes the frame block into `writes[0]`.
+/// Pass `frame_probe`: test_frame_block.comp writes the frame block into its `out` write.
 struct FrameProbeKernel {
     views: u32,
+    out: WriteSlot,
 }
 
 impl PassKernel for FrameProbeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let push = FrameBlockProbe {
             block: rec.frame_block_address()?,
-            target: rec.buffer_of(pass.writes[0].resource)?,
+            target: rec.buffer_of(pass.write(self.out)?.resource)?,
             max_views: self.views,
             pad: 0,
         };
@@ -250,9 +254,10 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
     const FRAMES: u32 = 6;
     const CUT: u32 = 3;
     let camera_words_per_view = 2 * 38;
-    let mut probe = ExecResource::buffer("frame block copy", 0, 4 * (3 + camera_words_per_view * VIEWS as u64));
+    let bytes = 4 * (3 + camera_words_per_view * VIEWS as u64);
+    let mut probe = ExecResource::buffer("frame block copy", FamilyId(0), 0, bytes);
     probe.exported = true;
-    let plan = ExecutionPlan::single_pass("frame_probe", FrameProbeKernel { views: VIEWS }, probe, 1);
+    let plan = ExecutionPlan::single_pass("frame_probe", |out| FrameProbeKernel { views: VIEWS, out }, probe, 1);
     let ctx = context(1);
     let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
     let mut exec = Executor::new(&ctx, plan.clone(), options.clone()).unwrap();

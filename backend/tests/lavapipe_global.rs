@@ -6,14 +6,18 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams, Recorder, ResourceKind,
+    ExecPass, ExecutionPlan, Executor, InstanceId, KernelGraph, PassKernel, PassParams, Recorder, ResourceKind,
 };
 use parallax_graph::{
-    AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme, WriteSlot, compile,
+    AssignStrategy, DeviceId, FamilyId, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme,
+    WriteSlot, compile,
 };
 use parallax_testkit::kernels::{FillBufferKernel, FillKernel, reference_shift_blend, shift_of_view};
 
 const SIZE: u32 = 16;
+
+/// The family of [`global_graph`]'s `output` (its fourth declared resource).
+const OUTPUT: FamilyId = FamilyId(3);
 
 /// fill per view → `pattern`; the global pass `fill_global` → the global image `shared` (view
 /// 0's pattern) and `shared_words` → shift_blend of every view: its own pattern with `shared`.
@@ -26,6 +30,7 @@ fn global_graph(scheme: Scheme, devices: u32) -> (KernelGraph, Schedule) {
     let mut shared = g.global_image("shared", SIZE, SIZE, Format::Rgba32f);
     let mut words = g.global_buffer("shared_words", 64);
     let mut output = g.image("output", Format::Rgba32f);
+    assert_eq!(output.family(), OUTPUT);
     let mut fill = g.pass("fill", Role::All);
     let out = fill.write_slot(&mut pattern);
     fill.kernel(Arc::new(FillKernel { out })).record();
@@ -53,7 +58,7 @@ struct BlendWithGlobal {
 }
 
 impl PassKernel for BlendWithGlobal {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let dst = pass.write(self.out)?.resource;
         let base = rec.row_params(pass, dst)?;
         let params = PassParams {
@@ -70,7 +75,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<u8>> {
     let (graph, schedule) = global_graph(scheme, devices);
     let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
     let shared: Vec<_> = plan.resources.iter().filter(|r| r.name == "shared").collect();
-    let blend_devices: std::collections::BTreeSet<usize> =
+    let blend_devices: std::collections::BTreeSet<DeviceId> =
         plan.passes.iter().filter(|p| p.name == "blend").map(|p| p.device).collect();
     assert_eq!(shared.len(), blend_devices.len(), "{scheme:?}: one allocation on each device that reads it");
     let words: Vec<_> = plan.resources.iter().filter(|r| r.name == "shared_words").collect();
@@ -84,7 +89,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<u8>> {
     exec.finish().unwrap();
     let outputs = (0..2)
         .map(|view| {
-            let (device, resource) = plan.final_output("output", view).unwrap();
+            let (device, resource) = plan.final_output(OUTPUT, view).unwrap();
             let bytes = exec.read_resource(device, resource).unwrap();
             let expected: Vec<u8> = (0..SIZE)
                 .flat_map(|y| (0..SIZE).flat_map(move |x| reference_shift_blend(x, y, view, 0, SIZE)))

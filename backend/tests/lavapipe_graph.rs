@@ -8,12 +8,17 @@ use parallax_backend::{
     Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, ExecutionPlan, Executor, Validation,
 };
 use parallax_graph::Format;
-use parallax_graph::{AssignStrategy, LightField, PlanConfig, Rig, Role, Schedule, Scheme, ViewId, compile};
+use parallax_graph::{
+    AllocId, AssignStrategy, DeviceId, FamilyId, LightField, PlanConfig, Rig, Role, Schedule, Scheme, ViewId, compile,
+};
 use parallax_testkit::kernels::{
     FillBufferKernel, FillKernel, ShiftBlendKernel, declare_writer, reference_shift_blend,
 };
 
 const SIZE: u32 = 32;
+
+/// The family of [`fill_and_blend`]'s `output` (its second declared resource).
+const OUTPUT: FamilyId = FamilyId(1);
 
 /// fill (sources and targets as separate passes) → shift_blend reading the view's first
 /// source → output exported (gathered on device 0).
@@ -29,6 +34,7 @@ fn fill_and_blend(plan: &parallax_graph::Plan) -> (KernelGraph, Schedule) {
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
+    assert_eq!(output.family(), OUTPUT);
     declare_writer(&mut g, "fill", Role::Sources, &mut radiance, |out| FillKernel { out }).record();
     declare_writer(&mut g, "fill", Role::Targets, &mut radiance, |out| FillKernel { out }).record();
     let mut blend = g.pass("shift_blend", Role::All);
@@ -45,11 +51,11 @@ fn fill_and_blend(plan: &parallax_graph::Plan) -> (KernelGraph, Schedule) {
 }
 
 /// Per view, the resource of its gathered `output` on device 0.
-fn output_resources(plan: &ExecutionPlan, views: u32) -> Vec<(u32, usize)> {
+fn output_resources(plan: &ExecutionPlan, views: u32) -> Vec<(u32, AllocId)> {
     (0..views)
-        .map(|v| (v, plan.final_output("output", v).unwrap()))
+        .map(|v| (v, plan.final_output(OUTPUT, v).unwrap()))
         .map(|(v, (d, r))| {
-            assert_eq!(d, 0);
+            assert_eq!(d, DeviceId(0));
             (v, r)
         })
         .collect()
@@ -78,7 +84,7 @@ fn run(scheme: Scheme, devices: u32) -> Vec<Vec<f32>> {
     let outputs: Vec<Vec<f32>> = output_resources(&plan, schedule.views)
         .into_iter()
         .map(|(view, r)| {
-            let bytes = exec.read_resource(0, r).unwrap();
+            let bytes = exec.read_resource(DeviceId(0), r).unwrap();
             let values: Vec<f32> =
                 bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
             let other = sources_of[view as usize].first().map_or(view, |s| s.0);
@@ -144,14 +150,14 @@ fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     let exec_plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
     assert!(exec_plan.resources.iter().all(|r| r.kind == ResourceKind::Buffer && r.width == 250));
     assert_eq!(exec_plan.copies.len(), 2, "views on devices 1 and 2 gathered to device 0");
-    let gathered: Vec<usize> = (0..3).map(|v| exec_plan.final_output("list", v).unwrap().1).collect();
+    let gathered: Vec<AllocId> = (0..3).map(|v| exec_plan.final_output(list.family(), v).unwrap().1).collect();
     let ctx = Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(3), validation: Validation::Core })
         .unwrap();
     let mut exec = Executor::new(&ctx, exec_plan.clone(), parallax_testkit::options()).unwrap();
     exec.run_frame().unwrap();
     for r in gathered {
-        let resource = &exec_plan.resources[r];
-        let bytes = exec.read_resource(0, r).unwrap();
+        let resource = exec_plan.resource(r);
+        let bytes = exec.read_resource(DeviceId(0), r).unwrap();
         let words: Vec<u32> = bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         let expected: Vec<u32> = (0..250).map(|i| reference_buffer_word(i, resource.view)).collect();
         assert_eq!(words, expected, "view {}", resource.view);
@@ -188,7 +194,7 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
                 exec.run_frame().unwrap();
                 for &(view, r) in &outputs {
                     let values: Vec<f32> = exec
-                        .read_resource(0, r)
+                        .read_resource(DeviceId(0), r)
                         .unwrap()
                         .chunks_exact(4)
                         .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
@@ -211,9 +217,9 @@ fn graph_exports_are_read_back_by_the_frame_loop() {
     let devices = 2;
     let ((graph, schedule), _) = demo_schedule(Scheme::FineAll, devices);
     let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
-    let mut outputs: Vec<usize> = output_resources(&plan, schedule.views).into_iter().map(|(_, r)| r).collect();
+    let mut outputs: Vec<AllocId> = output_resources(&plan, schedule.views).into_iter().map(|(_, r)| r).collect();
     outputs.sort();
-    let exported: Vec<usize> = (0..plan.resources.len()).filter(|&r| plan.resources[r].exported).collect();
+    let exported: Vec<AllocId> = plan.resource_ids().filter(|(_, r)| r.exported).map(|(a, _)| a).collect();
     assert_eq!(exported, outputs, "lowering keeps the graph's exports");
     let ctx = Context::new(&ContextDesc {
         selection: DeviceSelection::FakeDevices(devices as usize),
@@ -230,7 +236,7 @@ fn graph_exports_are_read_back_by_the_frame_loop() {
     assert_eq!(frames[0].len(), outputs.len());
     assert_eq!(frames[0], frames[1], "the demo renders the same every frame");
     for (r, bytes) in &frames[0] {
-        assert_eq!(*bytes, exec.read_resource(0, *r).unwrap(), "resource {r}");
+        assert_eq!(*bytes, exec.read_resource(DeviceId(0), *r).unwrap(), "resource {r}");
     }
     drop(exec);
     ctx.check_validation().unwrap();

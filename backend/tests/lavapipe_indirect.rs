@@ -8,9 +8,10 @@ use std::sync::Arc;
 
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecAccess, ExecOptions, ExecPass, ExecResource,
-    ExecutionPlan, ExecutionPlanError, Executor, Format, KernelGraph, PassKernel, Recorder, Region, Validation,
+    ExecutionPlan, ExecutionPlanError, Executor, Format, InstanceId, KernelGraph, PassKernel, Recorder, Region,
+    Validation,
 };
-use parallax_graph::{BandedPlacement, ReadSlot, Role, ViewTopology, WriteSlot, compile};
+use parallax_graph::{AllocId, BandedPlacement, FamilyId, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_testkit::kernels::reference_mask;
 
 const SALT: u32 = 0x5eed;
@@ -56,13 +57,13 @@ struct IndirectCountParams {
 parallax_backend::push_constants!(IndirectCountParams { args, counter });
 
 /// Records the arguments pass (one workgroup) into the buffer `args`.
-fn record_args(rec: &mut Recorder<'_>, args: usize) -> parallax_backend::Result<()> {
+fn record_args(rec: &mut Recorder<'_>, args: AllocId) -> parallax_backend::Result<()> {
     let args = rec.buffer_of(args)?;
     rec.dispatch("test_indirect_args", &IndirectArgsParams { args, salt: SALT, pad: 0 }, [1, 1, 1])
 }
 
 /// Records the indirect dispatch on the arguments `args` into the counter `counter`.
-fn record_count(rec: &mut Recorder<'_>, args: usize, counter: usize) -> parallax_backend::Result<()> {
+fn record_count(rec: &mut Recorder<'_>, args: AllocId, counter: AllocId) -> parallax_backend::Result<()> {
     let push = IndirectCountParams { args: rec.buffer_of(args)?, counter: rec.buffer_of(counter)? };
     rec.dispatch_indirect("test_indirect_count", &push, args, 0)
 }
@@ -73,7 +74,7 @@ struct ArgsKernel {
 }
 
 impl PassKernel for ArgsKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         record_args(rec, pass.write(self.args)?.resource)
     }
 }
@@ -85,7 +86,7 @@ struct CountKernel {
 }
 
 impl PassKernel for CountKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         record_count(rec, pass.read(self.args)?.resource, pass.write(self.counter)?.resource)
     }
 }
@@ -100,7 +101,7 @@ struct FusedKernel {
 }
 
 impl PassKernel for FusedKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let args = pass.write(self.args)?.resource;
         record_args(rec, args)?;
         record_count(rec, args, pass.write(self.counter)?.resource)
@@ -109,12 +110,12 @@ impl PassKernel for FusedKernel {
 
 /// A pass that dispatches indirectly from `resource` at `offset`, whatever they are.
 struct MisusedKernel {
-    resource: usize,
+    resource: AllocId,
     offset: u64,
 }
 
 impl PassKernel for MisusedKernel {
-    fn record(&self, rec: &mut Recorder<'_>, _: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let push = IndirectCountParams { args: 0, counter: 0 };
         rec.dispatch_indirect("test_indirect_count", &push, self.resource, self.offset)
     }
@@ -156,7 +157,7 @@ fn gpu_counts_drive_the_next_dispatch_and_resets_start_every_frame_afresh() {
         let ctx = context();
         let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
         let plan = indirect_plan(fused);
-        let name_of = |r: usize| plan.resources[r].name.clone();
+        let name_of = |r: AllocId| plan.resource(r).name.clone();
         let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
         let mut tickets = std::collections::VecDeque::new();
         let mut checked = 0;
@@ -190,19 +191,20 @@ fn gpu_counts_drive_the_next_dispatch_and_resets_start_every_frame_afresh() {
 #[test]
 fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     // Resource 0: a 16-byte buffer; resource 1: an image.
-    let image = ExecResource { storage: 1, ..ExecResource::image("image", 0, 4, 4, Format::R32u) };
+    let image = ExecResource { storage: 1, ..ExecResource::image("image", FamilyId(1), 0, 4, 4, Format::R32u) };
     let plan = |kernel: MisusedKernel| {
-        let mut plan = ExecutionPlan::single_pass("misused", kernel, ExecResource::buffer("args", 0, 16), 1);
+        let args = ExecResource::buffer("args", FamilyId(0), 0, 16);
+        let mut plan = ExecutionPlan::single_pass("misused", |_| kernel, args, 1);
         plan.resources.push(image.clone());
-        plan.passes[0].writes.push(ExecAccess::own("image", 1, 1, 1, Region::new(0, 4)));
+        plan.passes[0].writes.push(ExecAccess::own("image", 1, AllocId(1), 1, Region::new(0, 4)));
         plan
     };
     let ctx = context();
     for (resource, offset, problem) in [
-        (0, 2, "multiple of 4"),
-        (0, 8, "do not fit the 16-byte buffer"),
-        (1, 0, "is an image"),
-        (7, 0, "not allocated"),
+        (AllocId(0), 2, "multiple of 4"),
+        (AllocId(0), 8, "do not fit the 16-byte buffer"),
+        (AllocId(1), 0, "is an image"),
+        (AllocId(7), 0, "not allocated"),
     ] {
         let mut exec =
             Executor::new(&ctx, plan(MisusedKernel { resource, offset }), parallax_testkit::options()).unwrap();
@@ -216,14 +218,18 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     }
     // The last 12 bytes of the buffer are a valid place.
     let mut exec =
-        Executor::new(&ctx, plan(MisusedKernel { resource: 0, offset: 4 }), parallax_testkit::options()).unwrap();
+        Executor::new(&ctx, plan(MisusedKernel { resource: AllocId(0), offset: 4 }), parallax_testkit::options())
+            .unwrap();
     exec.run_frame().unwrap();
     exec.finish().unwrap();
     drop(exec);
     // Only buffers are reset.
-    let mut reset_image = plan(MisusedKernel { resource: 0, offset: 4 });
+    let mut reset_image = plan(MisusedKernel { resource: AllocId(0), offset: 4 });
     reset_image.resources[1].reset = Some(vec![]);
     let err = Executor::new(&ctx, reset_image, parallax_testkit::options()).err().unwrap();
-    assert!(matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::ResetOfImage { resource: 1 })), "{err}");
+    assert!(
+        matches!(err, BackendError::ExecutionPlan(ExecutionPlanError::ResetOfImage { resource: AllocId(1) })),
+        "{err}"
+    );
     ctx.check_validation().unwrap();
 }

@@ -10,11 +10,13 @@ use std::sync::Arc;
 
 use parallax_backend::{
     BACKEND_SHADERS, BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan,
-    Executor, KernelGraph, PassKernel, PassParams, Recorder, SearchedShaders, ShaderLibrary, SpirvDefect, Validation,
-    shader_names,
+    Executor, InstanceId, KernelGraph, PassKernel, PassParams, Recorder, SearchedShaders, ShaderLibrary, SpirvDefect,
+    Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
-use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, ReadSlot, Rig, Role, Scheme, WriteSlot, compile};
+use parallax_graph::{
+    AllocId, AssignStrategy, DeviceId, Format, LightField, PlanConfig, ReadSlot, Rig, Role, Scheme, WriteSlot, compile,
+};
 use parallax_testkit::kernels::{FillKernel, declare_writer, reference_fill};
 
 const SIZE: u32 = 16;
@@ -45,7 +47,7 @@ struct ReadWriteKernel {
 }
 
 impl PassKernel for ReadWriteKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let (src, dst) = (pass.read(self.src)?.resource, pass.write(self.dst)?.resource);
         let params = PassParams { src0: rec.image(src)?, ..rec.row_params(pass, dst)? };
         rec.dispatch_rows(self.shader, params)
@@ -62,7 +64,7 @@ fn reference_scale_swap(x: u32, y: u32, view: u32) -> [f32; 4] {
 /// testkit `fill` → user pass `user` (kernel dispatching `shader`) on every view of a 2×1 light
 /// field over two devices, the result gathered on device 0. Returns the plan and, per view,
 /// the resource of the result.
-fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<usize>) {
+fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<AllocId>) {
     let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
     let config =
         PlanConfig { devices: DEVICES, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
@@ -77,7 +79,7 @@ fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<usize>) {
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
     let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
-    let outputs = (0..2).map(|v| plan.final_output("output", v).unwrap().1).collect();
+    let outputs = (0..2).map(|v| plan.final_output(output.family(), v).unwrap().1).collect();
     (plan, outputs)
 }
 
@@ -108,7 +110,7 @@ fn a_kernel_compiled_outside_shaders_runs_on_every_device_like_the_cpu() {
     }
     exec.finish().unwrap();
     for (view, &resource) in outputs.iter().enumerate() {
-        let bytes = exec.read_resource(0, resource).unwrap();
+        let bytes = exec.read_resource(DeviceId(0), resource).unwrap();
         let values: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         let view = view as u32;
         let expected: Vec<f32> =
@@ -165,7 +167,7 @@ struct SwappedRowsKernel {
 }
 
 impl PassKernel for SwappedRowsKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let p = rec.row_params(pass, pass.write(self.dst)?.resource)?;
         let push =
             SwappedRows { dst: p.dst, src0: 0, src1: 0, view: p.view, y1: p.y1, y0: p.y0, width: p.width, param: 0 };

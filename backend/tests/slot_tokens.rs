@@ -4,14 +4,14 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, ExecutionPlan, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{BackendError, ExecPass, ExecutionPlan, InstanceId, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{BandedPlacement, Format, Origin, Role, ViewId, ViewTopology, compile};
 
 /// A kernel that records nothing: these tests only look at the lowered plan.
 struct Nothing;
 
 impl PassKernel for Nothing {
-    fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         Ok(())
     }
 }
@@ -45,10 +45,10 @@ fn each_token_binds_its_own_access_and_a_foreign_one_is_refused() {
     let placement = BandedPlacement { devices: 1, bands: 1 };
     let plan = ExecutionPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();
     let blend = pass_named(&plan, "blend", 1);
-    let name = |access: &parallax_backend::ExecAccess| plan.resources[access.resource].name.clone();
+    let name = |access: &parallax_backend::ExecAccess| plan.resource(access.resource).name.clone();
     assert_eq!(name(blend.read(own).unwrap()), "radiance");
     assert_eq!(blend.read(own).unwrap().origin, Origin::Own);
-    let source_views: Vec<u32> = blend.sources(sources).unwrap().map(|a| plan.resources[a.resource].view).collect();
+    let source_views: Vec<u32> = blend.sources(sources).unwrap().map(|a| plan.resource(a.resource).view).collect();
     assert_eq!(source_views, [0]);
     assert_eq!(name(blend.history_read(history).unwrap()), "acc");
     assert_eq!(name(blend.write(accumulated).unwrap()), "acc");

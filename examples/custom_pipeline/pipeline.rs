@@ -15,8 +15,8 @@ use anyhow::{Context as _, Result, bail, ensure};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph,
-    PassKernel, Recorder, Validation,
+    AllocId, BackendError, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan,
+    Executor, FamilyId, InstanceId, KernelGraph, PassKernel, Recorder, Validation,
 };
 use parallax_graph::{
     AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme, SourcesSlot,
@@ -60,7 +60,7 @@ struct PatternKernel {
 }
 
 impl PassKernel for PatternKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let dst = pass.write(self.radiance)?.resource;
         let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows("pattern", params)
@@ -94,7 +94,7 @@ struct BlendKernel {
 }
 
 impl PassKernel for BlendKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         let (own, dst) = (pass.read(self.own)?, pass.write(self.blended)?);
         let width = rec.resource(dst.resource).width;
         let mut params = BlendParams {
@@ -107,7 +107,7 @@ impl PassKernel for BlendKernel {
         };
         for (i, source) in pass.sources(self.sources)?.enumerate() {
             if i == MAX_SOURCES {
-                return Err(misuse("blend", index, &format!("blends at most {MAX_SOURCES} sources")));
+                return Err(misuse("blend", index.index(), &format!("blends at most {MAX_SOURCES} sources")));
             }
             params.source_image[i] = rec.image(source.resource)?;
             params.shift[i] = shift(pass.view, rec.resource(source.resource).view, self.cols, width);
@@ -149,8 +149,8 @@ fn expected(x: u32, y: u32, view: u32, sources: &[u32], lf: &LightField) -> [f32
     [0.5 * own[0] + 0.5 * seen[0], 0.5 * own[1] + 0.5 * seen[1], 0.5 * own[2] + 0.5 * seen[2], 1.0]
 }
 
-/// The light field, the planner's placement and the declared graph.
-fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGraph)> {
+/// The light field, the planner's placement, the declared graph and its radiance's family.
+fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGraph, FamilyId)> {
     let lf = LightField::new(LAYOUT.parse()?, None, Some(RESOLUTION), Rig::default())?;
     let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&lf, &config)?;
@@ -165,7 +165,7 @@ fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGrap
     let blended = pass.write_slot(&mut radiance);
     pass.kernel(Arc::new(BlendKernel { own, sources, blended, cols: lf.cols })).record();
     graph.export(&radiance);
-    Ok((lf, plan, graph))
+    Ok((lf, plan, graph, radiance.family()))
 }
 
 /// Compiles the graph and checks the schedule's invariants.
@@ -180,21 +180,21 @@ fn schedule(graph: &KernelGraph, plan: &Plan) -> Result<Schedule> {
 
 /// The schedule over `devices` devices as DOT (no GPU needed).
 pub fn schedule_dot(scheme: Scheme, devices: u32) -> Result<String> {
-    let (_, plan, graph) = declare(scheme, devices)?;
+    let (_, plan, graph, _) = declare(scheme, devices)?;
     Ok(schedule(&graph, &plan)?.to_dot())
 }
 
 /// Runs the pipeline on the devices, checks every pixel against the CPU and writes the PNG.
 pub fn run(options: &Options) -> Result<Report> {
-    let (lf, plan, graph) = declare(options.scheme, options.devices.count() as u32)?;
+    let (lf, plan, graph, radiance) = declare(options.scheme, options.devices.count() as u32)?;
     let schedule = schedule(&graph, &plan)?;
     let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule)?;
     let shaders = parallax_backend::include_shaders!()?;
 
     let context = Context::new(&ContextDesc { selection: options.devices, validation: options.validation })?;
-    let outputs: Vec<(usize, usize)> = lf
+    let outputs: Vec<(DeviceId, AllocId)> = lf
         .views()
-        .map(|v| exec_plan.final_output(RADIANCE, v.0).with_context(|| format!("view {} has no `radiance`", v.0)))
+        .map(|v| exec_plan.final_output(radiance, v.0).with_context(|| format!("view {} has no `radiance`", v.0)))
         .collect::<Result<_>>()?;
     let copies = exec_plan.copies.len();
     let mut executor = Executor::new(&context, exec_plan, ExecOptions { shaders, ..ExecOptions::default() })?;

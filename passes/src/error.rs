@@ -33,6 +33,12 @@ pub enum PassError {
     #[error("the plan has no resource `{name}` for view {view}")]
     MissingResource { name: String, view: u32 },
 
+    /// Nothing in the plan writes the declared resource `family` for `view`.
+    #[error(
+        "the plan writes no version of declared resource {family} for view {view}: read a resource the graph declares for that view"
+    )]
+    MissingOutput { family: parallax_graph::FamilyId, view: u32 },
+
     /// A view's size differs from its images in the plan.
     #[error("view {view} is {width}x{height} but the plan's `{name}` image is {plan_width}x{plan_height} {format}")]
     ViewSize { view: u32, name: String, width: u32, height: u32, plan_width: u32, plan_height: u32, format: String },

@@ -9,7 +9,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::path_trace::TRACE_PARAMS_BYTES;
@@ -58,7 +58,7 @@ struct GbufferKernel {
 }
 
 impl PassKernel for GbufferKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let image = |rec: &Recorder<'_>, slot| pass.write(slot).and_then(|w| rec.image(w.resource));
         let position_depth = pass.write(self.position_depth)?.resource;
         let width = rec.resource(position_depth).width;
@@ -108,7 +108,7 @@ struct MotionKernel {
 }
 
 impl PassKernel for MotionKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let (position, motion) = (pass.read(self.position_depth)?, pass.write(self.motion)?);
         let desc = rec.resource(position.resource);
         let (width, height) = (desc.width, desc.height);

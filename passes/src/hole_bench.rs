@@ -7,15 +7,15 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameReport, KernelGraph,
-    PassKernel, PassParams, Recorder,
+    BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameReport, InstanceId,
+    KernelGraph, PassKernel, PassParams, Recorder,
 };
-use parallax_graph::{BandedPlacement, Role, ViewId, ViewTopology, WriteSlot, compile};
+use parallax_graph::{BandedPlacement, FamilyId, Role, ViewId, ViewTopology, WriteSlot, compile};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, View};
 
 use crate::error::{PassError, Result};
-use crate::holes::{COMPACT_HOLES, HOLE_FILL, HOLE_LIST, HOLES, declare_hole_fill};
+use crate::holes::{COMPACT_HOLES, HOLE_FILL, HOLES, declare_hole_fill};
 use crate::path_trace::{PATH_TRACE, PathTraceKernel, trace_frame_data};
 use crate::scene_upload::upload_scene;
 
@@ -48,12 +48,12 @@ pub struct HashedHoleMaskKernel {
 }
 
 impl PassKernel for HashedHoleMaskKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         let mask = pass.write(self.mask)?;
         if rec.resource(mask.resource).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: HOLE_MASK.into(),
-                instance: index,
+                instance: index.index(),
                 detail: "writes its mask into an R32u image".into(),
             });
         }
@@ -103,7 +103,7 @@ pub fn bench_holes(
 ) -> Result<HoleBench> {
     let threshold = hole_threshold(hole_fraction)?;
     let frames = frames.max(1);
-    let plan = bench_plan(width, height, threshold)?;
+    let (plan, list_family) = bench_plan(width, height, threshold)?;
     let bvh = SceneBvh::build(scene);
     let mut executor =
         Executor::new(context, plan, ExecOptions { shaders: crate::shader_library(), ..ExecOptions::default() })?;
@@ -123,8 +123,8 @@ pub fn bench_holes(
         .count() as u64;
     let (device, list) = executor
         .plan()
-        .final_output(HOLE_LIST, 1)
-        .ok_or_else(|| PassError::MissingResource { name: HOLE_LIST.into(), view: 1 })?;
+        .final_output(list_family, 1)
+        .ok_or(PassError::MissingOutput { family: list_family, view: 1 })?;
     let header = executor.read_resource(device, list)?;
     let holes = u64::from(u32::from_le_bytes([header[12], header[13], header[14], header[15]]));
     if holes != expected {
@@ -154,7 +154,8 @@ pub fn bench_holes(
 }
 
 /// Source view 0 path traced, target view 1 masked, compacted and filled, on one device.
-fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<ExecutionPlan> {
+/// The plan, and the family of its hole list.
+fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<(ExecutionPlan, FamilyId)> {
     let topology =
         ViewTopology { width, height, sources_of: vec![Vec::new(), vec![ViewId(0)]], is_source: vec![true, false] };
     let mut graph = KernelGraph::with_payload(topology);
@@ -168,10 +169,11 @@ fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<ExecutionPlan> 
     let mut pass = graph.pass(HOLE_MASK, Role::Targets);
     let mask = pass.write_slot(&mut holes);
     pass.kernel(Arc::new(HashedHoleMaskKernel { mask, threshold })).record();
-    declare_hole_fill(&mut graph, &holes, &mut radiance);
+    let list = declare_hole_fill(&mut graph, &holes, &mut radiance);
     graph.export(&radiance);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?;
-    Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
+    let plan = ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
+    Ok((plan, list.family()))
 }
 
 /// Median over `reports` of the GPU time of the passes named `stage` in one frame, ms.

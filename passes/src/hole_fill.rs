@@ -15,7 +15,9 @@
 //! another. The table ([`HoleFillTarget`] per band) is a recording buffer: addresses and image
 //! indices are known when the op is recorded, the counts only on the GPU.
 
-use parallax_backend::{BackendError, ExecPass, Format, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot};
+use parallax_backend::{
+    BackendError, ExecPass, Format, InstanceId, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
+};
 
 use crate::holes::HOLE_FILL;
 use crate::path_trace::{TRACE_PARAMS_BYTES, list_section};
@@ -77,7 +79,7 @@ pub struct HoleFillKernel {
 }
 
 impl PassKernel for HoleFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, _pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, _pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         self.record_group(rec, &[index])
     }
 
@@ -85,16 +87,16 @@ impl PassKernel for HoleFillKernel {
         true
     }
 
-    fn record_group(&self, rec: &mut Recorder<'_>, instances: &[usize]) -> parallax_backend::Result<()> {
+    fn record_group(&self, rec: &mut Recorder<'_>, instances: &[InstanceId]) -> parallax_backend::Result<()> {
         let plan = rec.plan();
         let mut table = vec![0u8; TABLE_HEADER_BYTES];
         for &index in instances {
-            let target = self.target_of(rec, &plan.passes[index], index)?;
+            let target = self.target_of(rec, plan.pass(index), index)?;
             table.extend_from_slice(bytemuck::bytes_of(&target));
         }
         let target_count = u32::try_from(instances.len()).map_err(|_| BackendError::KernelMisuse {
             kernel: HOLE_FILL.into(),
-            instance: instances[0],
+            instance: instances[0].index(),
             detail: format!("{} instances in one op", instances.len()),
         })?;
         let table = rec.recording_buffer("hole fill targets", &table)?;
@@ -108,8 +110,14 @@ impl PassKernel for HoleFillKernel {
 
 impl HoleFillKernel {
     /// The table entry of instance `index`, after checking its slots.
-    fn target_of(&self, rec: &Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<HoleFillTarget> {
-        let misuse = |detail: String| BackendError::KernelMisuse { kernel: HOLE_FILL.into(), instance: index, detail };
+    fn target_of(
+        &self,
+        rec: &Recorder<'_>,
+        pass: &ExecPass,
+        index: InstanceId,
+    ) -> parallax_backend::Result<HoleFillTarget> {
+        let misuse =
+            |detail: String| BackendError::KernelMisuse { kernel: HOLE_FILL.into(), instance: index.index(), detail };
         let (list, radiance) = (pass.read(self.list)?, pass.write(self.radiance)?);
         if pass.writes.len() != 1 {
             return Err(misuse("writes its radiance only".into()));

@@ -8,7 +8,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, Format, KernelGraph, PassKernel, Recorder, ResourceKind};
+use parallax_backend::{BackendError, ExecPass, Format, InstanceId, KernelGraph, PassKernel, Recorder, ResourceKind};
 use parallax_graph::{Buffer, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::hole_fill::HoleFillKernel;
@@ -75,9 +75,12 @@ pub struct CompactHolesKernel {
 }
 
 impl PassKernel for CompactHolesKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let misuse =
-            |detail: String| BackendError::KernelMisuse { kernel: COMPACT_HOLES.into(), instance: index, detail };
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+        let misuse = |detail: String| BackendError::KernelMisuse {
+            kernel: COMPACT_HOLES.into(),
+            instance: index.index(),
+            detail,
+        };
         let (holes, list) = (pass.read(self.holes)?, pass.write(self.list)?);
         let mask = rec.resource(holes.resource);
         if mask.kind != ResourceKind::Image || mask.format != Format::R32u {

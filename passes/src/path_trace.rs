@@ -15,7 +15,7 @@
 //!   re-recording; the scene from [`crate::upload_scene`].
 
 use parallax_backend::{
-    BackendError, ExecAccess, ExecPass, Format, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
+    BackendError, ExecAccess, ExecPass, Format, InstanceId, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
 };
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams, TraceLighting};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
@@ -63,8 +63,8 @@ impl PathTraceKernel {
     }
 }
 
-fn misuse(index: usize, detail: String) -> BackendError {
-    BackendError::KernelMisuse { kernel: PATH_TRACE.into(), instance: index, detail }
+fn misuse(index: InstanceId, detail: String) -> BackendError {
+    BackendError::KernelMisuse { kernel: PATH_TRACE.into(), instance: index.index(), detail }
 }
 
 /// Push constants of `pt_trace.comp` (`PathTracePush` there; a test holds the two layouts
@@ -105,7 +105,7 @@ parallax_backend::push_constants!(PathTracePush {
 });
 
 impl PassKernel for PathTraceKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         let mut images = [NO_IMAGE; 4];
         let mut width = 0;
         for (image, slot) in images.iter_mut().zip(self.outputs) {
@@ -149,7 +149,7 @@ impl PassKernel for PathTraceKernel {
 pub(crate) fn list_section(
     rec: &Recorder<'_>,
     read: &ExecAccess,
-    index: usize,
+    index: InstanceId,
 ) -> parallax_backend::Result<(u64, u32)> {
     let list = rec.resource(read.resource);
     let offset = u64::from(read.rows.y0) * list.row_bytes();

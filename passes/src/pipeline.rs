@@ -33,7 +33,7 @@
 use std::sync::Arc;
 
 use parallax_backend::KernelGraph;
-use parallax_graph::{Format, Handle, Image, Role};
+use parallax_graph::{FamilyId, Format, Handle, Image, Role};
 
 use crate::error::Result;
 use crate::gbuffer::{Gbuffer, declare_gbuffer, declare_gbuffer_rasterised};
@@ -86,6 +86,9 @@ pub struct PipelineHandles {
     /// Slot of the final linear radiance, what the tonemapper reads: the denoiser's output
     /// (`denoised` for SVGF), or `radiance` without denoising.
     pub linear_slot: String,
+    /// The declared resource of [`Self::linear_slot`]: what the final linear radiance is read
+    /// back by.
+    pub linear: FamilyId,
     /// The global 1×1 image the tonemapper scaled its exposure by, if a stage declared one.
     pub exposure: Option<Handle<Image>>,
     /// The tonemapped RGBA8 image of every view (not exported: the caller decides).
@@ -227,9 +230,10 @@ impl PipelineBuilder {
                 declare_tonemap_scaled(graph, linear, config.exposure, layers.exposure.as_ref())?
             }
         };
-        let linear_slot = graph.name_of(layers.denoised.as_ref().unwrap_or(&layers.radiance)).to_string();
+        let linear = layers.denoised.as_ref().unwrap_or(&layers.radiance);
+        let (linear_slot, linear) = (graph.name_of(linear).to_string(), linear.family());
         let Layers { gbuffer, radiance, holes, denoised, exposure } = layers;
-        Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear_slot, exposure, display })
+        Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear_slot, linear, exposure, display })
     }
 
     /// Runs the stages inserted at `at`, in insertion order.

@@ -11,7 +11,7 @@
 //! [`StridedPixelListKernel`] writes a deterministic scattered selection into a plain buffer,
 //! which is what the subset-independence tests trace.
 
-use parallax_backend::{BackendError, ExecPass, PassKernel, Recorder, ResourceKind, WriteSlot};
+use parallax_backend::{BackendError, ExecPass, InstanceId, PassKernel, Recorder, ResourceKind, WriteSlot};
 
 /// Pass name of [`StridedPixelListKernel`].
 pub const PIXEL_LIST: &str = "pixel_list";
@@ -81,8 +81,9 @@ pub struct StridedPixelListKernel {
 }
 
 impl PassKernel for StridedPixelListKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let misuse = |detail: String| BackendError::KernelMisuse { kernel: PIXEL_LIST.into(), instance: index, detail };
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+        let misuse =
+            |detail: String| BackendError::KernelMisuse { kernel: PIXEL_LIST.into(), instance: index.index(), detail };
         let list = pass.write(self.list)?.resource;
         let desc = rec.resource(list);
         if desc.kind != ResourceKind::Buffer || desc.height != 1 || desc.width < LIST_HEADER_WORDS {

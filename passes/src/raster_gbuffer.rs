@@ -23,7 +23,8 @@ use std::sync::Arc;
 
 use glam::Vec2;
 use parallax_backend::{
-    BackendError, Draw, ExecPass, Format, GpuCamera, KernelGraph, PassKernel, Recorder, ResourceKind,
+    AllocId, BackendError, Draw, ExecPass, Format, GpuCamera, InstanceId, KernelGraph, PassKernel, Recorder,
+    ResourceKind,
 };
 use parallax_graph::{Handle, Image, Role, WriteSlot};
 use parallax_scene::View;
@@ -65,13 +66,13 @@ pub struct GbufferRasterKernel {
     depth: WriteSlot,
 }
 
-fn misuse(index: usize, detail: String) -> BackendError {
-    BackendError::KernelMisuse { kernel: GBUFFER_RASTER.into(), instance: index, detail }
+fn misuse(index: InstanceId, detail: String) -> BackendError {
+    BackendError::KernelMisuse { kernel: GBUFFER_RASTER.into(), instance: index.index(), detail }
 }
 
 impl PassKernel for GbufferRasterKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
-        let mut color_targets = [0usize; 3];
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+        let mut color_targets = [AllocId::UNASSIGNED; 3];
         for (target, &slot) in color_targets.iter_mut().zip(&self.color_targets) {
             let write = pass.write(slot)?;
             let desc = rec.resource(write.resource);

@@ -12,8 +12,8 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    BackendError, Context, EventKind, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel,
-    Recorder, ResourceKind, WriteSlot,
+    AllocId, BackendError, Context, DeviceId, EventKind, ExecOptions, ExecPass, ExecutionPlan, Executor, InstanceId,
+    KernelGraph, PassKernel, Recorder, ResourceKind, WriteSlot,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
 use parallax_scene::Scene;
@@ -115,12 +115,12 @@ impl PassKernel for RaycastKernel {
         true
     }
 
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         let hits = pass.write(self.hits)?.resource;
         if rec.resource(hits).kind != ResourceKind::Buffer {
             return Err(BackendError::KernelMisuse {
                 kernel: RAYCAST.into(),
-                instance: index,
+                instance: index.index(),
                 detail: "its hits write must be a buffer".into(),
             });
         }
@@ -227,7 +227,7 @@ impl Raycaster {
             .collect();
         times.sort_by(f64::total_cmp);
         let timing = CastTiming { median_ns: times[times.len() / 2], best_ns: times[0] };
-        let bytes = self.executor.read_resource(0, 0)?;
+        let bytes = self.executor.read_resource(DeviceId(0), AllocId(0))?;
         let hits = bytemuck::pod_collect_to_vec(&bytes[..rays.len() * std::mem::size_of::<HitOut>()]);
         Ok((hits, timing))
     }

@@ -13,7 +13,8 @@
 use std::time::Instant;
 
 use parallax_backend::{
-    Context, ExecOptions, ExecutionPlan, Executor, FrameClock, FrameData, FrameReport, FrameStats, Region, Summary,
+    AllocId, Context, DeviceId, ExecCopy, ExecOptions, ExecutionPlan, Executor, FamilyId, FrameClock, FrameData,
+    FrameReport, FrameStats, Region, Summary,
 };
 use parallax_scene::gpu::{GpuScene, TraceLighting};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -155,21 +156,21 @@ impl LightFieldRenderer {
         self.kept = keep.then(Vec::new);
     }
 
-    /// The final version of slot `slot` of `view` after the last frame, whole, as tightly packed
-    /// rows (images) or bytes (buffers). Each row band comes from device 0 where it was written
+    /// The final version of the declared resource `family` (a handle's `family()`) of `view`
+    /// after the last frame, whole, as tightly packed rows (images) or bytes (buffers). Each row band comes from device 0 where it was written
     /// there or gathered, else from the device whose instance wrote it (a fine scheme leaves the
     /// bands of a layer that is not gathered on different devices); a layer whole in one
     /// allocation is read once, without stitching.
-    pub fn read(&mut self, slot: &str, view: u32) -> Result<Vec<u8>> {
-        let bands = final_bands(self.executor.plan(), slot, view)
-            .ok_or_else(|| PassError::MissingResource { name: slot.into(), view })?;
+    pub fn read(&mut self, family: FamilyId, view: u32) -> Result<Vec<u8>> {
+        let bands = final_bands(self.executor.plan(), family, view).ok_or(PassError::MissingOutput { family, view })?;
         let (device, resource, _) = bands[0];
         if bands.iter().all(|&(d, r, _)| (d, r) == (device, resource)) {
             return Ok(self.executor.read_resource(device, resource)?);
         }
-        let row_bytes = self.executor.plan().resources[resource].row_bytes() as usize;
-        let mut out = vec![0u8; row_bytes * self.executor.plan().resources[resource].height as usize];
-        let mut read: Option<((usize, usize), Vec<u8>)> = None;
+        let desc = self.executor.plan().resource(resource);
+        let row_bytes = desc.row_bytes() as usize;
+        let mut out = vec![0u8; row_bytes * desc.height as usize];
+        let mut read: Option<((DeviceId, AllocId), Vec<u8>)> = None;
         for (device, resource, rows) in bands {
             // Bands are in write order, so the bands of one allocation are read together.
             if read.as_ref().is_none_or(|(at, _)| *at != (device, resource)) {
@@ -200,29 +201,30 @@ fn plan_views(plan: &ExecutionPlan) -> u32 {
     passes.chain(plan.resources.iter().map(|r| r.view + 1)).max().unwrap_or(0)
 }
 
-/// Where each row band of the final version of `slot` of `view` can be read after a frame, as
-/// `(device, resource, rows)` in write order: on device 0 where the band was written or
-/// gathered there, else on the device that wrote it. `None` when no pass writes `slot` there.
-pub(crate) fn final_bands(plan: &ExecutionPlan, slot: &str, view: u32) -> Option<Vec<(usize, usize, Region)>> {
+/// Where each row band of the final version of the declared resource `family` of `view` can be
+/// read after a frame, as `(device, resource, rows)` in write order: on device 0 where the band
+/// was written or gathered there, else on the device that wrote it. `None` when no pass writes
+/// `family` there.
+pub(crate) fn final_bands(
+    plan: &ExecutionPlan,
+    family: FamilyId,
+    view: u32,
+) -> Option<Vec<(DeviceId, AllocId, Region)>> {
     let writes = || {
-        plan.passes
-            .iter()
-            .filter(move |p| p.view == view)
-            .flat_map(move |p| p.writes.iter().filter(move |w| w.slot == slot).map(move |w| (p.device, w)))
+        plan.passes.iter().filter(move |p| p.view == view).flat_map(move |p| {
+            p.writes.iter().filter(move |w| plan.resource(w.resource).family == family).map(move |w| (p.device, w))
+        })
     };
     let version = writes().map(|(_, w)| w.version).max()?;
     let bands = writes()
         .filter(|(_, w)| w.version == version)
         .map(|(device, w)| {
-            let gathered = (device != 0)
-                .then(|| {
-                    plan.copies
-                        .iter()
-                        .find(|c| c.to == 0 && c.resource == w.resource && c.version == w.version && c.rows == w.rows)
-                })
-                .flatten();
+            let on_primary = |c: &&ExecCopy| {
+                c.to == DeviceId(0) && c.resource == w.resource && c.version == w.version && c.rows == w.rows
+            };
+            let gathered = (device != DeviceId(0)).then(|| plan.copies.iter().find(on_primary)).flatten();
             match gathered {
-                Some(copy) => (0, copy.dst, w.rows),
+                Some(copy) => (DeviceId(0), copy.dst, w.rows),
                 None => (device, w.resource, w.rows),
             }
         })
@@ -234,7 +236,7 @@ pub(crate) fn final_bands(plan: &ExecutionPlan, slot: &str, view: u32) -> Option
 mod tests {
     use std::sync::Arc;
 
-    use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+    use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
     use parallax_graph::{BandedPlacement, Format, Role, ViewTopology, compile};
 
     use super::*;
@@ -243,13 +245,13 @@ mod tests {
     struct Idle;
 
     impl PassKernel for Idle {
-        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
             Ok(())
         }
     }
 
     /// One 8×6 view written in three row bands over three devices, `gathered` on device 0 or not.
-    fn banded(gathered: bool) -> ExecutionPlan {
+    fn banded(gathered: bool) -> (ExecutionPlan, FamilyId) {
         let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 6));
         let mut layer = graph.image("layer", Format::Rgba32f);
         graph.pass("write", Role::All).write(&mut layer).kernel(Arc::new(Idle)).record();
@@ -260,26 +262,26 @@ mod tests {
             graph.pass("read", Role::All).read(&layer).side_effect().kernel(Arc::new(Idle)).record();
         }
         let schedule = compile(&graph, &BandedPlacement { devices: 3, bands: 3 }).unwrap();
-        ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+        (ExecutionPlan::from_schedule(&graph, &schedule).unwrap(), layer.family())
     }
 
     #[test]
     fn a_gathered_layer_is_read_whole_from_device_0() {
-        let plan = banded(true);
-        let bands = final_bands(&plan, "layer", 0).unwrap();
+        let (plan, layer) = banded(true);
+        let bands = final_bands(&plan, layer, 0).unwrap();
         assert_eq!(bands.iter().map(|b| b.2).collect::<Vec<_>>(), Region::bands(6, 3));
-        assert!(bands.iter().all(|&(d, r, _)| (d, r) == (0, bands[0].1)), "{bands:?}");
+        assert!(bands.iter().all(|&(d, r, _)| (d, r) == (DeviceId(0), bands[0].1)), "{bands:?}");
     }
 
     #[test]
     fn bands_left_where_they_were_written_are_read_from_their_devices() {
-        let plan = banded(false);
-        let bands = final_bands(&plan, "layer", 0).unwrap();
-        assert_eq!(bands.iter().map(|&(d, _, rows)| (d, rows)).collect::<Vec<_>>(), {
+        let (plan, layer) = banded(false);
+        let bands = final_bands(&plan, layer, 0).unwrap();
+        assert_eq!(bands.iter().map(|&(d, _, rows)| (d.index(), rows)).collect::<Vec<_>>(), {
             let rows = Region::bands(6, 3);
             vec![(0, rows[0]), (1, rows[1]), (2, rows[2])]
         });
-        assert_eq!(final_bands(&plan, "missing", 0), None);
-        assert_eq!(final_bands(&plan, "layer", 1), None, "the plan has one view");
+        assert_eq!(final_bands(&plan, FamilyId(layer.0 + 1), 0), None, "no such family");
+        assert_eq!(final_bands(&plan, layer, 1), None, "the plan has one view");
     }
 }

@@ -15,7 +15,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, SourcesSlot, WriteSlot};
 
 use crate::error::{PassError, Result};
@@ -132,7 +132,7 @@ struct ReprojectSlots {
 }
 
 impl PassKernel for ReprojectKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let slots = &self.slots;
         let image = |rec: &Recorder<'_>, slot| pass.read(slot).and_then(|a| rec.image(a.resource));
         let position_depth = pass.read(slots.position_depth)?.resource;

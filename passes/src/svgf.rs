@@ -32,7 +32,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, HistorySlot, Image, ReadSlot, Role, WriteSlot};
 
 /// Slot name of the result (Rgba32f linear radiance, docs/PIPELINE.md).
@@ -259,7 +259,7 @@ impl Stage {
 struct SvgfKernel(Stage);
 
 impl PassKernel for SvgfKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let stage = &self.0;
         let target = rec.resource(pass.write(stage.band())?.resource);
         let (width, height) = (target.width, target.height);

@@ -7,7 +7,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{BackendError, ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 /// Pass name, and the slot of its output (docs/PIPELINE.md).
@@ -78,13 +78,13 @@ struct TonemapKernel {
 }
 
 impl PassKernel for TonemapKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         let (src, dst) = (pass.read(self.src)?, pass.write(self.dst)?);
         let target = rec.resource(dst.resource);
         if target.format != Format::Rgba8 {
             return Err(BackendError::KernelMisuse {
                 kernel: TONEMAP.into(),
-                instance: index,
+                instance: index.index(),
                 detail: format!("writes an Rgba8 image, not {:?}", target.format),
             });
         }

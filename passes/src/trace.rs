@@ -7,8 +7,8 @@ use std::sync::Arc;
 
 use parallax_backend::{BackendError, ExecutionPlan, KernelGraph, ResourceKind};
 use parallax_graph::{
-    AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
-    Scheme, ViewTopology, compile,
+    AssignStrategy, BandedPlacement, FamilyId, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig,
+    Rig, Role, Scheme, ViewTopology, compile,
 };
 use parallax_scene::gpu::GpuPixel;
 use parallax_scene::{Scene, TraceSettings, View};
@@ -48,6 +48,18 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
     images
 }
 
+/// The declared resources of a trace plan's [`TRACE_OUTPUTS`] images, in that order (radiance
+/// always; a first-hit layer where the graph declares it): what [`LightFieldRenderer::trace`]
+/// reads the traced views from.
+pub type TraceOutputs = [Option<FamilyId>; 4];
+
+/// A plan of `path_trace` passes and its [`TraceOutputs`].
+#[derive(Clone, Debug)]
+pub struct TracePlan {
+    pub plan: ExecutionPlan,
+    pub outputs: TraceOutputs,
+}
+
 /// The executor plan for tracing a `cols`×`rows` grid of `width`×`height` views on `devices`
 /// devices under `scheme` (fine-all: every view in row bands over all devices; multi-source:
 /// whole views spread over the devices), as [`declare_trace`] declares it. View 0 is the
@@ -59,7 +71,7 @@ pub fn trace_plan(
     devices: u32,
     scheme: Scheme,
     pixel_list: Option<(u64, StridedPixels)>,
-) -> Result<ExecutionPlan> {
+) -> Result<TracePlan> {
     let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
     // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
     let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
@@ -72,7 +84,7 @@ pub fn trace_plan(
 /// on device `b % devices`, every band traced away from device 0 gathered there: the shape of
 /// a fine-all schedule without the light-field rule of at least one view per device.
 /// `parallax trace` splits its single view over any number of devices this way.
-pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<ExecutionPlan> {
+pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<TracePlan> {
     let topology = ViewTopology::all_sources(views, width, height);
     lower_trace(topology, &BandedPlacement { devices, bands }, None)
 }
@@ -81,35 +93,42 @@ fn lower_trace(
     topology: ViewTopology,
     placement: &dyn Placement,
     pixel_list: Option<(u64, StridedPixels)>,
-) -> Result<ExecutionPlan> {
+) -> Result<TracePlan> {
     let mut graph = KernelGraph::with_payload(topology);
-    declare_trace(&mut graph, pixel_list);
+    let outputs = declare_trace(&mut graph, pixel_list).map(|image| Some(image.family()));
     let schedule = compile(&graph, placement)?;
-    Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
+    let plan = ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
+    Ok(TracePlan { plan, outputs })
 }
 
 impl LightFieldRenderer {
-    /// Traces one frame of every view of a plan of `path_trace` passes (`views[i]` describes
-    /// plan view `i`; its size must match the plan's images), waits for it, and returns each
-    /// view's pixels, row-major. Pixels a pass did not trace (outside a pixel list) keep their
-    /// previous contents (zero at first).
-    pub fn trace(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<GpuPixel>>> {
+    /// Traces one frame of every view of a plan of `path_trace` passes whose images are
+    /// `outputs` (`views[i]` describes plan view `i`; its size must match the plan's images),
+    /// waits for it, and returns each view's pixels, row-major. Pixels a pass did not trace
+    /// (outside a pixel list) keep their previous contents (zero at first).
+    pub fn trace(
+        &mut self,
+        outputs: &TraceOutputs,
+        scene: &Scene,
+        views: &[View],
+        settings: &TraceSettings,
+    ) -> Result<Vec<Vec<GpuPixel>>> {
         for view in views {
-            self.check_trace_view(view)?;
+            self.check_trace_view(outputs, view)?;
         }
         self.submit(scene, views, settings)?;
         self.finish()?;
-        views.iter().map(|view| self.read_pixels(view)).collect()
+        views.iter().map(|view| self.read_pixels(outputs, view)).collect()
     }
 
     /// The traced pixels of `view` after the last frame: its [`TRACE_OUTPUTS`] decoded, the
     /// first-hit layers the plan lacks left empty.
-    pub fn read_pixels(&mut self, view: &View) -> Result<Vec<GpuPixel>> {
-        self.check_trace_view(view)?;
+    pub fn read_pixels(&mut self, outputs: &TraceOutputs, view: &View) -> Result<Vec<GpuPixel>> {
+        self.check_trace_view(outputs, view)?;
         let mut layers: [Option<Vec<u8>>; 4] = Default::default();
-        for (layer, name) in layers.iter_mut().zip(TRACE_OUTPUTS) {
-            if final_bands(self.executor().plan(), name, view.index).is_some() {
-                *layer = Some(self.read(name, view.index)?);
+        for (layer, &family) in layers.iter_mut().zip(outputs) {
+            if let Some(family) = family.filter(|&f| final_bands(self.executor().plan(), f, view.index).is_some()) {
+                *layer = Some(self.read(family, view.index)?);
             }
         }
         if layers[0].is_none() {
@@ -119,13 +138,13 @@ impl LightFieldRenderer {
     }
 
     /// Every trace output the plan has for `view` must be `view`-sized RGBA32F.
-    fn check_trace_view(&mut self, view: &View) -> Result<()> {
+    fn check_trace_view(&mut self, outputs: &TraceOutputs, view: &View) -> Result<()> {
         let plan = self.executor().plan();
-        for name in TRACE_OUTPUTS {
-            let Some(bands) = final_bands(plan, name, view.index) else {
+        for (&name, &family) in TRACE_OUTPUTS.iter().zip(outputs) {
+            let Some(bands) = family.and_then(|f| final_bands(plan, f, view.index)) else {
                 continue;
             };
-            let desc = &plan.resources[bands[0].1];
+            let desc = plan.resource(bands[0].1);
             if (desc.width, desc.height) != (view.width, view.height)
                 || desc.kind != ResourceKind::Image
                 || desc.format != Format::Rgba32f

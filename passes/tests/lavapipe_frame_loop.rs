@@ -30,7 +30,8 @@ fn render(frames_in_flight: usize, frames: u32) -> Vec<(Vec<u8>, Vec<u8>)> {
     let bvh = SceneBvh::build(&scene);
     let lf = light_field(&scene, 0);
     let options = ExecOptions { frames_in_flight, ..ExecOptions::default() };
-    let mut renderer = common::reprojection_renderer(&common::context(1), &scene, &bvh, &lf, options);
+    let (mut renderer, handles) = common::reprojection_renderer(&common::context(1), &scene, &bvh, &lf, options);
+    let (denoised, display) = (handles.denoised.expect("the pipeline denoises").family(), handles.display.family());
     let settings = TraceSettings { spp: 1, max_depth: 3, ..Default::default() };
     for f in 0..frames {
         let views = lightfield_views(&light_field(&scene, f));
@@ -39,7 +40,7 @@ fn render(frames_in_flight: usize, frames: u32) -> Vec<(Vec<u8>, Vec<u8>)> {
     renderer.finish().unwrap();
     assert_eq!(renderer.stats().frames(), u64::from(frames), "every retired frame is folded");
     let out = (0..lf.len() as u32)
-        .map(|v| (renderer.read("denoised", v).unwrap(), renderer.read("display", v).unwrap()))
+        .map(|v| (renderer.read(denoised, v).unwrap(), renderer.read(display, v).unwrap()))
         .collect();
     assert_eq!(renderer.executor().recordings(), 1, "{frames_in_flight} in flight: recorded once");
     renderer.executor().check_validation().unwrap();
@@ -61,7 +62,7 @@ fn command_buffers_are_recorded_once_while_the_plan_is_unchanged() {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let lf = light_field(&scene, 0);
-    let mut renderer = common::reprojection_renderer(
+    let (mut renderer, _) = common::reprojection_renderer(
         &common::context(1),
         &scene,
         &bvh,

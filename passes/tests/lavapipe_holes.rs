@@ -11,12 +11,14 @@ mod common;
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use parallax_backend::{EventKind, ExecOptions, ExecPass, ExecutionPlan, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{
+    EventKind, ExecOptions, ExecPass, ExecutionPlan, InstanceId, KernelGraph, PassKernel, Recorder,
+};
 use parallax_graph::{
-    AssignStrategy, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, WriteSlot, compile,
+    AssignStrategy, FamilyId, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, WriteSlot, compile,
 };
 use parallax_passes::{
-    COMPACT_HOLES, HOLE_FILL, HOLE_LIST, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel,
+    COMPACT_HOLES, HOLE_FILL, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel, TracePlan,
     banded_trace_plan, bench_holes, declare_hole_fill, hole_threshold, is_hashed_hole, list_groups,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
@@ -47,7 +49,7 @@ struct PerViewMask {
 }
 
 impl PassKernel for PerViewMask {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         let threshold = self.thresholds[pass.view as usize];
         HashedHoleMaskKernel { mask: self.mask, threshold }.record(rec, pass, index)
     }
@@ -75,7 +77,7 @@ impl Case {
 
     /// Source path traced, targets filled with the fill pattern, masked with their thresholds,
     /// compacted and filled, over `devices` devices under `scheme`.
-    fn plan(&self, devices: u32, scheme: Scheme) -> ExecutionPlan {
+    fn plan(&self, devices: u32, scheme: Scheme) -> HolePlan {
         let layout = LayoutSpec::Grid { cols: self.cols, rows: self.rows };
         let lf = LightField::new(layout, None, Some((W, H)), Rig::default()).unwrap();
         let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![self.source]) };
@@ -96,21 +98,36 @@ impl Case {
         graph.export(&list);
         let schedule = compile(&graph, &placement).unwrap();
         assert_eq!(schedule.validate().errors, vec![]);
-        ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+        let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+        let outputs = [Some(radiance.family()), None, None, None];
+        HolePlan { trace: TracePlan { plan, outputs }, list: Some(list.family()) }
+    }
+}
+
+/// A plan the tracer runs, and the family of its hole lists (where it fills holes).
+struct HolePlan {
+    trace: TracePlan,
+    list: Option<FamilyId>,
+}
+
+impl From<TracePlan> for HolePlan {
+    fn from(trace: TracePlan) -> Self {
+        HolePlan { trace, list: None }
     }
 }
 
 /// [`Case::three`] over `devices` devices under fine-all (every pass in row bands over all
 /// devices, bands gathered on device 0).
-fn hole_fill_plan(devices: u32, threshold: u32) -> ExecutionPlan {
+fn hole_fill_plan(devices: u32, threshold: u32) -> HolePlan {
     Case::three(threshold).plan(devices, Scheme::FineAll)
 }
 
-fn run(devices: u32, plan: ExecutionPlan) -> Run {
+fn run(devices: u32, plan: HolePlan) -> Run {
     run_views(devices, plan, VIEWS)
 }
 
-fn run_views(devices: u32, plan: ExecutionPlan, view_count: u32) -> Run {
+fn run_views(devices: u32, HolePlan { trace, list }: HolePlan, view_count: u32) -> Run {
+    let TracePlan { plan, outputs } = trace;
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices as usize);
@@ -120,13 +137,14 @@ fn run_views(devices: u32, plan: ExecutionPlan, view_count: u32) -> Run {
         parallax_passes::LightFieldRenderer::with_options(&ctx, plan.clone(), &GpuScene::new(&scene, &bvh), options)
             .unwrap();
     tracer.keep_reports(true);
-    let pixels = tracer.trace(&scene, &views, &SETTINGS).unwrap();
+    let pixels = tracer.trace(&outputs, &scene, &views, &SETTINGS).unwrap();
     let mut lists = Vec::new();
     for view in 0..view_count {
         // Only target views have lists, and only in hole-filling plans.
-        let bytes = match tracer.read(HOLE_LIST, view) {
+        let Some(list) = list else { continue };
+        let bytes = match tracer.read(list, view) {
             Ok(bytes) => bytes,
-            Err(parallax_passes::PassError::MissingResource { .. }) => continue,
+            Err(parallax_passes::PassError::MissingOutput { .. }) => continue,
             Err(other) => panic!("reading view {view}'s hole list: {other}"),
         };
         lists.push((view, bytemuck::pod_collect_to_vec(&bytes)));
@@ -150,7 +168,7 @@ fn full_trace() -> Vec<Vec<GpuPixel>> {
 }
 
 fn full_trace_of(views: u32) -> Vec<Vec<GpuPixel>> {
-    run_views(1, banded_trace_plan(views, (W, H), 1, 1).unwrap(), views).pixels
+    run_views(1, banded_trace_plan(views, (W, H), 1, 1).unwrap().into(), views).pixels
 }
 
 fn bits(p: [f32; 4]) -> [u32; 4] {
@@ -192,7 +210,7 @@ fn check_case(run: &Run, full: &[Vec<GpuPixel>], case: &Case, what: &str) -> BTr
     let row_words = (W + 4) as usize;
     let mut devices = BTreeSet::new();
     for pass in run.plan.passes.iter().filter(|p| p.name == COMPACT_HOLES || p.name == HOLE_FILL) {
-        devices.insert(pass.device);
+        devices.insert(pass.device.index());
         if pass.name != COMPACT_HOLES {
             continue;
         }
@@ -253,7 +271,7 @@ fn one_op_per_device_fills_every_target_band_with_the_bits_of_path_tracing() {
         // A timestamp pair around every op (the default per-op timing): each device that holds
         // target bands fills all of them in one op.
         let fills = || run.plan.passes.iter().filter(|p| p.name == HOLE_FILL);
-        let holders: BTreeSet<usize> = fills().map(|p| p.device).collect();
+        let holders: BTreeSet<usize> = fills().map(|p| p.device.index()).collect();
         // Fine-all fills a band of every target on every device; fine-sources whole targets.
         let bands = if scheme == Scheme::FineAll { 71 * devices as usize } else { 71 };
         assert_eq!(fills().count(), bands, "{what}: target bands");

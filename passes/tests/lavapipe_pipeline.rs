@@ -75,6 +75,7 @@ fn run_with(
     };
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.display);
+    let (denoised, display) = (handles.denoised.expect("the pipeline denoises").family(), handles.display.family());
     let schedule = compile(&graph, placement).unwrap();
     let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(placement.devices() as usize);
@@ -97,7 +98,7 @@ fn run_with(
         renderer.finish().unwrap();
         out.push(
             (0..lf.len() as u32)
-                .map(|v| (renderer.read("denoised", v).unwrap(), renderer.read("display", v).unwrap()))
+                .map(|v| (renderer.read(denoised, v).unwrap(), renderer.read(display, v).unwrap()))
                 .collect(),
         );
     }

@@ -10,10 +10,10 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use parallax_backend::{
-    ExecOptions, ExecPass, ExecutionPlan, Executor, FrameClock, FrameData, KernelGraph, PassKernel, PassParams,
-    Recorder, ShaderLibrary,
+    ExecOptions, ExecPass, ExecutionPlan, Executor, FrameClock, FrameData, InstanceId, KernelGraph, PassKernel,
+    PassParams, Recorder, ShaderLibrary,
 };
-use parallax_graph::{BandedPlacement, Format, ReadSlot, Role, ViewTopology, WriteSlot, compile};
+use parallax_graph::{BandedPlacement, DeviceId, FamilyId, Format, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_passes::{RASTER_OUTPUTS, declare_gbuffer_raster, raster_camera, upload_scene};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::shading::surface_point;
@@ -43,7 +43,7 @@ struct DepthCopyKernel {
 }
 
 impl PassKernel for DepthCopyKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let (depth, copy) = (pass.read(self.depth)?, pass.write(self.copy)?);
         let params = PassParams { src0: rec.image(depth.resource)?, ..rec.row_params(pass, copy.resource)? };
         rec.dispatch_rows(DEPTH_TO_R32F, params)
@@ -52,20 +52,22 @@ impl PassKernel for DepthCopyKernel {
 
 /// The raster G-buffer of every view, then the depth copied by a compute pass; the three
 /// colour layers, the depth resource and its copy exported; under `bands` bands on as many
-/// devices.
-fn raster_plan(views: u32, (width, height): (u32, u32), devices: u32) -> ExecutionPlan {
+/// devices. Returns the plan and the families of the exported layers, in [`RASTER_OUTPUTS`]
+/// order, then the depth and its copy.
+fn raster_plan(views: u32, (width, height): (u32, u32), devices: u32) -> (ExecutionPlan, [FamilyId; 5]) {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, width, height));
     let g = declare_gbuffer_raster(&mut graph);
     let mut copy = graph.image(DEPTH_COPY, Format::R32f);
     let mut pass = graph.pass(DEPTH_TO_R32F, Role::All);
     let kernel = DepthCopyKernel { depth: pass.read_slot(&g.depth), copy: pass.write_slot(&mut copy) };
     pass.kernel(Arc::new(kernel)).record();
-    for image in [&g.albedo_roughness, &g.normal_metallic, &g.position_depth, &g.depth, &copy] {
+    let exported = [&g.albedo_roughness, &g.normal_metallic, &g.position_depth, &g.depth, &copy];
+    for image in exported {
         graph.export(image);
     }
     let schedule = compile(&graph, &BandedPlacement { devices, bands: devices }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+    (ExecutionPlan::from_schedule(&graph, &schedule).unwrap(), exported.map(|image| image.family()))
 }
 
 /// Every exported layer of every view after one frame, by layer name: what device 0 holds.
@@ -83,7 +85,7 @@ impl Rendered {
 fn render(scene: &Scene, views: &[View], devices: u32) -> Rendered {
     let (width, height) = (views[0].width, views[0].height);
     let ctx = common::context(devices as usize);
-    let plan = raster_plan(views.len() as u32, (width, height), devices);
+    let (plan, families) = raster_plan(views.len() as u32, (width, height), devices);
     let options = ExecOptions { shaders: test_shaders(), ..ExecOptions::default() };
     let mut exec = Executor::new(&ctx, plan.clone(), options).unwrap();
     let bvh = SceneBvh::build(scene);
@@ -94,11 +96,11 @@ fn render(scene: &Scene, views: &[View], devices: u32) -> Rendered {
     exec.set_frame(&frame).unwrap();
     exec.run_frame().unwrap();
     let mut layers = Vec::new();
-    for name in RASTER_OUTPUTS.iter().chain(&["depth", DEPTH_COPY]) {
+    for (name, family) in RASTER_OUTPUTS.iter().chain(&["depth", DEPTH_COPY]).zip(families) {
         let per_view = (0..views.len() as u32)
             .map(|v| {
-                let (device, resource) = plan.final_output(name, v).unwrap();
-                assert_eq!(device, 0, "finished views are gathered on device 0");
+                let (device, resource) = plan.final_output(family, v).unwrap();
+                assert_eq!(device, DeviceId(0), "finished views are gathered on device 0");
                 let bytes = exec.read_resource(device, resource).unwrap();
                 bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
             })

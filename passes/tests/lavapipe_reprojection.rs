@@ -130,7 +130,7 @@ fn render_setup(s: Setup<'_>) -> Rendered {
     renderer.finish().unwrap();
     let mut out = Rendered { plan, views: views.clone(), radiance: Vec::new(), holes: Vec::new(), gbuffer: Vec::new() };
     for v in 0..views.len() as u32 {
-        out.radiance.push(texels(&renderer.read("radiance", v).unwrap()));
+        out.radiance.push(texels(&renderer.read(handles.radiance.family(), v).unwrap()));
         let is_target = !out.plan.topology.is_source[v as usize] && s.kind == PipelineKind::Reproject;
         if !is_target {
             // Only reprojection reads a target's G-buffer (else it is culled).
@@ -138,11 +138,13 @@ fn render_setup(s: Setup<'_>) -> Rendered {
             out.gbuffer.push(None);
             continue;
         }
-        out.holes.push(Some(bytemuck::cast_slice::<u8, u32>(&renderer.read("holes", v).unwrap()).to_vec()));
+        let holes = handles.holes.as_ref().expect("reprojection declares hole masks").family();
+        out.holes.push(Some(bytemuck::cast_slice::<u8, u32>(&renderer.read(holes, v).unwrap()).to_vec()));
+        let layers = &handles.gbuffer;
         out.gbuffer.push(Some(Gbuffer {
-            position: texels(&renderer.read("position_depth", v).unwrap()),
-            normal: texels(&renderer.read("normal_metallic", v).unwrap()),
-            albedo: texels(&renderer.read("albedo_roughness", v).unwrap()),
+            position: texels(&renderer.read(layers.position_depth.family(), v).unwrap()),
+            normal: texels(&renderer.read(layers.normal_metallic.family(), v).unwrap()),
+            albedo: texels(&renderer.read(layers.albedo_roughness.family(), v).unwrap()),
         }));
     }
     drop(renderer);

@@ -39,7 +39,7 @@ fn host_memory_stays_flat_over_two_thousand_frames() {
     let lf = LightField::new(LayoutSpec::Grid { cols: 2, rows: 1 }, Some(0.02), Some((8, 8)), rig).unwrap();
     let context = common::context(1);
     let options = ExecOptions { frames_in_flight: 2, ..ExecOptions::default() };
-    let mut renderer = common::reprojection_renderer(&context, &scene, &bvh, &lf, options);
+    let (mut renderer, _) = common::reprojection_renderer(&context, &scene, &bvh, &lf, options);
     let views = lightfield_views(&lf);
     let settings = TraceSettings { spp: 1, max_depth: 2, ..Default::default() };
     let mut settled = 0;

@@ -5,9 +5,10 @@
 
 mod common;
 
-use parallax_backend::ExecutionPlan;
 use parallax_graph::Scheme;
-use parallax_passes::{LightFieldRenderer, PATH_TRACE, StridedPixels, banded_trace_plan, strided_pixels, trace_plan};
+use parallax_passes::{
+    LightFieldRenderer, PATH_TRACE, StridedPixels, TracePlan, banded_trace_plan, strided_pixels, trace_plan,
+};
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
 
@@ -17,14 +18,14 @@ const VIEWS: u32 = 2;
 const STRIDE: u32 = 3;
 const PHASE: u32 = 1;
 
-fn render(devices: usize, plan: ExecutionPlan) -> Vec<Vec<GpuPixel>> {
+fn render(devices: usize, TracePlan { plan, outputs }: TracePlan) -> Vec<Vec<GpuPixel>> {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices);
     let views = common::views(&scene, VIEWS, W, H);
     let settings = TraceSettings { spp: 2, max_depth: 3, frame: 7, ..Default::default() };
     let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
-    let pixels = tracer.trace(&scene, &views, &settings).unwrap();
+    let pixels = tracer.trace(&outputs, &scene, &views, &settings).unwrap();
     drop(tracer);
     ctx.check_validation().unwrap();
     pixels
@@ -47,11 +48,11 @@ fn whole_views_bands_and_pixel_lists_give_identical_pixels_on_one_and_two_device
     let bands_one_device = render(1, banded_trace_plan(VIEWS, (W, H), 3, 1).unwrap());
     assert_eq!(bands_one_device, whole, "3 row bands on one device");
     let bands_copied = banded_trace_plan(VIEWS, (W, H), 3, 2).unwrap();
-    assert_eq!(bands_copied.copies.len(), 2 * 4, "per view, the band on device 1 comes back as 4 images");
+    assert_eq!(bands_copied.plan.copies.len(), 2 * 4, "per view, the band on device 1 comes back as 4 images");
     assert_eq!(render(2, bands_copied), whole, "3 row bands alternating over 2 devices");
 
     let bands_two_devices = trace_plan(VIEWS, 1, (W, H), 2, Scheme::FineAll, None).unwrap();
-    let split: Vec<usize> = bands_two_devices.passes.iter().map(|p| p.device).collect();
+    let split: Vec<usize> = bands_two_devices.plan.passes.iter().map(|p| p.device.index()).collect();
     assert!(split.contains(&0) && split.contains(&1), "fine-all puts bands on both devices: {split:?}");
     assert_eq!(render(2, bands_two_devices), whole, "row bands over 2 devices, gathered");
 
@@ -70,7 +71,8 @@ fn whole_views_bands_and_pixel_lists_give_identical_pixels_on_one_and_two_device
     let list_one = render(1, trace_plan(VIEWS, 1, (W, H), 1, Scheme::MultiSource, list(capacity)).unwrap());
     check_list(&list_one, "pixel list, one device");
     let list_plan = trace_plan(VIEWS, 1, (W, H), 2, Scheme::MultiSource, list(capacity)).unwrap();
-    let devices: Vec<usize> = list_plan.passes.iter().filter(|p| p.name == PATH_TRACE).map(|p| p.device).collect();
+    let devices: Vec<usize> =
+        list_plan.plan.passes.iter().filter(|p| p.name == PATH_TRACE).map(|p| p.device.index()).collect();
     assert_eq!(devices, [0, 1], "multi-source: one view per device");
     check_list(&render(2, list_plan), "pixel lists, one view per device");
 }

@@ -12,15 +12,15 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    Context, ExecOptions, ExecPass, ExecutionPlan, Executor, KernelGraph, PassKernel, PassParams, Recorder,
+    Context, ExecOptions, ExecPass, ExecutionPlan, Executor, InstanceId, KernelGraph, PassKernel, PassParams, Recorder,
     ShaderLibrary,
 };
 use parallax_graph::{
-    BandedPlacement, Format, Handle, Image, Placement, ReadSlot, Role, ViewTopology, WriteSlot, compile,
+    BandedPlacement, FamilyId, Format, Handle, Image, Placement, ReadSlot, Role, ViewTopology, WriteSlot, compile,
 };
 use parallax_passes::path_trace::TRACE_PARAMS_BYTES;
 use parallax_passes::{
-    DENOISED, DISPLAY, LightFieldRenderer, PATH_TRACE, PathTraceKernel, SvgfInputs, TRACE_OUTPUTS, banded_trace_plan,
+    DENOISED, LightFieldRenderer, PATH_TRACE, PathTraceKernel, SvgfInputs, TRACE_OUTPUTS, banded_trace_plan,
     declare_svgf, declare_tonemap, tonemap_pixel, trace_frame_data, upload_scene,
 };
 use parallax_scene::gpu::GpuScene;
@@ -50,7 +50,7 @@ struct MotionKernel {
 }
 
 impl PassKernel for MotionKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let (dst, position) = (pass.write(self.motion)?, pass.read(self.position)?);
         let width = rec.resource(dst.resource).width;
         let push = MotionPush {
@@ -92,7 +92,7 @@ struct ChangeKernel {
 }
 
 impl PassKernel for ChangeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
         let (radiance, albedo) = (pass.write(self.radiance)?, pass.write(self.albedo)?);
         let optional = |slot: Option<WriteSlot>| slot.map_or(Ok(0), |slot| rec.image(pass.write(slot)?.resource));
         let (normal, position) = (optional(self.normal)?, optional(self.position)?);
@@ -217,12 +217,18 @@ impl Run {
         self.exec.run_frame().unwrap();
     }
 
-    /// The final `slot` of `view`, as f32s (RGBA per pixel).
-    fn read(&mut self, slot: &str, view: u32) -> Vec<f32> {
+    /// The final version of the declared resource named `name` (internal ones of the SVGF
+    /// stage too, which no handle reaches) of `view`, as f32s (RGBA per pixel).
+    fn read(&mut self, name: &str, view: u32) -> Vec<f32> {
         self.exec.finish().unwrap();
-        let (device, resource) = self.exec.plan().final_output(slot, view).unwrap();
+        let (device, resource) = self.exec.plan().final_output(family_named(self.exec.plan(), name), view).unwrap();
         floats(&self.exec.read_resource(device, resource).unwrap())
     }
+}
+
+/// The family of the resources `plan` allocates under `name`.
+fn family_named(plan: &ExecutionPlan, name: &str) -> FamilyId {
+    plan.resources.iter().find(|r| r.name == name).map(|r| r.family).unwrap_or_else(|| panic!("no `{name}`"))
 }
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
@@ -261,7 +267,7 @@ fn tonemap_matches_its_cpu_twin_within_one_step_of_255() {
     run.exec.finish().unwrap();
     for view in 0..2 {
         let radiance = run.read("radiance", view);
-        let (device, resource) = run.exec.plan().final_output(DISPLAY, view).unwrap();
+        let (device, resource) = run.exec.plan().final_output(display.family(), view).unwrap();
         let bytes = run.exec.read_resource(device, resource).unwrap();
         assert_eq!(bytes.len(), (SIZE * SIZE * 4) as usize);
         let mut worst = 0i32;
@@ -334,15 +340,13 @@ fn svgf_lowers_the_error_of_one_spp_against_a_64_spp_reference_by_3x() {
     print_svgf_timings(&timings);
 
     let bvh = SceneBvh::build(&run.scene);
-    let mut tracer = LightFieldRenderer::new(
-        &ctx,
-        banded_trace_plan(1, (SIZE, SIZE), 1, 1).unwrap(),
-        &GpuScene::new(&run.scene, &bvh),
-    )
-    .unwrap();
+    let trace = banded_trace_plan(1, (SIZE, SIZE), 1, 1).unwrap();
+    let mut tracer = LightFieldRenderer::new(&ctx, trace.plan, &GpuScene::new(&run.scene, &bvh)).unwrap();
     let settings = TraceSettings { spp: 64, frame: 1000, jitter: false, ..TraceSettings::default() };
-    let reference: Vec<f32> =
-        tracer.trace(&run.scene, &run.views, &settings).unwrap()[0].iter().flat_map(|p| p.radiance).collect();
+    let reference: Vec<f32> = tracer.trace(&trace.outputs, &run.scene, &run.views, &settings).unwrap()[0]
+        .iter()
+        .flat_map(|p| p.radiance)
+        .collect();
     let (noisy_mse, denoised_mse) = (clamped_mse(&noisy, &reference), clamped_mse(&denoised, &reference));
     eprintln!("MSE against 64 spp: 1 spp {noisy_mse:.5}, SVGF after {frames} frames {denoised_mse:.5}");
     assert!(denoised_mse * 3.0 <= noisy_mse, "1 spp {noisy_mse}, denoised {denoised_mse}");

@@ -18,9 +18,10 @@ mod common;
 use glam::{Vec3, Vec4};
 use parallax_backend::{ExecutionPlan, KernelGraph};
 use parallax_graph::{BandedPlacement, ViewTopology, compile};
+use parallax_passes::TracePlan;
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::reproject::ReprojectionTolerances;
-use parallax_passes::{DENOISED, LightFieldRenderer, banded_trace_plan};
+use parallax_passes::{LightFieldRenderer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{
     Camera, Material, Scene, SceneBuilder, SceneBvh, Sky, Sun, Texture, TraceSettings, View, default_lighting,
@@ -108,7 +109,7 @@ fn reference(case: &Case) -> [f64; 3] {
     let (width, height) = (case.views[0].width, case.views[0].height);
     let ctx = common::context(1);
     let bvh = SceneBvh::build(&case.scene);
-    let plan = banded_trace_plan(case.views.len() as u32, (width, height), 1, 1).unwrap();
+    let TracePlan { plan, outputs } = banded_trace_plan(case.views.len() as u32, (width, height), 1, 1).unwrap();
     let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&case.scene, &bvh)).unwrap();
     let chunks = REFERENCE_SPP / 64;
     let mut sum = [0.0f64; 3];
@@ -120,7 +121,7 @@ fn reference(case: &Case) -> [f64; 3] {
             jitter: true,
             ..Default::default()
         };
-        let views = tracer.trace(&case.scene, &case.views, &settings).unwrap();
+        let views = tracer.trace(&outputs, &case.scene, &case.views, &settings).unwrap();
         let images: Vec<Vec<f32>> = views.iter().map(|v| v.iter().flat_map(|p| p.radiance).collect()).collect();
         let mean = mean_rgb(images.iter().map(Vec::as_slice));
         for c in 0..3 {
@@ -183,6 +184,8 @@ fn denoise(case: &Case) -> Measured {
     graph.export(handles.denoised.as_ref().unwrap());
     graph.export(&handles.radiance);
     graph.export(&handles.gbuffer.position_depth);
+    let read_back = [&handles.radiance, &handles.gbuffer.position_depth, handles.denoised.as_ref().unwrap()];
+    let [radiance_of, depth_of, denoised_of] = read_back.map(|handle| handle.family());
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
     let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
@@ -198,11 +201,11 @@ fn denoise(case: &Case) -> Measured {
         renderer.finish().unwrap();
         let mut outputs = Vec::new();
         for view in 0..views {
-            let radiance = floats(&renderer.read("radiance", view).unwrap());
+            let radiance = floats(&renderer.read(radiance_of, view).unwrap());
             let depth: Vec<f32> =
-                floats(&renderer.read("position_depth", view).unwrap()).chunks_exact(4).map(|p| p[3]).collect();
+                floats(&renderer.read(depth_of, view).unwrap()).chunks_exact(4).map(|p| p[3]).collect();
             average.add(view as usize, frame, &radiance, &depth);
-            outputs.push(floats(&renderer.read(DENOISED, view).unwrap()));
+            outputs.push(floats(&renderer.read(denoised_of, view).unwrap()));
         }
         let mean = mean_rgb(outputs.iter().map(Vec::as_slice));
         let expected = average.mean();

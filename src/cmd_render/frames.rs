@@ -64,7 +64,7 @@ pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut 
     let lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
     let (staged, wall) = frame_loop(args, job, &mut renderer)?;
     if let Some(after) = extension.after_frames.as_mut() {
-        after(&mut renderer)?;
+        after(&mut renderer, &job.compiled.handles)?;
     }
     Ok(Rendered { context, renderer, staged, wall, lf, lock })
 }
@@ -80,7 +80,6 @@ fn frame_loop(
     let started = Instant::now();
     let mut measured_from = None;
     let mut staged: Vec<Staged> = Vec::new();
-    let linear_slot = job.compiled.handles.linear_slot.as_str();
     for f in 0..job.total_frames {
         if f == args.warmup {
             renderer.finish()?;
@@ -100,7 +99,7 @@ fn frame_loop(
             let folder = args.out_dir.join(format!("frame_{m:05}"));
             crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
             let layers = extra_layers(args, job.compiled.kind);
-            staged.extend(stage_views(renderer, linear_slot, &folder, &views, &layers)?);
+            staged.extend(stage_views(renderer, &job.compiled.handles, &folder, &views, &layers)?);
         }
         progress.inc(1);
     }

@@ -11,7 +11,7 @@ use glam::Vec3;
 use parallax_backend::chrome_trace;
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
-use parallax_passes::pipeline::PipelineKind;
+use parallax_passes::pipeline::{PipelineHandles, PipelineKind};
 use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Frame, PixelSample, View};
 
@@ -30,10 +30,10 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     let reports = renderer.take_reports();
     let prepare = renderer.prepare_ms().clone();
     let timing = timings(renderer.stats(), &prepare);
-    let (kind, linear_slot) = (job.compiled.kind, job.compiled.handles.linear_slot.as_str());
+    let (kind, handles) = (job.compiled.kind, &job.compiled.handles);
     let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
-    staged.extend(stage_views(&mut renderer, linear_slot, &args.out_dir, &last_views, &extra_layers(args, kind))?);
-    let (exposure, displays) = display_images(&mut renderer, linear_slot, (lf.len() as u32, lf.width), args.exposure)?;
+    staged.extend(stage_views(&mut renderer, handles, &args.out_dir, &last_views, &extra_layers(args, kind))?);
+    let (exposure, displays) = display_images(&mut renderer, handles, (lf.len() as u32, lf.width), args.exposure)?;
     let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
     drop(displays);
     let missing = match kind {
@@ -115,12 +115,14 @@ fn missing_of_targets(
     views: u32,
     width: u32,
 ) -> Result<MissingPixels> {
+    let holes_family =
+        job.compiled.handles.holes.as_ref().map(|h| h.family()).context("the pipeline has no hole masks")?;
     let holes: Vec<Option<Vec<u32>>> = (0..views)
         .map(|v| {
             if job.compiled.plan.topology.is_source[v as usize] {
                 return Ok(None);
             }
-            let bytes = renderer.read("holes", v)?;
+            let bytes = renderer.read(holes_family, v)?;
             Ok(Some(bytemuck_words(&bytes)))
         })
         .collect::<Result<_, parallax_passes::PassError>>()?;
@@ -183,32 +185,32 @@ fn texels(bytes: &[u8]) -> Vec<[f32; 4]> {
 /// the hole mask of targets as channel `holes.Y` (1 = the pixel was path traced by hole filling).
 pub(super) fn stage_views(
     renderer: &mut LightFieldRenderer,
-    linear_slot: &str,
+    handles: &PipelineHandles,
     folder: &Path,
     views: &[View],
     (layers, holes): &(bool, bool),
 ) -> Result<Vec<Staged>> {
     let mut staged = Vec::with_capacity(views.len());
     for view in views {
-        let radiance = texels(&renderer.read(linear_slot, view.index)?);
+        let radiance = texels(&renderer.read(handles.linear, view.index)?);
         let (albedo, normal, position) = if *layers {
+            let gbuffer = &handles.gbuffer;
             (
-                texels(&renderer.read("albedo_roughness", view.index)?),
-                texels(&renderer.read("normal_metallic", view.index)?),
-                texels(&renderer.read("position_depth", view.index)?),
+                texels(&renderer.read(gbuffer.albedo_roughness.family(), view.index)?),
+                texels(&renderer.read(gbuffer.normal_metallic.family(), view.index)?),
+                texels(&renderer.read(gbuffer.position_depth.family(), view.index)?),
             )
         } else {
             (Vec::new(), Vec::new(), Vec::new())
         };
         // Sources have no hole mask: only targets get the channel.
-        let mask = if *holes {
-            match renderer.read("holes", view.index) {
+        let mask = match &handles.holes {
+            Some(mask) if *holes => match renderer.read(mask.family(), view.index) {
                 Ok(bytes) => Some(bytemuck_words(&bytes)),
-                Err(parallax_passes::PassError::MissingResource { .. }) => None,
+                Err(parallax_passes::PassError::MissingOutput { .. }) => None,
                 Err(e) => return Err(e.into()),
-            }
-        } else {
-            None
+            },
+            _ => None,
         };
         let pixels = (0..radiance.len())
             .map(|i| {

@@ -5,8 +5,8 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Draw, ExecPass, Format, HistorySlot, KernelGraph, PassKernel, PassParams, ReadSlot, Recorder, Result,
-    SourcesSlot, WriteSlot,
+    BackendError, Draw, ExecPass, Format, HistorySlot, InstanceId, KernelGraph, PassKernel, PassParams, ReadSlot,
+    Recorder, Result, SourcesSlot, WriteSlot,
 };
 use parallax_graph::{Handle, PassBuilder, Role};
 
@@ -31,7 +31,7 @@ pub struct FillKernel {
 }
 
 impl PassKernel for FillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
         let params = rec.row_params(pass, pass.write(self.out)?.resource)?;
         rec.dispatch_rows("fill", params)
     }
@@ -49,7 +49,7 @@ pub struct ShiftBlendKernel {
 }
 
 impl PassKernel for ShiftBlendKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
         let dst = pass.write(self.out)?.resource;
         let own = pass.read(self.own)?.resource;
         let other = pass.sources(self.sources)?.next().map_or(own, |source| source.resource);
@@ -81,7 +81,7 @@ pub const RASTER_NEAR_DEPTH: f32 = 0.25;
 pub const RASTER_FAR_DEPTH: f32 = 0.75;
 
 impl PassKernel for RasterDemoKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
         let (gbuffer, depth) = (pass.write(self.gbuffer)?, pass.write(self.depth)?);
         let params = PassParams {
             view: pass.view,
@@ -119,7 +119,7 @@ pub struct WeightedFillKernel {
 }
 
 impl PassKernel for WeightedFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
         let dst = pass.write(self.out)?.resource;
         let width = rec.resource(dst).width;
         let push = WeightedFillParams {
@@ -159,7 +159,7 @@ pub struct FillBufferKernel {
 }
 
 impl PassKernel for FillBufferKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
         let dst = pass.write(self.out)?.resource;
         let words = rec.resource(dst).width;
         let push = FillBufferParams { view: pass.view, count: words, target: rec.buffer_of(dst)? };
@@ -189,12 +189,12 @@ pub struct FillMaskKernel {
 }
 
 impl PassKernel for FillMaskKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> Result<()> {
         let dst = pass.write(self.out)?.resource;
         if rec.resource(dst).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: "fill_mask".into(),
-                instance: index,
+                instance: index.index(),
                 detail: format!("writes an R32Uint image, not {:?}", rec.resource(dst).format),
             });
         }
@@ -216,7 +216,7 @@ pub struct AccumulateKernel {
 }
 
 impl PassKernel for AccumulateKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: usize) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
         let (output, history) = (pass.write(self.acc)?, pass.history_read(self.history)?);
         let params = PassParams { src0: rec.image(history.resource)?, ..rec.row_params(pass, output.resource)? };
         rec.dispatch_rows("accumulate", params)

@@ -12,7 +12,8 @@
 
 use parallax_backend::plan::Kernels;
 use parallax_backend::{
-    ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Format, KernelGraph, PassId, Region,
+    AllocId, CopyId, DeviceId, ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, FamilyId, Format,
+    InstanceId, KernelGraph, PassId, Region,
 };
 use parallax_graph::{Origin, Role, ViewTopology};
 
@@ -20,11 +21,13 @@ use crate::kernels::{FillKernel, ShiftBlendKernel};
 
 /// The demo's kernels, bound to the slots of the declaration its passes instantiate: `fill`
 /// (pass 0) writes `radiance` (write 0); `shift_blend` (pass 1) reads its own view's `radiance`
-/// (read 0) and its sources' (read 1) and writes `output` (write 0).
+/// (read 0) and its sources' (read 1) and writes `output` (write 0); `radiance` is family
+/// [`RADIANCE`], `output` [`OUTPUT`].
 fn demo_kernels() -> (FillKernel, ShiftBlendKernel) {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 1, 1));
     let mut radiance = graph.image("radiance", Format::Rgba32f);
     let mut output = graph.image("output", Format::Rgba32f);
+    assert_eq!((radiance.family(), output.family()), (RADIANCE, OUTPUT));
     let mut fill = graph.pass("fill", Role::All);
     let fill_kernel = FillKernel { out: fill.write_slot(&mut radiance) };
     assert_eq!(fill.record(), PassId(0));
@@ -38,18 +41,23 @@ fn demo_kernels() -> (FillKernel, ShiftBlendKernel) {
     (fill_kernel, blend_kernel)
 }
 
+/// The family of the demo's filled images.
+pub const RADIANCE: FamilyId = FamilyId(0);
+/// The family of the demo's blended images (gathered on device 0).
+pub const OUTPUT: FamilyId = FamilyId(1);
+
 /// Resource ids of the reprojection demo.
 #[derive(Clone, Debug)]
 pub struct DemoResources {
     /// `radiance[v]`: filled image of view v.
-    pub radiance: Vec<usize>,
+    pub radiance: Vec<AllocId>,
     /// `output[v]`: blended image of view v (gathered on device 0).
-    pub output: Vec<usize>,
+    pub output: Vec<AllocId>,
 }
 
 /// Device owning view `v` in the demo (round robin).
-pub fn demo_device_of_view(view: u32, devices: usize) -> usize {
-    view as usize % devices
+pub fn demo_device_of_view(view: u32, devices: usize) -> DeviceId {
+    DeviceId(view % devices as u32)
 }
 
 /// Builds the reprojection demo for `views` views of `width`×`height` on `devices` devices.
@@ -80,12 +88,12 @@ impl Demo {
         kernels.push(fill);
         kernels.push(blend);
         let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
-        let mut image = |name: &str, view: u32| {
-            plan.resources.push(ExecResource::image(name, view, width, height, Format::Rgba32f));
-            plan.resources.len() - 1
+        let mut image = |name: &str, family: FamilyId, view: u32| {
+            plan.resources.push(ExecResource::image(name, family, view, width, height, Format::Rgba32f));
+            AllocId(plan.resources.len() as u32 - 1)
         };
-        let radiance: Vec<usize> = (0..views).map(|v| image("radiance", v)).collect();
-        let output: Vec<usize> = (0..views).map(|v| image("output", v)).collect();
+        let radiance: Vec<AllocId> = (0..views).map(|v| image("radiance", RADIANCE, v)).collect();
+        let output: Vec<AllocId> = (0..views).map(|v| image("output", OUTPUT, v)).collect();
         let phases = (0..devices).map(|_| Default::default()).collect();
         Self { plan, phases, views, height, resources: DemoResources { radiance, output } }
     }
@@ -94,7 +102,7 @@ impl Demo {
         self.phases.len()
     }
 
-    fn owner(&self, v: u32) -> usize {
+    fn owner(&self, v: u32) -> DeviceId {
         demo_device_of_view(v, self.devices())
     }
 
@@ -105,19 +113,19 @@ impl Demo {
     fn add_pass(&mut self, pass: ExecPass, phase: usize) {
         let device = pass.device;
         self.plan.passes.push(pass);
-        self.phases[device][phase].push(ExecOp::Pass(self.plan.passes.len() - 1));
+        self.phases[device.index()][phase].push(ExecOp::Pass(InstanceId(self.plan.passes.len() as u32 - 1)));
     }
 
     /// The copy's producer side in phase `out`, its consumer side in the next one.
     fn add_copy(&mut self, copy: ExecCopy, out: usize) {
         self.plan.copies.push(copy);
-        let c = self.plan.copies.len() - 1;
-        self.phases[copy.from][out].extend([ExecOp::CopyOut(c), ExecOp::Signal(c)]);
-        self.phases[copy.to][out + 1].extend([ExecOp::Wait(c), ExecOp::CopyIn(c)]);
+        let c = CopyId(self.plan.copies.len() as u32 - 1);
+        self.phases[copy.from.index()][out].extend([ExecOp::CopyOut(c), ExecOp::Signal(c)]);
+        self.phases[copy.to.index()][out + 1].extend([ExecOp::Wait(c), ExecOp::CopyIn(c)]);
     }
 
     /// A copy of the whole of version 1 of `resource`.
-    fn whole_copy(&self, resource: usize, from: usize, to: usize, gather: bool) -> ExecCopy {
+    fn whole_copy(&self, resource: AllocId, from: DeviceId, to: DeviceId, gather: bool) -> ExecCopy {
         ExecCopy { resource, dst: resource, version: 1, rows: self.all(), from, to, gather }
     }
 
@@ -127,12 +135,12 @@ impl Demo {
         let (devices, height) = (self.devices(), self.height);
         let split_view = self.views - 1;
         for v in 0..self.views {
-            let bands: Vec<(usize, Region)> = if v == split_view {
-                (0..devices)
+            let bands: Vec<(DeviceId, Region)> = if v == split_view {
+                (0..devices as u32)
                     .map(|d| {
-                        let y0 = height * d as u32 / devices as u32;
-                        let y1 = height * (d as u32 + 1) / devices as u32;
-                        (d, Region::new(y0, y1))
+                        let y0 = height * d / devices as u32;
+                        let y1 = height * (d + 1) / devices as u32;
+                        (DeviceId(d), Region::new(y0, y1))
                     })
                     .collect()
             } else {
@@ -185,7 +193,7 @@ impl Demo {
         for v in 0..self.views {
             let source = (v + 1) % self.views;
             let all = self.all();
-            let access = |slot: &str, decl: u16, resource: usize| ExecAccess::own(slot, decl, resource, 1, all);
+            let access = |slot: &str, decl: u16, resource: AllocId| ExecAccess::own(slot, decl, resource, 1, all);
             let r = &self.resources;
             let blend = ExecPass {
                 name: "shift_blend".into(),
@@ -208,8 +216,8 @@ impl Demo {
     /// Phase 2→3: the gather of finished views to device 0.
     fn gathers(&mut self) {
         for v in 0..self.views {
-            if self.owner(v) != 0 {
-                let copy = self.whole_copy(self.resources.output[v as usize], self.owner(v), 0, true);
+            if self.owner(v) != DeviceId(0) {
+                let copy = self.whole_copy(self.resources.output[v as usize], self.owner(v), DeviceId(0), true);
                 self.add_copy(copy, 2);
             }
         }
@@ -227,22 +235,30 @@ impl Demo {
 pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
     let all = Region::new(0, height);
     ExecutionPlan {
-        resources: vec![ExecResource::image("payload", 0, width, height, Format::Rgba32f)],
+        resources: vec![ExecResource::image("payload", RADIANCE, 0, width, height, Format::Rgba32f)],
         passes: vec![ExecPass {
             name: "fill".into(),
             pass: PassId(0),
             kernel: 0,
             view: 0,
             rows: all,
-            device: 0,
+            device: DeviceId(0),
             reads: vec![],
             history_reads: vec![],
-            writes: vec![ExecAccess::own("payload", 0, 0, 1, all)],
+            writes: vec![ExecAccess::own("payload", 0, AllocId(0), 1, all)],
         }],
-        copies: vec![ExecCopy { resource: 0, dst: 0, version: 1, rows: all, from: 0, to: 1, gather: false }],
+        copies: vec![ExecCopy {
+            resource: AllocId(0),
+            dst: AllocId(0),
+            version: 1,
+            rows: all,
+            from: DeviceId(0),
+            to: DeviceId(1),
+            gather: false,
+        }],
         devices: vec![
-            vec![ExecOp::Pass(0), ExecOp::CopyOut(0), ExecOp::Signal(0)],
-            vec![ExecOp::Wait(0), ExecOp::CopyIn(0)],
+            vec![ExecOp::Pass(InstanceId(0)), ExecOp::CopyOut(CopyId(0)), ExecOp::Signal(CopyId(0))],
+            vec![ExecOp::Wait(CopyId(0)), ExecOp::CopyIn(CopyId(0))],
         ],
         history_pairs: vec![],
         kernels: fill_only(),
@@ -290,7 +306,7 @@ mod tests {
                 assert!(p.read(blend.own).is_err(), "a token of shift_blend binds nothing in fill");
             } else {
                 assert_eq!(p.read(blend.own).unwrap().resource, ids.radiance[v]);
-                let sources: Vec<usize> = p.sources(blend.sources).unwrap().map(|a| a.resource).collect();
+                let sources: Vec<AllocId> = p.sources(blend.sources).unwrap().map(|a| a.resource).collect();
                 assert_eq!(sources, [ids.radiance[(v + 1) % views as usize]]);
                 assert_eq!(p.write(blend.out).unwrap().resource, ids.output[v]);
             }

@@ -6,7 +6,7 @@ use ash::vk;
 
 use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result};
-use crate::plan::ExecutionPlan;
+use crate::plan::{CopyId, ExecutionPlan};
 use crate::relay::Relay;
 use crate::segments::{Segment, chunks_of_copies, cross_device_waits, segment_devices, submission_order};
 use crate::texture::Texture;
@@ -33,10 +33,10 @@ impl Executor {
         let mut kept = Kept::default();
         for (d, mut state) in std::mem::take(&mut self.states).into_iter().enumerate() {
             for (resource, image) in state.images.drain() {
-                kept.images.insert((d, self.plan.resources[resource].clone()), image);
+                kept.images.insert((d, self.plan.resource(resource).clone()), image);
             }
             for (resource, buffer) in state.buffers.drain() {
-                kept.buffers.insert((d, self.plan.resources[resource].clone()), buffer);
+                kept.buffers.insert((d, self.plan.resource(resource).clone()), buffer);
             }
         }
         self.staging = None;
@@ -59,9 +59,9 @@ impl Executor {
         drop(kept);
         let mut ready = Vec::with_capacity(plan.copies.len());
         for (c, copy) in plan.copies.iter().enumerate() {
-            let consumer = &mut states[copy.to];
+            let consumer = &mut states[copy.to.index()];
             let semaphore = consumer.device.create_timeline(0)?;
-            consumer.ready.insert(c, semaphore);
+            consumer.ready.insert(CopyId(c as u32), semaphore);
             ready.push(semaphore);
         }
         self.gate = match self.options.fault {

@@ -11,7 +11,7 @@ pub enum FaultInjection {
     /// semaphore) until the consumer has executed the copy-in; the copy-in then reads the
     /// zero-initialised staging memory. Only possible when nothing the consumer does up to
     /// that copy-in waits for another copy.
-    DropCrossDeviceWait { copy: usize },
+    DropCrossDeviceWait { copy: crate::plan::CopyId },
     /// Submitting frame `frame` fails as on a lost device ([`BackendError::DeviceLost`]) before
     /// its last run of segments, so the rest of its segments are on the queues: what every
     /// caller must end cleanly from (one error, no hang, nothing half-written).

@@ -6,6 +6,7 @@ use gpu_allocator::MemoryLocation;
 
 use crate::error::{BackendError, Result};
 use crate::memory::Buffer;
+use crate::plan::{AllocId, DeviceId};
 use crate::record;
 
 use super::Executor;
@@ -13,17 +14,17 @@ use super::Executor;
 impl Executor {
     /// Reads an image (tightly packed rows) or a buffer back from `device` (waits for all
     /// frames).
-    pub fn read_resource(&mut self, device: usize, resource: usize) -> Result<Vec<u8>> {
+    pub fn read_resource(&mut self, device: DeviceId, resource: AllocId) -> Result<Vec<u8>> {
         self.finish()?;
         // A history allocation's halves swap by frame parity: read the half the last frame
         // wrote in `resource`'s place (and its other half for the pair's other member).
         let last_parity = self.next_frame.saturating_sub(1) % 2;
         let resource = self.plan.parity_map(last_parity as usize).get(&resource).copied().unwrap_or(resource);
-        let state = &self.states[device];
+        let state = &self.states[device.index()];
         if !state.images.contains_key(&resource) && !state.buffers.contains_key(&resource) {
-            return Err(BackendError::ResourceNotOnDevice { resource, device });
+            return Err(BackendError::ResourceNotOnDevice { resource, device: device.index() });
         }
-        let desc = &self.plan.resources[resource];
+        let desc = self.plan.resource(resource);
         let readback = Buffer::new(
             &state.device,
             "readback",

@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use crate::error::Result;
+use crate::plan::AllocId;
 use crate::record::{SegmentContext, SegmentPlace, record_segment};
 
 use super::Executor;
@@ -20,7 +21,7 @@ impl Executor {
             .map(|g| g.iter().map(|(name, b)| (name.clone(), (b.device_address(), b.size))).collect())
             .collect();
         for (d, state) in self.states.iter_mut().enumerate() {
-            let buffer_addresses: HashMap<usize, u64> =
+            let buffer_addresses: HashMap<AllocId, u64> =
                 state.buffers.iter().map(|(&r, b)| (r, b.device_address())).collect();
             for slot in 0..state.slots.len() {
                 // Recording happens with no frame in flight (every cause of it waits for the

@@ -160,7 +160,9 @@ impl Executor {
         let mut waits: Vec<vk::SemaphoreSubmitInfo<'static>> = segment
             .waits
             .iter()
-            .map(|wait| on(self.ready[wait.copy], ready_value(local, self.chunks[wait.copy].len(), wait.chunk)))
+            .map(|wait| {
+                on(self.ready[wait.copy.index()], ready_value(local, self.chunks[wait.copy.index()].len(), wait.chunk))
+            })
             .collect();
         // A segment on another queue than its predecessor (in program order, across the frame
         // boundary too) waits for it: the two queues run one program.
@@ -194,14 +196,14 @@ impl Executor {
         for j in run.segments.clone() {
             let watch_value = progress_value(local, segment_count, j);
             for chunk in &self.states[d].segments[j].relays {
-                let consumer = self.plan.copies[chunk.copy].to;
+                let consumer = self.plan.copy(chunk.copy).to;
                 relay.push(
                     d,
                     RelayJob {
                         watch_value,
-                        target: self.devices[consumer].clone(),
-                        semaphore: self.ready[chunk.copy],
-                        signal_value: ready_value(local, self.chunks[chunk.copy].len(), chunk.index),
+                        target: self.devices[consumer.index()].clone(),
+                        semaphore: self.ready[chunk.copy.index()],
+                        signal_value: ready_value(local, self.chunks[chunk.copy.index()].len(), chunk.index),
                     },
                 )?;
             }

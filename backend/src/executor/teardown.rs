@@ -21,7 +21,7 @@ impl Executor {
         for (c, copy) in self.plan.copies.iter().enumerate() {
             let chunks = self.chunks[c].len();
             let value = ready_value(local, chunks, chunks.saturating_sub(1) as u32);
-            raise_timeline(&self.devices[copy.to], self.ready[c], value);
+            raise_timeline(&self.devices[copy.to.index()], self.ready[c], value);
         }
         if let Some(gate) = &self.gate {
             raise_timeline(&self.devices[gate.producer], gate.semaphore, local + 1);

@@ -6,7 +6,7 @@ use glam::Vec3;
 use parallax_backend::{Context, ExecOptions, ExecutionPlan, KernelGraph};
 use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, View};
@@ -32,14 +32,14 @@ pub fn views(scene: &Scene, count: u32, width: u32, height: u32) -> Vec<View> {
 }
 
 /// The reprojection pipeline with SVGF over `lf`'s views on `context`'s first device, its
-/// display images exported, run by a [`LightFieldRenderer`] with `options`.
+/// display images exported, run by a [`LightFieldRenderer`] with `options`; and its handles.
 pub fn reprojection_renderer(
     context: &Context,
     scene: &Scene,
     bvh: &SceneBvh,
     lf: &LightField,
     options: ExecOptions,
-) -> LightFieldRenderer {
+) -> (LightFieldRenderer, PipelineHandles) {
     let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
@@ -54,5 +54,6 @@ pub fn reprojection_renderer(
     graph.export(&handles.display);
     let schedule = compile(&graph, &plan).unwrap();
     let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
-    LightFieldRenderer::with_options(context, exec, &GpuScene::new(scene, bvh), options).unwrap()
+    let renderer = LightFieldRenderer::with_options(context, exec, &GpuScene::new(scene, bvh), options).unwrap();
+    (renderer, handles)
 }
