@@ -6,7 +6,8 @@
 
 use std::collections::BTreeMap;
 
-use parallax_backend::{EventKind, EventTotals, ExecutionPlan, FrameStats, Summary};
+use parallax_backend::{EventKind, EventTotals, ExecPass, ExecutionPlan, FrameStats, Summary};
+use parallax_graph::FamilyId;
 
 /// Mean GPU time of one stage on one device over the measured frames.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -203,16 +204,22 @@ pub struct MissingPixels {
     pub overall: f64,
 }
 
-/// `holes[v]` is view v's hole mask (None for sources); `plan` says which device reprojected
-/// which rows.
-pub fn missing_pixels(plan: &ExecutionPlan, holes: &[Option<Vec<u32>>], width: u32) -> MissingPixels {
+/// `holes[v]` is view v's hole mask (None for sources), the declared resource `holes_family`;
+/// `plan` says which device wrote which rows of it (reprojection).
+pub fn missing_pixels(
+    plan: &ExecutionPlan,
+    holes_family: FamilyId,
+    holes: &[Option<Vec<u32>>],
+    width: u32,
+) -> MissingPixels {
     let devices = plan.devices.len();
     let (mut missed, mut total) = (vec![0u64; devices], vec![0u64; devices]);
     let mut per_view = Vec::new();
     for (v, mask) in holes.iter().enumerate() {
         let Some(mask) = mask else { continue };
         per_view.push((v as u32, mask.iter().filter(|&&h| h != 0).count() as f64 / mask.len().max(1) as f64));
-        for pass in plan.passes.iter().filter(|p| p.view == v as u32 && p.name == "reproject") {
+        let writes_mask = |p: &&ExecPass| p.writes.iter().any(|w| plan.resource(w.resource).family == holes_family);
+        for pass in plan.passes.iter().filter(|p| p.view == v as u32).filter(writes_mask) {
             let rows = &mask[(pass.rows.y0 * width) as usize..(pass.rows.y1 * width) as usize];
             missed[pass.device.index()] += rows.iter().filter(|&&h| h != 0).count() as u64;
             total[pass.device.index()] += rows.len() as u64;

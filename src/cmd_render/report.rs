@@ -126,7 +126,7 @@ fn missing_of_targets(
             Ok(Some(bytemuck_words(&bytes)))
         })
         .collect::<Result<_, parallax_passes::PassError>>()?;
-    Ok(missing_pixels(renderer.executor().plan(), &holes, width))
+    Ok(missing_pixels(renderer.executor().plan(), holes_family, &holes, width))
 }
 
 /// render.json: the setup that comparisons check, the plan and what was measured.
