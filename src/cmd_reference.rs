@@ -18,10 +18,10 @@ use clap::Args;
 use indicatif::ProgressStyle;
 use parallax_accuracy::exposure::LogAverage;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
-use parallax_backend::{Context as VkContext, ContextDesc};
+use parallax_backend::{Context as VkContext, ContextDesc, ExecOptions};
 use parallax_graph::lightfield::DEFAULT_SPACING;
 use parallax_graph::{LightField, ViewId};
-use parallax_passes::{LightFieldRenderer, TraceOutputs, TracePlan, banded_trace_plan};
+use parallax_passes::{LightFieldRenderer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
@@ -105,7 +105,7 @@ fn scene_files_key(scene: &Scene) -> BTreeMap<String, String> {
 
 enum Tracer<'a> {
     Cpu(CpuTracer<'a>),
-    Gpu { context: VkContext, tracer: Box<LightFieldRenderer>, outputs: TraceOutputs },
+    Gpu { context: VkContext, tracer: Box<LightFieldRenderer> },
 }
 
 impl<'a> Tracer<'a> {
@@ -127,10 +127,9 @@ impl<'a> Tracer<'a> {
         tracing::info!("{}", context.to_string().trim_end());
         work.check_devices(&context)?;
         let devices = selection.count();
-        let TracePlan { plan, outputs } =
-            banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
-        let tracer = LightFieldRenderer::new(&context, plan, &GpuScene::new(scene, bvh))?;
-        Ok(Tracer::Gpu { context, tracer: Box::new(tracer), outputs })
+        let trace = banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
+        let tracer = LightFieldRenderer::tracing(&context, trace, &GpuScene::new(scene, bvh), ExecOptions::default())?;
+        Ok(Tracer::Gpu { context, tracer: Box::new(tracer) })
     }
 }
 
@@ -145,8 +144,8 @@ impl Tracer<'_> {
                     Ok(frame.pixels.iter().map(|p| p.radiance.to_array()).collect())
                 })
                 .collect(),
-            Tracer::Gpu { tracer, outputs, .. } => Ok(tracer
-                .trace(outputs, scene, views, settings)?
+            Tracer::Gpu { tracer, .. } => Ok(tracer
+                .trace(scene, views, settings)?
                 .into_iter()
                 .map(|pixels| pixels.iter().map(|p| [p.radiance[0], p.radiance[1], p.radiance[2]]).collect())
                 .collect()),
@@ -203,7 +202,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let devices = if args.cpu { 0 } else { args.devices.selection().count() };
     let started = Instant::now();
     trace_to_target(&args, &mut tracer, &scene, &views, &mut acc, &selected)?;
-    if let Tracer::Gpu { context, tracer, .. } = tracer {
+    if let Tracer::Gpu { context, tracer } = tracer {
         drop(tracer);
         context.check_validation()?;
     }

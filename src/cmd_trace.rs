@@ -7,8 +7,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use parallax_accuracy::exposure::LogAverage;
-use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, EventKind};
-use parallax_passes::{LightFieldRenderer, PATH_TRACE, TracePlan, banded_trace_plan, to_pixel_sample};
+use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, EventKind, ExecOptions};
+use parallax_passes::{LightFieldRenderer, PATH_TRACE, banded_trace_plan, to_pixel_sample};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{CpuTracer, Frame, Scene, SceneBvh, TraceSettings, View};
@@ -171,12 +171,12 @@ fn trace_gpu(
     tracing::info!("{}", context.to_string().trim_end());
     work.check_devices(&context)?;
     let devices = selection.count() as u32;
-    let TracePlan { plan, outputs } = banded_trace_plan(1, (view.width, view.height), devices, devices)?;
-    let mut tracer = LightFieldRenderer::new(&context, plan, &GpuScene::new(scene, bvh))?;
+    let trace = banded_trace_plan(1, (view.width, view.height), devices, devices)?;
+    let mut tracer = LightFieldRenderer::tracing(&context, trace, &GpuScene::new(scene, bvh), ExecOptions::default())?;
     tracer.keep_reports(true);
     let spinner = spinner(format!("tracing {}x{} at {} spp on the GPU", view.width, view.height, settings.spp));
     let t1 = Instant::now();
-    let pixels = tracer.trace(&outputs, scene, std::slice::from_ref(view), settings)?.remove(0);
+    let pixels = tracer.trace(scene, std::slice::from_ref(view), settings)?.remove(0);
     spinner.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
     // GPU time: from the first path_trace band's start to the last one's end, any device.

@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 
-use parallax_backend::{EventKind, EventTotals, ExecPass, ExecutionPlan, FrameStats, Summary};
+use parallax_backend::{EventKind, EventTotals, ExecutionPlan, FrameStats, Summary};
 use parallax_graph::FamilyId;
 
 /// Mean GPU time of one stage on one device over the measured frames.
@@ -205,7 +205,7 @@ pub struct MissingPixels {
 }
 
 /// `holes[v]` is view v's hole mask (None for sources), the declared resource `holes_family`;
-/// `plan` says which device wrote which rows of it (reprojection).
+/// `plan` says which device wrote which rows of its final version (reprojection).
 pub fn missing_pixels(
     plan: &ExecutionPlan,
     holes_family: FamilyId,
@@ -218,11 +218,10 @@ pub fn missing_pixels(
     for (v, mask) in holes.iter().enumerate() {
         let Some(mask) = mask else { continue };
         per_view.push((v as u32, mask.iter().filter(|&&h| h != 0).count() as f64 / mask.len().max(1) as f64));
-        let writes_mask = |p: &&ExecPass| p.writes.iter().any(|w| plan.resource(w.resource).family == holes_family);
-        for pass in plan.passes.iter().filter(|p| p.view == v as u32).filter(writes_mask) {
-            let rows = &mask[(pass.rows.y0 * width) as usize..(pass.rows.y1 * width) as usize];
-            missed[pass.device.index()] += rows.iter().filter(|&&h| h != 0).count() as u64;
-            total[pass.device.index()] += rows.len() as u64;
+        for (device, write) in plan.final_writes(holes_family, v as u32) {
+            let rows = &mask[(write.rows.y0 * width) as usize..(write.rows.y1 * width) as usize];
+            missed[device.index()] += rows.iter().filter(|&&h| h != 0).count() as u64;
+            total[device.index()] += rows.len() as u64;
         }
     }
     let all: u64 = total.iter().sum();

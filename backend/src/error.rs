@@ -76,10 +76,6 @@ pub enum BackendError {
     #[error("cannot lower the schedule: {0}")]
     Lower(#[from] crate::lower::LowerError),
 
-    /// A pass instance names a pass for which no kernel is registered.
-    #[error("no kernel registered for pass `{pass}` (registered: {registered:?})")]
-    UnknownPass { pass: String, registered: Vec<String> },
-
     /// A kernel asked for a shader that no layer of its library (ExecOptions::shaders) nor the
     /// backend's own shaders have.
     #[error(
@@ -105,9 +101,10 @@ pub enum BackendError {
     )]
     PushConstantLayout { pass: String, shader: String, rust_type: &'static str, field: String, problem: String },
 
-    /// A kernel's use of the instance does not match what the kernel expects.
-    #[error("kernel `{kernel}` cannot record pass instance {instance}: {detail}")]
-    KernelMisuse { kernel: String, instance: usize, detail: String },
+    /// A kernel's use of the instance does not match what the kernel expects (`instance`: the
+    /// pass instance, where the call that refused it knows it).
+    #[error("kernel `{kernel}` cannot record {}: {detail}", instance.map_or("its pass instance".into(), |i| format!("pass instance {i}")))]
+    KernelMisuse { kernel: String, instance: Option<crate::plan::InstanceId>, detail: String },
 
     /// A kernel bound a slot token its pass instance does not have (one another pass's
     /// declaration returned).
@@ -165,10 +162,6 @@ pub enum BackendError {
     /// A resource is not present on the device where it was asked for.
     #[error("resource {resource} is not allocated on device {device}")]
     ResourceNotOnDevice { resource: crate::plan::AllocId, device: usize },
-
-    /// A texel format the backend cannot use as a storage image.
-    #[error("format {0:?} is not supported as a storage image by the backend yet")]
-    UnsupportedFormat(crate::plan::Format),
 
     /// A host relay thread (cross-device signal forwarding) failed.
     #[error("cross-device relay failed: {0}")]

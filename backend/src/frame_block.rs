@@ -68,7 +68,7 @@ impl FrameConstants {
     }
 }
 
-/// The block's header (the first four members of `FrameBlock` in frame_block.glsl).
+/// The block's header (`view_count` and `pad` of `FrameBlock` in frame_block.glsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct FrameHeader {

@@ -24,8 +24,9 @@
 //!   each pipeline's shader block is reflected from the SPIR-V when it is created, and a
 //!   struct that differs is refused with [`BackendError::PushConstantLayout`].
 //! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera, as
-//!   `shaders/include/frame_block.glsl` declares them; the executor writes its frame index and
-//!   history flag ([`FrameConstants`]) into the block's header and the frame constants.
+//!   `shaders/include/frame_block.glsl` declares them ([`FrameData::frame_block`],
+//!   [`Recorder::frame_block_address`]); the executor writes its frame index and history flag
+//!   ([`FrameConstants`]) into the frame constants alone.
 //! * The frame loop: [`Executor::submit_frame`] keeps frames in flight and
 //!   [`Executor::wait_readback`] returns one frame's exported resources.
 //! * Shaders: the kernels of each crate bring their own SPIR-V in a [`ShaderLibrary`]

@@ -415,23 +415,50 @@ impl ExecutionPlan {
         self.history_pairs.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect()
     }
 
-    /// Where the final version of the declared resource `family` for `view` can be read after
-    /// a frame: `(device, resource)`, on device 0 when it is there (written there or
-    /// gathered), else on the device that wrote it.
-    pub fn final_output(&self, family: FamilyId, view: u32) -> Option<(DeviceId, AllocId)> {
+    /// The writes of the final version of the declared resource `family` for `view` in a frame,
+    /// with the device of each: one per row band, in instance order. Empty when no pass writes
+    /// `family` there.
+    pub fn final_writes(&self, family: FamilyId, view: u32) -> Vec<(DeviceId, &ExecAccess)> {
         let writes = || {
             self.passes.iter().filter(move |p| p.view == view).flat_map(move |p| {
                 p.writes.iter().filter(move |w| self.resource(w.resource).family == family).map(move |w| (p.device, w))
             })
         };
-        let version = writes().map(|(_, w)| w.version).max()?;
-        let finals = || writes().filter(move |(_, w)| w.version == version);
+        let Some(version) = writes().map(|(_, w)| w.version).max() else {
+            return Vec::new();
+        };
+        writes().filter(|(_, w)| w.version == version).collect()
+    }
+
+    /// Where each row band of the final version of `family` for `view` can be read after a
+    /// frame, as `(device, resource, rows)` in instance order: on device 0 where the band was
+    /// written there or gathered there (a copy of that version and those rows), else on the
+    /// device that wrote it. `None` when no pass writes `family` there.
+    pub fn final_bands(&self, family: FamilyId, view: u32) -> Option<Vec<(DeviceId, AllocId, Region)>> {
         let primary = DeviceId(0);
-        let on_primary = finals().find(|(d, _)| *d == primary).map(|(_, w)| w.resource).or_else(|| {
-            let sources: Vec<AllocId> = finals().map(|(_, w)| w.resource).collect();
-            self.copies.iter().find(|c| c.to == primary && sources.contains(&c.resource)).map(|c| c.dst)
-        });
-        on_primary.map(|r| (primary, r)).or_else(|| finals().next().map(|(d, w)| (d, w.resource)))
+        let bands: Vec<_> = self
+            .final_writes(family, view)
+            .into_iter()
+            .map(|(device, w)| {
+                let gathered = |c: &&ExecCopy| {
+                    c.to == primary && c.resource == w.resource && c.version == w.version && c.rows == w.rows
+                };
+                match (device != primary).then(|| self.copies.iter().find(gathered)).flatten() {
+                    Some(copy) => (primary, copy.dst, w.rows),
+                    None => (device, w.resource, w.rows),
+                }
+            })
+            .collect();
+        (!bands.is_empty()).then_some(bands)
+    }
+
+    /// The one `(device, resource)` that holds every row band of the final version of `family`
+    /// for `view` after a frame ([`Self::final_bands`]): device 0's when the view was written or
+    /// gathered there; `None` when its bands are left on several devices or nothing writes it.
+    pub fn final_output(&self, family: FamilyId, view: u32) -> Option<(DeviceId, AllocId)> {
+        let bands = self.final_bands(family, view)?;
+        let (device, resource, _) = bands[0];
+        bands.iter().all(|&(d, r, _)| (d, r) == (device, resource)).then_some((device, resource))
     }
 
     /// Bytes moved by copy `c` (only the copied rows).
@@ -445,6 +472,62 @@ impl ExecutionPlan {
 mod tests {
     use super::*;
     use crate::bench::{copy_plan, overhead_plan};
+
+    /// Records nothing: these plans are only inspected.
+    struct Idle;
+
+    impl PassKernel for Idle {
+        fn record(&self, _: &mut crate::Recorder<'_>, _: &ExecPass, _: InstanceId) -> crate::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// One 8×6 view's `layer` written in three row bands over three devices and then, after
+    /// `then`, read: exported (gathered on device 0), read per band where it was written, or
+    /// read whole (so on device 0, which gets the other bands as dependency copies).
+    fn banded(then: &str) -> (ExecutionPlan, FamilyId) {
+        use std::sync::Arc;
+        let mut graph = crate::KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 6));
+        let mut layer = graph.image("layer", Format::Rgba32f);
+        graph.pass("write", Role::All).write(&mut layer).kernel(Arc::new(Idle)).record();
+        match then {
+            "export" => graph.export(&layer),
+            "read per band" => {
+                graph.pass("read", Role::All).read(&layer).side_effect().kernel(Arc::new(Idle)).record();
+            }
+            _ => {
+                graph.pass("read", Role::All).read_whole(&layer).side_effect().kernel(Arc::new(Idle)).record();
+            }
+        }
+        let placement = parallax_graph::BandedPlacement { devices: 3, bands: 3 };
+        let schedule = parallax_graph::compile(&graph, &placement).unwrap();
+        (ExecutionPlan::from_schedule(&graph, &schedule).unwrap(), layer.family())
+    }
+
+    #[test]
+    fn a_gathered_layer_is_read_whole_from_device_0() {
+        for then in ["export", "read whole"] {
+            let (plan, layer) = banded(then);
+            let bands = plan.final_bands(layer, 0).unwrap();
+            assert_eq!(bands.iter().map(|b| b.2).collect::<Vec<_>>(), Region::bands(6, 3), "{then}");
+            let (device, resource) = plan.final_output(layer, 0).unwrap();
+            assert_eq!(device, DeviceId(0), "{then}");
+            assert!(bands.iter().all(|&(d, r, _)| (d, r) == (device, resource)), "{then}: {bands:?}");
+        }
+    }
+
+    #[test]
+    fn bands_left_where_they_were_written_are_read_from_their_devices() {
+        let (plan, layer) = banded("read per band");
+        let bands = plan.final_bands(layer, 0).unwrap();
+        assert_eq!(bands.iter().map(|&(d, _, rows)| (d.index(), rows)).collect::<Vec<_>>(), {
+            let rows = Region::bands(6, 3);
+            vec![(0, rows[0]), (1, rows[1]), (2, rows[2])]
+        });
+        assert_eq!(plan.final_output(layer, 0), None, "no one allocation holds every band");
+        assert_eq!(plan.final_bands(FamilyId(layer.0 + 1), 0), None, "no such family");
+        assert_eq!(plan.final_bands(layer, 1), None, "the plan has one view");
+    }
 
     #[test]
     fn a_plan_for_another_device_count_or_without_its_kernel_is_refused() {

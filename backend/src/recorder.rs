@@ -122,7 +122,7 @@ impl<'a> Recorder<'a> {
         if self.buffer_addresses.contains_key(&resource) {
             return Err(BackendError::KernelMisuse {
                 kernel: format!("a kernel of device {}", self.device_index),
-                instance: usize::MAX,
+                instance: None,
                 detail: format!("resource {resource} is a buffer: use Recorder::buffer_of, not image"),
             });
         }
@@ -231,7 +231,7 @@ impl<'a> Recorder<'a> {
     ) -> Result<()> {
         let invalid = |problem: String| BackendError::KernelMisuse {
             kernel: shader.to_string(),
-            instance: usize::MAX,
+            instance: None,
             detail: format!("indirect arguments at byte {byte_offset} of a recording buffer: {problem}"),
         };
         self.indirect(shader, push, args.raw, args.bytes, byte_offset, invalid)
@@ -280,7 +280,7 @@ impl<'a> Recorder<'a> {
         if bytes.len() > PUSH_CONSTANT_BYTES as usize || bytes.len() % 4 != 0 {
             return Err(BackendError::KernelMisuse {
                 kernel: shader.to_string(),
-                instance: usize::MAX,
+                instance: None,
                 detail: format!("{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)", bytes.len()),
             });
         }
@@ -380,7 +380,7 @@ impl<'a> Recorder<'a> {
     pub fn draw<P: PushConstants>(&mut self, draw: &Draw<'_>, push: &P) -> Result<()> {
         let misuse = |detail: String| BackendError::KernelMisuse {
             kernel: draw.vertex_shader.to_string(),
-            instance: usize::MAX,
+            instance: None,
             detail,
         };
         let push_bytes = bytemuck::bytes_of(push);

@@ -107,7 +107,7 @@ impl PassKernel for BlendKernel {
         };
         for (i, source) in pass.sources(self.sources)?.enumerate() {
             if i == MAX_SOURCES {
-                return Err(misuse("blend", index.index(), &format!("blends at most {MAX_SOURCES} sources")));
+                return Err(misuse("blend", index, &format!("blends at most {MAX_SOURCES} sources")));
             }
             params.source_image[i] = rec.image(source.resource)?;
             params.shift[i] = shift(pass.view, rec.resource(source.resource).view, self.cols, width);
@@ -117,8 +117,8 @@ impl PassKernel for BlendKernel {
     }
 }
 
-fn misuse(kernel: &str, instance: usize, detail: &str) -> BackendError {
-    BackendError::KernelMisuse { kernel: kernel.into(), instance, detail: detail.into() }
+fn misuse(kernel: &str, instance: InstanceId, detail: &str) -> BackendError {
+    BackendError::KernelMisuse { kernel: kernel.into(), instance: Some(instance), detail: detail.into() }
 }
 
 /// Columns by which `target` samples `source`: its distance in the grid, as a disparity.

@@ -29,9 +29,15 @@ pub enum PassError {
     #[error("the plan has views 0..{plan_views} but a frame gave {given} views")]
     MissingViews { plan_views: u32, given: usize },
 
-    /// A plan lacks an image or buffer this crate looks up by name.
-    #[error("the plan has no resource `{name}` for view {view}")]
-    MissingResource { name: String, view: u32 },
+    /// A trace plan whose outputs have no radiance image for a view.
+    #[error("the trace plan traces no radiance for view {view}: its outputs must name the image path_trace writes")]
+    MissingRadiance { view: u32 },
+
+    /// `LightFieldRenderer::trace` on a renderer that was not made for a trace plan.
+    #[error(
+        "this renderer runs a plan without trace outputs: make it with LightFieldRenderer::tracing(context, trace_plan, ...)"
+    )]
+    NotATracePlan,
 
     /// Nothing in the plan writes the declared resource `family` for `view`.
     #[error(

@@ -53,7 +53,7 @@ impl PassKernel for HashedHoleMaskKernel {
         if rec.resource(mask.resource).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: HOLE_MASK.into(),
-                instance: index.index(),
+                instance: Some(index),
                 detail: "writes its mask into an R32u image".into(),
             });
         }

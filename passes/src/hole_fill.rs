@@ -96,7 +96,7 @@ impl PassKernel for HoleFillKernel {
         }
         let target_count = u32::try_from(instances.len()).map_err(|_| BackendError::KernelMisuse {
             kernel: HOLE_FILL.into(),
-            instance: instances[0].index(),
+            instance: Some(instances[0]),
             detail: format!("{} instances in one op", instances.len()),
         })?;
         let table = rec.recording_buffer("hole fill targets", &table)?;
@@ -117,7 +117,7 @@ impl HoleFillKernel {
         index: InstanceId,
     ) -> parallax_backend::Result<HoleFillTarget> {
         let misuse =
-            |detail: String| BackendError::KernelMisuse { kernel: HOLE_FILL.into(), instance: index.index(), detail };
+            |detail: String| BackendError::KernelMisuse { kernel: HOLE_FILL.into(), instance: Some(index), detail };
         let (list, radiance) = (pass.read(self.list)?, pass.write(self.radiance)?);
         if pass.writes.len() != 1 {
             return Err(misuse("writes its radiance only".into()));

@@ -76,11 +76,8 @@ pub struct CompactHolesKernel {
 
 impl PassKernel for CompactHolesKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
-        let misuse = |detail: String| BackendError::KernelMisuse {
-            kernel: COMPACT_HOLES.into(),
-            instance: index.index(),
-            detail,
-        };
+        let misuse =
+            |detail: String| BackendError::KernelMisuse { kernel: COMPACT_HOLES.into(), instance: Some(index), detail };
         let (holes, list) = (pass.read(self.holes)?, pass.write(self.list)?);
         let mask = rec.resource(holes.resource);
         if mask.kind != ResourceKind::Image || mask.format != Format::R32u {

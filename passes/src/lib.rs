@@ -20,12 +20,12 @@
 //!   and `hole_fill` ([`hole_fill`]: the lists of all target bands of a device path traced by
 //!   one indirect dispatch); [`hole_bench`] times it.
 //! * [`trace`]: the graph declaring path tracing per view; [`LightFieldRenderer`] (the one
-//!   runner of plans, [`renderer`]) traces it ([`LightFieldRenderer::trace`]).
+//!   runner of plans, [`renderer`]) traces it ([`LightFieldRenderer::tracing`], `trace`).
 //! * [`reproject`] and [`view_bound`]: the gather of targets from their sources, and the bound
 //!   on view-dependence that decides which pixels it may reuse.
 //!
 //! ```no_run
-//! use parallax_backend::{Context, ContextDesc, DeviceSelection};
+//! use parallax_backend::{Context, ContextDesc, DeviceSelection, ExecOptions};
 //! use parallax_passes::{LightFieldRenderer, trace_plan};
 //! use parallax_scene::{default_scene, gpu::GpuScene, SceneBvh, TraceSettings, View};
 //!
@@ -34,7 +34,8 @@
 //! let context = Context::new(&ContextDesc::from_env(DeviceSelection::FakeDevices(2)))?;
 //! // One 64x48 view in row bands over two devices, gathered on device 0.
 //! let plan = trace_plan(1, 1, (64, 48), 2, parallax_graph::Scheme::FineAll, None)?;
-//! let mut renderer = LightFieldRenderer::new(&context, plan, &GpuScene::new(&scene, &bvh))?;
+//! let scene_on_gpu = GpuScene::new(&scene, &bvh);
+//! let mut renderer = LightFieldRenderer::tracing(&context, plan, &scene_on_gpu, ExecOptions::default())?;
 //! let view = View { camera: scene.default_camera(), width: 64, height: 48, index: 0 };
 //! let pixels = renderer.trace(&scene, &[view], &TraceSettings::default())?;
 //! assert_eq!(pixels[0].len(), 64 * 48);

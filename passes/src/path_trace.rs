@@ -64,7 +64,7 @@ impl PathTraceKernel {
 }
 
 fn misuse(index: InstanceId, detail: String) -> BackendError {
-    BackendError::KernelMisuse { kernel: PATH_TRACE.into(), instance: index.index(), detail }
+    BackendError::KernelMisuse { kernel: PATH_TRACE.into(), instance: Some(index), detail }
 }
 
 /// Push constants of `pt_trace.comp` (`PathTracePush` there; a test holds the two layouts

@@ -83,11 +83,9 @@ pub struct PipelineHandles {
     pub holes: Option<Handle<Image>>,
     /// Linear radiance after denoising (`denoise` only).
     pub denoised: Option<Handle<Image>>,
-    /// Slot of the final linear radiance, what the tonemapper reads: the denoiser's output
-    /// (`denoised` for SVGF), or `radiance` without denoising.
-    pub linear_slot: String,
-    /// The declared resource of [`Self::linear_slot`]: what the final linear radiance is read
-    /// back by.
+    /// The declared resource of the final linear radiance, what the tonemapper reads and the
+    /// linear views are read back by: the denoiser's output (`denoised` for SVGF), or
+    /// `radiance` without denoising.
     pub linear: FamilyId,
     /// The global 1×1 image the tonemapper scaled its exposure by, if a stage declared one.
     pub exposure: Option<Handle<Image>>,
@@ -230,10 +228,9 @@ impl PipelineBuilder {
                 declare_tonemap_scaled(graph, linear, config.exposure, layers.exposure.as_ref())?
             }
         };
-        let linear = layers.denoised.as_ref().unwrap_or(&layers.radiance);
-        let (linear_slot, linear) = (graph.name_of(linear).to_string(), linear.family());
+        let linear = layers.denoised.as_ref().unwrap_or(&layers.radiance).family();
         let Layers { gbuffer, radiance, holes, denoised, exposure } = layers;
-        Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear_slot, linear, exposure, display })
+        Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear, exposure, display })
     }
 
     /// Runs the stages inserted at `at`, in insertion order.
@@ -359,7 +356,8 @@ mod tests {
         ];
         assert_eq!(pass_names(&a), standard);
         assert_eq!(pass_names(&b), standard);
-        assert_eq!(handles.linear_slot, crate::svgf::DENOISED);
+        let denoised = handles.denoised.as_ref().unwrap();
+        assert_eq!((handles.linear, b.name_of(denoised)), (denoised.family(), crate::svgf::DENOISED));
     }
 
     #[test]
@@ -373,7 +371,8 @@ mod tests {
             })
             .declare(&mut graph)
             .unwrap();
-        assert_eq!(handles.linear_slot, "my_denoised");
+        let denoised = handles.denoised.as_ref().unwrap();
+        assert_eq!((handles.linear, graph.name_of(denoised)), (denoised.family(), "my_denoised"));
         assert!(!pass_names(&graph).iter().any(|p| p.starts_with("svgf")));
     }
 
@@ -391,6 +390,6 @@ mod tests {
         let names = pass_names(&graph);
         assert!(!names.iter().any(|n| n == crate::tonemap::TONEMAP), "{names:?}");
         assert_eq!(names.last().map(String::as_str), Some("my_tonemap"));
-        assert_eq!(handles.linear_slot, "radiance");
+        assert_eq!(handles.linear, handles.radiance.family());
     }
 }

@@ -83,7 +83,7 @@ pub struct StridedPixelListKernel {
 impl PassKernel for StridedPixelListKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
         let misuse =
-            |detail: String| BackendError::KernelMisuse { kernel: PIXEL_LIST.into(), instance: index.index(), detail };
+            |detail: String| BackendError::KernelMisuse { kernel: PIXEL_LIST.into(), instance: Some(index), detail };
         let list = pass.write(self.list)?.resource;
         let desc = rec.resource(list);
         if desc.kind != ResourceKind::Buffer || desc.height != 1 || desc.width < LIST_HEADER_WORDS {

@@ -67,7 +67,7 @@ pub struct GbufferRasterKernel {
 }
 
 fn misuse(index: InstanceId, detail: String) -> BackendError {
-    BackendError::KernelMisuse { kernel: GBUFFER_RASTER.into(), instance: index.index(), detail }
+    BackendError::KernelMisuse { kernel: GBUFFER_RASTER.into(), instance: Some(index), detail }
 }
 
 impl PassKernel for GbufferRasterKernel {

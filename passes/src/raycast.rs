@@ -120,7 +120,7 @@ impl PassKernel for RaycastKernel {
         if rec.resource(hits).kind != ResourceKind::Buffer {
             return Err(BackendError::KernelMisuse {
                 kernel: RAYCAST.into(),
-                instance: index.index(),
+                instance: Some(index),
                 detail: "its hits write must be a buffer".into(),
             });
         }

@@ -10,11 +10,13 @@
 //! runs frame n, and each retired frame's report is folded into running statistics
 //! ([`FrameStats`]) rather than kept, so host memory stays flat however many frames run.
 
+use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 use std::time::Instant;
 
 use parallax_backend::{
-    AllocId, Context, DeviceId, ExecCopy, ExecOptions, ExecutionPlan, Executor, FamilyId, FrameClock, FrameData,
-    FrameReport, FrameStats, Region, Summary,
+    AllocId, Context, DeviceId, ExecOptions, ExecutionPlan, Executor, FamilyId, FrameClock, FrameData, FrameReport,
+    FrameStats, Summary,
 };
 use parallax_scene::gpu::{GpuScene, TraceLighting};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -23,6 +25,7 @@ use crate::camera::frame_block;
 use crate::error::{PassError, Result};
 use crate::path_trace::{TRACE_PARAMS_BYTES, trace_frame_data_lit};
 use crate::scene_upload::upload_scene;
+use crate::trace::TraceOutputs;
 
 /// Bytes of one view's cameras in the frame block (current and previous `GpuCamera`).
 const FRAME_BLOCK_VIEW_BYTES: u64 = 2 * std::mem::size_of::<parallax_backend::GpuCamera>() as u64;
@@ -41,6 +44,9 @@ pub struct LightFieldRenderer {
     prepare_ms: Summary,
     /// Whole reports of retired frames, while [`Self::keep_reports`] is on.
     kept: Option<Vec<FrameReport>>,
+    /// The traced images of a plan of path tracing alone ([`Self::tracing`]): what
+    /// [`Self::trace`] decodes into pixels.
+    pub(crate) trace_outputs: Option<TraceOutputs>,
 }
 
 impl LightFieldRenderer {
@@ -78,6 +84,7 @@ impl LightFieldRenderer {
             stats: FrameStats::new(),
             prepare_ms: Summary::default(),
             kept: None,
+            trace_outputs: None,
         })
     }
 
@@ -157,26 +164,28 @@ impl LightFieldRenderer {
     }
 
     /// The final version of the declared resource `family` (a handle's `family()`) of `view`
-    /// after the last frame, whole, as tightly packed rows (images) or bytes (buffers). Each row band comes from device 0 where it was written
-    /// there or gathered, else from the device whose instance wrote it (a fine scheme leaves the
-    /// bands of a layer that is not gathered on different devices); a layer whole in one
-    /// allocation is read once, without stitching.
+    /// after the last frame, whole, as tightly packed rows (images) or bytes (buffers). Each row
+    /// band comes from device 0 where it was written or gathered there, else from the device
+    /// whose instance wrote it (a fine scheme leaves the bands of a layer that is not gathered
+    /// on different devices): [`ExecutionPlan::final_bands`]. A layer whole in one allocation
+    /// is read once, without stitching.
     pub fn read(&mut self, family: FamilyId, view: u32) -> Result<Vec<u8>> {
-        let bands = final_bands(self.executor.plan(), family, view).ok_or(PassError::MissingOutput { family, view })?;
-        let (device, resource, _) = bands[0];
-        if bands.iter().all(|&(d, r, _)| (d, r) == (device, resource)) {
+        let plan = self.executor.plan();
+        if let Some((device, resource)) = plan.final_output(family, view) {
             return Ok(self.executor.read_resource(device, resource)?);
         }
-        let desc = self.executor.plan().resource(resource);
+        let bands = plan.final_bands(family, view).ok_or(PassError::MissingOutput { family, view })?;
+        let desc = plan.resource(bands[0].1);
         let row_bytes = desc.row_bytes() as usize;
         let mut out = vec![0u8; row_bytes * desc.height as usize];
-        let mut read: Option<((DeviceId, AllocId), Vec<u8>)> = None;
+        // Bands of one allocation may interleave with others' (band b on device b % n): each
+        // allocation is read once.
+        let mut read: HashMap<(DeviceId, AllocId), Vec<u8>> = HashMap::new();
         for (device, resource, rows) in bands {
-            // Bands are in write order, so the bands of one allocation are read together.
-            if read.as_ref().is_none_or(|(at, _)| *at != (device, resource)) {
-                read = Some(((device, resource), self.executor.read_resource(device, resource)?));
-            }
-            let bytes = &read.as_ref().expect("read above").1;
+            let bytes = match read.entry((device, resource)) {
+                Entry::Occupied(bytes) => bytes.into_mut(),
+                Entry::Vacant(slot) => slot.insert(self.executor.read_resource(device, resource)?),
+            };
             let (a, b) = (rows.y0 as usize * row_bytes, rows.y1 as usize * row_bytes);
             out[a..b].copy_from_slice(&bytes[a..b]);
         }
@@ -190,6 +199,12 @@ impl LightFieldRenderer {
         self.kept.as_mut().map(std::mem::take).unwrap_or_default()
     }
 
+    /// The plan it runs.
+    pub fn plan(&self) -> &ExecutionPlan {
+        self.executor.plan()
+    }
+
+    /// The executor (timing reports, validation, resources the renderer does not read).
     pub fn executor(&mut self) -> &mut Executor {
         &mut self.executor
     }
@@ -199,89 +214,4 @@ impl LightFieldRenderer {
 fn plan_views(plan: &ExecutionPlan) -> u32 {
     let passes = plan.passes.iter().map(|p| p.view + 1);
     passes.chain(plan.resources.iter().map(|r| r.view + 1)).max().unwrap_or(0)
-}
-
-/// Where each row band of the final version of the declared resource `family` of `view` can be
-/// read after a frame, as `(device, resource, rows)` in write order: on device 0 where the band
-/// was written or gathered there, else on the device that wrote it. `None` when no pass writes
-/// `family` there.
-pub(crate) fn final_bands(
-    plan: &ExecutionPlan,
-    family: FamilyId,
-    view: u32,
-) -> Option<Vec<(DeviceId, AllocId, Region)>> {
-    let writes = || {
-        plan.passes.iter().filter(move |p| p.view == view).flat_map(move |p| {
-            p.writes.iter().filter(move |w| plan.resource(w.resource).family == family).map(move |w| (p.device, w))
-        })
-    };
-    let version = writes().map(|(_, w)| w.version).max()?;
-    let bands = writes()
-        .filter(|(_, w)| w.version == version)
-        .map(|(device, w)| {
-            let on_primary = |c: &&ExecCopy| {
-                c.to == DeviceId(0) && c.resource == w.resource && c.version == w.version && c.rows == w.rows
-            };
-            let gathered = (device != DeviceId(0)).then(|| plan.copies.iter().find(on_primary)).flatten();
-            match gathered {
-                Some(copy) => (DeviceId(0), copy.dst, w.rows),
-                None => (device, w.resource, w.rows),
-            }
-        })
-        .collect();
-    Some(bands)
-}
-
-#[cfg(test)]
-mod tests {
-    use std::sync::Arc;
-
-    use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
-    use parallax_graph::{BandedPlacement, Format, Role, ViewTopology, compile};
-
-    use super::*;
-
-    /// Records nothing: these plans are only inspected.
-    struct Idle;
-
-    impl PassKernel for Idle {
-        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-            Ok(())
-        }
-    }
-
-    /// One 8×6 view written in three row bands over three devices, `gathered` on device 0 or not.
-    fn banded(gathered: bool) -> (ExecutionPlan, FamilyId) {
-        let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 6));
-        let mut layer = graph.image("layer", Format::Rgba32f);
-        graph.pass("write", Role::All).write(&mut layer).kernel(Arc::new(Idle)).record();
-        if gathered {
-            graph.export(&layer);
-        } else {
-            // Something must read the layer for it to be live.
-            graph.pass("read", Role::All).read(&layer).side_effect().kernel(Arc::new(Idle)).record();
-        }
-        let schedule = compile(&graph, &BandedPlacement { devices: 3, bands: 3 }).unwrap();
-        (ExecutionPlan::from_schedule(&graph, &schedule).unwrap(), layer.family())
-    }
-
-    #[test]
-    fn a_gathered_layer_is_read_whole_from_device_0() {
-        let (plan, layer) = banded(true);
-        let bands = final_bands(&plan, layer, 0).unwrap();
-        assert_eq!(bands.iter().map(|b| b.2).collect::<Vec<_>>(), Region::bands(6, 3));
-        assert!(bands.iter().all(|&(d, r, _)| (d, r) == (DeviceId(0), bands[0].1)), "{bands:?}");
-    }
-
-    #[test]
-    fn bands_left_where_they_were_written_are_read_from_their_devices() {
-        let (plan, layer) = banded(false);
-        let bands = final_bands(&plan, layer, 0).unwrap();
-        assert_eq!(bands.iter().map(|&(d, _, rows)| (d.index(), rows)).collect::<Vec<_>>(), {
-            let rows = Region::bands(6, 3);
-            vec![(0, rows[0]), (1, rows[1]), (2, rows[2])]
-        });
-        assert_eq!(final_bands(&plan, FamilyId(layer.0 + 1), 0), None, "no such family");
-        assert_eq!(final_bands(&plan, layer, 1), None, "the plan has one view");
-    }
 }

@@ -20,6 +20,7 @@ use parallax_graph::{Format, Handle, Image, ReadSlot, Role, SourcesSlot, WriteSl
 
 use crate::error::{PassError, Result};
 use crate::gbuffer::Gbuffer;
+use crate::holes::HOLES;
 use crate::path_trace::TRACE_PARAMS_BYTES;
 
 /// Pass name.
@@ -181,7 +182,7 @@ pub fn declare_reproject(
     tolerances: ReprojectionTolerances,
 ) -> Result<Handle<Image>> {
     tolerances.validate()?;
-    let mut holes = graph.image("holes", Format::R32u);
+    let mut holes = graph.image(HOLES, Format::R32u);
     let mut pass = graph.pass(REPROJECT, Role::Targets);
     let slots = ReprojectSlots {
         position_depth: pass.read_slot(&gbuffer.position_depth),

@@ -84,7 +84,7 @@ impl PassKernel for TonemapKernel {
         if target.format != Format::Rgba8 {
             return Err(BackendError::KernelMisuse {
                 kernel: TONEMAP.into(),
-                instance: index.index(),
+                instance: Some(index),
                 detail: format!("writes an Rgba8 image, not {:?}", target.format),
             });
         }

@@ -5,18 +5,18 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecutionPlan, KernelGraph, ResourceKind};
+use parallax_backend::{BackendError, Context, ExecOptions, ExecutionPlan, KernelGraph, ResourceKind};
 use parallax_graph::{
     AssignStrategy, BandedPlacement, FamilyId, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig,
     Rig, Role, Scheme, ViewTopology, compile,
 };
-use parallax_scene::gpu::GpuPixel;
+use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{Scene, TraceSettings, View};
 
 use crate::error::{PassError, Result};
 use crate::path_trace::{PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images};
 use crate::pixel_list::{PIXEL_LIST, StridedPixelListKernel, StridedPixels, pixel_list_bytes};
-use crate::renderer::{LightFieldRenderer, final_bands};
+use crate::renderer::LightFieldRenderer;
 
 /// Declares, for every view, one `path_trace` pass writing the four [`TRACE_OUTPUTS`] images
 /// (all exported, so finished views end on device 0). With a pixel list (its capacity in
@@ -102,46 +102,54 @@ fn lower_trace(
 }
 
 impl LightFieldRenderer {
-    /// Traces one frame of every view of a plan of `path_trace` passes whose images are
-    /// `outputs` (`views[i]` describes plan view `i`; its size must match the plan's images),
-    /// waits for it, and returns each view's pixels, row-major. Pixels a pass did not trace
-    /// (outside a pixel list) keep their previous contents (zero at first).
-    pub fn trace(
-        &mut self,
-        outputs: &TraceOutputs,
-        scene: &Scene,
-        views: &[View],
-        settings: &TraceSettings,
-    ) -> Result<Vec<Vec<GpuPixel>>> {
+    /// The runner of a plan of path tracing alone ([`trace_plan`], [`banded_trace_plan`], or a
+    /// plan of one's own with its [`TraceOutputs`]): [`Self::with_options`], knowing which
+    /// images [`Self::trace`] decodes into pixels.
+    pub fn tracing(
+        context: &Context,
+        TracePlan { plan, outputs }: TracePlan,
+        scene: &GpuScene<'_>,
+        options: ExecOptions,
+    ) -> Result<Self> {
+        let mut renderer = Self::with_options(context, plan, scene, options)?;
+        renderer.trace_outputs = Some(outputs);
+        Ok(renderer)
+    }
+
+    /// Traces one frame of every view (`views[i]` describes plan view `i`; its size must match
+    /// the plan's images), waits for it, and returns each view's pixels, row-major. Pixels a
+    /// pass did not trace (outside a pixel list) keep their previous contents (zero at first).
+    pub fn trace(&mut self, scene: &Scene, views: &[View], settings: &TraceSettings) -> Result<Vec<Vec<GpuPixel>>> {
         for view in views {
-            self.check_trace_view(outputs, view)?;
+            self.check_trace_view(view)?;
         }
         self.submit(scene, views, settings)?;
         self.finish()?;
-        views.iter().map(|view| self.read_pixels(outputs, view)).collect()
+        views.iter().map(|view| self.read_pixels(view)).collect()
     }
 
     /// The traced pixels of `view` after the last frame: its [`TRACE_OUTPUTS`] decoded, the
     /// first-hit layers the plan lacks left empty.
-    pub fn read_pixels(&mut self, outputs: &TraceOutputs, view: &View) -> Result<Vec<GpuPixel>> {
-        self.check_trace_view(outputs, view)?;
+    pub fn read_pixels(&mut self, view: &View) -> Result<Vec<GpuPixel>> {
+        let outputs = self.check_trace_view(view)?;
         let mut layers: [Option<Vec<u8>>; 4] = Default::default();
-        for (layer, &family) in layers.iter_mut().zip(outputs) {
-            if let Some(family) = family.filter(|&f| final_bands(self.executor().plan(), f, view.index).is_some()) {
+        for (layer, family) in layers.iter_mut().zip(outputs) {
+            if let Some(family) = family.filter(|&f| self.plan().final_bands(f, view.index).is_some()) {
                 *layer = Some(self.read(family, view.index)?);
             }
         }
         if layers[0].is_none() {
-            return Err(PassError::MissingResource { name: TRACE_OUTPUTS[0].into(), view: view.index });
+            return Err(PassError::MissingRadiance { view: view.index });
         }
         Ok(pixels_from_images(view.width, view.height, [0, 1, 2, 3].map(|k| layers[k].as_deref())))
     }
 
-    /// Every trace output the plan has for `view` must be `view`-sized RGBA32F.
-    fn check_trace_view(&mut self, outputs: &TraceOutputs, view: &View) -> Result<()> {
-        let plan = self.executor().plan();
-        for (&name, &family) in TRACE_OUTPUTS.iter().zip(outputs) {
-            let Some(bands) = family.and_then(|f| final_bands(plan, f, view.index)) else {
+    /// The trace outputs, once every one the plan has for `view` is `view`-sized RGBA32F.
+    fn check_trace_view(&self, view: &View) -> Result<TraceOutputs> {
+        let outputs = self.trace_outputs.ok_or(PassError::NotATracePlan)?;
+        let plan = self.plan();
+        for (&name, &family) in TRACE_OUTPUTS.iter().zip(&outputs) {
+            let Some(bands) = family.and_then(|f| plan.final_bands(f, view.index)) else {
                 continue;
             };
             let desc = plan.resource(bands[0].1);
@@ -160,6 +168,6 @@ impl LightFieldRenderer {
                 });
             }
         }
-        Ok(())
+        Ok(outputs)
     }
 }

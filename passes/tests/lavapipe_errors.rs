@@ -6,10 +6,10 @@ mod common;
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, ExecOptions, ExecutionPlan, Executor, KernelGraph, MAX_TEXTURES, ShaderLibrary, TextureData,
+    BackendError, ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph, MAX_TEXTURES, ShaderLibrary,
+    TextureData,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
-use parallax_passes::TracePlan;
 use parallax_passes::{
     LightFieldRenderer, PATH_TRACE, PassError, PathTraceKernel, RaySchedule, Raycaster, random_rays, trace_frame_data,
 };
@@ -43,14 +43,15 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     drop(raycaster);
 
     // Views must have the size of the plan's images.
-    let TracePlan { plan, outputs } = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
-    let mut tracer = parallax_passes::LightFieldRenderer::new(&ctx, plan, &gpu_scene).unwrap();
+    let trace = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
+    let mut tracer =
+        parallax_passes::LightFieldRenderer::tracing(&ctx, trace, &gpu_scene, ExecOptions::default()).unwrap();
     let view = parallax_scene::View { camera: scene.default_camera(), width: 8, height: 4, index: 0 };
-    match tracer.trace(&outputs, &scene, &[view], &TraceSettings::default()) {
+    match tracer.trace(&scene, &[view], &TraceSettings::default()) {
         Err(PassError::ViewSize { view: 0, width: 8, height: 4, plan_width: 8, plan_height: 8, .. }) => {}
         other => panic!("expected ViewSize, got {other:?}"),
     }
-    match tracer.trace(&outputs, &scene, &[], &TraceSettings::default()) {
+    match tracer.trace(&scene, &[], &TraceSettings::default()) {
         Err(PassError::MissingViews { plan_views: 1, given: 0 }) => {}
         other => panic!("expected MissingViews, got {other:?}"),
     }
@@ -69,7 +70,9 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     let mut exec = Executor::new(&ctx, plan, options).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();
     match exec.run_frame() {
-        Err(BackendError::KernelMisuse { kernel, instance: 0, .. }) => assert_eq!(kernel, "path_trace"),
+        Err(BackendError::KernelMisuse { kernel, instance: Some(InstanceId(0)), .. }) => {
+            assert_eq!(kernel, "path_trace")
+        }
         other => panic!("expected KernelMisuse, got {other:?}"),
     }
 
@@ -97,17 +100,18 @@ fn a_user_shader_replaces_the_pass_shader_of_its_name() {
     let ctx = common::context(1);
     let fill = parallax_backend::spirv("bench_fill").unwrap();
     let user = ShaderLibrary::new().with_spirv("pt_trace", fill).unwrap();
-    let TracePlan { plan, outputs } = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
+    let trace = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
     let options = ExecOptions { shaders: user, ..ExecOptions::default() };
-    let mut tracer = LightFieldRenderer::with_options(&ctx, plan, &GpuScene::new(&scene, &bvh), options).unwrap();
+    let mut tracer = LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(&scene, &bvh), options).unwrap();
     let views = common::views(&scene, 1, 8, 8);
-    match tracer.trace(&outputs, &scene, &views, &TraceSettings::default()) {
+    match tracer.trace(&scene, &views, &TraceSettings::default()) {
         Err(PassError::Backend(BackendError::PushConstantLayout { shader, .. })) => assert_eq!(shader, "pt_trace"),
         other => panic!("expected the user's pt_trace to be refused, got {other:?}"),
     }
     drop(tracer);
     // Without it, the passes' own.
-    let TracePlan { plan, outputs } = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
-    let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
-    assert_eq!(tracer.trace(&outputs, &scene, &views, &TraceSettings::default()).unwrap()[0].len(), 64);
+    let trace = parallax_passes::banded_trace_plan(1, (8, 8), 1, 1).unwrap();
+    let mut tracer =
+        LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(&scene, &bvh), ExecOptions::default()).unwrap();
+    assert_eq!(tracer.trace(&scene, &views, &TraceSettings::default()).unwrap()[0].len(), 64);
 }

@@ -127,17 +127,16 @@ fn run(devices: u32, plan: HolePlan) -> Run {
 }
 
 fn run_views(devices: u32, HolePlan { trace, list }: HolePlan, view_count: u32) -> Run {
-    let TracePlan { plan, outputs } = trace;
+    let plan = trace.plan.clone();
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices as usize);
     let views = common::views(&scene, view_count, W, H);
     let options = ExecOptions { shaders: parallax_testkit::shaders(), ..ExecOptions::default() };
     let mut tracer =
-        parallax_passes::LightFieldRenderer::with_options(&ctx, plan.clone(), &GpuScene::new(&scene, &bvh), options)
-            .unwrap();
+        parallax_passes::LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(&scene, &bvh), options).unwrap();
     tracer.keep_reports(true);
-    let pixels = tracer.trace(&outputs, &scene, &views, &SETTINGS).unwrap();
+    let pixels = tracer.trace(&scene, &views, &SETTINGS).unwrap();
     let mut lists = Vec::new();
     for view in 0..view_count {
         // Only target views have lists, and only in hole-filling plans.

@@ -19,8 +19,8 @@
 mod common;
 
 use glam::{DVec3, Vec3};
+use parallax_backend::ExecOptions;
 use parallax_graph::Scheme;
-use parallax_passes::TracePlan;
 use parallax_passes::{LightFieldRenderer, to_pixel_sample, trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{
@@ -37,8 +37,9 @@ const T_BOUND: f64 = 0.020;
 fn compare(scene: &Scene, size: u32, spp: u32) {
     let bvh = SceneBvh::build(scene);
     let ctx = common::context(1);
-    let TracePlan { plan, outputs } = trace_plan(1, 1, (size, size), 1, Scheme::MultiSource, None).unwrap();
-    let mut gpu = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(scene, &bvh)).unwrap();
+    let trace = trace_plan(1, 1, (size, size), 1, Scheme::MultiSource, None).unwrap();
+    let mut gpu =
+        LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(scene, &bvh), ExecOptions::default()).unwrap();
     let cpu = CpuTracer::new(scene, &bvh);
     let view = View { camera: scene.default_camera(), width: size, height: size, index: 0 };
     let n = view.pixel_count();
@@ -49,7 +50,7 @@ fn compare(scene: &Scene, size: u32, spp: u32) {
     for frame in 0..FRAMES {
         let settings = TraceSettings { spp, frame, ..Default::default() };
         let (c, _) = cpu.trace(&view, &settings, &PixelSet::All, &|_| {}).unwrap();
-        let g = gpu.trace(&outputs, scene, &[view], &settings).unwrap().remove(0);
+        let g = gpu.trace(scene, &[view], &settings).unwrap().remove(0);
         for (i, p) in g.iter().enumerate() {
             let layers = [p.radiance, p.albedo_roughness, p.normal_metallic, p.position_depth];
             assert!(layers.iter().flatten().all(|v| v.is_finite()), "non-finite GPU output at pixel {i}: {p:?}");
@@ -168,12 +169,13 @@ fn gpu_white_furnace_returns_the_sky_radiance() {
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(1);
     let (width, height) = (32, 24);
-    let TracePlan { plan, outputs } = trace_plan(1, 1, (width, height), 1, Scheme::MultiSource, None).unwrap();
-    let mut gpu = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
+    let trace = trace_plan(1, 1, (width, height), 1, Scheme::MultiSource, None).unwrap();
+    let mut gpu =
+        LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(&scene, &bvh), ExecOptions::default()).unwrap();
     let camera = Camera::look_at(Vec3::new(0.0, 0.3, 3.0), Vec3::ZERO, Vec3::Y, 0.7);
     let view = View { camera, width, height, index: 0 };
     let settings = TraceSettings { spp: 64, max_depth: 64, ..Default::default() };
-    let pixels = gpu.trace(&outputs, &scene, &[view], &settings).unwrap().remove(0);
+    let pixels = gpu.trace(&scene, &[view], &settings).unwrap().remove(0);
     drop(gpu);
     ctx.check_validation().unwrap();
     let hits: Vec<Vec3> = pixels.iter().map(to_pixel_sample).filter(|p| p.hit).map(|p| p.radiance).collect();

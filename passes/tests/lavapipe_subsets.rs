@@ -5,6 +5,7 @@
 
 mod common;
 
+use parallax_backend::ExecOptions;
 use parallax_graph::Scheme;
 use parallax_passes::{
     LightFieldRenderer, PATH_TRACE, StridedPixels, TracePlan, banded_trace_plan, strided_pixels, trace_plan,
@@ -18,14 +19,15 @@ const VIEWS: u32 = 2;
 const STRIDE: u32 = 3;
 const PHASE: u32 = 1;
 
-fn render(devices: usize, TracePlan { plan, outputs }: TracePlan) -> Vec<Vec<GpuPixel>> {
+fn render(devices: usize, trace: TracePlan) -> Vec<Vec<GpuPixel>> {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices);
     let views = common::views(&scene, VIEWS, W, H);
     let settings = TraceSettings { spp: 2, max_depth: 3, frame: 7, ..Default::default() };
-    let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();
-    let pixels = tracer.trace(&outputs, &scene, &views, &settings).unwrap();
+    let mut tracer =
+        LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(&scene, &bvh), ExecOptions::default()).unwrap();
+    let pixels = tracer.trace(&scene, &views, &settings).unwrap();
     drop(tracer);
     ctx.check_validation().unwrap();
     pixels

@@ -341,12 +341,11 @@ fn svgf_lowers_the_error_of_one_spp_against_a_64_spp_reference_by_3x() {
 
     let bvh = SceneBvh::build(&run.scene);
     let trace = banded_trace_plan(1, (SIZE, SIZE), 1, 1).unwrap();
-    let mut tracer = LightFieldRenderer::new(&ctx, trace.plan, &GpuScene::new(&run.scene, &bvh)).unwrap();
+    let mut tracer =
+        LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(&run.scene, &bvh), ExecOptions::default()).unwrap();
     let settings = TraceSettings { spp: 64, frame: 1000, jitter: false, ..TraceSettings::default() };
-    let reference: Vec<f32> = tracer.trace(&trace.outputs, &run.scene, &run.views, &settings).unwrap()[0]
-        .iter()
-        .flat_map(|p| p.radiance)
-        .collect();
+    let reference: Vec<f32> =
+        tracer.trace(&run.scene, &run.views, &settings).unwrap()[0].iter().flat_map(|p| p.radiance).collect();
     let (noisy_mse, denoised_mse) = (clamped_mse(&noisy, &reference), clamped_mse(&denoised, &reference));
     eprintln!("MSE against 64 spp: 1 spp {noisy_mse:.5}, SVGF after {frames} frames {denoised_mse:.5}");
     assert!(denoised_mse * 3.0 <= noisy_mse, "1 spp {noisy_mse}, denoised {denoised_mse}");

@@ -16,9 +16,8 @@
 mod common;
 
 use glam::{Vec3, Vec4};
-use parallax_backend::{ExecutionPlan, KernelGraph};
+use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph};
 use parallax_graph::{BandedPlacement, ViewTopology, compile};
-use parallax_passes::TracePlan;
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_passes::{LightFieldRenderer, banded_trace_plan};
@@ -109,8 +108,9 @@ fn reference(case: &Case) -> [f64; 3] {
     let (width, height) = (case.views[0].width, case.views[0].height);
     let ctx = common::context(1);
     let bvh = SceneBvh::build(&case.scene);
-    let TracePlan { plan, outputs } = banded_trace_plan(case.views.len() as u32, (width, height), 1, 1).unwrap();
-    let mut tracer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&case.scene, &bvh)).unwrap();
+    let trace = banded_trace_plan(case.views.len() as u32, (width, height), 1, 1).unwrap();
+    let mut tracer =
+        LightFieldRenderer::tracing(&ctx, trace, &GpuScene::new(&case.scene, &bvh), ExecOptions::default()).unwrap();
     let chunks = REFERENCE_SPP / 64;
     let mut sum = [0.0f64; 3];
     for chunk in 0..chunks {
@@ -121,7 +121,7 @@ fn reference(case: &Case) -> [f64; 3] {
             jitter: true,
             ..Default::default()
         };
-        let views = tracer.trace(&outputs, &case.scene, &case.views, &settings).unwrap();
+        let views = tracer.trace(&case.scene, &case.views, &settings).unwrap();
         let images: Vec<Vec<f32>> = views.iter().map(|v| v.iter().flat_map(|p| p.radiance).collect()).collect();
         let mean = mean_rgb(images.iter().map(Vec::as_slice));
         for c in 0..3 {

@@ -194,7 +194,7 @@ impl PassKernel for FillMaskKernel {
         if rec.resource(dst).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: "fill_mask".into(),
-                instance: index.index(),
+                instance: Some(index),
                 detail: format!("writes an R32Uint image, not {:?}", rec.resource(dst).format),
             });
         }

@@ -19,11 +19,13 @@ impl Executor {
         // A history allocation's halves swap by frame parity: read the half the last frame
         // wrote in `resource`'s place (and its other half for the pair's other member).
         let last_parity = self.next_frame.saturating_sub(1) % 2;
-        let resource = self.plan.parity_map(last_parity as usize).get(&resource).copied().unwrap_or(resource);
-        let state = &self.states[device.index()];
-        if !state.images.contains_key(&resource) && !state.buffers.contains_key(&resource) {
-            return Err(BackendError::ResourceNotOnDevice { resource, device: device.index() });
-        }
+        let held = self.plan.parity_map(last_parity as usize).get(&resource).copied().unwrap_or(resource);
+        let state = self
+            .states
+            .get(device.index())
+            .filter(|state| state.images.contains_key(&held) || state.buffers.contains_key(&held))
+            .ok_or(BackendError::ResourceNotOnDevice { resource, device: device.index() })?;
+        let resource = held;
         let desc = self.plan.resource(resource);
         let readback = Buffer::new(
             &state.device,

@@ -79,9 +79,10 @@ impl Executor {
         self.set_frame(&FrameData::whole(bytes))
     }
 
-    /// Sets the per-frame data of every following frame, sections included (kernels find them
-    /// at `Recorder::frame_section_address`). The same sections at the same offsets as before
-    /// only change bytes; another layout waits for the frames in flight and has the command
+    /// Sets the per-frame data of every following frame, sections and frame block included
+    /// (kernels find them at `Recorder::frame_section_address` and `frame_block_address`). The
+    /// same sections and block at the same offsets as before only change bytes
+    /// ([`FrameData::same_layout`]); another layout waits for the frames in flight and has the command
     /// buffers recorded again before the next frame.
     pub fn set_frame(&mut self, data: &FrameData) -> Result<()> {
         let bytes = data.bytes().len();
