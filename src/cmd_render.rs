@@ -12,6 +12,7 @@
 //! render.json). A user crate runs all three over its own stages with [`run_extended`].
 
 mod frames;
+mod host_memory;
 mod plan;
 mod report;
 

@@ -1,18 +1,15 @@
 //! The scheme that lost the GPU (issue 21, class 10): fine-all on four logical devices renders
-//! several frames within a time bound, and a lost GPU ends a run with one error naming the
+//! several frames (a wait never signalled would end at the executor's frame timeout), and a lost GPU ends a run with one error naming the
 //! likely cause and leaves the output folder as it was (`PARALLAX_FAULT=device-lost:F` makes
 //! frame F's submission fail as on a lost device).
 
 mod common;
 
-use std::time::{Duration, Instant};
-
 use common::{parallax_in, scratch, snapshot};
 
 #[test]
-fn fine_all_on_four_logical_devices_renders_frames_within_a_time_bound() {
+fn fine_all_on_four_logical_devices_renders_frames() {
     let dir = scratch("lost", "fine_all");
-    let started = Instant::now();
     let out = parallax_in(
         &dir,
         &[
@@ -36,11 +33,9 @@ fn fine_all_on_four_logical_devices_renders_frames_within_a_time_bound() {
             "out",
         ],
     );
+    // A wait that is never signalled ends the run at the executor's 60 s frame timeout with
+    // an error, which fails this test; a time bound of its own would measure the machine's load.
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    // About 10 s on a loaded 2-core machine; a wait that is never signalled would take the
-    // executor's 60 s frame timeout at least.
-    let bound = Duration::from_secs(50);
-    assert!(started.elapsed() < bound, "took {:?} (bound {bound:?})", started.elapsed());
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("out/render.json")).unwrap()).unwrap();
     assert_eq!(json["plan"]["devices"], 4);
     assert_eq!(json["timing"]["frames"], 3);

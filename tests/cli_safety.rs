@@ -456,7 +456,7 @@ fn a_terminated_render_leaves_no_temporary_files_or_empty_folders() {
         .unwrap();
     // Frames are being saved: at least one frame folder exists.
     assert!(
-        wait_for(std::time::Duration::from_secs(60), || dir.join("lf/frame_00001").exists()),
+        wait_for(std::time::Duration::from_secs(300), || dir.join("lf/frame_00001").exists()),
         "the render never started saving frames"
     );
     assert!(std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
@@ -481,7 +481,7 @@ fn a_second_run_into_a_locked_folder_is_refused() {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    assert!(wait_for(std::time::Duration::from_secs(30), || dir.join("ref").exists()), "the first run never started");
+    assert!(wait_for(std::time::Duration::from_secs(300), || dir.join("ref").exists()), "the first run never started");
     let second = parallax_in(&dir, &[&args[..], &["--spp", "4", "--out-dir", "ref"]].concat());
     let stderr = String::from_utf8_lossy(&second.stderr);
     assert_eq!(second.status.code(), Some(1), "{stderr}");

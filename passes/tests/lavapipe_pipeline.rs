@@ -218,11 +218,11 @@ fn barriers_only_where_accesses_conflict_and_per_stage_timing_give_the_same_bits
 /// driver whose queue is full blocks the next vkQueueSubmit until the GPU has made progress),
 /// the host may only submit a segment once everything it waits for is submitted: a whole
 /// device's frame before the next device's would wait forever on device 0 (NVIDIA: until the
-/// watchdog calls the device lost; here the 60 s frame timeout). Several frames, within a time
-/// bound, with the bits of one device.
+/// watchdog calls the device lost; here the executor's 60 s frame timeout, an error that fails
+/// the run). Several frames with the bits of one device; no time bound of its own, which would
+/// measure the machine's load, not a wait.
 #[test]
 fn fine_all_on_four_devices_runs_with_one_queued_submission_per_device() {
-    let started = std::time::Instant::now();
     let scene = default_scene();
     let lf = light_field(&scene, scene.default_camera(), 0.02);
     let config = PlanConfig { devices: 4, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
@@ -238,6 +238,4 @@ fn fine_all_on_four_devices_runs_with_one_queued_submission_per_device() {
     let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
     assert!(finite(&four));
     assert!(four == one, "4 devices and 1 device differ");
-    let bound = std::time::Duration::from_secs(240);
-    assert!(started.elapsed() < bound, "took {:?} (bound {bound:?})", started.elapsed());
 }

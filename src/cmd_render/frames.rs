@@ -14,6 +14,7 @@ use parallax_passes::camera::lightfield_views;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings};
 
+use super::host_memory::{ResidentSampler, ResidentSummary};
 use super::plan::RenderJob;
 use super::report::{extra_layers, stage_views};
 use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
@@ -28,6 +29,8 @@ pub(super) struct Rendered {
     pub renderer: LightFieldRenderer,
     pub staged: Vec<Staged>,
     pub wall: Duration,
+    /// The process's resident set over the measured frames.
+    pub host_memory: ResidentSummary,
     /// The light field of frame 0 (its layout is every frame's).
     pub lf: LightField,
     /// Held until the outputs are in place: no other run writes into --out-dir meanwhile.
@@ -62,23 +65,24 @@ pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut 
     crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
-    let (staged, wall) = frame_loop(args, job, &mut renderer)?;
+    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer)?;
     if let Some(after) = extension.after_frames.as_mut() {
         after(&mut renderer, &job.compiled.handles)?;
     }
-    Ok(Rendered { context, renderer, staged, wall, lf, lock })
+    Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock })
 }
 
-/// Submits the warm-up and measured frames; returns the views `--save-every` staged and the
-/// wall time of the measured frames.
+/// Submits the warm-up and measured frames; returns the views `--save-every` staged, the
+/// wall time of the measured frames and the resident set over them.
 fn frame_loop(
     args: &RenderArgs,
     job: &RenderJob,
     renderer: &mut LightFieldRenderer,
-) -> Result<(Vec<Staged>, Duration)> {
+) -> Result<(Vec<Staged>, Duration, ResidentSummary)> {
     let progress = bar(u64::from(job.total_frames));
     let started = Instant::now();
     let mut measured_from = None;
+    let mut sampler = None;
     let mut staged: Vec<Staged> = Vec::new();
     for f in 0..job.total_frames {
         if f == args.warmup {
@@ -87,6 +91,7 @@ fn frame_loop(
             // Only a trace needs every event of every frame; otherwise the statistics are all.
             renderer.keep_reports(args.trace.is_some());
             measured_from = Some(Instant::now());
+            sampler = Some(ResidentSampler::start());
         }
         let views = lightfield_views(&job.lf_of(args, f)?);
         renderer.submit(&job.scene, &views, &TraceSettings { frame: f, ..job.settings })?;
@@ -105,6 +110,7 @@ fn frame_loop(
     }
     renderer.finish()?;
     let wall = measured_from.unwrap_or(started).elapsed();
+    let host_memory = sampler.unwrap_or_else(ResidentSampler::start).stop();
     progress.finish_and_clear();
-    Ok((staged, wall))
+    Ok((staged, wall, host_memory))
 }

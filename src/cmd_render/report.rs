@@ -17,6 +17,7 @@ use parallax_scene::{Frame, PixelSample, View};
 
 use super::RenderArgs;
 use super::frames::Rendered;
+use super::host_memory::ResidentSummary;
 use super::plan::RenderJob;
 use crate::logging::result;
 use crate::outputs::{Format, Output, Sink, Staged, check, stage};
@@ -26,7 +27,7 @@ use crate::run_setup::{CameraSetup, Setup};
 
 /// Reads the last frame back, writes every output and says what was rendered.
 pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<()> {
-    let Rendered { context, mut renderer, mut staged, wall, lf, lock } = rendered;
+    let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock } = rendered;
     let reports = renderer.take_reports();
     let prepare = renderer.prepare_ms().clone();
     let timing = timings(renderer.stats(), &prepare);
@@ -47,7 +48,7 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     let json = render_json(
         args,
         job,
-        &Measured { exposure, wall_ms: wall_ms(args, wall), timing: &timing, missing: &missing, device_names },
+        &Measured { exposure, wall_ms: wall_ms(args, wall), timing: &timing, missing: &missing, device_names, host_memory },
     )?;
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
     let json_file = crate::outputs::stage_json(&job.render_json, &json)?;
@@ -106,6 +107,7 @@ struct Measured<'a> {
     timing: &'a crate::render_report::Timings,
     missing: &'a MissingPixels,
     device_names: Vec<String>,
+    host_memory: ResidentSummary,
 }
 
 /// The pixels of the targets that no source covered and hole filling did not reach.
@@ -159,6 +161,7 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         "plan": summary,
         "wall_ms_per_frame": measured.wall_ms,
         "timing": measured.timing,
+        "host_memory": measured.host_memory,
         // Path tracing every view leaves no holes to count.
         "missing_pixels": (kind == PipelineKind::Reproject).then_some(measured.missing),
     }))
