@@ -85,6 +85,11 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     }
     assert!(host["frame_interval"]["mean_ms"].as_f64().unwrap() > 0.0);
     assert!(host["late_frames"].as_u64().is_some_and(|late| late <= 2));
+    // The resident set over the measured frames: at least the samples at their two ends.
+    let memory = &report["host_memory"];
+    assert!(memory["samples"].as_u64().is_some_and(|n| n >= 2), "{memory}");
+    let (min, max) = (memory["min_bytes"].as_u64().unwrap(), memory["max_bytes"].as_u64().unwrap());
+    assert!(0 < min && min <= max, "{memory}");
     let missing = &report["missing_pixels"];
     assert_eq!(missing["per_view"].as_array().unwrap().len(), 6, "8 views, 2 sources");
     let overall = missing["overall"].as_f64().unwrap();
