@@ -1,7 +1,7 @@
 //! The scheme that lost the GPU (issue 21, class 10): fine-all on four logical devices renders
-//! several frames (a wait never signalled would end at the executor's frame timeout), and a lost GPU ends a run with one error naming the
-//! likely cause and leaves the output folder as it was (`PARALLAX_FAULT=device-lost:F` makes
-//! frame F's submission fail as on a lost device).
+//! several frames (a wait never signalled would end at the executor's stall timeout), and a
+//! lost GPU ends a run with one error naming the likely cause and leaves the output folder as it
+//! was (`PARALLAX_FAULT=device-lost:F` makes frame F's submission fail as on a lost device).
 
 mod common;
 
@@ -33,8 +33,9 @@ fn fine_all_on_four_logical_devices_renders_frames() {
             "out",
         ],
     );
-    // A wait that is never signalled ends the run at the executor's 60 s frame timeout with
-    // an error, which fails this test; a time bound of its own would measure the machine's load.
+    // A wait that is never signalled ends the run at the executor's stall timeout (no device
+    // making progress for 10 min on lavapipe) with an error, which fails this test; a time
+    // bound of its own would measure the machine's load.
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("out/render.json")).unwrap()).unwrap();
     assert_eq!(json["plan"]["devices"], 4);

@@ -27,6 +27,9 @@ pub struct DeviceInfo {
     /// `major.minor.patch` of the device's Vulkan API version.
     pub api_version: String,
     pub device_type: String,
+    /// Whether the device is a CPU implementation (lavapipe): its work shares the host's cores
+    /// with everything else the machine runs, so its progress is as slow as the host is busy.
+    pub runs_on_host_cpu: bool,
     /// Whether GPU timestamps can be mapped to the host clock by VK_*_calibrated_timestamps.
     pub calibrated_timestamps: bool,
     /// `maxImageDimension2D`: the largest width or height of an image the device can create.
@@ -130,6 +133,7 @@ impl Device {
             driver_info: props.driver_info.clone(),
             api_version: props.api_version(),
             device_type: format!("{:?}", props.core.device_type),
+            runs_on_host_cpu: props.core.device_type == vk::PhysicalDeviceType::CPU,
             calibrated_timestamps: calibrated.is_some(),
             max_image_dimension_2d: props.core.limits.max_image_dimension2_d,
             device_local_heap_bytes: largest_device_local_heap(raw_instance, physical),

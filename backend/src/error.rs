@@ -176,9 +176,9 @@ pub enum BackendError {
     #[error("frame {frame}'s submission failed part-way; the executor cannot run further frames")]
     SubmissionCutShort { frame: u64 },
 
-    /// A frame did not complete in time: a lost signal or a GPU hang.
+    /// A frame stopped making progress: a lost signal or a GPU hang.
     #[error(
-        "frame {frame} did not complete on device {device} within {seconds} s (lost cross-device signal or GPU hang)"
+        "frame {frame} did not complete on device {device}: no device made progress for {seconds} s (lost cross-device signal or GPU hang)"
     )]
     FrameTimeout { frame: u64, device: usize, seconds: u64 },
 

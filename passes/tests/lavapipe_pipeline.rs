@@ -218,7 +218,7 @@ fn barriers_only_where_accesses_conflict_and_per_stage_timing_give_the_same_bits
 /// driver whose queue is full blocks the next vkQueueSubmit until the GPU has made progress),
 /// the host may only submit a segment once everything it waits for is submitted: a whole
 /// device's frame before the next device's would wait forever on device 0 (NVIDIA: until the
-/// watchdog calls the device lost; here the executor's 60 s frame timeout, an error that fails
+/// watchdog calls the device lost; here the executor's stall timeout, an error that fails
 /// the run). Several frames with the bits of one device; no time bound of its own, which would
 /// measure the machine's load, not a wait.
 #[test]

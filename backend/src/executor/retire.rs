@@ -14,8 +14,14 @@ use crate::timing::{FrameReport, TimedEvent};
 
 use super::Executor;
 
-/// How long the host waits for a frame before declaring it lost.
-const FRAME_TIMEOUT_S: u64 = 60;
+/// How long the host waits while no device makes progress before declaring a frame lost: a
+/// signal that never comes or a hung GPU. Measured from the last progress of any device (a
+/// segment done), not from the frame's start, so a frame that is slow but moving never times
+/// out.
+const STALL_TIMEOUT_S: u64 = 60;
+/// The same for devices that run on the host's CPU (lavapipe): a loaded machine can hold one
+/// segment of theirs for longer than a GPU would ever take.
+const STALL_TIMEOUT_CPU_DEVICE_S: u64 = 600;
 
 impl Executor {
     /// Waits for the frame of `ticket` (and so for the frames submitted before it, which finish
@@ -103,16 +109,32 @@ impl Executor {
     }
 
     /// Waits until device `d`'s progress timeline reaches `value`, in short steps so that a
-    /// failed relay thread is reported instead of hanging, and at most `FRAME_TIMEOUT_S`.
+    /// failed relay thread is reported instead of hanging; an error once no device has made
+    /// progress for the stall timeout.
     pub(super) fn wait_for_progress(&self, d: usize, value: u64, frame: u64) -> Result<()> {
         let state = &self.states[d];
-        let deadline = Instant::now() + std::time::Duration::from_secs(FRAME_TIMEOUT_S);
+        let seconds = if self.states.iter().any(|s| s.device.info.runs_on_host_cpu) {
+            STALL_TIMEOUT_CPU_DEVICE_S
+        } else {
+            STALL_TIMEOUT_S
+        };
+        let stall = std::time::Duration::from_secs(seconds);
+        let mut progress = self.total_progress()?;
+        let mut moved_at = Instant::now();
         while !state.device.wait_timeline(state.progress, value, 100_000_000)? {
             self.relay.as_ref().map_or(Ok(()), Relay::check)?;
-            if Instant::now() > deadline {
-                return Err(BackendError::FrameTimeout { frame, device: d, seconds: FRAME_TIMEOUT_S });
+            let now = self.total_progress()?;
+            if now != progress {
+                (progress, moved_at) = (now, Instant::now());
+            } else if moved_at.elapsed() > stall {
+                return Err(BackendError::FrameTimeout { frame, device: d, seconds });
             }
         }
         Ok(())
+    }
+
+    /// The sum of every device's progress timeline: it grows whenever any segment is done.
+    fn total_progress(&self) -> Result<u64> {
+        self.states.iter().try_fold(0u64, |sum, s| Ok(sum.wrapping_add(s.device.timeline_value(s.progress)?)))
     }
 }
