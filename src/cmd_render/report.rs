@@ -48,7 +48,14 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     let json = render_json(
         args,
         job,
-        &Measured { exposure, wall_ms: wall_ms(args, wall), timing: &timing, missing: &missing, device_names, host_memory },
+        &Measured {
+            exposure,
+            wall_ms: wall_ms(args, wall),
+            timing: &timing,
+            missing: &missing,
+            device_names,
+            host_memory,
+        },
     )?;
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
     let json_file = crate::outputs::stage_json(&job.render_json, &json)?;
