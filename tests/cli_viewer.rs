@@ -358,8 +358,15 @@ fn refocusing_at_a_planes_depth_makes_it_sharp() {
         "focused at 4 m: far board {sharp} levels from the centre view, near {blurred}"
     );
 
-    // The aperture: a radius of one view sums the centre and its four neighbours.
-    let page = format!("file://{}#view=4&focus=2&aperture=1", lf.join("viewer.html").display());
+    // The default aperture sums every view from the grid's middle; one of half a view sums the
+    // centre view alone, a pinhole camera: both boards sharp.
+    let page = format!("file://{}#view=4&focus=2", lf.join("viewer.html").display());
     let dom = String::from_utf8_lossy(&chromium(&dir, &page, "--dump-dom", (320, 240)).stdout).into_owned();
-    assert!(dom.contains("view 4 (of 0–8) · column 2 of 3 · row 2 of 3 · focus 2 m, 5 views"), "{dom}");
+    assert!(dom.contains("view 4 (of 0–8) · column 2 of 3 · row 2 of 3 · focus 2 m, 9 views"), "{dom}");
+    let pinhole = refocused("2&aperture=0.5");
+    let (at_near, at_far) = (mean_difference(&pinhole, &near), mean_difference(&pinhole, &far));
+    assert!(
+        at_near <= 2.0 && at_far <= 2.0,
+        "an aperture of half a view: boards {at_near} and {at_far} levels from the centre view"
+    );
 }
