@@ -24,7 +24,7 @@ use crate::lightfield_images::{
     DisplayImage, encode_png, quilt_file_name, wiggle_order, write_contact_sheet, write_quilt, write_wiggle,
 };
 use crate::outputs::{Staged, stage};
-use crate::viewer::{ViewerPage, settings_of_render_json};
+use crate::viewer::{ViewGeometry, ViewerPage, settings_of_render_json};
 
 /// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
 /// screen shows whole.
@@ -144,6 +144,7 @@ impl Pictures {
             width: lf.width,
             height: lf.height,
             eye_cols: eye_cols(lf),
+            geometry: ViewGeometry::of(lf),
             views: &self.views,
             settings: settings_of_render_json(render_json),
         };

@@ -1,15 +1,22 @@
 //! `viewer.html`: a light field as a person looks at one, in any browser, with no network and
-//! no build step. Moving the mouse over the image (or dragging it) moves through the views:
-//! across for the column, down for the row (a 1D light field such as multiscopic has one row);
-//! the NELF preset's two eye blocks are shown side by side (`e` switches to one image over all
-//! twelve columns). Arrow keys step, `+`/`-` zoom, space plays a sweep, and the URL fragment
-//! `#view=K&zoom=Z` selects a view (the page keeps it up to date, so a link shares a view).
+//! no build step. Moving the mouse over the image (or dragging it) moves smoothly through the
+//! views: across for the column, down for the row (a 1D light field such as multiscopic has one
+//! row), the picture between views a bilinear blend of the four around the pointer. Refocusing
+//! sums the views within an aperture, each shifted so that a chosen plane lines up
+//! (shift-and-add, from the views' places in [`ViewGeometry`]). The NELF preset's two eye
+//! blocks are a stereo pair at a size that can be fused, or a red/cyan anaglyph (`e` switches
+//! to one image over all twelve columns). Arrow keys step, `+`/`-` zoom, space plays a sweep,
+//! and the URL fragment (`#view=K&zoom=Z`, `col`/`row` between views, `focus`/`aperture`,
+//! `stereo=anaglyph`) selects what is shown (the page keeps it up to date, so a link shares it).
+//! The page draws on 2D canvases with `drawImage` alone: it never reads pixels back, which a
+//! browser refuses for images loaded from files, and needs no WebGL.
 //!
 //! The views are the PNGs written beside the page: embedded as data URIs while they total at
 //! most [`EMBED_LIMIT_BYTES`] (the page is then one file to send), else referred to by name
 //! (the page then lives beside them).
 
 use base64::Engine as _;
+use parallax_graph::LightField;
 
 /// Most bytes of PNG views embedded in the page: above it a browser parses megabytes of base64
 /// before it shows anything, so the page refers to the files instead.
@@ -17,8 +24,33 @@ pub const EMBED_LIMIT_BYTES: usize = 8 << 20;
 
 const TEMPLATE: &str = include_str!("viewer.html");
 
+/// Where the views looked from, for refocusing on the page. A point at depth `z` (metres along
+/// the rig's forward axis) appears `focal_px · p · (1/focus_m − 1/z)` pixels from where the rig
+/// centre sees it in the view at `p` (right for +x; up, so fewer rows, for +y): the views are
+/// off-axis cameras whose zero-disparity plane is at `focus_m`.
+pub struct ViewGeometry {
+    /// Each view's place on the camera plane, metres, x right and y up, in view order.
+    pub positions: Vec<[f64; 2]>,
+    /// Focal length in pixels: half the image height over the tangent of half the vertical
+    /// field of view.
+    pub focal_px: f64,
+    /// Distance of the zero-disparity plane, metres.
+    pub focus_m: f64,
+}
+
+impl ViewGeometry {
+    pub fn of(lf: &LightField) -> Self {
+        ViewGeometry {
+            positions: lf.views().map(|v| lf.position(v).to_array()).collect(),
+            focal_px: lf.height as f64 * 0.5 / (lf.rig.yfov * 0.5).tan(),
+            focus_m: lf.rig.focus_distance,
+        }
+    }
+}
+
 /// What the page shows: the grid, one view's size, how many columns one eye has (`cols` for one
-/// eye), and the views' PNGs in view order with their file names beside the page.
+/// eye), the views' places, and the views' PNGs in view order with their file names beside the
+/// page.
 pub struct ViewerPage<'a> {
     pub title: String,
     pub cols: u32,
@@ -26,6 +58,7 @@ pub struct ViewerPage<'a> {
     pub width: u32,
     pub height: u32,
     pub eye_cols: u32,
+    pub geometry: ViewGeometry,
     /// (file name beside the page, PNG bytes) per view.
     pub views: &'a [(String, Vec<u8>)],
     /// The run's settings as (name, value) rows.
@@ -56,6 +89,8 @@ impl ViewerPage<'_> {
         let light_field = serde_json::json!({
             "cols": self.cols, "rows": self.rows, "width": self.width, "height": self.height,
             "eyeCols": self.eye_cols, "views": sources(self.views, limit),
+            "positions": self.geometry.positions, "focalPx": self.geometry.focal_px,
+            "focus": self.geometry.focus_m,
         });
         // `</` cannot end the script early inside a JSON string written as `<\/`.
         let light_field = light_field.to_string().replace("</", "<\\/");
@@ -66,7 +101,11 @@ impl ViewerPage<'_> {
             .collect::<Vec<_>>()
             .join("\n");
         let row_keys = if self.rows > 1 { " <kbd>↑</kbd> <kbd>↓</kbd>" } else { "" };
-        let eye_key = if self.eye_cols < self.cols { "; <kbd>e</kbd> shows both eyes or one" } else { "" };
+        let eye_key = if self.eye_cols < self.cols {
+            "; <kbd>e</kbd> shows both eyes or one, <kbd>a</kbd> the eyes as a red/cyan anaglyph"
+        } else {
+            ""
+        };
         TEMPLATE
             .replace("__TITLE__", &escape(&self.title))
             .replace("__ROW_KEYS__", row_keys)
@@ -147,6 +186,9 @@ pub fn settings_of_render_json(json: &serde_json::Value) -> Vec<(String, String)
 mod tests {
     use super::*;
 
+    use glam::{DVec2, DVec3};
+    use parallax_graph::{LayoutSpec, Rig, ViewId};
+
     fn page(views: &[(String, Vec<u8>)]) -> ViewerPage<'_> {
         ViewerPage {
             title: "a <test>".into(),
@@ -155,6 +197,7 @@ mod tests {
             width: 4,
             height: 3,
             eye_cols: 2,
+            geometry: ViewGeometry { positions: vec![[-0.5, 0.0], [0.5, 0.0]], focal_px: 2.0, focus_m: 3.0 },
             views,
             settings: vec![("scene".into(), "x&y".into())],
         }
@@ -168,6 +211,7 @@ mod tests {
         assert!(!embedded.contains("view_000.png"));
         let referred = page(&views).html_with_limit(12);
         assert!(referred.contains(r#""views":["view_000.png","view_001.png"]"#), "{referred}");
+        assert!(referred.contains(r#""positions":[[-0.5,0.0],[0.5,0.0]]"#), "{referred}");
         assert!(!referred.contains("data:image"));
         // Text is escaped, and no placeholder is left.
         assert!(referred.contains("<title>a &lt;test&gt;</title>") && referred.contains("<td>x&amp;y</td>"));
@@ -184,5 +228,30 @@ mod tests {
             ("6.382".into(), "0.001".into(), "0.5931".into(), "1234".into())
         );
         assert_eq!(show(0.2), "0.2");
+    }
+
+    /// The page's shift-and-add moves each view by `focal_px · Δp · (1/focus − 1/z)`: that is
+    /// where the views' cameras put a point at depth `z`, on a grid and on NELF's two blocks.
+    #[test]
+    fn the_pages_shifts_are_the_cameras_parallax() {
+        let rig = Rig { focus_distance: 2.5, yfov: 0.7, ..Rig::default() };
+        for spec in [LayoutSpec::Grid { cols: 3, rows: 2 }, LayoutSpec::Nelf] {
+            let lf = LightField::new(spec, Some(0.2), Some((64, 40)), rig).unwrap();
+            let geometry = ViewGeometry::of(&lf);
+            for (z, offset) in [(6.0, DVec3::new(0.3, -0.2, 0.0)), (1.5, DVec3::new(-0.1, 0.25, 0.0))] {
+                let point = rig.eye + rig.forward * z + offset;
+                let pixel = |v: usize| {
+                    let ndc = lf.camera(ViewId(v as u32)).project(point).unwrap();
+                    DVec2::new((ndc.x + 1.0) * 0.5 * 64.0, (1.0 - ndc.y) * 0.5 * 40.0)
+                };
+                let k = geometry.focal_px * (1.0 / geometry.focus_m - 1.0 / z);
+                let [x0, y0] = geometry.positions[0];
+                for (v, &[x, y]) in geometry.positions.iter().enumerate() {
+                    let expected = DVec2::new(k * (x - x0), -k * (y - y0));
+                    let moved = pixel(v) - pixel(0);
+                    assert!((moved - expected).length() < 1e-9, "view {v} at depth {z}: {moved} ≠ {expected}");
+                }
+            }
+        }
     }
 }
