@@ -37,6 +37,21 @@ pub fn init(v: Verbosity) {
     tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).event_format(Plain).init();
 }
 
+/// Installs the stderr logger of a program that runs commands in-process
+/// ([`crate::run_command`]), once: warnings and errors (`-q`: errors, `-v`: debug, `-vv`: all),
+/// as the first call asks; a later call sets only whether progress bars are hidden.
+pub fn init_embedded(v: Verbosity) {
+    let level = match (v.quiet, v.verbose) {
+        (true, _) => Level::ERROR,
+        (false, 0) => Level::WARN,
+        (false, 1) => Level::DEBUG,
+        (false, _) => Level::TRACE,
+    };
+    QUIET.store(v.quiet, Ordering::Relaxed);
+    // Fails only when a logger is already installed (by an earlier call, or by the host).
+    let _ = tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).event_format(Plain).try_init();
+}
+
 /// Messages as a compiler prints them: `error: …`, `warning: …`, notes without a prefix.
 struct Plain;
 
