@@ -141,7 +141,15 @@ where
 {
     let invocation: Vec<OsString> =
         std::iter::once(OsString::from("parallax")).chain(words.into_iter().map(Into::into)).collect();
-    let cli = Cli::try_parse_from(&invocation).map_err(|e| Failure { message: clap_message(&e), usage: true })?;
+    let cli = match Cli::try_parse_from(&invocation) {
+        Ok(cli) => cli,
+        // `--help` and `--version` are answers, not failures.
+        Err(e) if e.exit_code() == 0 => {
+            print!("{e}");
+            return Ok(());
+        }
+        Err(e) => return Err(Failure { message: clap_message(&e), usage: true }),
+    };
     logging::init_embedded(cli.verbosity);
     execute(cli.command, &invocation).map_err(|err| {
         drop(pending::remove_all());
@@ -179,4 +187,29 @@ pub fn load_scene(spec: &str, allow_outside_files: bool) -> anyhow::Result<paral
 fn clap_message(e: &clap::Error) -> String {
     let text = e.to_string();
     text.split("\n\n").next().unwrap_or("").trim().trim_start_matches("error: ").to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_command_returns_the_cli_message_and_kind() {
+        let bad_value = run_command(["render", "--resolution", "0x24"]).unwrap_err();
+        assert_eq!(
+            bad_value,
+            Failure {
+                message: "invalid value '0x24' for '--resolution <WxH>': width 0 is outside 1..=32768".into(),
+                usage: true
+            }
+        );
+        let conflict = run_command(["plan", "--scheme", "fine-all", "--assign", "compact"]).unwrap_err();
+        assert!(conflict.usage && conflict.message.ends_with("drop --assign"), "{conflict:?}");
+        let failed = run_command(["plan", "--lf", "4x2", "--fake-devices", "9"]).unwrap_err();
+        assert!(
+            !failed.usage && failed.message.starts_with("--gpus/--fake-devices 9 exceeds the 8 views"),
+            "{failed:?}"
+        );
+        assert_eq!(run_command(["plan", "--help"]), Ok(()));
+    }
 }

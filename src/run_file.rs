@@ -127,6 +127,17 @@ mod tests {
         );
         let again = serde_json::json!({ "config": "other.toml" });
         assert!(words_of("--config r", again.as_object().unwrap()).is_err());
+    }
+
+    #[test]
+    fn the_command_line_given_wins_not_the_process_s() {
+        let invocation = ["parallax", "-q", "render", "--config", "r.toml", "--spp", "4", "-v", "--still"];
+        assert_eq!(command_line_words(invocation.map(OsString::from)), ["--spp", "4", "--still"]);
+        assert!(command_line_words(["parallax", "plan"].map(OsString::from)).is_empty());
+    }
+
+    #[test]
+    fn layouts_are_spelt_as_typed() {
         assert_eq!(layout_spelling(&LayoutSpec::Grid { cols: 8, rows: 4 }), "8x4");
     }
 }
