@@ -130,10 +130,10 @@ pub struct Failure {
 
 /// Runs `parallax WORDS…` (the words after the program's name) inside this process, as the
 /// binary does but returning its failure instead of printing it and exiting: how another
-/// program (the Python module) drives the commands. Results still go to stdout; diagnostics go
-/// to stderr through a logger installed by the first call, at warnings and errors (`-q`: errors
-/// only, `-v`: debug) since the notes of a run are noise to a program. No Ctrl-C handler is
-/// installed (the host has its own).
+/// program (the Python module) drives the commands. Diagnostics go to stderr through a logger
+/// installed by the first call, at warnings and errors (`-q`: errors only, `-v`: debug, with
+/// the result lines a command prints, such as render's stage table), since the caller reads the
+/// results from the outputs. No Ctrl-C handler is installed (the host has its own).
 pub fn run_command<I, T>(words: I) -> Result<(), Failure>
 where
     I: IntoIterator<Item = T>,
