@@ -48,5 +48,5 @@ VIRTUAL_ENV="$venv" CARGO_TARGET_DIR="$(pwd)/target" "$venv/bin/maturin" develop
 
 # cargo's `test result: ok. N passed; M failed; …` lines, and pytest's `N passed, M failed in Ts`.
 awk '/^test result:/ { passed += $4; failed += $6; next }
-     / in [0-9.]+s/ { for (i = 2; i <= NF; i++) { if ($i ~ /^passed/) passed += $(i-1); if ($i ~ /^failed/) failed += $(i-1) } }
+     / in [0-9.]+s/ { for (i = 2; i <= NF; i++) { if ($i ~ /^passed/) passed += $(i-1); if ($i ~ /^(failed|errors?)/) failed += $(i-1) } }
      END { printf "tests: %d passed, %d failed\n", passed, failed }' "$log"

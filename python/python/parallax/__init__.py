@@ -9,7 +9,7 @@ no run could use raises the CLI's own message::
     lf = parallax.render(parallax.Scene(), parallax.LightField("4x2", resolution=(64, 48)),
                          spp=2, fake_devices=2)
     lf.radiance.shape   # (8, 48, 64, 3) float32, linear
-    lf.images.shape     # (8, 48, 64, 4) uint8, the view PNGs
+    lf.images.shape     # (8, 48, 64, 3) uint8, the view PNGs
     lf.report["timing"] # render.json as a dict
 
 Settings are `render`'s long flags with underscores (`spp=4`, `scheme="fine-all"`,
