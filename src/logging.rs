@@ -24,6 +24,8 @@ pub struct Verbosity {
 }
 
 static QUIET: AtomicBool = AtomicBool::new(false);
+/// Commands run inside another program ([`init_embedded`]).
+static EMBEDDED: AtomicBool = AtomicBool::new(false);
 
 /// Installs the stderr logger for the whole process.
 pub fn init(v: Verbosity) {
@@ -35,6 +37,23 @@ pub fn init(v: Verbosity) {
     };
     QUIET.store(v.quiet, Ordering::Relaxed);
     tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).event_format(Plain).init();
+}
+
+/// Installs the stderr logger of a program that runs commands in-process
+/// ([`crate::run_command`]), once: warnings and errors (`-q`: errors, `-v`: debug, `-vv`: all),
+/// as the first call asks; a later call sets only whether progress bars are hidden. Result
+/// lines become notes (shown from `-v`).
+pub fn init_embedded(v: Verbosity) {
+    let level = match (v.quiet, v.verbose) {
+        (true, _) => Level::ERROR,
+        (false, 0) => Level::WARN,
+        (false, 1) => Level::DEBUG,
+        (false, _) => Level::TRACE,
+    };
+    QUIET.store(v.quiet, Ordering::Relaxed);
+    EMBEDDED.store(true, Ordering::Relaxed);
+    // Fails only when a logger is already installed (by an earlier call, or by the host).
+    let _ = tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).event_format(Plain).try_init();
 }
 
 /// Messages as a compiler prints them: `error: …`, `warning: …`, notes without a prefix.
@@ -60,9 +79,10 @@ where
 }
 
 /// Prints one result line: on stdout, or as a note on stderr when stdout already carries a
-/// machine-readable output (`--json -`), which text would corrupt.
+/// machine-readable output (`--json -`), which text would corrupt, or when the command runs
+/// inside another program (which takes the results as values).
 pub fn result(stdout_taken: bool, line: &str) {
-    if stdout_taken {
+    if stdout_taken || EMBEDDED.load(Ordering::Relaxed) {
         tracing::info!("{line}");
     } else {
         println!("{line}");

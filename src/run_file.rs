@@ -43,12 +43,13 @@ fn table_of(path: &Path) -> Result<serde_json::Map<String, serde_json::Value>> {
     }
 }
 
-/// The command-line words of a run file's settings.
-fn words_of(path: &Path, table: &serde_json::Map<String, serde_json::Value>) -> Result<Vec<String>> {
+/// The command-line words of a run file's settings; `origin` (`--config FILE`) begins each
+/// error message.
+pub fn words_of(origin: &str, table: &serde_json::Map<String, serde_json::Value>) -> Result<Vec<String>> {
     let mut words = Vec::new();
     for (key, value) in table {
         if key == "config" {
-            bail!("--config {}: a run file cannot name another (`config`)", path.display());
+            bail!("{origin}: a run file cannot name another (`config`)");
         }
         let flag = format!("--{}", key.replace('_', "-"));
         let scalar = |v: &serde_json::Value| match v {
@@ -62,20 +63,20 @@ fn words_of(path: &Path, table: &serde_json::Map<String, serde_json::Value>) -> 
             serde_json::Value::Array(items) => {
                 let parts: Option<Vec<String>> = items.iter().map(scalar).collect();
                 let Some(parts) = parts else {
-                    bail!("--config {}: `{key}` must list numbers or strings", path.display());
+                    bail!("{origin}: `{key}` must list numbers or strings");
                 };
                 words.extend([flag, parts.join(",")]);
             }
-            serde_json::Value::Object(_) => bail!("--config {}: `{key}` is a table, not a setting", path.display()),
+            serde_json::Value::Object(_) => bail!("{origin}: `{key}` is a table, not a setting"),
             v => words.extend([flag, scalar(v).expect("a string or number")]),
         }
     }
     Ok(words)
 }
 
-/// The words after `render` on this process's command line, less `--config FILE` and the global
-/// `-q`/`-v`, which are not render's.
-fn command_line_words() -> Vec<OsString> {
+/// The words after `render` on a command line (`invocation`, the program's name first), less
+/// `--config FILE` and the global `-q`/`-v`, which are not render's.
+fn command_line_words(invocation: impl IntoIterator<Item = OsString>) -> Vec<OsString> {
     let global = |w: &OsString| {
         let w = w.to_string_lossy();
         w == "--quiet"
@@ -83,7 +84,7 @@ fn command_line_words() -> Vec<OsString> {
             || (w.len() > 1 && w.starts_with('-') && w[1..].chars().all(|c| c == 'v' || c == 'q'))
     };
     let mut words: Vec<OsString> =
-        std::env::args_os().skip_while(|a| a != "render").skip(1).filter(|w| !global(w)).collect();
+        invocation.into_iter().skip_while(|a| a != "render").skip(1).filter(|w| !global(w)).collect();
     while let Some(at) = words.iter().position(|w| w == "--config" || w.to_string_lossy().starts_with("--config=")) {
         let with_value = words[at] == "--config";
         words.drain(at..(at + if with_value { 2 } else { 1 }).min(words.len()));
@@ -91,11 +92,12 @@ fn command_line_words() -> Vec<OsString> {
     words
 }
 
-/// `render`'s arguments from the run file `path`, then this command line's own flags.
-pub fn render_args_of(path: &Path) -> Result<RenderArgs> {
-    let words = words_of(path, &table_of(path)?)?;
+/// `render`'s arguments from the run file `path`, then the flags of the command line
+/// `invocation` (the program's name first, as `std::env::args_os()` gives it).
+pub fn render_args_of(path: &Path, invocation: impl IntoIterator<Item = OsString>) -> Result<RenderArgs> {
+    let words = words_of(&format!("--config {}", path.display()), &table_of(path)?)?;
     let command = RenderArgs::augment_args(clap::Command::new("render").no_binary_name(true)).args_override_self(true);
-    let all: Vec<OsString> = words.into_iter().map(OsString::from).chain(command_line_words()).collect();
+    let all: Vec<OsString> = words.into_iter().map(OsString::from).chain(command_line_words(invocation)).collect();
     let matches = command.try_get_matches_from(&all).map_err(|e| {
         let text = e.to_string();
         let line = text.lines().next().unwrap_or("").trim_start_matches("error: ").to_string();
@@ -114,20 +116,28 @@ mod tests {
             "spp": 4, "lf": "8x4", "still": true, "layers": false, "focus": null, "sources_per_set": 2,
             "camera": [0, 1, 4.5, 0, 1, 0, 0, 1, 0, 45],
         });
-        let words = words_of(Path::new("r.toml"), table.as_object().unwrap()).unwrap();
+        let words = words_of("--config r.toml", table.as_object().unwrap()).unwrap();
         assert_eq!(
             words,
             ["--camera", "0,1,4.5,0,1,0,0,1,0,45", "--lf", "8x4", "--sources-per-set", "2", "--spp", "4", "--still"]
         );
         let nested = serde_json::json!({ "plan": { "views": 2 } });
         assert!(
-            words_of(Path::new("r"), nested.as_object().unwrap())
-                .unwrap_err()
-                .to_string()
-                .contains("`plan` is a table")
+            words_of("--config r", nested.as_object().unwrap()).unwrap_err().to_string().contains("`plan` is a table")
         );
         let again = serde_json::json!({ "config": "other.toml" });
-        assert!(words_of(Path::new("r"), again.as_object().unwrap()).is_err());
+        assert!(words_of("--config r", again.as_object().unwrap()).is_err());
+    }
+
+    #[test]
+    fn the_command_line_given_wins_not_the_process_s() {
+        let invocation = ["parallax", "-q", "render", "--config", "r.toml", "--spp", "4", "-v", "--still"];
+        assert_eq!(command_line_words(invocation.map(OsString::from)), ["--spp", "4", "--still"]);
+        assert!(command_line_words(["parallax", "plan"].map(OsString::from)).is_empty());
+    }
+
+    #[test]
+    fn layouts_are_spelt_as_typed() {
         assert_eq!(layout_spelling(&LayoutSpec::Grid { cols: 8, rows: 4 }), "8x4");
     }
 }
