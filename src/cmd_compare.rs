@@ -18,7 +18,7 @@ use parallax_accuracy::points::point_of_render_json;
 use parallax_accuracy::{CompareOptions, Comparison, Point, compare_paths, write_atomically};
 
 use crate::options::{Exposure, parse_exposure};
-use crate::outputs::{Format, Output, Sink, check, check_inputs, stage};
+use crate::outputs::{Format, Output, Sink, check, check_inputs, parse_sink, stage, write_json};
 use crate::run_setup::{differences, setup_beside};
 
 #[derive(Args, Debug)]
@@ -27,9 +27,10 @@ pub struct CompareArgs {
     test: PathBuf,
     /// The reference: an EXR, or a folder of view_NNN.exr (e.g. a `reference` output).
     reference: PathBuf,
-    /// Write the figures (and a chart point) as JSON here.
-    #[arg(long)]
-    json: Option<PathBuf>,
+    /// Write the figures (and a chart point) as JSON here (`-` = stdout; the table then goes to
+    /// stderr).
+    #[arg(long, value_parser = parse_sink)]
+    json: Option<Sink>,
     /// Also write the markdown table here.
     #[arg(long)]
     markdown: Option<PathBuf>,
@@ -84,11 +85,19 @@ pub fn check_settings(test: &Path, reference: &Path, allow_mismatch: bool) -> Re
     Ok(diffs)
 }
 
+/// `--json`'s file (none when it goes to stdout).
+fn json_file(args: &CompareArgs) -> Option<PathBuf> {
+    match &args.json {
+        Some(Sink::File(path)) => Some(path.clone()),
+        _ => None,
+    }
+}
+
 /// `--json` and `--markdown`: the extension of their format, writable folders, two distinct
 /// paths, and neither one of the images compared (`compare a.exr b.exr --json a.exr` used to
 /// replace the test image with JSON).
 fn check_outputs(args: &CompareArgs) -> Result<()> {
-    let json = args.json.clone().map(Sink::File);
+    let json = args.json.clone();
     let markdown = args.markdown.clone().map(Sink::File);
     let flip_map = args.flip_map.clone().map(Sink::File);
     let mut outputs = Vec::new();
@@ -102,8 +111,9 @@ fn check_outputs(args: &CompareArgs) -> Result<()> {
         outputs.push(Output { flag: "--flip-map", sink, format: Format::Png });
     }
     check(&outputs)?;
+    let json_file = json_file(args);
     let written: Vec<(&str, &Path)> =
-        [("--json", &args.json), ("--markdown", &args.markdown), ("--flip-map", &args.flip_map)]
+        [("--json", &json_file), ("--markdown", &args.markdown), ("--flip-map", &args.flip_map)]
             .into_iter()
             .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
             .collect();
@@ -121,7 +131,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let options = CompareOptions { exposure: args.exposure, flip_maps: args.flip_map.is_some() };
     let comparison = compare_paths(&args.test, &args.reference, &options)?;
     let table = comparison.markdown();
-    print!("{table}");
+    crate::logging::result(args.json == Some(Sink::Stdout), table.trim_end());
     if let Some(path) = &args.flip_map {
         let columns = sheet_columns(&args.test, comparison.views.len());
         stage(path, |tmp| write_flip_sheet(tmp, &comparison, columns))?.commit()?;
@@ -130,7 +140,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     if let Some(path) = &args.markdown {
         write_atomically(path, |f| std::io::Write::write_all(f, table.as_bytes()))?;
     }
-    if let Some(path) = &args.json {
+    if let Some(sink) = &args.json {
         let render_json = args.test.join("render.json");
         let timing = match parallax_scene::input::read_bounded(
             &render_json,
@@ -152,9 +162,10 @@ pub fn run(args: CompareArgs) -> Result<()> {
             ..timing
         };
         let json = serde_json::json!({ "comparison": &comparison, "setting_mismatches": mismatches, "point": point });
-        let bytes = serde_json::to_vec_pretty(&json)?;
-        write_atomically(path, |f| std::io::Write::write_all(f, &bytes))?;
-        tracing::info!("wrote {}", path.display());
+        write_json(sink, &json)?;
+        if let Sink::File(path) = sink {
+            tracing::info!("wrote {}", path.display());
+        }
     }
     Ok(())
 }

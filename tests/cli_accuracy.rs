@@ -299,9 +299,12 @@ fn compare_refuses_runs_of_other_settings_and_maps_the_error() {
         ok(parallax(&[&lf[..], extra, &["--out-dir"]].concat(), &[&out]));
         out
     };
-    let moving = render("moving", &["--frames", "2"]);
+    let moving = render("moving", &["--frames", "2", "--motion", "dolly"]);
     let err = fails(parallax(&["compare"], &[&moving, &refdir]));
-    assert!(err.contains("still: moving (no --still) vs still") && err.contains("camera: eye"), "{err}");
+    assert!(
+        err.contains("still: moving (--motion dolly or animation) vs still") && err.contains("camera: eye"),
+        "{err}"
+    );
     assert!(err.contains("--allow-mismatch") && !err.contains("layout:"), "{err}");
     let allowed = parallax(&["compare", "--allow-mismatch"], &[&moving, &refdir]);
     assert!(String::from_utf8_lossy(&allowed.stderr).contains("although the settings differ"));

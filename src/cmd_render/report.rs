@@ -19,7 +19,7 @@ use super::RenderArgs;
 use super::frames::Rendered;
 use super::plan::RenderJob;
 use crate::logging::result;
-use crate::outputs::{Format, Output, Sink, Staged, check, stage};
+use crate::outputs::{Format, Output, Sink, Staged, check_creating, stage};
 use crate::render_pictures::{display_images, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 use crate::run_setup::{CameraSetup, Setup};
@@ -68,7 +68,11 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     drop(lock);
     let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     let say = |line: String| result(stdout_taken, &line);
-    say(stage_table(&timing));
+    // The table is detail for a person at a terminal: -q (bench's cells, scripts) keeps the
+    // one-line results only.
+    if !crate::logging::quiet() {
+        say(stage_table(&timing));
+    }
     say(format!(
         "rendered {} views of {}x{} ({}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
         lf.len(),
@@ -133,9 +137,9 @@ fn missing_of_targets(
 fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> Result<serde_json::Value> {
     let last = job.total_frames - 1;
     let lf = job.lf_of(args, 0)?;
-    let still = args.still || args.frames == 1;
+    let still = matches!(job.motion, super::plan::Motion::Still);
     let last_lf = job.lf_of(args, last)?;
-    let spacing = args.light_field.layout.spacing;
+    let spacing = job.spacing;
     let camera_last = job.camera_at(args, last);
     let setup =
         Setup::new(&args.scene.scene, &job.scene, &camera_last, still, (&last_lf, spacing), args.depth.max_depth)?;
@@ -149,7 +153,8 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         // The assignment groups views only under multi-source (`--assign` is refused otherwise).
         "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
-        "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
+        "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still,
+        "motion": job.motion.name(), "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
         "reprojection_tolerance": args.pipeline.reprojection_tolerance,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
@@ -295,7 +300,7 @@ pub(super) fn check_outputs(
         in_out_dir("--wiggle", path)?;
         outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
     }
-    check(&outputs)
+    check_creating(&outputs, Some(out_dir))
 }
 
 /// Removes `view_NNN.exr` and `view_NNN.png` files of an earlier run that this run of `views`
