@@ -123,8 +123,8 @@ pub struct LayoutArgs {
     #[arg(long, default_value = "8x4", value_parser = parse_layout)]
     pub lf: LayoutSpec,
     /// Spacing between neighbouring views in metres (default: the paper's 0.001 for multiscopic
-    /// and nelf; for a WxH grid, one that moves a point at half the focus distance by 8 pixels
-    /// across the grid, so its parallax is visible whatever the scene's size).
+    /// and nelf; for a WxH grid, one that moves a point at half the focus distance by 2 % of the
+    /// view's height across the grid, so its parallax is visible whatever the scene's size).
     #[arg(long, allow_negative_numbers = true, value_parser = parse_spacing)]
     pub spacing: Option<f64>,
     /// Per-view resolution WxH (default: the preset's, 512x512 for grids).
@@ -132,9 +132,11 @@ pub struct LayoutArgs {
     pub resolution: Option<Resolution>,
 }
 
-/// How far (pixels) a grid's default spacing moves a point at half the focus distance from the
-/// first column's view to the last's: several pixels, so a viewer of the grid sees depth.
-pub const GRID_PARALLAX_PX: f64 = 8.0;
+/// How far a grid's default spacing moves a point at half the focus distance from the first
+/// view to the last of the grid's wider side, as a fraction of the view's height: 10 pixels at
+/// 512 high, 4 at 192, so a viewer of the grid sees depth; relative to the picture, so the rig
+/// does not change with `--resolution`.
+pub const GRID_PARALLAX: f64 = 0.02;
 
 impl LayoutArgs {
     /// The light field of `--lf`, `--spacing` and `--resolution` on `rig` (a grid without
@@ -151,20 +153,19 @@ impl LayoutArgs {
     }
 
     /// `--spacing`, else for a grid the spacing that moves a point at half the rig's focus
-    /// distance by [`GRID_PARALLAX_PX`] across the grid's wider side (the paper's 1 mm moves
-    /// the near edge of a room-sized scene half a pixel across 8 views: a still picture); None
-    /// for the presets, which keep the paper's 1 mm. A point at depth z moves by
-    /// `spacing · focal_px · |1/z − 1/focus|` between neighbours; at z = focus / 2 that is
-    /// `spacing · focal_px / focus`.
+    /// distance by [`GRID_PARALLAX`] of the view's height across the grid's wider side (the
+    /// paper's 1 mm moves the near edge of a room-sized scene half a pixel across 8 views: a
+    /// still picture); None for the presets, which keep the paper's 1 mm. A point at depth z
+    /// moves by `spacing · focal · |1/z − 1/focus|` between neighbours, `focal` the focal length
+    /// in view heights, `1 / (2 tan(yfov / 2))`; at z = focus / 2 that is `spacing · focal / focus`.
     pub fn spacing_on(&self, rig: &Rig) -> Option<f64> {
         if self.spacing.is_some() {
             return self.spacing;
         }
         let LayoutSpec::Grid { cols, rows } = self.lf else { return None };
         let steps = cols.max(rows).saturating_sub(1).max(1) as f64;
-        let height = self.resolution.map_or(512, |r| r.height) as f64;
-        let focal_px = 0.5 * height / (0.5 * rig.yfov).tan();
-        Some(GRID_PARALLAX_PX * rig.focus_distance / (steps * focal_px))
+        let focal = 0.5 / (0.5 * rig.yfov).tan();
+        Some(GRID_PARALLAX * rig.focus_distance / (steps * focal))
     }
 }
 
@@ -220,8 +221,8 @@ mod tests {
     }
 
     /// A grid without --spacing is spaced so that a point at half the focus distance moves
-    /// GRID_PARALLAX_PX pixels from the first to the last view of its wider side; the presets
-    /// keep the paper's 1 mm and an explicit --spacing wins.
+    /// GRID_PARALLAX of the view's height from the first to the last view of its wider side
+    /// (3.84 pixels at 256x192); the presets keep the paper's 1 mm and an explicit --spacing wins.
     #[test]
     fn a_grid_default_spacing_gives_visible_parallax() {
         use clap::Parser;
@@ -236,7 +237,9 @@ mod tests {
         let spacing = grid.spacing_on(&rig).unwrap();
         let focal_px = 96.0 / (22.5f64.to_radians()).tan();
         let shift = |z: f64| 7.0 * spacing * focal_px * (1.0 / z - 1.0 / rig.focus_distance);
-        assert!((shift(2.0) - super::GRID_PARALLAX_PX).abs() < 1e-9, "{}", shift(2.0));
+        assert!((shift(2.0) - 3.84).abs() < 1e-9, "{}", shift(2.0));
+        let larger = layout(&["--lf", "8x4", "--resolution", "512x512"]);
+        assert_eq!(larger.spacing_on(&rig), Some(spacing), "the rig does not change with the resolution");
         let lf = grid.with_rig(rig).unwrap();
         assert!((lf.positions[1].x - lf.positions[0].x - spacing).abs() < 1e-12);
         assert_eq!(layout(&["--lf", "nelf"]).spacing_on(&rig), None);
