@@ -127,9 +127,13 @@ pub struct RenderArgs {
     /// Add the hole mask, albedo, normal and depth to every view's EXR.
     #[arg(long)]
     layers: bool,
-    /// Also write a Looking Glass quilt (lightfield_qs{cols}x{rows}a{aspect}.png).
-    #[arg(long)]
-    quilt: bool,
+    /// Also write a Looking Glass quilt, lightfield_qs{cols}x{rows}a{aspect}.png, of the views a
+    /// device shows (a grid's row through the rig centre, left to right): `auto` (as square as
+    /// the views allow; `--quilt` alone), a device's own (go 11x6, portrait 8x6, 16in 7x7, 65in
+    /// 8x9; every tile shows the view nearest its place in the sweep) or COLSxROWS.
+    #[arg(long, value_name = "SHAPE", num_args = 0..=1, default_missing_value = "auto",
+          value_parser = crate::lightfield_images::parse_quilt)]
+    quilt: Option<crate::lightfield_images::QuiltShape>,
     /// Barriers between GPU ops: `tracked` (only where declared accesses conflict, so the
     /// instances of one pass for many views overlap; synchronisation validation reports false
     /// hazards with it), or `every-op`.
@@ -197,7 +201,7 @@ impl RenderArgs {
             "frames": self.frames, "warmup": self.warmup, "still": self.still, "motion": (!self.still).then(|| name(&self.motion)),
             "save_every": self.save_every,
             "exposure": match self.exposure { Exposure::Auto => serde_json::json!("auto"), Exposure::Fixed(v) => serde_json::json!(v) },
-            "layers": self.layers, "quilt": self.quilt, "gbuffer": name(&p.gbuffer), "barriers": name(&self.barriers),
+            "layers": self.layers, "quilt": self.quilt.map(|q| q.spelling()), "gbuffer": name(&p.gbuffer), "barriers": name(&self.barriers),
             "timing": name(&self.timing),
         })
     }

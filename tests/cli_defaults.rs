@@ -90,3 +90,17 @@ fn a_placed_camera_stays_put_and_quiet_runs_print_results_only() {
     assert_eq!(json["comparison"]["overall"]["flip"], 0.0);
     assert!(stderr(&cmp).contains("| **all** | 2 views |"), "the table goes to stderr");
 }
+
+/// A quilt is one horizontal sweep: NELF's two eye blocks are refused before any frame, naming
+/// the reason (exit 2), and an unknown quilt shape lists the Looking Glass presets.
+#[test]
+fn a_nelf_quilt_is_refused_before_any_work() {
+    let dir = scratch("defaults", "quilt");
+    let out = parallax_in(&dir, &["render", "--lf", "nelf", "--resolution", "8x8", "--quilt", "go"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--quilt: NELF's views are two 6x6 blocks"), "{}", stderr(&out));
+    assert!(!dir.join("out").exists(), "nothing was written");
+    let out = parallax_in(&dir, &["render", "--quilt", "huge"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("go (11x6), portrait (8x6), 16in (7x7), 65in (8x9)"), "{}", stderr(&out));
+}

@@ -172,8 +172,13 @@ fn resumed_references_verify_the_scene_and_the_partial() {
     };
     let first = reference("4", &[]);
     assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
-    // An explicit --spacing equal to the preset's is the same run.
-    let same = reference("8", &["--spacing", "0.001"]);
+    // An explicit --spacing equal to the default in effect (the grid's, for this rig) is the
+    // same run.
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("ref/reference.json")).unwrap()).unwrap();
+    let spacing = json["setup"]["spacing_m"].to_string();
+    assert_ne!(spacing, "0.001", "a grid's default spacing is its own");
+    let same = reference("8", &["--spacing", &spacing]);
     assert!(same.status.success(), "{}", String::from_utf8_lossy(&same.stderr));
     // The .bin changes (same length): refused naming it.
     let mut bin = std::fs::read(dir.join("tri.bin")).unwrap();
@@ -506,7 +511,7 @@ fn outputs_are_checked_before_the_work() {
     // A bench case's missing scene is found before any cell runs (no out/bench is made).
     refused(
         &dir,
-        &["bench", "--common", "--scene missing.gltf --lf 2x1 --resolution 4x4", "--fake-devices", "--devices", "1"],
+        &["bench", "--common", "--scene missing.gltf --lf 2x1 --resolution 4x4", "--fake-devices", "1"],
         1,
         &["--scene missing.gltf", "No such file or directory"],
     );

@@ -102,6 +102,10 @@ impl RenderJob {
         settings.validate()?;
         let total_frames = args.warmup + args.frames;
         let sized = args.light_field.with_rig(Rig::default())?;
+        if args.quilt.is_some() {
+            // Refused before any frame: NELF holds no one sweep for a Looking Glass.
+            crate::lightfield_images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
+        }
         crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
         let work = TraceWork {
             views: sized.len() as u64 * u64::from(total_frames),

@@ -234,6 +234,9 @@ pub(super) fn stage_views(
             })
             .collect();
         let frame = Frame { width: view.width, height: view.height, pixels };
+        if *layers {
+            staged.extend(stage_layer_pictures(folder, view.index, &frame, mask.as_deref())?);
+        }
         let path = folder.join(view_file_name(view.index));
         let exr_layers = if *layers { ExrLayers::ALL } else { ExrLayers::default() };
         let mask: Option<Vec<f32>> = mask.map(|m| m.iter().map(|&h| h as f32).collect());
@@ -243,6 +246,40 @@ pub(super) fn stage_views(
         })?);
     }
     Ok(staged)
+}
+
+/// With `--layers`, pictures of the layers a person looks at: `view_NNN_depth.png` (grey, the
+/// view's nearest hit white, its farthest dark grey, sky black) and, of targets,
+/// `view_NNN_holes.png` (white where hole filling path traced the pixel).
+fn stage_layer_pictures(folder: &Path, index: u32, frame: &Frame, mask: Option<&[u32]>) -> Result<Vec<Staged>> {
+    let hits = || frame.pixels.iter().filter(|p| p.hit).map(|p| p.depth);
+    let (near, far) = hits().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), d| (a.min(d), b.max(d)));
+    let grey = |p: &PixelSample| -> u8 {
+        if !p.hit {
+            return 0;
+        }
+        let t = if far > near { (p.depth - near) / (far - near) } else { 0.0 };
+        (255.0 - 191.0 * t.clamp(0.0, 1.0)).round() as u8
+    };
+    let depth: Vec<u8> = frame.pixels.iter().map(grey).collect();
+    let mut pictures = vec![(format!("view_{index:03}_depth.png"), depth)];
+    if let Some(mask) = mask {
+        pictures
+            .push((format!("view_{index:03}_holes.png"), mask.iter().map(|&h| if h != 0 { 255 } else { 0 }).collect()));
+    }
+    pictures
+        .into_iter()
+        .map(|(name, luma)| {
+            let path = folder.join(name);
+            let image =
+                image::GrayImage::from_raw(frame.width, frame.height, luma).context("a layer of the view's size")?;
+            stage(&path, |tmp| {
+                image
+                    .save_with_format(tmp, image::ImageFormat::Png)
+                    .with_context(|| format!("cannot write {}", path.display()))
+            })
+        })
+        .collect()
 }
 
 pub(super) fn view_file_name(index: u32) -> String {
