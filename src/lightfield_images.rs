@@ -267,7 +267,7 @@ mod tests {
         let sheet = image::open(&path).unwrap().to_rgb8();
         assert_eq!(sheet.dimensions(), (4 + 2 * 2 + 16, 1));
         let lit: Vec<u32> = (0..sheet.width()).filter(|&x| sheet.get_pixel(x, 0).0[0] == 255).collect();
-        assert_eq!(lit, [0, 3, 19, 22]);
+        assert_eq!(lit, [0, 3, 20, 23], "2 px between views, 16 between the blocks");
     }
 
     #[test]

@@ -44,7 +44,8 @@ fn json_summary_has_the_documented_fields() {
     assert_eq!(json["gather_copies"], 75);
     // 75 RGBA8 768×432 display images travel to device 0.
     assert_eq!(json["bytes_per_frame"], 75 * 768 * 432 * 4);
-    assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule {"));
+    // 100 instances of a pass side by side would not read: `auto` draws the summary.
+    assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule_summary {"));
 }
 
 #[test]
