@@ -10,7 +10,7 @@ bash .ci/setup.sh
 mkdir -p out/lightfield
 cargo build --release
 ./target/release/parallax render --lf 8x4 --resolution 128x96 --spacing 0.05 --spp 1 \
-  --fake-devices 2 --scheme multi-source --frames 8 --warmup 2 --quilt --layers \
+  --fake-devices 2 --scheme multi-source --frames 8 --warmup 2 --motion dolly --quilt --layers \
   --out-dir out/lightfield --trace out/lightfield/trace.json
 ./target/release/parallax plan --lf nelf --gpus 4 --scheme multi-source --assign compact \
   --dot out/plan_nelf_4gpu.dot --json out/plan_nelf_4gpu.json

@@ -93,12 +93,13 @@ pub struct BenchArgs {
     #[arg(long, allow_negative_numbers = true, value_delimiter = ',',
           value_parser = crate::pipeline_args::parse_reprojection_tolerance)]
     reprojection_tolerances: Vec<f64>,
-    /// Device counts, comma-separated.
+    /// GPU counts, comma-separated (render's `--gpus`).
     #[arg(long, default_value = "1", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=64))]
     devices: Vec<u32>,
-    /// The device counts are logical devices on one GPU (lavapipe, or overhead runs), not GPUs.
-    #[arg(long)]
-    fake_devices: bool,
+    /// Counts of logical devices on one GPU (lavapipe, or overhead runs), comma-separated, as
+    /// render's `--fake-devices N`: in place of --devices.
+    #[arg(long, value_delimiter = ',', conflicts_with = "devices", value_parser = clap::value_parser!(u32).range(1..=64))]
+    fake_devices: Vec<u32>,
     /// Measured frames per cell, after --warmup frames [default: the matrix file's `frames`, or 10].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: Option<u32>,
@@ -139,16 +140,23 @@ fn matrix_of_flags(args: &BenchArgs) -> Result<Matrix> {
         spp: args.spp.clone(),
         denoise: args.denoise.clone(),
         tolerances: args.reprojection_tolerances.clone(),
-        devices: args.devices.clone(),
-        fake_devices: args.fake_devices,
+        devices: if args.fake_devices.is_empty() { args.devices.clone() } else { args.fake_devices.clone() },
+        fake_devices: !args.fake_devices.is_empty(),
     };
     let case = Case { name: None, args: args.common.clone(), reference: args.reference.clone() };
     Ok(Matrix { frames: None, warmup: None, cases: vec![case], slices: vec![(vec![0], axes)] })
 }
 
-/// The whole `parallax render` command line of a cell (after `render`).
+/// The whole `parallax render` command line of a cell (after `render`). A cell's camera stays
+/// where the case put it unless the case asks for a motion (`--motion`; `--still` is one too):
+/// a benchmark measures views of one place, comparable with a still reference.
 fn render_argv(case: &Case, cell: &Cell, frames: u32, warmup: u32, folder: &Path) -> Result<Vec<OsString>> {
-    let mut argv: Vec<OsString> = case.words()?.into_iter().map(OsString::from).collect();
+    let words = case.words()?;
+    let motion_given = words.iter().any(|w| w == "--motion" || w.starts_with("--motion=") || w == "--still");
+    let mut argv: Vec<OsString> = words.into_iter().map(OsString::from).collect();
+    if !motion_given {
+        argv.extend(["--motion", "none"].map(OsString::from));
+    }
     argv.extend(cell.args.iter().map(OsString::from));
     for a in ["--frames".into(), frames.to_string(), "--warmup".into(), warmup.to_string(), "--out-dir".into()] {
         argv.push(a.into());

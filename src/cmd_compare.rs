@@ -18,7 +18,7 @@ use parallax_accuracy::points::point_of_render_json;
 use parallax_accuracy::{CompareOptions, Comparison, Point, compare_paths, write_atomically};
 
 use crate::options::{Exposure, parse_exposure};
-use crate::outputs::{Format, Output, Sink, check, check_inputs, stage};
+use crate::outputs::{Format, Output, Sink, check, check_inputs, parse_sink, stage, write_json};
 use crate::run_setup::{differences, setup_beside};
 
 #[derive(Args, Debug)]
@@ -27,9 +27,10 @@ pub struct CompareArgs {
     test: PathBuf,
     /// The reference: an EXR, or a folder of view_NNN.exr (e.g. a `reference` output).
     reference: PathBuf,
-    /// Write the figures (and a chart point) as JSON here.
-    #[arg(long)]
-    json: Option<PathBuf>,
+    /// Write the figures (and a chart point) as JSON here (`-` = stdout; the table then goes to
+    /// stderr).
+    #[arg(long, value_parser = parse_sink)]
+    json: Option<Sink>,
     /// Also write the markdown table here.
     #[arg(long)]
     markdown: Option<PathBuf>,
@@ -49,6 +50,11 @@ pub struct CompareArgs {
     /// sheet lays them out.
     #[arg(long, value_name = "FILE.png")]
     flip_map: Option<PathBuf>,
+    /// Write the per-view error across the grid as a PNG: one cell per view, laid out as the
+    /// contact sheet, filled with its mean FLIP in magma, scaled so that the worst view is pale
+    /// yellow (the scale is printed): where in the light field the error lies.
+    #[arg(long, value_name = "FILE.png")]
+    error_grid: Option<PathBuf>,
     /// Compare even when the settings recorded beside the two sides differ (scene, camera,
     /// still or not, layout, spacing, focus, resolution, lights, max depth).
     #[arg(long)]
@@ -84,11 +90,19 @@ pub fn check_settings(test: &Path, reference: &Path, allow_mismatch: bool) -> Re
     Ok(diffs)
 }
 
+/// `--json`'s file (none when it goes to stdout).
+fn json_file(args: &CompareArgs) -> Option<PathBuf> {
+    match &args.json {
+        Some(Sink::File(path)) => Some(path.clone()),
+        _ => None,
+    }
+}
+
 /// `--json` and `--markdown`: the extension of their format, writable folders, two distinct
 /// paths, and neither one of the images compared (`compare a.exr b.exr --json a.exr` used to
 /// replace the test image with JSON).
 fn check_outputs(args: &CompareArgs) -> Result<()> {
-    let json = args.json.clone().map(Sink::File);
+    let json = args.json.clone();
     let markdown = args.markdown.clone().map(Sink::File);
     let flip_map = args.flip_map.clone().map(Sink::File);
     let mut outputs = Vec::new();
@@ -101,12 +115,21 @@ fn check_outputs(args: &CompareArgs) -> Result<()> {
     if let Some(sink) = &flip_map {
         outputs.push(Output { flag: "--flip-map", sink, format: Format::Png });
     }
+    let error_grid = args.error_grid.clone().map(Sink::File);
+    if let Some(sink) = &error_grid {
+        outputs.push(Output { flag: "--error-grid", sink, format: Format::Png });
+    }
     check(&outputs)?;
-    let written: Vec<(&str, &Path)> =
-        [("--json", &args.json), ("--markdown", &args.markdown), ("--flip-map", &args.flip_map)]
-            .into_iter()
-            .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
-            .collect();
+    let json_file = json_file(args);
+    let written: Vec<(&str, &Path)> = [
+        ("--json", &json_file),
+        ("--markdown", &args.markdown),
+        ("--flip-map", &args.flip_map),
+        ("--error-grid", &args.error_grid),
+    ]
+    .into_iter()
+    .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+    .collect();
     check_inputs(&written, &[("TEST", args.test.as_path()), ("REFERENCE", args.reference.as_path())])
 }
 
@@ -121,16 +144,22 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let options = CompareOptions { exposure: args.exposure, flip_maps: args.flip_map.is_some() };
     let comparison = compare_paths(&args.test, &args.reference, &options)?;
     let table = comparison.markdown();
-    print!("{table}");
+    crate::logging::result(args.json == Some(Sink::Stdout), table.trim_end());
     if let Some(path) = &args.flip_map {
         let columns = sheet_columns(&args.test, comparison.views.len());
         stage(path, |tmp| write_flip_sheet(tmp, &comparison, columns))?.commit()?;
         tracing::info!("wrote {}", path.display());
     }
+    if let Some(path) = &args.error_grid {
+        let columns = sheet_columns(&args.test, comparison.views.len());
+        let mut worst = 0.0;
+        stage(path, |tmp| write_error_grid(tmp, &comparison, columns).map(|w| worst = w))?.commit()?;
+        tracing::info!("wrote {} (pale yellow: mean FLIP {worst:.4}, black: 0)", path.display());
+    }
     if let Some(path) = &args.markdown {
         write_atomically(path, |f| std::io::Write::write_all(f, table.as_bytes()))?;
     }
-    if let Some(path) = &args.json {
+    if let Some(sink) = &args.json {
         let render_json = args.test.join("render.json");
         let timing = match parallax_scene::input::read_bounded(
             &render_json,
@@ -152,9 +181,10 @@ pub fn run(args: CompareArgs) -> Result<()> {
             ..timing
         };
         let json = serde_json::json!({ "comparison": &comparison, "setting_mismatches": mismatches, "point": point });
-        let bytes = serde_json::to_vec_pretty(&json)?;
-        write_atomically(path, |f| std::io::Write::write_all(f, &bytes))?;
-        tracing::info!("wrote {}", path.display());
+        write_json(sink, &json)?;
+        if let Sink::File(path) = sink {
+            tracing::info!("wrote {}", path.display());
+        }
     }
     Ok(())
 }
@@ -170,6 +200,33 @@ fn sheet_columns(test: &Path, views: usize) -> u32 {
         Some(c) => (c as u32).clamp(1, 10),
         None => ((views as f64).sqrt().ceil() as u32).max(1),
     }
+}
+
+/// `--error-grid`: one cell per view (48 pixels high, the views' aspect), `columns` per row,
+/// 2-pixel white gaps, filled with the view's mean FLIP in magma scaled by the worst view's,
+/// which it returns.
+fn write_error_grid(path: &Path, comparison: &Comparison, columns: u32) -> Result<f64> {
+    let views = &comparison.views;
+    let Some(first) = views.first() else { bail!("no views were compared") };
+    let h = 48u32;
+    let w = ((h as f64 * first.width as f64 / first.height as f64).round() as u32).clamp(8, 192);
+    let worst = views.iter().map(|v| v.metrics.flip).fold(0.0, f64::max);
+    let (gap, n) = (2, views.len() as u32);
+    let columns = columns.clamp(1, n);
+    let rows = n.div_ceil(columns);
+    let mut grid = image::RgbImage::from_pixel(columns * (w + gap) - gap, rows * (h + gap) - gap, image::Rgb([255; 3]));
+    for (k, view) in views.iter().enumerate() {
+        let value = if worst > 0.0 { (view.metrics.flip / worst) as f32 } else { 0.0 };
+        let rgb = error_map_rgb8(&[value], 1, 1);
+        let (x0, y0) = ((k as u32 % columns) * (w + gap), (k as u32 / columns) * (h + gap));
+        for y in y0..y0 + h {
+            for x in x0..x0 + w {
+                grid.put_pixel(x, y, image::Rgb([rgb[0], rgb[1], rgb[2]]));
+            }
+        }
+    }
+    grid.save_with_format(path, image::ImageFormat::Png).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(worst)
 }
 
 /// Every view's FLIP error map in magma, `columns` per row, 2-pixel gaps (black).

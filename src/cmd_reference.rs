@@ -180,7 +180,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         &scene,
         &args.scene.camera_or_default(&scene),
         true,
-        (&lf, args.light_field.layout.spacing),
+        (&lf, args.light_field.layout.spacing_on(&lf.rig)),
         args.depth.max_depth,
     )?;
     let _lock = prepare_out_dir(&args.out_dir, &selected)?;
@@ -249,7 +249,7 @@ fn settings_key(args: &ReferenceArgs, scene: &Scene, lf: &LightField, selected: 
     settings_key.extend([
         ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.layout.lf, lf.cols, lf.rows)),
         // The spacing in effect, so an explicit --spacing equal to the preset's is the same run.
-        ("--spacing".to_string(), args.light_field.layout.spacing.unwrap_or(DEFAULT_SPACING).to_string()),
+        ("--spacing".to_string(), args.light_field.layout.spacing_on(&lf.rig).unwrap_or(DEFAULT_SPACING).to_string()),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
         ("--camera".to_string(), format!("{:?}", args.scene.camera.map(|c| c.camera))),

@@ -43,6 +43,21 @@ pub enum BarrierArg {
     Tracked,
 }
 
+/// `--motion`: how the rig moves over the measured frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MotionArg {
+    /// The scene's glTF camera animation when the scene has one and no `--camera` is given;
+    /// else still.
+    Auto,
+    /// Still: every frame at the first frame's camera.
+    None,
+    /// A smooth sideways dolly across 10 % of the scene, centred on the camera.
+    Dolly,
+    /// The scene's glTF camera animation, spread over the measured frames.
+    Animation,
+}
+
 /// `--timing`: what the GPU timestamp pairs cover.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -70,8 +85,8 @@ pub struct RenderArgs {
     spp: u32,
     #[command(flatten)]
     depth: DepthArgs,
-    /// Measured frames (the camera dollies across the scene over the measured frames; one frame
-    /// is a still camera).
+    /// Measured frames (the rig moves over them as `--motion` says; one frame is a still
+    /// camera).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Frames submitted before the host waits for the oldest: the host prepares and submits the
@@ -83,9 +98,14 @@ pub struct RenderArgs {
     /// (seconds on some drivers), so measuring from frame 0 with `--warmup 0` times those too.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
-    /// Keep the camera still over the frames (no dolly, no glTF animation): what accuracy
-    /// against a reference of the same camera needs.
-    #[arg(long)]
+    /// How the rig moves over the frames: `auto` (the scene's camera animation when it has one
+    /// and no --camera is given, else still: a camera you place stays there), `none`, `dolly`
+    /// (sideways across 10 % of the scene) or `animation`. render.json's `motion` says which ran.
+    #[arg(long, value_enum, default_value_t = MotionArg::Auto)]
+    motion: MotionArg,
+    /// Keep the camera still over the frames: `--motion none`, what accuracy against a
+    /// reference of the same camera needs.
+    #[arg(long, conflicts_with = "motion")]
     still: bool,
     /// Also write the views of every N-th measured frame to frame_FFFFF/ under --out-dir.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
@@ -109,9 +129,13 @@ pub struct RenderArgs {
     /// Add the hole mask, albedo, normal and depth to every view's EXR.
     #[arg(long)]
     layers: bool,
-    /// Also write a Looking Glass quilt (lightfield_qs{cols}x{rows}a{aspect}.png).
-    #[arg(long)]
-    quilt: bool,
+    /// Also write a Looking Glass quilt, lightfield_qs{cols}x{rows}a{aspect}.png, of the views a
+    /// device shows (a grid's row through the rig centre, left to right): `auto` (as square as
+    /// the views allow; `--quilt` alone), a device's own (go 11x6, portrait 8x6, 16in 7x7, 65in
+    /// 8x9; every tile shows the view nearest its place in the sweep) or COLSxROWS.
+    #[arg(long, value_name = "SHAPE", num_args = 0..=1, default_missing_value = "auto",
+          value_parser = crate::lightfield_images::parse_quilt)]
+    quilt: Option<crate::lightfield_images::QuiltShape>,
     /// Barriers between GPU ops: `tracked` (only where declared accesses conflict, so the
     /// instances of one pass for many views overlap; synchronisation validation reports false
     /// hazards with it), or `every-op`.
@@ -176,9 +200,10 @@ impl RenderArgs {
             "pipeline": name(&p.pipeline), "scheme": name(&p.scheme), "assign": p.assign.map(|a| name(&a)),
             "sources_per_set": p.sources_per_set, "sources": p.sources.as_ref().map(|s| s.0.clone()),
             "no_denoise": p.no_denoise, "reprojection_tolerance": p.reprojection_tolerance, "spp": self.spp, "max_depth": self.depth.max_depth,
-            "frames": self.frames, "warmup": self.warmup, "still": self.still, "save_every": self.save_every,
+            "frames": self.frames, "warmup": self.warmup, "still": self.still, "motion": (!self.still).then(|| name(&self.motion)),
+            "save_every": self.save_every,
             "exposure": match self.exposure { Exposure::Auto => serde_json::json!("auto"), Exposure::Fixed(v) => serde_json::json!(v) },
-            "layers": self.layers, "quilt": self.quilt, "gbuffer": name(&p.gbuffer), "barriers": name(&self.barriers),
+            "layers": self.layers, "quilt": self.quilt.map(|q| q.spelling()), "gbuffer": name(&p.gbuffer), "barriers": name(&self.barriers),
             "timing": name(&self.timing),
         })
     }

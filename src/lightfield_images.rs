@@ -31,41 +31,110 @@ fn paste(canvas: &mut image::RgbImage, view: &DisplayImage<'_>, x0: u32, y0: u32
     }
 }
 
-/// The views in light-field order, `columns` per row, 2-pixel gaps.
-pub fn write_contact_sheet(path: &Path, views: &[DisplayImage<'_>], columns: u32) -> Result<()> {
+/// The views in light-field order, `columns` per row, 2-pixel gaps; with `block` columns, a
+/// 16-pixel gap after every `block` columns (NELF's two eye blocks, side by side).
+pub fn write_contact_sheet(path: &Path, views: &[DisplayImage<'_>], columns: u32, block: Option<u32>) -> Result<()> {
     let (w, h) = check_sizes(views)?;
-    let gap = 2;
+    let (gap, block_gap) = (2, 16);
     let columns = columns.clamp(1, views.len() as u32);
     let rows = (views.len() as u32).div_ceil(columns);
-    let mut sheet = image::RgbImage::new(columns * w + (columns - 1) * gap, rows * h + (rows - 1) * gap);
+    let blocks = block.map_or(0, |b| (columns - 1) / b.max(1));
+    let x_of = |c: u32| c * (w + gap) + block.map_or(0, |b| c / b.max(1)) * (block_gap - gap);
+    let mut sheet = image::RgbImage::new(
+        columns * w + (columns - 1) * gap + blocks * (block_gap - gap),
+        rows * h + (rows - 1) * gap,
+    );
     for (k, view) in views.iter().enumerate() {
-        paste(&mut sheet, view, (k as u32 % columns) * (w + gap), (k as u32 / columns) * (h + gap));
+        paste(&mut sheet, view, x_of(k as u32 % columns), (k as u32 / columns) * (h + gap));
     }
     sheet.save_with_format(path, image::ImageFormat::Png).with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// The quilt grid for `views` views: as square as the views allow, columns first.
-pub fn quilt_grid(views: u32) -> (u32, u32) {
-    let columns = (views as f64).sqrt().ceil().max(1.0) as u32;
-    (columns, views.div_ceil(columns))
+/// `--quilt`'s tiles: as square as the views allow (`auto`), a Looking Glass device's own
+/// quilt, or `COLSxROWS`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QuiltShape {
+    Auto,
+    Tiles { columns: u32, rows: u32 },
+}
+
+impl QuiltShape {
+    /// As `--quilt` takes it.
+    pub fn spelling(self) -> String {
+        match self {
+            QuiltShape::Auto => "auto".into(),
+            QuiltShape::Tiles { columns, rows } => format!("{columns}x{rows}"),
+        }
+    }
+}
+
+/// The Looking Glass devices' quilts (name, columns, rows).
+pub const QUILT_PRESETS: [(&str, u32, u32); 4] = [("go", 11, 6), ("portrait", 8, 6), ("16in", 7, 7), ("65in", 8, 9)];
+
+/// clap value parser of `--quilt`.
+pub fn parse_quilt(s: &str) -> Result<QuiltShape, String> {
+    if s == "auto" {
+        return Ok(QuiltShape::Auto);
+    }
+    if let Some(&(_, columns, rows)) = QUILT_PRESETS.iter().find(|p| p.0 == s) {
+        return Ok(QuiltShape::Tiles { columns, rows });
+    }
+    let names = QUILT_PRESETS.map(|p| format!("{} ({}x{})", p.0, p.1, p.2)).join(", ");
+    let bad = || format!("expected auto, a Looking Glass preset ({names}) or COLSxROWS such as 8x6");
+    let (c, r) = s.split_once('x').ok_or_else(bad)?;
+    match (c.parse::<u32>(), r.parse::<u32>()) {
+        (Ok(columns @ 1..=64), Ok(rows @ 1..=64)) => Ok(QuiltShape::Tiles { columns, rows }),
+        (Ok(_), Ok(_)) => Err("a quilt has 1..=64 columns and rows".into()),
+        _ => Err(bad()),
+    }
+}
+
+/// The views a Looking Glass shows, in its order (left to right: a horizontal sweep): a 1D light
+/// field's views; of a grid, the row through the rig centre (row ⌊rows/2⌋, the lower middle
+/// one of an even count). NELF's two eye blocks are no sweep: refused with the reason.
+pub fn quilt_views(cols: u32, rows: u32, nelf: bool) -> Result<Vec<u32>> {
+    if nelf {
+        return Err(crate::options::UsageError(
+            "--quilt: NELF's views are two 6x6 blocks for two eyes 62 mm apart, not one sweep a Looking Glass shows; \
+             use a grid (--lf 12x1 or WxH) for a quilt"
+                .into(),
+        )
+        .into());
+    }
+    let row = rows / 2;
+    Ok((0..cols).map(|c| row * cols + c).collect())
+}
+
+/// The tiles (columns, rows) of a quilt of `views` views.
+pub fn quilt_grid(shape: QuiltShape, views: u32) -> (u32, u32) {
+    match shape {
+        QuiltShape::Tiles { columns, rows } => (columns, rows),
+        QuiltShape::Auto => {
+            let columns = (views as f64).sqrt().ceil().max(1.0) as u32;
+            (columns, views.div_ceil(columns))
+        }
+    }
 }
 
 /// The quilt's file name by the Looking Glass convention: `{stem}_qs{cols}x{rows}a{aspect}.png`.
-pub fn quilt_file_name(stem: &str, views: u32, width: u32, height: u32) -> String {
-    let (columns, rows) = quilt_grid(views);
+pub fn quilt_file_name(stem: &str, (columns, rows): (u32, u32), width: u32, height: u32) -> String {
     let aspect = width as f64 / height as f64;
     format!("{stem}_qs{columns}x{rows}a{}.png", format!("{aspect:.4}").trim_end_matches('0').trim_end_matches('.'))
 }
 
-/// A Looking Glass quilt: view 0 at the bottom left, then left to right and bottom to top, no
-/// gaps; cells past the last view stay black.
-pub fn write_quilt(path: &Path, views: &[DisplayImage<'_>]) -> Result<()> {
-    let (w, h) = check_sizes(views)?;
-    let (columns, rows) = quilt_grid(views.len() as u32);
+/// A Looking Glass quilt of `columns × rows` tiles: the sweep's first view at the bottom left,
+/// then left to right and bottom to top, no gaps. Every tile shows the view nearest its place
+/// in the sweep (tile k of T: view round(k · (n − 1) / (T − 1))), so a device's quilt is full
+/// whatever the number of views: more tiles repeat neighbours, fewer skip some.
+pub fn write_quilt(path: &Path, sweep: &[DisplayImage<'_>], (columns, rows): (u32, u32)) -> Result<()> {
+    let (w, h) = check_sizes(sweep)?;
+    let tiles = columns * rows;
     let mut quilt = image::RgbImage::new(columns * w, rows * h);
-    for (k, view) in views.iter().enumerate() {
-        let (column, row_from_bottom) = (k as u32 % columns, k as u32 / columns);
-        paste(&mut quilt, view, column * w, (rows - 1 - row_from_bottom) * h);
+    for k in 0..tiles {
+        let v =
+            if tiles == 1 { 0 } else { ((k as f64 * (sweep.len() - 1) as f64) / (tiles - 1) as f64).round() as usize };
+        let (column, row_from_bottom) = (k % columns, k / columns);
+        paste(&mut quilt, &sweep[v], column * w, (rows - 1 - row_from_bottom) * h);
     }
     quilt.save_with_format(path, image::ImageFormat::Png).with_context(|| format!("cannot write {}", path.display()))
 }
@@ -153,9 +222,52 @@ mod tests {
 
     #[test]
     fn quilt_names_follow_the_looking_glass_convention() {
-        assert_eq!(quilt_file_name("lightfield", 32, 128, 96), "lightfield_qs6x6a1.3333.png");
-        assert_eq!(quilt_file_name("q", 100, 768, 432), "q_qs10x10a1.7778.png");
-        assert_eq!(quilt_file_name("q", 4, 64, 64), "q_qs2x2a1.png");
+        let auto = |n| quilt_grid(QuiltShape::Auto, n);
+        assert_eq!(quilt_file_name("lightfield", auto(8), 128, 96), "lightfield_qs3x3a1.3333.png");
+        assert_eq!(quilt_file_name("q", auto(100), 768, 432), "q_qs10x10a1.7778.png");
+        assert_eq!(quilt_file_name("q", auto(4), 64, 64), "q_qs2x2a1.png");
+        let go = parse_quilt("go").unwrap();
+        assert_eq!(quilt_file_name("q", quilt_grid(go, 8), 768, 432), "q_qs11x6a1.7778.png");
+        assert_eq!(parse_quilt("portrait"), Ok(QuiltShape::Tiles { columns: 8, rows: 6 }));
+        assert_eq!(parse_quilt("16in"), Ok(QuiltShape::Tiles { columns: 7, rows: 7 }));
+        assert_eq!(parse_quilt("65in"), Ok(QuiltShape::Tiles { columns: 8, rows: 9 }));
+        assert_eq!(parse_quilt("5x3"), Ok(QuiltShape::Tiles { columns: 5, rows: 3 }));
+        assert!(parse_quilt("big").unwrap_err().contains("go (11x6), portrait (8x6), 16in (7x7), 65in (8x9)"));
+        assert!(parse_quilt("0x3").is_err());
+    }
+
+    /// A grid's quilt is the row through the rig centre, left to right (the main job's 8x4 went
+    /// into a 6x6 quilt with four black tiles, showing the sweep four times); NELF is refused.
+    #[test]
+    fn a_quilt_sweeps_the_centre_row_and_fills_every_tile() {
+        assert_eq!(quilt_views(8, 4, false).unwrap(), (16..24).collect::<Vec<_>>());
+        assert_eq!(quilt_views(100, 1, false).unwrap(), (0..100).collect::<Vec<_>>());
+        assert!(quilt_views(12, 6, true).unwrap_err().to_string().contains("NELF's views are two 6x6 blocks"));
+        let pixels: Vec<[u8; 4]> = (0..3).map(|v| [v * 100, 0, 0, 255]).collect();
+        let sweep: Vec<DisplayImage<'_>> =
+            pixels.iter().map(|p| DisplayImage { width: 1, height: 1, rgba8: p }).collect();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("q.png");
+        write_quilt(&path, &sweep, (3, 2)).unwrap();
+        let quilt = image::open(&path).unwrap().to_rgb8();
+        // Tiles 0..6 bottom-left first: views 0, 0, 1, 2, 2, 2 → round(k · 2 / 5).
+        let red = |x, y| quilt.get_pixel(x, y).0[0];
+        assert_eq!([red(0, 1), red(1, 1), red(2, 1), red(0, 0), red(1, 0), red(2, 0)], [0, 0, 100, 100, 200, 200]);
+    }
+
+    /// NELF's sheet is its two 6x6 eye blocks side by side, a wider gap between them.
+    #[test]
+    fn a_sheet_keeps_blocks_apart() {
+        let pixel = [255u8, 255, 255, 255];
+        let views: Vec<DisplayImage<'_>> =
+            (0..4).map(|_| DisplayImage { width: 1, height: 1, rgba8: &pixel }).collect();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.png");
+        write_contact_sheet(&path, &views, 4, Some(2)).unwrap();
+        let sheet = image::open(&path).unwrap().to_rgb8();
+        assert_eq!(sheet.dimensions(), (4 + 2 * 2 + 16, 1));
+        let lit: Vec<u32> = (0..sheet.width()).filter(|&x| sheet.get_pixel(x, 0).0[0] == 255).collect();
+        assert_eq!(lit, [0, 3, 20, 23], "2 px between views, 16 between the blocks");
     }
 
     #[test]
@@ -218,7 +330,7 @@ mod tests {
         let views =
             [DisplayImage { width: 1, height: 1, rgba8: &red }, DisplayImage { width: 1, height: 1, rgba8: &blue }];
         let path = dir.path().join("q.png");
-        write_quilt(&path, &views).unwrap();
+        write_quilt(&path, &views, (2, 1)).unwrap();
         let quilt = image::open(&path).unwrap().to_rgb8();
         assert_eq!(quilt.dimensions(), (2, 1));
         assert_eq!(quilt.get_pixel(0, 0).0, [255, 0, 0]);

@@ -89,6 +89,12 @@ pub fn result(stdout_taken: bool, line: &str) {
     }
 }
 
+/// Whether `-q` was given: detail a person reads (the stage table) is left out, the one-line
+/// results stay.
+pub fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
+
 /// A spinner for work of unknown length (a GPU frame), ticking on its own.
 pub fn spinner(message: String) -> ProgressBar {
     let bar = if QUIET.load(Ordering::Relaxed) {

@@ -153,7 +153,9 @@ impl From<BvhQualityArg> for parallax_scene::BvhQuality {
 /// `--dot-detail`: how much of a schedule the DOT drawing shows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum DotDetail {
-    /// `full` up to 2000 pass instances, `summary` above (Graphviz draws either in seconds).
+    /// `full` while one pass has at most 40 instances (the drawing's widest row: 8x4 views on
+    /// any number of devices), `summary` above (NELF's 72 views drawn in full are 14,800 pt
+    /// wide, past reading).
     #[default]
     Auto,
     /// One node per pass and device with instance counts, one per copy kind and device pair.
@@ -163,16 +165,27 @@ pub enum DotDetail {
 }
 
 impl DotDetail {
-    const AUTO_FULL_LIMIT: usize = 2000;
+    /// The most instances of one pass `auto` draws in full: Graphviz sets a pass's instances
+    /// side by side, about 110 pt each, so 40 make a row of 4,400 pt.
+    const AUTO_FULL_WIDTH: usize = 40;
 
     pub fn render(self, schedule: &parallax_graph::Schedule) -> String {
         let full = match self {
-            DotDetail::Auto => schedule.instances.len() <= Self::AUTO_FULL_LIMIT,
+            DotDetail::Auto => widest_pass(schedule) <= Self::AUTO_FULL_WIDTH,
             DotDetail::Summary => false,
             DotDetail::Full => true,
         };
         if full { schedule.to_dot() } else { schedule.to_dot_summary() }
     }
+}
+
+/// The most instances any one pass of `schedule` has.
+fn widest_pass(schedule: &parallax_graph::Schedule) -> usize {
+    let mut per_pass = std::collections::HashMap::new();
+    for instance in &schedule.instances {
+        *per_pass.entry(instance.pass).or_insert(0) += 1;
+    }
+    per_pass.into_values().max().unwrap_or(0)
 }
 
 /// `--resolution WxH`, each side 1..=[`MAX_IMAGE_SIDE`].

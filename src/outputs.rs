@@ -67,6 +67,13 @@ pub struct Output<'a> {
 /// Checks every output before any work: a problem found after minutes of tracing would waste
 /// them. Only image outputs cannot go to stdout.
 pub fn check(outputs: &[Output]) -> Result<()> {
+    check_creating(outputs, None)
+}
+
+/// [`check`] for a command that creates the folder `created` before it writes (`render
+/// --out-dir tr --trace tr/trace.json`): an output in that folder needs no folder yet; the
+/// command checks that it can create it.
+pub fn check_creating(outputs: &[Output], created: Option<&Path>) -> Result<()> {
     let mut seen: Vec<(PathBuf, &str)> = Vec::new();
     for o in outputs {
         let Sink::File(path) = o.sink else {
@@ -110,11 +117,16 @@ pub fn check(outputs: &[Output]) -> Result<()> {
                 );
             }
             let folder = folder_of(path);
-            if !folder.is_dir() {
-                bail!("{} {shown}: folder {} does not exist; create it first", o.flag, folder.display());
+            // A folder the run makes holds nothing to look at yet: the command checked the
+            // nearest existing folder above it.
+            let made_by_the_run = created.is_some_and(|c| c == folder) && !folder.exists();
+            if !made_by_the_run {
+                if !folder.is_dir() {
+                    bail!("{} {shown}: folder {} does not exist; create it first", o.flag, folder.display());
+                }
+                NamedTempFile::new_in(&folder)
+                    .with_context(|| format!("{} {shown}: folder {} is not writable", o.flag, folder.display()))?;
             }
-            NamedTempFile::new_in(&folder)
-                .with_context(|| format!("{} {shown}: folder {} is not writable", o.flag, folder.display()))?;
         }
         let key = identity(path);
         if let Some((_, other)) = seen.iter().find(|(p, _)| *p == key) {

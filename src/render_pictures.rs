@@ -21,7 +21,8 @@ use parallax_passes::pipeline::PipelineHandles;
 use parallax_passes::tonemap::tonemap_pixel;
 
 use crate::lightfield_images::{
-    DisplayImage, encode_png, quilt_file_name, wiggle_order, write_contact_sheet, write_quilt, write_wiggle,
+    DisplayImage, QuiltShape, encode_png, quilt_file_name, quilt_grid, quilt_views, wiggle_order, write_contact_sheet,
+    write_quilt, write_wiggle,
 };
 use crate::outputs::{Staged, stage};
 use crate::viewer::{ViewGeometry, ViewerPage, settings_of_render_json};
@@ -103,7 +104,7 @@ pub fn stage_pictures(
     out_dir: &Path,
     lf: &LightField,
     displays: &[Vec<u8>],
-    quilt: bool,
+    quilt: Option<QuiltShape>,
     wiggle: Option<&Path>,
 ) -> Result<Pictures> {
     let images: Vec<DisplayImage<'_>> =
@@ -122,10 +123,18 @@ pub fn stage_pictures(
         views.push((name, png));
     }
     let sheet = out_dir.join("lightfield.png");
-    staged.push(stage(&sheet, |tmp| write_contact_sheet(tmp, &images, lf.cols.min(SHEET_COLUMNS)))?);
-    if quilt {
-        let quilt = out_dir.join(quilt_file_name("lightfield", lf.len() as u32, lf.width, lf.height));
-        staged.push(stage(&quilt, |tmp| write_quilt(tmp, &images))?);
+    // NELF: its two eye blocks, each whole, side by side; a grid wider than SHEET_COLUMNS wraps.
+    let (columns, block) =
+        if lf.name == "nelf" { (lf.cols, Some(eye_cols(lf))) } else { (lf.cols.min(SHEET_COLUMNS), None) };
+    staged.push(stage(&sheet, |tmp| write_contact_sheet(tmp, &images, columns, block))?);
+    if let Some(shape) = quilt {
+        let sweep: Vec<DisplayImage<'_>> = quilt_views(lf.cols, lf.rows, lf.name == "nelf")?
+            .into_iter()
+            .map(|v| DisplayImage { width: lf.width, height: lf.height, rgba8: &displays[v as usize] })
+            .collect();
+        let grid = quilt_grid(shape, sweep.len() as u32);
+        let quilt = out_dir.join(quilt_file_name("lightfield", grid, lf.width, lf.height));
+        staged.push(stage(&quilt, |tmp| write_quilt(tmp, &sweep, grid))?);
     }
     if let Some(path) = wiggle {
         let order = wiggle_order(lf.cols, lf.rows, eye_cols(lf));

@@ -55,7 +55,7 @@ pub struct Setup {
     /// paths to the same file agree.
     pub scene_hash: String,
     pub camera: CameraSetup,
-    /// The camera did not move over the frames (`--still`, or a single frame).
+    /// The camera did not move over the frames (`--motion none`, or a single frame).
     pub still: bool,
     /// `--lf` in its CLI spelling: multiscopic, nelf or COLSxROWS.
     pub lf: String,
@@ -83,7 +83,7 @@ pub fn scene_fingerprint(spec: &str) -> Result<String> {
 
 impl Setup {
     /// The setup of `lf`'s views of `scene` (its lights as the run set them), seen from `camera`,
-    /// `spacing` the `--spacing` given (`None`: the default, 1 mm).
+    /// `spacing` the spacing in effect (`None`: the preset's, 1 mm).
     pub fn new(
         spec: &str,
         scene: &Scene,
@@ -192,7 +192,7 @@ pub fn differences(test: &Setup, reference: &Setup) -> Vec<String> {
     let same_camera =
         close3(c.eye, d.eye) && close3(c.forward, d.forward) && close3(c.up, d.up) && close(c.yfov_deg, d.yfov_deg);
     differ("camera", same_camera, camera(c), camera(d));
-    let still = |s: bool| if s { "still" } else { "moving (no --still)" }.to_string();
+    let still = |s: bool| if s { "still" } else { "moving (--motion dolly or animation)" }.to_string();
     differ("still", test.still == reference.still, still(test.still), still(reference.still));
     differ("layout", test.lf == reference.lf, test.lf.clone(), reference.lf.clone());
     let same_f64 = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0);
@@ -286,7 +286,7 @@ mod tests {
             ["scene", "camera", "still", "layout", "spacing", "focus", "resolution", "lights", "max depth"]
         );
         let d = differences(&b, &a);
-        assert_eq!(d[2], "still: moving (no --still) vs still");
+        assert_eq!(d[2], "still: moving (--motion dolly or animation) vs still");
         assert_eq!(d[6], "resolution: 16x12 vs 32x24");
         assert!(
             d[7].starts_with("lights: sun towards (0, 1, 0)") && d[7].ends_with("no sun, sky (0.5, 0.6, 0.8)"),

@@ -200,6 +200,18 @@ fn compare_of_folders_and_files() {
     assert!(ab["point"]["flip"].as_f64().unwrap() > 0.0);
     assert_eq!(ab["point"]["label"], "ramp");
 
+    // The per-view error across the grid: view 0 (no error) black, view 1 (the worst) pale
+    // yellow, one 80×48 cell each (the views' 5:3 aspect), a white gap between them.
+    let grid = dir.join("grid.png");
+    let log = parallax(&["compare"], &[&a, &b, Path::new("--error-grid"), &grid]);
+    assert!(String::from_utf8_lossy(&log.stderr).contains("(pale yellow: mean FLIP"), "the scale is printed");
+    ok(log);
+    let grid = image::open(&grid).unwrap().to_rgb8();
+    assert_eq!(grid.dimensions(), (2 * 80 + 2, 48));
+    assert!(grid.get_pixel(40, 24).0.iter().all(|&c| c < 10), "{:?}", grid.get_pixel(40, 24));
+    assert_eq!(grid.get_pixel(81, 24).0, [255, 255, 255]);
+    assert!(grid.get_pixel(120, 24).0.iter().all(|&c| c > 180), "{:?}", grid.get_pixel(120, 24));
+
     // Single files.
     ok(parallax(&["compare"], &[&a.join("view_000.exr"), &b.join("view_000.exr")]));
 
@@ -304,9 +316,12 @@ fn compare_refuses_runs_of_other_settings_and_maps_the_error() {
         ok(parallax(&[&lf[..], extra, &["--out-dir"]].concat(), &[&out]));
         out
     };
-    let moving = render("moving", &["--frames", "2"]);
+    let moving = render("moving", &["--frames", "2", "--motion", "dolly"]);
     let err = fails(parallax(&["compare"], &[&moving, &refdir]));
-    assert!(err.contains("still: moving (no --still) vs still") && err.contains("camera: eye"), "{err}");
+    assert!(
+        err.contains("still: moving (--motion dolly or animation) vs still") && err.contains("camera: eye"),
+        "{err}"
+    );
     assert!(err.contains("--allow-mismatch") && !err.contains("layout:"), "{err}");
     let allowed = parallax(&["compare", "--allow-mismatch"], &[&moving, &refdir]);
     assert!(String::from_utf8_lossy(&allowed.stderr).contains("although the settings differ"));

@@ -24,9 +24,9 @@ fn a_matrix_reports_a_failed_cell_and_writes_the_others() {
             .concat(),
     );
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    // A moving camera (no --still) against a still reference: refused after the first cell,
-    // naming the settings, before the others run.
-    let moving = format!("--scene default {}", lf.join(" "));
+    // A moving camera (asked for: bench cells are still by default) against a still reference:
+    // refused after the first cell, naming the settings, before the others run.
+    let moving = format!("--scene default {} --motion dolly", lf.join(" "));
     let run = |common: &str| {
         parallax(&[
             "bench",
@@ -34,9 +34,8 @@ fn a_matrix_reports_a_failed_cell_and_writes_the_others() {
             common,
             "--pipelines",
             "reproject",
-            "--devices",
-            "1,3",
             "--fake-devices",
+            "1,3",
             "--frames",
             "2",
             "--warmup",
@@ -51,13 +50,13 @@ fn a_matrix_reports_a_failed_cell_and_writes_the_others() {
     let stderr = String::from_utf8_lossy(&b.stderr);
     assert_eq!(b.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("still: moving (no --still) vs still")
+        stderr.contains("still: moving (--motion dolly or animation) vs still")
             && stderr.contains("camera: ")
             && stderr.contains("--allow-mismatch"),
         "{stderr}"
     );
     assert!(!out.join("reproject_multi-source_compact_k1_spp1_dnon_d3").exists(), "no cell ran after the refusal");
-    let b = run(&format!("{moving} --still"));
+    let b = run(&format!("--scene default {}", lf.join(" ")));
     assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("bench.json")).unwrap()).unwrap();
     let cells = json["cells"].as_array().unwrap();

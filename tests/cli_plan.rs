@@ -44,7 +44,8 @@ fn json_summary_has_the_documented_fields() {
     assert_eq!(json["gather_copies"], 75);
     // 75 RGBA8 768×432 display images travel to device 0.
     assert_eq!(json["bytes_per_frame"], 75 * 768 * 432 * 4);
-    assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule {"));
+    // 100 instances of a pass side by side would not read: `auto` draws the summary.
+    assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule_summary {"));
 }
 
 #[test]
@@ -86,6 +87,15 @@ fn dot_detail_summary_stays_small_for_big_schedules() {
     // `auto` chose the summary: one node per pass and device, not one per instance.
     assert!(dot.starts_with("digraph schedule_summary {"), "{}", &dot[..80]);
     assert!(dot.len() < 64 << 10, "{} bytes", dot.len());
+    // The main job's NELF plan (72 views on 4 devices) drawn in full was 14,800 pt wide.
+    let out = plan(&["--lf", "nelf", "--gpus", "4", "--scheme", "multi-source"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let dot = std::fs::read_to_string(dir.join("plan.dot")).unwrap();
+    assert!(dot.starts_with("digraph schedule_summary {"), "{}", &dot[..80]);
+    // 8x4 views still draw in full (the main job's render --dot, tests/golden).
+    let out = plan(&["--lf", "8x4", "--gpus", "2", "--scheme", "multi-source"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule {"));
 }
 
 /// `plan --dot` of 3 views on 2 devices per scheme, checked byte for byte. Regenerate with

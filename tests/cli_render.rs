@@ -95,8 +95,13 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     let overall = missing["overall"].as_f64().unwrap();
     assert!(overall > 0.0 && overall < 1.0, "{overall}");
     assert!(out.join("lightfield.png").is_file());
-    let quilt = image::open(out.join("lightfield_qs3x3a1.3333.png")).unwrap();
-    assert_eq!((quilt.width(), quilt.height()), (3 * 16, 3 * 12));
+    // --layers also draws each view's depth, and each target's hole mask, as PNGs.
+    assert!((0..8).all(|v| out.join(format!("view_{v:03}_depth.png")).is_file()));
+    let holes = (0..8).filter(|v| out.join(format!("view_{v:03}_holes.png")).is_file()).count();
+    assert!((1..8).contains(&holes), "targets only: {holes}");
+    // The quilt sweeps the row through the rig centre (row 1 of 2: 4 views), 2x2 tiles.
+    let quilt = image::open(out.join("lightfield_qs2x2a1.3333.png")).unwrap();
+    assert_eq!((quilt.width(), quilt.height()), (2 * 16, 2 * 12));
     // --layers: the hole mask is a channel of every target's EXR.
     let target = missing["per_view"][0][0].as_u64().unwrap();
     let exr = out.join(format!("view_{target:03}.exr"));

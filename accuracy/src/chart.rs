@@ -123,8 +123,8 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
     };
     let names = short_labels(&groups.iter().flat_map(|(_, ps)| ps.iter().map(|p| p.label.clone())).collect::<Vec<_>>());
     let mut names = names.into_iter();
-    // Only the front's points are labelled: the others are dominated, and labelling all of
-    // them crowds the plot past reading.
+    // Every point is numbered (the legend's key names it), so points off the front can be told
+    // apart too; a number with no free place is left out, and the key says so.
     let mut series: Vec<Series> = groups
         .into_iter()
         .enumerate()
@@ -137,7 +137,7 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
                 .map(|p| (p, names.next()))
                 .filter_map(|(p, label)| {
                     let (x, y) = (p.frame_ms?, y(p)?);
-                    Some((x, y, label.filter(|_| front_xy.contains(&(x, y)))))
+                    Some((x, y, label))
                 })
                 .collect(),
         })
@@ -145,7 +145,7 @@ pub fn speed_accuracy(points: &[Point], axis: AccuracyAxis) -> Result<XyChart> {
     // First, so that the markers are drawn over it.
     series.insert(0, front);
     Ok(XyChart {
-        title: "Speed against accuracy (labelled: the Pareto front)".into(),
+        title: "Speed against accuracy (dashed: the Pareto front)".into(),
         x_label: "frame time (ms)".into(),
         y_label: match axis {
             AccuracyAxis::Flip => "mean FLIP (LDR, lower is better)".into(),
@@ -317,6 +317,23 @@ pub fn tolerance(points: &[Point], accuracy: AccuracyAxis) -> Result<XyChart> {
     })
 }
 
+/// At most this many ticks on an x axis: about 100 px each across the plot, room for an
+/// 8-character label at 15 px.
+pub(crate) const X_TICKS: usize = 6;
+/// At most this many ticks on a y axis (60 px each).
+const Y_TICKS: usize = 8;
+
+/// A tick's label: `v` at the precision an axis spanning `span` needs (a hundredth of the span;
+/// the ticks are round numbers at least a tenth apart), trailing zeros dropped, so that a tick at
+/// 0.1 + 0.2 reads `0.3`, not `0.30000000000000004`, and 1000 reads `1000`, not `1000.0`.
+pub(crate) fn tick_label(v: f64, span: f64) -> String {
+    let step = span / 100.0;
+    let decimals = if step.is_finite() && step > 0.0 { (-step.log10().floor()).clamp(0.0, 12.0) as usize } else { 0 };
+    let text = format!("{v:.decimals$}");
+    let text = if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.') } else { &text };
+    if text == "-0" { "0".into() } else { text.to_string() }
+}
+
 pub(crate) fn chart_err(e: impl std::fmt::Display) -> AccuracyError {
     AccuracyError::Chart(e.to_string())
 }
@@ -456,6 +473,7 @@ impl XyChart {
         let all = || self.series.iter().flat_map(|s| s.points.iter());
         let xr = range(all().map(|p| p.0), true);
         let yr = range(all().map(|p| p.1), true);
+        let (x_span, y_span) = (xr.end - xr.start, yr.end - yr.start);
         let integer_x = self.integer_x;
         let mut chart = ChartBuilder::on(&plot)
             .caption(&self.title, (FONT, 20))
@@ -470,15 +488,18 @@ impl XyChart {
             .y_desc(&self.y_label)
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 17))
+            .x_labels(X_TICKS)
+            .y_labels(Y_TICKS)
             .x_label_formatter(&|x: &f64| {
                 if !integer_x {
-                    format!("{x}")
+                    tick_label(*x, x_span)
                 } else if (x - x.round()).abs() < 1e-6 {
                     format!("{}", x.round())
                 } else {
                     String::new()
                 }
             })
+            .y_label_formatter(&|y: &f64| tick_label(*y, y_span))
             .draw()
             .map_err(chart_err)?;
         let (xs, ys) = chart.plotting_area().get_pixel_range();
@@ -500,10 +521,16 @@ impl XyChart {
                     chart.draw_series(xy.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(chart_err)?;
                     Swatch::Marker
                 }
-                Style::Line => {
+                // A line through points of one x would be a vertical stroke, read as a
+                // measured trend: such a series is its points.
+                Style::Line if xy.iter().any(|p| p.0 != xy[0].0) => {
                     chart.draw_series(xy.iter().map(|&p| Circle::new(p, 4, c.filled()))).map_err(chart_err)?;
                     chart.draw_series(LineSeries::new(xy.clone(), c.stroke_width(2))).map_err(chart_err)?;
                     Swatch::LineWithMarker
+                }
+                Style::Line => {
+                    chart.draw_series(xy.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(chart_err)?;
+                    Swatch::Marker
                 }
                 Style::Dashed => {
                     chart.draw_series(DashedLineSeries::new(xy.clone(), 8, 6, c.stroke_width(2))).map_err(chart_err)?;
@@ -653,7 +680,7 @@ mod tests {
     }
 
     #[test]
-    fn speed_accuracy_labels_only_the_front() {
+    fn speed_accuracy_labels_every_point() {
         let p = |label: &str, frame_ms: f64, flip: f64| Point {
             label: label.into(),
             frame_ms: Some(frame_ms),
@@ -666,7 +693,18 @@ mod tests {
         )
         .unwrap();
         let labels: Vec<Option<String>> = chart.series[1].points.iter().map(|p| p.2.clone()).collect();
-        assert_eq!(labels, [Some("fast".into()), None, Some("good".into())]);
+        assert_eq!(labels, [Some("fast".into()), Some("slow".into()), Some("good".into())]);
+    }
+
+    #[test]
+    fn ticks_read_as_round_numbers() {
+        assert_eq!(tick_label(0.1 + 0.2, 1.05), "0.3");
+        assert_eq!(tick_label(0.05, 0.5), "0.05");
+        assert_eq!(tick_label(1000.0, 1500.0), "1000");
+        assert_eq!(tick_label(1500.000000001, 1500.0), "1500");
+        assert_eq!(tick_label(-1e-17, 1.0), "0");
+        assert_eq!(tick_label(2.5, 10.0), "2.5");
+        assert_eq!(tick_label(0.7000000000000001, 0.8), "0.7");
     }
 
     #[test]

@@ -1,14 +1,19 @@
 //! A per-device timeline of a Chrome trace (what `render --trace` writes): one lane per device
-//! (`tid`), one bar per complete event (`"ph": "X"`), coloured by event name, with a legend.
+//! (`tid`), one bar per complete event (`"ph": "X"`), coloured by event name, with a legend;
+//! frames (the events' `args.frame`) alternate on a shaded and a white background, each
+//! named at its start where there is room.
 
 use std::path::Path;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::chart::{FONT, LEGEND_WIDTH, SIZE, Swatch, chart_err, color, draw_legend, write_chart};
+use crate::chart::{FONT, LEGEND_WIDTH, SIZE, Swatch, X_TICKS, chart_err, color, draw_legend, tick_label, write_chart};
 use crate::error::{AccuracyError, Result};
 use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
+
+/// Height (in lanes) of the row above the lanes that names the frames.
+const FRAME_ROW: f64 = 0.3;
 
 /// One bar.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,6 +23,8 @@ pub struct Span {
     pub name: String,
     pub start_ms: f64,
     pub end_ms: f64,
+    /// The frame it belongs to (`args.frame`), when the trace says.
+    pub frame: Option<u64>,
 }
 
 /// The events of a Chrome trace, and lane names from its `thread_name` metadata.
@@ -56,7 +63,8 @@ impl Timeline {
                         _ => e.get("name").and_then(|n| n.as_str()).unwrap_or("?"),
                     }
                     .to_string();
-                    spans.push(Span { lane: tid, name, start_ms: ts / 1e3, end_ms: (ts + dur) / 1e3 });
+                    let frame = e.pointer("/args/frame").and_then(|f| f.as_u64());
+                    spans.push(Span { lane: tid, name, start_ms: ts / 1e3, end_ms: (ts + dur) / 1e3, frame });
                 }
                 _ => {}
             }
@@ -73,6 +81,20 @@ impl Timeline {
         Ok(Self { lanes, spans })
     }
 
+    /// Each frame's first start and last end (ms), in frame order.
+    pub fn frames(&self) -> Vec<(u64, f64, f64)> {
+        let mut frames: Vec<(u64, f64, f64)> = Vec::new();
+        for s in &self.spans {
+            let Some(f) = s.frame else { continue };
+            match frames.iter_mut().find(|(g, _, _)| *g == f) {
+                Some((_, a, b)) => (*a, *b) = (a.min(s.start_ms), b.max(s.end_ms)),
+                None => frames.push((f, s.start_ms, s.end_ms)),
+            }
+        }
+        frames.sort_by_key(|f| f.0);
+        frames
+    }
+
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         root.fill(&WHITE).map_err(chart_err)?;
         // The legend beside the lanes, never over them.
@@ -85,14 +107,42 @@ impl Timeline {
             .margin(20)
             .x_label_area_size(50)
             .y_label_area_size(260)
-            .build_cartesian_2d(start..end * 1.02 + 1e-6, 0.0..n as f64)
+            .build_cartesian_2d(start..end * 1.02 + 1e-6, 0.0..n as f64 + FRAME_ROW)
             .map_err(chart_err)?;
         let lanes = self.lanes.clone();
+        let span = end * 1.02 + 1e-6 - start;
+        // Frames first, beneath the bars: every other one shaded, each named at its start when
+        // the name does not run into the previous one's.
+        let frames = self.frames();
+        let shade = RGBColor(232, 232, 232);
+        chart
+            .draw_series(
+                frames
+                    .iter()
+                    .skip(1)
+                    .step_by(2)
+                    .map(|&(_, a, b)| Rectangle::new([(a, 0.0), (b, n as f64 + FRAME_ROW)], shade.filled())),
+            )
+            .map_err(chart_err)?;
+        let mut last_label_px: Option<i32> = None;
+        let mut names = Vec::new();
+        for &(f, a, _) in &frames {
+            let top = n as f64 + FRAME_ROW;
+            let (px, _) = chart.backend_coord(&(a, top));
+            let text = format!("frame {f}");
+            if last_label_px.is_none_or(|last| px - last > 8 * text.len() as i32 + 8) {
+                names.push(EmptyElement::at((a, top)) + Text::new(text, (3, 3), (FONT, 13)));
+                last_label_px = Some(px);
+            }
+        }
+        chart.draw_series(names).map_err(chart_err)?;
         chart
             .configure_mesh()
             .x_desc("time since the first event (ms)")
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 17))
+            .x_labels(X_TICKS)
+            .x_label_formatter(&|x: &f64| tick_label(*x, span))
             // Lane i spans [i, i + 1]: its name goes on the tick at i + 0.5.
             .y_labels(2 * n + 1)
             .y_label_formatter(&move |y: &f64| {

@@ -1,5 +1,6 @@
 //! Every chart kind is written as SVG and PNG; the SVG parses as XML and names the expected
-//! series (legend) and point labels, the PNG decodes at the chart size.
+//! series (legend) and point labels, its tick labels are round numbers that do not overlap, and
+//! the PNG decodes at the chart size.
 
 use std::path::Path;
 
@@ -41,6 +42,48 @@ fn svg_texts(path: &Path) -> Vec<String> {
         .collect()
 }
 
+/// A numeric tick label of an SVG: its text and its box (x0, y0, x1, y1) in pixels, from its
+/// anchor and font size (a character is at most 0.6 em wide).
+fn tick_boxes(path: &Path) -> Vec<(String, (f64, f64, f64, f64))> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    doc.descendants()
+        .filter(|n| n.has_tag_name("text"))
+        .filter_map(|n| {
+            let t = n.text()?.trim().to_string();
+            t.parse::<f64>().ok()?;
+            let num = |a: &str| n.attribute(a).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+            let (x, y, size) = (num("x"), num("y"), num("font-size"));
+            let w = 0.6 * size * t.chars().count() as f64;
+            let x0 = match n.attribute("text-anchor") {
+                Some("middle") => x - w / 2.0,
+                Some("end") => x - w,
+                _ => x,
+            };
+            Some((t, (x0, y - size / 2.0, x0 + w, y + size / 2.0)))
+        })
+        .collect()
+}
+
+/// Tick labels read as round numbers (at most 4 significant digits, no float noise such as
+/// 0.30000000000000004 or a trailing `.0`) and no two overlap. Numbers that label points
+/// (1, 2, ...) count too: they must not sit on a tick either.
+fn check_ticks(path: &Path) {
+    let ticks = tick_boxes(path);
+    assert!(ticks.len() >= 4, "{}: too few tick labels: {ticks:?}", path.display());
+    for (t, _) in &ticks {
+        let significant = t.trim_start_matches(['-', '0', '.']).replace('.', "");
+        let significant = if t.contains('.') { significant.as_str() } else { significant.trim_end_matches('0') };
+        assert!(significant.len() <= 4 && !t.ends_with(".0"), "{}: tick {t:?} is no round number", path.display());
+    }
+    for (i, (a, ba)) in ticks.iter().enumerate() {
+        for (b, bb) in &ticks[i + 1..] {
+            let overlap = ba.0 < bb.2 && bb.0 < ba.2 && ba.1 < bb.3 && bb.1 < ba.3;
+            assert!(!overlap, "{}: labels {a:?} {ba:?} and {b:?} {bb:?} overlap", path.display());
+        }
+    }
+}
+
 fn check_png(path: &Path) {
     let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     assert_eq!((img.width(), img.height()), SIZE);
@@ -51,6 +94,7 @@ fn write_both(dir: &Path, name: &str, write: impl Fn(&Path)) -> std::path::PathB
     write(&svg);
     write(&dir.join(format!("{name}.png")));
     check_png(&dir.join(format!("{name}.png")));
+    check_ticks(&svg);
     svg
 }
 
@@ -64,20 +108,23 @@ fn every_chart_kind_as_svg_and_png() {
     // The fastest (multi-source 2 GPUs, 22 ms) and the fastest of the most accurate (fine-all 2
     // GPUs, 0.04 at 30 ms) are undominated.
     assert_eq!(sa.series[0].points.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>(), [(22.0, 0.05), (30.0, 0.04)]);
-    // The front's points are numbered on the plot and keyed in the legend; dominated ones are not.
+    // Every point is numbered on the plot and keyed in the legend, dominated ones too, so that
+    // points off the front can be told apart.
     for want in [
         "multi-source",
         "fine-all",
         "1",
         "2",
+        "3",
+        "4",
         "multi-source 2 GPUs",
         "fine-all 2 GPUs",
+        "fine-all 1 GPU",
         "frame time (ms)",
         "Pareto front",
     ] {
         assert!(texts.iter().any(|t| t == want), "speed-accuracy SVG lacks {want:?}: {texts:?}");
     }
-    assert!(!texts.iter().any(|t| t == "fine-all 1 GPU"), "a dominated point is labelled: {texts:?}");
     assert!(texts.iter().any(|t| t.starts_with("mean FLIP")));
 
     let scaling = chart::scaling(&ps).unwrap();
@@ -92,6 +139,39 @@ fn every_chart_kind_as_svg_and_png() {
     let views = chart::frame_time_over_views(&ps).unwrap();
     let texts = svg_texts(&write_both(dir.path(), "views", |p| views.write(p).unwrap()));
     assert!(texts.iter().any(|t| t == "views") && texts.iter().any(|t| t == "fine-all"));
+    // Series lines (and their legend swatches) are 2 px polylines; axes and ticks 1 px.
+    let series_lines =
+        |svg: &Path| std::fs::read_to_string(svg).unwrap().matches(r#"stroke-width="2" points="#).count();
+    assert!(series_lines(&dir.path().join("views.svg")) > 0, "lines");
+    // One view count: points, not a vertical line through them.
+    let one = [point("a", "multi-source", 40.0, 0.05, 1, 8), point("b", "multi-source", 22.0, 0.05, 2, 8)];
+    let views = chart::frame_time_over_views(&one).unwrap();
+    let svg = write_both(dir.path(), "one_view_count", |p| views.write(p).unwrap());
+    assert_eq!(series_lines(&svg), 0, "a single view count is drawn as points");
+
+    // Tolerances whose sums are not exact in binary (0.1 + 0.2) tick at round numbers.
+    let tolerance_point = |t: f64, missing: f64| Point {
+        label: format!("t{t}"),
+        case: Some("default".into()),
+        missing: Some(missing),
+        reprojection_tolerance: Some(t),
+        flip: Some(0.05 + t / 10.0),
+        ..Default::default()
+    };
+    let tolerances = [0.05, 0.1, 0.1 + 0.2, 0.7000000000000001, 1.0].map(|t| tolerance_point(t, 0.3 / (1.0 + 9.0 * t)));
+    let chart = chart::tolerance(&tolerances, AccuracyAxis::Flip).unwrap();
+    write_both(dir.path(), "tolerance", |p| chart.write(p).unwrap());
+    let holes: Vec<Point> = (0..6)
+        .map(|k| Point {
+            label: format!("compact_k{k}"),
+            assignment: Some("compact".into()),
+            missing: Some(0.001 * (1 + k) as f64),
+            hole_fill_ms: Some(1500.0 + 250.0 * k as f64),
+            ..Default::default()
+        })
+        .collect();
+    let chart = chart::holes(&holes).unwrap();
+    write_both(dir.path(), "holes", |p| chart.write(p).unwrap());
 
     // Points files round-trip through the documented schema.
     let file = dir.path().join("points.json");
@@ -106,19 +186,23 @@ fn timeline_of_a_chrome_trace() {
     let events = serde_json::json!({ "traceEvents": [
         { "name": "thread_name", "ph": "M", "pid": 0, "tid": 0, "args": { "name": "device 0: lavapipe" } },
         { "name": "thread_name", "ph": "M", "pid": 0, "tid": 1, "args": { "name": "device 1: lavapipe" } },
-        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 0, "ts": 0.0, "dur": 1500.0 },
-        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 1, "ts": 100.0, "dur": 1400.0 },
-        { "name": "copy out radiance view 1", "cat": "copy_out", "ph": "X", "pid": 0, "tid": 1, "ts": 1500.0, "dur": 200.0 },
-        { "name": "copy in radiance view 1", "cat": "copy_in", "ph": "X", "pid": 0, "tid": 0, "ts": 1700.0, "dur": 100.0 },
+        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 0, "ts": 0.0, "dur": 1500.0, "args": { "frame": 0 } },
+        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 1, "ts": 100.0, "dur": 1400.0, "args": { "frame": 0 } },
+        { "name": "copy out radiance view 1", "cat": "copy_out", "ph": "X", "pid": 0, "tid": 1, "ts": 1500.0, "dur": 200.0, "args": { "frame": 0 } },
+        { "name": "copy in radiance view 1", "cat": "copy_in", "ph": "X", "pid": 0, "tid": 0, "ts": 1700.0, "dur": 100.0, "args": { "frame": 0 } },
+        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 0, "ts": 2000.0, "dur": 1500.0, "args": { "frame": 1 } },
+        { "name": "path_trace", "cat": "pass", "ph": "X", "pid": 0, "tid": 1, "ts": 2100.0, "dur": 1400.0, "args": { "frame": 1 } },
     ]});
     std::fs::write(&trace, serde_json::to_vec(&events).unwrap()).unwrap();
     let timeline = Timeline::read(&trace).unwrap();
     assert_eq!(timeline.lanes.len(), 2);
-    assert_eq!(timeline.spans.len(), 4);
+    assert_eq!(timeline.spans.len(), 6);
     assert_eq!(timeline.spans[3].name, "copy_in");
     assert_eq!(timeline.spans[0].end_ms, 1.5);
+    assert_eq!(timeline.frames(), [(0, 0.0, 1.8), (1, 2.0, 3.5)]);
     let texts = svg_texts(&write_both(dir.path(), "timeline", |p| timeline.write(p).unwrap()));
-    for want in ["device 0: lavapipe", "device 1: lavapipe", "path_trace", "copy_out", "copy_in"] {
+    for want in ["device 0: lavapipe", "device 1: lavapipe", "path_trace", "copy_out", "copy_in", "frame 0", "frame 1"]
+    {
         assert!(texts.iter().any(|t| t == want), "timeline SVG lacks {want:?}: {texts:?}");
     }
     std::fs::write(&trace, b"{\"traceEvents\": []}").unwrap();

@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 use glam::Vec3;
 use parallax_graph::{LightField, Rig};
 use parallax_passes::pipeline::PipelineBuilder;
@@ -13,7 +13,7 @@ use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
 use super::report::{check_outputs, view_file_name};
-use super::{RenderArgs, dolly};
+use super::{MotionArg, RenderArgs, dolly};
 use crate::budget::TraceWork;
 use crate::pipeline_args::PipelineSchedule;
 use crate::render_pictures::gpu_exposure;
@@ -33,8 +33,61 @@ pub(super) struct RenderJob {
     pub scene: Scene,
     /// The camera of the first measured frame.
     pub camera: Camera,
-    animation: Option<CameraAnimation>,
+    /// How the rig moves over the measured frames, resolved against the scene.
+    pub motion: Motion,
+    /// The views' spacing over every frame (None: the preset's): `--spacing`, or a grid's
+    /// default for the first measured frame's rig, kept as the rig moves.
+    pub spacing: Option<f64>,
     centre: Vec3,
+}
+
+/// The motion that runs (`--motion` resolved against the scene and `--camera`).
+pub(super) enum Motion {
+    Still,
+    Dolly,
+    Animation(CameraAnimation),
+}
+
+impl Motion {
+    /// `--motion` (or `--still`) for this scene: `auto` follows the scene's camera animation
+    /// only when the user placed no camera, so a `--camera` stays where it was put.
+    fn resolve(args: &RenderArgs, scene: &Scene) -> Result<Motion> {
+        let animation = scene.camera_animation.clone();
+        let motion = match (args.still, args.motion) {
+            (true, _) | (false, MotionArg::None) => Motion::Still,
+            (false, MotionArg::Dolly) => Motion::Dolly,
+            (false, MotionArg::Auto) => match animation {
+                Some(a) if args.scene.camera.is_none() => Motion::Animation(a),
+                _ => Motion::Still,
+            },
+            (false, MotionArg::Animation) if args.scene.camera.is_some() => {
+                return Err(crate::options::UsageError(
+                    "--motion animation moves the scene's own camera, so --camera would be ignored: drop --camera, or \
+                     use --motion dolly to move the camera you give"
+                        .into(),
+                )
+                .into());
+            }
+            (false, MotionArg::Animation) => match animation {
+                Some(a) => Motion::Animation(a),
+                None => bail!(
+                    "--motion animation: scene '{}' has no camera animation; use --motion dolly or --motion none",
+                    scene.name
+                ),
+            },
+        };
+        // One measured frame is a still camera whatever the motion.
+        Ok(if args.frames == 1 { Motion::Still } else { motion })
+    }
+
+    /// render.json's `motion`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Motion::Still => "none",
+            Motion::Dolly => "dolly",
+            Motion::Animation(_) => "animation",
+        }
+    }
 }
 
 impl RenderJob {
@@ -49,6 +102,10 @@ impl RenderJob {
         settings.validate()?;
         let total_frames = args.warmup + args.frames;
         let sized = args.light_field.with_rig(Rig::default())?;
+        if args.quilt.is_some() {
+            // Refused before any frame: NELF holds no one sweep for a Looking Glass.
+            crate::lightfield_images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
+        }
         crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
         let work = TraceWork {
             views: sized.len() as u64 * u64::from(total_frames),
@@ -73,10 +130,9 @@ impl RenderJob {
         crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
         let camera = args.scene.camera_or_default(&scene);
         let centre = scene.bounds().center();
-        // The scene's own camera animation, spread over the measured frames; else a dolly (an
-        // explicit --camera is a rig the user placed: it dollies too).
-        let animation = if args.scene.camera.is_none() { scene.camera_animation.clone() } else { None };
-        Ok(RenderJob {
+        let motion = Motion::resolve(args, &scene)?;
+        tracing::info!("motion over the {} measured frame(s): {}", args.frames, motion.name());
+        let mut job = RenderJob {
             sheet,
             render_json,
             settings,
@@ -86,24 +142,71 @@ impl RenderJob {
             dot,
             scene,
             camera,
-            animation,
+            motion,
+            spacing: None,
             centre,
-        })
+        };
+        let first = &args.light_field;
+        job.spacing = first.layout.spacing_on(&first.rig_around(&job.camera_at(args, 0), job.centre));
+        Ok(job)
     }
 
     /// The camera of frame `f`. Warm-up frames see the first measured frame's camera, so one
     /// measured frame is a still camera whatever the warm-up.
     pub fn camera_at(&self, args: &RenderArgs, f: u32) -> Camera {
         let m = f.saturating_sub(args.warmup);
-        match &self.animation {
-            _ if args.still => self.camera,
-            Some(a) => a.camera_at(a.duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32),
-            None => dolly(&self.camera, &self.scene, m, args.frames),
+        match &self.motion {
+            Motion::Still => self.camera,
+            Motion::Animation(a) => a.camera_at(a.duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32),
+            Motion::Dolly => dolly(&self.camera, &self.scene, m, args.frames),
         }
     }
 
     /// The light field of frame `f`.
     pub fn lf_of(&self, args: &RenderArgs, f: u32) -> Result<LightField> {
-        args.light_field.around(&self.camera_at(args, f), self.centre)
+        let rig = args.light_field.rig_around(&self.camera_at(args, f), self.centre);
+        args.light_field.layout.with_rig_spaced(rig, self.spacing)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::{Args as _, FromArgMatches as _};
+    use parallax_scene::default_scene;
+
+    use super::*;
+
+    fn args(words: &[&str]) -> RenderArgs {
+        let command = RenderArgs::augment_args(clap::Command::new("render").no_binary_name(true));
+        RenderArgs::from_arg_matches(&command.try_get_matches_from(words).unwrap()).unwrap()
+    }
+
+    fn motion(words: &[&str], scene: &Scene) -> String {
+        Motion::resolve(&args(words), scene).map(|m| m.name().to_string()).unwrap_or_else(|e| e.to_string())
+    }
+
+    /// A placed camera stays where it was put; the scene's own animation runs only when no
+    /// camera is given; the dolly only when asked for.
+    #[test]
+    fn a_camera_moves_only_when_a_motion_is_asked_for() {
+        let still = default_scene();
+        let mut animated = default_scene();
+        animated.camera_animation = Some(CameraAnimation { nodes: Vec::new(), yfov: 0.8, duration: 1.0 });
+        let camera = ["--camera", "0,1,4,0,1,0,0,1,0,45"];
+        assert_eq!(motion(&["--frames", "3"], &still), "none");
+        assert_eq!(motion(&["--frames", "3"], &animated), "animation");
+        assert_eq!(motion(&[&["--frames", "3"][..], &camera].concat(), &animated), "none");
+        assert_eq!(motion(&[&["--frames", "3", "--motion", "dolly"][..], &camera].concat(), &still), "dolly");
+        assert!(
+            motion(&[&["--frames", "3", "--motion", "animation"][..], &camera].concat(), &animated)
+                .starts_with("--motion animation moves the scene's own camera, so --camera would be ignored")
+        );
+        assert_eq!(motion(&["--frames", "3", "--motion", "animation"], &animated), "animation");
+        assert_eq!(motion(&["--frames", "3", "--still"], &animated), "none");
+        assert_eq!(motion(&["--frames", "1", "--motion", "dolly"], &still), "none", "one frame is still");
+        assert_eq!(
+            motion(&["--frames", "3", "--motion", "animation"], &still),
+            "--motion animation: scene 'default' has no camera animation; use --motion dolly or --motion none"
+        );
     }
 }

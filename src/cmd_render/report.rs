@@ -20,7 +20,7 @@ use super::frames::Rendered;
 use super::host_memory::ResidentSummary;
 use super::plan::RenderJob;
 use crate::logging::result;
-use crate::outputs::{Format, Output, Sink, Staged, check, stage};
+use crate::outputs::{Format, Output, Sink, Staged, check_creating, stage};
 use crate::render_pictures::{display_images, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 use crate::run_setup::{CameraSetup, Setup};
@@ -76,7 +76,11 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     drop(lock);
     let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     let say = |line: String| result(stdout_taken, &line);
-    say(stage_table(&timing));
+    // The table is detail for a person at a terminal: -q (bench's cells, scripts) keeps the
+    // one-line results only.
+    if !crate::logging::quiet() {
+        say(stage_table(&timing));
+    }
     say(format!(
         "rendered {} views of {}x{} ({}, {}, {} device(s), {} spp, {} measured frame(s)): {:.2} ms per frame wall, GPU span {:.2} ms mean; missing pixels {:.2} %",
         lf.len(),
@@ -142,9 +146,9 @@ fn missing_of_targets(
 fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> Result<serde_json::Value> {
     let last = job.total_frames - 1;
     let lf = job.lf_of(args, 0)?;
-    let still = args.still || args.frames == 1;
+    let still = matches!(job.motion, super::plan::Motion::Still);
     let last_lf = job.lf_of(args, last)?;
-    let spacing = args.light_field.layout.spacing;
+    let spacing = job.spacing;
     let camera_last = job.camera_at(args, last);
     let setup =
         Setup::new(&args.scene.scene, &job.scene, &camera_last, still, (&last_lf, spacing), args.depth.max_depth)?;
@@ -158,7 +162,8 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         // The assignment groups views only under multi-source (`--assign` is refused otherwise).
         "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
-        "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still, "setup": &setup,
+        "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still,
+        "motion": job.motion.name(), "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
         "reprojection_tolerance": args.pipeline.reprojection_tolerance,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
@@ -239,6 +244,9 @@ pub(super) fn stage_views(
             })
             .collect();
         let frame = Frame { width: view.width, height: view.height, pixels };
+        if *layers {
+            staged.extend(stage_layer_pictures(folder, view.index, &frame, mask.as_deref())?);
+        }
         let path = folder.join(view_file_name(view.index));
         let exr_layers = if *layers { ExrLayers::ALL } else { ExrLayers::default() };
         let mask: Option<Vec<f32>> = mask.map(|m| m.iter().map(|&h| h as f32).collect());
@@ -248,6 +256,40 @@ pub(super) fn stage_views(
         })?);
     }
     Ok(staged)
+}
+
+/// With `--layers`, pictures of the layers a person looks at: `view_NNN_depth.png` (grey, the
+/// view's nearest hit white, its farthest dark grey, sky black) and, of targets,
+/// `view_NNN_holes.png` (white where hole filling path traced the pixel).
+fn stage_layer_pictures(folder: &Path, index: u32, frame: &Frame, mask: Option<&[u32]>) -> Result<Vec<Staged>> {
+    let hits = || frame.pixels.iter().filter(|p| p.hit).map(|p| p.depth);
+    let (near, far) = hits().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), d| (a.min(d), b.max(d)));
+    let grey = |p: &PixelSample| -> u8 {
+        if !p.hit {
+            return 0;
+        }
+        let t = if far > near { (p.depth - near) / (far - near) } else { 0.0 };
+        (255.0 - 191.0 * t.clamp(0.0, 1.0)).round() as u8
+    };
+    let depth: Vec<u8> = frame.pixels.iter().map(grey).collect();
+    let mut pictures = vec![(format!("view_{index:03}_depth.png"), depth)];
+    if let Some(mask) = mask {
+        pictures
+            .push((format!("view_{index:03}_holes.png"), mask.iter().map(|&h| if h != 0 { 255 } else { 0 }).collect()));
+    }
+    pictures
+        .into_iter()
+        .map(|(name, luma)| {
+            let path = folder.join(name);
+            let image =
+                image::GrayImage::from_raw(frame.width, frame.height, luma).context("a layer of the view's size")?;
+            stage(&path, |tmp| {
+                image
+                    .save_with_format(tmp, image::ImageFormat::Png)
+                    .with_context(|| format!("cannot write {}", path.display()))
+            })
+        })
+        .collect()
 }
 
 pub(super) fn view_file_name(index: u32) -> String {
@@ -305,7 +347,7 @@ pub(super) fn check_outputs(
         in_out_dir("--wiggle", path)?;
         outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
     }
-    check(&outputs)
+    check_creating(&outputs, Some(out_dir))
 }
 
 /// Removes `view_NNN.exr` and `view_NNN.png` files of an earlier run that this run of `views`
