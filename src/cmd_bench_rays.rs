@@ -55,7 +55,7 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     if let Some(sink) = &args.json {
         check(&[Output { flag: "--json", sink, format: Format::Json }])?;
     }
-    let work = TraceWork { views: 1, width, height, spp: 1 };
+    let work = TraceWork::one_view(width, height, 1, args.fake_devices.unwrap_or(1));
     work.check_host()?;
     let t0 = Instant::now();
     let options = LoadOptions { uris: crate::scene_args::uri_policy(args.allow_outside_files) };

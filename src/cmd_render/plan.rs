@@ -25,7 +25,8 @@ pub(super) struct RenderJob {
     pub settings: TraceSettings,
     /// Warm-up and measured frames.
     pub total_frames: u32,
-    /// The work of one frame (memory is per frame: the frames reuse the same images).
+    /// The views of one frame over the frames (memory is per frame: the frames reuse the same
+    /// images).
     pub one_frame: TraceWork,
     pub compiled: PipelineSchedule,
     /// `--dot`'s text, drawn from the schedule that runs.
@@ -50,18 +51,21 @@ impl RenderJob {
         let total_frames = args.warmup + args.frames;
         let sized = args.light_field.with_rig(Rig::default())?;
         crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
-        let work = TraceWork {
-            views: sized.len() as u64 * u64::from(total_frames),
+        let devices = args.devices.selection().count() as u32;
+        let one_frame = TraceWork {
+            views: sized.len() as u64,
+            frames: u64::from(total_frames),
             width: sized.width,
             height: sized.height,
             spp: args.spp,
+            devices: u64::from(devices),
+            views_flag: "--lf",
+            frames_flag: "--frames, --warmup",
         };
-        work.check_duration()?;
-        let one_frame = TraceWork { views: sized.len() as u64, ..work };
+        one_frame.check_duration()?;
         one_frame.check_host()?;
         // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
         // positions in the rig plane, not on where the rig stands.
-        let devices = args.devices.selection().count() as u32;
         let compiled = args.pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
         let dot = args.dot.render(&compiled.schedule);
 
