@@ -1,0 +1,195 @@
+//! Work that would outgrow the machine is estimated and refused before it starts (issue 30):
+//! scenes amplified by instancing or shared images, plans whose fine schemes all-gather bands,
+//! bench matrices of millions of cells, runs under an address-space limit, saved frames that
+//! would not fit on the disk; and a bench's running cell ends with the bench. Every run that
+//! could allocate has an address-space cap (`ulimit -v`) and a deadline, so a regression fails
+//! the test instead of taking the machine down.
+
+mod common;
+
+use common::{scratch, snapshot};
+
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// Address space of a capped run: far less than any of the refused runs would take.
+const MEMORY_CAP_KIB: u64 = 4 << 20;
+/// A refusal takes well under a second (lavapipe is never started); this only guards a hang.
+const DEADLINE: Duration = Duration::from_secs(120);
+
+/// Runs the binary in `dir` under `ulimit -v cap_kib`, killed at the deadline.
+fn capped_at(dir: &Path, cap_kib: u64, args: &[&str]) -> Output {
+    let child = Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {cap_kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_parallax"))
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_with_deadline(child, args)
+}
+
+fn wait_with_deadline(mut child: Child, args: &[&str]) -> Output {
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > DEADLINE {
+            child.kill().unwrap();
+            let out = child.wait_with_output().unwrap();
+            panic!("{args:?} ran past {DEADLINE:?}: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// Asserts exit 1 with exactly one line on stderr that holds every needle, no panic, and
+/// nothing written in `dir`.
+fn refused_at(dir: &Path, cap_kib: u64, args: &[&str], needles: &[&str]) -> String {
+    let before = snapshot(dir);
+    let out = capped_at(dir, cap_kib, args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: one line expected: {stderr}");
+    for needle in needles {
+        assert!(stderr.contains(needle), "{args:?}: expected '{needle}' in: {stderr}");
+    }
+    assert!(snapshot(dir) == before, "{args:?} changed {}", dir.display());
+    stderr
+}
+
+fn refused(dir: &Path, args: &[&str], needles: &[&str]) -> String {
+    refused_at(dir, MEMORY_CAP_KIB, args, needles)
+}
+
+/// Kind 3: explicit sources passed the old count (δ-edges only), then the compiler's N² band
+/// edges took 5 GB.
+#[test]
+fn fine_plans_with_explicit_sources_are_refused_before_planning() {
+    let dir = scratch("limits", "plan");
+    refused(
+        &dir,
+        &["plan", "--lf", "4096x1", "--gpus", "64", "--scheme", "fine-all", "--sources", "0,99"],
+        &["error: --scheme fine-all over 4096 views (--lf) and 64 devices (--gpus/--fake-devices) with 2 source(s) \
+           (--sources) would be about 842481408 pass instances, dependencies and copies (at most 4000000): use fewer \
+           devices, fewer views (--lf), fewer --sources, or --scheme multi-source"],
+    );
+}
+
+/// Kind 4: a matrix of 10^7 cells in a few kilobytes of TOML is refused before any cell is
+/// built, naming its axes.
+#[test]
+fn bench_matrices_beyond_ten_thousand_cells_are_refused() {
+    let dir = scratch("limits", "matrix");
+    let list = |n: u32| (1..=n).map(|v| v.to_string()).collect::<Vec<_>>().join(", ");
+    let toml = format!(
+        "[[case]]\nname = \"a\"\nargs = \"--lf 2x1\"\n[[matrix]]\npipelines = [\"path-trace\"]\nspp = [{}]\n\
+         devices = [{}]\ndenoise = [\"on\", \"off\"]\n",
+        list(65536),
+        list(64)
+    );
+    std::fs::write(dir.join("m.toml"), toml).unwrap();
+    refused(
+        &dir,
+        &["bench", "--matrix", "m.toml", "--out-dir", "out"],
+        &["the matrix makes 8388608 cells, more than the 10000 a bench may run; slice 1 alone makes 8388608 (cases 1 \
+           × pipelines 1 × schemes 1 × sources_per_set 1 × spp 65536 × denoise 2 × devices 64"],
+    );
+}
+
+/// Kind 9: the host-memory check compares with what the process's own address-space limit
+/// leaves, not with the machine's free memory; lavapipe's logical devices count.
+#[test]
+fn runs_are_checked_against_the_address_space_limit() {
+    let dir = scratch("limits", "rlimit");
+    let cap = 3 << 20;
+    refused_at(
+        &dir,
+        cap,
+        &["trace", "--cpu", "--resolution", "8192x8192", "--out", "x.exr"],
+        &[
+            "error: 8192x8192 (--resolution) read back at 128 B per pixel: about 8.0 GiB of host memory needed",
+            "(what its address-space limit leaves (RLIMIT_AS, ulimit -v)): lower --resolution",
+        ],
+    );
+    refused_at(
+        &dir,
+        cap,
+        &["render", "--lf", "8x8", "--resolution", "16x16", "--fake-devices", "64", "--out-dir", "lf"],
+        &[
+            "64 view(s) (--lf) × 16x16 (--resolution) read back at 128 B per pixel, and 64 logical device(s) \
+             (--gpus/--fake-devices) at about",
+            "(RLIMIT_AS, ulimit -v)): lower --lf, --resolution or --gpus/--fake-devices",
+        ],
+    );
+}
+
+/// The PIDs whose parent is `parent`, from /proc.
+fn children_of(parent: u32) -> Vec<u32> {
+    let mut children = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Some(pid) = entry.file_name().to_str().and_then(|n| n.parse::<u32>().ok()) else { continue };
+        if let Some((_, ppid)) = stat(pid) {
+            if ppid == parent {
+                children.push(pid);
+            }
+        }
+    }
+    children
+}
+
+/// A process's state letter and parent PID, from /proc/PID/stat (None once it is gone).
+fn stat(pid: u32) -> Option<(char, u32)> {
+    let text = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // "pid (comm) state ppid ...": comm may hold spaces, so split after its last ')'.
+    let mut fields = text[text.rfind(')')? + 1..].split_whitespace();
+    let state = fields.next()?.chars().next()?;
+    Some((state, fields.next()?.parse().ok()?))
+}
+
+/// Kind 10: a bench ended by SIGTERM takes its running cell's render with it, and no cell
+/// result appears afterwards.
+#[cfg(target_os = "linux")]
+#[test]
+fn bench_children_end_with_the_bench() {
+    let dir = scratch("limits", "bench-children");
+    let bench = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .args(["bench", "--common", "--lf 2x1 --resolution 8x8", "--pipelines", "path-trace", "--fake-devices"])
+        .args(["--frames", "100000", "--out-dir", "out"])
+        .current_dir(&dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let render = loop {
+        if let Some(&pid) = children_of(bench.id()).first() {
+            break pid;
+        }
+        assert!(start.elapsed() < DEADLINE, "bench started no cell within {DEADLINE:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    // Let the cell get into its frames, then end bench as a job control or a batch system would.
+    std::thread::sleep(Duration::from_secs(2));
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(bench.id() as i32), nix::sys::signal::Signal::SIGTERM)
+        .unwrap();
+    let out = wait_with_deadline(bench, &["bench"]);
+    assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
+    // Gone, or a zombie that no longer runs (whoever adopted it may not have reaped it yet).
+    let start = Instant::now();
+    while stat(render).is_some_and(|(state, _)| state != 'Z') {
+        if start.elapsed() > DEADLINE {
+            let _ = nix::sys::signal::kill(nix::unistd::Pid::from_raw(render as i32), nix::sys::signal::Signal::SIGKILL);
+            panic!("the cell's render (pid {render}) outlived bench by {DEADLINE:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let results: Vec<_> =
+        snapshot(&dir).into_keys().filter(|p| p.file_name().is_some_and(|n| n == "render.json")).collect();
+    assert!(results.is_empty(), "a cell result appeared after bench ended: {results:?}");
+}
