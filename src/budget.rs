@@ -22,12 +22,13 @@ const MAX_PATHS: f64 = 1e14;
 const FAST_PATHS_PER_S: f64 = 1e9;
 const SLOW_PATHS_PER_S: f64 = 1e7;
 
-/// Address space the Vulkan loader and driver take once (lavapipe with its LLVM: a process
-/// with one logical device measured 1.1 GB of `VmSize`).
-const VULKAN_BYTES: u64 = 1 << 30;
-/// Address space of one more logical device, beyond its threads' stacks: lavapipe measured
-/// about 250 MB each (1.10 GB of `VmSize` with one device, 2.81 GB with eight, on 2 cores).
-const DEVICE_BYTES: u64 = 256 << 20;
+/// Address space the Vulkan loader and driver take once, and each logical device beyond its
+/// threads' stacks, measured on lavapipe (2 cores) as the smallest `ulimit -v` under which
+/// `render --frames 1` completes: about 2.0 GB with one logical device, 4.8 GB with eight
+/// (below that lavapipe's threads fail to start and the first frame never completes, or LLVM
+/// cannot map its code).
+const VULKAN_BYTES: u64 = 1536 << 20;
+const DEVICE_BYTES: u64 = 384 << 20;
 /// lavapipe starts a rasteriser thread per CPU core for every logical device, each with a stack
 /// of this size (the default `ulimit -s`).
 const THREAD_STACK_BYTES: u64 = 8 << 20;
@@ -95,14 +96,15 @@ impl TraceWork {
     /// what this process may still take ([`crate::host_memory::budget`]).
     pub fn check_host(self) -> Result<()> {
         let (factors, mut flags) = self.factors(false, false);
-        let mut bytes = self.pixels() * HOST_BYTES_PER_PIXEL;
+        let bytes = self.pixels() * HOST_BYTES_PER_PIXEL;
         let mut what = format!("{factors} read back at {HOST_BYTES_PER_PIXEL} B per pixel");
+        let mut mapped = 0;
         if self.devices > 0 {
             let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u64);
             let per_device = DEVICE_BYTES + cores * THREAD_STACK_BYTES;
-            bytes += VULKAN_BYTES + self.devices * per_device;
+            mapped = VULKAN_BYTES + self.devices * per_device;
             what = format!(
-                "{what}, and {} logical device(s) (--gpus/--fake-devices) at about {} MiB each",
+                "{what}, and {} logical device(s) (--gpus/--fake-devices) at about {} MiB of address space each",
                 self.devices,
                 per_device >> 20
             );
@@ -110,7 +112,7 @@ impl TraceWork {
                 flags.push("--gpus/--fake-devices");
             }
         }
-        check_host_bytes(&what, bytes, &format!("lower {}", or_list(&flags)))
+        check_host_use(&what, bytes, mapped, &format!("lower {}", or_list(&flags)))
     }
 
     /// Each device's image limit and memory heap. Device 0 receives every finished view, so it
@@ -231,14 +233,32 @@ impl PlanShape {
 /// Refuses a host allocation the process cannot make (an abort on failed allocation would name
 /// nothing): `what` needs `bytes`, `fix` says which flags to lower.
 pub fn check_host_bytes(what: &str, bytes: u64, fix: &str) -> Result<()> {
-    if let Some(budget) = crate::host_memory::budget()
-        && bytes > budget.bytes
+    check_host_use(what, bytes, 0, fix)
+}
+
+/// [`check_host_bytes`] of `bytes` of memory plus `mapped` bytes of address space that use
+/// little memory (a Vulkan driver's mappings, its threads' stacks): those count only against
+/// an address-space limit.
+fn check_host_use(what: &str, bytes: u64, mapped: u64, fix: &str) -> Result<()> {
+    let budget = crate::host_memory::budget();
+    if let Some(memory) = budget.memory
+        && bytes > memory.bytes
     {
         bail!(
             "{what}: about {} of host memory needed, but this process may take only {} more ({}): {fix}",
             gib(bytes),
-            gib(budget.bytes),
-            budget.bound
+            gib(memory.bytes),
+            memory.bound
+        );
+    }
+    if let Some(space) = budget.address_space
+        && bytes + mapped > space.bytes
+    {
+        bail!(
+            "{what}: about {} of address space needed, but this process may map only {} more ({}): {fix}",
+            gib(bytes + mapped),
+            gib(space.bytes),
+            space.bound
         );
     }
     Ok(())

@@ -15,18 +15,35 @@ pub struct HostMemory {
     pub bound: &'static str,
 }
 
-/// The least of: the machine's `MemAvailable`, `RLIMIT_AS` minus the address space in use,
-/// `RLIMIT_DATA` minus the data in use, and each enclosing cgroup v2's `memory.max` minus its
-/// `memory.current` (Linux; elsewhere no check is made).
-pub fn budget() -> Option<HostMemory> {
+/// What the process may still take: memory, and address space (which a driver's mappings and
+/// thread stacks take without using much memory).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Budget {
+    /// The least of: the machine's `MemAvailable`, `RLIMIT_AS` minus the address space in use,
+    /// `RLIMIT_DATA` minus the data in use, and each enclosing cgroup v2's `memory.max` minus
+    /// its `memory.current`.
+    pub memory: Option<HostMemory>,
+    /// `RLIMIT_AS` minus the address space in use.
+    pub address_space: Option<HostMemory>,
+}
+
+/// This process's budget now (Linux; elsewhere no limit is known and no check is made).
+pub fn budget() -> Budget {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
     let left = |limit: Option<u64>, field: &str| Some(limit?.saturating_sub(status_kib(&status, field)? * 1024));
-    least([
-        (mem_available(), "the machine's available memory (MemAvailable)"),
-        (left(soft_limit(Resource::RLIMIT_AS), "VmSize:"), "what its address-space limit leaves (RLIMIT_AS, ulimit -v)"),
-        (left(soft_limit(Resource::RLIMIT_DATA), "VmData:"), "what its data-size limit leaves (RLIMIT_DATA, ulimit -d)"),
-        (cgroup_left(), "what its cgroup's memory.max leaves"),
-    ])
+    let address_space = (
+        left(soft_limit(Resource::RLIMIT_AS), "VmSize:"),
+        "what its address-space limit leaves (RLIMIT_AS, ulimit -v)",
+    );
+    Budget {
+        memory: least([
+            (mem_available(), "the machine's available memory (MemAvailable)"),
+            address_space,
+            (left(soft_limit(Resource::RLIMIT_DATA), "VmData:"), "what its data-size limit leaves (RLIMIT_DATA, ulimit -d)"),
+            (cgroup_left(), "what its cgroup's memory.max leaves"),
+        ]),
+        address_space: least([address_space]),
+    }
 }
 
 /// The smallest of the known amounts.
@@ -105,7 +122,7 @@ mod tests {
     #[test]
     fn this_process_has_a_budget_on_linux() {
         if cfg!(target_os = "linux") {
-            assert!(budget().is_some_and(|m| m.bytes > 0));
+            assert!(budget().memory.is_some_and(|m| m.bytes > 0));
         }
     }
 }

@@ -15,7 +15,7 @@ use base64::Engine as _;
 /// before it shows anything, so the page refers to the files instead.
 pub const EMBED_LIMIT_BYTES: usize = 8 << 20;
 
-const TEMPLATE: &str = include_str!("viewer.html");
+pub const TEMPLATE: &str = include_str!("viewer.html");
 
 /// What the page shows: the grid, one view's size, how many columns one eye has (`cols` for one
 /// eye), and the views' PNGs in view order with their file names beside the page.

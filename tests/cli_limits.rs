@@ -106,7 +106,9 @@ fn bench_matrices_beyond_ten_thousand_cells_are_refused() {
 #[test]
 fn runs_are_checked_against_the_address_space_limit() {
     let dir = scratch("limits", "rlimit");
-    let cap = 3 << 20;
+    // 1 GiB: less than any machine that runs the tests has available, so the limit that binds
+    // is the process's own.
+    let cap = 1 << 20;
     refused_at(
         &dir,
         cap,
@@ -123,8 +125,38 @@ fn runs_are_checked_against_the_address_space_limit() {
         &[
             "64 view(s) (--lf) × 16x16 (--resolution) read back at 128 B per pixel, and 64 logical device(s) \
              (--gpus/--fake-devices) at about",
-            "(RLIMIT_AS, ulimit -v)): lower --lf, --resolution or --gpus/--fake-devices",
+            "MiB of address space each: about",
+            "of address space needed, but this process may map only",
+            "(what its address-space limit leaves (RLIMIT_AS, ulimit -v)): lower --lf, --resolution or --gpus/--fake-devices",
         ],
+    );
+}
+
+/// Kind 11: saved frames are estimated against the free space of --out-dir's filesystem before
+/// any work (37 TB here: more than any disk the tests run on); a refusal for too long a run
+/// names --frames.
+#[test]
+fn saved_frames_beyond_the_disk_and_long_runs_name_every_flag() {
+    let dir = scratch("limits", "disk");
+    refused(
+        &dir,
+        &["-q", "render", "--lf", "16x8", "--resolution", "256x256", "--layers", "--frames", "100000"]
+            .into_iter()
+            .chain(["--save-every", "1", "--out-dir", "lf"])
+            .collect::<Vec<_>>(),
+        &[
+            "error: --frames 100000 with --save-every 1 saves 99999 frame(s) of 128 view(s) (--lf) at 256x256 \
+             (--resolution), 11 float channel(s) per EXR (--layers adds up to 8): about 34472.7 GiB (37014795442199 \
+             bytes) with the final pictures, but the filesystem of --out-dir lf has",
+            "free: raise --save-every, lower --frames, --lf or --resolution, or free space",
+        ],
+    );
+    refused(
+        &dir,
+        &["render", "--lf", "64x64", "--resolution", "64x64", "--spp", "64", "--frames", "100000", "--out-dir", "lf"],
+        &["error: 1.07e14 paths (4096 view(s) (--lf) × 100001 frame(s) (--frames, --warmup) × 64x64 (--resolution) × \
+           64 spp (--spp)) would take 29.8 h even at 1e9 paths/s: lower --lf, --frames, --warmup, --resolution or \
+           --spp (at most 1e14 paths)"],
     );
 }
 

@@ -12,9 +12,10 @@ use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
-use super::report::{check_outputs, view_file_name};
+use super::report::{check_outputs, extra_layers, view_file_name};
 use super::{RenderArgs, dolly};
 use crate::budget::TraceWork;
+use crate::disk_space::{RenderOutputs, free_bytes};
 use crate::pipeline_args::PipelineSchedule;
 use crate::render_pictures::gpu_exposure;
 
@@ -64,6 +65,19 @@ impl RenderJob {
         };
         one_frame.check_duration()?;
         one_frame.check_host()?;
+        let (layers, holes) = extra_layers(args, args.pipeline.pipeline.into());
+        let outputs = RenderOutputs {
+            views: sized.len() as u64,
+            width: sized.width,
+            height: sized.height,
+            channels: 3 + if layers { 7 } else { 0 } + u64::from(holes),
+            frames: args.frames,
+            save_every: args.save_every,
+            quilt: args.quilt,
+        };
+        if let Some(free) = free_bytes(&args.out_dir) {
+            outputs.check_fits(&args.out_dir, free)?;
+        }
         // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
         // positions in the rig plane, not on where the rig stands.
         let compiled = args.pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
