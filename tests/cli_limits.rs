@@ -7,11 +7,13 @@
 
 mod common;
 
-use common::{scratch, snapshot};
+use common::{scratch, snapshot, write_gltf};
 
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
+
+const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
 
 /// Address space of a capped run: far less than any of the refused runs would take.
 const MEMORY_CAP_KIB: u64 = 4 << 20;
@@ -64,6 +66,95 @@ fn refused_at(dir: &Path, cap_kib: u64, args: &[&str], needles: &[&str]) -> Stri
 
 fn refused(dir: &Path, args: &[&str], needles: &[&str]) -> String {
     refused_at(dir, MEMORY_CAP_KIB, args, needles)
+}
+
+/// A glTF whose root node has `instances` children drawing one mesh of `triangles` triangles.
+fn instanced(dir: &Path, name: &str, triangles: usize, instances: usize) -> String {
+    let positions: Vec<[f32; 3]> =
+        (0..triangles).flat_map(|t| [[t as f32, 0.0, 0.0], [t as f32 + 1.0, 0.0, 0.0], [t as f32, 1.0, 0.0]]).collect();
+    let children: Vec<String> = (1..=instances).map(|i| i.to_string()).collect();
+    let nodes = format!(r#"[{{"children":[{}]}}{}]"#, children.join(","), r#",{"mesh":0}"#.repeat(instances));
+    write_gltf(dir, name, &positions, &nodes, "").to_str().unwrap().to_string()
+}
+
+/// A PNG of `side`x`side` pixels as far as its header says (signature, IHDR, an empty IDAT,
+/// IEND): what the loader reads before deciding to decode, in a few dozen bytes.
+fn png_header(side: u32) -> Vec<u8> {
+    fn crc(bytes: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &b in bytes {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 == 1 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    }
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let body = [kind, data].concat();
+        [&(data.len() as u32).to_be_bytes()[..], &body, &crc(&body).to_be_bytes()].concat()
+    };
+    let ihdr = [&side.to_be_bytes()[..], &side.to_be_bytes(), &[8, 6, 0, 0, 0]].concat();
+    [&b"\x89PNG\r\n\x1a\n"[..], &chunk(b"IHDR", &ihdr), &chunk(b"IDAT", &[]), &chunk(b"IEND", &[])].concat()
+}
+
+/// Kind 2: a small file amplified by instancing or by image entries naming one large image is
+/// refused from its estimate, before any BVH is built or any image decoded.
+#[test]
+fn amplifying_scenes_are_refused_from_their_estimates() {
+    let dir = scratch("limits", "scenes");
+    let trace = |scene: &str| ["trace", "--cpu", "--resolution", "4x4", "--scene", scene, "--out", "x.exr"].map(String::from);
+    let run = |scene: &str, cap_kib: u64, needles: &[&str]| {
+        let args = trace(scene);
+        refused_at(&dir, cap_kib, &args.iter().map(String::as_str).collect::<Vec<_>>(), needles)
+    };
+    // 20,000 instances of 6,000 triangles: beyond the stated limit whatever the memory.
+    let many = instanced(&dir, "many", 6000, 20_000);
+    run(
+        &many,
+        MEMORY_CAP_KIB,
+        &["many.gltf: its node tree draws 120000000 triangles after instancing, more than the 100000000 a scene may \
+           have: instance its meshes fewer times or simplify them"],
+    );
+    // 2,000 instances: 12 million triangles, within the limit, beyond a 4 GiB address space.
+    let some = instanced(&dir, "some", 6000, 2000);
+    run(
+        &some,
+        MEMORY_CAP_KIB,
+        &[
+            "some.gltf: loading it needs about 7.2 GiB of host memory (12000000 triangles after instancing at 640 B \
+             each; 0 image entries naming 0 distinct image(s) decode to 0.0 GiB of RGBA8 textures), more than the",
+            "this process may still take (what its address-space limit leaves (RLIMIT_AS, ulimit -v)): simplify the \
+             scene or downscale its images, or run with more memory",
+        ],
+    );
+    // Eight entries naming one 16384² PNG are one texture of 1 GiB: within the texture limit,
+    // beyond a 2.5 GiB address space with its decode; eight such files are beyond the limit.
+    std::fs::write(dir.join("big.png"), png_header(16384)).unwrap();
+    let mut images = Vec::new();
+    for i in 0..8 {
+        std::fs::write(dir.join(format!("big{i}.png")), png_header(16384)).unwrap();
+        images.push(format!(r#"{{"uri":"big{i}.png"}}"#));
+    }
+    let shared = format!(r#","images":[{}]"#, vec![r#"{"uri":"big.png"}"#; 8].join(","));
+    let shared = write_gltf(&dir, "shared", &TRIANGLE, r#"[{"mesh":0}]"#, &shared);
+    run(
+        shared.to_str().unwrap(),
+        5 << 19,
+        &[
+            "shared.gltf: loading it needs about 3.0 GiB of host memory (1 triangles after instancing at 640 B each; 8 \
+             image entries naming 1 distinct image(s) decode to 1.0 GiB of RGBA8 textures), more than the",
+            "(what its address-space limit leaves (RLIMIT_AS, ulimit -v))",
+        ],
+    );
+    let distinct = format!(r#","images":[{}]"#, images.join(","));
+    let distinct = write_gltf(&dir, "distinct", &TRIANGLE, r#"[{"mesh":0}]"#, &distinct);
+    run(
+        distinct.to_str().unwrap(),
+        MEMORY_CAP_KIB,
+        &["distinct.gltf: 8 image entries naming 8 distinct image(s) decode to 8.0 GiB of RGBA8 textures, more than \
+           the 4.0 GiB a scene's textures may have: downscale its images or use fewer"],
+    );
 }
 
 /// Kind 3: explicit sources passed the old count (δ-edges only), then the compiler's N² band
