@@ -204,7 +204,9 @@ impl PlanShape {
         let t = m.saturating_sub(k);
         let (instances, edges, deltas, copies) = match self.scheme {
             Scheme::MultiSource => (12 * m, 33 * m, m, 2 * m),
-            Scheme::FineSources => (12 * m + 2 * k * n, 30 * m + 3 * k * n + (n + 2) * k * t, k * t + n * k, 2 * m + k * n),
+            Scheme::FineSources => {
+                (12 * m + 2 * k * n, 30 * m + 3 * k * n + (n + 2) * k * t, k * t + n * k, 2 * m + k * n)
+            }
             Scheme::FineAll => (12 * m * n, 30 * m * n * n + 3 * n * n * k * t, n * k * t, 14 * m * n * n),
         };
         instances + edges + deltas + copies

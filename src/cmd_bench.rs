@@ -34,8 +34,8 @@
 //! (overall missing-pixel ratio) and `hole_fill_ms`.
 
 use std::ffi::OsString;
-use std::path::{Path, PathBuf};
 use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use anyhow::{Context as _, Result, bail};

@@ -97,8 +97,11 @@ impl RenderOutputs {
 /// Bytes an unprivileged user may still write on the filesystem of `path`, or of the nearest
 /// folder above it that exists (`--out-dir` may not exist yet). None where it cannot be told.
 pub fn free_bytes(path: &Path) -> Option<u64> {
-    let existing = path.ancestors().find(|a| a.exists()).filter(|a| !a.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let existing =
+        path.ancestors().find(|a| a.exists()).filter(|a| !a.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let stat = nix::sys::statvfs::statvfs(existing).ok()?;
+    // The block count and size are 32-bit on some targets.
+    #[allow(clippy::useless_conversion)]
     Some(u64::from(stat.blocks_available()).saturating_mul(u64::from(stat.fragment_size())))
 }
 

@@ -39,7 +39,10 @@ pub fn budget() -> Budget {
         memory: least([
             (mem_available(), "the machine's available memory (MemAvailable)"),
             address_space,
-            (left(soft_limit(Resource::RLIMIT_DATA), "VmData:"), "what its data-size limit leaves (RLIMIT_DATA, ulimit -d)"),
+            (
+                left(soft_limit(Resource::RLIMIT_DATA), "VmData:"),
+                "what its data-size limit leaves (RLIMIT_DATA, ulimit -d)",
+            ),
             (cgroup_left(), "what its cgroup's memory.max leaves"),
         ]),
         address_space: least([address_space]),

@@ -103,7 +103,8 @@ fn png_header(side: u32) -> Vec<u8> {
 #[test]
 fn amplifying_scenes_are_refused_from_their_estimates() {
     let dir = scratch("limits", "scenes");
-    let trace = |scene: &str| ["trace", "--cpu", "--resolution", "4x4", "--scene", scene, "--out", "x.exr"].map(String::from);
+    let trace =
+        |scene: &str| ["trace", "--cpu", "--resolution", "4x4", "--scene", scene, "--out", "x.exr"].map(String::from);
     let run = |scene: &str, cap_kib: u64, needles: &[&str]| {
         let args = trace(scene);
         refused_at(&dir, cap_kib, &args.iter().map(String::as_str).collect::<Vec<_>>(), needles)
@@ -136,7 +137,7 @@ fn amplifying_scenes_are_refused_from_their_estimates() {
         std::fs::write(dir.join(format!("big{i}.png")), png_header(16384)).unwrap();
         images.push(format!(r#"{{"uri":"big{i}.png"}}"#));
     }
-    let shared = format!(r#","images":[{}]"#, vec![r#"{"uri":"big.png"}"#; 8].join(","));
+    let shared = format!(r#","images":[{}]"#, [r#"{"uri":"big.png"}"#; 8].join(","));
     let shared = write_gltf(&dir, "shared", &TRIANGLE, r#"[{"mesh":0}]"#, &shared);
     run(
         shared.to_str().unwrap(),
@@ -299,15 +300,15 @@ fn bench_children_end_with_the_bench() {
     };
     // Let the cell get into its frames, then end bench as a job control or a batch system would.
     std::thread::sleep(Duration::from_secs(2));
-    nix::sys::signal::kill(nix::unistd::Pid::from_raw(bench.id() as i32), nix::sys::signal::Signal::SIGTERM)
-        .unwrap();
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(bench.id() as i32), nix::sys::signal::Signal::SIGTERM).unwrap();
     let out = wait_with_deadline(bench, &["bench"]);
     assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
     // Gone, or a zombie that no longer runs (whoever adopted it may not have reaped it yet).
     let start = Instant::now();
     while stat(render).is_some_and(|(state, _)| state != 'Z') {
         if start.elapsed() > DEADLINE {
-            let _ = nix::sys::signal::kill(nix::unistd::Pid::from_raw(render as i32), nix::sys::signal::Signal::SIGKILL);
+            let _ =
+                nix::sys::signal::kill(nix::unistd::Pid::from_raw(render as i32), nix::sys::signal::Signal::SIGKILL);
             panic!("the cell's render (pid {render}) outlived bench by {DEADLINE:?}");
         }
         std::thread::sleep(Duration::from_millis(20));

@@ -650,7 +650,8 @@ fn load_images(
             .map(|img| match img.source() {
                 gltf::image::Source::View { view, .. } => ImageSource::View(view.index()),
                 gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
-                    resolve_uri(base_dir, uri, options.uris).map_or(ImageSource::Unreadable(img.index()), ImageSource::File)
+                    resolve_uri(base_dir, uri, options.uris)
+                        .map_or(ImageSource::Unreadable(img.index()), ImageSource::File)
                 }
                 gltf::image::Source::Uri { .. } => ImageSource::Unreadable(img.index()),
             })
