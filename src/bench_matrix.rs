@@ -36,6 +36,10 @@ use serde::Deserialize;
 use crate::options::{AssignArg, SchemeArg};
 use crate::pipeline_args::PipelineArg;
 
+/// Cells a bench may run: each is a `render` child of seconds to minutes, and every cell's
+/// arguments are held and checked before the first runs.
+pub const MAX_CELLS: u64 = 10_000;
+
 /// `--denoise`: SVGF on or off.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Denoise {
@@ -139,10 +143,73 @@ impl Cell {
     }
 }
 
+impl Axes {
+    /// Cells of one case under these axes, counted from the axis lengths without expanding
+    /// them (cells that two slices share are counted in each).
+    fn cell_count(&self) -> u64 {
+        let len = |n: usize| n.max(1) as u64;
+        let mut per_case = 0u64;
+        for &pipeline in &self.pipelines {
+            for &scheme in &self.schemes {
+                let shaped = Cell::shaped(pipeline, scheme);
+                let tolerances = if pipeline == PipelineArg::Reproject { len(self.tolerances.len()) } else { 1 };
+                let shaping = if shaped { len(self.assignments.len()) * len(self.sources_per_set.len()) } else { 1 };
+                per_case = per_case.saturating_add(
+                    [shaping, tolerances, len(self.spp.len()), len(self.denoise.len()), len(self.devices.len())]
+                        .into_iter()
+                        .fold(1u64, u64::saturating_mul),
+                );
+            }
+        }
+        per_case
+    }
+
+    /// "pipelines 2 × schemes 3 × ... × devices 64": each axis and its length.
+    fn lengths(&self) -> String {
+        [
+            ("pipelines", self.pipelines.len()),
+            ("schemes", self.schemes.len()),
+            ("assignments", self.assignments.len()),
+            ("sources_per_set", self.sources_per_set.len()),
+            ("spp", self.spp.len()),
+            ("denoise", self.denoise.len()),
+            ("reprojection_tolerances", self.tolerances.len()),
+            ("devices", self.devices.len()),
+        ]
+        .iter()
+        .filter(|(_, n)| *n > 0)
+        .map(|(axis, n)| format!("{axis} {n}"))
+        .collect::<Vec<_>>()
+        .join(" × ")
+    }
+}
+
 impl Matrix {
+    /// Refuses a matrix of more than [`MAX_CELLS`] cells, counted by multiplying the axis
+    /// lengths (no cell is built), naming the largest slice's axes.
+    fn check_size(&self) -> Result<()> {
+        let counts: Vec<u64> =
+            self.slices.iter().map(|(cases, axes)| axes.cell_count().saturating_mul(cases.len() as u64)).collect();
+        let total = counts.iter().fold(0u64, |a, &b| a.saturating_add(b));
+        if total > MAX_CELLS {
+            let (i, count) = counts.iter().enumerate().max_by_key(|(_, c)| **c).expect("a matrix has a slice");
+            let (cases, axes) = &self.slices[i];
+            bail!(
+                "the matrix makes {total} cells, more than the {MAX_CELLS} a bench may run; slice {} alone makes {count} \
+                 (cases {} × {}, reprojecting multi-source cells × assignments and sources_per_set, reprojecting \
+                 cells × reprojection_tolerances): shorten its longest axes or split the matrix into several benches",
+                i + 1,
+                cases.len(),
+                axes.lengths()
+            );
+        }
+        Ok(())
+    }
+
     /// Every cell, in slice order, each id once. Two cells with one id but different render
     /// arguments (slices differing only in `fake_devices`) would write one folder: refused.
     pub fn cells(&self) -> Result<Vec<Cell>> {
+        self.check_size()?;
         let mut out: Vec<Cell> = Vec::new();
         let mut seen: HashMap<String, usize> = HashMap::new();
         for (i, (_, axes)) in self.slices.iter().enumerate() {
@@ -516,6 +583,35 @@ mod tests {
         assert!(e.contains("matrix slice 1 sets reprojection_tolerances"), "{e}");
         let negative = load_text(&format!("{CASES}[[matrix]]\nreprojection_tolerances = [-1.0]\n")).unwrap_err();
         assert!(negative.to_string().contains("reprojection_tolerances: -1 is not a relative error"), "{negative}");
+    }
+
+    /// 10^7 cells from a few lines of TOML are refused before one is built: counted from the
+    /// axis lengths, with the axes named.
+    #[test]
+    fn matrices_of_more_than_ten_thousand_cells_are_refused_unexpanded() {
+        let spp: Vec<String> = (1..=1000).map(|n| n.to_string()).collect();
+        let devices: Vec<String> = (1..=64).map(|n| n.to_string()).collect();
+        let text = format!(
+            "{CASES}[[matrix]]\nassignments = [\"compact\", \"round-robin\"]\nsources_per_set = [1, 2, 4]\n\
+             spp = [{}]\ndevices = [{}]\ndenoise = [\"on\", \"off\"]\n",
+            spp.join(", "),
+            devices.join(", ")
+        );
+        let m = load_text(&text).unwrap();
+        // Per case: reproject 6 × 1000 × 2 × 64 + path-trace 1000 × 2 × 64 = 896,000.
+        assert_eq!(m.slices[0].1.cell_count(), 896_000);
+        let err = m.cells().unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "the matrix makes 1792000 cells, more than the 10000 a bench may run; slice 1 alone makes 1792000 (cases 2 × \
+             pipelines 2 × schemes 1 × assignments 2 × sources_per_set 3 × spp 1000 × denoise 2 × devices 64, \
+             reprojecting multi-source cells × assignments and sources_per_set, reprojecting cells × \
+             reprojection_tolerances): shorten its longest axes or split the matrix into several benches"
+        );
+        // The count is exact where no two slices share a cell.
+        let small = load_text(&format!("{CASES}[[matrix]]\nspp = [1, 2]\nreprojection_tolerances = [0.1, 0.2, 0.3]\n"))
+            .unwrap();
+        assert_eq!(small.slices[0].1.cell_count() * 2, small.cells().unwrap().len() as u64);
     }
 
     #[test]

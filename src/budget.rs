@@ -14,7 +14,7 @@ const DEVICE_BYTES_PER_PIXEL: u64 = 4 * 16;
 /// written from.
 const HOST_BYTES_PER_PIXEL: u64 = DEVICE_BYTES_PER_PIXEL + size_of::<PixelSample>() as u64;
 
-/// Paths (pixels × samples × views) above which a run is announced with its duration.
+/// Paths (pixels × samples × views × frames) above which a run is announced with its duration.
 const WARN_PATHS: f64 = 1e10;
 /// Paths above which a run is refused: more than a day even at 1e9 paths/s.
 const MAX_PATHS: f64 = 1e14;
@@ -22,39 +22,97 @@ const MAX_PATHS: f64 = 1e14;
 const FAST_PATHS_PER_S: f64 = 1e9;
 const SLOW_PATHS_PER_S: f64 = 1e7;
 
-/// Pass instances plus dependencies a plan may have: the planner keeps every one in memory and
-/// the fine schemes grow as views × devices × sources.
+/// Address space the Vulkan loader and driver take once, and each logical device beyond its
+/// threads' stacks, measured on lavapipe (2 cores) as the smallest `ulimit -v` under which
+/// `render --frames 1` completes: about 2.0 GB with one logical device, 4.8 GB with eight
+/// (below that lavapipe's threads fail to start and the first frame never completes, or LLVM
+/// cannot map its code).
+const VULKAN_BYTES: u64 = 1536 << 20;
+const DEVICE_BYTES: u64 = 384 << 20;
+/// lavapipe starts a rasteriser thread per CPU core for every logical device, each with a stack
+/// of this size (the default `ulimit -s`).
+const THREAD_STACK_BYTES: u64 = 8 << 20;
+
+/// Pass instances, dependencies (producer-consumer edges and δ-edges) and copies a plan may
+/// have: the planner keeps every one in memory.
 const MAX_PLAN_ITEMS: u64 = 4_000_000;
 
 pub fn gib(bytes: u64) -> String {
     format!("{:.1} GiB", bytes as f64 / f64::from(1 << 30))
 }
 
-/// The light field (or view) to be traced.
+/// The light field (or view) to be traced, with the flags that set each factor (for messages
+/// that name every flag that contributes).
 #[derive(Clone, Copy, Debug)]
 pub struct TraceWork {
+    /// Views of one frame.
     pub views: u64,
+    /// Frames traced (warm-up included).
+    pub frames: u64,
     pub width: u32,
     pub height: u32,
     pub spp: u32,
+    /// Logical Vulkan devices the run opens; 0 for the CPU tracer.
+    pub devices: u64,
+    /// The flag that sets `views` (`--lf`, `--views`), empty when it is always 1.
+    pub views_flag: &'static str,
+    /// The flags that set `frames` (`--frames, --warmup`), empty when it is always 1.
+    pub frames_flag: &'static str,
 }
 
 impl TraceWork {
+    /// One view of `width`x`height` at `spp` (`trace`, `bench-rays`) on `devices` devices.
+    pub fn one_view(width: u32, height: u32, spp: u32, devices: u64) -> Self {
+        TraceWork { views: 1, frames: 1, width, height, spp, devices, views_flag: "", frames_flag: "" }
+    }
+
     fn pixels(self) -> u64 {
         self.views * u64::from(self.width) * u64::from(self.height)
     }
 
-    /// Host memory for the read-back views; refused beyond what the machine has free.
+    /// "4096 view(s) (--lf) × 3 frame(s) (--frames, --warmup) × 512x512 (--resolution)", with
+    /// frames and spp when asked, and the flags named.
+    fn factors(self, frames: bool, spp: bool) -> (String, Vec<&'static str>) {
+        let mut terms = Vec::new();
+        let mut flags = Vec::new();
+        if !self.views_flag.is_empty() {
+            terms.push(format!("{} view(s) ({})", self.views, self.views_flag));
+            flags.push(self.views_flag);
+        }
+        if frames && !self.frames_flag.is_empty() {
+            terms.push(format!("{} frame(s) ({})", self.frames, self.frames_flag));
+            flags.push(self.frames_flag);
+        }
+        terms.push(format!("{}x{} (--resolution)", self.width, self.height));
+        flags.push("--resolution");
+        if spp {
+            terms.push(format!("{} spp (--spp)", self.spp));
+            flags.push("--spp");
+        }
+        (terms.join(" × "), flags)
+    }
+
+    /// Host memory for the read-back views of one frame and the Vulkan devices; refused beyond
+    /// what this process may still take ([`crate::host_memory::budget`]).
     pub fn check_host(self) -> Result<()> {
+        let (factors, mut flags) = self.factors(false, false);
         let bytes = self.pixels() * HOST_BYTES_PER_PIXEL;
-        check_host_bytes(
-            &format!(
-                "{} view(s) of {}x{} ({} B per pixel once read back)",
-                self.views, self.width, self.height, HOST_BYTES_PER_PIXEL
-            ),
-            bytes,
-            "lower --resolution or use fewer views (--lf)",
-        )
+        let mut what = format!("{factors} read back at {HOST_BYTES_PER_PIXEL} B per pixel");
+        let mut mapped = 0;
+        if self.devices > 0 {
+            let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u64);
+            let per_device = DEVICE_BYTES + cores * THREAD_STACK_BYTES;
+            mapped = VULKAN_BYTES + self.devices * per_device;
+            what = format!(
+                "{what}, and {} logical device(s) (--gpus/--fake-devices) at about {} MiB of address space each",
+                self.devices,
+                per_device >> 20
+            );
+            if self.devices > 1 {
+                flags.push("--gpus/--fake-devices");
+            }
+        }
+        check_host_use(&what, bytes, mapped, &format!("lower {}", or_list(&flags)))
     }
 
     /// Each device's image limit and memory heap. Device 0 receives every finished view, so it
@@ -73,14 +131,13 @@ impl TraceWork {
                 );
             }
             if d.index == 0 && bytes > d.device_local_heap_bytes {
+                let (factors, flags) = self.factors(false, false);
                 bail!(
-                    "{} view(s) of {}x{} need about {} of GPU memory on device 0 ({} B per pixel), but its memory heap has {}: lower --resolution or use fewer views (--lf)",
-                    self.views,
-                    self.width,
-                    self.height,
+                    "{factors} need about {} of GPU memory on device 0 ({} B per pixel), but its memory heap has {}: lower {}",
                     gib(bytes),
                     DEVICE_BYTES_PER_PIXEL,
-                    gib(d.device_local_heap_bytes)
+                    gib(d.device_local_heap_bytes),
+                    or_list(&flags)
                 );
             }
         }
@@ -89,20 +146,18 @@ impl TraceWork {
 
     /// Refuses runs of more than a day; announces long ones with their expected duration.
     pub fn check_duration(self) -> Result<()> {
-        let paths = self.pixels() as f64 * f64::from(self.spp);
+        let paths = self.pixels() as f64 * self.frames as f64 * f64::from(self.spp);
+        let (factors, flags) = self.factors(true, true);
         if paths > MAX_PATHS {
             bail!(
-                "{paths:.2e} paths ({} view(s) × {}x{} × {} spp) would take {} even at {FAST_PATHS_PER_S:.0e} paths/s: lower --spp or --resolution (at most {MAX_PATHS:.0e} paths)",
-                self.views,
-                self.width,
-                self.height,
-                self.spp,
-                duration(paths / FAST_PATHS_PER_S)
+                "{paths:.2e} paths ({factors}) would take {} even at {FAST_PATHS_PER_S:.0e} paths/s: lower {} (at most {MAX_PATHS:.0e} paths)",
+                duration(paths / FAST_PATHS_PER_S),
+                or_list(&flags)
             );
         }
         if paths > WARN_PATHS {
             tracing::warn!(
-                "{paths:.2e} paths to trace: about {} at {FAST_PATHS_PER_S:.0e} paths/s (a data-centre GPU), {} at {SLOW_PATHS_PER_S:.0e} paths/s (a CPU or lavapipe); Ctrl-C stops it and leaves no output",
+                "{paths:.2e} paths to trace ({factors}): about {} at {FAST_PATHS_PER_S:.0e} paths/s (a data-centre GPU), {} at {SLOW_PATHS_PER_S:.0e} paths/s (a CPU or lavapipe); Ctrl-C stops it and leaves no output",
                 duration(paths / FAST_PATHS_PER_S),
                 duration(paths / SLOW_PATHS_PER_S)
             );
@@ -111,42 +166,104 @@ impl TraceWork {
     }
 }
 
-/// Refuses plans whose instance and dependency counts the planner could not hold.
-pub fn check_plan_size(views: u64, devices: u64, sources: u64, scheme: Scheme) -> Result<()> {
-    // Bounds from DESIGN.md's counting convention; passes per view are a dozen at most.
-    let instances = views * 12 * if scheme == Scheme::MultiSource { 1 } else { devices };
-    let deltas = match scheme {
-        Scheme::MultiSource => views,
-        Scheme::FineSources => sources * views.saturating_sub(sources) + devices * sources,
-        Scheme::FineAll => devices * sources * views.saturating_sub(sources),
-    };
-    let items = instances + deltas;
-    if items > MAX_PLAN_ITEMS {
+/// "a, b or c".
+fn or_list(items: &[&str]) -> String {
+    match items {
+        [] => String::new(),
+        [one] => one.to_string(),
+        [init @ .., last] => format!("{} or {last}", init.join(", ")),
+    }
+}
+
+/// How many views, devices and sources a plan has, and which flags set them.
+#[derive(Clone, Copy, Debug)]
+pub struct PlanShape {
+    pub views: u64,
+    pub devices: u64,
+    pub sources: u64,
+    pub scheme: Scheme,
+    /// `--sources` or `--sources-per-set` when one of them set the source count.
+    pub sources_flag: Option<&'static str>,
+}
+
+impl PlanShape {
+    /// Pass instances, producer-consumer edges, δ-edges and copies of the standard pipeline's
+    /// plan, bounded from above (M views, N devices, k sources, T = M - k targets; the bounds
+    /// are checked against compiled plans by `plan_items_bound_the_compiled_plans`):
+    /// - a view has a dozen pass instances and 30 edges among them; under fine-all every pass
+    ///   is split in N bands, and a band that reads a whole image depends on all N bands that
+    ///   wrote it: N² edges per such read, and up to 14·N² copies per view;
+    /// - a target reads three images of each of its sources (one source under multi-source,
+    ///   all k under the fine schemes): under fine-all every band of them from every band,
+    ///   3·N²·k·T edges; under fine-sources the N bands of one image and two whole ones of each source,
+    ///   (N + 2)·k·T;
+    /// - fine-sources splits the k sources' path tracing in N bands: 2·k·N more instances,
+    ///   3·k·N more edges and k·N band copies.
+    fn items(self) -> u64 {
+        let (m, n, k) = (self.views, self.devices, self.sources);
+        let t = m.saturating_sub(k);
+        let (instances, edges, deltas, copies) = match self.scheme {
+            Scheme::MultiSource => (12 * m, 33 * m, m, 2 * m),
+            Scheme::FineSources => {
+                (12 * m + 2 * k * n, 30 * m + 3 * k * n + (n + 2) * k * t, k * t + n * k, 2 * m + k * n)
+            }
+            Scheme::FineAll => (12 * m * n, 30 * m * n * n + 3 * n * n * k * t, n * k * t, 14 * m * n * n),
+        };
+        instances + edges + deltas + copies
+    }
+
+    /// Refuses plans whose items the planner could not hold, naming every flag that grows them.
+    pub fn check(self) -> Result<()> {
+        let items = self.items();
+        if items > MAX_PLAN_ITEMS {
+            let sources = match self.sources_flag {
+                Some(flag) => format!("{} source(s) ({flag})", self.sources),
+                None => format!("{} source(s)", self.sources),
+            };
+            bail!(
+                "--scheme {} over {} views (--lf) and {} devices (--gpus/--fake-devices) with {sources} would be about {items} pass instances, dependencies and copies (at most {MAX_PLAN_ITEMS}): use fewer devices, fewer views (--lf){}, or --scheme multi-source",
+                self.scheme.name(),
+                self.views,
+                self.devices,
+                if self.scheme == Scheme::FineAll { ", fewer --sources" } else { "" },
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Refuses a host allocation the process cannot make (an abort on failed allocation would name
+/// nothing): `what` needs `bytes`, `fix` says which flags to lower.
+pub fn check_host_bytes(what: &str, bytes: u64, fix: &str) -> Result<()> {
+    check_host_use(what, bytes, 0, fix)
+}
+
+/// [`check_host_bytes`] of `bytes` of memory plus `mapped` bytes of address space that use
+/// little memory (a Vulkan driver's mappings, its threads' stacks): those count only against
+/// an address-space limit.
+fn check_host_use(what: &str, bytes: u64, mapped: u64, fix: &str) -> Result<()> {
+    let budget = crate::host_memory::budget();
+    if let Some(memory) = budget.memory
+        && bytes > memory.bytes
+    {
         bail!(
-            "--scheme {} over {views} views and {devices} devices with {sources} source(s) would be about {items} pass instances and dependencies (at most {MAX_PLAN_ITEMS}): use fewer devices, fewer views (--lf), or --scheme multi-source",
-            scheme.name()
+            "{what}: about {} of host memory needed, but this process may take only {} more ({}): {fix}",
+            gib(bytes),
+            gib(memory.bytes),
+            memory.bound
+        );
+    }
+    if let Some(space) = budget.address_space
+        && bytes + mapped > space.bytes
+    {
+        bail!(
+            "{what}: about {} of address space needed, but this process may map only {} more ({}): {fix}",
+            gib(bytes + mapped),
+            gib(space.bytes),
+            space.bound
         );
     }
     Ok(())
-}
-
-/// Refuses a host allocation the machine cannot make (an abort on failed allocation would name
-/// nothing).
-pub fn check_host_bytes(what: &str, bytes: u64, fix: &str) -> Result<()> {
-    if let Some(available) = available_host_memory()
-        && bytes > available
-    {
-        bail!("{what} need about {} of host memory, but {} are available: {fix}", gib(bytes), gib(available));
-    }
-    Ok(())
-}
-
-/// `MemAvailable` of /proc/meminfo (Linux); elsewhere no check is made.
-fn available_host_memory() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
 }
 
 fn duration(seconds: f64) -> String {
@@ -164,19 +281,96 @@ mod tests {
 
     #[test]
     fn runs_of_more_than_a_day_are_refused_with_the_flags() {
-        let work = TraceWork { views: 1, width: 512, height: 512, spp: u32::MAX };
+        let work = TraceWork::one_view(512, 512, u32::MAX, 1);
         let err = work.check_duration().unwrap_err().to_string();
-        assert!(err.starts_with("1.13e15 paths (1 view(s) × 512x512 × 4294967295 spp) would take 13 days"), "{err}");
-        assert!(err.ends_with("lower --spp or --resolution (at most 1e14 paths)"), "{err}");
+        assert!(
+            err.starts_with("1.13e15 paths (512x512 (--resolution) × 4294967295 spp (--spp)) would take 13 days"),
+            "{err}"
+        );
+        assert!(err.ends_with("lower --resolution or --spp (at most 1e14 paths)"), "{err}");
         assert!(TraceWork { spp: 1 << 16, ..work }.check_duration().is_ok(), "1.7e10 paths: a warning only");
+        let frames = TraceWork {
+            views: 4096,
+            frames: 100_001,
+            spp: 1,
+            views_flag: "--lf",
+            frames_flag: "--frames, --warmup",
+            ..work
+        };
+        let err = frames.check_duration().unwrap_err().to_string();
+        assert!(
+            err.starts_with(
+                "1.07e14 paths (4096 view(s) (--lf) × 100001 frame(s) (--frames, --warmup) × 512x512 (--resolution) × 1 spp (--spp))"
+            ),
+            "{err}"
+        );
+        assert!(err.ends_with("lower --lf, --frames, --warmup, --resolution or --spp (at most 1e14 paths)"), "{err}");
     }
 
     #[test]
-    fn plans_beyond_the_planner_are_refused() {
-        assert!(check_plan_size(100, 8, 8, Scheme::FineAll).is_ok());
-        assert!(check_plan_size(4096, 64, 64, Scheme::MultiSource).is_ok());
-        let err = check_plan_size(4096, 64, 64, Scheme::FineAll).unwrap_err().to_string();
-        assert!(err.contains("about 19660800 pass instances and dependencies (at most 4000000)"), "{err}");
+    fn plans_beyond_the_planner_are_refused_with_their_sources() {
+        let shape = |views, devices, sources, scheme| PlanShape { views, devices, sources, scheme, sources_flag: None };
+        assert!(shape(100, 8, 8, Scheme::FineAll).check().is_ok());
+        assert!(shape(4096, 64, 64, Scheme::MultiSource).check().is_ok());
+        assert!(shape(4096, 8, 8, Scheme::FineSources).check().is_ok());
+        assert!(shape(4096, 64, 64, Scheme::FineSources).check().is_err(), "17M edges");
+        let explicit = PlanShape { sources_flag: Some("--sources"), ..shape(4096, 64, 2, Scheme::FineAll) };
+        let err = explicit.check().unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "--scheme fine-all over 4096 views (--lf) and 64 devices (--gpus/--fake-devices) with 2 source(s) (--sources) \
+             would be about 842481408 pass instances, dependencies and copies (at most 4000000): use fewer devices, fewer \
+             views (--lf), fewer --sources, or --scheme multi-source"
+        );
+    }
+
+    /// The bounds of [`PlanShape::items`] hold for compiled plans of the standard pipeline, and
+    /// are not so loose that they refuse what the planner could hold (within 4×, or 8× for
+    /// the small multi-source plans whose copies are mostly the gather).
+    #[test]
+    fn plan_items_bound_the_compiled_plans() {
+        #[derive(clap::Parser)]
+        struct Flags {
+            #[command(flatten)]
+            layout: crate::scene_args::LayoutArgs,
+            #[command(flatten)]
+            pipeline: crate::pipeline_args::PipelineArgs,
+        }
+        let cases: [(&str, u32, &[&str]); 6] = [
+            ("16x1", 1, &[]),
+            ("16x1", 2, &[]),
+            ("16x1", 16, &[]),
+            ("16x2", 4, &[]),
+            ("32x1", 8, &["--sources", "0,9,20"]),
+            ("32x1", 8, &[]),
+        ];
+        for (lf, devices, extra) in cases {
+            for scheme in Scheme::ALL {
+                if scheme == Scheme::MultiSource && !extra.is_empty() {
+                    continue;
+                }
+                let mut argv = vec!["plan", "--lf", lf, "--resolution", "64x64", "--scheme", scheme.name()];
+                argv.extend(extra);
+                let flags = <Flags as clap::Parser>::parse_from(&argv);
+                let lf = flags.layout.with_rig(parallax_graph::Rig::default()).unwrap();
+                let compiled = flags.pipeline.compile(&lf, devices, 1.0).unwrap();
+                let s = &compiled.schedule;
+                let actual = (s.instances.len() + s.edges.len() + s.delta_edges.len() + s.copies.len()) as u64;
+                let shape = PlanShape {
+                    views: lf.len() as u64,
+                    devices: u64::from(devices),
+                    sources: compiled.plan.sources.len() as u64,
+                    scheme,
+                    sources_flag: None,
+                };
+                let slack = if scheme == Scheme::MultiSource { 8 } else { 4 };
+                assert!(
+                    actual <= shape.items() && shape.items() <= slack * actual,
+                    "{argv:?} on {devices} device(s): {actual} items, estimated {}",
+                    shape.items()
+                );
+            }
+        }
     }
 
     #[test]

@@ -34,8 +34,9 @@
 //! (overall missing-pixel ratio) and `hole_fill_ms`.
 
 use std::ffi::OsString;
+use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
@@ -47,6 +48,9 @@ use crate::cmd_render::RenderArgs;
 use crate::logging::{bar, result};
 use crate::options::{AssignArg, SchemeArg};
 use crate::pipeline_args::PipelineArg;
+
+/// Bytes of a failed cell's diagnostics kept for bench.json.
+const MAX_CELL_ERROR_BYTES: u64 = 1 << 20;
 
 /// Measured frames and warm-up frames per cell when neither the flags nor the matrix file say.
 const DEFAULT_FRAMES: u32 = 10;
@@ -229,6 +233,33 @@ fn stage_total_ms(timing: &serde_json::Value, stage: &str) -> Option<f64> {
     Some(rows.iter().filter(|r| r["stage"] == stage).filter_map(|r| r["mean_ms"].as_f64()).fold(0.0, |a, b| a + b))
 }
 
+/// Makes a cell's `render` end with bench (Linux): a bench ended by a signal, or killed, would
+/// otherwise leave its running cell rendering on, reparented to init, writing a complete cell
+/// later into a matrix that no longer runs. The child asks for SIGTERM when its parent thread
+/// ends (bench runs its cells from the main thread), which its own handler answers by removing
+/// its unfinished outputs.
+fn die_with_bench(render: &mut Command) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt;
+        let bench = nix::unistd::getpid();
+        // SAFETY: between fork and exec the closure makes only async-signal-safe calls (prctl,
+        // getppid) and allocates nothing.
+        unsafe {
+            render.pre_exec(move || {
+                nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGTERM)?;
+                // Bench may have ended before the request: then no signal would come.
+                if nix::unistd::getppid() != bench {
+                    return Err(std::io::Error::from_raw_os_error(libc::ESRCH));
+                }
+                Ok(())
+            });
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = render;
+}
+
 /// Runs one cell; returns its bench.json entry. An error (the cell's settings differ from its
 /// reference's) stops the matrix.
 fn run_cell(
@@ -239,7 +270,15 @@ fn run_cell(
     allow_mismatch: bool,
 ) -> Result<serde_json::Value> {
     let exe = std::env::current_exe().context("cannot find this program to run the cells")?;
-    let output = Command::new(exe).arg("-q").arg("render").args(argv).output().context("cannot start a cell")?;
+    // The cell's diagnostics go to an unnamed temporary file rather than a pipe: a render told
+    // to stop because bench ended must still be able to write its last line, and a pipe
+    // without its reader would fail that write.
+    let mut diagnostics = tempfile::tempfile().context("cannot create a temporary file for a cell's diagnostics")?;
+    let mut render = Command::new(exe);
+    render.arg("-q").arg("render").args(argv).stdin(Stdio::null()).stdout(Stdio::null());
+    render.stderr(diagnostics.try_clone().context("cannot pass a cell its diagnostics file")?);
+    die_with_bench(&mut render);
+    let status = render.status().context("cannot start a cell")?;
     let id = &cell.id;
     let shaped = Cell::shaped(cell.pipeline, cell.scheme);
     let mut entry = serde_json::json!({
@@ -248,8 +287,11 @@ fn run_cell(
         "sources_per_set": cell.sources_per_set, "spp": cell.spp, "denoise": cell.denoise == Denoise::On,
         "reprojection_tolerance": cell.tolerance, "devices": cell.devices,
     });
-    if !output.status.success() {
-        let error = String::from_utf8_lossy(&output.stderr).trim().to_string();
+    if !status.success() {
+        let mut stderr = Vec::new();
+        diagnostics.seek(SeekFrom::Start(0))?;
+        diagnostics.take(MAX_CELL_ERROR_BYTES).read_to_end(&mut stderr)?;
+        let error = String::from_utf8_lossy(&stderr).trim().to_string();
         entry["ok"] = false.into();
         entry["error"] = error.into();
         return Ok(entry);

@@ -7,7 +7,7 @@ use anyhow::Context as _;
 use parallax_backend::{Context, ContextDesc, DeviceSelection};
 use parallax_passes::RaySchedule;
 use parallax_passes::bench::{RayRate, bench_rays};
-use parallax_scene::{Camera, LoadOptions, load_scene_with};
+use parallax_scene::{Camera, load_scene_with};
 
 use crate::budget::TraceWork;
 use crate::logging::{result, spinner};
@@ -55,10 +55,10 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     if let Some(sink) = &args.json {
         check(&[Output { flag: "--json", sink, format: Format::Json }])?;
     }
-    let work = TraceWork { views: 1, width, height, spp: 1 };
+    let work = TraceWork::one_view(width, height, 1, args.fake_devices.unwrap_or(1));
     work.check_host()?;
     let t0 = Instant::now();
-    let options = LoadOptions { uris: crate::scene_args::uri_policy(args.allow_outside_files) };
+    let options = crate::scene_args::load_options(args.allow_outside_files);
     let scene = load_scene_with(&args.scene, options).with_context(|| format!("loading --scene {}", args.scene))?;
     if let Some(Sink::File(json)) = &args.json {
         let inputs: Vec<(&str, &std::path::Path)> =

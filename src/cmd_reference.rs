@@ -172,7 +172,8 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         .enumerate()
         .map(|(i, &v)| View { index: i as u32, ..lightfield_view(&lf, ViewId(v)) })
         .collect();
-    let work = check_cost(&lf, views.len(), args.spp)?;
+    let devices = if args.cpu { 0 } else { args.devices.selection().count() as u64 };
+    let work = check_cost(&lf, views.len(), args.spp, devices)?;
     let settings_key = settings_key(&args, &scene, &lf, &selected);
     // What compare checks: a reference is always of a still camera.
     let setup = Setup::new(
@@ -229,8 +230,17 @@ fn check_sampling_args(args: &ReferenceArgs) -> Result<()> {
 
 /// What it costs, checked before anything is allocated: the paths, the read-back views and the
 /// f64 sums (3 channels × 8 bytes per pixel of every view).
-fn check_cost(lf: &LightField, views: usize, spp: u32) -> Result<TraceWork> {
-    let work = TraceWork { views: views as u64, width: lf.width, height: lf.height, spp };
+fn check_cost(lf: &LightField, views: usize, spp: u32, devices: u64) -> Result<TraceWork> {
+    let work = TraceWork {
+        views: views as u64,
+        frames: 1,
+        width: lf.width,
+        height: lf.height,
+        spp,
+        devices,
+        views_flag: "--lf, --views",
+        frames_flag: "",
+    };
     work.check_duration()?;
     work.check_host()?;
     check_host_bytes(

@@ -71,7 +71,8 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         outputs.push(Output { flag: "--png", sink, format: Format::Png });
     }
     check(&outputs)?;
-    let work = TraceWork { views: 1, width, height, spp: args.spp };
+    let devices = if args.cpu { 0 } else { selection(args.gpus, args.fake_devices).count() as u64 };
+    let work = TraceWork::one_view(width, height, args.spp, devices);
     work.check_duration()?;
     work.check_host()?;
 

@@ -17,6 +17,8 @@ mod cmd_plan;
 mod cmd_reference;
 pub mod cmd_render;
 mod cmd_trace;
+mod disk_space;
+mod host_memory;
 mod lightfield_images;
 mod logging;
 mod options;

@@ -11,7 +11,7 @@ use parallax_graph::{Graph, LightField, Plan, PlanConfig, PlanSummary, Schedule,
 use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
 
-use crate::budget::check_plan_size;
+use crate::budget::PlanShape;
 use crate::options::{AssignArg, DotDetail, SchemeArg, SourceList, UsageError, assignment, parse_sources};
 use crate::outputs::{Sink, parse_sink};
 
@@ -177,12 +177,15 @@ impl PipelineArgs {
             assign: assignment(self.scheme, self.assign)?,
             sources: self.sources.as_ref().map(|s| s.0.clone()),
         };
-        let sources = match (&config.sources, config.scheme) {
-            (Some(s), _) => s.len() as u64,
-            (None, Scheme::MultiSource) => u64::from(devices) * u64::from(self.sources_per_set),
-            (None, _) => u64::from(devices),
+        let (sources, sources_flag) = match (&config.sources, config.scheme) {
+            (Some(s), _) => (s.len() as u64, Some("--sources")),
+            (None, Scheme::MultiSource) if self.sources_per_set > 1 => {
+                (u64::from(devices) * u64::from(self.sources_per_set), Some("--sources-per-set"))
+            }
+            (None, _) => (u64::from(devices), None),
         };
-        check_plan_size(lf.len() as u64, u64::from(devices), sources, config.scheme)?;
+        PlanShape { views: lf.len() as u64, devices: u64::from(devices), sources, scheme: config.scheme, sources_flag }
+            .check()?;
         let plan = Plan::with_sources_per_set(lf, &config, self.sources_per_set)?;
         let mut graph = KernelGraph::with_payload(plan.topology.clone());
         let handles = extend(PipelineBuilder::new(self.config(exposure))).declare(&mut graph)?;

@@ -8,6 +8,7 @@ use clap::Args;
 use glam::Vec3;
 use parallax_graph::{LayoutSpec, LightField, Rig};
 use parallax_passes::camera::rig_of;
+use parallax_scene::gltf_budget::MemoryLimit;
 use parallax_scene::input::UriPolicy;
 use parallax_scene::{Camera, LoadOptions, Scene, Sky, Sun, load_scene_with};
 
@@ -47,7 +48,7 @@ pub struct SceneArgs {
 impl SceneArgs {
     /// Loads `--scene` and applies `--sun`, `--no-sun` and `--sky` to it.
     pub fn load(&self) -> Result<Scene> {
-        let options = LoadOptions { uris: uri_policy(self.allow_outside_files) };
+        let options = load_options(self.allow_outside_files);
         let mut scene =
             load_scene_with(&self.scene, options).with_context(|| format!("loading --scene {}", self.scene))?;
         self.light(&mut scene);
@@ -79,6 +80,13 @@ impl SceneArgs {
     pub fn camera_or_default(&self, scene: &Scene) -> Camera {
         self.camera.map_or_else(|| scene.default_camera(), |c| c.camera)
     }
+}
+
+/// How `--scene` is loaded: `--allow-outside-files`, and the memory the process may still take
+/// (the loader refuses a scene whose estimate is larger, before building it).
+pub fn load_options(allow_outside_files: bool) -> LoadOptions {
+    let memory = crate::host_memory::budget().memory.map(|m| MemoryLimit { bytes: m.bytes, bound: m.bound });
+    LoadOptions { uris: uri_policy(allow_outside_files), memory }
 }
 
 /// `--allow-outside-files` as the loader's URI policy.

@@ -22,7 +22,7 @@ use parallax_graph::LightField;
 /// before it shows anything, so the page refers to the files instead.
 pub const EMBED_LIMIT_BYTES: usize = 8 << 20;
 
-const TEMPLATE: &str = include_str!("viewer.html");
+pub const TEMPLATE: &str = include_str!("viewer.html");
 
 /// Where the views looked from, for refocusing on the page. A point at depth `z` (metres along
 /// the rig's forward axis) appears `focal_px · p · (1/focus_m − 1/z)` pixels from where the rig

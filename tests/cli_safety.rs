@@ -243,17 +243,22 @@ fn unbounded_work_is_refused_with_the_numbers() {
         &dir,
         &["render", "--lf", "64x64", "--resolution", "4096x4096", "--out-dir", "lf"],
         1,
-        &["4096 view(s) of 4096x4096", "of host memory", "lower --resolution"],
+        &["4096 view(s) (--lf) × 4096x4096 (--resolution) read back", "of host memory", "lower --lf or --resolution"],
     );
     refused(&dir, &["plan", "--lf", "1000000x1000000"], 2, &["--lf", "1000000000000 views; at most 4096"]);
     refused(
         &dir,
         &["plan", "--lf", "64x64", "--gpus", "64", "--scheme", "fine-all"],
         1,
-        &["fine-all over 4096 views and 64 devices", "use fewer devices"],
+        &["fine-all over 4096 views (--lf) and 64 devices (--gpus/--fake-devices)", "use fewer devices"],
     );
     refused(&dir, &["devices", "--fake-devices", "100000"], 2, &["--fake-devices", "outside 1..=64"]);
-    refused(&dir, &["trace", "--spp", "4294967295"], 1, &["512x512 × 4294967295 spp", "lower --spp"]);
+    refused(
+        &dir,
+        &["trace", "--spp", "4294967295"],
+        1,
+        &["512x512 (--resolution) × 4294967295 spp (--spp)", "lower --resolution or --spp"],
+    );
 }
 
 #[test]

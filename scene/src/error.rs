@@ -65,6 +65,10 @@ pub enum SceneError {
     ImageWrite { path: PathBuf, detail: String },
     #[error("{path}: image {image}: {detail}")]
     MalformedImage { path: PathBuf, image: usize, detail: String },
+    /// An estimate of the load (triangles after instancing, textures after sharing, memory)
+    /// beyond a limit, found before the work.
+    #[error("{path}: {what}, more than {limit}: {fix}")]
+    TooLarge { path: PathBuf, what: String, limit: String, fix: String },
     #[error("invalid trace settings: {0}")]
     InvalidSettings(String),
 }

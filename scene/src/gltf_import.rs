@@ -15,6 +15,9 @@ use glam::{Mat3, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::error::SceneError;
+use crate::gltf_budget::{
+    ImageSource, LoadEstimate, MemoryLimit, distinct_sources, image_dimensions, triangles_after_instancing,
+};
 use crate::gltf_primitive::{PrimitiveAt, append_triangles, pose, read_vertices, skinning_matrices};
 use crate::input::{
     IMAGE_FILE_LIMIT, IMAGE_SIDE_LIMIT, SCENE_FILE_LIMIT, SourceFile, UriPolicy, read_bounded, read_prefix, resolve_uri,
@@ -32,6 +35,9 @@ const SUPPORTED_LIST: &str = "KHR_materials_emissive_strength, KHR_lights_punctu
 pub struct LoadOptions {
     /// Where buffer and image URIs may point (default: inside the scene's folder tree).
     pub uris: UriPolicy,
+    /// The memory the load may take (the process's budget); None: only the stated limits of
+    /// [`crate::gltf_budget`] apply.
+    pub memory: Option<MemoryLimit>,
 }
 
 /// Loads a `.gltf` (with external or embedded buffers) or `.glb` file.
@@ -94,6 +100,8 @@ struct Importer<'a> {
     zero_scale_node: Option<usize>,
     /// Node and yfov of the first perspective camera (the scene's default camera).
     first_camera: Option<(usize, f32)>,
+    /// glTF image index -> texture index: image entries that name one source share a texture.
+    image_texture: Vec<u32>,
 }
 
 fn import(bytes: &[u8], base_dir: &Path, path: &Path, options: LoadOptions) -> Result<Scene, SceneError> {
@@ -138,10 +146,13 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path, options: LoadOptions) -> R
     })?;
     let gltf::Gltf { document, blob } = gltf;
     let mut sources = Vec::new();
+    // Counted from the JSON alone: a refusal reads no buffer.
+    let triangles = triangles_after_instancing(&document);
+    LoadEstimate::check_triangles(triangles, path)?;
     let buffers = load_buffers(&document, base_dir, blob, path, options.uris, &mut sources)?;
     check_accessors(&document, &buffers, path)?;
-    let (textures, image_sources) = decode_images(&document, &buffers, base_dir, path, options.uris)?;
-    sources.extend(image_sources.into_iter().flatten());
+    let images = load_images(&document, &buffers, base_dir, path, options, triangles)?;
+    sources.extend(images.sources);
 
     let mut imp = Importer {
         path,
@@ -149,10 +160,11 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path, options: LoadOptions) -> R
         buffers: &buffers,
         scene: Scene {
             name: path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
-            textures,
+            textures: images.textures,
             sources,
             ..Default::default()
         },
+        image_texture: images.of_entry,
         default_material: None,
         zero_scale_node: None,
         first_camera: None,
@@ -193,7 +205,7 @@ impl Importer<'_> {
                         i.tex_coord(),
                         m.index().unwrap_or(0)
                     ))),
-                    Some(i) => Ok(Some(i.texture().source().index() as u32)),
+                    Some(i) => Ok(Some(self.image_texture[i.texture().source().index()])),
                 }
             };
             let alpha_mode = match m.alpha_mode() {
@@ -612,55 +624,122 @@ fn check_accessors(doc: &gltf::Document, buffers: &[gltf::buffer::Data], path: &
     Ok(())
 }
 
-/// Each image decoded to RGBA8, with the file it was read from (none for a buffer view).
-type Decoded = (Vec<Texture>, Vec<Option<SourceFile>>);
+/// The distinct images of a file decoded once each, the texture of every image entry, and the
+/// files read.
+struct Images {
+    textures: Vec<Texture>,
+    of_entry: Vec<u32>,
+    sources: Vec<SourceFile>,
+}
 
-fn decode_images(
+/// Shares image entries by source, reads each distinct image's size from its header, checks
+/// the estimate of the whole load (`triangles` after instancing, textures after sharing), and
+/// only then decodes each distinct image once, in parallel.
+fn load_images(
     doc: &gltf::Document,
     buffers: &[gltf::buffer::Data],
     base_dir: &Path,
     path: &Path,
-    policy: UriPolicy,
-) -> Result<Decoded, SceneError> {
-    let images: Vec<gltf::Image> = doc.images().collect();
-    let decoded: Vec<(Texture, Option<SourceFile>)> = images
+    options: LoadOptions,
+    triangles: u64,
+) -> Result<Images, SceneError> {
+    let entries: Vec<gltf::Image> = doc.images().collect();
+    let (distinct, of_entry) = distinct_sources(
+        entries
+            .iter()
+            .map(|img| match img.source() {
+                gltf::image::Source::View { view, .. } => ImageSource::View(view.index()),
+                gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+                    resolve_uri(base_dir, uri, options.uris)
+                        .map_or(ImageSource::Unreadable(img.index()), ImageSource::File)
+                }
+                gltf::image::Source::Uri { .. } => ImageSource::Unreadable(img.index()),
+            })
+            .collect(),
+    );
+    // Each distinct image is named, in errors, by its first entry.
+    let first: Vec<&gltf::Image> =
+        (0..distinct.len()).map(|d| &entries[of_entry.iter().position(|&e| e as usize == d).expect("used")]).collect();
+    let bad = |img: &gltf::Image, detail: String| SceneError::BadImage {
+        path: path.to_path_buf(),
+        image: img.index(),
+        uri: image_uri(img),
+        detail,
+    };
+    let view_bytes = |view: &gltf::buffer::View| -> Result<&[u8], String> {
+        buffers[view.buffer().index()]
+            .0
+            .get(view.offset()..view.offset() + view.length())
+            .ok_or_else(|| "buffer view out of range".to_string())
+    };
+    let mut estimate = LoadEstimate {
+        triangles,
+        images: entries.len(),
+        distinct_images: distinct.len(),
+        texture_bytes: 0,
+        largest_decode_bytes: 0,
+    };
+    for (source, img) in distinct.iter().zip(&first) {
+        let size = match (source, img.source()) {
+            (ImageSource::File(file), _) => crate::input::open_regular(file)
+                .map_err(|e| e.to_string())
+                .and_then(|(f, _)| image_dimensions(std::io::BufReader::new(f))),
+            (ImageSource::View(_), gltf::image::Source::View { view, .. }) => {
+                view_bytes(&view).and_then(|b| image_dimensions(std::io::Cursor::new(b)))
+            }
+            // Decoding says why it cannot be read.
+            _ => Ok((0, 0)),
+        }
+        .map_err(|detail| bad(img, detail))?;
+        if size.0 > IMAGE_SIDE_LIMIT || size.1 > IMAGE_SIDE_LIMIT {
+            return Err(bad(img, too_large_image()));
+        }
+        let pixels = u64::from(size.0) * u64::from(size.1);
+        estimate.texture_bytes += 4 * pixels;
+        estimate.largest_decode_bytes = estimate.largest_decode_bytes.max(8 * pixels);
+    }
+    estimate.check(path, options.memory)?;
+    let decoded: Vec<(Texture, Option<SourceFile>)> = distinct
         .par_iter()
-        .map(|img| {
+        .zip(first.par_iter())
+        .map(|(source, img)| {
             let mut file = None;
-            let (uri, encoded): (String, Result<Vec<u8>, String>) = match img.source() {
-                gltf::image::Source::View { view, .. } => {
-                    let data = &buffers[view.buffer().index()].0;
-                    let bytes = data
-                        .get(view.offset()..view.offset() + view.length())
-                        .map(|s| s.to_vec())
-                        .ok_or_else(|| "buffer view out of range".to_string());
-                    (format!("buffer view {}", view.index()), bytes)
+            let encoded: Result<std::borrow::Cow<[u8]>, String> = match (source, img.source()) {
+                (ImageSource::View(_), gltf::image::Source::View { view, .. }) => view_bytes(&view).map(Into::into),
+                (ImageSource::File(resolved), _) => {
+                    file = Some(resolved);
+                    read_bounded(resolved, IMAGE_FILE_LIMIT, "glTF image").map(Into::into).map_err(|e| e.to_string())
                 }
-                gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                    ("data URI".into(), Err("embedded data: URI images are not supported".into()))
+                (_, gltf::image::Source::Uri { uri, .. }) if uri.starts_with("data:") => {
+                    Err("embedded data: URI images are not supported".into())
                 }
-                gltf::image::Source::Uri { uri, .. } => {
-                    let bytes = resolve_uri(base_dir, uri, policy).and_then(|resolved| {
-                        let bytes = read_bounded(&resolved, IMAGE_FILE_LIMIT, "glTF image").map_err(|e| e.to_string());
-                        file = Some(resolved);
-                        bytes
-                    });
-                    (uri.to_string(), bytes)
-                }
+                // Only a URI that cannot be resolved is left: say why.
+                (_, gltf::image::Source::Uri { uri, .. }) => Err(resolve_uri(base_dir, uri, options.uris)
+                    .err()
+                    .unwrap_or_else(|| format!("{uri} cannot be resolved"))),
+                (_, gltf::image::Source::View { .. }) => unreachable!("a buffer view is always a View source"),
             };
-            let bad = |detail: String| SceneError::BadImage {
-                path: path.to_path_buf(),
-                image: img.index(),
-                uri: uri.clone(),
-                detail,
-            };
-            let encoded = encoded.map_err(bad)?;
-            let rgba = decode_bounded(&encoded).map_err(bad)?;
-            let source = file.map(|file| SourceFile::of(&uri, &file, &encoded));
+            let encoded = encoded.map_err(|detail| bad(img, detail))?;
+            let rgba = decode_bounded(&encoded).map_err(|detail| bad(img, detail))?;
+            let source = file.map(|file| SourceFile::of(image_uri(img), file, &encoded));
             Ok((Texture { width: rgba.width(), height: rgba.height(), rgba8: rgba.into_raw() }, source))
         })
         .collect::<Result<_, SceneError>>()?;
-    Ok(decoded.into_iter().unzip())
+    let (textures, sources): (Vec<Texture>, Vec<Option<SourceFile>>) = decoded.into_iter().unzip();
+    Ok(Images { textures, of_entry, sources: sources.into_iter().flatten().collect() })
+}
+
+/// How an image entry is named in errors: its URI, or where its bytes are.
+fn image_uri(img: &gltf::Image) -> String {
+    match img.source() {
+        gltf::image::Source::View { view, .. } => format!("buffer view {}", view.index()),
+        gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => "data URI".into(),
+        gltf::image::Source::Uri { uri, .. } => uri.to_string(),
+    }
+}
+
+fn too_large_image() -> String {
+    format!("larger than {IMAGE_SIDE_LIMIT}x{IMAGE_SIDE_LIMIT} pixels (the limit for a texture)")
 }
 
 /// Decodes a PNG or JPEG of at most [`IMAGE_SIDE_LIMIT`] pixels a side, so a header that
@@ -675,10 +754,9 @@ fn decode_bounded(encoded: &[u8]) -> Result<image::RgbaImage, String> {
     limits.max_alloc = Some(u64::from(IMAGE_SIDE_LIMIT).pow(2) * 8);
     reader.limits(limits);
     let decoded = reader.decode().map_err(|e| match e {
-        image::ImageError::Limits(_) => {
-            format!("larger than {IMAGE_SIDE_LIMIT}x{IMAGE_SIDE_LIMIT} pixels (the limit for a texture)")
-        }
+        image::ImageError::Limits(_) => too_large_image(),
         other => other.to_string(),
     })?;
-    Ok(decoded.to_rgba8())
+    // No copy when the image already is RGBA8.
+    Ok(decoded.into_rgba8())
 }

@@ -31,6 +31,7 @@ mod bvh_coincident;
 pub mod default_scene;
 pub mod error;
 mod gltf_animation;
+pub mod gltf_budget;
 pub mod gltf_import;
 mod gltf_primitive;
 pub mod gpu;

@@ -445,3 +445,19 @@ fn malformed_images_are_named_before_the_gltf_crate_sees_them() {
         assert!(!err.to_string().contains("panic"), "{err}");
     }
 }
+
+/// Image entries that name one file are one texture, decoded once, and the file is listed once
+/// among the scene's sources (issue 30: eight entries naming one large PNG decoded it eight
+/// times).
+#[test]
+fn image_entries_naming_one_file_share_one_texture() {
+    let dir = scratch_dir("shared-images");
+    std::fs::copy(data("fox/Texture.png"), dir.join("t.png")).unwrap();
+    let extra = r#","images":[{"uri":"t.png"},{"uri":"t.png"},{"uri":"t.png"}],"textures":[{"source":0},{"source":2}],
+"materials":[{"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}},{"emissiveTexture":{"index":1}}]"#;
+    let s = triangle_with_nodes(&dir, r#""nodes":[{"mesh":0}]"#, extra).unwrap();
+    assert_eq!(s.textures.len(), 1);
+    assert_eq!(s.materials[0].base_color_texture, Some(0));
+    assert_eq!(s.materials[1].emissive_texture, Some(0));
+    assert_eq!(s.sources.iter().filter(|f| f.name == "t.png").count(), 1);
+}

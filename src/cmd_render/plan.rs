@@ -12,9 +12,10 @@ use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
-use super::report::{check_outputs, view_file_name};
+use super::report::{check_outputs, extra_layers, view_file_name};
 use super::{MotionArg, RenderArgs, dolly};
 use crate::budget::TraceWork;
+use crate::disk_space::{RenderOutputs, free_bytes};
 use crate::pipeline_args::PipelineSchedule;
 use crate::render_pictures::gpu_exposure;
 
@@ -25,7 +26,8 @@ pub(super) struct RenderJob {
     pub settings: TraceSettings,
     /// Warm-up and measured frames.
     pub total_frames: u32,
-    /// The work of one frame (memory is per frame: the frames reuse the same images).
+    /// The views of one frame over the frames (memory is per frame: the frames reuse the same
+    /// images).
     pub one_frame: TraceWork,
     pub compiled: PipelineSchedule,
     /// `--dot`'s text, drawn from the schedule that runs.
@@ -107,18 +109,35 @@ impl RenderJob {
             crate::lightfield_images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
         }
         crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
-        let work = TraceWork {
-            views: sized.len() as u64 * u64::from(total_frames),
+        let devices = args.devices.selection().count() as u32;
+        let one_frame = TraceWork {
+            views: sized.len() as u64,
+            frames: u64::from(total_frames),
             width: sized.width,
             height: sized.height,
             spp: args.spp,
+            devices: u64::from(devices),
+            views_flag: "--lf",
+            frames_flag: "--frames, --warmup",
         };
-        work.check_duration()?;
-        let one_frame = TraceWork { views: sized.len() as u64, ..work };
+        one_frame.check_duration()?;
         one_frame.check_host()?;
+        let (layers, holes) = extra_layers(args, args.pipeline.pipeline.into());
+        let outputs = RenderOutputs {
+            views: sized.len() as u64,
+            width: sized.width,
+            height: sized.height,
+            channels: 3 + if layers { 7 } else { 0 } + u64::from(holes),
+            frames: args.frames,
+            save_every: args.save_every,
+            layer_pictures: u64::from(layers) + u64::from(holes),
+            quilt: args.quilt.is_some(),
+        };
+        if let Some(free) = free_bytes(&args.out_dir) {
+            outputs.check_fits(&args.out_dir, free)?;
+        }
         // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
         // positions in the rig plane, not on where the rig stands.
-        let devices = args.devices.selection().count() as u32;
         let compiled = args.pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
         let dot = args.dot.render(&compiled.schedule);
 
