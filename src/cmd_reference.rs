@@ -439,23 +439,29 @@ fn write_outputs(
     });
     let bytes = serde_json::to_vec_pretty(&json)?;
     write_atomically(&args.out_dir.join("reference.json"), |f| std::io::Write::write_all(f, &bytes))?;
-    crate::logging::result(false, &format!(
-        "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {} ± {} (standard error)",
-        selected.len(),
-        h.width,
-        h.height,
-        h.spp,
-        h.seconds,
-        ms_per_spp,
-        rgb(mean.map(|m| format!("{m:.5}"))),
-        rgb(standard_error.map(|e| format!("{e:.2e}")))
-    ));
-    crate::logging::result(false, &format!(
-        "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
-        selected.len(),
-        sheet.display(),
-        args.out_dir.display()
-    ));
+    crate::logging::result(
+        false,
+        &format!(
+            "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {} ± {} (standard error)",
+            selected.len(),
+            h.width,
+            h.height,
+            h.spp,
+            h.seconds,
+            ms_per_spp,
+            rgb(mean.map(|m| format!("{m:.5}"))),
+            rgb(standard_error.map(|e| format!("{e:.2e}")))
+        ),
+    );
+    crate::logging::result(
+        false,
+        &format!(
+            "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
+            selected.len(),
+            sheet.display(),
+            args.out_dir.display()
+        ),
+    );
     Ok(())
 }
 

@@ -86,7 +86,10 @@ pub fn cli_main() {
         match logging::to_stdout(e.render().to_string().as_bytes()) {
             Ok(()) => std::process::exit(0),
             Err(err) => {
-                let _ = std::io::Write::write_all(&mut std::io::stderr(), format!("error: cannot write to stdout: {err}\n").as_bytes());
+                let _ = std::io::Write::write_all(
+                    &mut std::io::stderr(),
+                    format!("error: cannot write to stdout: {err}\n").as_bytes(),
+                );
                 std::process::exit(1)
             }
         }

@@ -125,7 +125,8 @@ pub fn to_stdout(bytes: &[u8]) -> std::io::Result<()> {
 /// failed write is kept for [`stdout_error`]: the command finishes its files first.
 pub fn result(stdout_taken: bool, line: &str) {
     if stdout_taken {
-        tracing::info!("{line}");
+        // A note per line: a message is one line (a table's line breaks would show escaped).
+        line.lines().for_each(|l| tracing::info!("{l}"));
         return;
     }
     if let Err(e) = to_stdout(format!("{line}\n").as_bytes()) {

@@ -317,11 +317,7 @@ pub fn parse_exposure(s: &str) -> Result<Exposure, String> {
 pub fn input_error(flag: &str, path: &std::path::Path, error: impl Into<anyhow::Error>) -> anyhow::Error {
     // `{:#}`: the causes too ("cannot read file: No such file or directory").
     let (shown, text) = (path.display().to_string(), format!("{:#}", error.into()));
-    if text.starts_with(&shown) {
-        anyhow::anyhow!("{flag} {text}")
-    } else {
-        anyhow::anyhow!("{flag} {shown}: {text}")
-    }
+    if text.starts_with(&shown) { anyhow::anyhow!("{flag} {text}") } else { anyhow::anyhow!("{flag} {shown}: {text}") }
 }
 
 /// Which flag of `args` (the command line) was given a value that is not UTF-8, in words: clap

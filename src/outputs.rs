@@ -15,7 +15,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use parallax_accuracy::write_failure;
+use parallax_accuracy::{folder_gone, write_failure};
 use tempfile::NamedTempFile;
 
 /// Where an output goes.
@@ -117,7 +117,12 @@ pub fn check(outputs: &[Output]) -> Result<()> {
                 bail!("{} {shown}: folder {} does not exist; create it first", o.flag, folder.display());
             }
             if let Err(e) = NamedTempFile::new_in(&folder) {
-                bail!("{} {shown}: folder {} is not writable: {}", o.flag, folder.display(), write_failure(&folder, &e));
+                bail!(
+                    "{} {shown}: folder {} is not writable: {}",
+                    o.flag,
+                    folder.display(),
+                    write_failure(&folder, &e)
+                );
             }
         }
         let key = identity(path);
@@ -275,11 +280,14 @@ pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<Sta
     };
     let temp_path = temp.path().to_path_buf();
     let staged = Staged { temp: Some(temp), temp_path, staging, target, write_through };
-    write(&staged.temp_path)?;
-    std::fs::File::open(&staged.temp_path)
-        .and_then(|f| f.sync_all())
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(staged)
+    let written = write(&staged.temp_path)
+        .and_then(|()| std::fs::File::open(&staged.temp_path).and_then(|f| f.sync_all()).with_context(cannot));
+    match written {
+        // The writer's own error would name the temporary file and blame the write.
+        Err(_) if !folder.is_dir() => bail!("{}: {}", cannot(), folder_gone(&folder)),
+        Err(e) => Err(e),
+        Ok(()) => Ok(staged),
+    }
 }
 
 impl Staged {
@@ -295,7 +303,9 @@ impl Staged {
                 .with_context(|| format!("cannot write {shown}"));
         }
         // The folder may have been moved or removed since the output was staged: say so.
-        let failed = |e: std::io::Error| anyhow::anyhow!("cannot write {shown}: {}", write_failure(&folder_of(&self.target), &e));
+        let failed = |e: std::io::Error| {
+            anyhow::anyhow!("cannot write {shown}: {}", write_failure(&folder_of(&self.target), &e))
+        };
         set_published_permissions(&self.temp_path, &self.target).map_err(failed)?;
         let temp = self.temp.take().context("output committed twice")?;
         temp.persist(&self.target).map(drop).map_err(|e| failed(e.error))

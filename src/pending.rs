@@ -72,7 +72,11 @@ pub fn staging_folder(folder: &Path) -> Result<PathBuf> {
     let dir = match tempfile::Builder::new().prefix(".parallax-").tempdir_in(folder) {
         Ok(dir) => dir.keep(),
         Err(e) if folder.is_dir() => {
-            anyhow::bail!("folder {} is not writable: {}", folder.display(), parallax_accuracy::write_failure(folder, &e))
+            anyhow::bail!(
+                "folder {} is not writable: {}",
+                folder.display(),
+                parallax_accuracy::write_failure(folder, &e)
+            )
         }
         Err(e) => anyhow::bail!(parallax_accuracy::write_failure(folder, &e)),
     };

@@ -38,7 +38,8 @@ fn table_of(path: &Path) -> Result<serde_json::Map<String, serde_json::Value>> {
         .map_err(|e| crate::options::input_error("--config", path, e))?;
     let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let value: serde_json::Value = if is_toml {
-        let table: toml::Table = toml::from_str(&text).map_err(|e| anyhow::anyhow!("--config {shown}: {}", toml_error_line(&text, &e)))?;
+        let table: toml::Table =
+            toml::from_str(&text).map_err(|e| anyhow::anyhow!("--config {shown}: {}", toml_error_line(&text, &e)))?;
         json_of_toml(toml::Value::Table(table))
     } else {
         serde_json::from_str(&text)
@@ -153,10 +154,7 @@ mod tests {
             "camera": [0, 1, 4.5, 0, 1, 0, 0, 1, 0, 45],
         });
         let words = words_of(Path::new("r.toml"), table.as_object().unwrap()).unwrap();
-        assert_eq!(
-            words,
-            ["--camera=0,1,4.5,0,1,0,0,1,0,45", "--lf=8x4", "--sources-per-set=2", "--spp=4", "--still"]
-        );
+        assert_eq!(words, ["--camera=0,1,4.5,0,1,0,0,1,0,45", "--lf=8x4", "--sources-per-set=2", "--spp=4", "--still"]);
         let nested = serde_json::json!({ "plan": { "views": 2 } });
         assert!(
             words_of(Path::new("r"), nested.as_object().unwrap())

@@ -284,17 +284,22 @@ pub fn remove_stale_temporaries(dir: &Path) {
 /// without the Debug-quoted path (`at path "…"`) that tempfile adds to it.
 pub fn write_failure(folder: &Path, error: &std::io::Error) -> String {
     if !folder.is_dir() {
-        return format!(
-            "folder {} no longer exists: it was moved or removed while the run went on; leave the output folder in \
-             place until the run ends",
-            folder.display()
-        );
+        return folder_gone(folder);
     }
     let mut cause: &dyn std::error::Error = error;
     while let Some(inner) = cause.source() {
         cause = inner;
     }
     cause.to_string()
+}
+
+/// What to say of an output folder that is not there any more.
+pub fn folder_gone(folder: &Path) -> String {
+    format!(
+        "folder {} no longer exists: it was moved or removed while the run went on; leave the output folder in place \
+         until the run ends",
+        folder.display()
+    )
 }
 
 /// Writes `path` through a temporary file in its folder and a rename, so readers never see a

@@ -473,7 +473,11 @@ impl Taken {
     }
 
     /// The words of row `y` that hold columns `columns`, each with the mask of those columns.
-    fn row_words(words_per_row: usize, y: usize, columns: &std::ops::Range<usize>) -> impl Iterator<Item = (usize, u64)> {
+    fn row_words(
+        words_per_row: usize,
+        y: usize,
+        columns: &std::ops::Range<usize>,
+    ) -> impl Iterator<Item = (usize, u64)> {
         let (first, last) = (columns.start / 64, (columns.end - 1) / 64);
         let (start, end, row) = (columns.start, columns.end, y * words_per_row);
         (first..=last).map(move |w| {
@@ -497,7 +501,8 @@ impl Taken {
     /// No pixel of `b` is taken.
     fn is_free(&self, b: PixelBox) -> bool {
         let Some((columns, rows)) = self.clip(b) else { return true };
-        rows.into_iter().all(|y| Self::row_words(self.words_per_row, y, &columns).all(|(w, mask)| self.bits[w] & mask == 0))
+        rows.into_iter()
+            .all(|y| Self::row_words(self.words_per_row, y, &columns).all(|(w, mask)| self.bits[w] & mask == 0))
     }
 }
 

@@ -104,11 +104,7 @@ fn frame_loop(
             let folder = args.out_dir.join(format!("frame_{m:05}"));
             // Making the frame's folder would make --out-dir again, beside the one the user moved.
             if !args.out_dir.is_dir() {
-                bail!(
-                    "--out-dir {} no longer exists: it was moved or removed while the run went on; leave the output \
-                     folder in place until the run ends",
-                    args.out_dir.display()
-                );
+                bail!("--out-dir: {}", parallax_accuracy::folder_gone(&args.out_dir));
             }
             crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
             staged.extend(stage_views(renderer, &job.compiled.handles, &folder, &views, layers)?);
