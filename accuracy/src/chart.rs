@@ -469,7 +469,7 @@ impl Taken {
     fn clip(&self, b: PixelBox) -> Option<(std::ops::Range<usize>, std::ops::Range<usize>)> {
         let (x0, y0) = (b.0.max(self.bounds.0) - self.bounds.0, b.1.max(self.bounds.1) - self.bounds.1);
         let (x1, y1) = (b.2.min(self.bounds.2) - self.bounds.0, b.3.min(self.bounds.3) - self.bounds.1);
-        (x0 < x1 && y0 < y1).then(|| (x0 as usize..x1 as usize, y0 as usize..y1 as usize))
+        (x0 < x1 && y0 < y1).then_some((x0 as usize..x1 as usize, y0 as usize..y1 as usize))
     }
 
     /// The words of row `y` that hold columns `columns`, each with the mask of those columns.
