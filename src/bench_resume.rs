@@ -7,6 +7,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use anyhow::{Context as _, Result, bail};
+use parallax_scene::input::{InputError, TEXT_FILE_LIMIT, read_bounded};
 
 use crate::bench_matrix::Matrix;
 
@@ -20,13 +21,14 @@ pub fn previous_cells(
     warmup: u32,
 ) -> Result<HashMap<String, serde_json::Value>> {
     let path = out_dir.join("bench.json");
-    let bytes = match std::fs::read(&path) {
+    // Read as every input is: a FIFO named bench.json used to block the run for ever.
+    let bytes = match read_bounded(&path, TEXT_FILE_LIMIT, "bench.json") {
         Ok(bytes) => bytes,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+        Err(InputError::Io { error, .. }) if error.kind() == std::io::ErrorKind::NotFound => {
             tracing::info!("--resume: no {} yet, every cell runs", path.display());
             return Ok(HashMap::new());
         }
-        Err(e) => return Err(e).with_context(|| format!("--resume: cannot read {}", path.display())),
+        Err(e) => return Err(e).context("--resume"),
     };
     let json: serde_json::Value =
         serde_json::from_slice(&bytes).with_context(|| format!("--resume: {} is not JSON", path.display()))?;

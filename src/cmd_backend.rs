@@ -9,7 +9,7 @@ use parallax_backend::{Context, ContextDesc, chrome_trace};
 use crate::budget::check_host_bytes;
 use crate::logging::result;
 use crate::options::{DeviceArgs, count_in};
-use crate::outputs::{Format, Output, Sink, check, parse_sink, write_json};
+use crate::outputs::{Format, Output, Sink, check, sink_parser, write_json};
 
 #[derive(Args, Debug)]
 pub struct DevicesArgs {
@@ -23,7 +23,7 @@ pub fn devices(args: DevicesArgs) -> Result<()> {
     let progress = crate::logging::spinner(format!("creating {} device(s)", selection.count()));
     let context = Context::new(&ContextDesc::from_env(selection))?;
     progress.finish_and_clear();
-    print!("{context}");
+    crate::logging::result(false, context.to_string().trim_end());
     context.check_validation()?;
     Ok(())
 }
@@ -62,10 +62,10 @@ pub struct BenchCopyArgs {
     #[arg(long, allow_negative_numbers = true, default_value_t = 256, value_parser = count_in(1..=65_536))]
     passes_per_device: u64,
     /// Write both measurements as JSON (`-` = stdout).
-    #[arg(long, value_parser = parse_sink)]
+    #[arg(long, value_parser = sink_parser())]
     json: Option<Sink>,
     /// Chrome trace of the copy frames (`-` = stdout).
-    #[arg(long, value_parser = parse_sink)]
+    #[arg(long, value_parser = sink_parser())]
     trace: Option<Sink>,
 }
 

@@ -220,8 +220,10 @@ fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> R
         }
     };
     // A missing scene would otherwise be found only when its first cell runs.
-    if let Some(scene) = matches.get_one::<String>("scene").filter(|s| *s != "default") {
-        parallax_scene::input::open_regular(Path::new(scene)).with_context(|| format!("{origin}: --scene {scene}"))?;
+    if let Some(scene) = matches.get_one::<std::path::PathBuf>("scene").filter(|s| s.as_os_str() != "default") {
+        parallax_scene::input::open_regular(scene)
+            .map_err(|e| crate::options::input_error("--scene", scene, e))
+            .with_context(|| origin.clone())?;
     }
     Ok(())
 }

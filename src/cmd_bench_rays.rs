@@ -3,22 +3,21 @@
 
 use std::time::Instant;
 
-use anyhow::Context as _;
 use parallax_backend::{Context, ContextDesc, DeviceSelection};
 use parallax_passes::RaySchedule;
 use parallax_passes::bench::{RayRate, bench_rays};
-use parallax_scene::{Camera, load_scene_with};
+use parallax_scene::Camera;
 
 use crate::budget::TraceWork;
 use crate::logging::{result, spinner};
 use crate::options::{BvhQualityArg, MAX_DEVICES, Resolution, count_in, parse_camera, parse_resolution};
-use crate::outputs::{Format, Output, Sink, check, parse_sink, write_json};
+use crate::outputs::{Format, Output, Sink, check, sink_parser, write_json};
 
 #[derive(Debug, clap::Args)]
 pub struct BenchRaysArgs {
     /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
     #[arg(long, default_value = "default")]
-    pub scene: String,
+    pub scene: std::path::PathBuf,
     /// Let the scene's URIs name files outside its folder (`../`, absolute, `file:`).
     #[arg(long)]
     pub allow_outside_files: bool,
@@ -46,7 +45,7 @@ pub struct BenchRaysArgs {
     #[arg(long, value_delimiter = ',', default_value = "per-ray,persistent:4:2112")]
     pub schedule: Vec<RaySchedule>,
     /// Write the measurements as JSON (.json; `-` = stdout).
-    #[arg(long, value_parser = parse_sink)]
+    #[arg(long, value_parser = sink_parser())]
     pub json: Option<Sink>,
 }
 
@@ -58,8 +57,7 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     let work = TraceWork::one_view(width, height, 1, args.fake_devices.unwrap_or(1));
     work.check_host()?;
     let t0 = Instant::now();
-    let options = crate::scene_args::load_options(args.allow_outside_files);
-    let scene = load_scene_with(&args.scene, options).with_context(|| format!("loading --scene {}", args.scene))?;
+    let scene = crate::scene_args::load_scene_arg(&args.scene, args.allow_outside_files)?;
     if let Some(Sink::File(json)) = &args.json {
         let inputs: Vec<(&str, &std::path::Path)> =
             scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect();

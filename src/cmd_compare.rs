@@ -16,6 +16,7 @@ use clap::Args;
 use parallax_accuracy::flip::error_map_rgb8;
 use parallax_accuracy::points::point_of_render_json;
 use parallax_accuracy::{CompareOptions, Comparison, Point, compare_paths, write_atomically};
+use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
 
 use crate::options::{Exposure, parse_exposure};
 use crate::outputs::{Format, Output, Sink, check, check_inputs, parse_sink, stage, write_json};
@@ -76,17 +77,17 @@ pub fn check_settings(test: &Path, reference: &Path, allow_mismatch: bool) -> Re
     if diffs.is_empty() {
         return Ok(diffs);
     }
-    let list = diffs.iter().map(|d| format!("\n  {d}")).collect::<String>();
+    let list = diffs.join("; ");
     if !allow_mismatch {
         bail!(
-            "{} and the reference {} were rendered with different settings (test vs reference):{list}\nthe figures \
+            "{} and the reference {} were rendered with different settings (test vs reference): {list}; the figures \
              would measure these differences, not the error: render again with the reference's settings (for a \
              reference, `render --still`), or pass --allow-mismatch to compare anyway",
             test.display(),
             reference.display()
         );
     }
-    tracing::warn!("comparing although the settings differ (--allow-mismatch):{list}");
+    tracing::warn!("comparing although the settings differ (--allow-mismatch): {list}");
     Ok(diffs)
 }
 
@@ -143,6 +144,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let mismatches = check_settings(&args.test, &args.reference, args.allow_mismatch)?;
     let options = CompareOptions { exposure: args.exposure, flip_maps: args.flip_map.is_some() };
     let comparison = compare_paths(&args.test, &args.reference, &options)?;
+    warn_if_tonemapping_hides_the_error(&comparison);
     let table = comparison.markdown();
     crate::logging::result(args.json == Some(Sink::Stdout), table.trim_end());
     if let Some(path) = &args.flip_map {
@@ -161,11 +163,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     }
     if let Some(sink) = &args.json {
         let render_json = args.test.join("render.json");
-        let timing = match parallax_scene::input::read_bounded(
-            &render_json,
-            parallax_scene::input::TEXT_FILE_LIMIT,
-            "render.json",
-        ) {
+        let timing = match read_bounded(&render_json, TEXT_FILE_LIMIT, "render.json") {
             Ok(bytes) => serde_json::from_slice(&bytes)
                 .ok()
                 .and_then(|json| point_of_render_json(&json))
@@ -189,10 +187,27 @@ pub fn run(args: CompareArgs) -> Result<()> {
     Ok(())
 }
 
+/// Perceptual figures of a perfect match for images whose radiance differs mean the exposure
+/// hides the difference (everything black or white at it): say so rather than let them pass
+/// for a result.
+fn warn_if_tonemapping_hides_the_error(comparison: &Comparison) {
+    let o = &comparison.overall;
+    if o.psnr_tonemapped_db == f64::INFINITY && o.rel_mse > 0.0 {
+        tracing::warn!(
+            "at exposure {} ({}) both sides tonemap to the same 8-bit pixels although their radiance differs (relMSE \
+             {:.3e}): PSNR tm, SSIM and FLIP cannot see the difference; give an --exposure at which the images show",
+            comparison.exposure,
+            comparison.exposure_mode,
+            o.rel_mse
+        );
+    }
+}
+
 /// Columns of the error-map sheet: the light field's own, as render's contact sheet (at most
-/// 10), when render.json says; else as square as the views allow.
+/// 10), when render.json says; else as square as the views allow. render.json was read (and
+/// checked) for the settings before the comparison.
 fn sheet_columns(test: &Path, views: usize) -> u32 {
-    let cols = std::fs::read(test.join("render.json"))
+    let cols = read_bounded(&test.join("render.json"), TEXT_FILE_LIMIT, "render.json")
         .ok()
         .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
         .and_then(|j| j["layout"]["cols"].as_u64());

@@ -8,7 +8,7 @@ use parallax_graph::{PlanSummary, Rig};
 
 use crate::logging::{result, spinner};
 use crate::options::DeviceArgs;
-use crate::outputs::{Format, Output, Sink, check, parse_sink, write_bytes, write_json};
+use crate::outputs::{Format, Output, Sink, check, sink_parser, write_bytes, write_json};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::scene_args::LayoutArgs;
 
@@ -25,7 +25,7 @@ pub struct PlanArgs {
     #[command(flatten)]
     dot: DotArgs,
     /// Write a JSON summary (.json; `-` = stdout).
-    #[arg(long, value_parser = parse_sink)]
+    #[arg(long, value_parser = sink_parser())]
     json: Option<Sink>,
 }
 

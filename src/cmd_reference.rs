@@ -55,7 +55,7 @@ pub struct ReferenceArgs {
     #[command(flatten)]
     depth: DepthArgs,
     /// Write the EXRs and the resumable state at least this often (seconds) and at the end.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true, value_parser = parse_checkpoint_secs)]
     checkpoint_secs: f64,
     /// Folder for view_NNN.exr, reference.png, reference.json and reference.partial.
     #[arg(long, default_value = "out/reference")]
@@ -65,6 +65,18 @@ pub struct ReferenceArgs {
     /// > 0. The value used is written to reference.json.
     #[arg(long, allow_negative_numbers = true, default_value = "auto", value_parser = parse_exposure)]
     exposure: Exposure,
+}
+
+/// The longest checkpoint interval: a day (longer is no checkpoint at all but the last).
+const CHECKPOINT_SECS_MAX: f64 = 86_400.0;
+
+/// `--checkpoint-secs`: seconds within 0..=86400 (NaN used to pass clap and fail the run).
+fn parse_checkpoint_secs(s: &str) -> std::result::Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if (0.0..=CHECKPOINT_SECS_MAX).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("{v} is outside 0..={CHECKPOINT_SECS_MAX} seconds")),
+        Err(_) => Err(format!("'{s}' is not a number of seconds in 0..={CHECKPOINT_SECS_MAX}")),
+    }
 }
 
 /// `0,5,8-11` into sorted, distinct view indices below `count`.
@@ -81,7 +93,11 @@ fn parse_views(s: &str, count: usize) -> Result<Vec<u32>> {
             None => (parse(part)?, parse(part)?),
         };
         if a > b || b as usize >= count {
-            bail!("--views '{s}': '{part}' is not a range of views 0..={} of this light field", count - 1);
+            return Err(UsageError(format!(
+                "--views '{s}': '{part}' is not a range of views 0..={} of this light field; list views within it",
+                count - 1
+            ))
+            .into());
         }
         views.extend(a..=b);
     }
@@ -124,7 +140,8 @@ impl<'a> Tracer<'a> {
         }
         let selection = args.devices.selection();
         let context = VkContext::new(&ContextDesc::from_env(selection))?;
-        tracing::info!("{}", context.to_string().trim_end());
+        // One message per device: a message is one line (crate::logging).
+        context.to_string().lines().for_each(|line| tracing::info!("{line}"));
         work.check_devices(&context)?;
         let devices = selection.count();
         let trace = banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
@@ -210,7 +227,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     write_outputs(&args, &acc, &selected, (&lf, &setup), started.elapsed().as_secs_f64(), Some(devices))
 }
 
-/// Refuses chunks that do not tile `--spp` and a checkpoint interval that is not a duration.
+/// Refuses chunks that do not tile `--spp`.
 fn check_sampling_args(args: &ReferenceArgs) -> Result<()> {
     if args.chunk_spp == 0 || args.spp % args.chunk_spp != 0 {
         return Err(UsageError(format!(
@@ -221,9 +238,6 @@ fn check_sampling_args(args: &ReferenceArgs) -> Result<()> {
             args.spp.div_ceil(args.chunk_spp.max(1)) * args.chunk_spp.max(1)
         ))
         .into());
-    }
-    if args.checkpoint_secs.is_nan() || args.checkpoint_secs < 0.0 {
-        bail!("--checkpoint-secs must be a non-negative number of seconds");
     }
     Ok(())
 }
@@ -281,8 +295,10 @@ fn prepare_out_dir(out_dir: &Path, selected: &[u32]) -> Result<crate::outputs::F
     let lock = crate::outputs::lock_folder(out_dir, "--out-dir")?;
     // Found now rather than at the first checkpoint, after the tracing: a folder that cannot
     // take files (read-only, immutable) or a folder where a view's file goes.
-    tempfile::NamedTempFile::new_in(out_dir)
-        .with_context(|| format!("--out-dir {}: the folder is not writable", out_dir.display()))?;
+    if let Err(e) = tempfile::NamedTempFile::new_in(out_dir) {
+        let why = parallax_accuracy::write_failure(out_dir, &e);
+        bail!("--out-dir {}: the folder is not writable: {why}", out_dir.display());
+    }
     let names = selected.iter().map(|v| format!("view_{v:03}.exr"));
     crate::outputs::check_targets_in(
         out_dir,
@@ -433,22 +449,28 @@ fn write_outputs(
     });
     let bytes = serde_json::to_vec_pretty(&json)?;
     write_atomically(&args.out_dir.join("reference.json"), |f| std::io::Write::write_all(f, &bytes))?;
-    println!(
-        "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {} ± {} (standard error)",
-        selected.len(),
-        h.width,
-        h.height,
-        h.spp,
-        h.seconds,
-        ms_per_spp,
-        rgb(mean.map(|m| format!("{m:.5}"))),
-        rgb(standard_error.map(|e| format!("{e:.2e}")))
+    crate::logging::result(
+        false,
+        &format!(
+            "reference: {} views of {}x{} at {} spp in {:.2} s of tracing ({:.2} ms per spp); mean radiance {} ± {} (standard error)",
+            selected.len(),
+            h.width,
+            h.height,
+            h.spp,
+            h.seconds,
+            ms_per_spp,
+            rgb(mean.map(|m| format!("{m:.5}"))),
+            rgb(standard_error.map(|e| format!("{e:.2e}")))
+        ),
     );
-    println!(
-        "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
-        selected.len(),
-        sheet.display(),
-        args.out_dir.display()
+    crate::logging::result(
+        false,
+        &format!(
+            "wrote {} view EXRs, {}, reference.json and {PARTIAL_FILE} to {}",
+            selected.len(),
+            sheet.display(),
+            args.out_dir.display()
+        ),
     );
     Ok(())
 }

@@ -27,8 +27,8 @@ use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::{PipelineBuilder, PipelineHandles};
 use parallax_scene::{Camera, Scene};
 
-use crate::options::{DeviceArgs, Exposure, parse_exposure};
-use crate::outputs::{Sink, parse_sink};
+use crate::options::{DeviceArgs, Exposure, count_u32_in, parse_exposure};
+use crate::outputs::{Sink, sink_parser};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use frames::render_frames;
@@ -81,7 +81,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     pipeline: PipelineArgs,
     /// Samples per pixel of path tracing (sources, holes, or every view).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = count_u32_in(1..=65536))]
     spp: u32,
     #[command(flatten)]
     depth: DepthArgs,
@@ -150,7 +150,7 @@ pub struct RenderArgs {
     /// Write a Chrome trace-event JSON of the measured frames (open in Perfetto or
     /// chrome://tracing; `-` = stdout). With the default `--timing per-stage` an event is a
     /// run of one pass over many views; add `--timing per-op` for one event per view.
-    #[arg(long, value_parser = parse_sink)]
+    #[arg(long, value_parser = sink_parser())]
     trace: Option<Sink>,
     #[command(flatten)]
     dot: DotArgs,
@@ -193,7 +193,7 @@ impl RenderArgs {
         });
         let (lf, p) = (&self.light_field, &self.pipeline);
         serde_json::json!({
-            "scene": self.scene.scene, "camera": camera, "sun": sun, "no_sun": self.scene.no_sun, "sky": sky,
+            "scene": self.scene.scene.to_string_lossy(), "camera": camera, "sun": sun, "no_sun": self.scene.no_sun, "sky": sky,
             "lf": crate::run_file::layout_spelling(&lf.layout.lf), "spacing": lf.layout.spacing,
             "resolution": lf.layout.resolution.map(|r| format!("{}x{}", r.width, r.height)), "focus": lf.focus,
             "gpus": gpus, "fake_devices": fake_devices,

@@ -169,7 +169,8 @@ fn trace_gpu(
     settings: &TraceSettings,
 ) -> anyhow::Result<Frame> {
     let context = VkContext::new(&ContextDesc::from_env(selection))?;
-    tracing::info!("{}", context.to_string().trim_end());
+    // One message per device: a message is one line (crate::logging).
+    context.to_string().lines().for_each(|line| tracing::info!("{line}"));
     work.check_devices(&context)?;
     let devices = selection.count() as u32;
     let trace = banded_trace_plan(1, (view.width, view.height), devices, devices)?;

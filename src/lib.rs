@@ -80,7 +80,26 @@ enum Command {
 /// binary does.
 pub fn cli_main() {
     let invocation: Vec<OsString> = std::env::args_os().collect();
-    let cli = Cli::parse_from(&invocation);
+    let cli = Cli::try_parse_from(&invocation).unwrap_or_else(|e| {
+        if e.kind() == clap::error::ErrorKind::InvalidUtf8 {
+            let message = options::non_utf8_argument(std::env::args_os());
+            Cli::command().error(clap::error::ErrorKind::InvalidUtf8, message).exit();
+        }
+        if e.use_stderr() {
+            e.exit()
+        }
+        // `--help` and `--version`: clap's own print ignores a failed write.
+        match logging::to_stdout(e.render().to_string().as_bytes()) {
+            Ok(()) => std::process::exit(0),
+            Err(err) => {
+                let _ = std::io::Write::write_all(
+                    &mut std::io::stderr(),
+                    format!("error: cannot write to stdout: {err}\n").as_bytes(),
+                );
+                std::process::exit(1)
+            }
+        }
+    });
     logging::init(cli.verbosity);
     // Ctrl-C, SIGTERM and SIGHUP end the process before any destructor runs: remove the
     // temporary files of outputs not yet in place and the folders the run created, so an
@@ -93,11 +112,17 @@ pub fn cli_main() {
     }) {
         tracing::debug!("no Ctrl-C handler ({err}): an interrupted run may leave a temporary file");
     }
-    if let Err(err) = execute(cli.command, &invocation) {
+    // The files are in place; results that could not be shown on stdout fail the command still.
+    let result = execute(cli.command, &invocation).and_then(|()| match logging::stdout_error() {
+        Some(e) => Err(anyhow::Error::new(e).context("cannot write the results to stdout")),
+        None => Ok(()),
+    });
+    if let Err(err) = result {
         drop(pending::remove_all());
         // Flags that do not go together, or a value no run could use, are usage errors like
         // clap's own: same form, exit 2.
         if let Some(usage) = options::usage_error(&err) {
+            let usage = logging::escape_controls(&usage).into_owned();
             Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();
         }
         tracing::error!("{err:#}");

@@ -1,8 +1,21 @@
 //! Diagnostics on stderr through `tracing`, results on stdout. `-q` keeps only errors, `-v`
 //! adds debug detail, `-vv` everything. Progress bars are diagnostics too: hidden under `-q`
 //! (and by indicatif whenever stderr is not a terminal).
+//!
+//! Writing never panics (`println!` does on a closed pipe or a full disk):
+//! - stdout goes through [`to_stdout`]: a reader that closed the pipe (`| head -1`) wants no
+//!   more, so the rest of stdout is dropped quietly and the command goes on (exit 0); any other
+//!   write error fails the command with one line (exit 1);
+//! - a diagnostic that cannot be written (`2> /dev/full`) is dropped: there is nowhere to say
+//!   so, and the exit status still tells how the run ended;
+//! - every control character of a message (a line break included) is shown escaped
+//!   ([`escape_controls`]), so a message is one line whatever a user put in a path, a URI or a
+//!   name: a newline in a file name cannot forge a line of its own.
 
+use std::borrow::Cow;
 use std::fmt;
+use std::io::Write as _;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
@@ -36,7 +49,32 @@ pub fn init(v: Verbosity) {
         (false, _) => Level::TRACE,
     };
     QUIET.store(v.quiet, Ordering::Relaxed);
-    tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).event_format(Plain).init();
+    tracing_subscriber::fmt()
+        .with_max_level(level)
+        .with_writer(std::io::stderr)
+        // The default reports a failed write with `eprintln!`, which panics when stderr is the
+        // thing that failed.
+        .log_internal_errors(false)
+        .event_format(Plain)
+        .init();
+}
+
+/// `text` with every control character escaped as Rust writes it (`\n`, `\r`, `\t`,
+/// `\u{1b}`): what a user-supplied string (a path, a URI, a name) becomes in a message, so
+/// that the message stays one line and no escape sequence reaches the terminal.
+pub fn escape_controls(text: &str) -> Cow<'_, str> {
+    if !text.chars().any(char::is_control) {
+        return Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    Cow::Owned(out)
 }
 
 /// Installs the stderr logger of a program that runs commands in-process
@@ -72,21 +110,55 @@ where
             Level::DEBUG => "debug: ",
             Level::TRACE => "trace: ",
         };
+        let mut message = String::new();
+        ctx.field_format().format_fields(Writer::new(&mut message), event)?;
         w.write_str(prefix)?;
-        ctx.field_format().format_fields(w.by_ref(), event)?;
+        w.write_str(&escape_controls(&message))?;
         writeln!(w)
     }
 }
 
-/// Prints one result line: on stdout, or as a note on stderr when stdout already carries a
-/// machine-readable output (`--json -`), which text would corrupt, or when the command runs
-/// inside another program (which takes the results as values).
+/// Set once a reader closed stdout: nothing more is written there.
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+/// The first failed write of a result line (not a closed pipe), reported when the command ends.
+static STDOUT_ERROR: Mutex<Option<std::io::Error>> = Mutex::new(None);
+
+/// Writes `bytes` to stdout whole and flushes them. A closed pipe (EPIPE) is not an error: the
+/// reader has all it wanted, so this and every later write to stdout is dropped quietly.
+pub fn to_stdout(bytes: &[u8]) -> std::io::Result<()> {
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        return Ok(());
+    }
+    let mut out = std::io::stdout().lock();
+    match out.write_all(bytes).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            STDOUT_CLOSED.store(true, Ordering::Relaxed);
+            Ok(())
+        }
+        other => other,
+    }
+}
+
+/// Prints one result (a line, or a table): on stdout, or as a note on stderr when
+/// stdout already carries a machine-readable output (`--json -`), which text would corrupt, or
+/// when the command runs inside another program (which takes the results as values). A failed
+/// write is kept for [`stdout_error`]: the command finishes its files first.
 pub fn result(stdout_taken: bool, line: &str) {
     if stdout_taken || EMBEDDED.load(Ordering::Relaxed) {
-        tracing::info!("{line}");
-    } else {
-        println!("{line}");
+        // A note per line: a message is one line (a table's line breaks would show escaped).
+        line.lines().for_each(|l| tracing::info!("{l}"));
+        return;
     }
+    if let Err(e) = to_stdout(format!("{line}\n").as_bytes()) {
+        let mut first = STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner());
+        first.get_or_insert(e);
+    }
+}
+
+/// The first result line that could not be written (a full disk, /dev/full), if any: the
+/// command then ends with that error, exit 1.
+pub fn stdout_error() -> Option<std::io::Error> {
+    STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner()).take()
 }
 
 /// Whether `-q` was given: detail a person reads (the stage table) is left out, the one-line

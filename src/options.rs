@@ -104,7 +104,7 @@ pub fn parse_spacing(s: &str) -> Result<f64, String> {
             "{v} m is more than {MAX_SPACING} m between neighbouring views: every view would see something else \
              (light fields space views millimetres to metres apart, e.g. 0.001)"
         )),
-        _ => Err("use a finite, non-negative distance in metres (e.g. 0.001)".into()),
+        _ => Err(format!("use a finite distance in metres within 0..={MAX_SPACING} (e.g. 0.001)")),
     }
 }
 
@@ -123,7 +123,11 @@ pub fn parse_focus(s: &str) -> Result<f64, String> {
             FOCUS_RANGE.start(),
             FOCUS_RANGE.end()
         )),
-        _ => Err("use a finite distance in metres greater than 0 (e.g. 2.5)".into()),
+        _ => Err(format!(
+            "use a finite distance in metres within {:e}..={:e} (e.g. 2.5)",
+            FOCUS_RANGE.start(),
+            FOCUS_RANGE.end()
+        )),
     }
 }
 
@@ -314,10 +318,42 @@ pub fn parse_sky(s: &str) -> Result<Sky, String> {
     }
 }
 
-/// `--exposure auto|N`: the automatic exposure of the whole light field, or a finite
-/// multiplier in (0, 1e6] (0, negative or NaN would write a black image).
+/// `--exposure auto|N`: the automatic exposure of the whole light field, or a multiplier in
+/// 1e-6..=1e6 (0, negative, NaN or a denormal would write a black image).
 pub fn parse_exposure(s: &str) -> Result<Exposure, String> {
     s.parse()
+}
+
+/// `error`, about the file `path` a flag named, as an error of `flag` that names the path once:
+/// `--scene s.gltf: cannot read file…` where the error starts with the path (as the input and
+/// scene errors do), else `--scene s.gltf: <error>`.
+pub fn input_error(flag: &str, path: &std::path::Path, error: impl Into<anyhow::Error>) -> anyhow::Error {
+    // `{:#}`: the causes too ("cannot read file: No such file or directory").
+    let (shown, text) = (path.display().to_string(), format!("{:#}", error.into()));
+    if text.starts_with(&shown) { anyhow::anyhow!("{flag} {text}") } else { anyhow::anyhow!("{flag} {shown}: {text}") }
+}
+
+/// Which flag of `args` (the command line) was given a value that is not UTF-8, in words: clap
+/// says only that some argument was. Paths take any bytes; the flags that take text do not.
+pub fn non_utf8_argument(args: impl IntoIterator<Item = std::ffi::OsString>) -> String {
+    let mut previous: Option<String> = None;
+    for arg in args {
+        let Some(text) = arg.to_str() else {
+            let bytes = arg.as_encoded_bytes();
+            let attached = bytes.starts_with(b"--").then(|| bytes.iter().position(|&b| b == b'=')).flatten();
+            let (flag, value) = match (attached, &previous) {
+                (Some(at), _) => (String::from_utf8_lossy(&bytes[..at]).into_owned(), &bytes[at + 1..]),
+                (None, Some(flag)) if flag.starts_with('-') => (flag.clone(), bytes),
+                _ => ("an argument".to_string(), bytes),
+            };
+            return format!(
+                "{flag}: the value '{}' is not UTF-8 text; this flag takes text (only paths may be any bytes)",
+                String::from_utf8_lossy(value)
+            );
+        };
+        previous = Some(text.to_string());
+    }
+    "an argument is not UTF-8 text".to_string()
 }
 
 /// A usage error found after parsing (two flags that do not go together): `main` prints it
@@ -349,10 +385,22 @@ pub fn usage_error(err: &anyhow::Error) -> Option<String> {
 
 /// A count within `range`, for clap; the message names the range.
 pub fn count_in(range: RangeInclusive<u64>) -> impl Fn(&str) -> Result<u64, String> + Clone {
+    move |s: &str| whole_in(s, &range)
+}
+
+/// [`count_in`] of a `u32` flag (`render --spp`).
+pub fn count_u32_in(range: RangeInclusive<u32>) -> impl Fn(&str) -> Result<u32, String> + Clone {
     move |s: &str| {
-        let n: u64 = s.trim().parse().map_err(|_| format!("'{s}' is not a whole number"))?;
-        if range.contains(&n) { Ok(n) } else { Err(format!("{n} is outside {}..={}", range.start(), range.end())) }
+        let wide = u64::from(*range.start())..=u64::from(*range.end());
+        whole_in(s, &wide).map(|n| n as u32)
     }
+}
+
+/// `s` as a whole number within `range`; the message names the range (`nan` included).
+fn whole_in(s: &str, range: &RangeInclusive<u64>) -> Result<u64, String> {
+    let (lo, hi) = (range.start(), range.end());
+    let n: u64 = s.trim().parse().map_err(|_| format!("'{s}' is not a whole number in {lo}..={hi}"))?;
+    if range.contains(&n) { Ok(n) } else { Err(format!("{n} is outside {lo}..={hi}")) }
 }
 
 /// Which Vulkan devices to use.

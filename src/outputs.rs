@@ -15,6 +15,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use parallax_accuracy::{folder_gone, write_failure};
 use tempfile::NamedTempFile;
 
 /// Where an output goes.
@@ -24,13 +25,15 @@ pub enum Sink {
     File(PathBuf),
 }
 
-/// clap value parser: `-` is stdout.
-pub fn parse_sink(s: &str) -> Result<Sink, String> {
-    match s {
-        "" => Err("an empty path".into()),
-        "-" => Ok(Sink::Stdout),
+/// clap value parser of an output: `-` is stdout, anything else a path, UTF-8 or not (as any
+/// `PathBuf` flag takes it).
+pub fn sink_parser() -> impl clap::builder::TypedValueParser<Value = Sink> {
+    use clap::builder::TypedValueParser as _;
+    clap::builder::OsStringValueParser::new().try_map(|s| match s.as_encoded_bytes() {
+        b"" => Err("an empty path"),
+        b"-" => Ok(Sink::Stdout),
         _ => Ok(Sink::File(PathBuf::from(s))),
-    }
+    })
 }
 
 /// The format of an output, which its file name must say.
@@ -124,8 +127,14 @@ pub fn check_creating(outputs: &[Output], created: Option<&Path>) -> Result<()> 
                 if !folder.is_dir() {
                     bail!("{} {shown}: folder {} does not exist; create it first", o.flag, folder.display());
                 }
-                NamedTempFile::new_in(&folder)
-                    .with_context(|| format!("{} {shown}: folder {} is not writable", o.flag, folder.display()))?;
+                if let Err(e) = NamedTempFile::new_in(&folder) {
+                    bail!(
+                        "{} {shown}: folder {} is not writable: {}",
+                        o.flag,
+                        folder.display(),
+                        write_failure(&folder, &e)
+                    );
+                }
             }
         }
         let key = identity(path);
@@ -272,22 +281,25 @@ pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<Sta
     };
     let write_through = std::fs::metadata(&target).is_ok_and(|m| !m.is_file());
     let folder = if write_through { std::env::temp_dir() } else { folder_of(&target) };
-    let not_writable = || format!("cannot write {}: folder {} is not writable", path.display(), folder.display());
-    let staging = crate::pending::staging_folder(&folder).with_context(not_writable)?;
+    let cannot = || format!("cannot write {}", path.display());
+    let staging = crate::pending::staging_folder(&folder).with_context(cannot)?;
     let temp = match tempfile::Builder::new().prefix("output-").tempfile_in(&staging) {
         Ok(temp) => temp,
         Err(e) => {
             crate::pending::release_staging(&staging);
-            return Err(e).with_context(not_writable);
+            bail!("{}: {}", cannot(), write_failure(&folder, &e));
         }
     };
     let temp_path = temp.path().to_path_buf();
     let staged = Staged { temp: Some(temp), temp_path, staging, target, write_through };
-    write(&staged.temp_path)?;
-    std::fs::File::open(&staged.temp_path)
-        .and_then(|f| f.sync_all())
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(staged)
+    let written = write(&staged.temp_path)
+        .and_then(|()| std::fs::File::open(&staged.temp_path).and_then(|f| f.sync_all()).with_context(cannot));
+    match written {
+        // The writer's own error would name the temporary file and blame the write.
+        Err(_) if !folder.is_dir() => bail!("{}: {}", cannot(), folder_gone(&folder)),
+        Err(e) => Err(e),
+        Ok(()) => Ok(staged),
+    }
 }
 
 impl Staged {
@@ -302,9 +314,13 @@ impl Staged {
                 .and_then(|mut f| f.write_all(&bytes).and_then(|_| f.flush()))
                 .with_context(|| format!("cannot write {shown}"));
         }
-        set_published_permissions(&self.temp_path, &self.target).with_context(|| format!("cannot write {shown}"))?;
+        // The folder may have been moved or removed since the output was staged: say so.
+        let failed = |e: std::io::Error| {
+            anyhow::anyhow!("cannot write {shown}: {}", write_failure(&folder_of(&self.target), &e))
+        };
+        set_published_permissions(&self.temp_path, &self.target).map_err(failed)?;
         let temp = self.temp.take().context("output committed twice")?;
-        temp.persist(&self.target).map(drop).map_err(|e| e.error).with_context(|| format!("cannot write {shown}"))
+        temp.persist(&self.target).map(drop).map_err(|e| failed(e.error))
     }
 }
 
@@ -325,10 +341,7 @@ fn set_published_permissions(_: &Path, _: &Path) -> std::io::Result<()> {
 /// Writes `bytes` to `sink` whole or not at all.
 pub fn write_bytes(sink: &Sink, bytes: &[u8]) -> Result<()> {
     match sink {
-        Sink::Stdout => {
-            let mut out = std::io::stdout().lock();
-            out.write_all(bytes).and_then(|_| out.flush()).context("cannot write to stdout")
-        }
+        Sink::Stdout => crate::logging::to_stdout(bytes).context("cannot write to stdout"),
         Sink::File(path) => {
             stage(path, |temp| std::fs::write(temp, bytes).with_context(|| format!("cannot write {}", path.display())))?
                 .commit()

@@ -8,17 +8,49 @@
 //! - temporary files live in a per-folder staging folder (`.parallax-XXXXXX/`), not beside the
 //!   target: writers open their file by path, and a file reopened after the handler removed it
 //!   would outlive the run, while a file in a staging folder that is gone cannot be created;
-//! - the handler keeps the lock until the process ends, so no folder is created after it looked.
+//! - the handler keeps the lock until the process ends, so no folder is created after it looked;
+//! - a staging folder is removed where it is *now*: the run keeps it open, and the open folder
+//!   says its current path, so a user who moves the output folder mid-run finds no
+//!   `.parallax-XXXXXX/` left in it.
 
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
+
+/// One staging folder: where it was made, the open folder, and how many staged outputs it holds
+/// (it is removed with its last).
+struct Staging {
+    path: PathBuf,
+    handle: Option<std::fs::File>,
+    outputs: usize,
+}
+
+impl Staging {
+    /// Where the folder is now: its path when it was made, unless the folder (or one above it)
+    /// was moved since, which the open folder tells (Linux's /proc/self/fd).
+    fn current_path(&self) -> PathBuf {
+        #[cfg(target_os = "linux")]
+        if let Some(handle) = &self.handle {
+            use std::os::fd::AsRawFd;
+            if let Ok(now) = std::fs::read_link(format!("/proc/self/fd/{}", handle.as_raw_fd()))
+                && now.is_dir()
+            {
+                return now;
+            }
+        }
+        self.path.clone()
+    }
+
+    /// Removes the folder and what it holds, wherever it is now.
+    fn remove(&self) -> std::io::Result<()> {
+        std::fs::remove_dir_all(self.current_path())
+    }
+}
 
 #[derive(Default)]
 pub struct Pending {
-    /// Staging folders and how many staged outputs each holds; one is removed with its last.
-    staging: Vec<(PathBuf, usize)>,
+    staging: Vec<Staging>,
     /// Folders this run created, outermost first, until [`keep_folders`].
     created: Vec<PathBuf>,
 }
@@ -30,28 +62,36 @@ fn pending() -> MutexGuard<'static, Pending> {
 }
 
 /// A staging folder inside `folder` for one more staged output: created with the first one.
+/// The error says why not: the folder is not writable, or it is gone (moved during the run).
 pub fn staging_folder(folder: &Path) -> Result<PathBuf> {
     let mut pending = pending();
-    if let Some((dir, count)) = pending.staging.iter_mut().find(|(dir, _)| dir.parent() == Some(folder)) {
-        *count += 1;
-        return Ok(dir.clone());
+    if let Some(staging) = pending.staging.iter_mut().find(|s| s.path.parent() == Some(folder)) {
+        staging.outputs += 1;
+        return Ok(staging.path.clone());
     }
-    let dir = tempfile::Builder::new()
-        .prefix(".parallax-")
-        .tempdir_in(folder)
-        .with_context(|| format!("folder {} is not writable", folder.display()))?
-        .keep();
-    pending.staging.push((dir.clone(), 1));
+    let dir = match tempfile::Builder::new().prefix(".parallax-").tempdir_in(folder) {
+        Ok(dir) => dir.keep(),
+        Err(e) if folder.is_dir() => {
+            anyhow::bail!(
+                "folder {} is not writable: {}",
+                folder.display(),
+                parallax_accuracy::write_failure(folder, &e)
+            )
+        }
+        Err(e) => anyhow::bail!(parallax_accuracy::write_failure(folder, &e)),
+    };
+    let handle = std::fs::File::open(&dir).ok();
+    pending.staging.push(Staging { path: dir.clone(), handle, outputs: 1 });
     Ok(dir)
 }
 
 /// One staged output of `dir` is in place or dropped: the folder goes with its last one.
 pub fn release_staging(dir: &Path) {
     let mut pending = pending();
-    if let Some(i) = pending.staging.iter().position(|(d, _)| d == dir) {
-        pending.staging[i].1 -= 1;
-        if pending.staging[i].1 == 0 {
-            let _ = std::fs::remove_dir_all(dir);
+    if let Some(i) = pending.staging.iter().position(|s| s.path == dir) {
+        pending.staging[i].outputs -= 1;
+        if pending.staging[i].outputs == 0 {
+            let _ = pending.staging[i].remove();
             pending.staging.swap_remove(i);
         }
     }
@@ -77,11 +117,11 @@ pub fn keep_folders() {
 /// holding it (nothing is created after this looked).
 pub fn remove_all() -> MutexGuard<'static, Pending> {
     let pending = pending();
-    for (dir, _) in &pending.staging {
+    for staging in &pending.staging {
         // A writer may create a file between the listing and the removal of its folder: retry
         // until the folder is gone (once it is, no file can be created in it).
         for _ in 0..100 {
-            match std::fs::remove_dir_all(dir) {
+            match staging.remove() {
                 Err(e) if e.kind() != std::io::ErrorKind::NotFound => continue,
                 _ => break,
             }
@@ -109,5 +149,20 @@ mod tests {
         assert!(first.is_dir(), "kept while an output is still staged");
         release_staging(&first);
         assert!(!first.exists(), "removed with its last output");
+    }
+
+    /// The output folder moved while an output was staged: the staging folder is removed
+    /// where it now is, and a new one is refused naming the cause.
+    #[test]
+    fn a_staging_folder_is_removed_from_a_folder_that_moved() {
+        let dir = tempfile::tempdir().unwrap();
+        let (out, moved) = (dir.path().join("out"), dir.path().join("moved"));
+        std::fs::create_dir(&out).unwrap();
+        let staging = staging_folder(&out).unwrap();
+        std::fs::rename(&out, &moved).unwrap();
+        let err = staging_folder(&dir.path().join("gone")).unwrap_err().to_string();
+        assert!(err.ends_with("gone no longer exists: it was moved or removed while the run went on; leave the output folder in place until the run ends"), "{err}");
+        release_staging(&staging);
+        assert_eq!(std::fs::read_dir(&moved).unwrap().count(), 0, "the staging folder went with the moved folder");
     }
 }

@@ -13,7 +13,7 @@ use parallax_passes::reproject::ReprojectionTolerances;
 
 use crate::budget::PlanShape;
 use crate::options::{AssignArg, DotDetail, SchemeArg, SourceList, UsageError, assignment, parse_sources};
-use crate::outputs::{Sink, parse_sink};
+use crate::outputs::{Sink, sink_parser};
 
 /// `--pipeline`: what renders the views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -111,7 +111,7 @@ pub fn check_reprojection_tolerance(v: f64) -> Result<f64, String> {
 #[derive(Args, Debug, Clone)]
 pub struct DotArgs {
     /// Write the schedule as Graphviz DOT (.dot or .gv; `-` = stdout).
-    #[arg(long, value_parser = parse_sink)]
+    #[arg(long, value_parser = sink_parser())]
     pub dot: Option<Sink>,
     /// How much of the schedule the DOT shows.
     #[arg(long, value_enum, default_value_t = DotDetail::Auto)]

@@ -5,6 +5,12 @@
 //! `false` and null none, an array its values joined by commas) and the words are parsed by
 //! render's own parser, so a run file is checked exactly as a command line is; flags given on
 //! the command line as well come after the file's and win.
+//!
+//! The file is read as every input is (a regular file of at most 256 MiB, see
+//! `parallax_scene::input`). A TOML float that is not finite (`spp = nan`, `spacing = -inf`)
+//! reaches the flag's parser as the word `nan` or `-inf`, which refuses it naming the flag and
+//! its range as it refuses `--spp nan`: converted to JSON it would become null, and so no flag
+//! at all.
 
 use std::ffi::OsString;
 use std::path::Path;
@@ -28,10 +34,13 @@ pub fn layout_spelling(spec: &LayoutSpec) -> String {
 /// The settings table of a run file: render.json's `run`, or a TOML file's top level.
 fn table_of(path: &Path) -> Result<serde_json::Map<String, serde_json::Value>> {
     let shown = path.display();
-    let text = std::fs::read_to_string(path).with_context(|| format!("--config {shown}: cannot read the file"))?;
+    let text = parallax_scene::input::read_text(path, "run file")
+        .map_err(|e| crate::options::input_error("--config", path, e))?;
     let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let value: serde_json::Value = if is_toml {
-        toml::from_str(&text).with_context(|| format!("--config {shown}: not TOML"))?
+        let table: toml::Table =
+            toml::from_str(&text).map_err(|e| anyhow::anyhow!("--config {shown}: {}", toml_error_line(&text, &e)))?;
+        json_of_toml(toml::Value::Table(table))
     } else {
         serde_json::from_str(&text)
             .with_context(|| format!("--config {shown}: not JSON (a TOML run file ends in .toml)"))?
@@ -43,7 +52,37 @@ fn table_of(path: &Path) -> Result<serde_json::Map<String, serde_json::Value>> {
     }
 }
 
-/// The command-line words of a run file's settings; `origin` (`--config FILE`) begins each
+/// A TOML error in one line, `not TOML (line L, column C): what`: the error's own text spans
+/// several lines (the source line and a caret).
+fn toml_error_line(text: &str, error: &toml::de::Error) -> String {
+    match error.span() {
+        Some(span) => {
+            let before = &text[..span.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let column = before.len() - before.rfind('\n').map_or(0, |at| at + 1) + 1;
+            format!("not TOML (line {line}, column {column}): {}", error.message())
+        }
+        None => format!("not TOML: {}", error.message()),
+    }
+}
+
+/// `value` as JSON, a float that is not finite as its word (`nan`, `inf`, `-inf`): JSON has no
+/// such number, and serde's conversion would make it null, silently dropping the setting.
+fn json_of_toml(value: toml::Value) -> serde_json::Value {
+    use serde_json::Value as J;
+    match value {
+        toml::Value::String(s) => J::String(s),
+        toml::Value::Integer(i) => J::from(i),
+        toml::Value::Float(f) => serde_json::Number::from_f64(f).map_or_else(|| J::String(f.to_string()), J::Number),
+        toml::Value::Boolean(b) => J::Bool(b),
+        toml::Value::Datetime(d) => J::String(d.to_string()),
+        toml::Value::Array(items) => J::Array(items.into_iter().map(json_of_toml).collect()),
+        toml::Value::Table(table) => J::Object(table.into_iter().map(|(k, v)| (k, json_of_toml(v))).collect()),
+    }
+}
+
+/// The command-line words of a run file's settings, `--flag=value` so that a value that starts
+/// with `-` (`-inf`, `-1`) is never taken for a flag; `origin` (`--config FILE`) begins each
 /// error message.
 pub fn words_of(origin: &str, table: &serde_json::Map<String, serde_json::Value>) -> Result<Vec<String>> {
     let mut words = Vec::new();
@@ -65,10 +104,10 @@ pub fn words_of(origin: &str, table: &serde_json::Map<String, serde_json::Value>
                 let Some(parts) = parts else {
                     bail!("{origin}: `{key}` must list numbers or strings");
                 };
-                words.extend([flag, parts.join(",")]);
+                words.push(format!("{flag}={}", parts.join(",")));
             }
             serde_json::Value::Object(_) => bail!("{origin}: `{key}` is a table, not a setting"),
-            v => words.extend([flag, scalar(v).expect("a string or number")]),
+            v => words.push(format!("{flag}={}", scalar(v).expect("a string or number"))),
         }
     }
     Ok(words)
@@ -117,10 +156,7 @@ mod tests {
             "camera": [0, 1, 4.5, 0, 1, 0, 0, 1, 0, 45],
         });
         let words = words_of("--config r.toml", table.as_object().unwrap()).unwrap();
-        assert_eq!(
-            words,
-            ["--camera", "0,1,4.5,0,1,0,0,1,0,45", "--lf", "8x4", "--sources-per-set", "2", "--spp", "4", "--still"]
-        );
+        assert_eq!(words, ["--camera=0,1,4.5,0,1,0,0,1,0,45", "--lf=8x4", "--sources-per-set=2", "--spp=4", "--still"]);
         let nested = serde_json::json!({ "plan": { "views": 2 } });
         assert!(
             words_of("--config r", nested.as_object().unwrap()).unwrap_err().to_string().contains("`plan` is a table")

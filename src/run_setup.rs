@@ -49,7 +49,7 @@ impl CameraSetup {
 /// See the module docs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Setup {
-    /// `--scene` as given.
+    /// `--scene` as given (a path that is not UTF-8 with U+FFFD for what is not).
     pub scene: String,
     /// `default`, or the scene file's FNV-1a hash and size: what the comparison checks, so two
     /// paths to the same file agree.
@@ -69,15 +69,14 @@ pub struct Setup {
 
 /// The scene file's name, FNV-1a hash and size (`default` for the built-in scene). Buffers and
 /// textures a glTF refers to are not hashed.
-pub fn scene_fingerprint(spec: &str) -> Result<String> {
-    if spec == "default" {
+pub fn scene_fingerprint(spec: &Path) -> Result<String> {
+    if spec == Path::new("default") {
         return Ok("default".into());
     }
-    let bytes =
-        parallax_scene::input::read_bounded(Path::new(spec), parallax_scene::input::SCENE_FILE_LIMIT, "glTF scene")
-            .with_context(|| format!("--scene {spec}: cannot read the file"))?;
+    let bytes = parallax_scene::input::read_bounded(spec, parallax_scene::input::SCENE_FILE_LIMIT, "glTF scene")
+        .map_err(|e| crate::options::input_error("--scene", spec, e))?;
     let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    let name = Path::new(spec).file_name().map_or(spec.into(), |n| n.to_string_lossy());
+    let name = spec.file_name().map_or(spec.to_string_lossy(), |n| n.to_string_lossy());
     Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))
 }
 
@@ -85,7 +84,7 @@ impl Setup {
     /// The setup of `lf`'s views of `scene` (its lights as the run set them), seen from `camera`,
     /// `spacing` the spacing in effect (`None`: the preset's, 1 mm).
     pub fn new(
-        spec: &str,
+        spec: &Path,
         scene: &Scene,
         camera: &Camera,
         still: bool,
@@ -101,7 +100,7 @@ impl Setup {
             },
         };
         Ok(Setup {
-            scene: spec.to_string(),
+            scene: spec.to_string_lossy().into_owned(),
             scene_hash: scene_fingerprint(spec)?,
             camera: CameraSetup::of(camera),
             still,
@@ -226,10 +225,12 @@ pub fn differences(test: &Setup, reference: &Setup) -> Vec<String> {
 pub fn setup_beside(path: &Path) -> Result<std::result::Result<Setup, String>> {
     let folder = if path.is_dir() { path } else { path.parent().unwrap_or(Path::new(".")) };
     let folder = if folder.as_os_str().is_empty() { Path::new(".") } else { folder };
-    let Some(json_path) = ["render.json", "reference.json"].iter().map(|n| folder.join(n)).find(|p| p.is_file()) else {
+    // Whatever is there under the name is read as every input is: a FIFO or a 1 GB file is
+    // refused by name, not waited on or read whole.
+    let Some(json_path) = ["render.json", "reference.json"].iter().map(|n| folder.join(n)).find(|p| p.exists()) else {
         return Ok(Err(format!("no render.json or reference.json in {}", folder.display())));
     };
-    let bytes = std::fs::read(&json_path).with_context(|| format!("cannot read {}", json_path.display()))?;
+    let bytes = parallax_scene::input::read_bounded(&json_path, parallax_scene::input::TEXT_FILE_LIMIT, "JSON file")?;
     let json: serde_json::Value =
         serde_json::from_slice(&bytes).with_context(|| format!("{} is not JSON", json_path.display()))?;
     match json.get("setup") {

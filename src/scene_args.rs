@@ -3,14 +3,16 @@
 //! [`DeviceArgs`](crate::options::DeviceArgs) is). The field names are the clap ids, which
 //! `conflicts_with = "sun"` and `bench`'s `value_source("...")` checks refer to.
 
-use anyhow::{Context as _, Result};
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
 use clap::Args;
 use glam::Vec3;
 use parallax_graph::{LayoutSpec, LightField, Rig};
 use parallax_passes::camera::rig_of;
 use parallax_scene::gltf_budget::MemoryLimit;
 use parallax_scene::input::UriPolicy;
-use parallax_scene::{Camera, LoadOptions, Scene, Sky, Sun, load_scene_with};
+use parallax_scene::{Camera, LoadOptions, Scene, Sky, Sun, default_scene, load_gltf_with};
 
 use crate::options::{
     CameraArg, Resolution, parse_camera_arg, parse_focus, parse_layout, parse_resolution, parse_sky, parse_spacing,
@@ -22,7 +24,7 @@ use crate::options::{
 pub struct SceneArgs {
     /// glTF file (.gltf/.glb) or `default` for the embedded default scene.
     #[arg(long, default_value = "default")]
-    pub scene: String,
+    pub scene: PathBuf,
     /// The camera `eye_x,eye_y,eye_z,target_x,target_y,target_z,up_x,up_y,up_z,yfov_degrees` (of a
     /// light field: the rig, its centre); without it the scene's first camera (or one framing the
     /// whole scene).
@@ -48,9 +50,7 @@ pub struct SceneArgs {
 impl SceneArgs {
     /// Loads `--scene` and applies `--sun`, `--no-sun` and `--sky` to it.
     pub fn load(&self) -> Result<Scene> {
-        let options = load_options(self.allow_outside_files);
-        let mut scene =
-            load_scene_with(&self.scene, options).with_context(|| format!("loading --scene {}", self.scene))?;
+        let mut scene = load_scene_arg(&self.scene, self.allow_outside_files)?;
         self.light(&mut scene);
         Ok(scene)
     }
@@ -87,6 +87,15 @@ impl SceneArgs {
 pub fn load_options(allow_outside_files: bool) -> LoadOptions {
     let memory = crate::host_memory::budget().memory.map(|m| MemoryLimit { bytes: m.bytes, bound: m.bound });
     LoadOptions { uris: uri_policy(allow_outside_files), memory }
+}
+
+/// `--scene`: `default` (the embedded scene) or a glTF file, whose path may be any the OS takes
+/// (UTF-8 or not). An error names the flag, and the path once.
+pub fn load_scene_arg(scene: &Path, allow_outside_files: bool) -> Result<Scene> {
+    if scene == Path::new("default") {
+        return Ok(default_scene());
+    }
+    load_gltf_with(scene, load_options(allow_outside_files)).map_err(|e| crate::options::input_error("--scene", scene, e))
 }
 
 /// `--allow-outside-files` as the loader's URI policy.

@@ -279,27 +279,50 @@ pub fn remove_stale_temporaries(dir: &Path) {
     }
 }
 
+/// Why a file could not be written in `folder`, in words: the folder is gone (moved or removed
+/// while the run went on, which the OS reports as a missing file), or the OS's own reason,
+/// without the Debug-quoted path (`at path "…"`) that tempfile adds to it.
+pub fn write_failure(folder: &Path, error: &std::io::Error) -> String {
+    if !folder.is_dir() {
+        return folder_gone(folder);
+    }
+    let mut cause: &dyn std::error::Error = error;
+    while let Some(inner) = cause.source() {
+        cause = inner;
+    }
+    cause.to_string()
+}
+
+/// What to say of an output folder that is not there any more.
+pub fn folder_gone(folder: &Path) -> String {
+    format!(
+        "folder {} no longer exists: it was moved or removed while the run went on; leave the output folder in place \
+         until the run ends",
+        folder.display()
+    )
+}
+
 /// Writes `path` through a temporary file in its folder and a rename, so readers never see a
 /// partial file and a failure leaves nothing behind (the temporary file is removed on drop).
 pub fn write_atomically(path: &Path, write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>) -> Result<()> {
-    let fail = |detail: String| AccuracyError::Write { path: path.into(), detail };
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp = temporary_in(dir).map_err(|e| fail(e.to_string()))?;
-    write(tmp.as_file_mut()).and_then(|_| tmp.as_file().sync_all()).map_err(|e| fail(e.to_string()))?;
-    readable(tmp.as_file()).map_err(|e| fail(e.to_string()))?;
-    tmp.persist(path).map_err(|e| fail(e.error.to_string()))?;
+    let fail = |e: std::io::Error| AccuracyError::Write { path: path.into(), detail: write_failure(dir, &e) };
+    let mut tmp = temporary_in(dir).map_err(fail)?;
+    write(tmp.as_file_mut()).and_then(|_| tmp.as_file().sync_all()).map_err(fail)?;
+    readable(tmp.as_file()).map_err(fail)?;
+    tmp.persist(path).map_err(|e| fail(e.error))?;
     Ok(())
 }
 
 /// Like [`write_atomically`] for writers that take a path (the EXR writer): `write` fills the
 /// temporary file at the path it is given.
 pub fn write_atomically_to_path(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let fail = |detail: String| AccuracyError::Write { path: path.into(), detail };
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let tmp = temporary_in(dir).map_err(|e| fail(e.to_string()))?;
+    let fail = |e: std::io::Error| AccuracyError::Write { path: path.into(), detail: write_failure(dir, &e) };
+    let tmp = temporary_in(dir).map_err(fail)?;
     write(tmp.path())?;
-    readable(tmp.as_file()).map_err(|e| fail(e.to_string()))?;
-    tmp.persist(path).map_err(|e| fail(e.error.to_string()))?;
+    readable(tmp.as_file()).map_err(fail)?;
+    tmp.persist(path).map_err(|e| fail(e.error))?;
     Ok(())
 }
 

@@ -7,7 +7,12 @@
 //! as its series is (marker, line, dashes or bar); point labels are short (only what tells the
 //! points apart), stay inside the plot, and a label that would overlap another label or a
 //! marker is left out rather than drawn over it.
+//!
+//! Every step is linear in the points (a bench's points.json may hold 10⁵ of them): groups and
+//! shared words are found through hash maps, and the pixels taken by markers and labels are a
+//! bitmap ([`Taken`]), so placing a label costs its own area, not a look at every label placed.
 
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use plotters::coord::Shift;
@@ -69,11 +74,13 @@ fn group_by(
     key: impl Fn(&Point) -> &str,
 ) -> Vec<(String, Vec<&Point>)> {
     let mut groups: Vec<(String, Vec<&Point>)> = Vec::new();
+    let mut index: HashMap<&str, usize> = HashMap::new();
     for p in points.iter().filter(|p| keep(p)) {
-        match groups.iter_mut().find(|(name, _)| name == key(p)) {
-            Some((_, list)) => list.push(p),
-            None => groups.push((key(p).to_string(), vec![p])),
-        }
+        let at = *index.entry(key(p)).or_insert_with(|| {
+            groups.push((key(p).to_string(), Vec::new()));
+            groups.len() - 1
+        });
+        groups[at].1.push(p);
     }
     groups
 }
@@ -265,7 +272,14 @@ pub fn short_labels(labels: &[String]) -> Vec<String> {
     let prefix = prefix.filter(|p| labels.iter().all(|l| l.starts_with(p.as_str()))).unwrap_or_default();
     let words: Vec<Vec<&str>> =
         labels.iter().map(|l| l[prefix.len()..].split(['_', ' ']).filter(|w| !w.is_empty()).collect()).collect();
-    let shared = |w: &str| words.iter().all(|ws| ws.contains(&w));
+    // How many labels have each word (once per label): a word all of them have is shared.
+    let mut having: HashMap<&str, usize> = HashMap::new();
+    for ws in &words {
+        for w in ws.iter().copied().collect::<HashSet<&str>>() {
+            *having.entry(w).or_default() += 1;
+        }
+    }
+    let shared = |w: &str| having.get(w) == Some(&words.len());
     let short: Vec<String> = words
         .iter()
         .map(|ws| {
@@ -273,11 +287,11 @@ pub fn short_labels(labels: &[String]) -> Vec<String> {
             if kept.is_empty() { ws.join(" ") } else { kept.join(" ") }
         })
         .collect();
-    short
-        .iter()
-        .zip(&words)
-        .map(|(s, ws)| if short.iter().filter(|t| *t == s).count() > 1 { ws.join(" ") } else { s.clone() })
-        .collect()
+    let mut readings: HashMap<&str, usize> = HashMap::new();
+    for s in &short {
+        *readings.entry(s).or_default() += 1;
+    }
+    short.iter().zip(&words).map(|(s, ws)| if readings[s.as_str()] > 1 { ws.join(" ") } else { s.clone() }).collect()
 }
 
 /// Missing pixels (%) against the reprojection tolerance, one line per bench case (points of
@@ -384,7 +398,8 @@ pub(crate) enum Swatch {
 }
 
 /// The legend in its own area beside the plot: one entry per series, its swatch, then its name
-/// wrapped to the area's width; then the key of the numbered points.
+/// wrapped to the area's width; then the key of the numbered points. What would start below
+/// the area is not drawn (the file would carry it unseen).
 pub(crate) fn draw_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     entries: &[(String, RGBColor, Swatch)],
@@ -392,8 +407,12 @@ pub(crate) fn draw_legend<DB: DrawingBackend>(
 ) -> Result<()> {
     let font = (FONT, 15).into_font();
     let chars_per_line = ((LEGEND_WIDTH as i32 - 50) / 8).max(8) as usize;
+    let bottom = area.dim_in_pixel().1 as i32;
     let mut y = 70;
     for (name, c, swatch) in entries {
+        if y > bottom {
+            break;
+        }
         let (x0, x1) = (8, 36);
         match swatch {
             Swatch::Marker => area.draw(&Circle::new((22, y), 5, c.filled())),
@@ -416,6 +435,9 @@ pub(crate) fn draw_legend<DB: DrawingBackend>(
     y += 10;
     let small = (FONT, 14).into_font();
     for (n, label) in key {
+        if y > bottom {
+            break;
+        }
         area.draw(&Text::new(n.to_string(), (14, y - 8), small.clone())).map_err(chart_err)?;
         for line in wrap(label, chars_per_line) {
             area.draw(&Text::new(line, (44, y - 8), small.clone())).map_err(chart_err)?;
@@ -440,29 +462,75 @@ fn wrap(text: &str, width: usize) -> Vec<String> {
     lines
 }
 
-/// Pixel boxes (x0, y0, x1, y1) overlap.
-fn overlaps(a: (i32, i32, i32, i32), b: (i32, i32, i32, i32)) -> bool {
-    a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3
+/// A pixel box `(x0, y0, x1, y1)`, x1 and y1 excluded.
+type PixelBox = (i32, i32, i32, i32);
+
+/// The pixels of a plot area that markers and labels cover, one bit each: two boxes overlap
+/// exactly when they share a pixel, so asking whether a box is free costs its rows times its
+/// width / 64 words, however many boxes are taken.
+struct Taken {
+    bounds: PixelBox,
+    words_per_row: usize,
+    bits: Vec<u64>,
+}
+
+impl Taken {
+    fn new(bounds: PixelBox) -> Self {
+        let (width, height) = ((bounds.2 - bounds.0).max(0) as usize, (bounds.3 - bounds.1).max(0) as usize);
+        let words_per_row = width.div_ceil(64);
+        Self { bounds, words_per_row, bits: vec![0; words_per_row * height] }
+    }
+
+    /// `b` clipped to the area, as (columns, rows) relative to it; `None` when nothing is left.
+    fn clip(&self, b: PixelBox) -> Option<(std::ops::Range<usize>, std::ops::Range<usize>)> {
+        let (x0, y0) = (b.0.max(self.bounds.0) - self.bounds.0, b.1.max(self.bounds.1) - self.bounds.1);
+        let (x1, y1) = (b.2.min(self.bounds.2) - self.bounds.0, b.3.min(self.bounds.3) - self.bounds.1);
+        (x0 < x1 && y0 < y1).then_some((x0 as usize..x1 as usize, y0 as usize..y1 as usize))
+    }
+
+    /// The words of row `y` that hold columns `columns`, each with the mask of those columns.
+    fn row_words(
+        words_per_row: usize,
+        y: usize,
+        columns: &std::ops::Range<usize>,
+    ) -> impl Iterator<Item = (usize, u64)> {
+        let (first, last) = (columns.start / 64, (columns.end - 1) / 64);
+        let (start, end, row) = (columns.start, columns.end, y * words_per_row);
+        (first..=last).map(move |w| {
+            let lo = start.max(w * 64) - w * 64;
+            let hi = end.min(w * 64 + 64) - w * 64;
+            let mask = if hi - lo == 64 { u64::MAX } else { ((1u64 << (hi - lo)) - 1) << lo };
+            (row + w, mask)
+        })
+    }
+
+    /// Takes the pixels of `b` that lie in the area.
+    fn mark(&mut self, b: PixelBox) {
+        let Some((columns, rows)) = self.clip(b) else { return };
+        for y in rows {
+            for (word, mask) in Self::row_words(self.words_per_row, y, &columns) {
+                self.bits[word] |= mask;
+            }
+        }
+    }
+
+    /// No pixel of `b` is taken.
+    fn is_free(&self, b: PixelBox) -> bool {
+        let Some((columns, rows)) = self.clip(b) else { return true };
+        rows.into_iter()
+            .all(|y| Self::row_words(self.words_per_row, y, &columns).all(|(w, mask)| self.bits[w] & mask == 0))
+    }
 }
 
 /// Where a `w`×`h` label of a marker at pixel `(px, py)` goes: the first of eight places around
-/// it, near ones first, inside `bounds` that overlaps nothing in `taken`; `None` when every place
+/// it, near ones first, inside `bounds` that covers nothing `taken`; `None` when every place
 /// does.
-fn label_place(
-    (px, py): (i32, i32),
-    (w, h): (i32, i32),
-    bounds: (i32, i32, i32, i32),
-    taken: &[(i32, i32, i32, i32)],
-) -> Option<(i32, i32)> {
+fn label_place((px, py): (i32, i32), (w, h): (i32, i32), bounds: PixelBox, taken: &Taken) -> Option<(i32, i32)> {
     let near = [(7, -h - 1), (7, 1), (-w - 7, -h - 1), (-w - 7, 1)];
     let far = [(-w / 2, -h - 8), (-w / 2, 8), (16, -h / 2), (-w - 16, -h / 2)];
     near.into_iter().chain(far).find(|&(dx, dy)| {
         let b = (px + dx, py + dy, px + dx + w, py + dy + h);
-        b.0 >= bounds.0
-            && b.1 >= bounds.1
-            && b.2 <= bounds.2
-            && b.3 <= bounds.3
-            && !taken.iter().any(|&t| overlaps(b, t))
+        b.0 >= bounds.0 && b.1 >= bounds.1 && b.2 <= bounds.2 && b.3 <= bounds.3 && taken.is_free(b)
     })
 }
 
@@ -505,12 +573,11 @@ impl XyChart {
         let (xs, ys) = chart.plotting_area().get_pixel_range();
         let bounds = (xs.start, ys.start, xs.end, ys.end);
         // Every marker's box is taken before any label is placed, so no label covers a marker.
-        let mut taken: Vec<(i32, i32, i32, i32)> = all()
-            .map(|p| {
-                let (x, y) = chart.backend_coord(&(p.0, p.1));
-                (x - 5, y - 5, x + 5, y + 5)
-            })
-            .collect();
+        let mut taken = Taken::new(bounds);
+        for p in all() {
+            let (x, y) = chart.backend_coord(&(p.0, p.1));
+            taken.mark((x - 5, y - 5, x + 5, y + 5));
+        }
         let mut entries = Vec::new();
         let mut key: Vec<(usize, String)> = Vec::new();
         for s in &self.series {
@@ -549,7 +616,7 @@ impl XyChart {
                     key.push((n, format!("{label} (not shown: no room)")));
                     continue;
                 };
-                taken.push((pixel.0 + dx, pixel.1 + dy, pixel.0 + dx + size.0, pixel.1 + dy + size.1));
+                taken.mark((pixel.0 + dx, pixel.1 + dy, pixel.0 + dx + size.0, pixel.1 + dy + size.1));
                 key.push((n, label.clone()));
                 numbers.push(EmptyElement::at((*x, *y)) + Text::new(n.to_string(), (dx + 1, dy), (FONT, 14)));
             }
@@ -670,13 +737,49 @@ mod tests {
         assert_eq!(short_labels(&["one_label".to_string()]), ["one label"]);
     }
 
+    /// `bounds` with `boxes` taken.
+    fn taken(bounds: PixelBox, boxes: &[PixelBox]) -> Taken {
+        let mut t = Taken::new(bounds);
+        boxes.iter().for_each(|&b| t.mark(b));
+        t
+    }
+
     #[test]
     fn labels_go_where_nothing_else_is_or_nowhere() {
         let bounds = (0, 0, 200, 100);
-        assert_eq!(label_place((50, 50), (40, 16), bounds, &[]), Some((7, -17)), "above right first");
-        assert_eq!(label_place((50, 50), (40, 16), bounds, &[(57, 33, 97, 49)]), Some((7, 1)));
-        assert_eq!(label_place((190, 50), (40, 16), bounds, &[]), Some((-47, -17)), "not past the right edge");
-        assert_eq!(label_place((50, 50), (40, 16), bounds, &[(0, 0, 200, 100)]), None, "left out, not overlapped");
+        let none = taken(bounds, &[]);
+        assert_eq!(label_place((50, 50), (40, 16), bounds, &none), Some((7, -17)), "above right first");
+        assert_eq!(label_place((50, 50), (40, 16), bounds, &taken(bounds, &[(57, 33, 97, 49)])), Some((7, 1)));
+        assert_eq!(label_place((190, 50), (40, 16), bounds, &none), Some((-47, -17)), "not past the right edge");
+        let full = taken(bounds, &[(0, 0, 200, 100)]);
+        assert_eq!(label_place((50, 50), (40, 16), bounds, &full), None, "left out, not overlapped");
+    }
+
+    /// The bitmap says a box is free exactly when it overlaps none of the boxes taken (as
+    /// intervals: sharing an edge is no overlap), across word boundaries and the area's edges.
+    #[test]
+    fn taken_pixels_agree_with_box_overlap() {
+        let overlaps = |a: PixelBox, b: PixelBox| a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3;
+        let bounds = (3, 2, 203, 62);
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: i32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % n as u64) as i32
+        };
+        let mut random_box = || {
+            let (x, y) = (next(220) - 10, next(80) - 10);
+            (x, y, x + next(70), y + next(20))
+        };
+        let boxes: Vec<PixelBox> = (0..40).map(|_| random_box()).collect();
+        let t = taken(bounds, &boxes);
+        for _ in 0..4000 {
+            let b = random_box();
+            let inside = (b.0.max(bounds.0), b.1.max(bounds.1), b.2.min(bounds.2), b.3.min(bounds.3));
+            let empty = inside.0 >= inside.2 || inside.1 >= inside.3;
+            assert_eq!(t.is_free(b), empty || !boxes.iter().any(|&o| overlaps(inside, o)), "{b:?}");
+        }
     }
 
     #[test]

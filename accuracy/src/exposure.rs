@@ -32,9 +32,17 @@ impl std::str::FromStr for Exposure {
         if s.eq_ignore_ascii_case("auto") {
             return Ok(Exposure::Auto);
         }
+        // Below 1e-6 every radiance an image holds maps to black (1e-45, a denormal, made any
+        // two images compare as identical).
         match s.parse::<f32>() {
-            Ok(v) if v.is_finite() && v > 0.0 && v <= RANGE.1 => Ok(Exposure::Fixed(v)),
-            Ok(v) => Err(format!("{v} is not in (0, 1e6]: the tonemapped image would be black or meaningless")),
+            Ok(v) if (RANGE.0..=RANGE.1).contains(&v) => Ok(Exposure::Fixed(v)),
+            Ok(v) => {
+                let shown = if v == 0.0 || (1e-3..1e6).contains(&v.abs()) { v.to_string() } else { format!("{v:e}") };
+                Err(format!(
+                    "{shown} is outside {:e}..={:e}: the tonemapped image would be black or meaningless",
+                    RANGE.0, RANGE.1
+                ))
+            }
             Err(_) => Err(format!("'{s}' is neither `auto` nor a number")),
         }
     }
@@ -183,7 +191,8 @@ mod tests {
         assert_eq!("auto".parse::<Exposure>(), Ok(Exposure::Auto));
         assert_eq!("AUTO".parse::<Exposure>(), Ok(Exposure::Auto));
         assert_eq!("2.5".parse::<Exposure>(), Ok(Exposure::Fixed(2.5)));
-        for bad in ["0", "-1", "NaN", "inf", "2e6", "bright"] {
+        assert_eq!("1e-6".parse::<Exposure>(), Ok(Exposure::Fixed(1e-6)));
+        for bad in ["0", "-1", "NaN", "inf", "2e6", "1e-45", "9e-7", "bright"] {
             assert!(bad.parse::<Exposure>().is_err(), "{bad}");
         }
         assert!("x".parse::<Exposure>().unwrap_err().contains("neither `auto` nor a number"));

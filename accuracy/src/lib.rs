@@ -34,7 +34,8 @@ pub mod ssim;
 pub mod timeline;
 
 pub use accumulate::{
-    Accumulator, FRAME_BASE, PARTIAL_FILE, ReferenceHeader, remove_stale_temporaries, write_atomically,
+    Accumulator, FRAME_BASE, PARTIAL_FILE, ReferenceHeader, folder_gone, remove_stale_temporaries, write_atomically,
+    write_failure,
 };
 pub use compare::{CompareOptions, Comparison, ViewMetrics, compare_paths};
 pub use error::{AccuracyError, Result};

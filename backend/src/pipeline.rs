@@ -459,6 +459,8 @@ fn print_pipeline_statistics(
                 format!("{label}={value}")
             })
             .collect();
-        eprintln!("pipeline statistics: device {device} {name} executable {index}: {}", fields.join(", "));
+        // Not `eprintln!`, which panics when stderr cannot be written (`2> /dev/full`).
+        let line = format!("pipeline statistics: device {device} {name} executable {index}: {}\n", fields.join(", "));
+        let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
     }
 }

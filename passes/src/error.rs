@@ -39,9 +39,10 @@ pub enum PassError {
     )]
     NotATracePlan,
 
-    /// Nothing in the plan writes the declared resource `family` for `view`.
+    /// Nothing in the plan writes the declared resource `family` for `view`. The message leaves
+    /// the family's id out: it is an index, which tells a user nothing.
     #[error(
-        "the plan writes no version of declared resource {family} for view {view}: read a resource the graph declares for that view"
+        "no pass of the plan writes the resource read back for view {view}: read a resource the pipeline produces for that view"
     )]
     MissingOutput { family: parallax_graph::FamilyId, view: u32 },
 

@@ -45,7 +45,7 @@ fn run(py: Python<'_>, words: Vec<String>) -> PyResult<()> {
 }
 
 /// The flags of a run file's settings, given as JSON (`{"spp": 4, "still": true}` →
-/// `["--spp", "4", "--still"]`), as `render --config` reads a run file.
+/// `["--spp=4", "--still"]`), as `render --config` reads a run file.
 #[pyfunction]
 fn run_file_flags(origin: &str, settings_json: &str) -> PyResult<Vec<String>> {
     let value: serde_json::Value =

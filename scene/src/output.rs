@@ -137,9 +137,15 @@ pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, V
 /// The pixels an EXR's headers may declare: 4 GiB (e.g. 16384x16384 of RGBA f32).
 pub const EXR_PIXEL_BYTES_LIMIT: u64 = 4 << 30;
 
-/// ACES filmic curve (Narkowicz 2015 fit) followed by the sRGB transfer function.
+/// Exposed radiance at which the curve is past white: it reaches 1 at 7.24 and is 1.018 at 16.
+const ACES_WHITE_INPUT: f32 = 16.0;
+
+/// ACES filmic curve (Narkowicz 2015 fit) followed by the sRGB transfer function. The exposed
+/// radiance is clamped to [`ACES_WHITE_INPUT`] first, which changes no output (both give white)
+/// but keeps the curve finite: above about 1e19 its squares overflow f32 and inf/inf made a
+/// bright pixel black (and `compare` scored two different images as equal).
 pub fn tonemap_to_srgb8(c: Vec3, exposure: f32) -> [u8; 3] {
-    let x = (c * exposure).max(Vec3::ZERO);
+    let x = (c * exposure).clamp(Vec3::ZERO, Vec3::splat(ACES_WHITE_INPUT));
     let mapped = (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14);
     let encode = |v: f32| {
         let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };

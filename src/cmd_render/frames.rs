@@ -6,7 +6,7 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{Context as _, Result};
+use anyhow::{Context as _, Result, bail};
 use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, Timing};
 use parallax_graph::LightField;
 use parallax_passes::LightFieldRenderer;
@@ -16,7 +16,7 @@ use parallax_scene::{SceneBvh, TraceSettings};
 
 use super::host_memory::{ResidentSampler, ResidentSummary};
 use super::plan::RenderJob;
-use super::report::{extra_layers, stage_views};
+use super::report::{ViewLayers, stage_views, view_layers};
 use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
 use crate::logging::bar;
 use crate::outputs::{FolderLock, Staged};
@@ -35,6 +35,8 @@ pub(super) struct Rendered {
     pub lf: LightField,
     /// Held until the outputs are in place: no other run writes into --out-dir meanwhile.
     pub lock: FolderLock,
+    /// The extra EXR layers every view gets.
+    pub layers: ViewLayers,
 }
 
 /// Creates the devices and the executor for `job` and runs every frame.
@@ -42,7 +44,8 @@ pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut 
     let lf = job.lf_of(args, 0)?;
     let bvh = SceneBvh::build(&job.scene);
     let context = VkContext::new(&ContextDesc::from_env(args.devices.selection()))?;
-    tracing::info!("{}", context.to_string().trim_end());
+    // One message per device: a message is one line (crate::logging).
+    context.to_string().lines().for_each(|line| tracing::info!("{line}"));
     job.one_frame.check_devices(&context)?;
     let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
     let options = ExecOptions {
@@ -61,15 +64,16 @@ pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut 
     };
     let scene = GpuScene::new(&job.scene, &bvh);
     let mut renderer = LightFieldRenderer::with_options(&context, exec_plan, &scene, options)?;
+    let layers = view_layers(args, job.compiled.kind, &job.compiled.handles, &renderer);
 
     crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
-    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer)?;
+    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer, layers)?;
     if let Some(after) = extension.after_frames.as_mut() {
         after(&mut renderer, &job.compiled.handles)?;
     }
-    Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock })
+    Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock, layers })
 }
 
 /// Submits the warm-up and measured frames; returns the views `--save-every` staged, the
@@ -78,6 +82,7 @@ fn frame_loop(
     args: &RenderArgs,
     job: &RenderJob,
     renderer: &mut LightFieldRenderer,
+    layers: ViewLayers,
 ) -> Result<(Vec<Staged>, Duration, ResidentSummary)> {
     let progress = bar(u64::from(job.total_frames));
     let started = Instant::now();
@@ -102,9 +107,12 @@ fn frame_loop(
         {
             renderer.finish()?;
             let folder = args.out_dir.join(format!("frame_{m:05}"));
+            // Making the frame's folder would make --out-dir again, beside the one the user moved.
+            if !args.out_dir.is_dir() {
+                bail!("--out-dir: {}", parallax_accuracy::folder_gone(&args.out_dir));
+            }
             crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
-            let layers = extra_layers(args, job.compiled.kind);
-            staged.extend(stage_views(renderer, &job.compiled.handles, &folder, &views, &layers)?);
+            staged.extend(stage_views(renderer, &job.compiled.handles, &folder, &views, layers)?);
         }
         progress.inc(1);
     }

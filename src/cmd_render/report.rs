@@ -27,13 +27,13 @@ use crate::run_setup::{CameraSetup, Setup};
 
 /// Reads the last frame back, writes every output and says what was rendered.
 pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<()> {
-    let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock } = rendered;
+    let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock, layers } = rendered;
     let reports = renderer.take_reports();
     let prepare = renderer.prepare_ms().clone();
     let timing = timings(renderer.stats(), &prepare);
     let (kind, handles) = (job.compiled.kind, &job.compiled.handles);
     let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
-    staged.extend(stage_views(&mut renderer, handles, &args.out_dir, &last_views, &extra_layers(args, kind))?);
+    staged.extend(stage_views(&mut renderer, handles, &args.out_dir, &last_views, layers)?);
     let (exposure, displays) = display_images(&mut renderer, handles, (lf.len() as u32, lf.width), args.exposure)?;
     let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
     drop(displays);
@@ -155,7 +155,7 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
     let (summary, kind) = (&job.compiled.summary, job.compiled.kind);
     Ok(serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
-        "scene": args.scene.scene,
+        "scene": args.scene.scene.to_string_lossy(),
         "camera": CameraSetup::of(&job.camera), "sun": &setup.sun, "sky": &setup.sky,
         "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
                     "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
@@ -179,9 +179,47 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
     }))
 }
 
-/// Which extra EXR layers the views get.
-pub(super) fn extra_layers(args: &RenderArgs, kind: PipelineKind) -> (bool, bool) {
-    (args.layers, args.layers && kind == PipelineKind::Reproject)
+/// The extra EXR layers of the views.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct ViewLayers {
+    /// Albedo, normal and depth, each where the pipeline produces it.
+    exr: ExrLayers,
+    /// The hole mask of targets (reprojection only).
+    holes: bool,
+}
+
+/// What `--layers` gives with the plan `renderer` runs: albedo, normal and depth where the
+/// pipeline computes them, and the hole mask with reprojection. Path tracing without denoising
+/// computes no G-buffer: its views carry radiance alone, which is said once, before the frames
+/// (reading a layer no pass writes used to fail the run after all of them).
+pub(super) fn view_layers(
+    args: &RenderArgs,
+    kind: PipelineKind,
+    handles: &PipelineHandles,
+    renderer: &LightFieldRenderer,
+) -> ViewLayers {
+    if !args.layers {
+        return ViewLayers::default();
+    }
+    let produced = |family| renderer.plan().final_bands(family, 0).is_some();
+    let g = &handles.gbuffer;
+    let exr = ExrLayers {
+        albedo: produced(g.albedo_roughness.family()),
+        normal: produced(g.normal_metallic.family()),
+        depth: produced(g.position_depth.family()),
+    };
+    let absent: Vec<&str> = [("albedo", exr.albedo), ("normal", exr.normal), ("depth", exr.depth)]
+        .into_iter()
+        .filter_map(|(name, there)| (!there).then_some(name))
+        .collect();
+    if !absent.is_empty() {
+        tracing::warn!(
+            "--layers: this pipeline computes no {} (no stage needs a G-buffer), so the views' EXRs leave that out; \
+             drop --no-denoise or use --pipeline reproject to get every layer",
+            absent.join(", ")
+        );
+    }
+    ViewLayers { exr, holes: kind == PipelineKind::Reproject }
 }
 
 fn bytemuck_words(bytes: &[u8]) -> Vec<u32> {
@@ -196,31 +234,28 @@ fn texels(bytes: &[u8]) -> Vec<[f32; 4]> {
 }
 
 /// Stages `view_NNN.exr` of every view into `folder`: the linear radiance after denoising (or
-/// after hole filling with --no-denoise), with `(layers, holes)`: albedo, normal and depth, and
-/// the hole mask of targets as channel `holes.Y` (1 = the pixel was path traced by hole filling).
+/// after hole filling with --no-denoise), with `layers`: albedo, normal and depth, and the hole
+/// mask of targets as channel `holes.Y` (1 = the pixel was path traced by hole filling).
 pub(super) fn stage_views(
     renderer: &mut LightFieldRenderer,
     handles: &PipelineHandles,
     folder: &Path,
     views: &[View],
-    (layers, holes): &(bool, bool),
+    layers: ViewLayers,
 ) -> Result<Vec<Staged>> {
     let mut staged = Vec::with_capacity(views.len());
+    let gbuffer = &handles.gbuffer;
     for view in views {
         let radiance = texels(&renderer.read(handles.linear, view.index)?);
-        let (albedo, normal, position) = if *layers {
-            let gbuffer = &handles.gbuffer;
-            (
-                texels(&renderer.read(gbuffer.albedo_roughness.family(), view.index)?),
-                texels(&renderer.read(gbuffer.normal_metallic.family(), view.index)?),
-                texels(&renderer.read(gbuffer.position_depth.family(), view.index)?),
-            )
-        } else {
-            (Vec::new(), Vec::new(), Vec::new())
+        let mut layer = |wanted: bool, family| -> Result<Vec<[f32; 4]>> {
+            Ok(if wanted { texels(&renderer.read(family, view.index)?) } else { Vec::new() })
         };
+        let albedo = layer(layers.exr.albedo, gbuffer.albedo_roughness.family())?;
+        let normal = layer(layers.exr.normal, gbuffer.normal_metallic.family())?;
+        let position = layer(layers.exr.depth, gbuffer.position_depth.family())?;
         // Sources have no hole mask: only targets get the channel.
         let mask = match &handles.holes {
-            Some(mask) if *holes => match renderer.read(mask.family(), view.index) {
+            Some(mask) if layers.holes => match renderer.read(mask.family(), view.index) {
                 Ok(bytes) => Some(bytemuck_words(&bytes)),
                 Err(parallax_passes::PassError::MissingOutput { .. }) => None,
                 Err(e) => return Err(e.into()),
@@ -248,7 +283,7 @@ pub(super) fn stage_views(
             staged.extend(stage_layer_pictures(folder, view.index, &frame, mask.as_deref())?);
         }
         let path = folder.join(view_file_name(view.index));
-        let exr_layers = if *layers { ExrLayers::ALL } else { ExrLayers::default() };
+        let exr_layers = layers.exr;
         let mask: Option<Vec<f32>> = mask.map(|m| m.iter().map(|&h| h as f32).collect());
         let extra: Vec<(&str, &[f32])> = mask.iter().map(|m| ("holes.Y", m.as_slice())).collect();
         staged.push(stage(&path, |tmp| {
@@ -314,8 +349,10 @@ pub(super) fn check_outputs(
     if !existing.is_dir() {
         bail!("--out-dir {}: {} is not a folder", out_dir.display(), existing.display());
     }
-    tempfile::NamedTempFile::new_in(existing)
-        .with_context(|| format!("--out-dir {}: folder {} is not writable", out_dir.display(), existing.display()))?;
+    if let Err(e) = tempfile::NamedTempFile::new_in(existing) {
+        let why = parallax_accuracy::write_failure(existing, &e);
+        bail!("--out-dir {}: folder {} is not writable: {why}", out_dir.display(), existing.display());
+    }
     let sheet_sink = Sink::File(sheet.to_path_buf());
     let json_sink = Sink::File(render_json.to_path_buf());
     let viewer_sink = Sink::File(out_dir.join("viewer.html"));
