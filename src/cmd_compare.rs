@@ -19,7 +19,7 @@ use parallax_accuracy::{CompareOptions, Comparison, Point, compare_paths, write_
 use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
 
 use crate::options::{Exposure, parse_exposure};
-use crate::outputs::{Format, Output, Sink, check, check_inputs, parse_sink, stage, write_json};
+use crate::outputs::{Format, Output, Sink, check, check_inputs, stage, write_json};
 use crate::run_setup::{differences, setup_beside};
 
 #[derive(Args, Debug)]
@@ -30,7 +30,7 @@ pub struct CompareArgs {
     reference: PathBuf,
     /// Write the figures (and a chart point) as JSON here (`-` = stdout; the table then goes to
     /// stderr).
-    #[arg(long, value_parser = parse_sink)]
+    #[arg(long, value_parser = crate::outputs::sink_parser())]
     json: Option<Sink>,
     /// Also write the markdown table here.
     #[arg(long)]

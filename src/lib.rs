@@ -200,7 +200,7 @@ pub fn run_file_flags(
 /// lights, warning when it has none.
 pub fn load_scene(spec: &str, allow_outside_files: bool) -> anyhow::Result<parallax_scene::Scene> {
     let args = scene_args::SceneArgs {
-        scene: spec.to_string(),
+        scene: spec.into(),
         camera: None,
         sun: None,
         no_sun: false,

@@ -95,7 +95,8 @@ pub fn load_scene_arg(scene: &Path, allow_outside_files: bool) -> Result<Scene> 
     if scene == Path::new("default") {
         return Ok(default_scene());
     }
-    load_gltf_with(scene, load_options(allow_outside_files)).map_err(|e| crate::options::input_error("--scene", scene, e))
+    load_gltf_with(scene, load_options(allow_outside_files))
+        .map_err(|e| crate::options::input_error("--scene", scene, e))
 }
 
 /// `--allow-outside-files` as the loader's URI policy.

@@ -12,11 +12,11 @@ use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
-use super::report::{check_outputs, extra_layers, view_file_name};
+use super::report::{check_outputs, view_file_name};
 use super::{MotionArg, RenderArgs, dolly};
 use crate::budget::TraceWork;
 use crate::disk_space::{RenderOutputs, free_bytes};
-use crate::pipeline_args::PipelineSchedule;
+use crate::pipeline_args::{PipelineArg, PipelineSchedule};
 use crate::render_pictures::gpu_exposure;
 
 /// A render, planned: what the frame loop runs and the report describes.
@@ -122,7 +122,8 @@ impl RenderJob {
         };
         one_frame.check_duration()?;
         one_frame.check_host()?;
-        let (layers, holes) = extra_layers(args, args.pipeline.pipeline.into());
+        // At most: the pipeline may compute fewer layers (path tracing without denoising none).
+        let (layers, holes) = (args.layers, args.layers && args.pipeline.pipeline == PipelineArg::Reproject);
         let outputs = RenderOutputs {
             views: sized.len() as u64,
             width: sized.width,

@@ -279,7 +279,7 @@ pub(super) fn stage_views(
             })
             .collect();
         let frame = Frame { width: view.width, height: view.height, pixels };
-        if *layers {
+        if layers.exr.depth {
             staged.extend(stage_layer_pictures(folder, view.index, &frame, mask.as_deref())?);
         }
         let path = folder.join(view_file_name(view.index));
