@@ -88,8 +88,14 @@ pub fn cli_main() {
         if e.use_stderr() {
             e.exit()
         }
-        // `--help` and `--version`: clap's own print ignores a failed write.
-        match logging::to_stdout(e.render().to_string().as_bytes()) {
+        // `--help` and `--version`: clap's own print ignores a failed write. Styled on a terminal
+        // only, as clap styles it.
+        let text = if std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+            e.render().ansi().to_string()
+        } else {
+            e.render().to_string()
+        };
+        match logging::to_stdout(text.as_bytes()) {
             Ok(()) => std::process::exit(0),
             Err(err) => {
                 let _ = std::io::Write::write_all(

@@ -222,7 +222,7 @@ fn identity(path: &Path) -> PathBuf {
     folder.join(path.file_name().unwrap_or_default())
 }
 
-pub use crate::pending::{create_folder, keep_folders};
+pub use crate::pending::{create_folder, create_subfolder, keep_folders};
 
 /// An advisory lock on an output folder a run owns, held until dropped: a second run into the
 /// same folder is refused instead of silently mixing its files with the first's. The lock is

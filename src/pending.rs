@@ -107,6 +107,17 @@ pub fn create_folder(folder: &Path) -> std::io::Result<()> {
     std::fs::create_dir_all(folder)
 }
 
+/// Creates `folder` in its parent, which must exist (NotFound if it does not, e.g. moved
+/// meanwhile), remembered as [`create_folder`] does; an existing folder is kept as it is.
+pub fn create_subfolder(folder: &Path) -> std::io::Result<()> {
+    let mut pending = pending();
+    if folder.is_dir() {
+        return Ok(());
+    }
+    pending.created.push(folder.to_path_buf());
+    std::fs::create_dir(folder)
+}
+
 /// The run's outputs are in place: the folders it created stay.
 pub fn keep_folders() {
     pending().created.clear();

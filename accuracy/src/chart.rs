@@ -770,7 +770,8 @@ mod tests {
         };
         let mut random_box = || {
             let (x, y) = (next(220) - 10, next(80) - 10);
-            (x, y, x + next(70), y + next(20))
+            // Never empty, as markers and labels are not.
+            (x, y, x + 1 + next(70), y + 1 + next(20))
         };
         let boxes: Vec<PixelBox> = (0..40).map(|_| random_box()).collect();
         let t = taken(bounds, &boxes);

@@ -107,11 +107,14 @@ fn frame_loop(
         {
             renderer.finish()?;
             let folder = args.out_dir.join(format!("frame_{m:05}"));
-            // Making the frame's folder would make --out-dir again, beside the one the user moved.
-            if !args.out_dir.is_dir() {
-                bail!("--out-dir: {}", parallax_accuracy::folder_gone(&args.out_dir));
+            // Only inside --out-dir as it is: making it again would put the frames beside the
+            // folder the user moved.
+            match crate::outputs::create_subfolder(&folder) {
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                    bail!("--out-dir: {}", parallax_accuracy::folder_gone(&args.out_dir))
+                }
+                created => created.with_context(|| format!("cannot create {}", folder.display()))?,
             }
-            crate::outputs::create_folder(&folder).with_context(|| format!("cannot create {}", folder.display()))?;
             staged.extend(stage_views(renderer, &job.compiled.handles, &folder, &views, layers)?);
         }
         progress.inc(1);
