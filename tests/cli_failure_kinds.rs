@@ -140,7 +140,7 @@ fn every_read_is_of_a_regular_file_within_its_limit() {
     mkfifo(&dir.join("bench/bench.json"));
     refused_with(
         &dir,
-        &["bench", "--common", "--lf 2x1 --resolution 4x4", "--devices", "1", "--fake-devices"]
+        &["bench", "--common", "--lf 2x1 --resolution 4x4", "--fake-devices", "1"]
             .into_iter()
             .chain(["--out-dir", "bench", "--resume"])
             .collect::<Vec<_>>(),
