@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{scratch, write_gltf};
+use common::{HANG_GUARD, capped_command, scratch, wait_or_kill, write_gltf};
 
 use std::ffi::OsStr;
 use std::os::unix::ffi::OsStrExt;
@@ -21,40 +21,15 @@ const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.
 
 /// Address space of a capped run: far less than reading /dev/zero or a 1 GB file would take.
 const MEMORY_CAP_KIB: u64 = 4 << 20;
-/// Every run here takes seconds; a blocked read, or a quadratic chart, would take for ever.
-const DEADLINE: Duration = Duration::from_secs(300);
 
 /// The binary with `args` in `dir`, under the memory cap, stdin closed.
 fn parallax_cmd<S: AsRef<OsStr>>(dir: &Path, args: &[S]) -> Command {
-    let mut cmd = Command::new("sh");
-    cmd.arg("-c")
-        .arg(format!("ulimit -v {MEMORY_CAP_KIB} && exec \"$0\" \"$@\""))
-        .arg(env!("CARGO_BIN_EXE_parallax"))
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
-    cmd
-}
-
-/// Waits for `child`, killed at the deadline (a failure naming `what`).
-fn finish(mut child: std::process::Child, what: &str) -> Output {
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > DEADLINE {
-            child.kill().unwrap();
-            let out = child.wait_with_output().unwrap();
-            panic!("{what} ran past {DEADLINE:?}: {}", String::from_utf8_lossy(&out.stderr));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    capped_command(dir, MEMORY_CAP_KIB, args)
 }
 
 /// Runs `args` in `dir` to the end, under the memory cap and the deadline.
 fn run<S: AsRef<OsStr> + std::fmt::Debug>(dir: &Path, args: &[S]) -> Output {
-    finish(parallax_cmd(dir, args).spawn().unwrap(), &format!("{args:?}"))
+    wait_or_kill(parallax_cmd(dir, args).spawn().unwrap(), &format!("{args:?}"))
 }
 
 /// Asserts exit `code` and that stderr is exactly `line` (one line, no panic).
@@ -81,7 +56,7 @@ fn write_errors_to_stdout_and_stderr_never_panic() {
     let dir = scratch("failure-kinds", "stdio");
     let full = || Stdio::from(std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap());
     let with_stdout = |args: &[&str], stdout: Stdio| {
-        finish(parallax_cmd(&dir, args).stdout(stdout).spawn().unwrap(), &format!("{args:?}"))
+        wait_or_kill(parallax_cmd(&dir, args).stdout(stdout).spawn().unwrap(), &format!("{args:?}"))
     };
     let out = with_stdout(&["plan", "--lf", "8x4"], full());
     assert_eq!(out.status.code(), Some(1));
@@ -93,7 +68,7 @@ fn write_errors_to_stdout_and_stderr_never_panic() {
     for args in [&["plan", "--lf", "64x64"][..], &["plan", "--lf", "4x1", "--json", "-"], &["devices"]] {
         let mut child = parallax_cmd(&dir, args).spawn().unwrap();
         drop(child.stdout.take());
-        let out = finish(child, &format!("{args:?}"));
+        let out = wait_or_kill(child, &format!("{args:?}"));
         assert_eq!(out.status.code(), Some(0), "{args:?}: {}", stderr_of(&out));
         assert!(!stderr_of(&out).contains("panicked") && !stderr_of(&out).contains("error"), "{}", stderr_of(&out));
     }
@@ -108,7 +83,7 @@ fn write_errors_to_stdout_and_stderr_never_panic() {
     );
     assert!(dir.join("full/render.json").is_file() && dir.join("full/view_001.exr").is_file());
     // Diagnostics that cannot be written are dropped; the run is not disturbed.
-    let out = finish(
+    let out = wait_or_kill(
         parallax_cmd(&dir, &[&render[..], &["quiet"]].concat()).stderr(full()).spawn().unwrap(),
         "render 2> /dev/full",
     );
@@ -376,11 +351,11 @@ fn an_output_folder_moved_during_a_run_is_named_and_left_clean() {
     .unwrap();
     let start = Instant::now();
     while !dir.join("lf/frame_00001").exists() {
-        assert!(start.elapsed() < DEADLINE, "the render never saved a frame");
+        assert!(start.elapsed() < HANG_GUARD, "the render never saved a frame");
         std::thread::sleep(Duration::from_millis(20));
     }
     std::fs::rename(dir.join("lf"), dir.join("moved")).unwrap();
-    let out = finish(child, "render into a moved folder");
+    let out = wait_or_kill(child, "render into a moved folder");
     assert_eq!(out.status.code(), Some(1));
     // Found by the next saved frame, or by the one being written when the folder moved: either
     // way the folder is named with the cause, and no temporary path or Debug quoting shows.

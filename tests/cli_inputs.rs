@@ -5,43 +5,19 @@
 
 mod common;
 
-use common::{scratch, snapshot, write_gltf};
+use common::{capped_command, scratch, snapshot, wait_or_kill, write_gltf};
 
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::{Command, Output};
 
 const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
 
 /// Address space of a capped run: enough for the CPU tracer, far less than /dev/zero would take.
 const MEMORY_CAP_KIB: u64 = 4 << 20;
-/// A refusal takes well under a second; a blocked read would take for ever. A hang guard, far
-/// beyond what a loaded machine needs, so it never decides a verdict by timing.
-const DEADLINE: Duration = Duration::from_secs(300);
 
-/// Runs the binary in `dir` under the memory cap, killed at the deadline.
+/// Runs the binary in `dir` under the memory cap, killed at the hang guard.
 fn capped(dir: &Path, args: &[&str]) -> Output {
-    let mut child = Command::new("sh")
-        .arg("-c")
-        .arg(format!("ulimit -v {MEMORY_CAP_KIB} && exec \"$0\" \"$@\""))
-        .arg(env!("CARGO_BIN_EXE_parallax"))
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > DEADLINE {
-            child.kill().unwrap();
-            let out = child.wait_with_output().unwrap();
-            panic!("{args:?} ran past {DEADLINE:?}: {}", String::from_utf8_lossy(&out.stderr));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    wait_or_kill(capped_command(dir, MEMORY_CAP_KIB, args).spawn().unwrap(), &format!("{args:?}"))
 }
 
 /// Asserts exit 1, every needle in stderr, no panic and nothing written in `dir`.

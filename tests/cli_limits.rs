@@ -7,47 +7,20 @@
 
 mod common;
 
-use common::{scratch, snapshot, write_gltf};
+use common::{HANG_GUARD, capped_command, scratch, snapshot, wait_or_kill, write_gltf};
 
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
 
 /// Address space of a capped run: far less than any of the refused runs would take.
 const MEMORY_CAP_KIB: u64 = 4 << 20;
-/// A refusal takes well under a second (lavapipe is never started); this only guards a hang,
-/// far beyond what a loaded machine needs.
-const DEADLINE: Duration = Duration::from_secs(300);
 
-/// Runs the binary in `dir` under `ulimit -v cap_kib`, killed at the deadline.
+/// Runs the binary in `dir` under `ulimit -v cap_kib`, killed at the hang guard.
 fn capped_at(dir: &Path, cap_kib: u64, args: &[&str]) -> Output {
-    let child = Command::new("sh")
-        .arg("-c")
-        .arg(format!("ulimit -v {cap_kib} && exec \"$0\" \"$@\""))
-        .arg(env!("CARGO_BIN_EXE_parallax"))
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    wait_with_deadline(child, args)
-}
-
-fn wait_with_deadline(mut child: Child, args: &[&str]) -> Output {
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > DEADLINE {
-            child.kill().unwrap();
-            let out = child.wait_with_output().unwrap();
-            panic!("{args:?} ran past {DEADLINE:?}: {}", String::from_utf8_lossy(&out.stderr));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    wait_or_kill(capped_command(dir, cap_kib, args).spawn().unwrap(), &format!("{args:?}"))
 }
 
 /// Asserts exit 1 with exactly one line on stderr that holds every needle, no panic, and
@@ -302,21 +275,21 @@ fn bench_children_end_with_the_bench() {
             std::io::Read::read_to_string(bench.stderr.as_mut().unwrap(), &mut stderr).unwrap();
             panic!("bench ended ({status}) before its first cell: {stderr}");
         }
-        assert!(start.elapsed() < DEADLINE, "bench started no cell within {DEADLINE:?}");
+        assert!(start.elapsed() < HANG_GUARD, "bench started no cell within {HANG_GUARD:?}");
         std::thread::sleep(Duration::from_millis(20));
     };
     // Let the cell get into its frames, then end bench as a job control or a batch system would.
     std::thread::sleep(Duration::from_secs(2));
     nix::sys::signal::kill(nix::unistd::Pid::from_raw(bench.id() as i32), nix::sys::signal::Signal::SIGTERM).unwrap();
-    let out = wait_with_deadline(bench, &["bench"]);
+    let out = wait_or_kill(bench, "bench");
     assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
     // Gone, or a zombie that no longer runs (whoever adopted it may not have reaped it yet).
     let start = Instant::now();
     while stat(render).is_some_and(|(state, _)| state != 'Z') {
-        if start.elapsed() > DEADLINE {
+        if start.elapsed() > HANG_GUARD {
             let _ =
                 nix::sys::signal::kill(nix::unistd::Pid::from_raw(render as i32), nix::sys::signal::Signal::SIGKILL);
-            panic!("the cell's render (pid {render}) outlived bench by {DEADLINE:?}");
+            panic!("the cell's render (pid {render}) outlived bench by {HANG_GUARD:?}");
         }
         std::thread::sleep(Duration::from_millis(20));
     }

@@ -140,3 +140,37 @@ pub fn assert_typed_json(what: &str, json: &serde_json::Value) {
     }
     walk(what, "$", json);
 }
+
+/// How long a test waits for a child process before it calls it hung: far beyond what a loaded
+/// machine needs, so it never decides a verdict by timing.
+pub const HANG_GUARD: std::time::Duration = std::time::Duration::from_secs(300);
+
+/// The binary with `args` in `dir` under `ulimit -v cap_kib` (a regression that reads without
+/// bound fails the test instead of taking the machine down), stdin closed, output piped.
+pub fn capped_command<S: AsRef<std::ffi::OsStr>>(dir: &Path, cap_kib: u64, args: &[S]) -> std::process::Command {
+    use std::process::Stdio;
+    let mut cmd = std::process::Command::new("sh");
+    cmd.arg("-c")
+        .arg(format!("ulimit -v {cap_kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_parallax"))
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    cmd
+}
+
+/// Waits for `child`; past [`HANG_GUARD`] kills it and fails the test naming `what`.
+pub fn wait_or_kill(mut child: std::process::Child, what: &str) -> std::process::Output {
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > HANG_GUARD {
+            child.kill().unwrap();
+            let out = child.wait_with_output().unwrap();
+            panic!("{what} ran past {HANG_GUARD:?}: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
