@@ -42,13 +42,19 @@ static EMBEDDED: AtomicBool = AtomicBool::new(false);
 
 /// Installs the stderr logger for the whole process.
 pub fn init(v: Verbosity) {
+    QUIET.store(v.quiet, Ordering::Relaxed);
+    // Fails only when a logger is already installed, which the binary never does twice.
+    let _ = install(v, Level::INFO);
+}
+
+/// The stderr logger at `-q`: errors, `-v`: debug, `-vv`: all, else `default`.
+fn install(v: Verbosity, default: Level) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
     let level = match (v.quiet, v.verbose) {
         (true, _) => Level::ERROR,
-        (false, 0) => Level::INFO,
+        (false, 0) => default,
         (false, 1) => Level::DEBUG,
         (false, _) => Level::TRACE,
     };
-    QUIET.store(v.quiet, Ordering::Relaxed);
     tracing_subscriber::fmt()
         .with_max_level(level)
         .with_writer(std::io::stderr)
@@ -56,7 +62,7 @@ pub fn init(v: Verbosity) {
         // thing that failed.
         .log_internal_errors(false)
         .event_format(Plain)
-        .init();
+        .try_init()
 }
 
 /// `text` with every control character escaped as Rust writes it (`\n`, `\r`, `\t`,
@@ -82,16 +88,10 @@ pub fn escape_controls(text: &str) -> Cow<'_, str> {
 /// as the first call asks; a later call sets only whether progress bars are hidden. Result
 /// lines become notes (shown from `-v`).
 pub fn init_embedded(v: Verbosity) {
-    let level = match (v.quiet, v.verbose) {
-        (true, _) => Level::ERROR,
-        (false, 0) => Level::WARN,
-        (false, 1) => Level::DEBUG,
-        (false, _) => Level::TRACE,
-    };
     QUIET.store(v.quiet, Ordering::Relaxed);
     EMBEDDED.store(true, Ordering::Relaxed);
     // Fails only when a logger is already installed (by an earlier call, or by the host).
-    let _ = tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).event_format(Plain).try_init();
+    let _ = install(v, Level::WARN);
 }
 
 /// Messages as a compiler prints them: `error: …`, `warning: …`, notes without a prefix.
