@@ -1,7 +1,8 @@
-//! glTF camera animation: the world transform of the scene's camera node at time t, from the
-//! animated translation, rotation and scale of that node and of every node above it (glTF
-//! samplers: STEP, LINEAR — slerp for rotations — and CUBICSPLINE). `parallax render` follows
-//! it frame by frame when a scene has one.
+//! glTF animation: keyframe tracks of a node's translation, rotation and scale (glTF samplers:
+//! STEP, LINEAR — slerp for rotations — and CUBICSPLINE) and a node's transform at time t. The
+//! camera's animation is the world transform of the scene's camera node at time t, from its
+//! node and every node above it; `parallax render` follows it frame by frame when a scene has
+//! one. Skinned and node-animated meshes are posed from the same nodes ([`crate::posing`]).
 
 use glam::{Mat4, Quat, Vec3};
 
@@ -94,7 +95,7 @@ impl<T: Animatable> Track<T> {
     }
 }
 
-/// One node on the path from a root to the camera: its rest transform and what animates it.
+/// One glTF node: its rest transform and what animates it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AnimatedNode {
     pub translation: Vec3,
@@ -108,7 +109,13 @@ pub struct AnimatedNode {
 }
 
 impl AnimatedNode {
-    fn local(&self, t: f32) -> Mat4 {
+    /// Whether a track moves the node.
+    pub fn is_animated(&self) -> bool {
+        self.translation_track.is_some() || self.rotation_track.is_some() || self.scale_track.is_some()
+    }
+
+    /// The node's transform relative to its parent at time `t`.
+    pub(crate) fn local(&self, t: f32) -> Mat4 {
         if let Some(m) = self.matrix {
             return m;
         }

@@ -1,6 +1,7 @@
-//! Reading the animation of the scene camera from a glTF document: the path of nodes from a
-//! root to the first perspective camera's node, each with its rest TRS and the channels of any
-//! animation that target it (see [`crate::animation`]).
+//! Reading glTF animations: the path of nodes from a root to the first perspective camera's
+//! node, each with its rest TRS and the channels of any animation that target it (see
+//! [`crate::animation`]), and every node with the channels of the file's first animation, which
+//! poses skinned and node-animated meshes ([`crate::posing`]).
 
 use std::path::Path;
 
@@ -23,27 +24,56 @@ pub(crate) fn camera_animation(
     let chain = chain_from_root(doc, camera_node);
     let nodes: Vec<gltf::Node> = doc.nodes().collect();
     let mut animated: Vec<AnimatedNode> = chain.iter().map(|&i| rest_pose(&nodes[i])).collect();
-    let mut duration = 0.0f32;
-    let mut any = false;
+    let mut duration = None;
     for animation in doc.animations() {
-        for (c, channel) in animation.channels().enumerate() {
-            let Some(k) = chain.iter().position(|&i| i == channel.target().node().index()) else { continue };
-            let sampler = channel.sampler().index();
-            let bad = |detail: String| SceneError::InvalidGltf {
-                path: path.to_path_buf(),
-                detail: format!(
-                    "animation {} sampler {sampler} (channel {c}, node {}): {detail}",
-                    animation.index(),
-                    chain[k]
-                ),
-            };
-            if let Some(end) = add_track(&mut animated[k], &channel, buffers, &bad)? {
-                duration = duration.max(end);
-                any = true;
-            }
-        }
+        let end = add_channels(&animation, buffers, path, &mut animated, |node| chain.iter().position(|&i| i == node))?;
+        duration = latest(duration, end);
     }
-    Ok(any.then_some(CameraAnimation { nodes: animated, yfov, duration }))
+    Ok(duration.map(|duration| CameraAnimation { nodes: animated, yfov, duration }))
+}
+
+/// Every node of the file (by index) with the tracks of the file's first animation, and the time
+/// of its last keyframe; None when the file has no animation or its first moves no node (morph
+/// weights only). glTF plays one animation at a time: Fox's Survey, Walk and Run drive the same
+/// joints, and a viewer starts with the first.
+pub(crate) fn first_animation_nodes(
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    path: &Path,
+) -> Result<Option<(Vec<AnimatedNode>, f32)>, SceneError> {
+    let Some(animation) = doc.animations().next() else { return Ok(None) };
+    let mut nodes: Vec<AnimatedNode> = doc.nodes().map(|n| rest_pose(&n)).collect();
+    let end = add_channels(&animation, buffers, path, &mut nodes, Some)?;
+    Ok(end.map(|duration| (nodes, duration)))
+}
+
+/// Reads the channels of `animation` that target a node `slot` maps into `nodes` into that
+/// node's tracks; returns the time of the last keyframe read, None when no channel moved a node.
+fn add_channels(
+    animation: &gltf::Animation,
+    buffers: &[gltf::buffer::Data],
+    path: &Path,
+    nodes: &mut [AnimatedNode],
+    slot: impl Fn(usize) -> Option<usize>,
+) -> Result<Option<f32>, SceneError> {
+    let mut duration = None;
+    for (c, channel) in animation.channels().enumerate() {
+        let node = channel.target().node().index();
+        let Some(k) = slot(node) else { continue };
+        let sampler = channel.sampler().index();
+        let bad = |detail: String| SceneError::InvalidGltf {
+            path: path.to_path_buf(),
+            detail: format!("animation {} sampler {sampler} (channel {c}, node {node}): {detail}", animation.index()),
+        };
+        let end = add_track(&mut nodes[k], &channel, buffers, &bad)?;
+        duration = latest(duration, end);
+    }
+    Ok(duration)
+}
+
+/// The later of two keyframe times, either of which may be missing.
+fn latest(a: Option<f32>, b: Option<f32>) -> Option<f32> {
+    a.into_iter().chain(b).reduce(f32::max)
 }
 
 /// The nodes from a root down to `node`, in that order.
@@ -90,7 +120,7 @@ fn rest_pose(node: &gltf::Node) -> AnimatedNode {
 }
 
 /// Reads `channel` into the track of `node` it targets and checks it; returns its last keyframe
-/// time, or None for a channel that does not move a camera (morph weights).
+/// time, or None for a channel that does not move a node (morph weights).
 fn add_track(
     node: &mut AnimatedNode,
     channel: &gltf::animation::Channel,
@@ -132,7 +162,7 @@ fn add_track(
             node.scale_track = Some(track);
             ok
         }
-        // Morph weights do not move a camera.
+        // Morph weights do not move a node (Parallax imports no morph targets).
         Some(ReadOutputs::MorphTargetWeights(_)) => return Ok(None),
         None => return Err(bad("no output values".into())),
     };
@@ -145,11 +175,11 @@ fn add_track(
     Ok(Some(*times.last().expect("well formed tracks have keyframes")))
 }
 
-/// The longest keyframe time a camera animation may have: 1e6 s (11 days).
+/// The longest keyframe time an animation may have: 1e6 s (11 days).
 pub const MAX_KEYFRAME_TIME: f32 = 1e6;
 
 /// Every keyframe value is finite and within range (`ok`): a NaN or 1e30 would render black
-/// frames while render.json reported a camera path.
+/// frames while render.json reported an animation.
 fn check_values<T: std::fmt::Debug>(values: &[T], what: &str, ok: impl Fn(&T) -> bool) -> Result<(), String> {
     match values.iter().position(|v| !ok(v)) {
         None => Ok(()),

@@ -1,8 +1,10 @@
 //! glTF 2.0 import into the flat [`Scene`] model.
 //!
 //! Supports what the scenes in `shared/scenes` use and nothing more: triangle meshes (indexed or
-//! not; flat normals generated when a primitive has none), node transforms, rest-pose skinning
-//! (so skinned models such as Fox stand where a viewer shows them), metallic-roughness materials
+//! not; flat normals generated when a primitive has none), node transforms, skinning and node
+//! animation (meshes posed at t = 0 of the file's first animation, or in the rest pose without
+//! one, so that skinned models such as Fox stand where a viewer shows them; [`crate::posing`]
+//! poses them at any other time), metallic-roughness materials
 //! with KHR_materials_emissive_strength, alpha MASK, double-sided, KHR_lights_punctual and
 //! perspective cameras. Images are decoded once, in parallel, to RGBA8.
 //!
@@ -14,17 +16,19 @@ use std::path::Path;
 use glam::{Mat3, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 
+use crate::animation::AnimatedNode;
 use crate::error::SceneError;
 use crate::gltf_budget::{
     ImageSource, LoadEstimate, MemoryLimit, distinct_sources, image_dimensions, triangles_after_instancing,
 };
-use crate::gltf_primitive::{PrimitiveAt, append_triangles, pose, read_vertices, skinning_matrices};
+use crate::gltf_primitive::{PrimitiveAt, append_triangles, pose, read_skin_weights, read_vertices};
 use crate::input::{
     IMAGE_FILE_LIMIT, IMAGE_SIDE_LIMIT, SCENE_FILE_LIMIT, SourceFile, UriPolicy, read_bounded, read_prefix, resolve_uri,
 };
 use crate::model::{
     AlphaMode, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Texture,
 };
+use crate::posing::{GeometryAnimation, MovingPrimitive, Skin, Skinning};
 
 /// Extensions a file may list in `extensionsRequired`.
 pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_lights_punctual"];
@@ -102,6 +106,10 @@ struct Importer<'a> {
     first_camera: Option<(usize, f32)>,
     /// glTF image index -> texture index: image entries that name one source share a texture.
     image_texture: Vec<u32>,
+    /// Every node with the tracks of the file's first animation, and its duration.
+    animation: Option<(Vec<AnimatedNode>, f32)>,
+    /// The primitives the animation moves, as the file has them.
+    moving: Vec<MovingPrimitive>,
 }
 
 fn import(bytes: &[u8], base_dir: &Path, path: &Path, options: LoadOptions) -> Result<Scene, SceneError> {
@@ -168,6 +176,8 @@ fn import(bytes: &[u8], base_dir: &Path, path: &Path, options: LoadOptions) -> R
         default_material: None,
         zero_scale_node: None,
         first_camera: None,
+        animation: crate::gltf_animation::first_animation_nodes(&document, &buffers, path)?,
+        moving: Vec::new(),
     };
     imp.import_materials()?;
     imp.import_nodes()?;
@@ -273,8 +283,9 @@ impl Importer<'_> {
             }
         };
         let nodes: Vec<gltf::Node> = self.doc.nodes().collect();
-        let mut stack: Vec<(usize, Mat4, usize)> = roots.iter().map(|&r| (r, Mat4::IDENTITY, 0)).collect();
-        let mut order = Vec::new();
+        let mut stack: Vec<(usize, Option<usize>, usize)> = roots.iter().map(|&r| (r, None, 0)).collect();
+        // Each node after its parent.
+        let mut parented = Vec::new();
         while let Some((i, parent, depth)) = stack.pop() {
             if in_scene[i] || depth > node_count {
                 // A node reachable twice means a cycle or shared child: the glTF spec forbids both.
@@ -285,28 +296,49 @@ impl Importer<'_> {
             }
             in_scene[i] = true;
             let local = Mat4::from_cols_array_2d(&nodes[i].transform().matrix());
-            world[i] = parent * local;
+            world[i] = parent.map_or(Mat4::IDENTITY, |p| world[p]) * local;
             if !world[i].is_finite() {
                 return Err(SceneError::NonFinite {
                     path: self.path.to_path_buf(),
                     what: format!("transform of node {i}"),
                 });
             }
-            order.push(i);
+            parented.push((i, parent));
             for c in nodes[i].children() {
-                stack.push((c.index(), world[i], depth + 1));
+                stack.push((c.index(), Some(i), depth + 1));
             }
         }
+        // Meshes stand as at t = 0 of the animation; cameras and lights in the rest pose (the
+        // camera's own animation is read apart, [`crate::gltf_animation::camera_animation`]).
+        let animation = self.animation.take().map(|(nodes, duration)| GeometryAnimation {
+            path: self.path.to_path_buf(),
+            nodes,
+            order: parented.clone(),
+            duration,
+            primitives: Vec::new(),
+        });
+        let start = animation.as_ref().map(|a| a.world_matrices(0.0));
+        let mesh_world = start.as_deref().unwrap_or(&world);
+        let mut moves = vec![false; node_count];
+        if let Some(a) = &animation {
+            for &(i, parent) in &parented {
+                moves[i] = a.nodes[i].is_animated() || parent.is_some_and(|p| moves[p]);
+            }
+        }
+        let mut order: Vec<usize> = parented.iter().map(|&(i, _)| i).collect();
         order.sort_unstable(); // deterministic triangle order, independent of traversal
         for i in order {
             let node = &nodes[i];
             if let Some(mesh) = node.mesh() {
-                if Mat3::from_mat4(world[i]).determinant() == 0.0 && node.skin().is_none() {
+                if Mat3::from_mat4(mesh_world[i]).determinant() == 0.0 && node.skin().is_none() {
                     self.zero_scale_node.get_or_insert(i);
                 }
-                let skin = node.skin().map(|s| self.joint_matrices(&s, &world)).transpose()?;
+                let skin = node.skin().map(|s| self.read_skin(&s)).transpose()?;
+                let joint_matrices = skin.as_ref().map(|s| s.joint_matrices(mesh_world));
+                let skin_moves = skin.as_ref().is_some_and(|s| s.joints.iter().any(|&j| moves[j]));
                 for prim in mesh.primitives() {
-                    self.import_primitive(i, &mesh, &prim, world[i], skin.as_deref())?;
+                    let skinned = skin.as_ref().zip(joint_matrices.as_deref());
+                    self.import_primitive(i, &mesh, &prim, mesh_world[i], skinned, (moves[i], skin_moves))?;
                 }
             }
             if let Some(cam) = node.camera() {
@@ -328,6 +360,11 @@ impl Importer<'_> {
                 self.scene.lights.push(punctual);
             }
         }
+        // A scene whose animation moves no mesh, or holds one pose (a single keyframe), is
+        // still: it needs no posing per frame.
+        self.scene.geometry_animation = animation
+            .filter(|a| a.duration > 0.0 && !self.moving.is_empty())
+            .map(|a| GeometryAnimation { primitives: std::mem::take(&mut self.moving), ..a });
         Ok(())
     }
 
@@ -346,8 +383,8 @@ impl Importer<'_> {
         Ok(())
     }
 
-    /// Joint matrices for the rest pose: world(joint) * inverseBind(joint).
-    fn joint_matrices(&self, skin: &gltf::Skin, world: &[Mat4]) -> Result<Vec<Mat4>, SceneError> {
+    /// The skin's joints and inverse bind matrices.
+    fn read_skin(&self, skin: &gltf::Skin) -> Result<Skin, SceneError> {
         if let Some(a) = skin.inverse_bind_matrices() {
             if a.data_type() != gltf::accessor::DataType::F32 || a.dimensions() != gltf::accessor::Dimensions::Mat4 {
                 return Err(SceneError::InvalidGltf {
@@ -367,16 +404,20 @@ impl Importer<'_> {
                 detail: format!("skin {} has fewer inverse bind matrices than joints", skin.index()),
             });
         }
-        Ok(skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * ibm).collect())
+        Ok(Skin { joints: skin.joints().map(|j| j.index()).collect(), inverse_bind: ibms })
     }
 
+    /// Imports one primitive of `node`, placed by the node's `world` or, when the node has a skin,
+    /// by the skin and its joint matrices; `(node_moves, skin_moves)`: whether the animation
+    /// moves the node and the skin's joints, which keeps the primitive for posing.
     fn import_primitive(
         &mut self,
         node: usize,
         mesh: &gltf::Mesh,
         prim: &gltf::Primitive,
         world: Mat4,
-        joints: Option<&[Mat4]>,
+        skin: Option<(&Skin, &[Mat4])>,
+        (node_moves, skin_moves): (bool, bool),
     ) -> Result<(), SceneError> {
         let at = PrimitiveAt { path: self.path, mesh: mesh.index(), primitive: prim.index() };
         if prim.mode() != gltf::mesh::Mode::Triangles {
@@ -384,8 +425,14 @@ impl Importer<'_> {
         }
         check_attribute_types(prim).map_err(|what| at.bad(what))?;
         let mut vertices = read_vertices(prim, self.buffers, &at)?;
-        let skinning = skinning_matrices(prim, self.buffers, joints, vertices.positions.len(), &at)?;
-        pose(&mut vertices, skinning.as_deref(), world);
+        let vertex_count = vertices.positions.len();
+        let weights = read_skin_weights(prim, self.buffers, skin.map(|(s, _)| s.joints.len()), vertex_count, &at)?;
+        let skinning = weights.as_ref().zip(skin).map(|(w, (_, joint_matrices))| w.matrices(joint_matrices));
+        // The glTF spec ignores a skinned mesh's node transform: only its joints move it.
+        let moves = if skinning.is_some() { skin_moves } else { node_moves };
+        let as_in_file =
+            moves.then(|| (vertices.positions.clone(), vertices.normals.clone(), vertices.indices.clone()));
+        pose(&mut vertices.positions, vertices.normals.as_deref_mut(), skinning.as_deref(), world);
         let positions = &vertices.positions;
         if positions.iter().any(|p| !p.is_finite()) {
             return Err(SceneError::NonFinite {
@@ -412,6 +459,19 @@ impl Importer<'_> {
         // counter-clockwise stays front-facing.
         let mirrored = skinning.is_none() && Mat3::from_mat4(world).determinant() < 0.0;
         let material = self.material_index(prim);
+        if let Some((positions, normals, indices)) = as_in_file {
+            self.moving.push(MovingPrimitive {
+                mesh: mesh.index(),
+                primitive: prim.index(),
+                node,
+                first_vertex: self.scene.positions.len(),
+                positions,
+                normals,
+                indices,
+                mirrored,
+                skin: skin.zip(weights).map(|((skin, _), weights)| Skinning { skin: skin.clone(), weights }),
+            });
+        }
         append_triangles(&mut self.scene, vertices, mirrored, material);
         Ok(())
     }

@@ -1,6 +1,7 @@
 //! One glTF triangle primitive, in the steps [`crate::gltf_import`] takes it through: read and
-//! check its vertex attributes, pose it (skinning or the node's transform), and append its
-//! triangles to the scene, generating flat normals when it has none.
+//! check its vertex attributes and skin weights, pose it (skinning or the node's transform), and
+//! append its triangles to the scene, generating flat normals when it has none. Posing and the
+//! layout of its vertices are also what [`crate::posing`] repeats for each time of an animation.
 
 use std::path::Path;
 
@@ -71,59 +72,71 @@ pub(crate) fn read_vertices(
     Ok(Vertices { positions, normals, uvs, indices })
 }
 
-/// Each vertex's skinning matrix (its joints' world matrices blended by its weights), when the
-/// node has a skin (`joints`) and the primitive JOINTS_0 and WEIGHTS_0.
-pub(crate) fn skinning_matrices(
+/// A primitive's JOINTS_0 and WEIGHTS_0: per vertex, four joints of its node's skin and their
+/// weights. Every joint index is within the skin (checked on reading).
+#[derive(Clone, Debug)]
+pub(crate) struct SkinWeights {
+    joints: Vec<[u16; 4]>,
+    weights: Vec<[f32; 4]>,
+}
+
+/// The primitive's skin weights, when the node has a skin of `joint_count` joints and the
+/// primitive JOINTS_0 and WEIGHTS_0.
+pub(crate) fn read_skin_weights(
     prim: &gltf::Primitive,
     buffers: &[gltf::buffer::Data],
-    joints: Option<&[Mat4]>,
+    joint_count: Option<usize>,
     vertex_count: usize,
     at: &PrimitiveAt<'_>,
-) -> Result<Option<Vec<Mat4>>, SceneError> {
+) -> Result<Option<SkinWeights>, SceneError> {
     let bad = |what| at.bad(what);
     let reader = prim.reader(|b| Some(&buffers[b.index()].0[..]));
-    let (Some(js), Some(j), Some(w)) = (joints, reader.read_joints(0), reader.read_weights(0)) else {
+    let (Some(joint_count), Some(j), Some(w)) = (joint_count, reader.read_joints(0), reader.read_weights(0)) else {
         return Ok(None);
     };
-    let j: Vec<[u16; 4]> = j.into_u16().collect();
-    let w: Vec<[f32; 4]> = w.into_f32().collect();
-    if j.len() != vertex_count || w.len() != vertex_count {
+    let joints: Vec<[u16; 4]> = j.into_u16().collect();
+    let weights: Vec<[f32; 4]> = w.into_f32().collect();
+    if joints.len() != vertex_count || weights.len() != vertex_count {
         return Err(bad("JOINTS_0/WEIGHTS_0 counts differ from POSITION".into()));
     }
-    let mut per_vertex = Vec::with_capacity(vertex_count);
-    for (jv, wv) in j.iter().zip(&w) {
-        let mut m = Mat4::ZERO;
-        for k in 0..4 {
-            let joint = *js
-                .get(jv[k] as usize)
-                .ok_or_else(|| bad(format!("joint index {} out of range ({} joints)", jv[k], js.len())))?;
-            m += joint * wv[k];
-        }
-        per_vertex.push(m);
+    if let Some(&j) = joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
+        return Err(bad(format!("joint index {j} out of range ({joint_count} joints)")));
     }
-    Ok(Some(per_vertex))
+    Ok(Some(SkinWeights { joints, weights }))
+}
+
+impl SkinWeights {
+    /// Each vertex's skinning matrix: the matrices of its joints (`joint_matrices`, the skin's
+    /// joint world matrices times their inverse bind matrices) blended by its weights.
+    pub(crate) fn matrices(&self, joint_matrices: &[Mat4]) -> Vec<Mat4> {
+        self.joints
+            .iter()
+            .zip(&self.weights)
+            .map(|(j, w)| (0..4).fold(Mat4::ZERO, |m, k| m + joint_matrices[usize::from(j[k])] * w[k]))
+            .collect()
+    }
 }
 
 /// Moves positions and normals to world space: by each vertex's skinning matrix for a skinned
 /// mesh (whose node transform the glTF spec says to ignore), else by the node's `world`.
-pub(crate) fn pose(vertices: &mut Vertices, skinning: Option<&[Mat4]>, world: Mat4) {
+pub(crate) fn pose(positions: &mut [Vec3], normals: Option<&mut [Vec3]>, skinning: Option<&[Mat4]>, world: Mat4) {
     let normal_matrix = |m: Mat4| Mat3::from_mat4(m).inverse().transpose();
     match skinning {
         Some(ms) => {
-            for (k, p) in vertices.positions.iter_mut().enumerate() {
+            for (k, p) in positions.iter_mut().enumerate() {
                 *p = ms[k].transform_point3(*p);
             }
-            if let Some(ns) = vertices.normals.as_mut() {
+            if let Some(ns) = normals {
                 for (k, n) in ns.iter_mut().enumerate() {
                     *n = (normal_matrix(ms[k]) * *n).normalize_or_zero();
                 }
             }
         }
         None => {
-            for p in vertices.positions.iter_mut() {
+            for p in positions.iter_mut() {
                 *p = world.transform_point3(*p);
             }
-            if let Some(ns) = vertices.normals.as_mut() {
+            if let Some(ns) = normals {
                 let nm = normal_matrix(world);
                 for n in ns.iter_mut() {
                     *n = (nm * *n).normalize_or_zero();
@@ -133,38 +146,59 @@ pub(crate) fn pose(vertices: &mut Vertices, skinning: Option<&[Mat4]>, world: Ma
     }
 }
 
-/// Appends the triangles with `material`, reversing the winding of a `mirrored` primitive so
-/// that counter-clockwise stays front-facing; without normals each triangle gets its own three
-/// vertices with the face normal.
+/// The corners of each triangle, in the order that keeps counter-clockwise front-facing: a
+/// `mirrored` primitive's winding is reversed.
+fn corners(indices: &[u32], mirrored: bool) -> impl Iterator<Item = [usize; 3]> + '_ {
+    let order = if mirrored { [0, 2, 1] } else { [0, 1, 2] };
+    indices.chunks_exact(3).map(move |t| order.map(|k| t[k] as usize))
+}
+
+/// A primitive's posed positions and normals as the scene holds them: with the file's normals,
+/// one scene vertex per file vertex; without, one per triangle corner with the triangle's face
+/// normal (flat shading, recomputed for every pose).
+pub(crate) fn lay_out(
+    indices: &[u32],
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    mirrored: bool,
+) -> (Vec<Vec3>, Vec<Vec3>) {
+    if let Some(normals) = normals {
+        return (positions, normals);
+    }
+    let mut laid = Vec::with_capacity(indices.len());
+    let mut flat = Vec::with_capacity(indices.len());
+    for c in corners(indices, mirrored) {
+        let [a, b, d] = c.map(|i| positions[i]);
+        let n = (b - a).cross(d - a).normalize_or_zero();
+        laid.extend([a, b, d]);
+        flat.extend([n; 3]);
+    }
+    (laid, flat)
+}
+
+/// Appends the triangles with `material`, laid out by [`lay_out`]: reversing the winding of a
+/// `mirrored` primitive so that counter-clockwise stays front-facing; without normals each
+/// triangle gets its own three vertices with the face normal.
 pub(crate) fn append_triangles(s: &mut Scene, vertices: Vertices, mirrored: bool, material: u32) {
     let Vertices { positions, normals, uvs, indices } = vertices;
-    let corner = |t: &[u32], k: usize| if mirrored { t[[0, 2, 1][k]] } else { t[k] };
-    match normals {
-        Some(ns) => {
-            let base = s.positions.len() as u32;
-            s.positions.extend_from_slice(&positions);
-            s.normals.extend(ns);
-            s.uvs.extend_from_slice(&uvs);
-            for t in indices.chunks_exact(3) {
-                s.triangles.push([0, 1, 2].map(|k| base + corner(t, k)));
-                s.triangle_materials.push(material);
-            }
-        }
-        None => {
+    let base = s.positions.len() as u32;
+    let flat = normals.is_none();
+    let (positions, normals) = lay_out(&indices, positions, normals, mirrored);
+    s.positions.extend(positions);
+    s.normals.extend(normals);
+    for (t, c) in corners(&indices, mirrored).enumerate() {
+        let triangle = if flat {
             // Flat normals need one vertex per triangle corner.
-            for t in indices.chunks_exact(3) {
-                let c = [0, 1, 2].map(|k| corner(t, k) as usize);
-                let [a, b, d] = c.map(|i| positions[i]);
-                let n = (b - a).cross(d - a).normalize_or_zero();
-                let base = s.positions.len() as u32;
-                for &i in &c {
-                    s.positions.push(positions[i]);
-                    s.normals.push(n);
-                    s.uvs.push(uvs[i]);
-                }
-                s.triangles.push([base, base + 1, base + 2]);
-                s.triangle_materials.push(material);
-            }
-        }
+            s.uvs.extend(c.map(|i| uvs[i]));
+            let first = base + 3 * t as u32;
+            [first, first + 1, first + 2]
+        } else {
+            c.map(|i| base + i as u32)
+        };
+        s.triangles.push(triangle);
+        s.triangle_materials.push(material);
+    }
+    if !flat {
+        s.uvs.extend(uvs);
     }
 }

@@ -1,7 +1,9 @@
 //! Parallax scenes: everything about *what* is rendered, with no GPU API in sight.
 //!
 //! - [`load_gltf`]: glTF 2.0 import into a flat, world-space [`Scene`];
-//!   [`default_scene()`] builds the embedded scene used when no file is given.
+//!   [`default_scene()`] builds the embedded scene used when no file is given;
+//!   [`Scene::pose_at`] poses skinned and node-animated meshes at a time of the file's animation
+//!   ([`posing`]).
 //! - [`SceneBvh`]: an obvhs CWBVH over all triangles plus CPU traversal; [`gpu`] lays the same
 //!   BVH and scene out for storage buffers (traversed by `shaders/bvh_traverse.glsl`).
 //! - [`CpuTracer`]: the reference path tracer (NEE + MIS, Lambert + GGX, counter-based RNG).
@@ -40,6 +42,7 @@ pub mod lights;
 pub mod metrics;
 pub mod model;
 pub mod output;
+pub mod posing;
 pub mod pt;
 pub mod rng;
 pub mod shading;

@@ -1,8 +1,9 @@
 //! The flat scene model every consumer shares: world-space indexed triangles, glTF
 //! metallic-roughness materials, decoded textures, lights and cameras.
 //!
-//! Everything is already in world space (node transforms and rest-pose skinning applied at load
-//! time), so the BVH, the CPU reference and the GPU upload all read the same arrays.
+//! Everything is already in world space (node transforms and skinning applied at load time, at
+//! t = 0 of the file's animation), so the BVH, the CPU reference and the GPU upload all read the
+//! same arrays; [`Scene::pose_at`] moves an animated scene's vertices to another time.
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
@@ -321,6 +322,9 @@ pub struct Scene {
     pub cameras: Vec<Camera>,
     /// How the first camera moves, when the file animates it (or a node above it).
     pub camera_animation: Option<crate::animation::CameraAnimation>,
+    /// How the meshes move, when the file's first animation moves a skin's joints or a mesh's
+    /// node; the arrays above hold its pose at t = 0 until [`Scene::pose_at`] poses another.
+    pub geometry_animation: Option<crate::posing::GeometryAnimation>,
     /// Set by the caller (CLI); glTF files carry no sun.
     pub sun: Option<Sun>,
     /// Set by the caller (CLI); black unless set.
@@ -332,6 +336,22 @@ pub struct Scene {
 impl Scene {
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// Whether the scene's geometry moves over time (skinned or node-animated meshes).
+    pub fn geometry_moves(&self) -> bool {
+        self.geometry_animation.is_some()
+    }
+
+    /// Poses the moving meshes at `t` seconds of the animation (held at its ends): their
+    /// positions and normals change in place, nothing else does. A still scene is left as it is.
+    /// A pose that throws a vertex beyond ±[`MAX_COORDINATE`] is refused naming the vertex and
+    /// the time (the scene is then partly posed: drop it).
+    pub fn pose_at(&mut self, t: f32) -> Result<(), crate::SceneError> {
+        match &self.geometry_animation {
+            Some(animation) => animation.pose(t, &mut self.positions, &mut self.normals),
+            None => Ok(()),
+        }
     }
 
     /// The three world-space corners of triangle `t`.
