@@ -1,7 +1,9 @@
 //! `parallax render`: a light field of a scene through the paper's reconstruction pipeline
 //! (`--pipeline reproject`: G-buffer, path tracing of the sources, reprojection of the targets,
 //! hole filling, SVGF, tonemapping) or with every view path traced (`--pipeline path-trace`, the
-//! baseline), over N devices under any of the three schemes, for F frames of a camera dolly.
+//! baseline), over N devices under any of the three schemes, for F frames of a still camera, a
+//! dolly or the scene's glTF animation (its camera, and its skinned or node-animated meshes
+//! posed at each frame's time).
 //! Writes the last frame's views (EXR, linear radiance after denoising; PNG at one exposure for
 //! the whole light field), the contact sheet, `viewer.html` (the views in a browser, with
 //! parallax), an optional Looking Glass quilt and wiggle, and render.json with the paper's
@@ -14,6 +16,7 @@
 mod frames;
 mod host_memory;
 mod plan;
+mod posing;
 mod report;
 
 use std::ffi::OsString;
@@ -47,14 +50,15 @@ pub enum BarrierArg {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum MotionArg {
-    /// The scene's glTF camera animation when the scene has one and no `--camera` is given;
-    /// else still.
+    /// The scene's glTF animation when it has one (its camera's only when no `--camera` is
+    /// given; its moving meshes in any case); else still.
     Auto,
-    /// Still: every frame at the first frame's camera.
+    /// Still: every frame at the first frame's camera, meshes posed at t = 0.
     None,
-    /// A smooth sideways dolly across 10 % of the scene, centred on the camera.
+    /// A smooth sideways dolly across 10 % of the scene, centred on the camera; meshes posed
+    /// at t = 0.
     Dolly,
-    /// The scene's glTF camera animation, spread over the measured frames.
+    /// The scene's glTF animation (camera and moving meshes), spread over the measured frames.
     Animation,
 }
 
@@ -98,13 +102,15 @@ pub struct RenderArgs {
     /// (seconds on some drivers), so measuring from frame 0 with `--warmup 0` times those too.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
-    /// How the rig moves over the frames: `auto` (the scene's camera animation when it has one
-    /// and no --camera is given, else still: a camera you place stays there), `none`, `dolly`
-    /// (sideways across 10 % of the scene) or `animation`. render.json's `motion` says which ran.
+    /// How the rig and the scene move over the frames: `auto` (the scene's glTF animation when
+    /// it has one — its camera's only when no --camera is given, so a camera you place stays
+    /// there; skinned and animated meshes posed at each frame's time — else still), `none`,
+    /// `dolly` (sideways across 10 % of the scene) or `animation`; under `none` and `dolly`
+    /// meshes keep their pose of t = 0. render.json's `motion` says which ran.
     #[arg(long, value_enum, default_value_t = MotionArg::Auto)]
     motion: MotionArg,
-    /// Keep the camera still over the frames: `--motion none`, what accuracy against a
-    /// reference of the same camera needs.
+    /// Keep the camera still over the frames and the meshes in their pose of t = 0: `--motion
+    /// none`, what accuracy against a reference of the same camera needs.
     #[arg(long, conflicts_with = "motion")]
     still: bool,
     /// Also write the views of every N-th measured frame to frame_FFFFF/ under --out-dir.
@@ -247,8 +253,8 @@ pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<
     }
     let identity = |builder: PipelineBuilder| builder;
     let extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder = extension.stages.as_deref().unwrap_or(&identity);
-    let job = RenderJob::prepare(&args, extend)?;
-    let rendered = render_frames(&args, &job, &mut extension)?;
+    let mut job = RenderJob::prepare(&args, extend)?;
+    let rendered = render_frames(&args, &mut job, &mut extension)?;
     write_outputs(&args, &job, rendered)
 }
 

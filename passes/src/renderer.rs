@@ -119,6 +119,16 @@ impl LightFieldRenderer {
         }
     }
 
+    /// Replaces the scene's geometry by `scene`'s, a new pose of the scene given at
+    /// construction (same triangles, materials, lights and textures; moved vertices and a BVH
+    /// built over them). Waits for the frames in flight before overwriting their buffers.
+    pub fn upload_geometry(&mut self, scene: &GpuScene<'_>) -> Result<()> {
+        crate::scene_upload::upload_geometry(&mut self.executor, scene)?;
+        // A triangle posed to zero area leaves the emissive table.
+        self.emissive_triangles = scene.emissive.len();
+        Ok(())
+    }
+
     /// A camera cut: the next frame's history reads (SVGF) start over, and its motion is unknown.
     pub fn cut(&mut self) {
         self.executor.reset_history();

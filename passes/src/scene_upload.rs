@@ -1,6 +1,8 @@
 //! The scene on the GPU: the six arrays of `parallax_scene::gpu::GpuScene` as global buffers of
 //! the executor (reached by buffer address), its textures as the backend's sampled-texture
-//! array. Uploaded once per scene; every pass that reads the scene finds it by name.
+//! array. Uploaded once per scene; every pass that reads the scene finds it by name. A scene
+//! whose meshes move ([`parallax_scene::Scene::pose_at`]) re-uploads only its geometry
+//! ([`upload_geometry`]) for each new pose.
 
 use parallax_backend::{Executor, Recorder, TextureData};
 use parallax_scene::gpu::GpuScene;
@@ -18,20 +20,31 @@ pub const SCENE_REFS_BYTES: usize = 48;
 /// attributes, materials, emissive-triangle table, punctual lights, textures. Replaces a
 /// previously uploaded scene.
 pub fn upload_scene(executor: &mut Executor, scene: &GpuScene<'_>) -> Result<()> {
-    let arrays: [&[u8]; 6] = [
-        scene.node_bytes(),
-        scene.triangle_bytes(),
-        scene.attribute_bytes(),
-        scene.material_bytes(),
-        scene.emissive_bytes(),
-        scene.light_bytes(),
-    ];
-    for (name, bytes) in SCENE_BUFFERS.iter().zip(arrays) {
-        executor.upload_buffer(name, bytes)?;
-    }
+    upload_geometry(executor, scene)?;
+    executor.upload_buffer("scene.materials", scene.material_bytes())?;
+    executor.upload_buffer("scene.lights", scene.light_bytes())?;
     let textures: Vec<TextureData<'_>> =
         scene.textures.iter().map(|t| TextureData { width: t.width, height: t.height, rgba8: &t.rgba8 }).collect();
     executor.upload_textures(&textures)?;
+    Ok(())
+}
+
+/// Uploads what a new pose of the same scene changes: BVH nodes, BVH-ordered triangles and
+/// their attributes (normals, emissive areas), and the emissive-triangle table (its
+/// probabilities follow the areas); materials, lights and textures stay. The executor waits for
+/// the frames in flight before it overwrites a buffer ([`Executor::upload_buffer`]); a buffer of
+/// the same size (triangles always, BVH nodes when the build gives as many) keeps its address
+/// and the recorded command buffers.
+pub fn upload_geometry(executor: &mut Executor, scene: &GpuScene<'_>) -> Result<()> {
+    let arrays = [
+        ("scene.nodes", scene.node_bytes()),
+        ("scene.triangles", scene.triangle_bytes()),
+        ("scene.attributes", scene.attribute_bytes()),
+        ("scene.emissive", scene.emissive_bytes()),
+    ];
+    for (name, bytes) in arrays {
+        executor.upload_buffer(name, bytes)?;
+    }
     Ok(())
 }
 

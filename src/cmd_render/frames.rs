@@ -1,7 +1,8 @@
 //! `render`'s run room: the devices, the executor and the frame loop. Warm-up frames run
 //! first at the first measured frame's camera, then the statistics restart and the measured
-//! frames run (the camera dollies or follows the scene's animation); `--save-every` stages the
-//! views of some measured frames on the way. A user crate's [`RenderExtension`] brings the
+//! frames run (the camera dollies or follows the scene's animation, moving meshes are posed at
+//! each frame's time: [`super::posing`]); `--save-every` stages the views of some measured
+//! frames on the way. A user crate's [`RenderExtension`] brings the
 //! shaders of its stages and looks at the renderer once the last frame is done.
 
 use std::time::{Duration, Instant};
@@ -16,6 +17,7 @@ use parallax_scene::{SceneBvh, TraceSettings};
 
 use super::host_memory::{ResidentSampler, ResidentSummary};
 use super::plan::RenderJob;
+use super::posing::{GeometryReport, Posing};
 use super::report::{ViewLayers, stage_views, view_layers};
 use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
 use crate::logging::bar;
@@ -37,10 +39,17 @@ pub(super) struct Rendered {
     pub lock: FolderLock,
     /// The extra EXR layers every view gets.
     pub layers: ViewLayers,
+    /// Whether the meshes moved, and what posing them cost.
+    pub geometry: GeometryReport,
 }
 
-/// Creates the devices and the executor for `job` and runs every frame.
-pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut RenderExtension) -> Result<Rendered> {
+/// Creates the devices and the executor for `job` and runs every frame; the scene is left in
+/// the last frame's pose.
+pub(super) fn render_frames(
+    args: &RenderArgs,
+    job: &mut RenderJob,
+    extension: &mut RenderExtension,
+) -> Result<Rendered> {
     let lf = job.lf_of(args, 0)?;
     let bvh = SceneBvh::build(&job.scene);
     let context = VkContext::new(&ContextDesc::from_env(args.devices.selection()))?;
@@ -62,27 +71,32 @@ pub(super) fn render_frames(args: &RenderArgs, job: &RenderJob, extension: &mut 
         shaders: extension.shaders.clone(),
         ..ExecOptions::default()
     };
-    let scene = GpuScene::new(&job.scene, &bvh);
-    let mut renderer = LightFieldRenderer::with_options(&context, exec_plan, &scene, options)?;
+    let mut renderer =
+        LightFieldRenderer::with_options(&context, exec_plan, &GpuScene::new(&job.scene, &bvh), options)?;
+    drop(bvh);
     let layers = view_layers(args, job.compiled.kind, &job.compiled.handles, &renderer);
 
     crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
-    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer, layers)?;
+    let mut posing = Posing::of(job);
+    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer, layers, posing.as_mut())?;
     if let Some(after) = extension.after_frames.as_mut() {
         after(&mut renderer, &job.compiled.handles)?;
     }
-    Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock, layers })
+    let geometry = posing.map(|p| p.report()).unwrap_or_default();
+    Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock, layers, geometry })
 }
 
-/// Submits the warm-up and measured frames; returns the views `--save-every` staged, the
-/// wall time of the measured frames and the resident set over them.
+/// Submits the warm-up and measured frames, each after `posing` (when the meshes move) has
+/// posed the scene at its time; returns the views `--save-every` staged, the wall time of the
+/// measured frames and the resident set over them.
 fn frame_loop(
     args: &RenderArgs,
-    job: &RenderJob,
+    job: &mut RenderJob,
     renderer: &mut LightFieldRenderer,
     layers: ViewLayers,
+    mut posing: Option<&mut Posing>,
 ) -> Result<(Vec<Staged>, Duration, ResidentSummary)> {
     let progress = bar(u64::from(job.total_frames));
     let started = Instant::now();
@@ -97,6 +111,9 @@ fn frame_loop(
             renderer.keep_reports(args.trace.is_some());
             measured_from = Some(Instant::now());
             sampler = Some(ResidentSampler::start());
+        }
+        if let Some(posing) = posing.as_deref_mut() {
+            posing.before_frame(args, job, renderer, f)?;
         }
         let views = lightfield_views(&job.lf_of(args, f)?);
         renderer.submit(&job.scene, &views, &TraceSettings { frame: f, ..job.settings })?;

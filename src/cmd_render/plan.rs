@@ -47,22 +47,33 @@ pub(super) struct RenderJob {
 pub(super) enum Motion {
     Still,
     Dolly,
-    Animation(CameraAnimation),
+    /// The scene's glTF animation, its whole length spread over the measured frames: the camera
+    /// follows its own animation when it has one (None: the camera stays), and moving meshes
+    /// ([`Scene::geometry_moves`]) are posed at each frame's time.
+    Animation {
+        camera: Option<CameraAnimation>,
+        duration: f32,
+    },
 }
 
 impl Motion {
-    /// `--motion` (or `--still`) for this scene: `auto` follows the scene's camera animation
-    /// only when the user placed no camera, so a `--camera` stays where it was put.
+    /// `--motion` (or `--still`) for this scene: `auto` is the glTF animation when the scene
+    /// has one, its camera's part only when the user placed no camera, so a `--camera` stays
+    /// where it was put while the scene's meshes move.
     fn resolve(args: &RenderArgs, scene: &Scene) -> Result<Motion> {
-        let animation = scene.camera_animation.clone();
+        let placed = args.scene.camera.is_some();
+        let geometry = scene.geometry_animation.as_ref().map(|a| a.duration());
+        let animation = |camera: Option<CameraAnimation>| {
+            let duration = camera.as_ref().map(|c| c.duration).into_iter().chain(geometry).reduce(f32::max);
+            duration.map(|duration| Motion::Animation { camera, duration })
+        };
         let motion = match (args.still, args.motion) {
             (true, _) | (false, MotionArg::None) => Motion::Still,
             (false, MotionArg::Dolly) => Motion::Dolly,
-            (false, MotionArg::Auto) => match animation {
-                Some(a) if args.scene.camera.is_none() => Motion::Animation(a),
-                _ => Motion::Still,
-            },
-            (false, MotionArg::Animation) if args.scene.camera.is_some() => {
+            (false, MotionArg::Auto) => {
+                animation(scene.camera_animation.clone().filter(|_| !placed)).unwrap_or(Motion::Still)
+            }
+            (false, MotionArg::Animation) if placed && scene.camera_animation.is_some() => {
                 return Err(crate::options::UsageError(
                     "--motion animation moves the scene's own camera, so --camera would be ignored: drop --camera, or \
                      use --motion dolly to move the camera you give"
@@ -70,10 +81,11 @@ impl Motion {
                 )
                 .into());
             }
-            (false, MotionArg::Animation) => match animation {
-                Some(a) => Motion::Animation(a),
+            (false, MotionArg::Animation) => match animation(scene.camera_animation.clone()) {
+                Some(motion) => motion,
                 None => bail!(
-                    "--motion animation: scene '{}' has no camera animation; use --motion dolly or --motion none",
+                    "--motion animation: scene '{}' has no animation of its camera or meshes; use --motion dolly or \
+                     --motion none",
                     scene.name
                 ),
             },
@@ -87,8 +99,13 @@ impl Motion {
         match self {
             Motion::Still => "none",
             Motion::Dolly => "dolly",
-            Motion::Animation(_) => "animation",
+            Motion::Animation { .. } => "animation",
         }
+    }
+
+    /// Whether the scene's meshes move over the frames: the glTF animation runs and moves them.
+    pub fn moves_geometry(&self, scene: &Scene) -> bool {
+        matches!(self, Motion::Animation { .. }) && scene.geometry_moves()
     }
 }
 
@@ -171,13 +188,24 @@ impl RenderJob {
         Ok(job)
     }
 
+    /// The animation time of frame `f`, seconds: under the glTF animation its whole length spread
+    /// over the measured frames, else 0, the time the scene was loaded at. Warm-up frames have
+    /// the first measured frame's.
+    pub fn time_at(&self, args: &RenderArgs, f: u32) -> f32 {
+        let m = f.saturating_sub(args.warmup);
+        match &self.motion {
+            Motion::Animation { duration, .. } => duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32,
+            Motion::Still | Motion::Dolly => 0.0,
+        }
+    }
+
     /// The camera of frame `f`. Warm-up frames see the first measured frame's camera, so one
     /// measured frame is a still camera whatever the warm-up.
     pub fn camera_at(&self, args: &RenderArgs, f: u32) -> Camera {
         let m = f.saturating_sub(args.warmup);
         match &self.motion {
-            Motion::Still => self.camera,
-            Motion::Animation(a) => a.camera_at(a.duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32),
+            Motion::Still | Motion::Animation { camera: None, .. } => self.camera,
+            Motion::Animation { camera: Some(a), .. } => a.camera_at(self.time_at(args, f)),
             Motion::Dolly => dolly(&self.camera, &self.scene, m, args.frames),
         }
     }
@@ -226,7 +254,32 @@ mod tests {
         assert_eq!(motion(&["--frames", "1", "--motion", "dolly"], &still), "none", "one frame is still");
         assert_eq!(
             motion(&["--frames", "3", "--motion", "animation"], &still),
-            "--motion animation: scene 'default' has no camera animation; use --motion dolly or --motion none"
+            "--motion animation: scene 'default' has no animation of its camera or meshes; use --motion dolly or \
+             --motion none"
         );
+    }
+
+    /// A skinned, animated scene (Fox) moves by default, its meshes posed at each frame's time
+    /// whether or not a camera is placed; a placed camera stays put meanwhile. `--motion none`,
+    /// `--still`, the dolly and a single frame pose it once, at t = 0.
+    #[test]
+    fn moving_meshes_run_their_animation_under_a_still_or_placed_camera() {
+        let fox = parallax_scene::load_gltf(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/fox/Fox.gltf")).unwrap();
+        let camera = ["--camera", "0,40,200,0,40,0,0,1,0,45"];
+        let placed = [&["--frames", "3"][..], &camera].concat();
+        assert_eq!(motion(&["--frames", "3"], &fox), "animation");
+        assert_eq!(motion(&placed, &fox), "animation");
+        assert_eq!(motion(&[&placed[..], &["--motion", "animation"]].concat(), &fox), "animation");
+        assert_eq!(motion(&["--frames", "3", "--motion", "none"], &fox), "none");
+        assert_eq!(motion(&["--frames", "3", "--still"], &fox), "none");
+        assert_eq!(motion(&["--frames", "3", "--motion", "dolly"], &fox), "dolly");
+        assert_eq!(motion(&["--frames", "1"], &fox), "none");
+
+        // The placed camera is not animated; the meshes' animation (Survey, 3.42 s) runs.
+        let placed = Motion::resolve(&args(&placed), &fox).unwrap();
+        assert!(placed.moves_geometry(&fox));
+        let Motion::Animation { camera: None, duration } = placed else { panic!("the camera was placed") };
+        assert!((duration - 3.4166667).abs() < 1e-5, "{duration}");
+        assert!(!Motion::resolve(&args(&["--frames", "3", "--still"]), &fox).unwrap().moves_geometry(&fox));
     }
 }

@@ -19,6 +19,7 @@ use super::RenderArgs;
 use super::frames::Rendered;
 use super::host_memory::ResidentSummary;
 use super::plan::RenderJob;
+use super::posing::GeometryReport;
 use crate::logging::result;
 use crate::outputs::{Format, Output, Sink, Staged, check_creating, stage};
 use crate::render_pictures::{display_images, stage_pictures, view_png_name};
@@ -27,7 +28,7 @@ use crate::run_setup::{CameraSetup, Setup};
 
 /// Reads the last frame back, writes every output and says what was rendered.
 pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<()> {
-    let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock, layers } = rendered;
+    let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock, layers, geometry } = rendered;
     let reports = renderer.take_reports();
     let prepare = renderer.prepare_ms().clone();
     let timing = timings(renderer.stats(), &prepare);
@@ -55,6 +56,7 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
             missing: &missing,
             device_names,
             host_memory,
+            geometry,
         },
     )?;
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
@@ -119,6 +121,7 @@ struct Measured<'a> {
     missing: &'a MissingPixels,
     device_names: Vec<String>,
     host_memory: ResidentSummary,
+    geometry: GeometryReport,
 }
 
 /// The pixels of the targets that no source covered and hole filling did not reach.
@@ -163,7 +166,7 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
         "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still,
-        "motion": job.motion.name(), "setup": &setup,
+        "motion": job.motion.name(), "geometry": &measured.geometry, "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
         "reprojection_tolerance": args.pipeline.reprojection_tolerance,
         "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
