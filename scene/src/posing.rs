@@ -97,7 +97,9 @@ impl GeometryAnimation {
             let mut n = prim.normals.clone();
             let skinning = prim.skin.as_ref().map(|s| s.weights.matrices(&s.skin.joint_matrices(&world)));
             pose(&mut p, n.as_deref_mut(), skinning.as_deref(), world[prim.node]);
-            if let Some((k, v)) = p.iter().enumerate().find(|(_, v)| !(v.abs().max_element() <= MAX_COORDINATE)) {
+            if let Some((k, v)) =
+                p.iter().enumerate().find(|(_, v)| !v.is_finite() || v.abs().max_element() > MAX_COORDINATE)
+            {
                 return Err(SceneError::CoordinateOutOfRange {
                     path: self.path.clone(),
                     what: format!(
