@@ -2,8 +2,8 @@
 //! first at the first measured frame's camera, then the statistics restart and the measured
 //! frames run (the camera dollies or follows the scene's animation, moving meshes are posed at
 //! each frame's time: [`super::posing`]); `--save-every` stages the views of some measured
-//! frames on the way. A user crate's [`RenderExtension`] brings the
-//! shaders of its stages and looks at the renderer once the last frame is done.
+//! frames on the way. A user crate's [`RenderExtension`] brings the shaders of its stages and
+//! looks at the renderer once the last frame is done.
 
 use std::time::{Duration, Instant};
 
