@@ -86,7 +86,7 @@ impl Executor {
         self.ready = ready;
         self.needs_record = true;
         let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
-        self.relay = Some(Relay::new(&self.devices, &progress));
+        self.relay = Some(Relay::new(&self.devices, &progress)?);
         self.plan_epoch = self.next_frame;
         self.history_origin = self.next_frame;
         Ok(())
