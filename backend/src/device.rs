@@ -254,10 +254,8 @@ impl Device {
 
     /// Host wait, without a timeout, until any of `semaphores` reaches its value in `values`.
     pub(crate) fn wait_any_timeline(&self, semaphores: &[vk::Semaphore], values: &[u64]) -> Result<()> {
-        let info = vk::SemaphoreWaitInfo::default()
-            .flags(vk::SemaphoreWaitFlags::ANY)
-            .semaphores(semaphores)
-            .values(values);
+        let info =
+            vk::SemaphoreWaitInfo::default().flags(vk::SemaphoreWaitFlags::ANY).semaphores(semaphores).values(values);
         unsafe { self.raw.wait_semaphores(&info, u64::MAX) }.vk("vkWaitSemaphores")
     }
 
