@@ -255,10 +255,9 @@ fn splittable<P>(graph: &Graph<P>, decl: &PassDecl) -> bool {
     !decl.whole_view
         && decl.role != Role::Global
         && !decl.writes.iter().any(|w| whole(w.family))
-        && !decl
-            .reads
-            .iter()
-            .any(|r| matches!(r.scope, ReadScope::Own | ReadScope::OwnHalo(_) | ReadScope::History) && view_buffer(r.family))
+        && !decl.reads.iter().any(|r| {
+            matches!(r.scope, ReadScope::Own | ReadScope::OwnHalo(_) | ReadScope::History) && view_buffer(r.family)
+        })
 }
 
 fn resource_infos<P>(graph: &Graph<P>, writers: &WriterMap) -> Vec<ResourceInfo> {

@@ -41,12 +41,8 @@ fn copied_rows(s: &Schedule, from: u32, to: u32) -> Vec<(u32, u32)> {
 fn two_bands_copy_only_the_rows_within_reach_of_each_other() {
     // Bands [0, 8) on device 0 and [8, 16) on device 1; each reads 3 rows of the other.
     let s = blur(1, 2, Some(3));
-    let reads: Vec<(u32, u32)> = s
-        .instances
-        .iter()
-        .filter(|i| i.name == "blur")
-        .map(|i| (i.reads[0].region.y0, i.reads[0].region.y1))
-        .collect();
+    let reads: Vec<(u32, u32)> =
+        s.instances.iter().filter(|i| i.name == "blur").map(|i| (i.reads[0].region.y0, i.reads[0].region.y1)).collect();
     assert_eq!(reads, vec![(0, 11), (5, 16)]);
     assert_eq!(copied_rows(&s, 0, 1), vec![(5, 8)]);
     assert_eq!(copied_rows(&s, 1, 0), vec![(8, 11)]);
