@@ -1,6 +1,6 @@
 //! The scheme that lost the GPU (issue 21, class 10): fine-all on four logical devices renders
-//! several frames (a wait never signalled would end at the executor's stall timeout), and a
-//! lost GPU ends a run with one error naming the likely cause and leaves the output folder as it
+//! three frames of 8×4 views of 64×48, issue 26's size (a wait never signalled would end at the
+//! executor's stall timeout), and a lost GPU ends a run with one error naming the likely cause and leaves the output folder as it
 //! was (`PARALLAX_FAULT=device-lost:F` makes frame F's submission fail as on a lost device).
 
 mod common;
@@ -16,9 +16,9 @@ fn fine_all_on_four_logical_devices_renders_frames() {
             "-q",
             "render",
             "--lf",
-            "4x2",
+            "8x4",
             "--resolution",
-            "32x16",
+            "64x48",
             "--scheme",
             "fine-all",
             "--fake-devices",
