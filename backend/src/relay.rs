@@ -179,3 +179,44 @@ fn run_worker(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::context::{Context, ContextDesc, DeviceSelection};
+    use crate::instance::Validation;
+
+    /// Generous bound on how long a relay may take to forward or to stop: only a hang guard.
+    const HANG_GUARD: std::time::Duration = std::time::Duration::from_secs(120);
+
+    #[test]
+    fn a_job_is_forwarded_on_the_producers_signal_and_one_never_reached_is_abandoned_at_drop() {
+        let context =
+            Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(2), validation: Validation::Core })
+                .unwrap();
+        let [producer, consumer] = [context.devices[0].clone(), context.devices[1].clone()];
+        let progress = [producer.create_timeline(0).unwrap(), consumer.create_timeline(0).unwrap()];
+        let ready = consumer.create_timeline(0).unwrap();
+        let relay = Relay::new(&context.devices, &progress).unwrap();
+        let job =
+            |value| RelayJob { watch_value: value, target: consumer.clone(), semaphore: ready, signal_value: value };
+        relay.push(0, job(1)).unwrap();
+        relay.push(0, job(2)).unwrap();
+        producer.signal_timeline(progress[0], 1).unwrap();
+        assert!(consumer.wait_timeline(ready, 1, HANG_GUARD.as_nanos() as u64).unwrap(), "job 1 forwarded");
+        // Job 2's value never comes: dropping the relay wakes its thread anyway.
+        let (done, dropped) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            drop(relay);
+            let _ = done.send(());
+        });
+        dropped.recv_timeout(HANG_GUARD).expect("the relay stops while a job waits");
+        assert_eq!(consumer.timeline_value(ready).unwrap(), 1, "the unreached job is abandoned, not signalled");
+        unsafe {
+            producer.raw.destroy_semaphore(progress[0], None);
+            consumer.raw.destroy_semaphore(progress[1], None);
+            consumer.raw.destroy_semaphore(ready, None);
+        }
+        context.check_validation().unwrap();
+    }
+}
