@@ -5,7 +5,8 @@
 # the log of 3 frames after 1, and the wall time of a second run of one frame and no warm-up
 # (`first_frame`: start-up, the first frame and writing its outputs). A run past LIMIT seconds
 # is stopped and recorded as such (rc=124).
-#   usage: issue26_schemes_4dev.sh BASE_BINARY NEW_BINARY SPONZA_GLTF OUT_FOLDER [LIMIT]
+# SCHEMES (environment, default all three) limits the schemes, to fit one device call.
+#   usage: [SCHEMES="fine-all"] issue26_schemes_4dev.sh BASE_BINARY NEW_BINARY SPONZA_GLTF OUT_FOLDER [LIMIT]
 set -uo pipefail
 base=$1 new=$2 scene=$3 out=$4 limit=${5:-300}
 sp=(--scene "$scene" --camera 9,1.6,-0.4,-8,3.5,-0.4,0,1,0,65 --sun 0.3,1,0.2,4,0.5
@@ -13,7 +14,7 @@ sp=(--scene "$scene" --camera 9,1.6,-0.4,-8,3.5,-0.4,0,1,0,65 --sun 0.3,1,0.2,4,
 mkdir -p "$out"
 for build in base new; do
   bin=${!build}
-  for scheme in multi-source fine-sources fine-all; do
+  for scheme in ${SCHEMES:-multi-source fine-sources fine-all}; do
     dir="$out/$build/$scheme"
     mkdir -p "$dir"
     start=$(date +%s.%N)
