@@ -1,6 +1,6 @@
 //! The scheme that lost the GPU (issue 21, class 10): fine-all on four logical devices renders
-//! several frames (a wait never signalled would end at the executor's stall timeout), and a
-//! lost GPU ends a run with one error naming the likely cause and leaves the output folder as it
+//! three frames of 8×4 views of 64×48, issue 26's size (a wait never signalled would end at the
+//! executor's stall timeout), and a lost GPU ends a run with one error naming the likely cause and leaves the output folder as it
 //! was (`PARALLAX_FAULT=device-lost:F` makes frame F's submission fail as on a lost device).
 
 mod common;
@@ -16,9 +16,9 @@ fn fine_all_on_four_logical_devices_renders_frames() {
             "-q",
             "render",
             "--lf",
-            "4x2",
+            "8x4",
             "--resolution",
-            "32x16",
+            "64x48",
             "--scheme",
             "fine-all",
             "--fake-devices",
@@ -40,6 +40,16 @@ fn fine_all_on_four_logical_devices_renders_frames() {
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("out/render.json")).unwrap()).unwrap();
     assert_eq!(json["plan"]["devices"], 4);
     assert_eq!(json["timing"]["frames"], 3);
+    // Every device sends bands to every other: one relay link per ordered pair, each carrying
+    // chunks every frame.
+    let pairs = json["links"]["pairs"].as_array().unwrap();
+    let mut ends: Vec<(u64, u64)> =
+        pairs.iter().map(|p| (p["from"].as_u64().unwrap(), p["to"].as_u64().unwrap())).collect();
+    ends.sort_unstable();
+    let every: Vec<(u64, u64)> = (0..4).flat_map(|a| (0..4).filter(move |&b| b != a).map(move |b| (a, b))).collect();
+    assert_eq!(ends, every);
+    assert!(pairs.iter().all(|p| p["kind"] == "relay" && p["chunks_per_frame"].as_u64().unwrap() > 0), "{pairs:?}");
+    assert!(json["links"]["host_staging_bytes"].as_u64().unwrap() > 0);
 }
 
 /// The render of a lost GPU: one `error:` line, exit 1, no panic.

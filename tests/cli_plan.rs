@@ -98,6 +98,40 @@ fn dot_detail_summary_stays_small_for_big_schedules() {
     assert!(std::fs::read_to_string(dir.join("plan.dot")).unwrap().starts_with("digraph schedule {"));
 }
 
+/// Rows each of `bands` equal row bands of a view `height` rows tall reads beyond its own rows
+/// when it reads `reach` rows around them, clamped to the view: what `halo_rows` counts per
+/// view and halo read, computed here from the band rule alone (bands of `height * b / bands`).
+fn rows_beyond_bands(height: u32, bands: u32, reach: u32) -> u64 {
+    (0..bands)
+        .map(|b| {
+            let (y0, y1) = (height * b / bands, height * (b + 1) / bands);
+            u64::from(y0.min(reach) + (height - y1).min(reach))
+        })
+        .sum()
+}
+
+#[test]
+fn fine_all_counts_the_rows_svgf_reads_around_each_band() {
+    let dir = scratch("plan", "halo");
+    let args = ["--lf", "8x4", "--resolution", "64x48", "--gpus", "4", "--scheme", "fine-all"];
+    let out = plan(&args, &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("plan.json")).unwrap()).unwrap();
+    // Each à-trous iteration (steps 1, 2, 4, 8, 16) reads its input (Rgba32f), the guide
+    // (Rgba32f) and the albedo (Rgba16f) 2 steps around its band, the first one 3 steps.
+    let per_read: u64 = [3, 4, 8, 16, 32].into_iter().map(|reach| rows_beyond_bands(48, 4, reach)).sum();
+    assert_eq!(per_read, 18 + 24 + 48 + 88 + 136);
+    let views = 32;
+    assert_eq!(json["halo_rows"], views * 3 * per_read);
+    assert_eq!(json["halo_bytes"], views * per_read * 64 * (16 + 16 + 8));
+    // One device has one band per view: nothing lies beyond it.
+    let one = scratch("plan", "halo_one");
+    let out = plan(&["--lf", "8x4", "--resolution", "64x48", "--gpus", "1", "--scheme", "fine-all"], &one);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(one.join("plan.json")).unwrap()).unwrap();
+    assert_eq!(json["halo_rows"], 0);
+}
+
 /// `plan --dot` of 3 views on 2 devices per scheme, checked byte for byte. Regenerate with
 /// `PARALLAX_UPDATE_GOLDEN=1 cargo test --test cli_plan`; `.ci/test.sh` renders every golden
 /// with Graphviz and fails on any warning.

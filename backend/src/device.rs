@@ -252,6 +252,13 @@ impl Device {
         }
     }
 
+    /// Host wait, without a timeout, until any of `semaphores` reaches its value in `values`.
+    pub(crate) fn wait_any_timeline(&self, semaphores: &[vk::Semaphore], values: &[u64]) -> Result<()> {
+        let info =
+            vk::SemaphoreWaitInfo::default().flags(vk::SemaphoreWaitFlags::ANY).semaphores(semaphores).values(values);
+        unsafe { self.raw.wait_semaphores(&info, u64::MAX) }.vk("vkWaitSemaphores")
+    }
+
     /// Host signal of a timeline semaphore (used by the cross-device relay).
     pub(crate) fn signal_timeline(&self, semaphore: vk::Semaphore, value: u64) -> Result<()> {
         let info = vk::SemaphoreSignalInfo::default().semaphore(semaphore).value(value);

@@ -39,8 +39,8 @@ pub(crate) struct DeviceState {
     /// Command pools of the main and of the copy queue family.
     pub(crate) command_pools: [vk::CommandPool; 2],
     pub(crate) progress: vk::Semaphore,
-    /// Ready timelines of the copies this device consumes.
-    pub(crate) ready: HashMap<CopyId, vk::Semaphore>,
+    /// Ready timelines of the links into this device (links.rs).
+    pub(crate) ready: Vec<vk::Semaphore>,
     /// Fault injection: host-signalled semaphore holding this (producer) device back.
     pub(crate) gate: Option<vk::Semaphore>,
     pub(crate) segments: Vec<Segment>,
@@ -67,7 +67,7 @@ impl Drop for DeviceState {
                 raw.destroy_command_pool(pool, None);
             }
             raw.destroy_semaphore(self.progress, None);
-            for (_, s) in self.ready.drain() {
+            for s in self.ready.drain(..) {
                 raw.destroy_semaphore(s, None);
             }
             if let Some(g) = self.gate.take() {
@@ -82,6 +82,8 @@ impl Drop for DeviceState {
 pub(crate) struct Staging {
     pub(crate) buffers: Vec<SharedHostBuffer>,
     pub(crate) offsets: Vec<u64>,
+    /// Bytes of each slot's buffer.
+    pub(crate) bytes: u64,
 }
 
 /// Creates images, descriptor layout, command buffers and query pools of device `d`.
@@ -121,7 +123,7 @@ pub(crate) fn create_device_state(
         bindless,
         command_pools,
         progress: vk::Semaphore::null(),
-        ready: HashMap::new(),
+        ready: Vec::new(),
         gate: None,
         timers: timer_labels(plan, &segments, &timer_spans),
         timer_spans,
@@ -319,7 +321,7 @@ pub(crate) fn create_staging(devices: &[Arc<Device>], plan: &ExecutionPlan, slot
     participants.dedup();
     let participants: Vec<&Arc<Device>> = participants.iter().map(|&d| &devices[d.index()]).collect();
     let buffers = (0..slots).map(|_| SharedHostBuffer::new(&participants, total)).collect::<Result<Vec<_>>>()?;
-    Ok(Some(Staging { buffers, offsets }))
+    Ok(Some(Staging { buffers, offsets, bytes: total }))
 }
 
 /// Sets up [`FaultInjection::DropCrossDeviceWait`] for `copy`.

@@ -97,6 +97,8 @@ mod frame_block;
 mod frame_data;
 mod frame_stats;
 mod instance;
+mod links;
+pub use links::{LinkInfo, LinkKind};
 mod lower;
 mod memory;
 mod pipeline;

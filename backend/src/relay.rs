@@ -7,6 +7,10 @@
 //! Deadlock freedom: jobs watching one device are enqueued in the order that device's segments
 //! are submitted, so their watched values increase; a job can only block later jobs of the same
 //! device, which need a larger value anyway.
+//!
+//! A thread blocks in one vkWaitSemaphores (no timeout) on "the producer's progress reaches the
+//! job's value, or the thread's own wake timeline reaches 1": it wakes on the signal itself, and
+//! shutting down host-signals the wake timeline instead of waiting out a polling slice.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -28,8 +32,11 @@ pub(crate) struct RelayJob {
 }
 
 struct Worker {
+    device: Arc<Device>,
     sender: Option<Sender<RelayJob>>,
     thread: Option<JoinHandle<()>>,
+    /// Host-signalled to 1 to end the thread's wait at shutdown.
+    wake: vk::Semaphore,
 }
 
 /// The relay threads of an executor, one per device.
@@ -50,9 +57,6 @@ enum Failure {
     Reported,
 }
 
-/// How long a relay thread blocks in one wait before checking whether it should stop.
-const POLL_NS: u64 = 50_000_000;
-
 /// How long a relay thread polls the producer's timeline before it blocks. A blocking
 /// vkWaitSemaphores on NVIDIA wakes 50–250 µs after the signal (measured on H200), which is a
 /// whole 8 MiB chunk of PCIe time; polling hands a chunk over in ~25 µs. The window covers a
@@ -63,25 +67,27 @@ const SPIN: std::time::Duration = std::time::Duration::from_millis(5);
 
 impl Relay {
     /// Starts one relay thread per device; `progress[d]` is device d's progress timeline.
-    pub(crate) fn new(devices: &[Arc<Device>], progress: &[vk::Semaphore]) -> Self {
+    pub(crate) fn new(devices: &[Arc<Device>], progress: &[vk::Semaphore]) -> Result<Self> {
         let stop = Arc::new(AtomicBool::new(false));
         let failure = Arc::new(Mutex::new(Failure::None));
-        let workers = devices
-            .iter()
-            .zip(progress)
-            .map(|(device, &timeline)| {
-                let (sender, receiver) = channel();
-                let device = device.clone();
-                let stop = stop.clone();
-                let failure = failure.clone();
-                let thread = std::thread::Builder::new()
-                    .name(format!("parallax-relay-{}", device.info.index))
-                    .spawn(move || run_worker(&device, timeline, &receiver, &stop, &failure))
-                    .expect("spawn relay thread");
-                Worker { sender: Some(sender), thread: Some(thread) }
-            })
-            .collect();
-        Self { workers, stop, failure }
+        let mut relay = Self { workers: Vec::with_capacity(devices.len()), stop, failure };
+        for (device, &timeline) in devices.iter().zip(progress) {
+            let wake = device.create_timeline(0)?;
+            let (sender, receiver) = channel();
+            let (thread_device, stop, failure) = (device.clone(), relay.stop.clone(), relay.failure.clone());
+            let thread = std::thread::Builder::new()
+                .name(format!("parallax-relay-{}", device.info.index))
+                .spawn(move || run_worker(&thread_device, [timeline, wake], &receiver, &stop, &failure));
+            let thread = match thread {
+                Ok(thread) => thread,
+                Err(e) => {
+                    unsafe { device.raw.destroy_semaphore(wake, None) };
+                    return Err(BackendError::Relay(format!("starting relay thread {}: {e}", device.info.index)));
+                }
+            };
+            relay.workers.push(Worker { device: device.clone(), sender: Some(sender), thread: Some(thread), wake });
+        }
+        Ok(relay)
     }
 
     /// Queues `job` on the thread watching device `watched`.
@@ -116,16 +122,21 @@ impl Drop for Relay {
         self.stop.store(true, Ordering::SeqCst);
         for worker in &mut self.workers {
             worker.sender.take();
+            // A failed signal (a lost device) also ends the thread's wait, with an error.
+            let _ = worker.device.signal_timeline(worker.wake, 1);
             if let Some(t) = worker.thread.take() {
                 let _ = t.join();
             }
+            unsafe { worker.device.raw.destroy_semaphore(worker.wake, None) };
         }
     }
 }
 
+/// Serves the jobs watching `device`: `[progress, wake]` are its progress timeline and the
+/// thread's wake timeline.
 fn run_worker(
     device: &Device,
-    timeline: vk::Semaphore,
+    [timeline, wake]: [vk::Semaphore; 2],
     jobs: &Receiver<RelayJob>,
     stop: &AtomicBool,
     failure: &Mutex<Failure>,
@@ -155,22 +166,57 @@ fn run_worker(
                 }
             }
         }
-        loop {
-            if stop.load(Ordering::SeqCst) {
-                return;
-            }
-            match device.wait_timeline(timeline, job.watch_value, POLL_NS) {
-                Ok(true) => break,
-                Ok(false) => continue,
-                Err(e) => {
-                    fail(format!("waiting on device {} for value {}", device.info.index, job.watch_value), e);
-                    return;
-                }
-            }
+        if let Err(e) = device.wait_any_timeline(&[timeline, wake], &[job.watch_value, 1]) {
+            fail(format!("waiting on device {} for value {}", device.info.index, job.watch_value), e);
+            return;
+        }
+        if stop.load(Ordering::SeqCst) {
+            return;
         }
         if let Err(e) = job.target.signal_timeline(job.semaphore, job.signal_value) {
             fail(format!("signalling device {} to value {}", job.target.info.index, job.signal_value), e);
             return;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::context::{Context, ContextDesc, DeviceSelection};
+    use crate::instance::Validation;
+
+    /// Generous bound on how long a relay may take to forward or to stop: only a hang guard.
+    const HANG_GUARD: std::time::Duration = std::time::Duration::from_secs(120);
+
+    #[test]
+    fn a_job_is_forwarded_on_the_producers_signal_and_one_never_reached_is_abandoned_at_drop() {
+        let context =
+            Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(2), validation: Validation::Core })
+                .unwrap();
+        let [producer, consumer] = [context.devices[0].clone(), context.devices[1].clone()];
+        let progress = [producer.create_timeline(0).unwrap(), consumer.create_timeline(0).unwrap()];
+        let ready = consumer.create_timeline(0).unwrap();
+        let relay = Relay::new(&context.devices, &progress).unwrap();
+        let job =
+            |value| RelayJob { watch_value: value, target: consumer.clone(), semaphore: ready, signal_value: value };
+        relay.push(0, job(1)).unwrap();
+        relay.push(0, job(2)).unwrap();
+        producer.signal_timeline(progress[0], 1).unwrap();
+        assert!(consumer.wait_timeline(ready, 1, HANG_GUARD.as_nanos() as u64).unwrap(), "job 1 forwarded");
+        // Job 2's value never comes: dropping the relay wakes its thread anyway.
+        let (done, dropped) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            drop(relay);
+            let _ = done.send(());
+        });
+        dropped.recv_timeout(HANG_GUARD).expect("the relay stops while a job waits");
+        assert_eq!(consumer.timeline_value(ready).unwrap(), 1, "the unreached job is abandoned, not signalled");
+        unsafe {
+            producer.raw.destroy_semaphore(progress[0], None);
+            consumer.raw.destroy_semaphore(progress[1], None);
+            consumer.raw.destroy_semaphore(ready, None);
+        }
+        context.check_validation().unwrap();
     }
 }

@@ -132,10 +132,10 @@ pub fn band_rows(total: u32, rows_per_chunk: u32) -> Vec<u32> {
     bands
 }
 
-/// Value the ready timeline of a copy reaches when chunk `chunk` of frame `frame` is in host
-/// memory.
-pub fn ready_value(frame: u64, chunks: usize, chunk: u32) -> u64 {
-    frame * chunks as u64 + u64::from(chunk) + 1
+/// Value the ready timeline of a link (links.rs) reaches when the chunk at `position` among
+/// the link's `per_frame` chunks of frame `frame` is in host memory.
+pub fn ready_value(frame: u64, per_frame: u64, position: u64) -> u64 {
+    frame * per_frame + position + 1
 }
 
 /// Value the progress timeline of a device reaches when segment `segment` of `frame` is done.
@@ -709,7 +709,7 @@ mod tests {
                 last = v;
             }
         }
-        assert_eq!(ready_value(2, 3, 1), 8);
+        assert_eq!(ready_value(2, 3, 1), 8, "the second of 3 chunks a frame, frame 2");
     }
 
     /// Device 0 waits for device 1's copy, which device 1 sends only after waiting for device

@@ -98,6 +98,10 @@ pub enum ReadScope {
     Own,
     /// The instance's own view, every row (e.g. a filter with a large footprint).
     OwnWhole,
+    /// The instance's own view, over the instance's own rows and this many rows above and below
+    /// them (clamped to the view): a filter of bounded reach. A row band then needs only the
+    /// neighbouring bands' rows within reach, not their whole view.
+    OwnHalo(u32),
     /// Every source view of the instance's (target) view, every row: a reprojection read.
     Sources,
     /// The previous frame's last version of the instance's own view, own rows.
@@ -168,7 +172,7 @@ pub enum SlotAccess {
 impl SlotAccess {
     fn of_read(scope: ReadScope) -> Self {
         match scope {
-            ReadScope::Own | ReadScope::OwnWhole => SlotAccess::Read,
+            ReadScope::Own | ReadScope::OwnWhole | ReadScope::OwnHalo(_) => SlotAccess::Read,
             ReadScope::Sources | ReadScope::EveryView => SlotAccess::SourceRead,
             ReadScope::History => SlotAccess::HistoryRead,
         }
@@ -467,7 +471,7 @@ impl<P> PassBuilder<'_, P> {
     fn check_read_scope(&mut self, family: FamilyId, scope: ReadScope) {
         let global = self.graph.families[family.index()].global;
         let fits = match scope {
-            ReadScope::Own | ReadScope::OwnWhole => global || self.decl.role != Role::Global,
+            ReadScope::Own | ReadScope::OwnWhole | ReadScope::OwnHalo(_) => global || self.decl.role != Role::Global,
             ReadScope::History => global == (self.decl.role == Role::Global),
             ReadScope::Sources => !global && self.decl.role != Role::Global,
             ReadScope::EveryView => !global && self.decl.role == Role::Global,
@@ -540,6 +544,14 @@ impl<P> PassBuilder<'_, P> {
         ReadSlot(self.id, self.push_read(h, ReadScope::OwnWhole))
     }
 
+    /// Reads this view's current version over the instance's own rows and `rows` rows above and
+    /// below them (clamped to the view): what a filter reaching `rows` rows away reads. A banded
+    /// scheme copies only those rows of the neighbouring bands; `rows = 0` is [`Self::read_slot`].
+    pub fn read_halo_slot<K>(&mut self, h: &Handle<K>, rows: u32) -> ReadSlot {
+        let scope = if rows == 0 { ReadScope::Own } else { ReadScope::OwnHalo(rows) };
+        ReadSlot(self.id, self.push_read(h, scope))
+    }
+
     /// Reads the current version of the resource of each source of this (target) view: a
     /// reprojection read. Each such read yields a δ-edge source → target.
     pub fn read_sources_slot<K>(&mut self, h: &Handle<K>) -> SourcesSlot {
@@ -579,6 +591,12 @@ impl<P> PassBuilder<'_, P> {
     /// [`Self::read_whole_slot`], chained.
     pub fn read_whole<K>(mut self, h: &Handle<K>) -> Self {
         self.read_whole_slot(h);
+        self
+    }
+
+    /// [`Self::read_halo_slot`], chained.
+    pub fn read_halo<K>(mut self, h: &Handle<K>, rows: u32) -> Self {
+        self.read_halo_slot(h, rows);
         self
     }
 

@@ -148,7 +148,7 @@ fn read_targets<P>(
     v: ViewId,
 ) -> Vec<(FamilyId, ViewId, u32)> {
     match scope {
-        ReadScope::Own | ReadScope::OwnWhole => {
+        ReadScope::Own | ReadScope::OwnWhole | ReadScope::OwnHalo(_) => {
             let at = home(graph, family, v);
             vec![(family, at, versions[at.index()])]
         }
@@ -173,8 +173,15 @@ fn pass_infos<P>(graph: &Graph<P>) -> Vec<PassInfo> {
         .map(|decl| PassInfo {
             name: decl.name.clone(),
             role: decl.role,
-            reads: decl.reads.iter().map(|r| SlotInfo { name: r.slot.clone(), family: r.family }).collect(),
-            writes: decl.writes.iter().map(|w| SlotInfo { name: w.slot.clone(), family: w.family }).collect(),
+            reads: decl
+                .reads
+                .iter()
+                .map(|r| {
+                    let halo = if let ReadScope::OwnHalo(rows) = r.scope { rows } else { 0 };
+                    SlotInfo { name: r.slot.clone(), family: r.family, halo }
+                })
+                .collect(),
+            writes: decl.writes.iter().map(|w| SlotInfo { name: w.slot.clone(), family: w.family, halo: 0 }).collect(),
         })
         .collect()
 }
@@ -248,7 +255,9 @@ fn splittable<P>(graph: &Graph<P>, decl: &PassDecl) -> bool {
     !decl.whole_view
         && decl.role != Role::Global
         && !decl.writes.iter().any(|w| whole(w.family))
-        && !decl.reads.iter().any(|r| matches!(r.scope, ReadScope::Own | ReadScope::History) && view_buffer(r.family))
+        && !decl.reads.iter().any(|r| {
+            matches!(r.scope, ReadScope::Own | ReadScope::OwnHalo(_) | ReadScope::History) && view_buffer(r.family)
+        })
 }
 
 fn resource_infos<P>(graph: &Graph<P>, writers: &WriterMap) -> Vec<ResourceInfo> {
@@ -306,10 +315,11 @@ fn instantiate<P>(
         for (i, (family, u, version)) in targets.into_iter().enumerate() {
             let rows = match r.scope {
                 ReadScope::Own | ReadScope::History => rows_of(graph, family, region),
+                ReadScope::OwnHalo(halo) => rows_of(graph, family, region.grown(halo, full(family).y1)),
                 ReadScope::OwnWhole | ReadScope::Sources | ReadScope::EveryView => full(family),
             };
             let origin = match r.scope {
-                ReadScope::Own | ReadScope::OwnWhole => Origin::Own,
+                ReadScope::Own | ReadScope::OwnWhole | ReadScope::OwnHalo(_) => Origin::Own,
                 ReadScope::Sources | ReadScope::EveryView => Origin::Source(i as u32),
                 ReadScope::History => Origin::History,
             };

@@ -56,8 +56,12 @@ impl Schedule {
                 if let Op::Pass(id) = op {
                     let inst = self.instance(*id);
                     let height = self.resources.first().map_or(0, |r| r.desc.rows());
+                    // A band's halo reads reach this many rows beyond it (from neighbouring bands).
+                    let halo = self.passes[inst.pass.index()].reads.iter().map(|r| r.halo).max().unwrap_or(0);
                     let rows = if inst.region.y0 == 0 && inst.region.y1 >= height {
                         String::new()
+                    } else if halo > 0 {
+                        format!("\\n{} ±{halo}", inst.region)
                     } else {
                         format!("\\n{}", inst.region)
                     };

@@ -95,6 +95,11 @@ impl Region {
         self.y0 <= other.y0 && other.y1 <= self.y1
     }
 
+    /// These rows and `rows` more above and below, within `[0, height)`.
+    pub fn grown(self, rows: u32, height: u32) -> Region {
+        Region { y0: self.y0.saturating_sub(rows), y1: self.y1.saturating_add(rows).min(height) }
+    }
+
     /// Splits `[0, height)` into `n` bands whose heights differ by at most one row.
     pub fn bands(height: u32, n: u32) -> Vec<Region> {
         let n = n.max(1);

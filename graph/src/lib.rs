@@ -63,8 +63,8 @@ pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, R
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use partition::{Plan, PlanConfig, Scheme, parse_source_list};
 pub use schedule::{
-    Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, HistoryPair, Op, Origin, PassInfo, PassInstance,
-    ResourceDesc, ResourceInfo, Schedule, SlotInfo,
+    Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin, PassInfo,
+    PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
 pub use summary::PlanSummary;
 pub use validate::{ScheduleError, ValidationReport};

@@ -165,6 +165,9 @@ pub struct SlotInfo {
     pub name: String,
     /// The family the slot reads or writes.
     pub family: FamilyId,
+    /// Rows a read reaches above and below the instance's own rows (a halo read,
+    /// `PassBuilder::read_halo_slot`); 0 for any other access.
+    pub halo: u32,
 }
 
 /// What the schedule keeps of each declared pass.
@@ -315,4 +318,32 @@ impl Schedule {
     pub fn bytes_per_frame(&self) -> u64 {
         self.copies.iter().map(|c| c.bytes).sum()
     }
+
+    /// Rows that halo reads (`PassBuilder::read_halo_slot`) reach beyond their instances' own
+    /// rows, summed over every instance and halo read of a frame, and their bytes: what a
+    /// banded scheme reads of the neighbouring bands where it would otherwise read whole views.
+    pub fn halo_reads(&self) -> HaloReads {
+        let mut halo = HaloReads::default();
+        for instance in &self.instances {
+            let declared = &self.passes[instance.pass.index()].reads;
+            // Only view-sized resources are split into bands; anything else is read whole anyway.
+            let halo_reads = instance.reads.iter().filter(|r| {
+                declared[usize::from(r.decl)].halo > 0 && self.resource(r.resource).desc.rows() == self.height
+            });
+            for read in halo_reads {
+                let own = read.region.intersect(instance.region).map_or(0, Region::len);
+                let rows = read.region.len() - own;
+                halo.rows += u64::from(rows);
+                halo.bytes += u64::from(rows) * self.resource(read.resource).desc.row_bytes();
+            }
+        }
+        halo
+    }
+}
+
+/// What halo reads reach beyond their own rows in one frame ([`Schedule::halo_reads`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct HaloReads {
+    pub rows: u64,
+    pub bytes: u64,
 }

@@ -27,6 +27,9 @@ pub struct PlanSummary {
     pub gather_copies: usize,
     /// Bytes of all copies, gathers included.
     pub bytes_per_frame: u64,
+    /// Rows (and bytes) halo reads reach beyond their instances' own rows per frame.
+    pub halo_rows: u64,
+    pub halo_bytes: u64,
     pub pass_instances: usize,
     pub culled_passes: usize,
     /// Pass instances per device, in device order.
@@ -49,6 +52,8 @@ impl PlanSummary {
             cross_device_copies: schedule.dependency_copies().count(),
             gather_copies: schedule.gather_copies().count(),
             bytes_per_frame: schedule.bytes_per_frame(),
+            halo_rows: schedule.halo_reads().rows,
+            halo_bytes: schedule.halo_reads().bytes,
             pass_instances: schedule.instances.len(),
             culled_passes: schedule.culled.len(),
             passes_per_device: schedule

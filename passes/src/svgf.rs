@@ -24,8 +24,9 @@
 //! the path-traced input's: no bias in the mean. The normalised filter it replaces moved a
 //! channel's mean by up to 13 % on Sponza (docs/PIPELINE.md, SVGF).
 //!
-//! Every pass with a footprint reads whole views (`read_whole`), so a view split into row bands
-//! over devices gives the same pixels as one device. The à-trous passes run in phase tiles
+//! Every pass with a footprint reads whole views (`read_whole`), the à-trous passes their rows and
+//! the taps' reach around them (`read_halo`), so a view split into row bands over devices gives
+//! the same pixels as one device. The à-trous passes run in phase tiles
 //! ([`phase_groups`]): a workgroup owns 8×8 pixels `step` apart and reads their taps into
 //! shared memory once. Pixels without a hit (depth 0) keep their radiance; every output is
 //! finite (inputs are sanitised, every division is guarded).
@@ -113,9 +114,11 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         let name = format!("svgf_atrous_{}", i + 1);
         let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
         let mut pass = graph.pass(&name, Role::All);
-        let input = pass.read_whole_slot(if first { &variance } else { &atrous });
-        let guide_slot = pass.read_whole_slot(&guide);
-        let albedo_slot = pass.read_whole_slot(&albedo);
+        // Taps reach 2 steps away, the first iteration's 3×3 variance blur one more (svgf_atrous.comp).
+        let reach = step * if first { 3 } else { 2 };
+        let input = pass.read_halo_slot(if first { &variance } else { &atrous }, reach);
+        let guide_slot = pass.read_halo_slot(&guide, reach);
+        let albedo_slot = pass.read_halo_slot(&albedo, reach);
         let (radiance, output, color) = if last {
             (Some(pass.read_slot(inputs.radiance)), pass.write_slot(&mut denoised), None)
         } else if first {

@@ -75,6 +75,19 @@ pub(super) fn render_frames(
         LightFieldRenderer::with_options(&context, exec_plan, &GpuScene::new(&job.scene, &bvh), options)?;
     drop(bvh);
     let layers = view_layers(args, job.compiled.kind, &job.compiled.handles, &renderer);
+    let executor = renderer.executor();
+    for link in executor.links() {
+        tracing::info!(
+            "link device {} → device {}: {}, {} chunk(s) a frame",
+            link.from,
+            link.to,
+            link.kind.name(),
+            link.chunks_per_frame
+        );
+    }
+    if executor.host_staging_bytes() > 0 {
+        tracing::info!("host staging {:.1} MiB", executor.host_staging_bytes() as f64 / (1 << 20) as f64);
+    }
 
     crate::outputs::create_folder(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;

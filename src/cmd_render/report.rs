@@ -42,6 +42,7 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
         PipelineKind::Reproject => missing_of_targets(job, &mut renderer, lf.len() as u32, lf.width)?,
         PipelineKind::PathTrace => MissingPixels::default(),
     };
+    let links = links_json(renderer.executor());
     drop(renderer);
     context.check_validation()?;
 
@@ -57,6 +58,7 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
             device_names,
             host_memory,
             geometry,
+            links,
         },
     )?;
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
@@ -122,6 +124,20 @@ struct Measured<'a> {
     device_names: Vec<String>,
     host_memory: ResidentSummary,
     geometry: GeometryReport,
+    links: serde_json::Value,
+}
+
+/// render.json's `links`: each (producer, consumer) device pair the plan copies over, how it
+/// moves data and how many chunks a frame; and the host staging memory they use.
+fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
+    let links: Vec<serde_json::Value> = executor
+        .links()
+        .iter()
+        .map(|l| {
+            serde_json::json!({ "from": l.from, "to": l.to, "kind": l.kind.name(), "chunks_per_frame": l.chunks_per_frame })
+        })
+        .collect();
+    serde_json::json!({ "pairs": links, "host_staging_bytes": executor.host_staging_bytes() })
 }
 
 /// The pixels of the targets that no source covered and hole filling did not reach.
@@ -177,6 +193,7 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         "wall_ms_per_frame": measured.wall_ms,
         "timing": measured.timing,
         "host_memory": measured.host_memory,
+        "links": measured.links,
         // Path tracing every view leaves no holes to count.
         "missing_pixels": (kind == PipelineKind::Reproject).then_some(measured.missing),
     }))

@@ -6,7 +6,8 @@ use ash::vk;
 
 use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result};
-use crate::plan::{CopyId, ExecutionPlan};
+use crate::links::{Link, link_order};
+use crate::plan::ExecutionPlan;
 use crate::relay::Relay;
 use crate::segments::{Segment, chunks_of_copies, cross_device_waits, segment_devices, submission_order};
 use crate::texture::Texture;
@@ -57,18 +58,20 @@ impl Executor {
             states.push(state);
         }
         drop(kept);
-        let mut ready = Vec::with_capacity(plan.copies.len());
-        for (c, copy) in plan.copies.iter().enumerate() {
-            let consumer = &mut states[copy.to.index()];
-            let semaphore = consumer.device.create_timeline(0)?;
-            consumer.ready.insert(CopyId(c as u32), semaphore);
-            ready.push(semaphore);
+        let segments: Vec<Vec<Segment>> = states.iter().map(|s| s.segments.clone()).collect();
+        let chunk_counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
+        let order = link_order(&plan, &segments, &chunk_counts);
+        let mut links = Vec::with_capacity(order.links.len());
+        for &(from, to, per_frame) in &order.links {
+            let consumer = &mut states[to];
+            let ready = consumer.device.create_timeline(0)?;
+            consumer.ready.push(ready);
+            links.push(Link { from, to, ready, per_frame });
         }
         self.gate = match self.options.fault {
             Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(fault_gate(&plan, &mut states, copy)?),
             _ => None,
         };
-        let segments: Vec<Vec<Segment>> = states.iter().map(|s| s.segments.clone()).collect();
         let mut waits = cross_device_waits(&segments);
         if let Some(gate) = &self.gate {
             // The producer's first segment waits for the consumer's gate segment.
@@ -83,10 +86,11 @@ impl Executor {
         self.plan = plan;
         self.chunks = chunks;
         self.states = states;
-        self.ready = ready;
+        self.links = links;
+        self.chunk_links = order.chunks;
         self.needs_record = true;
         let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
-        self.relay = Some(Relay::new(&self.devices, &progress));
+        self.relay = Some(Relay::new(&self.devices, &progress)?);
         self.plan_epoch = self.next_frame;
         self.history_origin = self.next_frame;
         Ok(())

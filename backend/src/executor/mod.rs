@@ -4,8 +4,9 @@
 //! * Within a device, submissions are ordered by the queue and made memory-safe by barriers;
 //!   each submission signals the device's progress timeline (values from
 //!   [`crate::segments::progress_value`]).
-//! * Across devices, the consumer's copy-in waits on a per-copy "ready" timeline that a host
-//!   relay thread signals once the producer's copy-out is done ([`crate::relay`]).
+//! * Across devices, the consumer's copy-in waits on the "ready" timeline of its link (one per
+//!   producer and consumer device, [`crate::links`]) that a host relay thread raises once the
+//!   producer's copy-out is done ([`crate::relay`]).
 //! * The host submits a frame's segments across the devices in an order where each comes after
 //!   every segment it waits for ([`crate::segments::submission_order`]), keeping at most
 //!   `max_queued_segments` of a device's segments queued: everything submitted can complete,
@@ -45,6 +46,7 @@ use crate::device_state::{DeviceState, Staging};
 use crate::error::Result;
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
+use crate::links::{Link, LinkInfo, LinkKind};
 use crate::memory::Buffer;
 use crate::plan::ExecutionPlan;
 use crate::readback::Readback;
@@ -88,8 +90,10 @@ pub struct Executor {
     options: ExecOptions,
     chunks: Vec<Vec<Chunk>>,
     states: Vec<DeviceState>,
-    /// Ready timeline of each copy (owned by the consumer's state).
-    ready: Vec<vk::Semaphore>,
+    /// The plan's links (their ready timelines are owned by the consumer's state).
+    links: Vec<Link>,
+    /// Per copy and chunk: its link and its position among the link's chunks of a frame.
+    chunk_links: Vec<Vec<(usize, u64)>>,
     staging: Option<Staging>,
     relay: Option<Relay>,
     gate: Option<FaultGate>,
@@ -134,7 +138,8 @@ impl Executor {
             options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
             chunks: Vec::new(),
             states: Vec::new(),
-            ready: Vec::new(),
+            links: Vec::new(),
+            chunk_links: Vec::new(),
             staging: None,
             relay: None,
             gate: None,
@@ -201,6 +206,17 @@ impl Executor {
     /// The plan being executed.
     pub fn plan(&self) -> &ExecutionPlan {
         &self.plan
+    }
+
+    /// The plan's links between devices, one per (producer, consumer) pair it copies over.
+    pub fn links(&self) -> Vec<LinkInfo> {
+        let info = |l: &Link| LinkInfo { from: l.from, to: l.to, kind: LinkKind::Relay, chunks_per_frame: l.per_frame };
+        self.links.iter().map(info).collect()
+    }
+
+    /// Bytes of host staging memory the plan's copies use, over every frame-in-flight slot.
+    pub fn host_staging_bytes(&self) -> u64 {
+        self.staging.as_ref().map_or(0, |s| s.bytes * s.buffers.len() as u64)
     }
 
     /// Clock calibration of each device (GPU → host CLOCK_MONOTONIC).

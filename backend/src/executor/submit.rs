@@ -161,7 +161,8 @@ impl Executor {
             .waits
             .iter()
             .map(|wait| {
-                on(self.ready[wait.copy.index()], ready_value(local, self.chunks[wait.copy.index()].len(), wait.chunk))
+                let (l, position) = self.chunk_links[wait.copy.index()][wait.chunk as usize];
+                on(self.links[l].ready, ready_value(local, self.links[l].per_frame, position))
             })
             .collect();
         // A segment on another queue than its predecessor (in program order, across the frame
@@ -196,14 +197,15 @@ impl Executor {
         for j in run.segments.clone() {
             let watch_value = progress_value(local, segment_count, j);
             for chunk in &self.states[d].segments[j].relays {
-                let consumer = self.plan.copy(chunk.copy).to;
+                let link = &self.links[self.chunk_links[chunk.copy.index()][chunk.index as usize].0];
+                let position = self.chunk_links[chunk.copy.index()][chunk.index as usize].1;
                 relay.push(
                     d,
                     RelayJob {
                         watch_value,
-                        target: self.devices[consumer.index()].clone(),
-                        semaphore: self.ready[chunk.copy.index()],
-                        signal_value: ready_value(local, self.chunks[chunk.copy.index()].len(), chunk.index),
+                        target: self.devices[link.to].clone(),
+                        semaphore: link.ready,
+                        signal_value: ready_value(local, link.per_frame, position),
                     },
                 )?;
             }

@@ -18,10 +18,9 @@ impl Executor {
     fn unblock_device_waits(&mut self) {
         self.relay = None;
         let local = self.next_frame.saturating_sub(self.plan_epoch);
-        for (c, copy) in self.plan.copies.iter().enumerate() {
-            let chunks = self.chunks[c].len();
-            let value = ready_value(local, chunks, chunks.saturating_sub(1) as u32);
-            raise_timeline(&self.devices[copy.to.index()], self.ready[c], value);
+        for link in &self.links {
+            let value = ready_value(local, link.per_frame, link.per_frame.saturating_sub(1));
+            raise_timeline(&self.devices[link.to], link.ready, value);
         }
         if let Some(gate) = &self.gate {
             raise_timeline(&self.devices[gate.producer], gate.semaphore, local + 1);
