@@ -12,6 +12,31 @@
 //   out1 `svgf_moments`: (m1, m2, linear depth, packed normal), read as history next frame
 //   out2 `svgf_guide`: (linear depth, depth gradient x, y, packed normal)
 //   out3 `svgf_albedo`: (effective albedo rgb, history length)
+//   in2 `svgf_accum` history (mean illumination rgb, frame count n), in3 `svgf_accum_m2` history
+//   (mean squared illumination luminance): own pixel only
+//   out4 `svgf_accum`, out5 `svgf_accum_m2`: the same, read as history next frame
+// Accumulation: while the view's camera is still (this frame's camera is last frame's, bit for
+// bit, and history is valid: no cut, no new plan) each pixel's illumination is the exact running
+// mean of every frame since the last change, weight 1/n with n the frames since then, stored per
+// pixel; so a still light field converges to the path-traced reference instead of to an
+// exponential average. A still camera reprojects every pixel onto itself, so the mean is read at
+// the pixel's own texel (own rows: a band over devices reads what one device would). A frame
+// that is not still (motion, a cut, a new plan, the first frame) restarts the mean with its own
+// unclamped sample (n = 1), so what follows a change depends on nothing before it: bit for bit
+// what a fresh start gives. Such a frame shows today's exponential blend through `motion`. The
+// variance that steers the à-trous iterations is then that of the mean, σ² / n from the
+// accumulated moments (times MIN_LENGTH, so that at MIN_LENGTH frames it is the per-sample
+// variance the filter is tuned for): it shrinks as n grows, the edge-stopping tightens and the
+// filter backs off, so the picture approaches the reference rather than a filtered image.
+// Fireflies: before it is blended in, a sample's illumination is scaled down so that it moves
+// the pixel's value by at most FIREFLY_K standard errors of that value (clamp_firefly), from the
+// pixel's own temporal statistics once it has MIN_LENGTH frames of them: for the running mean
+// (weight 1/n, standard error σ/√n) that is a luminance of μ + K σ √n; for the exponential
+// blend (weight w, standard error σ √(w / (2 − w))) μ + K σ / √(w (2 − w)). The bound grows with
+// n, so the bias it causes vanishes as the mean converges. The second moments accumulate the
+// unclamped luminance: a pixel whose first bright sample was clamped raises its σ, so a light
+// path that keeps coming back is not clamped again (no pixel is held dark for good). The bias
+// is measured in tests/svgf_accumulation.rs and docs/PIPELINE.md.
 // Temporal: the previous frame is sampled bilinearly at the motion vector; a tap counts only if
 // it is inside the image, had history, and saw the same surface (depth against the gradient,
 // normal within ~25°). Blending in illumination keeps a texture from being smeared by the
@@ -33,7 +58,10 @@
 const float ALPHA_COLOR = 0.2;
 const float ALPHA_MOMENTS = 0.2;
 // History lengths are capped: beyond 1/α they change nothing but must not grow without bound.
+// (The accumulated frame count is not: its 1/n weight is what makes the mean exact.)
 const float MAX_LENGTH = 64.0;
+// A sample moves a pixel's value by at most this many of its standard errors.
+const float FIREFLY_K = 3.0;
 // Reprojection tolerances: depth within this many gradient steps plus this fraction of depth;
 // normals within acos(MIN_NORMAL_DOT).
 const float DEPTH_GRADIENT_STEPS = 2.0;
@@ -89,9 +117,43 @@ float sample_luminance(ivec2 q) {
     return min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
 }
 
-// The accumulated illumination and moments of pixel p (depth z > 0, normal n) from this frame's
-// radiance and the previous frame's history.
-Temporal accumulate(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3 albedo) {
+// Whether this view's camera is last frame's, bit for bit, with valid history: the frame
+// continues the accumulation.
+// Without cameras (a graph run without a frame block) no frame is still.
+bool camera_still() {
+    if (frame.history_valid == 0u || (pc.flags & SVGF_CAMERAS) == 0u) {
+        return false;
+    }
+    ViewCameras cameras = pc.block.views[pc.view];
+    return cameras.current.view_proj == cameras.previous.view_proj;
+}
+
+// `illumination` (luminance l) scaled down so that its luminance is at most mean + FIREFLY_K
+// standard errors over `weight`: the most a sample blended in with `weight` may move a value
+// whose standard error is `standard_error`.
+vec3 clamp_firefly(vec3 illumination, float l, float mean, float standard_error, float weight) {
+    float bound = mean + FIREFLY_K * standard_error / weight;
+    return l > bound ? illumination * (bound / l) : illumination;
+}
+
+// The running mean of pixel p after this frame's sample (illumination, luminance l) on a still
+// camera, from its accumulation history `previous` (mean, n) and mean squared luminance
+// `previous_m2`; albedo is the pixel's effective albedo (the same every still frame).
+Temporal accumulate_still(vec3 illumination, float l, vec4 previous, float previous_m2, vec3 albedo) {
+    float n = previous.a + 1.0;
+    float mean_l = svgf_illumination_luminance(albedo * previous.rgb, albedo);
+    if (previous.a >= MIN_LENGTH) {
+        float sigma = sqrt(max(previous_m2 - mean_l * mean_l, 0.0));
+        illumination = clamp_firefly(illumination, l, mean_l, sigma * inversesqrt(n), 1.0 / n);
+    }
+    vec3 mean = previous.rgb + (illumination - previous.rgb) / n;
+    float m2 = previous_m2 + (min(l * l, MAX_VALUE) - previous_m2) / n;
+    return Temporal(mean, n, vec2(svgf_illumination_luminance(albedo * mean, albedo), m2));
+}
+
+// The exponentially blended illumination and moments of pixel p (depth z > 0, normal n) from
+// this frame's radiance and the previous frame's history through `motion`.
+Temporal blend(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3 albedo) {
     float l = min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
     float tolerance = DEPTH_GRADIENT_STEPS * (abs(gradient.x) + abs(gradient.y)) + DEPTH_RELATIVE * z;
     // Motion is in pixels of the previous frame with centres at i + 0.5.
@@ -129,9 +191,16 @@ Temporal accumulate(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3
     }
     Temporal t = Temporal(min(radiance / albedo, vec3(MAX_VALUE)), 1.0, vec2(l, l * l));
     if (weight_sum > 1e-3) {
-        t.length_ = min(prev_length / weight_sum + 1.0, MAX_LENGTH);
-        t.illumination = mix(prev_illum / weight_sum, t.illumination, max(ALPHA_COLOR, 1.0 / t.length_));
-        t.moments = mix(prev_moments / weight_sum, t.moments, max(ALPHA_MOMENTS, 1.0 / t.length_));
+        float previous_length = prev_length / weight_sum;
+        t.length_ = min(previous_length + 1.0, MAX_LENGTH);
+        vec2 moments = prev_moments / weight_sum;
+        float w = max(ALPHA_COLOR, 1.0 / t.length_);
+        if (previous_length >= MIN_LENGTH) {
+            float sigma = sqrt(max(moments.y - moments.x * moments.x, 0.0));
+            t.illumination = clamp_firefly(t.illumination, l, moments.x, sigma * sqrt(w / (2.0 - w)), w);
+        }
+        t.illumination = mix(prev_illum / weight_sum, t.illumination, w);
+        t.moments = mix(moments, t.moments, max(ALPHA_MOMENTS, 1.0 / t.length_));
     }
     return t;
 }
@@ -178,6 +247,8 @@ void main() {
     vec3 radiance = vec3(0.0);
     Temporal t = Temporal(vec3(0.0), 0.0, vec2(0.0));
     vec2 gradient = vec2(0.0);
+    bool still = camera_still();
+    bool accumulating = false;
     if (p.x >= 0) {
         radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
     }
@@ -186,14 +257,29 @@ void main() {
         vec3 n = imageLoad(images[pc.normal], p).xyz;
         float packed_normal = svgf_pack_normal(n);
         gradient = vec2(depth_slope(p, ivec2(1, 0), z), depth_slope(p, ivec2(0, 1), z));
-        t = accumulate(p, z, n, gradient, radiance, albedo);
+        vec3 illumination = min(radiance / albedo, vec3(MAX_VALUE));
+        float l = min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
+        vec4 previous = still ? imageLoad(images[pc.in2], p) : vec4(0.0);
+        // Written so that NaN restarts too.
+        accumulating = previous.a >= 1.0;
+        if (accumulating) {
+            t = accumulate_still(illumination, l, previous, imageLoad(images[pc.in3], p).x, albedo);
+            imageStore(images[pc.out4], p, vec4(t.illumination, t.length_));
+            imageStore(images[pc.out5], p, vec4(t.moments.y, 0.0, 0.0, 0.0));
+        } else {
+            t = blend(p, z, n, gradient, radiance, albedo);
+            imageStore(images[pc.out4], p, vec4(illumination, 1.0));
+            imageStore(images[pc.out5], p, vec4(min(l * l, MAX_VALUE), 0.0, 0.0, 0.0));
+        }
         imageStore(images[pc.out1], p, vec4(t.moments, z, packed_normal));
         imageStore(images[pc.out2], p, vec4(z, gradient, packed_normal));
-        imageStore(images[pc.out3], p, vec4(albedo, t.length_));
+        imageStore(images[pc.out3], p, vec4(albedo, min(t.length_, MAX_LENGTH)));
     } else if (p.x >= 0) {
         imageStore(images[pc.out1], p, vec4(0.0));
         imageStore(images[pc.out2], p, vec4(0.0));
         imageStore(images[pc.out3], p, vec4(0.0));
+        imageStore(images[pc.out4], p, vec4(0.0));
+        imageStore(images[pc.out5], p, vec4(0.0));
     }
     bool short_history = hit && t.length_ < MIN_LENGTH;
     if (gl_LocalInvocationIndex == 0u) {
@@ -217,6 +303,10 @@ void main() {
         return;
     }
     float variance = max(0.0, t.moments.y - t.moments.x * t.moments.x);
+    if (accumulating) {
+        // The variance of the mean of n frames, at MIN_LENGTH frames the per-sample one.
+        variance *= MIN_LENGTH / t.length_;
+    }
     if (short_history) {
         int c = (int(gl_LocalInvocationID.y) + RADIUS) * TILE + int(gl_LocalInvocationID.x) + RADIUS;
         variance = spatial_variance(c, t, gradient);
