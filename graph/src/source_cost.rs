@@ -97,34 +97,44 @@ fn predicted_cost(lf: &LightField, members: &[ViewId], sources: &[ViewId]) -> (f
     (sources.len() as f64 + HOLE_COST * missing, missing / members.len() as f64)
 }
 
-/// The connected blocks of `members`: views closer than `BLOCK_LINK` times `spacing` to one
-/// another, transitively, in order of their first member.
-fn blocks(lf: &LightField, members: &[ViewId], spacing: f64) -> Vec<Vec<ViewId>> {
-    let link = BLOCK_LINK * spacing;
-    let mut block_of: Vec<Option<usize>> = vec![None; members.len()];
-    let mut blocks: Vec<Vec<ViewId>> = Vec::new();
-    for start in 0..members.len() {
+/// The connected blocks of the layout that `members` fall in (views closer than `BLOCK_LINK`
+/// times the layout's smallest spacing to one another, transitively, over every view of the
+/// layout, so a set of scattered views, as round-robin makes, is not split into many): the
+/// members grouped by block, in order of their first member.
+fn blocks(lf: &LightField, members: &[ViewId]) -> Vec<Vec<ViewId>> {
+    let block_of = layout_blocks(lf);
+    let mut blocks: Vec<(usize, Vec<ViewId>)> = Vec::new();
+    for &v in members {
+        match blocks.iter_mut().find(|(b, _)| *b == block_of[v.index()]) {
+            Some((_, block)) => block.push(v),
+            None => blocks.push((block_of[v.index()], vec![v])),
+        }
+    }
+    blocks.into_iter().map(|(_, block)| block).collect()
+}
+
+/// The block of every view of the layout (all one block when the views coincide).
+fn layout_blocks(lf: &LightField) -> Vec<usize> {
+    let link = BLOCK_LINK * smallest_spacing(lf);
+    let mut block_of: Vec<Option<usize>> = vec![None; lf.len()];
+    let mut count = 0;
+    for start in 0..lf.len() {
         if block_of[start].is_some() {
             continue;
         }
-        let id = blocks.len();
-        block_of[start] = Some(id);
-        let mut block = vec![members[start]];
-        let mut next = 0;
-        while next < block.len() {
-            let at = lf.position(block[next]);
-            for (i, &v) in members.iter().enumerate() {
-                if block_of[i].is_none() && at.distance(lf.position(v)) <= link {
-                    block_of[i] = Some(id);
-                    block.push(v);
+        block_of[start] = Some(count);
+        let mut queue = vec![start];
+        while let Some(i) = queue.pop() {
+            for j in 0..lf.len() {
+                if block_of[j].is_none() && lf.positions[i].distance(lf.positions[j]) <= link {
+                    block_of[j] = Some(count);
+                    queue.push(j);
                 }
             }
-            next += 1;
         }
-        block.sort();
-        blocks.push(block);
+        count += 1;
     }
-    blocks
+    block_of.into_iter().map(|b| b.expect("every view was reached")).collect()
 }
 
 /// The smallest distance between two distinct view positions of the layout (0 when they all
@@ -144,9 +154,12 @@ fn smallest_spacing(lf: &LightField) -> f64 {
 
 /// The sources of set `set` (its views `members`) that minimise the predicted cost, block by
 /// block, and the prediction.
-pub fn cheapest_sources(lf: &LightField, set: u32, members: &[ViewId]) -> Result<(Vec<ViewId>, SetPrediction), PlanError> {
-    let spacing = smallest_spacing(lf);
-    let blocks = if spacing > 0.0 { blocks(lf, members, spacing) } else { vec![members.to_vec()] };
+pub fn cheapest_sources(
+    lf: &LightField,
+    set: u32,
+    members: &[ViewId],
+) -> Result<(Vec<ViewId>, SetPrediction), PlanError> {
+    let blocks = blocks(lf, members);
     let mut sources = Vec::new();
     for block in &blocks {
         let mut best = (f64::INFINITY, Vec::new());
@@ -171,19 +184,12 @@ pub fn cheapest_sources(lf: &LightField, set: u32, members: &[ViewId]) -> Result
 /// The prediction for set `set` (views `members`) with `sources` and `blocks` blocks.
 pub fn predict(lf: &LightField, set: u32, members: &[ViewId], sources: &[ViewId], blocks: u32) -> SetPrediction {
     let (cost, missing) = predicted_cost(lf, members, sources);
-    SetPrediction {
-        set,
-        sources: sources.len() as u32,
-        blocks,
-        predicted_missing: missing,
-        predicted_cost_views: cost,
-    }
+    SetPrediction { set, sources: sources.len() as u32, blocks, predicted_missing: missing, predicted_cost_views: cost }
 }
 
 /// The number of connected blocks among `members` (for the prediction of a numeric choice).
 pub fn block_count(lf: &LightField, members: &[ViewId]) -> u32 {
-    let spacing = smallest_spacing(lf);
-    if spacing > 0.0 { blocks(lf, members, spacing).len() as u32 } else { 1 }
+    blocks(lf, members).len() as u32
 }
 
 #[cfg(test)]
@@ -216,6 +222,14 @@ mod tests {
         assert!(sources.len() >= 2, "{sources:?}");
         let one = predict(&long, 0, &all(&long), &compact_sources(&long, &all(&long), 1).unwrap(), 1);
         assert!(prediction.predicted_cost_views < one.predicted_cost_views);
+    }
+
+    #[test]
+    fn a_set_of_scattered_views_of_one_block_gets_one_source() {
+        let lf = LightField::new(LayoutSpec::Grid { cols: 3, rows: 1 }, Some(0.001), None, Rig::default()).unwrap();
+        let every_other = [ViewId(0), ViewId(2)];
+        assert_eq!(block_count(&lf, &every_other), 1);
+        assert_eq!(cheapest_sources(&lf, 0, &every_other).unwrap().0.len(), 1);
     }
 
     #[test]
