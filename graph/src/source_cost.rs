@@ -125,9 +125,10 @@ fn layout_blocks(lf: &LightField) -> Vec<usize> {
         block_of[start] = Some(count);
         let mut queue = vec![start];
         while let Some(i) = queue.pop() {
-            for j in 0..lf.len() {
-                if block_of[j].is_none() && lf.positions[i].distance(lf.positions[j]) <= link {
-                    block_of[j] = Some(count);
+            let at = lf.positions[i];
+            for (j, block) in block_of.iter_mut().enumerate() {
+                if block.is_none() && at.distance(lf.positions[j]) <= link {
+                    *block = Some(count);
                     queue.push(j);
                 }
             }
