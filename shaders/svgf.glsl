@@ -12,8 +12,9 @@
 
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
+#include "frame_block.glsl"
 
-// 76 bytes; parallax_passes::svgf::SvgfPush (a test holds the layouts together). Image
+// 96 bytes; parallax_passes::svgf::SvgfPush (a test holds the layouts together). Image
 // indices into images[]; what in0..in3 and out0..out3 hold depends on the kernel (see its
 // header). Rows [y0, y1) are the instance's band; every read with a footprint may touch any row.
 layout(push_constant, std430) uniform SvgfPush {
@@ -35,11 +36,18 @@ layout(push_constant, std430) uniform SvgfPush {
     uint width;
     uint height;
     uint step;  // à-trous: tap spacing in pixels
-    uint flags; // à-trous: SVGF_FIRST, SVGF_LAST
+    uint flags; // à-trous: SVGF_FIRST, SVGF_LAST; temporal: SVGF_CAMERAS
+    // Temporal only: the accumulation histories' outputs, and the view and frame block whose
+    // cameras tell a still camera (svgf_temporal.comp, accumulation).
+    uint out4;
+    uint out5;
+    uint view;
+    FrameBlock block;
 } pc;
 
 const uint SVGF_FIRST = 1u; // first à-trous iteration: blurs the variance, writes the history
 const uint SVGF_LAST = 2u;  // last à-trous iteration: writes `denoised`
+const uint SVGF_CAMERAS = 4u; // temporal: `block` holds the cameras (without, no frame is still)
 
 layout(local_size_x = 8, local_size_y = 8) in;
 

@@ -62,7 +62,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     Ok(())
 }
 
-fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 7] {
+fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 8] {
     [
         format!(
             "pipeline      {}, G-buffer {}, {}",
@@ -78,6 +78,7 @@ fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 7] {
             s.assign.unwrap_or("none (row bands)")
         ),
         format!("sources       {:?}", s.sources),
+        sources_prediction_line(s),
         format!("δ-edges       {} (mean baseline {:.2} mm)", s.delta_edges, s.mean_delta_distance_mm),
         format!(
             "passes        {} instances, per device {:?}, {} culled",
@@ -90,6 +91,29 @@ fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 7] {
             s.bytes_per_frame as f64 / (1 << 20) as f64
         ),
     ]
+}
+
+/// How each set's sources were chosen and what they are predicted to cost (multi-source).
+fn sources_prediction_line(s: &PlanSummary) -> String {
+    if s.sources_prediction.is_empty() {
+        return "per set       (row bands: no sets)".to_string();
+    }
+    let how = if s.sources_auto { "auto" } else { "fixed" };
+    let sets: Vec<String> = s
+        .sources_prediction
+        .iter()
+        .map(|p| {
+            format!(
+                "set {}: {} source(s), {} block(s), predicted {:.2} % missing, {:.2} views",
+                p.set,
+                p.sources,
+                p.blocks,
+                100.0 * p.predicted_missing,
+                p.predicted_cost_views
+            )
+        })
+        .collect();
+    format!("per set       {how}; {}", sets.join("; "))
 }
 
 /// How a value of an option is spelt on the command line.

@@ -7,7 +7,7 @@
 use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use parallax_backend::KernelGraph;
-use parallax_graph::{Graph, LightField, Plan, PlanConfig, PlanSummary, Schedule, Scheme};
+use parallax_graph::{Graph, LightField, Plan, PlanConfig, PlanSummary, Schedule, Scheme, SourcesPerSet};
 use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
 
@@ -71,10 +71,12 @@ pub struct PipelineArgs {
     /// How views are grouped into sets (multi-source only) [default: compact]
     #[arg(long, value_enum)]
     pub assign: Option<AssignArg>,
-    /// Sources per set (multi-source, the paper's k_s); each target reprojects from the
-    /// nearest source of its set.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
-    pub sources_per_set: u32,
+    /// Sources per set (multi-source, the paper's k_s), 1 to 64, or `auto`: per set, the number
+    /// and places that minimise the predicted frame time (path tracing a source against the
+    /// holes it removes; at least one per connected block of the layout, one per eye for NELF).
+    /// Each target reprojects from the nearest source of its set.
+    #[arg(long, default_value = "auto", value_parser = parse_sources_per_set)]
+    pub sources_per_set: SourcesPerSetArg,
     /// The fine schemes' sources, view indices, e.g. 0,99 (default: k = N placed as in the paper).
     #[arg(long, value_parser = parse_sources)]
     pub sources: Option<SourceList>,
@@ -85,6 +87,34 @@ pub struct PipelineArgs {
     #[arg(long, allow_negative_numbers = true, default_value_t = default_reprojection_tolerance(),
           value_parser = parse_reprojection_tolerance)]
     pub reprojection_tolerance: f64,
+}
+
+/// `--sources-per-set`: `auto` or a count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SourcesPerSetArg(pub SourcesPerSet);
+
+impl serde::Serialize for SourcesPerSetArg {
+    /// `"auto"` or the count, as the flag is spelt (render.json, run files).
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self.0 {
+            SourcesPerSet::Auto => s.serialize_str("auto"),
+            SourcesPerSet::Count(n) => s.serialize_u32(n),
+        }
+    }
+}
+
+/// The most sources per set a count may ask for.
+const MAX_SOURCES_PER_SET: u32 = 64;
+
+/// `--sources-per-set`: `auto`, or a count from 1 to 64.
+pub fn parse_sources_per_set(s: &str) -> Result<SourcesPerSetArg, String> {
+    match s.trim() {
+        "auto" => Ok(SourcesPerSetArg(SourcesPerSet::Auto)),
+        t => match t.parse::<u32>() {
+            Ok(n) if (1..=MAX_SOURCES_PER_SET).contains(&n) => Ok(SourcesPerSetArg(SourcesPerSet::Count(n))),
+            _ => Err(format!("'{s}' is neither `auto` nor a count of sources from 1 to {MAX_SOURCES_PER_SET}")),
+        },
+    }
 }
 
 /// `ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE` as the decimal it is written as (0.2, not
@@ -179,14 +209,16 @@ impl PipelineArgs {
         };
         let (sources, sources_flag) = match (&config.sources, config.scheme) {
             (Some(s), _) => (s.len() as u64, Some("--sources")),
-            (None, Scheme::MultiSource) if self.sources_per_set > 1 => {
-                (u64::from(devices) * u64::from(self.sources_per_set), Some("--sources-per-set"))
-            }
+            (None, Scheme::MultiSource) => match self.sources_per_set.0 {
+                SourcesPerSet::Count(n) if n > 1 => (u64::from(devices) * u64::from(n), Some("--sources-per-set")),
+                // Multi-source plans grow with the views, not the sources (PlanShape::items).
+                _ => (u64::from(devices), None),
+            },
             (None, _) => (u64::from(devices), None),
         };
         PlanShape { views: lf.len() as u64, devices: u64::from(devices), sources, scheme: config.scheme, sources_flag }
             .check()?;
-        let plan = Plan::with_sources_per_set(lf, &config, self.sources_per_set)?;
+        let plan = Plan::with_sources(lf, &config, self.sources_per_set.0)?;
         let mut graph = KernelGraph::with_payload(plan.topology.clone());
         let handles = extend(PipelineBuilder::new(self.config(exposure))).declare(&mut graph)?;
         graph.export(&handles.display);

@@ -90,6 +90,13 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     assert!(memory["samples"].as_u64().is_some_and(|n| n >= 2), "{memory}");
     let (min, max) = (memory["min_bytes"].as_u64().unwrap(), memory["max_bytes"].as_u64().unwrap());
     assert!(0 < min && min <= max, "{memory}");
+    // `--sources-per-set auto` by default: its choice and prediction beside the measures.
+    assert_eq!(report["sources_per_set"], "auto");
+    assert_eq!(report["plan"]["sources_auto"], true);
+    let predicted = report["plan"]["sources_prediction"].as_array().unwrap();
+    assert_eq!(predicted.len(), 2, "one prediction per set: {predicted:?}");
+    let chosen: u64 = predicted.iter().map(|p| p["sources"].as_u64().unwrap()).sum();
+    assert_eq!(chosen as usize, report["plan"]["sources"].as_array().unwrap().len());
     let missing = &report["missing_pixels"];
     assert_eq!(missing["per_view"].as_array().unwrap().len(), 6, "8 views, 2 sources");
     let overall = missing["overall"].as_f64().unwrap();

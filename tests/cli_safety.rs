@@ -558,6 +558,12 @@ fn usage_errors_exit_2_and_messages_name_the_real_cause() {
     );
     refused(
         &dir,
+        &["plan", "--lf", "4x1", "--sources-per-set", "0"],
+        2,
+        &["'0' is neither `auto` nor a count of sources from 1 to 64"],
+    );
+    refused(
+        &dir,
         &["trace", "--cpu", "--camera", "0,0,1e20,0,0,0,0,1,0,45"],
         2,
         &["eye coordinate 1e20 is beyond ±1e18"],

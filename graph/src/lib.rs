@@ -45,6 +45,7 @@ mod lower;
 pub mod partition;
 pub mod schedule;
 pub mod source;
+pub mod source_cost;
 mod storage;
 pub mod summary;
 pub mod validate;
@@ -61,7 +62,7 @@ pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile};
 pub use error::{GraphError, PlanError};
 pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
-pub use partition::{Plan, PlanConfig, Scheme, parse_source_list};
+pub use partition::{Plan, PlanConfig, Scheme, SourcesPerSet, parse_source_list};
 pub use schedule::{
     Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin, PassInfo,
     PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,

@@ -13,7 +13,8 @@ use crate::compile::{PassPlacementInfo, Placement};
 use crate::error::PlanError;
 use crate::ids::{DeviceId, Region, ViewId};
 use crate::lightfield::LightField;
-use crate::source::{baseline_sources, medoid};
+use crate::source::baseline_sources;
+use crate::source_cost::{SetPrediction, block_count, cheapest_sources, compact_sources, predict};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Scheme {
@@ -52,6 +53,15 @@ pub struct PlanConfig {
     pub sources: Option<Vec<u32>>,
 }
 
+/// How many sources each multi-source set has (`--sources-per-set`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SourcesPerSet {
+    /// As many, and where, as minimise the predicted frame time (crate::source_cost).
+    Auto,
+    /// This many in every set, the medoids of its compact split (the paper's k_s).
+    Count(u32),
+}
+
 /// Sources, sets and placement for one light field, one scheme, N devices.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
@@ -62,6 +72,10 @@ pub struct Plan {
     pub assignment: Option<Assignment>,
     pub sources: Vec<ViewId>,
     pub topology: ViewTopology,
+    /// Multi-source: whether `--sources-per-set auto` chose the sources, and per set the
+    /// prediction of their cost (for a numeric count too); empty under the fine schemes.
+    pub sources_auto: bool,
+    pub sources_prediction: Vec<SetPrediction>,
 }
 
 impl Plan {
@@ -74,6 +88,16 @@ impl Plan {
     /// each set is split into `per_set` spatially compact parts whose medoids are the sources,
     /// and every target reprojects from the nearest source of its set.
     pub fn with_sources_per_set(lf: &LightField, config: &PlanConfig, per_set: u32) -> Result<Plan, PlanError> {
+        Self::with_sources(lf, config, SourcesPerSet::Count(per_set))
+    }
+
+    /// Like [`Plan::with_sources_per_set`], or with each set's sources chosen by their
+    /// predicted cost ([`SourcesPerSet::Auto`]).
+    pub fn with_sources(lf: &LightField, config: &PlanConfig, choice: SourcesPerSet) -> Result<Plan, PlanError> {
+        let per_set = match choice {
+            SourcesPerSet::Auto => 1,
+            SourcesPerSet::Count(n) => n,
+        };
         if per_set == 0 {
             return Err(PlanError::NoSourcesPerSet);
         }
@@ -87,6 +111,7 @@ impl Plan {
         if config.devices > m {
             return Err(PlanError::MoreDevicesThanViews { devices: config.devices, views: m });
         }
+        let mut sources_prediction = Vec::new();
         let (assignment, sources, sources_of) = match config.scheme {
             Scheme::MultiSource => {
                 if config.sources.is_some() {
@@ -97,8 +122,19 @@ impl Plan {
                 if per_set > smallest {
                     return Err(PlanError::TooManySourcesPerSet { per_set, smallest });
                 }
-                let set_sources: Vec<Vec<ViewId>> =
-                    a.sets.iter().map(|set| sources_of_set(lf, set, per_set)).collect::<Result<_, _>>()?;
+                let mut set_sources: Vec<Vec<ViewId>> = Vec::new();
+                for (i, set) in a.sets.iter().enumerate() {
+                    let (chosen, prediction) = match choice {
+                        SourcesPerSet::Auto => cheapest_sources(lf, i as u32, set)?,
+                        SourcesPerSet::Count(n) => {
+                            let chosen = compact_sources(lf, set, n)?;
+                            let prediction = predict(lf, i as u32, set, &chosen, block_count(lf, set));
+                            (chosen, prediction)
+                        }
+                    };
+                    set_sources.push(chosen);
+                    sources_prediction.push(prediction);
+                }
                 let sources_of = (0..m)
                     .map(|v| {
                         let own = &set_sources[a.set_of_view[v as usize] as usize];
@@ -142,6 +178,8 @@ impl Plan {
             assignment,
             sources,
             topology,
+            sources_auto: choice == SourcesPerSet::Auto && config.scheme == Scheme::MultiSource,
+            sources_prediction,
         })
     }
 
@@ -158,23 +196,6 @@ impl Plan {
             .map(|(d, r)| (DeviceId(d as u32), r))
             .collect()
     }
-}
-
-/// `per_set` sources of one set: the medoids of its spatially compact split into `per_set` parts.
-fn sources_of_set(lf: &LightField, set: &[ViewId], per_set: u32) -> Result<Vec<ViewId>, PlanError> {
-    if per_set == 1 {
-        return Ok(vec![medoid(set, |v| lf.position(v)).expect("sets are never empty when N <= M")]);
-    }
-    let positions: Vec<_> = set.iter().map(|&v| lf.position(v)).collect();
-    let parts = assign(AssignStrategy::Compact, &positions, per_set)?;
-    Ok(parts
-        .sets
-        .iter()
-        .map(|part| {
-            let members: Vec<ViewId> = part.iter().map(|local| set[local.index()]).collect();
-            medoid(&members, |v| lf.position(v)).expect("parts are never empty when k_s <= |set|")
-        })
-        .collect())
 }
 
 /// `sources` ordered by distance to `target` on the camera plane (ties by view index).

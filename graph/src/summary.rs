@@ -34,6 +34,11 @@ pub struct PlanSummary {
     pub culled_passes: usize,
     /// Pass instances per device, in device order.
     pub passes_per_device: Vec<usize>,
+    /// Multi-source: whether `--sources-per-set auto` chose the sources, and per set the
+    /// predicted cost of the sources and their holes (crate::source_cost); fine schemes: false
+    /// and empty.
+    pub sources_auto: bool,
+    pub sources_prediction: Vec<crate::source_cost::SetPrediction>,
 }
 
 impl PlanSummary {
@@ -61,6 +66,8 @@ impl PlanSummary {
                 .iter()
                 .map(|p| p.ops.iter().filter(|o| matches!(o, crate::schedule::Op::Pass(_))).count())
                 .collect(),
+            sources_auto: plan.sources_auto,
+            sources_prediction: plan.sources_prediction.clone(),
         }
     }
 }

@@ -9,7 +9,11 @@
 //! 2. `svgf_temporal`: illumination (radiance / albedo) and the moments of its luminance
 //!    accumulated through `motion` with an exponential moving average (α = 0.2, 1/n while the
 //!    history is shorter); disoccluded pixels (depth or normal differ from the previous frame's)
-//!    restart. In the same pass, the variance of the illumination luminance from the moments, or
+//!    restart. While the view's camera is still, instead, the exact running mean of every frame
+//!    since the last change (motion, a cut, a new plan), with its frame count per pixel in the
+//!    accumulation history (`svgf_accum`, `svgf_accum_m2`): a still light field converges to
+//!    the reference, and what follows a change is bit for bit a fresh start; the variance is
+//!    then that of the mean. No sample is clamped (the shader says why). In the same pass, the variance of the illumination luminance from the moments, or
 //!    a 7×7 spatial estimate while the history is shorter than 4 frames; and the G-buffer packed
 //!    for the à-trous passes: one guide texel (depth, depth gradient, octahedral normal) and the
 //!    effective albedo in half floats.
@@ -44,6 +48,11 @@ pub const SVGF_COLOR: &str = "svgf_color";
 pub const SVGF_MOMENTS: &str = "svgf_moments";
 /// The temporal pass's output and the à-trous input: (illumination rgb, variance).
 pub const SVGF_VARIANCE: &str = "svgf_variance";
+/// Accumulation history: the running mean of the illumination (rgb) since the camera last
+/// changed, and the number of frames in it.
+pub const SVGF_ACCUM: &str = "svgf_accum";
+/// Accumulation history: the running mean of the squared illumination luminance.
+pub const SVGF_ACCUM_M2: &str = "svgf_accum_m2";
 /// Tap spacing of the à-trous iterations, in pixels.
 pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
 
@@ -58,6 +67,8 @@ const ATROUS: &str = "svgf_atrous";
 const FIRST: u32 = 1;
 /// `SvgfPush::flags`: the last à-trous iteration (writes `denoised`).
 const LAST: u32 = 2;
+/// `SvgfPush::flags`: the temporal pass has the frame block's cameras (`block`, `view`).
+const CAMERAS: u32 = 4;
 
 /// The G-buffer and radiance of the views to denoise (formats: docs/PIPELINE.md).
 pub struct SvgfInputs<'a> {
@@ -79,6 +90,8 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     // Albedo in [0, 1] (plus a floor) weighs and remodulates: half floats' 2^-11 is plenty.
     let mut albedo = graph.image(EFFECTIVE_ALBEDO, Format::Rgba16f);
     let mut variance = graph.image(SVGF_VARIANCE, Format::Rgba32f);
+    let mut accum = graph.image(SVGF_ACCUM, Format::Rgba32f);
+    let mut accum_m2 = graph.image(SVGF_ACCUM_M2, Format::R32f);
     let mut atrous = graph.image(ATROUS, Format::Rgba32f);
     let mut denoised = graph.image(DENOISED, Format::Rgba32f);
 
@@ -108,6 +121,11 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         moments: pass.write_slot(&mut moments),
         guide: pass.write_slot(&mut guide),
         effective_albedo: pass.write_slot(&mut albedo),
+        // Read at the pixel's own texel only (a still camera reprojects onto itself).
+        history_accum: pass.read_history_slot(&accum),
+        history_accum_m2: pass.read_history_slot(&accum_m2),
+        accum: pass.write_slot(&mut accum),
+        accum_m2: pass.write_slot(&mut accum_m2),
     });
     pass.kernel(Arc::new(SvgfKernel(temporal))).record();
     for (i, &step) in ATROUS_STEPS.iter().enumerate() {
@@ -171,8 +189,15 @@ pub struct SvgfPush {
     pub height: u32,
     /// À-trous tap spacing in pixels.
     pub step: u32,
-    /// À-trous: `FIRST` and/or `LAST`.
+    /// À-trous: `FIRST` and/or `LAST`; temporal: `CAMERAS`.
     pub flags: u32,
+    /// Temporal: the accumulation histories' outputs (`svgf_accum`, `svgf_accum_m2`).
+    pub out4: u32,
+    pub out5: u32,
+    /// Temporal: the view whose cameras in `block` tell a still camera.
+    pub view: u32,
+    /// Temporal: the frame block's address (`Recorder::frame_block_address`).
+    pub block: u64,
 }
 
 parallax_backend::push_constants!(SvgfPush {
@@ -194,7 +219,11 @@ parallax_backend::push_constants!(SvgfPush {
     width,
     height,
     step,
-    flags
+    flags,
+    out4,
+    out5,
+    view,
+    block
 });
 
 /// Which SVGF shader a pass runs, and the slots its declaration returned.
@@ -221,7 +250,7 @@ enum Stage {
 }
 
 /// The slots of `svgf_temporal`: last frame's histories, the G-buffer and radiance, this
-/// frame's history copies, and its four outputs.
+/// frame's history copies, and its six outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct TemporalSlots {
     history_color: HistorySlot,
@@ -237,6 +266,10 @@ struct TemporalSlots {
     moments: WriteSlot,
     guide: WriteSlot,
     effective_albedo: WriteSlot,
+    history_accum: HistorySlot,
+    history_accum_m2: HistorySlot,
+    accum: WriteSlot,
+    accum_m2: WriteSlot,
 }
 
 impl Stage {
@@ -299,6 +332,17 @@ impl PassKernel for SvgfKernel {
                 push.out1 = write(rec, slots.moments)?;
                 push.out2 = write(rec, slots.guide)?;
                 push.out3 = write(rec, slots.effective_albedo)?;
+                push.in2 = history(rec, slots.history_accum)?;
+                push.in3 = history(rec, slots.history_accum_m2)?;
+                push.out4 = write(rec, slots.accum)?;
+                push.out5 = write(rec, slots.accum_m2)?;
+                // A graph run without cameras (no frame block) cannot tell a still camera: it
+                // blends every frame as a moving camera's.
+                if let Ok(block) = rec.frame_block_address() {
+                    push.view = pass.view;
+                    push.block = block;
+                    push.flags |= CAMERAS;
+                }
             }
             &Stage::Atrous { step, input, guide, albedo, output, color, radiance } => {
                 push.in0 = read(rec, input)?;
