@@ -184,12 +184,13 @@ float svgf_geometry_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 n
     return w_n * exp(-svgf_depth_distance(zp, zq, gp, gq, offset));
 }
 
-// Where an à-trous iteration puts pixel p without a hit: on the last iteration its radiance,
-// else its texel as is.
+// Where an à-trous iteration puts pixel p without a hit: its texel as is, which the temporal
+// pass made the pixel's radiance (on a still camera, its running mean, so the sky converges
+// too); the last iteration takes the alpha of the radiance image.
 void svgf_pass_through(ivec2 p, vec4 texel) {
     if ((pc.flags & SVGF_LAST) != 0u) {
-        vec4 radiance = imageLoad(images[pc.radiance], p);
-        imageStore(images[pc.out0], p, vec4(svgf_sanitize(radiance.rgb), radiance.a));
+        float alpha = imageLoad(images[pc.radiance], p).a;
+        imageStore(images[pc.out0], p, vec4(texel.rgb, alpha));
     } else {
         imageStore(images[pc.out0], p, texel);
     }
