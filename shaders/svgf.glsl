@@ -58,8 +58,8 @@ const float MAX_VALUE = 1e8;
 const float ALBEDO_FLOOR = 1e-3;
 // À-trous luminance edge-stopping (Schied: σ_l = 4).
 const float SIGMA_L = 4.0;
-// The 5×5 B3-spline kernel of the à-trous iterations, per axis.
-const float KERNEL[3] = float[3](3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);
+// The 3×3 kernel of the à-trous iterations, per axis (centre, neighbour).
+const float KERNEL[2] = float[2](1.0 / 2.0, 1.0 / 4.0);
 
 // The pixel this invocation owns in the row-major layout of 8×8 tiles over the band, or
 // ivec2(-1) outside the band.
@@ -151,27 +151,31 @@ float svgf_depth_distance(float zp, float zq, vec2 gp, vec2 gq, vec2 offset) {
     return abs(zp - zq) / (expected + 0.5e-3 * (zp + zq) + 1e-12);
 }
 
-// The edge-stopping weight of taps p and q `offset` pixels apart (Schied's w_z · w_n · w_l with
-// σ_z = 1, σ_n = 128, σ_l = 4), symmetric in p and q, so that a filter built on it can conserve
-// energy (svgf_atrous.comp):
-// - depth: the difference against what both pixels' gradients predict for the offset, plus a
-//   floor relative to depth for curved or slanted surfaces that the linear prediction misses;
-// - normal: dot^128 (a NaN or back-facing normal gives 0; 7 squarings, no transcendental);
+// One pixel's part of the depth scale of an à-trous tap `spacing` pixels away along ±direction:
+// what its depth gradient predicts for the offset plus a floor relative to depth, for curved or
+// slanted surfaces that the linear prediction misses. The pair's scale is the sum of both parts
+// (symmetric); the centre's part is computed once per direction.
+float svgf_depth_reach(float z, vec2 gradient, vec2 direction, float spacing) {
+    return spacing * abs(dot(gradient, direction)) + 1e-3 * z + 1e-12;
+}
+
+// The edge-stopping weight of à-trous taps p and q whose normals have the cosine d > 0 (callers
+// drop the others; a tap without a hit has a zero normal) and whose depth scale is depth_scale
+// (the sum of their svgf_depth_reach): Schied's w_z · w_n · w_l with σ_z = 1, σ_n = 128, σ_l = 4,
+// symmetric in p and q, so that a filter built on it can conserve energy (svgf_atrous.comp):
+// - depth: the difference against half the depth scale (the mean of the two predictions);
+// - normal: d^128 (7 squarings, no transcendental);
 // - illumination luminance: the difference against σ_l times √((v_p + v_q) / 2), the spread of a
 //   difference of the two. A scale of the centre's variance alone (Schied) lets a noisy bright
 //   pixel take in its dark neighbours while they refuse it: measured −3.4 % green, +2.3 % blue
 //   on a saturated checker.
-// One exponential for depth and luminance together.
-float svgf_edge_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 nq, float lp, float lq, float vp,
-                       float vq, vec2 offset) {
-    float d = dot(np, nq);
-    if (!(d > 0.0)) {
-        return 0.0;
-    }
-    float w_n = svgf_normal_weight(d);
-    float depth = svgf_depth_distance(zp, zq, gp, gq, offset);
-    float luminance = abs(lp - lq) * inversesqrt(max(0.5 * (vp + vq), 1e-20)) * (1.0 / SIGMA_L);
-    return w_n * exp(-(depth + luminance));
+// One exp2 of the summed exponents (log2 e folded into the constants), one reciprocal, one
+// inverse square root.
+float svgf_edge_weight(float d, float zp, float zq, float depth_scale, float lp, float lq, float vp, float vq) {
+    const float LOG2_E = 1.4426950408889634;
+    float depth = (2.0 * LOG2_E) * abs(zp - zq) / depth_scale;
+    float luminance = abs(lp - lq) * inversesqrt(max(vp + vq, 2e-20)) * (1.4142135623730951 / SIGMA_L * LOG2_E);
+    return svgf_normal_weight(d) * exp2(-(depth + luminance));
 }
 
 // The depth-and-normal part of svgf_edge_weight, for the spatial variance estimate.

@@ -1,13 +1,14 @@
 #version 460
-// SVGF, steps 3–7 (`svgf_atrous_1` … `svgf_atrous_5`): one à-trous iteration (Schied §4.3): a
-// 5×5 B3-spline kernel h with taps `step` pixels apart, each weighted by svgf_edge_weight (depth,
-// normal, illumination luminance), as an energy-conserving exchange of illumination E between
+// SVGF, steps 3–7 (`svgf_atrous_1` … `svgf_atrous_5`): one à-trous iteration (after Schied §4.3,
+// with a 3×3 kernel: 9 taps instead of the 5×5 B3 spline's 25): a kernel h of 1/4, 1/2, 1/4 per
+// axis with taps `step` pixels apart, each weighted by svgf_edge_weight (depth, normal,
+// illumination luminance), as an energy-conserving exchange of illumination E between
 // neighbours: per channel
 //   E'_p = E_p + Σ_q h_pq w_pq (min(a_p, a_q) / a_p) (E_q − E_p)
 // with a the effective albedo. The exchange between p and q is antisymmetric in radiance a·E
 // (w is symmetric), so the view's radiance sum is exactly what it was, whatever the weights, the
 // textures, the depth edges and the image border; a smooth illumination comes out unchanged; and
-// E'_p is a weighted mean of E (the centre keeps 1 − Σ of the others' weights ≥ h_00 > 0).
+// E'_p is a weighted mean of E (the centre keeps 1 − Σ of the others' weights ≥ h_00 = 1/4 > 0).
 // A normalised filter (Σ w L / Σ w) does neither: its rows sum to 1, not its columns, so pixels
 // at depth edges, borders and beside dark albedo count less than others, and one whose
 // jittered sample saw another texel or surface than its centre is divided by the wrong albedo:
@@ -23,14 +24,22 @@
 //   out1 (first iteration): `svgf_color`, the colour history: (illumination rgb, length)
 //   radiance (last iteration): own pixel, what pixels without a hit pass through
 // The workgroup owns 8×8 pixels of one phase of the step (svgf_tile_base) and reads their taps
-// into shared memory once (12×12, 14×14 with the blur's ring): 2.25 (3.06) reads of 3 texels
-// per pixel instead of 75 (25 taps × 3 images) plus 9 for the blur and 4 for the depth gradient.
+// into shared memory once (10×10, 12×12 with the blur's ring: 6,912 bytes): 1.56 (2.25) reads of
+// 3 texels per pixel instead of 27 (9 taps × 3 images) plus 9 for the blur. The steps are bound by
+// the arithmetic of the taps, not by memory (docs/RESULTS.md, SVGF à-trous, 3×3 taps): the taps
+// are unrolled, and what depends on the centre alone is computed once (svgf_edge_weight).
 #include "svgf.glsl"
 
-const int MAX_TILE = 14;
+// The tile's ring: the taps reach one step, the first iteration's variance blur one more.
+const int MAX_HALO = 2;
+const int MAX_TILE = 8 + 2 * MAX_HALO;
+// The blurred entries (all but the outer ring) per invocation, rounded up.
+const int BLUR_ROUNDS = ((MAX_TILE - 2) * (MAX_TILE - 2) + 63) / 64;
 
+// 48 bytes an entry: what a tap reads without converting in f32 (illumination, normal, depth),
+// the rest in half floats (albedo, depth gradient: they only weigh) and the variance in f32.
 shared vec4 tile_illumination[MAX_TILE * MAX_TILE]; // rgb, illumination luminance
-shared vec4 tile_geometry[MAX_TILE * MAX_TILE];     // normal xyz, depth (0: no hit or outside)
+shared vec4 tile_geometry[MAX_TILE * MAX_TILE];     // normal xyz (0: no hit or outside), depth
 // half2 depth gradient, half2 albedo rg, half2 (albedo b, albedo luminance), variance the weights
 // use (f32 bits)
 shared uvec4 tile_packed[MAX_TILE * MAX_TILE];
@@ -64,8 +73,8 @@ float variance_of(int e) {
 void blur_tile(int size) {
     const float g[2] = float[2](0.5, 0.25);
     int inner = size - 2;
-    float blurred[3];
-    for (int k = 0; k < 3; k++) {
+    float blurred[BLUR_ROUNDS];
+    for (int k = 0; k < BLUR_ROUNDS; k++) {
         int i = int(gl_LocalInvocationIndex) + 64 * k;
         blurred[k] = 0.0;
         if (i >= inner * inner) {
@@ -87,7 +96,7 @@ void blur_tile(int size) {
         blurred[k] = weight > 0.0 ? sum / weight : 0.0;
     }
     barrier();
-    for (int k = 0; k < 3; k++) {
+    for (int k = 0; k < BLUR_ROUNDS; k++) {
         int i = int(gl_LocalInvocationIndex) + 64 * k;
         if (i < inner * inner) {
             tile_packed[(i / inner + 1) * size + i % inner + 1].w = floatBitsToUint(blurred[k]);
@@ -95,10 +104,48 @@ void blur_tile(int size) {
     }
 }
 
+// The centre pixel's share of every tap's weight, computed once (svgf_edge_weight).
+vec3 centre_illumination;
+float centre_luminance;
+vec3 centre_normal;
+float centre_depth;
+float centre_variance;
+vec3 inverse_albedo;
+float inverse_albedo_luminance;
+float spacing;
+// Sums over the taps: the change of the illumination, the shares (luminance) and the
+// propagated variance.
+vec3 change;
+float share_sum;
+float variance_sum;
+
+// Exchanges with the tap in entry e of kernel weight h, one step along ±direction, whose centre
+// part of the depth scale is reach_p (svgf_depth_reach). Taps without a hit have a zero normal:
+// the normal test drops them.
+void tap(int e, float h, vec2 direction, float reach_p) {
+    vec4 geometry_q = tile_geometry[e];
+    float d = dot(centre_normal, geometry_q.xyz);
+    if (!(d > 0.0)) {
+        return;
+    }
+    vec4 illumination_q = tile_illumination[e];
+    uvec4 packed_q = tile_packed[e];
+    vec2 blue_luminance_q = unpackHalf2x16(packed_q.z);
+    vec3 albedo_q = vec3(unpackHalf2x16(packed_q.y), blue_luminance_q.x);
+    float v_q = uintBitsToFloat(packed_q.w);
+    float reach_q = svgf_depth_reach(geometry_q.w, unpackHalf2x16(packed_q.x), direction, spacing);
+    float w = h * svgf_edge_weight(d, centre_depth, geometry_q.w, reach_p + reach_q, centre_luminance,
+                                   illumination_q.w, centre_variance, v_q);
+    change += (w * min(vec3(1.0), albedo_q * inverse_albedo)) * (illumination_q.rgb - centre_illumination);
+    float share = w * min(1.0, blue_luminance_q.y * inverse_albedo_luminance);
+    share_sum += share;
+    variance_sum += share * share * v_q;
+}
+
 void main() {
     int step = int(pc.step);
     bool first = (pc.flags & SVGF_FIRST) != 0u;
-    int halo = first ? 3 : 2;
+    int halo = first ? MAX_HALO : 1;
     int size = 8 + 2 * halo;
     ivec2 base = svgf_tile_base(pc.step);
     load_tile(base - step * ivec2(halo), step, size);
@@ -125,37 +172,39 @@ void main() {
     vec2 gradient = unpackHalf2x16(packed.x);
     vec2 blue_luminance = unpackHalf2x16(packed.z);
     vec3 albedo = vec3(unpackHalf2x16(packed.y), blue_luminance.x);
-    vec3 inverse_albedo = 1.0 / albedo;
-    float inverse_albedo_luminance = 1.0 / blue_luminance.y;
-    float v = uintBitsToFloat(packed.w);
-    float spacing = float(step);
-    vec3 change = vec3(0.0);
-    float share_sum = 0.0; // in luminance, for the variance
-    float variance = 0.0;
-    for (int dy = -2; dy <= 2; dy++) {
-        for (int dx = -2; dx <= 2; dx++) {
-            int e = c + dy * size + dx;
-            vec4 geometry_q = tile_geometry[e];
-            if ((dx == 0 && dy == 0) || !(geometry_q.w > 0.0)) {
-                continue;
-            }
-            vec4 illumination_q = tile_illumination[e];
-            uvec4 packed_q = tile_packed[e];
-            vec2 blue_luminance_q = unpackHalf2x16(packed_q.z);
-            vec3 albedo_q = vec3(unpackHalf2x16(packed_q.y), blue_luminance_q.x);
-            float v_q = uintBitsToFloat(packed_q.w);
-            float w = KERNEL[abs(dx)] * KERNEL[abs(dy)]
-                * svgf_edge_weight(geometry.w, geometry_q.w, gradient, unpackHalf2x16(packed_q.x), geometry.xyz,
-                                   geometry_q.xyz, centre.w, illumination_q.w, v, v_q, spacing * vec2(dx, dy));
-            change += (w * min(vec3(1.0), albedo_q * inverse_albedo)) * (illumination_q.rgb - centre.rgb);
-            float share = w * min(1.0, blue_luminance_q.y * inverse_albedo_luminance);
-            share_sum += share;
-            variance += share * share * v_q;
-        }
-    }
-    vec3 illumination = min(max(centre.rgb + change, vec3(0.0)), vec3(MAX_VALUE));
+    centre_illumination = centre.rgb;
+    centre_luminance = centre.w;
+    centre_normal = geometry.xyz;
+    centre_depth = geometry.w;
+    centre_variance = uintBitsToFloat(packed.w);
+    inverse_albedo = 1.0 / albedo;
+    inverse_albedo_luminance = 1.0 / blue_luminance.y;
+    spacing = float(step);
+    change = vec3(0.0);
+    share_sum = 0.0;
+    variance_sum = 0.0;
+    // The four directions of the taps (the depth scale takes |gradient · direction|).
+    const vec2 ACROSS = vec2(1.0, 0.0);
+    const vec2 DOWN = vec2(0.0, 1.0);
+    const vec2 DIAGONAL = vec2(1.0, 1.0);
+    const vec2 ANTIDIAGONAL = vec2(1.0, -1.0);
+    float reach_across = svgf_depth_reach(centre_depth, gradient, ACROSS, spacing);
+    float reach_down = svgf_depth_reach(centre_depth, gradient, DOWN, spacing);
+    float reach_diagonal = svgf_depth_reach(centre_depth, gradient, DIAGONAL, spacing);
+    float reach_antidiagonal = svgf_depth_reach(centre_depth, gradient, ANTIDIAGONAL, spacing);
+    const float EDGE = KERNEL[0] * KERNEL[1];
+    const float CORNER = KERNEL[1] * KERNEL[1];
+    tap(c - size - 1, CORNER, DIAGONAL, reach_diagonal);
+    tap(c - size, EDGE, DOWN, reach_down);
+    tap(c - size + 1, CORNER, ANTIDIAGONAL, reach_antidiagonal);
+    tap(c - 1, EDGE, ACROSS, reach_across);
+    tap(c + 1, EDGE, ACROSS, reach_across);
+    tap(c + size - 1, CORNER, ANTIDIAGONAL, reach_antidiagonal);
+    tap(c + size, EDGE, DOWN, reach_down);
+    tap(c + size + 1, CORNER, DIAGONAL, reach_diagonal);
+    vec3 illumination = min(max(centre_illumination + change, vec3(0.0)), vec3(MAX_VALUE));
     float kept = max(0.0, 1.0 - share_sum);
-    variance = min(variance + kept * kept * v, MAX_VALUE);
+    float variance = min(variance_sum + kept * kept * centre_variance, MAX_VALUE);
     if ((pc.flags & SVGF_LAST) != 0u) {
         imageStore(images[pc.out0], p, vec4(albedo * illumination, imageLoad(images[pc.radiance], p).a));
         return;

@@ -17,7 +17,7 @@
 //!    a 7×7 spatial estimate while the history is shorter than 4 frames; and the G-buffer packed
 //!    for the à-trous passes: one guide texel (depth, depth gradient, octahedral normal) and the
 //!    effective albedo in half floats.
-//! 3. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16) with
+//! 3. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16; 3×3 taps) with
 //!    symmetric edge-stopping on depth, normal and illumination luminance; the first one's
 //!    illumination is the colour history (`svgf_color`), the last one writes `denoised`.
 //!
@@ -132,8 +132,9 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         let name = format!("svgf_atrous_{}", i + 1);
         let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
         let mut pass = graph.pass(&name, Role::All);
-        // Taps reach 2 steps away, the first iteration's 3×3 variance blur one more (svgf_atrous.comp).
-        let reach = step * if first { 3 } else { 2 };
+        // The 3×3 taps reach one step away, the first iteration's 3×3 variance blur one more
+        // (svgf_atrous.comp).
+        let reach = step * if first { 2 } else { 1 };
         let input = pass.read_halo_slot(if first { &variance } else { &atrous }, reach);
         let guide_slot = pass.read_halo_slot(&guide, reach);
         let albedo_slot = pass.read_halo_slot(&albedo, reach);
