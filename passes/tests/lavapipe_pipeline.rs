@@ -13,8 +13,7 @@ use parallax_graph::{
 };
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
-use parallax_passes::reproject::ReprojectionTolerances;
+use parallax_passes::pipeline::{PipelineKind, declare_pipeline};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, default_scene};
 
@@ -66,13 +65,7 @@ fn run_with(
     options: ExecOptions,
 ) -> (Frames, Vec<FrameReport>) {
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let config = PipelineConfig {
-        kind: PipelineKind::Reproject,
-        gbuffer: GbufferSource::FirstHits,
-        tolerances: ReprojectionTolerances::default(),
-        denoise: true,
-        exposure: 1.0,
-    };
+    let config = common::denoising_pipeline(PipelineKind::Reproject);
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.display);
     let (denoised, display) = (handles.denoised.expect("the pipeline denoises").family(), handles.display.family());

@@ -222,31 +222,13 @@ impl Run {
     fn read(&mut self, name: &str, view: u32) -> Vec<f32> {
         self.exec.finish().unwrap();
         let (device, resource) = self.exec.plan().final_output(family_named(self.exec.plan(), name), view).unwrap();
-        floats(&self.exec.read_resource(device, resource).unwrap())
+        common::floats(&self.exec.read_resource(device, resource).unwrap())
     }
 }
 
 /// The family of the resources `plan` allocates under `name`.
 fn family_named(plan: &ExecutionPlan, name: &str) -> FamilyId {
     plan.resources.iter().find(|r| r.name == name).map(|r| r.family).unwrap_or_else(|| panic!("no `{name}`"))
-}
-
-fn floats(bytes: &[u8]) -> Vec<f32> {
-    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
-}
-
-/// Mean squared error of two RGBA images over rgb, each value clamped to [0, 1] first (what a
-/// display can show; keeps a few fireflies from deciding the comparison).
-fn clamped_mse(a: &[f32], b: &[f32]) -> f64 {
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
-        for c in 0..3 {
-            let d = f64::from(pa[c].clamp(0.0, 1.0)) - f64::from(pb[c].clamp(0.0, 1.0));
-            sum += d * d;
-            n += 1;
-        }
-    }
-    sum / n as f64
 }
 
 #[test]
@@ -346,7 +328,8 @@ fn svgf_lowers_the_error_of_one_spp_against_a_64_spp_reference_by_3x() {
     let settings = TraceSettings { spp: 64, frame: 1000, jitter: false, ..TraceSettings::default() };
     let reference: Vec<f32> =
         tracer.trace(&run.scene, &run.views, &settings).unwrap()[0].iter().flat_map(|p| p.radiance).collect();
-    let (noisy_mse, denoised_mse) = (clamped_mse(&noisy, &reference), clamped_mse(&denoised, &reference));
+    let (noisy_mse, denoised_mse) =
+        (common::clamped_mse(&noisy, &reference), common::clamped_mse(&denoised, &reference));
     eprintln!("MSE against 64 spp: 1 spp {noisy_mse:.5}, SVGF after {frames} frames {denoised_mse:.5}");
     assert!(denoised_mse * 3.0 <= noisy_mse, "1 spp {noisy_mse}, denoised {denoised_mse}");
     drop(tracer);

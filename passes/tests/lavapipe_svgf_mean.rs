@@ -19,8 +19,7 @@ mod common;
 use glam::{Vec3, Vec4};
 use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph};
 use parallax_graph::{BandedPlacement, ViewTopology, compile};
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
-use parallax_passes::reproject::ReprojectionTolerances;
+use parallax_passes::pipeline::{PipelineKind, declare_pipeline};
 use parallax_passes::{LightFieldRenderer, banded_trace_plan};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{
@@ -100,10 +99,6 @@ fn mean_rgb<'a>(images: impl IntoIterator<Item = &'a [f32]>) -> [f64; 3] {
     sum.map(|s| s / n as f64)
 }
 
-fn floats(bytes: &[u8]) -> Vec<f32> {
-    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
-}
-
 /// The reference: every view path traced at `REFERENCE_SPP`, jittered, in chunks of 64 spp.
 fn reference(case: &Case) -> [f64; 3] {
     let (width, height) = (case.views[0].width, case.views[0].height);
@@ -173,13 +168,7 @@ fn denoise(case: &Case) -> Measured {
     let (width, height) = (case.views[0].width, case.views[0].height);
     let views = case.views.len() as u32;
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, width, height));
-    let config = PipelineConfig {
-        kind: PipelineKind::PathTrace,
-        gbuffer: GbufferSource::FirstHits,
-        tolerances: ReprojectionTolerances::default(),
-        denoise: true,
-        exposure: 1.0,
-    };
+    let config = common::denoising_pipeline(PipelineKind::PathTrace);
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(handles.denoised.as_ref().unwrap());
     graph.export(&handles.radiance);
@@ -200,9 +189,9 @@ fn denoise(case: &Case) -> Measured {
         renderer.finish().unwrap();
         let mut outputs = Vec::new();
         for view in 0..views {
-            let radiance = floats(&renderer.read(radiance_of, view).unwrap());
+            let radiance = common::floats(&renderer.read(radiance_of, view).unwrap());
             average.add(view as usize, frame, &radiance);
-            outputs.push(floats(&renderer.read(denoised_of, view).unwrap()));
+            outputs.push(common::floats(&renderer.read(denoised_of, view).unwrap()));
         }
         let mean = mean_rgb(outputs.iter().map(Vec::as_slice));
         let expected = average.mean();

@@ -43,17 +43,41 @@ pub fn reprojection_renderer(
     let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let pipeline = PipelineConfig {
-        kind: PipelineKind::Reproject,
-        gbuffer: GbufferSource::FirstHits,
-        tolerances: ReprojectionTolerances::default(),
-        denoise: true,
-        exposure: 1.0,
-    };
+    let pipeline = denoising_pipeline(PipelineKind::Reproject);
     let handles = declare_pipeline(&mut graph, &pipeline).unwrap();
     graph.export(&handles.display);
     let schedule = compile(&graph, &plan).unwrap();
     let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
     let renderer = LightFieldRenderer::with_options(context, exec, &GpuScene::new(scene, bvh), options).unwrap();
     (renderer, handles)
+}
+
+/// The standard pipeline of `kind`: first-hit G-buffer, default tolerances, SVGF, exposure 1.
+pub fn denoising_pipeline(kind: PipelineKind) -> PipelineConfig {
+    PipelineConfig {
+        kind,
+        gbuffer: GbufferSource::FirstHits,
+        tolerances: ReprojectionTolerances::default(),
+        denoise: true,
+        exposure: 1.0,
+    }
+}
+
+/// Little-endian f32s of a read-back image.
+pub fn floats(bytes: &[u8]) -> Vec<f32> {
+    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+/// Mean squared error of two RGBA images over rgb, each value clamped to [0, 1] first (what a
+/// display can show at exposure 1; keeps a few fireflies from deciding the comparison).
+pub fn clamped_mse(a: &[f32], b: &[f32]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        for c in 0..3 {
+            let d = f64::from(pa[c].clamp(0.0, 1.0)) - f64::from(pb[c].clamp(0.0, 1.0));
+            sum += d * d;
+            n += 1;
+        }
+    }
+    sum / n as f64
 }
