@@ -2,9 +2,9 @@
 //! `parallax bench-copy` (cross-device copy bandwidth and executor overhead).
 
 use anyhow::{Result, bail};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use parallax_backend::bench::{CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead};
-use parallax_backend::{Context, ContextDesc, chrome_trace};
+use parallax_backend::{BackendError, Context, ContextDesc, LinkKind, chrome_trace};
 
 use crate::budget::check_host_bytes;
 use crate::logging::result;
@@ -54,6 +54,11 @@ pub struct BenchCopyArgs {
     /// Frames submitted before the host waits for the oldest (1..=16; 1 = every copy runs alone).
     #[arg(long, allow_negative_numbers = true, default_value_t = 2, value_parser = count_in(1..=16))]
     frames_in_flight: u64,
+    /// The link kinds to measure: `all` (each kind the two devices offer, best first; the
+    /// others are named as unavailable), or one of `gpu`, `shared`, `relay` (refused if the
+    /// devices cannot use it).
+    #[arg(long, value_enum, default_value_t = BenchLink::All)]
+    link: BenchLink,
     /// Submit copies to the main queue instead of a transfer-only queue (the copy engines,
     /// used by default where the devices have one).
     #[arg(long)]
@@ -69,7 +74,29 @@ pub struct BenchCopyArgs {
     trace: Option<Sink>,
 }
 
-/// `parallax bench-copy`: copy bandwidth between devices 0 and 1, and executor CPU cost.
+/// `bench-copy --link`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum BenchLink {
+    All,
+    Gpu,
+    Shared,
+    Relay,
+}
+
+impl BenchLink {
+    /// The kinds asked for.
+    fn kinds(self) -> Vec<LinkKind> {
+        match self {
+            BenchLink::All => LinkKind::ALL.to_vec(),
+            BenchLink::Gpu => vec![LinkKind::Gpu],
+            BenchLink::Shared => vec![LinkKind::Shared],
+            BenchLink::Relay => vec![LinkKind::Relay],
+        }
+    }
+}
+
+/// `parallax bench-copy`: copy bandwidth between devices 0 and 1 over each link kind, and
+/// executor CPU cost.
 pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
     let selection = args.devices.selection();
     if selection.count() < 2 {
@@ -91,30 +118,54 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         separate_copy_queue: !args.copies_on_main_queue,
         ..CopyBenchOptions::default()
     };
-    let progress =
-        crate::logging::spinner(format!("copying {} MiB per frame for {} frames", args.size_mib, args.frames));
-    let copy = copy_bandwidth(&desc, &copy_options)?;
-    progress.finish_and_clear();
     let say = |line: String| result([&args.json, &args.trace].iter().any(|s| matches!(s, Some(Sink::Stdout))), &line);
-    for d in &copy.devices {
-        say(format!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version));
-    }
-    let rate = |r: Option<f64>| r.map_or("n/a".to_string(), |r| format!("{r:.2}"));
-    say(format!(
-        "copy {} MiB device 0 -> 1, {} chunk(s), {} frame(s) in flight: sustained {} GB/s; per frame median {} GB/s, best {} GB/s (while copying: D->H {}, H->D {})",
-        args.size_mib,
-        copy.chunks,
-        args.frames_in_flight,
-        rate(copy.sustained_gb_per_s),
-        rate(copy.median_gb_per_s),
-        rate(copy.best_gb_per_s),
-        rate(copy.median_device_to_host_gb_per_s),
-        rate(copy.median_host_to_device_gb_per_s)
-    ));
-    if copy.sustained_gb_per_s.is_none() {
-        tracing::warn!(
-            "the copies were too short for the device timer (or too few frames) to give a rate: raise --size-mib or --frames"
-        );
+    let mut copies = Vec::new();
+    for kind in args.link.kinds() {
+        let progress = crate::logging::spinner(format!(
+            "copying {} MiB per frame for {} frames over `{}` links",
+            args.size_mib,
+            args.frames,
+            kind.name()
+        ));
+        let copy = copy_bandwidth(&desc, &CopyBenchOptions { link: Some(kind), ..copy_options.clone() });
+        progress.finish_and_clear();
+        let copy = match copy {
+            Ok(copy) => copy,
+            // Measuring every kind: one the devices lack is named, not an error.
+            Err(e @ BackendError::LinkUnavailable { .. }) if args.link == BenchLink::All => {
+                say(format!("link {}: not measured ({e})", kind.name()));
+                continue;
+            }
+            Err(e @ BackendError::LinkUnavailable { .. }) => {
+                return Err(crate::options::UsageError(format!("--link {}: {e}", kind.name())).into());
+            }
+            Err(e) => return Err(e.into()),
+        };
+        if copies.is_empty() {
+            for d in &copy.devices {
+                say(format!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version));
+            }
+        }
+        let rate = |r: Option<f64>| r.map_or("n/a".to_string(), |r| format!("{r:.2}"));
+        say(format!(
+            "link {}: copy {} MiB device 0 -> 1, {} chunk(s), {} frame(s) in flight: sustained {} GB/s; per frame median {} GB/s, best {} GB/s (while copying: out {}, in {}); handoff {:.1} µs",
+            kind.name(),
+            args.size_mib,
+            copy.chunks,
+            args.frames_in_flight,
+            rate(copy.sustained_gb_per_s),
+            rate(copy.median_gb_per_s),
+            rate(copy.best_gb_per_s),
+            rate(copy.median_device_to_host_gb_per_s),
+            rate(copy.median_host_to_device_gb_per_s),
+            copy.median_handoff_us
+        ));
+        if copy.sustained_gb_per_s.is_none() {
+            tracing::warn!(
+                "the copies were too short for the device timer (or too few frames) to give a rate: raise --size-mib or --frames"
+            );
+        }
+        copies.push(copy);
     }
     let overhead_options =
         OverheadBenchOptions { passes_per_device: args.passes_per_device as u32, ..Default::default() };
@@ -128,11 +179,12 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         overhead.median_submit_us_per_frame,
         overhead.record_us_per_pass
     ));
-    if let Some(sink) = &args.trace {
-        write_json(sink, &chrome_trace(&copy.reports, &copy.devices))?;
+    if let (Some(sink), Some(first)) = (&args.trace, copies.first()) {
+        let reports: Vec<_> = copies.iter().flat_map(|c| c.reports.iter().cloned()).collect();
+        write_json(sink, &chrome_trace(&reports, &first.devices))?;
     }
     if let Some(sink) = &args.json {
-        write_json(sink, &serde_json::json!({ "copy": &copy, "overhead": &overhead }))?;
+        write_json(sink, &serde_json::json!({ "copy": &copies, "overhead": &overhead }))?;
     }
     Ok(())
 }

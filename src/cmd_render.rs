@@ -46,6 +46,32 @@ pub enum BarrierArg {
     Tracked,
 }
 
+/// `--link`: how two devices exchange data (parallax_backend's links.rs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LinkArg {
+    /// The best each pair of devices offers.
+    Auto,
+    /// Logical devices of one GPU: shared device memory, GPU-side waits.
+    Gpu,
+    /// Logical devices of one GPU: shared device memory, signals forwarded by the host.
+    Shared,
+    /// Host staging memory, signals forwarded by the host.
+    Relay,
+}
+
+impl LinkArg {
+    /// The kind asked for (`None`: the best each pair offers).
+    pub fn kind(self) -> Option<parallax_backend::LinkKind> {
+        match self {
+            LinkArg::Auto => None,
+            LinkArg::Gpu => Some(parallax_backend::LinkKind::Gpu),
+            LinkArg::Shared => Some(parallax_backend::LinkKind::Shared),
+            LinkArg::Relay => Some(parallax_backend::LinkKind::Relay),
+        }
+    }
+}
+
 /// `--motion`: how the rig moves over the measured frames.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -153,6 +179,12 @@ pub struct RenderArgs {
     /// timestamp drains the queue on NVIDIA, so ops cannot overlap).
     #[arg(long, value_enum, default_value_t = TimingArg::PerStage)]
     timing: TimingArg,
+    /// How devices exchange data: `auto` (the best each pair offers), `gpu` (logical devices of
+    /// one GPU: shared device memory and GPU-side waits), `shared` (shared device memory,
+    /// signals forwarded by a host thread) or `relay` (host staging memory and forwarded
+    /// signals). A kind some pair of devices cannot use is refused before any frame.
+    #[arg(long, value_enum, default_value_t = LinkArg::Auto)]
+    link: LinkArg,
     /// Write a Chrome trace-event JSON of the measured frames (open in Perfetto or
     /// chrome://tracing; `-` = stdout). With the default `--timing per-stage` an event is a
     /// run of one pass over many views; add `--timing per-op` for one event per view.
@@ -210,7 +242,7 @@ impl RenderArgs {
             "save_every": self.save_every,
             "exposure": match self.exposure { Exposure::Auto => serde_json::json!("auto"), Exposure::Fixed(v) => serde_json::json!(v) },
             "layers": self.layers, "quilt": self.quilt.map(|q| q.spelling()), "gbuffer": name(&p.gbuffer), "barriers": name(&self.barriers),
-            "timing": name(&self.timing),
+            "timing": name(&self.timing), "link": name(&self.link),
         })
     }
 }

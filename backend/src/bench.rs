@@ -36,6 +36,8 @@ pub struct CopyBenchOptions {
     pub frames_in_flight: usize,
     /// Copies on a transfer-only queue where the devices have one.
     pub separate_copy_queue: bool,
+    /// The link kind to copy over (`None`: the best the devices offer).
+    pub link: Option<crate::links::LinkKind>,
 }
 
 impl Default for CopyBenchOptions {
@@ -47,6 +49,7 @@ impl Default for CopyBenchOptions {
             warmup: 3,
             frames_in_flight: 2,
             separate_copy_queue: true,
+            link: None,
         }
     }
 }
@@ -78,6 +81,8 @@ pub struct CopyFrame {
 #[derive(Clone, Debug, Serialize)]
 pub struct CopyBenchResult {
     pub devices: Vec<DeviceInfo>,
+    /// The kind of link the copy went over (links.rs).
+    pub link: crate::links::LinkKind,
     pub bytes: u64,
     pub chunk_bytes: u64,
     pub chunks: usize,
@@ -267,9 +272,11 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
             frames_in_flight: options.frames_in_flight,
             chunk_bytes: options.chunk_bytes,
             separate_copy_queue: options.separate_copy_queue,
+            link: options.link,
             ..ExecOptions::default()
         },
     )?;
+    let link = executor.links().first().expect("the copy plan has one link").kind;
     for _ in 0..options.warmup + options.frames {
         executor.run_frame()?;
     }
@@ -302,6 +309,7 @@ pub fn copy_bandwidth(desc: &ContextDesc, options: &CopyBenchOptions) -> Result<
     };
     Ok(CopyBenchResult {
         devices: context.device_infos(),
+        link,
         bytes,
         chunk_bytes: options.chunk_bytes,
         chunks,

@@ -63,6 +63,12 @@ pub struct Device {
     one_shot_pool: Mutex<vk::CommandPool>,
     pub(crate) external_memory_host: Option<ash::ext::external_memory_host::Device>,
     pub(crate) min_host_pointer_alignment: u64,
+    /// Opaque-fd export and import of transfer buffers, when the driver offers it (links.rs).
+    pub(crate) external_memory_fd: Option<ash::khr::external_memory_fd::Device>,
+    /// Opaque-fd export and import of timeline semaphores, when the driver offers it (links.rs).
+    pub(crate) external_semaphore_fd: Option<ash::khr::external_semaphore_fd::Device>,
+    /// `deviceUUID` and `driverUUID` of the physical device.
+    pub(crate) uuids: [[u8; vk::UUID_SIZE]; 2],
     calibrated: Option<CalibratedFns>,
     /// VK_KHR_pipeline_executable_properties, enabled when `PARALLAX_PIPELINE_STATS` is set and
     /// the driver has it: compiled kernels' statistics (registers, local memory) go to stderr.
@@ -121,6 +127,10 @@ impl Device {
         });
         let external_memory_host =
             extensions.host_import.then(|| ash::ext::external_memory_host::Device::new(raw_instance, &raw));
+        let external_memory_fd =
+            extensions.memory_fd.then(|| ash::khr::external_memory_fd::Device::new(raw_instance, &raw));
+        let external_semaphore_fd =
+            extensions.semaphore_fd.then(|| ash::khr::external_semaphore_fd::Device::new(raw_instance, &raw));
         let pipeline_stats = extensions
             .pipeline_stats
             .then(|| ash::khr::pipeline_executable_properties::Device::new(raw_instance, &raw));
@@ -151,6 +161,9 @@ impl Device {
             one_shot_pool: Mutex::new(one_shot_pool),
             external_memory_host,
             min_host_pointer_alignment: props.min_imported_host_pointer_alignment.max(1),
+            external_memory_fd,
+            external_semaphore_fd,
+            uuids: props.uuids,
             calibrated,
             pipeline_stats,
             timestamp_period: f64::from(props.core.limits.timestamp_period),
@@ -238,6 +251,16 @@ impl Device {
             vk::SemaphoreTypeCreateInfo::default().semaphore_type(vk::SemaphoreType::TIMELINE).initial_value(initial);
         let info = vk::SemaphoreCreateInfo::default().push_next(&mut ty);
         unsafe { self.raw.create_semaphore(&info, None) }.vk("vkCreateSemaphore")
+    }
+
+    /// A timeline semaphore that can be exported as an opaque fd (a producer's progress timeline
+    /// that consumers of `gpu` links wait on, links.rs).
+    pub(crate) fn create_exportable_timeline(&self) -> Result<vk::Semaphore> {
+        let mut ty = vk::SemaphoreTypeCreateInfo::default().semaphore_type(vk::SemaphoreType::TIMELINE);
+        let mut export =
+            vk::ExportSemaphoreCreateInfo::default().handle_types(vk::ExternalSemaphoreHandleTypeFlags::OPAQUE_FD);
+        let info = vk::SemaphoreCreateInfo::default().push_next(&mut ty).push_next(&mut export);
+        unsafe { self.raw.create_semaphore(&info, None) }.vk("vkCreateSemaphore(exportable timeline)")
     }
 
     /// Host wait until `semaphore` reaches `value`; `Ok(false)` on timeout.

@@ -13,6 +13,8 @@ use gpu_allocator::MemoryLocation;
 use crate::device::{Device, QueueKind};
 use crate::error::{BackendError, Result, VkContext};
 use crate::executor::{ExecOptions, FaultGate};
+use crate::link_memory::SharedDeviceBuffer;
+use crate::links::LinkKind;
 use crate::memory::{Buffer, Image, SharedHostBuffer};
 use crate::pipeline::Bindless;
 use crate::plan::{AllocId, CopyId, DeviceId, ExecResource, ExecutionPlan, Format, ResourceKind};
@@ -39,7 +41,8 @@ pub(crate) struct DeviceState {
     /// Command pools of the main and of the copy queue family.
     pub(crate) command_pools: [vk::CommandPool; 2],
     pub(crate) progress: vk::Semaphore,
-    /// Ready timelines of the links into this device (links.rs).
+    /// Ready timelines of the links into this device, or producers' progress timelines imported
+    /// for `gpu` links (links.rs).
     pub(crate) ready: Vec<vk::Semaphore>,
     /// Fault injection: host-signalled semaphore holding this (producer) device back.
     pub(crate) gate: Option<vk::Semaphore>,
@@ -77,13 +80,44 @@ impl Drop for DeviceState {
     }
 }
 
-/// Staging memory of cross-device copies: one shared host buffer per slot, each copy at a fixed
-/// offset.
+/// Staging memory of cross-device copies: per link and frame-in-flight slot one buffer shared by
+/// its two devices (device memory for `gpu` and `shared` links, host memory for `relay` ones),
+/// each of the link's copies at a fixed offset.
 pub(crate) struct Staging {
-    pub(crate) buffers: Vec<SharedHostBuffer>,
-    pub(crate) offsets: Vec<u64>,
-    /// Bytes of each slot's buffer.
-    pub(crate) bytes: u64,
+    /// `[link][slot]`.
+    pub(crate) buffers: Vec<Vec<LinkBuffer>>,
+    /// Per copy: its link and its offset in the link's buffers.
+    pub(crate) places: Vec<(usize, u64)>,
+    /// Bytes of host and of device memory over every link and slot.
+    pub(crate) host_bytes: u64,
+    pub(crate) device_bytes: u64,
+}
+
+/// A link's staging buffer of one slot.
+pub(crate) enum LinkBuffer {
+    Host(SharedHostBuffer),
+    Device(SharedDeviceBuffer),
+}
+
+impl LinkBuffer {
+    /// The `VkBuffer` through which device `device_index` sees it.
+    pub(crate) fn buffer_on(&self, device_index: usize) -> Option<vk::Buffer> {
+        match self {
+            LinkBuffer::Host(b) => b.buffer_on(device_index),
+            LinkBuffer::Device(b) => b.buffer_on(device_index),
+        }
+    }
+}
+
+impl Staging {
+    /// Per copy, the staging buffer of slot `slot` as device `d` sees it and the copy's offset
+    /// in it (a null buffer for copies `d` neither sends nor receives).
+    pub(crate) fn of_device(&self, d: usize, slot: usize) -> Vec<(vk::Buffer, u64)> {
+        self.places
+            .iter()
+            .map(|&(link, offset)| (self.buffers[link][slot].buffer_on(d).unwrap_or_default(), offset))
+            .collect()
+    }
 }
 
 /// Creates images, descriptor layout, command buffers and query pools of device `d`.
@@ -94,6 +128,7 @@ pub(crate) fn create_device_state(
     segments: Vec<Segment>,
     slots: usize,
     options: &ExecOptions,
+    export_progress: bool,
     kept: &mut Kept,
 ) -> Result<DeviceState> {
     let shaders = &options.shaders;
@@ -131,7 +166,8 @@ pub(crate) fn create_device_state(
         slots: Vec::new(),
         recording_buffers: (0..slots).map(|_| Vec::new()).collect(),
     };
-    state.progress = device.create_timeline(0)?;
+    // A producer of `gpu` links exports its progress timeline to their consumers.
+    state.progress = if export_progress { device.create_exportable_timeline()? } else { device.create_timeline(0)? };
     for _ in 0..slots {
         let slot = create_slot_resources(device, &command_pools, &state.segments, state.timers.len())?;
         state.slots.push(slot);
@@ -304,24 +340,45 @@ fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image
     })
 }
 
-/// One shared host buffer per slot holding every copy of the plan, imported into each device
-/// that sends or receives a copy.
-pub(crate) fn create_staging(devices: &[Arc<Device>], plan: &ExecutionPlan, slots: usize) -> Result<Option<Staging>> {
+/// The staging buffers of `links` (`(from, to, kind)`) for `slots` slots; `link_of_copy[c]` is
+/// the link copy `c` travels over.
+pub(crate) fn create_staging(
+    devices: &[Arc<Device>],
+    plan: &ExecutionPlan,
+    links: &[(usize, usize, LinkKind)],
+    link_of_copy: &[usize],
+    slots: usize,
+) -> Result<Option<Staging>> {
     if plan.copies.is_empty() {
         return Ok(None);
     }
-    let mut offsets = Vec::with_capacity(plan.copies.len());
-    let mut total = 0u64;
-    for c in 0..plan.copies.len() as u32 {
-        offsets.push(total);
-        total += plan.copy_bytes(CopyId(c)).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
+    let mut sizes = vec![0u64; links.len()];
+    let mut places = Vec::with_capacity(plan.copies.len());
+    for (c, &link) in link_of_copy.iter().enumerate() {
+        places.push((link, sizes[link]));
+        sizes[link] += plan.copy_bytes(CopyId(c as u32)).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
     }
-    let mut participants: Vec<DeviceId> = plan.copies.iter().flat_map(|c| [c.from, c.to]).collect();
-    participants.sort_unstable();
-    participants.dedup();
-    let participants: Vec<&Arc<Device>> = participants.iter().map(|&d| &devices[d.index()]).collect();
-    let buffers = (0..slots).map(|_| SharedHostBuffer::new(&participants, total)).collect::<Result<Vec<_>>>()?;
-    Ok(Some(Staging { buffers, offsets, bytes: total }))
+    let mut staging = Staging { buffers: Vec::with_capacity(links.len()), places, host_bytes: 0, device_bytes: 0 };
+    for (&(from, to, kind), &size) in links.iter().zip(&sizes) {
+        let (producer, consumer) = (&devices[from], &devices[to]);
+        let mut per_slot = Vec::with_capacity(slots);
+        for _ in 0..slots {
+            per_slot.push(match kind {
+                LinkKind::Gpu | LinkKind::Shared => {
+                    let buffer = SharedDeviceBuffer::new(producer, &[consumer], size)?;
+                    staging.device_bytes += buffer.size;
+                    LinkBuffer::Device(buffer)
+                }
+                LinkKind::Relay => {
+                    let buffer = SharedHostBuffer::new(&[producer, consumer], size)?;
+                    staging.host_bytes += buffer.size;
+                    LinkBuffer::Host(buffer)
+                }
+            });
+        }
+        staging.buffers.push(per_slot);
+    }
+    Ok(Some(staging))
 }
 
 /// Sets up [`FaultInjection::DropCrossDeviceWait`] for `copy`.

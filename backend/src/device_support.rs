@@ -19,6 +19,9 @@ pub(crate) struct PhysicalProperties {
     pub(crate) driver: String,
     pub(crate) driver_info: String,
     pub(crate) min_imported_host_pointer_alignment: u64,
+    /// `deviceUUID` and `driverUUID`: two logical devices with equal pairs are one physical GPU
+    /// under one driver, which is what opaque-fd memory and semaphores may be shared between.
+    pub(crate) uuids: [[u8; vk::UUID_SIZE]; 2],
     subgroup_operations: vk::SubgroupFeatureFlags,
     subgroup_stages: vk::ShaderStageFlags,
 }
@@ -33,7 +36,9 @@ impl PhysicalProperties {
         let mut driver_props = vk::PhysicalDeviceDriverProperties::default();
         let mut host_props = vk::PhysicalDeviceExternalMemoryHostPropertiesEXT::default();
         let mut subgroup_props = vk::PhysicalDeviceSubgroupProperties::default();
+        let mut id_props = vk::PhysicalDeviceIDProperties::default();
         let mut props2 = vk::PhysicalDeviceProperties2::default()
+            .push_next(&mut id_props)
             .push_next(&mut driver_props)
             .push_next(&mut host_props)
             .push_next(&mut subgroup_props);
@@ -44,6 +49,7 @@ impl PhysicalProperties {
             driver: c_string(driver_props.driver_name_as_c_str()),
             driver_info: c_string(driver_props.driver_info_as_c_str()),
             min_imported_host_pointer_alignment: host_props.min_imported_host_pointer_alignment,
+            uuids: [id_props.device_uuid, id_props.driver_uuid],
             subgroup_operations: subgroup_props.supported_operations,
             subgroup_stages: subgroup_props.supported_stages,
         }
@@ -64,6 +70,12 @@ pub(crate) struct Extensions {
     pub(crate) calibrated: Option<&'static CStr>,
     /// VK_KHR_pipeline_executable_properties, when asked for by `PARALLAX_PIPELINE_STATS`.
     pub(crate) pipeline_stats: bool,
+    /// VK_KHR_external_memory_fd, when the device can export and import transfer buffers as
+    /// opaque fds (links between logical devices of one GPU, links.rs).
+    pub(crate) memory_fd: bool,
+    /// VK_KHR_external_semaphore_fd, when the device can export and import timeline semaphores
+    /// as opaque fds (GPU-side waits across logical devices of one GPU, links.rs).
+    pub(crate) semaphore_fd: bool,
 }
 
 impl Extensions {
@@ -94,7 +106,9 @@ impl Extensions {
         let calibrated = calibrated.filter(|ext| samples_host_clock(instance, physical, ext));
         let want_stats = std::env::var_os("PARALLAX_PIPELINE_STATS").is_some_and(|v| !v.is_empty() && v != "0");
         let pipeline_stats = want_stats && has_ext(ash::khr::pipeline_executable_properties::NAME);
-        Ok(Self { host_import, calibrated, pipeline_stats })
+        let memory_fd = has_ext(ash::khr::external_memory_fd::NAME) && shares_buffers(instance, physical);
+        let semaphore_fd = has_ext(ash::khr::external_semaphore_fd::NAME) && shares_timelines(instance, physical);
+        Ok(Self { host_import, calibrated, pipeline_stats, memory_fd, semaphore_fd })
     }
 
     /// The names to pass to `vkCreateDevice`.
@@ -109,8 +123,40 @@ impl Extensions {
         if self.pipeline_stats {
             enabled.push(ash::khr::pipeline_executable_properties::NAME.as_ptr());
         }
+        if self.memory_fd {
+            enabled.push(ash::khr::external_memory_fd::NAME.as_ptr());
+        }
+        if self.semaphore_fd {
+            enabled.push(ash::khr::external_semaphore_fd::NAME.as_ptr());
+        }
         enabled
     }
+}
+
+/// Whether transfer buffers can be exported and imported as opaque fds (what a link's shared
+/// staging buffer is, memory.rs `SharedDeviceBuffer`).
+fn shares_buffers(instance: &Instance, physical: vk::PhysicalDevice) -> bool {
+    let info = vk::PhysicalDeviceExternalBufferInfo::default()
+        .usage(crate::link_memory::SHARED_BUFFER_USAGE)
+        .handle_type(vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD);
+    let mut props = vk::ExternalBufferProperties::default();
+    unsafe { instance.raw.get_physical_device_external_buffer_properties(physical, &info, &mut props) };
+    let features = props.external_memory_properties.external_memory_features;
+    features.contains(vk::ExternalMemoryFeatureFlags::EXPORTABLE | vk::ExternalMemoryFeatureFlags::IMPORTABLE)
+}
+
+/// Whether timeline semaphores (not only binary ones) can be exported and imported as opaque
+/// fds: the extension alone does not promise it.
+fn shares_timelines(instance: &Instance, physical: vk::PhysicalDevice) -> bool {
+    let mut timeline = vk::SemaphoreTypeCreateInfo::default().semaphore_type(vk::SemaphoreType::TIMELINE);
+    let info = vk::PhysicalDeviceExternalSemaphoreInfo::default()
+        .handle_type(vk::ExternalSemaphoreHandleTypeFlags::OPAQUE_FD)
+        .push_next(&mut timeline);
+    let mut props = vk::ExternalSemaphoreProperties::default();
+    unsafe { instance.raw.get_physical_device_external_semaphore_properties(physical, &info, &mut props) };
+    props.external_semaphore_features.contains(
+        vk::ExternalSemaphoreFeatureFlags::EXPORTABLE | vk::ExternalSemaphoreFeatureFlags::IMPORTABLE,
+    )
 }
 
 /// Calibration is only useful when the device can sample CLOCK_MONOTONIC, the clock the host side

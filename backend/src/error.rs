@@ -163,6 +163,14 @@ pub enum BackendError {
     #[error("resource {resource} is not allocated on device {device}")]
     ResourceNotOnDevice { resource: crate::plan::AllocId, device: usize },
 
+    /// Device memory could not be shared between two logical devices of one GPU (link_memory.rs).
+    #[error("device {device} cannot share staging memory with another device of its GPU ({detail})")]
+    MemoryShare { device: usize, detail: String },
+
+    /// A link kind was requested (`ExecOptions::link`) that a pair of devices cannot use.
+    #[error("link kind `{kind}` is unavailable from device {from} to device {to}: {missing}")]
+    LinkUnavailable { kind: &'static str, from: usize, to: usize, missing: String },
+
     /// A host relay thread (cross-device signal forwarding) failed.
     #[error("cross-device relay failed: {0}")]
     Relay(String),

@@ -1,32 +1,140 @@
 //! Links: the cross-device channels of a plan, one per (producer device, consumer device) pair
-//! that the plan copies over. Each link has one "ready" timeline on the consumer device; the
-//! relay (relay.rs) raises it once per copy-out chunk sent over the link, in the order the
-//! producer's segments complete them, so its values only increase, and a consumer's copy-in
-//! waits for the value of its chunk. One semaphore per pair instead of one per copy: a
-//! fine-grained plan has thousands of copies a frame but at most devices² links.
+//! that the plan copies over, each of a kind chosen when the executor is created
+//! ([`link_kinds`]): the best the two devices offer, or the one `ExecOptions::link` asks for
+//! (refused, before any work, where the pair cannot use it; nothing falls back silently).
+//!
+//! A copy goes producer resource → the link's staging buffer → consumer resource, two GPU
+//! copies; the kinds differ in where the staging buffer lives and how the consumer learns
+//! that a chunk is in it:
+//! * `gpu` (logical devices of one GPU with opaque-fd memory and timeline semaphores): device
+//!   memory exported by the producer and imported by the consumer (link_memory.rs), and the
+//!   consumer's copy-in waits on the producer's progress timeline, imported into the consumer:
+//!   the wait happens on the GPU, no host thread is involved;
+//! * `shared` (one GPU, opaque-fd memory but no shareable semaphores, e.g. lavapipe): the same
+//!   device memory, and the producer's signal forwarded by the host relay (relay.rs) to a
+//!   "ready" timeline on the consumer;
+//! * `relay` (anything else, e.g. two physical GPUs): host memory imported into both devices
+//!   (VK_EXT_external_memory_host) and the relay's forwarded signal.
+//!
+//! A relayed link's ready timeline is raised once per chunk sent over it, in the order the
+//! producer's segments complete them, so its values only increase and a consumer's copy-in waits
+//! for the value of its chunk: one semaphore per pair instead of one per copy.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use ash::vk;
 
+use crate::device::Device;
+use crate::error::{BackendError, Result};
 use crate::plan::ExecutionPlan;
 use crate::segments::Segment;
 
-/// How a link moves data. Only the host relay exists today: the producer's GPU copies into
-/// host staging memory imported into both devices, a relay thread (relay.rs) forwards the
-/// producer's signal, and the consumer's GPU copies out of the staging memory.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How a link moves data (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum LinkKind {
+    /// Shared device memory and a GPU-side wait on the producer's exported timeline.
+    Gpu,
+    /// Shared device memory and a host-forwarded signal.
+    Shared,
+    /// Host staging memory and a host-forwarded signal.
     Relay,
 }
 
 impl LinkKind {
-    /// The kind's name in logs and render.json.
+    /// Every kind, best first.
+    pub const ALL: [LinkKind; 3] = [LinkKind::Gpu, LinkKind::Shared, LinkKind::Relay];
+
+    /// The kind's name in logs, options and render.json.
     pub fn name(self) -> &'static str {
         match self {
+            LinkKind::Gpu => "gpu",
+            LinkKind::Shared => "shared",
             LinkKind::Relay => "relay",
         }
     }
+
+    /// Whether a host relay thread forwards the link's signals.
+    pub fn relayed(self) -> bool {
+        self != LinkKind::Gpu
+    }
+
+    /// Why devices `producer` → `consumer` cannot use this kind, or `None` if they can.
+    fn missing(self, producer: &Device, consumer: &Device) -> Option<String> {
+        let lacks = |device: &Device, what: &str| format!("device {} ({}) lacks {what}", device.info.index, device.info.name);
+        let one_gpu = || {
+            (producer.uuids != consumer.uuids).then(|| {
+                "the two devices are not one physical GPU under one driver (deviceUUID/driverUUID differ), which \
+                 opaque-fd sharing needs"
+                    .to_string()
+            })
+        };
+        let memory_fd = || {
+            [producer, consumer].into_iter().find(|d| d.external_memory_fd.is_none()).map(|d| {
+                lacks(d, "VK_KHR_external_memory_fd (exportable and importable transfer buffers)")
+            })
+        };
+        match self {
+            LinkKind::Gpu => one_gpu().or_else(memory_fd).or_else(|| {
+                [producer, consumer].into_iter().find(|d| d.external_semaphore_fd.is_none()).map(|d| {
+                    lacks(d, "VK_KHR_external_semaphore_fd (exportable and importable timeline semaphores)")
+                })
+            }),
+            LinkKind::Shared => one_gpu().or_else(memory_fd),
+            LinkKind::Relay => [producer, consumer]
+                .into_iter()
+                .find(|d| d.external_memory_host.is_none())
+                .map(|d| lacks(d, "VK_EXT_external_memory_host")),
+        }
+    }
+}
+
+impl std::str::FromStr for LinkKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        LinkKind::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| format!("unknown link kind `{s}`"))
+    }
+}
+
+/// The kind of link of every ordered pair of devices: `kinds[from][to]` (`None` on the diagonal).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LinkKinds(pub Vec<Vec<Option<LinkKind>>>);
+
+impl LinkKinds {
+    /// The kind of the link `from` → `to`.
+    pub fn of(&self, from: usize, to: usize) -> LinkKind {
+        self.0[from][to].expect("a link joins two devices")
+    }
+}
+
+/// Chooses the kind of every pair of `devices`: `requested`, or with `None` the best each pair
+/// offers. Fails with [`BackendError::LinkUnavailable`] for the first pair (by producer, then
+/// consumer) that cannot use the requested kind.
+pub fn link_kinds(devices: &[Arc<Device>], requested: Option<LinkKind>) -> Result<LinkKinds> {
+    let mut kinds = vec![vec![None; devices.len()]; devices.len()];
+    for (from, producer) in devices.iter().enumerate() {
+        for (to, consumer) in devices.iter().enumerate().filter(|&(to, _)| to != from) {
+            let kind = match requested {
+                Some(kind) => match kind.missing(producer, consumer) {
+                    None => kind,
+                    Some(missing) => return Err(BackendError::LinkUnavailable { kind: kind.name(), from, to, missing }),
+                },
+                None => {
+                    let best = LinkKind::ALL.into_iter().find(|k| k.missing(producer, consumer).is_none());
+                    best.ok_or_else(|| BackendError::LinkUnavailable {
+                        kind: LinkKind::Relay.name(),
+                        from,
+                        to,
+                        missing: LinkKind::Relay.missing(producer, consumer).unwrap_or_default(),
+                    })?
+                }
+            };
+            kinds[from][to] = Some(kind);
+        }
+    }
+    Ok(LinkKinds(kinds))
 }
 
 /// One link of the running plan ([`crate::Executor::links`]).
@@ -37,23 +145,40 @@ pub struct LinkInfo {
     pub kind: LinkKind,
     /// Copy chunks sent over the link per frame.
     pub chunks_per_frame: u64,
+    /// Bytes sent over the link per frame.
+    pub bytes_per_frame: u64,
 }
 
-/// One link and its ready timeline (owned by the consumer's device state).
+/// One link and the semaphore its consumer waits on (owned by the consumer's device state).
 pub(crate) struct Link {
     pub(crate) from: usize,
     pub(crate) to: usize,
+    pub(crate) kind: LinkKind,
+    /// On the consumer: the ready timeline the relay raises, or for a `gpu` link the producer's
+    /// progress timeline imported.
     pub(crate) ready: vk::Semaphore,
-    /// Chunks sent over the link per frame: the timeline's step per frame.
+    /// Chunks sent over the link per frame: a ready timeline's step per frame.
     pub(crate) per_frame: u64,
+    pub(crate) bytes_per_frame: u64,
+}
+
+/// Where one chunk travels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct ChunkLink {
+    /// Index of its link.
+    pub(crate) link: usize,
+    /// Its position among the link's chunks of a frame.
+    pub(crate) position: u64,
+    /// The producer's segment that completes it.
+    pub(crate) segment: usize,
 }
 
 /// Where each chunk travels: the links of a plan as `(from, to, chunks per frame)`, and per copy
-/// and chunk, the index of its link and its position among the link's chunks of a frame.
+/// and chunk, its [`ChunkLink`].
 #[derive(Debug, PartialEq, Eq)]
 pub(crate) struct LinkOrder {
     pub(crate) links: Vec<(usize, usize, u64)>,
-    pub(crate) chunks: Vec<Vec<(usize, u64)>>,
+    pub(crate) chunks: Vec<Vec<ChunkLink>>,
 }
 
 /// Numbers each link's chunks in the order the producer's segments complete them
@@ -62,16 +187,17 @@ pub(crate) struct LinkOrder {
 pub(crate) fn link_order(plan: &ExecutionPlan, segments: &[Vec<Segment>], chunk_counts: &[usize]) -> LinkOrder {
     let mut index: BTreeMap<(usize, usize), usize> = BTreeMap::new();
     let mut links: Vec<(usize, usize, u64)> = Vec::new();
-    let mut chunks: Vec<Vec<(usize, u64)>> = chunk_counts.iter().map(|&n| vec![(usize::MAX, 0); n]).collect();
+    let unset = ChunkLink { link: usize::MAX, position: 0, segment: 0 };
+    let mut chunks: Vec<Vec<ChunkLink>> = chunk_counts.iter().map(|&n| vec![unset; n]).collect();
     for (from, device) in segments.iter().enumerate() {
-        for chunk in device.iter().flat_map(|s| &s.relays) {
+        for (segment, chunk) in device.iter().enumerate().flat_map(|(j, s)| s.relays.iter().map(move |c| (j, c))) {
             let to = plan.copy(chunk.copy).to.index();
-            let l = *index.entry((from, to)).or_insert_with(|| {
+            let link = *index.entry((from, to)).or_insert_with(|| {
                 links.push((from, to, 0));
                 links.len() - 1
             });
-            chunks[chunk.copy.index()][chunk.index as usize] = (l, links[l].2);
-            links[l].2 += 1;
+            chunks[chunk.copy.index()][chunk.index as usize] = ChunkLink { link, position: links[link].2, segment };
+            links[link].2 += 1;
         }
     }
     LinkOrder { links, chunks }
@@ -94,15 +220,50 @@ mod tests {
         // Three copies of one chunk each, device 0 → 1: one link, positions 0, 1, 2.
         let order = order_of(&gather_plan(3, 16, 16).unwrap(), 1 << 20);
         assert_eq!(order.links, vec![(0, 1, 3)]);
-        let mut positions: Vec<u64> = order.chunks.iter().map(|c| c[0].1).collect();
+        let mut positions: Vec<u64> = order.chunks.iter().map(|c| c[0].position).collect();
         positions.sort_unstable();
         assert_eq!(positions, vec![0, 1, 2]);
-        assert!(order.chunks.iter().all(|c| c.len() == 1 && c[0].0 == 0));
+        assert!(order.chunks.iter().all(|c| c.len() == 1 && c[0].link == 0));
         // One copy cut into chunks: their positions follow the chunks' order.
         let order = order_of(&copy_plan(256, 256).unwrap(), 256 * 1024);
         assert_eq!(order.links.len(), 1);
-        let positions: Vec<u64> = order.chunks[0].iter().map(|&(_, p)| p).collect();
+        let positions: Vec<u64> = order.chunks[0].iter().map(|c| c.position).collect();
         assert_eq!(positions, (0..order.links[0].2).collect::<Vec<_>>());
         assert!(positions.len() > 1, "the copy is chunked");
+    }
+}
+
+#[cfg(test)]
+mod kind_tests {
+    use super::*;
+    use crate::context::{Context, ContextDesc, DeviceSelection};
+    use crate::instance::Validation;
+
+    #[test]
+    fn lavapipe_pairs_get_shared_by_default_relay_on_request_and_gpu_is_refused_naming_pair_and_extension() {
+        let context =
+            Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(2), validation: Validation::Core })
+                .unwrap();
+        let devices = &context.devices;
+        let auto = link_kinds(devices, None).unwrap();
+        assert_eq!((auto.of(0, 1), auto.of(1, 0)), (LinkKind::Shared, LinkKind::Shared));
+        assert_eq!(link_kinds(devices, Some(LinkKind::Relay)).unwrap().of(0, 1), LinkKind::Relay);
+        let refused = link_kinds(devices, Some(LinkKind::Gpu)).unwrap_err();
+        assert_eq!(
+            refused.to_string(),
+            format!(
+                "link kind `gpu` is unavailable from device 0 to device 1: device 0 ({}) lacks \
+                 VK_KHR_external_semaphore_fd (exportable and importable timeline semaphores)",
+                devices[0].info.name
+            )
+        );
+    }
+
+    #[test]
+    fn link_kinds_parse_from_their_names_only() {
+        for kind in LinkKind::ALL {
+            assert_eq!(kind.name().parse::<LinkKind>(), Ok(kind));
+        }
+        assert_eq!("peer".parse::<LinkKind>(), Err("unknown link kind `peer`".to_string()));
     }
 }

@@ -163,8 +163,9 @@ pub(crate) struct SegmentContext<'a> {
     pub image_slots: &'a HashMap<AllocId, u32>,
     pub slot: usize,
     pub query_pool: vk::QueryPool,
-    /// The staging buffer of this slot as seen by this device, and each copy's offset in it.
-    pub staging: Option<(vk::Buffer, &'a [u64])>,
+    /// Per copy, the staging buffer of this slot as seen by this device and the copy's offset
+    /// in it (device_state.rs `Staging::of_device`).
+    pub staging: &'a [(vk::Buffer, u64)],
     /// Addresses of the global buffers on this device, and of the slot's per-frame data.
     pub global_buffers: &'a HashMap<String, (u64, u64)>,
     pub frame_data_address: u64,
@@ -467,8 +468,8 @@ fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, d
         CopyDirection::In => copy.dst,
     });
     let resource = ctx.plan.resource(local);
-    let (staging, offsets) = ctx.staging.expect("a device with copies has a staging buffer");
-    let staging_offset = offsets[chunk.copy.index()] + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
+    let (staging, offset) = ctx.staging[chunk.copy.index()];
+    let staging_offset = offset + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
     if let Some(buffer) = ctx.buffers.get(&local) {
         let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
         let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();

@@ -56,6 +56,10 @@ pub(super) fn render_frames(
     // One message per device: a message is one line (crate::logging).
     context.to_string().lines().for_each(|line| tracing::info!("{line}"));
     job.one_frame.check_devices(&context)?;
+    // A link kind some pair cannot use is a usage error, found before any frame.
+    parallax_backend::link_kinds(context.devices(), args.link.kind()).map_err(|e| {
+        crate::options::UsageError(format!("--link {}: {e}; `--link auto` takes the best each pair offers", args.link.kind().map_or("auto", |k| k.name())))
+    })?;
     let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
     let options = ExecOptions {
         barriers: match args.barriers {
@@ -68,6 +72,7 @@ pub(super) fn render_frames(
         },
         frames_in_flight: args.frames_in_flight as usize,
         fault: fault_from_env()?,
+        link: args.link.kind(),
         shaders: extension.shaders.clone(),
         ..ExecOptions::default()
     };
@@ -78,15 +83,21 @@ pub(super) fn render_frames(
     let executor = renderer.executor();
     for link in executor.links() {
         tracing::info!(
-            "link device {} → device {}: {}, {} chunk(s) a frame",
+            "link device {} → device {}: {}, {} chunk(s) and {:.1} MiB a frame",
             link.from,
             link.to,
             link.kind.name(),
-            link.chunks_per_frame
+            link.chunks_per_frame,
+            link.bytes_per_frame as f64 / (1 << 20) as f64
         );
     }
-    if executor.host_staging_bytes() > 0 {
-        tracing::info!("host staging {:.1} MiB", executor.host_staging_bytes() as f64 / (1 << 20) as f64);
+    if !executor.links().is_empty() {
+        let mib = |bytes: u64| bytes as f64 / (1 << 20) as f64;
+        tracing::info!(
+            "staging: {:.1} MiB host, {:.1} MiB device",
+            mib(executor.host_staging_bytes()),
+            mib(executor.device_staging_bytes())
+        );
     }
 
     crate::outputs::create_folder(&args.out_dir)

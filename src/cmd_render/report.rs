@@ -128,16 +128,24 @@ struct Measured<'a> {
 }
 
 /// render.json's `links`: each (producer, consumer) device pair the plan copies over, how it
-/// moves data and how many chunks a frame; and the host staging memory they use.
+/// moves data and how many chunks and bytes a frame; and the host and device staging memory
+/// they use.
 fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
     let links: Vec<serde_json::Value> = executor
         .links()
         .iter()
         .map(|l| {
-            serde_json::json!({ "from": l.from, "to": l.to, "kind": l.kind.name(), "chunks_per_frame": l.chunks_per_frame })
+            serde_json::json!({
+                "from": l.from, "to": l.to, "kind": l.kind.name(),
+                "chunks_per_frame": l.chunks_per_frame, "bytes_per_frame": l.bytes_per_frame,
+            })
         })
         .collect();
-    serde_json::json!({ "pairs": links, "host_staging_bytes": executor.host_staging_bytes() })
+    serde_json::json!({
+        "pairs": links,
+        "host_staging_bytes": executor.host_staging_bytes(),
+        "device_staging_bytes": executor.device_staging_bytes(),
+    })
 }
 
 /// The pixels of the targets that no source covered and hole filling did not reach.

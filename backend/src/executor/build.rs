@@ -1,13 +1,14 @@
 //! Building the executor's state for a plan: device states (images kept across plan changes),
-//! copy chunks and their ready timelines, the fault gate, the submission order, staging and
+//! copy chunks and their links (kinds, semaphores), the fault gate, the submission order, staging and
 //! readback memory, relay threads.
 
 use ash::vk;
 
 use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result};
-use crate::links::{Link, link_order};
-use crate::plan::ExecutionPlan;
+use crate::link_memory::import_timeline;
+use crate::links::{Link, LinkKind, link_order};
+use crate::plan::{CopyId, ExecutionPlan};
 use crate::relay::Relay;
 use crate::segments::{Segment, chunks_of_copies, cross_device_waits, segment_devices, submission_order};
 use crate::texture::Texture;
@@ -51,22 +52,36 @@ impl Executor {
         let mut states = Vec::with_capacity(self.devices.len());
         let cut =
             segment_devices(&plan, &chunks, self.options.chunk_bytes, dropped_wait, self.options.separate_copy_queue);
+        let chunk_counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
+        let order = link_order(&plan, &cut, &chunk_counts);
+        let kinds: Vec<LinkKind> = order.links.iter().map(|&(from, to, _)| self.link_kinds.of(from, to)).collect();
+        let exports_progress =
+            |d: usize| order.links.iter().zip(&kinds).any(|(&(from, ..), &kind)| from == d && kind == LinkKind::Gpu);
         for ((d, device), segments) in self.devices.iter().enumerate().zip(cut) {
-            let state = create_device_state(device, &plan, d, segments, slots, &self.options, &mut kept)?;
+            let state =
+                create_device_state(device, &plan, d, segments, slots, &self.options, exports_progress(d), &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);
             states.push(state);
         }
         drop(kept);
         let segments: Vec<Vec<Segment>> = states.iter().map(|s| s.segments.clone()).collect();
-        let chunk_counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
-        let order = link_order(&plan, &segments, &chunk_counts);
+        let link_of_copy: Vec<usize> =
+            order.chunks.iter().map(|c| c.first().expect("a copy has at least one chunk").link).collect();
+        let mut bytes_per_frame = vec![0u64; order.links.len()];
+        for (c, &link) in link_of_copy.iter().enumerate() {
+            bytes_per_frame[link] += plan.copy_bytes(CopyId(c as u32));
+        }
         let mut links = Vec::with_capacity(order.links.len());
-        for &(from, to, per_frame) in &order.links {
-            let consumer = &mut states[to];
-            let ready = consumer.device.create_timeline(0)?;
-            consumer.ready.push(ready);
-            links.push(Link { from, to, ready, per_frame });
+        for (l, (&(from, to, per_frame), &kind)) in order.links.iter().zip(&kinds).enumerate() {
+            // The consumer waits on the producer's own progress timeline (`gpu`), or on a ready
+            // timeline of its own that the relay raises.
+            let ready = match kind {
+                LinkKind::Gpu => import_timeline(&self.devices[from], states[from].progress, &self.devices[to])?,
+                LinkKind::Shared | LinkKind::Relay => states[to].device.create_timeline(0)?,
+            };
+            states[to].ready.push(ready);
+            links.push(Link { from, to, kind, ready, per_frame, bytes_per_frame: bytes_per_frame[l] });
         }
         self.gate = match self.options.fault {
             Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(fault_gate(&plan, &mut states, copy)?),
@@ -79,7 +94,8 @@ impl Executor {
         }
         self.submission_order =
             submission_order(&waits).ok_or(BackendError::ExecutionPlan(crate::plan::ExecutionPlanError::WaitCycle))?;
-        self.staging = create_staging(&self.devices, &plan, slots)?;
+        let link_ends: Vec<(usize, usize, LinkKind)> = links.iter().map(|l| (l.from, l.to, l.kind)).collect();
+        self.staging = create_staging(&self.devices, &plan, &link_ends, &link_of_copy, slots)?;
         if let Some(readback) = &mut self.readback {
             readback.allocate(&self.devices[0], &plan, slots)?;
         }
@@ -89,8 +105,12 @@ impl Executor {
         self.links = links;
         self.chunk_links = order.chunks;
         self.needs_record = true;
-        let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
-        self.relay = Some(Relay::new(&self.devices, &progress)?);
+        // Relay threads only where a signal is forwarded by the host: none when every link
+        // waits on the GPU.
+        if self.links.iter().any(|l| l.kind.relayed()) || self.gate.is_some() {
+            let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
+            self.relay = Some(Relay::new(&self.devices, &progress)?);
+        }
         self.plan_epoch = self.next_frame;
         self.history_origin = self.next_frame;
         Ok(())

@@ -4,9 +4,10 @@
 //! * Within a device, submissions are ordered by the queue and made memory-safe by barriers;
 //!   each submission signals the device's progress timeline (values from
 //!   [`crate::segments::progress_value`]).
-//! * Across devices, the consumer's copy-in waits on the "ready" timeline of its link (one per
-//!   producer and consumer device, [`crate::links`]) that a host relay thread raises once the
-//!   producer's copy-out is done ([`crate::relay`]).
+//! * Across devices, the consumer's copy-in waits on its link (one per producer and consumer
+//!   device, [`crate::links`]): on the producer's progress timeline imported into the consumer
+//!   (`gpu` links), or on a "ready" timeline that a host relay thread raises once the producer's
+//!   copy-out is done ([`crate::relay`]).
 //! * The host submits a frame's segments across the devices in an order where each comes after
 //!   every segment it waits for ([`crate::segments::submission_order`]), keeping at most
 //!   `max_queued_segments` of a device's segments queued: everything submitted can complete,
@@ -46,7 +47,7 @@ use crate::device_state::{DeviceState, Staging};
 use crate::error::Result;
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
-use crate::links::{Link, LinkInfo, LinkKind};
+use crate::links::{ChunkLink, Link, LinkInfo, LinkKinds, link_kinds};
 use crate::memory::Buffer;
 use crate::plan::ExecutionPlan;
 use crate::readback::Readback;
@@ -92,8 +93,10 @@ pub struct Executor {
     states: Vec<DeviceState>,
     /// The plan's links (their ready timelines are owned by the consumer's state).
     links: Vec<Link>,
-    /// Per copy and chunk: its link and its position among the link's chunks of a frame.
-    chunk_links: Vec<Vec<(usize, u64)>>,
+    /// Per copy and chunk: its link, position among the link's chunks, producer segment.
+    chunk_links: Vec<Vec<ChunkLink>>,
+    /// The kind of link between every two devices, chosen at creation.
+    link_kinds: LinkKinds,
     staging: Option<Staging>,
     relay: Option<Relay>,
     gate: Option<FaultGate>,
@@ -127,9 +130,11 @@ pub struct Executor {
 }
 
 impl Executor {
-    /// Validates `plan` and allocates its resources. Command buffers are recorded at the first
+    /// Chooses the links between devices (refusing a requested kind some pair cannot use),
+    /// validates `plan` and allocates its resources. Command buffers are recorded at the first
     /// frame (so global buffers can be uploaded first) and then reused.
     pub fn new(context: &Context, plan: ExecutionPlan, options: ExecOptions) -> Result<Self> {
+        let link_kinds = link_kinds(&context.devices, options.link)?;
         let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
             instance: context.instance.clone(),
@@ -140,6 +145,7 @@ impl Executor {
             states: Vec::new(),
             links: Vec::new(),
             chunk_links: Vec::new(),
+            link_kinds,
             staging: None,
             relay: None,
             gate: None,
@@ -210,13 +216,26 @@ impl Executor {
 
     /// The plan's links between devices, one per (producer, consumer) pair it copies over.
     pub fn links(&self) -> Vec<LinkInfo> {
-        let info = |l: &Link| LinkInfo { from: l.from, to: l.to, kind: LinkKind::Relay, chunks_per_frame: l.per_frame };
+        let info = |l: &Link| LinkInfo {
+            from: l.from,
+            to: l.to,
+            kind: l.kind,
+            chunks_per_frame: l.per_frame,
+            bytes_per_frame: l.bytes_per_frame,
+        };
         self.links.iter().map(info).collect()
     }
 
-    /// Bytes of host staging memory the plan's copies use, over every frame-in-flight slot.
+    /// Bytes of host staging memory the plan's copies use (`relay` links), over every
+    /// frame-in-flight slot.
     pub fn host_staging_bytes(&self) -> u64 {
-        self.staging.as_ref().map_or(0, |s| s.bytes * s.buffers.len() as u64)
+        self.staging.as_ref().map_or(0, |s| s.host_bytes)
+    }
+
+    /// Bytes of device staging memory the plan's copies use (`gpu` and `shared` links), over
+    /// every frame-in-flight slot.
+    pub fn device_staging_bytes(&self) -> u64 {
+        self.staging.as_ref().map_or(0, |s| s.device_bytes)
     }
 
     /// Clock calibration of each device (GPU → host CLOCK_MONOTONIC).

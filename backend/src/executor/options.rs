@@ -54,6 +54,10 @@ pub struct ExecOptions {
     pub barriers: Barriers,
     /// What each GPU timestamp pair covers.
     pub timing: Timing,
+    /// The kind of every link between two devices (links.rs): `None` takes the best each pair
+    /// offers; a kind some pair cannot use makes `Executor::new` fail with
+    /// `BackendError::LinkUnavailable` naming the pair and what it lacks.
+    pub link: Option<crate::links::LinkKind>,
 }
 
 /// Where barriers go between the ops of a device (record.rs).
@@ -98,6 +102,7 @@ impl Default for ExecOptions {
             max_queued_segments: 256,
             barriers: Barriers::EveryOp,
             timing: Timing::PerOp,
+            link: None,
         }
     }
 }

@@ -31,8 +31,7 @@ impl Executor {
                     Some(readback) if d == 0 => readback.targets(slot),
                     _ => Vec::new(),
                 };
-                let staging =
-                    self.staging.as_ref().and_then(|s| s.buffers[slot].buffer_on(d).map(|b| (b, s.offsets.as_slice())));
+                let staging = self.staging.as_ref().map(|s| s.of_device(d, slot)).unwrap_or_default();
                 let mut ctx = SegmentContext {
                     barriers: self.options.barriers,
                     raw: &state.device.raw,
@@ -44,7 +43,7 @@ impl Executor {
                     image_slots: &state.image_slots,
                     slot,
                     query_pool: state.slots[slot].query_pool,
-                    staging,
+                    staging: &staging,
                     global_buffers: &addresses[d],
                     buffers: &state.buffers,
                     buffer_addresses: &buffer_addresses,

@@ -10,6 +10,7 @@ use crate::device::host_now_ns;
 use crate::error::{BackendError, Result};
 use crate::frame_block::FrameConstants;
 use crate::readback::FrameTicket;
+use crate::links::{ChunkLink, LinkKind};
 use crate::relay::RelayJob;
 use crate::segments::{Run, progress_value, ready_value};
 
@@ -55,7 +56,9 @@ impl Executor {
             self.retire_oldest()?;
         }
         let slot_wait_ns = slot_wait.elapsed().as_nanos() as u64;
-        self.relay.as_ref().expect("relay exists after build").check()?;
+        if let Some(relay) = &self.relay {
+            relay.check()?;
+        }
         if self.needs_record {
             self.record_all()?;
         }
@@ -161,8 +164,14 @@ impl Executor {
             .waits
             .iter()
             .map(|wait| {
-                let (l, position) = self.chunk_links[wait.copy.index()][wait.chunk as usize];
-                on(self.links[l].ready, ready_value(local, self.links[l].per_frame, position))
+                let chunk = self.chunk_links[wait.copy.index()][wait.chunk as usize];
+                let link = &self.links[chunk.link];
+                let value = match link.kind {
+                    // The producer's progress value of the segment that completes the chunk.
+                    LinkKind::Gpu => progress_value(local, self.states[link.from].segments.len(), chunk.segment),
+                    LinkKind::Shared | LinkKind::Relay => ready_value(local, link.per_frame, chunk.position),
+                };
+                on(link.ready, value)
             })
             .collect();
         // A segment on another queue than its predecessor (in program order, across the frame
@@ -191,14 +200,19 @@ impl Executor {
 
     /// Relay jobs of the copy-outs in `run`, in segment order (see relay.rs).
     fn queue_relays(&self, run: &Run, local: u64) -> Result<()> {
-        let relay = self.relay.as_ref().expect("relay exists after build");
+        let Some(relay) = &self.relay else {
+            return Ok(());
+        };
         let d = run.device;
         let segment_count = self.states[d].segments.len();
         for j in run.segments.clone() {
             let watch_value = progress_value(local, segment_count, j);
             for chunk in &self.states[d].segments[j].relays {
-                let link = &self.links[self.chunk_links[chunk.copy.index()][chunk.index as usize].0];
-                let position = self.chunk_links[chunk.copy.index()][chunk.index as usize].1;
+                let ChunkLink { link, position, .. } = self.chunk_links[chunk.copy.index()][chunk.index as usize];
+                let link = &self.links[link];
+                if !link.kind.relayed() {
+                    continue;
+                }
                 relay.push(
                     d,
                     RelayJob {
