@@ -143,7 +143,10 @@ pub fn bench_copy(args: BenchCopyArgs) -> Result<()> {
         };
         if copies.is_empty() {
             for d in &copy.devices {
-                say(format!("device {}: {} ({} {}, Vulkan {})", d.index, d.name, d.driver, d.driver_info, d.api_version));
+                say(format!(
+                    "device {}: {} ({} {}, Vulkan {})",
+                    d.index, d.name, d.driver, d.driver_info, d.api_version
+                ));
             }
         }
         let rate = |r: Option<f64>| r.map_or("n/a".to_string(), |r| format!("{r:.2}"));

@@ -11,8 +11,26 @@ fn render_linked(dir: &std::path::Path, kind: &str) -> std::process::Output {
     parallax_in(
         dir,
         &[
-            "-q", "render", "--lf", "4x2", "--resolution", "16x16", "--scheme", "fine-all", "--fake-devices", "2",
-            "--spp", "1", "--frames", "1", "--warmup", "0", "--link", kind, "--out-dir", "out",
+            "-q",
+            "render",
+            "--lf",
+            "4x2",
+            "--resolution",
+            "16x16",
+            "--scheme",
+            "fine-all",
+            "--fake-devices",
+            "2",
+            "--spp",
+            "1",
+            "--frames",
+            "1",
+            "--warmup",
+            "0",
+            "--link",
+            kind,
+            "--out-dir",
+            "out",
         ],
     )
 }
@@ -29,10 +47,7 @@ fn link_relay_moves_every_pair_through_host_staging_and_render_json_says_so() {
         pairs.iter().map(|p| (p["from"].as_u64().unwrap(), p["to"].as_u64().unwrap())).collect();
     ends.sort_unstable();
     assert_eq!(ends, vec![(0, 1), (1, 0)]);
-    assert!(
-        pairs.iter().all(|p| p["kind"] == "relay" && p["bytes_per_frame"].as_u64().unwrap() > 0),
-        "{pairs:?}"
-    );
+    assert!(pairs.iter().all(|p| p["kind"] == "relay" && p["bytes_per_frame"].as_u64().unwrap() > 0), "{pairs:?}");
     assert!(links["host_staging_bytes"].as_u64().unwrap() > 0, "{links}");
     assert_eq!(links["device_staging_bytes"].as_u64(), Some(0), "{links}");
     assert_eq!(json["run"]["link"], "relay");

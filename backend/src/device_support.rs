@@ -154,9 +154,9 @@ fn shares_timelines(instance: &Instance, physical: vk::PhysicalDevice) -> bool {
         .push_next(&mut timeline);
     let mut props = vk::ExternalSemaphoreProperties::default();
     unsafe { instance.raw.get_physical_device_external_semaphore_properties(physical, &info, &mut props) };
-    props.external_semaphore_features.contains(
-        vk::ExternalSemaphoreFeatureFlags::EXPORTABLE | vk::ExternalSemaphoreFeatureFlags::IMPORTABLE,
-    )
+    props
+        .external_semaphore_features
+        .contains(vk::ExternalSemaphoreFeatureFlags::EXPORTABLE | vk::ExternalSemaphoreFeatureFlags::IMPORTABLE)
 }
 
 /// Calibration is only useful when the device can sample CLOCK_MONOTONIC, the clock the host side

@@ -4,7 +4,9 @@
 //!   devices on one physical device (`--fake-devices N`).
 //! * [`ExecutionPlan`]: what the executor runs, lowered from the graph crate's `Schedule`.
 //! * [`Executor`]: records per-device command buffers once, submits frames with timeline
-//!   semaphores, moves cross-device copies through host memory imported into both devices, and
+//!   semaphores, moves cross-device copies over one link per device pair of the kind
+//!   [`link_kinds`] chooses (device memory shared by logical devices of one GPU, with GPU-side
+//!   or host-forwarded waits, or host memory imported into both devices), and
 //!   times every pass instance and copy, or every run of one pass's instances ([`Timing`];
 //!   [`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];

@@ -24,8 +24,9 @@ use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 
 /// Usage of every shared staging buffer: written by one copy, read by another.
-pub(crate) const SHARED_BUFFER_USAGE: vk::BufferUsageFlags =
-    vk::BufferUsageFlags::from_raw(vk::BufferUsageFlags::TRANSFER_SRC.as_raw() | vk::BufferUsageFlags::TRANSFER_DST.as_raw());
+pub(crate) const SHARED_BUFFER_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
+    vk::BufferUsageFlags::TRANSFER_SRC.as_raw() | vk::BufferUsageFlags::TRANSFER_DST.as_raw(),
+);
 
 const HANDLE: vk::ExternalMemoryHandleTypeFlags = vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD;
 
@@ -258,8 +259,8 @@ mod tests {
         let shared = SharedDeviceBuffer::new(producer, &[consumer], 256).unwrap();
         let on_producer = shared.buffer_on(0).unwrap();
         producer.one_shot(|cb| unsafe { producer.raw.cmd_fill_buffer(cb, on_producer, 64, 128, 0x1234_5678) }).unwrap();
-        let read = Buffer::new(consumer, "read", 256, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)
-            .unwrap();
+        let read =
+            Buffer::new(consumer, "read", 256, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu).unwrap();
         let on_consumer = shared.buffer_on(1).unwrap();
         let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: 256 };
         consumer.one_shot(|cb| unsafe { consumer.raw.cmd_copy_buffer(cb, on_consumer, read.raw, &[region]) }).unwrap();

@@ -62,7 +62,8 @@ impl LinkKind {
 
     /// Why devices `producer` → `consumer` cannot use this kind, or `None` if they can.
     fn missing(self, producer: &Device, consumer: &Device) -> Option<String> {
-        let lacks = |device: &Device, what: &str| format!("device {} ({}) lacks {what}", device.info.index, device.info.name);
+        let lacks =
+            |device: &Device, what: &str| format!("device {} ({}) lacks {what}", device.info.index, device.info.name);
         let one_gpu = || {
             (producer.uuids != consumer.uuids).then(|| {
                 "the two devices are not one physical GPU under one driver (deviceUUID/driverUUID differ), which \
@@ -71,15 +72,17 @@ impl LinkKind {
             })
         };
         let memory_fd = || {
-            [producer, consumer].into_iter().find(|d| d.external_memory_fd.is_none()).map(|d| {
-                lacks(d, "VK_KHR_external_memory_fd (exportable and importable transfer buffers)")
-            })
+            [producer, consumer]
+                .into_iter()
+                .find(|d| d.external_memory_fd.is_none())
+                .map(|d| lacks(d, "VK_KHR_external_memory_fd (exportable and importable transfer buffers)"))
         };
         match self {
             LinkKind::Gpu => one_gpu().or_else(memory_fd).or_else(|| {
-                [producer, consumer].into_iter().find(|d| d.external_semaphore_fd.is_none()).map(|d| {
-                    lacks(d, "VK_KHR_external_semaphore_fd (exportable and importable timeline semaphores)")
-                })
+                [producer, consumer]
+                    .into_iter()
+                    .find(|d| d.external_semaphore_fd.is_none())
+                    .map(|d| lacks(d, "VK_KHR_external_semaphore_fd (exportable and importable timeline semaphores)"))
             }),
             LinkKind::Shared => one_gpu().or_else(memory_fd),
             LinkKind::Relay => [producer, consumer]
@@ -119,7 +122,9 @@ pub fn link_kinds(devices: &[Arc<Device>], requested: Option<LinkKind>) -> Resul
             let kind = match requested {
                 Some(kind) => match kind.missing(producer, consumer) {
                     None => kind,
-                    Some(missing) => return Err(BackendError::LinkUnavailable { kind: kind.name(), from, to, missing }),
+                    Some(missing) => {
+                        return Err(BackendError::LinkUnavailable { kind: kind.name(), from, to, missing });
+                    }
                 },
                 None => {
                     let best = LinkKind::ALL.into_iter().find(|k| k.missing(producer, consumer).is_none());

@@ -276,7 +276,7 @@ fn record_items(
             Item::Pass(_) => bound = record_passes(ctx, cb, &segment.items[op.clone()], bound)?,
             Item::CopyOut(chunk) => {
                 record_copy(ctx, cb, &chunk, CopyDirection::Out);
-                // The other device reads the bytes through host memory.
+                // The other device reads the bytes, through host memory on a `relay` link.
                 copies_to_host_barrier(raw, cb);
             }
             Item::CopyIn(chunk) => record_copy(ctx, cb, &chunk, CopyDirection::In),
@@ -461,7 +461,6 @@ enum CopyDirection {
 
 /// Copies one chunk between the resource and its place in the staging buffer.
 fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, direction: CopyDirection) {
-    let raw = ctx.raw;
     let copy = ctx.plan.copy(chunk.copy);
     let local = ctx.resolve(match direction {
         CopyDirection::Out => copy.resource,
@@ -470,9 +469,60 @@ fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, d
     let resource = ctx.plan.resource(local);
     let (staging, offset) = ctx.staging[chunk.copy.index()];
     let staging_offset = offset + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
+    let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
+    let range = (staging, staging_offset, size);
+    if direction == CopyDirection::In {
+        external_ownership(ctx, cb, range, direction);
+    }
+    record_chunk_copy(ctx, cb, chunk, direction, local, range);
+    if direction == CopyDirection::Out {
+        external_ownership(ctx, cb, range, direction);
+    }
+}
+
+/// Passes the ownership of a staging range to the other `VkDevice` after a copy-out, or takes
+/// it back before a copy-in (`VK_QUEUE_FAMILY_EXTERNAL`): the spec asks this of every resource
+/// on memory shared with another instance or device, whatever its sharing mode
+/// (resources-external-sharing). The semaphore between the two orders release and acquire.
+fn external_ownership(
+    ctx: &SegmentContext<'_>,
+    cb: vk::CommandBuffer,
+    (buffer, offset, size): (vk::Buffer, u64, u64),
+    direction: CopyDirection,
+) {
+    // Staging buffers are concurrent over the device's queue families when it has several
+    // (link_memory.rs, memory.rs): the local side of the transfer is then IGNORED.
+    let local = if ctx.device.families().len() > 1 { vk::QUEUE_FAMILY_IGNORED } else { ctx.device.queue_family };
+    let barrier = vk::BufferMemoryBarrier2::default().buffer(buffer).offset(offset).size(size);
+    let barrier = match direction {
+        CopyDirection::Out => barrier
+            .src_stage_mask(vk::PipelineStageFlags2::COPY)
+            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+            .src_queue_family_index(local)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL),
+        CopyDirection::In => barrier
+            .dst_stage_mask(vk::PipelineStageFlags2::COPY)
+            .dst_access_mask(vk::AccessFlags2::TRANSFER_READ)
+            .src_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL)
+            .dst_queue_family_index(local),
+    };
+    let barriers = [barrier];
+    unsafe { ctx.raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().buffer_memory_barriers(&barriers)) };
+}
+
+/// The copy of one chunk between the resource `local` and the staging `range`.
+fn record_chunk_copy(
+    ctx: &SegmentContext<'_>,
+    cb: vk::CommandBuffer,
+    chunk: &Chunk,
+    direction: CopyDirection,
+    local: AllocId,
+    (staging, staging_offset, size): (vk::Buffer, u64, u64),
+) {
+    let raw = ctx.raw;
+    let resource = ctx.plan.resource(local);
     if let Some(buffer) = ctx.buffers.get(&local) {
         let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
-        let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
         let (src, dst, region) = match direction {
             CopyDirection::Out => {
                 (buffer.raw, staging, vk::BufferCopy { src_offset: resource_offset, dst_offset: staging_offset, size })

@@ -1,8 +1,10 @@
-//! Cross-device ordering without exported semaphores: one host thread per producer device waits
-//! on that device's progress timeline and signals the consumer device's timeline.
+//! Cross-device ordering without shared semaphores (`shared` and `relay` links, links.rs): one
+//! host thread per device waits on that device's progress timeline and signals the consumer
+//! device's timeline. Not started when every link waits on the GPU (`gpu` links) and no fault
+//! is injected.
 //!
-//! Lavapipe has no VK_KHR_external_semaphore_fd, and the same code path must run there and on
-//! GPUs. The render thread only enqueues jobs; it never waits for a producer.
+//! Lavapipe has no VK_KHR_external_semaphore_fd, nor do separate GPUs share timelines. The
+//! render thread only enqueues jobs; it never waits for a producer.
 //!
 //! Deadlock freedom: jobs watching one device are enqueued in the order that device's segments
 //! are submitted, so their watched values increase; a job can only block later jobs of the same

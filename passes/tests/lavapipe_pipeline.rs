@@ -6,7 +6,7 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{Barriers, EventKind, ExecOptions, ExecutionPlan, FrameReport, KernelGraph, Timing};
+use parallax_backend::{Barriers, EventKind, ExecOptions, ExecutionPlan, FrameReport, KernelGraph, LinkKind, Timing};
 use parallax_graph::{
     AssignStrategy, DeviceId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region, Scheme,
     ViewId, compile,
@@ -120,6 +120,24 @@ fn every_scheme_gives_the_same_bits_on_one_and_three_devices() {
         let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
         assert!(finite(&three), "{scheme:?}: finite");
         assert!(three == one, "{scheme:?}: 3 devices and 1 device differ");
+    }
+}
+
+#[test]
+fn fine_schemes_give_the_same_bits_on_one_and_three_devices_over_each_lavapipe_link_kind() {
+    // Lavapipe offers `shared` (opaque-fd memory, relayed signals) and `relay` (host staging);
+    // `gpu` needs VK_KHR_external_semaphore_fd, which it lacks (refused: backend links.rs).
+    let scene = default_scene();
+    let lf = light_field(&scene, scene.default_camera(), 0.02);
+    for scheme in [Scheme::FineAll, Scheme::FineSources] {
+        let config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources: Some(vec![1, 6]) };
+        let plan = Plan::new(&lf, &config).unwrap();
+        let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
+        for kind in [LinkKind::Shared, LinkKind::Relay] {
+            let options = ExecOptions { link: Some(kind), ..ExecOptions::default() };
+            let (three, _) = run_with(&scene, &lf, &plan, &plan, 0..FRAMES, None, options);
+            assert!(three == one, "{scheme:?} over {kind:?} links: 3 devices and 1 device differ");
+        }
     }
 }
 

@@ -58,7 +58,10 @@ pub(super) fn render_frames(
     job.one_frame.check_devices(&context)?;
     // A link kind some pair cannot use is a usage error, found before any frame.
     parallax_backend::link_kinds(context.devices(), args.link.kind()).map_err(|e| {
-        crate::options::UsageError(format!("--link {}: {e}; `--link auto` takes the best each pair offers", args.link.kind().map_or("auto", |k| k.name())))
+        crate::options::UsageError(format!(
+            "--link {}: {e}; `--link auto` takes the best each pair offers",
+            args.link.kind().map_or("auto", |k| k.name())
+        ))
     })?;
     let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
     let options = ExecOptions {

@@ -9,8 +9,8 @@ use ash::vk;
 use crate::device::host_now_ns;
 use crate::error::{BackendError, Result};
 use crate::frame_block::FrameConstants;
-use crate::readback::FrameTicket;
 use crate::links::{ChunkLink, LinkKind};
+use crate::readback::FrameTicket;
 use crate::relay::RelayJob;
 use crate::segments::{Run, progress_value, ready_value};
 

@@ -18,7 +18,12 @@ impl Executor {
     fn unblock_device_waits(&mut self) {
         self.relay = None;
         let local = self.next_frame.saturating_sub(self.plan_epoch);
-        for link in &self.links {
+        // A `gpu` link's consumer waits on the producer's own progress, which only its GPU may
+        // raise (a host signal below a later GPU signal would break the timeline). It needs no
+        // help: every segment is submitted after the segments it waits for
+        // (`submission_order`), so once the relayed waits are released everything submitted
+        // can run to its end.
+        for link in self.links.iter().filter(|l| l.kind.relayed()) {
             let value = ready_value(local, link.per_frame, link.per_frame.saturating_sub(1));
             raise_timeline(&self.devices[link.to], link.ready, value);
         }
