@@ -120,17 +120,18 @@ impl Staging {
     }
 }
 
-/// Creates images, descriptor layout, command buffers and query pools of device `d`.
+/// Creates images, descriptor layout, command buffers and query pools of `device` (its
+/// progress timeline exportable with `export_progress`: it produces for `gpu` links).
 pub(crate) fn create_device_state(
     device: &Arc<Device>,
     plan: &ExecutionPlan,
-    d: usize,
     segments: Vec<Segment>,
     slots: usize,
     options: &ExecOptions,
     export_progress: bool,
     kept: &mut Kept,
 ) -> Result<DeviceState> {
+    let d = device.info.index;
     let shaders = &options.shaders;
     let (resources, buffer_resources): (Vec<AllocId>, Vec<AllocId>) = plan
         .resources_of_device(DeviceId(d as u32))

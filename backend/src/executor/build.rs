@@ -59,7 +59,7 @@ impl Executor {
             |d: usize| order.links.iter().zip(&kinds).any(|(&(from, ..), &kind)| from == d && kind == LinkKind::Gpu);
         for ((d, device), segments) in self.devices.iter().enumerate().zip(cut) {
             let state =
-                create_device_state(device, &plan, d, segments, slots, &self.options, exports_progress(d), &mut kept)?;
+                create_device_state(device, &plan, segments, slots, &self.options, exports_progress(d), &mut kept)?;
             let views: Vec<vk::ImageView> = self.textures[d].iter().map(Texture::view).collect();
             state.bindless.set_textures(&views);
             states.push(state);
