@@ -1,4 +1,5 @@
 #version 460
+#extension GL_EXT_control_flow_attributes : require
 // SVGF, steps 3–7 (`svgf_atrous_1` … `svgf_atrous_5`): one à-trous iteration (after Schied §4.3,
 // with a 3×3 kernel: 9 taps instead of the 5×5 B3 spline's 25): a kernel h of 1/4, 1/2, 1/4 per
 // axis with taps `step` pixels apart, each weighted by svgf_edge_weight (depth, normal,
@@ -44,24 +45,41 @@ shared vec4 tile_geometry[MAX_TILE * MAX_TILE];     // normal xyz (0: no hit or 
 // use (f32 bits)
 shared uvec4 tile_packed[MAX_TILE * MAX_TILE];
 
-// Reads the size² entries origin + step * (i, j), row-major.
+// Entries an invocation reads, rounded up (the first iteration's 12 × 12: three rounds of 64).
+const int LOAD_ROUNDS = (MAX_TILE * MAX_TILE + 63) / 64;
+
+// Reads the size² entries origin + step * (i, j), row-major. Every round's texels are requested
+// before the first is used, so an invocation's loads are in flight together and a workgroup waits
+// for memory once, not once a round (a loop over the rounds, its bound known only at run time,
+// waited for each round's loads before requesting the next's).
 void load_tile(ivec2 origin, int step, int size) {
-    for (uint e = gl_LocalInvocationIndex; e < uint(size * size); e += 64u) {
+    vec4 illumination[LOAD_ROUNDS];
+    vec4 guide[LOAD_ROUNDS];
+    vec3 albedo[LOAD_ROUNDS];
+    [[unroll]] for (int k = 0; k < LOAD_ROUNDS; k++) {
+        uint e = gl_LocalInvocationIndex + 64u * uint(k);
         ivec2 q = origin + step * ivec2(int(e % uint(size)), int(e / uint(size)));
-        vec4 illumination = vec4(0.0);
-        vec4 guide = vec4(0.0);
-        vec3 albedo = vec3(1.0);
-        if (svgf_inside(q)) {
-            illumination = imageLoad(images[pc.in0], q);
-            guide = imageLoad(images[pc.in1], q);
-            albedo = imageLoad(images[pc.in2], q).rgb;
+        illumination[k] = vec4(0.0);
+        guide[k] = vec4(0.0);
+        albedo[k] = vec3(1.0);
+        if (e < uint(size * size) && svgf_inside(q)) {
+            illumination[k] = imageLoad(images[pc.in0], q);
+            guide[k] = imageLoad(images[pc.in1], q);
+            albedo[k] = imageLoad(images[pc.in2], q).rgb;
         }
-        bool hit = guide.x > 0.0;
-        float l = hit ? svgf_illumination_luminance(illumination.rgb * albedo, albedo) : 0.0;
-        tile_illumination[e] = vec4(illumination.rgb, l);
-        tile_geometry[e] = vec4(hit ? svgf_unpack_normal(guide.w) : vec3(0.0), hit ? guide.x : 0.0);
-        tile_packed[e] = uvec4(packHalf2x16(guide.yz), packHalf2x16(albedo.rg),
-                               packHalf2x16(vec2(albedo.b, svgf_luminance(albedo))), floatBitsToUint(illumination.a));
+    }
+    [[unroll]] for (int k = 0; k < LOAD_ROUNDS; k++) {
+        uint e = gl_LocalInvocationIndex + 64u * uint(k);
+        if (e >= uint(size * size)) {
+            continue;
+        }
+        bool hit = guide[k].x > 0.0;
+        float l = hit ? svgf_illumination_luminance(illumination[k].rgb * albedo[k], albedo[k]) : 0.0;
+        tile_illumination[e] = vec4(illumination[k].rgb, l);
+        tile_geometry[e] = vec4(hit ? svgf_unpack_normal(guide[k].w) : vec3(0.0), hit ? guide[k].x : 0.0);
+        tile_packed[e] = uvec4(packHalf2x16(guide[k].yz), packHalf2x16(albedo[k].rg),
+                               packHalf2x16(vec2(albedo[k].b, svgf_luminance(albedo[k]))),
+                               floatBitsToUint(illumination[k].a));
     }
 }
 
@@ -113,8 +131,6 @@ float centre_variance;
 vec3 inverse_albedo;
 float inverse_albedo_luminance;
 float spacing;
-// Sums over the taps: the change of the illumination, the shares (luminance) and the
-// propagated variance.
 vec3 change;
 float share_sum;
 float variance_sum;
