@@ -190,12 +190,16 @@ float svgf_geometry_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 n
 // pixels base + step * (lx, ly), all of one phase (x mod step, y mod step), so the taps of a
 // whole workgroup are one (8 + 2 halo)² block of that phase's subgrid and fit in shared memory
 // for every step. Rows are absolute: phase py owns rows py + step * j, j from y0 / step.
-// parallax_passes::svgf::phase_groups gives the dispatch size.
+// parallax_passes::svgf::phase_groups gives the dispatch size. Steps are powers of two
+// (parallax_passes::svgf::ATROUS_STEPS), so the divisions by one are shifts and masks (an
+// integer division by a value known only at run time is a loop of a dozen instructions or more).
 ivec2 svgf_tile_base(uint step) {
+    uint shift = uint(findLSB(step));
+    uint phase = step - 1u;
     uint gx = gl_WorkGroupID.x;
     uint gy = gl_WorkGroupID.y;
-    uint j0 = pc.y0 / step;
-    return ivec2(gx % step + step * 8u * (gx / step), gy % step + step * (j0 + 8u * (gy / step)));
+    uint j0 = pc.y0 >> shift;
+    return ivec2((gx & phase) + step * 8u * (gx >> shift), (gy & phase) + step * (j0 + 8u * (gy >> shift)));
 }
 
 #endif

@@ -53,10 +53,18 @@ pub const SVGF_VARIANCE: &str = "svgf_variance";
 pub const SVGF_ACCUM: &str = "svgf_accum";
 /// Accumulation history: the running mean of the squared illumination luminance.
 pub const SVGF_ACCUM_M2: &str = "svgf_accum_m2";
-/// Tap spacing of the à-trous iterations, in pixels. The first and the last iteration run shaders
-/// of their own ([`Stage::shader`]), so there are at least two.
+/// Tap spacing of the à-trous iterations, in pixels: powers of two (shaders/svgf.glsl divides by
+/// a step with shifts), at least two of them (the first and the last iteration run shaders of
+/// their own, shaders/svgf_atrous.glsl).
 pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
-const _: () = assert!(ATROUS_STEPS.len() >= 2);
+const _: () = {
+    assert!(ATROUS_STEPS.len() >= 2);
+    let mut i = 0;
+    while i < ATROUS_STEPS.len() {
+        assert!(ATROUS_STEPS[i].is_power_of_two());
+        i += 1;
+    }
+};
 
 // This frame's copies of the history ([`Stage::History`]) and the intermediate images.
 const PREV_COLOR: &str = "svgf_prev_color";
