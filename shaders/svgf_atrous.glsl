@@ -137,10 +137,15 @@ float centre_luminance;
 vec3 centre_normal;
 float centre_depth;
 float centre_variance;
-vec3 inverse_albedo;
+vec3 centre_albedo;
 float inverse_albedo_luminance;
 float spacing;
-vec3 change;
+// Sums over the taps, per channel u_q = h w_pq min(a_p, a_q): Σ u_q E_q and Σ u_q, from which
+// the change of the illumination is (Σ u_q E_q − E_p Σ u_q) / a_p (the exchange above, with one
+// division per pixel instead of a product, a minimum and a difference per tap); the shares
+// (luminance) and the propagated variance.
+vec3 exchanged;
+vec3 exchange_weight;
 float share_sum;
 float variance_sum;
 
@@ -161,7 +166,9 @@ void tap(int e, float h, vec2 direction, float reach_p) {
     float reach_q = svgf_depth_reach(geometry_q.w, unpackHalf2x16(packed_q.x), direction, spacing);
     float w = h * svgf_edge_weight(d, centre_depth, geometry_q.w, reach_p + reach_q, centre_luminance,
                                    illumination_q.w, centre_variance, v_q);
-    change += (w * min(vec3(1.0), albedo_q * inverse_albedo)) * (illumination_q.rgb - centre_illumination);
+    vec3 u = w * min(centre_albedo, albedo_q);
+    exchanged += u * illumination_q.rgb;
+    exchange_weight += u;
     float share = w * min(1.0, blue_luminance_q.y * inverse_albedo_luminance);
     share_sum += share;
     variance_sum += share * share * v_q;
@@ -209,10 +216,11 @@ void main() {
     centre_normal = geometry.xyz;
     centre_depth = geometry.w;
     centre_variance = uintBitsToFloat(packed.w);
-    inverse_albedo = 1.0 / albedo;
+    centre_albedo = albedo;
     inverse_albedo_luminance = 1.0 / blue_luminance.y;
     spacing = float(step);
-    change = vec3(0.0);
+    exchanged = vec3(0.0);
+    exchange_weight = vec3(0.0);
     share_sum = 0.0;
     variance_sum = 0.0;
     // The four directions of the taps (the depth scale takes |gradient · direction|).
@@ -234,6 +242,7 @@ void main() {
     tap(c + SIZE - 1, CORNER, ANTIDIAGONAL, reach_antidiagonal);
     tap(c + SIZE, EDGE, DOWN, reach_down);
     tap(c + SIZE + 1, CORNER, DIAGONAL, reach_diagonal);
+    vec3 change = (exchanged - exchange_weight * centre_illumination) / albedo;
     vec3 illumination = min(max(centre_illumination + change, vec3(0.0)), vec3(MAX_VALUE));
     float kept = max(0.0, 1.0 - share_sum);
     float variance = min(variance_sum + kept * kept * centre_variance, MAX_VALUE);
