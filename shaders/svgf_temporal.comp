@@ -239,7 +239,8 @@ void main() {
     // still camera, its accumulation history, all requested before any is used, hit or not:
     // the pass waits for memory once here and once for the history through `motion`, where
     // reading each where it is used (after the depth told a hit, then after the motion) waited
-    // three or four times. A pixel without a hit uses its radiance and accumulation only.
+    // three or four times. A pixel without a hit uses its radiance and accumulation only; on a
+    // still camera the motion is read only where the accumulation restarts (below).
     float z = 0.0;
     vec3 radiance = vec3(0.0);
     vec3 albedo_texel = vec3(0.0);
@@ -253,7 +254,9 @@ void main() {
         radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
         albedo_texel = imageLoad(images[pc.albedo], p).rgb;
         n = imageLoad(images[pc.normal], p).xyz;
-        motion = imageLoad(images[pc.motion], p).xy;
+        if (!still) {
+            motion = imageLoad(images[pc.motion], p).xy;
+        }
         depths = vec4(neighbour_depth(p - ivec2(1, 0)), neighbour_depth(p + ivec2(1, 0)),
                       neighbour_depth(p - ivec2(0, 1)), neighbour_depth(p + ivec2(0, 1)));
         if (still) {
@@ -278,6 +281,9 @@ void main() {
             imageStore(images[pc.out4], p, vec4(t.illumination, t.length_));
             imageStore(images[pc.out5], p, vec4(t.moments.y, 0.0, 0.0, 0.0));
         } else {
+            if (still) {
+                motion = imageLoad(images[pc.motion], p).xy;
+            }
             t = blend(p, z, n, gradient, radiance, albedo, motion);
             imageStore(images[pc.out4], p, vec4(illumination, 1.0));
             imageStore(images[pc.out5], p, vec4(min(l * l, MAX_VALUE), 0.0, 0.0, 0.0));
