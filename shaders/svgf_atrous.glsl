@@ -25,10 +25,11 @@
 //   out1 (first iteration): `svgf_color`, the colour history: (illumination rgb, length)
 //   radiance (last iteration): own pixel, what pixels without a hit pass through
 // The workgroup owns 8×8 pixels of one phase of the step (svgf_tile_base) and reads their taps
-// into shared memory once (10×10, 12×12 with the blur's ring: 6,912 bytes): 1.56 (2.25) reads of
-// 3 texels per pixel instead of 27 (9 taps × 3 images) plus 9 for the blur. The steps are bound by
-// the arithmetic of the taps, not by memory (docs/RESULTS.md, SVGF à-trous, 3×3 taps): the taps
-// are unrolled, and what depends on the centre alone is computed once (svgf_edge_weight).
+// into shared memory once (10×10: 4,800 bytes; the first, with the blur's ring, 12×12: 6,912
+// bytes): 1.56 (2.25) reads of 3 texels per pixel instead of 27 (9 taps × 3 images) plus 9 for
+// the blur. The steps are bound by the arithmetic of the taps, not by memory (docs/RESULTS.md,
+// SVGF at the memory limit): the taps are unrolled, and what depends on the centre alone is
+// computed once (svgf_edge_weight).
 // Which iteration a shader runs is known when it compiles: the tile's size is a constant (no
 // integer division by it when a tile entry is placed), and each shader has only its own work
 // (the variance blur in the first; neither the propagated variance nor the blur in the last).
@@ -54,7 +55,7 @@ shared vec4 tile_geometry[SIZE * SIZE];     // normal xyz (0: no hit or outside)
 // use (f32 bits)
 shared uvec4 tile_packed[SIZE * SIZE];
 
-// Entries an invocation reads, rounded up (the first iteration's 12 × 12: three rounds of 64).
+// Entries an invocation reads, rounded up (10 × 10: two rounds of 64; the first's 12 × 12: three).
 const int LOAD_ROUNDS = (SIZE * SIZE + 63) / 64;
 
 // Reads the SIZE² entries origin + step * (i, j), row-major. Every round's texels are requested
