@@ -19,7 +19,9 @@
 //!    effective albedo in half floats.
 //! 3. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16; 3×3 taps) with
 //!    symmetric edge-stopping on depth, normal and illumination luminance; the first one's
-//!    illumination is the colour history (`svgf_color`), the last one writes `denoised`.
+//!    illumination is the colour history (`svgf_color`), the last one writes `denoised`. The
+//!    first, the middle and the last iterations run shaders of their own, compiled from one
+//!    source (shaders/svgf_atrous.glsl), each with only its own work and constant tile sizes.
 //!
 //! The à-trous iterations exchange illumination between neighbours so that radiance is
 //! conserved: the view's radiance sum after each iteration is the sum before it, whatever the
