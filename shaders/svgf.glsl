@@ -5,7 +5,7 @@
 // Units: the images of the chain hold illumination E = radiance / a, with a the effective
 // albedo (svgf_effective_albedo), per channel; the last à-trous iteration writes a·E. Nothing
 // divides one pixel's radiance by another's albedo, and the à-trous iterations exchange E so that
-// the radiance a·E of a view is conserved (svgf_atrous.comp; docs/PIPELINE.md, SVGF, for the
+// the radiance a·E of a view is conserved (svgf_atrous.glsl; docs/PIPELINE.md, SVGF, for the
 // measurements behind it).
 #ifndef PARALLAX_SVGF_GLSL
 #define PARALLAX_SVGF_GLSL
@@ -36,7 +36,7 @@ layout(push_constant, std430) uniform SvgfPush {
     uint width;
     uint height;
     uint step;  // à-trous: tap spacing in pixels
-    uint flags; // à-trous: SVGF_FIRST, SVGF_LAST; temporal: SVGF_CAMERAS
+    uint flags; // temporal: SVGF_CAMERAS
     // Temporal only: the accumulation histories' outputs, and the view and frame block whose
     // cameras tell a still camera (svgf_temporal.comp, accumulation).
     uint out4;
@@ -45,8 +45,6 @@ layout(push_constant, std430) uniform SvgfPush {
     FrameBlock block;
 } pc;
 
-const uint SVGF_FIRST = 1u; // first à-trous iteration: blurs the variance, writes the history
-const uint SVGF_LAST = 2u;  // last à-trous iteration: writes `denoised`
 const uint SVGF_CAMERAS = 4u; // temporal: `block` holds the cameras (without, no frame is still)
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -162,7 +160,7 @@ float svgf_depth_reach(float z, vec2 gradient, vec2 direction, float spacing) {
 // The edge-stopping weight of à-trous taps p and q whose normals have the cosine d > 0 (callers
 // drop the others; a tap without a hit has a zero normal) and whose depth scale is depth_scale
 // (the sum of their svgf_depth_reach): Schied's w_z · w_n · w_l with σ_z = 1, σ_n = 128, σ_l = 4,
-// symmetric in p and q, so that a filter built on it can conserve energy (svgf_atrous.comp):
+// symmetric in p and q, so that a filter built on it can conserve energy (svgf_atrous.glsl):
 // - depth: the difference against half the depth scale (the mean of the two predictions);
 // - normal: d^128 (7 squarings, no transcendental);
 // - illumination luminance: the difference against σ_l times √((v_p + v_q) / 2), the spread of a
@@ -188,28 +186,20 @@ float svgf_geometry_weight(float zp, float zq, vec2 gp, vec2 gq, vec3 np, vec3 n
     return w_n * exp(-svgf_depth_distance(zp, zq, gp, gq, offset));
 }
 
-// Where an à-trous iteration puts pixel p without a hit: its texel as is, which the temporal
-// pass made the pixel's radiance (on a still camera, its running mean, so the sky converges
-// too); the last iteration takes the alpha of the radiance image.
-void svgf_pass_through(ivec2 p, vec4 texel) {
-    if ((pc.flags & SVGF_LAST) != 0u) {
-        float alpha = imageLoad(images[pc.radiance], p).a;
-        imageStore(images[pc.out0], p, vec4(texel.rgb, alpha));
-    } else {
-        imageStore(images[pc.out0], p, texel);
-    }
-}
-
 // The phase-tiled layout of a pass with tap spacing `step`: workgroup (gx, gy) owns the 8×8
 // pixels base + step * (lx, ly), all of one phase (x mod step, y mod step), so the taps of a
 // whole workgroup are one (8 + 2 halo)² block of that phase's subgrid and fit in shared memory
 // for every step. Rows are absolute: phase py owns rows py + step * j, j from y0 / step.
-// parallax_passes::svgf::phase_groups gives the dispatch size.
+// parallax_passes::svgf::phase_groups gives the dispatch size. Steps are powers of two
+// (parallax_passes::svgf::ATROUS_STEPS), so the divisions by one are shifts and masks (an
+// integer division by a value known only at run time is a loop of a dozen instructions or more).
 ivec2 svgf_tile_base(uint step) {
+    uint shift = uint(findLSB(step));
+    uint phase = step - 1u;
     uint gx = gl_WorkGroupID.x;
     uint gy = gl_WorkGroupID.y;
-    uint j0 = pc.y0 / step;
-    return ivec2(gx % step + step * 8u * (gx / step), gy % step + step * (j0 + 8u * (gy / step)));
+    uint j0 = pc.y0 >> shift;
+    return ivec2((gx & phase) + step * 8u * (gx >> shift), (gy & phase) + step * (j0 + 8u * (gy >> shift)));
 }
 
 #endif

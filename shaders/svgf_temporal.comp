@@ -52,9 +52,9 @@
 // à-trous iterations do that smoothing instead. A workgroup with short histories reads its
 // 14×14 neighbourhood into shared memory once.
 // Pixels without a hit keep their radiance (variance 0, length 0), on a still camera its running
-// mean (in `svgf_accum` too); their guide depth is 0, which every later pass skips, and the last
-// à-trous iteration passes that texel through (svgf_pass_through): measured on the default scene
-// at 32×24, the error after 64 still frames is 1.1e-3 with it against 2.2e-3 when the last
+// mean (in `svgf_accum` too); their guide depth is 0, which every later pass skips, and the à-trous
+// iterations pass that texel through (pass_through in svgf_atrous.glsl): measured on the default
+// scene at 32×24, the error after 64 still frames is 1.1e-3 with it against 2.2e-3 when the last
 // iteration wrote each frame's own radiance.
 #include "svgf.glsl"
 
@@ -86,35 +86,36 @@ struct Temporal {
     vec2 moments;
 };
 
-// One axis of the screen-space depth gradient at p (depth z > 0): of the forward and backward
-// differences, the smaller in magnitude, so that a depth edge on one side does not inflate it; a
-// side without a hit (or off the image) is not used.
-float depth_slope(ivec2 p, ivec2 axis, float z) {
+// One axis of the screen-space depth gradient at a pixel of depth z > 0, from the depths of its
+// neighbours before and after it along the axis (0 off the image, see neighbour_depth): of the
+// forward and backward differences, the smaller in magnitude, so that a depth edge on one side
+// does not inflate it; a side without a hit (or off the image) is not used.
+float depth_slope(float z, float before, float after) {
     float best = 0.0;
     bool found = false;
-    for (int s = -1; s <= 1; s += 2) {
-        ivec2 q = p + s * axis;
-        if (!svgf_inside(q)) {
-            continue;
-        }
-        float zq = imageLoad(images[pc.position], q).w;
-        // Written so that NaN fails too.
-        if (!(zq > 0.0)) {
-            continue;
-        }
-        float d = float(s) * (zq - z);
+    // Written so that NaN fails too.
+    if (before > 0.0) {
+        best = -(before - z);
+        found = true;
+    }
+    if (after > 0.0) {
+        float d = after - z;
         if (!found || abs(d) < abs(best)) {
             best = d;
-            found = true;
         }
     }
     return best;
 }
 
+// The depth at q, 0 off the image (no hit).
+float neighbour_depth(ivec2 q) {
+    return svgf_inside(q) ? imageLoad(images[pc.position], q).w : 0.0;
+}
+
 // Illumination luminance of this frame's sample at q (a pixel with a hit).
-float sample_luminance(ivec2 q) {
-    vec3 radiance = svgf_sanitize(imageLoad(images[pc.radiance], q).rgb);
-    vec3 albedo = svgf_effective_albedo(imageLoad(images[pc.albedo], q).rgb);
+float sample_luminance(vec3 radiance_texel, vec3 albedo_texel) {
+    vec3 radiance = svgf_sanitize(radiance_texel);
+    vec3 albedo = svgf_effective_albedo(albedo_texel);
     return min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
 }
 
@@ -141,11 +142,10 @@ Temporal accumulate_still(vec3 illumination, float l, vec4 previous, float previ
 
 // The exponentially blended illumination and moments of pixel p (depth z > 0, normal n) from
 // this frame's radiance and the previous frame's history through `motion`.
-Temporal blend(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3 albedo) {
+Temporal blend(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3 albedo, vec2 motion) {
     float l = min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
     float tolerance = DEPTH_GRADIENT_STEPS * (abs(gradient.x) + abs(gradient.y)) + DEPTH_RELATIVE * z;
     // Motion is in pixels of the previous frame with centres at i + 0.5.
-    vec2 motion = imageLoad(images[pc.motion], p).xy;
     vec3 prev_illum = vec3(0.0);
     vec2 prev_moments = vec2(0.0);
     float prev_length = 0.0;
@@ -186,13 +186,24 @@ Temporal blend(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3 albe
     return t;
 }
 
+// An entry's four texels are requested together, whether it has a hit or not (the normal and
+// samples of an entry without one are then dropped): one wait for memory an entry, not two.
 void load_tile(ivec2 origin) {
     for (uint e = gl_LocalInvocationIndex; e < uint(TILE * TILE); e += 64u) {
         ivec2 q = origin + ivec2(int(e % uint(TILE)), int(e / uint(TILE)));
-        float zq = svgf_inside(q) ? imageLoad(images[pc.position], q).w : 0.0;
+        float zq = 0.0;
+        vec3 normal = vec3(0.0);
+        vec3 radiance = vec3(0.0);
+        vec3 albedo = vec3(0.0);
+        if (svgf_inside(q)) {
+            zq = imageLoad(images[pc.position], q).w;
+            normal = imageLoad(images[pc.normal], q).xyz;
+            radiance = imageLoad(images[pc.radiance], q).rgb;
+            albedo = imageLoad(images[pc.albedo], q).rgb;
+        }
         bool hit = zq > 0.0;
-        tile_geometry[e] = vec4(hit ? imageLoad(images[pc.normal], q).xyz : vec3(0.0), hit ? zq : 0.0);
-        tile_luminance[e] = hit ? sample_luminance(q) : 0.0;
+        tile_geometry[e] = vec4(hit ? normal : vec3(0.0), hit ? zq : 0.0);
+        tile_luminance[e] = hit ? sample_luminance(radiance, albedo) : 0.0;
     }
 }
 
@@ -223,32 +234,57 @@ float spatial_variance(int c, Temporal t, vec2 gradient) {
 
 void main() {
     ivec2 p = svgf_pixel();
-    float z = p.x >= 0 ? imageLoad(images[pc.position], p).w : 0.0;
-    bool hit = z > 0.0;
+    bool still = camera_still();
+    // What the pixel reads at its own texel, its neighbours' depths (the gradient) and, on a
+    // still camera, its accumulation history, all requested before any is used, hit or not:
+    // the pass waits for memory once here and once for the history through `motion`, where
+    // reading each where it is used (after the depth told a hit, then after the motion) waited
+    // three or four times. A pixel without a hit uses its radiance and accumulation only; on a
+    // still camera the motion is read only where the accumulation restarts (below).
+    float z = 0.0;
     vec3 radiance = vec3(0.0);
+    vec3 albedo_texel = vec3(0.0);
+    vec3 n = vec3(0.0);
+    vec2 motion = vec2(0.0);
+    vec4 depths = vec4(0.0); // left, right, up, down
+    vec4 previous = vec4(0.0);
+    float previous_m2 = 0.0;
+    if (p.x >= 0) {
+        z = imageLoad(images[pc.position], p).w;
+        radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
+        albedo_texel = imageLoad(images[pc.albedo], p).rgb;
+        n = imageLoad(images[pc.normal], p).xyz;
+        if (!still) {
+            motion = imageLoad(images[pc.motion], p).xy;
+        }
+        depths = vec4(neighbour_depth(p - ivec2(1, 0)), neighbour_depth(p + ivec2(1, 0)),
+                      neighbour_depth(p - ivec2(0, 1)), neighbour_depth(p + ivec2(0, 1)));
+        if (still) {
+            previous = imageLoad(images[pc.in2], p);
+            previous_m2 = imageLoad(images[pc.in3], p).x;
+        }
+    }
+    bool hit = z > 0.0;
     Temporal t = Temporal(vec3(0.0), 0.0, vec2(0.0));
     vec2 gradient = vec2(0.0);
-    bool still = camera_still();
     bool accumulating = false;
-    if (p.x >= 0) {
-        radiance = svgf_sanitize(imageLoad(images[pc.radiance], p).rgb);
-    }
     if (hit) {
-        vec3 albedo = svgf_effective_albedo(imageLoad(images[pc.albedo], p).rgb);
-        vec3 n = imageLoad(images[pc.normal], p).xyz;
+        vec3 albedo = svgf_effective_albedo(albedo_texel);
         float packed_normal = svgf_pack_normal(n);
-        gradient = vec2(depth_slope(p, ivec2(1, 0), z), depth_slope(p, ivec2(0, 1), z));
+        gradient = vec2(depth_slope(z, depths.x, depths.y), depth_slope(z, depths.z, depths.w));
         vec3 illumination = min(radiance / albedo, vec3(MAX_VALUE));
         float l = min(svgf_illumination_luminance(radiance, albedo), MAX_VALUE);
-        vec4 previous = still ? imageLoad(images[pc.in2], p) : vec4(0.0);
         // Written so that NaN restarts too.
         accumulating = previous.a >= 1.0;
         if (accumulating) {
-            t = accumulate_still(illumination, l, previous, imageLoad(images[pc.in3], p).x, albedo);
+            t = accumulate_still(illumination, l, previous, previous_m2, albedo);
             imageStore(images[pc.out4], p, vec4(t.illumination, t.length_));
             imageStore(images[pc.out5], p, vec4(t.moments.y, 0.0, 0.0, 0.0));
         } else {
-            t = blend(p, z, n, gradient, radiance, albedo);
+            if (still) {
+                motion = imageLoad(images[pc.motion], p).xy;
+            }
+            t = blend(p, z, n, gradient, radiance, albedo, motion);
             imageStore(images[pc.out4], p, vec4(illumination, 1.0));
             imageStore(images[pc.out5], p, vec4(min(l * l, MAX_VALUE), 0.0, 0.0, 0.0));
         }
@@ -256,13 +292,12 @@ void main() {
         imageStore(images[pc.out2], p, vec4(z, gradient, packed_normal));
         imageStore(images[pc.out3], p, vec4(albedo, min(t.length_, MAX_LENGTH)));
     } else if (p.x >= 0) {
-        vec4 previous = still ? imageLoad(images[pc.in2], p) : vec4(0.0);
-        float n = previous.a >= 1.0 ? previous.a + 1.0 : 1.0;
-        radiance = previous.a >= 1.0 ? previous.rgb + (radiance - previous.rgb) / n : radiance;
+        float frames = previous.a >= 1.0 ? previous.a + 1.0 : 1.0;
+        radiance = previous.a >= 1.0 ? previous.rgb + (radiance - previous.rgb) / frames : radiance;
         imageStore(images[pc.out1], p, vec4(0.0));
         imageStore(images[pc.out2], p, vec4(0.0));
         imageStore(images[pc.out3], p, vec4(0.0));
-        imageStore(images[pc.out4], p, vec4(radiance, n));
+        imageStore(images[pc.out4], p, vec4(radiance, frames));
         imageStore(images[pc.out5], p, vec4(0.0));
     }
     bool short_history = hit && t.length_ < MIN_LENGTH;

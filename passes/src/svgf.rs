@@ -19,11 +19,13 @@
 //!    effective albedo in half floats.
 //! 3. `svgf_atrous_1` … `svgf_atrous_5`: à-trous iterations (steps 1, 2, 4, 8, 16; 3×3 taps) with
 //!    symmetric edge-stopping on depth, normal and illumination luminance; the first one's
-//!    illumination is the colour history (`svgf_color`), the last one writes `denoised`.
+//!    illumination is the colour history (`svgf_color`), the last one writes `denoised`. The
+//!    first, the middle and the last iterations run shaders of their own, compiled from one
+//!    source (shaders/svgf_atrous.glsl), each with only its own work and constant tile sizes.
 //!
 //! The à-trous iterations exchange illumination between neighbours so that radiance is
 //! conserved: the view's radiance sum after each iteration is the sum before it, whatever the
-//! textures, depth edges, image borders and weights (shaders/svgf_atrous.comp). With the
+//! textures, depth edges, image borders and weights (shaders/svgf_atrous.glsl). With the
 //! temporal average this makes the per-channel mean of `denoised` exactly the running average of
 //! the path-traced input's: no bias in the mean. The normalised filter it replaces moved a
 //! channel's mean by up to 13 % on Sponza (docs/PIPELINE.md, SVGF).
@@ -53,8 +55,18 @@ pub const SVGF_VARIANCE: &str = "svgf_variance";
 pub const SVGF_ACCUM: &str = "svgf_accum";
 /// Accumulation history: the running mean of the squared illumination luminance.
 pub const SVGF_ACCUM_M2: &str = "svgf_accum_m2";
-/// Tap spacing of the à-trous iterations, in pixels.
+/// Tap spacing of the à-trous iterations, in pixels: powers of two (shaders/svgf.glsl divides by
+/// a step with shifts), at least two of them (the first and the last iteration run shaders of
+/// their own, shaders/svgf_atrous.glsl).
 pub const ATROUS_STEPS: [u32; 5] = [1, 2, 4, 8, 16];
+const _: () = {
+    assert!(ATROUS_STEPS.len() >= 2);
+    let mut i = 0;
+    while i < ATROUS_STEPS.len() {
+        assert!(ATROUS_STEPS[i].is_power_of_two());
+        i += 1;
+    }
+};
 
 // This frame's copies of the history ([`Stage::History`]) and the intermediate images.
 const PREV_COLOR: &str = "svgf_prev_color";
@@ -63,10 +75,6 @@ const GUIDE: &str = "svgf_guide";
 const EFFECTIVE_ALBEDO: &str = "svgf_albedo";
 const ATROUS: &str = "svgf_atrous";
 
-/// `SvgfPush::flags`: the first à-trous iteration (variance blur, colour history).
-const FIRST: u32 = 1;
-/// `SvgfPush::flags`: the last à-trous iteration (writes `denoised`).
-const LAST: u32 = 2;
 /// `SvgfPush::flags`: the temporal pass has the frame block's cameras (`block`, `view`).
 const CAMERAS: u32 = 4;
 
@@ -133,7 +141,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
         let mut pass = graph.pass(&name, Role::All);
         // The 3×3 taps reach one step away, the first iteration's 3×3 variance blur one more
-        // (svgf_atrous.comp).
+        // (svgf_atrous.glsl).
         let reach = step * if first { 2 } else { 1 };
         let input = pass.read_halo_slot(if first { &variance } else { &atrous }, reach);
         let guide_slot = pass.read_halo_slot(&guide, reach);
@@ -167,7 +175,7 @@ pub fn phase_groups(step: u32, width: u32, y0: u32, y1: u32) -> [u32; 3] {
 /// The three shaders share this one block, and every SPIR-V module keeps all of its members, so
 /// each stage's push constants carry all of them, also those it does not bind. Those stay zero:
 /// a shader reads only the members its stage binds (`radiance` and `out1` of an à-trous
-/// iteration only under `LAST` and `FIRST`).
+/// iteration only in the last and the first one's shader).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SvgfPush {
@@ -190,7 +198,7 @@ pub struct SvgfPush {
     pub height: u32,
     /// À-trous tap spacing in pixels.
     pub step: u32,
-    /// À-trous: `FIRST` and/or `LAST`; temporal: `CAMERAS`.
+    /// Temporal: `CAMERAS`.
     pub flags: u32,
     /// Temporal: the accumulation histories' outputs (`svgf_accum`, `svgf_accum_m2`).
     pub out4: u32,
@@ -274,10 +282,14 @@ struct TemporalSlots {
 }
 
 impl Stage {
+    /// The first and the last à-trous iteration have shaders of their own (shaders/svgf_atrous.glsl):
+    /// the first writes the colour history, the last `denoised`.
     fn shader(&self) -> &'static str {
         match self {
             Stage::History { .. } => "svgf_history",
             Stage::Temporal(_) => "svgf_temporal",
+            Stage::Atrous { color: Some(_), .. } => "svgf_atrous_first",
+            Stage::Atrous { radiance: Some(_), .. } => "svgf_atrous_last",
             Stage::Atrous { .. } => "svgf_atrous",
         }
     }
@@ -353,11 +365,9 @@ impl PassKernel for SvgfKernel {
                 push.step = step;
                 if let Some(color) = color {
                     push.out1 = write(rec, color)?;
-                    push.flags |= FIRST;
                 }
                 if let Some(radiance) = radiance {
                     push.radiance = read(rec, radiance)?;
-                    push.flags |= LAST;
                 }
             }
         }
@@ -412,7 +422,7 @@ mod tests {
 
     #[test]
     fn the_push_struct_matches_every_svgf_shader() {
-        for shader in ["svgf_history", "svgf_temporal", "svgf_atrous"] {
+        for shader in ["svgf_history", "svgf_temporal", "svgf_atrous_first", "svgf_atrous", "svgf_atrous_last"] {
             assert_eq!(check_push_constants::<SvgfPush>(&spirv(shader).unwrap()), Ok(()), "{shader}");
         }
     }
