@@ -33,8 +33,10 @@ trap 'rm -f "$log"' EXIT
 cargo test --workspace --all-targets --no-fail-fast 2>&1 | tee -a "$log"
 cargo test --workspace --doc 2>&1 | tee -a "$log"
 # A render over three MPI ranks (mpirun --oversubscribe on CI's two cores) against one process,
-# and a rank that fails or falls silent; the MPI build's unit tests too.
-cargo test -p parallax --features mpi --lib --test cli_ranks 2>&1 | tee -a "$log"
+# a fine scheme refused, a rank that fails and one that falls silent (its 30 s --rank-timeout is
+# most of the time); and the MPI messages' unit tests.
+cargo test -p parallax --features mpi --test cli_ranks 2>&1 | tee -a "$log"
+cargo test -p parallax --features mpi --lib ranks_mpi 2>&1 | tee -a "$log"
 
 # Tests on Sponza read its path from PARALLAX_SPONZA and are #[ignore]d without it; CI has the
 # shared scenes beside the clone.

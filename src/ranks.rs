@@ -171,7 +171,58 @@ pub fn shares(schedule: &Schedule, layout: &RankLayout, width: u32) -> Vec<RankS
 
 #[cfg(test)]
 mod tests {
+    use clap::{Args as _, FromArgMatches as _};
+
     use super::*;
+    use crate::pipeline_args::PipelineArgs;
+    use crate::scene_args::LayoutArgs;
+
+    /// The execution plan `render` runs for 4×2 views of 32×24 under `scheme` on `devices`.
+    fn global_plan(scheme: &str, devices: u32) -> (ExecutionPlan, Schedule) {
+        let words = ["--lf", "4x2", "--resolution", "32x24", "--scheme", scheme];
+        let command =
+            PipelineArgs::augment_args(LayoutArgs::augment_args(clap::Command::new("t").no_binary_name(true)));
+        let matches = command.try_get_matches_from(words).unwrap();
+        let lf = LayoutArgs::from_arg_matches(&matches).unwrap().with_rig(parallax_graph::Rig::default()).unwrap();
+        let compiled = PipelineArgs::from_arg_matches(&matches).unwrap().compile(&lf, devices, 1.0).unwrap();
+        (ExecutionPlan::from_schedule(&compiled.graph, &compiled.schedule).unwrap(), compiled.schedule)
+    }
+
+    /// Under multi-source each rank's part holds its devices' passes only, renumbered from 0,
+    /// with no copy from or to another rank; the parts together hold every pass once, and
+    /// `plan --ranks` names the same views per rank.
+    #[test]
+    fn a_rank_runs_the_passes_of_its_devices_and_nothing_crosses_ranks() {
+        let (global, schedule) = global_plan("multi-source", 3);
+        let layout = RankLayout { devices: vec![1, 2] };
+        let shares = shares(&schedule, &layout, 32);
+        let mut passes = 0;
+        for rank in 0..2 {
+            let part = restrict_plan(&global, layout.first(rank), layout.devices[rank]).unwrap();
+            assert_eq!(part.devices.len(), layout.devices[rank] as usize);
+            assert!(part.passes.iter().all(|p| p.device.0 < layout.devices[rank]));
+            assert!(part.copies.iter().all(|c| c.from.0 < layout.devices[rank] && c.to.0 < layout.devices[rank]));
+            assert_eq!(views_in(&part), shares[rank].views);
+            passes += part.passes.len();
+        }
+        assert_eq!(passes, global.passes.len());
+        assert!(global.copies.iter().any(|c| c.gather), "views gathered to device 0 in one process");
+    }
+
+    /// A fine scheme reads other devices' bands: its parts cannot run apart.
+    #[test]
+    fn a_dependency_between_ranks_is_refused() {
+        let (global, _) = global_plan("fine-all", 2);
+        let refused = restrict_plan(&global, 1, 1).unwrap_err().to_string();
+        assert!(
+            refused.ends_with("are on different ranks: only whole views cross ranks today (--scheme multi-source)"),
+            "{refused}"
+        );
+    }
+
+    fn views_in(plan: &ExecutionPlan) -> Vec<u32> {
+        plan.passes.iter().map(|p| p.view).collect::<BTreeSet<u32>>().into_iter().collect()
+    }
 
     #[test]
     fn a_layout_numbers_devices_rank_after_rank() {

@@ -12,16 +12,15 @@ use std::process::{Command, Stdio};
 
 use common::{parallax_in, scratch, wait_or_kill};
 
-/// A tiny light field, two measured frames of a dolly (so every rank must take rank 0's
-/// cameras), with the EXR layers and hole masks that ranks send.
-const RENDER: [&str; 17] = [
+/// A tiny light field under the default scheme (multi-source), two measured frames of a dolly
+/// (so every rank must take rank 0's cameras), with the EXR layers and hole masks that ranks
+/// send.
+const RENDER: [&str; 15] = [
     "render",
     "--lf",
     "4x2",
     "--resolution",
     "32x24",
-    "--scheme",
-    "multi-source",
     "--frames",
     "2",
     "--warmup",
@@ -118,7 +117,8 @@ fn a_failing_rank_ends_the_run_naming_it_and_leaves_nothing() {
     let dir = scratch("ranks", "fails");
     let out = render_on_three_ranks(mpirun, &dir, &[], Some("rank-fails:2:1"));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{stderr}");
+    // Rank 0 aborts the run with its exit status, which mpirun returns.
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
     let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
     assert_eq!(errors.len(), 1, "one message: {stderr}");
     assert!(errors[0].starts_with("error: rank 2 on host "), "{stderr}");
@@ -135,10 +135,30 @@ fn a_silent_rank_ends_the_run_at_the_rank_timeout() {
     // generous one: it is a bound on a hang, not a measure).
     let out = render_on_three_ranks(mpirun, &dir, &["--rank-timeout", "30"], Some("rank-stalls:2:1"));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{stderr}");
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
     let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
     assert_eq!(errors.len(), 1, "one message: {stderr}");
     assert!(errors[0].starts_with("error: rank 2 on host "), "{stderr}");
     assert!(errors[0].contains(" sent nothing for 30 s (--rank-timeout): it hangs or died"), "{stderr}");
     assert_eq!(files(&dir), Vec::<String>::new(), "a failed run left files behind");
+}
+
+/// A fine scheme splits views in row bands over every device: refused under mpirun, a usage
+/// error naming `--scheme` before any work.
+#[test]
+fn a_fine_scheme_over_ranks_is_refused_naming_the_scheme() {
+    let Some(mpirun) = mpirun() else { return };
+    let dir = scratch("ranks", "fine");
+    let out = render_on_three_ranks(mpirun, &dir, &["--scheme", "fine-sources"], None);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(
+        errors,
+        ["error: --scheme fine-sources splits views in row bands over every device, which does not run across ranks \
+          yet: multi-source is the scheme that runs across ranks today (use --scheme multi-source, or run \
+          fine-sources in one process)"],
+        "{stderr}"
+    );
+    assert_eq!(files(&dir), Vec::<String>::new());
 }
