@@ -59,6 +59,10 @@ pub fn run(args: PlanArgs) -> Result<()> {
     let shares = layout.as_ref().map(|l| shares(&compiled.schedule, l, lf.width));
     // Render everything before writing anything, so a failure leaves no partial output.
     let dot = args.dot.render(&compiled.schedule);
+    let dot = match (&layout, dot) {
+        (Some(layout), Some(dot)) => Some(label_ranks(&dot, layout)),
+        (_, dot) => dot,
+    };
     progress.finish_and_clear();
     if let (Some(sink), Some(dot)) = (&args.dot.dot, &dot) {
         write_bytes(sink, dot.as_bytes())?;
@@ -82,6 +86,19 @@ pub fn run(args: PlanArgs) -> Result<()> {
         result(stdout_taken, &line);
     }
     Ok(())
+}
+
+/// The DOT with every device's cluster labelled with its rank (`gpu2` → `gpu2 (rank 1)`): the
+/// graph crate draws devices only, and a cluster's label is where the drawing names one.
+fn label_ranks(dot: &str, layout: &RankLayout) -> String {
+    let mut dot = dot.to_string();
+    for rank in 0..layout.devices.len() {
+        let first = layout.first(rank);
+        for d in first..first + layout.devices[rank] {
+            dot = dot.replace(&format!("label=\"gpu{d}\";"), &format!("label=\"gpu{d} (rank {rank})\";"));
+        }
+    }
+    dot
 }
 
 /// One rank of `--ranks`: its devices, views and what it sends rank 0 per frame.

@@ -216,6 +216,10 @@ fn ranks_share_the_sets_and_say_what_each_sends() {
     let remote = ranks[1]["views"].as_array().unwrap().len() as u64;
     assert_eq!(ranks[1]["display_bytes_per_frame"], remote * 32 * 24 * 4);
     assert_eq!(ranks[1]["linear_bytes_per_frame"], remote * 32 * 24 * 16);
+    let dot = std::fs::read_to_string(dir.join("plan.dot")).unwrap();
+    for (gpu, rank) in [(0, 0), (1, 0), (2, 1), (3, 1)] {
+        assert!(dot.contains(&format!("label=\"gpu{gpu} (rank {rank})\";")), "gpu{gpu} in {dot}");
+    }
 
     let text = Command::new(env!("CARGO_BIN_EXE_parallax"))
         .args(["plan", "--lf", "4x2", "--resolution", "32x24", "--fake-devices", "4", "--ranks", "2"])
