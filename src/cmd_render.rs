@@ -257,6 +257,14 @@ pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<
     if let Some(file) = &args.config {
         return run_extended(crate::run_file::render_args_of(file, std::env::args_os())?, extension);
     }
+    // Without MPI every rank of mpirun would render the whole light field into the same folder.
+    #[cfg(not(feature = "mpi"))]
+    if let Some(ranks) = crate::ranks::launched_ranks().filter(|&n| n > 1) {
+        bail!(
+            "started as one of {ranks} MPI ranks, but this parallax was built without MPI, so each rank would render \
+             the whole light field alone: build it with cargo build --release --features mpi"
+        );
+    }
     #[cfg(feature = "mpi")]
     if let Some(ranked) = crate::ranks_mpi::with_cluster(|c| c.map(|c| ranked::run(&args, &mut extension, c))) {
         return ranked;

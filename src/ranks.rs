@@ -27,6 +27,12 @@ pub fn speaks_for_run() -> bool {
     !SILENT_RANK.load(Ordering::Relaxed)
 }
 
+/// How many ranks a launcher (OpenMPI's mpirun, MPICH's hydra) started this process among,
+/// when its environment says (None: not started by one).
+pub fn launched_ranks() -> Option<u32> {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE"].iter().find_map(|v| std::env::var(v).ok()?.parse().ok())
+}
+
 /// The devices of every rank, in rank order: rank r drives the global devices
 /// `first(r)..first(r) + devices[r]`.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -197,12 +203,12 @@ mod tests {
         let layout = RankLayout { devices: vec![1, 2] };
         let shares = shares(&schedule, &layout, 32);
         let mut passes = 0;
-        for rank in 0..2 {
+        for (rank, share) in shares.iter().enumerate() {
             let part = restrict_plan(&global, layout.first(rank), layout.devices[rank]).unwrap();
             assert_eq!(part.devices.len(), layout.devices[rank] as usize);
             assert!(part.passes.iter().all(|p| p.device.0 < layout.devices[rank]));
             assert!(part.copies.iter().all(|c| c.from.0 < layout.devices[rank] && c.to.0 < layout.devices[rank]));
-            assert_eq!(views_in(&part), shares[rank].views);
+            assert_eq!(views_in(&part), share.views);
             passes += part.passes.len();
         }
         assert_eq!(passes, global.passes.len());

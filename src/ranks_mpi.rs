@@ -46,15 +46,10 @@ thread_local! {
     static CLUSTER: RefCell<Option<Cluster>> = const { RefCell::new(None) };
 }
 
-/// Whether a launcher (mpirun, srun, hydra) started this process as one of several ranks.
-fn launched_as_rank() -> bool {
-    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"].iter().any(|v| std::env::var_os(v).is_some())
-}
-
 /// Joins the MPI run when a launcher started this process with more than one rank; the
 /// cluster then lives until [`leave`]. A single rank runs as a plain process.
 pub fn join() -> Result<()> {
-    if !launched_as_rank() {
+    if crate::ranks::launched_ranks().is_none_or(|n| n < 2) {
         return Ok(());
     }
     let universe = mpi::initialize().context("MPI was already initialised in this process")?;
