@@ -22,8 +22,11 @@ use crate::ranks::RankLayout;
 const TAG_FRAMES: i32 = 10;
 /// rank r → rank 0: one frame done (its index and host wall time).
 const TAG_FRAME: i32 = 11;
-/// rank r → rank 0: the finished views and the rank's statistics.
+/// rank r → rank 0: the length of its finished views and statistics, which follow in parts
+/// ([`TAG_PART`]) of at most [`PART_BYTES`]: MPI counts elements in an `int`.
 const TAG_DONE: i32 = 12;
+const TAG_PART: i32 = 14;
+const PART_BYTES: usize = 1 << 30;
 /// rank r → rank 0: why the rank stopped.
 const TAG_FAILED: i32 = 13;
 
@@ -146,7 +149,12 @@ impl Cluster {
 
     /// Rank r > 0: the finished views and statistics.
     pub fn send_done(&self, header: &serde_json::Value, blobs: &[Vec<u8>]) {
-        self.world.process_at_rank(0).send_with_tag(&encode(header, blobs)[..], TAG_DONE);
+        let message = encode(header, blobs);
+        let zero = self.world.process_at_rank(0);
+        zero.send_with_tag(&(message.len() as u64).to_le_bytes()[..], TAG_DONE);
+        for part in message.chunks(PART_BYTES) {
+            zero.send_with_tag(part, TAG_PART);
+        }
     }
 
     /// Rank r > 0: why it stopped.
@@ -175,6 +183,8 @@ pub struct Collector {
     timeout: Duration,
     last_heard: Vec<Instant>,
     pub frames: Vec<Vec<FrameStat>>,
+    /// Per rank, the bytes of its finished views as they arrive and their announced length.
+    arriving: Vec<Option<(Vec<u8>, usize)>>,
     finished: Vec<Option<Finished>>,
 }
 
@@ -184,6 +194,7 @@ impl Collector {
             timeout,
             last_heard: vec![Instant::now(); ranks],
             frames: vec![Vec::new(); ranks],
+            arriving: vec![None; ranks],
             finished: (0..ranks).map(|_| None).collect(),
         }
     }
@@ -199,8 +210,19 @@ impl Collector {
                     self.frames[rank].push(serde_json::from_slice(&bytes).context("a rank's frame is not JSON")?)
                 }
                 TAG_DONE => {
-                    let (header, blobs) = decode(&bytes)?;
-                    self.finished[rank] = Some(Finished { header, blobs, bytes: bytes.len() });
+                    let length = u64::from_le_bytes(bytes[..].try_into().context("a rank's length is 8 bytes")?);
+                    self.arriving[rank] = Some((Vec::new(), length as usize));
+                }
+                TAG_PART => {
+                    let Some((message, length)) = self.arriving[rank].as_mut() else {
+                        bail!("{} sent views before their length", cluster.who(rank));
+                    };
+                    message.extend_from_slice(&bytes);
+                    if message.len() >= *length {
+                        let (header, blobs) = decode(message)?;
+                        self.finished[rank] = Some(Finished { header, blobs, bytes: message.len() });
+                        self.arriving[rank] = None;
+                    }
                 }
                 TAG_FAILED => bail!("{} failed: {}", cluster.who(rank), String::from_utf8_lossy(&bytes)),
                 tag => bail!("{} sent a message of unknown tag {tag}", cluster.who(rank)),
