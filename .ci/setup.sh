@@ -16,6 +16,9 @@ $SUDO apt-get install -y -q libvulkan1 vulkan-tools vulkan-validationlayers glsl
 # Charts (plotters): fontconfig to find a font at build and run time, DejaVu as the font;
 # g++ builds NVIDIA's FLIP (nv-flip) and freetype from source.
 $SUDO apt-get install -y -q pkg-config libfontconfig1-dev fonts-dejavu-core g++
+# Renders over several processes (`--features mpi`, issue 29): OpenMPI's library and mpirun, and
+# libclang, with which mpi-sys binds libmpi's headers.
+$SUDO apt-get install -y -q libopenmpi-dev openmpi-bin libclang-dev
 # The viewer test opens render's viewer.html in headless Chromium and compares its screenshot.
 $SUDO apt-get install -y -q chromium
 

@@ -8,6 +8,8 @@ bash .ci/setup.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
 cargo build --workspace --all-targets
+# The MPI build (`--features mpi`): only the parallax crate is built again.
+cargo clippy -p parallax --all-targets --features mpi -- -D warnings
 
 # Every golden DOT must render without a single Graphviz warning.
 for f in tests/golden/*.dot; do
@@ -30,6 +32,11 @@ log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 cargo test --workspace --all-targets --no-fail-fast 2>&1 | tee -a "$log"
 cargo test --workspace --doc 2>&1 | tee -a "$log"
+# A render over three MPI ranks (mpirun --oversubscribe on CI's two cores) against one process,
+# a fine scheme refused, a rank that fails and one that falls silent (its 30 s --rank-timeout is
+# most of the time); and the MPI messages' unit tests.
+cargo test -p parallax --features mpi --test cli_ranks 2>&1 | tee -a "$log"
+cargo test -p parallax --features mpi --lib ranks_mpi 2>&1 | tee -a "$log"
 
 # Tests on Sponza read its path from PARALLAX_SPONZA and are #[ignore]d without it; CI has the
 # shared scenes beside the clone.

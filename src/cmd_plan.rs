@@ -7,9 +7,10 @@ use clap::{Args, ValueEnum};
 use parallax_graph::{PlanSummary, Rig};
 
 use crate::logging::{result, spinner};
-use crate::options::DeviceArgs;
+use crate::options::{DeviceArgs, SchemeArg, UsageError};
 use crate::outputs::{Format, Output, Sink, check, sink_parser, write_bytes, write_json};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
+use crate::ranks::{RankLayout, RankShare, shares};
 use crate::scene_args::LayoutArgs;
 
 /// The options of `render` that decide its schedule, taken the same way, so `plan` with
@@ -27,10 +28,19 @@ pub struct PlanArgs {
     /// Write a JSON summary (.json; `-` = stdout).
     #[arg(long, value_parser = sink_parser())]
     json: Option<Sink>,
+    /// Plan a render over R processes (MPI ranks, `render` under `mpirun -n R`), each driving
+    /// the same share of the devices: which rank runs which views, and the bytes each sends
+    /// rank 0 per frame (multi-source only).
+    #[arg(long, value_name = "R", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    ranks: Option<u32>,
 }
 
 pub fn run(args: PlanArgs) -> Result<()> {
     args.pipeline.check()?;
+    if args.ranks.is_some_and(|r| r > 1) && args.pipeline.scheme != SchemeArg::MultiSource {
+        let scheme = crate::bench_matrix::name_of(&args.pipeline.scheme);
+        return Err(UsageError(crate::ranks::fine_scheme_across_ranks(&scheme)).into());
+    }
     let mut outputs = Vec::new();
     if let Some(sink) = &args.dot.dot {
         outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
@@ -41,25 +51,69 @@ pub fn run(args: PlanArgs) -> Result<()> {
     check(&outputs)?;
     let lf = args.layout.with_rig(Rig::default())?;
     let devices = args.devices.selection().count() as u32;
+    let layout = args.ranks.map(|r| RankLayout::even(devices, r)).transpose().map_err(|e| UsageError(e.to_string()))?;
     let progress = spinner(format!("planning {} views over {devices} device(s)", lf.len()));
     // The exposure is a push constant of tonemap: it changes no pass, resource or copy.
     let compiled = args.pipeline.compile(&lf, devices, 1.0)?;
     let summary = compiled.summary;
+    let shares = layout.as_ref().map(|l| shares(&compiled.schedule, l, lf.width));
     // Render everything before writing anything, so a failure leaves no partial output.
     let dot = args.dot.render(&compiled.schedule);
+    let dot = match (&layout, dot) {
+        (Some(layout), Some(dot)) => Some(label_ranks(&dot, layout)),
+        (_, dot) => dot,
+    };
     progress.finish_and_clear();
     if let (Some(sink), Some(dot)) = (&args.dot.dot, &dot) {
         write_bytes(sink, dot.as_bytes())?;
     }
     if let Some(sink) = &args.json {
-        write_json(sink, &summary)?;
+        match &shares {
+            Some(shares) => {
+                let mut json = serde_json::to_value(&summary)?;
+                json["ranks"] = serde_json::to_value(shares)?;
+                write_json(sink, &json)?;
+            }
+            None => write_json(sink, &summary)?,
+        }
     }
     // The summary is the result, on stdout, unless stdout already carries the DOT or JSON.
     let stdout_taken = [&args.dot.dot, &args.json].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     for line in summary_lines(&args.pipeline, &summary) {
         result(stdout_taken, &line);
     }
+    for line in shares.iter().flatten().map(rank_line) {
+        result(stdout_taken, &line);
+    }
     Ok(())
+}
+
+/// The DOT with every device's cluster labelled with its rank (`gpu2` → `gpu2 (rank 1)`): the
+/// graph crate draws devices only, and a cluster's label is where the drawing names one.
+fn label_ranks(dot: &str, layout: &RankLayout) -> String {
+    let mut dot = dot.to_string();
+    for rank in 0..layout.devices.len() {
+        let first = layout.first(rank);
+        for d in first..first + layout.devices[rank] {
+            dot = dot.replace(&format!("label=\"gpu{d}\";"), &format!("label=\"gpu{d} (rank {rank})\";"));
+        }
+    }
+    dot
+}
+
+/// One rank of `--ranks`: its devices, views and what it sends rank 0 per frame.
+fn rank_line(s: &RankShare) -> String {
+    let kib = |b: u64| b as f64 / 1024.0;
+    let (first, last) = (s.devices[0], s.devices[s.devices.len() - 1]);
+    format!(
+        "rank {:<8} devices {first}..={last}, {} views {:?}, sends rank 0 {:.1} KiB of display views per frame ({:.1} \
+         KiB more with the linear EXRs)",
+        s.rank,
+        s.views.len(),
+        s.views,
+        kib(s.display_bytes_per_frame),
+        kib(s.linear_bytes_per_frame)
+    )
 }
 
 fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 8] {

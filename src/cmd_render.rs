@@ -17,6 +17,8 @@ mod frames;
 mod host_memory;
 mod plan;
 mod posing;
+#[cfg(feature = "mpi")]
+mod ranked;
 mod report;
 
 use std::ffi::OsString;
@@ -192,6 +194,10 @@ pub struct RenderArgs {
     trace: Option<Sink>,
     #[command(flatten)]
     dot: DotArgs,
+    /// Under mpirun (a build with `--features mpi`): how long rank 0 waits for a word from
+    /// another rank (a frame done, its views) before it ends the run naming the silent rank.
+    #[arg(long, value_name = "SECONDS", default_value_t = 600, value_parser = clap::value_parser!(u64).range(1..=86_400))]
+    rank_timeout: u64,
 }
 
 /// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,
@@ -283,10 +289,23 @@ pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<
     if let Some(file) = &args.config {
         return run_extended(crate::run_file::render_args_of(file, std::env::args_os())?, extension);
     }
+    // Without MPI every rank of mpirun would render the whole light field into the same folder.
+    #[cfg(not(feature = "mpi"))]
+    if let Some(ranks) = crate::ranks::launched_ranks().filter(|&n| n > 1) {
+        bail!(
+            "started as one of {ranks} MPI ranks, but this parallax was built without MPI, so each rank would render \
+             the whole light field alone: build it with cargo build --release --features mpi"
+        );
+    }
+    #[cfg(feature = "mpi")]
+    if let Some(ranked) = crate::ranks_mpi::with_cluster(|c| c.map(|c| ranked::run(&args, &mut extension, c))) {
+        return ranked;
+    }
     let identity = |builder: PipelineBuilder| builder;
     let extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder = extension.stages.as_deref().unwrap_or(&identity);
-    let mut job = RenderJob::prepare(&args, extend)?;
-    let rendered = render_frames(&args, &mut job, &mut extension)?;
+    let devices = args.devices.selection().count() as u32;
+    let mut job = RenderJob::prepare(&args, extend, devices, true)?;
+    let rendered = render_frames(&args, &mut job, &mut extension, None)?;
     write_outputs(&args, &job, rendered)
 }
 
@@ -296,8 +315,41 @@ fn fault_from_env() -> Result<Option<FaultInjection>> {
     let Ok(value) = std::env::var("PARALLAX_FAULT") else {
         return Ok(None);
     };
+    if rank_fault_from_env()?.is_some() {
+        return Ok(None);
+    }
     match value.strip_prefix("device-lost:").and_then(|f| f.parse().ok()) {
         Some(frame) => Ok(Some(FaultInjection::LoseDevice { frame })),
-        None => bail!("PARALLAX_FAULT={value}: the only fault is device-lost:FRAME (e.g. device-lost:1); unset it"),
+        None => bail!(
+            "PARALLAX_FAULT={value}: the faults are device-lost:FRAME, rank-fails:RANK:FRAME and \
+             rank-stalls:RANK:FRAME (e.g. device-lost:1); unset it"
+        ),
+    }
+}
+
+/// A rank's injected fault (`PARALLAX_FAULT`), for tests of a render over several ranks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum RankFault {
+    /// `rank-fails:R:F`: rank R's frame F fails with an error.
+    Fails { rank: usize, frame: u32 },
+    /// `rank-stalls:R:F`: rank R stops answering at frame F, as a hung process would.
+    Stalls { rank: usize, frame: u32 },
+}
+
+/// `PARALLAX_FAULT=rank-fails:R:F` or `rank-stalls:R:F` (None: another fault, or none).
+pub(crate) fn rank_fault_from_env() -> Result<Option<RankFault>> {
+    let Ok(value) = std::env::var("PARALLAX_FAULT") else {
+        return Ok(None);
+    };
+    let Some((kind, place)) = value.split_once(':').filter(|(k, _)| k.starts_with("rank-")) else {
+        return Ok(None);
+    };
+    let parsed = place.split_once(':').and_then(|(r, f)| Some((r.parse().ok()?, f.parse().ok()?)));
+    match (kind, parsed) {
+        ("rank-fails", Some((rank, frame))) => Ok(Some(RankFault::Fails { rank, frame })),
+        ("rank-stalls", Some((rank, frame))) => Ok(Some(RankFault::Stalls { rank, frame })),
+        _ => {
+            bail!("PARALLAX_FAULT={value}: a rank's fault is rank-fails:RANK:FRAME or rank-stalls:RANK:FRAME; unset it")
+        }
     }
 }

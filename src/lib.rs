@@ -25,11 +25,15 @@ mod options;
 mod outputs;
 mod pending;
 mod pipeline_args;
+mod ranks;
+#[cfg(feature = "mpi")]
+mod ranks_mpi;
 mod render_pictures;
 mod render_report;
 mod run_file;
 mod run_setup;
 mod scene_args;
+mod view_source;
 mod viewer;
 
 use std::ffi::OsString;
@@ -107,13 +111,23 @@ pub fn cli_main() {
         }
     });
     logging::init(cli.verbosity);
+    // Under mpirun, a render is one rank of several (a build with `--features mpi`).
+    #[cfg(feature = "mpi")]
+    if matches!(cli.command, Command::Render(_))
+        && let Err(err) = ranks_mpi::join()
+    {
+        tracing::error!("{err:#}");
+        std::process::exit(1);
+    }
     // Ctrl-C, SIGTERM and SIGHUP end the process before any destructor runs: remove the
     // temporary files of outputs not yet in place and the folders the run created, so an
     // interrupted run leaves nothing behind.
     if let Err(err) = ctrlc::set_handler(|| {
         // Held until the process ends, so that the main thread creates nothing after this.
         let _pending = pending::remove_all();
-        tracing::error!("interrupted: outputs not yet in place were removed");
+        if ranks::speaks_for_run() {
+            tracing::error!("interrupted: outputs not yet in place were removed");
+        }
         std::process::exit(130);
     }) {
         tracing::debug!("no Ctrl-C handler ({err}): an interrupted run may leave a temporary file");
@@ -125,15 +139,34 @@ pub fn cli_main() {
     });
     if let Err(err) = result {
         drop(pending::remove_all());
+        // A rank whose failure rank 0 reports says nothing itself.
+        #[cfg(feature = "mpi")]
+        if err.is::<ranks_mpi::Reported>() {
+            leave_ranks(1);
+            std::process::exit(1);
+        }
         // Flags that do not go together, or a value no run could use, are usage errors like
         // clap's own: same form, exit 2.
         if let Some(usage) = options::usage_error(&err) {
             let usage = logging::escape_controls(&usage).into_owned();
-            Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage).exit();
+            let error = Cli::command().error(clap::error::ErrorKind::ArgumentConflict, usage);
+            let _ = error.print();
+            leave_ranks(2);
+            std::process::exit(2);
         }
         tracing::error!("{err:#}");
+        leave_ranks(1);
         std::process::exit(1);
     }
+    leave_ranks(0);
+}
+
+/// Ends this process's part in a render over several ranks, if it has one, before it exits
+/// with `code` ([`ranks_mpi::leave`]).
+fn leave_ranks(code: i32) {
+    #[cfg(feature = "mpi")]
+    ranks_mpi::leave(code);
+    let _ = code;
 }
 
 /// Runs one command; `invocation` is the whole command line (a `--config` run file's flags

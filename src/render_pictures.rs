@@ -16,7 +16,6 @@ use std::path::Path;
 use anyhow::Result;
 use parallax_accuracy::exposure::{Exposure, LogAverage};
 use parallax_graph::LightField;
-use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::PipelineHandles;
 use parallax_passes::tonemap::tonemap_pixel;
 
@@ -49,7 +48,7 @@ pub fn gpu_exposure(exposure: Exposure) -> f32 {
 /// linear views are read back twice, once for the log-average and once to tonemap, rather than
 /// all held in memory at once (a NELF light field is over a gigabyte of Rgba32f).
 pub fn display_images(
-    renderer: &mut LightFieldRenderer,
+    renderer: &mut dyn crate::view_source::ViewSource,
     handles: &PipelineHandles,
     (views, width): (u32, u32),
     exposure: Exposure,
@@ -57,15 +56,15 @@ pub fn display_images(
     let mut average = LogAverage::default();
     if exposure == Exposure::Auto {
         for v in 0..views {
-            let bytes = renderer.read(handles.linear, v)?;
+            let bytes = renderer.read_view(handles.linear, v)?;
             average.add_image(width as usize, &texels_rgb(&bytes));
         }
     }
     let value = exposure.resolve(&average);
     let displays = (0..views)
         .map(|v| match exposure {
-            Exposure::Fixed(_) => Ok(renderer.read(handles.display.family(), v)?),
-            Exposure::Auto => Ok(tonemap_rgba8(&renderer.read(handles.linear, v)?, value)),
+            Exposure::Fixed(_) => Ok(renderer.read_view(handles.display.family(), v)?),
+            Exposure::Auto => Ok(tonemap_rgba8(&renderer.read_view(handles.linear, v)?, value)),
         })
         .collect::<Result<_>>()?;
     Ok((value, displays))

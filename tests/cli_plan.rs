@@ -192,3 +192,56 @@ fn plan_needs_no_gpu() {
         .unwrap();
     assert!(!render.status.success(), "render found a device with no driver: the check above proves nothing");
 }
+
+/// `plan --ranks R` (issue 29): which rank runs which views and what it sends rank 0 per frame;
+/// every view on exactly one rank, rank 0 sending nothing; a rank count that does not divide
+/// the devices, or a fine scheme over several ranks, is refused before any output.
+#[test]
+fn ranks_share_the_sets_and_say_what_each_sends() {
+    let dir = scratch("plan", "ranks");
+    let out = plan(&["--lf", "4x2", "--resolution", "32x24", "--fake-devices", "4", "--ranks", "2"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("plan.json")).unwrap()).unwrap();
+    let ranks = json["ranks"].as_array().unwrap();
+    assert_eq!(ranks.len(), 2);
+    assert_eq!(
+        (ranks[0]["devices"].clone(), ranks[1]["devices"].clone()),
+        (serde_json::json!([0, 1]), serde_json::json!([2, 3]))
+    );
+    let mut views: Vec<u64> =
+        ranks.iter().flat_map(|r| r["views"].as_array().unwrap()).map(|v| v.as_u64().unwrap()).collect();
+    views.sort_unstable();
+    assert_eq!(views, (0..8).collect::<Vec<u64>>());
+    assert_eq!(ranks[0]["display_bytes_per_frame"], 0);
+    let remote = ranks[1]["views"].as_array().unwrap().len() as u64;
+    assert_eq!(ranks[1]["display_bytes_per_frame"], remote * 32 * 24 * 4);
+    assert_eq!(ranks[1]["linear_bytes_per_frame"], remote * 32 * 24 * 16);
+    let dot = std::fs::read_to_string(dir.join("plan.dot")).unwrap();
+    for (gpu, rank) in [(0, 0), (1, 0), (2, 1), (3, 1)] {
+        assert!(dot.contains(&format!("label=\"gpu{gpu} (rank {rank})\";")), "gpu{gpu} in {dot}");
+    }
+
+    let text = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .args(["plan", "--lf", "4x2", "--resolution", "32x24", "--fake-devices", "4", "--ranks", "2"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    assert!(stdout.lines().any(|l| l.starts_with("rank 1        devices 2..=3, ")), "{stdout}");
+
+    for (args, needle) in [
+        (
+            &["--fake-devices", "4", "--ranks", "3"][..],
+            "--ranks 3 does not divide the 4 device(s) of --gpus/--fake-devices",
+        ),
+        (
+            &["--fake-devices", "2", "--ranks", "2", "--scheme", "fine-all"][..],
+            "--scheme fine-all splits views in row bands over every device, which does not run across ranks yet: \
+             multi-source is the scheme that runs across ranks today",
+        ),
+    ] {
+        let refused = scratch("plan", "ranks-refused");
+        let before = common::snapshot(&refused);
+        let out = plan(&[&["--lf", "4x2"][..], args].concat(), &refused);
+        common::assert_refused("plan --ranks", &out, 2, &[needle], &refused, &before);
+    }
+}

@@ -5,6 +5,7 @@
 //! frames on the way. A user crate's [`RenderExtension`] brings the shaders of its stages and
 //! looks at the renderer once the last frame is done.
 
+use std::collections::{BTreeSet, HashMap};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
@@ -35,13 +36,35 @@ pub(super) struct Rendered {
     pub host_memory: ResidentSummary,
     /// The light field of frame 0 (its layout is every frame's).
     pub lf: LightField,
-    /// Held until the outputs are in place: no other run writes into --out-dir meanwhile.
-    pub lock: FolderLock,
+    /// Held until the outputs are in place: no other run writes into --out-dir meanwhile (None:
+    /// a rank other than 0, which writes nothing).
+    pub lock: Option<FolderLock>,
     /// The extra EXR layers every view gets.
     pub layers: ViewLayers,
     /// Whether the meshes moved, and what posing them cost.
     pub geometry: GeometryReport,
+    /// Rank 0 of a render over several ranks: the views the others sent.
+    pub ranks: Option<RankViews>,
 }
+
+/// What rank 0 gathered from the other ranks for the outputs.
+pub(super) struct RankViews {
+    /// Resources of their views, by (family, view).
+    pub remote: HashMap<(u32, u32), Vec<u8>>,
+    pub remote_views: BTreeSet<u32>,
+    /// The whole run's plan (which device wrote which rows).
+    pub plan: ExecutionPlan,
+    /// Every device of the run, in global order.
+    pub device_names: Vec<String>,
+    /// Wall time per measured frame of the slowest rank.
+    pub wall_ms: f64,
+    /// render.json's `ranks`.
+    pub json: serde_json::Value,
+}
+
+/// Called after each frame is submitted with its index and host wall time: how ranks report
+/// and listen while they render.
+pub(super) type OnFrame<'a> = &'a mut dyn FnMut(u32, Duration) -> Result<()>;
 
 /// Creates the devices and the executor for `job` and runs every frame; the scene is left in
 /// the last frame's pose.
@@ -49,6 +72,7 @@ pub(super) fn render_frames(
     args: &RenderArgs,
     job: &mut RenderJob,
     extension: &mut RenderExtension,
+    on_frame: Option<OnFrame<'_>>,
 ) -> Result<Rendered> {
     let lf = job.lf_of(args, 0)?;
     let bvh = SceneBvh::build(&job.scene);
@@ -64,6 +88,10 @@ pub(super) fn render_frames(
         ))
     })?;
     let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
+    let exec_plan = match job.rank_devices {
+        Some((first, count)) => crate::ranks::restrict_plan(&exec_plan, first, count)?,
+        None => exec_plan,
+    };
     let options = ExecOptions {
         barriers: match args.barriers {
             BarrierArg::EveryOp => Barriers::EveryOp,
@@ -103,16 +131,20 @@ pub(super) fn render_frames(
         );
     }
 
-    crate::outputs::create_folder(&args.out_dir)
-        .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
-    let lock = crate::outputs::lock_folder(&args.out_dir, "--out-dir")?;
+    let lock = if job.writes_outputs {
+        crate::outputs::create_folder(&args.out_dir)
+            .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
+        Some(crate::outputs::lock_folder(&args.out_dir, "--out-dir")?)
+    } else {
+        None
+    };
     let mut posing = Posing::of(job);
-    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer, layers, posing.as_mut())?;
+    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer, layers, posing.as_mut(), on_frame)?;
     if let Some(after) = extension.after_frames.as_mut() {
         after(&mut renderer, &job.compiled.handles)?;
     }
     let geometry = posing.map(|p| p.report()).unwrap_or_default();
-    Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock, layers, geometry })
+    Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock, layers, geometry, ranks: None })
 }
 
 /// Submits the warm-up and measured frames, each after `posing` (when the meshes move) has
@@ -124,6 +156,7 @@ fn frame_loop(
     renderer: &mut LightFieldRenderer,
     layers: ViewLayers,
     mut posing: Option<&mut Posing>,
+    mut on_frame: Option<OnFrame<'_>>,
 ) -> Result<(Vec<Staged>, Duration, ResidentSummary)> {
     let progress = bar(u64::from(job.total_frames));
     let started = Instant::now();
@@ -142,8 +175,12 @@ fn frame_loop(
         if let Some(posing) = posing.as_deref_mut() {
             posing.before_frame(args, job, renderer, f)?;
         }
+        let frame_started = Instant::now();
         let views = lightfield_views(&job.lf_of(args, f)?);
         renderer.submit(&job.scene, &views, &TraceSettings { frame: f, ..job.settings })?;
+        if let Some(on_frame) = on_frame.as_deref_mut() {
+            on_frame(f, frame_started.elapsed())?;
+        }
         let measured = f.checked_sub(args.warmup);
         if let (Some(every), Some(m)) = (args.save_every, measured)
             && m % every == 0

@@ -41,6 +41,13 @@ pub(super) struct RenderJob {
     /// default for the first measured frame's rig, kept as the rig moves.
     pub spacing: Option<f64>,
     centre: Vec3,
+    /// Whether this process writes the outputs (a rank other than 0 of a render over several
+    /// ranks does not).
+    pub writes_outputs: bool,
+    /// A rank of a render over several ranks: the global devices it drives (first, count).
+    pub rank_devices: Option<(u32, u32)>,
+    /// Every frame's camera as rank 0 sent it (None: computed here).
+    pub cameras: Option<Vec<Camera>>,
 }
 
 /// The motion that runs (`--motion` resolved against the scene and `--camera`).
@@ -110,13 +117,22 @@ impl Motion {
 }
 
 impl RenderJob {
-    /// Checks `args` and plans the run, the pipeline extended by `extend`.
-    pub fn prepare(args: &RenderArgs, extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder) -> Result<RenderJob> {
+    /// Checks `args` and plans the run over `devices` devices (every rank's, in a render over
+    /// several ranks), the pipeline extended by `extend`; only a process that `writes_outputs`
+    /// checks them.
+    pub fn prepare(
+        args: &RenderArgs,
+        extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
+        devices: u32,
+        writes_outputs: bool,
+    ) -> Result<RenderJob> {
         args.pipeline.check()?;
         let sheet = args.out_dir.join("lightfield.png");
         let render_json = args.out_dir.join("render.json");
         let (trace, dot) = (args.trace.as_ref(), args.dot.dot.as_ref());
-        check_outputs(&args.out_dir, &sheet, &render_json, trace, dot, args.wiggle.as_deref())?;
+        if writes_outputs {
+            check_outputs(&args.out_dir, &sheet, &render_json, trace, dot, args.wiggle.as_deref())?;
+        }
         let settings = TraceSettings { spp: args.spp, max_depth: args.depth.max_depth, ..Default::default() };
         settings.validate()?;
         let total_frames = args.warmup + args.frames;
@@ -125,8 +141,9 @@ impl RenderJob {
             // Refused before any frame: NELF holds no one sweep for a Looking Glass.
             crate::lightfield_images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
         }
-        crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
-        let devices = args.devices.selection().count() as u32;
+        if writes_outputs {
+            crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
+        }
         let one_frame = TraceWork {
             views: sized.len() as u64,
             frames: u64::from(total_frames),
@@ -151,7 +168,7 @@ impl RenderJob {
             layer_pictures: u64::from(layers) + u64::from(holes),
             quilt: args.quilt.is_some(),
         };
-        if let Some(free) = free_bytes(&args.out_dir) {
+        if let Some(free) = free_bytes(&args.out_dir).filter(|_| writes_outputs) {
             outputs.check_fits(&args.out_dir, free)?;
         }
         // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
@@ -164,7 +181,9 @@ impl RenderJob {
         if let Some(crate::outputs::Sink::File(trace)) = &args.trace {
             written.push(("--trace", trace.as_path()));
         }
-        crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+        if writes_outputs {
+            crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+        }
         let camera = args.scene.camera_or_default(&scene);
         let centre = scene.bounds().center();
         let motion = Motion::resolve(args, &scene)?;
@@ -182,6 +201,9 @@ impl RenderJob {
             motion,
             spacing: None,
             centre,
+            writes_outputs,
+            rank_devices: None,
+            cameras: None,
         };
         let first = &args.light_field;
         job.spacing = first.layout.spacing_on(&first.rig_around(&job.camera_at(args, 0), job.centre));
@@ -202,6 +224,9 @@ impl RenderJob {
     /// The camera of frame `f`. Warm-up frames see the first measured frame's camera, so one
     /// measured frame is a still camera whatever the warm-up.
     pub fn camera_at(&self, args: &RenderArgs, f: u32) -> Camera {
+        if let Some(camera) = self.cameras.as_ref().and_then(|c| c.get(f as usize)) {
+            return *camera;
+        }
         let m = f.saturating_sub(args.warmup);
         match &self.motion {
             Motion::Still | Motion::Animation { camera: None, .. } => self.camera,

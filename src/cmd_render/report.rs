@@ -4,6 +4,7 @@
 //! first and put in place at the end, render.json last, so a failure (or Ctrl-C) leaves the
 //! folder as it was or complete. Also the checks of those outputs that run before any work.
 
+use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 
 use anyhow::{Context as _, Result, bail};
@@ -25,40 +26,57 @@ use crate::outputs::{Format, Output, Sink, Staged, check_creating, stage};
 use crate::render_pictures::{display_images, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 use crate::run_setup::{CameraSetup, Setup};
+use crate::view_source::{Gathered, ViewSource};
 
 /// Reads the last frame back, writes every output and says what was rendered.
 pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<()> {
-    let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock, layers, geometry } = rendered;
+    let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock, layers, geometry, ranks } = rendered;
     let reports = renderer.take_reports();
     let prepare = renderer.prepare_ms().clone();
     let timing = timings(renderer.stats(), &prepare);
     let (kind, handles) = (job.compiled.kind, &job.compiled.handles);
     let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
-    staged.extend(stage_views(&mut renderer, handles, &args.out_dir, &last_views, layers)?);
-    let (exposure, displays) = display_images(&mut renderer, handles, (lf.len() as u32, lf.width), args.exposure)?;
+    let no_remote = (HashMap::new(), BTreeSet::new());
+    let (remote, remote_views) = ranks.as_ref().map_or((&no_remote.0, &no_remote.1), |r| (&r.remote, &r.remote_views));
+    let mut views = Gathered { local: &mut renderer, remote, remote_views };
+    staged.extend(stage_views(&mut views, handles, &args.out_dir, &last_views, layers)?);
+    let (exposure, displays) = display_images(&mut views, handles, (lf.len() as u32, lf.width), args.exposure)?;
     let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
     drop(displays);
-    let missing = match kind {
-        PipelineKind::Reproject => missing_of_targets(job, &mut renderer, lf.len() as u32, lf.width)?,
-        PipelineKind::PathTrace => MissingPixels::default(),
+    let holes = match kind {
+        PipelineKind::Reproject => Some(holes_of_targets(job, &mut views, lf.len() as u32)?),
+        PipelineKind::PathTrace => None,
+    };
+    let missing = match holes {
+        // Which device wrote which rows: the whole run's plan, not this rank's part.
+        Some((family, holes)) => {
+            let plan = ranks.as_ref().map_or_else(|| renderer.plan(), |r| &r.plan);
+            missing_pixels(plan, family, &holes, lf.width)
+        }
+        None => MissingPixels::default(),
     };
     let links = links_json(renderer.executor());
     drop(renderer);
     context.check_validation()?;
 
-    let device_names: Vec<String> = context.device_infos().iter().map(|d| d.name.clone()).collect();
+    let device_names: Vec<String> = match &ranks {
+        Some(r) => r.device_names.clone(),
+        None => context.device_infos().iter().map(|d| d.name.clone()).collect(),
+    };
+    let wall_ms = ranks.as_ref().map_or_else(|| wall_ms(args, wall), |r| r.wall_ms);
     let json = render_json(
         args,
         job,
         &Measured {
             exposure,
-            wall_ms: wall_ms(args, wall),
+            wall_ms,
             timing: &timing,
             missing: &missing,
             device_names,
             host_memory,
             geometry,
             links,
+            ranks: ranks.as_ref().map(|r| r.json.clone()),
         },
     )?;
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
@@ -95,7 +113,7 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
         job.compiled.summary.devices,
         args.spp,
         args.frames,
-        wall_ms(args, wall),
+        wall_ms,
         timing.frame_gpu.mean_ms,
         100.0 * missing.overall
     ));
@@ -125,6 +143,8 @@ struct Measured<'a> {
     host_memory: ResidentSummary,
     geometry: GeometryReport,
     links: serde_json::Value,
+    /// A render over several ranks: what each rank ran, sent and measured.
+    ranks: Option<serde_json::Value>,
 }
 
 /// render.json's `links`: each (producer, consumer) device pair the plan copies over, how it
@@ -148,13 +168,13 @@ fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
     })
 }
 
-/// The pixels of the targets that no source covered and hole filling did not reach.
-fn missing_of_targets(
+/// The hole masks of the targets (None for sources): the pixels no source covered, which hole
+/// filling path traced; and their family.
+fn holes_of_targets(
     job: &RenderJob,
-    renderer: &mut LightFieldRenderer,
+    renderer: &mut dyn ViewSource,
     views: u32,
-    width: u32,
-) -> Result<MissingPixels> {
+) -> Result<(parallax_graph::FamilyId, Vec<Option<Vec<u32>>>)> {
     let holes_family =
         job.compiled.handles.holes.as_ref().map(|h| h.family()).context("the pipeline has no hole masks")?;
     let holes: Vec<Option<Vec<u32>>> = (0..views)
@@ -162,11 +182,11 @@ fn missing_of_targets(
             if job.compiled.plan.topology.is_source[v as usize] {
                 return Ok(None);
             }
-            let bytes = renderer.read(holes_family, v)?;
+            let bytes = renderer.read_view(holes_family, v)?;
             Ok(Some(bytemuck_words(&bytes)))
         })
         .collect::<Result<_, parallax_passes::PassError>>()?;
-    Ok(missing_pixels(renderer.executor().plan(), holes_family, &holes, width))
+    Ok((holes_family, holes))
 }
 
 /// render.json: the setup that comparisons check, the plan and what was measured.
@@ -204,6 +224,7 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         "links": measured.links,
         // Path tracing every view leaves no holes to count.
         "missing_pixels": (kind == PipelineKind::Reproject).then_some(measured.missing),
+        "ranks": measured.ranks,
     }))
 }
 
@@ -229,7 +250,9 @@ pub(super) fn view_layers(
     if !args.layers {
         return ViewLayers::default();
     }
-    let produced = |family| renderer.plan().final_bands(family, 0).is_some();
+    // A view this process renders (a rank of several renders only some).
+    let view = renderer.plan().passes.first().map_or(0, |p| p.view);
+    let produced = |family| renderer.plan().final_bands(family, view).is_some();
     let g = &handles.gbuffer;
     let exr = ExrLayers {
         albedo: produced(g.albedo_roughness.family()),
@@ -265,7 +288,7 @@ fn texels(bytes: &[u8]) -> Vec<[f32; 4]> {
 /// after hole filling with --no-denoise), with `layers`: albedo, normal and depth, and the hole
 /// mask of targets as channel `holes.Y` (1 = the pixel was path traced by hole filling).
 pub(super) fn stage_views(
-    renderer: &mut LightFieldRenderer,
+    renderer: &mut dyn ViewSource,
     handles: &PipelineHandles,
     folder: &Path,
     views: &[View],
@@ -274,16 +297,16 @@ pub(super) fn stage_views(
     let mut staged = Vec::with_capacity(views.len());
     let gbuffer = &handles.gbuffer;
     for view in views {
-        let radiance = texels(&renderer.read(handles.linear, view.index)?);
+        let radiance = texels(&renderer.read_view(handles.linear, view.index)?);
         let mut layer = |wanted: bool, family| -> Result<Vec<[f32; 4]>> {
-            Ok(if wanted { texels(&renderer.read(family, view.index)?) } else { Vec::new() })
+            Ok(if wanted { texels(&renderer.read_view(family, view.index)?) } else { Vec::new() })
         };
         let albedo = layer(layers.exr.albedo, gbuffer.albedo_roughness.family())?;
         let normal = layer(layers.exr.normal, gbuffer.normal_metallic.family())?;
         let position = layer(layers.exr.depth, gbuffer.position_depth.family())?;
         // Sources have no hole mask: only targets get the channel.
         let mask = match &handles.holes {
-            Some(mask) if layers.holes => match renderer.read(mask.family(), view.index) {
+            Some(mask) if layers.holes => match renderer.read_view(mask.family(), view.index) {
                 Ok(bytes) => Some(bytemuck_words(&bytes)),
                 Err(parallax_passes::PassError::MissingOutput { .. }) => None,
                 Err(e) => return Err(e.into()),
@@ -440,4 +463,25 @@ fn parse_view_file_name(name: &str) -> Option<u32> {
     }
     let index: u32 = digits.parse().ok()?;
     (view_file_name(index) == name || view_png_name(index) == name).then_some(index)
+}
+
+/// What rank 0 reads of a view to write the outputs, so what another rank sends of its views:
+/// the linear radiance, the tonemapped display (at a fixed exposure), the hole mask
+/// (reprojection) and the `--layers`.
+#[cfg(feature = "mpi")]
+pub(super) fn output_families(args: &RenderArgs, job: &RenderJob, layers: ViewLayers) -> Vec<parallax_graph::FamilyId> {
+    let handles = &job.compiled.handles;
+    let gbuffer = &handles.gbuffer;
+    let mut families = vec![handles.linear];
+    if matches!(args.exposure, crate::options::Exposure::Fixed(_)) {
+        families.push(handles.display.family());
+    }
+    if job.compiled.kind == PipelineKind::Reproject {
+        families.extend(handles.holes.as_ref().map(|h| h.family()));
+    }
+    let exr = layers.exr;
+    families.extend(exr.albedo.then(|| gbuffer.albedo_roughness.family()));
+    families.extend(exr.normal.then(|| gbuffer.normal_metallic.family()));
+    families.extend(exr.depth.then(|| gbuffer.position_depth.family()));
+    families
 }

@@ -1,0 +1,250 @@
+//! `render` under `mpirun -n R` (`--features mpi`): every rank plans the same schedule for the
+//! devices of all ranks together, runs the part on its own devices (whole multi-source sets),
+//! and ranks other than 0 send their finished views to rank 0, which writes every output as one
+//! process would. A rank that fails ends the run with one message from rank 0 naming it, its
+//! host and the cause; rank 0 polls against `--rank-timeout` and never waits without end; and
+//! since rank 0 stages every output until all views are in, a failed run leaves nothing.
+
+use std::collections::{BTreeSet, HashMap};
+use std::time::Duration;
+
+use anyhow::{Context as _, Result, bail};
+use glam::{Vec2, Vec3};
+use parallax_backend::ExecutionPlan;
+use parallax_passes::pipeline::PipelineBuilder;
+use parallax_scene::Camera;
+
+use super::frames::{RankViews, Rendered, render_frames};
+use super::plan::RenderJob;
+use super::report::{output_families, write_outputs};
+use super::{RankFault, RenderArgs, RenderExtension, rank_fault_from_env};
+use crate::options::{SchemeArg, UsageError};
+use crate::ranks::{RankLayout, views_of};
+use crate::ranks_mpi::{Cluster, Collector, FrameStat, Reported};
+use crate::render_report::timings;
+
+/// Runs this rank's part of the render.
+pub(super) fn run(args: &RenderArgs, extension: &mut RenderExtension, cluster: &Cluster) -> Result<()> {
+    // A collective before anything can fail on one rank alone.
+    let layout = cluster.layout(args.devices.selection().count() as u32);
+    let fault = rank_fault_from_env()?;
+    if cluster.rank == 0 {
+        refuse(args)?;
+        lead(args, extension, cluster, &layout, fault)
+    } else {
+        follow(args, extension, cluster, &layout, fault)
+    }
+}
+
+/// What only runs in one process today.
+fn refuse(args: &RenderArgs) -> Result<()> {
+    if args.pipeline.scheme != SchemeArg::MultiSource {
+        let scheme = crate::bench_matrix::name_of(&args.pipeline.scheme);
+        return Err(UsageError(crate::ranks::fine_scheme_across_ranks(&scheme)).into());
+    }
+    if args.save_every.is_some() {
+        return Err(UsageError(
+            "--save-every writes intermediate frames, which ranks do not send to rank 0 yet: drop --save-every under \
+             mpirun"
+                .into(),
+        )
+        .into());
+    }
+    Ok(())
+}
+
+fn extend_of(extension: &RenderExtension) -> impl Fn(PipelineBuilder) -> PipelineBuilder + '_ {
+    move |builder| match &extension.stages {
+        Some(stages) => stages(builder),
+        None => builder,
+    }
+}
+
+/// The run's settings that every rank must share (its devices are its own).
+fn shared_settings(args: &RenderArgs) -> serde_json::Value {
+    let mut settings = args.run_file();
+    if let Some(map) = settings.as_object_mut() {
+        map.remove("gpus");
+        map.remove("fake_devices");
+    }
+    settings
+}
+
+/// Rank 0: plans, sends every rank the frames, renders its own sets while listening, gathers
+/// the others' views and writes the outputs.
+fn lead(
+    args: &RenderArgs,
+    extension: &mut RenderExtension,
+    cluster: &Cluster,
+    layout: &RankLayout,
+    fault: Option<RankFault>,
+) -> Result<()> {
+    let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), true)?;
+    job.rank_devices = Some((0, layout.devices[0]));
+    let cameras: Vec<[u32; 12]> = (0..job.total_frames).map(|f| camera_bits(&job.camera_at(args, f))).collect();
+    cluster.send_frames(&serde_json::json!({ "settings": shared_settings(args), "cameras": cameras }));
+    let mut collector = Collector::new(cluster.size(), Duration::from_secs(args.rank_timeout));
+    let mut listen = |frame: u32, _wall: Duration| {
+        inject(fault, 0, frame)?;
+        collector.poll(cluster)
+    };
+    let mut rendered = render_frames(args, &mut job, extension, Some(&mut listen))?;
+    let finished = collector.wait_all(cluster)?;
+    let global = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
+    rendered.ranks = Some(gathered(args, &mut rendered, &collector, finished, global, cluster, layout)?);
+    write_outputs(args, &job, rendered)
+}
+
+/// Ranks other than 0: render the own sets, report each frame, send the views; a failure goes
+/// to rank 0, which says it.
+fn follow(
+    args: &RenderArgs,
+    extension: &mut RenderExtension,
+    cluster: &Cluster,
+    layout: &RankLayout,
+    fault: Option<RankFault>,
+) -> Result<()> {
+    let frames = cluster.receive_frames()?;
+    let rank = cluster.rank;
+    let outcome = (|| -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
+        if frames["settings"] != shared_settings(args) {
+            bail!("its flags differ from rank 0's: give every rank the same flags (but --gpus/--fake-devices)");
+        }
+        let cameras: Vec<[u32; 12]> = serde_json::from_value(frames["cameras"].clone())?;
+        let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), false)?;
+        job.cameras = Some(cameras.iter().map(camera_of_bits).collect());
+        job.rank_devices = Some((layout.first(rank), layout.devices[rank]));
+        let mut report = |frame: u32, wall: Duration| {
+            inject(fault, rank, frame)?;
+            cluster.send_frame_done(&FrameStat { frame, wall_ms: wall.as_secs_f64() * 1e3 });
+            Ok(())
+        };
+        let rendered = render_frames(args, &mut job, extension, Some(&mut report))?;
+        views_to_send(args, &job, rendered)
+    })();
+    match outcome {
+        Ok((header, blobs)) => {
+            cluster.send_done(&header, &blobs);
+            Ok(())
+        }
+        Err(e) => {
+            cluster.send_failed(&format!("{e:#}"));
+            Err(Reported.into())
+        }
+    }
+}
+
+/// The injected fault of `rank` at `frame`, if any (`PARALLAX_FAULT`).
+fn inject(fault: Option<RankFault>, rank: usize, frame: u32) -> Result<()> {
+    match fault {
+        Some(RankFault::Fails { rank: r, frame: f }) if (r, f) == (rank, frame) => {
+            bail!("injected fault at frame {frame} (PARALLAX_FAULT=rank-fails:{rank}:{frame})")
+        }
+        Some(RankFault::Stalls { rank: r, frame: f }) if (r, f) == (rank, frame) => loop {
+            std::thread::sleep(Duration::from_secs(3600));
+        },
+        _ => Ok(()),
+    }
+}
+
+/// A rank's finished views (the resources rank 0 writes the outputs from) and its statistics.
+fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
+    let Rendered { context, mut renderer, wall, layers, .. } = rendered;
+    let views = views_of(renderer.plan());
+    let mut listed = Vec::new();
+    let mut blobs = Vec::new();
+    for family in output_families(args, job, layers) {
+        for &view in &views {
+            match renderer.read(family, view) {
+                Ok(bytes) => {
+                    listed.push([family.0, view]);
+                    blobs.push(bytes);
+                }
+                // Sources have no hole mask.
+                Err(parallax_passes::PassError::MissingOutput { .. }) => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+    }
+    let prepare = renderer.prepare_ms().clone();
+    let timing = timings(renderer.stats(), &prepare);
+    drop(renderer);
+    context.check_validation()?;
+    let header = serde_json::json!({
+        "devices": context.device_infos().iter().map(|d| d.name.clone()).collect::<Vec<_>>(),
+        "views": views,
+        "resources": listed,
+        "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
+        "frame_gpu_ms": timing.frame_gpu.mean_ms,
+    });
+    Ok((header, blobs))
+}
+
+/// Rank 0's gathered views and render.json's `ranks`.
+fn gathered(
+    args: &RenderArgs,
+    rendered: &mut Rendered,
+    collector: &Collector,
+    finished: Vec<crate::ranks_mpi::Finished>,
+    plan: ExecutionPlan,
+    cluster: &Cluster,
+    layout: &RankLayout,
+) -> Result<RankViews> {
+    let own_views = views_of(rendered.renderer.plan());
+    let own_wall = rendered.wall.as_secs_f64() * 1e3 / f64::from(args.frames);
+    let prepare = rendered.renderer.prepare_ms().clone();
+    let own_timing = timings(rendered.renderer.stats(), &prepare);
+    let mut device_names: Vec<String> = rendered.context.device_infos().iter().map(|d| d.name.clone()).collect();
+    let mut remote = HashMap::new();
+    let mut remote_views = BTreeSet::new();
+    let mut wall_ms = own_wall;
+    let mut ranks = vec![serde_json::json!({
+        "rank": 0, "host": cluster.hosts[0], "devices": (0..layout.devices[0]).collect::<Vec<_>>(),
+        "views": own_views, "wall_ms_per_frame": own_wall, "frame_gpu_ms": own_timing.frame_gpu.mean_ms,
+        "bytes_sent": 0,
+    })];
+    for (i, f) in finished.into_iter().enumerate() {
+        let rank = i + 1;
+        let header = &f.header;
+        let resources: Vec<[u32; 2]> =
+            serde_json::from_value(header["resources"].clone()).context("a rank's view list")?;
+        remote.extend(resources.into_iter().map(|[family, view]| (family, view)).zip(f.blobs));
+        let views: Vec<u32> = serde_json::from_value(header["views"].clone())?;
+        remote_views.extend(&views);
+        let names: Vec<String> = serde_json::from_value(header["devices"].clone())?;
+        device_names.extend(names);
+        let wall = header["wall_ms_per_frame"].as_f64().unwrap_or(0.0);
+        wall_ms = wall_ms.max(wall);
+        let first = layout.first(rank);
+        let frames_ms: Vec<f64> =
+            collector.frames[rank].iter().filter(|s| s.frame >= args.warmup).map(|s| s.wall_ms).collect();
+        ranks.push(serde_json::json!({
+            "rank": rank, "host": cluster.hosts[rank], "devices": (first..first + layout.devices[rank]).collect::<Vec<_>>(),
+            "views": views, "wall_ms_per_frame": wall, "frame_gpu_ms": header["frame_gpu_ms"],
+            "submit_ms_per_frame": frames_ms, "bytes_sent": f.bytes,
+        }));
+    }
+    let json = serde_json::json!({ "count": cluster.size(), "timeout_s": args.rank_timeout, "per_rank": ranks });
+    Ok(RankViews { remote, remote_views, plan, device_names, wall_ms, json })
+}
+
+/// A camera as the bits of its floats: sent exactly, so every rank renders the same rays.
+fn camera_bits(c: &Camera) -> [u32; 12] {
+    let f = [c.eye.x, c.eye.y, c.eye.z, c.forward.x, c.forward.y, c.forward.z, c.up.x, c.up.y, c.up.z, c.yfov];
+    let mut bits = [0u32; 12];
+    for (b, v) in bits.iter_mut().zip(f.into_iter().chain([c.shift.x, c.shift.y])) {
+        *b = v.to_bits();
+    }
+    bits
+}
+
+fn camera_of_bits(b: &[u32; 12]) -> Camera {
+    let f = b.map(f32::from_bits);
+    Camera {
+        eye: Vec3::new(f[0], f[1], f[2]),
+        forward: Vec3::new(f[3], f[4], f[5]),
+        up: Vec3::new(f[6], f[7], f[8]),
+        yfov: f[9],
+        shift: Vec2::new(f[10], f[11]),
+    }
+}
