@@ -65,9 +65,10 @@ pub fn run(args: PlanArgs) -> Result<()> {
 fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 8] {
     [
         format!(
-            "pipeline      {}, G-buffer {}, {}",
+            "pipeline      {}, G-buffer {}, fireflies {}, {}",
             flag_value(p.pipeline),
             flag_value(p.gbuffer),
+            flag_value(p.fireflies),
             if p.no_denoise { "no denoising" } else { "SVGF" }
         ),
         format!("light field   {} ({} views, {}x{} each)", s.layout, s.views, s.resolution[0], s.resolution[1]),
