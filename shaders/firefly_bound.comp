@@ -1,15 +1,28 @@
 #version 460
 // The `firefly_bound` pass (parallax_passes::firefly, shaders/firefly.glsl): per pixel with a
 // hit, the bound of its neighbourhood (mean + k standard deviations of its neighbours'
-// luminance, itself excluded, so a firefly does not raise its own bound); over it, the pixel's
-// share image holds (excess rgb / receivers, kept fraction), else (0, 0, 0, 1).
+// luminance, itself excluded, so a firefly does not raise its own bound, times sqrt(n) on a
+// still camera's n-th frame); over it, the pixel's share image holds (excess rgb / receivers,
+// kept fraction), else (0, 0, 0, 1).
 #include "firefly.glsl"
+
+// Whether this view's camera is last frame's, bit for bit, with valid history: the frame joins
+// SVGF's running mean (the same test as svgf_temporal.comp's).
+bool camera_still() {
+    if (frame.history_valid == 0u || (pc.flags & FIREFLY_CAMERAS) == 0u) {
+        return false;
+    }
+    ViewCameras cameras = pc.block.views[pc.view];
+    return cameras.current.view_proj == cameras.previous.view_proj;
+}
 
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.x, pc.y0 + gl_GlobalInvocationID.y);
     if (p.x >= int(pc.width) || p.y >= int(pc.y1)) {
         return;
     }
+    float n = camera_still() ? imageLoad(images[pc.frames_before], p).x + 1.0 : 1.0;
+    imageStore(images[pc.frames], p, vec4(n));
     vec4 result = vec4(0.0, 0.0, 0.0, 1.0);
     vec3 rgb = imageLoad(images[pc.radiance], p).rgb;
     float l = firefly_luminance(rgb);
@@ -40,7 +53,7 @@ void main() {
         }
         if (counted >= pc.min_neighbours) {
             float sigma = sqrt(max(m2 / float(counted), 0.0));
-            float bound = mean + pc.k * sigma;
+            float bound = mean + pc.k * sqrt(n) * sigma;
             if (l > bound) {
                 float kept = bound / l;
                 result = vec4(rgb * (1.0 - kept) / float(receivers), kept);

@@ -3,8 +3,10 @@
 //! denoiser, declared by [`declare_firefly_suppression`].
 //!
 //! 1. `firefly_bound` (shaders/firefly_bound.comp): per pixel with a hit, a bound from its 5×5
-//!    neighbourhood, the pixel itself excluded: mean + [`FIREFLY_K`] standard deviations of the
-//!    neighbours' luminance. A pixel over it keeps `bound / luminance` of its radiance (hue
+//!    neighbourhood, the pixel itself excluded: mean + [`FIREFLY_K`]·√n standard deviations of
+//!    the neighbours' luminance, n the frames of the still camera's running mean this frame joins
+//!    (1 after motion, a cut or a new plan; counted per pixel in the `firefly_frames` history, by
+//!    the test SVGF's accumulation makes). A pixel over it keeps `bound / luminance` of its radiance (hue
 //!    unchanged) and offers the rest in equal shares to its neighbours with a hit (the
 //!    `firefly_share` image).
 //! 2. `firefly_spread` (shaders/firefly_spread.comp): every pixel with a hit keeps its kept
@@ -16,7 +18,11 @@
 //! shares it receives minus the excess it gives; where the expected radiance is the same over
 //! the 5×5 window these cancel, so only pixels near an edge or gradient of the expected excess
 //! move, by at most the difference of the expected excess across their window, and the excess
-//! stays within 2 px of where it was sampled. A global clamp, and the clamps against the pixel's
+//! stays within 2 px of where it was sampled. On a still camera the bound grows as √n: a sample
+//! may move the running mean of n frames by at most [`FIREFLY_K`] neighbourhood deviations over
+//! √n (that mean's standard error), so suppression fades as the mean converges, and what it
+//! moved in the first frames weighs 1/n in the mean: a still picture converges to the
+//! unsuppressed one. A global clamp, and the clamps against the pixel's
 //! own temporal statistics tried before, threw the excess away: 0.65–8.7 % of a channel's mean
 //! (docs/RESULTS.md).
 //!
@@ -25,7 +31,7 @@
 use std::sync::Arc;
 
 use parallax_backend::{BackendError, ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
-use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
+use parallax_graph::{Format, Handle, HistorySlot, Image, ReadSlot, Role, WriteSlot};
 
 /// Pass name of the bound and share pass.
 pub const FIREFLY_BOUND: &str = "firefly_bound";
@@ -33,7 +39,10 @@ pub const FIREFLY_BOUND: &str = "firefly_bound";
 pub const FIREFLY_SPREAD: &str = "firefly_spread";
 /// Slot of the shares: (excess rgb / receivers, kept fraction), Rgba32f.
 pub const FIREFLY_SHARE: &str = "firefly_share";
-/// Standard deviations of the neighbours' luminance above their mean that a pixel may reach.
+/// Slot of n, the frames of the still camera's running mean (R32f, a history).
+pub const FIREFLY_FRAMES: &str = "firefly_frames";
+/// Standard deviations of the neighbours' luminance above their mean that a pixel may reach on
+/// a moving camera (times √n on the n-th still frame).
 pub const FIREFLY_K: f32 = 3.0;
 /// Neighbours with a hit (of 24) a pixel needs to be judged: fewer give no usable deviation
 /// (a thin object against the sky), and the pixel is left alone.
@@ -59,11 +68,15 @@ pub fn declare_firefly_suppression(
     radiance: &mut Handle<Image>,
 ) {
     let mut share = graph.image(FIREFLY_SHARE, Format::Rgba32f);
+    let mut frames = graph.image(FIREFLY_FRAMES, Format::R32f);
     let mut pass = graph.pass(FIREFLY_BOUND, Role::All);
     let stage = Stage::Bound {
         radiance: pass.read_halo_slot(radiance, RADIUS),
         position: pass.read_halo_slot(position_depth, RADIUS),
         share: pass.write_slot(&mut share),
+        // Read at the pixel's own texel only.
+        frames_before: pass.read_history_slot(&frames),
+        frames: pass.write_slot(&mut frames),
     };
     pass.kernel(Arc::new(FireflyKernel(stage))).record();
     let mut pass = graph.pass(FIREFLY_SPREAD, Role::All);
@@ -87,14 +100,43 @@ pub struct FireflyPush {
     pub height: u32,
     pub k: f32,
     pub min_neighbours: u32,
+    /// Bound only: n's history and this frame's n.
+    pub frames_before: u32,
+    pub frames: u32,
+    /// Bound only: the view whose cameras in `block` tell a still camera, and `CAMERAS` when
+    /// `block` holds them.
+    pub view: u32,
+    pub flags: u32,
+    pub pad: u32,
+    /// The frame block's address (`Recorder::frame_block_address`).
+    pub block: u64,
 }
 
-parallax_backend::push_constants!(FireflyPush { radiance, position, share, y0, y1, width, height, k, min_neighbours });
+/// `FireflyPush::flags`: `block` holds the frame's cameras.
+const CAMERAS: u32 = 1;
+
+parallax_backend::push_constants!(FireflyPush {
+    radiance,
+    position,
+    share,
+    y0,
+    y1,
+    width,
+    height,
+    k,
+    min_neighbours,
+    frames_before,
+    frames,
+    view,
+    flags,
+    pad,
+    block
+});
 
 /// Which shader a pass runs, and its slots.
 #[derive(Clone, Copy, Debug)]
 enum Stage {
-    Bound { radiance: ReadSlot, position: ReadSlot, share: WriteSlot },
+    Bound { radiance: ReadSlot, position: ReadSlot, share: WriteSlot, frames_before: HistorySlot, frames: WriteSlot },
     /// `radiance` is modified in place (its read is the slot's own).
     Spread { position: ReadSlot, share: ReadSlot, radiance: WriteSlot },
 }
@@ -119,10 +161,10 @@ impl PassKernel for FireflyKernel {
         let read = |slot: ReadSlot| rec.image(pass.read(slot)?.resource);
         let write = |slot: WriteSlot| rec.image(pass.write(slot)?.resource);
         let (radiance, position, share) = match self.0 {
-            Stage::Bound { radiance, position, share } => (read(radiance)?, read(position)?, write(share)?),
+            Stage::Bound { radiance, position, share, .. } => (read(radiance)?, read(position)?, write(share)?),
             Stage::Spread { position, share, radiance } => (write(radiance)?, read(position)?, read(share)?),
         };
-        let push = FireflyPush {
+        let mut push = FireflyPush {
             radiance,
             position,
             share,
@@ -132,7 +174,19 @@ impl PassKernel for FireflyKernel {
             height,
             k: FIREFLY_K,
             min_neighbours: FIREFLY_MIN_NEIGHBOURS,
+            ..bytemuck::Zeroable::zeroed()
         };
+        if let Stage::Bound { frames_before, frames, .. } = self.0 {
+            push.frames_before = rec.image(pass.history_read(frames_before)?.resource)?;
+            push.frames = write(frames)?;
+            // A graph run without cameras (no frame block) cannot tell a still camera: every
+            // frame is bounded as a first one.
+            if let Ok(block) = rec.frame_block_address() {
+                push.view = pass.view;
+                push.block = block;
+                push.flags = CAMERAS;
+            }
+        }
         let groups = [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1];
         rec.dispatch(shader, &push, groups)
     }
