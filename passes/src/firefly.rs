@@ -136,9 +136,19 @@ parallax_backend::push_constants!(FireflyPush {
 /// Which shader a pass runs, and its slots.
 #[derive(Clone, Copy, Debug)]
 enum Stage {
-    Bound { radiance: ReadSlot, position: ReadSlot, share: WriteSlot, frames_before: HistorySlot, frames: WriteSlot },
+    Bound {
+        radiance: ReadSlot,
+        position: ReadSlot,
+        share: WriteSlot,
+        frames_before: HistorySlot,
+        frames: WriteSlot,
+    },
     /// `radiance` is modified in place (its read is the slot's own).
-    Spread { position: ReadSlot, share: ReadSlot, radiance: WriteSlot },
+    Spread {
+        position: ReadSlot,
+        share: ReadSlot,
+        radiance: WriteSlot,
+    },
 }
 
 struct FireflyKernel(Stage);

@@ -113,7 +113,10 @@ fn sums(image: &[f32]) -> [f64; 3] {
 
 fn assert_close(what: &str, got: [f32; 3], expected: [f32; 3]) {
     for c in 0..3 {
-        assert!((got[c] - expected[c]).abs() <= 1e-5 * expected[c].abs().max(1.0), "{what}: {got:?}, expected {expected:?}");
+        assert!(
+            (got[c] - expected[c]).abs() <= 1e-5 * expected[c].abs().max(1.0),
+            "{what}: {got:?}, expected {expected:?}"
+        );
     }
 }
 
@@ -168,12 +171,8 @@ fn traced(mode: FireflyMode, frames: u32) -> Vec<Vec<(Vec<f32>, Vec<f32>)>> {
     let scene = default_scene();
     let views = common::views(&scene, 2, 48, 36);
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, 48, 36));
-    let config = PipelineConfig {
-        kind: PipelineKind::PathTrace,
-        fireflies: mode,
-        denoise: false,
-        ..PipelineConfig::default()
-    };
+    let config =
+        PipelineConfig { kind: PipelineKind::PathTrace, fireflies: mode, denoise: false, ..PipelineConfig::default() };
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     graph.export(&handles.gbuffer.position_depth);
@@ -211,16 +210,23 @@ fn suppressing_a_path_traced_frame_keeps_its_per_channel_sums_and_fades_as_a_sti
     let luminance = |p: &[f32]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     for (frame, (kept, suppressed)) in kept.iter().zip(&suppressed).enumerate() {
         for (view, ((before, position), (after, _))) in kept.iter().zip(suppressed).enumerate() {
-            let second_moment = |image: &[f32]| image.chunks_exact(4).map(|p| f64::from(luminance(p)).powi(2)).sum::<f64>();
+            let second_moment =
+                |image: &[f32]| image.chunks_exact(4).map(|p| f64::from(luminance(p)).powi(2)).sum::<f64>();
             let (b, a) = (sums(before), sums(after));
             for c in 0..3 {
-                assert!((a[c] / b[c] - 1.0).abs() < 1e-5, "frame {frame}, view {view}, channel {c}: {} → {}", b[c], a[c]);
+                assert!(
+                    (a[c] / b[c] - 1.0).abs() < 1e-5,
+                    "frame {frame}, view {view}, channel {c}: {} → {}",
+                    b[c],
+                    a[c]
+                );
             }
             let (mb, ma) = (second_moment(before), second_moment(after));
             if view == 0 {
                 changed.push(0);
             }
-            *changed.last_mut().unwrap() += before.chunks_exact(4).zip(after.chunks_exact(4)).filter(|(b, a)| b != a).count();
+            *changed.last_mut().unwrap() +=
+                before.chunks_exact(4).zip(after.chunks_exact(4)).filter(|(b, a)| b != a).count();
             assert!(ma < mb, "frame {frame}, view {view}: Σ luminance² {mb} before, {ma} after");
             for (i, (pb, pa)) in before.chunks_exact(4).zip(after.chunks_exact(4)).enumerate() {
                 if position[4 * i + 3] == 0.0 {
