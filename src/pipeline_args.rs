@@ -84,8 +84,9 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub no_denoise: bool,
     /// Before denoising, a pixel brighter than its 5×5 neighbourhood's mean + 3 standard
-    /// deviations (luminance) keeps that bound and shares the rest among its neighbours
-    /// (`suppress`: each view's per-channel sum unchanged), or the radiance stays as traced (`keep`).
+    /// deviations (luminance; × √n on a still camera's n-th frame, so it fades as the image
+    /// converges) keeps that bound and shares the rest among its neighbours (`suppress`: each
+    /// view's per-channel sum unchanged), or the radiance stays as traced (`keep`).
     #[arg(long, value_enum, default_value_t = FirefliesArg::Suppress)]
     pub fireflies: FirefliesArg,
     /// Partitioning scheme.
