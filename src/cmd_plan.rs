@@ -119,9 +119,10 @@ fn rank_line(s: &RankShare) -> String {
 fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 8] {
     [
         format!(
-            "pipeline      {}, G-buffer {}, {}",
+            "pipeline      {}, G-buffer {}, fireflies {}, {}",
             flag_value(p.pipeline),
             flag_value(p.gbuffer),
+            flag_value(p.fireflies),
             if p.no_denoise { "no denoising" } else { "SVGF" }
         ),
         format!("light field   {} ({} views, {}x{} each)", s.layout, s.views, s.resolution[0], s.resolution[1]),

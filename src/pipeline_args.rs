@@ -8,6 +8,7 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 use parallax_backend::KernelGraph;
 use parallax_graph::{Graph, LightField, Plan, PlanConfig, PlanSummary, Schedule, Scheme, SourcesPerSet};
+use parallax_passes::firefly::FireflyMode;
 use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
 
@@ -51,6 +52,23 @@ impl From<GbufferArg> for GbufferSource {
     }
 }
 
+/// `--fireflies`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FirefliesArg {
+    Suppress,
+    Keep,
+}
+
+impl From<FirefliesArg> for FireflyMode {
+    fn from(f: FirefliesArg) -> FireflyMode {
+        match f {
+            FirefliesArg::Suppress => FireflyMode::Suppress,
+            FirefliesArg::Keep => FireflyMode::Keep,
+        }
+    }
+}
+
 /// The pipeline and its placement. The field names are the clap ids that `bench` checks with
 /// `value_source`.
 #[derive(Args, Debug, Clone)]
@@ -65,6 +83,12 @@ pub struct PipelineArgs {
     /// Skip SVGF: the display shows the radiance after reprojection and hole filling.
     #[arg(long)]
     pub no_denoise: bool,
+    /// Before denoising, a pixel brighter than its 5×5 neighbourhood's mean + 3 standard
+    /// deviations (luminance; × √n on a still camera's n-th frame, so it fades as the image
+    /// converges) keeps that bound and shares the rest among its neighbours (`suppress`: each
+    /// view's per-channel sum unchanged), or the radiance stays as traced (`keep`).
+    #[arg(long, value_enum, default_value_t = FirefliesArg::Suppress)]
+    pub fireflies: FirefliesArg,
     /// Partitioning scheme.
     #[arg(long, value_enum, default_value_t = SchemeArg::MultiSource)]
     pub scheme: SchemeArg,
@@ -180,6 +204,7 @@ impl PipelineArgs {
                 view_dependence: self.reprojection_tolerance as f32,
                 ..Default::default()
             },
+            fireflies: self.fireflies.into(),
             denoise: !self.no_denoise,
             exposure,
         }

@@ -87,7 +87,7 @@ fn stage_of(totals: &EventTotals) -> String {
 /// The stages in the order the pipeline runs them (the paper's Table 1): a stage's rank is that
 /// of its name or of the name it extends (`svgf_atrous_2` is an `svgf_atrous`); stages not
 /// listed come after, by name.
-const PIPELINE_ORDER: [&str; 15] = [
+const PIPELINE_ORDER: [&str; 17] = [
     "gbuffer",
     "gbuffer_raster",
     "motion",
@@ -96,6 +96,8 @@ const PIPELINE_ORDER: [&str; 15] = [
     "reproject",
     "compact_holes",
     "hole_fill",
+    "firefly_bound",
+    "firefly_spread",
     "svgf_history",
     "svgf_temporal",
     "svgf_variance",

@@ -111,7 +111,7 @@ fn rows_beyond_bands(height: u32, bands: u32, reach: u32) -> u64 {
 }
 
 #[test]
-fn fine_all_counts_the_rows_svgf_reads_around_each_band() {
+fn fine_all_counts_the_rows_svgf_and_firefly_suppression_read_around_each_band() {
     let dir = scratch("plan", "halo");
     let args = ["--lf", "8x4", "--resolution", "64x48", "--gpus", "4", "--scheme", "fine-all"];
     let out = plan(&args, &dir);
@@ -121,9 +121,12 @@ fn fine_all_counts_the_rows_svgf_reads_around_each_band() {
     // guide (Rgba32f) and the albedo (Rgba16f) 1 step around its band, the first one 2 steps.
     let per_read: u64 = [2, 2, 4, 8, 16].into_iter().map(|reach| rows_beyond_bands(48, 4, reach)).sum();
     assert_eq!(per_read, 12 + 12 + 24 + 48 + 88);
+    // Firefly suppression reads the radiance and position_depth (firefly_bound) and the shares
+    // (firefly_spread), all Rgba32f, 2 rows around its band.
+    let firefly = rows_beyond_bands(48, 4, 2);
     let views = 32;
-    assert_eq!(json["halo_rows"], views * 3 * per_read);
-    assert_eq!(json["halo_bytes"], views * per_read * 64 * (16 + 16 + 8));
+    assert_eq!(json["halo_rows"], views * (3 * per_read + 3 * firefly));
+    assert_eq!(json["halo_bytes"], views * (per_read * 64 * (16 + 16 + 8) + firefly * 64 * 3 * 16));
     // One device has one band per view: nothing lies beyond it.
     let one = scratch("plan", "halo_one");
     let out = plan(&["--lf", "8x4", "--resolution", "64x48", "--gpus", "1", "--scheme", "fine-all"], &one);

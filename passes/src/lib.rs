@@ -45,6 +45,7 @@
 pub mod bench;
 pub mod camera;
 pub mod error;
+pub mod firefly;
 pub mod gbuffer;
 pub mod hole_bench;
 pub mod hole_fill;

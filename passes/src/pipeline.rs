@@ -1,6 +1,6 @@
 //! The light-field pipelines as graphs (docs/PIPELINE.md): the paper's reconstruction
-//! (`Reproject`: G-buffer → path trace sources → reproject targets → hole filling → SVGF →
-//! tonemap) and the baseline that path traces every view (`PathTrace`), declared once and
+//! (`Reproject`: G-buffer → path trace sources → reproject targets → hole filling → firefly
+//! suppression → SVGF → tonemap) and the baseline that path traces every view (`PathTrace`), declared once and
 //! placed by any of the three schemes. What differs between the schemes is only the plan's
 //! sources and placement, which is what makes the comparison side by side fair.
 //!
@@ -36,6 +36,7 @@ use parallax_backend::KernelGraph;
 use parallax_graph::{FamilyId, Format, Handle, Image, Role};
 
 use crate::error::Result;
+use crate::firefly::{FireflyMode, declare_firefly_suppression};
 use crate::gbuffer::{Gbuffer, declare_gbuffer, declare_gbuffer_rasterised};
 use crate::holes::declare_hole_fill;
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
@@ -68,6 +69,9 @@ pub struct PipelineConfig {
     pub kind: PipelineKind,
     pub gbuffer: GbufferSource,
     pub tolerances: ReprojectionTolerances,
+    /// Energy-conserving firefly suppression of the complete radiance, before the denoiser
+    /// ([`crate::firefly`]).
+    pub fireflies: FireflyMode,
     /// SVGF between the radiance and the tonemapper.
     pub denoise: bool,
     /// Exposure of the tonemapper (finite, > 0).
@@ -77,7 +81,8 @@ pub struct PipelineConfig {
 /// Handles of a declared pipeline, for callers that read layers back or add passes.
 pub struct PipelineHandles {
     pub gbuffer: Gbuffer,
-    /// Linear radiance before denoising (targets: reprojected, then their holes path traced).
+    /// Linear radiance before denoising (targets: reprojected, then their holes path traced;
+    /// then its fireflies suppressed, with [`FireflyMode::Suppress`]).
     pub radiance: Handle<Image>,
     /// Targets' hole masks (`Reproject` only).
     pub holes: Option<Handle<Image>>,
@@ -105,6 +110,9 @@ pub enum InsertionPoint {
     AfterReprojection,
     /// Targets' holes are path traced (`Reproject` only).
     AfterHoleFill,
+    /// Fireflies are suppressed (with [`FireflyMode::Suppress`]; else the same place as
+    /// [`Self::AfterHoleFill`]): the radiance the denoiser reads.
+    AfterFireflies,
     /// The radiance is denoised (with `denoise`; else the same place as [`Self::BeforeTonemap`]).
     AfterDenoise,
     /// Last before the tonemapper: where an exposure is measured ([`Layers::exposure`]).
@@ -146,12 +154,13 @@ pub struct PipelineBuilder {
 
 impl Default for PipelineConfig {
     /// What `parallax render` runs without flags: the paper's pipeline with first-hit G-buffer,
-    /// SVGF and exposure 1.
+    /// firefly suppression, SVGF and exposure 1.
     fn default() -> Self {
         PipelineConfig {
             kind: PipelineKind::Reproject,
             gbuffer: GbufferSource::FirstHits,
             tolerances: ReprojectionTolerances::default(),
+            fireflies: FireflyMode::Suppress,
             denoise: true,
             exposure: 1.0,
         }
@@ -212,6 +221,10 @@ impl PipelineBuilder {
             declare_hole_fill(graph, holes, &mut layers.radiance);
             self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
         }
+        if config.fireflies == FireflyMode::Suppress {
+            declare_firefly_suppression(graph, &layers.gbuffer.position_depth, &mut layers.radiance);
+        }
+        self.run_stages(InsertionPoint::AfterFireflies, graph, &mut layers)?;
         if config.denoise {
             let denoised = match self.denoiser.take() {
                 Some(denoiser) => denoiser(graph, &mut layers)?,
@@ -304,6 +317,7 @@ mod tests {
             InsertionPoint::AfterDenoise,
             InsertionPoint::AfterReprojection,
             InsertionPoint::AfterTrace,
+            InsertionPoint::AfterFireflies,
             InsertionPoint::BeforeTonemap,
         ]
         .into_iter()
@@ -325,10 +339,11 @@ mod tests {
         assert_eq!(points, sorted, "stages run in pipeline order");
         let at_tonemap: Vec<usize> =
             seen.iter().filter(|(at, ..)| *at == InsertionPoint::BeforeTonemap).map(|(_, i, _)| *i).collect();
-        assert_eq!(at_tonemap, [0, 6], "two stages at one point run in insertion order");
+        assert_eq!(at_tonemap, [0, 7], "two stages at one point run in insertion order");
         let last_before = |at| seen.iter().find(|(p, ..)| *p == at).unwrap().2.clone();
         assert_eq!(last_before(InsertionPoint::AfterTrace), crate::path_trace::PATH_TRACE);
         assert_eq!(last_before(InsertionPoint::AfterHoleFill), crate::holes::HOLE_FILL);
+        assert_eq!(last_before(InsertionPoint::AfterFireflies), crate::firefly::FIREFLY_SPREAD);
         assert!(!pass_names(&graph).is_empty() && pass_names(&graph).last().unwrap() == crate::tonemap::TONEMAP);
     }
 
@@ -345,6 +360,8 @@ mod tests {
             "reproject",
             "compact_holes",
             "hole_fill",
+            "firefly_bound",
+            "firefly_spread",
             "svgf_history",
             "svgf_temporal",
             "svgf_atrous_1",
@@ -358,6 +375,19 @@ mod tests {
         assert_eq!(pass_names(&b), standard);
         let denoised = handles.denoised.as_ref().unwrap();
         assert_eq!((handles.linear, b.name_of(denoised)), (denoised.family(), crate::svgf::DENOISED));
+    }
+
+    #[test]
+    fn keeping_fireflies_declares_the_pipeline_without_their_passes() {
+        let mut graph = KernelGraph::with_payload(topology());
+        let config = PipelineConfig { fireflies: FireflyMode::Keep, ..PipelineConfig::default() };
+        declare_pipeline(&mut graph, &config).unwrap();
+        let mut suppressing = KernelGraph::with_payload(topology());
+        declare_pipeline(&mut suppressing, &PipelineConfig::default()).unwrap();
+        let mut without: Vec<String> = pass_names(&suppressing);
+        without.retain(|n| n != crate::firefly::FIREFLY_BOUND && n != crate::firefly::FIREFLY_SPREAD);
+        assert_eq!(without.len() + 2, pass_names(&suppressing).len());
+        assert_eq!(pass_names(&graph), without);
     }
 
     #[test]

@@ -13,6 +13,7 @@ use parallax_backend::{ExecutionPlan, KernelGraph};
 use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
+use parallax_passes::firefly::FireflyMode;
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_passes::view_bound::{ViewBound, view_angle};
@@ -116,8 +117,14 @@ fn render_setup(s: Setup<'_>) -> Rendered {
         PlanConfig { devices: s.devices, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
-    let config =
-        PipelineConfig { kind: s.kind, gbuffer: s.gbuffer, tolerances: s.tolerances, denoise: false, exposure: 1.0 };
+    let config = PipelineConfig {
+        kind: s.kind,
+        gbuffer: s.gbuffer,
+        tolerances: s.tolerances,
+        fireflies: FireflyMode::Keep,
+        denoise: false,
+        exposure: 1.0,
+    };
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     let schedule = compile(&graph, &plan).unwrap();

@@ -6,6 +6,7 @@ use glam::Vec3;
 use parallax_backend::{Context, ExecOptions, ExecutionPlan, KernelGraph};
 use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
+use parallax_passes::firefly::FireflyMode;
 use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
@@ -52,12 +53,14 @@ pub fn reprojection_renderer(
     (renderer, handles)
 }
 
-/// The standard pipeline of `kind`: first-hit G-buffer, default tolerances, SVGF, exposure 1.
+/// The standard pipeline of `kind`: first-hit G-buffer, default tolerances, firefly
+/// suppression, SVGF, exposure 1.
 pub fn denoising_pipeline(kind: PipelineKind) -> PipelineConfig {
     PipelineConfig {
         kind,
         gbuffer: GbufferSource::FirstHits,
         tolerances: ReprojectionTolerances::default(),
+        fireflies: FireflyMode::Suppress,
         denoise: true,
         exposure: 1.0,
     }
