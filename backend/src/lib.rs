@@ -101,7 +101,7 @@ mod frame_stats;
 mod instance;
 mod link_memory;
 mod links;
-pub use links::{LinkInfo, LinkKind, LinkKinds, link_kinds};
+pub use links::{DeviceSubmissions, LinkInfo, LinkKind, LinkKinds, link_kinds};
 mod lower;
 mod memory;
 mod pipeline;

@@ -154,6 +154,17 @@ pub struct LinkInfo {
     pub bytes_per_frame: u64,
 }
 
+/// What one device submits each frame ([`crate::Executor::submissions`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceSubmissions {
+    pub device: usize,
+    /// Segments (one `VkSubmitInfo2` each, each signalling the progress timeline) a frame.
+    pub submissions_per_frame: usize,
+    /// Semaphore waits on other devices' links a frame (one per link a segment waits on: the
+    /// waits of one segment on one link are merged into the largest value).
+    pub cross_device_waits_per_frame: usize,
+}
+
 /// One link and the semaphore its consumer waits on (owned by the consumer's device state).
 pub(crate) struct Link {
     pub(crate) from: usize,

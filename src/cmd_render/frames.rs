@@ -94,6 +94,14 @@ pub(super) fn render_frames(
             link.bytes_per_frame as f64 / (1 << 20) as f64
         );
     }
+    for s in executor.submissions() {
+        tracing::info!(
+            "device {}: {} submission(s) and {} cross-device wait(s) a frame",
+            s.device,
+            s.submissions_per_frame,
+            s.cross_device_waits_per_frame
+        );
+    }
     if !executor.links().is_empty() {
         let mib = |bytes: u64| bytes as f64 / (1 << 20) as f64;
         tracing::info!(

@@ -47,7 +47,7 @@ use crate::device_state::{DeviceState, Staging};
 use crate::error::Result;
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
-use crate::links::{ChunkLink, Link, LinkInfo, LinkKinds, link_kinds};
+use crate::links::{ChunkLink, DeviceSubmissions, Link, LinkInfo, LinkKinds, link_kinds};
 use crate::memory::Buffer;
 use crate::plan::ExecutionPlan;
 use crate::readback::Readback;
@@ -224,6 +224,19 @@ impl Executor {
             bytes_per_frame: l.bytes_per_frame,
         };
         self.links.iter().map(info).collect()
+    }
+
+    /// Per device: the submissions and cross-device waits of one frame of the plan.
+    pub fn submissions(&self) -> Vec<DeviceSubmissions> {
+        (0..self.states.len())
+            .map(|d| DeviceSubmissions {
+                device: d,
+                submissions_per_frame: self.states[d].segments.len(),
+                cross_device_waits_per_frame: (0..self.states[d].segments.len())
+                    .map(|j| self.ready_waits(d, j, 0).len())
+                    .sum(),
+            })
+            .collect()
     }
 
     /// Bytes of host staging memory the plan's copies use (`relay` links), over every
