@@ -2,7 +2,7 @@
 //! devices, with validation always on.
 
 use parallax_backend::{
-    BackendError, Context, DeviceId, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, chrome_trace,
+    BackendError, Context, DeviceId, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, LinkKind, chrome_trace,
 };
 use parallax_testkit::kernels::reference_shift_blend;
 use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
@@ -230,6 +230,30 @@ fn copies_in_submissions_of_their_own_give_the_same_images() {
         drop(exec);
         ctx.check_validation().unwrap();
     }
+}
+
+/// Small copies share a submission up to `chunk_bytes` together over a `relay` link, and
+/// without a cap over device memory (`shared`): fewer submissions, the same images.
+#[test]
+fn small_copies_over_device_memory_share_submissions_beyond_the_chunk_size() {
+    let (plan, _) = reprojection_demo(VIEWS, 3, SIZE, SIZE);
+    let largest = (0..plan.copies.len()).map(|c| plan.copy_bytes(parallax_backend::CopyId(c as u32))).max().unwrap();
+    let run = |link| {
+        let options = ExecOptions { chunk_bytes: largest, link: Some(link), ..parallax_testkit::options() };
+        let (outputs, exec, ctx) = run_demo(3, 2, options);
+        let submissions: usize = exec.submissions().iter().map(|s| s.submissions_per_frame).sum();
+        let waits: usize = exec.submissions().iter().map(|s| s.cross_device_waits_per_frame).sum();
+        drop(exec);
+        ctx.check_validation().unwrap();
+        (outputs, submissions, waits)
+    };
+    let (relayed, relay_submissions, relay_waits) = run(LinkKind::Relay);
+    let (shared, shared_submissions, shared_waits) = run(LinkKind::Shared);
+    assert_eq!(shared, relayed);
+    assert!(
+        shared_submissions < relay_submissions && shared_waits <= relay_waits,
+        "shared: {shared_submissions} submissions, {shared_waits} waits; relay: {relay_submissions}, {relay_waits}"
+    );
 }
 
 /// A device lost in the middle of a frame's submission ends the run with that error, and what

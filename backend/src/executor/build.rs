@@ -50,8 +50,14 @@ impl Executor {
             _ => None,
         };
         let mut states = Vec::with_capacity(self.devices.len());
-        let cut =
-            segment_devices(&plan, &chunks, self.options.chunk_bytes, dropped_wait, self.options.separate_copy_queue);
+        // Small copies share a submission up to `chunk_bytes` together where a host relay
+        // carries them (a bounded batch lets the two PCIe directions overlap). Over device memory
+        // a batch moves at the copy engines' speed and every submission costs a signal and a
+        // wait: the small copies of a pass's run then share one, whatever their bytes.
+        let device_memory =
+            plan.copies.iter().all(|c| self.link_kinds.of(c.from.0 as usize, c.to.0 as usize) != LinkKind::Relay);
+        let merge_bytes = if device_memory { u64::MAX } else { self.options.chunk_bytes };
+        let cut = segment_devices(&plan, &chunks, merge_bytes, dropped_wait, self.options.separate_copy_queue);
         let chunk_counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
         let order = link_order(&plan, &cut, &chunk_counts);
         let kinds: Vec<LinkKind> = order.links.iter().map(|&(from, to, _)| self.link_kinds.of(from, to)).collect();
