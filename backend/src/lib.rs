@@ -112,6 +112,7 @@ mod recorder;
 mod relay;
 mod segments;
 mod shaders;
+mod staging_ring;
 mod texture;
 mod timing;
 

@@ -256,6 +256,41 @@ fn small_copies_over_device_memory_share_submissions_beyond_the_chunk_size() {
     );
 }
 
+/// Host staging rings of one copy each (`host_staging_bytes: 1`) wrap around within every
+/// frame: copy-outs wait for the space the consumer frees, and the images stay the same. Six
+/// views on two devices: three copies over each link a frame.
+#[test]
+fn a_tiny_host_staging_ring_wraps_around_and_gives_the_same_images() {
+    let views = 6;
+    let run = |devices: usize, options: ExecOptions| {
+        let ctx = context(devices);
+        let (plan, ids) = reprojection_demo(views, devices, SIZE, SIZE);
+        let mut exec = Executor::new(&ctx, plan, options).unwrap();
+        for _ in 0..3 {
+            exec.run_frame().unwrap();
+        }
+        exec.finish().unwrap();
+        let outputs: Vec<Vec<u8>> = ids.output.iter().map(|&r| exec.read_resource(DeviceId(0), r).unwrap()).collect();
+        let waits: usize = exec.submissions().iter().map(|s| s.cross_device_waits_per_frame).sum();
+        let staging = exec.host_staging_bytes();
+        drop(exec);
+        ctx.check_validation().unwrap();
+        (outputs, waits, staging)
+    };
+    let (reference, ..) = run(1, parallax_testkit::options());
+    let relay = |host_staging_bytes| ExecOptions {
+        link: Some(LinkKind::Relay),
+        host_staging_bytes,
+        ..parallax_testkit::options()
+    };
+    let (whole, whole_waits, whole_staging) = run(2, relay(512 << 20));
+    let (tiny, tiny_waits, tiny_staging) = run(2, relay(1));
+    assert!(whole == reference, "whole links: 2 devices and 1 device differ");
+    assert!(tiny == reference, "tiny rings: 2 devices and 1 device differ");
+    assert!(tiny_staging < whole_staging, "ring {tiny_staging} B, whole links {whole_staging} B");
+    assert!(tiny_waits > whole_waits, "the wrapped ring adds space waits: {tiny_waits} against {whole_waits}");
+}
+
 /// A device lost in the middle of a frame's submission ends the run with that error, and what
 /// follows is clean: no further frame is submitted, and dropping the executor does not hang on
 /// the segments already queued, which wait for copies that will never be sent.

@@ -105,8 +105,9 @@ pub(super) fn render_frames(
     if !executor.links().is_empty() {
         let mib = |bytes: u64| bytes as f64 / (1 << 20) as f64;
         tracing::info!(
-            "staging: {:.1} MiB host, {:.1} MiB device",
+            "staging: {:.1} MiB host (rings within {:.1} MiB), {:.1} MiB device",
             mib(executor.host_staging_bytes()),
+            mib(executor.host_staging_limit()),
             mib(executor.device_staging_bytes())
         );
     }

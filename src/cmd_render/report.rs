@@ -155,6 +155,7 @@ fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
         "pairs": links,
         "devices": devices,
         "host_staging_bytes": executor.host_staging_bytes(),
+        "host_staging_limit_bytes": executor.host_staging_limit(),
         "device_staging_bytes": executor.device_staging_bytes(),
     })
 }

@@ -162,6 +162,15 @@ impl Executor {
         };
         let mut waits: Vec<vk::SemaphoreSubmitInfo<'static>> =
             self.ready_waits(d, j, local).into_iter().map(|(semaphore, value)| on(semaphore, value)).collect();
+        // A copy-out into bytes of a staging ring that an earlier copy of the frame still
+        // holds waits until the consumer has copied that one in (staging_ring.rs).
+        for &(l, value) in &self.space_waits[d][j] {
+            let link = &self.links[l];
+            waits.push(on(
+                link.space.expect("a link with space waits has a space timeline"),
+                local * link.per_frame + value,
+            ));
+        }
         // A segment on another queue than its predecessor (in program order, across the frame
         // boundary too) waits for it: the two queues run one program.
         let previous = match j {
@@ -209,7 +218,8 @@ impl Executor {
         waits
     }
 
-    /// Relay jobs of the copy-outs in `run`, in segment order (see relay.rs).
+    /// Relay jobs of the copy-outs in `run` and the space signals of its copy-ins from staging
+    /// rings, in segment order (see relay.rs).
     fn queue_relays(&self, run: &Run, local: u64) -> Result<()> {
         let Some(relay) = &self.relay else {
             return Ok(());
@@ -231,6 +241,18 @@ impl Executor {
                         target: self.devices[link.to].clone(),
                         semaphore: link.ready,
                         signal_value: ready_value(local, link.per_frame, position),
+                    },
+                )?;
+            }
+            for &(l, value) in &self.space_signals[d][j] {
+                let link = &self.links[l];
+                relay.push(
+                    d,
+                    RelayJob {
+                        watch_value,
+                        target: self.devices[link.from].clone(),
+                        semaphore: link.space.expect("a link with space signals has a space timeline"),
+                        signal_value: local * link.per_frame + value,
                     },
                 )?;
             }
