@@ -127,7 +127,7 @@ pub fn timings(stats: &FrameStats, prepare: &Summary) -> Timings {
         entry.0 += totals.total_ns;
         entry.1 += totals.count;
         if totals.kind == EventKind::CopyIn {
-            copies += totals.count;
+            copies += totals.copies;
             bytes += totals.bytes;
         }
     }

@@ -49,7 +49,16 @@ fn link_relay_moves_every_pair_through_host_staging_and_render_json_says_so() {
     assert_eq!(ends, vec![(0, 1), (1, 0)]);
     assert!(pairs.iter().all(|p| p["kind"] == "relay" && p["bytes_per_frame"].as_u64().unwrap() > 0), "{pairs:?}");
     assert!(links["host_staging_bytes"].as_u64().unwrap() > 0, "{links}");
+    assert_eq!(links["host_staging_limit_bytes"].as_u64(), Some(512 << 20), "{links}");
     assert_eq!(links["device_staging_bytes"].as_u64(), Some(0), "{links}");
+    // Both devices submit and wait for each other's copies every frame.
+    let devices = links["devices"].as_array().unwrap();
+    assert_eq!(devices.len(), 2, "{links}");
+    assert!(
+        devices.iter().all(|d| d["submissions_per_frame"].as_u64().unwrap() > 0
+            && d["cross_device_waits_per_frame"].as_u64().unwrap() > 0),
+        "{links}"
+    );
     assert_eq!(json["run"]["link"], "relay");
 }
 

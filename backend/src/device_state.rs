@@ -20,9 +20,10 @@ use crate::pipeline::Bindless;
 use crate::plan::{AllocId, CopyId, DeviceId, ExecResource, ExecutionPlan, Format, ResourceKind};
 use crate::record::{TimerLabel, timer_labels, timer_spans};
 use crate::segments::{Item, Segment};
+use crate::staging_ring::RingLayout;
 
 /// Alignment of each copy's region inside the staging buffer.
-const STAGING_ALIGN: u64 = 256;
+pub(crate) const STAGING_ALIGN: u64 = 256;
 
 /// Per device, per frame-in-flight slot.
 pub(crate) struct SlotResources {
@@ -341,7 +342,8 @@ fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image
     })
 }
 
-/// The staging buffers of `links` (`(from, to, kind)`) for `slots` slots; `link_of_copy[c]` is
+/// The staging buffers of `links` (`(from, to, kind)`) for `slots` slots (`rings`: the links
+/// whose buffer is a ring, its size and the offsets of its copies); `link_of_copy[c]` is
 /// the link copy `c` travels over.
 pub(crate) fn create_staging(
     devices: &[Arc<Device>],
@@ -349,6 +351,7 @@ pub(crate) fn create_staging(
     links: &[(usize, usize, LinkKind)],
     link_of_copy: &[usize],
     slots: usize,
+    rings: &[RingLayout],
 ) -> Result<Option<Staging>> {
     if plan.copies.is_empty() {
         return Ok(None);
@@ -358,6 +361,13 @@ pub(crate) fn create_staging(
     for (c, &link) in link_of_copy.iter().enumerate() {
         places.push((link, sizes[link]));
         sizes[link] += plan.copy_bytes(CopyId(c as u32)).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
+    }
+    // Links whose staging is a ring (staging_ring.rs): its size, its copies' offsets.
+    for ring in rings {
+        sizes[ring.link] = ring.size;
+        for &(copy, offset) in &ring.offsets {
+            places[copy.index()].1 = offset;
+        }
     }
     let mut staging = Staging { buffers: Vec::with_capacity(links.len()), places, host_bytes: 0, device_bytes: 0 };
     for (&(from, to, kind), &size) in links.iter().zip(&sizes) {

@@ -126,6 +126,8 @@ pub struct EventTotals {
     /// Events (one per frame, or several where a label repeats within a frame).
     pub count: u64,
     pub total_ns: u64,
+    /// Copy chunks the events covered ([`TimedEvent::copies`]).
+    pub copies: u64,
     pub bytes: u64,
 }
 
@@ -173,6 +175,7 @@ impl FrameStats {
                         gather: event.gather,
                         count: 0,
                         total_ns: 0,
+                        copies: 0,
                         bytes: 0,
                     });
                     totals.len() - 1
@@ -181,6 +184,7 @@ impl FrameStats {
             let t = &mut totals[index];
             t.count += 1;
             t.total_ns += event.duration_ns();
+            t.copies += u64::from(event.copies);
             t.bytes += event.bytes;
         }
         for d in &report.devices {
@@ -276,6 +280,7 @@ mod tests {
                 view: 0,
                 index: 0,
                 chunk: 0,
+                copies: 0,
                 bytes: 0,
                 gather: false,
                 start_ns,

@@ -101,7 +101,7 @@ mod frame_stats;
 mod instance;
 mod link_memory;
 mod links;
-pub use links::{LinkInfo, LinkKind, LinkKinds, link_kinds};
+pub use links::{DeviceSubmissions, LinkInfo, LinkKind, LinkKinds, link_kinds};
 mod lower;
 mod memory;
 mod pipeline;
@@ -112,6 +112,7 @@ mod recorder;
 mod relay;
 mod segments;
 mod shaders;
+mod staging_ring;
 mod texture;
 mod timing;
 

@@ -154,6 +154,18 @@ pub struct LinkInfo {
     pub bytes_per_frame: u64,
 }
 
+/// What one device submits each frame ([`crate::Executor::submissions`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceSubmissions {
+    pub device: usize,
+    /// Segments (one `VkSubmitInfo2` each, each signalling the progress timeline) a frame.
+    pub submissions_per_frame: usize,
+    /// Semaphore waits on other devices' links a frame (one per link a segment waits on: the
+    /// waits of one segment on one link are merged into the largest value), and the space waits
+    /// of copy-outs into host staging rings.
+    pub cross_device_waits_per_frame: usize,
+}
+
 /// One link and the semaphore its consumer waits on (owned by the consumer's device state).
 pub(crate) struct Link {
     pub(crate) from: usize,
@@ -162,7 +174,10 @@ pub(crate) struct Link {
     /// On the consumer: the ready timeline the relay raises, or for a `gpu` link the producer's
     /// progress timeline imported.
     pub(crate) ready: vk::Semaphore,
-    /// Chunks sent over the link per frame: a ready timeline's step per frame.
+    /// On the producer, for a link whose staging is a ring that wraps (staging_ring.rs): the
+    /// space timeline the relay raises after each of the consumer's copy-ins from the link.
+    pub(crate) space: Option<vk::Semaphore>,
+    /// Chunks sent over the link per frame: a ready (and space) timeline's step per frame.
     pub(crate) per_frame: u64,
     pub(crate) bytes_per_frame: u64,
 }

@@ -36,6 +36,9 @@ pub(crate) struct TimerLabel {
     pub view: u32,
     pub index: usize,
     pub chunk: u32,
+    /// Copy chunks the span covers (0 for passes).
+    pub copies: u32,
+    /// Bytes of those copies.
     pub bytes: u64,
     /// A copy of a finished view to device 0 ([`crate::ExecCopy::gather`]).
     pub gather: bool,
@@ -84,19 +87,33 @@ pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<us
 
 /// The items each timestamp pair of `segment` covers, in order: every op alone
 /// (`Timing::PerOp`; a group of instances is one op, [`op_groups`]), or runs of consecutive
-/// instances of one pass with every copy alone (`Timing::PerStage`). Spans never split an op.
+/// instances of one pass and runs of consecutive copies of one direction (`Timing::PerStage`).
+/// Spans never split an op. A span of copies is also recorded as one batch (one barrier for
+/// their ownership transfers, [`record_items`]): a timestamp drains the queue on NVIDIA, and
+/// the fine schemes copy thousands of small chunks a frame, whose cost was these drains.
 pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timing) -> Vec<Range<usize>> {
+    #[derive(PartialEq)]
+    enum Stage<'a> {
+        Pass(&'a str),
+        /// Gathers (Table 1's "transfer") are timed apart from copies between stages.
+        CopyOut {
+            gather: bool,
+        },
+        CopyIn {
+            gather: bool,
+        },
+    }
+    let gather = |chunk: &Chunk| plan.copy(chunk.copy).gather;
     let stage = |item: &Item| match item {
-        Item::Pass(p) => Some(plan.pass(*p).name.as_str()),
-        Item::CopyOut(_) | Item::CopyIn(_) => None,
+        Item::Pass(p) => Stage::Pass(plan.pass(*p).name.as_str()),
+        Item::CopyOut(c) => Stage::CopyOut { gather: gather(c) },
+        Item::CopyIn(c) => Stage::CopyIn { gather: gather(c) },
     };
     let mut spans: Vec<Range<usize>> = Vec::new();
     for op in op_groups(plan, segment) {
         let item = &segment.items[op.start];
         let joins = timing == Timing::PerStage
-            && spans
-                .last()
-                .is_some_and(|last| stage(item).is_some() && stage(&segment.items[last.start]) == stage(item));
+            && spans.last().is_some_and(|last| stage(&segment.items[last.start]) == stage(item));
         match spans.last_mut() {
             Some(last) if joins => last.end = op.end,
             _ => spans.push(op),
@@ -108,7 +125,17 @@ pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timin
 /// Timer labels of all timestamp pairs of `segments` (`spans[j]`: segment j's
 /// [`timer_spans`]), in recording order; a span is labelled by its first item.
 pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[Vec<Range<usize>>]) -> Vec<TimerLabel> {
-    let copy_label = |chunk: &Chunk, kind, queue| {
+    let chunk_bytes =
+        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).resource).row_bytes() * u64::from(chunk.y1 - chunk.y0);
+    let copy_label = |items: &[Item], kind, queue| {
+        let chunks: Vec<&Chunk> = items
+            .iter()
+            .filter_map(|item| match item {
+                Item::CopyOut(c) | Item::CopyIn(c) => Some(c),
+                Item::Pass(_) => None,
+            })
+            .collect();
+        let chunk = chunks[0];
         let copy = plan.copy(chunk.copy);
         let resource = plan.resource(copy.resource);
         TimerLabel {
@@ -123,7 +150,8 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
             view: resource.view,
             index: chunk.copy.index(),
             chunk: chunk.index,
-            bytes: resource.row_bytes() * u64::from(chunk.y1 - chunk.y0),
+            copies: chunks.len() as u32,
+            bytes: chunks.iter().map(|c| chunk_bytes(c)).sum(),
             gather: copy.gather,
             queue,
         }
@@ -131,8 +159,8 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
     segments
         .iter()
         .zip(spans)
-        .flat_map(|(s, spans)| spans.iter().map(move |span| (s.queue, &s.items[span.start])))
-        .map(|(queue, item)| match item {
+        .flat_map(|(s, spans)| spans.iter().map(move |span| (s.queue, &s.items[span.clone()])))
+        .map(|(queue, items)| match &items[0] {
             Item::Pass(p) => {
                 let pass = plan.pass(*p);
                 TimerLabel {
@@ -141,13 +169,14 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
                     view: pass.view,
                     index: p.index(),
                     chunk: 0,
+                    copies: 0,
                     bytes: 0,
                     gather: false,
                     queue,
                 }
             }
-            Item::CopyOut(c) => copy_label(c, EventKind::CopyOut, queue),
-            Item::CopyIn(c) => copy_label(c, EventKind::CopyIn, queue),
+            Item::CopyOut(_) => copy_label(items, EventKind::CopyOut, queue),
+            Item::CopyIn(_) => copy_label(items, EventKind::CopyIn, queue),
         })
         .collect()
 }
@@ -250,7 +279,17 @@ fn record_items(
     let mut hazards = Hazards::default();
     // The timestamp pair of each item (the spans tile the items in order).
     let timer_of: Vec<usize> = spans.iter().enumerate().flat_map(|(t, span)| span.clone().map(move |_| t)).collect();
-    for (g, op) in op_groups(ctx.plan, segment).into_iter().enumerate() {
+    // A span of copies is recorded as one batch: its ops are one op here.
+    let mut ops: Vec<Range<usize>> = Vec::new();
+    for op in op_groups(ctx.plan, segment) {
+        let span = &spans[timer_of[op.start]];
+        let copy = !matches!(segment.items[op.start], Item::Pass(_));
+        match ops.last_mut() {
+            Some(last) if copy && last.start >= span.start => last.end = op.end,
+            _ => ops.push(op),
+        }
+    }
+    for (g, op) in ops.into_iter().enumerate() {
         let span = &spans[timer_of[op.start]];
         let query = (first_timer + timer_of[op.start] as u32) * 2;
         let (mut reads, mut writes, mut opaque) = (Vec::new(), Vec::new(), false);
@@ -272,14 +311,15 @@ fn record_items(
         if op.start == span.start {
             unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
         }
-        match segment.items[op.start] {
-            Item::Pass(_) => bound = record_passes(ctx, cb, &segment.items[op.clone()], bound)?,
-            Item::CopyOut(chunk) => {
-                record_copy(ctx, cb, &chunk, CopyDirection::Out);
+        let items = &segment.items[op.clone()];
+        match items[0] {
+            Item::Pass(_) => bound = record_passes(ctx, cb, items, bound)?,
+            Item::CopyOut(_) => {
+                record_copies(ctx, cb, items, CopyDirection::Out);
                 // The other device reads the bytes, through host memory on a `relay` link.
                 copies_to_host_barrier(raw, cb);
             }
-            Item::CopyIn(chunk) => record_copy(ctx, cb, &chunk, CopyDirection::In),
+            Item::CopyIn(_) => record_copies(ctx, cb, items, CopyDirection::In),
         }
         if op.end == span.end {
             unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query + 1) };
@@ -459,54 +499,71 @@ enum CopyDirection {
     In,
 }
 
-/// Copies one chunk between the resource and its place in the staging buffer.
-fn record_copy(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, chunk: &Chunk, direction: CopyDirection) {
-    let copy = ctx.plan.copy(chunk.copy);
-    let local = ctx.resolve(match direction {
-        CopyDirection::Out => copy.resource,
-        CopyDirection::In => copy.dst,
-    });
-    let resource = ctx.plan.resource(local);
-    let (staging, offset) = ctx.staging[chunk.copy.index()];
-    let staging_offset = offset + u64::from(chunk.y0 - copy.rows.y0) * resource.row_bytes();
-    let size = u64::from(chunk.y1 - chunk.y0) * resource.row_bytes();
-    let range = (staging, staging_offset, size);
+/// Copies a run of chunks of one direction between their resources and their places in the
+/// staging buffer, with one barrier for all their ownership transfers (before copy-ins, after
+/// copy-outs) rather than one per chunk: each barrier waits for the copies before it.
+fn record_copies(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, items: &[Item], direction: CopyDirection) {
+    let copies: Vec<(Chunk, AllocId, (vk::Buffer, u64, u64))> = items
+        .iter()
+        .map(|item| {
+            let chunk = match *item {
+                Item::CopyOut(c) | Item::CopyIn(c) => c,
+                Item::Pass(_) => unreachable!("a copy span holds copies only"),
+            };
+            let copy = ctx.plan.copy(chunk.copy);
+            let local = ctx.resolve(match direction {
+                CopyDirection::Out => copy.resource,
+                CopyDirection::In => copy.dst,
+            });
+            let row_bytes = ctx.plan.resource(local).row_bytes();
+            let (staging, offset) = ctx.staging[chunk.copy.index()];
+            let staging_offset = offset + u64::from(chunk.y0 - copy.rows.y0) * row_bytes;
+            (chunk, local, (staging, staging_offset, u64::from(chunk.y1 - chunk.y0) * row_bytes))
+        })
+        .collect();
+    let ranges: Vec<(vk::Buffer, u64, u64)> = copies.iter().map(|&(.., range)| range).collect();
     if direction == CopyDirection::In {
-        external_ownership(ctx, cb, range, direction);
+        external_ownership(ctx, cb, &ranges, direction);
     }
-    record_chunk_copy(ctx, cb, chunk, direction, local, range);
+    for (chunk, local, range) in &copies {
+        record_chunk_copy(ctx, cb, chunk, direction, *local, *range);
+    }
     if direction == CopyDirection::Out {
-        external_ownership(ctx, cb, range, direction);
+        external_ownership(ctx, cb, &ranges, direction);
     }
 }
 
-/// Passes the ownership of a staging range to the other `VkDevice` after a copy-out, or takes
-/// it back before a copy-in (`VK_QUEUE_FAMILY_EXTERNAL`): the spec asks this of every resource
+/// Passes the ownership of staging ranges to the other `VkDevice` after copy-outs, or takes
+/// it back before copy-ins (`VK_QUEUE_FAMILY_EXTERNAL`): the spec asks this of every resource
 /// on memory shared with another instance or device, whatever its sharing mode
 /// (resources-external-sharing). The semaphore between the two orders release and acquire.
 fn external_ownership(
     ctx: &SegmentContext<'_>,
     cb: vk::CommandBuffer,
-    (buffer, offset, size): (vk::Buffer, u64, u64),
+    ranges: &[(vk::Buffer, u64, u64)],
     direction: CopyDirection,
 ) {
     // Staging buffers are concurrent over the device's queue families when it has several
     // (link_memory.rs, memory.rs): the local side of the transfer is then IGNORED.
     let local = if ctx.device.families().len() > 1 { vk::QUEUE_FAMILY_IGNORED } else { ctx.device.queue_family };
-    let barrier = vk::BufferMemoryBarrier2::default().buffer(buffer).offset(offset).size(size);
-    let barrier = match direction {
-        CopyDirection::Out => barrier
-            .src_stage_mask(vk::PipelineStageFlags2::COPY)
-            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-            .src_queue_family_index(local)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL),
-        CopyDirection::In => barrier
-            .dst_stage_mask(vk::PipelineStageFlags2::COPY)
-            .dst_access_mask(vk::AccessFlags2::TRANSFER_READ)
-            .src_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL)
-            .dst_queue_family_index(local),
-    };
-    let barriers = [barrier];
+    let barriers: Vec<vk::BufferMemoryBarrier2> = ranges
+        .iter()
+        .map(|&(buffer, offset, size)| {
+            let barrier = vk::BufferMemoryBarrier2::default().buffer(buffer).offset(offset).size(size);
+            match direction {
+                CopyDirection::Out => barrier
+                    .src_stage_mask(vk::PipelineStageFlags2::COPY)
+                    .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+                    .src_queue_family_index(local)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL),
+                CopyDirection::In => barrier
+                    .dst_stage_mask(vk::PipelineStageFlags2::COPY)
+                    .dst_access_mask(vk::AccessFlags2::TRANSFER_READ)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL)
+                    .dst_queue_family_index(local),
+            }
+        })
+        .collect();
     unsafe { ctx.raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().buffer_memory_barriers(&barriers)) };
 }
 
@@ -676,23 +733,52 @@ mod tests {
     }
 
     #[test]
-    fn per_op_times_every_item_and_per_stage_each_run_of_one_pass() {
-        let plan = plan_of(&["gbuffer", "gbuffer", "gbuffer", "svgf", "svgf", "gbuffer"]);
-        let chunk = Chunk { copy: CopyId(0), index: 0, y0: 0, y1: 1 };
+    fn per_op_times_every_item_and_per_stage_each_run_of_one_pass_or_copy_direction() {
+        let mut plan = plan_of(&["gbuffer", "gbuffer", "gbuffer", "svgf", "svgf", "gbuffer"]);
+        let copy = |gather| crate::plan::ExecCopy {
+            resource: AllocId(0),
+            dst: AllocId(0),
+            version: 1,
+            rows: parallax_graph::Region::new(0, 2),
+            from: DeviceId(0),
+            to: DeviceId(1),
+            gather,
+        };
+        plan.copies = vec![copy(false), copy(true)];
+        plan.resources = vec![crate::plan::ExecResource::image(
+            "radiance",
+            parallax_graph::FamilyId(0),
+            0,
+            4,
+            2,
+            crate::plan::Format::Rgba32f,
+        )];
+        let chunk = |c: u32, y0| Chunk { copy: CopyId(c), index: y0, y0, y1: y0 + 1 };
         let items = vec![
             Item::Pass(InstanceId(0)),
             Item::Pass(InstanceId(1)),
             Item::Pass(InstanceId(2)),
-            Item::CopyOut(chunk),
-            Item::CopyOut(chunk),
+            Item::CopyOut(chunk(0, 0)),
+            Item::CopyOut(chunk(0, 1)),
+            Item::CopyIn(chunk(0, 0)),
+            Item::CopyOut(chunk(1, 0)),
             Item::Pass(InstanceId(3)),
             Item::Pass(InstanceId(4)),
             Item::Pass(InstanceId(5)),
         ];
         let s = segment(items);
-        assert_eq!(timer_spans(&plan, &s, Timing::PerOp), (0..8).map(|i| i..i + 1).collect::<Vec<_>>());
-        // Copies stay alone and end a run; a pass name coming back starts a new run.
-        assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..3, 3..4, 4..5, 5..7, 7..8]);
+        assert_eq!(timer_spans(&plan, &s, Timing::PerOp), (0..10).map(|i| i..i + 1).collect::<Vec<_>>());
+        // Copies of one direction form a run of their own, gathers apart; a pass name coming
+        // back starts a new run.
+        let spans = timer_spans(&plan, &s, Timing::PerStage);
+        assert_eq!(spans, vec![0..3, 3..5, 5..6, 6..7, 7..9, 9..10]);
+        let labels = timer_labels(&plan, std::slice::from_ref(&s), std::slice::from_ref(&spans));
+        let copies: Vec<(u32, u64, bool)> = labels.iter().map(|l| (l.copies, l.bytes, l.gather)).collect();
+        let row = 4 * 16;
+        assert_eq!(
+            copies,
+            [(0, 0, false), (2, 2 * row, false), (1, row, false), (1, row, true), (0, 0, false), (0, 0, false)]
+        );
     }
 
     #[test]

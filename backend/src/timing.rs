@@ -29,6 +29,10 @@ pub struct TimedEvent {
     pub index: usize,
     /// Chunk index for copies (0 for passes).
     pub chunk: u32,
+    /// Copy chunks the interval covers: 1 for a copy under `Timing::PerOp`, the run of
+    /// consecutive copies of one direction under `Timing::PerStage`; 0 for passes.
+    pub copies: u32,
+    /// Bytes of those copies.
     pub bytes: u64,
     /// A copy of a finished view to device 0 ([`crate::ExecCopy::gather`]): Table 1's
     /// "transfer" rather than a copy between stages.

@@ -2,7 +2,7 @@
 //! devices, with validation always on.
 
 use parallax_backend::{
-    BackendError, Context, DeviceId, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, chrome_trace,
+    BackendError, Context, DeviceId, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, LinkKind, chrome_trace,
 };
 use parallax_testkit::kernels::reference_shift_blend;
 use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
@@ -230,6 +230,65 @@ fn copies_in_submissions_of_their_own_give_the_same_images() {
         drop(exec);
         ctx.check_validation().unwrap();
     }
+}
+
+/// Small copies share a submission up to `chunk_bytes` together over a `relay` link, and
+/// without a cap over device memory (`shared`): fewer submissions, the same images.
+#[test]
+fn small_copies_over_device_memory_share_submissions_beyond_the_chunk_size() {
+    let (plan, _) = reprojection_demo(VIEWS, 3, SIZE, SIZE);
+    let largest = (0..plan.copies.len()).map(|c| plan.copy_bytes(parallax_backend::CopyId(c as u32))).max().unwrap();
+    let run = |link| {
+        let options = ExecOptions { chunk_bytes: largest, link: Some(link), ..parallax_testkit::options() };
+        let (outputs, exec, ctx) = run_demo(3, 2, options);
+        let submissions: usize = exec.submissions().iter().map(|s| s.submissions_per_frame).sum();
+        let waits: usize = exec.submissions().iter().map(|s| s.cross_device_waits_per_frame).sum();
+        drop(exec);
+        ctx.check_validation().unwrap();
+        (outputs, submissions, waits)
+    };
+    let (relayed, relay_submissions, relay_waits) = run(LinkKind::Relay);
+    let (shared, shared_submissions, shared_waits) = run(LinkKind::Shared);
+    assert_eq!(shared, relayed);
+    assert!(
+        shared_submissions < relay_submissions && shared_waits <= relay_waits,
+        "shared: {shared_submissions} submissions, {shared_waits} waits; relay: {relay_submissions}, {relay_waits}"
+    );
+}
+
+/// Host staging rings of one copy each (`host_staging_bytes: 1`) wrap around within every
+/// frame: copy-outs wait for the space the consumer frees, and the images stay the same. Six
+/// views on two devices: three copies over each link a frame.
+#[test]
+fn a_tiny_host_staging_ring_wraps_around_and_gives_the_same_images() {
+    let views = 6;
+    let run = |devices: usize, options: ExecOptions| {
+        let ctx = context(devices);
+        let (plan, ids) = reprojection_demo(views, devices, SIZE, SIZE);
+        let mut exec = Executor::new(&ctx, plan, options).unwrap();
+        for _ in 0..3 {
+            exec.run_frame().unwrap();
+        }
+        exec.finish().unwrap();
+        let outputs: Vec<Vec<u8>> = ids.output.iter().map(|&r| exec.read_resource(DeviceId(0), r).unwrap()).collect();
+        let waits: usize = exec.submissions().iter().map(|s| s.cross_device_waits_per_frame).sum();
+        let staging = exec.host_staging_bytes();
+        drop(exec);
+        ctx.check_validation().unwrap();
+        (outputs, waits, staging)
+    };
+    let (reference, ..) = run(1, parallax_testkit::options());
+    let relay = |host_staging_bytes| ExecOptions {
+        link: Some(LinkKind::Relay),
+        host_staging_bytes,
+        ..parallax_testkit::options()
+    };
+    let (whole, whole_waits, whole_staging) = run(2, relay(512 << 20));
+    let (tiny, tiny_waits, tiny_staging) = run(2, relay(1));
+    assert!(whole == reference, "whole links: 2 devices and 1 device differ");
+    assert!(tiny == reference, "tiny rings: 2 devices and 1 device differ");
+    assert!(tiny_staging < whole_staging, "ring {tiny_staging} B, whole links {whole_staging} B");
+    assert!(tiny_waits > whole_waits, "the wrapped ring adds space waits: {tiny_waits} against {whole_waits}");
 }
 
 /// A device lost in the middle of a frame's submission ends the run with that error, and what

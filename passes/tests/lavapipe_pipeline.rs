@@ -133,10 +133,16 @@ fn fine_schemes_give_the_same_bits_on_one_and_three_devices_over_each_lavapipe_l
         let config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources: Some(vec![1, 6]) };
         let plan = Plan::new(&lf, &config).unwrap();
         let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
-        for kind in [LinkKind::Shared, LinkKind::Relay] {
-            let options = ExecOptions { link: Some(kind), ..ExecOptions::default() };
+        // The last: host staging rings of one copy each, which wrap around within every frame.
+        for (kind, host_staging_bytes) in
+            [(LinkKind::Shared, 512 << 20), (LinkKind::Relay, 512 << 20), (LinkKind::Relay, 1)]
+        {
+            let options = ExecOptions { link: Some(kind), host_staging_bytes, ..ExecOptions::default() };
             let (three, _) = run_with(&scene, &lf, &plan, &plan, 0..FRAMES, None, options);
-            assert!(three == one, "{scheme:?} over {kind:?} links: 3 devices and 1 device differ");
+            assert!(
+                three == one,
+                "{scheme:?} over {kind:?} links ({host_staging_bytes} B host staging): 3 devices and 1 device differ"
+            );
         }
     }
 }

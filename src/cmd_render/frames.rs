@@ -122,11 +122,20 @@ pub(super) fn render_frames(
             link.bytes_per_frame as f64 / (1 << 20) as f64
         );
     }
+    for s in executor.submissions() {
+        tracing::info!(
+            "device {}: {} submission(s) and {} cross-device wait(s) a frame",
+            s.device,
+            s.submissions_per_frame,
+            s.cross_device_waits_per_frame
+        );
+    }
     if !executor.links().is_empty() {
         let mib = |bytes: u64| bytes as f64 / (1 << 20) as f64;
         tracing::info!(
-            "staging: {:.1} MiB host, {:.1} MiB device",
+            "staging: {:.1} MiB host (rings within {:.1} MiB), {:.1} MiB device",
             mib(executor.host_staging_bytes()),
+            mib(executor.host_staging_limit()),
             mib(executor.device_staging_bytes())
         );
     }

@@ -161,9 +161,21 @@ fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
             })
         })
         .collect();
+    let devices: Vec<serde_json::Value> = executor
+        .submissions()
+        .iter()
+        .map(|s| {
+            serde_json::json!({
+                "device": s.device, "submissions_per_frame": s.submissions_per_frame,
+                "cross_device_waits_per_frame": s.cross_device_waits_per_frame,
+            })
+        })
+        .collect();
     serde_json::json!({
         "pairs": links,
+        "devices": devices,
         "host_staging_bytes": executor.host_staging_bytes(),
+        "host_staging_limit_bytes": executor.host_staging_limit(),
         "device_staging_bytes": executor.device_staging_bytes(),
     })
 }

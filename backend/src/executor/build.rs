@@ -4,13 +4,14 @@
 
 use ash::vk;
 
-use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
+use crate::device_state::{Kept, STAGING_ALIGN, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result};
 use crate::link_memory::import_timeline;
-use crate::links::{Link, LinkKind, link_order};
+use crate::links::{ChunkLink, Link, LinkKind, link_order};
 use crate::plan::{CopyId, ExecutionPlan};
 use crate::relay::Relay;
-use crate::segments::{Segment, chunks_of_copies, cross_device_waits, segment_devices, submission_order};
+use crate::segments::{Item, Segment, chunks_of_copies, cross_device_waits, segment_devices};
+use crate::staging_ring::{RingCopy, RingLayout, RingLink, fit_rings};
 use crate::texture::Texture;
 
 use super::{Executor, FaultInjection};
@@ -50,8 +51,14 @@ impl Executor {
             _ => None,
         };
         let mut states = Vec::with_capacity(self.devices.len());
-        let cut =
-            segment_devices(&plan, &chunks, self.options.chunk_bytes, dropped_wait, self.options.separate_copy_queue);
+        // Small copies share a submission up to `chunk_bytes` together where a host relay
+        // carries them (a bounded batch lets the two PCIe directions overlap). Over device memory
+        // a batch moves at the copy engines' speed and every submission costs a signal and a
+        // wait: the small copies of a pass's run then share one, whatever their bytes.
+        let device_memory =
+            plan.copies.iter().all(|c| self.link_kinds.of(c.from.0 as usize, c.to.0 as usize) != LinkKind::Relay);
+        let merge_bytes = if device_memory { u64::MAX } else { self.options.chunk_bytes };
+        let cut = segment_devices(&plan, &chunks, merge_bytes, dropped_wait, self.options.separate_copy_queue);
         let chunk_counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
         let order = link_order(&plan, &cut, &chunk_counts);
         let kinds: Vec<LinkKind> = order.links.iter().map(|&(from, to, _)| self.link_kinds.of(from, to)).collect();
@@ -81,7 +88,7 @@ impl Executor {
                 LinkKind::Shared | LinkKind::Relay => states[to].device.create_timeline(0)?,
             };
             states[to].ready.push(ready);
-            links.push(Link { from, to, kind, ready, per_frame, bytes_per_frame: bytes_per_frame[l] });
+            links.push(Link { from, to, kind, ready, space: None, per_frame, bytes_per_frame: bytes_per_frame[l] });
         }
         self.gate = match self.options.fault {
             Some(FaultInjection::DropCrossDeviceWait { copy }) => Some(fault_gate(&plan, &mut states, copy)?),
@@ -92,10 +99,47 @@ impl Executor {
             // The producer's first segment waits for the consumer's gate segment.
             waits[gate.producer][0].push((gate.consumer, gate.consumer_segment));
         }
-        self.submission_order =
-            submission_order(&waits).ok_or(BackendError::ExecutionPlan(crate::plan::ExecutionPlanError::WaitCycle))?;
+        // Host staging is a ring per `relay` link (staging_ring.rs); not under fault injection,
+        // whose gate the ring's check cannot see.
+        let rings = if self.gate.is_none() { ring_links(&plan, &segments, &links, &order.chunks) } else { Vec::new() };
+        let cycle = || BackendError::ExecutionPlan(crate::plan::ExecutionPlanError::WaitCycle);
+        let fitted = fit_rings(&rings, self.options.host_staging_bytes, slots, &waits).ok_or_else(cycle)?;
+        self.submission_order = fitted.order;
+        self.space_waits = segments.iter().map(|s| vec![Vec::new(); s.len()]).collect();
+        self.space_signals = segments.iter().map(|s| vec![Vec::new(); s.len()]).collect();
+        for wait in &fitted.waits {
+            if links[wait.link].space.is_none() {
+                let semaphore = states[wait.device].device.create_timeline(0)?;
+                states[wait.device].ready.push(semaphore);
+                links[wait.link].space = Some(semaphore);
+            }
+            self.space_waits[wait.device][wait.segment].push((wait.link, wait.value));
+        }
+        for (to, device) in segments.iter().enumerate() {
+            let mut counts = vec![0u64; links.len()];
+            for (j, segment) in device.iter().enumerate() {
+                for item in &segment.items {
+                    if let Item::CopyIn(chunk) = item {
+                        let link = order.chunks[chunk.copy.index()][chunk.index as usize].link;
+                        counts[link] += 1;
+                        if links[link].space.is_some() {
+                            self.space_signals[to][j].push((link, counts[link]));
+                        }
+                    }
+                }
+            }
+        }
+        let ring_layouts: Vec<RingLayout> = rings
+            .iter()
+            .zip(fitted.sizes.iter().zip(fitted.offsets))
+            .map(|(ring, (&size, offsets))| RingLayout {
+                link: ring.link,
+                size,
+                offsets: ring.copies.iter().map(|c| c.copy).zip(offsets).collect(),
+            })
+            .collect();
         let link_ends: Vec<(usize, usize, LinkKind)> = links.iter().map(|l| (l.from, l.to, l.kind)).collect();
-        self.staging = create_staging(&self.devices, &plan, &link_ends, &link_of_copy, slots)?;
+        self.staging = create_staging(&self.devices, &plan, &link_ends, &link_of_copy, slots, &ring_layouts)?;
         if let Some(readback) = &mut self.readback {
             readback.allocate(&self.devices[0], &plan, slots)?;
         }
@@ -121,4 +165,57 @@ impl Executor {
     pub(super) fn slot_count(&self) -> usize {
         self.options.frames_in_flight.div_ceil(2) * 2
     }
+}
+
+/// The `relay` links of a plan as [`RingLink`]s: each copy with its bytes in staging, the
+/// producer's segment that starts sending it, and the place of its last chunk among the
+/// link's copy-ins in the consumer's segment order.
+fn ring_links(
+    plan: &ExecutionPlan,
+    segments: &[Vec<Segment>],
+    links: &[Link],
+    chunks: &[Vec<ChunkLink>],
+) -> Vec<RingLink> {
+    let mut rings: Vec<Option<RingLink>> = links
+        .iter()
+        .enumerate()
+        .map(|(l, link)| {
+            (link.kind == LinkKind::Relay).then(|| RingLink {
+                link: l,
+                from: link.from,
+                to: link.to,
+                copies: Vec::new(),
+            })
+        })
+        .collect();
+    let mut copies: Vec<usize> = (0..plan.copies.len()).collect();
+    copies.sort_by_key(|&c| chunks[c][0].position);
+    // Per copy: (freed, consumer segment) of its last chunk in the consumer's order.
+    let mut freed = vec![(0u64, 0usize); plan.copies.len()];
+    for device in segments {
+        let mut counts = vec![0u64; links.len()];
+        for (j, segment) in device.iter().enumerate() {
+            for item in &segment.items {
+                if let Item::CopyIn(chunk) = item {
+                    let link = chunks[chunk.copy.index()][chunk.index as usize].link;
+                    counts[link] += 1;
+                    freed[chunk.copy.index()] = (counts[link], j);
+                }
+            }
+        }
+    }
+    for c in copies {
+        let first = chunks[c][0];
+        if let Some(ring) = &mut rings[first.link] {
+            let (freed, consumer_segment) = freed[c];
+            ring.copies.push(RingCopy {
+                copy: CopyId(c as u32),
+                bytes: plan.copy_bytes(CopyId(c as u32)).div_ceil(STAGING_ALIGN) * STAGING_ALIGN,
+                producer_segment: first.segment,
+                freed,
+                consumer_segment,
+            });
+        }
+    }
+    rings.into_iter().flatten().collect()
 }

@@ -47,7 +47,7 @@ use crate::device_state::{DeviceState, Staging};
 use crate::error::Result;
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
-use crate::links::{ChunkLink, Link, LinkInfo, LinkKinds, link_kinds};
+use crate::links::{ChunkLink, DeviceSubmissions, Link, LinkInfo, LinkKinds, link_kinds};
 use crate::memory::Buffer;
 use crate::plan::ExecutionPlan;
 use crate::readback::Readback;
@@ -100,8 +100,13 @@ pub struct Executor {
     staging: Option<Staging>,
     relay: Option<Relay>,
     gate: Option<FaultGate>,
-    /// The order every frame's segments are submitted in (`segments::submission_order`).
+    /// The order every frame's segments are submitted in (`segments::submission_order`, with
+    /// the space waits of staging rings).
     submission_order: Vec<Run>,
+    /// `[device][segment]`: the space waits of its copy-outs and the space signals of its
+    /// copy-ins, as (link, value within the frame): staging_ring.rs.
+    space_waits: Vec<Vec<Vec<(usize, u64)>>>,
+    space_signals: Vec<Vec<Vec<(usize, u64)>>>,
     /// A frame's submission failed part-way: frame `next_frame` is partly on the queues.
     cut_short: bool,
     next_frame: u64,
@@ -150,6 +155,8 @@ impl Executor {
             relay: None,
             gate: None,
             submission_order: Vec::new(),
+            space_waits: Vec::new(),
+            space_signals: Vec::new(),
             cut_short: false,
             next_frame: 0,
             plan_epoch: 0,
@@ -226,10 +233,29 @@ impl Executor {
         self.links.iter().map(info).collect()
     }
 
+    /// Per device: the submissions and cross-device waits of one frame of the plan.
+    pub fn submissions(&self) -> Vec<DeviceSubmissions> {
+        (0..self.states.len())
+            .map(|d| DeviceSubmissions {
+                device: d,
+                submissions_per_frame: self.states[d].segments.len(),
+                cross_device_waits_per_frame: (0..self.states[d].segments.len())
+                    .map(|j| self.ready_waits(d, j, 0).len() + self.space_waits[d][j].len())
+                    .sum(),
+            })
+            .collect()
+    }
+
     /// Bytes of host staging memory the plan's copies use (`relay` links), over every
     /// frame-in-flight slot.
     pub fn host_staging_bytes(&self) -> u64 {
         self.staging.as_ref().map_or(0, |s| s.host_bytes)
+    }
+
+    /// The most host staging memory the plan's copies may use (`ExecOptions::host_staging_bytes`);
+    /// more only where a ring must hold a larger copy or grow out of a wait cycle.
+    pub fn host_staging_limit(&self) -> u64 {
+        self.options.host_staging_bytes
     }
 
     /// Bytes of device staging memory the plan's copies use (`gpu` and `shared` links), over

@@ -58,6 +58,10 @@ pub struct ExecOptions {
     /// offers; a kind some pair cannot use makes `Executor::new` fail with
     /// `BackendError::LinkUnavailable` naming the pair and what it lacks.
     pub link: Option<crate::links::LinkKind>,
+    /// Host staging memory of `relay` links over every link and frame slot: each link's copies
+    /// take turns in a ring of its share (at least its largest copy; larger where a smaller
+    /// ring would make the devices wait on each other in a cycle), see staging_ring.rs.
+    pub host_staging_bytes: u64,
 }
 
 /// Where barriers go between the ops of a device (record.rs).
@@ -103,6 +107,7 @@ impl Default for ExecOptions {
             barriers: Barriers::EveryOp,
             timing: Timing::PerOp,
             link: None,
+            host_staging_bytes: 512 << 20,
         }
     }
 }

@@ -84,6 +84,7 @@ impl Executor {
                     view: label.view,
                     index: label.index,
                     chunk: label.chunk,
+                    copies: label.copies,
                     bytes: label.bytes,
                     gather: label.gather,
                     start_ns: to_host(ticks[2 * t]),

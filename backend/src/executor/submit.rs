@@ -160,20 +160,17 @@ impl Executor {
                 .value(value)
                 .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
         };
-        let mut waits: Vec<vk::SemaphoreSubmitInfo<'static>> = segment
-            .waits
-            .iter()
-            .map(|wait| {
-                let chunk = self.chunk_links[wait.copy.index()][wait.chunk as usize];
-                let link = &self.links[chunk.link];
-                let value = match link.kind {
-                    // The producer's progress value of the segment that completes the chunk.
-                    LinkKind::Gpu => progress_value(local, self.states[link.from].segments.len(), chunk.segment),
-                    LinkKind::Shared | LinkKind::Relay => ready_value(local, link.per_frame, chunk.position),
-                };
-                on(link.ready, value)
-            })
-            .collect();
+        let mut waits: Vec<vk::SemaphoreSubmitInfo<'static>> =
+            self.ready_waits(d, j, local).into_iter().map(|(semaphore, value)| on(semaphore, value)).collect();
+        // A copy-out into bytes of a staging ring that an earlier copy of the frame still
+        // holds waits until the consumer has copied that one in (staging_ring.rs).
+        for &(l, value) in &self.space_waits[d][j] {
+            let link = &self.links[l];
+            waits.push(on(
+                link.space.expect("a link with space waits has a space timeline"),
+                local * link.per_frame + value,
+            ));
+        }
         // A segment on another queue than its predecessor (in program order, across the frame
         // boundary too) waits for it: the two queues run one program.
         let previous = match j {
@@ -198,7 +195,31 @@ impl Executor {
         }
     }
 
-    /// Relay jobs of the copy-outs in `run`, in segment order (see relay.rs).
+    /// The cross-device waits of segment `j` of device `d` in frame `local`: one per link it
+    /// waits on, at the largest value its chunks on that link need. Timeline values on a link
+    /// rise in the producer's segment order (its progress timeline, or the ready values the
+    /// relay signals in that order), so the largest covers the others: one wait instead of one
+    /// per chunk.
+    pub(super) fn ready_waits(&self, d: usize, j: usize, local: u64) -> Vec<(vk::Semaphore, u64)> {
+        let mut waits: Vec<(vk::Semaphore, u64)> = Vec::new();
+        for wait in &self.states[d].segments[j].waits {
+            let chunk = self.chunk_links[wait.copy.index()][wait.chunk as usize];
+            let link = &self.links[chunk.link];
+            let value = match link.kind {
+                // The producer's progress value of the segment that completes the chunk.
+                LinkKind::Gpu => progress_value(local, self.states[link.from].segments.len(), chunk.segment),
+                LinkKind::Shared | LinkKind::Relay => ready_value(local, link.per_frame, chunk.position),
+            };
+            match waits.iter_mut().find(|(semaphore, _)| *semaphore == link.ready) {
+                Some((_, max)) => *max = (*max).max(value),
+                None => waits.push((link.ready, value)),
+            }
+        }
+        waits
+    }
+
+    /// Relay jobs of the copy-outs in `run` and the space signals of its copy-ins from staging
+    /// rings, in segment order (see relay.rs).
     fn queue_relays(&self, run: &Run, local: u64) -> Result<()> {
         let Some(relay) = &self.relay else {
             return Ok(());
@@ -220,6 +241,18 @@ impl Executor {
                         target: self.devices[link.to].clone(),
                         semaphore: link.ready,
                         signal_value: ready_value(local, link.per_frame, position),
+                    },
+                )?;
+            }
+            for &(l, value) in &self.space_signals[d][j] {
+                let link = &self.links[l];
+                relay.push(
+                    d,
+                    RelayJob {
+                        watch_value,
+                        target: self.devices[link.from].clone(),
+                        semaphore: link.space.expect("a link with space signals has a space timeline"),
+                        signal_value: local * link.per_frame + value,
                     },
                 )?;
             }
