@@ -8,7 +8,10 @@
 #   - a parallax binary built WITH the feature, on a machine that has libopenmpi-dev and
 #     libclang-dev:  cargo build --release --features mpi   (PARALLAX_BIN, default
 #     target/release/parallax); it links libmpi.so.40 dynamically;
-#   - on the H200, OpenMPI 4.1's runtime: `mpirun` (Debian openmpi-bin) and libmpi.so.40
+#   - on the H200, OpenMPI 4.1's runtime. The H200 image (2026-12-03) has its own OpenMPI 4.1.6
+#     (/usr/bin/mpirun, libmpi.so.40): use it as it is. Unpacking Debian's 4.1.4 over it made
+#     mpirun crash in libpmix before any rank started. Only where none is installed: `mpirun`
+#     (Debian openmpi-bin) and libmpi.so.40
 #     (libopenmpi3) with their libraries (libpmix2, libhwloc15, libevent-core/pthreads, libfabric1,
 #     libucx0, libpsm2-2, libibverbs1, ...). On a Debian 12 box with internet:
 #       apt-get download openmpi-bin openmpi-common libopenmpi3 libpmix2 libhwloc15 libevent-2.1-7 \
