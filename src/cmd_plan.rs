@@ -122,7 +122,7 @@ fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 8] {
             "pipeline      {}, G-buffer {}, fireflies {}, {}",
             flag_value(p.pipeline),
             flag_value(p.gbuffer),
-            flag_value(p.fireflies),
+            flag_value(p.fireflies_applied()),
             if p.no_denoise { "no denoising" } else { "SVGF" }
         ),
         format!("light field   {} ({} views, {}x{} each)", s.layout, s.views, s.resolution[0], s.resolution[1]),

@@ -86,7 +86,8 @@ pub struct PipelineArgs {
     /// Before denoising, a pixel brighter than its 5×5 neighbourhood's mean + 3 standard
     /// deviations (luminance; × √n on a still camera's n-th frame, so it fades as the image
     /// converges) keeps that bound and shares the rest among its neighbours (`suppress`: each
-    /// view's per-channel sum unchanged), or the radiance stays as traced (`keep`).
+    /// view's per-channel sum unchanged), or the radiance stays as traced (`keep`). Suppression
+    /// belongs to denoising: with `--no-denoise` the radiance always stays as traced.
     #[arg(long, value_enum, default_value_t = FirefliesArg::Suppress)]
     pub fireflies: FirefliesArg,
     /// Partitioning scheme.
@@ -195,6 +196,12 @@ impl PipelineArgs {
         assignment(self.scheme, self.assign).map(|_| ())
     }
 
+    /// What `--fireflies` does with these flags: without denoising the display is the radiance
+    /// as traced (`--no-denoise`), so nothing is suppressed and no G-buffer is computed for it.
+    pub fn fireflies_applied(&self) -> FirefliesArg {
+        if self.no_denoise { FirefliesArg::Keep } else { self.fireflies }
+    }
+
     /// The pipeline declaration these flags ask for.
     pub fn config(&self, exposure: f32) -> PipelineConfig {
         PipelineConfig {
@@ -204,7 +211,7 @@ impl PipelineArgs {
                 view_dependence: self.reprojection_tolerance as f32,
                 ..Default::default()
             },
-            fireflies: self.fireflies.into(),
+            fireflies: self.fireflies_applied().into(),
             denoise: !self.no_denoise,
             exposure,
         }

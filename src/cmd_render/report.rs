@@ -221,7 +221,7 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         // The assignment groups views only under multi-source (`--assign` is refused otherwise).
         "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
-        "fireflies": args.pipeline.fireflies,
+        "fireflies": args.pipeline.fireflies_applied(),
         "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still,
         "motion": job.motion.name(), "geometry": &measured.geometry, "setup": &setup,
         "barriers": args.barriers, "timestamps": args.timing, "gbuffer": args.pipeline.gbuffer,
