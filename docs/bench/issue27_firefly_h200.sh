@@ -62,6 +62,7 @@ PY
 same_exrs() { # two render folders -> whether every EXR is equal bit for bit, one line
   local differ=0 total=0 exr
   for exr in "$1"/*.exr; do
+    [ -e "$exr" ] || { echo "no EXRs in $1"; return; }
     total=$((total + 1))
     cmp -s "$exr" "$2/$(basename "$exr")" || differ=$((differ + 1))
   done
@@ -85,13 +86,13 @@ for run in base new keep; do
       echo "$run f$frames v$view: $(figures "$out/${run}_f${frames}_v$view.json")" >> "$summary"
     fi
     [ "$frames" = 1 ] || cp "$dir/$name.png" "$work/${run}_f${frames}_$name.png"
+    if [ "$run" = new ] && [ "$frames" = 10 ]; then
+      echo "new f10 against base, bit for bit: $(same_exrs "$dir" "$work/base-f10")" >> "$summary"
+      rm -rf "$work/base-f10"
+    fi
     # base's 10 still frames stay for new's bit check
     [ "$run" = base ] && [ "$frames" = 10 ] || rm -rf "$dir"
   done
-  if [ "$run" = new ]; then
-    echo "new f10 against base, bit for bit: $(same_exrs "$work/new-f10" "$work/base-f10")" >> "$summary"
-    rm -rf "$work/base-f10" "$work/new-f10"
-  fi
   dir="$work/$run-timing"
   "${bin[$run]}" -q render "${sp[@]}" "${f[@]}" --lf "$lf" --spp 1 --gpus 1 --frames 20 --warmup 5 --out-dir "$dir"
   python3 -c 'import json,sys; json.dump(json.load(open(sys.argv[1]))["timing"], open(sys.argv[2], "w"))' \
