@@ -16,7 +16,25 @@ bool camera_still() {
     return cameras.current.view_proj == cameras.previous.view_proj;
 }
 
+// The window's inputs per tile texel: whether it has a hit, and if so its luminance (computed
+// once per texel rather than once per tap; the same expression, so the same bits).
+shared bool tile_hit[FIREFLY_TILE_TEXELS];
+shared float tile_luminance[FIREFLY_TILE_TEXELS];
+
+void load_tile() {
+    for (uint i = gl_LocalInvocationIndex; i < FIREFLY_TILE_TEXELS; i += gl_WorkGroupSize.x * gl_WorkGroupSize.y) {
+        ivec2 q = firefly_tile_texel(i);
+        bool hit = firefly_tile_readable(q) && firefly_hit(q);
+        tile_hit[i] = hit;
+        // Radiance is read only where there is a hit, as the taps did.
+        tile_luminance[i] = hit ? firefly_luminance(imageLoad(images[pc.radiance], q).rgb) : 0.0;
+    }
+    barrier();
+}
+
 void main() {
+    // Every invocation helps load the tile before any may leave.
+    load_tile();
     ivec2 p = ivec2(gl_GlobalInvocationID.x, pc.y0 + gl_GlobalInvocationID.y);
     if (p.x >= int(pc.width) || p.y >= int(pc.y1)) {
         return;
@@ -27,7 +45,7 @@ void main() {
     vec3 rgb = imageLoad(images[pc.radiance], p).rgb;
     float l = firefly_luminance(rgb);
     // Non-finite or negative radiance is left to the denoiser's sanitising, never spread.
-    bool judged = firefly_hit(p) && !isnan(l) && !isinf(l) && all(greaterThanEqual(rgb, vec3(0.0)));
+    bool judged = tile_hit[firefly_tile_index(p)] && !isnan(l) && !isinf(l) && all(greaterThanEqual(rgb, vec3(0.0)));
     if (judged) {
         uint receivers = 0u;
         uint counted = 0u;
@@ -38,11 +56,11 @@ void main() {
         for (int dy = -FIREFLY_RADIUS; dy <= FIREFLY_RADIUS; ++dy) {
             for (int dx = -FIREFLY_RADIUS; dx <= FIREFLY_RADIUS; ++dx) {
                 ivec2 q = p + ivec2(dx, dy);
-                if ((dx == 0 && dy == 0) || !firefly_in_view(q) || !firefly_hit(q)) {
+                if ((dx == 0 && dy == 0) || !firefly_in_view(q) || !tile_hit[firefly_tile_index(q)]) {
                     continue;
                 }
                 receivers += 1u;
-                float lq = firefly_luminance(imageLoad(images[pc.radiance], q).rgb);
+                float lq = tile_luminance[firefly_tile_index(q)];
                 if (!isnan(lq) && !isinf(lq)) {
                     counted += 1u;
                     float d = lq - mean;

@@ -7,13 +7,19 @@
 #    PSNR, per-channel mean ratio; compare's automatic exposure, the display exposure);
 #  - frame time: `render --spp 1 --gpus 1 --frames 20 --warmup 5`, moving camera (GPU span, wall,
 #    the stages, firefly_bound and firefly_spread among them);
-#  - the PNGs of view 50 after 10 and 100 frames of each run and of the reference.
+#  - the PNGs of view 50 after 10 and 100 frames of each run and of the reference;
+#  - whether new's EXRs equal base's bit for bit (`cmp`), after 10 still frames and after the
+#    moving camera's 20 frames: when the base build already suppresses fireflies (main from
+#    fc29ed4 on), a change that keeps the passes' arithmetic (the shared-memory tiles) must say
+#    "identical".
 # Outputs under OUT_FOLDER: <run>_f<frames>_<all|v50>.json (compare's JSON), <run>_timing.json
 # (render.json's timing), summary.txt, pictures.tar.
 #   usage: issue27_firefly_h200.sh BASE_BINARY NEW_BINARY SPONZA_GLTF OUT_FOLDER
 #   environment: REF_SPP (default 128), REF50_SPP (default 1024); EXTRA, options added to every
 #   render and reference (EXTRA="--resolution 96x54" for a quick run on lavapipe); LF (default
-#   multiscopic) and VIEW (default 50: the view compared alone; LF=3x1 VIEW=1 on lavapipe).
+#   multiscopic) and VIEW (default 50: the view compared alone; LF=3x1 VIEW=1 on lavapipe);
+#   QUICK=1: no references and no quality figures, only 10 still frames (for the bit check)
+#   and the timing runs.
 set -euo pipefail
 base=$1 new=$2 scene=$3 out=$4
 lf=${LF:-multiscopic}
@@ -28,8 +34,14 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 summary=$out/summary.txt
 : > "$summary"
-"$new" -q reference "${sp[@]}" --lf "$lf" --spp "${REF_SPP:-128}" --gpus 1 --out-dir "$work/ref"
-"$new" -q reference "${sp[@]}" --lf "$lf" --views "$view" --spp "${REF50_SPP:-1024}" --gpus 1 --out-dir "$work/ref1"
+quick=${QUICK:-0}
+if [ "$quick" = 1 ]; then
+  still_frames=(10)
+else
+  still_frames=(1 10 100)
+  "$new" -q reference "${sp[@]}" --lf "$lf" --spp "${REF_SPP:-128}" --gpus 1 --out-dir "$work/ref"
+  "$new" -q reference "${sp[@]}" --lf "$lf" --views "$view" --spp "${REF50_SPP:-1024}" --gpus 1 --out-dir "$work/ref1"
+fi
 figures() { # compare JSON -> one line of its overall figures
   python3 - "$1" <<'PY'
 import json, sys
@@ -47,30 +59,50 @@ stages = ", ".join(f"{s['stage']} {s['mean_ms']:.2f}" for s in t["stages"])
 print(f"GPU span {t['frame_gpu']['mean_ms']:.2f} ms, wall {r['wall_ms_per_frame']:.2f} ms; {stages}")
 PY
 }
+same_exrs() { # two render folders -> whether every EXR is equal bit for bit, one line
+  local differ=0 total=0 exr
+  for exr in "$1"/*.exr; do
+    [ -e "$exr" ] || { echo "no EXRs in $1"; return; }
+    total=$((total + 1))
+    cmp -s "$exr" "$2/$(basename "$exr")" || differ=$((differ + 1))
+  done
+  if [ "$differ" = 0 ]; then echo "identical ($total EXRs)"; else echo "$differ of $total EXRs differ"; fi
+}
 # run name -> binary and extra flags
 declare -A bin=([base]=$base [new]=$new [keep]=$new)
 declare -A flags=([base]="" [new]="" [keep]="--fireflies keep")
 for run in base new keep; do
   read -r -a f <<< "${flags[$run]}"
-  for frames in 1 10 100; do
+  for frames in "${still_frames[@]}"; do
     dir="$work/$run-f$frames"
     "${bin[$run]}" -q render "${sp[@]}" "${f[@]}" --lf "$lf" --still --spp 1 --gpus 1 --frames "$frames" \
       --warmup 0 --out-dir "$dir"
-    if [ "$frames" = 10 ]; then
+    if [ "$frames" = 10 ] && [ "$quick" != 1 ]; then
       "$new" -q compare "$dir" "$work/ref" --json "$out/${run}_f${frames}_all.json"
       echo "$run f$frames all: $(figures "$out/${run}_f${frames}_all.json")" >> "$summary"
     fi
-    "$new" -q compare --allow-mismatch "$dir/$name.exr" "$work/ref1/$name.exr" --json "$out/${run}_f${frames}_v$view.json"
-    echo "$run f$frames v$view: $(figures "$out/${run}_f${frames}_v$view.json")" >> "$summary"
+    if [ "$quick" != 1 ]; then
+      "$new" -q compare --allow-mismatch "$dir/$name.exr" "$work/ref1/$name.exr" --json "$out/${run}_f${frames}_v$view.json"
+      echo "$run f$frames v$view: $(figures "$out/${run}_f${frames}_v$view.json")" >> "$summary"
+    fi
     [ "$frames" = 1 ] || cp "$dir/$name.png" "$work/${run}_f${frames}_$name.png"
-    rm -rf "$dir"
+    if [ "$run" = new ] && [ "$frames" = 10 ]; then
+      echo "new f10 against base, bit for bit: $(same_exrs "$dir" "$work/base-f10")" >> "$summary"
+      rm -rf "$work/base-f10"
+    fi
+    # base's 10 still frames stay for new's bit check
+    [ "$run" = base ] && [ "$frames" = 10 ] || rm -rf "$dir"
   done
   dir="$work/$run-timing"
   "${bin[$run]}" -q render "${sp[@]}" "${f[@]}" --lf "$lf" --spp 1 --gpus 1 --frames 20 --warmup 5 --out-dir "$dir"
   python3 -c 'import json,sys; json.dump(json.load(open(sys.argv[1]))["timing"], open(sys.argv[2], "w"))' \
     "$dir/render.json" "$out/${run}_timing.json"
   echo "$run timing: $(timing "$dir/render.json")" >> "$summary"
-  rm -rf "$dir"
+  if [ "$run" = new ]; then
+    echo "new timing run against base, bit for bit: $(same_exrs "$dir" "$work/base-timing")" >> "$summary"
+    rm -rf "$work/base-timing"
+  fi
+  [ "$run" = base ] || rm -rf "$dir"
 done
 cp "$work/ref1/$name.png" "$work/ref_$name.png" 2>/dev/null || true
 (cd "$work" && tar cf "$out/pictures.tar" ./*.png)

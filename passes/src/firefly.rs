@@ -12,6 +12,10 @@
 //! 2. `firefly_spread` (shaders/firefly_spread.comp): every pixel with a hit keeps its kept
 //!    fraction and adds the shares of the donors around it, in place in `radiance`.
 //!
+//! Both read their 5×5 windows from a shared-memory tile per 8×8 workgroup (the group's pixels
+//! and a 2-px apron, each texel loaded once: hit flags and luminance, or shares), then sum in
+//! the same order as a tap per read would: the tile changes the memory traffic, not the bits.
+//!
 //! Why the bias is bounded: the neighbour relation is symmetric, so every share lands exactly
 //! once and a view's per-channel sum is unchanged (to f32 rounding; image borders and sky
 //! pixels included, they neither give nor receive). A pixel's expected value moves by the
