@@ -3,7 +3,8 @@
 //! halves, swapped by frame parity, are its `history_pairs`), ids keep the schedule's types and numbers, accesses keep their resource name, declaration index (what slot tokens name) and
 //! origin, each pass instance points at the kernel its pass was declared with, device programs
 //! are ordered by device id. Nothing is re-planned;
-//! the schedule's op order is kept exactly.
+//! the schedule's op order (batching included, `parallax_graph::CompileOptions`) is kept exactly:
+//! it is the order the executor submits.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -23,6 +24,10 @@ pub enum LowerError {
     DevicePrograms { found: Vec<u32>, expected: usize },
     #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
     MissingKernel { pass: String },
+    #[error(
+        "pass `{pass}`'s kernel records its instances in groups, but the pass was not declared `.grouped()`: declare it so where it is declared (its copy-outs then wait for the end of its runs)"
+    )]
+    UngroupedKernel { pass: String },
     #[error("the schedule does not validate: {first} ({problems} problem(s) in all)")]
     Invalid { first: ScheduleError, problems: usize },
 }
@@ -46,6 +51,11 @@ impl ExecutionPlan {
             }
             let kernel =
                 graph.payload(inst.pass).ok_or_else(|| LowerError::MissingKernel { pass: inst.name.clone() })?;
+            // The schedule's order defers a grouped pass's copy-outs to the end of its runs; a
+            // kernel that records groups needs that, or each group is one instance.
+            if kernel.records_groups() && !schedule.passes[inst.pass.index()].grouped {
+                return Err(LowerError::UngroupedKernel { pass: inst.name.clone() });
+            }
             kernels.0.push(kernel.clone());
             kernel_of.insert(inst.pass, kernels.0.len() - 1);
         }

@@ -22,7 +22,7 @@ use std::collections::HashMap;
 use std::ops::Range;
 
 use crate::device::QueueKind;
-use crate::plan::{AllocId, CopyId, ExecOp, ExecutionPlan, InstanceId};
+use crate::plan::{CopyId, ExecOp, ExecutionPlan, InstanceId};
 
 /// A row band of a copy moved by one submission.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,10 +143,8 @@ pub fn progress_value(frame: u64, segments: usize, segment: usize) -> u64 {
     frame * segments as u64 + segment as u64 + 1
 }
 
-/// Cuts every device's op list ([`segment_device`]), with the small copies of each pass's runs
-/// batched ([`recording_order`]) unless that makes the devices wait on each other in a cycle
-/// (a run's hoisted wait for a copy whose producer needs the run's own deferred output); then
-/// every copy stays in place, as the schedule lowered it (and under fault injection).
+/// Cuts every device's op list ([`segment_device`]), in the plan's order: the schedule's, which
+/// batching already ordered when it was compiled (`parallax_graph::CompileOptions`).
 pub fn segment_devices(
     plan: &ExecutionPlan,
     chunks: &[Vec<Chunk>],
@@ -154,22 +152,13 @@ pub fn segment_devices(
     dropped_wait: Option<CopyId>,
     separate_copy_queue: bool,
 ) -> Vec<Vec<Segment>> {
-    let cut = |batched: bool| -> Vec<Vec<Segment>> {
-        (0..plan.devices.len())
-            .map(|d| segment_device(plan, d, chunks, merge_bytes, dropped_wait, separate_copy_queue, batched))
-            .collect()
-    };
-    // A dropped wait (fault injection) comes with a gate whose extra wait the trial below cannot
-    // see: the injected fault keeps the schedule's own order.
-    if dropped_wait.is_some() {
-        return cut(false);
-    }
-    let batched = cut(true);
-    if submission_order(&cross_device_waits(&batched)).is_some() { batched } else { cut(false) }
+    (0..plan.devices.len())
+        .map(|d| segment_device(plan, d, chunks, merge_bytes, dropped_wait, separate_copy_queue))
+        .collect()
 }
 
-/// Cuts `device`'s op list; consecutive single-chunk copies of one direction share a segment
-/// up to `merge_bytes`, and with `batched` they gather at the ends of each pass's runs.
+/// Cuts `device`'s op list, in its order; consecutive single-chunk copies of one direction share
+/// a segment up to `merge_bytes`.
 /// `dropped_wait` (fault injection) leaves out the ready waits of one copy. With
 /// `separate_copy_queue`, copies go to [`QueueKind::Copy`] and a segment never mixes the two
 /// queues (the executor orders segments of different queues by the progress timeline).
@@ -180,9 +169,8 @@ pub fn segment_device(
     merge_bytes: u64,
     dropped_wait: Option<CopyId>,
     separate_copy_queue: bool,
-    batched: bool,
 ) -> Vec<Segment> {
-    let segments = segment_single_queue(plan, device, chunks, merge_bytes, dropped_wait, batched);
+    let segments = segment_single_queue(plan, device, chunks, merge_bytes, dropped_wait);
     if !separate_copy_queue {
         return segments;
     }
@@ -218,131 +206,12 @@ enum Tail {
     CopyOuts(u64),
 }
 
-/// Device `device`'s ops in recording order: the plan's, except within a run of instances of
-/// one pass (one kernel and name), which is recorded as a batch:
-/// * the copy-outs and signals that separate two instances move down to the end of the run,
-///   when the later instances write nothing they copy;
-/// * with `batch(c)` for a copy `c` (small copies when the schedule is batched, see
-///   [`segment_devices`]), its wait and copy-in move up to the start of the run, when no
-///   instance they pass reads or writes what it copies into.
-///
-/// Copies that are not batched keep their place: a wait for one ends the run. Always batched
-/// are the copy-outs of kernels that record groups ([`PassKernel::records_groups`]): lowering
-/// puts the gather of each band right after the pass that finishes it, which would cut a
-/// device's hole filling into one op per target band.
-///
-/// Why batch at all: the fine schemes give every (view, stage) its own copies; recorded in
-/// place, one stage of a 100-view light field on 4 devices is hundreds of submissions per
-/// device, each a cross-device hop whose latency (not its bytes) sets the frame time. Batched,
-/// a stage is a few submissions: its copy-ins, its passes, its copy-outs.
-///
-/// [`PassKernel::records_groups`]: crate::PassKernel::records_groups
-pub(crate) fn recording_order(plan: &ExecutionPlan, device: usize, batch: &dyn Fn(CopyId) -> bool) -> Vec<ExecOp> {
-    let groups = |p: InstanceId| plan.kernels.0.get(plan.pass(p).kernel).is_some_and(|k| k.records_groups());
-    let same_pass = |a: InstanceId, b: InstanceId| {
-        let (a, b) = (plan.pass(a), plan.pass(b));
-        a.kernel == b.kernel && a.name == b.name
-    };
-    let touches = |p: InstanceId, resource: AllocId| {
-        let pass = plan.pass(p);
-        pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).any(|a| a.resource == resource)
-    };
-    let ops = &plan.devices[device];
-    let mut order: Vec<ExecOp> = Vec::with_capacity(ops.len());
-    let mut run = Batch::default();
-    let mut i = 0;
-    while i < ops.len() {
-        let op = ops[i];
-        match op {
-            ExecOp::Pass(p)
-                if run.first.is_some_and(|first| same_pass(first, p))
-                    && !plan.pass(p).writes.iter().any(|w| run.copied.contains(&w.resource)) =>
-            {
-                order.push(op);
-            }
-            ExecOp::CopyOut(c) if run.defers(groups, batch, c) => {
-                run.copied.push(plan.copy(c).resource);
-                run.deferred.push(op);
-            }
-            ExecOp::Signal(c) if run.defers(groups, batch, c) => run.deferred.push(op),
-            ExecOp::Wait(c)
-                if run.first.is_some_and(|first| batch(c) && next_pass_continues(ops, i + 2, first, &same_pass))
-                    && ops.get(i + 1) == Some(&ExecOp::CopyIn(c))
-                    && !order[run.start..]
-                        .iter()
-                        .any(|&o| matches!(o, ExecOp::Pass(p) if touches(p, plan.copy(c).dst)))
-                    && !run.copied.contains(&plan.copy(c).dst) =>
-            {
-                run.hoisted.extend([op, ExecOp::CopyIn(c)]);
-                i += 1;
-            }
-            _ => {
-                run.close(&mut order);
-                if let ExecOp::Pass(p) = op {
-                    run.first = Some(p);
-                    run.start = order.len();
-                }
-                order.push(op);
-            }
-        }
-        i += 1;
-    }
-    run.close(&mut order);
-    order
-}
-
-/// The run of one pass that [`recording_order`] is batching.
-#[derive(Default)]
-struct Batch {
-    /// Its first instance; `None` between runs.
-    first: Option<InstanceId>,
-    /// Where that instance is in the recording order.
-    start: usize,
-    /// Copy-outs and signals held back to the end of the run, and the resources they read.
-    deferred: Vec<ExecOp>,
-    copied: Vec<AllocId>,
-    /// Waits and copy-ins moved up to the start of the run.
-    hoisted: Vec<ExecOp>,
-}
-
-impl Batch {
-    fn defers(&self, groups: impl Fn(InstanceId) -> bool, batch: &dyn Fn(CopyId) -> bool, copy: CopyId) -> bool {
-        self.first.is_some_and(|first| groups(first) || batch(copy))
-    }
-
-    fn close(&mut self, order: &mut Vec<ExecOp>) {
-        order.splice(self.start..self.start, self.hoisted.drain(..));
-        order.append(&mut self.deferred);
-        self.copied.clear();
-        self.first = None;
-    }
-}
-
-/// Whether the op after a wait and its copy-in (at `next`) is another instance of the run's
-/// pass (or more copy-ins that lead to one): only then is the copy-in part of the run.
-fn next_pass_continues(
-    ops: &[ExecOp],
-    mut next: usize,
-    first: InstanceId,
-    same_pass: &dyn Fn(InstanceId, InstanceId) -> bool,
-) -> bool {
-    while let Some(op) = ops.get(next) {
-        match *op {
-            ExecOp::Wait(_) | ExecOp::CopyIn(_) => next += 1,
-            ExecOp::Pass(p) => return same_pass(first, p),
-            ExecOp::CopyOut(_) | ExecOp::Signal(_) => return false,
-        }
-    }
-    false
-}
-
 fn segment_single_queue(
     plan: &ExecutionPlan,
     device: usize,
     chunks: &[Vec<Chunk>],
     merge_bytes: u64,
     dropped_wait: Option<CopyId>,
-    batched: bool,
 ) -> Vec<Segment> {
     // A copy of one chunk shares its submission with its neighbours of the same direction, up
     // to `merge_bytes` together: the fine schemes send thousands of small copies per frame,
@@ -354,8 +223,7 @@ fn segment_single_queue(
     let mut segments = Vec::new();
     let mut current = Segment::default();
     let mut tail = Tail::Closed;
-    let batch = |c: CopyId| batched && small(c);
-    for op in &recording_order(plan, device, &batch) {
+    for op in &plan.devices[device] {
         match *op {
             ExecOp::Pass(p) => {
                 // A copy-out ends its segment: the relay forwards it once the segment is done.
@@ -490,170 +358,51 @@ mod tests {
         assert_eq!(heights, band_rows(256, 64));
         assert_eq!(chunks[0].last().map(|c| c.y1), Some(256));
         let n = chunks[0].len();
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false, false);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false);
         assert_eq!(producer.len(), n);
         assert_eq!(producer[0].items.len(), 2, "fill + first chunk");
         assert!(producer.iter().all(|s| s.relays.len() == 1 && s.waits.is_empty()));
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false, false);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false);
         assert_eq!(consumer.len(), n);
         for (i, s) in consumer.iter().enumerate() {
             assert_eq!(s.waits, vec![ReadyWait { copy: CopyId(0), chunk: i as u32 }]);
         }
-        let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(CopyId(0)), false, false);
+        let dropped = segment_device(&plan, 1, &chunks, 256 * 1024, Some(CopyId(0)), false);
         assert!(dropped.iter().all(|s| s.waits.is_empty()));
     }
 
+    /// The backend submits each device's ops in the plan's order, which is the schedule's
+    /// (batching included): cutting segments and chunks changes no order.
     #[test]
-    fn grouped_passes_move_up_past_copy_outs_of_what_they_do_not_write() {
-        use crate::plan::{DeviceId, ExecCopy, Region};
-        // Four fills writing 1, 3, 1 (a second band of the first view) and 5, then a pass that
-        // does not record groups.
-        let mut plan = crate::record::grouping_plans::plan(&[
-            ("fill", &[0], &[1]),
-            ("fill", &[2], &[3]),
-            ("fill", &[0], &[5]),
-            ("fill", &[0], &[1]),
-            ("fill", &[6], &[7]),
-            ("tonemap", &[1], &[9]),
-        ]);
-        let copy = |resource| ExecCopy {
-            resource: AllocId(resource),
-            dst: AllocId(resource),
-            version: 1,
-            rows: Region::new(0, 1),
-            from: DeviceId(0),
-            to: DeviceId(1),
-            gather: false,
-        };
-        plan.copies = vec![copy(1), copy(3), copy(9)];
-        use ExecOp::{CopyOut, Pass, Signal, Wait};
-        plan.devices[0] = vec![
-            Pass(InstanceId(0)),
-            CopyOut(CopyId(0)),
-            Signal(CopyId(0)),
-            Pass(InstanceId(1)),
-            CopyOut(CopyId(1)),
-            Signal(CopyId(1)),
-            Pass(InstanceId(2)),
-            // Writes what copy 0 reads: stays behind it, and starts the next group.
-            Pass(InstanceId(3)),
-            Wait(CopyId(2)),
-            // Not past a wait.
-            Pass(InstanceId(4)),
-            Pass(InstanceId(5)),
-        ];
-        let expected = vec![
-            Pass(InstanceId(0)),
-            Pass(InstanceId(1)),
-            Pass(InstanceId(2)),
-            CopyOut(CopyId(0)),
-            Signal(CopyId(0)),
-            CopyOut(CopyId(1)),
-            Signal(CopyId(1)),
-            Pass(InstanceId(3)),
-            Wait(CopyId(2)),
-            Pass(InstanceId(4)),
-            Pass(InstanceId(5)),
-        ];
-        assert_eq!(recording_order(&plan, 0, &|_| false), expected);
-        // Copies between passes that do not record groups stay where they are.
-        plan.passes.iter_mut().for_each(|p| p.kernel = 0);
-        assert_eq!(recording_order(&plan, 0, &|_| false), plan.devices[0]);
-    }
-
-    #[test]
-    fn batched_small_copies_gather_at_the_ends_of_a_run_unless_an_instance_touches_them() {
-        use crate::plan::{DeviceId, ExecCopy, Region};
+    fn segments_submit_each_device_s_ops_in_the_plan_s_order() {
         use ExecOp::{CopyIn, CopyOut, Pass, Signal, Wait};
-        // A pass that does not record groups, over four views: each reads a band copied in
-        // (resources 10..13) and writes what is copied out (1, 3, 5, 7); view 2 also reads 13,
-        // which view 3's copy-in writes; then another pass.
-        let mut plan = crate::record::grouping_plans::plan(&[
-            ("atrous", &[10], &[1]),
-            ("atrous", &[11], &[3]),
-            ("atrous", &[12, 13], &[5]),
-            ("atrous", &[13], &[7]),
-            ("tonemap", &[7], &[9]),
-        ]);
-        let copy = |resource, dst| ExecCopy {
-            resource: AllocId(resource),
-            dst: AllocId(dst),
-            version: 1,
-            rows: Region::new(0, 1),
-            from: DeviceId(0),
-            to: DeviceId(1),
-            gather: false,
-        };
-        plan.copies = vec![copy(1, 1), copy(3, 3), copy(5, 5), copy(7, 7), copy(20, 11), copy(21, 12), copy(22, 13)];
-        plan.devices[0] = vec![
-            Pass(InstanceId(0)),
-            CopyOut(CopyId(0)),
-            Signal(CopyId(0)),
-            Wait(CopyId(4)),
-            CopyIn(CopyId(4)),
-            Pass(InstanceId(1)),
-            CopyOut(CopyId(1)),
-            Signal(CopyId(1)),
-            Wait(CopyId(5)),
-            CopyIn(CopyId(5)),
-            Pass(InstanceId(2)),
-            CopyOut(CopyId(2)),
-            Signal(CopyId(2)),
-            Wait(CopyId(6)),
-            CopyIn(CopyId(6)),
-            Pass(InstanceId(3)),
-            CopyOut(CopyId(3)),
-            Signal(CopyId(3)),
-            Pass(InstanceId(4)),
-        ];
-        let batched = vec![
-            Wait(CopyId(4)),
-            CopyIn(CopyId(4)),
-            Wait(CopyId(5)),
-            CopyIn(CopyId(5)),
-            Pass(InstanceId(0)),
-            Pass(InstanceId(1)),
-            Pass(InstanceId(2)),
-            CopyOut(CopyId(0)),
-            Signal(CopyId(0)),
-            CopyOut(CopyId(1)),
-            Signal(CopyId(1)),
-            CopyOut(CopyId(2)),
-            Signal(CopyId(2)),
-            // Pass 2 reads 13, which copy 6 writes: it stays after pass 2 and ends the run.
-            Wait(CopyId(6)),
-            CopyIn(CopyId(6)),
-            Pass(InstanceId(3)),
-            CopyOut(CopyId(3)),
-            Signal(CopyId(3)),
-            Pass(InstanceId(4)),
-        ];
-        assert_eq!(recording_order(&plan, 0, &|_| true), batched);
-        // A copy that is not batched (a large one) keeps its place, and its wait ends the run.
-        let one_kept = vec![
-            Wait(CopyId(4)),
-            CopyIn(CopyId(4)),
-            Pass(InstanceId(0)),
-            Pass(InstanceId(1)),
-            CopyOut(CopyId(0)),
-            Signal(CopyId(0)),
-            CopyOut(CopyId(1)),
-            Signal(CopyId(1)),
-            Wait(CopyId(5)),
-            CopyIn(CopyId(5)),
-            Pass(InstanceId(2)),
-            CopyOut(CopyId(2)),
-            Signal(CopyId(2)),
-            Wait(CopyId(6)),
-            CopyIn(CopyId(6)),
-            Pass(InstanceId(3)),
-            CopyOut(CopyId(3)),
-            Signal(CopyId(3)),
-            Pass(InstanceId(4)),
-        ];
-        assert_eq!(recording_order(&plan, 0, &|c| c != CopyId(5)), one_kept);
-        // Nothing batched: the plan's order.
-        assert_eq!(recording_order(&plan, 0, &|_| false), plan.devices[0]);
+        let plan = crate::bench::gather_plan(3, 64, 256).unwrap(); // 256 KiB per copy
+        // The schedule batched device 0's run of fills: its copy-outs follow the whole run.
+        let batched = [Pass(InstanceId(0)), Pass(InstanceId(1)), Pass(InstanceId(2)), CopyOut(CopyId(0))];
+        assert_eq!(plan.devices[0][..4], batched);
+        for chunk_bytes in [64 << 10, 1 << 20] {
+            let chunks = chunks_of_copies(&plan, chunk_bytes);
+            for separate_copy_queue in [false, true] {
+                let cut = segment_devices(&plan, &chunks, chunk_bytes, None, separate_copy_queue);
+                for (d, segments) in cut.iter().enumerate() {
+                    let mut submitted: Vec<ExecOp> = Vec::new();
+                    for item in segments.iter().flat_map(|s| &s.items) {
+                        let op = match *item {
+                            Item::Pass(p) => Pass(p),
+                            Item::CopyOut(chunk) => CopyOut(chunk.copy),
+                            Item::CopyIn(chunk) => CopyIn(chunk.copy),
+                        };
+                        // A copy's chunks are consecutive items.
+                        if submitted.last() != Some(&op) {
+                            submitted.push(op);
+                        }
+                    }
+                    let planned: Vec<ExecOp> =
+                        plan.devices[d].iter().copied().filter(|op| !matches!(op, Signal(_) | Wait(_))).collect();
+                    assert_eq!(submitted, planned, "device {d}, chunks of {chunk_bytes} B");
+                }
+            }
+        }
     }
 
     #[test]
@@ -672,13 +421,13 @@ mod tests {
     fn a_separate_copy_queue_never_mixes_queues_in_a_segment() {
         let plan = copy_plan(256, 256).unwrap();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true, false);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true);
         let queues: Vec<QueueKind> = producer.iter().map(|s| s.queue).collect();
         let n = chunks[0].len();
         assert_eq!(queues, [vec![QueueKind::Main], vec![QueueKind::Copy; n]].concat());
         assert!(producer[0].relays.is_empty(), "the fill completes no chunk");
         assert!(producer[1..].iter().all(|s| s.relays.len() == 1 && s.items.len() == 1));
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true, false);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true);
         assert_eq!(consumer.len(), n + 1, "the copy-ins, then the receiving pass");
         assert!(consumer[..n].iter().all(|s| s.queue == QueueKind::Copy && s.waits.len() == 1));
         assert_eq!(consumer[n].queue, QueueKind::Main);
@@ -691,9 +440,9 @@ mod tests {
             resource.format = crate::plan::Format::Depth32f;
         }
         let chunks = chunks_of_copies(&plan, 64 * 64);
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true, false);
+        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, true);
         assert!(producer[1..].iter().all(|s| s.queue == QueueKind::Copy), "copies out of depth may use the copy queue");
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true, false);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, true);
         let copy_ins: Vec<&Segment> = consumer.iter().filter(|s| !s.waits.is_empty()).collect();
         assert!(!copy_ins.is_empty());
         assert!(copy_ins.iter().all(|s| s.queue == QueueKind::Main), "a transfer-only queue may not write depth");
@@ -736,7 +485,7 @@ mod tests {
         let plan = copy_plan(256, 256).unwrap();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
         let segments: Vec<Vec<Segment>> =
-            (0..2).map(|d| segment_device(&plan, d, &chunks, 256 * 1024, None, false, false)).collect();
+            (0..2).map(|d| segment_device(&plan, d, &chunks, 256 * 1024, None, false)).collect();
         let waits = cross_device_waits(&segments);
         assert!(waits[0].iter().all(Vec::is_empty), "the producer waits for nobody");
         let expected: Vec<Vec<(usize, usize)>> = (0..chunks[0].len()).map(|i| vec![(0, i)]).collect();
@@ -754,25 +503,29 @@ mod tests {
         let chunks = chunks_of_copies(&plan, 256 * 1024);
         assert!(chunks.iter().all(|c| c.len() == 1));
         let copy_ins = |s: &Segment| s.items.iter().filter(|i| matches!(i, Item::CopyIn(_))).count();
-        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false, false);
+        let consumer = segment_device(&plan, 1, &chunks, 256 * 1024, None, false);
         assert_eq!(consumer.len(), 1, "three copy-ins and the receiving pass: {consumer:?}");
         assert_eq!((copy_ins(&consumer[0]), consumer[0].waits.len()), (3, 3));
-        let capped = segment_device(&plan, 1, &chunks, 128 * 1024, None, false, false);
+        let capped = segment_device(&plan, 1, &chunks, 128 * 1024, None, false);
         assert_eq!(capped.iter().map(copy_ins).collect::<Vec<_>>(), vec![2, 1]);
         assert!(capped.iter().all(|s| s.waits.len() == copy_ins(s)));
         let copy = match capped[0].items[0] {
             Item::CopyIn(chunk) => chunk.copy,
             _ => unreachable!("a copy-in starts the segment"),
         };
-        let faulty = segment_device(&plan, 1, &chunks, 256 * 1024, Some(copy), false, false);
+        let faulty = segment_device(&plan, 1, &chunks, 256 * 1024, Some(copy), false);
         assert_eq!(faulty.iter().map(copy_ins).collect::<Vec<_>>(), vec![1, 2], "the fault's copy alone");
-        // Producer: a pass between the copy-outs; each copy-out ends its segment.
-        let producer = segment_device(&plan, 0, &chunks, 256 * 1024, None, false, false);
-        assert!(producer.iter().all(|s| s.relays.len() == 1));
+        // Producer: the schedule batched the copy-outs after the run of fills; they join the
+        // fills' segment up to the cap.
+        let relays = |cap| -> Vec<usize> {
+            segment_device(&plan, 0, &chunks, cap, None, false).iter().map(|s| s.relays.len()).collect()
+        };
+        assert_eq!(relays(256 * 1024), vec![3]);
+        assert_eq!(relays(128 * 1024), vec![2, 1]);
         // A chunked copy: one segment per chunk, whatever the cap.
         let big = copy_plan(256, 256).unwrap();
         let big_chunks = chunks_of_copies(&big, 256 * 1024);
-        let consumer = segment_device(&big, 1, &big_chunks, u64::MAX, None, false, false);
+        let consumer = segment_device(&big, 1, &big_chunks, u64::MAX, None, false);
         assert_eq!(consumer.len(), big_chunks[0].len());
     }
 }

@@ -248,6 +248,8 @@ pub struct PassDecl {
     /// The pass needs every row of its view at once and is never split into bands.
     pub whole_view: bool,
     pub side_effect: bool,
+    /// Its kernel records consecutive instances as one op ([`PassBuilder::grouped`]).
+    pub grouped: bool,
     pub at: &'static Location<'static>,
     pub(crate) reads: Vec<ReadDecl>,
     pub(crate) writes: Vec<WriteDecl>,
@@ -421,6 +423,7 @@ impl<P> Graph<P> {
             role,
             whole_view: false,
             side_effect: false,
+            grouped: false,
             at: Location::caller(),
             reads: Vec::new(),
             writes: Vec::new(),
@@ -663,6 +666,16 @@ impl<P> PassBuilder<'_, P> {
     /// Keeps the pass even if nothing exported depends on it.
     pub fn side_effect(mut self) -> Self {
         self.decl.side_effect = true;
+        self
+    }
+
+    /// The pass's kernel records consecutive instances on a device as one op (the backend's
+    /// `PassKernel::records_groups`, e.g. hole filling of many small targets). Ordering then
+    /// keeps the copies out of its instances' outputs at the end of each run of them, whatever
+    /// the compile options' batching, so a run is not cut into one op per instance
+    /// (`CompileOptions`).
+    pub fn grouped(mut self) -> Self {
+        self.decl.grouped = true;
         self
     }
 

@@ -11,6 +11,7 @@ use crate::builder::{Graph, PassDecl, ReadScope, Role};
 use crate::error::GraphError;
 use crate::ids::{AllocId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::lower::lower;
+use crate::order::{CompileOptions, OpOrder, order_programs};
 use crate::schedule::{
     Access, CulledPass, DeltaEdge, Edge, Origin, PassInfo, PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
@@ -34,8 +35,18 @@ pub trait Placement {
     fn place(&self, pass: PassPlacementInfo<'_>, view: ViewId, height: u32) -> Vec<(DeviceId, Region)>;
 }
 
-/// Compiles `graph` under `placement` into a schedule.
+/// Compiles `graph` under `placement` into a schedule, with the default options (small copies
+/// batched as the backend's default chunk size defines them, [`CompileOptions`]).
 pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedule, GraphError> {
+    compile_with(graph, placement, &CompileOptions::default())
+}
+
+/// Compiles `graph` under `placement` into a schedule, its programs ordered by `options`.
+pub fn compile_with<P>(
+    graph: &Graph<P>,
+    placement: &dyn Placement,
+    options: &CompileOptions,
+) -> Result<Schedule, GraphError> {
     if let Some(error) = graph.declaration_error() {
         return Err(error.clone());
     }
@@ -80,7 +91,7 @@ pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedul
     let (devices, mut copies) = lower(placement.devices(), &instances, &edges, &resources, &order);
     let (allocations, history) = assign_storage(&mut instances, &mut copies, &order);
     let passes = pass_infos(graph);
-    Ok(Schedule {
+    let mut schedule = Schedule {
         views,
         height: graph.topology.height,
         devices,
@@ -93,7 +104,10 @@ pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedul
         delta_edges,
         copies,
         culled,
-    })
+        op_order: OpOrder::default(),
+    };
+    order_programs(&mut schedule, options.batching);
+    Ok(schedule)
 }
 
 /// Ordered, so the versions of one (family, view) are a range: `last_version` is a lookup, not a
@@ -173,6 +187,7 @@ fn pass_infos<P>(graph: &Graph<P>) -> Vec<PassInfo> {
         .map(|decl| PassInfo {
             name: decl.name.clone(),
             role: decl.role,
+            grouped: decl.grouped,
             reads: decl
                 .reads
                 .iter()

@@ -1,6 +1,7 @@
-//! Graphviz export of a schedule: one cluster per device with its passes in program order,
-//! producer edges in grey, δ-edges (reprojection reads of another view) dashed blue, and each
-//! cross-device copy as a red node between clusters. Output is deterministic: the same schedule
+//! Graphviz export of a schedule: one cluster per device with its passes in program order (and,
+//! as a comment, every op of the program in the order the backend submits it), producer edges
+//! in grey, δ-edges (reprojection reads of another view) dashed blue, each cross-device copy as
+//! a red node between clusters, and the op order's compile option as the caption. Output is deterministic: the same schedule
 //! always gives the same bytes.
 
 use std::collections::BTreeMap;
@@ -36,8 +37,14 @@ impl Schedule {
             writeln!(w, "  {from} -> {to}{attrs};").unwrap();
         }
         self.write_gather_arrows(w);
+        self.write_op_order_label(w);
         writeln!(w, "}}").unwrap();
         out
+    }
+
+    /// The drawing's caption: how each program's ops are ordered (the compile option).
+    pub(crate) fn write_op_order_label(&self, w: &mut String) {
+        writeln!(w, "  label=\"op order: {}\"; labelloc=b; fontsize=10;", escape(&self.op_order.to_string())).unwrap();
     }
 
     /// One cluster per device with its pass instances in program order (and, on device 0, the
@@ -69,6 +76,9 @@ impl Schedule {
                         .unwrap();
                 }
             }
+            // Every op of the program, in the order the backend submits them.
+            let ops: Vec<String> = program.ops.iter().map(|op| op_token(*op)).collect();
+            writeln!(w, "    // {d} submits: {}", ops.join(", ")).unwrap();
             if d.0 == 0 && self.gather_copies().next().is_some() {
                 writeln!(w, "    gathered [label=\"finished views\", shape=doubleoctagon, fillcolor=\"#ffffff\"];")
                     .unwrap();
@@ -161,6 +171,18 @@ impl Schedule {
     }
 }
 
-fn escape(s: &str) -> String {
+/// An op as the per-device `submits` comment lists it: `p3`, `out c2`, `signal c2`, `wait c2`,
+/// `in c2`.
+fn op_token(op: Op) -> String {
+    match op {
+        Op::Pass(p) => p.to_string(),
+        Op::CopyOut(c) => format!("out {c}"),
+        Op::Signal(c) => format!("signal {c}"),
+        Op::Wait(c) => format!("wait {c}"),
+        Op::CopyIn(c) => format!("in {c}"),
+    }
+}
+
+pub(crate) fn escape(s: &str) -> String {
     s.replace('\\', "\\\\").replace('"', "\\\"")
 }

@@ -115,6 +115,7 @@ impl Schedule {
         self.write_group_clusters(w, &groups, &copies);
         write_copy_nodes(w, &copies);
         write_arrows(w, &arrows);
+        self.write_op_order_label(w);
         writeln!(w, "}}").unwrap();
         out
     }

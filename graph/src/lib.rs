@@ -11,7 +11,9 @@
 //!   instantiated per view; writes take `&mut` and bump versions.
 //! * [`compile()`]: culling, producer edges and δ-edges derived from declared reads,
 //!   deterministic topological order, placement on devices by a [`Plan`] (one of the three
-//!   [`Scheme`]s), cross-device copies exactly where producer and consumer devices differ.
+//!   [`Scheme`]s), cross-device copies exactly where producer and consumer devices differ;
+//!   [`compile_with`] orders each device's ops by [`CompileOptions`] (runs of one pass batched
+//!   by default): the order the backend submits.
 //! * [`Schedule`]: plain data, checked by [`Schedule::validate`] and drawn by
 //!   [`Schedule::to_dot`].
 //!
@@ -42,6 +44,7 @@ pub mod error;
 pub mod ids;
 pub mod lightfield;
 mod lower;
+pub mod order;
 pub mod partition;
 pub mod schedule;
 pub mod source;
@@ -58,10 +61,11 @@ pub use builder::{
     Buffer, Graph, Handle, HistorySlot, Image, PassBuilder, ReadSlot, Role, SlotAccess, SourcesSlot, ViewTopology,
     WriteSlot,
 };
-pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile};
+pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile, compile_with};
 pub use error::{GraphError, PlanError};
 pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
+pub use order::{Batching, CompileOptions, DEFAULT_CHUNK_BYTES, OpOrder};
 pub use partition::{Plan, PlanConfig, Scheme, SourcesPerSet, parse_source_list};
 pub use schedule::{
     Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin, PassInfo,

@@ -5,6 +5,7 @@ use serde::Serialize;
 
 use crate::builder::Role;
 use crate::ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
+use crate::order::OpOrder;
 
 /// Texel formats a pass can declare for a per-view image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -175,6 +176,9 @@ pub struct SlotInfo {
 pub struct PassInfo {
     pub name: String,
     pub role: Role,
+    /// Declared [`grouped`](crate::PassBuilder::grouped): copies out of a run of its instances
+    /// wait for the run's end.
+    pub grouped: bool,
     pub reads: Vec<SlotInfo>,
     pub writes: Vec<SlotInfo>,
 }
@@ -281,6 +285,9 @@ pub struct Schedule {
     pub delta_edges: Vec<DeltaEdge>,
     pub copies: Vec<CrossCopy>,
     pub culled: Vec<CulledPass>,
+    /// How the ops of each program are ordered (the compile option and what it gave):
+    /// `devices` holds that order, which is the order the backend submits.
+    pub op_order: OpOrder,
 }
 
 impl Schedule {

@@ -39,6 +39,9 @@ pub struct PlanSummary {
     /// and empty.
     pub sources_auto: bool,
     pub sources_prediction: Vec<crate::source_cost::SetPrediction>,
+    /// How each device's ops are ordered: the batching compiled with and the one applied (the
+    /// order the backend submits).
+    pub op_order: crate::order::OpOrder,
 }
 
 impl PlanSummary {
@@ -68,6 +71,7 @@ impl PlanSummary {
                 .collect(),
             sources_auto: plan.sources_auto,
             sources_prediction: plan.sources_prediction.clone(),
+            op_order: schedule.op_order,
         }
     }
 }

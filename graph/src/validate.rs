@@ -40,8 +40,8 @@ pub enum ScheduleError {
     CopyArrivesLate { copy: CopyId, consumer: InstanceId },
     #[error("view {view}: the finished rows of {resource} are not all on device 0 at the end of the frame")]
     ViewNotGathered { view: ViewId, resource: ResourceId },
-    #[error("waits and signals form a cycle across devices")]
-    Deadlock,
+    #[error("{device} waits forever at {op:?}: waits and signals form a cycle across devices")]
+    Deadlock { device: DeviceId, op: Op },
     #[error("{what} {index} refers to a missing {missing} {target}")]
     Dangling { what: &'static str, index: u32, missing: &'static str, target: u32 },
     #[error(
@@ -159,8 +159,8 @@ impl Schedule {
         self.check_copies(&positions, &writers, &mut errors);
         self.check_reads(&at, &writers, &mut errors);
         self.check_gather(&at, &writers, &mut errors);
-        if self.has_wait_cycle() {
-            errors.push(ScheduleError::Deadlock);
+        if let Some((device, op)) = self.wait_cycle() {
+            errors.push(ScheduleError::Deadlock { device, op });
         }
         self.check_storage(&mut errors);
         self.check_history(&mut errors);
@@ -340,8 +340,9 @@ impl Schedule {
         }
     }
 
-    /// Program order plus signal → wait must be acyclic, or some device waits forever.
-    fn has_wait_cycle(&self) -> bool {
+    /// Program order plus signal → wait must be acyclic, or some device waits forever: then the
+    /// first op of the lowest such device that can never run (a wait whose signal never comes).
+    pub(crate) fn wait_cycle(&self) -> Option<(DeviceId, Op)> {
         let offsets: Vec<usize> = self
             .devices
             .iter()
@@ -380,9 +381,9 @@ impl Schedule {
             indegree[*s] += 1;
         }
         let mut ready: VecDeque<usize> = (0..total).filter(|&n| indegree[n] == 0).collect();
-        let mut seen = 0;
+        let mut ran = vec![false; total];
         while let Some(n) = ready.pop_front() {
-            seen += 1;
+            ran[n] = true;
             for &s in &successors[n] {
                 indegree[s] -= 1;
                 if indegree[s] == 0 {
@@ -390,7 +391,12 @@ impl Schedule {
                 }
             }
         }
-        seen < total
+        let (p, i) = self
+            .devices
+            .iter()
+            .enumerate()
+            .find_map(|(p, program)| (0..program.ops.len()).find(|&i| !ran[offsets[p] + i]).map(|i| (p, i)))?;
+        Some((self.devices[p].device, self.devices[p].ops[i]))
     }
 }
 

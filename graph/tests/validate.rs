@@ -180,7 +180,9 @@ fn crossed_waits_deadlock() {
         s.devices[device].ops.remove(wait);
         s.devices[device].ops.insert(0, Op::Wait(copy));
     }
-    assert!(s.validate().errors.contains(&ScheduleError::Deadlock));
+    // Device 0 is stuck first, at the wait it now starts with.
+    let errors = s.validate().errors;
+    assert!(errors.contains(&ScheduleError::Deadlock { device: DeviceId(0), op: Op::Wait(to0) }), "{errors:?}");
 }
 
 proptest! {

@@ -47,7 +47,7 @@ pub fn declare_hole_fill(
     pass.kernel(Arc::new(CompactHolesKernel { holes, list: written_list })).record();
     let mut pass = graph.pass(HOLE_FILL, Role::Targets);
     let (read_list, (_, radiance)) = (pass.read_slot(&list), pass.modify_slot(radiance));
-    pass.kernel(Arc::new(HoleFillKernel { list: read_list, radiance })).record();
+    pass.kernel(Arc::new(HoleFillKernel { list: read_list, radiance })).grouped().record();
     list
 }
 

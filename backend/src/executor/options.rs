@@ -24,7 +24,9 @@ pub struct ExecOptions {
     /// Frames submitted before the host waits for the oldest (at least 1).
     pub frames_in_flight: usize,
     /// Copies larger than this are split into row bands submitted separately, so that the
-    /// consumer's upload of one band overlaps the producer's download of the next.
+    /// consumer's upload of one band overlaps the producer's download of the next. The schedule
+    /// batches the copies that fit one chunk (`parallax_graph::Batching::SmallCopies`, whose
+    /// default is this default): compile with the same size when changing it.
     pub chunk_bytes: u64,
     /// Submit copies to a transfer-only queue (a GPU's copy engines) where the device has one.
     /// Copies then form submissions of their own, ordered against the passes through the
