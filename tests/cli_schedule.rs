@@ -99,3 +99,35 @@ fn the_main_jobs_render_dot_is_golden() {
     let expected = std::fs::read_to_string(&golden).unwrap_or_else(|e| panic!("{}: {e}", golden.display()));
     assert!(render_dot == expected, "render --dot of the main job changed; inspect and regenerate if intended");
 }
+
+/// `render --dot` draws the order render submits: byte for byte `plan --dot` with the same
+/// flags, here a fine scheme on 3 devices whose small copies are batched at compile time, and
+/// its comment per device lists every op of the device's program, in the order submitted
+/// (the backend submits the schedule's order as it is: backend/src/segments.rs's tests).
+#[test]
+fn render_dot_is_plan_dot_and_lists_the_batched_order_it_submits() {
+    let flags = words("--lf 3x1 --resolution 64x48 --fake-devices 3 --scheme fine-all");
+    let dir = scratch("schedule", "fine_all_3");
+    let (planned, rendered, plan_dot, render_dot) = plan_and_render(&dir, &flags);
+    assert_eq!(planned, rendered);
+    assert!(plan_dot == render_dot, "plan --dot and render --dot differ");
+    let batched = serde_json::json!({"small_copies": {"chunk_bytes": 8u64 << 20}});
+    assert_eq!(planned["op_order"], serde_json::json!({"requested": batched, "applied": batched}));
+    assert!(render_dot.contains("label=\"op order: batched (copies of at most 8388608 B)\""), "{render_dot}");
+    let mut copy_ops = 0;
+    for d in 0..3 {
+        let prefix = format!("    // gpu{d} submits: ");
+        let ops: Vec<&str> = render_dot
+            .lines()
+            .find_map(|l| l.strip_prefix(prefix.as_str()))
+            .unwrap_or_else(|| panic!("no ops listed for gpu{d}"))
+            .split(", ")
+            .collect();
+        let passes = ops.iter().filter(|op| op.starts_with('p')).count();
+        assert_eq!(serde_json::json!(passes), planned["passes_per_device"][d], "gpu{d}: {ops:?}");
+        copy_ops += ops.iter().filter(|op| !op.starts_with('p')).count();
+    }
+    // Out, signal, wait and in of every copy, gathers included.
+    let copies = planned["cross_device_copies"].as_u64().unwrap() + planned["gather_copies"].as_u64().unwrap();
+    assert_eq!(copy_ops as u64, 4 * copies);
+}
