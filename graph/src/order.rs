@@ -430,6 +430,40 @@ mod tests {
         assert_eq!(device_order(&s, &lowered, &|_| false), lowered);
     }
 
+    /// Device 0's run of `a` would wait (hoisted) for what device 1 makes only after the run's
+    /// first instance's output (deferred) reaches it: the devices would wait on each other, so
+    /// the programs keep lowering's order and say so.
+    #[test]
+    fn batching_that_would_deadlock_falls_back_to_lowering_s_order() {
+        let mut s = schedule(&[("a", &[], &[1]), ("a", &[12], &[3]), ("b", &[11], &[2])]);
+        s.instances[2].device = DeviceId(1);
+        s.resources = vec![crate::schedule::ResourceInfo {
+            name: "x".into(),
+            family: crate::ids::FamilyId(0),
+            view: ViewId(0),
+            desc: ResourceDesc::Image { width: 1, height: 1, format: Format::R32f },
+            exported: None,
+            history: false,
+            versions: 1,
+            reset: None,
+            global: false,
+        }];
+        s.copies = vec![copy(1, 11), CrossCopy { from: DeviceId(1), to: DeviceId(0), ..copy(2, 12) }];
+        let lowered = vec![
+            DeviceProgram { device: DeviceId(0), ops: vec![P(0), OUT(0), SIG(0), WAIT(1), IN(1), P(1)] },
+            DeviceProgram { device: DeviceId(1), ops: vec![WAIT(0), IN(0), P(2), OUT(1), SIG(1)] },
+        ];
+        s.devices = lowered.clone();
+        // Batched, device 0 would start with the wait and end with the copy-out.
+        let device_0 = device_order(&s, &lowered[0].ops, &|_| true);
+        assert_eq!(device_0, vec![WAIT(1), IN(1), P(0), P(1), OUT(0), SIG(0)]);
+        let batching = Batching::SmallCopies { chunk_bytes: u64::MAX };
+        order_programs(&mut s, batching);
+        assert_eq!(s.devices, lowered);
+        assert_eq!(s.op_order, OpOrder { requested: batching, applied: Batching::Off });
+        assert_eq!(s.op_order.to_string(), "in place (batched (every copy) would make devices wait in a cycle)");
+    }
+
     #[test]
     fn a_copy_moves_in_one_piece_up_to_the_chunk_size_or_one_row() {
         let mut s = schedule(&[]);
