@@ -88,8 +88,8 @@ pub(super) fn render_frames(
         ))
     })?;
     let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
-    let exec_plan = match job.rank_devices {
-        Some((first, count)) => crate::ranks::restrict_plan(&exec_plan, first, count)?,
+    let exec_plan = match &job.rank {
+        Some(part) => crate::ranks::restrict_plan(&exec_plan, &part.layout, part.rank),
         None => exec_plan,
     };
     let options = ExecOptions {
@@ -105,6 +105,7 @@ pub(super) fn render_frames(
         fault: fault_from_env()?,
         link: args.link.kind(),
         shaders: extension.shaders.clone(),
+        remote: job.rank.as_ref().and_then(|part| part.transport.clone()),
         ..ExecOptions::default()
     };
     let mut renderer =

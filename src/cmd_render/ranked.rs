@@ -1,6 +1,9 @@
 //! `render` under `mpirun -n R` (`--features mpi`): every rank plans the same schedule for the
-//! devices of all ranks together, runs the part on its own devices (whole multi-source sets),
-//! and ranks other than 0 send their finished views to rank 0, which writes every output as one
+//! devices of all ranks together and runs the part on its own devices. Under multi-source
+//! (whole sets) ranks other than 0 send their finished views to rank 0 after the last frame;
+//! under a fine scheme the bands that devices of different ranks exchange, the gathers of
+//! finished bands to device 0 among them, travel every frame through the executor's `remote`
+//! links ([`LinkTransport`]), so rank 0 holds every view. Rank 0 writes every output as one
 //! process would. A rank that fails ends the run with one message from rank 0 naming it, its
 //! host and the cause; rank 0 polls against `--rank-timeout` and never waits without end; and
 //! since rank 0 stages every output until all views are in, a failed run leaves nothing.
@@ -18,9 +21,9 @@ use super::frames::{RankViews, Rendered, render_frames};
 use super::plan::RenderJob;
 use super::report::{output_families, write_outputs};
 use super::{RankFault, RenderArgs, RenderExtension, rank_fault_from_env};
-use crate::options::{SchemeArg, UsageError};
-use crate::ranks::{RankLayout, views_of};
-use crate::ranks_mpi::{Cluster, Collector, FrameStat, Reported};
+use crate::options::UsageError;
+use crate::ranks::{RankLayout, RankPart, linked, views_of};
+use crate::ranks_mpi::{Cluster, Collector, FrameStat, LinkTransport, Reported};
 use crate::render_report::timings;
 
 /// Runs this rank's part of the render.
@@ -38,10 +41,6 @@ pub(super) fn run(args: &RenderArgs, extension: &mut RenderExtension, cluster: &
 
 /// What only runs in one process today.
 fn refuse(args: &RenderArgs) -> Result<()> {
-    if args.pipeline.scheme != SchemeArg::MultiSource {
-        let scheme = crate::bench_matrix::name_of(&args.pipeline.scheme);
-        return Err(UsageError(crate::ranks::fine_scheme_across_ranks(&scheme)).into());
-    }
     if args.save_every.is_some() {
         return Err(UsageError(
             "--save-every writes intermediate frames, which ranks do not send to rank 0 yet: drop --save-every under \
@@ -80,7 +79,7 @@ fn lead(
     fault: Option<RankFault>,
 ) -> Result<()> {
     let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), true)?;
-    job.rank_devices = Some((0, layout.devices[0]));
+    job.rank = Some(rank_part(args, &job, cluster, layout)?);
     let cameras: Vec<[u32; 12]> = (0..job.total_frames).map(|f| camera_bits(&job.camera_at(args, f))).collect();
     cluster.send_frames(&serde_json::json!({ "settings": shared_settings(args), "cameras": cameras }));
     let mut collector = Collector::new(cluster.size(), Duration::from_secs(args.rank_timeout));
@@ -88,7 +87,9 @@ fn lead(
         inject(fault, 0, frame)?;
         collector.poll(cluster)
     };
-    let mut rendered = render_frames(args, &mut job, extension, Some(&mut listen))?;
+    let rendered = render_frames(args, &mut job, extension, Some(&mut listen));
+    // A link that waited in vain for a rank that failed: its own message says why.
+    let mut rendered = rendered.or_else(|e| collector.poll(cluster).and(Err(e)))?;
     let finished = collector.wait_all(cluster)?;
     let global = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
     rendered.ranks = Some(gathered(args, &mut rendered, &collector, finished, global, cluster, layout)?);
@@ -113,7 +114,7 @@ fn follow(
         let cameras: Vec<[u32; 12]> = serde_json::from_value(frames["cameras"].clone())?;
         let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), false)?;
         job.cameras = Some(cameras.iter().map(camera_of_bits).collect());
-        job.rank_devices = Some((layout.first(rank), layout.devices[rank]));
+        job.rank = Some(rank_part(args, &job, cluster, layout)?);
         let mut report = |frame: u32, wall: Duration| {
             inject(fault, rank, frame)?;
             cluster.send_frame_done(&FrameStat { frame, wall_ms: wall.as_secs_f64() * 1e3 });
@@ -147,14 +148,27 @@ fn inject(fault: Option<RankFault>, rank: usize, frame: u32) -> Result<()> {
     }
 }
 
-/// A rank's finished views (the resources rank 0 writes the outputs from) and its statistics.
+/// This rank's part of the run: its devices, and where its devices exchange bands with other
+/// ranks' (a fine scheme), the transport of those links.
+fn rank_part(args: &RenderArgs, job: &RenderJob, cluster: &Cluster, layout: &RankLayout) -> Result<RankPart> {
+    let global = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
+    let transport: Option<std::sync::Arc<dyn parallax_backend::RemoteTransport>> = match linked(&global, layout) {
+        true => Some(LinkTransport::start(cluster, layout, Duration::from_secs(args.rank_timeout))?),
+        false => None,
+    };
+    Ok(RankPart { layout: layout.clone(), rank: cluster.rank, transport })
+}
+
+/// A rank's finished views (the resources rank 0 writes the outputs from) and its statistics;
+/// under a fine scheme only the statistics, as its bands reached rank 0 through the links.
 fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
     let Rendered { context, mut renderer, wall, layers, .. } = rendered;
     let views = views_of(renderer.plan());
+    let linked = job.rank.as_ref().is_some_and(|part| part.transport.is_some());
     let mut listed = Vec::new();
     let mut blobs = Vec::new();
     for family in output_families(args, job, layers) {
-        for &view in &views {
+        for &view in views.iter().filter(|_| !linked) {
             match renderer.read(family, view) {
                 Ok(bytes) => {
                     listed.push([family.0, view]);

@@ -52,6 +52,7 @@ use crate::memory::Buffer;
 use crate::plan::ExecutionPlan;
 use crate::readback::Readback;
 use crate::relay::Relay;
+use crate::remote::Remote;
 use crate::segments::{Chunk, Run};
 use crate::texture::Texture;
 use crate::timing::FrameReport;
@@ -99,6 +100,8 @@ pub struct Executor {
     link_kinds: LinkKinds,
     staging: Option<Staging>,
     relay: Option<Relay>,
+    /// Links to and from other processes' devices (remote.rs).
+    remote: Option<Remote>,
     gate: Option<FaultGate>,
     /// The order every frame's segments are submitted in (`segments::submission_order`, with
     /// the space waits of staging rings).
@@ -153,6 +156,7 @@ impl Executor {
             link_kinds,
             staging: None,
             relay: None,
+            remote: None,
             gate: None,
             submission_order: Vec::new(),
             space_waits: Vec::new(),
@@ -221,11 +225,14 @@ impl Executor {
         &self.plan
     }
 
-    /// The plan's links between devices, one per (producer, consumer) pair it copies over.
+    /// The plan's links between devices, one per (producer, consumer) pair it copies over; the
+    /// end of a `remote` link on another process by the run's device number.
     pub fn links(&self) -> Vec<LinkInfo> {
+        let here = self.devices.len();
+        let end = |d: usize| if d < here { d } else { d - here };
         let info = |l: &Link| LinkInfo {
-            from: l.from,
-            to: l.to,
+            from: end(l.from),
+            to: end(l.to),
             kind: l.kind,
             chunks_per_frame: l.per_frame,
             bytes_per_frame: l.bytes_per_frame,
