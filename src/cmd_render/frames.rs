@@ -52,6 +52,9 @@ pub(super) struct RankViews {
     /// Resources of their views, by (family, view).
     pub remote: HashMap<(u32, u32), Vec<u8>>,
     pub remote_views: BTreeSet<u32>,
+    /// Under a fine scheme, the bands of layers left on other ranks' devices, by (family, view,
+    /// global device) (view_source.rs).
+    pub bands: HashMap<(u32, u32, u32), Vec<u8>>,
     /// The whole run's plan (which device wrote which rows).
     pub plan: ExecutionPlan,
     /// Every device of the run, in global order.

@@ -159,15 +159,23 @@ fn rank_part(args: &RenderArgs, job: &RenderJob, cluster: &Cluster, layout: &Ran
     Ok(RankPart { layout: layout.clone(), rank: cluster.rank, transport })
 }
 
-/// A rank's finished views (the resources rank 0 writes the outputs from) and its statistics;
-/// under a fine scheme only the statistics, as its bands reached rank 0 through the links.
+/// A rank's finished views (the resources rank 0 writes the outputs from) and its statistics.
+/// Under a fine scheme rank 0 holds the gathered layers already (the links brought their
+/// bands); the rank sends only the bands of the other layers that its devices hold
+/// ([`own_bands`]).
 fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
     let Rendered { context, mut renderer, wall, layers, .. } = rendered;
     let views = views_of(renderer.plan());
-    let linked = job.rank.as_ref().is_some_and(|part| part.transport.is_some());
+    let part = job.rank.as_ref().context("a rank runs a part")?;
+    let linked = part.transport.is_some();
     let mut listed = Vec::new();
     let mut blobs = Vec::new();
-    for family in output_families(args, job, layers) {
+    let families = output_families(args, job, layers);
+    let (bands, band_blobs) = match linked {
+        true => own_bands(&mut renderer, &families, &views, part.layout.first(part.rank))?,
+        false => (Vec::new(), Vec::new()),
+    };
+    for family in families {
         for &view in views.iter().filter(|_| !linked) {
             match renderer.read(family, view) {
                 Ok(bytes) => {
@@ -188,10 +196,46 @@ fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Resu
         "devices": context.device_infos().iter().map(|d| d.name.clone()).collect::<Vec<_>>(),
         "views": views,
         "resources": listed,
+        "bands": bands,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
         "frame_gpu_ms": timing.frame_gpu.mean_ms,
     });
+    blobs.extend(band_blobs);
     Ok((header, blobs))
+}
+
+/// Under a fine scheme, the row bands of `families` of `views` that were left on this rank's
+/// devices (layers not gathered to device 0), as `[family, view, global device]` and one
+/// whole-view image per device whose other rows are zero: rank 0 stitches them into the views.
+fn own_bands(
+    renderer: &mut parallax_passes::LightFieldRenderer,
+    families: &[parallax_graph::FamilyId],
+    views: &BTreeSet<u32>,
+    first: u32,
+) -> Result<(Vec<[u32; 3]>, Vec<Vec<u8>>)> {
+    let plan = renderer.plan().clone();
+    let here = plan.devices.len();
+    let (mut listed, mut blobs) = (Vec::new(), Vec::new());
+    for &family in families {
+        for &view in views {
+            let Some(bands) = plan.final_bands(family, view) else { continue };
+            for device in (0..here).map(|d| parallax_graph::DeviceId(d as u32)) {
+                let mine: Vec<_> = bands.iter().filter(|b| b.0 == device).collect();
+                let Some(&&(_, resource, _)) = mine.first() else { continue };
+                let desc = plan.resource(resource);
+                let row_bytes = desc.row_bytes() as usize;
+                let mut image = vec![0u8; row_bytes * desc.height as usize];
+                for &&(_, resource, rows) in &mine {
+                    let rows = rows.y0 as usize * row_bytes..rows.y1 as usize * row_bytes;
+                    let source = renderer.executor().read_resource(device, resource)?;
+                    image[rows.clone()].copy_from_slice(&source[rows]);
+                }
+                listed.push([family.0, view, first + device.0]);
+                blobs.push(image);
+            }
+        }
+    }
+    Ok((listed, blobs))
 }
 
 /// Rank 0's gathered views and render.json's `ranks`.
@@ -210,6 +254,7 @@ fn gathered(
     let own_timing = timings(rendered.renderer.stats(), &prepare);
     let mut device_names: Vec<String> = rendered.context.device_infos().iter().map(|d| d.name.clone()).collect();
     let mut remote = HashMap::new();
+    let mut bands = HashMap::new();
     let mut remote_views = BTreeSet::new();
     let mut wall_ms = own_wall;
     let mut ranks = vec![serde_json::json!({
@@ -222,9 +267,13 @@ fn gathered(
         let header = &f.header;
         let resources: Vec<[u32; 2]> =
             serde_json::from_value(header["resources"].clone()).context("a rank's view list")?;
-        remote.extend(resources.into_iter().map(|[family, view]| (family, view)).zip(f.blobs));
+        // The views whose resources it sent (none under a fine scheme: rank 0 holds them).
+        remote_views.extend(resources.iter().map(|&[_, view]| view));
+        let mut blobs = f.blobs.into_iter();
+        remote.extend(resources.into_iter().map(|[family, view]| (family, view)).zip(blobs.by_ref()));
+        let own_bands: Vec<[u32; 3]> = serde_json::from_value(header["bands"].clone()).context("a rank's band list")?;
+        bands.extend(own_bands.into_iter().map(|[family, view, device]| (family, view, device)).zip(blobs));
         let views: Vec<u32> = serde_json::from_value(header["views"].clone())?;
-        remote_views.extend(&views);
         let names: Vec<String> = serde_json::from_value(header["devices"].clone())?;
         device_names.extend(names);
         let wall = header["wall_ms_per_frame"].as_f64().unwrap_or(0.0);
@@ -239,7 +288,7 @@ fn gathered(
         }));
     }
     let json = serde_json::json!({ "count": cluster.size(), "timeout_s": args.rank_timeout, "per_rank": ranks });
-    Ok(RankViews { remote, remote_views, plan, device_names, wall_ms, json })
+    Ok(RankViews { remote, remote_views, bands, plan, device_names, wall_ms, json })
 }
 
 /// A camera as the bits of its floats: sent exactly, so every rank renders the same rays.

@@ -36,9 +36,11 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     let timing = timings(renderer.stats(), &prepare);
     let (kind, handles) = (job.compiled.kind, &job.compiled.handles);
     let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
-    let no_remote = (HashMap::new(), BTreeSet::new());
-    let (remote, remote_views) = ranks.as_ref().map_or((&no_remote.0, &no_remote.1), |r| (&r.remote, &r.remote_views));
-    let mut views = Gathered { local: &mut renderer, remote, remote_views };
+    let no_remote = (HashMap::new(), BTreeSet::new(), HashMap::new());
+    let (remote, remote_views, bands) = ranks
+        .as_ref()
+        .map_or((&no_remote.0, &no_remote.1, &no_remote.2), |r| (&r.remote, &r.remote_views, &r.bands));
+    let mut views = Gathered { local: &mut renderer, remote, remote_views, bands };
     staged.extend(stage_views(&mut views, handles, &args.out_dir, &last_views, layers)?);
     let (exposure, displays) = display_images(&mut views, handles, (lf.len() as u32, lf.width), args.exposure)?;
     let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
