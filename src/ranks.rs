@@ -139,6 +139,12 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
     plan
 }
 
+/// The run's number of a device that a rank's part of the plan (its devices from `first`)
+/// numbers `device`: one of its own, or another rank's ([`parallax_backend::remote_device`]).
+pub fn run_device(plan: &ExecutionPlan, first: u32, device: usize) -> u32 {
+    parallax_backend::remote_device(plan.devices.len(), DeviceId(device as u32)).unwrap_or(first + device as u32)
+}
+
 /// The views whose passes run on `plan`'s own devices: what a rank renders.
 #[cfg(feature = "mpi")]
 pub fn views_of(plan: &ExecutionPlan) -> BTreeSet<u32> {

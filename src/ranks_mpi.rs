@@ -45,6 +45,10 @@ const HOST_BYTES: usize = 64;
 
 /// This process's place in an MPI run of several ranks.
 pub struct Cluster {
+    /// The communicator of the links between ranks' devices (a duplicate of the world's, so
+    /// that their messages never match the run's own), until a [`LinkTransport`] takes it;
+    /// freed before MPI is finalised (fields drop in order).
+    links: RefCell<Option<SimpleCommunicator>>,
     /// Finalised when dropped (MPI_Finalize): only after a successful run, as finalising waits
     /// for every rank.
     _universe: Universe,
@@ -52,10 +56,7 @@ pub struct Cluster {
     pub rank: usize,
     /// Every rank's host, by rank.
     pub hosts: Vec<String>,
-    /// The communicator of the links between ranks' devices (a duplicate of the world's, so
-    /// that their messages never match the run's own), until a [`LinkTransport`] takes it; and
-    /// whether MPI lets that transport's thread call it beside the main thread.
-    links: RefCell<Option<SimpleCommunicator>>,
+    /// Whether MPI lets the links' thread call it beside the main thread.
     threads_allowed: bool,
 }
 
@@ -94,7 +95,8 @@ pub fn join() -> Result<()> {
     // A collective: every rank makes it here, whatever its scheme.
     let links = RefCell::new(Some(world.duplicate()));
     let threads_allowed = threading == Threading::Multiple;
-    CLUSTER.with(|c| *c.borrow_mut() = Some(Cluster { _universe: universe, world, rank, hosts, links, threads_allowed }));
+    CLUSTER
+        .with(|c| *c.borrow_mut() = Some(Cluster { links, _universe: universe, world, rank, hosts, threads_allowed }));
     Ok(())
 }
 

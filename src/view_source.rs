@@ -47,9 +47,11 @@ impl ViewSource for Gathered<'_> {
         let mut out = vec![0u8; row_bytes * desc.height as usize];
         for (device, resource, rows) in bands {
             let bytes = match remote_device(here, device) {
-                Some(global) => {
-                    self.bands.get(&(family.0, view, global)).cloned().ok_or(PassError::MissingOutput { family, view })?
-                }
+                Some(global) => self
+                    .bands
+                    .get(&(family.0, view, global))
+                    .cloned()
+                    .ok_or(PassError::MissingOutput { family, view })?,
                 None => self.local.executor().read_resource(device, resource)?,
             };
             let rows = rows.y0 as usize * row_bytes..rows.y1 as usize * row_bytes;

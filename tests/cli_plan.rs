@@ -244,12 +244,20 @@ fn ranks_share_the_sets_and_say_what_each_sends() {
         assert_eq!(rank["display_bytes_per_frame"], 0, "{rank}");
         assert_eq!(rank["views"].as_array().unwrap().len(), 8, "bands of every view on every rank: {rank}");
     }
-    let (to_1, to_0) = (ranks[0]["link_bytes_per_frame"].as_u64().unwrap(), ranks[1]["link_bytes_per_frame"].as_u64().unwrap());
+    let (to_1, to_0) =
+        (ranks[0]["link_bytes_per_frame"].as_u64().unwrap(), ranks[1]["link_bytes_per_frame"].as_u64().unwrap());
     assert!(to_1 > 0 && to_0 > to_1, "rank 1 also sends rank 0 its finished bands: {to_1} {to_0}");
-    let text = Command::new(env!("CARGO_BIN_EXE_parallax")).args(["plan"]).args(words).args(["--ranks", "2"]).output().unwrap();
+    let text = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .args(["plan"])
+        .args(words)
+        .args(["--ranks", "2"])
+        .output()
+        .unwrap();
     let stdout = String::from_utf8_lossy(&text.stdout);
     let kib = to_0 as f64 / 1024.0;
-    let line = format!("rank 1        devices 1..=1, 8 views [0, 1, 2, 3, 4, 5, 6, 7], sends other ranks {kib:.1} KiB of bands per frame");
+    let line = format!(
+        "rank 1        devices 1..=1, 8 views [0, 1, 2, 3, 4, 5, 6, 7], sends other ranks {kib:.1} KiB of bands per frame"
+    );
     assert!(stdout.lines().any(|l| l == line), "{line} in {stdout}");
 
     for (args, needle) in [(

@@ -147,15 +147,16 @@ mod under_mpirun {
         assert!(three["links"]["pairs"].as_array().unwrap().is_empty(), "multi-source: no link between ranks");
     }
 
-    /// Under a fine scheme every view is cut in bands over the three devices, one per rank: the
+    /// Under a fine scheme views are cut in bands over the three devices, one per rank: the
     /// bands travel between the ranks every frame, through `remote` links (rank 0's, in its
-    /// render.json, receive the others' bands and send its own), and rank 0 holds every view.
+    /// render.json, receive at least the others' finished bands), and rank 0 holds every view.
     fn a_fine_scheme_renders_across_ranks_as_in_one_process(scheme: &str) {
         let Some(mpirun) = mpirun() else { return };
         let dir = scratch("ranks", scheme);
         let (one, three) = same_as_one_process(mpirun, &dir, &["--scheme", scheme]);
         let pairs = three["links"]["pairs"].as_array().unwrap();
-        for (from, to) in [(1, 0), (2, 0), (0, 1), (0, 2)] {
+        assert!(pairs.iter().all(|p| p["kind"] == "remote"), "{pairs:?}");
+        for (from, to) in [(1, 0), (2, 0)] {
             let link = pairs.iter().find(|p| (p["from"].as_u64(), p["to"].as_u64()) == (Some(from), Some(to)));
             let link = link.unwrap_or_else(|| panic!("no link {from} → {to}: {pairs:?}"));
             assert_eq!(link["kind"], "remote", "{link}");
@@ -168,9 +169,6 @@ mod under_mpirun {
             pairs.iter().filter(|p| p["to"] == 0).map(|p| p["bytes_per_frame"].as_u64().unwrap()).sum()
         };
         assert_eq!(received(&three), received(&one));
-        for rank in three["ranks"]["per_rank"].as_array().unwrap() {
-            assert_eq!(rank["views"].as_array().unwrap().len(), 8, "every rank renders bands of every view: {rank}");
-        }
     }
 
     #[test]

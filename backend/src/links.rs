@@ -158,8 +158,8 @@ pub fn link_kinds(devices: &[Arc<Device>], requested: Option<LinkKind>) -> Resul
 /// One link of the running plan ([`crate::Executor::links`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LinkInfo {
-    /// Its devices; the end of a `remote` link on another process is counted from the plan's
-    /// device count (crate::remote::remote_device).
+    /// Its devices as the plan numbers them: the end of a `remote` link on another process is
+    /// past the plan's own devices ([`crate::remote_device`] gives its number in the run).
     pub from: usize,
     pub to: usize,
     pub kind: LinkKind,

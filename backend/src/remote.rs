@@ -19,9 +19,13 @@
 //!   dependency between the processes.
 //!
 //! The producer's slot of staging is written again only after its frame retired, and a frame
-//! retires only once the relay thread has handed its chunks over (`wait_sent`); the consumer's
-//! slot is written when the frame that uses it is submitted, after the slot's previous frame
-//! retired.
+//! retires only once the relay thread has handed its chunks over (`Remote::sent_frame`); the
+//! consumer's slot is written when the frame that uses it is submitted, after the slot's
+//! previous frame retired.
+//!
+//! A receive that fails (the transport says why: another process failed or fell silent) lets
+//! the frames already submitted through, so that nothing queued waits for ever, and the
+//! executor fails at its next check (`Remote::check`: submitting, waiting, retiring).
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -187,6 +191,7 @@ impl Remote {
         receives: Vec<ReceiveLink>,
         ends: Vec<(Arc<Device>, vk::Semaphore)>,
         sends_per_frame: Vec<u64>,
+        slots: usize,
     ) -> Result<Self> {
         let mut remote = Self {
             transport,
@@ -198,14 +203,23 @@ impl Remote {
             sent: sends_per_frame.iter().map(|_| Arc::new(AtomicU64::new(0))).collect(),
             sends_per_frame,
         };
-        for (device, ready) in ends {
+        for ((device, ready), link) in ends.into_iter().zip(&remote.receives) {
+            let per_frame = link.chunks.len() as u64;
             let (sender, jobs) = channel();
             let (transport, stop, failure) = (remote.transport.clone(), remote.stop.clone(), remote.failure.clone());
             let thread = std::thread::Builder::new()
                 .name(format!("parallax-receive-{}", device.info.index))
                 .spawn(move || {
-                    if let Err(e) = receive(&device, ready, &*transport, &jobs, &stop) {
+                    let mut last = 0;
+                    if let Err(e) = receive(&device, ready, &*transport, &jobs, &stop, &mut last) {
                         failure.lock().unwrap_or_else(|p| p.into_inner()).get_or_insert(e);
+                        // Frames already submitted would wait for the link for ever, and a
+                        // driver may wait for them too (lavapipe reads queries only once its
+                        // queue is idle): they are let through, and the executor fails at its
+                        // next check instead. At most `slots` frames follow the failed one.
+                        let frame = last.saturating_sub(1) / per_frame.max(1);
+                        let _ =
+                            device.signal_timeline(ready, ready_value(frame + slots as u64 + 1, per_frame, per_frame));
                     }
                 })
                 .map_err(|e| BackendError::Remote(format!("starting a receive thread: {e}")))?;
@@ -225,7 +239,11 @@ impl Remote {
                 .iter()
                 .zip(spans)
                 .enumerate()
-                .map(|(k, (&(_, wire), span))| Arrival { wire, span, ready_value: ready_value(local, per_frame, k as u64) })
+                .map(|(k, (&(_, wire), span))| Arrival {
+                    wire,
+                    span,
+                    ready_value: ready_value(local, per_frame, k as u64),
+                })
                 .collect();
             receiving
                 .jobs
@@ -282,9 +300,11 @@ fn receive(
     transport: &dyn RemoteTransport,
     jobs: &Receiver<Vec<Arrival>>,
     stop: &AtomicBool,
+    last: &mut u64,
 ) -> std::result::Result<(), String> {
     while let Ok(frame) = jobs.recv() {
         for arrival in frame {
+            *last = arrival.ready_value;
             let incoming = transport.receive(arrival.wire, arrival.span.len);
             let bytes = loop {
                 match incoming.recv_timeout(STOP_POLL) {
@@ -334,10 +354,7 @@ mod tests {
         ];
         plan.copies[1].rows = Region::new(0, 1);
         let wire = |local, remote, copy| Some(Wire { local, remote, copy });
-        assert_eq!(
-            wires(&plan),
-            vec![wire(0, 3, 0), wire(0, 3, 0), wire(0, 3, 1), wire(0, 5, 0), None, wire(0, 3, 2)]
-        );
+        assert_eq!(wires(&plan), vec![wire(0, 3, 0), wire(0, 3, 0), wire(0, 3, 1), wire(0, 5, 0), None, wire(0, 3, 2)]);
         assert_eq!(remote_device(n, five), Some(5));
         assert_eq!(remote_device(n, DeviceId(1)), None);
     }

@@ -116,11 +116,14 @@ pub(super) fn render_frames(
     drop(bvh);
     let layers = view_layers(args, job.compiled.kind, &job.compiled.handles, &renderer);
     let executor = renderer.executor();
+    // Devices by the run's numbers (a rank's own, and other ranks' at the far end of a link).
+    let first = job.rank.as_ref().map_or(0, |part| part.layout.first(part.rank));
     for link in executor.links() {
+        let end = |d: usize| crate::ranks::run_device(executor.plan(), first, d);
         tracing::info!(
             "link device {} → device {}: {}, {} chunk(s) and {:.1} MiB a frame",
-            link.from,
-            link.to,
+            end(link.from),
+            end(link.to),
             link.kind.name(),
             link.chunks_per_frame,
             link.bytes_per_frame as f64 / (1 << 20) as f64

@@ -57,9 +57,10 @@ impl Executor {
         // carries them (a bounded batch lets the two PCIe directions overlap). Over device memory
         // a batch moves at the copy engines' speed and every submission costs a signal and a
         // wait: the small copies of a pass's run then share one, whatever their bytes.
-        let device_memory = plan.copies.iter().all(|c| {
-            matches!(self.link_kinds.of(c.from.index(), c.to.index()), LinkKind::Gpu | LinkKind::Shared)
-        });
+        let device_memory = plan
+            .copies
+            .iter()
+            .all(|c| matches!(self.link_kinds.of(c.from.index(), c.to.index()), LinkKind::Gpu | LinkKind::Shared));
         let merge_bytes = if device_memory { u64::MAX } else { self.options.chunk_bytes };
         let wires = wires(&plan);
         let remote = wires.iter().any(Option::is_some);
@@ -168,7 +169,9 @@ impl Executor {
         let link_ends: Vec<(usize, usize, LinkKind)> = links.iter().map(|l| (l.from, l.to, l.kind)).collect();
         self.staging = create_staging(&self.devices, &plan, &link_ends, &link_of_copy, slots, &ring_layouts)?;
         let remote = match (&self.options.remote, remote) {
-            (Some(transport), true) => Some(remote_side(transport.clone(), wires, &links, &order.chunks, &chunks, &states)?),
+            (Some(transport), true) => {
+                Some(remote_side(transport.clone(), wires, &links, &order.chunks, &chunks, &states, slots)?)
+            }
             _ => None,
         };
         if let Some(readback) = &mut self.readback {
@@ -262,6 +265,7 @@ fn remote_side(
     chunk_links: &[Vec<ChunkLink>],
     chunks: &[Vec<Chunk>],
     states: &[crate::device_state::DeviceState],
+    slots: usize,
 ) -> Result<Remote> {
     let here = states.len();
     let mut receives = Vec::new();
@@ -275,12 +279,13 @@ fn remote_side(
             .map(|(c, place, chunk)| (place.position, chunk, wires[c].expect("a remote copy has a wire")))
             .collect();
         on_link.sort_by_key(|&(position, ..)| position);
-        receives.push(ReceiveLink { link: l, chunks: on_link.into_iter().map(|(_, chunk, wire)| (chunk, wire)).collect() });
+        receives
+            .push(ReceiveLink { link: l, chunks: on_link.into_iter().map(|(_, chunk, wire)| (chunk, wire)).collect() });
         ends.push((states[link.to].device.clone(), link.ready));
     }
     let mut sends_per_frame = vec![0u64; here];
     for link in links.iter().filter(|l| l.kind == LinkKind::Remote && l.from < here) {
         sends_per_frame[link.from] += link.per_frame;
     }
-    Remote::new(transport, wires, receives, ends, sends_per_frame)
+    Remote::new(transport, wires, receives, ends, sends_per_frame, slots)
 }

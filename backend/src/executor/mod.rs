@@ -225,14 +225,11 @@ impl Executor {
         &self.plan
     }
 
-    /// The plan's links between devices, one per (producer, consumer) pair it copies over; the
-    /// end of a `remote` link on another process by the run's device number.
+    /// The plan's links between devices, one per (producer, consumer) pair it copies over.
     pub fn links(&self) -> Vec<LinkInfo> {
-        let here = self.devices.len();
-        let end = |d: usize| if d < here { d } else { d - here };
         let info = |l: &Link| LinkInfo {
-            from: end(l.from),
-            to: end(l.to),
+            from: l.from,
+            to: l.to,
             kind: l.kind,
             chunks_per_frame: l.per_frame,
             bytes_per_frame: l.bytes_per_frame,

@@ -49,6 +49,9 @@ impl Executor {
         let Some(f) = self.in_flight.pop_front() else {
             return Ok(());
         };
+        // A failed link let its frames through with what its staging held (remote.rs).
+        let remote_check = || self.remote.as_ref().map_or(Ok(()), crate::remote::Remote::check);
+        remote_check()?;
         let mut events = Vec::new();
         for (d, state) in self.states.iter().enumerate() {
             let segment_count = state.segments.len();
@@ -100,6 +103,7 @@ impl Executor {
                 });
             }
         }
+        remote_check()?;
         let mut report = FrameReport::new(
             f.frame,
             f.submit_start_ns,
