@@ -66,7 +66,8 @@ impl Executor {
         let remote = wires.iter().any(Option::is_some);
         if remote && self.options.remote.is_none() {
             return Err(BackendError::Remote(
-                "the plan copies to or from another process's device, but the executor has no transport for it                  (ExecOptions::remote)"
+                "the plan copies to or from another process's device, but the executor has no transport for it \
+                 (ExecOptions::remote)"
                     .into(),
             ));
         }
