@@ -302,6 +302,7 @@ mod tests {
     fn a_layout_numbers_devices_rank_after_rank() {
         let layout = RankLayout { devices: vec![1, 2, 1] };
         assert_eq!((layout.first(0), layout.first(1), layout.first(2)), (0, 1, 3));
+        assert_eq!((0..4).map(|d| layout.rank_of(d)).collect::<Vec<_>>(), vec![0, 1, 1, 2]);
         #[cfg(feature = "mpi")]
         assert_eq!(layout.total(), 4);
         assert_eq!(RankLayout::even(4, 2).unwrap(), RankLayout { devices: vec![2, 2] });

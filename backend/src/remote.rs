@@ -333,8 +333,93 @@ fn receive(
 
 #[cfg(test)]
 mod tests {
+    use std::collections::{HashMap, VecDeque};
+
     use super::*;
-    use crate::plan::{ExecCopy, Region};
+    use crate::bench::copy_plan;
+    use crate::context::{Context, ContextDesc, DeviceSelection};
+    use crate::executor::{ExecOptions, Executor};
+    use crate::instance::Validation;
+    use crate::links::LinkKind;
+    use crate::plan::{CopyId, ExecCopy, ExecOp, Region};
+
+    type Reply = Sender<std::result::Result<Vec<u8>, String>>;
+
+    /// A transport within one process: a chunk sent on copy k is the next one received on
+    /// copy k (both ends of a wire have the same place among their remote copies).
+    #[derive(Debug, Default)]
+    struct Loopback {
+        queues: Mutex<(HashMap<u32, VecDeque<Vec<u8>>>, HashMap<u32, VecDeque<Reply>>)>,
+    }
+
+    impl RemoteTransport for Loopback {
+        fn send(&self, wire: Wire, bytes: Vec<u8>) -> std::result::Result<(), String> {
+            let (sent, waiting) = &mut *self.queues.lock().unwrap();
+            match waiting.get_mut(&wire.copy).and_then(VecDeque::pop_front) {
+                Some(reply) => reply.send(Ok(bytes)).map_err(|e| e.to_string()),
+                None => Ok(sent.entry(wire.copy).or_default().push_back(bytes)),
+            }
+        }
+
+        fn receive(&self, wire: Wire, _bytes: usize) -> Receiver<std::result::Result<Vec<u8>, String>> {
+            let (reply, received) = channel();
+            let (sent, waiting) = &mut *self.queues.lock().unwrap();
+            match sent.get_mut(&wire.copy).and_then(VecDeque::pop_front) {
+                Some(bytes) => reply.send(Ok(bytes)).expect("the receiver is here"),
+                None => waiting.entry(wire.copy).or_default().push_back(reply),
+            }
+            received
+        }
+    }
+
+    /// What device 1 holds of the payload after `frames` frames of `plan`.
+    fn received(context: &Context, plan: ExecutionPlan, options: ExecOptions, frames: usize) -> Vec<u8> {
+        let dst = plan.copies.last().expect("a copy").dst;
+        let mut executor = Executor::new(context, plan, options).unwrap();
+        for _ in 0..frames {
+            executor.run_frame().unwrap();
+        }
+        executor.read_resource(DeviceId(1), dst).unwrap()
+    }
+
+    /// The copy of the copy benchmark, device 0 → device 1, cut in two remote copies that a
+    /// loopback transport joins (device 0 → device 7 of "another process" → device 1), in
+    /// small chunks over three frames: device 1 receives what the plain copy gives it, bit for
+    /// bit, and the links say `remote` with the copy's bytes.
+    #[test]
+    fn a_copy_through_a_transport_delivers_what_a_copy_between_devices_does() {
+        let context =
+            Context::new(&ContextDesc { selection: DeviceSelection::FakeDevices(2), validation: Validation::Core })
+                .unwrap();
+        let plain = copy_plan(64, 32).unwrap();
+        let mut split = plain.clone();
+        let elsewhere = remote_device_id(2, 7);
+        split.copies =
+            vec![ExecCopy { to: elsewhere, ..plain.copies[0] }, ExecCopy { from: elsewhere, ..plain.copies[0] }];
+        for op in &mut split.devices[1] {
+            *op = match *op {
+                ExecOp::Wait(_) => ExecOp::Wait(CopyId(1)),
+                ExecOp::CopyIn(_) => ExecOp::CopyIn(CopyId(1)),
+                op => op,
+            };
+        }
+        let options = || ExecOptions { chunk_bytes: 64 * 16 * 5, ..ExecOptions::default() };
+        let transport: Arc<dyn RemoteTransport> = Arc::new(Loopback::default());
+        let remote = ExecOptions { remote: Some(transport), ..options() };
+        let bytes = plain.copy_bytes(CopyId(0));
+        {
+            let executor = Executor::new(&context, split.clone(), remote.clone()).unwrap();
+            let links: Vec<_> = executor.links().iter().map(|l| (l.from, l.to, l.kind, l.bytes_per_frame)).collect();
+            assert_eq!(links, vec![(0, 9, LinkKind::Remote, bytes), (9, 1, LinkKind::Remote, bytes)]);
+        }
+        let expected = received(&context, plain, options(), 3);
+        assert!(expected.iter().any(|&b| b != 0), "the fill wrote something");
+        assert_eq!(received(&context, split.clone(), remote, 3), expected);
+        // Without a transport the plan is refused before any work.
+        let refused = Executor::new(&context, split, options()).err().expect("refused");
+        assert!(matches!(refused, BackendError::Remote(ref m) if m.contains("ExecOptions::remote")), "{refused}");
+        context.check_validation().unwrap();
+    }
 
     /// Copies in both directions between device 0 and two devices of other processes (run
     /// numbers 3 and 5): each direction's copies are numbered apart, in plan order.
