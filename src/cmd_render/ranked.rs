@@ -204,6 +204,9 @@ fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Resu
     Ok((header, blobs))
 }
 
+/// Bands a rank sends rank 0: `[family, view, global device]`, and one image each.
+type OwnBands = (Vec<[u32; 3]>, Vec<Vec<u8>>);
+
 /// Under a fine scheme, the row bands of `families` of `views` that were left on this rank's
 /// devices (layers not gathered to device 0), as `[family, view, global device]` and one
 /// whole-view image per device whose other rows are zero: rank 0 stitches them into the views.
@@ -212,7 +215,7 @@ fn own_bands(
     families: &[parallax_graph::FamilyId],
     views: &BTreeSet<u32>,
     first: u32,
-) -> Result<(Vec<[u32; 3]>, Vec<Vec<u8>>)> {
+) -> Result<OwnBands> {
     let plan = renderer.plan().clone();
     let here = plan.devices.len();
     let (mut listed, mut blobs) = (Vec::new(), Vec::new());
