@@ -345,25 +345,33 @@ mod tests {
 
     type Reply = Sender<std::result::Result<Vec<u8>, String>>;
 
+    /// Per copy number: chunks sent and not yet received, and receives waiting for a chunk.
+    #[derive(Debug, Default)]
+    struct Queues {
+        sent: HashMap<u32, VecDeque<Vec<u8>>>,
+        waiting: HashMap<u32, VecDeque<Reply>>,
+    }
+
     /// A transport within one process: a chunk sent on copy k is the next one received on
     /// copy k (both ends of a wire have the same place among their remote copies).
     #[derive(Debug, Default)]
     struct Loopback {
-        queues: Mutex<(HashMap<u32, VecDeque<Vec<u8>>>, HashMap<u32, VecDeque<Reply>>)>,
+        queues: Mutex<Queues>,
     }
 
     impl RemoteTransport for Loopback {
         fn send(&self, wire: Wire, bytes: Vec<u8>) -> std::result::Result<(), String> {
-            let (sent, waiting) = &mut *self.queues.lock().unwrap();
+            let Queues { sent, waiting } = &mut *self.queues.lock().unwrap();
             match waiting.get_mut(&wire.copy).and_then(VecDeque::pop_front) {
-                Some(reply) => reply.send(Ok(bytes)).map_err(|e| e.to_string()),
-                None => Ok(sent.entry(wire.copy).or_default().push_back(bytes)),
+                Some(reply) => reply.send(Ok(bytes)).map_err(|e| e.to_string())?,
+                None => sent.entry(wire.copy).or_default().push_back(bytes),
             }
+            Ok(())
         }
 
         fn receive(&self, wire: Wire, _bytes: usize) -> Receiver<std::result::Result<Vec<u8>, String>> {
             let (reply, received) = channel();
-            let (sent, waiting) = &mut *self.queues.lock().unwrap();
+            let Queues { sent, waiting } = &mut *self.queues.lock().unwrap();
             match sent.get_mut(&wire.copy).and_then(VecDeque::pop_front) {
                 Some(bytes) => reply.send(Ok(bytes)).expect("the receiver is here"),
                 None => waiting.entry(wire.copy).or_default().push_back(reply),
