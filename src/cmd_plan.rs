@@ -4,10 +4,11 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
+use parallax_backend::ExecutionPlan;
 use parallax_graph::{PlanSummary, Rig};
 
 use crate::logging::{result, spinner};
-use crate::options::{DeviceArgs, SchemeArg, UsageError};
+use crate::options::{DeviceArgs, UsageError};
 use crate::outputs::{Format, Output, Sink, check, sink_parser, write_bytes, write_json};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::ranks::{RankLayout, RankShare, shares};
@@ -29,18 +30,15 @@ pub struct PlanArgs {
     #[arg(long, value_parser = sink_parser())]
     json: Option<Sink>,
     /// Plan a render over R processes (MPI ranks, `render` under `mpirun -n R`), each driving
-    /// the same share of the devices: which rank runs which views, and the bytes each sends
-    /// rank 0 per frame (multi-source only).
+    /// the same share of the devices: which rank runs which views, and the bytes each sends per
+    /// frame (its finished views to rank 0 under multi-source, its bands to other ranks under a
+    /// fine scheme).
     #[arg(long, value_name = "R", value_parser = clap::value_parser!(u32).range(1..=4096))]
     ranks: Option<u32>,
 }
 
 pub fn run(args: PlanArgs) -> Result<()> {
     args.pipeline.check()?;
-    if args.ranks.is_some_and(|r| r > 1) && args.pipeline.scheme != SchemeArg::MultiSource {
-        let scheme = crate::bench_matrix::name_of(&args.pipeline.scheme);
-        return Err(UsageError(crate::ranks::fine_scheme_across_ranks(&scheme)).into());
-    }
     let mut outputs = Vec::new();
     if let Some(sink) = &args.dot.dot {
         outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
@@ -56,7 +54,13 @@ pub fn run(args: PlanArgs) -> Result<()> {
     // The exposure is a push constant of tonemap: it changes no pass, resource or copy.
     let compiled = args.pipeline.compile(&lf, devices, 1.0)?;
     let summary = compiled.summary;
-    let shares = layout.as_ref().map(|l| shares(&compiled.schedule, l, lf.width));
+    let shares = match &layout {
+        Some(layout) => {
+            let plan = ExecutionPlan::from_schedule(&compiled.graph, &compiled.schedule)?;
+            Some(shares(&compiled.schedule, &plan, layout, lf.width))
+        }
+        None => None,
+    };
     // Render everything before writing anything, so a failure leaves no partial output.
     let dot = args.dot.render(&compiled.schedule);
     let dot = match (&layout, dot) {
@@ -101,10 +105,19 @@ fn label_ranks(dot: &str, layout: &RankLayout) -> String {
     dot
 }
 
-/// One rank of `--ranks`: its devices, views and what it sends rank 0 per frame.
+/// One rank of `--ranks`: its devices, views and what it sends per frame.
 fn rank_line(s: &RankShare) -> String {
     let kib = |b: u64| b as f64 / 1024.0;
     let (first, last) = (s.devices[0], s.devices[s.devices.len() - 1]);
+    if s.link_bytes_per_frame > 0 {
+        return format!(
+            "rank {:<8} devices {first}..={last}, {} views {:?}, sends other ranks {:.1} KiB of bands per frame",
+            s.rank,
+            s.views.len(),
+            s.views,
+            kib(s.link_bytes_per_frame)
+        );
+    }
     format!(
         "rank {:<8} devices {first}..={last}, {} views {:?}, sends rank 0 {:.1} KiB of display views per frame ({:.1} \
          KiB more with the linear EXRs)",

@@ -1,16 +1,17 @@
 //! A render over several processes (MPI ranks), the part that needs no MPI: which global
 //! devices each rank drives, the part of the global execution plan a rank runs, and what it
-//! sends to rank 0 per frame. The schedule is compiled once for every rank's devices together
-//! (device `d` of the whole run is device `d - first` of the rank whose range holds it), so a
-//! view renders through the same instances as in one process; only the gather of finished
-//! views to device 0 crosses ranks, and it goes through MPI instead of the executor's copies
-//! ([`crate::ranks_mpi`]).
+//! sends per frame. The schedule is compiled once for every rank's devices together (device `d`
+//! of the whole run is device `d - first` of the rank whose range holds it), so a view renders
+//! through the same instances as in one process. Under multi-source only the gather of finished
+//! views to device 0 crosses ranks, and it goes through MPI after the last frame instead of the
+//! executor's copies; under a fine scheme every copy between two ranks' devices is a `remote`
+//! link of the executor (parallax_backend::RemoteTransport, [`crate::ranks_mpi`]).
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Result, bail};
-use parallax_backend::{ExecOp, ExecutionPlan};
+use parallax_backend::{ExecOp, ExecutionPlan, remote_device_id};
 use parallax_graph::{CopyId, DeviceId, InstanceId, Schedule};
 
 /// Set in a rank other than 0 of a render over several ranks: rank 0 speaks for the run, so
@@ -46,6 +47,11 @@ impl RankLayout {
         self.devices[..rank].iter().sum()
     }
 
+    /// The rank that drives global device `device`.
+    pub fn rank_of(&self, device: u32) -> usize {
+        (0..self.devices.len()).rfind(|&r| self.first(r) <= device).unwrap_or(0)
+    }
+
     /// Every rank's devices together: what the schedule is compiled for.
     #[cfg(feature = "mpi")]
     pub fn total(&self) -> u32 {
@@ -64,40 +70,41 @@ impl RankLayout {
     }
 }
 
-/// Why `--scheme NAME` (a fine scheme) does not run over several ranks: the usage error of
-/// `render` under mpirun and of `plan --ranks`.
-pub fn fine_scheme_across_ranks(scheme: &str) -> String {
-    format!(
-        "--scheme {scheme} splits views in row bands over every device, which does not run across ranks yet: \
-         multi-source is the scheme that runs across ranks today (use --scheme multi-source, or run {scheme} in one \
-         process)"
-    )
+/// Whether `global` copies results between devices of different ranks that a pass reads (a
+/// fine scheme's bands): then every copy between two ranks, the gathers of finished bands to
+/// device 0 too, is a link between the ranks, and rank 0 holds every view after each frame.
+/// Otherwise (multi-source) ranks render whole views and send them to rank 0 after the last
+/// frame.
+pub fn linked(global: &ExecutionPlan, layout: &RankLayout) -> bool {
+    global.copies.iter().any(|c| !c.gather && layout.rank_of(c.from.0) != layout.rank_of(c.to.0))
 }
 
-/// The part of `global` that runs on the global devices `first..first + count`, renumbered from
-/// 0: their passes and the copies between them. Gathers of finished views to device 0 from
-/// another rank's devices are left out (the view is read where it was written and sent through
-/// MPI); a dependency copy between ranks is refused, as only whole views cross ranks today.
-pub fn restrict_plan(global: &ExecutionPlan, first: u32, count: u32) -> Result<ExecutionPlan> {
+/// The part of `global` that `rank` runs on its devices, renumbered from 0: their passes and
+/// the copies between them. Where the ranks are [`linked`], it keeps every copy with one end on
+/// its devices (the other end named as a device of another process, in `global`'s order, which
+/// both ends' parts share: what names a copy's messages) and the other ranks' passes (what
+/// says which device wrote which band of a view), which its devices never run. Otherwise
+/// gathers of finished views to device 0 from another rank's devices are left out: the view is
+/// read where it was written and sent through MPI.
+pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -> ExecutionPlan {
+    let (first, count) = (layout.first(rank), layout.devices[rank]);
     let local = |d: DeviceId| (first..first + count).contains(&d.0);
-    let rename = |d: DeviceId| DeviceId(d.0 - first);
-    if let Some(c) = global.copies.iter().find(|c| !c.gather && local(c.from) != local(c.to)) {
-        bail!(
-            "device {} reads what device {} wrote, and the two are on different ranks: only whole views cross ranks \
-             today (--scheme multi-source)",
-            c.to.0,
-            c.from.0
-        );
-    }
+    let linked = linked(global, layout);
+    let rename = |d: DeviceId| if local(d) { DeviceId(d.0 - first) } else { remote_device_id(count as usize, d.0) };
     let mut passes = Vec::new();
     let mut pass_of: HashMap<u32, InstanceId> = HashMap::new();
-    for (i, p) in global.passes.iter().enumerate().filter(|(_, p)| local(p.device)) {
+    for (i, p) in global.passes.iter().enumerate().filter(|(_, p)| linked || local(p.device)) {
         pass_of.insert(i as u32, InstanceId(passes.len() as u32));
         passes.push(parallax_backend::ExecPass { device: rename(p.device), ..p.clone() });
     }
     let mut copies = Vec::new();
     let mut copy_of: HashMap<u32, CopyId> = HashMap::new();
-    for (c, copy) in global.copies.iter().enumerate().filter(|(_, c)| local(c.from) && local(c.to)) {
+    let kept = |c: &parallax_backend::ExecCopy| match (local(c.from), local(c.to)) {
+        (true, true) => true,
+        (true, false) | (false, true) => linked,
+        (false, false) => false,
+    };
+    for (c, copy) in global.copies.iter().enumerate().filter(|(_, c)| kept(c)) {
         copy_of.insert(c as u32, CopyId(copies.len() as u32));
         copies.push(parallax_backend::ExecCopy { from: rename(copy.from), to: rename(copy.to), ..*copy });
     }
@@ -124,18 +131,33 @@ pub fn restrict_plan(global: &ExecutionPlan, first: u32, count: u32) -> Result<E
         kernels: global.kernels.clone(),
     };
     // Exports are read back from device 0: only those this rank's device 0 still holds (its own
-    // views, and those its other devices gather to it) stay exported.
+    // views, and those its other devices or linked ranks gather to it) stay exported.
     let held: BTreeSet<_> = plan.resources_of_device(DeviceId(0)).into_iter().collect();
     for (a, r) in plan.resources.iter_mut().enumerate() {
         r.exported &= held.contains(&parallax_graph::AllocId(a as u32));
     }
-    Ok(plan)
+    plan
 }
 
-/// The views whose passes run on `plan`'s devices: what a rank renders.
+/// The run's number of a device that a rank's part of the plan (its devices from `first`)
+/// numbers `device`: one of its own, or another rank's ([`parallax_backend::remote_device`]).
+pub fn run_device(plan: &ExecutionPlan, first: u32, device: usize) -> u32 {
+    parallax_backend::remote_device(plan.devices.len(), DeviceId(device as u32)).unwrap_or(first + device as u32)
+}
+
+/// The views whose passes run on `plan`'s own devices: what a rank renders.
 #[cfg(feature = "mpi")]
 pub fn views_of(plan: &ExecutionPlan) -> BTreeSet<u32> {
-    plan.passes.iter().map(|p| p.view).collect()
+    plan.passes.iter().filter(|p| p.device.index() < plan.devices.len()).map(|p| p.view).collect()
+}
+
+/// What one rank of a render over several ranks runs: its place among the ranks, and the
+/// transport of the links between its devices and other ranks' (when they are [`linked`]).
+#[derive(Clone, Debug)]
+pub struct RankPart {
+    pub layout: RankLayout,
+    pub rank: usize,
+    pub transport: Option<std::sync::Arc<dyn parallax_backend::RemoteTransport>>,
 }
 
 /// What `plan --ranks` says of one rank.
@@ -147,22 +169,36 @@ pub struct RankShare {
     pub views: Vec<u32>,
     /// Pixels of its views (one frame).
     pub pixels: u64,
-    /// Bytes it sends rank 0 per frame: its finished display views (RGBA8), and with the
-    /// linear EXRs their Rgba32f radiance too. Rank 0 sends nothing.
+    /// Bytes it sends rank 0 per frame after the last one (multi-source): its finished display
+    /// views (RGBA8), and with the linear EXRs their Rgba32f radiance too. Rank 0 sends nothing,
+    /// nor does any rank under a fine scheme, whose views reach rank 0 through the links.
     pub display_bytes_per_frame: u64,
     pub linear_bytes_per_frame: u64,
+    /// Bytes its devices send other ranks' devices every frame through the links (a fine
+    /// scheme's bands and the gathers of finished bands to rank 0).
+    pub link_bytes_per_frame: u64,
 }
 
-/// Which rank runs which views of `schedule` under `layout`, and what each sends per frame.
-pub fn shares(schedule: &Schedule, layout: &RankLayout, width: u32) -> Vec<RankShare> {
+/// Which rank runs which views of `schedule` (lowered to `plan`) under `layout`, and what each
+/// sends per frame.
+pub fn shares(schedule: &Schedule, plan: &ExecutionPlan, layout: &RankLayout, width: u32) -> Vec<RankShare> {
     let pixels_per_view = u64::from(width) * u64::from(schedule.height);
+    let linked = linked(plan, layout);
     (0..layout.devices.len())
         .map(|rank| {
             let first = layout.first(rank);
             let devices: Vec<u32> = (first..first + layout.devices[rank]).collect();
             let views: BTreeSet<u32> =
                 schedule.instances.iter().filter(|i| devices.contains(&i.device.0)).map(|i| i.view.0).collect();
-            let sent = if rank == 0 { 0 } else { views.len() as u64 * pixels_per_view };
+            let sent = if rank == 0 || linked { 0 } else { views.len() as u64 * pixels_per_view };
+            let link_bytes_per_frame = (0..plan.copies.len() as u32)
+                .map(CopyId)
+                .filter(|&c| {
+                    let copy = plan.copy(c);
+                    layout.rank_of(copy.from.0) == rank && layout.rank_of(copy.to.0) != rank
+                })
+                .map(|c| plan.copy_bytes(c))
+                .sum();
             RankShare {
                 rank,
                 devices,
@@ -170,6 +206,7 @@ pub fn shares(schedule: &Schedule, layout: &RankLayout, width: u32) -> Vec<RankS
                 views: views.into_iter().collect(),
                 display_bytes_per_frame: 4 * sent,
                 linear_bytes_per_frame: 16 * sent,
+                link_bytes_per_frame: if linked { link_bytes_per_frame } else { 0 },
             }
         })
         .collect()
@@ -201,10 +238,12 @@ mod tests {
     fn a_rank_runs_the_passes_of_its_devices_and_nothing_crosses_ranks() {
         let (global, schedule) = global_plan("multi-source", 3);
         let layout = RankLayout { devices: vec![1, 2] };
-        let shares = shares(&schedule, &layout, 32);
+        assert!(!linked(&global, &layout));
+        let shares = shares(&schedule, &global, &layout, 32);
+        assert!(shares.iter().all(|s| s.link_bytes_per_frame == 0));
         let mut passes = 0;
         for (rank, share) in shares.iter().enumerate() {
-            let part = restrict_plan(&global, layout.first(rank), layout.devices[rank]).unwrap();
+            let part = restrict_plan(&global, &layout, rank);
             assert_eq!(part.devices.len(), layout.devices[rank] as usize);
             assert!(part.passes.iter().all(|p| p.device.0 < layout.devices[rank]));
             assert!(part.copies.iter().all(|c| c.from.0 < layout.devices[rank] && c.to.0 < layout.devices[rank]));
@@ -215,15 +254,44 @@ mod tests {
         assert!(global.copies.iter().any(|c| c.gather), "views gathered to device 0 in one process");
     }
 
-    /// A fine scheme reads other devices' bands: its parts cannot run apart.
+    /// A fine scheme reads other devices' bands: each rank's part keeps the copies with one end
+    /// on its devices, the other end named past its own devices; what one rank's part sends
+    /// another is what the other's receives, in the same order (what names their messages);
+    /// and rank 0 holds every view, its bands gathered from the other ranks.
     #[test]
-    fn a_dependency_between_ranks_is_refused() {
-        let (global, _) = global_plan("fine-all", 2);
-        let refused = restrict_plan(&global, 1, 1).unwrap_err().to_string();
-        assert!(
-            refused.ends_with("are on different ranks: only whole views cross ranks today (--scheme multi-source)"),
-            "{refused}"
-        );
+    fn linked_ranks_keep_the_copies_between_them_in_the_same_order_on_both_ends() {
+        let (global, schedule) = global_plan("fine-all", 3);
+        let layout = RankLayout { devices: vec![1, 1, 1] };
+        assert!(linked(&global, &layout));
+        let parts: Vec<ExecutionPlan> = (0..3).map(|r| restrict_plan(&global, &layout, r)).collect();
+        // A copy as the whole run names it: (from, to, resource, version, rows).
+        let global_copy = |rank: usize, c: &parallax_backend::ExecCopy| {
+            let name = |d: DeviceId| if d.0 < 1 { d.0 + layout.first(rank) } else { d.0 - 1 };
+            (name(c.from), name(c.to), c.resource, c.version, c.rows)
+        };
+        for (a, b) in [(0usize, 1usize), (1, 0), (1, 2), (2, 0)] {
+            let between = |part: usize| -> Vec<_> {
+                parts[part]
+                    .copies
+                    .iter()
+                    .map(|c| global_copy(part, c))
+                    .filter(|&(from, to, ..)| (from as usize, to as usize) == (a, b))
+                    .collect()
+            };
+            assert!(!between(a).is_empty(), "rank {a} sends rank {b} bands");
+            assert_eq!(between(a), between(b), "rank {a} → rank {b}");
+        }
+        for part in &parts {
+            assert!(part.copies.iter().all(|c| c.from.0 < 1 || c.to.0 < 1), "one end on the rank");
+            assert!(part.devices[0].iter().all(|op| match *op {
+                ExecOp::Pass(p) => part.pass(p).device == DeviceId(0),
+                _ => true,
+            }));
+        }
+        let exported: Vec<usize> = parts.iter().map(|p| p.resources.iter().filter(|r| r.exported).count()).collect();
+        assert_eq!(exported[0], global.resources.iter().filter(|r| r.exported).count());
+        let shares = shares(&schedule, &global, &layout, 32);
+        assert!(shares.iter().all(|s| s.display_bytes_per_frame == 0 && s.link_bytes_per_frame > 0));
     }
 
     fn views_in(plan: &ExecutionPlan) -> Vec<u32> {
@@ -234,6 +302,7 @@ mod tests {
     fn a_layout_numbers_devices_rank_after_rank() {
         let layout = RankLayout { devices: vec![1, 2, 1] };
         assert_eq!((layout.first(0), layout.first(1), layout.first(2)), (0, 1, 3));
+        assert_eq!((0..4).map(|d| layout.rank_of(d)).collect::<Vec<_>>(), vec![0, 1, 1, 2]);
         #[cfg(feature = "mpi")]
         assert_eq!(layout.total(), 4);
         assert_eq!(RankLayout::even(4, 2).unwrap(), RankLayout { devices: vec![2, 2] });

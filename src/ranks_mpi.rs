@@ -6,15 +6,25 @@
 //! the run with a message naming it instead of a wait without end.
 //!
 //! Messages are bytes: a JSON header, then the raw blobs it lists.
+//!
+//! Under a fine scheme the ranks' devices also exchange bands every frame: the executor's
+//! `remote` links, through [`LinkTransport`], on a communicator of their own.
 
 use std::cell::RefCell;
+use std::collections::{HashMap, VecDeque};
+use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
+use mpi::Threading;
 use mpi::environment::Universe;
 use mpi::point_to_point::MatchedReceiveVec;
+use mpi::request::{Request, StaticScope};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
+use parallax_backend::{RemoteTransport, Wire};
 
 use crate::ranks::RankLayout;
 
@@ -35,6 +45,10 @@ const HOST_BYTES: usize = 64;
 
 /// This process's place in an MPI run of several ranks.
 pub struct Cluster {
+    /// The communicator of the links between ranks' devices (a duplicate of the world's, so
+    /// that their messages never match the run's own), until a [`LinkTransport`] takes it;
+    /// freed before MPI is finalised (fields drop in order).
+    links: RefCell<Option<SimpleCommunicator>>,
     /// Finalised when dropped (MPI_Finalize): only after a successful run, as finalising waits
     /// for every rank.
     _universe: Universe,
@@ -42,6 +56,8 @@ pub struct Cluster {
     pub rank: usize,
     /// Every rank's host, by rank.
     pub hosts: Vec<String>,
+    /// Whether MPI lets the links' thread call it beside the main thread.
+    threads_allowed: bool,
 }
 
 thread_local! {
@@ -55,7 +71,9 @@ pub fn join() -> Result<()> {
     if crate::ranks::launched_ranks().is_none_or(|n| n < 2) {
         return Ok(());
     }
-    let universe = mpi::initialize().context("MPI was already initialised in this process")?;
+    // The links of a fine scheme make their MPI calls on a thread of their own.
+    let (universe, threading) =
+        mpi::initialize_with_threading(Threading::Multiple).context("MPI was already initialised in this process")?;
     let world = universe.world();
     if world.size() < 2 {
         return Ok(());
@@ -74,7 +92,11 @@ pub fn join() -> Result<()> {
     if rank != 0 {
         crate::ranks::set_silent_rank();
     }
-    CLUSTER.with(|c| *c.borrow_mut() = Some(Cluster { _universe: universe, world, rank, hosts }));
+    // A collective: every rank makes it here, whatever its scheme.
+    let links = RefCell::new(Some(world.duplicate()));
+    let threads_allowed = threading == Threading::Multiple;
+    CLUSTER
+        .with(|c| *c.borrow_mut() = Some(Cluster { links, _universe: universe, world, rank, hosts, threads_allowed }));
     Ok(())
 }
 
@@ -160,6 +182,219 @@ impl Cluster {
     /// Rank r > 0: why it stopped.
     pub fn send_failed(&self, cause: &str) {
         self.world.process_at_rank(0).send_with_tag(cause.as_bytes(), TAG_FAILED);
+    }
+}
+
+/// rank r → rank s: a chunk of a link between their devices, on the links' communicator: the
+/// chunk's [`ChunkKey`] (3 × u32 LE), then its bytes.
+const TAG_CHUNK: i32 = 20;
+
+/// How long the link thread sleeps when it has nothing to do.
+const LINK_IDLE: Duration = Duration::from_micros(200);
+
+/// What names the messages of one remote copy on both ranks: its producer and consumer by the
+/// run's device numbers, and its place among the copies between them ([`Wire::copy`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct ChunkKey {
+    from: u32,
+    to: u32,
+    copy: u32,
+}
+
+enum LinkCommand {
+    Send { to_rank: usize, key: ChunkKey, bytes: Vec<u8> },
+    Receive { from_rank: usize, key: ChunkKey, reply: Sender<std::result::Result<Vec<u8>, String>> },
+}
+
+/// The links between this rank's devices and other ranks' ([`parallax_backend::RemoteTransport`]):
+/// one thread makes every MPI call for them, on a communicator of their own, without ever
+/// blocking: sends are non-blocking (MPI_Isend), arrivals are taken by matched probes
+/// (MPI_Improbe) in whatever order they come and handed to the receive that waits for their
+/// key, so no order of sends and receives between ranks can deadlock. The chunks of one copy
+/// arrive in the order they were sent (MPI's messages from one rank do not overtake each
+/// other), frame after frame. A receive that waits while its rank has sent nothing for
+/// `--rank-timeout` fails naming the rank.
+pub struct LinkTransport {
+    layout: crate::ranks::RankLayout,
+    rank: usize,
+    commands: Mutex<Option<Sender<LinkCommand>>>,
+    thread: Mutex<Option<JoinHandle<()>>>,
+}
+
+impl std::fmt::Debug for LinkTransport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "LinkTransport(rank {})", self.rank)
+    }
+}
+
+/// The links' communicator, moved to their thread, the one thread that uses it.
+struct LinkComm(SimpleCommunicator);
+
+// SAFETY: MPI runs with MPI_THREAD_MULTIPLE (checked before the thread starts), and only the
+// link thread uses this communicator.
+unsafe impl Send for LinkComm {}
+
+impl LinkTransport {
+    /// Starts the link thread of this rank (at most once a run).
+    pub fn start(cluster: &Cluster, layout: &crate::ranks::RankLayout, timeout: Duration) -> Result<Arc<Self>> {
+        if !cluster.threads_allowed {
+            bail!(
+                "this MPI library does not offer MPI_THREAD_MULTIPLE, which the links of a fine scheme between ranks \
+                 need: use --scheme multi-source, or an MPI built with thread support (Debian's OpenMPI has it)"
+            );
+        }
+        let comm = cluster.links.borrow_mut().take().context("the links between ranks were started twice")?;
+        let (sender, commands) = channel();
+        let (comm, hosts) = (LinkComm(comm), cluster.hosts.clone());
+        let thread = std::thread::Builder::new()
+            .name("parallax-mpi-links".into())
+            .spawn(move || serve_links(comm, &commands, &hosts, timeout))
+            .context("starting the thread of the links between ranks")?;
+        Ok(Arc::new(LinkTransport {
+            layout: layout.clone(),
+            rank: cluster.rank,
+            commands: Mutex::new(Some(sender)),
+            thread: Mutex::new(Some(thread)),
+        }))
+    }
+
+    fn command(&self, command: LinkCommand) -> std::result::Result<(), String> {
+        let commands = self.commands.lock().unwrap_or_else(|p| p.into_inner());
+        commands.as_ref().and_then(|c| c.send(command).ok()).ok_or_else(|| "the links between ranks stopped".into())
+    }
+
+    /// The run's number of this rank's device `local`.
+    fn global(&self, local: usize) -> u32 {
+        self.layout.first(self.rank) + local as u32
+    }
+}
+
+impl RemoteTransport for LinkTransport {
+    fn send(&self, wire: Wire, bytes: Vec<u8>) -> std::result::Result<(), String> {
+        let key = ChunkKey { from: self.global(wire.local), to: wire.remote, copy: wire.copy };
+        self.command(LinkCommand::Send { to_rank: self.layout.rank_of(wire.remote), key, bytes })
+    }
+
+    /// The length is the backend's to check: a chunk arrives whole, as sent.
+    fn receive(&self, wire: Wire, _bytes: usize) -> Receiver<std::result::Result<Vec<u8>, String>> {
+        let key = ChunkKey { from: wire.remote, to: self.global(wire.local), copy: wire.copy };
+        let (reply, received) = channel();
+        let from_rank = self.layout.rank_of(wire.remote);
+        if let Err(e) = self.command(LinkCommand::Receive { from_rank, key, reply: reply.clone() }) {
+            let _ = reply.send(Err(e));
+        }
+        received
+    }
+}
+
+impl Drop for LinkTransport {
+    /// Ends the link thread once its sends are delivered (every rank receives all it is sent).
+    fn drop(&mut self) {
+        self.commands.lock().unwrap_or_else(|p| p.into_inner()).take();
+        if let Some(thread) = self.thread.lock().unwrap_or_else(|p| p.into_inner()).take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+/// A send in flight: its request and the bytes it owns until MPI is done with them.
+struct Sending {
+    request: Request<'static, [u8], StaticScope>,
+    bytes: *mut [u8],
+}
+
+/// The link thread: takes commands, progresses sends, takes arrivals, answers receives, and
+/// fails receives from ranks silent for `timeout`; ends when the transport is dropped and every
+/// send is delivered (or after `timeout` without progress: a rank that died takes nothing).
+fn serve_links(comm: LinkComm, commands: &Receiver<LinkCommand>, hosts: &[String], timeout: Duration) {
+    let comm = comm.0;
+    let mut sending: Vec<Sending> = Vec::new();
+    let mut arrived: HashMap<ChunkKey, VecDeque<Vec<u8>>> = HashMap::new();
+    type Reply = Sender<std::result::Result<Vec<u8>, String>>;
+    let mut waiting: HashMap<ChunkKey, VecDeque<(usize, Reply, Instant)>> = HashMap::new();
+    let mut last_heard = vec![Instant::now(); hosts.len()];
+    let mut open = true;
+    let mut idle_since = Instant::now();
+    loop {
+        let mut busy = false;
+        while open {
+            match commands.try_recv() {
+                Ok(LinkCommand::Send { to_rank, key, bytes }) => {
+                    let mut message = Vec::with_capacity(12 + bytes.len());
+                    for word in [key.from, key.to, key.copy] {
+                        message.extend_from_slice(&word.to_le_bytes());
+                    }
+                    message.extend_from_slice(&bytes);
+                    let bytes: &'static mut [u8] = Box::leak(message.into_boxed_slice());
+                    let owned: *mut [u8] = bytes;
+                    // SAFETY: the bytes stay alive (leaked) until the request completes below.
+                    let request = comm.process_at_rank(to_rank as i32).immediate_send_with_tag(
+                        StaticScope,
+                        unsafe { &*owned },
+                        TAG_CHUNK,
+                    );
+                    sending.push(Sending { request, bytes: owned });
+                    busy = true;
+                }
+                Ok(LinkCommand::Receive { from_rank, key, reply }) => {
+                    waiting.entry(key).or_default().push_back((from_rank, reply, Instant::now()));
+                    busy = true;
+                }
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => open = false,
+            }
+        }
+        let mut still = Vec::with_capacity(sending.len());
+        for s in sending.drain(..) {
+            match s.request.test() {
+                Ok(_) => {
+                    // SAFETY: MPI is done with the bytes; they were leaked from this box.
+                    drop(unsafe { Box::from_raw(s.bytes) });
+                    busy = true;
+                }
+                Err(request) => still.push(Sending { request, ..s }),
+            }
+        }
+        sending = still;
+        while let Some(probed) = comm.any_process().immediate_matched_probe_with_tag(TAG_CHUNK) {
+            let rank = probed.1.source_rank() as usize;
+            let (message, _) = probed.matched_receive_vec::<u8>();
+            last_heard[rank] = Instant::now();
+            if message.len() < 12 {
+                continue;
+            }
+            let word = |i: usize| u32::from_le_bytes(message[4 * i..4 * i + 4].try_into().expect("4 bytes"));
+            let key = ChunkKey { from: word(0), to: word(1), copy: word(2) };
+            arrived.entry(key).or_default().push_back(message[12..].to_vec());
+            busy = true;
+        }
+        for (key, queue) in &mut waiting {
+            while let Some(bytes) = queue.front().and_then(|_| arrived.get_mut(key)?.pop_front()) {
+                let (_, reply, _) = queue.pop_front().expect("a receive waits");
+                let _ = reply.send(Ok(bytes));
+            }
+            for (rank, reply, since) in queue.iter() {
+                if last_heard[*rank].max(*since).elapsed() > timeout {
+                    let _ = reply.send(Err(format!(
+                        "rank {rank} on host {} sent nothing for {} s (--rank-timeout): it hangs or died; raise \
+                         --rank-timeout if its frames are that slow",
+                        hosts[*rank],
+                        timeout.as_secs()
+                    )));
+                }
+            }
+            queue.retain(|(rank, _, since)| last_heard[*rank].max(*since).elapsed() <= timeout);
+        }
+        waiting.retain(|_, queue| !queue.is_empty());
+        if busy {
+            idle_since = Instant::now();
+        } else if !open && (sending.is_empty() || idle_since.elapsed() > timeout) {
+            // Sends nobody takes (a rank died) are left to MPI: their bytes are not freed.
+            sending.drain(..).for_each(|s| std::mem::forget(s.request));
+            return;
+        } else {
+            std::thread::sleep(LINK_IDLE);
+        }
     }
 }
 

@@ -196,9 +196,10 @@ fn plan_needs_no_gpu() {
     assert!(!render.status.success(), "render found a device with no driver: the check above proves nothing");
 }
 
-/// `plan --ranks R` (issue 29): which rank runs which views and what it sends rank 0 per frame;
-/// every view on exactly one rank, rank 0 sending nothing; a rank count that does not divide
-/// the devices, or a fine scheme over several ranks, is refused before any output.
+/// `plan --ranks R` (issue 29): which rank runs which views and what it sends per frame;
+/// under multi-source every view on exactly one rank, rank 0 sending nothing; under a fine
+/// scheme the bands each rank's devices send other ranks' (what the plan copies between their
+/// devices); a rank count that does not divide the devices is refused before any output.
 #[test]
 fn ranks_share_the_sets_and_say_what_each_sends() {
     let dir = scratch("plan", "ranks");
@@ -231,20 +232,37 @@ fn ranks_share_the_sets_and_say_what_each_sends() {
     let stdout = String::from_utf8_lossy(&text.stdout);
     assert!(stdout.lines().any(|l| l.starts_with("rank 1        devices 2..=3, ")), "{stdout}");
 
-    for (args, needle) in [
-        (
-            &["--fake-devices", "4", "--ranks", "3"][..],
-            "--ranks 3 does not divide the 4 device(s) of --gpus/--fake-devices",
-        ),
-        (
-            &["--fake-devices", "2", "--ranks", "2", "--scheme", "fine-all"][..],
-            "--scheme fine-all splits views in row bands over every device, which does not run across ranks yet: \
-             multi-source is the scheme that runs across ranks today",
-        ),
-    ] {
-        let refused = scratch("plan", "ranks-refused");
-        let before = common::snapshot(&refused);
-        let out = plan(&[&["--lf", "4x2"][..], args].concat(), &refused);
-        common::assert_refused("plan --ranks", &out, 2, &[needle], &refused, &before);
+    // fine-all over 2 ranks of one device: each rank sends the other what the one-process plan
+    // copies from its device to the other's, and no views after the last frame.
+    let fine = scratch("plan", "ranks-fine");
+    let words = ["--lf", "4x2", "--resolution", "32x24", "--fake-devices", "2", "--scheme", "fine-all"];
+    let out = plan(&[&words[..], &["--ranks", "2"]].concat(), &fine);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let ranked: serde_json::Value = serde_json::from_slice(&std::fs::read(fine.join("plan.json")).unwrap()).unwrap();
+    let ranks = ranked["ranks"].as_array().unwrap();
+    for rank in ranks {
+        assert_eq!(rank["display_bytes_per_frame"], 0, "{rank}");
+        assert_eq!(rank["views"].as_array().unwrap().len(), 8, "bands of every view on every rank: {rank}");
     }
+    let (to_1, to_0) =
+        (ranks[0]["link_bytes_per_frame"].as_u64().unwrap(), ranks[1]["link_bytes_per_frame"].as_u64().unwrap());
+    assert!(to_1 > 0 && to_0 > to_1, "rank 1 also sends rank 0 its finished bands: {to_1} {to_0}");
+    let text = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .args(["plan"])
+        .args(words)
+        .args(["--ranks", "2"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    let kib = to_0 as f64 / 1024.0;
+    let line = format!(
+        "rank 1        devices 1..=1, 8 views [0, 1, 2, 3, 4, 5, 6, 7], sends other ranks {kib:.1} KiB of bands per frame"
+    );
+    assert!(stdout.lines().any(|l| l == line), "{line} in {stdout}");
+
+    let refused = scratch("plan", "ranks-refused");
+    let before = common::snapshot(&refused);
+    let out = plan(&["--lf", "4x2", "--fake-devices", "4", "--ranks", "3"], &refused);
+    let needle = "--ranks 3 does not divide the 4 device(s) of --gpus/--fake-devices";
+    common::assert_refused("plan --ranks", &out, 2, &[needle], &refused, &before);
 }

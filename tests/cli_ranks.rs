@@ -1,7 +1,9 @@
 //! `render` over three MPI ranks (issue 29; a build with `--features mpi`, run under
 //! `mpirun --oversubscribe -n 3`, each rank one logical lavapipe device): the views are those of
-//! one process over three logical devices, bit for bit; a rank that fails or falls silent ends
-//! the run with one message naming it and its host, and leaves no output behind. Without
+//! one process over three logical devices, bit for bit, under multi-source (whole sets per
+//! rank) and under the fine schemes (bands exchanged between the ranks every frame); a rank
+//! that fails or falls silent ends the run with one message naming it and its host, and leaves
+//! no output behind. Without
 //! mpirun on the PATH the tests say so and skip; with it they run. A build without the feature
 //! refuses to run as one of several ranks.
 
@@ -96,13 +98,13 @@ mod under_mpirun {
         names
     }
 
-    #[test]
-    fn three_ranks_render_the_views_of_one_process_bit_for_bit() {
-        let Some(mpirun) = mpirun() else { return };
-        let dir = scratch("ranks", "same");
-        let one = parallax_in(&dir, &[&RENDER[..], &["--fake-devices", "3", "--out-dir", "one"]].concat());
+    /// Renders `extra` (a scheme) in one process over three logical devices into `one` and over
+    /// three ranks into `out`, and checks that every view, the quilt, and render.json's plan and
+    /// setup are the same; returns the two render.json.
+    fn same_as_one_process(mpirun: &str, dir: &Path, extra: &[&str]) -> (serde_json::Value, serde_json::Value) {
+        let one = parallax_in(dir, &[&RENDER[..], extra, &["--fake-devices", "3", "--out-dir", "one"]].concat());
         assert!(one.status.success(), "{}", String::from_utf8_lossy(&one.stderr));
-        let ranks = render_on_three_ranks(mpirun, &dir, &[], None);
+        let ranks = render_on_three_ranks(mpirun, dir, extra, None);
         assert!(ranks.status.success(), "{}", String::from_utf8_lossy(&ranks.stderr));
 
         let (one, three) = (dir.join("one"), dir.join("out"));
@@ -123,8 +125,16 @@ mod under_mpirun {
             assert_eq!(one[key], three[key], "render.json's {key}");
         }
         assert_eq!(one["ranks"], serde_json::Value::Null);
-        let per_rank = three["ranks"]["per_rank"].as_array().unwrap();
         assert_eq!(three["ranks"]["count"], 3);
+        (one, three)
+    }
+
+    #[test]
+    fn three_ranks_render_the_views_of_one_process_bit_for_bit() {
+        let Some(mpirun) = mpirun() else { return };
+        let dir = scratch("ranks", "same");
+        let (_, three) = same_as_one_process(mpirun, &dir, &[]);
+        let per_rank = three["ranks"]["per_rank"].as_array().unwrap();
         let mut views: Vec<u64> =
             per_rank.iter().flat_map(|r| r["views"].as_array().unwrap()).map(|v| v.as_u64().unwrap()).collect();
         views.sort_unstable();
@@ -134,6 +144,41 @@ mod under_mpirun {
             assert_eq!(rank["bytes_sent"].as_u64().unwrap() > 0, r > 0, "{rank}");
         }
         assert_eq!(per_rank[2]["submit_ms_per_frame"].as_array().unwrap().len(), 2, "one report per measured frame");
+        assert!(three["links"]["pairs"].as_array().unwrap().is_empty(), "multi-source: no link between ranks");
+    }
+
+    /// Under a fine scheme views are cut in bands over the three devices, one per rank: the
+    /// bands travel between the ranks every frame, through `remote` links (rank 0's, in its
+    /// render.json, receive at least the others' finished bands), and rank 0 holds every view.
+    fn a_fine_scheme_renders_across_ranks_as_in_one_process(scheme: &str) {
+        let Some(mpirun) = mpirun() else { return };
+        let dir = scratch("ranks", scheme);
+        let (one, three) = same_as_one_process(mpirun, &dir, &["--scheme", scheme]);
+        let pairs = three["links"]["pairs"].as_array().unwrap();
+        assert!(pairs.iter().all(|p| p["kind"] == "remote"), "{pairs:?}");
+        for (from, to) in [(1, 0), (2, 0)] {
+            let link = pairs.iter().find(|p| (p["from"].as_u64(), p["to"].as_u64()) == (Some(from), Some(to)));
+            let link = link.unwrap_or_else(|| panic!("no link {from} → {to}: {pairs:?}"));
+            assert_eq!(link["kind"], "remote", "{link}");
+            assert!(link["bytes_per_frame"].as_u64().unwrap() > 0, "{link}");
+        }
+        // The bytes rank 0 receives a frame are those its device receives from the others in
+        // one process.
+        let received = |json: &serde_json::Value| -> u64 {
+            let pairs = json["links"]["pairs"].as_array().unwrap();
+            pairs.iter().filter(|p| p["to"] == 0).map(|p| p["bytes_per_frame"].as_u64().unwrap()).sum()
+        };
+        assert_eq!(received(&three), received(&one));
+    }
+
+    #[test]
+    fn fine_sources_renders_across_ranks_as_in_one_process() {
+        a_fine_scheme_renders_across_ranks_as_in_one_process("fine-sources");
+    }
+
+    #[test]
+    fn fine_all_renders_across_ranks_as_in_one_process() {
+        a_fine_scheme_renders_across_ranks_as_in_one_process("fine-all");
     }
 
     #[test]
@@ -168,25 +213,22 @@ mod under_mpirun {
         assert_eq!(files(&dir), Vec::<String>::new(), "a failed run left files behind");
     }
 
-    /// A fine scheme splits views in row bands over every device: refused under mpirun, a usage
-    /// error naming `--scheme` before any work.
+    /// Under a fine scheme the others wait for the failed rank's bands: the run still ends
+    /// with the one message naming it (rank 0 finds it once its link gives up, after
+    /// --rank-timeout), and nothing is written.
     #[test]
-    fn a_fine_scheme_over_ranks_is_refused_naming_the_scheme() {
+    fn a_failing_rank_under_a_fine_scheme_ends_the_run_naming_it_and_leaves_nothing() {
         let Some(mpirun) = mpirun() else { return };
-        let dir = scratch("ranks", "fine");
-        let out = render_on_three_ranks(mpirun, &dir, &["--scheme", "fine-sources"], None);
+        let dir = scratch("ranks", "fine-fails");
+        let extra = ["--scheme", "fine-all", "--rank-timeout", "20"];
+        let out = render_on_three_ranks(mpirun, &dir, &extra, Some("rank-fails:2:1"));
         let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
         let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
-        assert_eq!(
-            errors,
-            [
-                "error: --scheme fine-sources splits views in row bands over every device, which does not run across ranks \
-          yet: multi-source is the scheme that runs across ranks today (use --scheme multi-source, or run \
-          fine-sources in one process)"
-            ],
-            "{stderr}"
-        );
-        assert_eq!(files(&dir), Vec::<String>::new());
+        assert_eq!(errors.len(), 1, "one message: {stderr}");
+        assert!(errors[0].starts_with("error: rank 2 on host "), "{stderr}");
+        assert!(errors[0].ends_with(" failed: injected fault at frame 1 (PARALLAX_FAULT=rank-fails:2:1)"), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert_eq!(files(&dir), Vec::<String>::new(), "a failed run left files behind");
     }
 }

@@ -101,6 +101,14 @@ pub(crate) enum LinkBuffer {
 }
 
 impl LinkBuffer {
+    /// The host allocation of a `relay` or `remote` link.
+    pub(crate) fn host_ptr(&self) -> Option<*mut u8> {
+        match self {
+            LinkBuffer::Host(b) => Some(b.host_ptr()),
+            LinkBuffer::Device(_) => None,
+        }
+    }
+
     /// The `VkBuffer` through which device `device_index` sees it.
     pub(crate) fn buffer_on(&self, device_index: usize) -> Option<vk::Buffer> {
         match self {
@@ -371,17 +379,18 @@ pub(crate) fn create_staging(
     }
     let mut staging = Staging { buffers: Vec::with_capacity(links.len()), places, host_bytes: 0, device_bytes: 0 };
     for (&(from, to, kind), &size) in links.iter().zip(&sizes) {
-        let (producer, consumer) = (&devices[from], &devices[to]);
+        // A remote link has one end here (remote.rs).
+        let ends: Vec<&Arc<Device>> = [from, to].iter().filter_map(|&d| devices.get(d)).collect();
         let mut per_slot = Vec::with_capacity(slots);
         for _ in 0..slots {
             per_slot.push(match kind {
                 LinkKind::Gpu | LinkKind::Shared => {
-                    let buffer = SharedDeviceBuffer::new(producer, &[consumer], size)?;
+                    let buffer = SharedDeviceBuffer::new(ends[0], &[ends[1]], size)?;
                     staging.device_bytes += buffer.size;
                     LinkBuffer::Device(buffer)
                 }
-                LinkKind::Relay => {
-                    let buffer = SharedHostBuffer::new(&[producer, consumer], size)?;
+                LinkKind::Relay | LinkKind::Remote => {
+                    let buffer = SharedHostBuffer::new(&ends, size)?;
                     staging.host_bytes += buffer.size;
                     LinkBuffer::Host(buffer)
                 }

@@ -171,6 +171,11 @@ pub enum BackendError {
     #[error("link kind `{kind}` is unavailable from device {from} to device {to}: {missing}")]
     LinkUnavailable { kind: &'static str, from: usize, to: usize, missing: String },
 
+    /// A link to or from another process's device failed (crate::remote): the transport's
+    /// message, which names the process.
+    #[error("{0}")]
+    Remote(String),
+
     /// A host relay thread (cross-device signal forwarding) failed.
     #[error("cross-device relay failed: {0}")]
     Relay(String),

@@ -110,6 +110,8 @@ mod readback;
 mod record;
 mod recorder;
 mod relay;
+mod remote;
+pub use remote::{RemoteTransport, Wire, remote_device, remote_device_id};
 mod segments;
 mod shaders;
 mod staging_ring;

@@ -16,6 +16,10 @@
 //! * `relay` (anything else, e.g. two physical GPUs): host memory imported into both devices
 //!   (VK_EXT_external_memory_host) and the relay's forwarded signal.
 //!
+//! * `remote` (the other device is another process's, crate::remote): host staging on this
+//!   process's device, and the bytes moved by the executor's `RemoteTransport`; the consumer's
+//!   ready timeline is raised once a chunk has arrived.
+//!
 //! A relayed link's ready timeline is raised once per chunk sent over it, in the order the
 //! producer's segments complete them, so its values only increase and a consumer's copy-in waits
 //! for the value of its chunk: one semaphore per pair instead of one per copy.
@@ -40,10 +44,13 @@ pub enum LinkKind {
     Shared,
     /// Host staging memory and a host-forwarded signal.
     Relay,
+    /// To or from a device of another process: host staging on this process's end, the bytes
+    /// sent through the executor's [`crate::RemoteTransport`] (never chosen by [`link_kinds`]).
+    Remote,
 }
 
 impl LinkKind {
-    /// Every kind, best first.
+    /// Every kind two devices of this process can use, best first.
     pub const ALL: [LinkKind; 3] = [LinkKind::Gpu, LinkKind::Shared, LinkKind::Relay];
 
     /// The kind's name in logs, options and render.json.
@@ -52,12 +59,14 @@ impl LinkKind {
             LinkKind::Gpu => "gpu",
             LinkKind::Shared => "shared",
             LinkKind::Relay => "relay",
+            LinkKind::Remote => "remote",
         }
     }
 
-    /// Whether a host relay thread forwards the link's signals.
+    /// Whether a host relay thread forwards the link's signals between two devices of this
+    /// process (a remote link's thread is its transport's, crate::remote).
     pub fn relayed(self) -> bool {
-        self != LinkKind::Gpu
+        matches!(self, LinkKind::Shared | LinkKind::Relay)
     }
 
     /// Why devices `producer` → `consumer` cannot use this kind, or `None` if they can.
@@ -85,7 +94,7 @@ impl LinkKind {
                     .map(|d| lacks(d, "VK_KHR_external_semaphore_fd (exportable and importable timeline semaphores)"))
             }),
             LinkKind::Shared => one_gpu().or_else(memory_fd),
-            LinkKind::Relay => [producer, consumer]
+            LinkKind::Relay | LinkKind::Remote => [producer, consumer]
                 .into_iter()
                 .find(|d| d.external_memory_host.is_none())
                 .map(|d| lacks(d, "VK_EXT_external_memory_host")),
@@ -106,8 +115,12 @@ impl std::str::FromStr for LinkKind {
 pub struct LinkKinds(pub Vec<Vec<Option<LinkKind>>>);
 
 impl LinkKinds {
-    /// The kind of the link `from` → `to`.
+    /// The kind of the link `from` → `to`; `remote` where either is another process's device
+    /// (a plan's device number past its own devices, crate::remote).
     pub fn of(&self, from: usize, to: usize) -> LinkKind {
+        if from >= self.0.len() || to >= self.0.len() {
+            return LinkKind::Remote;
+        }
         self.0[from][to].expect("a link joins two devices")
     }
 }
@@ -145,6 +158,8 @@ pub fn link_kinds(devices: &[Arc<Device>], requested: Option<LinkKind>) -> Resul
 /// One link of the running plan ([`crate::Executor::links`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LinkInfo {
+    /// Its devices as the plan numbers them: the end of a `remote` link on another process is
+    /// past the plan's own devices ([`crate::remote_device`] gives its number in the run).
     pub from: usize,
     pub to: usize,
     pub kind: LinkKind,
@@ -172,7 +187,8 @@ pub(crate) struct Link {
     pub(crate) to: usize,
     pub(crate) kind: LinkKind,
     /// On the consumer: the ready timeline the relay raises, or for a `gpu` link the producer's
-    /// progress timeline imported.
+    /// progress timeline imported (null for a `remote` link whose consumer is another
+    /// process's).
     pub(crate) ready: vk::Semaphore,
     /// On the producer, for a link whose staging is a ring that wraps (staging_ring.rs): the
     /// space timeline the relay raises after each of the consumer's copy-ins from the link.

@@ -412,6 +412,12 @@ impl SharedHostBuffer {
         Ok(HostImport { device: device.clone(), buffer, memory })
     }
 
+    /// The allocation's first byte, for the host threads of remote links (remote.rs), which
+    /// read and write it while no device copies through it.
+    pub(crate) fn host_ptr(&self) -> *mut u8 {
+        self.ptr
+    }
+
     /// The `VkBuffer` through which device `device_index` sees the allocation.
     pub(crate) fn buffer_on(&self, device_index: usize) -> Option<vk::Buffer> {
         self.imports.iter().find(|i| i.device.info.index == device_index).map(|i| i.buffer)

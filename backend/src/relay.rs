@@ -24,13 +24,24 @@ use ash::vk;
 use crate::device::Device;
 use crate::error::{BackendError, Result};
 
-/// "When the watched device's progress reaches `watch_value`, set `target`'s `semaphore` to
-/// `signal_value`."
+/// "When the watched device's progress reaches `watch_value`, do `action`."
 pub(crate) struct RelayJob {
     pub watch_value: u64,
-    pub target: Arc<Device>,
-    pub semaphore: vk::Semaphore,
-    pub signal_value: u64,
+    pub action: RelayAction,
+}
+
+/// What a relay job does once its value is reached.
+pub(crate) enum RelayAction {
+    /// Set `target`'s `semaphore` to `value`.
+    Signal { target: Arc<Device>, semaphore: vk::Semaphore, value: u64 },
+    /// Hand chunks that are now in host staging to another process (crate::remote).
+    Send(Box<dyn FnOnce() -> Result<()> + Send>),
+}
+
+impl RelayJob {
+    pub(crate) fn signal(watch_value: u64, target: Arc<Device>, semaphore: vk::Semaphore, value: u64) -> Self {
+        Self { watch_value, action: RelayAction::Signal { target, semaphore, value } }
+    }
 }
 
 struct Worker {
@@ -175,8 +186,14 @@ fn run_worker(
         if stop.load(Ordering::SeqCst) {
             return;
         }
-        if let Err(e) = job.target.signal_timeline(job.semaphore, job.signal_value) {
-            fail(format!("signalling device {} to value {}", job.target.info.index, job.signal_value), e);
+        let done = match job.action {
+            RelayAction::Signal { target, semaphore, value } => target
+                .signal_timeline(semaphore, value)
+                .map_err(|e| (format!("signalling device {} to value {value}", target.info.index), e)),
+            RelayAction::Send(send) => send().map_err(|e| (format!("sending from device {}", device.info.index), e)),
+        };
+        if let Err((doing, e)) = done {
+            fail(doing, e);
             return;
         }
     }
@@ -200,8 +217,7 @@ mod tests {
         let progress = [producer.create_timeline(0).unwrap(), consumer.create_timeline(0).unwrap()];
         let ready = consumer.create_timeline(0).unwrap();
         let relay = Relay::new(&context.devices, &progress).unwrap();
-        let job =
-            |value| RelayJob { watch_value: value, target: consumer.clone(), semaphore: ready, signal_value: value };
+        let job = |value| RelayJob::signal(value, consumer.clone(), ready, value);
         relay.push(0, job(1)).unwrap();
         relay.push(0, job(2)).unwrap();
         producer.signal_timeline(progress[0], 1).unwrap();

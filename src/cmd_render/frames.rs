@@ -52,6 +52,9 @@ pub(super) struct RankViews {
     /// Resources of their views, by (family, view).
     pub remote: HashMap<(u32, u32), Vec<u8>>,
     pub remote_views: BTreeSet<u32>,
+    /// Under a fine scheme, the bands of layers left on other ranks' devices, by (family, view,
+    /// global device) (view_source.rs).
+    pub bands: HashMap<(u32, u32, u32), Vec<u8>>,
     /// The whole run's plan (which device wrote which rows).
     pub plan: ExecutionPlan,
     /// Every device of the run, in global order.
@@ -88,8 +91,8 @@ pub(super) fn render_frames(
         ))
     })?;
     let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
-    let exec_plan = match job.rank_devices {
-        Some((first, count)) => crate::ranks::restrict_plan(&exec_plan, first, count)?,
+    let exec_plan = match &job.rank {
+        Some(part) => crate::ranks::restrict_plan(&exec_plan, &part.layout, part.rank),
         None => exec_plan,
     };
     let options = ExecOptions {
@@ -105,6 +108,7 @@ pub(super) fn render_frames(
         fault: fault_from_env()?,
         link: args.link.kind(),
         shaders: extension.shaders.clone(),
+        remote: job.rank.as_ref().and_then(|part| part.transport.clone()),
         ..ExecOptions::default()
     };
     let mut renderer =
@@ -112,11 +116,14 @@ pub(super) fn render_frames(
     drop(bvh);
     let layers = view_layers(args, job.compiled.kind, &job.compiled.handles, &renderer);
     let executor = renderer.executor();
+    // Devices by the run's numbers (a rank's own, and other ranks' at the far end of a link).
+    let first = job.rank.as_ref().map_or(0, |part| part.layout.first(part.rank));
     for link in executor.links() {
+        let end = |d: usize| crate::ranks::run_device(executor.plan(), first, d);
         tracing::info!(
             "link device {} → device {}: {}, {} chunk(s) and {:.1} MiB a frame",
-            link.from,
-            link.to,
+            end(link.from),
+            end(link.to),
             link.kind.name(),
             link.chunks_per_frame,
             link.bytes_per_frame as f64 / (1 << 20) as f64

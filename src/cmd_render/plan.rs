@@ -44,8 +44,8 @@ pub(super) struct RenderJob {
     /// Whether this process writes the outputs (a rank other than 0 of a render over several
     /// ranks does not).
     pub writes_outputs: bool,
-    /// A rank of a render over several ranks: the global devices it drives (first, count).
-    pub rank_devices: Option<(u32, u32)>,
+    /// A rank of a render over several ranks: what it runs.
+    pub rank: Option<crate::ranks::RankPart>,
     /// Every frame's camera as rank 0 sent it (None: computed here).
     pub cameras: Option<Vec<Camera>>,
 }
@@ -202,7 +202,7 @@ impl RenderJob {
             spacing: None,
             centre,
             writes_outputs,
-            rank_devices: None,
+            rank: None,
             cameras: None,
         };
         let first = &args.light_field;

@@ -1,6 +1,9 @@
 //! `render` under `mpirun -n R` (`--features mpi`): every rank plans the same schedule for the
-//! devices of all ranks together, runs the part on its own devices (whole multi-source sets),
-//! and ranks other than 0 send their finished views to rank 0, which writes every output as one
+//! devices of all ranks together and runs the part on its own devices. Under multi-source
+//! (whole sets) ranks other than 0 send their finished views to rank 0 after the last frame;
+//! under a fine scheme the bands that devices of different ranks exchange, the gathers of
+//! finished bands to device 0 among them, travel every frame through the executor's `remote`
+//! links ([`LinkTransport`]), so rank 0 holds every view. Rank 0 writes every output as one
 //! process would. A rank that fails ends the run with one message from rank 0 naming it, its
 //! host and the cause; rank 0 polls against `--rank-timeout` and never waits without end; and
 //! since rank 0 stages every output until all views are in, a failed run leaves nothing.
@@ -18,9 +21,9 @@ use super::frames::{RankViews, Rendered, render_frames};
 use super::plan::RenderJob;
 use super::report::{output_families, write_outputs};
 use super::{RankFault, RenderArgs, RenderExtension, rank_fault_from_env};
-use crate::options::{SchemeArg, UsageError};
-use crate::ranks::{RankLayout, views_of};
-use crate::ranks_mpi::{Cluster, Collector, FrameStat, Reported};
+use crate::options::UsageError;
+use crate::ranks::{RankLayout, RankPart, linked, views_of};
+use crate::ranks_mpi::{Cluster, Collector, FrameStat, LinkTransport, Reported};
 use crate::render_report::timings;
 
 /// Runs this rank's part of the render.
@@ -38,10 +41,6 @@ pub(super) fn run(args: &RenderArgs, extension: &mut RenderExtension, cluster: &
 
 /// What only runs in one process today.
 fn refuse(args: &RenderArgs) -> Result<()> {
-    if args.pipeline.scheme != SchemeArg::MultiSource {
-        let scheme = crate::bench_matrix::name_of(&args.pipeline.scheme);
-        return Err(UsageError(crate::ranks::fine_scheme_across_ranks(&scheme)).into());
-    }
     if args.save_every.is_some() {
         return Err(UsageError(
             "--save-every writes intermediate frames, which ranks do not send to rank 0 yet: drop --save-every under \
@@ -80,7 +79,7 @@ fn lead(
     fault: Option<RankFault>,
 ) -> Result<()> {
     let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), true)?;
-    job.rank_devices = Some((0, layout.devices[0]));
+    job.rank = Some(rank_part(args, &job, cluster, layout)?);
     let cameras: Vec<[u32; 12]> = (0..job.total_frames).map(|f| camera_bits(&job.camera_at(args, f))).collect();
     cluster.send_frames(&serde_json::json!({ "settings": shared_settings(args), "cameras": cameras }));
     let mut collector = Collector::new(cluster.size(), Duration::from_secs(args.rank_timeout));
@@ -88,7 +87,9 @@ fn lead(
         inject(fault, 0, frame)?;
         collector.poll(cluster)
     };
-    let mut rendered = render_frames(args, &mut job, extension, Some(&mut listen))?;
+    let rendered = render_frames(args, &mut job, extension, Some(&mut listen));
+    // A link that waited in vain for a rank that failed: its own message says why.
+    let mut rendered = rendered.or_else(|e| collector.poll(cluster).and(Err(e)))?;
     let finished = collector.wait_all(cluster)?;
     let global = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
     rendered.ranks = Some(gathered(args, &mut rendered, &collector, finished, global, cluster, layout)?);
@@ -113,7 +114,7 @@ fn follow(
         let cameras: Vec<[u32; 12]> = serde_json::from_value(frames["cameras"].clone())?;
         let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), false)?;
         job.cameras = Some(cameras.iter().map(camera_of_bits).collect());
-        job.rank_devices = Some((layout.first(rank), layout.devices[rank]));
+        job.rank = Some(rank_part(args, &job, cluster, layout)?);
         let mut report = |frame: u32, wall: Duration| {
             inject(fault, rank, frame)?;
             cluster.send_frame_done(&FrameStat { frame, wall_ms: wall.as_secs_f64() * 1e3 });
@@ -147,14 +148,35 @@ fn inject(fault: Option<RankFault>, rank: usize, frame: u32) -> Result<()> {
     }
 }
 
+/// This rank's part of the run: its devices, and where its devices exchange bands with other
+/// ranks' (a fine scheme), the transport of those links.
+fn rank_part(args: &RenderArgs, job: &RenderJob, cluster: &Cluster, layout: &RankLayout) -> Result<RankPart> {
+    let global = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
+    let transport: Option<std::sync::Arc<dyn parallax_backend::RemoteTransport>> = match linked(&global, layout) {
+        true => Some(LinkTransport::start(cluster, layout, Duration::from_secs(args.rank_timeout))?),
+        false => None,
+    };
+    Ok(RankPart { layout: layout.clone(), rank: cluster.rank, transport })
+}
+
 /// A rank's finished views (the resources rank 0 writes the outputs from) and its statistics.
+/// Under a fine scheme rank 0 holds the gathered layers already (the links brought their
+/// bands); the rank sends only the bands of the other layers that its devices hold
+/// ([`own_bands`]).
 fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
     let Rendered { context, mut renderer, wall, layers, .. } = rendered;
     let views = views_of(renderer.plan());
+    let part = job.rank.as_ref().context("a rank runs a part")?;
+    let linked = part.transport.is_some();
     let mut listed = Vec::new();
     let mut blobs = Vec::new();
-    for family in output_families(args, job, layers) {
-        for &view in &views {
+    let families = output_families(args, job, layers);
+    let (bands, band_blobs) = match linked {
+        true => own_bands(&mut renderer, &families, &views, part.layout.first(part.rank))?,
+        false => (Vec::new(), Vec::new()),
+    };
+    for family in families {
+        for &view in views.iter().filter(|_| !linked) {
             match renderer.read(family, view) {
                 Ok(bytes) => {
                     listed.push([family.0, view]);
@@ -174,10 +196,49 @@ fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Resu
         "devices": context.device_infos().iter().map(|d| d.name.clone()).collect::<Vec<_>>(),
         "views": views,
         "resources": listed,
+        "bands": bands,
         "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
         "frame_gpu_ms": timing.frame_gpu.mean_ms,
     });
+    blobs.extend(band_blobs);
     Ok((header, blobs))
+}
+
+/// Bands a rank sends rank 0: `[family, view, global device]`, and one image each.
+type OwnBands = (Vec<[u32; 3]>, Vec<Vec<u8>>);
+
+/// Under a fine scheme, the row bands of `families` of `views` that were left on this rank's
+/// devices (layers not gathered to device 0), as `[family, view, global device]` and one
+/// whole-view image per device whose other rows are zero: rank 0 stitches them into the views.
+fn own_bands(
+    renderer: &mut parallax_passes::LightFieldRenderer,
+    families: &[parallax_graph::FamilyId],
+    views: &BTreeSet<u32>,
+    first: u32,
+) -> Result<OwnBands> {
+    let plan = renderer.plan().clone();
+    let here = plan.devices.len();
+    let (mut listed, mut blobs) = (Vec::new(), Vec::new());
+    for &family in families {
+        for &view in views {
+            let Some(bands) = plan.final_bands(family, view) else { continue };
+            for device in (0..here).map(|d| parallax_graph::DeviceId(d as u32)) {
+                let mine: Vec<_> = bands.iter().filter(|b| b.0 == device).collect();
+                let Some(&&(_, resource, _)) = mine.first() else { continue };
+                let desc = plan.resource(resource);
+                let row_bytes = desc.row_bytes() as usize;
+                let mut image = vec![0u8; row_bytes * desc.height as usize];
+                for &&(_, resource, rows) in &mine {
+                    let rows = rows.y0 as usize * row_bytes..rows.y1 as usize * row_bytes;
+                    let source = renderer.executor().read_resource(device, resource)?;
+                    image[rows.clone()].copy_from_slice(&source[rows]);
+                }
+                listed.push([family.0, view, first + device.0]);
+                blobs.push(image);
+            }
+        }
+    }
+    Ok((listed, blobs))
 }
 
 /// Rank 0's gathered views and render.json's `ranks`.
@@ -196,6 +257,7 @@ fn gathered(
     let own_timing = timings(rendered.renderer.stats(), &prepare);
     let mut device_names: Vec<String> = rendered.context.device_infos().iter().map(|d| d.name.clone()).collect();
     let mut remote = HashMap::new();
+    let mut bands = HashMap::new();
     let mut remote_views = BTreeSet::new();
     let mut wall_ms = own_wall;
     let mut ranks = vec![serde_json::json!({
@@ -208,9 +270,13 @@ fn gathered(
         let header = &f.header;
         let resources: Vec<[u32; 2]> =
             serde_json::from_value(header["resources"].clone()).context("a rank's view list")?;
-        remote.extend(resources.into_iter().map(|[family, view]| (family, view)).zip(f.blobs));
+        // The views whose resources it sent (none under a fine scheme: rank 0 holds them).
+        remote_views.extend(resources.iter().map(|&[_, view]| view));
+        let mut blobs = f.blobs.into_iter();
+        remote.extend(resources.into_iter().map(|[family, view]| (family, view)).zip(blobs.by_ref()));
+        let own_bands: Vec<[u32; 3]> = serde_json::from_value(header["bands"].clone()).context("a rank's band list")?;
+        bands.extend(own_bands.into_iter().map(|[family, view, device]| (family, view, device)).zip(blobs));
         let views: Vec<u32> = serde_json::from_value(header["views"].clone())?;
-        remote_views.extend(&views);
         let names: Vec<String> = serde_json::from_value(header["devices"].clone())?;
         device_names.extend(names);
         let wall = header["wall_ms_per_frame"].as_f64().unwrap_or(0.0);
@@ -225,7 +291,7 @@ fn gathered(
         }));
     }
     let json = serde_json::json!({ "count": cluster.size(), "timeout_s": args.rank_timeout, "per_rank": ranks });
-    Ok(RankViews { remote, remote_views, plan, device_names, wall_ms, json })
+    Ok(RankViews { remote, remote_views, bands, plan, device_names, wall_ms, json })
 }
 
 /// A camera as the bits of its floats: sent exactly, so every rank renders the same rays.

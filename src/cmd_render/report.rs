@@ -36,9 +36,10 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     let timing = timings(renderer.stats(), &prepare);
     let (kind, handles) = (job.compiled.kind, &job.compiled.handles);
     let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
-    let no_remote = (HashMap::new(), BTreeSet::new());
-    let (remote, remote_views) = ranks.as_ref().map_or((&no_remote.0, &no_remote.1), |r| (&r.remote, &r.remote_views));
-    let mut views = Gathered { local: &mut renderer, remote, remote_views };
+    let no_remote = (HashMap::new(), BTreeSet::new(), HashMap::new());
+    let (remote, remote_views, bands) =
+        ranks.as_ref().map_or((&no_remote.0, &no_remote.1, &no_remote.2), |r| (&r.remote, &r.remote_views, &r.bands));
+    let mut views = Gathered { local: &mut renderer, remote, remote_views, bands };
     staged.extend(stage_views(&mut views, handles, &args.out_dir, &last_views, layers)?);
     let (exposure, displays) = display_images(&mut views, handles, (lf.len() as u32, lf.width), args.exposure)?;
     let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
@@ -148,15 +149,17 @@ struct Measured<'a> {
 }
 
 /// render.json's `links`: each (producer, consumer) device pair the plan copies over, how it
-/// moves data and how many chunks and bytes a frame; and the host and device staging memory
-/// they use.
+/// moves data and how many chunks and bytes a frame (by the run's device numbers: rank 0 of a
+/// render over several ranks lists its `remote` links too); and the host and device staging
+/// memory they use.
 fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
+    let end = |d: usize| crate::ranks::run_device(executor.plan(), 0, d);
     let links: Vec<serde_json::Value> = executor
         .links()
         .iter()
         .map(|l| {
             serde_json::json!({
-                "from": l.from, "to": l.to, "kind": l.kind.name(),
+                "from": end(l.from), "to": end(l.to), "kind": l.kind.name(),
                 "chunks_per_frame": l.chunks_per_frame, "bytes_per_frame": l.bytes_per_frame,
             })
         })

@@ -10,7 +10,8 @@ use crate::link_memory::import_timeline;
 use crate::links::{ChunkLink, Link, LinkKind, link_order};
 use crate::plan::{CopyId, ExecutionPlan};
 use crate::relay::Relay;
-use crate::segments::{Item, Segment, chunks_of_copies, cross_device_waits, segment_devices};
+use crate::remote::{ReceiveLink, Remote, RemoteTransport, number_receives, wires};
+use crate::segments::{Chunk, Item, Segment, chunks_of_copies, cross_device_waits, segment_device, segment_devices};
 use crate::staging_ring::{RingCopy, RingLayout, RingLink, fit_rings};
 use crate::texture::Texture;
 
@@ -33,6 +34,7 @@ impl Executor {
         plan.validate(self.devices.len())?;
         // Threads first (they use the old semaphores), then the old states.
         self.relay = None;
+        self.remote = None;
         let mut kept = Kept::default();
         for (d, mut state) in std::mem::take(&mut self.states).into_iter().enumerate() {
             for (resource, image) in state.images.drain() {
@@ -55,12 +57,36 @@ impl Executor {
         // carries them (a bounded batch lets the two PCIe directions overlap). Over device memory
         // a batch moves at the copy engines' speed and every submission costs a signal and a
         // wait: the small copies of a pass's run then share one, whatever their bytes.
-        let device_memory =
-            plan.copies.iter().all(|c| self.link_kinds.of(c.from.0 as usize, c.to.0 as usize) != LinkKind::Relay);
+        let device_memory = plan
+            .copies
+            .iter()
+            .all(|c| matches!(self.link_kinds.of(c.from.index(), c.to.index()), LinkKind::Gpu | LinkKind::Shared));
         let merge_bytes = if device_memory { u64::MAX } else { self.options.chunk_bytes };
-        let cut = segment_devices(&plan, &chunks, merge_bytes, dropped_wait, self.options.separate_copy_queue);
+        let wires = wires(&plan);
+        let remote = wires.iter().any(Option::is_some);
+        if remote && self.options.remote.is_none() {
+            return Err(BackendError::Remote(
+                "the plan copies to or from another process's device, but the executor has no transport for it \
+                 (ExecOptions::remote)"
+                    .into(),
+            ));
+        }
+        // Each process sees only its own devices' waits, so it cannot tell whether batching
+        // small copies (`segment_devices`) would close a cycle through another process: copies
+        // stay where the schedule put them, an order every process agrees is free of cycles.
+        let cut = if remote {
+            (0..plan.devices.len())
+                .map(|d| {
+                    let separate = self.options.separate_copy_queue;
+                    segment_device(&plan, d, &chunks, merge_bytes, dropped_wait, separate, false)
+                })
+                .collect()
+        } else {
+            segment_devices(&plan, &chunks, merge_bytes, dropped_wait, self.options.separate_copy_queue)
+        };
         let chunk_counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
-        let order = link_order(&plan, &cut, &chunk_counts);
+        let mut order = link_order(&plan, &cut, &chunk_counts);
+        number_receives(&plan, &cut, &mut order);
         let kinds: Vec<LinkKind> = order.links.iter().map(|&(from, to, _)| self.link_kinds.of(from, to)).collect();
         let exports_progress =
             |d: usize| order.links.iter().zip(&kinds).any(|(&(from, ..), &kind)| from == d && kind == LinkKind::Gpu);
@@ -85,9 +111,12 @@ impl Executor {
             // timeline of its own that the relay raises.
             let ready = match kind {
                 LinkKind::Gpu => import_timeline(&self.devices[from], states[from].progress, &self.devices[to])?,
-                LinkKind::Shared | LinkKind::Relay => states[to].device.create_timeline(0)?,
+                LinkKind::Remote if to >= states.len() => vk::Semaphore::null(),
+                LinkKind::Shared | LinkKind::Relay | LinkKind::Remote => states[to].device.create_timeline(0)?,
             };
-            states[to].ready.push(ready);
+            if to < states.len() {
+                states[to].ready.push(ready);
+            }
             links.push(Link { from, to, kind, ready, space: None, per_frame, bytes_per_frame: bytes_per_frame[l] });
         }
         self.gate = match self.options.fault {
@@ -140,6 +169,12 @@ impl Executor {
             .collect();
         let link_ends: Vec<(usize, usize, LinkKind)> = links.iter().map(|l| (l.from, l.to, l.kind)).collect();
         self.staging = create_staging(&self.devices, &plan, &link_ends, &link_of_copy, slots, &ring_layouts)?;
+        let remote = match (&self.options.remote, remote) {
+            (Some(transport), true) => {
+                Some(remote_side(transport.clone(), wires, &links, &order.chunks, &chunks, &states, slots)?)
+            }
+            _ => None,
+        };
         if let Some(readback) = &mut self.readback {
             readback.allocate(&self.devices[0], &plan, slots)?;
         }
@@ -149,9 +184,11 @@ impl Executor {
         self.links = links;
         self.chunk_links = order.chunks;
         self.needs_record = true;
-        // Relay threads only where a signal is forwarded by the host: none when every link
-        // waits on the GPU.
-        if self.links.iter().any(|l| l.kind.relayed()) || self.gate.is_some() {
+        // Relay threads only where a signal is forwarded by the host, or chunks handed to another
+        // process: none when every link waits on the GPU.
+        let sends = remote.as_ref().is_some_and(|r| r.sends_per_frame.iter().any(|&n| n > 0));
+        self.remote = remote;
+        if self.links.iter().any(|l| l.kind.relayed()) || self.gate.is_some() || sends {
             let progress: Vec<vk::Semaphore> = self.states.iter().map(|s| s.progress).collect();
             self.relay = Some(Relay::new(&self.devices, &progress)?);
         }
@@ -218,4 +255,38 @@ fn ring_links(
         }
     }
     rings.into_iter().flatten().collect()
+}
+
+/// The remote side of a plan (remote.rs): its receive links, each with its chunks in the
+/// consumer's order, and per device of this process the chunks it sends a frame.
+fn remote_side(
+    transport: std::sync::Arc<dyn RemoteTransport>,
+    wires: Vec<Option<crate::remote::Wire>>,
+    links: &[Link],
+    chunk_links: &[Vec<ChunkLink>],
+    chunks: &[Vec<Chunk>],
+    states: &[crate::device_state::DeviceState],
+    slots: usize,
+) -> Result<Remote> {
+    let here = states.len();
+    let mut receives = Vec::new();
+    let mut ends = Vec::new();
+    for (l, link) in links.iter().enumerate().filter(|(_, l)| l.kind == LinkKind::Remote && l.to < here) {
+        let mut on_link: Vec<(u64, Chunk, crate::remote::Wire)> = chunk_links
+            .iter()
+            .enumerate()
+            .flat_map(|(c, places)| places.iter().zip(&chunks[c]).map(move |(place, &chunk)| (c, place, chunk)))
+            .filter(|(_, place, _)| place.link == l)
+            .map(|(c, place, chunk)| (place.position, chunk, wires[c].expect("a remote copy has a wire")))
+            .collect();
+        on_link.sort_by_key(|&(position, ..)| position);
+        receives
+            .push(ReceiveLink { link: l, chunks: on_link.into_iter().map(|(_, chunk, wire)| (chunk, wire)).collect() });
+        ends.push((states[link.to].device.clone(), link.ready));
+    }
+    let mut sends_per_frame = vec![0u64; here];
+    for link in links.iter().filter(|l| l.kind == LinkKind::Remote && l.from < here) {
+        sends_per_frame[link.from] += link.per_frame;
+    }
+    Remote::new(transport, wires, receives, ends, sends_per_frame, slots)
 }

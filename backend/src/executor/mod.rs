@@ -52,6 +52,7 @@ use crate::memory::Buffer;
 use crate::plan::ExecutionPlan;
 use crate::readback::Readback;
 use crate::relay::Relay;
+use crate::remote::Remote;
 use crate::segments::{Chunk, Run};
 use crate::texture::Texture;
 use crate::timing::FrameReport;
@@ -99,6 +100,8 @@ pub struct Executor {
     link_kinds: LinkKinds,
     staging: Option<Staging>,
     relay: Option<Relay>,
+    /// Links to and from other processes' devices (remote.rs).
+    remote: Option<Remote>,
     gate: Option<FaultGate>,
     /// The order every frame's segments are submitted in (`segments::submission_order`, with
     /// the space waits of staging rings).
@@ -153,6 +156,7 @@ impl Executor {
             link_kinds,
             staging: None,
             relay: None,
+            remote: None,
             gate: None,
             submission_order: Vec::new(),
             space_waits: Vec::new(),

@@ -64,6 +64,9 @@ pub struct ExecOptions {
     /// take turns in a ring of its share (at least its largest copy; larger where a smaller
     /// ring would make the devices wait on each other in a cycle), see staging_ring.rs.
     pub host_staging_bytes: u64,
+    /// Moves the chunks of copies to and from devices of other processes (remote.rs): needed
+    /// by a plan that names such devices.
+    pub remote: Option<std::sync::Arc<dyn crate::remote::RemoteTransport>>,
 }
 
 /// Where barriers go between the ops of a device (record.rs).
@@ -110,6 +113,7 @@ impl Default for ExecOptions {
             timing: Timing::PerOp,
             link: None,
             host_staging_bytes: 512 << 20,
+            remote: None,
         }
     }
 }

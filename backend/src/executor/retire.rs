@@ -49,6 +49,9 @@ impl Executor {
         let Some(f) = self.in_flight.pop_front() else {
             return Ok(());
         };
+        // A failed link let its frames through with what its staging held (remote.rs).
+        let remote_check = || self.remote.as_ref().map_or(Ok(()), crate::remote::Remote::check);
+        remote_check()?;
         let mut events = Vec::new();
         for (d, state) in self.states.iter().enumerate() {
             let segment_count = state.segments.len();
@@ -56,6 +59,14 @@ impl Executor {
                 continue;
             }
             self.wait_for_progress(d, progress_value(f.local, segment_count, segment_count - 1), f.frame)?;
+            // Its staging slot is written again by a later frame: its chunks for other processes
+            // must have left it (remote.rs).
+            if let Some(remote) = &self.remote {
+                while !remote.sent_frame(d, f.local) {
+                    self.relay.as_ref().map_or(Ok(()), Relay::check)?;
+                    std::thread::sleep(std::time::Duration::from_micros(100));
+                }
+            }
             let timers = state.timers.len();
             if timers == 0 {
                 continue;
@@ -92,6 +103,7 @@ impl Executor {
                 });
             }
         }
+        remote_check()?;
         let mut report = FrameReport::new(
             f.frame,
             f.submit_start_ns,
@@ -124,6 +136,7 @@ impl Executor {
         let mut moved_at = Instant::now();
         while !state.device.wait_timeline(state.progress, value, 100_000_000)? {
             self.relay.as_ref().map_or(Ok(()), Relay::check)?;
+            self.remote.as_ref().map_or(Ok(()), crate::remote::Remote::check)?;
             let now = self.total_progress()?;
             if now != progress {
                 (progress, moved_at) = (now, Instant::now());

@@ -11,7 +11,9 @@ use crate::error::{BackendError, Result};
 use crate::frame_block::FrameConstants;
 use crate::links::{ChunkLink, LinkKind};
 use crate::readback::FrameTicket;
-use crate::relay::RelayJob;
+use crate::relay::{RelayAction, RelayJob};
+use crate::remote::HostSpan;
+use crate::segments::Chunk;
 use crate::segments::{Run, progress_value, ready_value};
 
 use super::{Executor, FaultInjection, InFlight};
@@ -87,6 +89,15 @@ impl Executor {
                 };
             }
         }
+        // Chunks from other processes go into this slot's staging, whose last frame retired.
+        if let Some(remote) = &self.remote {
+            let spans = remote
+                .receives
+                .iter()
+                .map(|r| r.chunks.iter().map(|&(chunk, _)| self.host_span(r.link, slot, chunk)).collect())
+                .collect();
+            remote.queue_frame(local, spans)?;
+        }
         let mut submitted_segments = 0;
         // Until the whole frame is submitted, a failure leaves its first segments on the queues,
         // waiting for signals of segments that never come (see `Drop`).
@@ -146,7 +157,7 @@ impl Executor {
             state.device.submit_to(queue, &submits, vk::Fence::null())?;
             start = end;
         }
-        self.queue_relays(run, local)
+        self.queue_relays(run, local, slot)
     }
 
     /// The waits, command buffer and progress signal of segment `j` of device `d`.
@@ -208,7 +219,9 @@ impl Executor {
             let value = match link.kind {
                 // The producer's progress value of the segment that completes the chunk.
                 LinkKind::Gpu => progress_value(local, self.states[link.from].segments.len(), chunk.segment),
-                LinkKind::Shared | LinkKind::Relay => ready_value(local, link.per_frame, chunk.position),
+                LinkKind::Shared | LinkKind::Relay | LinkKind::Remote => {
+                    ready_value(local, link.per_frame, chunk.position)
+                }
             };
             match waits.iter_mut().find(|(semaphore, _)| *semaphore == link.ready) {
                 Some((_, max)) => *max = (*max).max(value),
@@ -220,7 +233,7 @@ impl Executor {
 
     /// Relay jobs of the copy-outs in `run` and the space signals of its copy-ins from staging
     /// rings, in segment order (see relay.rs).
-    fn queue_relays(&self, run: &Run, local: u64) -> Result<()> {
+    fn queue_relays(&self, run: &Run, local: u64, slot: usize) -> Result<()> {
         let Some(relay) = &self.relay else {
             return Ok(());
         };
@@ -230,30 +243,36 @@ impl Executor {
             let watch_value = progress_value(local, segment_count, j);
             for chunk in &self.states[d].segments[j].relays {
                 let ChunkLink { link, position, .. } = self.chunk_links[chunk.copy.index()][chunk.index as usize];
+                if let Some(remote) = self.remote.as_ref().filter(|_| self.links[link].kind == LinkKind::Remote) {
+                    let wire = remote.wires[chunk.copy.index()].expect("a remote copy has a wire");
+                    let send = remote.send_job(d, wire, self.host_span(link, slot, *chunk));
+                    relay.push(d, RelayJob { watch_value, action: RelayAction::Send(send) })?;
+                    continue;
+                }
                 let link = &self.links[link];
                 if !link.kind.relayed() {
                     continue;
                 }
                 relay.push(
                     d,
-                    RelayJob {
+                    RelayJob::signal(
                         watch_value,
-                        target: self.devices[link.to].clone(),
-                        semaphore: link.ready,
-                        signal_value: ready_value(local, link.per_frame, position),
-                    },
+                        self.devices[link.to].clone(),
+                        link.ready,
+                        ready_value(local, link.per_frame, position),
+                    ),
                 )?;
             }
             for &(l, value) in &self.space_signals[d][j] {
                 let link = &self.links[l];
                 relay.push(
                     d,
-                    RelayJob {
+                    RelayJob::signal(
                         watch_value,
-                        target: self.devices[link.from].clone(),
-                        semaphore: link.space.expect("a link with space signals has a space timeline"),
-                        signal_value: local * link.per_frame + value,
-                    },
+                        self.devices[link.from].clone(),
+                        link.space.expect("a link with space signals has a space timeline"),
+                        local * link.per_frame + value,
+                    ),
                 )?;
             }
             if let Some(gate) = &self.gate
@@ -262,15 +281,22 @@ impl Executor {
             {
                 relay.push(
                     d,
-                    RelayJob {
-                        watch_value,
-                        target: self.devices[gate.producer].clone(),
-                        semaphore: gate.semaphore,
-                        signal_value: local + 1,
-                    },
+                    RelayJob::signal(watch_value, self.devices[gate.producer].clone(), gate.semaphore, local + 1),
                 )?;
             }
         }
         Ok(())
+    }
+}
+
+impl Executor {
+    /// Where `chunk` lies in the host staging of `link` in `slot` (a `remote` link's).
+    fn host_span(&self, link: usize, slot: usize, chunk: Chunk) -> HostSpan {
+        let staging = self.staging.as_ref().expect("a plan with copies has staging");
+        let base = staging.buffers[link][slot].host_ptr().expect("a remote link's staging is host memory");
+        let copy = self.plan.copy(chunk.copy);
+        let row_bytes = self.plan.resource(copy.resource).row_bytes();
+        let offset = staging.places[chunk.copy.index()].1 + u64::from(chunk.y0 - copy.rows.y0) * row_bytes;
+        HostSpan::new(base, offset, u64::from(chunk.y1 - chunk.y0) * row_bytes)
     }
 }

@@ -4,6 +4,7 @@
 use ash::vk;
 
 use crate::device::Device;
+use crate::links::LinkKind;
 use crate::segments::ready_value;
 
 use super::Executor;
@@ -17,13 +18,16 @@ impl Executor {
     /// be on the queues already.
     fn unblock_device_waits(&mut self) {
         self.relay = None;
+        self.remote = None;
         let local = self.next_frame.saturating_sub(self.plan_epoch);
         // A `gpu` link's consumer waits on the producer's own progress, which only its GPU may
         // raise (a host signal below a later GPU signal would break the timeline). It needs no
         // help: every segment is submitted after the segments it waits for
         // (`submission_order`), so once the relayed waits are released everything submitted
         // can run to its end.
-        for link in self.links.iter().filter(|l| l.kind.relayed()) {
+        // A remote link's ready timeline is on this process's end where it is the consumer.
+        let here = self.devices.len();
+        for link in self.links.iter().filter(|l| l.kind.relayed() || (l.kind == LinkKind::Remote && l.to < here)) {
             let value = ready_value(local, link.per_frame, link.per_frame.saturating_sub(1));
             raise_timeline(&self.devices[link.to], link.ready, value);
         }
@@ -45,6 +49,7 @@ impl Drop for Executor {
             let _ = device.wait_idle();
         }
         self.relay = None;
+        self.remote = None;
         self.staging = None;
         self.states.clear();
         self.globals.clear();
