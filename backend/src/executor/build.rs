@@ -11,7 +11,7 @@ use crate::links::{ChunkLink, Link, LinkKind, link_order};
 use crate::plan::{CopyId, ExecutionPlan};
 use crate::relay::Relay;
 use crate::remote::{ReceiveLink, Remote, RemoteTransport, number_receives, wires};
-use crate::segments::{Chunk, Item, Segment, chunks_of_copies, cross_device_waits, segment_device, segment_devices};
+use crate::segments::{Chunk, Item, Segment, chunks_of_copies, cross_device_waits, segment_devices};
 use crate::staging_ring::{RingCopy, RingLayout, RingLink, fit_rings};
 use crate::texture::Texture;
 
@@ -71,19 +71,9 @@ impl Executor {
                     .into(),
             ));
         }
-        // Each process sees only its own devices' waits, so it cannot tell whether batching
-        // small copies (`segment_devices`) would close a cycle through another process: copies
-        // stay where the schedule put them, an order every process agrees is free of cycles.
-        let cut = if remote {
-            (0..plan.devices.len())
-                .map(|d| {
-                    let separate = self.options.separate_copy_queue;
-                    segment_device(&plan, d, &chunks, merge_bytes, dropped_wait, separate, false)
-                })
-                .collect()
-        } else {
-            segment_devices(&plan, &chunks, merge_bytes, dropped_wait, self.options.separate_copy_queue)
-        };
+        // The schedule's order (batched or not) was proven free of cycles on the whole global
+        // schedule when it was compiled, so a process running its part keeps it as it is.
+        let cut = segment_devices(&plan, &chunks, merge_bytes, dropped_wait, self.options.separate_copy_queue);
         let chunk_counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
         let mut order = link_order(&plan, &cut, &chunk_counts);
         number_receives(&plan, &cut, &mut order);
