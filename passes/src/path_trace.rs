@@ -31,7 +31,7 @@ pub const PATH_TRACE: &str = "path_trace";
 pub const TRACE_OUTPUTS: [&str; 4] = ["radiance", "albedo_roughness", "normal_metallic", "position_depth"];
 
 /// Image index meaning "not written" in the push constants.
-const NO_IMAGE: u32 = u32::MAX;
+pub(crate) const NO_IMAGE: u32 = u32::MAX;
 /// Bytes of one view's parameters in the per-frame data.
 pub const TRACE_PARAMS_BYTES: u64 = std::mem::size_of::<GpuTraceParams>() as u64;
 
