@@ -2,7 +2,10 @@
 // The `gbuffer` pass (parallax_passes::GbufferKernel): the first hit of every pixel's centre ray
 // in the instance's row band, as the path tracer's first hit records it (same ray, same
 // surface evaluation), plus where that surface was in the previous frame (`motion`, from the
-// frame block's previous camera). The G-buffer the reconstruction reads for every view.
+// frame block's previous camera). The G-buffer the reconstruction reads for every view. With
+// hole filling after it, also the BVH primitive that ray hit (`first_hit`, NO_PRIMITIVE on a
+// miss): hole_fill.comp bounds its camera rays' traversals by it (pt_trace.glsl,
+// closest_hit_from).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int8 : require
@@ -24,7 +27,11 @@ layout(push_constant, std430) uniform GbufferPush {
     uint y0;
     uint y1;
     uint width;
+    uint first_hit; // NO_IMAGE: not written
+    uint pad;
 } pc;
+
+const uint NO_IMAGE = 0xffffffffu;
 
 #define PT_SCENE pc.scene
 #define params (pc.trace.p)
@@ -44,6 +51,9 @@ void main() {
     BvhHit hit = bvh_closest_hit(bvh_make_ray(eye, dir, 0.0, 1.0 / 0.0));
     ivec2 at = ivec2(x, y);
     vec2 previous_pixel = vec2(-1.0);
+    if (pc.first_hit != NO_IMAGE) {
+        imageStore(uimages[pc.first_hit], at, uvec4(hit.primitive));
+    }
     if (hit.primitive == 0xffffffffu) {
         imageStore(images[pc.position_depth], at, vec4(0.0));
         imageStore(images[pc.normal_metallic], at, vec4(0.0));

@@ -6,8 +6,9 @@
 // (hole_fill_prefix.comp numbered them): neighbouring invocations trace neighbouring pixels of
 // one view (compact_holes.comp keeps a tile's holes together), and the target, so its camera
 // and image index, is the same in the whole workgroup. Each pixel's path is a function of
-// (pixel, view, frame, settings) only, the same trace_pixel as pt_trace.comp, so a hole gets
-// the bits that path tracing its whole view gives it.
+// (pixel, view, frame, settings) only, the same trace_pixel_from as pt_trace.comp, so a hole
+// gets the bits that path tracing its whole view gives it; the primitive the G-buffer's centre
+// ray hit (`first_hit`, when the pipeline has one) only bounds the camera rays' traversals.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int8 : require
@@ -57,6 +58,7 @@ void main() {
     uint x = packed & 0xffffu;
     uint y = packed >> 16u;
     view_params = band.trace;
-    PixelOut g = trace_pixel(x, y);
+    uint centre = band.first_hit != 0xffffffffu ? imageLoad(uimages[band.first_hit], ivec2(x, y)).x : NO_PRIMITIVE;
+    PixelOut g = trace_pixel_from(x, y, centre);
     imageStore(images[band.radiance], ivec2(x, y), g.radiance);
 }

@@ -26,7 +26,7 @@ struct HoleFillTarget {
     uint radiance;        // host: image index of the radiance (images[] of bindless.glsl)
     uint first_group;     // prefix: workgroups of the targets before this one
     uint count;           // prefix: the list's count this frame
-    uint pad;
+    uint first_hit;       // host: image index of the view's `first_hit` layer (uimages[]), or ~0u
 };
 
 layout(buffer_reference, std430, buffer_reference_align = 8) buffer HoleFillTable {

@@ -41,7 +41,45 @@ vec3 offset_ray_origin(vec3 p, vec3 n) {
                 abs(p.z) < origin ? p.z + float_scale * n.z : moved.z);
 }
 
-vec3 trace_path(uvec4 key, uint sample_index, vec3 origin, vec3 dir, bool first, inout PixelOut g) {
+// BVH primitive of no triangle: a centre ray that missed, or a G-buffer without first hits.
+const uint NO_PRIMITIVE = 0xffffffffu;
+
+// How far past the distance to a pixel's centre-ray triangle a camera ray's bounded traversal
+// reaches (relative): node boxes whose entry rounds beyond the hit must stay in.
+const float CAMERA_BOUND_SLACK = 1.0 / 128.0;
+
+// The closest hit of the ray (origin, dir), a camera ray through a pixel whose centre ray
+// first hit BVH primitive `centre` (the G-buffer's `first_hit`), or any ray with NO_PRIMITIVE.
+// Where the ray hits that triangle too (alpha mask included), at t, its closest hit is no
+// farther than t, so the traversal starts with tmax just past t and skips every node behind
+// the surface. The hit is the unbounded traversal's: nodes are visited in the same order (the
+// order of children depends on the ray's octant, not on tmax), and every triangle up to t is
+// tested in both, so the same one wins by the same rule (the closest, the earlier at equal
+// distance). Should rounding at a box face still lose that triangle (nothing found, or
+// something farther), the ray is traced again unbounded. One traversal call site: each one
+// inlines the whole traversal loop.
+BvhHit closest_hit_from(vec3 origin, vec3 dir, uint centre) {
+    const float unbounded = 1.0 / 0.0;
+    float t_centre = unbounded;
+    if (centre != NO_PRIMITIVE) {
+        vec2 bary;
+        float t = bvh_test_triangle(bvh_load_triangle(centre), centre, bvh_make_ray(origin, dir, 0.0, unbounded), bary);
+        t_centre = t >= 0.0 ? t : unbounded;
+    }
+    float tmax = t_centre + t_centre * CAMERA_BOUND_SLACK;
+    BvhHit hit;
+    bool lost;
+    do {
+        hit = bvh_closest_hit(bvh_make_ray(origin, dir, 0.0, tmax));
+        lost = tmax != unbounded && (hit.primitive == NO_PRIMITIVE || hit.t > t_centre);
+        tmax = unbounded;
+    } while (lost);
+    return hit;
+}
+
+// One path of `sample_index` from the camera ray (origin, dir); `centre` bounds its first
+// traversal (closest_hit_from), the bounces after it trace as any path does.
+vec3 trace_path(uvec4 key, uint sample_index, vec3 origin, vec3 dir, bool first, uint centre, inout PixelOut g) {
     vec3 radiance = vec3(0.0);
     vec3 throughput = vec3(1.0);
     vec3 ro = origin;
@@ -52,8 +90,8 @@ vec3 trace_path(uvec4 key, uint sample_index, vec3 origin, vec3 dir, bool first,
     float prev_pdf = 0.0;
     uint max_depth = params.sampling.y;
     for (uint depth = 0u; depth <= max_depth; depth++) {
-        BvhHit hit = bvh_closest_hit(bvh_make_ray(ro, rd, 0.0, 1.0 / 0.0));
-        if (hit.primitive == 0xffffffffu) {
+        BvhHit hit = closest_hit_from(ro, rd, depth == 0u ? centre : NO_PRIMITIVE);
+        if (hit.primitive == NO_PRIMITIVE) {
             if (!has_prev) {
                 // A camera ray that misses: what reprojection writes for sky pixels too.
                 radiance += throughput * camera_miss_radiance(rd);
@@ -129,8 +167,9 @@ vec3 trace_path(uvec4 key, uint sample_index, vec3 origin, vec3 dir, bool first,
 
 // One pixel: `spp` samples (the view's TraceParams), radiance averaged, first-hit data of
 // sample 0. Depends only on (x, y) and the parameters, never on which pixels are traced
-// alongside or on which device.
-PixelOut trace_pixel(uint x, uint y) {
+// alongside or on which device, nor on `centre` (the BVH primitive the pixel's centre ray
+// first hit, or NO_PRIMITIVE), which only shortens the camera rays' traversals.
+PixelOut trace_pixel_from(uint x, uint y, uint centre) {
     uvec4 key = rng_key(x, y, params.dims.z, params.dims.w);
     PixelOut g;
     g.radiance = vec4(0.0);
@@ -140,7 +179,7 @@ PixelOut trace_pixel(uint x, uint y) {
     vec3 sum = vec3(0.0);
     for (uint s = 0u; s < params.sampling.x; s++) {
         vec3 dir = camera_direction(x, y, camera_jitter(key, s));
-        vec3 l = trace_path(key, s, params.eye.xyz, dir, s == 0u, g);
+        vec3 l = trace_path(key, s, params.eye.xyz, dir, s == 0u, centre, g);
         // Like the CPU: a non-finite sample is dropped, never written.
         if (!any(isnan(l)) && !any(isinf(l))) {
             sum += l;
@@ -148,6 +187,10 @@ PixelOut trace_pixel(uint x, uint y) {
     }
     g.radiance.rgb = sum / float(params.sampling.x);
     return g;
+}
+
+PixelOut trace_pixel(uint x, uint y) {
+    return trace_pixel_from(x, y, NO_PRIMITIVE);
 }
 
 #endif

@@ -190,8 +190,8 @@ impl PlanShape {
     /// Pass instances, producer-consumer edges, δ-edges and copies of the standard pipeline's
     /// plan, bounded from above (M views, N devices, k sources, T = M - k targets; the bounds
     /// are checked against compiled plans by `plan_items_bound_the_compiled_plans`):
-    /// - a view has 14 pass instances and 36 edges among them (firefly suppression's two
-    ///   passes included); under fine-all every pass is split in N bands, and a band that reads
+    /// - a view has 14 pass instances and 37 edges among them (firefly suppression's two
+    ///   passes and hole filling's read of the G-buffer's `first_hit` included); under fine-all every pass is split in N bands, and a band that reads
     ///   a whole image depends on all N bands that wrote it: N² edges per such read, and up to
     ///   16·N² copies per view;
     /// - a target reads three images of each of its sources (one source under multi-source,
@@ -204,11 +204,11 @@ impl PlanShape {
         let (m, n, k) = (self.views, self.devices, self.sources);
         let t = m.saturating_sub(k);
         let (instances, edges, deltas, copies) = match self.scheme {
-            Scheme::MultiSource => (14 * m, 39 * m, m, 2 * m),
+            Scheme::MultiSource => (14 * m, 40 * m, m, 2 * m),
             Scheme::FineSources => {
-                (14 * m + 2 * k * n, 36 * m + 3 * k * n + (n + 2) * k * t, k * t + n * k, 2 * m + k * n)
+                (14 * m + 2 * k * n, 37 * m + 3 * k * n + (n + 2) * k * t, k * t + n * k, 2 * m + k * n)
             }
-            Scheme::FineAll => (14 * m * n, 36 * m * n * n + 3 * n * n * k * t, n * k * t, 16 * m * n * n),
+            Scheme::FineAll => (14 * m * n, 37 * m * n * n + 3 * n * n * k * t, n * k * t, 16 * m * n * n),
         };
         instances + edges + deltas + copies
     }
@@ -320,7 +320,7 @@ mod tests {
         assert_eq!(
             err,
             "--scheme fine-all over 4096 views (--lf) and 64 devices (--gpus/--fake-devices) with 2 source(s) (--sources) \
-             would be about 977223424 pass instances, dependencies and copies (at most 4000000): use fewer devices, fewer \
+             would be about 994000640 pass instances, dependencies and copies (at most 4000000): use fewer devices, fewer \
              views (--lf), fewer --sources, or --scheme multi-source"
         );
     }

@@ -4,19 +4,22 @@
 //! raster to speak of (H100/H200) first hits are the fast way to a G-buffer (DESIGN.md §6).
 //!
 //! Slots (docs/PIPELINE.md): writes `position_depth`, `normal_metallic`, `albedo_roughness`
-//! (Rgba32f) and `motion` (Rg32f). Reads the view's `GpuTraceParams` in the per-frame data
-//! ([`crate::trace_frame_data`]) and the frame block section.
+//! (Rgba32f), `motion` (Rg32f) and, when asked for (hole filling reads it), `first_hit` (R32u:
+//! the BVH primitive the centre ray hit). Reads the view's `GpuTraceParams` in the per-frame
+//! data ([`crate::trace_frame_data`]) and the frame block section.
 
 use std::sync::Arc;
 
 use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
-use crate::path_trace::TRACE_PARAMS_BYTES;
+use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES};
 use crate::scene_upload::scene_refs;
 
 /// Pass name.
 pub const GBUFFER: &str = "gbuffer";
+/// Slot of the BVH primitive of each pixel's centre-ray hit (R32u, `u32::MAX`: no hit).
+pub const FIRST_HIT: &str = "first_hit";
 
 /// Push constants of `gbuffer_trace.comp` (`GbufferPush` there).
 #[repr(C)]
@@ -33,6 +36,9 @@ pub struct GbufferPush {
     pub y0: u32,
     pub y1: u32,
     pub width: u32,
+    /// Image index of `first_hit`, [`NO_IMAGE`] where not declared.
+    pub first_hit: u32,
+    pub pad: u32,
 }
 
 parallax_backend::push_constants!(GbufferPush {
@@ -46,7 +52,9 @@ parallax_backend::push_constants!(GbufferPush {
     view,
     y0,
     y1,
-    width
+    width,
+    first_hit,
+    pad
 });
 
 /// Records `gbuffer` instances into the G-buffer writes its pass declared.
@@ -55,6 +63,7 @@ struct GbufferKernel {
     normal_metallic: WriteSlot,
     albedo_roughness: WriteSlot,
     motion: WriteSlot,
+    first_hit: Option<WriteSlot>,
 }
 
 impl PassKernel for GbufferKernel {
@@ -74,6 +83,8 @@ impl PassKernel for GbufferKernel {
             y0: pass.rows.y0,
             y1: pass.rows.y1,
             width,
+            first_hit: self.first_hit.map_or(Ok(NO_IMAGE), |slot| image(rec, slot))?,
+            pad: 0,
         };
         rec.dispatch("gbuffer_trace", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
     }
@@ -133,15 +144,20 @@ pub struct Gbuffer {
     pub normal_metallic: Handle<Image>,
     pub albedo_roughness: Handle<Image>,
     pub motion: Handle<Image>,
+    /// [`FIRST_HIT`], declared by [`declare_gbuffer`] when asked for (the raster G-buffer has
+    /// no BVH hits).
+    pub first_hit: Option<Handle<Image>>,
 }
 
-/// Declares the G-buffer images and the `gbuffer` pass that writes them for every view.
-pub fn declare_gbuffer(graph: &mut KernelGraph) -> Gbuffer {
+/// Declares the G-buffer images and the `gbuffer` pass that writes them for every view, with
+/// the [`FIRST_HIT`] layer when `with_first_hit` (what hole filling reads).
+pub fn declare_gbuffer(graph: &mut KernelGraph, with_first_hit: bool) -> Gbuffer {
     let mut g = Gbuffer {
         position_depth: graph.image("position_depth", Format::Rgba32f),
         normal_metallic: graph.image("normal_metallic", Format::Rgba32f),
         albedo_roughness: graph.image("albedo_roughness", Format::Rgba32f),
         motion: graph.image("motion", Format::Rg32f),
+        first_hit: with_first_hit.then(|| graph.image(FIRST_HIT, Format::R32u)),
     };
     let mut pass = graph.pass(GBUFFER, Role::All);
     let kernel = GbufferKernel {
@@ -149,6 +165,7 @@ pub fn declare_gbuffer(graph: &mut KernelGraph) -> Gbuffer {
         normal_metallic: pass.write_slot(&mut g.normal_metallic),
         albedo_roughness: pass.write_slot(&mut g.albedo_roughness),
         motion: pass.write_slot(&mut g.motion),
+        first_hit: g.first_hit.as_mut().map(|first_hit| pass.write_slot(first_hit)),
     };
     pass.kernel(Arc::new(kernel)).record();
     g
@@ -168,6 +185,7 @@ pub fn declare_gbuffer_rasterised(graph: &mut KernelGraph) -> Gbuffer {
         normal_metallic: raster.normal_metallic,
         albedo_roughness: raster.albedo_roughness,
         motion,
+        first_hit: None,
     }
 }
 

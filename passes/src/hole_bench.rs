@@ -2,19 +2,24 @@
 //! tracing per pixel, for the target "hole-filling time per hole pixel ≤ 1.25× full-view path
 //! tracing time per pixel". Before reprojection produces real holes, the mask is synthetic
 //! ([`HashedHoleMaskKernel`]: scattered pixels, a hashed fraction of the view), which is the
-//! incoherent end for hole filling: real holes cluster along disocclusions.
+//! incoherent end for hole filling: real holes cluster along disocclusions. With first hits the
+//! plan has the pipeline's G-buffer, and hole filling bounds its camera rays by the centre rays'
+//! hits as in the pipeline (`first_hit`, [`crate::hole_fill`]); without, it traces them whole
+//! (the raster G-buffer's case), so the two runs compare the same holes.
 
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameReport, InstanceId,
-    KernelGraph, PassKernel, PassParams, Recorder,
+    BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameClock, FrameData, FrameReport,
+    InstanceId, KernelGraph, PassKernel, PassParams, Recorder,
 };
 use parallax_graph::{BandedPlacement, FamilyId, Role, ViewId, ViewTopology, WriteSlot, compile};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, View};
 
+use crate::camera::frame_block;
 use crate::error::{PassError, Result};
+use crate::gbuffer::declare_gbuffer;
 use crate::holes::{COMPACT_HOLES, HOLE_FILL, HOLES, declare_hole_fill};
 use crate::path_trace::{PATH_TRACE, PathTraceKernel, trace_frame_data};
 use crate::scene_upload::upload_scene;
@@ -70,6 +75,8 @@ pub struct HoleBench {
     pub height: u32,
     pub frames: usize,
     pub hole_fraction: f64,
+    /// Hole filling bounded its camera rays by the G-buffer's `first_hit`.
+    pub first_hits: bool,
     /// Hole pixels of the target view (as compacted on the GPU).
     pub holes: u64,
     /// `path_trace` of the whole source view, ms.
@@ -91,7 +98,9 @@ pub struct HoleBench {
 /// the pipeline), view 1 a target whose synthetic mask holds `hole_fraction` of its pixels,
 /// compacted and filled (radiance only). Both views look through the same camera, so per-pixel
 /// costs compare the same rays; `frames` frames (frame index `settings.frame + f`), medians.
-/// The GPU's hole count is checked against the mask's CPU twin.
+/// With `first_hits` both views get the first-hit G-buffer (not timed here) and hole filling
+/// reads its `first_hit` layer. The GPU's hole count is checked against the mask's CPU twin.
+#[allow(clippy::too_many_arguments)]
 pub fn bench_holes(
     context: &Context,
     scene: &Scene,
@@ -100,18 +109,22 @@ pub fn bench_holes(
     hole_fraction: f64,
     settings: &TraceSettings,
     frames: usize,
+    first_hits: bool,
 ) -> Result<HoleBench> {
     let threshold = hole_threshold(hole_fraction)?;
     let frames = frames.max(1);
-    let (plan, list_family) = bench_plan(width, height, threshold)?;
+    let (plan, list_family) = bench_plan(width, height, threshold, first_hits)?;
     let bvh = SceneBvh::build(scene);
     let mut executor =
         Executor::new(context, plan, ExecOptions { shaders: crate::shader_library(), ..ExecOptions::default() })?;
     upload_scene(&mut executor, &GpuScene::new(scene, &bvh))?;
     let views: Vec<View> = (0..2).map(|index| View { camera, width, height, index }).collect();
+    let mut clock = FrameClock::new();
     for f in 0..frames {
         let frame = TraceSettings { frame: settings.frame.wrapping_add(f as u32), ..*settings };
-        executor.set_frame_data(&trace_frame_data(scene, &views, &frame)?)?;
+        let mut data = FrameData::whole(&trace_frame_data(scene, &views, &frame)?);
+        data.frame_block(&frame_block(&mut clock, &views))?;
+        executor.set_frame(&data)?;
         executor.run_frame()?;
     }
     executor.finish()?;
@@ -143,6 +156,7 @@ pub fn bench_holes(
         height,
         frames,
         hole_fraction,
+        first_hits,
         holes,
         path_trace_ms,
         compact_ms,
@@ -153,12 +167,14 @@ pub fn bench_holes(
     })
 }
 
-/// Source view 0 path traced, target view 1 masked, compacted and filled, on one device.
-/// The plan, and the family of its hole list.
-fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<(ExecutionPlan, FamilyId)> {
+/// Source view 0 path traced, target view 1 masked, compacted and filled (after the first-hit
+/// G-buffer of both with `first_hits`), on one device. The plan, and the family of its hole
+/// list.
+fn bench_plan(width: u32, height: u32, threshold: u32, first_hits: bool) -> Result<(ExecutionPlan, FamilyId)> {
     let topology =
         ViewTopology { width, height, sources_of: vec![Vec::new(), vec![ViewId(0)]], is_source: vec![true, false] };
     let mut graph = KernelGraph::with_payload(topology);
+    let first_hit = first_hits.then(|| declare_gbuffer(&mut graph, true).first_hit).flatten();
     let mut radiance = graph.image("radiance", Format::Rgba32f);
     let mut holes = graph.image(HOLES, Format::R32u);
     // The targets' radiance before filling is whatever the image holds (reprojection's place).
@@ -169,7 +185,7 @@ fn bench_plan(width: u32, height: u32, threshold: u32) -> Result<(ExecutionPlan,
     let mut pass = graph.pass(HOLE_MASK, Role::Targets);
     let mask = pass.write_slot(&mut holes);
     pass.kernel(Arc::new(HashedHoleMaskKernel { mask, threshold })).record();
-    let list = declare_hole_fill(&mut graph, &holes, &mut radiance);
+    let list = declare_hole_fill(&mut graph, &holes, first_hit.as_ref(), &mut radiance);
     graph.export(&radiance);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?;
     let plan = ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;

@@ -9,6 +9,12 @@
 //! 2. shaders/hole_fill.comp, one indirect dispatch of exactly those workgroups: each finds its
 //!    band by binary search and traces its 64 entries with that band's view parameters.
 //!
+//! With a first-hit G-buffer the pass also reads its `first_hit` layer (the BVH primitive each
+//! pixel's centre ray hit): a camera ray that hits that triangle too traverses the BVH only up
+//! to it (shaders/pt_trace.glsl, `closest_hit_from`), with the bits of the unbounded traversal.
+//! The camera rays stay the path tracer's jittered ones, so the G-buffer can stay at the pixel
+//! centres that SVGF's guides and still-camera accumulation need (docs/PIPELINE.md, `hole_fill`).
+//!
 //! One dispatch per target, each over its band's capacity, left the GPU mostly idle or busy
 //! with empty workgroups: on an H200 12.9 ns per hole against 8.6 ns per pixel of a full-view
 //! trace for 99 targets (docs/RESULTS.md); indirect dispatches per target ran one after
@@ -20,7 +26,7 @@ use parallax_backend::{
 };
 
 use crate::holes::HOLE_FILL;
-use crate::path_trace::{TRACE_PARAMS_BYTES, list_section};
+use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES, list_section};
 use crate::scene_upload::scene_refs;
 
 /// Bytes of the target table before its [`HoleFillTarget`]s: the indirect arguments and the
@@ -41,7 +47,8 @@ pub struct HoleFillTarget {
     /// Written by hole_fill_prefix.comp every frame: the band's first workgroup and count.
     pub first_group: u32,
     pub count: u32,
-    pub pad: u32,
+    /// Image index of the view's `first_hit` G-buffer layer (R32u), [`NO_IMAGE`] without one.
+    pub first_hit: u32,
 }
 
 /// Push constants of hole_fill_prefix.comp (`HoleFillPrefixPush` there).
@@ -70,11 +77,13 @@ pub struct HoleFillPush {
 parallax_backend::push_constants!(HoleFillPush { scene, table, target_count, pad });
 
 /// Records `hole_fill` instances: each reads its band's section of [`crate::HOLE_LIST`] (as
-/// `compact_holes` writes it) and modifies the view's radiance (a float image), writing nothing
-/// else; the views' `GpuTraceParams` come from the per-frame data like `path_trace`'s
-/// ([`crate::trace_frame_data`]).
+/// `compact_holes` writes it) and, when declared, the view's `first_hit` layer over its band
+/// (an R32u image, [`crate::gbuffer`]), and modifies the view's radiance (a float image),
+/// writing nothing else; the views' `GpuTraceParams` come from the per-frame data like
+/// `path_trace`'s ([`crate::trace_frame_data`]).
 pub struct HoleFillKernel {
     pub(crate) list: ReadSlot,
+    pub(crate) first_hit: Option<ReadSlot>,
     pub(crate) radiance: WriteSlot,
 }
 
@@ -126,6 +135,17 @@ impl HoleFillKernel {
         if image.kind != ResourceKind::Image || image.format == Format::R32u || image.format.is_depth() {
             return Err(misuse(format!("its write `{}` must be a float image", image.name)));
         }
+        let first_hit = match self.first_hit {
+            Some(slot) => {
+                let layer = pass.read(slot)?.resource;
+                let desc = rec.resource(layer);
+                if desc.kind != ResourceKind::Image || desc.format != Format::R32u {
+                    return Err(misuse(format!("its read `{}` must be an R32u image", desc.name)));
+                }
+                rec.image(layer)?
+            }
+            None => NO_IMAGE,
+        };
         let (list, _capacity) = list_section(rec, list, index)?;
         Ok(HoleFillTarget {
             list,
@@ -133,7 +153,7 @@ impl HoleFillKernel {
             radiance: rec.image(radiance.resource)?,
             first_group: 0,
             count: 0,
-            pad: 0,
+            first_hit,
         })
     }
 }
@@ -146,7 +166,7 @@ mod tests {
 
     #[test]
     fn the_structs_match_hole_fill_glsl() {
-        let target = rust_layout!(HoleFillTarget { list, trace, radiance, first_group, count, pad });
+        let target = rust_layout!(HoleFillTarget { list, trace, radiance, first_group, count, first_hit });
         for shader in ["hole_fill", "hole_fill_prefix"] {
             let spirv = crate::shaders::spirv(shader).unwrap();
             assert_eq!(member_offsets(&spirv, "HoleFillTarget").unwrap(), target, "{shader}");

@@ -34,10 +34,13 @@ pub fn hole_list_row_bytes(width: u32) -> u64 {
 /// into the returned `hole_list` row buffer (reset to zeros each frame), then `hole_fill` path
 /// traces the listed pixels into `radiance` in place, so the pixels that are not holes keep
 /// what was there (the reprojected radiance). `hole_fill` reads its views' `GpuTraceParams`
-/// from the per-frame data like `path_trace` ([`crate::trace_frame_data`]).
+/// from the per-frame data like `path_trace` ([`crate::trace_frame_data`]) and, when given,
+/// the G-buffer's `first_hit` layer, which bounds its camera rays' traversals
+/// ([`crate::hole_fill`]).
 pub fn declare_hole_fill(
     graph: &mut KernelGraph,
     holes: &Handle<Image>,
+    first_hit: Option<&Handle<Image>>,
     radiance: &mut Handle<Image>,
 ) -> Handle<Buffer> {
     let mut list = graph.row_buffer(HOLE_LIST, hole_list_row_bytes(graph.topology().width));
@@ -46,8 +49,10 @@ pub fn declare_hole_fill(
     let (holes, (_, written_list)) = (pass.read_slot(holes), pass.modify_slot(&mut list));
     pass.kernel(Arc::new(CompactHolesKernel { holes, list: written_list })).record();
     let mut pass = graph.pass(HOLE_FILL, Role::Targets);
-    let (read_list, (_, radiance)) = (pass.read_slot(&list), pass.modify_slot(radiance));
-    pass.kernel(Arc::new(HoleFillKernel { list: read_list, radiance })).grouped().record();
+    let read_list = pass.read_slot(&list);
+    let first_hit = first_hit.map(|layer| pass.read_slot(layer));
+    let (_, radiance) = pass.modify_slot(radiance);
+    pass.kernel(Arc::new(HoleFillKernel { list: read_list, first_hit, radiance })).grouped().record();
     list
 }
 

@@ -9,7 +9,8 @@
 //!   section of the buffer (a row buffer's rows `[y0, y1)`, or all of a plain buffer; see
 //!   [`crate::pixel_list`]). The dispatch covers the section's capacity and the invocations past
 //!   the list's count return at once. Hole filling traces its lists with its own kernel, one
-//!   dispatch for all targets of a device ([`crate::hole_fill`]), the same `trace_pixel`.
+//!   dispatch for all targets of a device ([`crate::hole_fill`]), the same `trace_pixel_from`
+//!   (its camera rays' traversals bounded by the G-buffer's `first_hit`, the same bits).
 //! * Camera, frame index and settings come from the per-frame data, one
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without
 //!   re-recording; the scene from [`crate::upload_scene`].
@@ -31,7 +32,7 @@ pub const PATH_TRACE: &str = "path_trace";
 pub const TRACE_OUTPUTS: [&str; 4] = ["radiance", "albedo_roughness", "normal_metallic", "position_depth"];
 
 /// Image index meaning "not written" in the push constants.
-const NO_IMAGE: u32 = u32::MAX;
+pub(crate) const NO_IMAGE: u32 = u32::MAX;
 /// Bytes of one view's parameters in the per-frame data.
 pub const TRACE_PARAMS_BYTES: u64 = std::mem::size_of::<GpuTraceParams>() as u64;
 

@@ -205,7 +205,8 @@ impl PipelineBuilder {
     pub fn declare(mut self, graph: &mut KernelGraph) -> Result<PipelineHandles> {
         let config = self.config;
         let gbuffer = match config.gbuffer {
-            GbufferSource::FirstHits => declare_gbuffer(graph),
+            // Hole filling bounds its camera rays by the centre rays' first hits.
+            GbufferSource::FirstHits => declare_gbuffer(graph, config.kind == PipelineKind::Reproject),
             GbufferSource::Raster => declare_gbuffer_rasterised(graph),
         };
         let radiance = graph.image("radiance", Format::Rgba32f);
@@ -218,7 +219,7 @@ impl PipelineBuilder {
             layers.holes = Some(declare_reproject(graph, &layers.gbuffer, &mut layers.radiance, config.tolerances)?);
             self.run_stages(InsertionPoint::AfterReprojection, graph, &mut layers)?;
             let holes = layers.holes.as_ref().expect("declared just above");
-            declare_hole_fill(graph, holes, &mut layers.radiance);
+            declare_hole_fill(graph, holes, layers.gbuffer.first_hit.as_ref(), &mut layers.radiance);
             self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
         }
         if config.fireflies == FireflyMode::Suppress {
