@@ -203,13 +203,13 @@ mod under_mpirun {
         let dir = scratch("ranks", "stalls");
         // Rank 2 stops answering after its first frame; the others finish within the timeout (a
         // generous one: it is a bound on a hang, not a measure).
-        let out = render_on_three_ranks(mpirun, &dir, &["--rank-timeout", "30"], Some("rank-stalls:2:1"));
+        let out = render_on_three_ranks(mpirun, &dir, &["--rank-timeout", "60"], Some("rank-stalls:2:1"));
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{stderr}");
         let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
         assert_eq!(errors.len(), 1, "one message: {stderr}");
         assert!(errors[0].starts_with("error: rank 2 on host "), "{stderr}");
-        assert!(errors[0].contains(" sent nothing for 30 s (--rank-timeout): it hangs or died"), "{stderr}");
+        assert!(errors[0].contains(" sent nothing for 60 s (--rank-timeout): it hangs or died"), "{stderr}");
         assert_eq!(files(&dir), Vec::<String>::new(), "a failed run left files behind");
     }
 
@@ -220,7 +220,9 @@ mod under_mpirun {
     fn a_failing_rank_under_a_fine_scheme_ends_the_run_naming_it_and_leaves_nothing() {
         let Some(mpirun) = mpirun() else { return };
         let dir = scratch("ranks", "fine-fails");
-        let extra = ["--scheme", "fine-all", "--rank-timeout", "20"];
+        // The healthy ranks wait on the failed rank's bands until the timeout: 60 s bounds a hang
+        // with room for 18 ranks of parallel tests sharing CI's two cores.
+        let extra = ["--scheme", "fine-all", "--rank-timeout", "60"];
         let out = render_on_three_ranks(mpirun, &dir, &extra, Some("rank-fails:2:1"));
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{stderr}");
