@@ -374,6 +374,7 @@ impl Drop for Device {
             self.raw.destroy_command_pool(pool, None);
             // Allocator frees its blocks; it must go before the device.
             drop(self.allocator.get_mut().unwrap_or_else(|p| p.into_inner()).take());
+            let _turn = crate::lifetime_lock::hold();
             self.raw.destroy_device(None);
         }
     }
@@ -457,6 +458,7 @@ fn create_logical_device(
     if extensions.pipeline_stats {
         create_info = create_info.push_next(&mut executable_info);
     }
+    let _turn = crate::lifetime_lock::hold();
     unsafe { raw_instance.create_device(physical, &create_info, None) }.vk("vkCreateDevice")
 }
 
@@ -477,6 +479,7 @@ fn create_allocator(
     })
     .map_err(|source| BackendError::Allocation { what: "allocator".into(), source });
     if allocator.is_err() {
+        let _turn = crate::lifetime_lock::hold();
         unsafe { raw.destroy_device(None) };
     }
     allocator

@@ -88,6 +88,7 @@ impl Instance {
         if validation == Validation::CoreAndSync {
             info = info.push_next(&mut validation_features);
         }
+        let _turn = crate::lifetime_lock::hold();
         let raw = unsafe { entry.create_instance(&info, None) }.map_err(|result| match result {
             vk::Result::ERROR_INCOMPATIBLE_DRIVER => BackendError::NoDevice,
             result => BackendError::Vk { call: "vkCreateInstance", result },
@@ -149,6 +150,7 @@ impl Instance {
 
 impl Drop for Instance {
     fn drop(&mut self) {
+        let _turn = crate::lifetime_lock::hold();
         unsafe {
             if let Some((loader, messenger)) = self.debug.take() {
                 loader.destroy_debug_utils_messenger(messenger, None);

@@ -99,6 +99,7 @@ mod frame_block;
 mod frame_data;
 mod frame_stats;
 mod instance;
+mod lifetime_lock;
 mod link_memory;
 mod links;
 pub use links::{DeviceSubmissions, LinkInfo, LinkKind, LinkKinds, link_kinds};
