@@ -197,20 +197,32 @@ mod under_mpirun {
         assert_eq!(files(&dir), Vec::<String>::new(), "a failed run left files behind");
     }
 
-    #[test]
-    fn a_silent_rank_ends_the_run_at_the_rank_timeout() {
+    /// Rank 2 stops answering after its first frame; the others finish within the timeout (a
+    /// generous one: it is a bound on a hang, not a measure). Under a fine scheme the others also
+    /// wait for its bands, and those waits end at the same timeout.
+    fn a_silent_rank_ends_the_run_at_the_rank_timeout(scheme: &str) {
         let Some(mpirun) = mpirun() else { return };
-        let dir = scratch("ranks", "stalls");
-        // Rank 2 stops answering after its first frame; the others finish within the timeout (a
-        // generous one: it is a bound on a hang, not a measure).
-        let out = render_on_three_ranks(mpirun, &dir, &["--rank-timeout", "60"], Some("rank-stalls:2:1"));
+        let dir = scratch("ranks", &format!("stalls-{scheme}"));
+        let extra = ["--scheme", scheme, "--rank-timeout", "60"];
+        let out = render_on_three_ranks(mpirun, &dir, &extra, Some("rank-stalls:2:1"));
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{stderr}");
         let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
         assert_eq!(errors.len(), 1, "one message: {stderr}");
         assert!(errors[0].starts_with("error: rank 2 on host "), "{stderr}");
         assert!(errors[0].contains(" sent nothing for 60 s (--rank-timeout): it hangs or died"), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
         assert_eq!(files(&dir), Vec::<String>::new(), "a failed run left files behind");
+    }
+
+    #[test]
+    fn a_silent_rank_ends_the_run_at_the_rank_timeout_under_multi_source() {
+        a_silent_rank_ends_the_run_at_the_rank_timeout("multi-source");
+    }
+
+    #[test]
+    fn a_silent_rank_ends_the_run_at_the_rank_timeout_under_fine_all() {
+        a_silent_rank_ends_the_run_at_the_rank_timeout("fine-all");
     }
 
     /// Under a fine scheme the others wait for the failed rank's bands: the run still ends
