@@ -33,9 +33,9 @@ trap 'rm -f "$log"' EXIT
 cargo test --workspace --all-targets --no-fail-fast 2>&1 | tee -a "$log"
 cargo test --workspace --doc 2>&1 | tee -a "$log"
 # Renders over three MPI ranks (mpirun --oversubscribe on CI's two cores) against one process,
-# under multi-source and the two fine schemes; a rank that fails (also under fine-all) and one
-# that falls silent (their 60 s --rank-timeout is most of the time); and the MPI messages' unit
-# tests.
+# under multi-source and the two fine schemes; a rank that fails and one that falls silent,
+# each also under fine-all (their 60 s --rank-timeout is most of the time); and the MPI
+# messages' unit tests.
 cargo test -p parallax --features mpi --test cli_ranks 2>&1 | tee -a "$log"
 cargo test -p parallax --features mpi --lib ranks_mpi 2>&1 | tee -a "$log"
 
