@@ -6,7 +6,8 @@ mod common;
 use common::*;
 use parallax_graph::*;
 
-fn fine_all(batching: Batching) -> Schedule {
+/// The test pipeline of a 3×2 grid, fine-all over two devices: the graph and its plan.
+fn fine_all_graph() -> (Graph, Plan) {
     let lf = grid(3, 2, 6);
     let plan = Plan::new(
         &lf,
@@ -15,6 +16,11 @@ fn fine_all(batching: Batching) -> Schedule {
     .unwrap();
     let mut graph = Graph::new(plan.topology.clone());
     declare_test_pipeline(&mut graph);
+    (graph, plan)
+}
+
+fn fine_all(batching: Batching) -> Schedule {
+    let (graph, plan) = fine_all_graph();
     compile_with(&graph, &plan, &CompileOptions { batching }).unwrap()
 }
 
@@ -33,14 +39,7 @@ fn batching_is_on_by_default_and_reorders_ops_that_validate_proves() {
     let lowered = fine_all(Batching::Off);
     assert_eq!(batched.op_order, OpOrder { requested: Batching::default(), applied: Batching::default() });
     assert_eq!(lowered.op_order, OpOrder { requested: Batching::Off, applied: Batching::Off });
-    let lf = grid(3, 2, 6);
-    let plan = Plan::new(
-        &lf,
-        &PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::RoundRobin, sources: None },
-    )
-    .unwrap();
-    let mut graph = Graph::new(plan.topology.clone());
-    declare_test_pipeline(&mut graph);
+    let (graph, plan) = fine_all_graph();
     assert_eq!(compile(&graph, &plan).unwrap(), batched, "compile() batches by default");
     assert!(batched.validate().is_ok(), "{:?}", batched.validate().errors);
     assert!(lowered.validate().is_ok(), "{:?}", lowered.validate().errors);
