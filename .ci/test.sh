@@ -4,6 +4,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/setup.sh
+# A one-shot build gains nothing from incremental state (5 GB of CI's target folder).
+export CARGO_INCREMENTAL=0
+echo "disk before the build: $(df -h --output=avail . | tail -1 | tr -d ' ') free"
 
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
@@ -53,6 +56,8 @@ fi
 venv="$(pwd)/target/python-venv"
 VIRTUAL_ENV="$venv" CARGO_TARGET_DIR="$(pwd)/target" "$venv/bin/maturin" develop -q -m python/Cargo.toml
 "$venv/bin/python" -m pytest python/tests 2>&1 | tee -a "$log"
+
+echo "disk after the tests: $(df -h --output=avail . | tail -1 | tr -d ' ') free, target $(du -sh target | cut -f1)"
 
 # cargo's `test result: ok. N passed; M failed; …` lines, and pytest's `N passed, M failed in Ts`.
 awk '/^test result:/ { passed += $4; failed += $6; next }
