@@ -170,9 +170,10 @@ pub struct RenderArgs {
     #[arg(long, value_name = "SHAPE", num_args = 0..=1, default_missing_value = "auto",
           value_parser = crate::lightfield_images::parse_quilt)]
     quilt: Option<crate::lightfield_images::QuiltShape>,
-    /// Barriers between GPU ops: `tracked` (only where declared accesses conflict, so the
-    /// instances of one pass for many views overlap; synchronisation validation reports false
-    /// hazards with it), or `every-op`.
+    /// Barriers between GPU ops: `tracked` (where the compiled schedule put them, which `plan
+    /// --dot` lists: only where declared accesses conflict, so the instances of one pass for
+    /// many views overlap; synchronisation validation reports false hazards with it), or
+    /// `every-op`.
     #[arg(long, value_enum, default_value_t = BarrierArg::Tracked)]
     barriers: BarrierArg,
     /// What each GPU timestamp pair times: `per-stage` (each run of one pass's instances; with

@@ -118,6 +118,9 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
                     ExecOp::Signal(c) => copy_of.get(&c.0).map(|&c| ExecOp::Signal(c)),
                     ExecOp::Wait(c) => copy_of.get(&c.0).map(|&c| ExecOp::Wait(c)),
                     ExecOp::CopyIn(c) => copy_of.get(&c.0).map(|&c| ExecOp::CopyIn(c)),
+                    // A barrier before another rank's op guards the next op kept: one too many
+                    // is slower, never wrong.
+                    ExecOp::Barrier => Some(ExecOp::Barrier),
                 })
                 .collect()
         })

@@ -102,7 +102,8 @@ fn the_main_jobs_render_dot_is_golden() {
 
 /// `render --dot` draws the order render submits: byte for byte `plan --dot` with the same
 /// flags, here a fine scheme on 3 devices whose small copies are batched at compile time, and
-/// its comment per device lists every op of the device's program, in the order submitted
+/// its comment per device lists every op of the device's program, in the order submitted, and
+/// the barriers compiled between them
 /// (the backend submits the schedule's order as it is: backend/src/segments.rs's tests).
 #[test]
 fn render_dot_is_plan_dot_and_lists_the_batched_order_it_submits() {
@@ -125,7 +126,9 @@ fn render_dot_is_plan_dot_and_lists_the_batched_order_it_submits() {
             .collect();
         let passes = ops.iter().filter(|op| op.starts_with('p')).count();
         assert_eq!(serde_json::json!(passes), planned["passes_per_device"][d], "gpu{d}: {ops:?}");
-        copy_ops += ops.iter().filter(|op| !op.starts_with('p')).count();
+        let barriers = ops.iter().filter(|&&op| op == "barrier").count();
+        assert_eq!(serde_json::json!(barriers), planned["barriers_per_device"][d], "gpu{d}: {ops:?}");
+        copy_ops += ops.len() - passes - barriers;
     }
     // Out, signal, wait and in of every copy, gathers included.
     let copies = planned["cross_device_copies"].as_u64().unwrap() + planned["gather_copies"].as_u64().unwrap();

@@ -4,12 +4,14 @@
 //! origin, each pass instance points at the kernel its pass was declared with, device programs
 //! are ordered by device id. Nothing is re-planned;
 //! the schedule's op order (batching included, `parallax_graph::CompileOptions`) is kept exactly:
-//! it is the order the executor submits.
+//! it is the order the executor submits, with the schedule's barriers in place ([`ExecOp::Barrier`]).
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{Access, AllocId, CopyKind, Format, Graph, Op, PassId, ResourceDesc, Schedule, ScheduleError};
+use parallax_graph::{
+    Access, AllocId, CopyKind, DeviceProgram, Format, Graph, Op, PassId, ResourceDesc, Schedule, ScheduleError,
+};
 
 use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
 use crate::recorder::PassKernel;
@@ -118,23 +120,28 @@ impl ExecutionPlan {
         if ids.iter().enumerate().any(|(i, &d)| d as usize != i) {
             return Err(LowerError::DevicePrograms { found: ids, expected: programs.len() });
         }
-        let devices = programs
-            .iter()
-            .map(|p| {
-                p.ops
-                    .iter()
-                    .map(|op| match *op {
-                        Op::Pass(i) => ExecOp::Pass(i),
-                        Op::CopyOut(c) => ExecOp::CopyOut(c),
-                        Op::Signal(c) => ExecOp::Signal(c),
-                        Op::Wait(c) => ExecOp::Wait(c),
-                        Op::CopyIn(c) => ExecOp::CopyIn(c),
-                    })
-                    .collect()
-            })
-            .collect();
+        let devices = programs.iter().map(|p| program_ops(p)).collect();
         Ok(ExecutionPlan { resources, passes, copies, devices, history_pairs, kernels })
     }
+}
+
+/// `program`'s ops with a [`ExecOp::Barrier`] in front of each op the schedule put a barrier before.
+fn program_ops(program: &DeviceProgram) -> Vec<ExecOp> {
+    let mut barriers = program.barriers.iter().peekable();
+    let mut ops = Vec::with_capacity(program.ops.len() + program.barriers.len());
+    for (index, op) in program.ops.iter().enumerate() {
+        if barriers.next_if(|&&b| b as usize == index).is_some() {
+            ops.push(ExecOp::Barrier);
+        }
+        ops.push(match *op {
+            Op::Pass(i) => ExecOp::Pass(i),
+            Op::CopyOut(c) => ExecOp::CopyOut(c),
+            Op::Signal(c) => ExecOp::Signal(c),
+            Op::Wait(c) => ExecOp::Wait(c),
+            Op::CopyIn(c) => ExecOp::CopyIn(c),
+        });
+    }
+    ops
 }
 
 /// The executor resource of allocation `a`.

@@ -211,6 +211,10 @@ pub enum ExecOp {
     Wait(CopyId),
     /// Consumer side of copy `c`: shared host buffer → device.
     CopyIn(CopyId),
+    /// A memory barrier before the next op: where the schedule placed one
+    /// (`parallax_graph::DeviceProgram::barriers`), recorded as it stands under
+    /// `Barriers::Tracked`. A hand-laid plan states its own.
+    Barrier,
 }
 
 /// A whole frame: resources, pass instances, copies and one op list per device, each indexed by
@@ -224,7 +228,7 @@ pub struct ExecutionPlan {
     pub passes: Vec<ExecPass>,
     /// `copies[c]` is copy `CopyId(c)`.
     pub copies: Vec<ExecCopy>,
-    /// `devices[d]` is device d's op list in submission order.
+    /// `devices[d]` is device d's op list in submission order, with the schedule's barriers.
     pub devices: Vec<Vec<ExecOp>>,
     /// Double-buffered history allocations as (current, previous) resource pairs: passes of an
     /// even frame write `current` and read history from `previous`; odd frames swap the two.
@@ -392,7 +396,7 @@ impl ExecutionPlan {
                 }
                 ExecOp::CopyOut(c) => used.push(self.copy(c).resource),
                 ExecOp::CopyIn(c) => used.push(self.copy(c).dst),
-                ExecOp::Signal(_) | ExecOp::Wait(_) => {}
+                ExecOp::Signal(_) | ExecOp::Wait(_) | ExecOp::Barrier => {}
             }
         }
         // Both halves of a history allocation live where either is used.
@@ -566,8 +570,8 @@ mod tests {
     fn ids_serialise_as_the_plain_numbers_they_index() {
         let json = serde_json::to_value(copy_plan(8, 8).unwrap()).unwrap();
         assert_eq!(
-            (&json["devices"][0][0], &json["devices"][1][0]),
-            (&serde_json::json!({ "Pass": 0 }), &serde_json::json!({ "Wait": 0 }))
+            (&json["devices"][0][0], &json["devices"][0][1], &json["devices"][1][0]),
+            (&serde_json::json!("Barrier"), &serde_json::json!({ "Pass": 0 }), &serde_json::json!({ "Wait": 0 }))
         );
         let copy = &json["copies"][0];
         assert_eq!((copy["from"].as_u64(), copy["to"].as_u64()), (Some(0), Some(1)));

@@ -7,13 +7,14 @@
 //! each alone would be too small to fill the GPU.
 //!
 //! Images stay in `GENERAL` layout, so the only barriers needed are memory barriers: a global
-//! barrier before every op (`Barriers::EveryOp`), or (`Barriers::Tracked`) before the first
-//! op of a segment and before a later one only when it reads what an earlier op since the
-//! last barrier wrote, or writes what one read or wrote (or a kernel says it touches undeclared
-//! memory), so the instances of one pass for many views, which the graph orders one after the
-//! other, run side by side.
+//! barrier before every op (`Barriers::EveryOp`), or (`Barriers::Tracked`) where the compiled
+//! schedule put one (`parallax_graph::DeviceProgram::barriers`, the segment's
+//! [`Segment::barriers`]), before the first op of a segment (it follows other submissions), and
+//! before and after a kernel that touches undeclared memory. Nothing is looked for again here:
+//! so the instances of one pass for many views, between two of the schedule's barriers, run side
+//! by side.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::ops::Range;
 
 use ash::vk;
@@ -47,40 +48,29 @@ pub(crate) struct TimerLabel {
 }
 
 /// The ops of `segment`, as ranges of its items in order: every item alone, but for runs of
-/// consecutive instances of one pass whose kernel records groups, which end where an instance
-/// reads or writes what an earlier one of the run writes, or writes what one reads (declared
-/// accesses; the frame parity's swap of history halves maps distinct resources to distinct
-/// ones, so it changes no conflict).
+/// consecutive instances of one pass whose kernel records groups, which end where the schedule
+/// puts a barrier (an instance touches what an earlier one since the last barrier touched).
 pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<usize>> {
     let grouped_pass = |item: &Item| match *item {
         Item::Pass(p) if plan.kernels.0.get(plan.pass(p).kernel).is_some_and(|k| k.records_groups()) => Some(p),
         _ => None,
     };
     let mut groups: Vec<Range<usize>> = Vec::new();
-    // What the instances of the last group read and wrote.
-    let mut hazards = Hazards::default();
     for (i, item) in segment.items.iter().enumerate() {
-        let Some(p) = grouped_pass(item) else {
-            groups.push(i..i + 1);
-            hazards = Hazards::default();
-            continue;
-        };
-        let pass = plan.pass(p);
-        let reads: Vec<AllocId> = pass.reads.iter().chain(&pass.history_reads).map(|a| a.resource).collect();
-        let writes: Vec<AllocId> = pass.writes.iter().map(|a| a.resource).collect();
-        let joins = groups.last().is_some_and(|last| {
-            grouped_pass(&segment.items[last.start]).is_some_and(|first| {
-                let first = plan.pass(first);
-                first.kernel == pass.kernel && first.name == pass.name && !hazards.conflicts(&reads, &writes, false)
-            })
+        let joins = grouped_pass(item).is_some_and(|p| {
+            let pass = plan.pass(p);
+            !segment.barrier_before(i)
+                && groups.last().is_some_and(|last| {
+                    grouped_pass(&segment.items[last.start]).is_some_and(|first| {
+                        let first = plan.pass(first);
+                        first.kernel == pass.kernel && first.name == pass.name
+                    })
+                })
         });
-        if joins {
-            groups.last_mut().expect("joins an existing group").end = i + 1;
-        } else {
-            groups.push(i..i + 1);
-            hazards = Hazards::default();
+        match groups.last_mut() {
+            Some(last) if joins => last.end = i + 1,
+            _ => groups.push(i..i + 1),
         }
-        hazards.add(reads, writes, false);
     }
     groups
 }
@@ -276,38 +266,33 @@ fn record_items(
         }
     }
     let mut bound = None;
-    let mut hazards = Hazards::default();
     // The timestamp pair of each item (the spans tile the items in order).
     let timer_of: Vec<usize> = spans.iter().enumerate().flat_map(|(t, span)| span.clone().map(move |_| t)).collect();
-    // A span of copies is recorded as one batch: its ops are one op here.
+    // A span of copies is recorded as one batch, up to the next barrier of the schedule: its
+    // ops are one op here.
     let mut ops: Vec<Range<usize>> = Vec::new();
     for op in op_groups(ctx.plan, segment) {
         let span = &spans[timer_of[op.start]];
         let copy = !matches!(segment.items[op.start], Item::Pass(_));
         match ops.last_mut() {
-            Some(last) if copy && last.start >= span.start => last.end = op.end,
+            Some(last) if copy && last.start >= span.start && !segment.barrier_before(op.start) => last.end = op.end,
             _ => ops.push(op),
         }
     }
+    // Whether the op recorded last was a kernel that touches undeclared memory.
+    let mut after_opaque = false;
     for (g, op) in ops.into_iter().enumerate() {
         let span = &spans[timer_of[op.start]];
         let query = (first_timer + timer_of[op.start] as u32) * 2;
-        let (mut reads, mut writes, mut opaque) = (Vec::new(), Vec::new(), false);
-        for item in &segment.items[op.clone()] {
-            let (r, w, o) = touches(ctx, item);
-            reads.extend(r);
-            writes.extend(w);
-            opaque |= o;
-        }
+        let opaque = segment.items[op.clone()].iter().any(|item| touches_undeclared_memory(ctx.plan, item));
         // The first op waits for everything submitted before (other segments, the previous
-        // frame); a later one only for the ops of this segment whose results it touches, so
-        // the instances of one pass for many views run side by side.
+        // frame); a later one where the schedule says, so the instances of one pass for many
+        // views run side by side.
         let tracked = ctx.barriers == crate::executor::Barriers::Tracked;
-        if g == 0 || !tracked || hazards.conflicts(&reads, &writes, opaque) {
+        if g == 0 || !tracked || segment.barrier_before(op.start) || opaque || after_opaque {
             full_barrier(raw, cb);
-            hazards = Hazards::default();
         }
-        hazards.add(reads, writes, opaque);
+        after_opaque = opaque;
         if op.start == span.start {
             unsafe { raw.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, ctx.query_pool, query) };
         }
@@ -451,44 +436,10 @@ pub(crate) fn copies_to_host_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
     unsafe { raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
 }
 
-/// What the items since the last barrier read and wrote (resources as this slot's parity
-/// resolves them), and whether one of them touched memory its pass does not declare.
-#[derive(Default)]
-struct Hazards {
-    read: HashSet<AllocId>,
-    written: HashSet<AllocId>,
-    opaque: bool,
-}
-
-impl Hazards {
-    /// Read-after-write, write-after-write or write-after-read on a resource, or undeclared
-    /// memory on either side.
-    fn conflicts(&self, reads: &[AllocId], writes: &[AllocId], opaque: bool) -> bool {
-        opaque
-            || self.opaque
-            || reads.iter().any(|r| self.written.contains(r))
-            || writes.iter().any(|w| self.written.contains(w) || self.read.contains(w))
-    }
-
-    fn add(&mut self, reads: Vec<AllocId>, writes: Vec<AllocId>, opaque: bool) {
-        self.read.extend(reads);
-        self.written.extend(writes);
-        self.opaque |= opaque;
-    }
-}
-
-/// The resources `item` reads and writes, and whether its kernel touches undeclared memory.
-fn touches(ctx: &SegmentContext<'_>, item: &Item) -> (Vec<AllocId>, Vec<AllocId>, bool) {
-    match *item {
-        Item::Pass(p) => {
-            let pass = ctx.plan.pass(p);
-            let reads = pass.reads.iter().chain(&pass.history_reads).map(|a| ctx.resolve(a.resource)).collect();
-            let writes = pass.writes.iter().map(|a| ctx.resolve(a.resource)).collect();
-            (reads, writes, ctx.plan.kernels.0[pass.kernel].touches_undeclared_memory())
-        }
-        Item::CopyOut(chunk) => (vec![ctx.resolve(ctx.plan.copy(chunk.copy).resource)], vec![], false),
-        Item::CopyIn(chunk) => (vec![], vec![ctx.resolve(ctx.plan.copy(chunk.copy).dst)], false),
-    }
+/// Whether `item` is a pass whose kernel touches memory its pass does not declare: the schedule
+/// cannot see that, so a barrier goes before and after it.
+fn touches_undeclared_memory(plan: &ExecutionPlan, item: &Item) -> bool {
+    matches!(*item, Item::Pass(p) if plan.kernels.0[plan.pass(p).kernel].touches_undeclared_memory())
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -677,9 +628,10 @@ mod tests {
     use crate::plan::{AllocId, CopyId, DeviceId, ExecPass};
 
     #[test]
-    fn grouped_passes_are_one_op_until_an_access_conflicts_and_per_op_timing_times_each_op() {
+    fn grouped_passes_are_one_op_until_a_barrier_of_the_schedule_and_per_op_timing_times_each_op() {
         // A compaction, three fills of which the third writes what the first wrote (two bands
-        // of one view), a copy, two more fills, then another pass.
+        // of one view), a copy of what the second wrote, two more fills, then a pass reading the
+        // third's result: barriers where the schedule places them for these accesses.
         let mut plan = grouping_plans::plan(&[
             ("compact", &[], &[0]),
             ("fill", &[0], &[1]),
@@ -702,7 +654,7 @@ mod tests {
         let chunk = Chunk { copy: CopyId(0), index: 0, y0: 0, y1: 1 };
         let mut items: Vec<Item> = (0..7).map(|i| Item::Pass(InstanceId(i))).collect();
         items.insert(4, Item::CopyOut(chunk));
-        let s = segment(items);
+        let s = Segment { barriers: vec![0, 1, 3, 4, 7], ..segment(items) };
         assert_eq!(op_groups(&plan, &s), vec![0..1, 1..3, 3..4, 4..5, 5..7, 7..8]);
         assert_eq!(timer_spans(&plan, &s, Timing::PerOp), op_groups(&plan, &s));
         assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..1, 1..4, 4..5, 5..7, 7..8]);

@@ -56,6 +56,10 @@ pub struct Segment {
     /// Queue the segment is submitted to.
     pub queue: QueueKind,
     pub items: Vec<Item>,
+    /// Indices of the items the schedule puts a memory barrier before (`ExecOp::Barrier`),
+    /// increasing. The executor also puts one before the first item (it follows other
+    /// submissions) and around kernels that touch undeclared memory.
+    pub barriers: Vec<usize>,
     pub waits: Vec<ReadyWait>,
     /// Copy-out chunks completed by this segment: the relay signals their consumer once this
     /// segment's progress value is reached.
@@ -64,7 +68,22 @@ pub struct Segment {
 
 impl Default for Segment {
     fn default() -> Self {
-        Self { queue: QueueKind::Main, items: Vec::new(), waits: Vec::new(), relays: Vec::new() }
+        Self { queue: QueueKind::Main, items: Vec::new(), barriers: Vec::new(), waits: Vec::new(), relays: Vec::new() }
+    }
+}
+
+impl Segment {
+    /// Appends `item`, after a barrier when `barrier` is set (which it then clears).
+    fn push(&mut self, item: Item, barrier: &mut bool) {
+        if std::mem::take(barrier) {
+            self.barriers.push(self.items.len());
+        }
+        self.items.push(item);
+    }
+
+    /// Whether the schedule puts a barrier before item `index`.
+    pub fn barrier_before(&self, index: usize) -> bool {
+        self.barriers.binary_search(&index).is_ok()
     }
 }
 
@@ -177,12 +196,13 @@ pub fn segment_device(
     let mut split = Vec::new();
     for segment in segments {
         let mut pieces: Vec<Segment> = Vec::new();
-        for item in segment.items {
+        for (index, &item) in segment.items.iter().enumerate() {
             let queue = item.queue(plan, true);
-            match pieces.last_mut() {
-                Some(piece) if piece.queue == queue => piece.items.push(item),
-                _ => pieces.push(Segment { queue, items: vec![item], ..Segment::default() }),
+            if pieces.last().is_none_or(|piece| piece.queue != queue) {
+                pieces.push(Segment { queue, ..Segment::default() });
             }
+            let mut barrier = segment.barrier_before(index);
+            pieces.last_mut().expect("a piece for the item").push(item, &mut barrier);
         }
         // Waits guard the segment's first item (a copy-in); relays belong to its last item (a
         // copy-out chunk).
@@ -223,14 +243,17 @@ fn segment_single_queue(
     let mut segments = Vec::new();
     let mut current = Segment::default();
     let mut tail = Tail::Closed;
+    // A barrier stands before the next item pushed.
+    let mut barrier = false;
     for op in &plan.devices[device] {
         match *op {
+            ExecOp::Barrier => barrier = true,
             ExecOp::Pass(p) => {
                 // A copy-out ends its segment: the relay forwards it once the segment is done.
                 if !current.relays.is_empty() {
                     segments.push(std::mem::take(&mut current));
                 }
-                current.items.push(Item::Pass(p));
+                current.push(Item::Pass(p), &mut barrier);
                 tail = Tail::Closed;
             }
             ExecOp::CopyOut(c) => {
@@ -244,7 +267,7 @@ fn segment_single_queue(
                     if !current.relays.is_empty() && held.is_none() {
                         segments.push(std::mem::take(&mut current));
                     }
-                    current.items.push(Item::CopyOut(chunk));
+                    current.push(Item::CopyOut(chunk), &mut barrier);
                     current.relays.push(chunk);
                     tail = if small(c) { Tail::CopyOuts(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
                 }
@@ -268,7 +291,7 @@ fn segment_single_queue(
                     if dropped_wait != Some(c) {
                         current.waits.push(ReadyWait { copy: c, chunk: chunk.index });
                     }
-                    current.items.push(Item::CopyIn(chunk));
+                    current.push(Item::CopyIn(chunk), &mut barrier);
                     tail = if small(c) { Tail::CopyIns(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
                 }
             }
@@ -372,29 +395,37 @@ mod tests {
     }
 
     /// The backend submits each device's ops in the plan's order, which is the schedule's
-    /// (batching included): cutting segments and chunks changes no order.
+    /// (batching included), with the schedule's barriers before the same ops: cutting segments
+    /// and chunks changes no order and moves no barrier.
     #[test]
-    fn segments_submit_each_device_s_ops_in_the_plan_s_order() {
-        use ExecOp::{CopyIn, CopyOut, Pass, Signal, Wait};
+    fn segments_submit_each_device_s_ops_and_barriers_in_the_plan_s_order() {
+        use ExecOp::{Barrier, CopyIn, CopyOut, Pass, Signal, Wait};
         let plan = crate::bench::gather_plan(3, 64, 256).unwrap(); // 256 KiB per copy
-        // The schedule batched device 0's run of fills: its copy-outs follow the whole run.
-        let batched = [Pass(InstanceId(0)), Pass(InstanceId(1)), Pass(InstanceId(2)), CopyOut(CopyId(0))];
-        assert_eq!(plan.devices[0][..4], batched);
+        // The schedule batched device 0's run of fills: its copy-outs follow the whole run, after
+        // one barrier (they read what the fills wrote); the fills share the frame's first one.
+        let batched =
+            [Barrier, Pass(InstanceId(0)), Pass(InstanceId(1)), Pass(InstanceId(2)), Barrier, CopyOut(CopyId(0))];
+        assert_eq!(plan.devices[0][..6], batched);
         for chunk_bytes in [64 << 10, 1 << 20] {
             let chunks = chunks_of_copies(&plan, chunk_bytes);
             for separate_copy_queue in [false, true] {
                 let cut = segment_devices(&plan, &chunks, chunk_bytes, None, separate_copy_queue);
                 for (d, segments) in cut.iter().enumerate() {
                     let mut submitted: Vec<ExecOp> = Vec::new();
-                    for item in segments.iter().flat_map(|s| &s.items) {
-                        let op = match *item {
-                            Item::Pass(p) => Pass(p),
-                            Item::CopyOut(chunk) => CopyOut(chunk.copy),
-                            Item::CopyIn(chunk) => CopyIn(chunk.copy),
-                        };
-                        // A copy's chunks are consecutive items.
-                        if submitted.last() != Some(&op) {
-                            submitted.push(op);
+                    for segment in segments {
+                        for (index, item) in segment.items.iter().enumerate() {
+                            if segment.barrier_before(index) {
+                                submitted.push(Barrier);
+                            }
+                            let op = match *item {
+                                Item::Pass(p) => Pass(p),
+                                Item::CopyOut(chunk) => CopyOut(chunk.copy),
+                                Item::CopyIn(chunk) => CopyIn(chunk.copy),
+                            };
+                            // A copy's chunks are consecutive items.
+                            if submitted.last() != Some(&op) {
+                                submitted.push(op);
+                            }
                         }
                     }
                     let planned: Vec<ExecOp> =

@@ -107,6 +107,7 @@ pub fn compile_with<P>(
         op_order: OpOrder::default(),
     };
     order_programs(&mut schedule, options.batching);
+    crate::barriers::place_all(&mut schedule);
     Ok(schedule)
 }
 

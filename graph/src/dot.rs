@@ -1,5 +1,6 @@
 //! Graphviz export of a schedule: one cluster per device with its passes in program order (and,
-//! as a comment, every op of the program in the order the backend submits it), producer edges
+//! as a comment, every op of the program in the order the backend submits it and the memory
+//! barriers between them), producer edges
 //! in grey, δ-edges (reprojection reads of another view) dashed blue, each cross-device copy as
 //! a red node between clusters, and the op order's compile option as the caption. Output is deterministic: the same schedule
 //! always gives the same bytes.
@@ -76,8 +77,16 @@ impl Schedule {
                         .unwrap();
                 }
             }
-            // Every op of the program, in the order the backend submits them.
-            let ops: Vec<String> = program.ops.iter().map(|op| op_token(*op)).collect();
+            // Every op of the program, in the order the backend submits them, and the barriers
+            // between them.
+            let mut barriers = program.barriers.iter().peekable();
+            let mut ops: Vec<String> = Vec::with_capacity(program.ops.len() + program.barriers.len());
+            for (index, op) in program.ops.iter().enumerate() {
+                if barriers.next_if(|&&b| b as usize == index).is_some() {
+                    ops.push("barrier".to_string());
+                }
+                ops.push(op_token(*op));
+            }
             writeln!(w, "    // {d} submits: {}", ops.join(", ")).unwrap();
             if d.0 == 0 && self.gather_copies().next().is_some() {
                 writeln!(w, "    gathered [label=\"finished views\", shape=doubleoctagon, fillcolor=\"#ffffff\"];")

@@ -36,6 +36,7 @@
 //! ```
 
 pub mod assign;
+mod barriers;
 pub mod builder;
 pub mod compile;
 pub mod dot;

@@ -90,8 +90,9 @@ pub(crate) fn lower(
         }
     }
 
-    let mut devices: Vec<DeviceProgram> =
-        (0..device_count).map(|d| DeviceProgram { device: DeviceId(d), ops: Vec::new() }).collect();
+    let mut devices: Vec<DeviceProgram> = (0..device_count)
+        .map(|d| DeviceProgram { device: DeviceId(d), ops: Vec::new(), barriers: Vec::new() })
+        .collect();
     for &id in order {
         let ops = &mut devices[instances[id.index()].device.index()].ops;
         for &c in incoming.get(&id).into_iter().flatten() {

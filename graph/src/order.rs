@@ -277,7 +277,7 @@ mod tests {
         Schedule {
             views: instances.len() as u32,
             height: 1,
-            devices: vec![DeviceProgram { device: DeviceId(0), ops }],
+            devices: vec![DeviceProgram { device: DeviceId(0), ops, barriers: Vec::new() }],
             passes,
             resources: Vec::new(),
             allocations: Vec::new(),
@@ -450,8 +450,12 @@ mod tests {
         }];
         s.copies = vec![copy(1, 11), CrossCopy { from: DeviceId(1), to: DeviceId(0), ..copy(2, 12) }];
         let lowered = vec![
-            DeviceProgram { device: DeviceId(0), ops: vec![P(0), OUT(0), SIG(0), WAIT(1), IN(1), P(1)] },
-            DeviceProgram { device: DeviceId(1), ops: vec![WAIT(0), IN(0), P(2), OUT(1), SIG(1)] },
+            DeviceProgram {
+                device: DeviceId(0),
+                ops: vec![P(0), OUT(0), SIG(0), WAIT(1), IN(1), P(1)],
+                barriers: vec![],
+            },
+            DeviceProgram { device: DeviceId(1), ops: vec![WAIT(0), IN(0), P(2), OUT(1), SIG(1)], barriers: vec![] },
         ];
         s.devices = lowered.clone();
         // Batched, device 0 would start with the wait and end with the copy-out.

@@ -258,6 +258,11 @@ pub enum Op {
 pub struct DeviceProgram {
     pub device: DeviceId,
     pub ops: Vec<Op>,
+    /// Indices of the ops a memory barrier precedes, increasing: wherever an op reads what an
+    /// op since the last barrier wrote or writes what one touched, and at the first op that
+    /// touches memory (it follows the previous frame). Placed when the schedule is compiled,
+    /// proven by `validate()`, recorded as they stand by the backend.
+    pub barriers: Vec<u32>,
 }
 
 /// A pass dropped because nothing that is exported or side-effecting needs it.

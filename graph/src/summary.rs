@@ -34,6 +34,9 @@ pub struct PlanSummary {
     pub culled_passes: usize,
     /// Pass instances per device, in device order.
     pub passes_per_device: Vec<usize>,
+    /// Memory barriers per device program, in device order (`DeviceProgram::barriers`): the
+    /// instances of a pass for many views between two barriers run side by side.
+    pub barriers_per_device: Vec<usize>,
     /// Multi-source: whether `--sources-per-set auto` chose the sources, and per set the
     /// predicted cost of the sources and their holes (crate::source_cost); fine schemes: false
     /// and empty.
@@ -69,6 +72,7 @@ impl PlanSummary {
                 .iter()
                 .map(|p| p.ops.iter().filter(|o| matches!(o, crate::schedule::Op::Pass(_))).count())
                 .collect(),
+            barriers_per_device: schedule.devices.iter().map(|p| p.barriers.len()).collect(),
             sources_auto: plan.sources_auto,
             sources_prediction: plan.sources_prediction.clone(),
             op_order: schedule.op_order,

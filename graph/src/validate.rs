@@ -42,6 +42,14 @@ pub enum ScheduleError {
     ViewNotGathered { view: ViewId, resource: ResourceId },
     #[error("{device} waits forever at {op:?}: waits and signals form a cycle across devices")]
     Deadlock { device: DeviceId, op: Op },
+    #[error("{device}: {op:?} touches what {after:?} touched since the last barrier, with no barrier between them")]
+    MissingBarrier { device: DeviceId, op: Op, after: Op },
+    #[error("{device}: {op:?}, its first op that touches memory, has no barrier after the previous frame's ops")]
+    NoBarrierAfterLastFrame { device: DeviceId, op: Op },
+    #[error("{device}: barrier before op {index}, but the program has {ops} ops")]
+    BarrierOutOfRange { device: DeviceId, index: u32, ops: usize },
+    #[error("{device}: its barriers are not listed in increasing op order")]
+    BarriersOutOfOrder { device: DeviceId },
     #[error("{what} {index} refers to a missing {missing} {target}")]
     Dangling { what: &'static str, index: u32, missing: &'static str, target: u32 },
     #[error(
@@ -163,6 +171,7 @@ impl Schedule {
             errors.push(ScheduleError::Deadlock { device, op });
         }
         self.check_storage(&mut errors);
+        self.check_barriers(&mut errors);
         self.check_history(&mut errors);
         self.check_bands(&mut errors);
         self.check_shapes(&mut errors);

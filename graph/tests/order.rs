@@ -57,7 +57,7 @@ fn batching_is_on_by_default_and_reorders_ops_that_validate_proves() {
 }
 
 #[test]
-fn the_dot_lists_every_op_of_each_device_in_program_order() {
+fn the_dot_lists_every_op_and_barrier_of_each_device_in_program_order() {
     let s = fine_all(Batching::default());
     let dot = s.to_dot();
     for program in &s.devices {
@@ -66,12 +66,17 @@ fn the_dot_lists_every_op_of_each_device_in_program_order() {
         let expected: Vec<String> = program
             .ops
             .iter()
-            .map(|op| match *op {
-                Op::Pass(p) => p.to_string(),
-                Op::CopyOut(c) => format!("out {c}"),
-                Op::Signal(c) => format!("signal {c}"),
-                Op::Wait(c) => format!("wait {c}"),
-                Op::CopyIn(c) => format!("in {c}"),
+            .enumerate()
+            .flat_map(|(index, op)| {
+                let barrier = program.barriers.contains(&(index as u32)).then(|| "barrier".to_string());
+                let op = match *op {
+                    Op::Pass(p) => p.to_string(),
+                    Op::CopyOut(c) => format!("out {c}"),
+                    Op::Signal(c) => format!("signal {c}"),
+                    Op::Wait(c) => format!("wait {c}"),
+                    Op::CopyIn(c) => format!("in {c}"),
+                };
+                barrier.into_iter().chain([op])
             })
             .collect();
         assert_eq!(line, expected.join(", "));
@@ -106,9 +111,8 @@ fn a_consumer_moved_before_its_copy_in_is_named() {
         .expect("device 1 reads a copy");
     let (_, at) = position(&s, Op::Pass(consumer));
     let (_, wait) = position(&s, Op::Wait(copy));
-    let ops = &mut s.devices[1].ops;
-    ops.remove(at);
-    ops.insert(wait, Op::Pass(consumer));
+    remove_op(&mut s.devices[1], at);
+    insert_op(&mut s.devices[1], wait, Op::Pass(consumer));
     let errors = s.validate().errors;
     assert!(errors.contains(&ScheduleError::CopyArrivesLate { copy, consumer }), "{errors:?}");
 }
@@ -133,8 +137,7 @@ fn a_wait_moved_before_what_its_signal_needs_is_named() {
         })
         .expect("device 1 signals device 0 after waiting for it");
     let (_, wait) = position(&s, Op::Wait(copy));
-    let ops = &mut s.devices[0].ops;
-    ops.remove(wait);
-    ops.insert(0, Op::Wait(copy));
+    remove_op(&mut s.devices[0], wait);
+    insert_op(&mut s.devices[0], 0, Op::Wait(copy));
     assert_eq!(s.validate().errors, vec![ScheduleError::Deadlock { device: DeviceId(0), op: Op::Wait(copy) }]);
 }

@@ -28,7 +28,7 @@ fn first_dependency_copy(s: &Schedule) -> CopyId {
 fn dropping_a_pass_is_reported() {
     let mut s = fine_all();
     let (d, i) = position(&s, Op::Pass(InstanceId(0)));
-    s.devices[d].ops.remove(i);
+    remove_op(&mut s.devices[d], i);
     assert!(s.validate().errors.contains(&ScheduleError::InstanceNotScheduled { instance: InstanceId(0) }));
 }
 
@@ -44,8 +44,8 @@ fn a_pass_moved_to_another_device_is_reported() {
     let mut s = fine_all();
     let id = InstanceId(0);
     let (d, i) = position(&s, Op::Pass(id));
-    s.devices[d].ops.remove(i);
-    s.devices[1 - d].ops.insert(0, Op::Pass(id));
+    remove_op(&mut s.devices[d], i);
+    insert_op(&mut s.devices[1 - d], 0, Op::Pass(id));
     let placed = s.instance(id).device;
     assert!(s.validate().errors.contains(&ScheduleError::InstanceOnWrongDevice {
         instance: id,
@@ -59,7 +59,7 @@ fn dropping_a_cross_device_wait_is_reported() {
     let mut s = fine_all();
     let c = first_dependency_copy(&s);
     let (d, i) = position(&s, Op::Wait(c));
-    s.devices[d].ops.remove(i);
+    remove_op(&mut s.devices[d], i);
     assert_eq!(s.validate().errors, vec![ScheduleError::CopyOpMissing { copy: c, op: "Wait" }]);
 }
 
@@ -177,8 +177,8 @@ fn crossed_waits_deadlock() {
         .unwrap();
     for (copy, device) in [(to0, 0usize), (to1, 1usize)] {
         let (_, wait) = position(&s, Op::Wait(copy));
-        s.devices[device].ops.remove(wait);
-        s.devices[device].ops.insert(0, Op::Wait(copy));
+        remove_op(&mut s.devices[device], wait);
+        insert_op(&mut s.devices[device], 0, Op::Wait(copy));
     }
     // Device 0 is stuck first, at the wait it now starts with.
     let errors = s.validate().errors;

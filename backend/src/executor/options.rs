@@ -75,8 +75,10 @@ pub enum Barriers {
     /// Before every op: always right, and what synchronisation validation can check.
     #[default]
     EveryOp,
-    /// Before an op only where its declared accesses conflict with an op since the last
-    /// barrier, so instances of one pass for many views overlap on the GPU. Synchronisation
+    /// Where the compiled schedule put one (`parallax_graph::DeviceProgram::barriers`: an op
+    /// touches what an op since the last barrier touched), at the start of each submission, and
+    /// around kernels that touch undeclared memory, so instances of one pass for many views
+    /// overlap on the GPU. A hand-laid plan states its barriers (`ExecOp::Barrier`). Synchronisation
     /// validation reports false hazards here: it takes every dispatch to touch the whole
     /// bindless image array.
     Tracked,

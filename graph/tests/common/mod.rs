@@ -71,3 +71,27 @@ pub fn grid(cols: u32, rows: u32, res: u32) -> LightField {
 pub fn preset(spec: LayoutSpec, res: u32) -> LightField {
     LightField::new(spec, None, Some((res, res)), Rig::default()).unwrap()
 }
+
+/// Removes op `index` of `program`, keeping every barrier in front of the op it preceded (a
+/// barrier of the removed op passes to the op after it).
+pub fn remove_op(program: &mut DeviceProgram, index: usize) -> Op {
+    let op = program.ops.remove(index);
+    for b in &mut program.barriers {
+        if *b as usize > index {
+            *b -= 1;
+        }
+    }
+    program.barriers.dedup();
+    program.barriers.retain(|&b| (b as usize) < program.ops.len());
+    op
+}
+
+/// Inserts `op` at `index` of `program`, keeping every barrier in front of the op it preceded.
+pub fn insert_op(program: &mut DeviceProgram, index: usize, op: Op) {
+    program.ops.insert(index, op);
+    for b in &mut program.barriers {
+        if *b as usize >= index {
+            *b += 1;
+        }
+    }
+}
