@@ -213,7 +213,8 @@ pub enum ExecOp {
     CopyIn(CopyId),
     /// A memory barrier before the next op: where the schedule placed one
     /// (`parallax_graph::DeviceProgram::barriers`), recorded as it stands under
-    /// `Barriers::Tracked`. A hand-laid plan states its own.
+    /// `Barriers::Tracked`; groups of instances a kernel records together end at one. A
+    /// hand-laid plan states its own: the executor looks for no hazard itself.
     Barrier,
 }
 

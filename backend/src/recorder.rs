@@ -552,8 +552,9 @@ pub trait PassKernel: Send + Sync {
 
     /// Records `instances` (of `rec.plan()`) as one op, with no barrier and
     /// no timestamp between them: consecutive instances of one pass in a submission of one
-    /// device, of which none reads or writes what another one writes (so any order of their
-    /// work is right), within one timestamp pair. Only called when [`Self::records_groups`];
+    /// device that no barrier of the plan separates (the schedule puts one wherever an instance
+    /// touches what an earlier one wrote, so any order of their work is right), within one
+    /// timestamp pair. Only called when [`Self::records_groups`];
     /// a group may have one instance. The default records each instance alone.
     fn record_group(&self, rec: &mut Recorder<'_>, instances: &[InstanceId]) -> Result<()> {
         for &index in instances {
@@ -563,8 +564,8 @@ pub trait PassKernel: Send + Sync {
     }
 
     /// Whether the kernel writes memory its pass does not declare (a global buffer, say). The
-    /// executor orders an op after earlier ones only where their declared accesses conflict;
-    /// such a kernel is ordered against everything before and after it.
+    /// schedule places barriers only where declared accesses conflict; the executor puts one
+    /// before and after such a kernel, so it is ordered against everything around it.
     fn touches_undeclared_memory(&self) -> bool {
         false
     }

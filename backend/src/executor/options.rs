@@ -72,7 +72,9 @@ pub struct ExecOptions {
 /// Where barriers go between the ops of a device (record.rs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Barriers {
-    /// Before every op: always right, and what synchronisation validation can check.
+    /// Before every op: always right, and what synchronisation validation can check. (A group
+    /// of instances that a kernel records together is one op; groups end at the plan's
+    /// barriers, so a hand-laid plan with such a kernel states its `ExecOp::Barrier`s too.)
     #[default]
     EveryOp,
     /// Where the compiled schedule put one (`parallax_graph::DeviceProgram::barriers`: an op
