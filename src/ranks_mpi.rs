@@ -358,14 +358,16 @@ fn serve_links(comm: LinkComm, commands: &Receiver<LinkCommand>, hosts: &[String
         sending = still;
         while let Some(probed) = comm.any_process().immediate_matched_probe_with_tag(TAG_CHUNK) {
             let rank = probed.1.source_rank() as usize;
-            let (message, _) = probed.matched_receive_vec::<u8>();
+            let (mut message, _) = probed.matched_receive_vec::<u8>();
             last_heard[rank] = Instant::now();
             if message.len() < 12 {
                 continue;
             }
             let word = |i: usize| u32::from_le_bytes(message[4 * i..4 * i + 4].try_into().expect("4 bytes"));
             let key = ChunkKey { from: word(0), to: word(1), copy: word(2) };
-            arrived.entry(key).or_default().push_back(message[12..].to_vec());
+            // The chunk's bytes, moved down over the key in place: no second allocation.
+            message.drain(..12);
+            arrived.entry(key).or_default().push_back(message);
             busy = true;
         }
         for (key, queue) in &mut waiting {

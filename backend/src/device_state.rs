@@ -392,6 +392,15 @@ pub(crate) fn create_staging(
                 LinkKind::Relay | LinkKind::Remote => {
                     let buffer = SharedHostBuffer::new(&ends, size)?;
                     staging.host_bytes += buffer.size;
+                    // A remote link's host thread reads and writes the staging itself, with no
+                    // flush or invalidation: only coherent memory makes that right.
+                    if let Some(device) = buffer.first_incoherent_device().filter(|_| kind == LinkKind::Remote) {
+                        let detail = "a remote link's host staging imports here only as memory that is not \
+                            host-coherent, and its MPI thread reads and writes that staging directly; under mpirun \
+                            use --scheme multi-source (no links between ranks), or a driver that imports host \
+                            pointers as HOST_COHERENT memory";
+                        return Err(BackendError::HostImport { device, detail: detail.into() });
+                    }
                     LinkBuffer::Host(buffer)
                 }
             });

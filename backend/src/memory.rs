@@ -313,6 +313,9 @@ struct HostImport {
     device: Arc<Device>,
     buffer: vk::Buffer,
     memory: vk::DeviceMemory,
+    /// The memory type is `HOST_COHERENT`: the device's copies and the host's own reads and
+    /// writes of the allocation see each other without flushes or invalidations.
+    coherent: bool,
 }
 
 // The raw pointer is only handed to Vulkan; the struct owns the allocation outright.
@@ -409,13 +412,22 @@ impl SharedHostBuffer {
             }
             return Err(BackendError::vk("vkBindBufferMemory(host pointer import)", result));
         }
-        Ok(HostImport { device: device.clone(), buffer, memory })
+        let coherent = memory_props.memory_types[memory_type as usize]
+            .property_flags
+            .contains(vk::MemoryPropertyFlags::HOST_COHERENT);
+        Ok(HostImport { device: device.clone(), buffer, memory, coherent })
     }
 
     /// The allocation's first byte, for the host threads of remote links (remote.rs), which
     /// read and write it while no device copies through it.
     pub(crate) fn host_ptr(&self) -> *mut u8 {
         self.ptr
+    }
+
+    /// The first device that imported the allocation as memory that is not `HOST_COHERENT`
+    /// (the host would need to flush and invalidate around its own accesses), if any.
+    pub(crate) fn first_incoherent_device(&self) -> Option<usize> {
+        self.imports.iter().find(|i| !i.coherent).map(|i| i.device.info.index)
     }
 
     /// The `VkBuffer` through which device `device_index` sees the allocation.
