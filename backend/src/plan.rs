@@ -1,7 +1,8 @@
 //! The execution plan: the part of a compiled `Schedule` the executor needs, as plain data with
 //! indices resolved. It mirrors the graph crate's op lists one to one (pass, copy-out, signal,
-//! wait, copy-in per device, in submission order), so lowering a `Schedule` is a field-by-field
-//! translation, and the executor can be tested with hand-written plans.
+//! wait, copy-in per device, in submission order, with the schedule's barriers as
+//! [`ExecOp::Barrier`]), so lowering a `Schedule` is a field-by-field translation, and the
+//! executor can be tested with hand-written plans.
 
 use std::collections::HashMap;
 use std::sync::Arc;
