@@ -7,6 +7,11 @@ bash .ci/setup.sh
 # A one-shot build gains nothing from incremental state (5 GB of CI's target folder).
 export CARGO_INCREMENTAL=0
 echo "disk before the build: $(df -h --output=avail . | tail -1 | tr -d ' ') free"
+# The target folder reaches about 4 GB (docs/RESULTS.md, "CI's disk"); less room than that ends
+# in a linker's bus error or "No space left on device" far into the build.
+if [ "$(df --output=avail -k . | tail -1)" -lt $((6 * 1024 * 1024)) ]; then
+  echo "warning: less than 6 GB free here; the build and tests need about 4 GB for target/" >&2
+fi
 
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
