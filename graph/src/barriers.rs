@@ -96,7 +96,7 @@ pub(crate) fn place_all(schedule: &mut Schedule) {
 impl Schedule {
     /// Every program's barrier list is increasing and names its ops, and every hazard between two
     /// of its ops (and between its first memory op and the previous frame) has a barrier between.
-    /// Ops whose ids dangle are left to the checks that name them.
+    /// Runs after `validate()` has refused dangling ids, so every op's ids index.
     pub(crate) fn check_barriers(&self, errors: &mut Vec<ScheduleError>) {
         for program in &self.devices {
             let device = program.device;
@@ -116,21 +116,8 @@ impl Schedule {
     }
 
     fn first_unguarded_hazard(&self, device: DeviceId, ops: &[Op], barriers: &[u32]) -> Option<ScheduleError> {
-        let dangles = |op: Op| match op {
-            Op::Pass(i) => self.instances.get(i.index()).is_none_or(|inst| {
-                inst.reads
-                    .iter()
-                    .chain(&inst.writes)
-                    .chain(&inst.history_reads)
-                    .any(|a| a.alloc.index() >= self.allocations.len())
-            }),
-            Op::CopyOut(c) | Op::CopyIn(c) | Op::Signal(c) | Op::Wait(c) => c.index() >= self.copies.len(),
-        };
         let mut since: Option<SinceBarrier> = None;
         for (index, &op) in ops.iter().enumerate() {
-            if dangles(op) {
-                return None;
-            }
             let (reads, writes) = accesses(self, op);
             if barriers.binary_search(&(index as u32)).is_ok() {
                 since = Some(SinceBarrier::default());
