@@ -26,7 +26,7 @@ use bytemuck::{Pod, Zeroable};
 use clap::Parser;
 use parallax::cmd_render::{RenderArgs, RenderExtension, run_extended};
 use parallax_accuracy::exposure::LogAverage;
-use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, ReadSlot, Role, SourcesSlot, WriteSlot};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::{InsertionPoint, Layers, PipelineBuilder, PipelineHandles};
@@ -60,13 +60,13 @@ struct MeasureKernel {
 }
 
 impl PassKernel for MeasureKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        let src = pass.read(self.radiance)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        let src = pass.read(self.radiance)?.alloc;
         let (width, height) = (rec.resource(src).width, rec.resource(src).height);
         let push = ExposurePush {
             mode: 0,
             src: rec.image(src)?,
-            dst: rec.image(pass.write(self.measure)?.resource)?,
+            dst: rec.image(pass.write(self.measure)?.alloc)?,
             width,
             height,
             ..Default::default()
@@ -83,13 +83,13 @@ struct ExposeKernel {
 }
 
 impl PassKernel for ExposeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let images: Vec<u32> =
-            pass.sources(self.measures)?.map(|a| rec.image(a.resource)).collect::<parallax_backend::Result<_>>()?;
+            pass.sources(self.measures)?.map(|a| rec.image(a.alloc)).collect::<parallax_backend::Result<_>>()?;
         let list = rec.recording_buffer("expose: measures", bytemuck::cast_slice(&images))?;
         let push = ExposurePush {
             mode: 1,
-            dst: rec.image(pass.write(self.exposure)?.resource)?,
+            dst: rec.image(pass.write(self.exposure)?.alloc)?,
             views: images.len() as u32,
             list: list.address(),
             ..Default::default()
@@ -153,7 +153,7 @@ fn check_exposure(
     let plan = renderer.executor().plan();
     let linear = handles.linear;
     let width = plan.resources.iter().find(|r| r.family == linear).map_or(1, |r| r.width as usize);
-    let views = plan.passes.iter().map(|p| p.view + 1).max().unwrap_or(0);
+    let views = plan.passes.iter().map(|p| p.view.0 + 1).max().unwrap_or(0);
     let mut average = LogAverage::default();
     let mut display_steps = 0;
     for v in 0..views {

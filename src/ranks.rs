@@ -95,7 +95,7 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
     let mut pass_of: HashMap<u32, InstanceId> = HashMap::new();
     for (i, p) in global.passes.iter().enumerate().filter(|(_, p)| linked || local(p.device)) {
         pass_of.insert(i as u32, InstanceId(passes.len() as u32));
-        passes.push(parallax_backend::ExecPass { device: rename(p.device), ..p.clone() });
+        passes.push(parallax_backend::PassInstance { device: rename(p.device), ..p.clone() });
     }
     let mut copies = Vec::new();
     let mut copy_of: HashMap<u32, CopyId> = HashMap::new();
@@ -298,7 +298,7 @@ mod tests {
     }
 
     fn views_in(plan: &ExecutionPlan) -> Vec<u32> {
-        plan.passes.iter().map(|p| p.view).collect::<BTreeSet<u32>>().into_iter().collect()
+        plan.passes.iter().map(|p| p.view.0).collect::<BTreeSet<u32>>().into_iter().collect()
     }
 
     #[test]

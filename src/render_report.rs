@@ -221,7 +221,7 @@ pub fn missing_pixels(
         let Some(mask) = mask else { continue };
         per_view.push((v as u32, mask.iter().filter(|&&h| h != 0).count() as f64 / mask.len().max(1) as f64));
         for (device, write) in plan.final_writes(holes_family, v as u32) {
-            let rows = &mask[(write.rows.y0 * width) as usize..(write.rows.y1 * width) as usize];
+            let rows = &mask[(write.region.y0 * width) as usize..(write.region.y1 * width) as usize];
             missed[device.index()] += rows.iter().filter(|&&h| h != 0).count() as u64;
             total[device.index()] += rows.len() as u64;
         }

@@ -18,7 +18,7 @@ use crate::device::DeviceInfo;
 use crate::error::Result;
 use crate::executor::{ExecOptions, Executor};
 use crate::lower::KernelGraph;
-use crate::plan::{CopyId, ExecPass, ExecutionPlan, InstanceId};
+use crate::plan::{CopyId, ExecutionPlan, InstanceId, PassInstance};
 use crate::recorder::{PassKernel, Recorder};
 use crate::timing::{EventKind, FrameReport};
 
@@ -126,8 +126,8 @@ pub const BENCH_FILL: &str = "bench_fill";
 const PAYLOAD: &str = "payload";
 
 impl PassKernel for BenchFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
-        let dst = pass.write(self.payload)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
+        let dst = pass.write(self.payload)?.alloc;
         let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows(BENCH_FILL, params)
     }
@@ -150,7 +150,7 @@ fn declare_fill<'g>(
 struct ReceiveKernel;
 
 impl PassKernel for ReceiveKernel {
-    fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> Result<()> {
+    fn record(&self, _: &mut Recorder<'_>, _: &PassInstance, _: InstanceId) -> Result<()> {
         Ok(())
     }
 }

@@ -108,8 +108,8 @@ pub enum BackendError {
 
     /// A kernel bound a slot token its pass instance does not have (one another pass's
     /// declaration returned).
-    #[error("pass `{pass}` has no access for {slot}: bind through the slots the pass's own declaration returned")]
-    UnboundSlot { pass: String, slot: String },
+    #[error(transparent)]
+    UnboundSlot(#[from] parallax_graph::UnboundSlot),
 
     /// A kernel asked for a global buffer that was never uploaded.
     #[error("no global buffer `{name}` on device {device}; upload it with Executor::upload_buffer before running")]

@@ -49,10 +49,10 @@
 //!     payload: WriteSlot,
 //! }
 //! impl PassKernel for Fill {
-//!     fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
-//!         let dst = pass.write(self.payload)?.resource;
-//!         let params = PassParams { dst: rec.image(dst)?, view: pass.view, y0: pass.rows.y0,
-//!                                   y1: pass.rows.y1, width: rec.resource(dst).width, ..Default::default() };
+//!     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
+//!         let dst = pass.write(self.payload)?.alloc;
+//!         let params = PassParams { dst: rec.image(dst)?, view: pass.view.0, y0: pass.region.y0,
+//!                                   y1: pass.region.y1, width: rec.resource(dst).width, ..Default::default() };
 //!         rec.dispatch_rows("bench_fill", params)
 //!     }
 //! }
@@ -134,9 +134,9 @@ pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
-    AllocId, CopyId, DeviceId, ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, ExecutionPlanError,
-    FamilyId, Format, HistorySlot, InstanceId, MAX_RESET_WORDS, PassId, ReadSlot, Region, ResourceKind, SourcesSlot,
-    WriteSlot,
+    Access, AllocId, CopyId, DeviceId, ExecCopy, ExecOp, ExecResource, ExecutionPlan, ExecutionPlanError, FamilyId,
+    Format, HistorySlot, InstanceId, Kernels, MAX_RESET_WORDS, Origin, PassId, PassInstance, ReadSlot, Region,
+    ResourceId, ResourceKind, SourcesSlot, ViewId, WriteSlot, own_access,
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};

@@ -1,19 +1,17 @@
 //! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
 //! [`ExecutionPlan`]: allocations become resources of their declared resource's family (a history pair's
-//! halves, swapped by frame parity, are its `history_pairs`), ids keep the schedule's types and numbers, accesses keep their resource name, declaration index (what slot tokens name) and
-//! origin, each pass instance points at the kernel its pass was declared with, device programs
-//! are ordered by device id. Nothing is re-planned;
+//! halves, swapped by frame parity, are its `history_pairs`), ids keep the schedule's types and
+//! numbers, pass instances are the schedule's own (kernels bind their slot tokens there), each
+//! declared pass keeps the kernel it was declared with, device programs are ordered by device id. Nothing is re-planned;
 //! the schedule's op order (batching included, `parallax_graph::CompileOptions`) is kept exactly:
 //! it is the order the executor submits, with the schedule's barriers in place ([`ExecOp::Barrier`]).
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{
-    Access, AllocId, CopyKind, DeviceProgram, Format, Graph, Op, PassId, ResourceDesc, Schedule, ScheduleError,
-};
+use parallax_graph::{AllocId, CopyKind, DeviceProgram, Format, Graph, Op, ResourceDesc, Schedule, ScheduleError};
 
-use crate::plan::{ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
+use crate::plan::{ExecCopy, ExecOp, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
 use crate::recorder::PassKernel;
 
 /// A render graph whose passes carry their kernels: what the executor runs.
@@ -46,9 +44,8 @@ impl ExecutionPlan {
             return Err(LowerError::Invalid { first: errors.swap_remove(0), problems });
         }
         let mut kernels = Kernels::default();
-        let mut kernel_of: HashMap<PassId, usize> = HashMap::new();
         for inst in &schedule.instances {
-            if kernel_of.contains_key(&inst.pass) {
+            if kernels.of(inst.pass).is_some() {
                 continue;
             }
             let kernel =
@@ -58,8 +55,7 @@ impl ExecutionPlan {
             if kernel.records_groups() && !schedule.passes[inst.pass.index()].grouped {
                 return Err(LowerError::UngroupedKernel { pass: inst.name.clone() });
             }
-            kernels.0.push(kernel.clone());
-            kernel_of.insert(inst.pass, kernels.0.len() - 1);
+            kernels.insert(inst.pass, kernel.clone());
         }
 
         // A history pair's previous half holds no version of the frame: it is its current half's
@@ -74,33 +70,6 @@ impl ExecutionPlan {
             .collect();
         let history_pairs = schedule.history.iter().map(|p| (p.current, p.previous)).collect();
 
-        let rows_of = |a: &Access| Region::new(a.region.y0, a.region.y1);
-        let passes = schedule
-            .instances
-            .iter()
-            .map(|p| {
-                let info = &schedule.passes[p.pass.index()];
-                let access = |a: &Access, names: &[parallax_graph::SlotInfo]| ExecAccess {
-                    resource: a.alloc,
-                    version: a.version,
-                    rows: rows_of(a),
-                    slot: names[a.decl as usize].name.clone(),
-                    decl: a.decl,
-                    origin: a.origin,
-                };
-                ExecPass {
-                    name: p.name.clone(),
-                    kernel: kernel_of[&p.pass],
-                    pass: p.pass,
-                    view: p.view.0,
-                    rows: Region::new(p.region.y0, p.region.y1),
-                    device: p.device,
-                    reads: p.reads.iter().map(|a| access(a, &info.reads)).collect(),
-                    writes: p.writes.iter().map(|a| access(a, &info.writes)).collect(),
-                    history_reads: p.history_reads.iter().map(|a| access(a, &info.reads)).collect(),
-                }
-            })
-            .collect();
         let copies = schedule
             .copies
             .iter()
@@ -121,7 +90,7 @@ impl ExecutionPlan {
             return Err(LowerError::DevicePrograms { found: ids, expected: programs.len() });
         }
         let devices = programs.iter().map(|p| program_ops(p)).collect();
-        Ok(ExecutionPlan { resources, passes, copies, devices, history_pairs, kernels })
+        Ok(ExecutionPlan { resources, passes: schedule.instances.clone(), copies, devices, history_pairs, kernels })
     }
 }
 

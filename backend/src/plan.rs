@@ -1,20 +1,19 @@
-//! The execution plan: the part of a compiled `Schedule` the executor needs, as plain data with
-//! indices resolved. It mirrors the graph crate's op lists one to one (pass, copy-out, signal,
-//! wait, copy-in per device, in submission order, with the schedule's barriers as
-//! [`ExecOp::Barrier`]), so lowering a `Schedule` is a field-by-field translation, and the
-//! executor can be tested with hand-written plans.
+//! The execution plan: the part of a compiled `Schedule` the executor needs, with indices
+//! resolved. Its pass instances are the schedule's own [`PassInstance`]s, which kernels record
+//! from, and its kernels are found by the declared pass ([`Kernels`]); its op lists follow the
+//! graph crate's one to one (pass, copy-out, signal, wait, copy-in per device, in submission
+//! order, with the schedule's barriers as [`ExecOp::Barrier`]), so the executor can be tested
+//! with hand-written plans.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 
 pub use parallax_graph::{
-    AllocId, CopyId, DeviceId, FamilyId, Format, HistorySlot, InstanceId, Origin, PassId, ReadSlot, Region,
-    SourcesSlot, WriteSlot,
+    Access, AllocId, CopyId, DeviceId, FamilyId, Format, HistorySlot, InstanceId, Origin, PassId, PassInstance,
+    ReadSlot, Region, ResourceId, SourcesSlot, ViewId, WriteSlot,
 };
 
 use parallax_graph::{Role, ViewTopology};
-
-use crate::error::BackendError;
 
 use crate::recorder::PassKernel;
 
@@ -108,79 +107,11 @@ impl ExecResource {
     }
 }
 
-/// One access of a pass instance to a resource version, over a row band.
-#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct ExecAccess {
-    /// The allocation ([`ExecutionPlan::resource`]).
-    pub resource: AllocId,
-    pub version: u32,
-    pub rows: Region,
-    /// The declared slot's name (for messages).
-    pub slot: String,
-    /// Index of the declared read (or write) this access instantiates among its pass's reads
-    /// (or writes): what a slot token ([`ReadSlot`], ...) names.
-    pub decl: u16,
-    pub origin: Origin,
-}
-
-impl ExecAccess {
-    /// An access of the instance's own view under slot `slot`, the pass's declared read or
-    /// write number `decl`.
-    pub fn own(slot: impl Into<String>, decl: u16, resource: AllocId, version: u32, rows: Region) -> Self {
-        Self { resource, version, rows, slot: slot.into(), decl, origin: Origin::Own }
-    }
-}
-
-/// One pass instance: a pass of the graph run for one view (or a row band of it) on one device.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct ExecPass {
-    /// Pass name (for timings and messages; the kernel is [`Self::kernel`]).
-    pub name: String,
-    /// Index of the pass's kernel in [`ExecutionPlan::kernels`].
-    pub kernel: usize,
-    /// The declared pass this instantiates: the one whose slot tokens bind here.
-    pub pass: PassId,
-    pub view: u32,
-    pub rows: Region,
-    pub device: DeviceId,
-    /// Reads in declaration order (sources of one read in source order).
-    pub reads: Vec<ExecAccess>,
-    pub writes: Vec<ExecAccess>,
-    /// Reads of the previous frame's final version (its other half, by frame parity).
-    pub history_reads: Vec<ExecAccess>,
-}
-
-impl ExecPass {
-    /// The own-view read its pass declared as `slot`.
-    pub fn read(&self, slot: ReadSlot) -> crate::Result<&ExecAccess> {
-        let found = self.reads.iter().find(|a| a.decl == slot.index() && a.origin == Origin::Own);
-        found.filter(|_| slot.pass() == self.pass).ok_or_else(|| self.unbound(format!("{slot:?}")))
-    }
-
-    /// The reads of every source (in the view's source order) its pass declared as `slot`;
-    /// none for a view without sources.
-    pub fn sources(&self, slot: SourcesSlot) -> crate::Result<impl Iterator<Item = &ExecAccess> + '_> {
-        if slot.pass() != self.pass {
-            return Err(self.unbound(format!("{slot:?}")));
-        }
-        Ok(self.reads.iter().filter(move |a| a.decl == slot.index() && matches!(a.origin, Origin::Source(_))))
-    }
-
-    /// Last frame's final version its pass declared as `slot`.
-    pub fn history_read(&self, slot: HistorySlot) -> crate::Result<&ExecAccess> {
-        let found = self.history_reads.iter().find(|a| a.decl == slot.index());
-        found.filter(|_| slot.pass() == self.pass).ok_or_else(|| self.unbound(format!("{slot:?}")))
-    }
-
-    /// The write its pass declared as `slot`.
-    pub fn write(&self, slot: WriteSlot) -> crate::Result<&ExecAccess> {
-        let found = self.writes.iter().find(|a| a.decl == slot.index());
-        found.filter(|_| slot.pass() == self.pass).ok_or_else(|| self.unbound(format!("{slot:?}")))
-    }
-
-    fn unbound(&self, slot: String) -> BackendError {
-        BackendError::UnboundSlot { pass: self.name.clone(), slot }
-    }
+/// An access of a pass instance's own view in a hand-laid plan: version `version` of allocation
+/// `alloc` over `rows`, the pass's declared read or write number `decl`. A hand-laid plan has no
+/// declared resources, so the access names its allocation as its resource.
+pub fn own_access(decl: u16, alloc: AllocId, version: u32, rows: Region) -> Access {
+    Access { resource: ResourceId(alloc.0), version, region: rows, alloc, origin: Origin::Own, decl, in_place: false }
 }
 
 /// A transfer of a row band of one resource version from one device to another.
@@ -226,8 +157,8 @@ pub enum ExecOp {
 pub struct ExecutionPlan {
     /// `resources[a]` is allocation `AllocId(a)`.
     pub resources: Vec<ExecResource>,
-    /// `passes[i]` is instance `InstanceId(i)`.
-    pub passes: Vec<ExecPass>,
+    /// `passes[i]` is instance `InstanceId(i)`: the schedule's instances as compiled.
+    pub passes: Vec<PassInstance>,
     /// `copies[c]` is copy `CopyId(c)`.
     pub copies: Vec<ExecCopy>,
     /// `devices[d]` is device d's op list in submission order, with the schedule's barriers.
@@ -236,18 +167,19 @@ pub struct ExecutionPlan {
     /// even frame write `current` and read history from `previous`; odd frames swap the two.
     /// Command buffers are recorded once per parity, so the swap costs nothing per frame.
     pub history_pairs: Vec<(AllocId, AllocId)>,
-    /// The kernels passes run, by [`ExecPass::kernel`].
+    /// The kernel of each declared pass, which records its instances.
     #[serde(skip)]
     pub kernels: Kernels,
 }
 
-/// The kernels of a plan. Two plans' kernels are equal when they are the same objects.
+/// The kernels of a plan, by the declared pass whose instances they record. Two plans' kernels
+/// are equal when they are the same objects for the same passes.
 #[derive(Clone, Default)]
-pub struct Kernels(pub Vec<Arc<dyn PassKernel>>);
+pub struct Kernels(BTreeMap<PassId, Arc<dyn PassKernel>>);
 
 impl PartialEq for Kernels {
     fn eq(&self, other: &Self) -> bool {
-        self.0.len() == other.0.len() && self.0.iter().zip(&other.0).all(|(a, b)| Arc::ptr_eq(a, b))
+        self.0.len() == other.0.len() && self.0.iter().zip(&other.0).all(|((p, a), (q, b))| p == q && Arc::ptr_eq(a, b))
     }
 }
 
@@ -258,10 +190,19 @@ impl std::fmt::Debug for Kernels {
 }
 
 impl Kernels {
-    /// Adds `kernel`; returns its index.
-    pub fn push(&mut self, kernel: impl PassKernel + 'static) -> usize {
-        self.0.push(Arc::new(kernel));
-        self.0.len() - 1
+    /// Sets `pass`'s kernel.
+    pub fn insert(&mut self, pass: PassId, kernel: Arc<dyn PassKernel>) {
+        self.0.insert(pass, kernel);
+    }
+
+    /// `pass`'s kernel, if it has one.
+    pub fn of(&self, pass: PassId) -> Option<&Arc<dyn PassKernel>> {
+        self.0.get(&pass)
+    }
+
+    /// Drops `pass`'s kernel (a test's way to make a plan the executor refuses).
+    pub fn remove(&mut self, pass: PassId) -> Option<Arc<dyn PassKernel>> {
+        self.0.remove(&pass)
     }
 }
 
@@ -273,8 +214,8 @@ impl Kernels {
 pub enum ExecutionPlanError {
     #[error("plan has {plan} device programs but the context has {context} devices")]
     DeviceCount { plan: usize, context: usize },
-    #[error("pass instance {index} (`{pass}`) runs kernel {kernel}, which the plan does not have")]
-    MissingKernel { pass: String, index: InstanceId, kernel: usize },
+    #[error("pass instance {index} (`{pass}`) has no kernel in the plan: give its pass one")]
+    MissingKernel { pass: String, index: InstanceId },
     #[error("resource {resource} is an image: only buffers can be reset each frame")]
     ResetOfImage { resource: AllocId },
     #[error(
@@ -307,16 +248,16 @@ impl ExecutionPlan {
         let pass = declared.record();
         let all = Region::new(0, resource.height);
         let mut kernels = Kernels::default();
+        kernels.insert(pass, Arc::new(kernel(write)));
         ExecutionPlan {
-            passes: vec![ExecPass {
-                name: name.to_string(),
-                kernel: kernels.push(kernel(write)),
+            passes: vec![PassInstance {
                 pass,
-                view: resource.view,
-                rows: all,
+                name: name.to_string(),
+                view: ViewId(resource.view),
+                region: all,
                 device: DeviceId(0),
                 reads: vec![],
-                writes: vec![ExecAccess::own(resource.name.clone(), write.index(), AllocId(0), 1, all)],
+                writes: vec![own_access(write.index(), AllocId(0), 1, all)],
                 history_reads: vec![],
             }],
             resources: vec![resource],
@@ -335,8 +276,15 @@ impl ExecutionPlan {
     }
 
     /// Pass instance `i`.
-    pub fn pass(&self, i: InstanceId) -> &ExecPass {
+    pub fn pass(&self, i: InstanceId) -> &PassInstance {
         &self.passes[i.index()]
+    }
+
+    /// The kernel that records instance `i`. Plans the executor runs are validated
+    /// ([`Self::validate`]): every instance's pass has one.
+    pub fn kernel(&self, i: InstanceId) -> &Arc<dyn PassKernel> {
+        let pass = self.pass(i).pass;
+        self.kernels.of(pass).unwrap_or_else(|| panic!("pass {pass} has no kernel: the plan was not validated"))
     }
 
     /// Copy `c`.
@@ -355,7 +303,7 @@ impl ExecutionPlan {
     }
 
     /// Every pass instance with its id, in id order.
-    pub fn pass_ids(&self) -> impl Iterator<Item = (InstanceId, &ExecPass)> + '_ {
+    pub fn pass_ids(&self) -> impl Iterator<Item = (InstanceId, &PassInstance)> + '_ {
         self.passes.iter().enumerate().map(|(i, p)| (InstanceId(i as u32), p))
     }
 
@@ -365,8 +313,8 @@ impl ExecutionPlan {
         if self.devices.len() != context_devices {
             return Err(ExecutionPlanError::DeviceCount { plan: self.devices.len(), context: context_devices });
         }
-        if let Some((index, p)) = self.pass_ids().find(|(_, p)| p.kernel >= self.kernels.0.len()) {
-            return Err(ExecutionPlanError::MissingKernel { pass: p.name.clone(), index, kernel: p.kernel });
+        if let Some((index, p)) = self.pass_ids().find(|(_, p)| self.kernels.of(p.pass).is_none()) {
+            return Err(ExecutionPlanError::MissingKernel { pass: p.name.clone(), index });
         }
         for (a, r) in self.resource_ids() {
             let Some(header) = &r.reset else {
@@ -394,7 +342,7 @@ impl ExecutionPlan {
             match *op {
                 ExecOp::Pass(p) => {
                     let pass = self.pass(p);
-                    used.extend(pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).map(|a| a.resource));
+                    used.extend(pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).map(|a| a.alloc));
                 }
                 ExecOp::CopyOut(c) => used.push(self.copy(c).resource),
                 ExecOp::CopyIn(c) => used.push(self.copy(c).dst),
@@ -424,10 +372,10 @@ impl ExecutionPlan {
     /// The writes of the final version of the declared resource `family` for `view` in a frame,
     /// with the device of each: one per row band, in instance order. Empty when no pass writes
     /// `family` there.
-    pub fn final_writes(&self, family: FamilyId, view: u32) -> Vec<(DeviceId, &ExecAccess)> {
+    pub fn final_writes(&self, family: FamilyId, view: u32) -> Vec<(DeviceId, &Access)> {
         let writes = || {
-            self.passes.iter().filter(move |p| p.view == view).flat_map(move |p| {
-                p.writes.iter().filter(move |w| self.resource(w.resource).family == family).map(move |w| (p.device, w))
+            self.passes.iter().filter(move |p| p.view == ViewId(view)).flat_map(move |p| {
+                p.writes.iter().filter(move |w| self.resource(w.alloc).family == family).map(move |w| (p.device, w))
             })
         };
         let Some(version) = writes().map(|(_, w)| w.version).max() else {
@@ -447,11 +395,11 @@ impl ExecutionPlan {
             .into_iter()
             .map(|(device, w)| {
                 let gathered = |c: &&ExecCopy| {
-                    c.to == primary && c.resource == w.resource && c.version == w.version && c.rows == w.rows
+                    c.to == primary && c.resource == w.alloc && c.version == w.version && c.rows == w.region
                 };
                 match (device != primary).then(|| self.copies.iter().find(gathered)).flatten() {
-                    Some(copy) => (primary, copy.dst, w.rows),
-                    None => (device, w.resource, w.rows),
+                    Some(copy) => (primary, copy.dst, w.region),
+                    None => (device, w.alloc, w.region),
                 }
             })
             .collect();
@@ -483,7 +431,7 @@ mod tests {
     struct Idle;
 
     impl PassKernel for Idle {
-        fn record(&self, _: &mut crate::Recorder<'_>, _: &ExecPass, _: InstanceId) -> crate::Result<()> {
+        fn record(&self, _: &mut crate::Recorder<'_>, _: &PassInstance, _: InstanceId) -> crate::Result<()> {
             Ok(())
         }
     }
@@ -540,17 +488,18 @@ mod tests {
         let plan = copy_plan(8, 8).unwrap();
         assert_eq!(plan.validate(3), Err(ExecutionPlanError::DeviceCount { plan: 2, context: 3 }));
         let mut plan = overhead_plan(1, 2, 8).unwrap();
-        let kernel = plan.kernels.0.len();
-        plan.passes[1].kernel = kernel;
-        let pass = plan.passes[1].name.clone();
-        assert_eq!(plan.validate(1), Err(ExecutionPlanError::MissingKernel { pass, index: InstanceId(1), kernel }));
+        let removed = plan.passes[1].pass;
+        assert!(plan.kernels.remove(removed).is_some());
+        let (index, first) = plan.pass_ids().find(|(_, p)| p.pass == removed).unwrap();
+        let pass = first.name.clone();
+        assert_eq!(plan.validate(1), Err(ExecutionPlanError::MissingKernel { pass, index }));
     }
 
     /// A kernel for plans that are validated, never recorded.
     struct Nothing;
 
     impl PassKernel for Nothing {
-        fn record(&self, _: &mut crate::Recorder<'_>, _: &ExecPass, _: InstanceId) -> crate::Result<()> {
+        fn record(&self, _: &mut crate::Recorder<'_>, _: &PassInstance, _: InstanceId) -> crate::Result<()> {
             Ok(())
         }
     }

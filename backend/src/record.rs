@@ -52,19 +52,16 @@ pub(crate) struct TimerLabel {
 /// puts a barrier (an instance touches what an earlier one since the last barrier touched).
 pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<usize>> {
     let grouped_pass = |item: &Item| match *item {
-        Item::Pass(p) if plan.kernels.0.get(plan.pass(p).kernel).is_some_and(|k| k.records_groups()) => Some(p),
+        Item::Pass(p) if plan.kernels.of(plan.pass(p).pass).is_some_and(|k| k.records_groups()) => Some(p),
         _ => None,
     };
     let mut groups: Vec<Range<usize>> = Vec::new();
     for (i, item) in segment.items.iter().enumerate() {
         let joins = grouped_pass(item).is_some_and(|p| {
-            let pass = plan.pass(p);
             !segment.barrier_before(i)
                 && groups.last().is_some_and(|last| {
-                    grouped_pass(&segment.items[last.start]).is_some_and(|first| {
-                        let first = plan.pass(first);
-                        first.kernel == pass.kernel && first.name == pass.name
-                    })
+                    grouped_pass(&segment.items[last.start])
+                        .is_some_and(|first| plan.pass(first).pass == plan.pass(p).pass)
                 })
         });
         match groups.last_mut() {
@@ -156,7 +153,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
                 TimerLabel {
                     name: pass.name.clone(),
                     kind: EventKind::Pass,
-                    view: pass.view,
+                    view: pass.view.0,
                     index: p.index(),
                     chunk: 0,
                     copies: 0,
@@ -324,7 +321,7 @@ fn record_passes(
     let instances: Vec<InstanceId> =
         items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
     let first = instances[0];
-    let kernel = ctx.plan.kernels.0[ctx.plan.pass(first).kernel].clone();
+    let kernel = ctx.plan.kernel(first).clone();
     let mut rec = Recorder {
         pass: &ctx.plan.pass(first).name,
         parity_map: ctx.parity_map,
@@ -439,7 +436,7 @@ pub(crate) fn copies_to_host_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
 /// Whether `item` is a pass whose kernel touches memory its pass does not declare: the schedule
 /// cannot see that, so a barrier goes before and after it.
 fn touches_undeclared_memory(plan: &ExecutionPlan, item: &Item) -> bool {
-    matches!(*item, Item::Pass(p) if plan.kernels.0[plan.pass(p).kernel].touches_undeclared_memory())
+    matches!(*item, Item::Pass(p) if plan.kernel(p).touches_undeclared_memory())
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -575,7 +572,11 @@ pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
 /// Hand-laid plans of grouped passes, for the tests of grouping here and in segments.rs.
 #[cfg(test)]
 pub(crate) mod grouping_plans {
-    use crate::plan::{AllocId, DeviceId, ExecAccess, ExecOp, ExecPass, ExecutionPlan, InstanceId, Kernels, Region};
+    use std::sync::Arc;
+
+    use crate::plan::{
+        DeviceId, ExecOp, ExecutionPlan, InstanceId, Kernels, PassId, PassInstance, Region, ViewId, own_access,
+    };
     use crate::recorder::{PassKernel, Recorder};
 
     /// Records nothing; `groups` says whether it records groups.
@@ -584,7 +585,7 @@ pub(crate) mod grouping_plans {
     }
 
     impl PassKernel for Nothing {
-        fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> crate::Result<()> {
+        fn record(&self, _: &mut Recorder<'_>, _: &PassInstance, _: InstanceId) -> crate::Result<()> {
             Ok(())
         }
 
@@ -598,34 +599,41 @@ pub(crate) mod grouping_plans {
     /// on device 0; reads and writes are allocation numbers.
     pub(crate) fn plan(passes: &[(&str, &[u32], &[u32])]) -> ExecutionPlan {
         let mut kernels = Kernels::default();
-        let plain = kernels.push(Nothing { groups: false });
-        let grouped = kernels.push(Nothing { groups: true });
         let rows = Region::new(0, 1);
-        let access = |&r: &u32| ExecAccess::own("slot", 0, AllocId(r), 1, rows);
-        let passes: Vec<ExecPass> = passes
+        let access = |&r: &u32| own_access(0, crate::plan::AllocId(r), 1, rows);
+        let passes: Vec<PassInstance> = passes
             .iter()
             .enumerate()
-            .map(|(view, &(name, reads, writes))| ExecPass {
-                name: name.to_string(),
-                kernel: if name == "fill" { grouped } else { plain },
-                pass: parallax_graph::PassId(view as u32),
-                view: view as u32,
-                rows,
-                device: DeviceId(0),
-                reads: reads.iter().map(access).collect(),
-                writes: writes.iter().map(access).collect(),
-                history_reads: Vec::new(),
+            .map(|(view, &(name, reads, writes))| {
+                let pass = pass_named(name, passes);
+                kernels.insert(pass, Arc::new(Nothing { groups: name == "fill" }));
+                PassInstance {
+                    pass,
+                    name: name.to_string(),
+                    view: ViewId(view as u32),
+                    region: rows,
+                    device: DeviceId(0),
+                    reads: reads.iter().map(access).collect(),
+                    writes: writes.iter().map(access).collect(),
+                    history_reads: Vec::new(),
+                }
             })
             .collect();
         let ops = (0..passes.len() as u32).map(|i| ExecOp::Pass(InstanceId(i))).collect();
         ExecutionPlan { passes, devices: vec![ops], kernels, ..ExecutionPlan::default() }
+    }
+
+    /// The declared pass of the instances named `name`: one per distinct name, numbered by its
+    /// first instance.
+    fn pass_named(name: &str, passes: &[(&str, &[u32], &[u32])]) -> PassId {
+        PassId(passes.iter().position(|p| p.0 == name).expect("a name of the plan") as u32)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plan::{AllocId, CopyId, DeviceId, ExecPass};
+    use crate::plan::{AllocId, CopyId, DeviceId, PassInstance, ViewId};
 
     #[test]
     fn grouped_passes_are_one_op_until_a_barrier_of_the_schedule_and_per_op_timing_times_each_op() {
@@ -665,14 +673,14 @@ mod tests {
         assert_eq!(op_groups(&plain, &s), vec![0..1, 1..2, 2..3]);
     }
 
-    /// A plan whose passes are named `names` (one instance each, view = index).
+    /// A plan whose passes are named `names` (one instance each, view = index; one declared pass
+    /// per distinct name).
     fn plan_of(names: &[&str]) -> ExecutionPlan {
-        let pass = |(view, name): (usize, &&str)| ExecPass {
+        let pass = |(view, name): (usize, &&str)| PassInstance {
+            pass: parallax_graph::PassId(names.iter().position(|n| n == name).unwrap() as u32),
             name: name.to_string(),
-            kernel: 0,
-            pass: parallax_graph::PassId(view as u32),
-            view: view as u32,
-            rows: parallax_graph::Region::new(0, 1),
+            view: ViewId(view as u32),
+            region: parallax_graph::Region::new(0, 1),
             device: DeviceId(0),
             reads: Vec::new(),
             writes: Vec::new(),

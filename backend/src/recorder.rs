@@ -15,7 +15,7 @@ use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
-use crate::plan::{AllocId, ExecPass, ExecResource, ExecutionPlan, Format, InstanceId, Region};
+use crate::plan::{Access, AllocId, ExecResource, ExecutionPlan, Format, InstanceId, PassInstance, Region};
 use crate::push::{self, PushConstants};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
@@ -135,8 +135,8 @@ impl<'a> Recorder<'a> {
     }
 
     /// The image slot of access `access` (see [`Self::image`]).
-    pub fn image_of(&self, access: &crate::plan::ExecAccess) -> Result<u32> {
-        self.image(access.resource)
+    pub fn image_of(&self, access: &Access) -> Result<u32> {
+        self.image(access.alloc)
     }
 
     /// The plan's description of `resource`.
@@ -356,12 +356,12 @@ impl<'a> Recorder<'a> {
 
     /// The [`PassParams`] of a kernel that writes image `dst` over `pass`'s row band: `dst`,
     /// `view`, `y0`, `y1` and `width` set, the rest zero.
-    pub fn row_params(&self, pass: &ExecPass, dst: AllocId) -> Result<PassParams> {
+    pub fn row_params(&self, pass: &PassInstance, dst: AllocId) -> Result<PassParams> {
         Ok(PassParams {
             dst: self.image(dst)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            view: pass.view.0,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width: self.resource(dst).width,
             ..Default::default()
         })
@@ -541,7 +541,7 @@ fn check_push<P: PushConstants>(pass: &str, pipeline: &Pipeline) -> Result<()> {
 /// reprojection, denoising, ...; the backend ships the small kernels its own tests use.
 pub trait PassKernel: Send + Sync {
     /// Records instance `index` of the plan (`pass` = `plan.pass(index)`).
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> Result<()>;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> Result<()>;
 
     /// Whether the executor hands this kernel's instances to [`Self::record_group`] in groups
     /// rather than one by one to [`Self::record`]: for work whose instances are too small to

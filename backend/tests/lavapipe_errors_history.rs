@@ -120,8 +120,8 @@ fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u3
     for v in 0..views {
         let (device, resource) = plan.final_output(acc, v).unwrap();
         let current = floats(&exec.read_resource(device, resource).unwrap());
-        let writer = plan.passes.iter().find(|p| p.view == v).unwrap();
-        let own = writer.writes.iter().map(|w| w.resource).find(|&w| plan.resource(w).family == acc).unwrap();
+        let writer = plan.passes.iter().find(|p| p.view.0 == v).unwrap();
+        let own = writer.writes.iter().map(|w| w.alloc).find(|&w| plan.resource(w).family == acc).unwrap();
         // Reads resolve through the last frame's parity: `own` is what it wrote, its twin what
         // the frame before wrote (what its history reads saw).
         let other = plan.history_pairs.iter().find(|(a, _)| *a == own).unwrap().1;

@@ -81,8 +81,8 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
     let expected: Vec<usize> = plan
         .passes
         .iter()
-        .filter(|p| p.device == dropped.to && p.reads.iter().any(|a| a.resource == dropped.resource))
-        .map(|p| p.view as usize)
+        .filter(|p| p.device == dropped.to && p.reads.iter().any(|a| a.alloc == dropped.resource))
+        .map(|p| p.view.index())
         .collect();
     assert!(!expected.is_empty());
     for separate_copy_queue in [false, true] {

@@ -7,8 +7,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecPass, ExecResource, ExecutionPlan, Executor, FrameBlock, FrameClock,
-    FrameData, FrameHeader, GpuCamera, InstanceId, KernelGraph, PassKernel, Recorder, ViewCameras, WriteSlot,
+    BackendError, Context, ExecOptions, ExecResource, ExecutionPlan, Executor, FrameBlock, FrameClock, FrameData,
+    FrameHeader, GpuCamera, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, ViewCameras, WriteSlot,
     check_push_constants,
 };
 use parallax_graph::{
@@ -113,10 +113,10 @@ struct FrameFillKernel {
 }
 
 impl PassKernel for FrameFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let params = FrameFillParams {
-            dst: rec.image(pass.write(self.out)?.resource)?,
-            view: pass.view,
+            dst: rec.image(pass.write(self.out)?.alloc)?,
+            view: pass.view.0,
             width: SIZE,
             height: SIZE,
             block: rec.frame_block_address()?,
@@ -231,10 +231,10 @@ struct FrameProbeKernel {
 }
 
 impl PassKernel for FrameProbeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let push = FrameBlockProbe {
             block: rec.frame_block_address()?,
-            target: rec.buffer_of(pass.write(self.out)?.resource)?,
+            target: rec.buffer_of(pass.write(self.out)?.alloc)?,
             max_views: self.views,
             pad: 0,
         };

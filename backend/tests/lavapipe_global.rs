@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    ExecPass, ExecutionPlan, Executor, InstanceId, KernelGraph, PassKernel, PassParams, Recorder, ResourceKind,
+    ExecutionPlan, Executor, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder, ResourceKind,
 };
 use parallax_graph::{
     AssignStrategy, DeviceId, FamilyId, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme,
@@ -58,13 +58,13 @@ struct BlendWithGlobal {
 }
 
 impl PassKernel for BlendWithGlobal {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        let dst = pass.write(self.out)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        let dst = pass.write(self.out)?.alloc;
         let base = rec.row_params(pass, dst)?;
         let params = PassParams {
-            src0: rec.image(pass.read(self.own)?.resource)?,
-            src1: rec.image(pass.read(self.other)?.resource)?,
-            param: shift_of_view(pass.view, base.width),
+            src0: rec.image(pass.read(self.own)?.alloc)?,
+            src1: rec.image(pass.read(self.other)?.alloc)?,
+            param: shift_of_view(pass.view.0, base.width),
             ..base
         };
         rec.dispatch_rows("shift_blend", params)

@@ -7,9 +7,8 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecAccess, ExecOptions, ExecPass, ExecResource,
-    ExecutionPlan, ExecutionPlanError, Executor, Format, InstanceId, KernelGraph, PassKernel, Recorder, Region,
-    Validation,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecResource, ExecutionPlan, ExecutionPlanError,
+    Executor, Format, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, Region, Validation, own_access,
 };
 use parallax_graph::{AllocId, BandedPlacement, FamilyId, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_testkit::kernels::reference_mask;
@@ -74,8 +73,8 @@ struct ArgsKernel {
 }
 
 impl PassKernel for ArgsKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        record_args(rec, pass.write(self.args)?.resource)
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        record_args(rec, pass.write(self.args)?.alloc)
     }
 }
 
@@ -86,8 +85,8 @@ struct CountKernel {
 }
 
 impl PassKernel for CountKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        record_count(rec, pass.read(self.args)?.resource, pass.write(self.counter)?.resource)
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        record_count(rec, pass.read(self.args)?.alloc, pass.write(self.counter)?.alloc)
     }
 }
 
@@ -101,10 +100,10 @@ struct FusedKernel {
 }
 
 impl PassKernel for FusedKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        let args = pass.write(self.args)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        let args = pass.write(self.args)?.alloc;
         record_args(rec, args)?;
-        record_count(rec, args, pass.write(self.counter)?.resource)
+        record_count(rec, args, pass.write(self.counter)?.alloc)
     }
 }
 
@@ -115,7 +114,7 @@ struct MisusedKernel {
 }
 
 impl PassKernel for MisusedKernel {
-    fn record(&self, rec: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, _: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let push = IndirectCountParams { args: 0, counter: 0 };
         rec.dispatch_indirect("test_indirect_count", &push, self.resource, self.offset)
     }
@@ -196,7 +195,7 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
         let args = ExecResource::buffer("args", FamilyId(0), 0, 16);
         let mut plan = ExecutionPlan::single_pass("misused", |_| kernel, args, 1);
         plan.resources.push(image.clone());
-        plan.passes[0].writes.push(ExecAccess::own("image", 1, AllocId(1), 1, Region::new(0, 4)));
+        plan.passes[0].writes.push(own_access(1, AllocId(1), 1, Region::new(0, 4)));
         plan
     };
     let ctx = context();

@@ -9,9 +9,9 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    BACKEND_SHADERS, BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan,
-    Executor, InstanceId, KernelGraph, PassKernel, PassParams, Recorder, SearchedShaders, ShaderLibrary, SpirvDefect,
-    Validation, shader_names,
+    BACKEND_SHADERS, BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, Executor,
+    InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder, SearchedShaders, ShaderLibrary,
+    SpirvDefect, Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
 use parallax_graph::{
@@ -47,8 +47,8 @@ struct ReadWriteKernel {
 }
 
 impl PassKernel for ReadWriteKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        let (src, dst) = (pass.read(self.src)?.resource, pass.write(self.dst)?.resource);
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        let (src, dst) = (pass.read(self.src)?.alloc, pass.write(self.dst)?.alloc);
         let params = PassParams { src0: rec.image(src)?, ..rec.row_params(pass, dst)? };
         rec.dispatch_rows(self.shader, params)
     }
@@ -167,11 +167,11 @@ struct SwappedRowsKernel {
 }
 
 impl PassKernel for SwappedRowsKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        let p = rec.row_params(pass, pass.write(self.dst)?.resource)?;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        let p = rec.row_params(pass, pass.write(self.dst)?.alloc)?;
         let push =
             SwappedRows { dst: p.dst, src0: 0, src1: 0, view: p.view, y1: p.y1, y0: p.y0, width: p.width, param: 0 };
-        rec.dispatch("fill", &push, [p.width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+        rec.dispatch("fill", &push, [p.width.div_ceil(8), pass.region.len().div_ceil(8), 1])
     }
 }
 

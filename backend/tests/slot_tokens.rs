@@ -4,20 +4,20 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, ExecutionPlan, InstanceId, KernelGraph, PassKernel, Recorder};
-use parallax_graph::{BandedPlacement, Format, Origin, Role, ViewId, ViewTopology, compile};
+use parallax_backend::{BackendError, ExecutionPlan, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
+use parallax_graph::{BandedPlacement, Format, Origin, Role, UnboundSlot, ViewId, ViewTopology, compile};
 
 /// A kernel that records nothing: these tests only look at the lowered plan.
 struct Nothing;
 
 impl PassKernel for Nothing {
-    fn record(&self, _: &mut Recorder<'_>, _: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, _: &mut Recorder<'_>, _: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         Ok(())
     }
 }
 
-fn pass_named<'p>(plan: &'p ExecutionPlan, name: &str, view: u32) -> &'p ExecPass {
-    plan.passes.iter().find(|p| p.name == name && p.view == view).unwrap()
+fn pass_named<'p>(plan: &'p ExecutionPlan, name: &str, view: u32) -> &'p PassInstance {
+    plan.passes.iter().find(|p| p.name == name && p.view == ViewId(view)).unwrap()
 }
 
 #[test]
@@ -45,10 +45,10 @@ fn each_token_binds_its_own_access_and_a_foreign_one_is_refused() {
     let placement = BandedPlacement { devices: 1, bands: 1 };
     let plan = ExecutionPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();
     let blend = pass_named(&plan, "blend", 1);
-    let name = |access: &parallax_backend::ExecAccess| plan.resource(access.resource).name.clone();
+    let name = |access: &parallax_backend::Access| plan.resource(access.alloc).name.clone();
     assert_eq!(name(blend.read(own).unwrap()), "radiance");
     assert_eq!(blend.read(own).unwrap().origin, Origin::Own);
-    let source_views: Vec<u32> = blend.sources(sources).unwrap().map(|a| plan.resource(a.resource).view).collect();
+    let source_views: Vec<u32> = blend.sources(sources).unwrap().map(|a| plan.resource(a.alloc).view).collect();
     assert_eq!(source_views, [0]);
     assert_eq!(name(blend.history_read(history).unwrap()), "acc");
     assert_eq!(name(blend.write(accumulated).unwrap()), "acc");
@@ -57,12 +57,17 @@ fn each_token_binds_its_own_access_and_a_foreign_one_is_refused() {
 
     // `trace` declared no reads: `blend`'s read token names nothing there.
     match pass_named(&plan, "trace", 1).read(own) {
-        Err(BackendError::UnboundSlot { pass, .. }) => assert_eq!(pass, "trace"),
-        other => panic!("expected BackendError::UnboundSlot, got {other:?}"),
+        Err(UnboundSlot { pass, .. }) => assert_eq!(pass, "trace"),
+        other => panic!("expected UnboundSlot, got {other:?}"),
     }
     // `blend` has a write at `trace`'s write's index, but the token is `trace`'s.
-    match blend.write(traced) {
-        Err(BackendError::UnboundSlot { pass, .. }) => assert_eq!(pass, "blend"),
+    let refused = blend.write(traced).unwrap_err();
+    assert_eq!(refused.pass, "blend");
+    // A kernel's `?` turns it into the backend's error, message kept.
+    let message = refused.to_string();
+    match BackendError::from(refused) {
+        BackendError::UnboundSlot(UnboundSlot { pass, .. }) => assert_eq!(pass, "blend"),
         other => panic!("expected BackendError::UnboundSlot, got {other:?}"),
     }
+    assert!(message.starts_with("pass `blend`'s kernel binds WriteSlot("), "{message}");
 }

@@ -15,8 +15,8 @@ use anyhow::{Context as _, Result, bail, ensure};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    AllocId, BackendError, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, ExecPass, ExecutionPlan,
-    Executor, FamilyId, InstanceId, KernelGraph, PassKernel, Recorder, Validation,
+    AllocId, BackendError, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, ExecutionPlan, Executor,
+    FamilyId, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, Validation,
 };
 use parallax_graph::{
     AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme, SourcesSlot,
@@ -60,8 +60,8 @@ struct PatternKernel {
 }
 
 impl PassKernel for PatternKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        let dst = pass.write(self.radiance)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        let dst = pass.write(self.radiance)?.alloc;
         let params = rec.row_params(pass, dst)?;
         rec.dispatch_rows("pattern", params)
     }
@@ -94,14 +94,14 @@ struct BlendKernel {
 }
 
 impl PassKernel for BlendKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let (own, dst) = (pass.read(self.own)?, pass.write(self.blended)?);
-        let width = rec.resource(dst.resource).width;
+        let width = rec.resource(dst.alloc).width;
         let mut params = BlendParams {
-            dst: rec.image(dst.resource)?,
-            own: rec.image(own.resource)?,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            dst: rec.image(dst.alloc)?,
+            own: rec.image(own.alloc)?,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             ..Default::default()
         };
@@ -109,11 +109,11 @@ impl PassKernel for BlendKernel {
             if i == MAX_SOURCES {
                 return Err(misuse("blend", index, &format!("blends at most {MAX_SOURCES} sources")));
             }
-            params.source_image[i] = rec.image(source.resource)?;
-            params.shift[i] = shift(pass.view, rec.resource(source.resource).view, self.cols, width);
+            params.source_image[i] = rec.image(source.alloc)?;
+            params.shift[i] = shift(pass.view.0, rec.resource(source.alloc).view, self.cols, width);
             params.sources += 1;
         }
-        rec.dispatch("blend", &params, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+        rec.dispatch("blend", &params, [width.div_ceil(8), pass.region.len().div_ceil(8), 1])
     }
 }
 

@@ -110,8 +110,8 @@ pub enum ReadScope {
     EveryView,
 }
 
-/// What a kernel keeps of its pass's declaration and binds through (the backend's
-/// `ExecPass::read`, `sources`, `history_read`, `write`): one declared access of one pass, by
+/// What a kernel keeps of its pass's declaration and binds through ([`PassInstance::read`](crate::PassInstance::read),
+/// `sources`, `history_read`, `write`): one declared access of one pass, by
 /// the pass and the access's index among its reads or writes. Only the pass builder makes them,
 /// so a kernel binds only what its pass declared, and a misspelt slot does not compile.
 macro_rules! slot_token {
@@ -562,7 +562,7 @@ impl<P> PassBuilder<'_, P> {
     }
 
     /// Reads every view's current version of a per-view resource, every row, from a
-    /// [`Role::Global`] pass; the kernel sees view `i` as source `i` (`ExecPass::sources`).
+    /// [`Role::Global`] pass; the kernel sees view `i` as source `i` (`PassInstance::sources`).
     pub fn read_every_view_slot<K>(&mut self, h: &Handle<K>) -> SourcesSlot {
         SourcesSlot(self.id, self.push_read(h, ReadScope::EveryView))
     }

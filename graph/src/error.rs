@@ -113,3 +113,16 @@ pub enum GraphError {
 fn kind_of(global: &bool) -> &'static str {
     if *global { "global " } else { "per-view " }
 }
+
+/// A kernel asked a pass instance for a slot token of another pass: kernels bind only the
+/// slots their own pass declared (`PassInstance::read`, `sources`, `history_read`, `write`).
+#[derive(Clone, Debug, Error, PartialEq, Eq)]
+#[error(
+    "pass `{pass}`'s kernel binds {slot}, which its pass did not declare: use the slot tokens returned where `{pass}` is declared"
+)]
+pub struct UnboundSlot {
+    /// The instance's pass.
+    pub pass: String,
+    /// The token asked for (its `Debug` form: kind, declaring pass, index).
+    pub slot: String,
+}

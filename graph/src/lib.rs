@@ -37,6 +37,7 @@
 
 pub mod assign;
 mod barriers;
+mod binding;
 pub mod builder;
 pub mod compile;
 pub mod dot;
@@ -63,7 +64,7 @@ pub use builder::{
     WriteSlot,
 };
 pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile, compile_with};
-pub use error::{GraphError, PlanError};
+pub use error::{GraphError, PlanError, UnboundSlot};
 pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use order::{Batching, CompileOptions, DEFAULT_CHUNK_BYTES, OpOrder};

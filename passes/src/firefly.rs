@@ -34,7 +34,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{BackendError, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, HistorySlot, Image, ReadSlot, Role, WriteSlot};
 
 /// Pass name of the bound and share pass.
@@ -158,12 +158,12 @@ enum Stage {
 struct FireflyKernel(Stage);
 
 impl PassKernel for FireflyKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let (shader, written) = match self.0 {
             Stage::Bound { share, .. } => (FIREFLY_BOUND, share),
             Stage::Spread { radiance, .. } => (FIREFLY_SPREAD, radiance),
         };
-        let target = rec.resource(pass.write(written)?.resource);
+        let target = rec.resource(pass.write(written)?.alloc);
         if target.format != Format::Rgba32f {
             return Err(BackendError::KernelMisuse {
                 kernel: shader.into(),
@@ -172,8 +172,8 @@ impl PassKernel for FireflyKernel {
             });
         }
         let (width, height) = (target.width, target.height);
-        let read = |slot: ReadSlot| rec.image(pass.read(slot)?.resource);
-        let write = |slot: WriteSlot| rec.image(pass.write(slot)?.resource);
+        let read = |slot: ReadSlot| rec.image(pass.read(slot)?.alloc);
+        let write = |slot: WriteSlot| rec.image(pass.write(slot)?.alloc);
         let (radiance, position, share) = match self.0 {
             Stage::Bound { radiance, position, share, .. } => (read(radiance)?, read(position)?, write(share)?),
             Stage::Spread { position, share, radiance } => (write(radiance)?, read(position)?, read(share)?),
@@ -182,8 +182,8 @@ impl PassKernel for FireflyKernel {
             radiance,
             position,
             share,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             height,
             k: FIREFLY_K,
@@ -191,17 +191,17 @@ impl PassKernel for FireflyKernel {
             ..bytemuck::Zeroable::zeroed()
         };
         if let Stage::Bound { frames_before, frames, .. } = self.0 {
-            push.frames_before = rec.image(pass.history_read(frames_before)?.resource)?;
+            push.frames_before = rec.image(pass.history_read(frames_before)?.alloc)?;
             push.frames = write(frames)?;
             // A graph run without cameras (no frame block) cannot tell a still camera: every
             // frame is bounded as a first one.
             if let Ok(block) = rec.frame_block_address() {
-                push.view = pass.view;
+                push.view = pass.view.0;
                 push.block = block;
                 push.flags = CAMERAS;
             }
         }
-        let groups = [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1];
+        let groups = [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1];
         rec.dispatch(shader, &push, groups)
     }
 }

@@ -10,7 +10,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES};
@@ -67,26 +67,26 @@ struct GbufferKernel {
 }
 
 impl PassKernel for GbufferKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
-        let image = |rec: &Recorder<'_>, slot| pass.write(slot).and_then(|w| rec.image(w.resource));
-        let position_depth = pass.write(self.position_depth)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
+        let image = |rec: &Recorder<'_>, slot| rec.image(pass.write(slot)?.alloc);
+        let position_depth = pass.write(self.position_depth)?.alloc;
         let width = rec.resource(position_depth).width;
         let push = GbufferPush {
             scene: scene_refs(rec)?,
-            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
+            trace: rec.frame_data_address() + u64::from(pass.view.0) * TRACE_PARAMS_BYTES,
             block: rec.frame_block_address()?,
             position_depth: rec.image(position_depth)?,
             normal_metallic: image(rec, self.normal_metallic)?,
             albedo_roughness: image(rec, self.albedo_roughness)?,
             motion: image(rec, self.motion)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            view: pass.view.0,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             first_hit: self.first_hit.map_or(Ok(NO_IMAGE), |slot| image(rec, slot))?,
             pad: 0,
         };
-        rec.dispatch("gbuffer_trace", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
+        rec.dispatch("gbuffer_trace", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
     }
 }
 
@@ -119,22 +119,22 @@ struct MotionKernel {
 }
 
 impl PassKernel for MotionKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let (position, motion) = (pass.read(self.position_depth)?, pass.write(self.motion)?);
-        let desc = rec.resource(position.resource);
+        let desc = rec.resource(position.alloc);
         let (width, height) = (desc.width, desc.height);
         let push = MotionPush {
             block: rec.frame_block_address()?,
-            position_depth: rec.image(position.resource)?,
-            motion: rec.image(motion.resource)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            position_depth: rec.image(position.alloc)?,
+            motion: rec.image(motion.alloc)?,
+            view: pass.view.0,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             height,
             pad: 0,
         };
-        rec.dispatch("motion", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
+        rec.dispatch("motion", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
     }
 }
 

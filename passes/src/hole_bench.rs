@@ -10,8 +10,8 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecPass, ExecutionPlan, Executor, Format, FrameClock, FrameData, FrameReport,
-    InstanceId, KernelGraph, PassKernel, PassParams, Recorder,
+    BackendError, Context, ExecOptions, ExecutionPlan, Executor, Format, FrameClock, FrameData, FrameReport,
+    InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder,
 };
 use parallax_graph::{BandedPlacement, FamilyId, Role, ViewId, ViewTopology, WriteSlot, compile};
 use parallax_scene::gpu::GpuScene;
@@ -53,16 +53,16 @@ pub struct HashedHoleMaskKernel {
 }
 
 impl PassKernel for HashedHoleMaskKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let mask = pass.write(self.mask)?;
-        if rec.resource(mask.resource).format != Format::R32u {
+        if rec.resource(mask.alloc).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: HOLE_MASK.into(),
                 instance: Some(index),
                 detail: "writes its mask into an R32u image".into(),
             });
         }
-        let params = PassParams { param: self.threshold, ..rec.row_params(pass, mask.resource)? };
+        let params = PassParams { param: self.threshold, ..rec.row_params(pass, mask.alloc)? };
         rec.dispatch_rows("hole_mask_hashed", params)
     }
 }

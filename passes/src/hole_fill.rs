@@ -22,7 +22,7 @@
 //! indices are known when the op is recorded, the counts only on the GPU.
 
 use parallax_backend::{
-    BackendError, ExecPass, Format, InstanceId, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
+    BackendError, Format, InstanceId, PassInstance, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
 };
 
 use crate::holes::HOLE_FILL;
@@ -88,7 +88,7 @@ pub struct HoleFillKernel {
 }
 
 impl PassKernel for HoleFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, _pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, _pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         self.record_group(rec, &[index])
     }
 
@@ -122,7 +122,7 @@ impl HoleFillKernel {
     fn target_of(
         &self,
         rec: &Recorder<'_>,
-        pass: &ExecPass,
+        pass: &PassInstance,
         index: InstanceId,
     ) -> parallax_backend::Result<HoleFillTarget> {
         let misuse =
@@ -131,13 +131,13 @@ impl HoleFillKernel {
         if pass.writes.len() != 1 {
             return Err(misuse("writes its radiance only".into()));
         }
-        let image = rec.resource(radiance.resource);
+        let image = rec.resource(radiance.alloc);
         if image.kind != ResourceKind::Image || image.format == Format::R32u || image.format.is_depth() {
             return Err(misuse(format!("its write `{}` must be a float image", image.name)));
         }
         let first_hit = match self.first_hit {
             Some(slot) => {
-                let layer = pass.read(slot)?.resource;
+                let layer = pass.read(slot)?.alloc;
                 let desc = rec.resource(layer);
                 if desc.kind != ResourceKind::Image || desc.format != Format::R32u {
                     return Err(misuse(format!("its read `{}` must be an R32u image", desc.name)));
@@ -149,8 +149,8 @@ impl HoleFillKernel {
         let (list, _capacity) = list_section(rec, list, index)?;
         Ok(HoleFillTarget {
             list,
-            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
-            radiance: rec.image(radiance.resource)?,
+            trace: rec.frame_data_address() + u64::from(pass.view.0) * TRACE_PARAMS_BYTES,
+            radiance: rec.image(radiance.alloc)?,
             first_group: 0,
             count: 0,
             first_hit,

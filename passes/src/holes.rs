@@ -8,7 +8,9 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, Format, InstanceId, KernelGraph, PassKernel, Recorder, ResourceKind};
+use parallax_backend::{
+    BackendError, Format, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, ResourceKind,
+};
 use parallax_graph::{Buffer, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::hole_fill::HoleFillKernel;
@@ -80,18 +82,18 @@ pub struct CompactHolesKernel {
 }
 
 impl PassKernel for CompactHolesKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let misuse =
             |detail: String| BackendError::KernelMisuse { kernel: COMPACT_HOLES.into(), instance: Some(index), detail };
         let (holes, list) = (pass.read(self.holes)?, pass.write(self.list)?);
-        let mask = rec.resource(holes.resource);
+        let mask = rec.resource(holes.alloc);
         if mask.kind != ResourceKind::Image || mask.format != Format::R32u {
             return Err(misuse(format!("`{}` must be an R32u image", mask.name)));
         }
         let width = mask.width;
-        let buffer = rec.resource(list.resource);
+        let buffer = rec.resource(list.alloc);
         // The band's section holds its header and an entry for every pixel of the band.
-        let rows = u64::from(list.rows.len());
+        let rows = u64::from(list.region.len());
         let fits = rows * buffer.row_bytes() >= 4 * (rows * u64::from(width) + u64::from(LIST_HEADER_WORDS));
         if buffer.kind != ResourceKind::Buffer || buffer.height != mask.height || !fits {
             return Err(misuse(format!(
@@ -101,18 +103,18 @@ impl PassKernel for CompactHolesKernel {
                 hole_list_row_bytes(width)
             )));
         }
-        if list.rows.is_empty() {
+        if list.region.is_empty() {
             return Ok(());
         }
         let push = CompactHolesPush {
-            list: rec.buffer_of(list.resource)? + u64::from(list.rows.y0) * buffer.row_bytes(),
-            holes: rec.image(holes.resource)?,
-            y0: list.rows.y0,
-            y1: list.rows.y1,
+            list: rec.buffer_of(list.alloc)? + u64::from(list.region.y0) * buffer.row_bytes(),
+            holes: rec.image(holes.alloc)?,
+            y0: list.region.y0,
+            y1: list.region.y1,
             width,
         };
         // 8x8-pixel tiles, one workgroup each (see compact_holes.comp).
-        rec.dispatch("compact_holes", &push, [width.div_ceil(8), list.rows.len().div_ceil(8), 1])
+        rec.dispatch("compact_holes", &push, [width.div_ceil(8), list.region.len().div_ceil(8), 1])
     }
 }
 

@@ -16,7 +16,7 @@
 //!   re-recording; the scene from [`crate::upload_scene`].
 
 use parallax_backend::{
-    BackendError, ExecAccess, ExecPass, Format, InstanceId, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
+    Access, BackendError, Format, InstanceId, PassInstance, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
 };
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams, TraceLighting};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
@@ -106,18 +106,18 @@ parallax_backend::push_constants!(PathTracePush {
 });
 
 impl PassKernel for PathTraceKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let mut images = [NO_IMAGE; 4];
         let mut width = 0;
         for (image, slot) in images.iter_mut().zip(self.outputs) {
             let Some(slot) = slot else { continue };
             let write = pass.write(slot)?;
-            let target = rec.resource(write.resource);
+            let target = rec.resource(write.alloc);
             width = target.width;
             if target.kind != ResourceKind::Image || target.format == Format::R32u || target.format.is_depth() {
                 return Err(misuse(index, format!("its write `{}` must be a float image", target.name)));
             }
-            *image = rec.image(write.resource)?;
+            *image = rec.image(write.alloc)?;
         }
         let list = match self.list {
             Some(slot) => Some(list_section(rec, pass.read(slot)?, index)?),
@@ -125,21 +125,21 @@ impl PassKernel for PathTraceKernel {
         };
         let push = PathTracePush {
             scene: scene_refs(rec)?,
-            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
+            trace: rec.frame_data_address() + u64::from(pass.view.0) * TRACE_PARAMS_BYTES,
             pixel_list: list.map_or(0, |(address, _)| address),
             radiance: images[0],
             albedo_roughness: images[1],
             normal_metallic: images[2],
             position_depth: images[3],
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             list_mode: u32::from(list.is_some()),
         };
         match list {
             Some((_, capacity)) => rec.dispatch("pt_trace", &push, list_groups(capacity)),
             // 8x8-pixel tiles (see pt_trace.comp).
-            None => rec.dispatch("pt_trace", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1]),
+            None => rec.dispatch("pt_trace", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1]),
         }
     }
 }
@@ -149,18 +149,18 @@ impl PassKernel for PathTraceKernel {
 /// instance's band of a row buffer, or row 0, all of it, of a plain buffer.
 pub(crate) fn list_section(
     rec: &Recorder<'_>,
-    read: &ExecAccess,
+    read: &Access,
     index: InstanceId,
 ) -> parallax_backend::Result<(u64, u32)> {
-    let list = rec.resource(read.resource);
-    let offset = u64::from(read.rows.y0) * list.row_bytes();
-    let section = u64::from(read.rows.len()) * list.row_bytes();
+    let list = rec.resource(read.alloc);
+    let offset = u64::from(read.region.y0) * list.row_bytes();
+    let section = u64::from(read.region.len()) * list.row_bytes();
     if list.kind != ResourceKind::Buffer || section < u64::from(crate::pixel_list::LIST_HEADER_WORDS) * 4 {
         let detail = format!("its read `{}` must be a pixel-list buffer with room for the list header", list.name);
         return Err(misuse(index, detail));
     }
     let capacity = u32::try_from(section / 4 - u64::from(crate::pixel_list::LIST_HEADER_WORDS)).unwrap_or(u32::MAX);
-    Ok((rec.buffer_of(read.resource)? + offset, capacity))
+    Ok((rec.buffer_of(read.alloc)? + offset, capacity))
 }
 
 /// The per-frame data of `path_trace`: one [`GpuTraceParams`] per view, view `i` at

@@ -11,7 +11,7 @@
 //! [`StridedPixelListKernel`] writes a deterministic scattered selection into a plain buffer,
 //! which is what the subset-independence tests trace.
 
-use parallax_backend::{BackendError, ExecPass, InstanceId, PassKernel, Recorder, ResourceKind, WriteSlot};
+use parallax_backend::{BackendError, InstanceId, PassInstance, PassKernel, Recorder, ResourceKind, WriteSlot};
 
 /// Pass name of [`StridedPixelListKernel`].
 pub const PIXEL_LIST: &str = "pixel_list";
@@ -81,10 +81,10 @@ pub struct StridedPixelListKernel {
 }
 
 impl PassKernel for StridedPixelListKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let misuse =
             |detail: String| BackendError::KernelMisuse { kernel: PIXEL_LIST.into(), instance: Some(index), detail };
-        let list = pass.write(self.list)?.resource;
+        let list = pass.write(self.list)?.alloc;
         let desc = rec.resource(list);
         if desc.kind != ResourceKind::Buffer || desc.height != 1 || desc.width < LIST_HEADER_WORDS {
             return Err(misuse(format!("`{}` must be a plain buffer with room for the list header", desc.name)));

@@ -23,7 +23,7 @@ use std::sync::Arc;
 
 use glam::Vec2;
 use parallax_backend::{
-    AllocId, BackendError, Draw, ExecPass, Format, GpuCamera, InstanceId, KernelGraph, PassKernel, Recorder,
+    AllocId, BackendError, Draw, Format, GpuCamera, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder,
     ResourceKind,
 };
 use parallax_graph::{Handle, Image, Role, WriteSlot};
@@ -71,18 +71,18 @@ fn misuse(index: InstanceId, detail: String) -> BackendError {
 }
 
 impl PassKernel for GbufferRasterKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let mut color_targets = [AllocId::UNASSIGNED; 3];
         for (target, &slot) in color_targets.iter_mut().zip(&self.color_targets) {
             let write = pass.write(slot)?;
-            let desc = rec.resource(write.resource);
+            let desc = rec.resource(write.alloc);
             if desc.kind != ResourceKind::Image || desc.format != Format::Rgba32f {
                 return Err(misuse(
                     index,
                     format!("its write `{}` must be an Rgba32f image, not {:?}", desc.name, desc.format),
                 ));
             }
-            *target = write.resource;
+            *target = write.alloc;
         }
         let depth = pass.write(self.depth)?;
         let triangle_bytes = rec.buffer_bytes(crate::SCENE_BUFFERS[1])?;
@@ -90,15 +90,15 @@ impl PassKernel for GbufferRasterKernel {
         let vertex_count = u32::try_from(3 * triangles)
             .map_err(|_| misuse(index, format!("{triangles} triangles exceed one draw's vertex count")))?;
         let push =
-            GbufferRasterPush { scene: scene_refs(rec)?, frame: rec.frame_block_address()?, view: pass.view, pad: 0 };
+            GbufferRasterPush { scene: scene_refs(rec)?, frame: rec.frame_block_address()?, view: pass.view.0, pad: 0 };
         rec.draw(
             &Draw {
                 vertex_shader: "gbuffer_raster.vert",
                 fragment_shader: "gbuffer_raster.frag",
                 color_targets: &color_targets,
-                depth_target: Some(depth.resource),
+                depth_target: Some(depth.alloc),
                 clear: true,
-                rows: pass.rows,
+                rows: pass.region,
                 vertex_count,
                 instance_count: 1,
             },

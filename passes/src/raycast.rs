@@ -12,8 +12,8 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    AllocId, BackendError, Context, DeviceId, EventKind, ExecOptions, ExecPass, ExecutionPlan, Executor, InstanceId,
-    KernelGraph, PassKernel, Recorder, ResourceKind, WriteSlot,
+    AllocId, BackendError, Context, DeviceId, EventKind, ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph,
+    PassInstance, PassKernel, Recorder, ResourceKind, WriteSlot,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
 use parallax_scene::Scene;
@@ -115,8 +115,8 @@ impl PassKernel for RaycastKernel {
         true
     }
 
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
-        let hits = pass.write(self.hits)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
+        let hits = pass.write(self.hits)?.alloc;
         if rec.resource(hits).kind != ResourceKind::Buffer {
             return Err(BackendError::KernelMisuse {
                 kernel: RAYCAST.into(),

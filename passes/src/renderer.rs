@@ -222,6 +222,6 @@ impl LightFieldRenderer {
 
 /// Views of `plan`: one more than the highest view its passes and resources name.
 fn plan_views(plan: &ExecutionPlan) -> u32 {
-    let passes = plan.passes.iter().map(|p| p.view + 1);
+    let passes = plan.passes.iter().map(|p| p.view.0 + 1);
     passes.chain(plan.resources.iter().map(|r| r.view + 1)).max().unwrap_or(0)
 }

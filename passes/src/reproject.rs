@@ -15,7 +15,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, SourcesSlot, WriteSlot};
 
 use crate::error::{PassError, Result};
@@ -133,10 +133,10 @@ struct ReprojectSlots {
 }
 
 impl PassKernel for ReprojectKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let slots = &self.slots;
-        let image = |rec: &Recorder<'_>, slot| pass.read(slot).and_then(|a| rec.image(a.resource));
-        let position_depth = pass.read(slots.position_depth)?.resource;
+        let image = |rec: &Recorder<'_>, slot| rec.image(pass.read(slot)?.alloc);
+        let position_depth = pass.read(slots.position_depth)?.alloc;
         let width = rec.resource(position_depth).width;
         let mut sources = [[0u32; 4]; MAX_SOURCES];
         let mut count = 0;
@@ -146,29 +146,29 @@ impl PassKernel for ReprojectKernel {
             .zip(pass.sources(slots.source_position_depth)?)
             .zip(pass.sources(slots.source_normal_metallic)?);
         for (slot, ((radiance, position), normal)) in sources.iter_mut().zip(source_reads) {
-            let view = rec.resource(radiance.resource).view;
-            *slot = [view, rec.image(position.resource)?, rec.image(normal.resource)?, rec.image(radiance.resource)?];
+            let view = rec.resource(radiance.alloc).view;
+            *slot = [view, rec.image(position.alloc)?, rec.image(normal.alloc)?, rec.image(radiance.alloc)?];
             count += 1;
         }
         let t = self.tolerances;
         let push = ReprojectPush {
             block: rec.frame_block_address()?,
-            trace: rec.frame_data_address() + u64::from(pass.view) * TRACE_PARAMS_BYTES,
+            trace: rec.frame_data_address() + u64::from(pass.view.0) * TRACE_PARAMS_BYTES,
             position_depth: rec.image(position_depth)?,
             normal_metallic: image(rec, slots.normal_metallic)?,
             albedo_roughness: image(rec, slots.albedo_roughness)?,
-            radiance: rec.image(pass.write(slots.radiance)?.resource)?,
-            holes: rec.image(pass.write(slots.holes)?.resource)?,
+            radiance: rec.image(pass.write(slots.radiance)?.alloc)?,
+            holes: rec.image(pass.write(slots.holes)?.alloc)?,
             source_count: count,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             position_tolerance: t.position,
             normal_cos: t.normal_cos,
             view_tolerance: t.view_dependence,
             pad: 0,
             sources,
         };
-        rec.dispatch("reproject", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1])
+        rec.dispatch("reproject", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
     }
 }
 

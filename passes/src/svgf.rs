@@ -39,7 +39,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, HistorySlot, Image, ReadSlot, Role, WriteSlot};
 
 /// Slot name of the result (Rgba32f linear radiance, docs/PIPELINE.md).
@@ -308,17 +308,17 @@ impl Stage {
 struct SvgfKernel(Stage);
 
 impl PassKernel for SvgfKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let stage = &self.0;
-        let target = rec.resource(pass.write(stage.band())?.resource);
+        let target = rec.resource(pass.write(stage.band())?.alloc);
         let (width, height) = (target.width, target.height);
         // The instance covers its whole view: its history reads see every row.
-        let whole_view = pass.rows.y0 == 0 && pass.rows.y1 == height;
-        let read = |rec: &Recorder<'_>, slot: ReadSlot| rec.image(pass.read(slot)?.resource);
-        let history = |rec: &Recorder<'_>, slot: HistorySlot| rec.image(pass.history_read(slot)?.resource);
-        let write = |rec: &Recorder<'_>, slot: WriteSlot| rec.image(pass.write(slot)?.resource);
+        let whole_view = pass.region.y0 == 0 && pass.region.y1 == height;
+        let read = |rec: &Recorder<'_>, slot: ReadSlot| rec.image(pass.read(slot)?.alloc);
+        let history = |rec: &Recorder<'_>, slot: HistorySlot| rec.image(pass.history_read(slot)?.alloc);
+        let write = |rec: &Recorder<'_>, slot: WriteSlot| rec.image(pass.write(slot)?.alloc);
         let mut push =
-            SvgfPush { y0: pass.rows.y0, y1: pass.rows.y1, width, height, step: 1, ..bytemuck::Zeroable::zeroed() };
+            SvgfPush { y0: pass.region.y0, y1: pass.region.y1, width, height, step: 1, ..bytemuck::Zeroable::zeroed() };
         match stage {
             // A whole view's history is all there: the temporal pass reads it directly.
             Stage::History { .. } if whole_view => return Ok(()),
@@ -352,7 +352,7 @@ impl PassKernel for SvgfKernel {
                 // A graph run without cameras (no frame block) cannot tell a still camera: it
                 // blends every frame as a moving camera's.
                 if let Ok(block) = rec.frame_block_address() {
-                    push.view = pass.view;
+                    push.view = pass.view.0;
                     push.block = block;
                     push.flags |= CAMERAS;
                 }
@@ -371,7 +371,7 @@ impl PassKernel for SvgfKernel {
                 }
             }
         }
-        let groups = phase_groups(push.step, width, pass.rows.y0, pass.rows.y1);
+        let groups = phase_groups(push.step, width, pass.region.y0, pass.region.y1);
         rec.dispatch(stage.shader(), &push, groups)
     }
 }

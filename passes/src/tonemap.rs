@@ -7,7 +7,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecPass, InstanceId, KernelGraph, PassKernel, Recorder};
+use parallax_backend::{BackendError, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 /// Pass name, and the slot of its output (docs/PIPELINE.md).
@@ -78,9 +78,9 @@ struct TonemapKernel {
 }
 
 impl PassKernel for TonemapKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let (src, dst) = (pass.read(self.src)?, pass.write(self.dst)?);
-        let target = rec.resource(dst.resource);
+        let target = rec.resource(dst.alloc);
         if target.format != Format::Rgba8 {
             return Err(BackendError::KernelMisuse {
                 kernel: TONEMAP.into(),
@@ -90,19 +90,19 @@ impl PassKernel for TonemapKernel {
         }
         let width = target.width;
         let push = TonemapPush {
-            src: rec.image(src.resource)?,
-            dst: rec.image(dst.resource)?,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            src: rec.image(src.alloc)?,
+            dst: rec.image(dst.alloc)?,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             exposure: self.exposure,
             scale: match self.scale {
-                Some(slot) => rec.image(pass.read(slot)?.resource)?,
+                Some(slot) => rec.image(pass.read(slot)?.alloc)?,
                 None => 0,
             },
             scaled: u32::from(self.scale.is_some()),
         };
-        let groups = [width.div_ceil(8), pass.rows.len().div_ceil(8).max(1), 1];
+        let groups = [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1];
         rec.dispatch(TONEMAP, &push, groups)
     }
 }

@@ -13,7 +13,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    ExecOptions, ExecPass, ExecutionPlan, Executor, InstanceId, KernelGraph, PassKernel, PassParams, Recorder,
+    ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder,
     ShaderLibrary,
 };
 use parallax_graph::{BandedPlacement, Format, Role, ViewTopology, WriteSlot, compile};
@@ -53,14 +53,14 @@ struct SyntheticInput {
 }
 
 impl PassKernel for SyntheticInput {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let radiance = pass.write(self.radiance)?;
         let params = PassParams {
-            dst: rec.image(radiance.resource)?,
-            src0: rec.image(pass.write(self.position)?.resource)?,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(radiance.resource).width,
+            dst: rec.image(radiance.alloc)?,
+            src0: rec.image(pass.write(self.position)?.alloc)?,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
+            width: rec.resource(radiance.alloc).width,
             ..Default::default()
         };
         rec.dispatch_rows("test_fireflies", params)

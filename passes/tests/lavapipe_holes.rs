@@ -14,10 +14,11 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use parallax_backend::{
-    EventKind, ExecOptions, ExecPass, ExecutionPlan, InstanceId, KernelGraph, PassKernel, Recorder,
+    EventKind, ExecOptions, ExecutionPlan, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder,
 };
 use parallax_graph::{
-    AssignStrategy, FamilyId, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, WriteSlot, compile,
+    AssignStrategy, FamilyId, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, ViewId, WriteSlot,
+    compile,
 };
 use parallax_passes::gbuffer::declare_gbuffer;
 use parallax_passes::{
@@ -52,8 +53,8 @@ struct PerViewMask {
 }
 
 impl PassKernel for PerViewMask {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> parallax_backend::Result<()> {
-        let threshold = self.thresholds[pass.view as usize];
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
+        let threshold = self.thresholds[pass.view.0 as usize];
         HashedHoleMaskKernel { mask: self.mask, threshold }.record(rec, pass, index)
     }
 }
@@ -228,11 +229,11 @@ fn check_case(run: &Run, full: &[Vec<GpuPixel>], case: &Case, what: &str) -> BTr
         if pass.name != COMPACT_HOLES {
             continue;
         }
-        let (_, words) = run.lists.iter().find(|(v, _)| *v == pass.view).unwrap();
-        let section = &words[pass.rows.y0 as usize * row_words..pass.rows.y1 as usize * row_words];
-        let expected = holes_of(pass.view, W, pass.rows, case.thresholds[pass.view as usize]);
+        let (_, words) = run.lists.iter().find(|(v, _)| *v == pass.view.0).unwrap();
+        let section = &words[pass.region.y0 as usize * row_words..pass.region.y1 as usize * row_words];
+        let expected = holes_of(pass.view.0, W, pass.region, case.thresholds[pass.view.0 as usize]);
         let n = expected.len() as u32;
-        let band = format!("{what}: view {} rows {:?}", pass.view, pass.rows);
+        let band = format!("{what}: view {} rows {:?}", pass.view.0, pass.region);
         assert_eq!(section[..4], [n.div_ceil(64), 1, 1, n], "{band}: header");
         assert_eq!(list_groups(n)[..], section[..3], "{band}: the CPU twin of the header");
         let entries: Vec<u32> = section[4..4 + n as usize].to_vec();
@@ -259,7 +260,7 @@ fn fine_all_over_three_devices_fills_bands_on_every_device_and_equals_one_device
     let full = full_trace();
     let one = run(1, hole_fill_plan(1, threshold));
     let three = run(3, hole_fill_plan(3, threshold));
-    let bands = three.plan.passes.iter().filter(|p| p.name == COMPACT_HOLES && p.view == 0).count();
+    let bands = three.plan.passes.iter().filter(|p| p.name == COMPACT_HOLES && p.view == ViewId(0)).count();
     assert_eq!(bands, 3, "each target view compacted in 3 bands");
     assert_eq!(check(&three, &full, threshold, "three devices"), BTreeSet::from([0, 1, 2]));
     for (view, (a, b)) in one.pixels.iter().zip(&three.pixels).enumerate() {

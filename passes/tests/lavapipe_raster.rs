@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use parallax_backend::{
-    ExecOptions, ExecPass, ExecutionPlan, Executor, FrameClock, FrameData, InstanceId, KernelGraph, PassKernel,
+    ExecOptions, ExecutionPlan, Executor, FrameClock, FrameData, InstanceId, KernelGraph, PassInstance, PassKernel,
     PassParams, Recorder, ShaderLibrary,
 };
 use parallax_graph::{BandedPlacement, DeviceId, FamilyId, Format, ReadSlot, Role, ViewTopology, WriteSlot, compile};
@@ -43,9 +43,9 @@ struct DepthCopyKernel {
 }
 
 impl PassKernel for DepthCopyKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let (depth, copy) = (pass.read(self.depth)?, pass.write(self.copy)?);
-        let params = PassParams { src0: rec.image(depth.resource)?, ..rec.row_params(pass, copy.resource)? };
+        let params = PassParams { src0: rec.image(depth.alloc)?, ..rec.row_params(pass, copy.alloc)? };
         rec.dispatch_rows(DEPTH_TO_R32F, params)
     }
 }

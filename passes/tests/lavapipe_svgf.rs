@@ -12,8 +12,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    Context, ExecOptions, ExecPass, ExecutionPlan, Executor, InstanceId, KernelGraph, PassKernel, PassParams, Recorder,
-    ShaderLibrary,
+    Context, ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams,
+    Recorder, ShaderLibrary,
 };
 use parallax_graph::{
     BandedPlacement, FamilyId, Format, Handle, Image, Placement, ReadSlot, Role, ViewTopology, WriteSlot, compile,
@@ -50,19 +50,19 @@ struct MotionKernel {
 }
 
 impl PassKernel for MotionKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let (dst, position) = (pass.write(self.motion)?, pass.read(self.position)?);
-        let width = rec.resource(dst.resource).width;
+        let width = rec.resource(dst.alloc).width;
         let push = MotionPush {
-            dst: rec.image(dst.resource)?,
-            position: rec.image(position.resource)?,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            dst: rec.image(dst.alloc)?,
+            position: rec.image(position.alloc)?,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             offset_x: self.offset[0],
             offset_y: self.offset[1],
         };
-        rec.dispatch("test_motion", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+        rec.dispatch("test_motion", &push, [width.div_ceil(8), pass.region.len().div_ceil(8), 1])
     }
 }
 
@@ -92,18 +92,18 @@ struct ChangeKernel {
 }
 
 impl PassKernel for ChangeKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> parallax_backend::Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let (radiance, albedo) = (pass.write(self.radiance)?, pass.write(self.albedo)?);
-        let optional = |slot: Option<WriteSlot>| slot.map_or(Ok(0), |slot| rec.image(pass.write(slot)?.resource));
+        let optional = |slot: Option<WriteSlot>| slot.map_or(Ok(0), |slot| rec.image(pass.write(slot)?.alloc));
         let (normal, position) = (optional(self.normal)?, optional(self.position)?);
         let params = PassParams {
-            dst: rec.image(radiance.resource)?,
-            src0: rec.image(albedo.resource)?,
+            dst: rec.image(radiance.alloc)?,
+            src0: rec.image(albedo.alloc)?,
             src1: normal,
             param: position,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(radiance.resource).width,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
+            width: rec.resource(radiance.alloc).width,
             ..Default::default()
         };
         rec.dispatch_rows(self.shader, params)

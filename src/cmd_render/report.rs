@@ -267,7 +267,7 @@ pub(super) fn view_layers(
         return ViewLayers::default();
     }
     // A view this process renders (a rank of several renders only some).
-    let view = renderer.plan().passes.first().map_or(0, |p| p.view);
+    let view = renderer.plan().passes.first().map_or(0, |p| p.view.0);
     let produced = |family| renderer.plan().final_bands(family, view).is_some();
     let g = &handles.gbuffer;
     let exr = ExrLayers {

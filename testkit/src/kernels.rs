@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Draw, ExecPass, Format, HistorySlot, InstanceId, KernelGraph, PassKernel, PassParams, ReadSlot,
+    BackendError, Draw, Format, HistorySlot, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, ReadSlot,
     Recorder, Result, SourcesSlot, WriteSlot,
 };
 use parallax_graph::{Handle, PassBuilder, Role};
@@ -31,8 +31,8 @@ pub struct FillKernel {
 }
 
 impl PassKernel for FillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
-        let params = rec.row_params(pass, pass.write(self.out)?.resource)?;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
+        let params = rec.row_params(pass, pass.write(self.out)?.alloc)?;
         rec.dispatch_rows("fill", params)
     }
 }
@@ -49,15 +49,15 @@ pub struct ShiftBlendKernel {
 }
 
 impl PassKernel for ShiftBlendKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
-        let dst = pass.write(self.out)?.resource;
-        let own = pass.read(self.own)?.resource;
-        let other = pass.sources(self.sources)?.next().map_or(own, |source| source.resource);
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
+        let dst = pass.write(self.out)?.alloc;
+        let own = pass.read(self.own)?.alloc;
+        let other = pass.sources(self.sources)?.next().map_or(own, |source| source.alloc);
         let base = rec.row_params(pass, dst)?;
         let params = PassParams {
             src0: rec.image(own)?,
             src1: rec.image(other)?,
-            param: shift_of_view(pass.view, base.width),
+            param: shift_of_view(pass.view.0, base.width),
             ..base
         };
         rec.dispatch_rows("shift_blend", params)
@@ -81,23 +81,23 @@ pub const RASTER_NEAR_DEPTH: f32 = 0.25;
 pub const RASTER_FAR_DEPTH: f32 = 0.75;
 
 impl PassKernel for RasterDemoKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
         let (gbuffer, depth) = (pass.write(self.gbuffer)?, pass.write(self.depth)?);
         let params = PassParams {
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
-            width: rec.resource(gbuffer.resource).width,
+            view: pass.view.0,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
+            width: rec.resource(gbuffer.alloc).width,
             ..Default::default()
         };
         rec.draw(
             &Draw {
                 vertex_shader: "raster_demo.vert",
                 fragment_shader: "raster_demo.frag",
-                color_targets: &[gbuffer.resource],
-                depth_target: Some(depth.resource),
+                color_targets: &[gbuffer.alloc],
+                depth_target: Some(depth.alloc),
                 clear: true,
-                rows: pass.rows,
+                rows: pass.region,
                 vertex_count: 6,
                 instance_count: 2,
             },
@@ -119,20 +119,20 @@ pub struct WeightedFillKernel {
 }
 
 impl PassKernel for WeightedFillKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
-        let dst = pass.write(self.out)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
+        let dst = pass.write(self.out)?.alloc;
         let width = rec.resource(dst).width;
         let push = WeightedFillParams {
             dst: rec.image(dst)?,
-            view: pass.view,
-            y0: pass.rows.y0,
-            y1: pass.rows.y1,
+            view: pass.view.0,
+            y0: pass.region.y0,
+            y1: pass.region.y1,
             width,
             pad: 0,
             weights: rec.buffer_address("weights")?,
             frame_data: rec.frame_data_address(),
         };
-        rec.dispatch("weighted_fill", &push, [width.div_ceil(8), pass.rows.len().div_ceil(8), 1])
+        rec.dispatch("weighted_fill", &push, [width.div_ceil(8), pass.region.len().div_ceil(8), 1])
     }
 }
 
@@ -159,10 +159,10 @@ pub struct FillBufferKernel {
 }
 
 impl PassKernel for FillBufferKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
-        let dst = pass.write(self.out)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
+        let dst = pass.write(self.out)?.alloc;
         let words = rec.resource(dst).width;
-        let push = FillBufferParams { view: pass.view, count: words, target: rec.buffer_of(dst)? };
+        let push = FillBufferParams { view: pass.view.0, count: words, target: rec.buffer_of(dst)? };
         rec.dispatch("fill_buffer", &push, [words.div_ceil(64), 1, 1])
     }
 }
@@ -189,8 +189,8 @@ pub struct FillMaskKernel {
 }
 
 impl PassKernel for FillMaskKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, index: InstanceId) -> Result<()> {
-        let dst = pass.write(self.out)?.resource;
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> Result<()> {
+        let dst = pass.write(self.out)?.alloc;
         if rec.resource(dst).format != Format::R32u {
             return Err(BackendError::KernelMisuse {
                 kernel: "fill_mask".into(),
@@ -216,9 +216,9 @@ pub struct AccumulateKernel {
 }
 
 impl PassKernel for AccumulateKernel {
-    fn record(&self, rec: &mut Recorder<'_>, pass: &ExecPass, _: InstanceId) -> Result<()> {
+    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
         let (output, history) = (pass.write(self.acc)?, pass.history_read(self.history)?);
-        let params = PassParams { src0: rec.image(history.resource)?, ..rec.row_params(pass, output.resource)? };
+        let params = PassParams { src0: rec.image(history.alloc)?, ..rec.row_params(pass, output.alloc)? };
         rec.dispatch_rows("accumulate", params)
     }
 }

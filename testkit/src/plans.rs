@@ -10,10 +10,11 @@
 //! tokens come from a declaration of the demo's two passes ([`demo_kernels`]), which the
 //! hand-laid instances instantiate (same pass ids, same access numbers).
 
-use parallax_backend::plan::Kernels;
+use std::sync::Arc;
+
 use parallax_backend::{
-    AllocId, CopyId, DeviceId, ExecAccess, ExecCopy, ExecOp, ExecPass, ExecResource, ExecutionPlan, FamilyId, Format,
-    InstanceId, KernelGraph, PassId, Region,
+    Access, AllocId, CopyId, DeviceId, ExecCopy, ExecOp, ExecResource, ExecutionPlan, FamilyId, Format, InstanceId,
+    KernelGraph, Kernels, PassId, PassInstance, Region, ViewId, own_access,
 };
 use parallax_graph::{Origin, Role, ViewTopology};
 
@@ -30,16 +31,20 @@ fn demo_kernels() -> (FillKernel, ShiftBlendKernel) {
     assert_eq!((radiance.family(), output.family()), (RADIANCE, OUTPUT));
     let mut fill = graph.pass("fill", Role::All);
     let fill_kernel = FillKernel { out: fill.write_slot(&mut radiance) };
-    assert_eq!(fill.record(), PassId(0));
+    assert_eq!(fill.record(), FILL);
     let mut blend = graph.pass("shift_blend", Role::All);
     let blend_kernel = ShiftBlendKernel {
         own: blend.read_slot(&radiance),
         sources: blend.read_sources_slot(&radiance),
         out: blend.write_slot(&mut output),
     };
-    assert_eq!(blend.record(), PassId(1));
+    assert_eq!(blend.record(), SHIFT_BLEND);
     (fill_kernel, blend_kernel)
 }
+
+/// The demo's declared passes.
+const FILL: PassId = PassId(0);
+const SHIFT_BLEND: PassId = PassId(1);
 
 /// The family of the demo's filled images.
 pub const RADIANCE: FamilyId = FamilyId(0);
@@ -85,8 +90,8 @@ impl Demo {
     fn new(views: u32, devices: usize, width: u32, height: u32) -> Self {
         let (fill, blend) = demo_kernels();
         let mut kernels = Kernels::default();
-        kernels.push(fill);
-        kernels.push(blend);
+        kernels.insert(FILL, Arc::new(fill));
+        kernels.insert(SHIFT_BLEND, Arc::new(blend));
         let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
         let mut image = |name: &str, family: FamilyId, view: u32| {
             plan.resources.push(ExecResource::image(name, family, view, width, height, Format::Rgba32f));
@@ -110,7 +115,7 @@ impl Demo {
         Region::new(0, self.height)
     }
 
-    fn add_pass(&mut self, pass: ExecPass, phase: usize) {
+    fn add_pass(&mut self, pass: PassInstance, phase: usize) {
         let device = pass.device;
         self.plan.passes.push(pass);
         self.phases[device.index()][phase].push(ExecOp::Pass(InstanceId(self.plan.passes.len() as u32 - 1)));
@@ -148,16 +153,15 @@ impl Demo {
             };
             let radiance = self.resources.radiance[v as usize];
             for (device, rows) in bands {
-                let fill = ExecPass {
+                let fill = PassInstance {
+                    pass: FILL,
                     name: "fill".into(),
-                    pass: PassId(0),
-                    kernel: 0,
-                    view: v,
-                    rows,
+                    view: ViewId(v),
+                    region: rows,
                     device,
                     reads: vec![],
                     history_reads: vec![],
-                    writes: vec![ExecAccess::own("radiance", 0, radiance, 1, rows)],
+                    writes: vec![own_access(0, radiance, 1, rows)],
                 };
                 self.add_pass(fill, 0);
                 if device != self.owner(v) {
@@ -193,21 +197,20 @@ impl Demo {
         for v in 0..self.views {
             let source = (v + 1) % self.views;
             let all = self.all();
-            let access = |slot: &str, decl: u16, resource: AllocId| ExecAccess::own(slot, decl, resource, 1, all);
+            let access = |decl: u16, alloc: AllocId| own_access(decl, alloc, 1, all);
             let r = &self.resources;
-            let blend = ExecPass {
+            let blend = PassInstance {
+                pass: SHIFT_BLEND,
                 name: "shift_blend".into(),
-                pass: PassId(1),
-                kernel: 1,
-                view: v,
-                rows: all,
+                view: ViewId(v),
+                region: all,
                 device: self.owner(v),
                 reads: vec![
-                    access("radiance", 0, r.radiance[v as usize]),
-                    ExecAccess { origin: Origin::Source(0), ..access("source", 1, r.radiance[source as usize]) },
+                    access(0, r.radiance[v as usize]),
+                    Access { origin: Origin::Source(0), ..access(1, r.radiance[source as usize]) },
                 ],
                 history_reads: vec![],
-                writes: vec![access("output", 0, r.output[v as usize])],
+                writes: vec![access(0, r.output[v as usize])],
             };
             self.add_pass(blend, 2);
         }
@@ -236,16 +239,15 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
     let all = Region::new(0, height);
     ExecutionPlan {
         resources: vec![ExecResource::image("payload", RADIANCE, 0, width, height, Format::Rgba32f)],
-        passes: vec![ExecPass {
+        passes: vec![PassInstance {
+            pass: FILL,
             name: "fill".into(),
-            pass: PassId(0),
-            kernel: 0,
-            view: 0,
-            rows: all,
+            view: ViewId(0),
+            region: all,
             device: DeviceId(0),
             reads: vec![],
             history_reads: vec![],
-            writes: vec![ExecAccess::own("payload", 0, AllocId(0), 1, all)],
+            writes: vec![own_access(0, AllocId(0), 1, all)],
         }],
         copies: vec![ExecCopy {
             resource: AllocId(0),
@@ -268,7 +270,7 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
 /// The demo's `fill` alone (pass 0, writing its payload as write 0).
 fn fill_only() -> Kernels {
     let mut kernels = Kernels::default();
-    kernels.push(demo_kernels().0);
+    kernels.insert(FILL, Arc::new(demo_kernels().0));
     kernels
 }
 
@@ -300,15 +302,15 @@ mod tests {
         let (plan, ids) = reprojection_demo(views, 2, 8, 8);
         let (fill, blend) = demo_kernels();
         for p in &plan.passes {
-            let v = p.view as usize;
+            let v = p.view.index();
             if p.name == "fill" {
-                assert_eq!(p.write(fill.out).unwrap().resource, ids.radiance[v]);
+                assert_eq!(p.write(fill.out).unwrap().alloc, ids.radiance[v]);
                 assert!(p.read(blend.own).is_err(), "a token of shift_blend binds nothing in fill");
             } else {
-                assert_eq!(p.read(blend.own).unwrap().resource, ids.radiance[v]);
-                let sources: Vec<AllocId> = p.sources(blend.sources).unwrap().map(|a| a.resource).collect();
+                assert_eq!(p.read(blend.own).unwrap().alloc, ids.radiance[v]);
+                let sources: Vec<AllocId> = p.sources(blend.sources).unwrap().map(|a| a.alloc).collect();
                 assert_eq!(sources, [ids.radiance[(v + 1) % views as usize]]);
-                assert_eq!(p.write(blend.out).unwrap().resource, ids.output[v]);
+                assert_eq!(p.write(blend.out).unwrap().alloc, ids.output[v]);
             }
         }
     }
