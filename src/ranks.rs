@@ -11,7 +11,7 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Result, bail};
-use parallax_backend::{ExecOp, ExecutionPlan, remote_device_id};
+use parallax_backend::{DeviceProgram, ExecutionPlan, Op, remote_device_id};
 use parallax_graph::{CopyId, DeviceId, InstanceId, Schedule};
 
 /// Set in a rank other than 0 of a render over several ranks: rank 0 speaks for the run, so
@@ -76,7 +76,7 @@ impl RankLayout {
 /// Otherwise (multi-source) ranks render whole views and send them to rank 0 after the last
 /// frame.
 pub fn linked(global: &ExecutionPlan, layout: &RankLayout) -> bool {
-    global.copies.iter().any(|c| !c.gather && layout.rank_of(c.from.0) != layout.rank_of(c.to.0))
+    global.copies.iter().any(|c| !c.is_gather() && layout.rank_of(c.from.0) != layout.rank_of(c.to.0))
 }
 
 /// The part of `global` that `rank` runs on its devices, renumbered from 0: their passes and
@@ -99,30 +99,38 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
     }
     let mut copies = Vec::new();
     let mut copy_of: HashMap<u32, CopyId> = HashMap::new();
-    let kept = |c: &parallax_backend::ExecCopy| match (local(c.from), local(c.to)) {
+    let kept = |c: &parallax_backend::CrossCopy| match (local(c.from), local(c.to)) {
         (true, true) => true,
         (true, false) | (false, true) => linked,
         (false, false) => false,
     };
     for (c, copy) in global.copies.iter().enumerate().filter(|(_, c)| kept(c)) {
         copy_of.insert(c as u32, CopyId(copies.len() as u32));
-        copies.push(parallax_backend::ExecCopy { from: rename(copy.from), to: rename(copy.to), ..*copy });
+        copies.push(parallax_backend::CrossCopy { from: rename(copy.from), to: rename(copy.to), ..*copy });
     }
     let devices = global.devices[first as usize..(first + count) as usize]
         .iter()
-        .map(|ops| {
-            ops.iter()
-                .filter_map(|op| match *op {
-                    ExecOp::Pass(i) => pass_of.get(&i.0).map(|&i| ExecOp::Pass(i)),
-                    ExecOp::CopyOut(c) => copy_of.get(&c.0).map(|&c| ExecOp::CopyOut(c)),
-                    ExecOp::Signal(c) => copy_of.get(&c.0).map(|&c| ExecOp::Signal(c)),
-                    ExecOp::Wait(c) => copy_of.get(&c.0).map(|&c| ExecOp::Wait(c)),
-                    ExecOp::CopyIn(c) => copy_of.get(&c.0).map(|&c| ExecOp::CopyIn(c)),
-                    // A barrier before another rank's op guards the next op kept: one too many
-                    // is slower, never wrong.
-                    ExecOp::Barrier => Some(ExecOp::Barrier),
-                })
-                .collect()
+        .map(|program| {
+            let mut kept = DeviceProgram { device: rename(program.device), ops: Vec::new(), barriers: Vec::new() };
+            // A barrier before an op left out (another rank's copy) guards the next op kept.
+            let mut guarded = false;
+            for (index, &op) in program.ops.iter().enumerate() {
+                guarded |= program.barriers.binary_search(&(index as u32)).is_ok();
+                let renumbered = match op {
+                    Op::Pass(i) => pass_of.get(&i.0).map(|&i| Op::Pass(i)),
+                    Op::CopyOut(c) => copy_of.get(&c.0).map(|&c| Op::CopyOut(c)),
+                    Op::Signal(c) => copy_of.get(&c.0).map(|&c| Op::Signal(c)),
+                    Op::Wait(c) => copy_of.get(&c.0).map(|&c| Op::Wait(c)),
+                    Op::CopyIn(c) => copy_of.get(&c.0).map(|&c| Op::CopyIn(c)),
+                };
+                if let Some(op) = renumbered {
+                    if std::mem::take(&mut guarded) {
+                        kept.barriers.push(kept.ops.len() as u32);
+                    }
+                    kept.ops.push(op);
+                }
+            }
+            kept
         })
         .collect();
     let mut plan = ExecutionPlan {
@@ -130,7 +138,7 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
         passes,
         copies,
         devices,
-        history_pairs: global.history_pairs.clone(),
+        history: global.history.clone(),
         kernels: global.kernels.clone(),
     };
     // Exports are read back from device 0: only those this rank's device 0 still holds (its own
@@ -254,7 +262,7 @@ mod tests {
             passes += part.passes.len();
         }
         assert_eq!(passes, global.passes.len());
-        assert!(global.copies.iter().any(|c| c.gather), "views gathered to device 0 in one process");
+        assert!(global.copies.iter().any(|c| c.is_gather()), "views gathered to device 0 in one process");
     }
 
     /// A fine scheme reads other devices' bands: each rank's part keeps the copies with one end
@@ -268,9 +276,9 @@ mod tests {
         assert!(linked(&global, &layout));
         let parts: Vec<ExecutionPlan> = (0..3).map(|r| restrict_plan(&global, &layout, r)).collect();
         // A copy as the whole run names it: (from, to, resource, version, rows).
-        let global_copy = |rank: usize, c: &parallax_backend::ExecCopy| {
+        let global_copy = |rank: usize, c: &parallax_backend::CrossCopy| {
             let name = |d: DeviceId| if d.0 < 1 { d.0 + layout.first(rank) } else { d.0 - 1 };
-            (name(c.from), name(c.to), c.resource, c.version, c.rows)
+            (name(c.from), name(c.to), c.src_alloc, c.version, c.region)
         };
         for (a, b) in [(0usize, 1usize), (1, 0), (1, 2), (2, 0)] {
             let between = |part: usize| -> Vec<_> {
@@ -286,8 +294,8 @@ mod tests {
         }
         for part in &parts {
             assert!(part.copies.iter().all(|c| c.from.0 < 1 || c.to.0 < 1), "one end on the rank");
-            assert!(part.devices[0].iter().all(|op| match *op {
-                ExecOp::Pass(p) => part.pass(p).device == DeviceId(0),
+            assert!(part.devices[0].ops.iter().all(|op| match *op {
+                Op::Pass(p) => part.pass(p).device == DeviceId(0),
                 _ => true,
             }));
         }

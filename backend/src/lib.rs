@@ -134,9 +134,9 @@ pub use instance::{Instance, Validation, validation_from_env};
 pub use lower::{KernelGraph, LowerError};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
-    Access, AllocId, CopyId, DeviceId, ExecCopy, ExecOp, ExecResource, ExecutionPlan, ExecutionPlanError, FamilyId,
-    Format, HistorySlot, InstanceId, Kernels, MAX_RESET_WORDS, Origin, PassId, PassInstance, ReadSlot, Region,
-    ResourceId, ResourceKind, SourcesSlot, ViewId, WriteSlot, own_access,
+    Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan,
+    ExecutionPlanError, FamilyId, Format, HistoryPair, HistorySlot, InstanceId, Kernels, MAX_RESET_WORDS, Op, Origin,
+    PassId, PassInstance, ReadSlot, Region, ResourceId, ResourceKind, SourcesSlot, ViewId, WriteSlot, own_access,
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};

@@ -1,17 +1,17 @@
 //! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
-//! [`ExecutionPlan`]: allocations become resources of their declared resource's family (a history pair's
-//! halves, swapped by frame parity, are its `history_pairs`), ids keep the schedule's types and
-//! numbers, pass instances are the schedule's own (kernels bind their slot tokens there), each
-//! declared pass keeps the kernel it was declared with, device programs are ordered by device id. Nothing is re-planned;
-//! the schedule's op order (batching included, `parallax_graph::CompileOptions`) is kept exactly:
-//! it is the order the executor submits, with the schedule's barriers in place ([`ExecOp::Barrier`]).
+//! [`ExecutionPlan`]. The schedule's pass instances, copies, device programs (ops and barriers,
+//! by device id) and history pairs are taken as they are: nothing is re-planned, and the op
+//! order (batching included, `parallax_graph::CompileOptions`) is the order the executor
+//! submits. Lowering adds each declared pass's kernel, and each allocation's GPU description: a
+//! resource of its declared resource's family (a history pair's previous half described as its
+//! current half, the two swapped by frame parity).
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{AllocId, CopyKind, DeviceProgram, Format, Graph, Op, ResourceDesc, Schedule, ScheduleError};
+use parallax_graph::{AllocId, Format, Graph, ResourceDesc, Schedule, ScheduleError};
 
-use crate::plan::{ExecCopy, ExecOp, ExecResource, ExecutionPlan, Kernels, Region, ResourceKind};
+use crate::plan::{ExecResource, ExecutionPlan, Kernels, ResourceKind};
 use crate::recorder::PassKernel;
 
 /// A render graph whose passes carry their kernels: what the executor runs.
@@ -68,49 +68,21 @@ impl ExecutionPlan {
                 None => resource_of(schedule, a),
             })
             .collect();
-        let history_pairs = schedule.history.iter().map(|p| (p.current, p.previous)).collect();
-
-        let copies = schedule
-            .copies
-            .iter()
-            .map(|c| ExecCopy {
-                resource: c.src_alloc,
-                dst: c.dst_alloc,
-                version: c.version,
-                rows: Region::new(c.region.y0, c.region.y1),
-                from: c.from,
-                to: c.to,
-                gather: c.kind == CopyKind::Gather,
-            })
-            .collect();
-        let mut programs: Vec<_> = schedule.devices.iter().collect();
-        programs.sort_by_key(|p| p.device);
-        let ids: Vec<u32> = programs.iter().map(|p| p.device.0).collect();
+        let mut devices = schedule.devices.clone();
+        devices.sort_by_key(|p| p.device);
+        let ids: Vec<u32> = devices.iter().map(|p| p.device.0).collect();
         if ids.iter().enumerate().any(|(i, &d)| d as usize != i) {
-            return Err(LowerError::DevicePrograms { found: ids, expected: programs.len() });
+            return Err(LowerError::DevicePrograms { found: ids, expected: devices.len() });
         }
-        let devices = programs.iter().map(|p| program_ops(p)).collect();
-        Ok(ExecutionPlan { resources, passes: schedule.instances.clone(), copies, devices, history_pairs, kernels })
+        Ok(ExecutionPlan {
+            resources,
+            passes: schedule.instances.clone(),
+            copies: schedule.copies.clone(),
+            devices,
+            history: schedule.history.clone(),
+            kernels,
+        })
     }
-}
-
-/// `program`'s ops with a [`ExecOp::Barrier`] in front of each op the schedule put a barrier before.
-fn program_ops(program: &DeviceProgram) -> Vec<ExecOp> {
-    let mut barriers = program.barriers.iter().peekable();
-    let mut ops = Vec::with_capacity(program.ops.len() + program.barriers.len());
-    for (index, op) in program.ops.iter().enumerate() {
-        if barriers.next_if(|&&b| b as usize == index).is_some() {
-            ops.push(ExecOp::Barrier);
-        }
-        ops.push(match *op {
-            Op::Pass(i) => ExecOp::Pass(i),
-            Op::CopyOut(c) => ExecOp::CopyOut(c),
-            Op::Signal(c) => ExecOp::Signal(c),
-            Op::Wait(c) => ExecOp::Wait(c),
-            Op::CopyIn(c) => ExecOp::CopyIn(c),
-        });
-    }
-    ops
 }
 
 /// The executor resource of allocation `a`.

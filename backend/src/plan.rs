@@ -1,16 +1,15 @@
-//! The execution plan: the part of a compiled `Schedule` the executor needs, with indices
-//! resolved. Its pass instances are the schedule's own [`PassInstance`]s, which kernels record
-//! from, and its kernels are found by the declared pass ([`Kernels`]); its op lists follow the
-//! graph crate's one to one (pass, copy-out, signal, wait, copy-in per device, in submission
-//! order, with the schedule's barriers as [`ExecOp::Barrier`]), so the executor can be tested
-//! with hand-written plans.
+//! The execution plan: the part of a compiled `Schedule` the executor needs. Its pass
+//! instances, copies, device programs (ops in submission order, with their barriers) and history
+//! pairs are the schedule's own, as compiled; what it adds is the kernel of each declared pass
+//! ([`Kernels`]) and each allocation's GPU description ([`ExecResource`]). The executor can also
+//! be tested with hand-laid plans ([`own_access`], [`ExecutionPlan::laid_copy`]).
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 
 pub use parallax_graph::{
-    Access, AllocId, CopyId, DeviceId, FamilyId, Format, HistorySlot, InstanceId, Origin, PassId, PassInstance,
-    ReadSlot, Region, ResourceId, SourcesSlot, ViewId, WriteSlot,
+    Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, FamilyId, Format, HistoryPair, HistorySlot,
+    InstanceId, Op, Origin, PassId, PassInstance, ReadSlot, Region, ResourceId, SourcesSlot, ViewId, WriteSlot,
 };
 
 use parallax_graph::{Role, ViewTopology};
@@ -29,7 +28,7 @@ pub enum ResourceKind {
 }
 
 /// One allocation: storage of one or more versions of a per-view resource on one device (the
-/// schedule's `Allocation`s; a history allocation is two of these, see [`ExecutionPlan::history_pairs`]).
+/// schedule's `Allocation`s; a history allocation is two of these, see [`ExecutionPlan::history`]).
 #[derive(Clone, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub struct ExecResource {
     pub name: String,
@@ -114,40 +113,34 @@ pub fn own_access(decl: u16, alloc: AllocId, version: u32, rows: Region) -> Acce
     Access { resource: ResourceId(alloc.0), version, region: rows, alloc, origin: Origin::Own, decl, in_place: false }
 }
 
-/// A transfer of a row band of one resource version from one device to another.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct ExecCopy {
-    /// The version's allocation on `from`.
-    pub resource: AllocId,
-    /// Its allocation on `to` (the same description as `resource`).
-    pub dst: AllocId,
-    pub version: u32,
-    pub rows: Region,
-    pub from: DeviceId,
-    pub to: DeviceId,
-    /// A finished view on its way to device 0 (the schedule's `CopyKind::Gather`, Table 1's
-    /// "transfer"), not an intermediate result another device reads.
-    pub gather: bool,
-}
-
-/// One step of a device program.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
-pub enum ExecOp {
-    /// Run pass instance `i`.
-    Pass(InstanceId),
-    /// Producer side of copy `c`: device → shared host buffer.
-    CopyOut(CopyId),
-    /// Producer announces that copy `c` is in the host buffer.
-    Signal(CopyId),
-    /// Consumer waits for the producer's signal of copy `c`.
-    Wait(CopyId),
-    /// Consumer side of copy `c`: shared host buffer → device.
-    CopyIn(CopyId),
-    /// A memory barrier before the next op: where the schedule placed one
-    /// (`parallax_graph::DeviceProgram::barriers`), recorded as it stands under
-    /// `Barriers::Tracked`; groups of instances a kernel records together end at one. A
-    /// hand-laid plan states its own: the executor looks for no hazard itself.
-    Barrier,
+impl ExecutionPlan {
+    /// A copy in a hand-laid plan: version `version` of allocation `src` on `from` over `rows`
+    /// into allocation `dst` on `to`, its bytes counted from `src`'s description (already in the
+    /// plan), which it names as its resource, as [`own_access`] does.
+    #[allow(clippy::too_many_arguments)]
+    pub fn laid_copy(
+        &self,
+        src: AllocId,
+        dst: AllocId,
+        version: u32,
+        rows: Region,
+        from: DeviceId,
+        to: DeviceId,
+        kind: CopyKind,
+    ) -> CrossCopy {
+        let bytes = self.resource(src).row_bytes() * u64::from(rows.len());
+        CrossCopy {
+            resource: ResourceId(src.0),
+            version,
+            region: rows,
+            from,
+            to,
+            src_alloc: src,
+            dst_alloc: dst,
+            bytes,
+            kind,
+        }
+    }
 }
 
 /// A whole frame: resources, pass instances, copies and one op list per device, each indexed by
@@ -159,14 +152,17 @@ pub struct ExecutionPlan {
     pub resources: Vec<ExecResource>,
     /// `passes[i]` is instance `InstanceId(i)`: the schedule's instances as compiled.
     pub passes: Vec<PassInstance>,
-    /// `copies[c]` is copy `CopyId(c)`.
-    pub copies: Vec<ExecCopy>,
-    /// `devices[d]` is device d's op list in submission order, with the schedule's barriers.
-    pub devices: Vec<Vec<ExecOp>>,
-    /// Double-buffered history allocations as (current, previous) resource pairs: passes of an
-    /// even frame write `current` and read history from `previous`; odd frames swap the two.
-    /// Command buffers are recorded once per parity, so the swap costs nothing per frame.
-    pub history_pairs: Vec<(AllocId, AllocId)>,
+    /// `copies[c]` is copy `CopyId(c)`: the schedule's copies as compiled.
+    pub copies: Vec<CrossCopy>,
+    /// `devices[d]` is device d's program: its ops in submission order and the barriers the
+    /// schedule placed between them, recorded as they stand (groups of instances a kernel
+    /// records together end at one). A hand-laid plan states its own: the executor looks for no
+    /// hazard itself.
+    pub devices: Vec<DeviceProgram>,
+    /// Double-buffered history allocations: passes of an even frame write `current` and read
+    /// history from `previous`; odd frames swap the two. Command buffers are recorded once per
+    /// parity, so the swap costs nothing per frame.
+    pub history: Vec<HistoryPair>,
     /// The kernel of each declared pass, which records its instances.
     #[serde(skip)]
     pub kernels: Kernels,
@@ -262,11 +258,24 @@ impl ExecutionPlan {
             }],
             resources: vec![resource],
             copies: vec![],
-            devices: (0..devices.max(1))
-                .map(|d| if d == 0 { vec![ExecOp::Pass(InstanceId(0))] } else { vec![] })
+            devices: (0..devices.max(1) as u32)
+                .map(|d| DeviceProgram {
+                    device: DeviceId(d),
+                    ops: if d == 0 { vec![Op::Pass(InstanceId(0))] } else { vec![] },
+                    barriers: vec![],
+                })
                 .collect(),
-            history_pairs: vec![],
+            history: vec![],
             kernels,
+        }
+    }
+
+    /// Places every device program's barriers by the rule compiling a schedule follows
+    /// (`parallax_graph::place_barriers`): how a hand-laid plan states them, once its ops are
+    /// in order.
+    pub fn place_barriers(&mut self) {
+        for program in &mut self.devices {
+            program.barriers = parallax_graph::place_barriers(&self.passes, &self.copies, &program.ops);
         }
     }
 
@@ -288,12 +297,12 @@ impl ExecutionPlan {
     }
 
     /// Copy `c`.
-    pub fn copy(&self, c: CopyId) -> &ExecCopy {
+    pub fn copy(&self, c: CopyId) -> &CrossCopy {
         &self.copies[c.index()]
     }
 
-    /// Device `d`'s op list, in submission order.
-    pub fn program(&self, d: DeviceId) -> &[ExecOp] {
+    /// Device `d`'s program: its ops in submission order, and its barriers.
+    pub fn program(&self, d: DeviceId) -> &DeviceProgram {
         &self.devices[d.index()]
     }
 
@@ -338,19 +347,19 @@ impl ExecutionPlan {
     /// Resources each device touches (reads, writes, copies in or out), sorted.
     pub fn resources_of_device(&self, device: DeviceId) -> Vec<AllocId> {
         let mut used: Vec<AllocId> = Vec::new();
-        for op in self.program(device) {
+        for op in &self.program(device).ops {
             match *op {
-                ExecOp::Pass(p) => {
+                Op::Pass(p) => {
                     let pass = self.pass(p);
                     used.extend(pass.reads.iter().chain(&pass.writes).chain(&pass.history_reads).map(|a| a.alloc));
                 }
-                ExecOp::CopyOut(c) => used.push(self.copy(c).resource),
-                ExecOp::CopyIn(c) => used.push(self.copy(c).dst),
-                ExecOp::Signal(_) | ExecOp::Wait(_) | ExecOp::Barrier => {}
+                Op::CopyOut(c) => used.push(self.copy(c).src_alloc),
+                Op::CopyIn(c) => used.push(self.copy(c).dst_alloc),
+                Op::Signal(_) | Op::Wait(_) => {}
             }
         }
         // Both halves of a history allocation live where either is used.
-        for &(a, b) in &self.history_pairs {
+        for &HistoryPair { current: a, previous: b } in &self.history {
             if used.contains(&a) || used.contains(&b) {
                 used.extend([a, b]);
             }
@@ -366,7 +375,7 @@ impl ExecutionPlan {
         if parity % 2 == 0 {
             return HashMap::new();
         }
-        self.history_pairs.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect()
+        self.history.iter().flat_map(|p| [(p.current, p.previous), (p.previous, p.current)]).collect()
     }
 
     /// The writes of the final version of the declared resource `family` for `view` in a frame,
@@ -394,11 +403,11 @@ impl ExecutionPlan {
             .final_writes(family, view)
             .into_iter()
             .map(|(device, w)| {
-                let gathered = |c: &&ExecCopy| {
-                    c.to == primary && c.resource == w.alloc && c.version == w.version && c.rows == w.region
+                let gathered = |c: &&CrossCopy| {
+                    c.to == primary && c.src_alloc == w.alloc && c.version == w.version && c.region == w.region
                 };
                 match (device != primary).then(|| self.copies.iter().find(gathered)).flatten() {
-                    Some(copy) => (primary, copy.dst, w.region),
+                    Some(copy) => (primary, copy.dst_alloc, w.region),
                     None => (device, w.alloc, w.region),
                 }
             })
@@ -418,7 +427,7 @@ impl ExecutionPlan {
     /// Bytes moved by copy `c` (only the copied rows).
     pub fn copy_bytes(&self, c: CopyId) -> u64 {
         let copy = self.copy(c);
-        self.resource(copy.resource).row_bytes() * u64::from(copy.rows.len())
+        self.resource(copy.src_alloc).row_bytes() * u64::from(copy.region.len())
     }
 }
 
@@ -521,21 +530,21 @@ mod tests {
     fn ids_serialise_as_the_plain_numbers_they_index() {
         let json = serde_json::to_value(copy_plan(8, 8).unwrap()).unwrap();
         assert_eq!(
-            (&json["devices"][0][0], &json["devices"][0][1], &json["devices"][1][0]),
-            (&serde_json::json!("Barrier"), &serde_json::json!({ "Pass": 0 }), &serde_json::json!({ "Wait": 0 }))
+            (&json["devices"][0]["ops"][0], &json["devices"][0]["barriers"][0], &json["devices"][1]["ops"][0]),
+            (&serde_json::json!({ "Pass": 0 }), &serde_json::json!(0), &serde_json::json!({ "Wait": 0 }))
         );
         let copy = &json["copies"][0];
         assert_eq!((copy["from"].as_u64(), copy["to"].as_u64()), (Some(0), Some(1)));
-        assert!(copy["resource"].is_u64() && json["passes"][0]["writes"][0]["resource"].is_u64());
+        assert!(copy["src_alloc"].is_u64() && json["passes"][0]["writes"][0]["alloc"].is_u64());
         assert_eq!(json["resources"][0]["family"].as_u64(), Some(0));
     }
 
     #[test]
     fn copy_bytes_counts_only_the_band() {
         let mut plan = copy_plan(8, 8).unwrap();
-        plan.copies[0].rows = Region::new(2, 5);
+        plan.copies[0].region = Region::new(2, 5);
         assert_eq!(plan.copy_bytes(CopyId(0)), 8 * 16 * 3);
         // The payload's allocation on device 1 is the copy's destination.
-        assert_eq!(plan.resources_of_device(DeviceId(1)), vec![plan.copies[0].dst]);
+        assert_eq!(plan.resources_of_device(DeviceId(1)), vec![plan.copies[0].dst_alloc]);
     }
 }

@@ -41,7 +41,7 @@ pub(crate) struct TimerLabel {
     pub copies: u32,
     /// Bytes of those copies.
     pub bytes: u64,
-    /// A copy of a finished view to device 0 ([`crate::ExecCopy::gather`]).
+    /// A copy of a finished view to device 0 ([`crate::CrossCopy::is_gather`]).
     pub gather: bool,
     /// Queue the item runs on (timestamp width differs between queue families).
     pub queue: QueueKind,
@@ -90,7 +90,7 @@ pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timin
             gather: bool,
         },
     }
-    let gather = |chunk: &Chunk| plan.copy(chunk.copy).gather;
+    let gather = |chunk: &Chunk| plan.copy(chunk.copy).is_gather();
     let stage = |item: &Item| match item {
         Item::Pass(p) => Stage::Pass(plan.pass(*p).name.as_str()),
         Item::CopyOut(c) => Stage::CopyOut { gather: gather(c) },
@@ -113,7 +113,7 @@ pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timin
 /// [`timer_spans`]), in recording order; a span is labelled by its first item.
 pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[Vec<Range<usize>>]) -> Vec<TimerLabel> {
     let chunk_bytes =
-        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).resource).row_bytes() * u64::from(chunk.y1 - chunk.y0);
+        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).src_alloc).row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let copy_label = |items: &[Item], kind, queue| {
         let chunks: Vec<&Chunk> = items
             .iter()
@@ -124,7 +124,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
             .collect();
         let chunk = chunks[0];
         let copy = plan.copy(chunk.copy);
-        let resource = plan.resource(copy.resource);
+        let resource = plan.resource(copy.src_alloc);
         TimerLabel {
             name: format!(
                 "{} {} view {} → device {}",
@@ -139,7 +139,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
             chunk: chunk.index,
             copies: chunks.len() as u32,
             bytes: chunks.iter().map(|c| chunk_bytes(c)).sum(),
-            gather: copy.gather,
+            gather: copy.is_gather(),
             queue,
         }
     };
@@ -460,12 +460,12 @@ fn record_copies(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, items: &[Item]
             };
             let copy = ctx.plan.copy(chunk.copy);
             let local = ctx.resolve(match direction {
-                CopyDirection::Out => copy.resource,
-                CopyDirection::In => copy.dst,
+                CopyDirection::Out => copy.src_alloc,
+                CopyDirection::In => copy.dst_alloc,
             });
             let row_bytes = ctx.plan.resource(local).row_bytes();
             let (staging, offset) = ctx.staging[chunk.copy.index()];
-            let staging_offset = offset + u64::from(chunk.y0 - copy.rows.y0) * row_bytes;
+            let staging_offset = offset + u64::from(chunk.y0 - copy.region.y0) * row_bytes;
             (chunk, local, (staging, staging_offset, u64::from(chunk.y1 - chunk.y0) * row_bytes))
         })
         .collect();
@@ -575,7 +575,8 @@ pub(crate) mod grouping_plans {
     use std::sync::Arc;
 
     use crate::plan::{
-        DeviceId, ExecOp, ExecutionPlan, InstanceId, Kernels, PassId, PassInstance, Region, ViewId, own_access,
+        DeviceId, DeviceProgram, ExecutionPlan, InstanceId, Kernels, Op, PassId, PassInstance, Region, ViewId,
+        own_access,
     };
     use crate::recorder::{PassKernel, Recorder};
 
@@ -619,8 +620,9 @@ pub(crate) mod grouping_plans {
                 }
             })
             .collect();
-        let ops = (0..passes.len() as u32).map(|i| ExecOp::Pass(InstanceId(i))).collect();
-        ExecutionPlan { passes, devices: vec![ops], kernels, ..ExecutionPlan::default() }
+        let ops = (0..passes.len() as u32).map(|i| Op::Pass(InstanceId(i))).collect();
+        let program = DeviceProgram { device: DeviceId(0), ops, barriers: Vec::new() };
+        ExecutionPlan { passes, devices: vec![program], kernels, ..ExecutionPlan::default() }
     }
 
     /// The declared pass of the instances named `name`: one per distinct name, numbered by its
@@ -633,14 +635,15 @@ pub(crate) mod grouping_plans {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plan::{AllocId, CopyId, DeviceId, PassInstance, ViewId};
+    use crate::plan::{AllocId, CopyId, CopyKind, CrossCopy, DeviceId, Op, PassInstance, ResourceId, ViewId};
 
     #[test]
     fn grouped_passes_are_one_op_until_a_barrier_of_the_schedule_and_per_op_timing_times_each_op() {
         // A compaction, three fills of which the third writes what the first wrote (two bands
         // of one view), a copy of what the second wrote, two more fills, then a pass reading the
-        // third's result: barriers where the schedule places them for these accesses (the
-        // copy's read of the second fill's write is already behind the barrier at the third).
+        // third's result: barriers where compiling a schedule places them for these accesses
+        // (the copy's read of the second fill's write is already behind the barrier at the
+        // third).
         let mut plan = grouping_plans::plan(&[
             ("compact", &[], &[0]),
             ("fill", &[0], &[1]),
@@ -650,20 +653,26 @@ mod tests {
             ("fill", &[6], &[7]),
             ("svgf", &[1], &[8]),
         ]);
-        let rows = parallax_graph::Region::new(0, 1);
-        plan.copies = vec![crate::plan::ExecCopy {
-            resource: AllocId(3),
-            dst: AllocId(3),
+        // The plan describes no resources: nothing here counts the copy's bytes.
+        plan.copies = vec![CrossCopy {
+            resource: ResourceId(3),
             version: 1,
-            rows,
+            region: parallax_graph::Region::new(0, 1),
             from: DeviceId(0),
             to: DeviceId(1),
-            gather: false,
+            src_alloc: AllocId(3),
+            dst_alloc: AllocId(3),
+            bytes: 0,
+            kind: CopyKind::Dependency,
         }];
+        let mut ops: Vec<Op> = (0..7).map(|i| Op::Pass(InstanceId(i))).collect();
+        ops.insert(4, Op::CopyOut(CopyId(0)));
+        let barriers = parallax_graph::place_barriers(&plan.passes, &plan.copies, &ops);
+        assert_eq!(barriers, [0, 1, 3, 7]);
         let chunk = Chunk { copy: CopyId(0), index: 0, y0: 0, y1: 1 };
         let mut items: Vec<Item> = (0..7).map(|i| Item::Pass(InstanceId(i))).collect();
         items.insert(4, Item::CopyOut(chunk));
-        let s = Segment { barriers: vec![0, 1, 3, 7], ..segment(items) };
+        let s = Segment { barriers: barriers.iter().map(|&b| b as usize).collect(), ..segment(items) };
         assert_eq!(op_groups(&plan, &s), vec![0..1, 1..3, 3..4, 4..5, 5..7, 7..8]);
         assert_eq!(timer_spans(&plan, &s, Timing::PerOp), op_groups(&plan, &s));
         assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..1, 1..4, 4..5, 5..7, 7..8]);
@@ -696,16 +705,6 @@ mod tests {
     #[test]
     fn per_op_times_every_item_and_per_stage_each_run_of_one_pass_or_copy_direction() {
         let mut plan = plan_of(&["gbuffer", "gbuffer", "gbuffer", "svgf", "svgf", "gbuffer"]);
-        let copy = |gather| crate::plan::ExecCopy {
-            resource: AllocId(0),
-            dst: AllocId(0),
-            version: 1,
-            rows: parallax_graph::Region::new(0, 2),
-            from: DeviceId(0),
-            to: DeviceId(1),
-            gather,
-        };
-        plan.copies = vec![copy(false), copy(true)];
         plan.resources = vec![crate::plan::ExecResource::image(
             "radiance",
             parallax_graph::FamilyId(0),
@@ -714,6 +713,11 @@ mod tests {
             2,
             crate::plan::Format::Rgba32f,
         )];
+        let copy = |kind| {
+            let rows = parallax_graph::Region::new(0, 2);
+            plan.laid_copy(AllocId(0), AllocId(0), 1, rows, DeviceId(0), DeviceId(1), kind)
+        };
+        plan.copies = vec![copy(CopyKind::Dependency), copy(CopyKind::Gather)];
         let chunk = |c: u32, y0| Chunk { copy: CopyId(c), index: y0, y0, y1: y0 + 1 };
         let items = vec![
             Item::Pass(InstanceId(0)),

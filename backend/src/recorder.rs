@@ -85,7 +85,7 @@ impl RecordingBuffer {
 pub struct Recorder<'a> {
     /// Name of the pass being recorded, for errors.
     pub(crate) pass: &'a str,
-    /// History pairs swapped for an odd frame (see `ExecutionPlan::history_pairs`).
+    /// History pairs swapped for an odd frame (see `ExecutionPlan::history`).
     pub(crate) parity_map: &'a HashMap<AllocId, AllocId>,
     pub(crate) raw: &'a ash::Device,
     pub(crate) cb: vk::CommandBuffer,

@@ -341,7 +341,7 @@ mod tests {
     use crate::executor::{ExecOptions, Executor};
     use crate::instance::Validation;
     use crate::links::LinkKind;
-    use crate::plan::{CopyId, ExecCopy, ExecOp, Region};
+    use crate::plan::{CopyId, CrossCopy, Op, Region};
 
     type Reply = Sender<std::result::Result<Vec<u8>, String>>;
 
@@ -382,7 +382,7 @@ mod tests {
 
     /// What device 1 holds of the payload after `frames` frames of `plan`.
     fn received(context: &Context, plan: ExecutionPlan, options: ExecOptions, frames: usize) -> Vec<u8> {
-        let dst = plan.copies.last().expect("a copy").dst;
+        let dst = plan.copies.last().expect("a copy").dst_alloc;
         let mut executor = Executor::new(context, plan, options).unwrap();
         for _ in 0..frames {
             executor.run_frame().unwrap();
@@ -403,11 +403,11 @@ mod tests {
         let mut split = plain.clone();
         let elsewhere = remote_device_id(2, 7);
         split.copies =
-            vec![ExecCopy { to: elsewhere, ..plain.copies[0] }, ExecCopy { from: elsewhere, ..plain.copies[0] }];
-        for op in &mut split.devices[1] {
+            vec![CrossCopy { to: elsewhere, ..plain.copies[0] }, CrossCopy { from: elsewhere, ..plain.copies[0] }];
+        for op in &mut split.devices[1].ops {
             *op = match *op {
-                ExecOp::Wait(_) => ExecOp::Wait(CopyId(1)),
-                ExecOp::CopyIn(_) => ExecOp::CopyIn(CopyId(1)),
+                Op::Wait(_) => Op::Wait(CopyId(1)),
+                Op::CopyIn(_) => Op::CopyIn(CopyId(1)),
                 op => op,
             };
         }
@@ -435,7 +435,7 @@ mod tests {
     fn remote_copies_are_numbered_per_pair_and_direction_in_plan_order() {
         let mut plan = crate::bench::gather_plan(2, 4, 4).unwrap();
         let n = plan.devices.len();
-        let copy = |from, to| ExecCopy { from, to, ..plan.copies[0] };
+        let copy = |from, to| CrossCopy { from, to, ..plan.copies[0] };
         let (local, three, five) = (DeviceId(0), remote_device_id(n, 3), remote_device_id(n, 5));
         plan.copies = vec![
             copy(local, three),
@@ -445,7 +445,7 @@ mod tests {
             copy(DeviceId(1), local),
             copy(local, three),
         ];
-        plan.copies[1].rows = Region::new(0, 1);
+        plan.copies[1].region = Region::new(0, 1);
         let wire = |local, remote, copy| Some(Wire { local, remote, copy });
         assert_eq!(wires(&plan), vec![wire(0, 3, 0), wire(0, 3, 0), wire(0, 3, 1), wire(0, 5, 0), None, wire(0, 3, 2)]);
         assert_eq!(remote_device(n, five), Some(5));

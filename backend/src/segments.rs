@@ -22,7 +22,7 @@ use std::collections::HashMap;
 use std::ops::Range;
 
 use crate::device::QueueKind;
-use crate::plan::{CopyId, ExecOp, ExecutionPlan, InstanceId};
+use crate::plan::{CopyId, ExecutionPlan, InstanceId, Op};
 
 /// A row band of a copy moved by one submission.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -56,7 +56,7 @@ pub struct Segment {
     /// Queue the segment is submitted to.
     pub queue: QueueKind,
     pub items: Vec<Item>,
-    /// Indices of the items the schedule puts a memory barrier before (`ExecOp::Barrier`),
+    /// Indices of the items the schedule puts a memory barrier before (`DeviceProgram::barriers`),
     /// increasing. The executor also puts one before the first item (it follows other
     /// submissions) and around kernels that touch undeclared memory.
     pub barriers: Vec<usize>,
@@ -94,7 +94,7 @@ impl Item {
     fn queue(self, plan: &ExecutionPlan, separate_copy_queue: bool) -> QueueKind {
         match self {
             Item::Pass(_) => QueueKind::Main,
-            Item::CopyIn(chunk) if plan.resource(plan.copy(chunk.copy).dst).format.is_depth() => QueueKind::Main,
+            Item::CopyIn(chunk) if plan.resource(plan.copy(chunk.copy).dst_alloc).format.is_depth() => QueueKind::Main,
             Item::CopyOut(_) | Item::CopyIn(_) if separate_copy_queue => QueueKind::Copy,
             Item::CopyOut(_) | Item::CopyIn(_) => QueueKind::Main,
         }
@@ -109,10 +109,10 @@ pub fn chunks_of_copies(plan: &ExecutionPlan, chunk_bytes: u64) -> Vec<Vec<Chunk
         .enumerate()
         .map(|(c, copy)| {
             let c = CopyId(c as u32);
-            let row_bytes = plan.resource(copy.resource).row_bytes().max(1);
+            let row_bytes = plan.resource(copy.src_alloc).row_bytes().max(1);
             let rows_per_chunk = (chunk_bytes / row_bytes).clamp(1, u64::from(u32::MAX)) as u32;
-            let mut y0 = copy.rows.y0;
-            band_rows(copy.rows.y1 - copy.rows.y0, rows_per_chunk)
+            let mut y0 = copy.region.y0;
+            band_rows(copy.region.len(), rows_per_chunk)
                 .into_iter()
                 .enumerate()
                 .map(|(index, rows)| {
@@ -239,16 +239,18 @@ fn segment_single_queue(
     // (its chunks overlap across the two devices); the fault's copy keeps its own.
     let small = |c: CopyId| chunks[c.index()].len() == 1 && dropped_wait != Some(c);
     let bytes =
-        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).resource).row_bytes() * u64::from(chunk.y1 - chunk.y0);
+        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).src_alloc).row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let mut segments = Vec::new();
     let mut current = Segment::default();
     let mut tail = Tail::Closed;
+    let program = &plan.devices[device];
+    let mut barriers = program.barriers.iter().peekable();
     // A barrier stands before the next item pushed.
     let mut barrier = false;
-    for op in &plan.devices[device] {
+    for (index, op) in program.ops.iter().enumerate() {
+        barrier |= barriers.next_if(|&&b| b as usize == index).is_some();
         match *op {
-            ExecOp::Barrier => barrier = true,
-            ExecOp::Pass(p) => {
+            Op::Pass(p) => {
                 // A copy-out ends its segment: the relay forwards it once the segment is done.
                 if !current.relays.is_empty() {
                     segments.push(std::mem::take(&mut current));
@@ -256,7 +258,7 @@ fn segment_single_queue(
                 current.push(Item::Pass(p), &mut barrier);
                 tail = Tail::Closed;
             }
-            ExecOp::CopyOut(c) => {
+            Op::CopyOut(c) => {
                 for &chunk in &chunks[c.index()] {
                     let held = match tail {
                         Tail::CopyOuts(held) if small(c) && held.saturating_add(bytes(&chunk)) <= merge_bytes => {
@@ -274,8 +276,8 @@ fn segment_single_queue(
             }
             // The producer's signal is sent per chunk, right after the chunk's copy; the wait is
             // placed on the copy-in itself, the only command that reads the host buffer.
-            ExecOp::Signal(_) | ExecOp::Wait(_) => {}
-            ExecOp::CopyIn(c) => {
+            Op::Signal(_) | Op::Wait(_) => {}
+            Op::CopyIn(c) => {
                 for &chunk in &chunks[c.index()] {
                     // A wait applies to a whole submission: a copy-in starts one, unless it joins
                     // the small copy-ins that the current one starts with.
@@ -399,38 +401,47 @@ mod tests {
     /// and chunks changes no order and moves no barrier.
     #[test]
     fn segments_submit_each_device_s_ops_and_barriers_in_the_plan_s_order() {
-        use ExecOp::{Barrier, CopyIn, CopyOut, Pass, Signal, Wait};
+        use Op::{CopyIn, CopyOut, Pass, Signal, Wait};
         let plan = crate::bench::gather_plan(3, 64, 256).unwrap(); // 256 KiB per copy
         // The schedule batched device 0's run of fills: its copy-outs follow the whole run, after
         // one barrier (they read what the fills wrote); the fills share the frame's first one.
-        let batched =
-            [Barrier, Pass(InstanceId(0)), Pass(InstanceId(1)), Pass(InstanceId(2)), Barrier, CopyOut(CopyId(0))];
-        assert_eq!(plan.devices[0][..6], batched);
+        let batched = [Pass(InstanceId(0)), Pass(InstanceId(1)), Pass(InstanceId(2)), CopyOut(CopyId(0))];
+        assert_eq!(plan.devices[0].ops[..4], batched);
+        assert_eq!(plan.devices[0].barriers[..2], [0, 3]);
+        // Each op submitted, with whether a barrier precedes it: a barrier before a signal or a
+        // wait (recorded on no command buffer) guards the next op submitted.
+        let planned = |d: usize| {
+            let program = &plan.devices[d];
+            let mut guarded = false;
+            let mut steps: Vec<(bool, Op)> = Vec::new();
+            for (index, &op) in program.ops.iter().enumerate() {
+                guarded |= program.barriers.contains(&(index as u32));
+                if !matches!(op, Signal(_) | Wait(_)) {
+                    steps.push((std::mem::take(&mut guarded), op));
+                }
+            }
+            steps
+        };
         for chunk_bytes in [64 << 10, 1 << 20] {
             let chunks = chunks_of_copies(&plan, chunk_bytes);
             for separate_copy_queue in [false, true] {
                 let cut = segment_devices(&plan, &chunks, chunk_bytes, None, separate_copy_queue);
                 for (d, segments) in cut.iter().enumerate() {
-                    let mut submitted: Vec<ExecOp> = Vec::new();
+                    let mut submitted: Vec<(bool, Op)> = Vec::new();
                     for segment in segments {
                         for (index, item) in segment.items.iter().enumerate() {
-                            if segment.barrier_before(index) {
-                                submitted.push(Barrier);
-                            }
                             let op = match *item {
                                 Item::Pass(p) => Pass(p),
                                 Item::CopyOut(chunk) => CopyOut(chunk.copy),
                                 Item::CopyIn(chunk) => CopyIn(chunk.copy),
                             };
-                            // A copy's chunks are consecutive items.
-                            if submitted.last() != Some(&op) {
-                                submitted.push(op);
+                            // A copy's chunks are consecutive items; the first carries its barrier.
+                            if submitted.last().is_none_or(|&(_, last)| last != op) {
+                                submitted.push((segment.barrier_before(index), op));
                             }
                         }
                     }
-                    let planned: Vec<ExecOp> =
-                        plan.devices[d].iter().copied().filter(|op| !matches!(op, Signal(_) | Wait(_))).collect();
-                    assert_eq!(submitted, planned, "device {d}, chunks of {chunk_bytes} B");
+                    assert_eq!(submitted, planned(d), "device {d}, chunks of {chunk_bytes} B");
                 }
             }
         }

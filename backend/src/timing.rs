@@ -34,7 +34,7 @@ pub struct TimedEvent {
     pub copies: u32,
     /// Bytes of those copies.
     pub bytes: u64,
-    /// A copy of a finished view to device 0 ([`crate::ExecCopy::gather`]): Table 1's
+    /// A copy of a finished view to device 0 ([`crate::CrossCopy::is_gather`]): Table 1's
     /// "transfer" rather than a copy between stages.
     pub gather: bool,
     pub start_ns: u64,

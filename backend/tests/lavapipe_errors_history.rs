@@ -108,7 +108,7 @@ fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u3
     let ctx = context(DeviceSelection::FakeDevices(devices)).unwrap();
     let (plan, acc) = history_plan(views, 8, placement);
     assert_eq!(
-        plan.history_pairs.len(),
+        plan.history.len(),
         plan.passes.iter().map(|p| p.device).collect::<BTreeSet<_>>().len() * views as usize
     );
     let options = ExecOptions { frames_in_flight: 2, ..parallax_testkit::options() };
@@ -124,7 +124,7 @@ fn run_history(devices: usize, placement: &dyn Placement, views: u32, frames: u3
         let own = writer.writes.iter().map(|w| w.alloc).find(|&w| plan.resource(w).family == acc).unwrap();
         // Reads resolve through the last frame's parity: `own` is what it wrote, its twin what
         // the frame before wrote (what its history reads saw).
-        let other = plan.history_pairs.iter().find(|(a, _)| *a == own).unwrap().1;
+        let other = plan.history.iter().find(|p| p.current == own).unwrap().previous;
         let previous = floats(&exec.read_resource(writer.device, other).unwrap());
         out.push((current, previous));
     }

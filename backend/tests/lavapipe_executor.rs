@@ -2,7 +2,7 @@
 //! devices, with validation always on.
 
 use parallax_backend::{
-    BackendError, Context, DeviceId, EventKind, ExecOp, ExecOptions, Executor, FaultInjection, LinkKind, chrome_trace,
+    BackendError, Context, DeviceId, EventKind, ExecOptions, Executor, FaultInjection, LinkKind, Op, chrome_trace,
 };
 use parallax_testkit::kernels::reference_shift_blend;
 use parallax_testkit::plans::{demo_device_of_view, reprojection_demo};
@@ -70,9 +70,10 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
     let (plan, ids) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
     // The first copy-in of device 1 that nothing else on device 1 waits before.
     let copy = plan.devices[1]
+        .ops
         .iter()
         .find_map(|op| match op {
-            ExecOp::CopyIn(c) => Some(*c),
+            Op::CopyIn(c) => Some(*c),
             _ => None,
         })
         .unwrap();
@@ -81,7 +82,7 @@ fn dropping_a_cross_device_wait_gives_a_wrong_image() {
     let expected: Vec<usize> = plan
         .passes
         .iter()
-        .filter(|p| p.device == dropped.to && p.reads.iter().any(|a| a.alloc == dropped.resource))
+        .filter(|p| p.device == dropped.to && p.reads.iter().any(|a| a.alloc == dropped.src_alloc))
         .map(|p| p.view.index())
         .collect();
     assert!(!expected.is_empty());
@@ -114,9 +115,10 @@ fn fault_injection_refuses_a_copy_that_would_deadlock() {
     let (plan, _) = reprojection_demo(VIEWS, devices, SIZE, SIZE);
     // Device 0 receives two copies from device 1; the second one comes after a wait.
     let later = plan.devices[0]
+        .ops
         .iter()
         .filter_map(|op| match op {
-            ExecOp::CopyIn(c) => Some(*c),
+            Op::CopyIn(c) => Some(*c),
             _ => None,
         })
         .nth(1)

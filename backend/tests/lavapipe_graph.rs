@@ -125,7 +125,7 @@ fn both_schemes_really_copy_between_devices() {
             let ((graph, schedule), _) = demo_schedule(scheme, devices);
             let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
             plan.validate(devices as usize).unwrap();
-            assert!(plan.copies.iter().any(|c| c.rows.len() < SIZE), "{scheme:?}/{devices}: expected band copies");
+            assert!(plan.copies.iter().any(|c| c.region.len() < SIZE), "{scheme:?}/{devices}: expected band copies");
             // Fine-sources finishes every view on device 0; fine-all gathers the bands there.
             let gathers = schedule.gather_copies().count();
             assert_eq!(gathers > 0, scheme == Scheme::FineAll, "{scheme:?}/{devices}");

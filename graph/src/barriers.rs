@@ -15,26 +15,39 @@
 use std::collections::HashMap;
 
 use crate::ids::{AllocId, DeviceId, Region};
-use crate::schedule::{Op, Schedule};
+use crate::schedule::{CrossCopy, Op, PassInstance, Schedule};
 use crate::validate::ScheduleError;
 
 /// Rows of an allocation an op touches.
 type Touch = (AllocId, Region);
 
-/// What `op` reads and writes: a pass all of each allocation it accesses (history reads
-/// included), a copy-out its rows of the source allocation, a copy-in its rows of the
-/// destination; signals and waits nothing.
-fn accesses(schedule: &Schedule, op: Op) -> (Vec<Touch>, Vec<Touch>) {
-    let whole = |alloc: AllocId| (alloc, Region::new(0, u32::MAX));
-    match op {
-        Op::Pass(i) => {
-            let instance = schedule.instance(i);
-            let reads = instance.reads.iter().chain(&instance.history_reads).map(|a| whole(a.alloc)).collect();
-            (reads, instance.writes.iter().map(|a| whole(a.alloc)).collect())
+/// What a program's ops name: the instances and copies its `Op`s index.
+#[derive(Clone, Copy)]
+struct OpsOf<'a> {
+    instances: &'a [PassInstance],
+    copies: &'a [CrossCopy],
+}
+
+impl<'a> OpsOf<'a> {
+    fn schedule(schedule: &'a Schedule) -> Self {
+        Self { instances: &schedule.instances, copies: &schedule.copies }
+    }
+
+    /// What `op` reads and writes: a pass all of each allocation it accesses (history reads
+    /// included), a copy-out its rows of the source allocation, a copy-in its rows of the
+    /// destination; signals and waits nothing.
+    fn accesses(self, op: Op) -> (Vec<Touch>, Vec<Touch>) {
+        let whole = |alloc: AllocId| (alloc, Region::new(0, u32::MAX));
+        match op {
+            Op::Pass(i) => {
+                let instance = &self.instances[i.index()];
+                let reads = instance.reads.iter().chain(&instance.history_reads).map(|a| whole(a.alloc)).collect();
+                (reads, instance.writes.iter().map(|a| whole(a.alloc)).collect())
+            }
+            Op::CopyOut(c) => (vec![(self.copies[c.index()].src_alloc, self.copies[c.index()].region)], vec![]),
+            Op::CopyIn(c) => (vec![], vec![(self.copies[c.index()].dst_alloc, self.copies[c.index()].region)]),
+            Op::Signal(_) | Op::Wait(_) => (vec![], vec![]),
         }
-        Op::CopyOut(c) => (vec![(schedule.copy(c).src_alloc, schedule.copy(c).region)], vec![]),
-        Op::CopyIn(c) => (vec![], vec![(schedule.copy(c).dst_alloc, schedule.copy(c).region)]),
-        Op::Signal(_) | Op::Wait(_) => (vec![], vec![]),
     }
 }
 
@@ -66,13 +79,16 @@ impl SinceBarrier {
     }
 }
 
-/// Indices of the ops of `ops` (one device's program of `schedule`) that a barrier precedes,
-/// in increasing order.
-pub(crate) fn place(schedule: &Schedule, ops: &[Op]) -> Vec<u32> {
+/// Indices of the ops of `ops` (one device's program) that a barrier precedes, in increasing
+/// order, by the rule of this module; `instances` and `copies` are what the ops index. What
+/// compiling a schedule places; a plan laid out by hand (the backend's tests) places its
+/// barriers with it too.
+pub fn place_barriers(instances: &[PassInstance], copies: &[CrossCopy], ops: &[Op]) -> Vec<u32> {
+    let named = OpsOf { instances, copies };
     let mut barriers = Vec::new();
     let mut since = SinceBarrier::default();
     for (index, &op) in ops.iter().enumerate() {
-        let (reads, writes) = accesses(schedule, op);
+        let (reads, writes) = named.accesses(op);
         if reads.is_empty() && writes.is_empty() {
             continue;
         }
@@ -87,7 +103,8 @@ pub(crate) fn place(schedule: &Schedule, ops: &[Op]) -> Vec<u32> {
 
 /// Places every program's barriers (after its ops are in their final order).
 pub(crate) fn place_all(schedule: &mut Schedule) {
-    let placed: Vec<Vec<u32>> = schedule.devices.iter().map(|p| place(schedule, &p.ops)).collect();
+    let placed: Vec<Vec<u32>> =
+        schedule.devices.iter().map(|p| place_barriers(&schedule.instances, &schedule.copies, &p.ops)).collect();
     for (program, barriers) in schedule.devices.iter_mut().zip(placed) {
         program.barriers = barriers;
     }
@@ -118,7 +135,7 @@ impl Schedule {
     fn first_unguarded_hazard(&self, device: DeviceId, ops: &[Op], barriers: &[u32]) -> Option<ScheduleError> {
         let mut since: Option<SinceBarrier> = None;
         for (index, &op) in ops.iter().enumerate() {
-            let (reads, writes) = accesses(self, op);
+            let (reads, writes) = OpsOf::schedule(self).accesses(op);
             if barriers.binary_search(&(index as u32)).is_ok() {
                 since = Some(SinceBarrier::default());
             } else if !reads.is_empty() || !writes.is_empty() {

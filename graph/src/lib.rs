@@ -59,6 +59,7 @@ mod validate_history;
 mod validate_storage;
 
 pub use assign::{AssignStrategy, Assignment, assign};
+pub use barriers::place_barriers;
 pub use builder::{
     Buffer, Graph, Handle, HistorySlot, Image, PassBuilder, ReadSlot, Role, SlotAccess, SourcesSlot, ViewTopology,
     WriteSlot,

@@ -239,6 +239,14 @@ pub struct CrossCopy {
     pub kind: CopyKind,
 }
 
+impl CrossCopy {
+    /// A finished view on its way to device 0 (Table 1's "transfer"), not an intermediate
+    /// result another device reads.
+    pub fn is_gather(&self) -> bool {
+        self.kind == CopyKind::Gather
+    }
+}
+
 /// One step of a device's program.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 pub enum Op {

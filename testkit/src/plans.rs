@@ -13,8 +13,8 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    Access, AllocId, CopyId, DeviceId, ExecCopy, ExecOp, ExecResource, ExecutionPlan, FamilyId, Format, InstanceId,
-    KernelGraph, Kernels, PassId, PassInstance, Region, ViewId, own_access,
+    Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan, FamilyId,
+    Format, InstanceId, KernelGraph, Kernels, Op, PassId, PassInstance, Region, ViewId, own_access,
 };
 use parallax_graph::{Origin, Role, ViewTopology};
 
@@ -80,7 +80,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
 struct Demo {
     plan: ExecutionPlan,
     /// Phase lists per device; concatenated at the end so every wait follows its signal's phase.
-    phases: Vec<[Vec<ExecOp>; 4]>,
+    phases: Vec<[Vec<Op>; 4]>,
     views: u32,
     height: u32,
     resources: DemoResources,
@@ -92,7 +92,7 @@ impl Demo {
         let mut kernels = Kernels::default();
         kernels.insert(FILL, Arc::new(fill));
         kernels.insert(SHIFT_BLEND, Arc::new(blend));
-        let mut plan = ExecutionPlan { devices: vec![Vec::new(); devices], kernels, ..ExecutionPlan::default() };
+        let mut plan = ExecutionPlan { kernels, ..ExecutionPlan::default() };
         let mut image = |name: &str, family: FamilyId, view: u32| {
             plan.resources.push(ExecResource::image(name, family, view, width, height, Format::Rgba32f));
             AllocId(plan.resources.len() as u32 - 1)
@@ -118,20 +118,21 @@ impl Demo {
     fn add_pass(&mut self, pass: PassInstance, phase: usize) {
         let device = pass.device;
         self.plan.passes.push(pass);
-        self.phases[device.index()][phase].push(ExecOp::Pass(InstanceId(self.plan.passes.len() as u32 - 1)));
+        self.phases[device.index()][phase].push(Op::Pass(InstanceId(self.plan.passes.len() as u32 - 1)));
     }
 
     /// The copy's producer side in phase `out`, its consumer side in the next one.
-    fn add_copy(&mut self, copy: ExecCopy, out: usize) {
+    fn add_copy(&mut self, copy: CrossCopy, out: usize) {
         self.plan.copies.push(copy);
         let c = CopyId(self.plan.copies.len() as u32 - 1);
-        self.phases[copy.from.index()][out].extend([ExecOp::CopyOut(c), ExecOp::Signal(c)]);
-        self.phases[copy.to.index()][out + 1].extend([ExecOp::Wait(c), ExecOp::CopyIn(c)]);
+        self.phases[copy.from.index()][out].extend([Op::CopyOut(c), Op::Signal(c)]);
+        self.phases[copy.to.index()][out + 1].extend([Op::Wait(c), Op::CopyIn(c)]);
     }
 
-    /// A copy of the whole of version 1 of `resource`.
-    fn whole_copy(&self, resource: AllocId, from: DeviceId, to: DeviceId, gather: bool) -> ExecCopy {
-        ExecCopy { resource, dst: resource, version: 1, rows: self.all(), from, to, gather }
+    /// A copy of `rows` of version 1 of `resource` (one id on both devices, as each device
+    /// holds every resource of the demo).
+    fn copy(&self, resource: AllocId, rows: Region, from: DeviceId, to: DeviceId, kind: CopyKind) -> CrossCopy {
+        self.plan.laid_copy(resource, resource, 1, rows, from, to, kind)
     }
 
     /// Phase 0: fills; the last view in row bands over every device, each band sent to the
@@ -165,15 +166,7 @@ impl Demo {
                 };
                 self.add_pass(fill, 0);
                 if device != self.owner(v) {
-                    let copy = ExecCopy {
-                        resource: radiance,
-                        dst: radiance,
-                        version: 1,
-                        rows,
-                        from: device,
-                        to: self.owner(v),
-                        gather: false,
-                    };
+                    let copy = self.copy(radiance, rows, device, self.owner(v), CopyKind::Dependency);
                     self.add_copy(copy, 0);
                 }
             }
@@ -185,8 +178,8 @@ impl Demo {
         for v in 0..self.views {
             let source = (v + 1) % self.views;
             if self.owner(source) != self.owner(v) {
-                let copy =
-                    self.whole_copy(self.resources.radiance[source as usize], self.owner(source), self.owner(v), false);
+                let radiance = self.resources.radiance[source as usize];
+                let copy = self.copy(radiance, self.all(), self.owner(source), self.owner(v), CopyKind::Dependency);
                 self.add_copy(copy, 1);
             }
         }
@@ -220,7 +213,8 @@ impl Demo {
     fn gathers(&mut self) {
         for v in 0..self.views {
             if self.owner(v) != DeviceId(0) {
-                let copy = self.whole_copy(self.resources.output[v as usize], self.owner(v), DeviceId(0), true);
+                let output = self.resources.output[v as usize];
+                let copy = self.copy(output, self.all(), self.owner(v), DeviceId(0), CopyKind::Gather);
                 self.add_copy(copy, 2);
             }
         }
@@ -228,8 +222,10 @@ impl Demo {
 
     fn finish(mut self) -> (ExecutionPlan, DemoResources) {
         for (d, device_phases) in self.phases.into_iter().enumerate() {
-            self.plan.devices[d] = device_phases.into_iter().flatten().collect();
+            let ops = device_phases.into_iter().flatten().collect();
+            self.plan.devices.push(DeviceProgram { device: DeviceId(d as u32), ops, barriers: Vec::new() });
         }
+        self.plan.place_barriers();
         (self.plan, self.resources)
     }
 }
@@ -237,7 +233,7 @@ impl Demo {
 /// One fill on device 0 of a `width`×`height` RGBA32F image and its copy to device 1.
 pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
     let all = Region::new(0, height);
-    ExecutionPlan {
+    let mut plan = ExecutionPlan {
         resources: vec![ExecResource::image("payload", RADIANCE, 0, width, height, Format::Rgba32f)],
         passes: vec![PassInstance {
             pass: FILL,
@@ -249,22 +245,18 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
             history_reads: vec![],
             writes: vec![own_access(0, AllocId(0), 1, all)],
         }],
-        copies: vec![ExecCopy {
-            resource: AllocId(0),
-            dst: AllocId(0),
-            version: 1,
-            rows: all,
-            from: DeviceId(0),
-            to: DeviceId(1),
-            gather: false,
-        }],
-        devices: vec![
-            vec![ExecOp::Pass(InstanceId(0)), ExecOp::CopyOut(CopyId(0)), ExecOp::Signal(CopyId(0))],
-            vec![ExecOp::Wait(CopyId(0)), ExecOp::CopyIn(CopyId(0))],
-        ],
-        history_pairs: vec![],
         kernels: fill_only(),
-    }
+        ..ExecutionPlan::default()
+    };
+    plan.copies = vec![plan.laid_copy(AllocId(0), AllocId(0), 1, all, DeviceId(0), DeviceId(1), CopyKind::Dependency)];
+    let program = |device, ops| DeviceProgram { device: DeviceId(device), ops, barriers: Vec::new() };
+    let c = CopyId(0);
+    plan.devices = vec![
+        program(0, vec![Op::Pass(InstanceId(0)), Op::CopyOut(c), Op::Signal(c)]),
+        program(1, vec![Op::Wait(c), Op::CopyIn(c)]),
+    ];
+    plan.place_barriers();
+    plan
 }
 
 /// The demo's `fill` alone (pass 0, writing its payload as write 0).

@@ -188,7 +188,7 @@ impl Executor {
     }
 
     /// Recorded frame slots: frames in flight rounded up to even, so a slot's frame parity never
-    /// changes and history pairs can be swapped in the recording (see `ExecutionPlan::history_pairs`).
+    /// changes and history pairs can be swapped in the recording (see `ExecutionPlan::history`).
     pub(super) fn slot_count(&self) -> usize {
         self.options.frames_in_flight.div_ceil(2) * 2
     }

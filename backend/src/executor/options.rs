@@ -74,13 +74,14 @@ pub struct ExecOptions {
 pub enum Barriers {
     /// Before every op: always right, and what synchronisation validation can check. (A group
     /// of instances that a kernel records together is one op; groups end at the plan's
-    /// barriers, so a hand-laid plan with such a kernel states its `ExecOp::Barrier`s too.)
+    /// barriers, so a hand-laid plan with such a kernel states its barriers too:
+    /// `ExecutionPlan::place_barriers`.)
     #[default]
     EveryOp,
     /// Where the compiled schedule put one (`parallax_graph::DeviceProgram::barriers`: an op
     /// touches what an op since the last barrier touched), at the start of each submission, and
     /// around kernels that touch undeclared memory, so instances of one pass for many views
-    /// overlap on the GPU. A hand-laid plan states its barriers (`ExecOp::Barrier`). Synchronisation
+    /// overlap on the GPU. A hand-laid plan states its barriers (`ExecutionPlan::place_barriers`). Synchronisation
     /// validation reports false hazards here: it takes every dispatch to touch the whole
     /// bindless image array.
     Tracked,

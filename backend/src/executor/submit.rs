@@ -295,8 +295,8 @@ impl Executor {
         let staging = self.staging.as_ref().expect("a plan with copies has staging");
         let base = staging.buffers[link][slot].host_ptr().expect("a remote link's staging is host memory");
         let copy = self.plan.copy(chunk.copy);
-        let row_bytes = self.plan.resource(copy.resource).row_bytes();
-        let offset = staging.places[chunk.copy.index()].1 + u64::from(chunk.y0 - copy.rows.y0) * row_bytes;
+        let row_bytes = self.plan.resource(copy.src_alloc).row_bytes();
+        let offset = staging.places[chunk.copy.index()].1 + u64::from(chunk.y0 - copy.region.y0) * row_bytes;
         HostSpan::new(base, offset, u64::from(chunk.y1 - chunk.y0) * row_bytes)
     }
 }
