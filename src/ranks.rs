@@ -159,7 +159,7 @@ pub fn run_device(plan: &ExecutionPlan, first: u32, device: usize) -> u32 {
 /// The views whose passes run on `plan`'s own devices: what a rank renders.
 #[cfg(feature = "mpi")]
 pub fn views_of(plan: &ExecutionPlan) -> BTreeSet<u32> {
-    plan.passes.iter().filter(|p| p.device.index() < plan.devices.len()).map(|p| p.view).collect()
+    plan.passes.iter().filter(|p| p.device.index() < plan.devices.len()).map(|p| p.view.0).collect()
 }
 
 /// What one rank of a render over several ranks runs: its place among the ranks, and the

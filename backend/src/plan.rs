@@ -106,32 +106,37 @@ impl ExecResource {
     }
 }
 
-/// An access of a pass instance's own view in a hand-laid plan: version `version` of allocation
-/// `alloc` over `rows`, the pass's declared read or write number `decl`. A hand-laid plan has no
-/// declared resources, so the access names its allocation as its resource.
-pub fn own_access(decl: u16, alloc: AllocId, version: u32, rows: Region) -> Access {
-    Access { resource: ResourceId(alloc.0), version, region: rows, alloc, origin: Origin::Own, decl, in_place: false }
+/// An access of a pass instance's own view in a hand-laid plan: allocation `alloc` over `rows`,
+/// the pass's declared read or write number `decl`. A hand-laid plan has no declared resources,
+/// so the access names its allocation as its resource, and writes each allocation once a frame:
+/// the access is of version 1.
+pub fn own_access(decl: u16, alloc: AllocId, rows: Region) -> Access {
+    Access {
+        resource: ResourceId(alloc.0),
+        version: 1,
+        region: rows,
+        alloc,
+        origin: Origin::Own,
+        decl,
+        in_place: false,
+    }
 }
 
 impl ExecutionPlan {
-    /// A copy in a hand-laid plan: version `version` of allocation `src` on `from` over `rows`
-    /// into allocation `dst` on `to`, its bytes counted from `src`'s description (already in the
-    /// plan), which it names as its resource, as [`own_access`] does.
-    #[allow(clippy::too_many_arguments)]
+    /// A copy in a hand-laid plan: `rows` of allocation `src` on `from` into allocation `dst` on
+    /// `to`, its bytes counted from `src`'s description (already in the plan), which it names as
+    /// its resource, of version 1, as [`own_access`] does.
     pub fn laid_copy(
         &self,
-        src: AllocId,
-        dst: AllocId,
-        version: u32,
+        (src, dst): (AllocId, AllocId),
         rows: Region,
-        from: DeviceId,
-        to: DeviceId,
+        (from, to): (DeviceId, DeviceId),
         kind: CopyKind,
     ) -> CrossCopy {
         let bytes = self.resource(src).row_bytes() * u64::from(rows.len());
         CrossCopy {
             resource: ResourceId(src.0),
-            version,
+            version: 1,
             region: rows,
             from,
             to,
@@ -253,7 +258,7 @@ impl ExecutionPlan {
                 region: all,
                 device: DeviceId(0),
                 reads: vec![],
-                writes: vec![own_access(write.index(), AllocId(0), 1, all)],
+                writes: vec![own_access(write.index(), AllocId(0), all)],
                 history_reads: vec![],
             }],
             resources: vec![resource],

@@ -601,7 +601,7 @@ pub(crate) mod grouping_plans {
     pub(crate) fn plan(passes: &[(&str, &[u32], &[u32])]) -> ExecutionPlan {
         let mut kernels = Kernels::default();
         let rows = Region::new(0, 1);
-        let access = |&r: &u32| own_access(0, crate::plan::AllocId(r), 1, rows);
+        let access = |&r: &u32| own_access(0, crate::plan::AllocId(r), rows);
         let passes: Vec<PassInstance> = passes
             .iter()
             .enumerate()
@@ -715,7 +715,7 @@ mod tests {
         )];
         let copy = |kind| {
             let rows = parallax_graph::Region::new(0, 2);
-            plan.laid_copy(AllocId(0), AllocId(0), 1, rows, DeviceId(0), DeviceId(1), kind)
+            plan.laid_copy((AllocId(0), AllocId(0)), rows, (DeviceId(0), DeviceId(1)), kind)
         };
         plan.copies = vec![copy(CopyKind::Dependency), copy(CopyKind::Gather)];
         let chunk = |c: u32, y0| Chunk { copy: CopyId(c), index: y0, y0, y1: y0 + 1 };

@@ -195,7 +195,7 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
         let args = ExecResource::buffer("args", FamilyId(0), 0, 16);
         let mut plan = ExecutionPlan::single_pass("misused", |_| kernel, args, 1);
         plan.resources.push(image.clone());
-        plan.passes[0].writes.push(own_access(1, AllocId(1), 1, Region::new(0, 4)));
+        plan.passes[0].writes.push(own_access(1, AllocId(1), Region::new(0, 4)));
         plan
     };
     let ctx = context();

@@ -132,7 +132,7 @@ impl Demo {
     /// A copy of `rows` of version 1 of `resource` (one id on both devices, as each device
     /// holds every resource of the demo).
     fn copy(&self, resource: AllocId, rows: Region, from: DeviceId, to: DeviceId, kind: CopyKind) -> CrossCopy {
-        self.plan.laid_copy(resource, resource, 1, rows, from, to, kind)
+        self.plan.laid_copy((resource, resource), rows, (from, to), kind)
     }
 
     /// Phase 0: fills; the last view in row bands over every device, each band sent to the
@@ -162,7 +162,7 @@ impl Demo {
                     device,
                     reads: vec![],
                     history_reads: vec![],
-                    writes: vec![own_access(0, radiance, 1, rows)],
+                    writes: vec![own_access(0, radiance, rows)],
                 };
                 self.add_pass(fill, 0);
                 if device != self.owner(v) {
@@ -190,7 +190,7 @@ impl Demo {
         for v in 0..self.views {
             let source = (v + 1) % self.views;
             let all = self.all();
-            let access = |decl: u16, alloc: AllocId| own_access(decl, alloc, 1, all);
+            let access = |decl: u16, alloc: AllocId| own_access(decl, alloc, all);
             let r = &self.resources;
             let blend = PassInstance {
                 pass: SHIFT_BLEND,
@@ -243,12 +243,12 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
             device: DeviceId(0),
             reads: vec![],
             history_reads: vec![],
-            writes: vec![own_access(0, AllocId(0), 1, all)],
+            writes: vec![own_access(0, AllocId(0), all)],
         }],
         kernels: fill_only(),
         ..ExecutionPlan::default()
     };
-    plan.copies = vec![plan.laid_copy(AllocId(0), AllocId(0), 1, all, DeviceId(0), DeviceId(1), CopyKind::Dependency)];
+    plan.copies = vec![plan.laid_copy((AllocId(0), AllocId(0)), all, (DeviceId(0), DeviceId(1)), CopyKind::Dependency)];
     let program = |device, ops| DeviceProgram { device: DeviceId(device), ops, barriers: Vec::new() };
     let c = CopyId(0);
     plan.devices = vec![
@@ -286,6 +286,18 @@ mod tests {
             assert_eq!(plan.copies.len(), expected, "devices = {devices}");
         }
         copy_plan(64, 64).validate(2).unwrap();
+    }
+
+    #[test]
+    fn hand_laid_programs_have_the_barriers_a_compiled_schedule_would() {
+        // One device: three fills, then three blends that read the fills' images; the first op
+        // follows the previous frame.
+        let (plan, _) = reprojection_demo(3, 1, 8, 8);
+        assert_eq!(plan.devices[0].barriers, [0, 3]);
+        // The copy-out reads what the fill wrote; the receiving device's copy-in is its first
+        // memory op.
+        let plan = copy_plan(8, 8);
+        assert_eq!((plan.devices[0].barriers.as_slice(), plan.devices[1].barriers.as_slice()), (&[0, 1][..], &[1][..]));
     }
 
     #[test]
