@@ -232,7 +232,7 @@ mod tests {
     use crate::scene_args::LayoutArgs;
 
     /// The execution plan `render` runs for 4×2 views of 32×24 under `scheme` on `devices`.
-    fn global_plan(scheme: &str, devices: u32) -> (ExecutionPlan, Schedule) {
+    fn global_plan(scheme: &str, devices: u32) -> (ExecutionPlan, parallax_graph::ProvenSchedule) {
         let words = ["--lf", "4x2", "--resolution", "32x24", "--scheme", scheme];
         let command =
             PipelineArgs::augment_args(LayoutArgs::augment_args(clap::Command::new("t").no_binary_name(true)));

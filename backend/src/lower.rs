@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{AllocId, Format, Graph, ResourceDesc, Schedule, ScheduleError};
+use parallax_graph::{AllocId, Format, Graph, ProvenSchedule, ResourceDesc, Schedule};
 
 use crate::plan::{ExecResource, ExecutionPlan, Kernels, ResourceKind};
 use crate::recorder::PassKernel;
@@ -28,21 +28,15 @@ pub enum LowerError {
         "pass `{pass}`'s kernel records its instances in groups, but the pass was not declared `.grouped()`: declare it so where it is declared (its copy-outs then wait for the end of its runs)"
     )]
     UngroupedKernel { pass: String },
-    #[error("the schedule does not validate: {first} ({problems} problem(s) in all)")]
-    Invalid { first: ScheduleError, problems: usize },
 }
 
 impl ExecutionPlan {
-    /// Lowers `schedule`, compiled from `graph`. The schedule must pass `Schedule::validate()`,
-    /// checked here: it is the one proof of the plan's ids, rows, op order, copies, history pairs
-    /// and storage; `ExecutionPlan::validate` (the executor runs it) adds only what the backend
-    /// knows (device count, kernels, resets).
-    pub fn from_schedule(graph: &KernelGraph, schedule: &Schedule) -> Result<ExecutionPlan, LowerError> {
-        let mut errors = schedule.validate().errors;
-        if !errors.is_empty() {
-            let problems = errors.len();
-            return Err(LowerError::Invalid { first: errors.swap_remove(0), problems });
-        }
+    /// Lowers `schedule`, compiled from `graph`. The schedule is proven (`ProvenSchedule`: it
+    /// passed `Schedule::validate()` once, when it was compiled or changed): that is the proof of
+    /// the plan's ids, rows, op order, barriers, copies, history pairs and storage, so nothing
+    /// here checks them again; `ExecutionPlan::validate` (the executor runs it) adds only what
+    /// the backend knows (device count, kernels, resets).
+    pub fn from_schedule(graph: &KernelGraph, schedule: &ProvenSchedule) -> Result<ExecutionPlan, LowerError> {
         let mut kernels = Kernels::default();
         for inst in &schedule.instances {
             if kernels.of(inst.pass).is_some() {

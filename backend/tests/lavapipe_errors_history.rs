@@ -175,16 +175,14 @@ fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
 
 #[test]
 fn plan_errors_are_reported_before_any_gpu_work() {
-    // A schedule that does not validate is not lowered; the error is the validator's own.
+    // A changed schedule is proven again before it can be lowered (`from_schedule` takes only a
+    // proven one); the error is the validator's own.
     let (graph, _) = history_graph(1, 8);
-    let mut schedule = compile(&graph, &OnDevice { device: 1, devices: 2 }).unwrap();
+    let mut schedule = compile(&graph, &OnDevice { device: 1, devices: 2 }).unwrap().into_schedule();
     let c = schedule.copies.iter().position(|c| c.to == DeviceId(0)).expect("exports are gathered on device 0");
     schedule.devices[0].ops.retain(|op| *op != Op::Wait(CopyId(c as u32)));
     let first = ScheduleError::CopyOpMissing { copy: CopyId(c as u32), op: "Wait" };
-    assert!(matches!(
-        ExecutionPlan::from_schedule(&graph, &schedule),
-        Err(LowerError::Invalid { first: f, problems: _ }) if f == first
-    ));
+    assert_eq!(schedule.proven().unwrap_err().errors.first(), Some(&first));
     let one = context(DeviceSelection::FakeDevices(1)).unwrap();
     let err = Executor::new(&one, parallax_testkit::plans::copy_plan(8, 8), parallax_testkit::options()).err().unwrap();
     assert!(

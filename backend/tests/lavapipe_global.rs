@@ -9,8 +9,8 @@ use parallax_backend::{
     ExecutionPlan, Executor, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder, ResourceKind,
 };
 use parallax_graph::{
-    AssignStrategy, DeviceId, FamilyId, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme,
-    WriteSlot, compile,
+    AssignStrategy, DeviceId, FamilyId, Format, LightField, Plan, PlanConfig, ProvenSchedule, ReadSlot, Rig, Role,
+    Scheme, WriteSlot, compile,
 };
 use parallax_testkit::kernels::{FillBufferKernel, FillKernel, reference_shift_blend, shift_of_view};
 
@@ -21,7 +21,7 @@ const OUTPUT: FamilyId = FamilyId(3);
 
 /// fill per view → `pattern`; the global pass `fill_global` → the global image `shared` (view
 /// 0's pattern) and `shared_words` → shift_blend of every view: its own pattern with `shared`.
-fn global_graph(scheme: Scheme, devices: u32) -> (KernelGraph, Schedule) {
+fn global_graph(scheme: Scheme, devices: u32) -> (KernelGraph, ProvenSchedule) {
     let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
     let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&lf, &config).unwrap();

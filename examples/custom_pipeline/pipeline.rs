@@ -19,7 +19,7 @@ use parallax_backend::{
     FamilyId, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, Validation,
 };
 use parallax_graph::{
-    AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Schedule, Scheme, SourcesSlot,
+    AssignStrategy, Format, LightField, Plan, PlanConfig, ProvenSchedule, ReadSlot, Rig, Role, Scheme, SourcesSlot,
     WriteSlot, compile,
 };
 use parallax_scene::output::write_contact_sheet;
@@ -169,7 +169,7 @@ fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGrap
 }
 
 /// Compiles the graph and checks the schedule's invariants.
-fn schedule(graph: &KernelGraph, plan: &Plan) -> Result<Schedule> {
+fn schedule(graph: &KernelGraph, plan: &Plan) -> Result<ProvenSchedule> {
     let schedule = compile(graph, plan)?;
     let report = schedule.validate();
     if let Some(first) = report.errors.first() {

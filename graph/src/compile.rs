@@ -12,6 +12,7 @@ use crate::error::GraphError;
 use crate::ids::{AllocId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::lower::lower;
 use crate::order::{CompileOptions, OpOrder, order_programs};
+use crate::proven::ProvenSchedule;
 use crate::schedule::{
     Access, CulledPass, DeltaEdge, Edge, Origin, PassInfo, PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
@@ -37,16 +38,17 @@ pub trait Placement {
 
 /// Compiles `graph` under `placement` into a schedule, with the default options (small copies
 /// batched as the backend's default chunk size defines them, [`CompileOptions`]).
-pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<Schedule, GraphError> {
+pub fn compile<P>(graph: &Graph<P>, placement: &dyn Placement) -> Result<ProvenSchedule, GraphError> {
     compile_with(graph, placement, &CompileOptions::default())
 }
 
-/// Compiles `graph` under `placement` into a schedule, its programs ordered by `options`.
+/// Compiles `graph` under `placement` into a schedule, its programs ordered by `options`, and
+/// proves it (`Schedule::validate`): the one check of the schedule before the backend runs it.
 pub fn compile_with<P>(
     graph: &Graph<P>,
     placement: &dyn Placement,
     options: &CompileOptions,
-) -> Result<Schedule, GraphError> {
+) -> Result<ProvenSchedule, GraphError> {
     if let Some(error) = graph.declaration_error() {
         return Err(error.clone());
     }
@@ -108,7 +110,7 @@ pub fn compile_with<P>(
     };
     order_programs(&mut schedule, options.batching);
     crate::barriers::place_all(&mut schedule);
-    Ok(schedule)
+    schedule.proven().map_err(GraphError::Unsound)
 }
 
 /// Ordered, so the versions of one (family, view) are a range: `last_version` is a lookup, not a

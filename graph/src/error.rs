@@ -107,6 +107,10 @@ pub enum GraphError {
     WriteScope { pass: String, resource: String, global: bool, at: &'static Location<'static> },
     #[error("the graph has no roots: export a resource or mark a pass side_effect(), otherwise every pass is culled")]
     NoRoots,
+    #[error(
+        "internal error: compiling gave a schedule that does not validate ({0}); this is a bug of the compiler, please report it with the command that gave it"
+    )]
+    Unsound(crate::validate::ValidationReport),
 }
 
 /// "global " or "per-view ", as the scope errors name a resource.

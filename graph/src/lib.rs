@@ -48,6 +48,7 @@ pub mod lightfield;
 mod lower;
 pub mod order;
 pub mod partition;
+mod proven;
 pub mod schedule;
 pub mod source;
 pub mod source_cost;
@@ -70,6 +71,7 @@ pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, R
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use order::{Batching, CompileOptions, DEFAULT_CHUNK_BYTES, OpOrder};
 pub use partition::{Plan, PlanConfig, Scheme, SourcesPerSet, parse_source_list};
+pub use proven::ProvenSchedule;
 pub use schedule::{
     Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin, PassInfo,
     PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,

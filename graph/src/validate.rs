@@ -127,6 +127,17 @@ impl ValidationReport {
     }
 }
 
+impl std::fmt::Display for ValidationReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.errors.first() {
+            None => write!(f, "the schedule breaks no invariant"),
+            Some(first) => write!(f, "the schedule breaks {} invariant(s), first: {first}", self.errors.len()),
+        }
+    }
+}
+
+impl std::error::Error for ValidationReport {}
+
 /// Where each op sits: (device, index) for every occurrence.
 type Positions = HashMap<Op, Vec<(DeviceId, usize)>>;
 

@@ -19,7 +19,7 @@ fn chain() -> Schedule {
     graph.pass("blur", Role::All).read(&a).write(&mut b).record();
     graph.pass("blur_again", Role::All).modify(&mut b).record();
     graph.export(&b);
-    compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap()
+    compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap().into_schedule()
 }
 
 fn names(s: &Schedule, program: &DeviceProgram) -> Vec<String> {

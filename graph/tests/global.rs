@@ -34,7 +34,7 @@ fn plan(devices: u32, scheme: Scheme) -> Plan {
 
 fn exposure_schedule(devices: u32, scheme: Scheme) -> Schedule {
     let plan = plan(devices, scheme);
-    compile(&exposure_graph(&plan), &plan).unwrap()
+    compile(&exposure_graph(&plan), &plan).unwrap().into_schedule()
 }
 
 fn named<'s>(s: &'s Schedule, name: &str) -> Vec<&'s PassInstance> {

@@ -26,7 +26,7 @@ fn blur(views: u32, devices: u32, halo: Option<u32>) -> Schedule {
     g.export(&out);
     let schedule = compile(&g, &BandedPlacement { devices, bands: devices }).unwrap();
     assert_eq!(schedule.validate().errors, vec![], "{devices} devices, halo {halo:?}");
-    schedule
+    schedule.into_schedule()
 }
 
 /// Rows `[y0, y1)` of every copy of `color` from device `from` to device `to`.

@@ -21,7 +21,7 @@ fn temporal() -> Schedule {
     let s = compile(&g, &plan).unwrap();
     assert_eq!(s.validate().errors, vec![]);
     assert!(s.history.len() >= 2, "a pair per (view, device) that reads history");
-    s
+    s.into_schedule()
 }
 
 /// The first `accumulate` instance and its history read's pair.

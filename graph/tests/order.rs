@@ -21,7 +21,7 @@ fn fine_all_graph() -> (Graph, Plan) {
 
 fn fine_all(batching: Batching) -> Schedule {
     let (graph, plan) = fine_all_graph();
-    compile_with(&graph, &plan, &CompileOptions { batching }).unwrap()
+    compile_with(&graph, &plan, &CompileOptions { batching }).unwrap().into_schedule()
 }
 
 fn position(s: &Schedule, op: Op) -> (usize, usize) {
@@ -40,7 +40,7 @@ fn batching_is_on_by_default_and_reorders_ops_that_validate_proves() {
     assert_eq!(batched.op_order, OpOrder { requested: Batching::default(), applied: Batching::default() });
     assert_eq!(lowered.op_order, OpOrder { requested: Batching::Off, applied: Batching::Off });
     let (graph, plan) = fine_all_graph();
-    assert_eq!(compile(&graph, &plan).unwrap(), batched, "compile() batches by default");
+    assert_eq!(compile(&graph, &plan).unwrap().into_schedule(), batched, "compile() batches by default");
     assert!(batched.validate().is_ok(), "{:?}", batched.validate().errors);
     assert!(lowered.validate().is_ok(), "{:?}", lowered.validate().errors);
     // Same ops on each device, in another order: batching moves ops, it adds or drops none.

@@ -22,7 +22,7 @@ fn temporal(devices: u32, scheme: Scheme) -> Schedule {
     g.pass("blur", Role::All).read(&color).write(&mut color).record();
     g.pass("accumulate", Role::All).read(&color).read_history(&accum).write(&mut accum).record();
     g.export(&accum);
-    compile(&g, &plan).unwrap()
+    compile(&g, &plan).unwrap().into_schedule()
 }
 
 fn instance_of<'s>(s: &'s Schedule, name: &str, view: u32) -> (InstanceId, &'s PassInstance) {

@@ -61,7 +61,7 @@ pub fn test_schedule(
     let mut graph = Graph::new(plan.topology.clone());
     declare_test_pipeline(&mut graph);
     let schedule = compile(&graph, &plan).expect("the test pipeline compiles");
-    (plan, schedule)
+    (plan, schedule.into_schedule())
 }
 
 pub fn grid(cols: u32, rows: u32, res: u32) -> LightField {
