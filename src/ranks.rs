@@ -255,6 +255,8 @@ mod tests {
         let mut passes = 0;
         for (rank, share) in shares.iter().enumerate() {
             let part = restrict_plan(&global, &layout, rank);
+            // Its barriers still index its ops, in order, with the ops it left out gone.
+            part.validate(layout.devices[rank] as usize).unwrap();
             assert_eq!(part.devices.len(), layout.devices[rank] as usize);
             assert!(part.passes.iter().all(|p| p.device.0 < layout.devices[rank]));
             assert!(part.copies.iter().all(|c| c.from.0 < layout.devices[rank] && c.to.0 < layout.devices[rank]));
@@ -293,6 +295,7 @@ mod tests {
             assert_eq!(between(a), between(b), "rank {a} → rank {b}");
         }
         for part in &parts {
+            part.validate(1).unwrap();
             assert!(part.copies.iter().all(|c| c.from.0 < 1 || c.to.0 < 1), "one end on the rank");
             assert!(part.devices[0].ops.iter().all(|op| match *op {
                 Op::Pass(p) => part.pass(p).device == DeviceId(0),

@@ -108,8 +108,9 @@ impl ExecResource {
 
 /// An access of a pass instance's own view in a hand-laid plan: allocation `alloc` over `rows`,
 /// the pass's declared read or write number `decl`. A hand-laid plan has no declared resources,
-/// so the access names its allocation as its resource, and writes each allocation once a frame:
-/// the access is of version 1.
+/// so the access names its allocation as its resource (ids that say nothing across devices;
+/// nothing in the backend reads them), and writes each allocation once a frame: the access is of
+/// version 1.
 pub fn own_access(decl: u16, alloc: AllocId, rows: Region) -> Access {
     Access {
         resource: ResourceId(alloc.0),
@@ -148,8 +149,8 @@ impl ExecutionPlan {
     }
 }
 
-/// A whole frame: resources, pass instances, copies and one op list per device, each indexed by
-/// its id ([`ExecutionPlan::resource`], [`ExecutionPlan::pass`], [`ExecutionPlan::copy`],
+/// A whole frame: resources, pass instances, copies and one program (ops and barriers) per
+/// device, each indexed by its id ([`ExecutionPlan::resource`], [`ExecutionPlan::pass`], [`ExecutionPlan::copy`],
 /// [`ExecutionPlan::program`]).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ExecutionPlan {
@@ -207,10 +208,11 @@ impl Kernels {
     }
 }
 
-/// What the executor refuses in a plan: the checks only the backend can make. What a plan lowered
-/// from a `Schedule` inherits from it (ids, rows, op placement and order, copies, history pairs,
-/// exports on device 0) is proven once, by `Schedule::validate()` when it is lowered
-/// ([`ExecutionPlan::from_schedule`]); a hand-laid plan is trusted with those.
+/// What the executor refuses in a plan: the checks only the backend can make, and the form of the
+/// barrier lists it records by. What a plan lowered from a schedule inherits from it (ids, rows,
+/// op placement and order, barriers, copies, history pairs, exports on device 0) was proven once,
+/// when the schedule was (`parallax_graph::ProvenSchedule`); a hand-laid plan is trusted with
+/// those.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ExecutionPlanError {
     #[error("plan has {plan} device programs but the context has {context} devices")]
@@ -225,6 +227,10 @@ pub enum ExecutionPlanError {
     ResetTooLong { resource: AllocId, words: usize, capacity: u32, max: usize },
     #[error("the devices' copy-ins wait for each other's copy-outs in a cycle: no order of submissions can run")]
     WaitCycle,
+    #[error(
+        "device {device}'s barriers {barriers:?} are not increasing indices of its {ops} ops: place them with ExecutionPlan::place_barriers"
+    )]
+    Barriers { device: DeviceId, barriers: Vec<u32>, ops: usize },
 }
 
 /// Most words a reset header may have: vkCmdUpdateBuffer writes at most 65536 bytes.
@@ -250,7 +256,7 @@ impl ExecutionPlan {
         let all = Region::new(0, resource.height);
         let mut kernels = Kernels::default();
         kernels.insert(pass, Arc::new(kernel(write)));
-        ExecutionPlan {
+        let mut plan = ExecutionPlan {
             passes: vec![PassInstance {
                 pass,
                 name: name.to_string(),
@@ -272,7 +278,9 @@ impl ExecutionPlan {
                 .collect(),
             history: vec![],
             kernels,
-        }
+        };
+        plan.place_barriers();
+        plan
     }
 
     /// Places every device program's barriers by the rule compiling a schedule follows
@@ -322,10 +330,22 @@ impl ExecutionPlan {
     }
 
     /// Checks what only the backend knows: the context's device count, the kernels, and that
-    /// every reset is one vkCmdUpdateBuffer of a buffer.
+    /// every reset is one vkCmdUpdateBuffer of a buffer; and that each program's barriers are
+    /// increasing indices of its ops (recording walks the two lists side by side, so a hand-laid
+    /// list out of order would lose every barrier after the fault).
     pub fn validate(&self, context_devices: usize) -> Result<(), ExecutionPlanError> {
         if self.devices.len() != context_devices {
             return Err(ExecutionPlanError::DeviceCount { plan: self.devices.len(), context: context_devices });
+        }
+        for program in &self.devices {
+            let increasing = program.barriers.windows(2).all(|w| w[0] < w[1]);
+            if !increasing || program.barriers.last().is_some_and(|&b| b as usize >= program.ops.len()) {
+                return Err(ExecutionPlanError::Barriers {
+                    device: program.device,
+                    barriers: program.barriers.clone(),
+                    ops: program.ops.len(),
+                });
+            }
         }
         if let Some((index, p)) = self.pass_ids().find(|(_, p)| self.kernels.of(p.pass).is_none()) {
             return Err(ExecutionPlanError::MissingKernel { pass: p.name.clone(), index });
@@ -507,6 +527,17 @@ mod tests {
         let (index, first) = plan.pass_ids().find(|(_, p)| p.pass == removed).unwrap();
         let pass = first.name.clone();
         assert_eq!(plan.validate(1), Err(ExecutionPlanError::MissingKernel { pass, index }));
+    }
+
+    #[test]
+    fn barriers_out_of_order_or_past_the_ops_are_refused() {
+        let mut plan = copy_plan(8, 8).unwrap();
+        assert_eq!(plan.validate(2), Ok(()));
+        let ops = plan.devices[0].ops.len();
+        for barriers in [vec![1, 0], vec![0, 0], vec![ops as u32]] {
+            plan.devices[0].barriers = barriers.clone();
+            assert_eq!(plan.validate(2), Err(ExecutionPlanError::Barriers { device: DeviceId(0), barriers, ops }));
+        }
     }
 
     /// A kernel for plans that are validated, never recorded.

@@ -595,7 +595,7 @@ pub(crate) mod grouping_plans {
         }
     }
 
-    /// Passes `(name, reads, writes)` on device 0, in order, the passes named `fill` with a
+    /// Passes `(name, reads, writes)` on device 0, in order, the passes named `fill…` with a
     /// kernel that records groups, the others with one that does not; every pass op in order
     /// on device 0; reads and writes are allocation numbers.
     pub(crate) fn plan(passes: &[(&str, &[u32], &[u32])]) -> ExecutionPlan {
@@ -607,7 +607,7 @@ pub(crate) mod grouping_plans {
             .enumerate()
             .map(|(view, &(name, reads, writes))| {
                 let pass = pass_named(name, passes);
-                kernels.insert(pass, Arc::new(Nothing { groups: name == "fill" }));
+                kernels.insert(pass, Arc::new(Nothing { groups: name.starts_with("fill") }));
                 PassInstance {
                     pass,
                     name: name.to_string(),
@@ -640,10 +640,10 @@ mod tests {
     #[test]
     fn grouped_passes_are_one_op_until_a_barrier_of_the_schedule_and_per_op_timing_times_each_op() {
         // A compaction, three fills of which the third writes what the first wrote (two bands
-        // of one view), a copy of what the second wrote, two more fills, then a pass reading the
-        // third's result: barriers where compiling a schedule places them for these accesses
-        // (the copy's read of the second fill's write is already behind the barrier at the
-        // third).
+        // of one view), a copy of what the second wrote, two more fills, an instance of another
+        // grouped pass, then a pass reading the third fill's result: barriers where compiling a
+        // schedule places them for these accesses (the copy's read of the second fill's write
+        // is already behind the barrier at the third).
         let mut plan = grouping_plans::plan(&[
             ("compact", &[], &[0]),
             ("fill", &[0], &[1]),
@@ -651,6 +651,7 @@ mod tests {
             ("fill", &[0], &[1]),
             ("fill", &[4], &[5]),
             ("fill", &[6], &[7]),
+            ("fill_sky", &[9], &[10]),
             ("svgf", &[1], &[8]),
         ]);
         // The plan describes no resources: nothing here counts the copy's bytes.
@@ -665,17 +666,19 @@ mod tests {
             bytes: 0,
             kind: CopyKind::Dependency,
         }];
-        let mut ops: Vec<Op> = (0..7).map(|i| Op::Pass(InstanceId(i))).collect();
+        let mut ops: Vec<Op> = (0..8).map(|i| Op::Pass(InstanceId(i))).collect();
         ops.insert(4, Op::CopyOut(CopyId(0)));
         let barriers = parallax_graph::place_barriers(&plan.passes, &plan.copies, &ops);
-        assert_eq!(barriers, [0, 1, 3, 7]);
+        assert_eq!(barriers, [0, 1, 3, 8]);
         let chunk = Chunk { copy: CopyId(0), index: 0, y0: 0, y1: 1 };
-        let mut items: Vec<Item> = (0..7).map(|i| Item::Pass(InstanceId(i))).collect();
+        let mut items: Vec<Item> = (0..8).map(|i| Item::Pass(InstanceId(i))).collect();
         items.insert(4, Item::CopyOut(chunk));
         let s = Segment { barriers: barriers.iter().map(|&b| b as usize).collect(), ..segment(items) };
-        assert_eq!(op_groups(&plan, &s), vec![0..1, 1..3, 3..4, 4..5, 5..7, 7..8]);
+        // `fill_sky` follows the fills with no barrier between, and is grouped too, but is
+        // another pass: a group of its own.
+        assert_eq!(op_groups(&plan, &s), vec![0..1, 1..3, 3..4, 4..5, 5..7, 7..8, 8..9]);
         assert_eq!(timer_spans(&plan, &s, Timing::PerOp), op_groups(&plan, &s));
-        assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..1, 1..4, 4..5, 5..7, 7..8]);
+        assert_eq!(timer_spans(&plan, &s, Timing::PerStage), vec![0..1, 1..4, 4..5, 5..7, 7..8, 8..9]);
         // Without grouping kernels every item is its own op.
         let plain = plan_of(&["fill", "fill", "fill"]);
         let s = segment((0..3).map(|i| Item::Pass(InstanceId(i))).collect());

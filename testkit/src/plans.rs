@@ -1,6 +1,7 @@
 //! Hand-laid plans for the executor's tests, written the way the graph compiler lays out a
-//! schedule (op lists per device, copies only where producer and consumer differ), so the
-//! executor can be exercised, and its synchronisation broken on purpose, without the graph crate.
+//! schedule (a program per device, copies only where producer and consumer differ, barriers by
+//! the compiler's rule), so the executor can be exercised, and its synchronisation broken on
+//! purpose, without compiling a schedule.
 //!
 //! The reprojection demo: every view `v` is filled (the last view in row bands spread over all
 //! devices, like a fine-grained split), then blended with view `v+1` (a gather from another
