@@ -15,7 +15,8 @@
 //!   [`compile_with`] orders each device's ops by [`CompileOptions`] (runs of one pass batched
 //!   by default): the order the backend submits.
 //! * [`Schedule`]: plain data, checked by [`Schedule::validate`] and drawn by
-//!   [`Schedule::to_dot`].
+//!   [`Schedule::to_dot`]; compiling proves what it built once and returns a
+//!   [`ProvenSchedule`], the only kind the backend lowers.
 //!
 //! ```
 //! use parallax_graph::*;
