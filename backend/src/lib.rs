@@ -2,7 +2,9 @@
 //!
 //! * [`Context`]: instance (+ validation), N physical devices (`--gpus N`) or N logical
 //!   devices on one physical device (`--fake-devices N`).
-//! * [`ExecutionPlan`]: what the executor runs, lowered from the graph crate's `Schedule`.
+//! * [`ExecutionPlan`]: what the executor runs: a proven schedule's own pass instances,
+//!   copies, device programs and history pairs, with each pass's kernel and each allocation's
+//!   GPU description.
 //! * [`Executor`]: records per-device command buffers once, submits frames with timeline
 //!   semaphores, moves cross-device copies over one link per device pair of the kind
 //!   [`link_kinds`] chooses (device memory shared by logical devices of one GPU, with GPU-side
@@ -10,8 +12,9 @@
 //!   times every pass instance and copy, or every run of one pass's instances ([`Timing`];
 //!   [`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
-//!   [`ExecutionPlan::from_schedule`] lowers its compiled schedule (allocations become resources, history
-//!   allocations two halves swapped by frame parity, accesses keep their declaration index, which slot tokens name).
+//!   [`ExecutionPlan::from_schedule`] takes its compiled, proven schedule (allocations get their GPU
+//!   description, history allocations two halves swapped by frame parity; kernels bind the
+//!   instances' accesses by the slot tokens their declarations returned).
 //! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
 //!   bindless image array, raster draws ([`Draw`], dynamic rendering into plan images, the
 //!   depth attachment a `Format::Depth32f` resource that compute kernels sample),
