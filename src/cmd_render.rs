@@ -20,6 +20,7 @@ mod posing;
 #[cfg(feature = "mpi")]
 mod ranked;
 mod report;
+mod startup;
 
 use std::ffi::OsString;
 use std::path::PathBuf;

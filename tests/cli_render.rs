@@ -85,6 +85,14 @@ fn the_reconstruction_pipeline_writes_views_sheet_quilt_and_its_measures() {
     }
     assert!(host["frame_interval"]["mean_ms"].as_f64().unwrap() > 0.0);
     assert!(host["late_frames"].as_u64().is_some_and(|late| late <= 2));
+    // The start, step by step, on the host's clock: each step ends after the one before it (the
+    // first frame is done only after the executor that ran it was built).
+    let startup = &report["startup"];
+    let steps = ["planned_ms", "scene_loaded_ms", "devices_ms", "executor_ms", "first_frame_ms"];
+    let ends: Vec<f64> =
+        steps.iter().map(|s| startup[*s].as_f64().unwrap_or_else(|| panic!("{s}: {startup}"))).collect();
+    assert_eq!(startup.as_object().unwrap().len(), steps.len(), "{startup}");
+    assert!(ends[0] >= 0.0 && ends.windows(2).all(|w| w[0] <= w[1]), "{startup}");
     // The resident set over the measured frames: at least the samples at their two ends.
     let memory = &report["host_memory"];
     assert!(memory["samples"].as_u64().is_some_and(|n| n >= 2), "{memory}");

@@ -20,6 +20,7 @@ use super::host_memory::{ResidentSampler, ResidentSummary};
 use super::plan::RenderJob;
 use super::posing::{GeometryReport, Posing};
 use super::report::{ViewLayers, stage_views, view_layers};
+use super::startup::Step;
 use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
 use crate::logging::bar;
 use crate::outputs::{FolderLock, Staged};
@@ -80,6 +81,7 @@ pub(super) fn render_frames(
     let lf = job.lf_of(args, 0)?;
     let bvh = SceneBvh::build(&job.scene);
     let context = VkContext::new(&ContextDesc::from_env(args.devices.selection()))?;
+    job.startup.ended(Step::Devices);
     // One message per device: a message is one line (crate::logging).
     context.to_string().lines().for_each(|line| tracing::info!("{line}"));
     job.one_frame.check_devices(&context)?;
@@ -113,6 +115,7 @@ pub(super) fn render_frames(
     };
     let mut renderer =
         LightFieldRenderer::with_options(&context, exec_plan, &GpuScene::new(&job.scene, &bvh), options)?;
+    job.startup.ended(Step::Executor);
     drop(bvh);
     let layers = view_layers(args, job.compiled.kind, &job.compiled.handles, &renderer);
     let executor = renderer.executor();
@@ -156,6 +159,9 @@ pub(super) fn render_frames(
     };
     let mut posing = Posing::of(job);
     let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer, layers, posing.as_mut(), on_frame)?;
+    if let Some(done) = renderer.executor().first_frame_done_ns() {
+        job.startup.ended_at(Step::FirstFrame, done);
+    }
     if let Some(after) = extension.after_frames.as_mut() {
         after(&mut renderer, &job.compiled.handles)?;
     }

@@ -13,6 +13,7 @@ use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
 use super::report::{check_outputs, view_file_name};
+use super::startup::{Startup, Step};
 use super::{MotionArg, RenderArgs, dolly};
 use crate::budget::TraceWork;
 use crate::disk_space::{RenderOutputs, free_bytes};
@@ -48,6 +49,8 @@ pub(super) struct RenderJob {
     pub rank: Option<crate::ranks::RankPart>,
     /// Every frame's camera as rank 0 sent it (None: computed here).
     pub cameras: Option<Vec<Camera>>,
+    /// When each step of the start ended (render.json's `startup`).
+    pub startup: Startup,
 }
 
 /// The motion that runs (`--motion` resolved against the scene and `--camera`).
@@ -126,6 +129,7 @@ impl RenderJob {
         devices: u32,
         writes_outputs: bool,
     ) -> Result<RenderJob> {
+        let mut startup = Startup::start();
         args.pipeline.check()?;
         let sheet = args.out_dir.join("lightfield.png");
         let render_json = args.out_dir.join("render.json");
@@ -175,8 +179,10 @@ impl RenderJob {
         // positions in the rig plane, not on where the rig stands.
         let compiled = args.pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
         let dot = args.dot.render(&compiled.schedule);
+        startup.ended(Step::Planned);
 
         let scene = args.scene.load()?;
+        startup.ended(Step::SceneLoaded);
         let mut written = vec![("--out-dir", render_json.as_path()), ("--out-dir", sheet.as_path())];
         if let Some(crate::outputs::Sink::File(trace)) = &args.trace {
             written.push(("--trace", trace.as_path()));
@@ -204,6 +210,7 @@ impl RenderJob {
             writes_outputs,
             rank: None,
             cameras: None,
+            startup,
         };
         let first = &args.light_field;
         job.spacing = first.layout.spacing_on(&first.rig_around(&job.camera_at(args, 0), job.centre));

@@ -234,6 +234,7 @@ fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> R
         "devices": measured.device_names,
         "run": args.run_file(),
         "plan": summary,
+        "startup": job.startup.to_json(),
         "wall_ms_per_frame": measured.wall_ms,
         "timing": measured.timing,
         "host_memory": measured.host_memory,

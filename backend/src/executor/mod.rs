@@ -120,6 +120,8 @@ pub struct Executor {
     history_origin: u64,
     in_flight: VecDeque<InFlight>,
     reports: Vec<FrameReport>,
+    /// When the host saw the executor's first frame done (host CLOCK_MONOTONIC ns).
+    first_frame_done_ns: Option<u64>,
     calibration: Vec<ClockCalibration>,
     recordings: u64,
     last_record_ns: u64,
@@ -167,6 +169,7 @@ impl Executor {
             history_origin: 0,
             in_flight: VecDeque::new(),
             reports: Vec::new(),
+            first_frame_done_ns: None,
             calibration,
             recordings: 0,
             last_record_ns: 0,
@@ -208,6 +211,15 @@ impl Executor {
     /// Reports of retired frames so far.
     pub fn reports(&self) -> &[FrameReport] {
         &self.reports
+    }
+
+    /// When the host saw the first frame this executor ran done, in host CLOCK_MONOTONIC ns
+    /// ([`crate::host_now_ns`]): as it waited for it, at [`Self::finish`] or when a later frame
+    /// needed its slot, so no more than `frames_in_flight − 1` frames after the GPU finished it.
+    /// A host clock read, unlike the GPU's timestamps, so it never precedes what the host did
+    /// before submitting the frame. None until that frame retired.
+    pub fn first_frame_done_ns(&self) -> Option<u64> {
+        self.first_frame_done_ns
     }
 
     /// How many times the command buffers were recorded (once per plan).

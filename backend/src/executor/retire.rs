@@ -104,6 +104,7 @@ impl Executor {
             }
         }
         remote_check()?;
+        self.first_frame_done_ns.get_or_insert_with(crate::device::host_now_ns);
         let mut report = FrameReport::new(
             f.frame,
             f.submit_start_ns,
