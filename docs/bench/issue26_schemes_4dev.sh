@@ -3,7 +3,8 @@
 # devices of one H200, multiscopic 384x216 on Sponza, with two builds side by side. For each
 # build and scheme: render.json (GPU span, copies and bytes a frame, links, host staging) and
 # the log of 3 frames after 1, and the wall time of a second run of one frame and no warm-up
-# (`first_frame`: start-up, the first frame and writing its outputs). A run past LIMIT seconds
+# (`first_frame`: start-up, the first frame and writing its outputs), and where the build writes
+# render.json's `startup`, when each step of the start ended. A run past LIMIT seconds
 # is stopped and recorded as such (rc=124).
 # SCHEMES (environment, default all three) limits the schemes, to fit one device call.
 #   usage: [SCHEMES="fine-all"] issue26_schemes_4dev.sh BASE_BINARY NEW_BINARY SPONZA_GLTF OUT_FOLDER [LIMIT]
@@ -42,6 +43,10 @@ print(f"  GPU span {t['frame_gpu']['mean_ms']:.2f} ms, wall {j['wall_ms_per_fram
       f"{t['copies_per_frame']:.0f} copies {t['copy_bytes_per_frame']/1e6:.1f} MB a frame, "
       f"halo rows {p.get('halo_rows', '-')}, host staging "
       f"{links.get('host_staging_bytes', 0)/2**20:.1f} MiB, links {[l['kind'] for l in links.get('pairs', [])]}")
+s = j.get("startup")
+if s:
+    print(f"  startup: first frame done {s['first_frame_ms']:.0f} ms after the start (planned {s['planned_ms']:.0f}, "
+          f"scene {s['scene_loaded_ms']:.0f}, devices {s['devices_ms']:.0f}, executor {s['executor_ms']:.0f})")
 PY
     fi
   done
