@@ -203,7 +203,8 @@ impl Kernels {
     }
 
     /// Drops `pass`'s kernel (a test's way to make a plan the executor refuses).
-    pub fn remove(&mut self, pass: PassId) -> Option<Arc<dyn PassKernel>> {
+    #[cfg(test)]
+    fn remove(&mut self, pass: PassId) -> Option<Arc<dyn PassKernel>> {
         self.0.remove(&pass)
     }
 }
@@ -227,10 +228,8 @@ pub enum ExecutionPlanError {
     ResetTooLong { resource: AllocId, words: usize, capacity: u32, max: usize },
     #[error("the devices' copy-ins wait for each other's copy-outs in a cycle: no order of submissions can run")]
     WaitCycle,
-    #[error(
-        "device {device}'s barriers {barriers:?} are not increasing indices of its {ops} ops: place them with ExecutionPlan::place_barriers"
-    )]
-    Barriers { device: DeviceId, barriers: Vec<u32>, ops: usize },
+    #[error("{0}: place the barriers with ExecutionPlan::place_barriers")]
+    Barriers(parallax_graph::ScheduleError),
 }
 
 /// Most words a reset header may have: vkCmdUpdateBuffer writes at most 65536 bytes.
@@ -337,15 +336,8 @@ impl ExecutionPlan {
         if self.devices.len() != context_devices {
             return Err(ExecutionPlanError::DeviceCount { plan: self.devices.len(), context: context_devices });
         }
-        for program in &self.devices {
-            let increasing = program.barriers.windows(2).all(|w| w[0] < w[1]);
-            if !increasing || program.barriers.last().is_some_and(|&b| b as usize >= program.ops.len()) {
-                return Err(ExecutionPlanError::Barriers {
-                    device: program.device,
-                    barriers: program.barriers.clone(),
-                    ops: program.ops.len(),
-                });
-            }
+        if let Some(fault) = self.devices.iter().find_map(DeviceProgram::barrier_list_fault) {
+            return Err(ExecutionPlanError::Barriers(fault));
         }
         if let Some((index, p)) = self.pass_ids().find(|(_, p)| self.kernels.of(p.pass).is_none()) {
             return Err(ExecutionPlanError::MissingKernel { pass: p.name.clone(), index });
@@ -460,6 +452,7 @@ impl ExecutionPlan {
 mod tests {
     use super::*;
     use crate::bench::{copy_plan, overhead_plan};
+    use parallax_graph::ScheduleError;
 
     /// Records nothing: these plans are only inspected.
     struct Idle;
@@ -534,9 +527,14 @@ mod tests {
         let mut plan = copy_plan(8, 8).unwrap();
         assert_eq!(plan.validate(2), Ok(()));
         let ops = plan.devices[0].ops.len();
-        for barriers in [vec![1, 0], vec![0, 0], vec![ops as u32]] {
-            plan.devices[0].barriers = barriers.clone();
-            assert_eq!(plan.validate(2), Err(ExecutionPlanError::Barriers { device: DeviceId(0), barriers, ops }));
+        let device = DeviceId(0);
+        for (barriers, fault) in [
+            (vec![1, 0], ScheduleError::BarriersOutOfOrder { device }),
+            (vec![0, 0], ScheduleError::BarriersOutOfOrder { device }),
+            (vec![ops as u32], ScheduleError::BarrierOutOfRange { device, index: ops as u32, ops }),
+        ] {
+            plan.devices[0].barriers = barriers;
+            assert_eq!(plan.validate(2), Err(ExecutionPlanError::Barriers(fault)));
         }
     }
 

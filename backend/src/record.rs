@@ -602,11 +602,12 @@ pub(crate) mod grouping_plans {
         let mut kernels = Kernels::default();
         let rows = Region::new(0, 1);
         let access = |&r: &u32| own_access(0, crate::plan::AllocId(r), rows);
+        let names: Vec<&str> = passes.iter().map(|p| p.0).collect();
         let passes: Vec<PassInstance> = passes
             .iter()
             .enumerate()
             .map(|(view, &(name, reads, writes))| {
-                let pass = pass_named(name, passes);
+                let pass = pass_named(name, &names);
                 kernels.insert(pass, Arc::new(Nothing { groups: name.starts_with("fill") }));
                 PassInstance {
                     pass,
@@ -625,10 +626,10 @@ pub(crate) mod grouping_plans {
         ExecutionPlan { passes, devices: vec![program], kernels, ..ExecutionPlan::default() }
     }
 
-    /// The declared pass of the instances named `name`: one per distinct name, numbered by its
-    /// first instance.
-    fn pass_named(name: &str, passes: &[(&str, &[u32], &[u32])]) -> PassId {
-        PassId(passes.iter().position(|p| p.0 == name).expect("a name of the plan") as u32)
+    /// The declared pass of the instances named `name` among instances named `names`: one per
+    /// distinct name, numbered by its first instance.
+    pub(crate) fn pass_named(name: &str, names: &[&str]) -> PassId {
+        PassId(names.iter().position(|&n| n == name).expect("a name of the plan") as u32)
     }
 }
 
@@ -689,7 +690,7 @@ mod tests {
     /// per distinct name).
     fn plan_of(names: &[&str]) -> ExecutionPlan {
         let pass = |(view, name): (usize, &&str)| PassInstance {
-            pass: parallax_graph::PassId(names.iter().position(|n| n == name).unwrap() as u32),
+            pass: grouping_plans::pass_named(name, names),
             name: name.to_string(),
             view: ViewId(view as u32),
             region: parallax_graph::Region::new(0, 1),

@@ -15,7 +15,7 @@
 use std::collections::HashMap;
 
 use crate::ids::{AllocId, DeviceId, Region};
-use crate::schedule::{CrossCopy, Op, PassInstance, Schedule};
+use crate::schedule::{CrossCopy, DeviceProgram, Op, PassInstance, Schedule};
 use crate::validate::ScheduleError;
 
 /// Rows of an allocation an op touches.
@@ -110,23 +110,29 @@ pub(crate) fn place_all(schedule: &mut Schedule) {
     }
 }
 
+impl DeviceProgram {
+    /// What is wrong with the form of the barrier list, which recording walks beside the ops: an
+    /// index past the last op, or indices not increasing. None when it has neither fault.
+    pub fn barrier_list_fault(&self) -> Option<ScheduleError> {
+        let device = self.device;
+        if let Some(&index) = self.barriers.iter().find(|&&i| i as usize >= self.ops.len()) {
+            return Some(ScheduleError::BarrierOutOfRange { device, index, ops: self.ops.len() });
+        }
+        let increasing = self.barriers.windows(2).all(|w| w[0] < w[1]);
+        (!increasing).then_some(ScheduleError::BarriersOutOfOrder { device })
+    }
+}
+
 impl Schedule {
     /// Every program's barrier list is increasing and names its ops, and every hazard between two
     /// of its ops (and between its first memory op and the previous frame) has a barrier between.
     /// Runs after `validate()` has refused dangling ids, so every op's ids index.
     pub(crate) fn check_barriers(&self, errors: &mut Vec<ScheduleError>) {
         for program in &self.devices {
-            let device = program.device;
-            let increasing = program.barriers.windows(2).all(|w| w[0] < w[1]);
-            if let Some(&index) = program.barriers.iter().find(|&&i| i as usize >= program.ops.len()) {
-                errors.push(ScheduleError::BarrierOutOfRange { device, index, ops: program.ops.len() });
-                continue;
-            }
-            if !increasing {
-                errors.push(ScheduleError::BarriersOutOfOrder { device });
-                continue;
-            }
-            if let Some(error) = self.first_unguarded_hazard(device, &program.ops, &program.barriers) {
+            let fault = program.barrier_list_fault();
+            if let Some(error) =
+                fault.or_else(|| self.first_unguarded_hazard(program.device, &program.ops, &program.barriers))
+            {
                 errors.push(error);
             }
         }
