@@ -45,6 +45,9 @@ cargo test --workspace --doc 2>&1 | tee -a "$log"
 # each also under fine-all (their 60 s --rank-timeout is most of the time); and the MPI
 # messages' unit tests.
 cargo test -p parallax --features mpi --test cli_ranks 2>&1 | tee -a "$log"
+# Every shell block of README.md and docs/ as written, at tiny sizes (its MPI block needs the
+# MPI build); their Python blocks run with the module's tests below.
+cargo test -p parallax --features mpi --test docs_blocks 2>&1 | tee -a "$log"
 cargo test -p parallax --features mpi --lib ranks_mpi 2>&1 | tee -a "$log"
 
 # Tests on Sponza read its path from PARALLAX_SPONZA and are #[ignore]d without it; CI has the

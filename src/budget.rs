@@ -166,6 +166,21 @@ impl TraceWork {
     }
 }
 
+/// Refuses a run for every limit it exceeds at once, in one line: a user who lowers the flags
+/// one refusal names should not meet the next limit only on the next try. One exceeded limit
+/// keeps its own message.
+pub fn refuse_every_exceeded(checks: impl IntoIterator<Item = Result<()>>) -> Result<()> {
+    let exceeded: Vec<String> = checks.into_iter().filter_map(|check| check.err()).map(|e| format!("{e:#}")).collect();
+    match exceeded.as_slice() {
+        [] => Ok(()),
+        [one] => bail!("{one}"),
+        several => {
+            let listed: Vec<String> = several.iter().enumerate().map(|(i, e)| format!("({}) {e}", i + 1)).collect();
+            bail!("{} limits exceeded: {}", several.len(), listed.join("; "))
+        }
+    }
+}
+
 /// "a, b or c".
 fn or_list(items: &[&str]) -> String {
     match items {
@@ -279,6 +294,20 @@ fn duration(seconds: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_exceeded_limit_is_named_in_one_line() {
+        assert!(refuse_every_exceeded([Ok(()), Ok(())]).is_ok());
+        let one = refuse_every_exceeded([Ok(()), Err(anyhow::anyhow!("too long: lower --spp"))]).unwrap_err();
+        assert_eq!(one.to_string(), "too long: lower --spp");
+        let two = refuse_every_exceeded([
+            Err(anyhow::anyhow!("too long: lower --spp")),
+            Ok(()),
+            Err(anyhow::anyhow!("no room: raise --save-every")),
+        ])
+        .unwrap_err();
+        assert_eq!(two.to_string(), "2 limits exceeded: (1) too long: lower --spp; (2) no room: raise --save-every");
+    }
 
     #[test]
     fn runs_of_more_than_a_day_are_refused_with_the_flags() {

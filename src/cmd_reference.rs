@@ -26,7 +26,7 @@ use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
-use crate::budget::{TraceWork, check_host_bytes};
+use crate::budget::{TraceWork, check_host_bytes, refuse_every_exceeded};
 use crate::options::{DeviceArgs, Exposure, UsageError, parse_exposure};
 use crate::run_setup::Setup;
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
@@ -255,13 +255,12 @@ fn check_cost(lf: &LightField, views: usize, spp: u32, devices: u64) -> Result<T
         views_flag: "--lf, --views",
         frames_flag: "",
     };
-    work.check_duration()?;
-    work.check_host()?;
-    check_host_bytes(
+    let sums = check_host_bytes(
         &format!("the f64 sums of {} view(s) of {}x{}", views, lf.width, lf.height),
         work.views * u64::from(lf.width) * u64::from(lf.height) * 24,
         "lower --resolution or trace fewer --views",
-    )?;
+    );
+    refuse_every_exceeded([work.check_duration(), work.check_host(), sums])?;
     Ok(work)
 }
 

@@ -73,8 +73,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     check(&outputs)?;
     let devices = if args.cpu { 0 } else { selection(args.gpus, args.fake_devices).count() as u64 };
     let work = TraceWork::one_view(width, height, args.spp, devices);
-    work.check_duration()?;
-    work.check_host()?;
+    crate::budget::refuse_every_exceeded([work.check_duration(), work.check_host()])?;
 
     let t0 = Instant::now();
     let scene = args.scene.load()?;

@@ -279,3 +279,8 @@ mod tests {
         assert_eq!(run_command(["plan", "--help"]), Ok(()));
     }
 }
+
+/// README.md's Rust blocks compile and run as doctests: an example a reader pastes must build.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeExamples;

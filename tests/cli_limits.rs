@@ -200,7 +200,7 @@ fn runs_are_checked_against_the_address_space_limit() {
 
 /// Kind 11: saved frames are estimated against the free space of --out-dir's filesystem before
 /// any work (37 TB here: more than any disk the tests run on); a refusal for too long a run
-/// names --frames.
+/// names --frames; a run over both limits names both.
 #[test]
 fn saved_frames_beyond_the_disk_and_long_runs_name_every_flag() {
     let dir = scratch("limits", "disk");
@@ -223,6 +223,22 @@ fn saved_frames_beyond_the_disk_and_long_runs_name_every_flag() {
         &["error: 1.07e14 paths (4096 view(s) (--lf) × 100001 frame(s) (--frames, --warmup) × 64x64 (--resolution) × \
            64 spp (--spp)) would take 29.8 h even at 1e9 paths/s: lower --lf, --frames, --warmup, --resolution or \
            --spp (at most 1e14 paths)"],
+    );
+    // Too long and too large at once: both limits are named, the disk's with its bytes, so that
+    // lowering --spp alone does not just lead to the next refusal.
+    refused(
+        &dir,
+        &["-q", "render", "--lf", "32x32", "--resolution", "64x64", "--spp", "256", "--frames", "100000"]
+            .into_iter()
+            .chain(["--save-every", "1", "--layers", "--out-dir", "lf"])
+            .collect::<Vec<_>>(),
+        &[
+            "error: 2 limits exceeded: (1) 1.07e14 paths (1024 view(s) (--lf) × 100001 frame(s) (--frames, --warmup) × \
+             64x64 (--resolution) × 256 spp (--spp)) would take 29.8 h even at 1e9 paths/s",
+            "; (2) --frames 100000 with --save-every 1 saves 99999 frame(s) of 1024 view(s) (--lf) at 64x64",
+            "bytes) with the final pictures, but the filesystem of --out-dir lf has",
+            "bytes) free: raise --save-every, lower --frames, --lf or --resolution, or free space",
+        ],
     );
 }
 

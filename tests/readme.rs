@@ -1,8 +1,6 @@
 //! README.md and docs/ tell the truth a new user checks first: the commands' scene paths exist in
-//! a clone, every document they point to is in the repository, and the `bench` example runs as
-//! written (no reference to make first, no still/moving refusal).
-
-mod common;
+//! a clone and every document they point to is in the repository (tests/docs_blocks.rs runs the
+//! commands themselves).
 
 use std::path::{Path, PathBuf};
 
@@ -100,30 +98,4 @@ fn documents_point_only_to_documents_in_the_repository() {
             assert!(names.iter().any(|n| n == name), "{} names {word}, which is not in the repository", doc.display());
         }
     }
-}
-
-/// README's `bench` line, run as written in an empty folder: every cell runs (no reference is
-/// needed, the cells' cameras are still) and `--fake-devices` takes counts as render's does.
-#[test]
-fn the_readme_bench_example_runs_as_written() {
-    let line = shell_lines(&read("README.md"))
-        .into_iter()
-        .find(|l| l.starts_with("parallax bench --common"))
-        .expect("README has a bench example");
-    let words = shlex::split(&line).unwrap();
-    let dir = common::scratch("readme", "bench");
-    let args: Vec<&str> = words[1..].iter().map(String::as_str).collect();
-    let out = common::parallax_in(&dir, &args);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{line}\n{stderr}");
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("out/bench/bench.json")).unwrap()).unwrap();
-    let cells = json["cells"].as_array().unwrap();
-    assert_eq!(cells.len(), 4, "2 pipelines × 2 device counts");
-    assert!(cells.iter().all(|c| c["ok"] == true), "{cells:?}");
-    let render: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(dir.join("out/bench").join(cells[0]["id"].as_str().unwrap()).join("render.json")).unwrap(),
-    )
-    .unwrap();
-    assert_eq!(render["motion"], "none", "a bench cell's camera stays still");
 }

@@ -67,3 +67,9 @@ pub fn load_scene(spec: &str) -> Result<Scene, SceneError> {
 pub fn load_scene_with(spec: &str, options: LoadOptions) -> Result<Scene, SceneError> {
     if spec == "default" { Ok(default_scene()) } else { load_gltf_with(spec, options) }
 }
+
+/// docs/UPSTREAM.md's reproduction of obvhs's panic runs as a doctest: the day a new obvhs builds
+/// that BVH, it fails, and the note and Parallax's guard against such coordinates can go.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/UPSTREAM.md")]
+pub struct UpstreamReproductions;

@@ -15,7 +15,7 @@ use parallax_scene::{Camera, Scene, TraceSettings};
 use super::report::{check_outputs, view_file_name};
 use super::startup::{Startup, Step};
 use super::{MotionArg, RenderArgs, dolly};
-use crate::budget::TraceWork;
+use crate::budget::{TraceWork, refuse_every_exceeded};
 use crate::disk_space::{RenderOutputs, free_bytes};
 use crate::pipeline_args::{PipelineArg, PipelineSchedule};
 use crate::render_pictures::gpu_exposure;
@@ -158,8 +158,6 @@ impl RenderJob {
             views_flag: "--lf",
             frames_flag: "--frames, --warmup",
         };
-        one_frame.check_duration()?;
-        one_frame.check_host()?;
         // At most: the pipeline may compute fewer layers (path tracing without denoising none).
         let (layers, holes) = (args.layers, args.layers && args.pipeline.pipeline == PipelineArg::Reproject);
         let outputs = RenderOutputs {
@@ -172,9 +170,9 @@ impl RenderJob {
             layer_pictures: u64::from(layers) + u64::from(holes),
             quilt: args.quilt.is_some(),
         };
-        if let Some(free) = free_bytes(&args.out_dir).filter(|_| writes_outputs) {
-            outputs.check_fits(&args.out_dir, free)?;
-        }
+        let disk =
+            free_bytes(&args.out_dir).filter(|_| writes_outputs).map(|free| outputs.check_fits(&args.out_dir, free));
+        refuse_every_exceeded([one_frame.check_duration(), one_frame.check_host(), disk.unwrap_or(Ok(()))])?;
         // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
         // positions in the rig plane, not on where the rig stands.
         let compiled = args.pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
