@@ -68,21 +68,34 @@ fn group(points: &[Point], keep: impl Fn(&Point) -> bool) -> Vec<(String, Vec<&P
 }
 
 /// The points `keep` accepts, grouped by `key` in order of first appearance.
-fn group_by(
-    points: &[Point],
+fn group_by<'a, K: AsRef<str>>(
+    points: &'a [Point],
     keep: impl Fn(&Point) -> bool,
-    key: impl Fn(&Point) -> &str,
-) -> Vec<(String, Vec<&Point>)> {
+    key: impl Fn(&'a Point) -> K,
+) -> Vec<(String, Vec<&'a Point>)> {
     let mut groups: Vec<(String, Vec<&Point>)> = Vec::new();
-    let mut index: HashMap<&str, usize> = HashMap::new();
+    let mut index: HashMap<String, usize> = HashMap::new();
     for p in points.iter().filter(|p| keep(p)) {
-        let at = *index.entry(key(p)).or_insert_with(|| {
-            groups.push((key(p).to_string(), Vec::new()));
+        let name = key(p).as_ref().to_string();
+        let at = *index.entry(name.clone()).or_insert_with(|| {
+            groups.push((name, Vec::new()));
             groups.len() - 1
         });
         groups[at].1.push(p);
     }
     groups
+}
+
+/// A tolerance line's name: its case and every other setting a bench cell varies (assignment,
+/// sources per set, spp, devices), so that each line changes the tolerance alone; a line through
+/// cells that differ in more than the tolerance would zigzag between them.
+fn tolerance_line(p: &Point) -> String {
+    let mut words = vec![p.case.clone().unwrap_or_else(|| "all".into())];
+    words.extend(p.assignment.clone());
+    words.extend(p.sources_per_set.map(|k| format!("k{k}")));
+    words.extend(p.spp.map(|spp| format!("{spp} spp")));
+    words.extend(p.devices.map(|d| format!("{d} dev")));
+    words.join(" ")
 }
 
 /// The points no other point beats: none has both a lower (or equal) x and a better (or equal)
@@ -298,11 +311,7 @@ pub fn short_labels(labels: &[String]) -> Vec<String> {
 /// reprojecting cells), each point labelled with its accuracy figure of `accuracy` when it has
 /// one: where reprojecting more starts to cost accuracy.
 pub fn tolerance(points: &[Point], accuracy: AccuracyAxis) -> Result<XyChart> {
-    let groups = group_by(
-        points,
-        |p| p.missing.is_some() && p.reprojection_tolerance.is_some(),
-        |p| p.case.as_deref().unwrap_or("all"),
-    );
+    let groups = group_by(points, |p| p.missing.is_some() && p.reprojection_tolerance.is_some(), tolerance_line);
     if groups.is_empty() {
         return Err(none_usable(
             "both missing and reprojection_tolerance (bench's points.json has them for reprojecting cells)",
@@ -703,6 +712,21 @@ mod tests {
         assert_eq!(chart.series[1].points, [(0.2, 4.0, None)]);
         assert!(
             tolerance(&points[3..], AccuracyAxis::Flip).unwrap_err().to_string().contains("reprojection_tolerance")
+        );
+        // Cells of one case that differ in more than the tolerance are lines of their own.
+        let cell = |assignment: &str, t: f64| Point {
+            assignment: Some(assignment.into()),
+            sources_per_set: Some(2),
+            spp: Some(1),
+            ..point("cornell", t, 0.05, None)
+        };
+        let cells = [cell("compact", 0.2), cell("round-robin", 0.2), cell("compact", 1.0), cell("round-robin", 1.0)];
+        let chart = tolerance(&cells, AccuracyAxis::Psnr).unwrap();
+        let lines: Vec<(&str, Vec<f64>)> =
+            chart.series.iter().map(|s| (s.name.as_str(), s.points.iter().map(|p| p.0).collect())).collect();
+        assert_eq!(
+            lines,
+            [("cornell compact k2 1 spp", vec![0.2, 1.0]), ("cornell round-robin k2 1 spp", vec![0.2, 1.0])]
         );
     }
 
