@@ -225,20 +225,17 @@ impl PipelineArgs {
         self.compile_with(lf, devices, exposure, &|builder| builder)
     }
 
-    /// [`Self::compile`] of the pipeline extended by `extend` (a user crate's stages).
-    pub fn compile_with(
-        &self,
-        lf: &LightField,
-        devices: u32,
-        exposure: f32,
-        extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
-    ) -> Result<PipelineSchedule> {
-        let config = PlanConfig {
+    fn plan_config(&self, devices: u32) -> Result<PlanConfig> {
+        Ok(PlanConfig {
             devices,
             scheme: self.scheme.into(),
             assign: assignment(self.scheme, self.assign)?,
             sources: self.sources.as_ref().map(|s| s.0.clone()),
-        };
+        })
+    }
+
+    fn plan_shape(&self, lf: &LightField, config: &PlanConfig) -> PlanShape {
+        let devices = config.devices;
         let (sources, sources_flag) = match (&config.sources, config.scheme) {
             (Some(s), _) => (s.len() as u64, Some("--sources")),
             (None, Scheme::MultiSource) => match self.sources_per_set.0 {
@@ -249,7 +246,26 @@ impl PipelineArgs {
             (None, _) => (u64::from(devices), None),
         };
         PlanShape { views: lf.len() as u64, devices: u64::from(devices), sources, scheme: config.scheme, sources_flag }
-            .check()?;
+    }
+
+    /// Refuses a plan of `lf` over `devices` that the planner could not hold, before planning
+    /// (render checks it beside its other limits, to name them all at once).
+    pub fn check_plan_size(&self, lf: &LightField, devices: u32) -> Result<()> {
+        // A bad --assign is not a limit: compiling refuses it alone, as the usage error it is.
+        let Ok(config) = self.plan_config(devices) else { return Ok(()) };
+        self.plan_shape(lf, &config).check()
+    }
+
+    /// [`Self::compile`] of the pipeline extended by `extend` (a user crate's stages).
+    pub fn compile_with(
+        &self,
+        lf: &LightField,
+        devices: u32,
+        exposure: f32,
+        extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
+    ) -> Result<PipelineSchedule> {
+        let config = self.plan_config(devices)?;
+        self.plan_shape(lf, &config).check()?;
         let plan = Plan::with_sources(lf, &config, self.sources_per_set.0)?;
         let mut graph = KernelGraph::with_payload(plan.topology.clone());
         let handles = extend(PipelineBuilder::new(self.config(exposure))).declare(&mut graph)?;

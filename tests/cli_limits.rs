@@ -200,7 +200,7 @@ fn runs_are_checked_against_the_address_space_limit() {
 
 /// Kind 11: saved frames are estimated against the free space of --out-dir's filesystem before
 /// any work (37 TB here: more than any disk the tests run on); a refusal for too long a run
-/// names --frames; a run over both limits names both.
+/// names --frames; a run over several limits names every one.
 #[test]
 fn saved_frames_beyond_the_disk_and_long_runs_name_every_flag() {
     let dir = scratch("limits", "disk");
@@ -238,6 +238,21 @@ fn saved_frames_beyond_the_disk_and_long_runs_name_every_flag() {
             "; (2) --frames 100000 with --save-every 1 saves 99999 frame(s) of 1024 view(s) (--lf) at 64x64",
             "bytes) with the final pictures, but the filesystem of --out-dir lf has",
             "bytes) free: raise --save-every, lower --frames, --lf or --resolution, or free space",
+        ],
+    );
+    // A plan too large to hold and a run too long: the plan's limit first, then the duration's
+    // (the host memory's may follow under this test's address-space cap).
+    refused(
+        &dir,
+        &["-q", "render", "--lf", "64x64", "--resolution", "64x64", "--fake-devices", "8", "--scheme", "fine-all"]
+            .into_iter()
+            .chain(["--spp", "65536", "--frames", "1000", "--out-dir", "lf"])
+            .collect::<Vec<_>>(),
+        &[
+            "limits exceeded: (1) --scheme fine-all over 4096 views (--lf) and 8 devices (--gpus/--fake-devices) with 8 \
+             source(s) would be about 20893184 pass instances",
+            "; (2) 1.10e15 paths (4096 view(s) (--lf) × 1001 frame(s) (--frames, --warmup) × 64x64 (--resolution) × \
+             65536 spp (--spp)) would take 13 days",
         ],
     );
 }

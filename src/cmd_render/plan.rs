@@ -172,7 +172,12 @@ impl RenderJob {
         };
         let disk =
             free_bytes(&args.out_dir).filter(|_| writes_outputs).map(|free| outputs.check_fits(&args.out_dir, free));
-        refuse_every_exceeded([one_frame.check_duration(), one_frame.check_host(), disk.unwrap_or(Ok(()))])?;
+        refuse_every_exceeded([
+            args.pipeline.check_plan_size(&sized, devices),
+            one_frame.check_duration(),
+            one_frame.check_host(),
+            disk.unwrap_or(Ok(())),
+        ])?;
         // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
         // positions in the rig plane, not on where the rig stands.
         let compiled = args.pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
