@@ -124,9 +124,15 @@ fn fine_all_counts_the_rows_svgf_and_firefly_suppression_read_around_each_band()
     // Firefly suppression reads the radiance and position_depth (firefly_bound) and the shares
     // (firefly_spread), all Rgba32f, 2 rows around its band.
     let firefly = rows_beyond_bands(48, 4, 2);
+    // The temporal pass reads the radiance and the G-buffer's position_depth, normal_metallic
+    // and albedo_roughness (all Rgba32f) 3 rows around its band (its 7×7 variance estimate).
+    let temporal = rows_beyond_bands(48, 4, 3);
     let views = 32;
-    assert_eq!(json["halo_rows"], views * (3 * per_read + 3 * firefly));
-    assert_eq!(json["halo_bytes"], views * (per_read * 64 * (16 + 16 + 8) + firefly * 64 * 3 * 16));
+    assert_eq!(json["halo_rows"], views * (3 * per_read + 3 * firefly + 4 * temporal));
+    assert_eq!(
+        json["halo_bytes"],
+        views * (per_read * 64 * (16 + 16 + 8) + firefly * 64 * 3 * 16 + temporal * 64 * 4 * 16)
+    );
     // One device has one band per view: nothing lies beyond it.
     let one = scratch("plan", "halo_one");
     let out = plan(&["--lf", "8x4", "--resolution", "64x48", "--gpus", "1", "--scheme", "fine-all"], &one);
