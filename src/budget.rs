@@ -206,9 +206,10 @@ impl PlanShape {
     /// plan, bounded from above (M views, N devices, k sources, T = M - k targets; the bounds
     /// are checked against compiled plans by `plan_items_bound_the_compiled_plans`):
     /// - a view has 14 pass instances and 37 edges among them (firefly suppression's two
-    ///   passes and hole filling's read of the G-buffer's `first_hit` included); under fine-all every pass is split in N bands, and a band that reads
-    ///   a whole image depends on all N bands that wrote it: N² edges per such read, and up to
-    ///   16·N² copies per view;
+    ///   passes and hole filling's read of the G-buffer's `first_hit` included); under fine-all every pass is split in N bands: a band that reads
+    ///   its own rows or a halo around them depends on the few bands that wrote those (64·N
+    ///   edges), one that reads a whole image (SVGF's history through motion, two images) on
+    ///   all N bands that wrote it: 8·N² edges and up to 6·N² copies per view;
     /// - a target reads three images of each of its sources (one source under multi-source,
     ///   all k under the fine schemes): under fine-all every band of them from every band,
     ///   3·N²·k·T edges; under fine-sources the N bands of one image and two whole ones of each source,
@@ -223,7 +224,7 @@ impl PlanShape {
             Scheme::FineSources => {
                 (14 * m + 2 * k * n, 37 * m + 3 * k * n + (n + 2) * k * t, k * t + n * k, 2 * m + k * n)
             }
-            Scheme::FineAll => (14 * m * n, 37 * m * n * n + 3 * n * n * k * t, n * k * t, 16 * m * n * n),
+            Scheme::FineAll => (14 * m * n, 64 * m * n + 8 * m * n * n + 3 * n * n * k * t, n * k * t, 6 * m * n * n),
         };
         instances + edges + deltas + copies
     }
@@ -349,7 +350,7 @@ mod tests {
         assert_eq!(
             err,
             "--scheme fine-all over 4096 views (--lf) and 64 devices (--gpus/--fake-devices) with 2 source(s) (--sources) \
-             would be about 994000640 pass instances, dependencies and copies (at most 4000000): use fewer devices, fewer \
+             would be about 356466432 pass instances, dependencies and copies (at most 4000000): use fewer devices, fewer \
              views (--lf), fewer --sources, or --scheme multi-source"
         );
     }

@@ -129,7 +129,7 @@ fn rank_line(s: &RankShare) -> String {
     )
 }
 
-fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 8] {
+fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 9] {
     [
         format!(
             "pipeline      {}, G-buffer {}, fireflies {}, {}",
@@ -157,6 +157,10 @@ fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 8] {
             s.cross_device_copies,
             s.gather_copies,
             s.bytes_per_frame as f64 / (1 << 20) as f64
+        ),
+        format!(
+            "batches       {} transfers of the cross-device copies (one per device pair and stage)",
+            s.copy_batches
         ),
     ]
 }

@@ -137,6 +137,8 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
         resources: global.resources.clone(),
         passes,
         copies,
+        // A rank's copies are renumbered and some become remote: they travel one by one.
+        batches: Vec::new(),
         devices,
         history: global.history.clone(),
         kernels: global.kernels.clone(),

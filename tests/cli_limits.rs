@@ -141,7 +141,7 @@ fn fine_plans_with_explicit_sources_are_refused_before_planning() {
         &dir,
         &["plan", "--lf", "4096x1", "--gpus", "64", "--scheme", "fine-all", "--sources", "0,99"],
         &["error: --scheme fine-all over 4096 views (--lf) and 64 devices (--gpus/--fake-devices) with 2 source(s) \
-           (--sources) would be about 994000640 pass instances, dependencies and copies (at most 4000000): use fewer \
+           (--sources) would be about 356466432 pass instances, dependencies and copies (at most 4000000): use fewer \
            devices, fewer views (--lf), fewer --sources, or --scheme multi-source"],
     );
 }

@@ -124,9 +124,15 @@ fn fine_all_counts_the_rows_svgf_and_firefly_suppression_read_around_each_band()
     // Firefly suppression reads the radiance and position_depth (firefly_bound) and the shares
     // (firefly_spread), all Rgba32f, 2 rows around its band.
     let firefly = rows_beyond_bands(48, 4, 2);
+    // The temporal pass reads the radiance and the G-buffer's position_depth, normal_metallic
+    // and albedo_roughness (all Rgba32f) 3 rows around its band (its 7×7 variance estimate).
+    let temporal = rows_beyond_bands(48, 4, 3);
     let views = 32;
-    assert_eq!(json["halo_rows"], views * (3 * per_read + 3 * firefly));
-    assert_eq!(json["halo_bytes"], views * (per_read * 64 * (16 + 16 + 8) + firefly * 64 * 3 * 16));
+    assert_eq!(json["halo_rows"], views * (3 * per_read + 3 * firefly + 4 * temporal));
+    assert_eq!(
+        json["halo_bytes"],
+        views * (per_read * 64 * (16 + 16 + 8) + firefly * 64 * 3 * 16 + temporal * 64 * 4 * 16)
+    );
     // One device has one band per view: nothing lies beyond it.
     let one = scratch("plan", "halo_one");
     let out = plan(&["--lf", "8x4", "--resolution", "64x48", "--gpus", "1", "--scheme", "fine-all"], &one);
@@ -265,4 +271,37 @@ fn ranks_share_the_sets_and_say_what_each_sends() {
     let out = plan(&["--lf", "4x2", "--fake-devices", "4", "--ranks", "3"], &refused);
     let needle = "--ranks 3 does not divide the 4 device(s) of --gpus/--fake-devices";
     common::assert_refused("plan --ranks", &out, 2, &[needle], &refused, &before);
+}
+
+/// `plan --json` and the DOT show the batches the copies travel in: under fine-all fewer
+/// batches than copies, summed per device pair to every cross-device copy; none under
+/// multi-source, whose copies are all gathers.
+#[test]
+fn plan_reports_the_copy_batches() {
+    let dir = scratch("plan", "batches");
+    let out = plan(&["--lf", "8x4", "--resolution", "64x48", "--gpus", "4", "--scheme", "fine-all"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("plan.json")).unwrap()).unwrap();
+    let (batches, copies) = (json["copy_batches"].as_u64().unwrap(), json["cross_device_copies"].as_u64().unwrap());
+    assert!(0 < batches && batches < copies, "{batches} batches for {copies} copies");
+    let pairs = json["copy_batches_per_pair"].as_array().unwrap();
+    assert_eq!(pairs.iter().map(|p| p["batches"].as_u64().unwrap()).sum::<u64>(), batches);
+    assert_eq!(pairs.iter().map(|p| p["copies"].as_u64().unwrap()).sum::<u64>(), copies);
+    assert_eq!(pairs.len(), 12, "every ordered pair of 4 devices copies");
+    // 32 views on 4 devices draw as a summary: each pair's copy node says its batches.
+    let dot = std::fs::read_to_string(dir.join("plan.dot")).unwrap();
+    let drawn: u64 =
+        dot.split("\\nin ").skip(1).map(|rest| rest.split(' ').next().unwrap().parse::<u64>().unwrap()).sum();
+    assert_eq!(drawn, batches);
+    // The full drawing (3 views on 2 devices) draws a batch of several copies as a cluster.
+    let small = scratch("plan", "batches_full");
+    let out = plan(&["--lf", "3x1", "--resolution", "4x4", "--gpus", "2", "--scheme", "fine-all"], &small);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read_to_string(small.join("plan.dot")).unwrap().contains("subgraph cluster_b0 {"));
+    let multi = scratch("plan", "batches_multi");
+    let out = plan(&["--lf", "8x4", "--resolution", "64x48", "--gpus", "4", "--scheme", "multi-source"], &multi);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(multi.join("plan.json")).unwrap()).unwrap();
+    assert_eq!(json["copy_batches"], 0);
+    assert!(json["gather_copies"].as_u64().unwrap() > 0);
 }

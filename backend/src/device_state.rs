@@ -365,10 +365,12 @@ pub(crate) fn create_staging(
         return Ok(None);
     }
     let mut sizes = vec![0u64; links.len()];
-    let mut places = Vec::with_capacity(plan.copies.len());
-    for (c, &link) in link_of_copy.iter().enumerate() {
-        places.push((link, sizes[link]));
-        sizes[link] += plan.copy_bytes(CopyId(c as u32)).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
+    // A batch's copies side by side (ExecutionPlan::staging_order): one range per batch.
+    let mut places = vec![(0, 0); plan.copies.len()];
+    for c in plan.staging_order() {
+        let link = link_of_copy[c.index()];
+        places[c.index()] = (link, sizes[link]);
+        sizes[link] += plan.copy_bytes(c).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
     }
     // Links whose staging is a ring (staging_ring.rs): its size, its copies' offsets.
     for ring in rings {

@@ -72,6 +72,7 @@ impl ExecutionPlan {
             resources,
             passes: schedule.instances.clone(),
             copies: schedule.copies.clone(),
+            batches: schedule.batches.clone(),
             devices,
             history: schedule.history.clone(),
             kernels,

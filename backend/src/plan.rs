@@ -8,8 +8,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 
 pub use parallax_graph::{
-    Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, FamilyId, Format, HistoryPair, HistorySlot,
-    InstanceId, Op, Origin, PassId, PassInstance, ReadSlot, Region, ResourceId, SourcesSlot, ViewId, WriteSlot,
+    Access, AllocId, BatchId, CopyBatch, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, FamilyId, Format,
+    HistoryPair, HistorySlot, InstanceId, Op, Origin, PassId, PassInstance, ReadSlot, Region, ResourceId, SourcesSlot,
+    ViewId, WriteSlot,
 };
 
 use parallax_graph::{Role, ViewTopology};
@@ -160,6 +161,11 @@ pub struct ExecutionPlan {
     pub passes: Vec<PassInstance>,
     /// `copies[c]` is copy `CopyId(c)`: the schedule's copies as compiled.
     pub copies: Vec<CrossCopy>,
+    /// The schedule's copy batches (`parallax_graph::CopyBatch`): each is moved as one transfer,
+    /// its copies side by side in the link's staging, in one submission, with one ownership
+    /// transfer and one copy command per allocation. A copy in no batch (a gather, or any copy
+    /// of a hand-laid plan that lists none) travels on its own.
+    pub batches: Vec<CopyBatch>,
     /// `devices[d]` is device d's program: its ops in submission order and the barriers the
     /// schedule placed between them, recorded as they stand (groups of instances a kernel
     /// records together end at one). A hand-laid plan states its own: the executor looks for no
@@ -268,6 +274,7 @@ impl ExecutionPlan {
             }],
             resources: vec![resource],
             copies: vec![],
+            batches: vec![],
             devices: (0..devices.max(1) as u32)
                 .map(|d| DeviceProgram {
                     device: DeviceId(d),
@@ -311,6 +318,37 @@ impl ExecutionPlan {
     /// Copy `c`.
     pub fn copy(&self, c: CopyId) -> &CrossCopy {
         &self.copies[c.index()]
+    }
+
+    /// The batch of each copy (`[c]` for copy `CopyId(c)`), `None` for a copy in none.
+    pub fn batch_of_copies(&self) -> Vec<Option<BatchId>> {
+        let mut of = vec![None; self.copies.len()];
+        for (b, batch) in self.batches.iter().enumerate() {
+            for c in &batch.copies {
+                if let Some(slot) = of.get_mut(c.index()) {
+                    *slot = Some(BatchId(b as u32));
+                }
+            }
+        }
+        of
+    }
+
+    /// The order copies are laid out in their links' staging: by id, except that a batch's
+    /// copies come together, in its order, where its first copy would be: each batch is one
+    /// range of its link's buffer.
+    pub fn staging_order(&self) -> Vec<CopyId> {
+        let batch_of = self.batch_of_copies();
+        let mut order = Vec::with_capacity(self.copies.len());
+        for c in (0..self.copies.len()).map(|c| CopyId(c as u32)) {
+            match batch_of[c.index()] {
+                None => order.push(c),
+                Some(b) if self.batches[b.index()].copies.first() == Some(&c) => {
+                    order.extend(&self.batches[b.index()].copies);
+                }
+                Some(_) => {}
+            }
+        }
+        order
     }
 
     /// Device `d`'s program: its ops in submission order, and its barriers.

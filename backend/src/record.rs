@@ -469,16 +469,48 @@ fn record_copies(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, items: &[Item]
             (chunk, local, (staging, staging_offset, u64::from(chunk.y1 - chunk.y0) * row_bytes))
         })
         .collect();
-    let ranges: Vec<(vk::Buffer, u64, u64)> = copies.iter().map(|&(.., range)| range).collect();
+    // A batch lies in one range of its link's staging (ExecutionPlan::staging_order): one
+    // ownership transfer for it, not one per copy.
+    let ranges = merged_ranges(copies.iter().map(|&(.., range)| range).collect());
     if direction == CopyDirection::In {
         external_ownership(ctx, cb, &ranges, direction);
     }
-    for (chunk, local, range) in &copies {
-        record_chunk_copy(ctx, cb, chunk, direction, *local, *range);
+    // One copy command per allocation and staging buffer, a region per chunk: the run has no
+    // barrier inside, so its copies of one allocation touch distinct rows (Schedule::validate
+    // proves it of a batch).
+    let mut commands: Vec<(AllocId, vk::Buffer, Vec<StagedChunk>)> = Vec::new();
+    for &(chunk, local, (staging, offset, size)) in &copies {
+        match commands.iter_mut().find(|(a, b, _)| (*a, *b) == (local, staging)) {
+            Some((.., regions)) => regions.push((chunk, offset, size)),
+            None => commands.push((local, staging, vec![(chunk, offset, size)])),
+        }
+    }
+    for (local, staging, regions) in &commands {
+        record_allocation_copy(ctx, cb, direction, *local, *staging, regions);
     }
     if direction == CopyDirection::Out {
         external_ownership(ctx, cb, &ranges, direction);
     }
+}
+
+/// `ranges` (buffer, offset, size) with those of one buffer that touch, or lie less than the
+/// staging alignment apart (the padding between two copies belongs to neither), joined; in
+/// order of buffer and offset.
+pub(crate) fn merged_ranges(mut ranges: Vec<(vk::Buffer, u64, u64)>) -> Vec<(vk::Buffer, u64, u64)> {
+    use ash::vk::Handle;
+    ranges.sort_unstable_by_key(|&(buffer, offset, _)| (buffer.as_raw(), offset));
+    let mut merged: Vec<(vk::Buffer, u64, u64)> = Vec::with_capacity(ranges.len());
+    for (buffer, offset, size) in ranges {
+        match merged.last_mut() {
+            Some((b, start, len))
+                if *b == buffer && offset <= *start + *len + (crate::device_state::STAGING_ALIGN - 1) =>
+            {
+                *len = (*len).max(offset + size - *start);
+            }
+            _ => merged.push((buffer, offset, size)),
+        }
+    }
+    merged
 }
 
 /// Passes the ownership of staging ranges to the other `VkDevice` after copy-outs, or takes
@@ -515,43 +547,61 @@ fn external_ownership(
     unsafe { ctx.raw.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().buffer_memory_barriers(&barriers)) };
 }
 
-/// The copy of one chunk between the resource `local` and the staging `range`.
-fn record_chunk_copy(
+/// A chunk of a copy, its offset in the staging buffer and its bytes.
+type StagedChunk = (Chunk, u64, u64);
+
+/// The copy between the resource `local` and `staging` of each chunk in `regions`: one command
+/// with a region per chunk.
+fn record_allocation_copy(
     ctx: &SegmentContext<'_>,
     cb: vk::CommandBuffer,
-    chunk: &Chunk,
     direction: CopyDirection,
     local: AllocId,
-    (staging, staging_offset, size): (vk::Buffer, u64, u64),
+    staging: vk::Buffer,
+    regions: &[StagedChunk],
 ) {
     let raw = ctx.raw;
     let resource = ctx.plan.resource(local);
     if let Some(buffer) = ctx.buffers.get(&local) {
-        let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
-        let (src, dst, region) = match direction {
-            CopyDirection::Out => {
-                (buffer.raw, staging, vk::BufferCopy { src_offset: resource_offset, dst_offset: staging_offset, size })
-            }
-            CopyDirection::In => {
-                (staging, buffer.raw, vk::BufferCopy { src_offset: staging_offset, dst_offset: resource_offset, size })
-            }
+        let copies: Vec<vk::BufferCopy> = regions
+            .iter()
+            .map(|&(chunk, staging_offset, size)| {
+                let resource_offset = u64::from(chunk.y0) * resource.row_bytes();
+                match direction {
+                    CopyDirection::Out => {
+                        vk::BufferCopy { src_offset: resource_offset, dst_offset: staging_offset, size }
+                    }
+                    CopyDirection::In => {
+                        vk::BufferCopy { src_offset: staging_offset, dst_offset: resource_offset, size }
+                    }
+                }
+            })
+            .collect();
+        let (src, dst) = match direction {
+            CopyDirection::Out => (buffer.raw, staging),
+            CopyDirection::In => (staging, buffer.raw),
         };
-        unsafe { raw.cmd_copy_buffer(cb, src, dst, &[region]) };
+        unsafe { raw.cmd_copy_buffer(cb, src, dst, &copies) };
         return;
     }
     let image = &ctx.images[&local];
-    let region = vk::BufferImageCopy::default()
-        .buffer_offset(staging_offset)
-        .image_subresource(image.layers())
-        .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
-        .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 });
+    let copies: Vec<vk::BufferImageCopy> = regions
+        .iter()
+        .map(|&(chunk, staging_offset, _)| {
+            vk::BufferImageCopy::default()
+                .buffer_offset(staging_offset)
+                .image_subresource(image.layers())
+                .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
+                .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 })
+        })
+        .collect();
     unsafe {
         match direction {
             CopyDirection::Out => {
-                raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, staging, &[region])
+                raw.cmd_copy_image_to_buffer(cb, image.raw, vk::ImageLayout::GENERAL, staging, &copies)
             }
             CopyDirection::In => {
-                raw.cmd_copy_buffer_to_image(cb, staging, image.raw, vk::ImageLayout::GENERAL, &[region])
+                raw.cmd_copy_buffer_to_image(cb, staging, image.raw, vk::ImageLayout::GENERAL, &copies)
             }
         }
     }
@@ -637,6 +687,15 @@ pub(crate) mod grouping_plans {
 mod tests {
     use super::*;
     use crate::plan::{AllocId, CopyId, CopyKind, CrossCopy, DeviceId, Op, PassInstance, ResourceId, ViewId};
+
+    #[test]
+    fn a_batch_s_staging_ranges_are_one_ownership_transfer() {
+        use ash::vk::Handle;
+        let (a, b) = (vk::Buffer::from_raw(1), vk::Buffer::from_raw(2));
+        // Two copies 256-aligned side by side, one after padding, one far off, one elsewhere.
+        let ranges = vec![(a, 512, 100), (b, 0, 64), (a, 0, 300), (a, 4096, 8), (a, 256, 200)];
+        assert_eq!(super::merged_ranges(ranges), vec![(a, 0, 612), (a, 4096, 8), (b, 0, 64)]);
+    }
 
     #[test]
     fn grouped_passes_are_one_op_until_a_barrier_of_the_schedule_and_per_op_timing_times_each_op() {

@@ -12,7 +12,9 @@
 //!   start one.
 //!
 //! except between copies of one chunk each in the same direction, which share a submission up
-//! to `merge_bytes` together (a copy-out's relay then fires when its neighbours are done too).
+//! to `merge_bytes` together (a copy-out's relay then fires when its neighbours are done too),
+//! and between the copies of one batch (`ExecutionPlan::batches`), which share one whatever
+//! their bytes.
 //!
 //! Splitting a large copy into chunks lets the consumer's host→device copy of chunk i run while
 //! the producer's device→host copy of chunk i+1 is still going (the two PCIe directions of two
@@ -22,7 +24,7 @@ use std::collections::HashMap;
 use std::ops::Range;
 
 use crate::device::QueueKind;
-use crate::plan::{CopyId, ExecutionPlan, InstanceId, Op};
+use crate::plan::{BatchId, CopyId, ExecutionPlan, InstanceId, Op};
 
 /// A row band of a copy moved by one submission.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -237,7 +239,12 @@ fn segment_single_queue(
     // to `merge_bytes` together: the fine schemes send thousands of small copies per frame,
     // and a submission each is most of their cost. A chunked copy keeps a submission per chunk
     // (its chunks overlap across the two devices); the fault's copy keeps its own.
+    // A batch's copies (ExecutionPlan::batches) share one submission whatever their bytes:
+    // the batch is one transfer.
     let small = |c: CopyId| chunks[c.index()].len() == 1 && dropped_wait != Some(c);
+    let batch_of = plan.batch_of_copies();
+    let mut last_batch: Option<BatchId> = None;
+    let joins_batch = |last: Option<BatchId>, c: CopyId| last.is_some() && batch_of[c.index()] == last;
     let bytes =
         |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).src_alloc).row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let mut segments = Vec::new();
@@ -257,11 +264,16 @@ fn segment_single_queue(
                 }
                 current.push(Item::Pass(p), &mut barrier);
                 tail = Tail::Closed;
+                last_batch = None;
             }
             Op::CopyOut(c) => {
                 for &chunk in &chunks[c.index()] {
                     let held = match tail {
-                        Tail::CopyOuts(held) if small(c) && held.saturating_add(bytes(&chunk)) <= merge_bytes => {
+                        Tail::CopyOuts(held)
+                            if small(c)
+                                && (joins_batch(last_batch, c)
+                                    || held.saturating_add(bytes(&chunk)) <= merge_bytes) =>
+                        {
                             Some(held)
                         }
                         _ => None,
@@ -272,6 +284,7 @@ fn segment_single_queue(
                     current.push(Item::CopyOut(chunk), &mut barrier);
                     current.relays.push(chunk);
                     tail = if small(c) { Tail::CopyOuts(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
+                    last_batch = batch_of[c.index()];
                 }
             }
             // The producer's signal is sent per chunk, right after the chunk's copy; the wait is
@@ -282,7 +295,11 @@ fn segment_single_queue(
                     // A wait applies to a whole submission: a copy-in starts one, unless it joins
                     // the small copy-ins that the current one starts with.
                     let held = match tail {
-                        Tail::CopyIns(held) if small(c) && held.saturating_add(bytes(&chunk)) <= merge_bytes => {
+                        Tail::CopyIns(held)
+                            if small(c)
+                                && (joins_batch(last_batch, c)
+                                    || held.saturating_add(bytes(&chunk)) <= merge_bytes) =>
+                        {
                             Some(held)
                         }
                         _ => None,
@@ -295,6 +312,7 @@ fn segment_single_queue(
                     }
                     current.push(Item::CopyIn(chunk), &mut barrier);
                     tail = if small(c) { Tail::CopyIns(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
+                    last_batch = batch_of[c.index()];
                 }
             }
         }
@@ -447,6 +465,31 @@ mod tests {
         }
     }
 
+    /// A batch is one transfer: its copies share a submission on each side even past
+    /// `merge_bytes`, where the same copies unbatched take one each.
+    #[test]
+    fn a_batch_is_one_submission_whatever_its_bytes() {
+        let mut plan = crate::bench::gather_plan(3, 64, 256).unwrap(); // 256 KiB per copy
+        assert_eq!(plan.batches.len(), 1, "the schedule batches the three copies 0 → 1");
+        assert_eq!(plan.batches[0].copies, [CopyId(0), CopyId(1), CopyId(2)]);
+        let chunks = chunks_of_copies(&plan, 1 << 20);
+        let with_copies = |segments: &[Segment], out: bool| {
+            segments
+                .iter()
+                .filter(|s| {
+                    s.items.iter().any(|i| matches!((i, out), (Item::CopyOut(_), true) | (Item::CopyIn(_), false)))
+                })
+                .count()
+        };
+        let merge_bytes = 256 << 10;
+        assert_eq!(with_copies(&segment_device(&plan, 0, &chunks, merge_bytes, None, false), true), 1);
+        let consumer = segment_device(&plan, 1, &chunks, merge_bytes, None, false);
+        assert_eq!(with_copies(&consumer, false), 1);
+        plan.batches.clear();
+        assert_eq!(with_copies(&segment_device(&plan, 0, &chunks, merge_bytes, None, false), true), 3);
+        assert_eq!(with_copies(&segment_device(&plan, 1, &chunks, merge_bytes, None, false), false), 3);
+    }
+
     #[test]
     fn bands_cover_the_copy_and_taper_at_the_end() {
         for (total, per) in [(4096, 512), (100, 7), (5, 8), (513, 512), (1, 1), (4096, 1), (0, 16)] {
@@ -541,7 +584,9 @@ mod tests {
     /// and the fault's copy do not.
     #[test]
     fn small_copies_in_a_row_share_a_segment_up_to_the_cap() {
-        let plan = crate::bench::gather_plan(3, 64, 64).unwrap(); // 64 KiB per copy
+        let mut plan = crate::bench::gather_plan(3, 64, 64).unwrap(); // 64 KiB per copy
+        // Copies in no batch (a batch ignores the cap: a_batch_is_one_submission_whatever_its_bytes).
+        plan.batches.clear();
         let chunks = chunks_of_copies(&plan, 256 * 1024);
         assert!(chunks.iter().all(|c| c.len() == 1));
         let copy_ins = |s: &Segment| s.items.iter().filter(|i| matches!(i, Item::CopyIn(_))).count();

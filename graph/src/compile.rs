@@ -7,6 +7,7 @@
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BTreeSet, BinaryHeap, HashMap};
 
+use crate::batch::batch_copies;
 use crate::builder::{Graph, PassDecl, ReadScope, Role};
 use crate::error::GraphError;
 use crate::ids::{AllocId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
@@ -105,10 +106,12 @@ pub fn compile_with<P>(
         edges,
         delta_edges,
         copies,
+        batches: Vec::new(),
         culled,
         op_order: OpOrder::default(),
     };
     order_programs(&mut schedule, options.batching);
+    schedule.batches = batch_copies(&schedule);
     crate::barriers::place_all(&mut schedule);
     schedule.proven().map_err(GraphError::Unsound)
 }

@@ -96,23 +96,49 @@ impl Schedule {
         }
     }
 
+    /// Each copy as a node; the copies of a batch of more than one (`Schedule::batches`) in a
+    /// dashed cluster of their own, labelled with the one transfer they travel in.
     fn write_copy_nodes(&self, w: &mut String) {
-        for (c, copy) in self.copies.iter().enumerate() {
-            let id = CopyId(c as u32);
-            let res = self.resource(copy.resource);
+        let batch_of = self.batch_of_copies();
+        for (b, batch) in self.batches.iter().enumerate().filter(|(_, b)| b.copies.len() > 1) {
+            writeln!(w, "  subgraph cluster_b{b} {{").unwrap();
             writeln!(
                 w,
-                "  {id} [label=\"copy {}@v{} of {}\\n{} → {}, {}\\n{} B\", shape=cds, color=\"#cc0000\", fillcolor=\"#ffdddd\"];",
-                escape(&res.name),
-                copy.version,
-                res.view,
-                copy.from,
-                copy.to,
-                copy.region,
-                copy.bytes
+                "    label=\"batch b{b}: {} copies, {} → {}, {} B\"; style=dashed; color=\"#cc0000\"; fontsize=9;",
+                batch.copies.len(),
+                batch.from,
+                batch.to,
+                batch.bytes
             )
             .unwrap();
+            for &c in &batch.copies {
+                self.write_copy_node(w, c, "    ");
+            }
+            writeln!(w, "  }}").unwrap();
         }
+        for c in (0..self.copies.len()).map(|c| CopyId(c as u32)) {
+            let batched = batch_of[c.index()].is_some_and(|b| self.batches[b.index()].copies.len() > 1);
+            if !batched {
+                self.write_copy_node(w, c, "  ");
+            }
+        }
+    }
+
+    fn write_copy_node(&self, w: &mut String, id: CopyId, indent: &str) {
+        let copy = self.copy(id);
+        let res = self.resource(copy.resource);
+        writeln!(
+            w,
+            "{indent}{id} [label=\"copy {}@v{} of {}\\n{} → {}, {}\\n{} B\", shape=cds, color=\"#cc0000\", fillcolor=\"#ffdddd\"];",
+            escape(&res.name),
+            copy.version,
+            res.view,
+            copy.from,
+            copy.to,
+            copy.region,
+            copy.bytes
+        )
+        .unwrap();
     }
 
     /// One arrow per pair of nodes however many resources flow between them; an arrow is a

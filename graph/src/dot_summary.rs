@@ -75,7 +75,8 @@ impl Groups {
 }
 
 /// Copies by (is a gather, from, to): their count and bytes.
-type CopyTotals = BTreeMap<(bool, DeviceId, DeviceId), (u64, u64)>;
+/// Copies by (gather, from, to): how many, their bytes and the batches they travel in.
+type CopyTotals = BTreeMap<(bool, DeviceId, DeviceId), (u64, u64, u64)>;
 
 fn copy_node(gather: bool, from: DeviceId, to: DeviceId) -> String {
     let kind = if gather { "gather" } else { "copy" };
@@ -126,6 +127,9 @@ impl Schedule {
             let entry = copies.entry((c.kind == CopyKind::Gather, c.from, c.to)).or_default();
             entry.0 += 1;
             entry.1 += c.bytes;
+        }
+        for b in &self.batches {
+            copies.entry((false, b.from, b.to)).or_default().2 += 1;
         }
         copies
     }
@@ -195,11 +199,12 @@ impl Schedule {
 }
 
 fn write_copy_nodes(w: &mut String, copies: &CopyTotals) {
-    for ((gather, from, to), (count, bytes)) in copies {
+    for ((gather, from, to), (count, bytes, batches)) in copies {
         let what = if *gather { "gather" } else { "copies" };
+        let batched = if *batches > 0 { format!("\\nin {batches} batches") } else { String::new() };
         writeln!(
             w,
-            "  {} [label=\"{count} {what}\\n{from} → {to}\\n{bytes} B\", shape=cds, color=\"#cc0000\", fillcolor=\"#ffdddd\"];",
+            "  {} [label=\"{count} {what}\\n{from} → {to}\\n{bytes} B{batched}\", shape=cds, color=\"#cc0000\", fillcolor=\"#ffdddd\"];",
             copy_node(*gather, *from, *to)
         )
         .unwrap();

@@ -43,6 +43,10 @@ id!(
     CopyId, "c"
 );
 id!(
+    /// A batch of cross-device copies moved as one transfer (`Schedule::batches`).
+    BatchId, "b"
+);
+id!(
     /// A declared resource (the family of its per-view resources).
     FamilyId, "f"
 );

@@ -38,6 +38,7 @@
 
 pub mod assign;
 mod barriers;
+mod batch;
 mod binding;
 pub mod builder;
 pub mod compile;
@@ -62,13 +63,14 @@ mod validate_storage;
 
 pub use assign::{AssignStrategy, Assignment, assign};
 pub use barriers::place_barriers;
+pub use batch::CopyBatch;
 pub use builder::{
     Buffer, Graph, Handle, HistorySlot, Image, PassBuilder, ReadSlot, Role, SlotAccess, SourcesSlot, ViewTopology,
     WriteSlot,
 };
 pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile, compile_with};
 pub use error::{GraphError, PlanError, UnboundSlot};
-pub use ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
+pub use ids::{AllocId, BatchId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use order::{Batching, CompileOptions, DEFAULT_CHUNK_BYTES, OpOrder};
 pub use partition::{Plan, PlanConfig, Scheme, SourcesPerSet, parse_source_list};

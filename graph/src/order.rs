@@ -286,6 +286,7 @@ mod tests {
             edges: Vec::new(),
             delta_edges: Vec::new(),
             copies: Vec::new(),
+            batches: Vec::new(),
             culled: Vec::new(),
             op_order: OpOrder::default(),
         }

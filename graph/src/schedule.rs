@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use crate::batch::CopyBatch;
 use crate::builder::Role;
 use crate::ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::order::OpOrder;
@@ -297,6 +298,9 @@ pub struct Schedule {
     pub edges: Vec<Edge>,
     pub delta_edges: Vec<DeltaEdge>,
     pub copies: Vec<CrossCopy>,
+    /// The dependency copies grouped into transfers, one per device pair and stage (batch.rs):
+    /// what the backend moves as one.
+    pub batches: Vec<CopyBatch>,
     pub culled: Vec<CulledPass>,
     /// How the ops of each program are ordered (the compile option and what it gave):
     /// `devices` holds that order, which is the order the backend submits.

@@ -25,6 +25,10 @@ pub struct PlanSummary {
     /// Copies between devices before the final gather.
     pub cross_device_copies: usize,
     pub gather_copies: usize,
+    /// The cross-device copies as the transfers that move them (`Schedule::batches`): how many,
+    /// and per device pair that has any, its batches, copies and bytes.
+    pub copy_batches: usize,
+    pub copy_batches_per_pair: Vec<PairBatches>,
     /// Bytes of all copies, gathers included.
     pub bytes_per_frame: u64,
     /// Rows (and bytes) halo reads reach beyond their instances' own rows per frame.
@@ -47,6 +51,28 @@ pub struct PlanSummary {
     pub op_order: crate::order::OpOrder,
 }
 
+/// The batches of one device pair ([`PlanSummary::copy_batches_per_pair`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct PairBatches {
+    pub from: u32,
+    pub to: u32,
+    pub batches: usize,
+    pub copies: usize,
+    pub bytes: u64,
+}
+
+fn pair_batches(schedule: &Schedule) -> Vec<PairBatches> {
+    let mut pairs: std::collections::BTreeMap<(u32, u32), PairBatches> = std::collections::BTreeMap::new();
+    for b in &schedule.batches {
+        let (from, to) = (b.from.0, b.to.0);
+        let pair = pairs.entry((from, to)).or_insert(PairBatches { from, to, batches: 0, copies: 0, bytes: 0 });
+        pair.batches += 1;
+        pair.copies += b.copies.len();
+        pair.bytes += b.bytes;
+    }
+    pairs.into_values().collect()
+}
+
 impl PlanSummary {
     pub fn new(lf: &LightField, plan: &Plan, schedule: &Schedule) -> Self {
         PlanSummary {
@@ -62,6 +88,8 @@ impl PlanSummary {
             mean_delta_distance_mm: mean_delta_distance(lf, schedule) * 1e3,
             cross_device_copies: schedule.dependency_copies().count(),
             gather_copies: schedule.gather_copies().count(),
+            copy_batches: schedule.batches.len(),
+            copy_batches_per_pair: pair_batches(schedule),
             bytes_per_frame: schedule.bytes_per_frame(),
             halo_rows: schedule.halo_reads().rows,
             halo_bytes: schedule.halo_reads().bytes,

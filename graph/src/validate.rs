@@ -4,7 +4,7 @@
 
 use std::collections::{HashMap, VecDeque};
 
-use crate::ids::{AllocId, CopyId, DeviceId, InstanceId, PassId, Region, ResourceId, ViewId};
+use crate::ids::{AllocId, BatchId, CopyId, DeviceId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::schedule::{Op, Schedule};
 
 /// One broken invariant.
@@ -113,6 +113,18 @@ pub enum ScheduleError {
     GlobalAccessedInPart { instance: InstanceId, resource: ResourceId, rows: Region },
     #[error("global pass {pass} has {instances} instances; a global pass runs once per frame")]
     GlobalPassInstances { pass: PassId, instances: u32 },
+    #[error("copy {copy} is in {batches} batches; a dependency copy is in one, a gather in none")]
+    CopyBatchCount { copy: CopyId, batches: u32 },
+    #[error("batch {batch} holds copy {copy}, a gather or a copy between other devices")]
+    BatchForeignCopy { batch: BatchId, copy: CopyId },
+    #[error("batch {batch} says it moves {actual} bytes; its copies move {expected}")]
+    BatchBytesMismatch { batch: BatchId, expected: u64, actual: u64 },
+    #[error("batch {batch}: its copy ops on {device} are split by a pass or a copy the other way")]
+    BatchSplit { batch: BatchId, device: DeviceId },
+    #[error("batch {batch}: copies {first} and {second} write the same rows of one allocation")]
+    BatchRegionsOverlap { batch: BatchId, first: CopyId, second: CopyId },
+    #[error("copy {copy} moves {copied}, but its consumers read {read} of the producer's rows")]
+    CopyRowsUnread { copy: CopyId, read: Region, copied: Region },
 }
 
 /// Every broken invariant found; empty when the schedule is sound.
@@ -187,6 +199,7 @@ impl Schedule {
         self.check_bands(&mut errors);
         self.check_shapes(&mut errors);
         self.check_globals(&mut errors);
+        self.check_batches(&mut errors);
         ValidationReport { errors }
     }
 

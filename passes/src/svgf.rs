@@ -30,8 +30,9 @@
 //! the path-traced input's: no bias in the mean. The normalised filter it replaces moved a
 //! channel's mean by up to 13 % on Sponza (docs/PIPELINE.md, SVGF).
 //!
-//! Every pass with a footprint reads whole views (`read_whole`), the à-trous passes their rows and
-//! the taps' reach around them (`read_halo`), so a view split into row bands over devices gives
+//! Every pass with a footprint reads its rows and the footprint's reach around them
+//! (`read_halo`: the temporal pass's G-buffer and radiance, the à-trous passes' taps), or whole
+//! views where the footprint has no bound (the temporal pass's history through `motion`), so a view split into row bands over devices gives
 //! the same pixels as one device. The à-trous passes run in phase tiles
 //! ([`phase_groups`]): a workgroup owns 8×8 pixels `step` apart and reads their taps into
 //! shared memory once. Pixels without a hit (depth 0) keep their radiance; every output is
@@ -75,6 +76,10 @@ const GUIDE: &str = "svgf_guide";
 const EFFECTIVE_ALBEDO: &str = "svgf_albedo";
 const ATROUS: &str = "svgf_atrous";
 
+/// Rows the temporal pass's spatial variance estimate reaches above and below a pixel (`RADIUS`
+/// in shaders/svgf_temporal.comp: a (2·3 + 1)² window); its depth gradient reaches one.
+const TEMPORAL_RADIUS: u32 = 3;
+
 /// `SvgfPush::flags`: the temporal pass has the frame block's cameras (`block`, `view`).
 const CAMERAS: u32 = 4;
 
@@ -111,17 +116,18 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         prev_moments: pass.write_slot(&mut prev_moments),
     };
     pass.kernel(Arc::new(SvgfKernel(history))).record();
-    // The G-buffer whole: the depth gradient and the spatial variance estimate read neighbours.
-    // The history directly where an instance covers its whole view (the copy is then skipped),
-    // the copies where it is a band.
+    // The G-buffer and radiance around the band: the depth gradient reads one row away, the
+    // spatial variance estimate `TEMPORAL_RADIUS` rows. The colour and moments copies whole:
+    // the previous frame's pixel through `motion` may be on any row. The history directly where
+    // an instance covers its whole view (the copy is then skipped), the copies where it is a band.
     let mut pass = graph.pass("svgf_temporal", Role::All);
     let temporal = Stage::Temporal(TemporalSlots {
         history_color: pass.read_history_slot(&color),
         history_moments: pass.read_history_slot(&moments),
-        radiance: pass.read_whole_slot(inputs.radiance),
-        albedo: pass.read_whole_slot(inputs.albedo_roughness),
-        normal: pass.read_whole_slot(inputs.normal_metallic),
-        position: pass.read_whole_slot(inputs.position_depth),
+        radiance: pass.read_halo_slot(inputs.radiance, TEMPORAL_RADIUS),
+        albedo: pass.read_halo_slot(inputs.albedo_roughness, TEMPORAL_RADIUS),
+        normal: pass.read_halo_slot(inputs.normal_metallic, TEMPORAL_RADIUS),
+        position: pass.read_halo_slot(inputs.position_depth, TEMPORAL_RADIUS),
         motion: pass.read_slot(inputs.motion),
         prev_color: pass.read_whole_slot(&prev_color),
         prev_moments: pass.read_whole_slot(&prev_moments),
@@ -387,6 +393,17 @@ mod tests {
         let (gx, gy) = group;
         let base = (gx % step + step * 8 * (gx / step), gy % step + step * (y0 / step + 8 * (gy / step)));
         (base.0 + step * local.0, base.1 + step * local.1)
+    }
+
+    /// The temporal pass's halo reads reach as far as its shader's window: a smaller halo would
+    /// leave rows of a neighbouring band unread (stale) in a banded scheme.
+    #[test]
+    fn the_temporal_halo_is_the_shaders_window() {
+        let source = include_str!("../../shaders/svgf_temporal.comp");
+        assert!(
+            source.contains(&format!("const int RADIUS = {TEMPORAL_RADIUS};")),
+            "RADIUS in svgf_temporal.comp changed"
+        );
     }
 
     #[test]
