@@ -250,7 +250,7 @@ fn saved_frames_beyond_the_disk_and_long_runs_name_every_flag() {
             .collect::<Vec<_>>(),
         &[
             "limits exceeded: (1) --scheme fine-all over 4096 views (--lf) and 8 devices (--gpus/--fake-devices) with 8 \
-             source(s) would be about 20893184 pass instances",
+             source(s) would be about 12766720 pass instances",
             "; (2) 1.10e15 paths (4096 view(s) (--lf) × 1001 frame(s) (--frames, --warmup) × 64x64 (--resolution) × \
              65536 spp (--spp)) would take 13 days",
         ],

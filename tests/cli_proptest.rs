@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{parallax_in, scratch, snapshot};
+use common::{PROPTEST_SEED, parallax_in, scratch, snapshot};
 
 use proptest::prelude::*;
 
@@ -56,7 +56,7 @@ fn check_outcome(args: &[String], dir: &std::path::Path) -> Result<(), TestCaseE
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 64, failure_persistence: None, rng_seed: proptest::test_runner::RngSeed::Fixed(PROPTEST_SEED), ..ProptestConfig::default() })]
 
     #[test]
     fn plan_never_panics(
@@ -80,7 +80,7 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 32, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 32, failure_persistence: None, rng_seed: proptest::test_runner::RngSeed::Fixed(PROPTEST_SEED), ..ProptestConfig::default() })]
 
     #[test]
     fn trace_never_panics(

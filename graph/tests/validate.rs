@@ -186,7 +186,7 @@ fn crossed_waits_deadlock() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 40, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 40, rng_seed: proptest::test_runner::RngSeed::Fixed(PROPTEST_SEED), ..ProptestConfig::default() })]
     #[test]
     fn compiled_schedules_validate(cols in 1u32..7, rows in 1u32..4, n in 1u32..5, scheme in 0usize..3, assign in 0usize..3, res in 4u32..12) {
         let lf = grid(cols, rows, res);

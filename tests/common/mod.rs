@@ -174,3 +174,8 @@ pub fn wait_or_kill(mut child: std::process::Child, what: &str) -> std::process:
     }
     child.wait_with_output().unwrap()
 }
+
+/// The proptests' seed: every run draws the same cases, so CI cannot fail by chance where a
+/// developer's run passed (a failure seen once in a full run, then gone, is a defect of the
+/// test). To explore further, change it locally and keep a new failing case as a unit test.
+pub const PROPTEST_SEED: u64 = 0x7061_7261_6c6c_6178;

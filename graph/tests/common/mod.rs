@@ -95,3 +95,8 @@ pub fn insert_op(program: &mut DeviceProgram, index: usize, op: Op) {
         }
     }
 }
+
+/// The proptests' seed: every run draws the same cases, so CI cannot fail by chance where a
+/// developer's run passed (a failure seen once in a full run, then gone, is a defect of the
+/// test). To explore further, change it locally and keep a new failing case as a unit test.
+pub const PROPTEST_SEED: u64 = 0x7061_7261_6c6c_6178;
