@@ -6,8 +6,9 @@
 //   radiance, albedo, normal, position: own pixel and, for short histories, the 7×7 around it
 //   (depth also the 4 neighbours, for the gradient); motion: own pixel
 //   in0 `svgf_prev_color` (illumination rgb, length), in1 `svgf_prev_moments` (m1, m2, depth,
-//   packed normal): whole view; for an instance over its whole view, the history `svgf_color`
-//   and `svgf_moments` themselves (the same texels)
+//   packed normal): the taps through `motion`, at most HISTORY_REACH rows from the pixel; for an
+//   instance over its whole view, the history `svgf_color` and `svgf_moments` themselves (the
+//   same texels)
 //   out0 `svgf_variance`: (illumination rgb, variance)
 //   out1 `svgf_moments`: (m1, m2, linear depth, packed normal), read as history next frame
 //   out2 `svgf_guide`: (linear depth, depth gradient x, y, packed normal)
@@ -39,7 +40,10 @@
 // spread it over its neighbours: no energy is lost, and the mean stays exact.
 // Temporal: the previous frame is sampled bilinearly at the motion vector; a tap counts only if
 // it is inside the image, had history, and saw the same surface (depth against the gradient,
-// normal within ~25°). Blending in illumination keeps a texture from being smeared by the
+// normal within ~25°), and lies within HISTORY_REACH rows of the pixel: a surface that moved
+// further in one frame restarts, as a disocclusion does. The bound is what lets a band of rows
+// on one device receive only the history rows around it (a halo) instead of whole views, and it
+// holds on every device count, so a band reads what one device would. Blending in illumination keeps a texture from being smeared by the
 // bilinear taps. Without any valid tap the pixel restarts (length 1). Exponential moving average
 // (Schied: α = 0.2 for colour and moments), 1/n while the history is shorter than 1/α frames.
 // Variance: from the temporal moments with 4 frames of history or more; with fewer it is
@@ -72,6 +76,8 @@ const float MIN_NORMAL_DOT = 0.9;
 // luminance edge-stopping σ_l (Schied's reference code: 10), on illumination luminance.
 const float MIN_LENGTH = 4.0;
 const int RADIUS = 3;
+// Rows a history tap through `motion` may lie from its pixel (parallax_passes::svgf::HISTORY_REACH).
+const int HISTORY_REACH = 16;
 const int TILE = 8 + 2 * RADIUS;
 const float SIGMA_L_SPATIAL = 10.0;
 
@@ -162,7 +168,7 @@ Temporal blend(ivec2 p, float z, vec3 n, vec2 gradient, vec3 radiance, vec3 albe
             float w = (o.x == 1 ? f.x : 1.0 - f.x) * (o.y == 1 ? f.y : 1.0 - f.y);
             ivec2 q = base + o;
             // Zero-weight taps are skipped, so a pixel centre reads exactly one texel.
-            if (w <= 0.0 || !svgf_inside(q)) {
+            if (w <= 0.0 || !svgf_inside(q) || abs(q.y - p.y) > HISTORY_REACH) {
                 continue;
             }
             vec4 pcol = imageLoad(images[pc.in0], q);

@@ -127,11 +127,15 @@ fn fine_all_counts_the_rows_svgf_and_firefly_suppression_read_around_each_band()
     // The temporal pass reads the radiance and the G-buffer's position_depth, normal_metallic
     // and albedo_roughness (all Rgba32f) 3 rows around its band (its 7×7 variance estimate).
     let temporal = rows_beyond_bands(48, 4, 3);
+    // And the history copies svgf_prev_color and svgf_prev_moments (Rgba32f) through `motion`,
+    // HISTORY_REACH (16) rows around its band.
+    let history = rows_beyond_bands(48, 4, 16);
     let views = 32;
-    assert_eq!(json["halo_rows"], views * (3 * per_read + 3 * firefly + 4 * temporal));
+    assert_eq!(json["halo_rows"], views * (3 * per_read + 3 * firefly + 4 * temporal + 2 * history));
     assert_eq!(
         json["halo_bytes"],
-        views * (per_read * 64 * (16 + 16 + 8) + firefly * 64 * 3 * 16 + temporal * 64 * 4 * 16)
+        views
+            * (per_read * 64 * (16 + 16 + 8) + firefly * 64 * 3 * 16 + temporal * 64 * 4 * 16 + history * 64 * 2 * 16)
     );
     // One device has one band per view: nothing lies beyond it.
     let one = scratch("plan", "halo_one");

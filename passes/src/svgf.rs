@@ -4,7 +4,8 @@
 //!
 //! 1. `svgf_history` (shaders/svgf_history.comp): last frame's colour and moments history
 //!    (history reads) copied into this frame's images. History reads see only the instance's
-//!    own rows, reprojection may land on any row: the copies are read whole. An instance that
+//!    own rows; reprojection reaches [`HISTORY_REACH`] rows: the copies are read with that
+//!    halo. An instance that
 //!    covers its whole view records nothing: the temporal pass reads that history itself.
 //! 2. `svgf_temporal`: illumination (radiance / albedo) and the moments of its luminance
 //!    accumulated through `motion` with an exponential moving average (α = 0.2, 1/n while the
@@ -31,9 +32,9 @@
 //! channel's mean by up to 13 % on Sponza (docs/PIPELINE.md, SVGF).
 //!
 //! Every pass with a footprint reads its rows and the footprint's reach around them
-//! (`read_halo`: the temporal pass's G-buffer and radiance, the à-trous passes' taps), or whole
-//! views where the footprint has no bound (the temporal pass's history through `motion`), so a view split into row bands over devices gives
-//! the same pixels as one device. The à-trous passes run in phase tiles
+//! (`read_halo`: the temporal pass's G-buffer, radiance and history through `motion`, the à-trous
+//! passes' taps), so a view split into row bands over devices gives the same pixels as one
+//! device. The à-trous passes run in phase tiles
 //! ([`phase_groups`]): a workgroup owns 8×8 pixels `step` apart and reads their taps into
 //! shared memory once. Pixels without a hit (depth 0) keep their radiance; every output is
 //! finite (inputs are sanitised, every division is guarded).
@@ -80,6 +81,13 @@ const ATROUS: &str = "svgf_atrous";
 /// in shaders/svgf_temporal.comp: a (2·3 + 1)² window); its depth gradient reaches one.
 const TEMPORAL_RADIUS: u32 = 3;
 
+/// Rows a history tap through `motion` may lie from its pixel (`HISTORY_REACH` in
+/// shaders/svgf_temporal.comp): farther history restarts the pixel. 16 rows a frame is a
+/// surface crossing the image's height in well under a second at 30 Hz on today's views; what
+/// moves faster has little history worth keeping. It bounds the history copies of a band to a
+/// halo of this many rows.
+pub const HISTORY_REACH: u32 = 16;
+
 /// `SvgfPush::flags`: the temporal pass has the frame block's cameras (`block`, `view`).
 const CAMERAS: u32 = 4;
 
@@ -117,8 +125,8 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     };
     pass.kernel(Arc::new(SvgfKernel(history))).record();
     // The G-buffer and radiance around the band: the depth gradient reads one row away, the
-    // spatial variance estimate `TEMPORAL_RADIUS` rows. The colour and moments copies whole:
-    // the previous frame's pixel through `motion` may be on any row. The history directly where
+    // spatial variance estimate `TEMPORAL_RADIUS` rows. The colour and moments copies
+    // `HISTORY_REACH` rows: the shader drops taps through `motion` farther away. The history directly where
     // an instance covers its whole view (the copy is then skipped), the copies where it is a band.
     let mut pass = graph.pass("svgf_temporal", Role::All);
     let temporal = Stage::Temporal(TemporalSlots {
@@ -129,8 +137,8 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
         normal: pass.read_halo_slot(inputs.normal_metallic, TEMPORAL_RADIUS),
         position: pass.read_halo_slot(inputs.position_depth, TEMPORAL_RADIUS),
         motion: pass.read_slot(inputs.motion),
-        prev_color: pass.read_whole_slot(&prev_color),
-        prev_moments: pass.read_whole_slot(&prev_moments),
+        prev_color: pass.read_halo_slot(&prev_color, HISTORY_REACH),
+        prev_moments: pass.read_halo_slot(&prev_moments, HISTORY_REACH),
         variance: pass.write_slot(&mut variance),
         moments: pass.write_slot(&mut moments),
         guide: pass.write_slot(&mut guide),
@@ -403,6 +411,10 @@ mod tests {
         assert!(
             source.contains(&format!("const int RADIUS = {TEMPORAL_RADIUS};")),
             "RADIUS in svgf_temporal.comp changed"
+        );
+        assert!(
+            source.contains(&format!("const int HISTORY_REACH = {HISTORY_REACH};")),
+            "HISTORY_REACH in svgf_temporal.comp changed"
         );
     }
 

@@ -425,3 +425,28 @@ fn svgf_in_three_row_bands_on_three_devices_equals_one_device_bit_for_bit() {
         );
     }
 }
+
+#[test]
+fn history_farther_than_the_reach_restarts_the_pixel() {
+    let reach = parallax_passes::svgf::HISTORY_REACH;
+    assert!(reach + 2 <= SIZE, "the test needs rows beyond the reach");
+    let ctx = common::context(1);
+    // Motion of exactly `rows` rows down, no fraction: one tap, `rows` from its pixel.
+    let reused_rows = |rows: u32| -> Vec<usize> {
+        let input = Input { change: Change::None, motion: [0.0, rows as f32] };
+        let mut run = Run::new(&ctx, svgf_plan(1, input, &one_device()), 1, &format!("reach_{rows}"));
+        for frame in 0..3 {
+            run.frame(frame);
+        }
+        // A pixel that reused history has length >= 2 (the colour history's alpha).
+        let color = run.read("svgf_color", 0);
+        let size = SIZE as usize;
+        (0..size).filter(|&y| (0..size).any(|x| color[4 * (y * size + x) + 3] >= 2.0)).collect()
+    };
+    let within = reused_rows(reach);
+    assert!(!within.is_empty(), "motion of {reach} rows reuses history");
+    assert!(within.iter().all(|&y| y + (reach as usize) < SIZE as usize), "{within:?}");
+    let beyond = reused_rows(reach + 1);
+    assert_eq!(beyond, Vec::<usize>::new(), "motion of {} rows must restart every pixel", reach + 1);
+    ctx.check_validation().unwrap();
+}
