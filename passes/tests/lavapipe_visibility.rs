@@ -99,7 +99,7 @@ fn compare(what: &str, traced: &Layers, visible: &Layers, width: usize) -> (usiz
                 continue;
             }
             let depth = |layers: &[Vec<u32>; 5], id: u32| {
-                (id != NO_PRIMITIVE).then(|| f32::from_bits(layers[0][4 * i + 3])).unwrap_or(f32::INFINITY)
+                if id != NO_PRIMITIVE { f32::from_bits(layers[0][4 * i + 3]) } else { f32::INFINITY }
             };
             let (a, b) = (depth(t, ids[i]), depth(s, vis_ids[i]));
             let (x, y) = (i % width, i / width);
