@@ -31,11 +31,10 @@ layout(push_constant, std430) uniform GbufferPush {
     uint pad;
 } pc;
 
-const uint NO_IMAGE = 0xffffffffu;
-
 #define PT_SCENE pc.scene
 #define params (pc.trace.p)
 #include "pt_trace.glsl"
+#include "gbuffer_store.glsl"
 
 layout(local_size_x = 64) in;
 
@@ -49,32 +48,5 @@ void main() {
     vec3 dir = camera_direction(x, y, vec2(0.5));
     vec3 eye = params.eye.xyz;
     BvhHit hit = bvh_closest_hit(bvh_make_ray(eye, dir, 0.0, 1.0 / 0.0));
-    ivec2 at = ivec2(x, y);
-    vec2 previous_pixel = vec2(-1.0);
-    if (pc.first_hit != NO_IMAGE) {
-        imageStore(uimages[pc.first_hit], at, uvec4(hit.primitive));
-    }
-    if (hit.primitive == 0xffffffffu) {
-        imageStore(images[pc.position_depth], at, vec4(0.0));
-        imageStore(images[pc.normal_metallic], at, vec4(0.0));
-        imageStore(images[pc.albedo_roughness], at, vec4(0.0));
-        imageStore(images[pc.motion], at, vec4(previous_pixel, 0.0, 0.0));
-        return;
-    }
-    SurfacePoint sp = surface_point(hit.primitive, hit.barycentrics, hit.t, eye, dir);
-    imageStore(images[pc.position_depth], at, vec4(sp.position, dot(sp.position - eye, params.forward.xyz)));
-    imageStore(images[pc.normal_metallic], at, vec4(sp.normal, sp.metallic));
-    imageStore(images[pc.albedo_roughness], at, vec4(sp.base_color, sp.roughness));
-    if (frame.history_valid != 0u) {
-        vec4 clip = pc.block.views[pc.view].previous.view_proj * vec4(sp.position, 1.0);
-        if (clip.w > 0.0) {
-            vec2 prev_ndc = clip.xy / clip.w;
-            vec2 size = vec2(params.dims.xy);
-            vec2 pixel = vec2((prev_ndc.x + 1.0) * 0.5 * size.x, (1.0 - prev_ndc.y) * 0.5 * size.y);
-            if (all(greaterThanEqual(pixel, vec2(0.0))) && all(lessThan(pixel, size))) {
-                previous_pixel = pixel;
-            }
-        }
-    }
-    imageStore(images[pc.motion], at, vec4(previous_pixel, 0.0, 0.0));
+    gbuffer_store(x, y, eye, dir, hit);
 }

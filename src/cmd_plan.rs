@@ -10,7 +10,7 @@ use parallax_graph::{PlanSummary, Rig};
 use crate::logging::{result, spinner};
 use crate::options::{DeviceArgs, UsageError};
 use crate::outputs::{Format, Output, Sink, check, sink_parser, write_bytes, write_json};
-use crate::pipeline_args::{DotArgs, PipelineArgs};
+use crate::pipeline_args::{DotArgs, PipelineArgs, plan_json};
 use crate::ranks::{RankLayout, RankShare, shares};
 use crate::scene_args::LayoutArgs;
 
@@ -74,11 +74,11 @@ pub fn run(args: PlanArgs) -> Result<()> {
     if let Some(sink) = &args.json {
         match &shares {
             Some(shares) => {
-                let mut json = serde_json::to_value(&summary)?;
+                let mut json = plan_json(&summary, args.pipeline.gbuffer);
                 json["ranks"] = serde_json::to_value(shares)?;
                 write_json(sink, &json)?;
             }
-            None => write_json(sink, &summary)?,
+            None => write_json(sink, &plan_json(&summary, args.pipeline.gbuffer))?,
         }
     }
     // The summary is the result, on stdout, unless stdout already carries the DOT or JSON.

@@ -41,6 +41,7 @@ impl From<PipelineArg> for PipelineKind {
 pub enum GbufferArg {
     FirstHits,
     Raster,
+    Visibility,
 }
 
 impl From<GbufferArg> for GbufferSource {
@@ -48,8 +49,28 @@ impl From<GbufferArg> for GbufferSource {
         match g {
             GbufferArg::FirstHits => GbufferSource::FirstHits,
             GbufferArg::Raster => GbufferSource::Raster,
+            GbufferArg::Visibility => GbufferSource::Visibility,
         }
     }
+}
+
+impl From<GbufferSource> for GbufferArg {
+    fn from(g: GbufferSource) -> GbufferArg {
+        match g {
+            GbufferSource::FirstHits => GbufferArg::FirstHits,
+            GbufferSource::Raster => GbufferArg::Raster,
+            GbufferSource::Visibility => GbufferArg::Visibility,
+        }
+    }
+}
+
+/// The plan's JSON (`plan --json`, render.json's `plan`): the summary and the G-buffer kind the
+/// schedule computes (render's is the one that ran: `visibility` falls back to `first-hits` on
+/// devices without 64-bit buffer atomics).
+pub fn plan_json(summary: &PlanSummary, gbuffer: GbufferArg) -> serde_json::Value {
+    let mut json = serde_json::to_value(summary).expect("a plan summary serialises");
+    json["gbuffer"] = serde_json::to_value(gbuffer).expect("a flag value serialises");
+    json
 }
 
 /// `--fireflies`.
@@ -77,7 +98,10 @@ pub struct PipelineArgs {
     #[arg(long, value_enum, default_value_t = PipelineArg::Reproject)]
     pub pipeline: PipelineArg,
     /// Where the G-buffer comes from: first hits of the pixel-centre rays (fast on compute GPUs
-    /// such as the H200), or rasterised (the paper's way; fast with fixed-function raster).
+    /// such as the H200), rasterised (the paper's way; fast with fixed-function raster), or a
+    /// compute visibility buffer of 64-bit atomics resolved into the first-hit G-buffer (no
+    /// tracing; render falls back to first hits, and says so in render.json, on devices without
+    /// shaderBufferInt64Atomics).
     #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
     pub gbuffer: GbufferArg,
     /// Skip SVGF: the display shows the radiance after reprojection and hole filling.

@@ -87,9 +87,11 @@ fn stage_of(totals: &EventTotals) -> String {
 /// The stages in the order the pipeline runs them (the paper's Table 1): a stage's rank is that
 /// of its name or of the name it extends (`svgf_atrous_2` is an `svgf_atrous`); stages not
 /// listed come after, by name.
-const PIPELINE_ORDER: [&str; 17] = [
+const PIPELINE_ORDER: [&str; 19] = [
     "gbuffer",
     "gbuffer_raster",
+    "visibility_raster",
+    "visibility_resolve",
     "motion",
     "pixel_list",
     "path_trace",

@@ -42,7 +42,7 @@ fn plan_and_render(dir: &Path, schedule_flags: &[String]) -> (serde_json::Value,
 #[test]
 fn plan_reports_the_pass_instances_copies_and_bytes_render_runs() {
     // Every (lf, devices, scheme) cell; the pipeline, denoising and G-buffer source rotate so
-    // that each scheme meets both pipelines with and without SVGF.
+    // that each scheme meets both pipelines with and without SVGF, and every G-buffer source.
     let combos = [("reproject", true), ("reproject", false), ("path-trace", true), ("path-trace", false)];
     let schemes = ["multi-source", "fine-sources", "fine-all"];
     let mut met = std::collections::BTreeSet::new();
@@ -51,7 +51,7 @@ fn plan_reports_the_pass_instances_copies_and_bytes_render_runs() {
         for devices in 1..=3 {
             for scheme in schemes {
                 let (pipeline, denoise) = combos[i % combos.len()];
-                let gbuffer = if (i / 3) % 2 == 1 { "raster" } else { "first-hits" };
+                let gbuffer = ["first-hits", "raster", "visibility"][(i / 3) % 3];
                 let mut flags = words(&format!(
                     "--lf {lf} --resolution 64x48 --fake-devices {devices} --scheme {scheme} --pipeline {pipeline} \
                      --gbuffer {gbuffer}"
@@ -69,6 +69,14 @@ fn plan_reports_the_pass_instances_copies_and_bytes_render_runs() {
                     assert!(planned[field].as_u64().is_some(), "{flags:?}: no {field} in {planned}");
                 }
                 assert_eq!(planned["devices"], devices, "{flags:?}");
+                // Lavapipe has 64-bit buffer atomics: the G-buffer asked for is the one that ran.
+                assert_eq!(planned["gbuffer"], gbuffer, "{flags:?}: plan --json names the G-buffer");
+                let render_json: serde_json::Value =
+                    serde_json::from_slice(&std::fs::read(dir.join("out/render.json")).unwrap()).unwrap();
+                let named =
+                    [&render_json["gbuffer"], &render_json["gbuffer_requested"], &render_json["gbuffer_fallback"]];
+                let expected = [serde_json::json!(gbuffer), serde_json::json!(gbuffer), serde_json::Value::Null];
+                assert_eq!(named, expected.each_ref(), "{flags:?}: render.json's G-buffer");
                 assert!(plan_dot == render_dot, "{flags:?}: plan --dot and render --dot differ");
                 met.insert((scheme, pipeline, denoise));
                 i += 1;

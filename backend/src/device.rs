@@ -37,6 +37,13 @@ pub struct DeviceInfo {
     /// Size of the largest device-local memory heap, in bytes: what a caller can check its
     /// working set against before allocating.
     pub device_local_heap_bytes: u64,
+    /// 64-bit atomics on storage buffers (`shaderInt64` + `shaderBufferInt64Atomics`, enabled
+    /// when offered): what the visibility G-buffer needs; without them it falls back to first hits.
+    pub buffer_int64_atomics: bool,
+    /// `shaderSharedInt64Atomics` (enabled when offered; no kernel needs it yet).
+    pub shared_int64_atomics: bool,
+    /// VK_EXT_shader_image_atomic_int64's `shaderImageInt64Atomics` is offered (not enabled).
+    pub image_int64_atomics: bool,
 }
 
 /// Device-level functions of calibrated timestamps (EXT and KHR have the same shape).
@@ -109,7 +116,8 @@ impl Device {
         let families = QueueFamilies::choose(raw_instance, physical, &missing)?;
         features.require_queries_and_ray_kernels(&props, &missing)?;
 
-        let raw = create_logical_device(raw_instance, physical, &families, &extensions)?;
+        let int64_atomics = [features.buffer_int64_atomics(), features.shared_int64_atomics()];
+        let raw = create_logical_device(raw_instance, physical, &families, &extensions, int64_atomics)?;
         let queue = unsafe { raw.get_device_queue(families.main, 0) };
         let copy_queue = families.copy.map(|f| (f, Mutex::new(unsafe { raw.get_device_queue(f, 0) })));
         let allocator = create_allocator(raw_instance, &raw, physical)?;
@@ -147,6 +155,9 @@ impl Device {
             calibrated_timestamps: calibrated.is_some(),
             max_image_dimension_2d: props.core.limits.max_image_dimension2_d,
             device_local_heap_bytes: largest_device_local_heap(raw_instance, physical),
+            buffer_int64_atomics: int64_atomics[0],
+            shared_int64_atomics: int64_atomics[1],
+            image_int64_atomics: extensions.image_int64_atomics,
         };
         Ok(Arc::new(Self {
             info,
@@ -421,13 +432,15 @@ pub fn host_now_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
-/// Creates the `VkDevice` with one queue of each chosen family and the features every kernel
-/// relies on.
+/// Creates the `VkDevice` with one queue of each chosen family, the features every kernel
+/// relies on and, where offered, 64-bit buffer and shared atomics (`[buffer, shared]`, each
+/// with `shaderInt64`).
 fn create_logical_device(
     raw_instance: &ash::Instance,
     physical: vk::PhysicalDevice,
     families: &QueueFamilies,
     extensions: &Extensions,
+    [buffer_atomics, shared_atomics]: [bool; 2],
 ) -> Result<ash::Device> {
     let priorities = [1.0f32];
     let mut queue_infos =
@@ -438,13 +451,16 @@ fn create_logical_device(
     let enabled = extensions.names();
     let features = vk::PhysicalDeviceFeatures::default()
         .shader_storage_image_read_without_format(true)
-        .shader_storage_image_write_without_format(true);
+        .shader_storage_image_write_without_format(true)
+        .shader_int64(buffer_atomics || shared_atomics);
     let mut e12 = vk::PhysicalDeviceVulkan12Features::default()
         .timeline_semaphore(true)
         .host_query_reset(true)
         .buffer_device_address(true)
         .shader_int8(true)
-        .shader_sampled_image_array_non_uniform_indexing(true);
+        .shader_sampled_image_array_non_uniform_indexing(true)
+        .shader_buffer_int64_atomics(buffer_atomics)
+        .shader_shared_int64_atomics(shared_atomics);
     let mut e13 =
         vk::PhysicalDeviceVulkan13Features::default().synchronization2(true).maintenance4(true).dynamic_rendering(true);
     let mut executable_info =

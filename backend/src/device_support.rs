@@ -76,6 +76,9 @@ pub(crate) struct Extensions {
     /// VK_KHR_external_semaphore_fd, when the device can export and import timeline semaphores
     /// as opaque fds (GPU-side waits across logical devices of one GPU, links.rs).
     pub(crate) semaphore_fd: bool,
+    /// VK_EXT_shader_image_atomic_int64, when the device offers it (reported, not enabled: the
+    /// visibility G-buffer uses buffer atomics).
+    pub(crate) image_int64_atomics: bool,
 }
 
 impl Extensions {
@@ -108,7 +111,8 @@ impl Extensions {
         let pipeline_stats = want_stats && has_ext(ash::khr::pipeline_executable_properties::NAME);
         let memory_fd = has_ext(ash::khr::external_memory_fd::NAME) && shares_buffers(instance, physical);
         let semaphore_fd = has_ext(ash::khr::external_semaphore_fd::NAME) && shares_timelines(instance, physical);
-        Ok(Self { host_import, calibrated, pipeline_stats, memory_fd, semaphore_fd })
+        let image_int64_atomics = has_ext(ash::ext::shader_image_atomic_int64::NAME);
+        Ok(Self { host_import, calibrated, pipeline_stats, memory_fd, semaphore_fd, image_int64_atomics })
     }
 
     /// The names to pass to `vkCreateDevice`.
@@ -231,6 +235,19 @@ impl Features {
             return Err(missing("shaderStorageImage{Read,Write}WithoutFormat"));
         }
         Ok(())
+    }
+
+    /// 64-bit integer atomics on storage buffers (`shaderInt64` and `shaderBufferInt64Atomics`,
+    /// VkPhysicalDeviceShaderAtomicInt64Features promoted into Vulkan 1.2's features): what the
+    /// visibility G-buffer's depth-and-triangle keys need (parallax-passes `visibility`).
+    /// Optional: without it the pipeline traces first hits instead.
+    pub(crate) fn buffer_int64_atomics(&self) -> bool {
+        self.core.shader_int64 == vk::TRUE && self.f12.shader_buffer_int64_atomics == vk::TRUE
+    }
+
+    /// `shaderSharedInt64Atomics` (64-bit atomics on workgroup memory), reported only.
+    pub(crate) fn shared_int64_atomics(&self) -> bool {
+        self.core.shader_int64 == vk::TRUE && self.f12.shader_shared_int64_atomics == vk::TRUE
     }
 
     /// Host query resets (timestamps) and what the ray-casting kernels need.

@@ -14,6 +14,8 @@
 //!   G-buffer rasterised from the uploaded scene (vertices pulled by address) into the path
 //!   tracer's first-hit layers and a `Depth32f` depth resource ([`declare_gbuffer_raster`],
 //!   camera from the frame block: [`raster_camera`]).
+//! * [`visibility`]: the G-buffer without tracing, a compute visibility buffer (64-bit
+//!   atomics of distance and triangle) and a resolve into the traced G-buffer's images.
 //! * [`pixel_list`]: the list format of `path_trace`'s list mode (a header that is the indirect
 //!   arguments, then the pixels) and a test list producer.
 //! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
@@ -63,6 +65,7 @@ pub mod svgf;
 pub mod tonemap;
 pub mod trace;
 pub mod view_bound;
+pub mod visibility;
 
 pub use error::{PassError, Result};
 pub use hole_bench::{HOLE_MASK, HashedHoleMaskKernel, HoleBench, bench_holes, hole_threshold, is_hashed_hole};

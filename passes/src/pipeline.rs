@@ -61,6 +61,10 @@ pub enum GbufferSource {
     /// Rasterised (the paper's way; fast on GPUs with fixed-function raster), motion vectors
     /// from a compute pass.
     Raster,
+    /// A compute visibility buffer (64-bit atomics of distance and triangle) resolved into the
+    /// first-hit G-buffer's images ([`crate::visibility`]); needs 64-bit buffer atomics
+    /// ([`crate::visibility::choose_gbuffer`] falls back to first hits without them).
+    Visibility,
 }
 
 /// What a pipeline declaration needs to know.
@@ -208,6 +212,9 @@ impl PipelineBuilder {
             // Hole filling bounds its camera rays by the centre rays' first hits.
             GbufferSource::FirstHits => declare_gbuffer(graph, config.kind == PipelineKind::Reproject),
             GbufferSource::Raster => declare_gbuffer_rasterised(graph),
+            GbufferSource::Visibility => {
+                crate::visibility::declare_gbuffer_visibility(graph, config.kind == PipelineKind::Reproject)
+            }
         };
         let radiance = graph.image("radiance", Format::Rgba32f);
         let mut layers = Layers { gbuffer, radiance, holes: None, denoised: None, exposure: None };

@@ -13,7 +13,7 @@ use parallax_graph::{
 };
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, default_scene};
 
@@ -64,9 +64,24 @@ fn run_with(
     cut: Option<(u32, &LightField)>,
     options: ExecOptions,
 ) -> (Frames, Vec<FrameReport>) {
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let config = common::denoising_pipeline(PipelineKind::Reproject);
-    let handles = declare_pipeline(&mut graph, &config).unwrap();
+    run_config(scene, lf, plan, placement, frames, cut, options, &config)
+}
+
+/// [`run_with`] of the pipeline `config` declares.
+#[allow(clippy::too_many_arguments)]
+fn run_config(
+    scene: &Scene,
+    lf: &LightField,
+    plan: &Plan,
+    placement: &dyn Placement,
+    frames: std::ops::Range<u32>,
+    cut: Option<(u32, &LightField)>,
+    options: ExecOptions,
+    config: &PipelineConfig,
+) -> (Frames, Vec<FrameReport>) {
+    let mut graph = KernelGraph::with_payload(plan.topology.clone());
+    let handles = declare_pipeline(&mut graph, config).unwrap();
     graph.export(&handles.display);
     let (denoised, display) = (handles.denoised.expect("the pipeline denoises").family(), handles.display.family());
     let schedule = compile(&graph, placement).unwrap();
@@ -120,6 +135,24 @@ fn every_scheme_gives_the_same_bits_on_one_and_three_devices() {
         let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
         assert!(finite(&three), "{scheme:?}: finite");
         assert!(three == one, "{scheme:?}: 3 devices and 1 device differ");
+    }
+}
+
+#[test]
+fn every_scheme_gives_the_same_bits_on_one_and_three_devices_with_the_visibility_gbuffer() {
+    let scene = default_scene();
+    let lf = light_field(&scene, scene.default_camera(), 0.02);
+    let config =
+        PipelineConfig { gbuffer: GbufferSource::Visibility, ..common::denoising_pipeline(PipelineKind::Reproject) };
+    for scheme in Scheme::ALL {
+        let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
+        let plan_config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources };
+        let plan = Plan::new(&lf, &plan_config).unwrap();
+        let options = ExecOptions::default;
+        let (three, _) = run_config(&scene, &lf, &plan, &plan, 0..FRAMES, None, options(), &config);
+        let (one, _) = run_config(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None, options(), &config);
+        assert!(finite(&three), "{scheme:?}: finite");
+        assert!(three == one, "{scheme:?}: 3 devices and 1 device differ with the visibility G-buffer");
     }
 }
 

@@ -9,10 +9,11 @@ use std::collections::{BTreeSet, HashMap};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use parallax_backend::{Barriers, Context as VkContext, ContextDesc, ExecOptions, ExecutionPlan, Timing};
+use parallax_backend::{Barriers, Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, ExecutionPlan, Timing};
 use parallax_graph::LightField;
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
+use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings};
 
@@ -85,6 +86,10 @@ pub(super) fn render_frames(
     // One message per device: a message is one line (crate::logging).
     context.to_string().lines().for_each(|line| tracing::info!("{line}"));
     job.one_frame.check_devices(&context)?;
+    let identity = |builder: PipelineBuilder| builder;
+    let extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder = extension.stages.as_deref().unwrap_or(&identity);
+    let infos: Vec<DeviceInfo> = context.devices().iter().map(|d| d.info.clone()).collect();
+    job.choose_gbuffer(args, extend, &infos)?;
     // A link kind some pair cannot use is a usage error, found before any frame.
     parallax_backend::link_kinds(context.devices(), args.link.kind()).map_err(|e| {
         crate::options::UsageError(format!(

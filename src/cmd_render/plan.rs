@@ -7,8 +7,10 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use glam::Vec3;
+use parallax_backend::DeviceInfo;
 use parallax_graph::{LightField, Rig};
 use parallax_passes::pipeline::PipelineBuilder;
+use parallax_passes::visibility::{GbufferChoice, choose_gbuffer};
 use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
@@ -51,6 +53,9 @@ pub(super) struct RenderJob {
     pub cameras: Option<Vec<Camera>>,
     /// When each step of the start ended (render.json's `startup`).
     pub startup: Startup,
+    /// The G-buffer asked for and the one that runs (render.json's `gbuffer`): what `--gbuffer`
+    /// asked for until the devices are known ([`RenderJob::choose_gbuffer`]).
+    pub gbuffer: GbufferChoice,
 }
 
 /// The motion that runs (`--motion` resolved against the scene and `--camera`).
@@ -120,6 +125,35 @@ impl Motion {
 }
 
 impl RenderJob {
+    /// Decides which G-buffer runs on `devices` ([`choose_gbuffer`]): where `--gbuffer
+    /// visibility` lacks 64-bit buffer atomics, the pipeline is compiled again with first hits
+    /// (the same images, traced), and the reason is kept for render.json. A rank of a render
+    /// over several ranks refuses instead: every rank must run one schedule.
+    pub fn choose_gbuffer(
+        &mut self,
+        args: &RenderArgs,
+        extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
+        devices: &[DeviceInfo],
+    ) -> Result<()> {
+        let choice = choose_gbuffer(args.pipeline.gbuffer.into(), devices);
+        if let Some(reason) = &choice.fallback {
+            if self.rank.is_some() {
+                bail!(
+                    "--gbuffer visibility: {reason}, and every rank of a render over several ranks must run the same                      schedule: pass --gbuffer first-hits"
+                );
+            }
+            tracing::warn!("--gbuffer visibility: {reason}");
+            let mut pipeline = args.pipeline.clone();
+            pipeline.gbuffer = choice.runs.into();
+            let sized = args.light_field.with_rig(Rig::default())?;
+            let devices = self.compiled.summary.devices;
+            self.compiled = pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
+            self.dot = args.dot.render(&self.compiled.schedule);
+        }
+        self.gbuffer = choice;
+        Ok(())
+    }
+
     /// Checks `args` and plans the run over `devices` devices (every rank's, in a render over
     /// several ranks), the pipeline extended by `extend`; only a process that `writes_outputs`
     /// checks them.
@@ -214,6 +248,11 @@ impl RenderJob {
             rank: None,
             cameras: None,
             startup,
+            gbuffer: GbufferChoice {
+                requested: args.pipeline.gbuffer.into(),
+                runs: args.pipeline.gbuffer.into(),
+                fallback: None,
+            },
         };
         let first = &args.light_field;
         job.spacing = first.layout.spacing_on(&first.rig_around(&job.camera_at(args, 0), job.centre));
