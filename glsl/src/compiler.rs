@@ -6,6 +6,7 @@ use std::process::Command;
 
 use crate::depfile;
 use crate::error::{GlslError, Result};
+use crate::shader::CompiledShader;
 use crate::table;
 
 /// The flags every Parallax kernel is compiled with: Vulkan 1.3 SPIR-V (what the backend's
@@ -15,21 +16,6 @@ const FLAGS: [&str; 4] = ["--target-env=vulkan1.3", "-O", "-g", "-Werror"];
 
 /// Shader stages compiled from a folder, by file extension.
 const STAGES: [&str; 3] = ["comp", "vert", "frag"];
-
-/// One shader compiled by [`Compiler::compile_dir`].
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct CompiledShader {
-    /// Name in the embedded table: the file stem of a compute shader (`fill` for `fill.comp`),
-    /// the file name of a graphics stage (`raster.vert`), so that a pass's vertex and fragment
-    /// shaders can share a stem.
-    pub name: String,
-    pub source: PathBuf,
-    /// The SPIR-V file written into the output folder.
-    pub spirv: PathBuf,
-    /// Every file the shader was built from, as glslc reports it: the source and each
-    /// `#include`d file.
-    pub dependencies: Vec<PathBuf>,
-}
 
 /// A glslc to run: the one the `GLSLC` environment variable names, or `glslc` from `PATH`.
 ///

@@ -19,12 +19,14 @@
 mod compiler;
 mod depfile;
 mod error;
+mod shader;
 mod table;
 
 use std::path::Path;
 
-pub use compiler::{CompiledShader, Compiler};
+pub use compiler::Compiler;
 pub use error::{GlslError, Result};
+pub use shader::CompiledShader;
 
 /// File name of the embedded-shader table that [`Compiler::compile_dir`] writes into its output
 /// folder: `pub const EMBEDDED: &[(&str, &[u8])]`, shader name → SPIR-V bytes.

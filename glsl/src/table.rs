@@ -3,8 +3,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::compiler::CompiledShader;
 use crate::error::{GlslError, Result};
+use crate::shader::CompiledShader;
 
 /// Writes `pub const EMBEDDED: &[(&str, &[u8])]`, one `(name, include_bytes!(spirv))` per
 /// shader, to `path`.
