@@ -4,7 +4,7 @@
 //! ([`HashedHoleMaskKernel`]: scattered pixels, a hashed fraction of the view), which is the
 //! incoherent end for hole filling: real holes cluster along disocclusions. With first hits the
 //! plan has the pipeline's G-buffer, and hole filling bounds its camera rays by the centre rays'
-//! hits as in the pipeline (`first_hit`, [`crate::hole_fill`]); without, it traces them whole
+//! hits as in the pipeline (`first_hit`, [`crate::HoleFillKernel`]); without, it traces them whole
 //! (the raster G-buffer's case), so the two runs compare the same holes.
 
 use std::sync::Arc;

@@ -19,8 +19,8 @@
 //! * [`pixel_list`]: the list format of `path_trace`'s list mode (a header that is the indirect
 //!   arguments, then the pixels) and a test list producer.
 //! * [`holes`]: hole filling per row band, `compact_holes` (hole mask → per-band pixel lists)
-//!   and `hole_fill` ([`hole_fill`]: the lists of all target bands of a device path traced by
-//!   one indirect dispatch); [`hole_bench`] times it.
+//!   and `hole_fill` (the lists of all target bands of a device path traced by one indirect
+//!   dispatch); [`hole_bench`] times it.
 //! * [`trace`]: the graph declaring path tracing per view; [`LightFieldRenderer`] (the one
 //!   runner of plans, [`renderer`]) traces it ([`LightFieldRenderer::tracing`], `trace`).
 //! * [`reproject`] and [`view_bound`]: the gather of targets from their sources, and the bound
@@ -50,7 +50,6 @@ pub mod error;
 pub mod firefly;
 pub mod gbuffer;
 pub mod hole_bench;
-pub mod hole_fill;
 pub mod holes;
 pub mod path_trace;
 pub mod pipeline;
@@ -69,9 +68,9 @@ pub mod visibility;
 
 pub use error::{PassError, Result};
 pub use hole_bench::{HOLE_MASK, HashedHoleMaskKernel, HoleBench, bench_holes, hole_threshold, is_hashed_hole};
-pub use hole_fill::HoleFillKernel;
 pub use holes::{
-    COMPACT_HOLES, CompactHolesKernel, HOLE_FILL, HOLE_LIST, HOLES, declare_hole_fill, hole_list_row_bytes,
+    COMPACT_HOLES, CompactHolesKernel, HOLE_FILL, HOLE_LIST, HOLES, HoleFillKernel, declare_hole_fill,
+    hole_list_row_bytes,
 };
 pub use path_trace::{
     PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,

@@ -9,7 +9,7 @@
 //!   section of the buffer (a row buffer's rows `[y0, y1)`, or all of a plain buffer; see
 //!   [`crate::pixel_list`]). The dispatch covers the section's capacity and the invocations past
 //!   the list's count return at once. Hole filling traces its lists with its own kernel, one
-//!   dispatch for all targets of a device ([`crate::hole_fill`]), the same `trace_pixel_from`
+//!   dispatch for all targets of a device ([`crate::HoleFillKernel`]), the same `trace_pixel_from`
 //!   (its camera rays' traversals bounded by the G-buffer's `first_hit`, the same bits).
 //! * Camera, frame index and settings come from the per-frame data, one
 //!   [`GpuTraceParams`] per view ([`trace_frame_data`]), so frames change without

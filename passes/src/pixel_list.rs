@@ -4,7 +4,7 @@
 //! `x | y << 16`. The header doubles as indirect arguments covering exactly the listed entries,
 //! for a consumer dispatched indirectly on one list; `path_trace` dispatches the section's
 //! capacity instead and stops at `count`, and hole filling sums the counts of all its lists
-//! into one indirect dispatch ([`crate::hole_fill`]). A per-band list lives in a row buffer
+//! into one indirect dispatch ([`crate::HoleFillKernel`]). A per-band list lives in a row buffer
 //! (`hole_list`, [`crate::holes`]), band `[y0, y1)` at byte `y0 * row_bytes`; a whole-view list
 //! in a plain buffer is one band at byte 0.
 //!
