@@ -73,7 +73,7 @@ pub use holes::{
     hole_list_row_bytes,
 };
 pub use path_trace::{
-    PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images, to_pixel_sample, trace_frame_data,
+    PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, TraceOutputs, pixels_from_images, to_pixel_sample, trace_frame_data,
     trace_frame_data_lit,
 };
 pub use pixel_list::{
@@ -92,4 +92,4 @@ pub use scene_upload::{SCENE_BUFFERS, upload_scene};
 pub use shaders::shader_library;
 pub use svgf::{DENOISED, SvgfInputs, declare_svgf};
 pub use tonemap::{DISPLAY, TONEMAP, TonemapError, declare_tonemap, declare_tonemap_scaled, tonemap_pixel};
-pub use trace::{TraceOutputs, TracePlan, banded_trace_plan, declare_trace, trace_plan};
+pub use trace::{TracePlan, banded_trace_plan, declare_trace, trace_plan};

@@ -18,6 +18,7 @@
 use parallax_backend::{
     Access, BackendError, Format, InstanceId, PassInstance, PassKernel, ReadSlot, Recorder, ResourceKind, WriteSlot,
 };
+use parallax_graph::FamilyId;
 use parallax_scene::gpu::{GpuPixel, GpuTraceParams, TraceLighting};
 use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 
@@ -30,6 +31,11 @@ pub const PATH_TRACE: &str = "path_trace";
 
 /// Images a `path_trace` pass writes, in write order, all `Rgba32f`.
 pub const TRACE_OUTPUTS: [&str; 4] = ["radiance", "albedo_roughness", "normal_metallic", "position_depth"];
+
+/// The declared resources of a trace plan's [`TRACE_OUTPUTS`] images, in that order (radiance
+/// always; a first-hit layer where the graph declares it): what [`crate::LightFieldRenderer::trace`]
+/// reads the traced views from.
+pub type TraceOutputs = [Option<FamilyId>; 4];
 
 /// Image index meaning "not written" in the push constants.
 pub(crate) const NO_IMAGE: u32 = u32::MAX;

@@ -23,9 +23,8 @@ use parallax_scene::{Scene, TraceSettings, View};
 
 use crate::camera::frame_block;
 use crate::error::{PassError, Result};
-use crate::path_trace::{TRACE_PARAMS_BYTES, trace_frame_data_lit};
+use crate::path_trace::{TRACE_PARAMS_BYTES, TraceOutputs, trace_frame_data_lit};
 use crate::scene_upload::upload_scene;
-use crate::trace::TraceOutputs;
 
 /// Bytes of one view's cameras in the frame block (current and previous `GpuCamera`).
 const FRAME_BLOCK_VIEW_BYTES: u64 = 2 * std::mem::size_of::<parallax_backend::GpuCamera>() as u64;

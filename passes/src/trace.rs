@@ -7,14 +7,14 @@ use std::sync::Arc;
 
 use parallax_backend::{BackendError, Context, ExecOptions, ExecutionPlan, KernelGraph, ResourceKind};
 use parallax_graph::{
-    AssignStrategy, BandedPlacement, FamilyId, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig,
-    Rig, Role, Scheme, ViewTopology, compile,
+    AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
+    Scheme, ViewTopology, compile,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{Scene, TraceSettings, View};
 
 use crate::error::{PassError, Result};
-use crate::path_trace::{PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, pixels_from_images};
+use crate::path_trace::{PATH_TRACE, PathTraceKernel, TRACE_OUTPUTS, TraceOutputs, pixels_from_images};
 use crate::pixel_list::{PIXEL_LIST, StridedPixelListKernel, StridedPixels, pixel_list_bytes};
 use crate::renderer::LightFieldRenderer;
 
@@ -47,11 +47,6 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
     }
     images
 }
-
-/// The declared resources of a trace plan's [`TRACE_OUTPUTS`] images, in that order (radiance
-/// always; a first-hit layer where the graph declares it): what [`LightFieldRenderer::trace`]
-/// reads the traced views from.
-pub type TraceOutputs = [Option<FamilyId>; 4];
 
 /// A plan of `path_trace` passes and its [`TraceOutputs`].
 #[derive(Clone, Debug)]
