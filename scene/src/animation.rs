@@ -6,7 +6,7 @@
 
 use glam::{Mat4, Quat, Vec3};
 
-use crate::model::Camera;
+use crate::camera::Camera;
 
 /// How a sampler interpolates between keyframes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -3,7 +3,8 @@
 
 use glam::{Quat, Vec2, Vec3};
 
-use crate::model::{Camera, Material, Scene};
+use crate::camera::Camera;
+use crate::model::{Material, Scene};
 
 /// Appends primitives to a [`Scene`]; every primitive gets its own vertices (no sharing).
 #[derive(Default)]

@@ -9,7 +9,8 @@
 use glam::{Vec2, Vec3};
 
 use crate::builder::SceneBuilder;
-use crate::model::{Camera, Material, Scene, Sky, Sun};
+use crate::camera::Camera;
+use crate::model::{Material, Scene, Sky, Sun};
 
 /// Builds the default scene. Units are metres; +Y is up; the camera looks down -Z.
 pub fn default_scene() -> Scene {

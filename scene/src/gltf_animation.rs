@@ -10,7 +10,7 @@ use gltf::animation::util::ReadOutputs;
 
 use crate::animation::{AnimatedNode, CameraAnimation, Interpolation, Track};
 use crate::error::SceneError;
-use crate::model::MAX_COORDINATE;
+use crate::limits::MAX_COORDINATE;
 
 /// The animation of camera node `camera_node` (yfov `yfov`), or None when nothing animates it
 /// or a node above it.

@@ -17,17 +17,17 @@ use glam::{Mat3, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::animation::AnimatedNode;
+use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::gltf_budget::{
     ImageSource, LoadEstimate, MemoryLimit, distinct_sources, image_dimensions, triangles_after_instancing,
 };
-use crate::gltf_primitive::{PrimitiveAt, append_triangles, pose, read_skin_weights, read_vertices};
+use crate::gltf_primitive::{PrimitiveAt, Vertices, corners, lay_out, pose, read_skin_weights, read_vertices};
 use crate::input::{
     IMAGE_FILE_LIMIT, IMAGE_SIDE_LIMIT, SCENE_FILE_LIMIT, SourceFile, UriPolicy, read_bounded, read_prefix, resolve_uri,
 };
-use crate::model::{
-    AlphaMode, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Texture,
-};
+use crate::limits::{MAX_COORDINATE, MAX_EMISSION};
+use crate::model::{AlphaMode, Material, PunctualKind, PunctualLight, Scene, Texture};
 use crate::posing::{GeometryAnimation, MovingPrimitive, Skin, Skinning};
 
 /// Extensions a file may list in `extensionsRequired`.
@@ -474,6 +474,33 @@ impl Importer<'_> {
         }
         append_triangles(&mut self.scene, vertices, mirrored, material);
         Ok(())
+    }
+}
+
+/// Appends the triangles with `material`, laid out by [`lay_out`]: reversing the winding of a
+/// `mirrored` primitive so that counter-clockwise stays front-facing; without normals each
+/// triangle gets its own three vertices with the face normal.
+fn append_triangles(s: &mut Scene, vertices: Vertices, mirrored: bool, material: u32) {
+    let Vertices { positions, normals, uvs, indices } = vertices;
+    let base = s.positions.len() as u32;
+    let flat = normals.is_none();
+    let (positions, normals) = lay_out(&indices, positions, normals, mirrored);
+    s.positions.extend(positions);
+    s.normals.extend(normals);
+    for (t, c) in corners(&indices, mirrored).enumerate() {
+        let triangle = if flat {
+            // Flat normals need one vertex per triangle corner.
+            s.uvs.extend(c.map(|i| uvs[i]));
+            let first = base + 3 * t as u32;
+            [first, first + 1, first + 2]
+        } else {
+            c.map(|i| base + i as u32)
+        };
+        s.triangles.push(triangle);
+        s.triangle_materials.push(material);
+    }
+    if !flat {
+        s.uvs.extend(uvs);
     }
 }
 

@@ -1,6 +1,6 @@
 //! One glTF triangle primitive, in the steps [`crate::gltf_import`] takes it through: read and
 //! check its vertex attributes and skin weights, pose it (skinning or the node's transform), and
-//! append its triangles to the scene, generating flat normals when it has none. Posing and the
+//! lay out its triangles, generating flat normals when it has none. Posing and the
 //! layout of its vertices are also what [`crate::posing`] repeats for each time of an animation.
 
 use std::path::Path;
@@ -8,7 +8,6 @@ use std::path::Path;
 use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use crate::error::SceneError;
-use crate::model::Scene;
 
 /// Which primitive of which file: what its errors name.
 pub(crate) struct PrimitiveAt<'a> {
@@ -148,7 +147,7 @@ pub(crate) fn pose(positions: &mut [Vec3], normals: Option<&mut [Vec3]>, skinnin
 
 /// The corners of each triangle, in the order that keeps counter-clockwise front-facing: a
 /// `mirrored` primitive's winding is reversed.
-fn corners(indices: &[u32], mirrored: bool) -> impl Iterator<Item = [usize; 3]> + '_ {
+pub(crate) fn corners(indices: &[u32], mirrored: bool) -> impl Iterator<Item = [usize; 3]> + '_ {
     let order = if mirrored { [0, 2, 1] } else { [0, 1, 2] };
     indices.chunks_exact(3).map(move |t| order.map(|k| t[k] as usize))
 }
@@ -174,31 +173,4 @@ pub(crate) fn lay_out(
         flat.extend([n; 3]);
     }
     (laid, flat)
-}
-
-/// Appends the triangles with `material`, laid out by [`lay_out`]: reversing the winding of a
-/// `mirrored` primitive so that counter-clockwise stays front-facing; without normals each
-/// triangle gets its own three vertices with the face normal.
-pub(crate) fn append_triangles(s: &mut Scene, vertices: Vertices, mirrored: bool, material: u32) {
-    let Vertices { positions, normals, uvs, indices } = vertices;
-    let base = s.positions.len() as u32;
-    let flat = normals.is_none();
-    let (positions, normals) = lay_out(&indices, positions, normals, mirrored);
-    s.positions.extend(positions);
-    s.normals.extend(normals);
-    for (t, c) in corners(&indices, mirrored).enumerate() {
-        let triangle = if flat {
-            // Flat normals need one vertex per triangle corner.
-            s.uvs.extend(c.map(|i| uvs[i]));
-            let first = base + 3 * t as u32;
-            [first, first + 1, first + 2]
-        } else {
-            c.map(|i| base + i as u32)
-        };
-        s.triangles.push(triangle);
-        s.triangle_materials.push(material);
-    }
-    if !flat {
-        s.uvs.extend(uvs);
-    }
 }

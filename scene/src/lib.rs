@@ -30,6 +30,7 @@ pub mod bsdf;
 pub mod builder;
 pub mod bvh;
 mod bvh_coincident;
+pub mod camera;
 pub mod default_scene;
 pub mod error;
 mod gltf_animation;
@@ -39,6 +40,7 @@ mod gltf_primitive;
 pub mod gpu;
 pub mod input;
 pub mod lights;
+pub mod limits;
 pub mod metrics;
 pub mod model;
 pub mod output;
@@ -49,13 +51,12 @@ pub mod shading;
 
 pub use builder::SceneBuilder;
 pub use bvh::{BvhQuality, Hit, SceneBvh};
+pub use camera::Camera;
 pub use default_scene::{default_lighting, default_scene, white_furnace_scene};
 pub use error::SceneError;
 pub use gltf_import::{LoadOptions, load_gltf, load_gltf_bytes, load_gltf_bytes_with, load_gltf_with};
-pub use model::{
-    AlphaMode, Bounds, Camera, MAX_COORDINATE, MAX_EMISSION, Material, PunctualKind, PunctualLight, Scene, Sky, Sun,
-    Texture,
-};
+pub use limits::{MAX_COORDINATE, MAX_EMISSION};
+pub use model::{AlphaMode, Bounds, Material, PunctualKind, PunctualLight, Scene, Sky, Sun, Texture};
 pub use pt::{CpuTracer, Frame, PixelSample, PixelSet, TraceSettings, TraceStats, View};
 
 /// Loads a scene: `"default"` is the embedded default scene, anything else a glTF path.

@@ -5,7 +5,9 @@
 //! t = 0 of the file's animation), so the BVH, the CPU reference and the GPU upload all read the
 //! same arrays; [`Scene::pose_at`] moves an animated scene's vertices to another time.
 
-use glam::{Mat4, Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4};
+
+use crate::camera::Camera;
 
 /// One decoded texture, RGBA8, row-major from the top-left texel, ready for upload into a
 /// bindless array. Colour space is a property of the material slot that references it
@@ -219,69 +221,6 @@ impl Sky {
     }
 }
 
-/// A pinhole camera looking down its local -Z with +Y up (glTF convention).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    pub eye: Vec3,
-    pub forward: Vec3,
-    pub up: Vec3,
-    /// Vertical field of view, radians.
-    pub yfov: f32,
-    /// Off-axis shift of the image window in NDC units (light-field views pan it so that the
-    /// zero-disparity plane lines up); zero for an ordinary camera.
-    pub shift: Vec2,
-}
-
-impl Camera {
-    /// A camera at `eye` looking at `target`; `up` need not be orthogonal to the view direction.
-    pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, yfov: f32) -> Self {
-        let forward = (target - eye).normalize_or(Vec3::NEG_Z);
-        Self { eye, forward, up: up.normalize_or(Vec3::Y), yfov, shift: Vec2::ZERO }
-    }
-
-    /// From a glTF camera node's world matrix (camera looks down its -Z).
-    pub fn from_world_matrix(world: Mat4, yfov: f32) -> Self {
-        let eye = world.transform_point3(Vec3::ZERO);
-        let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
-        let up = world.transform_vector3(Vec3::Y).normalize_or(Vec3::Y);
-        Self { eye, forward, up, yfov, shift: Vec2::ZERO }
-    }
-
-    /// Orthonormal (right, up, back) basis; `back` = -forward.
-    pub fn basis(&self) -> (Vec3, Vec3, Vec3) {
-        let back = -self.forward.normalize_or(Vec3::NEG_Z);
-        let mut right = self.up.cross(back);
-        if right.length_squared() < 1e-12 {
-            right = back.any_orthonormal_vector();
-        }
-        let right = right.normalize();
-        let up = back.cross(right);
-        (right, up, back)
-    }
-
-    /// World-space direction (unit) through the image point `ndc` (x right, y up, -1..1).
-    pub fn ray_direction(&self, ndc: Vec2, aspect: f32) -> Vec3 {
-        let (right, up, back) = self.basis();
-        let tan_half = (0.5 * self.yfov).tan();
-        let p = ndc + self.shift;
-        (right * (p.x * tan_half * aspect) + up * (p.y * tan_half) - back).normalize()
-    }
-
-    pub fn is_finite(&self) -> bool {
-        self.eye.is_finite()
-            && self.forward.is_finite()
-            && self.up.is_finite()
-            && self.yfov.is_finite()
-            && self.shift.is_finite()
-    }
-}
-
-/// Largest world-space coordinate magnitude a scene may have. BVH builds and traversal multiply
-/// coordinate differences (surface areas of bounds, edge cross products), and f32 overflows at
-/// 3.4e38: the bounds of ±L have a surface area of 24·L², finite up to L ≈ 3.7e18, so ±1e18
-/// keeps a margin (obvhs panics beyond it: docs/UPSTREAM.md).
-pub const MAX_COORDINATE: f32 = 1e18;
-
 /// Axis-aligned bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
@@ -297,11 +236,6 @@ impl Bounds {
         (self.max - self.min).length()
     }
 }
-
-/// The largest emission a scene may declare, per channel: an emissive material's radiance
-/// (emissiveFactor × KHR_materials_emissive_strength) and a punctual light's intensity × colour.
-/// The same bound as `--sun` and `--sky`: beyond it f32 sums on the GPU overflow to infinity.
-pub const MAX_EMISSION: f32 = 1e6;
 
 /// The whole scene, flat and in world space.
 #[derive(Clone, Debug, Default)]
@@ -345,7 +279,7 @@ impl Scene {
 
     /// Poses the moving meshes at `t` seconds of the animation (held at its ends): their
     /// positions and normals change in place, nothing else does. A still scene is left as it is.
-    /// A pose that throws a vertex beyond ±[`MAX_COORDINATE`] is refused naming the vertex and
+    /// A pose that throws a vertex beyond ±[`crate::MAX_COORDINATE`] is refused naming the vertex and
     /// the time (the scene is then partly posed: drop it).
     pub fn pose_at(&mut self, t: f32) -> Result<(), crate::SceneError> {
         match &self.geometry_animation {

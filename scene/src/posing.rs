@@ -16,7 +16,7 @@ use glam::{Mat4, Vec3};
 use crate::animation::AnimatedNode;
 use crate::error::SceneError;
 use crate::gltf_primitive::{SkinWeights, lay_out, pose};
-use crate::model::MAX_COORDINATE;
+use crate::limits::MAX_COORDINATE;
 
 /// The moving geometry of a scene: its nodes with the tracks of the file's first animation and
 /// the primitives they move.

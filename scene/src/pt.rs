@@ -12,9 +12,10 @@ use rayon::prelude::*;
 
 use crate::bsdf::Bsdf;
 use crate::bvh::SceneBvh;
+use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::lights::LightSet;
-use crate::model::{Camera, Scene};
+use crate::model::Scene;
 use crate::rng::{Dim, PathRng};
 use crate::shading::{SurfacePoint, surface_point};
 
