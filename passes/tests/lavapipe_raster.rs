@@ -268,7 +268,7 @@ fn alpha_masked_texels_are_discarded_in_the_fragment_shader() {
                 continue;
             }
             let uv = Vec2::new((p.x + 1.0) / 2.0, 1.0 - (p.y + 1.0) / 2.0);
-            let alpha = parallax_scene::shading::base_color_alpha(&scene, masked, uv);
+            let alpha = scene.base_color_alpha(masked, uv);
             // Bilinear filtering blends the blocks over one texel: texels near the cutoff may
             // round either way on the GPU, so they are not judged.
             if (alpha - cutoff).abs() < 0.1 {

@@ -16,7 +16,6 @@ use obvhs::{Boundable, BvhBuildParams};
 
 use crate::bvh_coincident::{LARGEST_PLAIN_GROUP, build_grouped, centroid_groups};
 use crate::model::{AlphaMode, Scene};
-use crate::shading::base_color_alpha;
 
 /// A ray-triangle hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -165,7 +164,7 @@ impl SceneBvh {
             let tex_uv = scene.uvs[a as usize] * (1.0 - uv.x - uv.y)
                 + scene.uvs[b as usize] * uv.x
                 + scene.uvs[c as usize] * uv.y;
-            if base_color_alpha(scene, material, tex_uv) < cutoff {
+            if scene.base_color_alpha(material, tex_uv) < cutoff {
                 return None;
             }
         }

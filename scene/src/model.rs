@@ -288,6 +288,14 @@ impl Scene {
         }
     }
 
+    /// Base-colour alpha of material `m` at `uv` (factor times texture), for alpha masking.
+    pub fn base_color_alpha(&self, m: &Material, uv: Vec2) -> f32 {
+        match m.base_color_texture {
+            Some(t) => m.base_color.w * self.textures[t as usize].sample_bilinear(uv).w,
+            None => m.base_color.w,
+        }
+    }
+
     /// The three world-space corners of triangle `t`.
     pub fn triangle_positions(&self, t: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[t];

@@ -3,7 +3,7 @@
 use glam::{Vec2, Vec3, Vec4};
 
 use crate::bvh::Hit;
-use crate::model::{Material, Scene, srgb_to_linear};
+use crate::model::{Scene, srgb_to_linear};
 
 /// Everything the BSDF and the G-buffer need about one hit point.
 #[derive(Clone, Copy, Debug)]
@@ -27,14 +27,6 @@ pub struct SurfacePoint {
 fn sample_srgb(scene: &Scene, tex: u32, uv: Vec2) -> Vec4 {
     let t = scene.textures[tex as usize].sample_bilinear(uv);
     Vec4::new(srgb_to_linear(t.x), srgb_to_linear(t.y), srgb_to_linear(t.z), t.w)
-}
-
-/// Base-colour alpha at `uv` (factor times texture), for alpha masking.
-pub fn base_color_alpha(scene: &Scene, m: &Material, uv: Vec2) -> f32 {
-    match m.base_color_texture {
-        Some(t) => m.base_color.w * scene.textures[t as usize].sample_bilinear(uv).w,
-        None => m.base_color.w,
-    }
 }
 
 /// The unit normal of triangle `t` from its winding, flipped to agree with its vertex normals
