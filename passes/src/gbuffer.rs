@@ -16,6 +16,20 @@ use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES};
 use crate::scene_upload::scene_refs;
 
+/// Where the G-buffer comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+pub enum GbufferSource {
+    /// First hits of each pixel's centre ray (the fast way on compute GPUs such as the H200).
+    FirstHits,
+    /// Rasterised (the paper's way; fast on GPUs with fixed-function raster), motion vectors
+    /// from a compute pass.
+    Raster,
+    /// A compute visibility buffer (64-bit atomics of distance and triangle) resolved into the
+    /// first-hit G-buffer's images ([`crate::visibility`]); needs 64-bit buffer atomics
+    /// ([`crate::visibility::choose_gbuffer`] falls back to first hits without them).
+    Visibility,
+}
+
 /// Pass name.
 pub const GBUFFER: &str = "gbuffer";
 /// Slot of the BVH primitive of each pixel's centre-ray hit (R32u, `u32::MAX`: no hit).

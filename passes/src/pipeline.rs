@@ -44,6 +44,9 @@ use crate::reproject::{ReprojectionTolerances, declare_reproject};
 use crate::svgf::{SvgfInputs, declare_svgf};
 use crate::tonemap::declare_tonemap_scaled;
 
+// The G-buffer kinds stand beside the G-buffer; a pipeline's config names one.
+pub use crate::gbuffer::GbufferSource;
+
 /// Which pipeline renders the light field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub enum PipelineKind {
@@ -51,20 +54,6 @@ pub enum PipelineKind {
     Reproject,
     /// The baseline: every view path traced.
     PathTrace,
-}
-
-/// Where the G-buffer comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
-pub enum GbufferSource {
-    /// First hits of each pixel's centre ray (the fast way on compute GPUs such as the H200).
-    FirstHits,
-    /// Rasterised (the paper's way; fast on GPUs with fixed-function raster), motion vectors
-    /// from a compute pass.
-    Raster,
-    /// A compute visibility buffer (64-bit atomics of distance and triangle) resolved into the
-    /// first-hit G-buffer's images ([`crate::visibility`]); needs 64-bit buffer atomics
-    /// ([`crate::visibility::choose_gbuffer`] falls back to first hits without them).
-    Visibility,
 }
 
 /// What a pipeline declaration needs to know.

@@ -26,9 +26,8 @@ use parallax_backend::{BackendError, DeviceInfo, InstanceId, KernelGraph, PassIn
 use parallax_graph::{Format, ReadSlot, Role, WriteSlot};
 use parallax_scene::gpu::GpuTriangle;
 
-use crate::gbuffer::Gbuffer;
+use crate::gbuffer::{Gbuffer, GbufferSource};
 use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES};
-use crate::pipeline::GbufferSource;
 use crate::scene_upload::scene_refs;
 
 /// Pass name of the triangle pass.
