@@ -23,17 +23,17 @@ mod report;
 mod startup;
 
 use std::ffi::OsString;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
-use clap::{Args, ValueEnum};
+use clap::{Args, FromArgMatches as _, ValueEnum};
 use glam::Vec3;
 use parallax_backend::{FaultInjection, ShaderLibrary};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::{PipelineBuilder, PipelineHandles};
 use parallax_scene::{Camera, Scene};
 
-use crate::options::{DeviceArgs, Exposure, count_u32_in, parse_exposure};
+use crate::options::{DeviceArgs, Exposure, UsageError, count_u32_in, parse_exposure};
 use crate::outputs::{Sink, sink_parser};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
@@ -216,6 +216,21 @@ fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
 }
 
 impl RenderArgs {
+    /// `render`'s arguments from the run file `path`, then the flags of the command line
+    /// `invocation` (the program's name first, as `std::env::args_os()` gives it), parsed by
+    /// render's own parser so that a run file is checked exactly as a command line is.
+    fn of_run_file(path: &Path, invocation: impl IntoIterator<Item = OsString>) -> Result<RenderArgs> {
+        let words = crate::run_file::render_words(path, invocation)?;
+        let command =
+            RenderArgs::augment_args(clap::Command::new("render").no_binary_name(true)).args_override_self(true);
+        let matches = command.try_get_matches_from(&words).map_err(|e| {
+            let text = e.to_string();
+            let line = text.lines().next().unwrap_or("").trim_start_matches("error: ").to_string();
+            UsageError(format!("--config {}: {line}", path.display()))
+        })?;
+        Ok(RenderArgs::from_arg_matches(&matches)?)
+    }
+
     /// The exposure the GPU's tonemap pass runs at: `--exposure N`, or 1 under `auto` (whose
     /// pictures are tonemapped on the host).
     pub fn tonemap_exposure(&self) -> f32 {
@@ -279,7 +294,7 @@ pub struct RenderExtension {
 /// over those of a `--config` file.
 pub fn run(args: RenderArgs, invocation: &[OsString]) -> Result<()> {
     let args = match &args.config {
-        Some(file) => crate::run_file::render_args_of(file, invocation.iter().cloned())?,
+        Some(file) => RenderArgs::of_run_file(file, invocation.iter().cloned())?,
         None => args,
     };
     run_extended(args, RenderExtension::default())
@@ -289,7 +304,7 @@ pub fn run(args: RenderArgs, invocation: &[OsString]) -> Result<()> {
 /// The flags of this process's command line win over those of a `--config` file.
 pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<()> {
     if let Some(file) = &args.config {
-        return run_extended(crate::run_file::render_args_of(file, std::env::args_os())?, extension);
+        return run_extended(RenderArgs::of_run_file(file, std::env::args_os())?, extension);
     }
     // Without MPI every rank of mpirun would render the whole light field into the same folder.
     #[cfg(not(feature = "mpi"))]

@@ -16,11 +16,7 @@ use std::ffi::OsString;
 use std::path::Path;
 
 use anyhow::{Context as _, Result, bail};
-use clap::{Args as _, FromArgMatches as _};
 use parallax_graph::LayoutSpec;
-
-use crate::cmd_render::RenderArgs;
-use crate::options::UsageError;
 
 /// `--lf` as a person writes it.
 pub fn layout_spelling(spec: &LayoutSpec) -> String {
@@ -131,18 +127,12 @@ fn command_line_words(invocation: impl IntoIterator<Item = OsString>) -> Vec<OsS
     words
 }
 
-/// `render`'s arguments from the run file `path`, then the flags of the command line
-/// `invocation` (the program's name first, as `std::env::args_os()` gives it).
-pub fn render_args_of(path: &Path, invocation: impl IntoIterator<Item = OsString>) -> Result<RenderArgs> {
+/// The words `render` parses for the run file `path`: the file's settings as flags, then the
+/// flags of the command line `invocation` (the program's name first, as `std::env::args_os()`
+/// gives it), so that those win.
+pub fn render_words(path: &Path, invocation: impl IntoIterator<Item = OsString>) -> Result<Vec<OsString>> {
     let words = words_of(&format!("--config {}", path.display()), &table_of(path)?)?;
-    let command = RenderArgs::augment_args(clap::Command::new("render").no_binary_name(true)).args_override_self(true);
-    let all: Vec<OsString> = words.into_iter().map(OsString::from).chain(command_line_words(invocation)).collect();
-    let matches = command.try_get_matches_from(&all).map_err(|e| {
-        let text = e.to_string();
-        let line = text.lines().next().unwrap_or("").trim_start_matches("error: ").to_string();
-        UsageError(format!("--config {}: {line}", path.display()))
-    })?;
-    Ok(RenderArgs::from_arg_matches(&matches)?)
+    Ok(words.into_iter().map(OsString::from).chain(command_line_words(invocation)).collect())
 }
 
 #[cfg(test)]
