@@ -6,9 +6,11 @@
 //!   view's camera, the path tracer's camera rays), tests their centre rays with the
 //!   traversal's triangle test (alpha masks included) and keeps the nearest triangle of each
 //!   pixel with a 64-bit `atomicMax` on a key of distance and triangle ([`VISIBILITY`], a row
-//!   buffer of 8 bytes per pixel reset to zeros every frame). Triangles of large boxes are
-//!   shared out over their workgroup. The triangle data every view reads is the scene's
-//!   BVH-ordered triangle buffer, uploaded once for all views of the light field.
+//!   buffer of 8 bytes per pixel reset to zeros every frame). Triangles of medium boxes are
+//!   shared out over their workgroup; those of large boxes are cut into 16 × 16 tiles listed in
+//!   [`VISIBILITY_TILES`], which a second, indirect dispatch of the pass runs one workgroup a
+//!   tile (shaders/visibility_raster.glsl says why). The triangle data every view reads is the
+//!   scene's BVH-ordered triangle buffer, uploaded once for all views of the light field.
 //! * `visibility_resolve` (shaders/visibility_resolve.comp), per view and row band: each
 //!   pixel's triangle intersected with its centre ray (the traversal's code) and written as
 //!   `gbuffer` writes a traced first hit (shaders/gbuffer_store.glsl): the same images, formats
@@ -38,6 +40,21 @@ pub const VISIBILITY_RESOLVE: &str = "visibility_resolve";
 pub const VISIBILITY: &str = "visibility";
 /// Bytes of one pixel's key.
 pub const KEY_BYTES: u64 = 8;
+/// The per-view row buffer of large triangles' tiles: each row band's list starts at its first
+/// row (shaders/visibility_raster.glsl).
+pub const VISIBILITY_TILES: &str = "visibility_tiles";
+/// Bytes of the tile list's header (indirect dispatch arguments) and of one tile.
+const TILE_BYTES: u64 = 16;
+/// Tiles one list holds at most: the tile dispatch's workgroup count, which Vulkan guarantees
+/// up to 65535 (`maxComputeWorkGroupCount`).
+const MAX_TILES: u64 = 65535;
+
+/// Bytes per row of [`VISIBILITY_TILES`] for a `width`-wide view: half a byte a pixel, room
+/// for the tiles of boxes covering a band 8 times over (a 16 × 16 tile is 16 bytes), at least
+/// three tiles a row. A band whose boxes need more tests the rest in its workgroups.
+pub fn tile_row_bytes(width: u32) -> u64 {
+    (u64::from(width) / 2).next_multiple_of(TILE_BYTES).max(4 * TILE_BYTES)
+}
 
 /// Workgroups per row of `visibility_raster`'s dispatch grid at most (one triangle per
 /// invocation, 64 per workgroup; more rows beyond).
@@ -50,15 +67,29 @@ pub struct VisibilityRasterPush {
     pub scene: [u64; 6],
     pub trace: u64,
     pub keys: u64,
+    /// The band's tile list: [`VISIBILITY_TILES`] at the band's first row.
+    pub tiles: u64,
     pub y0: u32,
     pub y1: u32,
     pub width: u32,
     pub triangles: u32,
     pub groups_x: u32,
-    pub pad: u32,
+    /// Tiles the band's list holds.
+    pub tile_capacity: u32,
 }
 
-parallax_backend::push_constants!(VisibilityRasterPush { scene, trace, keys, y0, y1, width, triangles, groups_x, pad });
+parallax_backend::push_constants!(VisibilityRasterPush {
+    scene,
+    trace,
+    keys,
+    tiles,
+    y0,
+    y1,
+    width,
+    triangles,
+    groups_x,
+    tile_capacity
+});
 
 /// Push constants of `visibility_resolve.comp` (`VisibilityResolvePush` there).
 #[repr(C)]
@@ -117,18 +148,32 @@ fn key_row_width(
 }
 
 /// Records `visibility_raster` instances: every scene triangle against the instance's band,
-/// into the keys it modifies.
+/// into the keys it modifies, then the tiles of its large triangles that the first dispatch
+/// listed.
 struct VisibilityRasterKernel {
     keys: WriteSlot,
+    tiles: WriteSlot,
 }
 
 impl PassKernel for VisibilityRasterKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let keys = pass.write(self.keys)?;
+        let tiles = pass.write(self.tiles)?;
         let width = key_row_width(rec, VISIBILITY_RASTER, index, keys.alloc)?;
         if keys.region.is_empty() {
             return Ok(());
         }
+        let tiles_desc = rec.resource(tiles.alloc);
+        if tiles_desc.kind != parallax_backend::ResourceKind::Buffer || tiles_desc.row_bytes() < tile_row_bytes(width) {
+            return Err(misuse(
+                VISIBILITY_RASTER,
+                index,
+                format!("`{}` must be a row buffer of at least {} bytes a row", tiles_desc.name, tile_row_bytes(width)),
+            ));
+        }
+        let list_offset = u64::from(tiles.region.y0) * tiles_desc.row_bytes();
+        let list_bytes = u64::from(tiles.region.len()) * tiles_desc.row_bytes();
+        let tile_capacity = ((list_bytes - TILE_BYTES) / TILE_BYTES).min(MAX_TILES) as u32;
         let triangle_bytes = rec.buffer_bytes(crate::SCENE_BUFFERS[1])?;
         let triangles = u32::try_from(triangle_bytes / std::mem::size_of::<GpuTriangle>() as u64)
             .map_err(|_| misuse(VISIBILITY_RASTER, index, "more than 2^32 triangles".into()))?;
@@ -138,14 +183,16 @@ impl PassKernel for VisibilityRasterKernel {
             scene: scene_refs(rec)?,
             trace: rec.frame_data_address() + u64::from(pass.view.0) * TRACE_PARAMS_BYTES,
             keys: rec.buffer_of(keys.alloc)?,
+            tiles: rec.buffer_of(tiles.alloc)? + list_offset,
             y0: keys.region.y0,
             y1: keys.region.y1,
             width,
             triangles,
             groups_x,
-            pad: 0,
+            tile_capacity,
         };
-        rec.dispatch("visibility_raster", &push, [groups_x, groups.div_ceil(groups_x), 1])
+        rec.dispatch("visibility_raster", &push, [groups_x, groups.div_ceil(groups_x), 1])?;
+        rec.dispatch_indirect("visibility_raster_tiles", &push, tiles.alloc, list_offset)
     }
 }
 
@@ -188,15 +235,18 @@ impl PassKernel for VisibilityResolveKernel {
     }
 }
 
-/// Declares the visibility G-buffer for every view: the [`VISIBILITY`] keys (reset each
-/// frame), `visibility_raster` into them and `visibility_resolve` from them into the images of
+/// Declares the visibility G-buffer for every view: the [`VISIBILITY`] keys and the
+/// [`VISIBILITY_TILES`] lists (both reset each frame), `visibility_raster` into them and `visibility_resolve` from them into the images of
 /// [`crate::gbuffer::declare_gbuffer`] (with `first_hit` when `with_first_hit`).
 pub fn declare_gbuffer_visibility(graph: &mut KernelGraph, with_first_hit: bool) -> Gbuffer {
     let mut keys = graph.row_buffer(VISIBILITY, KEY_BYTES * u64::from(graph.topology().width));
     graph.reset_each_frame(&keys, Vec::new());
+    let mut tiles = graph.row_buffer(VISIBILITY_TILES, tile_row_bytes(graph.topology().width));
+    graph.reset_each_frame(&tiles, Vec::new());
     let mut pass = graph.pass(VISIBILITY_RASTER, Role::All);
-    let (_, written) = pass.modify_slot(&mut keys);
-    pass.kernel(Arc::new(VisibilityRasterKernel { keys: written })).record();
+    let (_, keys_written) = pass.modify_slot(&mut keys);
+    let (_, tiles_written) = pass.modify_slot(&mut tiles);
+    pass.kernel(Arc::new(VisibilityRasterKernel { keys: keys_written, tiles: tiles_written })).record();
     let mut g = Gbuffer {
         position_depth: graph.image("position_depth", Format::Rgba32f),
         normal_metallic: graph.image("normal_metallic", Format::Rgba32f),
@@ -255,6 +305,7 @@ mod tests {
     #[test]
     fn the_push_structs_match_their_shaders() {
         assert_eq!(check_push_constants::<VisibilityRasterPush>(&spirv("visibility_raster").unwrap()), Ok(()));
+        assert_eq!(check_push_constants::<VisibilityRasterPush>(&spirv("visibility_raster_tiles").unwrap()), Ok(()));
         assert_eq!(check_push_constants::<VisibilityResolvePush>(&spirv("visibility_resolve").unwrap()), Ok(()));
     }
 

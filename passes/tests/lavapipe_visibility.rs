@@ -3,17 +3,20 @@
 //! pixels of the embedded default scene and of the Cornell box (the rest classified: ties at
 //! equal distance, triangle edges, other), every G-buffer texel bit for bit where the triangle
 //! is the same (the resolve intersects the same ray with the same triangle by the same code),
-//! and three row bands on three devices equal to one device bit for bit.
+//! and three row bands on three devices equal to one device bit for bit; a camera inside a
+//! room takes the raster's other paths (triangles crossing the eye's plane, more large tiles
+//! than a band's list holds).
 
 mod common;
 
+use glam::Vec3;
 use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph};
 use parallax_graph::{BandedPlacement, FamilyId, ViewTopology, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::gbuffer::declare_gbuffer;
 use parallax_passes::visibility::declare_gbuffer_visibility;
 use parallax_scene::gpu::GpuScene;
-use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, View, default_scene, load_gltf};
+use parallax_scene::{Camera, Material, Scene, SceneBuilder, SceneBvh, TraceSettings, View, default_scene, load_gltf};
 
 /// The exported layers, in this order; `first_hit` last.
 const LAYERS: [&str; 5] = ["position_depth", "normal_metallic", "albedo_roughness", "motion", "first_hit"];
@@ -157,4 +160,30 @@ fn the_default_scene_sees_the_traced_triangles() {
 fn the_cornell_box_sees_the_traced_triangles() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/cornell_box/CornellBox-Original.gltf");
     agreement("Cornell box", &load_gltf(path).unwrap(), 2, (64, 64));
+}
+
+/// A camera inside a room whose floor, walls and ceiling reach far behind the eye (triangles
+/// crossing the eye's plane, whose boxes stretch to the view's edges on one side only), before
+/// a stack of 60 overlapping quads at slightly different depths, each covering most of the view
+/// (more tiles than a 48-row band's list holds, so the rest are tested by their workgroups).
+fn room_before_a_stack() -> Scene {
+    let mut b = SceneBuilder::new("room before a stack");
+    let grey = b.material(Material::diffuse("grey", Vec3::splat(0.6)));
+    let red = b.material(Material::diffuse("red", Vec3::new(0.7, 0.1, 0.1)));
+    let (back, depth) = (Vec3::new(0.0, 0.0, 20.0), Vec3::new(0.0, 0.0, -40.0));
+    b.quad(Vec3::new(-4.0, 0.0, 0.0) + back, depth, Vec3::new(8.0, 0.0, 0.0), grey);
+    b.quad(Vec3::new(-4.0, 4.0, 0.0) + back, Vec3::new(8.0, 0.0, 0.0), depth, grey);
+    b.quad(Vec3::new(-4.0, 0.0, 0.0) + back, Vec3::new(0.0, 4.0, 0.0), depth, red);
+    b.quad(Vec3::new(4.0, 0.0, 0.0) + back, depth, Vec3::new(0.0, 4.0, 0.0), red);
+    for k in 0..60 {
+        let corner = Vec3::new(-3.5 + 0.3 * (k % 5) as f32, 0.3 + 0.05 * (k % 7) as f32, -2.0 - 0.03 * k as f32);
+        b.quad(corner, Vec3::new(6.0, 0.0, 0.0), Vec3::new(0.0, 3.2, 0.0), if k % 2 == 0 { grey } else { red });
+    }
+    b.camera(Camera::look_at(Vec3::new(-0.5, 1.7, 1.0), Vec3::new(0.2, 1.5, -5.0), Vec3::Y, 1.2));
+    b.build()
+}
+
+#[test]
+fn a_camera_inside_a_room_before_a_stack_of_large_quads_sees_the_traced_triangles() {
+    agreement("room before a stack", &room_before_a_stack(), 2, (64, 48));
 }
