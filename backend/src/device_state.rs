@@ -12,7 +12,7 @@ use gpu_allocator::MemoryLocation;
 
 use crate::device::{Device, QueueKind};
 use crate::error::{BackendError, Result, VkContext};
-use crate::executor::{ExecOptions, FaultGate};
+use crate::exec_options::ExecOptions;
 use crate::link_memory::SharedDeviceBuffer;
 use crate::links::LinkKind;
 use crate::memory::{Buffer, Image, SharedHostBuffer};
@@ -20,10 +20,17 @@ use crate::pipeline::Bindless;
 use crate::plan::{AllocId, CopyId, DeviceId, ExecResource, ExecutionPlan, Format, ResourceKind};
 use crate::record::{TimerLabel, timer_labels, timer_spans};
 use crate::segments::{Item, Segment};
-use crate::staging_ring::RingLayout;
+use crate::staging_ring::{RingLayout, STAGING_ALIGN};
 
-/// Alignment of each copy's region inside the staging buffer.
-pub(crate) const STAGING_ALIGN: u64 = 256;
+/// Fault-injection gate: producer's first submission of a frame waits until the consumer's
+/// segment `consumer_segment` of the same frame is done.
+pub(crate) struct FaultGate {
+    /// Semaphore on the producer device.
+    pub(crate) semaphore: vk::Semaphore,
+    pub(crate) producer: usize,
+    pub(crate) consumer: usize,
+    pub(crate) consumer_segment: usize,
+}
 
 /// Per device, per frame-in-flight slot.
 pub(crate) struct SlotResources {

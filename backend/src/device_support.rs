@@ -137,11 +137,16 @@ impl Extensions {
     }
 }
 
+/// Usage of every shared staging buffer: written by one copy, read by another.
+pub(crate) const SHARED_BUFFER_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
+    vk::BufferUsageFlags::TRANSFER_SRC.as_raw() | vk::BufferUsageFlags::TRANSFER_DST.as_raw(),
+);
+
 /// Whether transfer buffers can be exported and imported as opaque fds (what a link's shared
 /// staging buffer is, memory.rs `SharedDeviceBuffer`).
 fn shares_buffers(instance: &Instance, physical: vk::PhysicalDevice) -> bool {
     let info = vk::PhysicalDeviceExternalBufferInfo::default()
-        .usage(crate::link_memory::SHARED_BUFFER_USAGE)
+        .usage(SHARED_BUFFER_USAGE)
         .handle_type(vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD);
     let mut props = vk::ExternalBufferProperties::default();
     unsafe { instance.raw.get_physical_device_external_buffer_properties(physical, &info, &mut props) };

@@ -1,7 +1,11 @@
 //! The one error type of the backend. Every variant names what went wrong and, where a person
 //! can fix it, what to do (which package to install, which flag to change).
+//!
+//! A leaf: it also holds the errors that [`BackendError`] wraps (of the plan, of lowering, of
+//! shaders), so every module reports through it without it importing any of them.
 
 use ash::vk;
+use parallax_graph::{AllocId, InstanceId};
 
 /// Errors of the Vulkan backend.
 #[derive(Debug, thiserror::Error)]
@@ -66,7 +70,7 @@ pub enum BackendError {
 
     /// The plan handed to the executor is inconsistent.
     #[error("invalid execution plan: {0}")]
-    ExecutionPlan(#[from] crate::plan::ExecutionPlanError),
+    ExecutionPlan(#[from] ExecutionPlanError),
 
     /// A graph the backend declares itself (the benchmarks') does not compile.
     #[error("cannot compile the graph: {0}")]
@@ -74,7 +78,7 @@ pub enum BackendError {
 
     /// The schedule uses something the backend cannot run yet.
     #[error("cannot lower the schedule: {0}")]
-    Lower(#[from] crate::lower::LowerError),
+    Lower(#[from] LowerError),
 
     /// A kernel asked for a shader that no layer of its library (ExecOptions::shaders) nor the
     /// backend's own shaders have.
@@ -83,11 +87,11 @@ pub enum BackendError {
          ShaderLibrary::with_spirv or include_shaders!",
         searched_list(.searched)
     )]
-    UnknownShader { name: String, searched: Vec<crate::shaders::SearchedShaders> },
+    UnknownShader { name: String, searched: Vec<SearchedShaders> },
 
     /// Bytes or words handed over as a shader are not SPIR-V.
     #[error("shader `{shader}` is not SPIR-V: {defect}")]
-    InvalidSpirv { shader: String, defect: crate::shaders::SpirvDefect },
+    InvalidSpirv { shader: String, defect: SpirvDefect },
 
     /// A shader's push-constant block cannot be read from its SPIR-V.
     #[error("cannot read the push-constant block of shader `{shader}`: {defect}")]
@@ -104,7 +108,7 @@ pub enum BackendError {
     /// A kernel's use of the instance does not match what the kernel expects (`instance`: the
     /// pass instance, where the call that refused it knows it).
     #[error("kernel `{kernel}` cannot record {}: {detail}", instance.map_or("its pass instance".into(), |i| format!("pass instance {i}")))]
-    KernelMisuse { kernel: String, instance: Option<crate::plan::InstanceId>, detail: String },
+    KernelMisuse { kernel: String, instance: Option<InstanceId>, detail: String },
 
     /// A kernel bound a slot token its pass instance does not have (one another pass's
     /// declaration returned).
@@ -129,7 +133,7 @@ pub enum BackendError {
 
     /// `Recorder::dispatch_indirect` was pointed at something that cannot hold its arguments.
     #[error("indirect dispatch of `{shader}` from resource {resource} at byte {offset}: {problem}")]
-    IndirectArgs { shader: String, resource: crate::plan::AllocId, offset: u64, problem: String },
+    IndirectArgs { shader: String, resource: AllocId, offset: u64, problem: String },
 
     /// A kernel asked for a section of the per-frame data that the frame data does not have.
     #[error(
@@ -161,7 +165,7 @@ pub enum BackendError {
 
     /// A resource is not present on the device where it was asked for.
     #[error("resource {resource} is not allocated on device {device}")]
-    ResourceNotOnDevice { resource: crate::plan::AllocId, device: usize },
+    ResourceNotOnDevice { resource: AllocId, device: usize },
 
     /// Device memory could not be shared between two logical devices of one GPU (link_memory.rs).
     #[error("device {device} cannot share staging memory with another device of its GPU ({detail})")]
@@ -202,7 +206,7 @@ pub enum BackendError {
 
 /// `a, b, c`, or `none` for an empty list.
 /// "origin (a, b), origin (none)" for an unknown shader's message.
-fn searched_list(searched: &[crate::shaders::SearchedShaders]) -> String {
+fn searched_list(searched: &[SearchedShaders]) -> String {
     let places: Vec<String> = searched.iter().map(|s| format!("{} ({})", s.origin, list(&s.names))).collect();
     places.join(", then ")
 }
@@ -234,6 +238,68 @@ impl BackendError {
             result => BackendError::Vk { call, result },
         }
     }
+}
+
+/// What the executor refuses in a plan: the checks only the backend can make, and the form of the
+/// barrier lists it records by. What a plan lowered from a schedule inherits from it (ids, rows,
+/// op placement and order, barriers, copies, history pairs, exports on device 0) was proven once,
+/// when the schedule was (`parallax_graph::ProvenSchedule`); a hand-laid plan is trusted with
+/// those.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ExecutionPlanError {
+    #[error("plan has {plan} device programs but the context has {context} devices")]
+    DeviceCount { plan: usize, context: usize },
+    #[error("pass instance {index} (`{pass}`) has no kernel in the plan: give its pass one")]
+    MissingKernel { pass: String, index: InstanceId },
+    #[error("resource {resource} is an image: only buffers can be reset each frame")]
+    ResetOfImage { resource: AllocId },
+    #[error(
+        "resource {resource}: a reset header of {words} words is longer than its {capacity}-word buffer or than the {max} words vkCmdUpdateBuffer writes"
+    )]
+    ResetTooLong { resource: AllocId, words: usize, capacity: u32, max: usize },
+    #[error("the devices' copy-ins wait for each other's copy-outs in a cycle: no order of submissions can run")]
+    WaitCycle,
+    #[error("{0}: place the barriers with ExecutionPlan::place_barriers")]
+    Barriers(parallax_graph::ScheduleError),
+}
+
+/// What makes a schedule impossible to lower.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LowerError {
+    #[error("the schedule has programs for devices {found:?}; expected exactly 0..{expected}")]
+    DevicePrograms { found: Vec<u32>, expected: usize },
+    #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
+    MissingKernel { pass: String },
+    #[error(
+        "pass `{pass}`'s kernel records its instances in groups, but the pass was not declared `.grouped()`: declare it so where it is declared (its copy-outs then wait for the end of its runs)"
+    )]
+    UngroupedKernel { pass: String },
+}
+
+/// Why bytes or words are not a SPIR-V module.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SpirvDefect {
+    /// SPIR-V is a sequence of 32-bit words.
+    #[error("{bytes} bytes is not a whole number of 32-bit words")]
+    Unaligned { bytes: usize },
+    /// Shorter than the 5-word header.
+    #[error("{words} words is shorter than the 5-word SPIR-V header")]
+    TooShort { words: usize },
+    /// The first word is not the SPIR-V magic number 0x07230203 (in either byte order).
+    #[error("first word {found:#010x} is not the SPIR-V magic number 0x07230203")]
+    BadMagic { found: u32 },
+}
+
+/// One place [`ShaderLibrary::spirv`](crate::ShaderLibrary::spirv) looked for a shader, for
+/// [`BackendError::UnknownShader`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SearchedShaders {
+    /// Where the shaders come from: [`USER_SHADERS`](crate::USER_SHADERS), a crate's ("the
+    /// shaders of" and its name, from [`crate::include_shaders!`]) or
+    /// [`BACKEND_SHADERS`](crate::BACKEND_SHADERS).
+    pub origin: String,
+    /// The shader names found there, sorted.
+    pub names: Vec<String>,
 }
 
 #[cfg(test)]

@@ -97,6 +97,7 @@ mod device;
 mod device_state;
 mod device_support;
 mod error;
+mod exec_options;
 mod executor;
 mod frame_block;
 mod frame_data;
@@ -128,23 +129,24 @@ pub mod reflect;
 
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
-pub use error::{BackendError, Result};
-pub use executor::{Barriers, ExecOptions, Executor, FaultInjection, Timing};
+pub use error::{BackendError, ExecutionPlanError, LowerError, Result, SearchedShaders, SpirvDefect};
+pub use exec_options::{Barriers, ExecOptions, FaultInjection, Timing};
+pub use executor::Executor;
 pub use frame_block::{FrameBlock, FrameClock, FrameConstants, FrameHeader, GpuCamera, ViewCameras};
 pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use frame_stats::{EventTotals, FrameStats, SUMMARY_SAMPLE, Summary};
 pub use instance::{Instance, Validation, validation_from_env};
-pub use lower::{KernelGraph, LowerError};
+pub use lower::KernelGraph;
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
-    Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan,
-    ExecutionPlanError, FamilyId, Format, HistoryPair, HistorySlot, InstanceId, Kernels, MAX_RESET_WORDS, Op, Origin,
-    PassId, PassInstance, ReadSlot, Region, ResourceId, ResourceKind, SourcesSlot, ViewId, WriteSlot, own_access,
+    Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan, FamilyId,
+    Format, HistoryPair, HistorySlot, InstanceId, Kernels, MAX_RESET_WORDS, Op, Origin, PassId, PassInstance, ReadSlot,
+    Region, ResourceId, ResourceKind, SourcesSlot, ViewId, WriteSlot, own_access,
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};
 pub use recorder::{Draw, PassKernel, PassParams, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};
-pub use shaders::{BACKEND_SHADERS, SearchedShaders, ShaderLibrary, SpirvDefect, USER_SHADERS, shader_names, spirv};
+pub use shaders::{BACKEND_SHADERS, ShaderLibrary, USER_SHADERS, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

@@ -21,12 +21,8 @@ use std::sync::Arc;
 use ash::vk;
 
 use crate::device::Device;
+use crate::device_support::SHARED_BUFFER_USAGE;
 use crate::error::{BackendError, Result, VkContext};
-
-/// Usage of every shared staging buffer: written by one copy, read by another.
-pub(crate) const SHARED_BUFFER_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
-    vk::BufferUsageFlags::TRANSFER_SRC.as_raw() | vk::BufferUsageFlags::TRANSFER_DST.as_raw(),
-);
 
 const HANDLE: vk::ExternalMemoryHandleTypeFlags = vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD;
 

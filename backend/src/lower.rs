@@ -11,24 +11,12 @@ use std::sync::Arc;
 
 use parallax_graph::{AllocId, Format, Graph, ProvenSchedule, ResourceDesc, Schedule};
 
+use crate::error::LowerError;
 use crate::plan::{ExecResource, ExecutionPlan, Kernels, ResourceKind};
 use crate::recorder::PassKernel;
 
 /// A render graph whose passes carry their kernels: what the executor runs.
 pub type KernelGraph = Graph<Arc<dyn PassKernel>>;
-
-/// What makes a schedule impossible to lower.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum LowerError {
-    #[error("the schedule has programs for devices {found:?}; expected exactly 0..{expected}")]
-    DevicePrograms { found: Vec<u32>, expected: usize },
-    #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
-    MissingKernel { pass: String },
-    #[error(
-        "pass `{pass}`'s kernel records its instances in groups, but the pass was not declared `.grouped()`: declare it so where it is declared (its copy-outs then wait for the end of its runs)"
-    )]
-    UngroupedKernel { pass: String },
-}
 
 impl ExecutionPlan {
     /// Lowers `schedule`, compiled from `graph`. The schedule is proven (`ProvenSchedule`: it

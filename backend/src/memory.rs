@@ -8,10 +8,10 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use parallax_graph::Format;
 
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
-use crate::plan::Format;
 
 /// The Vulkan format of a texel format: storage-image formats every Vulkan device has, and
 /// `D32_SFLOAT`, the depth format every device can render to and sample.

@@ -20,12 +20,12 @@ use std::sync::Arc;
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
+use parallax_graph::Format;
 
 use crate::device::Device;
 use crate::error::{BackendError, Result, VkContext};
 use crate::frame_block::FrameConstants;
 use crate::memory::{Buffer, Image};
-use crate::plan::Format;
 use crate::reflect::{MemberLayout, push_constant_block};
 use crate::shaders::ShaderLibrary;
 use crate::texture::{MAX_TEXTURES, Texture, TextureData, create_sampler};

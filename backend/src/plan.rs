@@ -15,6 +15,7 @@ pub use parallax_graph::{
 
 use parallax_graph::{Role, ViewTopology};
 
+pub use crate::error::ExecutionPlanError;
 use crate::recorder::PassKernel;
 
 /// What a plan resource is on the GPU.
@@ -213,29 +214,6 @@ impl Kernels {
     fn remove(&mut self, pass: PassId) -> Option<Arc<dyn PassKernel>> {
         self.0.remove(&pass)
     }
-}
-
-/// What the executor refuses in a plan: the checks only the backend can make, and the form of the
-/// barrier lists it records by. What a plan lowered from a schedule inherits from it (ids, rows,
-/// op placement and order, barriers, copies, history pairs, exports on device 0) was proven once,
-/// when the schedule was (`parallax_graph::ProvenSchedule`); a hand-laid plan is trusted with
-/// those.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum ExecutionPlanError {
-    #[error("plan has {plan} device programs but the context has {context} devices")]
-    DeviceCount { plan: usize, context: usize },
-    #[error("pass instance {index} (`{pass}`) has no kernel in the plan: give its pass one")]
-    MissingKernel { pass: String, index: InstanceId },
-    #[error("resource {resource} is an image: only buffers can be reset each frame")]
-    ResetOfImage { resource: AllocId },
-    #[error(
-        "resource {resource}: a reset header of {words} words is longer than its {capacity}-word buffer or than the {max} words vkCmdUpdateBuffer writes"
-    )]
-    ResetTooLong { resource: AllocId, words: usize, capacity: u32, max: usize },
-    #[error("the devices' copy-ins wait for each other's copy-outs in a cycle: no order of submissions can run")]
-    WaitCycle,
-    #[error("{0}: place the barriers with ExecutionPlan::place_barriers")]
-    Barriers(parallax_graph::ScheduleError),
 }
 
 /// Most words a reset header may have: vkCmdUpdateBuffer writes at most 65536 bytes.

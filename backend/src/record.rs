@@ -21,7 +21,7 @@ use ash::vk;
 
 use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
-use crate::executor::Timing;
+use crate::exec_options::Timing;
 use crate::memory::Image;
 use crate::pipeline::Bindless;
 use crate::plan::{AllocId, ExecutionPlan, InstanceId};
@@ -170,7 +170,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
 
 /// Everything a segment recording needs from the device state.
 pub(crate) struct SegmentContext<'a> {
-    pub barriers: crate::executor::Barriers,
+    pub barriers: crate::exec_options::Barriers,
     pub raw: &'a ash::Device,
     pub device_index: usize,
     pub plan: &'a ExecutionPlan,
@@ -285,7 +285,7 @@ fn record_items(
         // The first op waits for everything submitted before (other segments, the previous
         // frame); a later one where the schedule says, so the instances of one pass for many
         // views run side by side.
-        let tracked = ctx.barriers == crate::executor::Barriers::Tracked;
+        let tracked = ctx.barriers == crate::exec_options::Barriers::Tracked;
         if g == 0 || !tracked || segment.barrier_before(op.start) || opaque || after_opaque {
             full_barrier(raw, cb);
         }
@@ -503,7 +503,7 @@ pub(crate) fn merged_ranges(mut ranges: Vec<(vk::Buffer, u64, u64)>) -> Vec<(vk:
     for (buffer, offset, size) in ranges {
         match merged.last_mut() {
             Some((b, start, len))
-                if *b == buffer && offset <= *start + *len + (crate::device_state::STAGING_ALIGN - 1) =>
+                if *b == buffer && offset <= *start + *len + (crate::staging_ring::STAGING_ALIGN - 1) =>
             {
                 *len = (*len).max(offset + size - *start);
             }

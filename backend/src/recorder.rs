@@ -10,12 +10,13 @@ use std::sync::Arc;
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
+use parallax_graph::{Access, AllocId, Format, InstanceId, PassInstance, Region};
 
 use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
-use crate::plan::{Access, AllocId, ExecResource, ExecutionPlan, Format, InstanceId, PassInstance, Region};
+use crate::plan::{ExecResource, ExecutionPlan};
 use crate::push::{self, PushConstants};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).

@@ -338,7 +338,8 @@ mod tests {
     use super::*;
     use crate::bench::copy_plan;
     use crate::context::{Context, ContextDesc, DeviceSelection};
-    use crate::executor::{ExecOptions, Executor};
+    use crate::exec_options::ExecOptions;
+    use crate::executor::Executor;
     use crate::instance::Validation;
     use crate::links::LinkKind;
     use crate::plan::{CopyId, CrossCopy, Op, Region};

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use crate::error::{BackendError, Result};
+use crate::error::{BackendError, Result, SearchedShaders, SpirvDefect};
 
 mod embedded {
     include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
@@ -25,20 +25,6 @@ pub fn shader_names() -> impl Iterator<Item = &'static str> {
 /// the same as an empty [`ShaderLibrary`] gives.
 pub fn spirv(name: &str) -> Result<Vec<u32>> {
     ShaderLibrary::new().spirv(name)
-}
-
-/// Why bytes or words are not a SPIR-V module.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum SpirvDefect {
-    /// SPIR-V is a sequence of 32-bit words.
-    #[error("{bytes} bytes is not a whole number of 32-bit words")]
-    Unaligned { bytes: usize },
-    /// Shorter than the 5-word header.
-    #[error("{words} words is shorter than the 5-word SPIR-V header")]
-    TooShort { words: usize },
-    /// The first word is not the SPIR-V magic number 0x07230203 (in either byte order).
-    #[error("first word {found:#010x} is not the SPIR-V magic number 0x07230203")]
-    BadMagic { found: u32 },
 }
 
 /// SPIR-V of kernels by name, in layers looked in first to last, then the backend's own shaders
@@ -61,16 +47,6 @@ struct Layer {
     // Shared map and words: each device's descriptor state holds a clone of the library, and a
     // library built once (a crate's) is layered under others without copying.
     shaders: Arc<BTreeMap<String, Arc<[u32]>>>,
-}
-
-/// One place [`ShaderLibrary::spirv`] looked for a shader, for [`BackendError::UnknownShader`].
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct SearchedShaders {
-    /// Where the shaders come from: [`USER_SHADERS`], a crate's ("the shaders of" and its name,
-    /// from [`crate::include_shaders!`]) or [`BACKEND_SHADERS`].
-    pub origin: String,
-    /// The shader names found there, sorted.
-    pub names: Vec<String>,
 }
 
 /// Origin of the shaders of [`ShaderLibrary::new`].

@@ -18,6 +18,9 @@
 use crate::plan::CopyId;
 use crate::segments::{Run, submission_order};
 
+/// Alignment of each copy's region inside the staging buffer.
+pub(crate) const STAGING_ALIGN: u64 = 256;
+
 /// One copy sent over a ring link.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct RingCopy {

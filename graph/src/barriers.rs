@@ -14,9 +14,9 @@
 
 use std::collections::HashMap;
 
+use crate::error::ScheduleError;
 use crate::ids::{AllocId, DeviceId, Region};
 use crate::schedule::{CrossCopy, DeviceProgram, Op, PassInstance, Schedule};
-use crate::validate::ScheduleError;
 
 /// Rows of an allocation an op touches.
 type Touch = (AllocId, Region);

@@ -12,22 +12,9 @@
 
 use std::collections::{BTreeMap, HashMap};
 
-use serde::Serialize;
-
+use crate::error::ScheduleError;
 use crate::ids::{AllocId, BatchId, CopyId, DeviceId, Region, ResourceId};
-use crate::schedule::{CopyKind, Op, Schedule};
-use crate::validate::ScheduleError;
-
-/// Dependency copies from one device to another moved as one transfer.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct CopyBatch {
-    pub from: DeviceId,
-    pub to: DeviceId,
-    /// In the producer's program order.
-    pub copies: Vec<CopyId>,
-    /// Their bytes together.
-    pub bytes: u64,
-}
+use crate::schedule::{CopyBatch, CopyKind, Op, Schedule};
 
 /// The stretch of copy ops each op of a program is in: ops of the `kinds` (one direction's
 /// two ops) with nothing else between them share a number; anything else starts a new one.

@@ -13,20 +13,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::error::GraphError;
 use crate::ids::{FamilyId, PassId, ViewId};
 use crate::schedule::{Format, ResourceDesc};
-
-/// Which views a pass runs for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
-pub enum Role {
-    All,
-    /// Views that are path traced in full.
-    Sources,
-    /// Views synthesised from their sources.
-    Targets,
-    /// One instance for the whole light field (placed where view 0 runs, never split): what
-    /// writes a global resource ([`Graph::global_buffer`], [`Graph::global_image`]), e.g. a
-    /// reduction over every view ([`PassBuilder::read_every_view_slot`]).
-    Global,
-}
+pub use crate::scope::{ReadScope, Role, SlotAccess};
 
 /// Which views are sources and which sources each target reprojects from.
 #[derive(Clone, Debug, PartialEq)]
@@ -91,25 +78,6 @@ impl<K> Handle<K> {
     }
 }
 
-/// Where a read looks.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ReadScope {
-    /// The instance's own view, over the instance's own rows (pixel-local read).
-    Own,
-    /// The instance's own view, every row (e.g. a filter with a large footprint).
-    OwnWhole,
-    /// The instance's own view, over the instance's own rows and this many rows above and below
-    /// them (clamped to the view): a filter of bounded reach. A row band then needs only the
-    /// neighbouring bands' rows within reach, not their whole view.
-    OwnHalo(u32),
-    /// Every source view of the instance's (target) view, every row: a reprojection read.
-    Sources,
-    /// The previous frame's last version of the instance's own view, own rows.
-    History,
-    /// Every view of the light field, every row: what a global pass reduces over.
-    EveryView,
-}
-
 /// What a kernel keeps of its pass's declaration and binds through ([`PassInstance::read`](crate::PassInstance::read),
 /// `sources`, `history_read`, `write`): one declared access of one pass, by
 /// the pass and the access's index among its reads or writes. Only the pass builder makes them,
@@ -156,39 +124,6 @@ slot_token!(
     /// A write ([`PassBuilder::write_slot`], the write of `modify_slot`).
     WriteSlot
 );
-
-/// How a pass touches a slot; a pass touches each family at most once in each way.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SlotAccess {
-    /// The own view's current version (over the own rows or the whole view).
-    Read,
-    /// Each source view's current version.
-    SourceRead,
-    /// Last frame's final version.
-    HistoryRead,
-    Write,
-}
-
-impl SlotAccess {
-    fn of_read(scope: ReadScope) -> Self {
-        match scope {
-            ReadScope::Own | ReadScope::OwnWhole | ReadScope::OwnHalo(_) => SlotAccess::Read,
-            ReadScope::Sources | ReadScope::EveryView => SlotAccess::SourceRead,
-            ReadScope::History => SlotAccess::HistoryRead,
-        }
-    }
-}
-
-impl std::fmt::Display for SlotAccess {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            SlotAccess::Read => "read",
-            SlotAccess::SourceRead => "source read",
-            SlotAccess::HistoryRead => "history read",
-            SlotAccess::Write => "write",
-        })
-    }
-}
 
 #[derive(Clone, Debug)]
 pub(crate) struct ReadDecl {

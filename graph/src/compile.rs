@@ -8,15 +8,17 @@ use std::cmp::Reverse;
 use std::collections::{BTreeMap, BTreeSet, BinaryHeap, HashMap};
 
 use crate::batch::batch_copies;
-use crate::builder::{Graph, PassDecl, ReadScope, Role};
+use crate::builder::{Graph, PassDecl};
 use crate::error::GraphError;
 use crate::ids::{AllocId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::lower::lower;
-use crate::order::{CompileOptions, OpOrder, order_programs};
+use crate::op_order::OpOrder;
+use crate::order::{CompileOptions, order_programs};
 use crate::proven::ProvenSchedule;
 use crate::schedule::{
     Access, CulledPass, DeltaEdge, Edge, Origin, PassInfo, PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
+use crate::scope::{ReadScope, Role};
 use crate::storage::assign_storage;
 
 /// What a placement may know about a pass.

@@ -4,8 +4,9 @@ use std::panic::Location;
 
 use thiserror::Error;
 
-use crate::builder::SlotAccess;
-use crate::ids::{FamilyId, ViewId};
+use crate::ids::{AllocId, BatchId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
+use crate::schedule::Op;
+use crate::scope::SlotAccess;
 
 /// Bad planning input: layouts, device counts, source lists, strategy names.
 #[derive(Clone, Debug, Error, PartialEq)]
@@ -110,7 +111,7 @@ pub enum GraphError {
     #[error(
         "internal error: compiling gave a schedule that does not validate ({0}); this is a bug of the compiler, please report it with the command that gave it"
     )]
-    Unsound(crate::validate::ValidationReport),
+    Unsound(ValidationReport),
 }
 
 /// "global " or "per-view ", as the scope errors name a resource.
@@ -130,3 +131,146 @@ pub struct UnboundSlot {
     /// The token asked for (its `Debug` form: kind, declaring pass, index).
     pub slot: String,
 }
+
+/// One broken invariant.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ScheduleError {
+    #[error("pass instance {instance} is on no device program")]
+    InstanceNotScheduled { instance: InstanceId },
+    #[error("pass instance {instance} appears more than once")]
+    InstanceScheduledTwice { instance: InstanceId },
+    #[error("pass instance {instance} was placed on {placed} but is listed on {listed}")]
+    InstanceOnWrongDevice { instance: InstanceId, placed: DeviceId, listed: DeviceId },
+    #[error("copy {copy} joins a device to itself")]
+    CopyWithinDevice { copy: CopyId },
+    #[error("copy {copy}: its {op} op is missing from the device it belongs on")]
+    CopyOpMissing { copy: CopyId, op: &'static str },
+    #[error("copy {copy}: its {op} op appears more than once")]
+    CopyOpDuplicated { copy: CopyId, op: &'static str },
+    #[error("copy {copy}: Signal before CopyOut, or CopyIn before Wait")]
+    CopyOpsOutOfOrder { copy: CopyId },
+    #[error("copy {copy}: no instance on the source device writes the copied rows of that version")]
+    CopyWithoutProducer { copy: CopyId },
+    #[error("copy {copy} leaves before its producer {producer} has run")]
+    CopyBeforeProducer { copy: CopyId, producer: InstanceId },
+    #[error("copy {copy} moves {actual} bytes; its rows hold {expected}")]
+    CopyBytesMismatch { copy: CopyId, expected: u64, actual: u64 },
+    #[error("{instance} reads {resource} version {version} ({rows}) that no earlier producer or copy provides")]
+    UnsatisfiedRead { instance: InstanceId, resource: ResourceId, version: u32, rows: Region },
+    #[error("{instance} reads {resource} version {version} through more than one copy: {copies:?}")]
+    AmbiguousRead { instance: InstanceId, resource: ResourceId, version: u32, copies: Vec<CopyId> },
+    #[error("producer {producer} runs after its consumer {consumer} on the same device")]
+    OrderViolation { producer: InstanceId, consumer: InstanceId },
+    #[error("copy {copy} arrives after its consumer {consumer} runs")]
+    CopyArrivesLate { copy: CopyId, consumer: InstanceId },
+    #[error("view {view}: the finished rows of {resource} are not all on device 0 at the end of the frame")]
+    ViewNotGathered { view: ViewId, resource: ResourceId },
+    #[error("{device} waits forever at {op:?}: waits and signals form a cycle across devices")]
+    Deadlock { device: DeviceId, op: Op },
+    #[error("{device}: {op:?} touches what {after:?} touched since the last barrier, with no barrier between them")]
+    MissingBarrier { device: DeviceId, op: Op, after: Op },
+    #[error("{device}: {op:?}, its first op that touches memory, has no barrier after the previous frame's ops")]
+    NoBarrierAfterLastFrame { device: DeviceId, op: Op },
+    #[error("{device}: barrier before op {index}, but the program has {ops} ops")]
+    BarrierOutOfRange { device: DeviceId, index: u32, ops: usize },
+    #[error("{device}: its barriers are not listed in increasing op order")]
+    BarriersOutOfOrder { device: DeviceId },
+    #[error("{what} {index} refers to a missing {missing} {target}")]
+    Dangling { what: &'static str, index: u32, missing: &'static str, target: u32 },
+    #[error(
+        "{instance}: access to {resource} version {version} uses allocation {alloc}, which is not on its device or not of that resource and version"
+    )]
+    AllocationMismatch { instance: InstanceId, resource: ResourceId, version: u32, alloc: AllocId },
+    #[error(
+        "copy {copy}: its source or destination allocation is not on its device or not of that resource and version"
+    )]
+    CopyAllocationMismatch { copy: CopyId },
+    #[error("{instance} reads and writes allocation {alloc} without declaring the write in place")]
+    UndeclaredInPlace { instance: InstanceId, alloc: AllocId },
+    #[error(
+        "{instance} writes version {version} of {resource} in place into allocation {written}, not into {read}, which holds the version it replaces"
+    )]
+    InPlaceElsewhere { instance: InstanceId, resource: ResourceId, version: u32, read: AllocId, written: AllocId },
+    #[error(
+        "allocation {alloc} on {device}: {later:?} touches version {later_version} after {earlier:?} wrote version {earlier_version} there"
+    )]
+    AllocationHazard {
+        alloc: AllocId,
+        device: DeviceId,
+        earlier: Op,
+        earlier_version: u32,
+        later: Op,
+        later_version: u32,
+    },
+    #[error(
+        "{instance} reads history of {resource} from allocation {alloc}, which is not storage of that resource on its own device"
+    )]
+    HistoryOnOtherDevice { instance: InstanceId, resource: ResourceId, alloc: AllocId },
+    #[error(
+        "{instance} reads history of {resource} from allocation {alloc}, which is not the previous half of a history pair"
+    )]
+    HistoryReadOutsidePair { instance: InstanceId, resource: ResourceId, alloc: AllocId },
+    #[error(
+        "{instance} reads history of {resource} version {version}, which the current half {current} of its pair does not hold"
+    )]
+    HistoryVersionNotCurrent { instance: InstanceId, resource: ResourceId, version: u32, current: AllocId },
+    #[error("history pair {pair}: its current and previous halves are one allocation, {alloc}")]
+    HistoryHalvesAlias { pair: u32, alloc: AllocId },
+    #[error("history pair {pair}: halves {current} and {previous} are not storage of one resource on one device")]
+    HistoryHalvesDiffer { pair: u32, current: AllocId, previous: AllocId },
+    #[error("allocation {alloc} is a half of more than one history pair")]
+    HistoryHalfShared { alloc: AllocId },
+    #[error(
+        "allocation {alloc}, the previous half of a history pair, holds versions {versions:?} of the frame: it holds only last frame's"
+    )]
+    PreviousHalfHoldsVersions { alloc: AllocId, versions: Vec<u32> },
+    #[error("{op:?} touches allocation {alloc}, the previous half of a history pair: only history reads may see it")]
+    PreviousHalfTouched { alloc: AllocId, op: Op },
+    #[error("{resource} has no texels or bytes")]
+    EmptyResource { resource: ResourceId },
+    #[error("{what} {index}: rows {rows} are empty or outside the {height} rows of {resource}")]
+    RowsOutsideResource { what: &'static str, index: u32, resource: ResourceId, rows: Region, height: u32 },
+    #[error("the instances of {pass} for view {view} do not tile its rows exactly (rows 0..{height})")]
+    BandsDoNotTile { pass: PassId, view: ViewId, height: u32 },
+    #[error("{instance} writes global resource {resource} but its pass runs per view, not as a global pass")]
+    GlobalWrittenPerView { instance: InstanceId, resource: ResourceId },
+    #[error("{instance} touches rows {rows} of global resource {resource}, not all of it")]
+    GlobalAccessedInPart { instance: InstanceId, resource: ResourceId, rows: Region },
+    #[error("global pass {pass} has {instances} instances; a global pass runs once per frame")]
+    GlobalPassInstances { pass: PassId, instances: u32 },
+    #[error("copy {copy} is in {batches} batches; a dependency copy is in one, a gather in none")]
+    CopyBatchCount { copy: CopyId, batches: u32 },
+    #[error("batch {batch} holds copy {copy}, a gather or a copy between other devices")]
+    BatchForeignCopy { batch: BatchId, copy: CopyId },
+    #[error("batch {batch} says it moves {actual} bytes; its copies move {expected}")]
+    BatchBytesMismatch { batch: BatchId, expected: u64, actual: u64 },
+    #[error("batch {batch}: its copy ops on {device} are split by a pass or a copy the other way")]
+    BatchSplit { batch: BatchId, device: DeviceId },
+    #[error("batch {batch}: copies {first} and {second} write the same rows of one allocation")]
+    BatchRegionsOverlap { batch: BatchId, first: CopyId, second: CopyId },
+    #[error("copy {copy} moves {copied}, but its consumers read {read} of the producer's rows")]
+    CopyRowsUnread { copy: CopyId, read: Region, copied: Region },
+}
+
+/// Every broken invariant found; empty when the schedule is sound.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ValidationReport {
+    pub errors: Vec<ScheduleError>,
+}
+
+impl ValidationReport {
+    pub fn is_ok(&self) -> bool {
+        self.errors.is_empty()
+    }
+}
+
+impl std::fmt::Display for ValidationReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.errors.first() {
+            None => write!(f, "the schedule breaks no invariant"),
+            Some(first) => write!(f, "the schedule breaks {} invariant(s), first: {first}", self.errors.len()),
+        }
+    }
+}
+
+impl std::error::Error for ValidationReport {}

@@ -48,10 +48,12 @@ pub mod error;
 pub mod ids;
 pub mod lightfield;
 mod lower;
+mod op_order;
 pub mod order;
 pub mod partition;
 mod proven;
 pub mod schedule;
+mod scope;
 pub mod source;
 pub mod source_cost;
 mod storage;
@@ -63,21 +65,20 @@ mod validate_storage;
 
 pub use assign::{AssignStrategy, Assignment, assign};
 pub use barriers::place_barriers;
-pub use batch::CopyBatch;
 pub use builder::{
     Buffer, Graph, Handle, HistorySlot, Image, PassBuilder, ReadSlot, Role, SlotAccess, SourcesSlot, ViewTopology,
     WriteSlot,
 };
 pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile, compile_with};
-pub use error::{GraphError, PlanError, UnboundSlot};
+pub use error::{GraphError, PlanError, ScheduleError, UnboundSlot, ValidationReport};
 pub use ids::{AllocId, BatchId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
-pub use order::{Batching, CompileOptions, DEFAULT_CHUNK_BYTES, OpOrder};
+pub use op_order::{Batching, DEFAULT_CHUNK_BYTES, OpOrder};
+pub use order::CompileOptions;
 pub use partition::{Plan, PlanConfig, Scheme, SourcesPerSet, parse_source_list};
 pub use proven::ProvenSchedule;
 pub use schedule::{
-    Access, Allocation, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin, PassInfo,
-    PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
+    Access, Allocation, CopyBatch, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin,
+    PassInfo, PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
 pub use summary::PlanSummary;
-pub use validate::{ScheduleError, ValidationReport};

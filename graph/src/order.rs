@@ -12,73 +12,13 @@
 use serde::Serialize;
 
 use crate::ids::{AllocId, CopyId, InstanceId};
+pub use crate::op_order::{Batching, DEFAULT_CHUNK_BYTES, OpOrder};
 use crate::schedule::{Op, Schedule};
-
-/// The backend's default chunk size (`ExecOptions::chunk_bytes`): a copy of more bytes than this
-/// (and more than one row) is cut into row bands whose transfers overlap.
-pub const DEFAULT_CHUNK_BYTES: u64 = 8 << 20;
 
 /// How `compile_with` builds a schedule.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct CompileOptions {
     pub batching: Batching,
-}
-
-/// Which copies gather at the ends of the runs of one pass on a device.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Batching {
-    /// Every copy where lowering put it: the producer's side right after the producer, the
-    /// consumer's right before its first consumer. Only the copies out of a
-    /// [grouped](crate::PassBuilder::grouped) pass's runs wait for the run's end.
-    Off,
-    /// Within a run of instances of one pass, the copies that move in one piece gather: their
-    /// waits and copy-ins move up to the run's start, their copy-outs and signals down to its
-    /// end, wherever no instance they pass touches what they copy. One piece is at most
-    /// `chunk_bytes` (or one row): the backend's chunk size, whose larger copies travel in
-    /// overlapping bands and keep their place next to producer and consumer.
-    SmallCopies { chunk_bytes: u64 },
-}
-
-impl Default for Batching {
-    fn default() -> Self {
-        Batching::SmallCopies { chunk_bytes: DEFAULT_CHUNK_BYTES }
-    }
-}
-
-impl std::fmt::Display for Batching {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match *self {
-            Batching::Off => write!(f, "in place"),
-            Batching::SmallCopies { chunk_bytes: u64::MAX } => write!(f, "batched (every copy)"),
-            Batching::SmallCopies { chunk_bytes } => write!(f, "batched (copies of at most {chunk_bytes} B)"),
-        }
-    }
-}
-
-/// The order a schedule's programs have: the batching asked for and the one applied.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub struct OpOrder {
-    pub requested: Batching,
-    /// [`Batching::Off`] where the batched order would make the devices wait on each other in a
-    /// cycle (a run's hoisted wait for a copy whose producer needs the run's deferred output).
-    pub applied: Batching,
-}
-
-impl std::fmt::Display for OpOrder {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        if self.requested == self.applied {
-            write!(f, "{}", self.applied)
-        } else {
-            write!(f, "{} ({} would make devices wait in a cycle)", self.applied, self.requested)
-        }
-    }
-}
-
-impl Default for OpOrder {
-    fn default() -> Self {
-        OpOrder { requested: Batching::Off, applied: Batching::Off }
-    }
 }
 
 /// Re-orders `schedule`'s programs (as lowered, storage assigned) by `batching`, falling back
@@ -222,11 +162,11 @@ fn next_pass_continues(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::builder::Role;
     use crate::ids::{DeviceId, PassId, Region, ResourceId, ViewId};
     use crate::schedule::{
         Access, CopyKind, CrossCopy, DeviceProgram, Format, Origin, PassInfo, PassInstance, ResourceDesc,
     };
+    use crate::scope::Role;
 
     /// Instances `(name, reads, writes)` on device 0, in that order on its program (reads and
     /// writes are allocation numbers); the instances of one name are one pass, and a pass named

@@ -8,11 +8,12 @@
 //!   devices; each device all-gathers the source bands it reprojects from.
 
 use crate::assign::{AssignStrategy, Assignment, assign};
-use crate::builder::{Role, ViewTopology};
+use crate::builder::ViewTopology;
 use crate::compile::{PassPlacementInfo, Placement};
 use crate::error::PlanError;
 use crate::ids::{DeviceId, Region, ViewId};
 use crate::lightfield::LightField;
+use crate::scope::Role;
 use crate::source::baseline_sources;
 use crate::source_cost::{SetPrediction, block_count, cheapest_sources, compact_sources, predict};
 

@@ -8,8 +8,8 @@ use std::ops::Deref;
 
 use serde::Serialize;
 
+use crate::error::ValidationReport;
 use crate::schedule::Schedule;
-use crate::validate::ValidationReport;
 
 /// A schedule `validate()` found sound.
 #[derive(Clone, Debug, PartialEq, Serialize)]

@@ -3,10 +3,9 @@
 
 use serde::Serialize;
 
-use crate::batch::CopyBatch;
-use crate::builder::Role;
 use crate::ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
-use crate::order::OpOrder;
+use crate::op_order::OpOrder;
+use crate::scope::Role;
 
 /// Texel formats a pass can declare for a per-view image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -279,6 +278,17 @@ pub struct DeviceProgram {
 pub struct CulledPass {
     pub name: String,
     pub view: ViewId,
+}
+
+/// Dependency copies from one device to another moved as one transfer.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct CopyBatch {
+    pub from: DeviceId,
+    pub to: DeviceId,
+    /// In the producer's program order.
+    pub copies: Vec<CopyId>,
+    /// Their bytes together.
+    pub bytes: u64,
 }
 
 /// The compiled frame: per-device programs plus everything needed to check and draw them.

@@ -48,7 +48,7 @@ pub struct PlanSummary {
     pub sources_prediction: Vec<crate::source_cost::SetPrediction>,
     /// How each device's ops are ordered: the batching compiled with and the one applied (the
     /// order the backend submits).
-    pub op_order: crate::order::OpOrder,
+    pub op_order: crate::op_order::OpOrder,
 }
 
 /// The batches of one device pair ([`PlanSummary::copy_batches_per_pair`]).

@@ -5,10 +5,10 @@
 
 use std::collections::HashMap;
 
-use crate::builder::Role;
+use crate::error::ScheduleError;
 use crate::ids::{InstanceId, PassId};
 use crate::schedule::{Access, Schedule};
-use crate::validate::ScheduleError;
+use crate::scope::Role;
 
 impl Schedule {
     pub(crate) fn check_globals(&self, errors: &mut Vec<ScheduleError>) {

@@ -7,9 +7,9 @@
 
 use std::collections::{HashMap, HashSet};
 
+use crate::error::ScheduleError;
 use crate::ids::{AllocId, InstanceId};
 use crate::schedule::{HistoryPair, Op, Schedule};
-use crate::validate::ScheduleError;
 
 impl Schedule {
     pub(crate) fn check_history(&self, errors: &mut Vec<ScheduleError>) {

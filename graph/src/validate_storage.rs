@@ -9,9 +9,9 @@
 
 use std::collections::HashMap;
 
+use crate::error::ScheduleError;
 use crate::ids::{AllocId, CopyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::schedule::{Access, Op, ResourceDesc, Schedule};
-use crate::validate::ScheduleError;
 
 /// (allocation, version, rows) an op reads or writes.
 type Touches = Vec<(AllocId, u32, Region)>;

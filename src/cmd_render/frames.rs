@@ -5,12 +5,10 @@
 //! frames on the way. A user crate's [`RenderExtension`] brings the shaders of its stages and
 //! looks at the renderer once the last frame is done.
 
-use std::collections::{BTreeSet, HashMap};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use parallax_backend::{Barriers, Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, ExecutionPlan, Timing};
-use parallax_graph::LightField;
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::PipelineBuilder;
@@ -19,53 +17,12 @@ use parallax_scene::{SceneBvh, TraceSettings};
 
 use super::host_memory::{ResidentSampler, ResidentSummary};
 use super::plan::RenderJob;
-use super::posing::{GeometryReport, Posing};
-use super::report::{ViewLayers, stage_views, view_layers};
+use super::posing::Posing;
+use super::report::{Rendered, ViewLayers, stage_views, view_layers};
 use super::startup::Step;
 use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
 use crate::logging::bar;
-use crate::outputs::{FolderLock, Staged};
-
-/// What the frame loop leaves for the report: the renderer after the last frame (its
-/// statistics and final images), the context it ran on, the views already staged by
-/// `--save-every`, and the wall time of the measured frames.
-pub(super) struct Rendered {
-    pub context: VkContext,
-    pub renderer: LightFieldRenderer,
-    pub staged: Vec<Staged>,
-    pub wall: Duration,
-    /// The process's resident set over the measured frames.
-    pub host_memory: ResidentSummary,
-    /// The light field of frame 0 (its layout is every frame's).
-    pub lf: LightField,
-    /// Held until the outputs are in place: no other run writes into --out-dir meanwhile (None:
-    /// a rank other than 0, which writes nothing).
-    pub lock: Option<FolderLock>,
-    /// The extra EXR layers every view gets.
-    pub layers: ViewLayers,
-    /// Whether the meshes moved, and what posing them cost.
-    pub geometry: GeometryReport,
-    /// Rank 0 of a render over several ranks: the views the others sent.
-    pub ranks: Option<RankViews>,
-}
-
-/// What rank 0 gathered from the other ranks for the outputs.
-pub(super) struct RankViews {
-    /// Resources of their views, by (family, view).
-    pub remote: HashMap<(u32, u32), Vec<u8>>,
-    pub remote_views: BTreeSet<u32>,
-    /// Under a fine scheme, the bands of layers left on other ranks' devices, by (family, view,
-    /// global device) (view_source.rs).
-    pub bands: HashMap<(u32, u32, u32), Vec<u8>>,
-    /// The whole run's plan (which device wrote which rows).
-    pub plan: ExecutionPlan,
-    /// Every device of the run, in global order.
-    pub device_names: Vec<String>,
-    /// Wall time per measured frame of the slowest rank.
-    pub wall_ms: f64,
-    /// render.json's `ranks`.
-    pub json: serde_json::Value,
-}
+use crate::outputs::Staged;
 
 /// Called after each frame is submitted with its index and host wall time: how ranks report
 /// and listen while they render.

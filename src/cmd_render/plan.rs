@@ -3,7 +3,7 @@
 //! crate's stages) is compiled as `plan` compiles it, the scene is loaded and the camera of
 //! every frame is known.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use glam::Vec3;
@@ -14,11 +14,11 @@ use parallax_passes::visibility::{GbufferChoice, choose_gbuffer};
 use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
-use super::report::{check_outputs, view_file_name};
 use super::startup::{Startup, Step};
 use super::{MotionArg, RenderArgs, dolly};
 use crate::budget::{TraceWork, refuse_every_exceeded};
 use crate::disk_space::{RenderOutputs, free_bytes};
+use crate::outputs::{Format, Output, Sink, check_creating};
 use crate::pipeline_args::{PipelineArg, PipelineSchedule};
 use crate::render_pictures::gpu_exposure;
 
@@ -289,6 +289,66 @@ impl RenderJob {
         let rig = args.light_field.rig_around(&self.camera_at(args, f), self.centre);
         args.light_field.layout.with_rig_spaced(rig, self.spacing)
     }
+}
+
+pub(super) fn view_file_name(index: u32) -> String {
+    format!("view_{index:03}.exr")
+}
+
+/// Checks the outputs before any work. The folder may not exist yet (it is created when the
+/// views are written), but the nearest folder above it must be writable.
+pub(super) fn check_outputs(
+    out_dir: &Path,
+    sheet: &Path,
+    render_json: &Path,
+    trace: Option<&Sink>,
+    dot: Option<&Sink>,
+    wiggle: Option<&Path>,
+) -> Result<()> {
+    if out_dir.exists() && !out_dir.is_dir() {
+        bail!("--out-dir {} is a file: give a folder", out_dir.display());
+    }
+    let existing = out_dir.ancestors().find(|a| a.as_os_str().is_empty() || a.exists()).unwrap_or(Path::new("."));
+    let existing = if existing.as_os_str().is_empty() { Path::new(".") } else { existing };
+    if !existing.is_dir() {
+        bail!("--out-dir {}: {} is not a folder", out_dir.display(), existing.display());
+    }
+    if let Err(e) = tempfile::NamedTempFile::new_in(existing) {
+        let why = parallax_accuracy::write_failure(existing, &e);
+        bail!("--out-dir {}: folder {} is not writable: {why}", out_dir.display(), existing.display());
+    }
+    let sheet_sink = Sink::File(sheet.to_path_buf());
+    let json_sink = Sink::File(render_json.to_path_buf());
+    let viewer_sink = Sink::File(out_dir.join("viewer.html"));
+    let mut outputs = Vec::new();
+    if out_dir.is_dir() {
+        outputs.push(Output { flag: "--out-dir", sink: &sheet_sink, format: Format::Png });
+        outputs.push(Output { flag: "--out-dir", sink: &json_sink, format: Format::Json });
+        outputs.push(Output { flag: "--out-dir", sink: &viewer_sink, format: Format::Html });
+    }
+    let in_out_dir = |flag: &str, path: &Path| {
+        if path.parent().is_some_and(|p| p == out_dir)
+            && path.file_name().and_then(|n| n.to_str()).is_some_and(|n| n == "render.json" || n.starts_with("view_"))
+        {
+            bail!("{flag} {} would overwrite an output of --out-dir: give it another name", path.display());
+        }
+        Ok(())
+    };
+    if let Some(sink) = trace {
+        if let Sink::File(path) = sink {
+            in_out_dir("--trace", path)?;
+        }
+        outputs.push(Output { flag: "--trace", sink, format: Format::Json });
+    }
+    if let Some(sink) = dot {
+        outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
+    }
+    let wiggle_sink = wiggle.map(|p| Sink::File(p.to_path_buf()));
+    if let Some(sink @ Sink::File(path)) = &wiggle_sink {
+        in_out_dir("--wiggle", path)?;
+        outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
+    }
+    check_creating(&outputs, Some(out_dir))
 }
 
 #[cfg(test)]

@@ -17,9 +17,9 @@ use parallax_backend::ExecutionPlan;
 use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::Camera;
 
-use super::frames::{RankViews, Rendered, render_frames};
+use super::frames::render_frames;
 use super::plan::RenderJob;
-use super::report::{output_families, write_outputs};
+use super::report::{RankViews, Rendered, output_families, write_outputs};
 use super::{RankFault, RenderArgs, RenderExtension, rank_fault_from_env};
 use crate::options::UsageError;
 use crate::ranks::{RankLayout, RankPart, linked, views_of};

@@ -6,10 +6,12 @@
 
 use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
+use std::time::Duration;
 
-use anyhow::{Context as _, Result, bail};
+use anyhow::{Context as _, Result};
 use glam::Vec3;
-use parallax_backend::chrome_trace;
+use parallax_backend::{Context as VkContext, ExecutionPlan, chrome_trace};
+use parallax_graph::LightField;
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::{PipelineHandles, PipelineKind};
@@ -17,16 +19,56 @@ use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Frame, PixelSample, View};
 
 use super::RenderArgs;
-use super::frames::Rendered;
 use super::host_memory::ResidentSummary;
-use super::plan::RenderJob;
+use super::plan::{RenderJob, view_file_name};
 use super::posing::GeometryReport;
 use crate::logging::result;
-use crate::outputs::{Format, Output, Sink, Staged, check_creating, stage};
+use crate::outputs::{FolderLock, Sink, Staged, stage};
 use crate::render_pictures::{display_images, stage_pictures, view_png_name};
 use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
 use crate::run_setup::{CameraSetup, Setup};
 use crate::view_source::{Gathered, ViewSource};
+
+/// What the frame loop leaves for the report: the renderer after the last frame (its
+/// statistics and final images), the context it ran on, the views already staged by
+/// `--save-every`, and the wall time of the measured frames.
+pub(super) struct Rendered {
+    pub context: VkContext,
+    pub renderer: LightFieldRenderer,
+    pub staged: Vec<Staged>,
+    pub wall: Duration,
+    /// The process's resident set over the measured frames.
+    pub host_memory: ResidentSummary,
+    /// The light field of frame 0 (its layout is every frame's).
+    pub lf: LightField,
+    /// Held until the outputs are in place: no other run writes into --out-dir meanwhile (None:
+    /// a rank other than 0, which writes nothing).
+    pub lock: Option<FolderLock>,
+    /// The extra EXR layers every view gets.
+    pub layers: ViewLayers,
+    /// Whether the meshes moved, and what posing them cost.
+    pub geometry: GeometryReport,
+    /// Rank 0 of a render over several ranks: the views the others sent.
+    pub ranks: Option<RankViews>,
+}
+
+/// What rank 0 gathered from the other ranks for the outputs.
+pub(super) struct RankViews {
+    /// Resources of their views, by (family, view).
+    pub remote: HashMap<(u32, u32), Vec<u8>>,
+    pub remote_views: BTreeSet<u32>,
+    /// Under a fine scheme, the bands of layers left on other ranks' devices, by (family, view,
+    /// global device) (view_source.rs).
+    pub bands: HashMap<(u32, u32, u32), Vec<u8>>,
+    /// The whole run's plan (which device wrote which rows).
+    pub plan: ExecutionPlan,
+    /// Every device of the run, in global order.
+    pub device_names: Vec<String>,
+    /// Wall time per measured frame of the slowest rank.
+    pub wall_ms: f64,
+    /// render.json's `ranks`.
+    pub json: serde_json::Value,
+}
 
 /// Reads the last frame back, writes every output and says what was rendered.
 pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<()> {
@@ -394,66 +436,6 @@ fn stage_layer_pictures(folder: &Path, index: u32, frame: &Frame, mask: Option<&
             })
         })
         .collect()
-}
-
-pub(super) fn view_file_name(index: u32) -> String {
-    format!("view_{index:03}.exr")
-}
-
-/// Checks the outputs before any work. The folder may not exist yet (it is created when the
-/// views are written), but the nearest folder above it must be writable.
-pub(super) fn check_outputs(
-    out_dir: &Path,
-    sheet: &Path,
-    render_json: &Path,
-    trace: Option<&Sink>,
-    dot: Option<&Sink>,
-    wiggle: Option<&Path>,
-) -> Result<()> {
-    if out_dir.exists() && !out_dir.is_dir() {
-        bail!("--out-dir {} is a file: give a folder", out_dir.display());
-    }
-    let existing = out_dir.ancestors().find(|a| a.as_os_str().is_empty() || a.exists()).unwrap_or(Path::new("."));
-    let existing = if existing.as_os_str().is_empty() { Path::new(".") } else { existing };
-    if !existing.is_dir() {
-        bail!("--out-dir {}: {} is not a folder", out_dir.display(), existing.display());
-    }
-    if let Err(e) = tempfile::NamedTempFile::new_in(existing) {
-        let why = parallax_accuracy::write_failure(existing, &e);
-        bail!("--out-dir {}: folder {} is not writable: {why}", out_dir.display(), existing.display());
-    }
-    let sheet_sink = Sink::File(sheet.to_path_buf());
-    let json_sink = Sink::File(render_json.to_path_buf());
-    let viewer_sink = Sink::File(out_dir.join("viewer.html"));
-    let mut outputs = Vec::new();
-    if out_dir.is_dir() {
-        outputs.push(Output { flag: "--out-dir", sink: &sheet_sink, format: Format::Png });
-        outputs.push(Output { flag: "--out-dir", sink: &json_sink, format: Format::Json });
-        outputs.push(Output { flag: "--out-dir", sink: &viewer_sink, format: Format::Html });
-    }
-    let in_out_dir = |flag: &str, path: &Path| {
-        if path.parent().is_some_and(|p| p == out_dir)
-            && path.file_name().and_then(|n| n.to_str()).is_some_and(|n| n == "render.json" || n.starts_with("view_"))
-        {
-            bail!("{flag} {} would overwrite an output of --out-dir: give it another name", path.display());
-        }
-        Ok(())
-    };
-    if let Some(sink) = trace {
-        if let Sink::File(path) = sink {
-            in_out_dir("--trace", path)?;
-        }
-        outputs.push(Output { flag: "--trace", sink, format: Format::Json });
-    }
-    if let Some(sink) = dot {
-        outputs.push(Output { flag: "--dot", sink, format: Format::Dot });
-    }
-    let wiggle_sink = wiggle.map(|p| Sink::File(p.to_path_buf()));
-    if let Some(sink @ Sink::File(path)) = &wiggle_sink {
-        in_out_dir("--wiggle", path)?;
-        outputs.push(Output { flag: "--wiggle", sink, format: Format::Png });
-    }
-    check_creating(&outputs, Some(out_dir))
 }
 
 /// Removes `view_NNN.exr` and `view_NNN.png` files of an earlier run that this run of `views`

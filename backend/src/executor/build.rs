@@ -4,18 +4,19 @@
 
 use ash::vk;
 
-use crate::device_state::{Kept, STAGING_ALIGN, create_device_state, create_staging, fault_gate};
+use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result};
+use crate::exec_options::FaultInjection;
 use crate::link_memory::import_timeline;
 use crate::links::{ChunkLink, Link, LinkKind, link_order};
 use crate::plan::{CopyId, ExecutionPlan};
 use crate::relay::Relay;
 use crate::remote::{ReceiveLink, Remote, RemoteTransport, number_receives, wires};
 use crate::segments::{Chunk, Item, Segment, chunks_of_copies, cross_device_waits, segment_devices};
-use crate::staging_ring::{RingCopy, RingLayout, RingLink, fit_rings};
+use crate::staging_ring::{RingCopy, RingLayout, RingLink, STAGING_ALIGN, fit_rings};
 use crate::texture::Texture;
 
-use super::{Executor, FaultInjection};
+use super::Executor;
 
 impl Executor {
     /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the

@@ -27,7 +27,6 @@
 //! `retire` (waiting, reports), `read` (reading a resource back), `teardown` (drop, recovery).
 
 mod build;
-mod options;
 mod read;
 mod record;
 mod retire;
@@ -43,8 +42,9 @@ use gpu_allocator::MemoryLocation;
 
 use crate::context::Context;
 use crate::device::{ClockCalibration, Device};
-use crate::device_state::{DeviceState, Staging};
+use crate::device_state::{DeviceState, FaultGate, Staging};
 use crate::error::Result;
+use crate::exec_options::ExecOptions;
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
 use crate::links::{ChunkLink, DeviceSubmissions, Link, LinkInfo, LinkKinds, link_kinds};
@@ -56,18 +56,6 @@ use crate::remote::Remote;
 use crate::segments::{Chunk, Run};
 use crate::texture::Texture;
 use crate::timing::FrameReport;
-
-pub use options::{Barriers, ExecOptions, FaultInjection, Timing};
-
-/// Fault-injection gate: producer's first submission of a frame waits until the consumer's
-/// segment `consumer_segment` of the same frame is done.
-pub(crate) struct FaultGate {
-    /// Semaphore on the producer device.
-    pub(crate) semaphore: vk::Semaphore,
-    pub(crate) producer: usize,
-    pub(crate) consumer: usize,
-    pub(crate) consumer_segment: usize,
-}
 
 struct InFlight {
     frame: u64,

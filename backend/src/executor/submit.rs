@@ -8,6 +8,7 @@ use ash::vk;
 
 use crate::device::host_now_ns;
 use crate::error::{BackendError, Result};
+use crate::exec_options::FaultInjection;
 use crate::frame_block::FrameConstants;
 use crate::links::{ChunkLink, LinkKind};
 use crate::readback::FrameTicket;
@@ -16,7 +17,7 @@ use crate::remote::HostSpan;
 use crate::segments::Chunk;
 use crate::segments::{Run, progress_value, ready_value};
 
-use super::{Executor, FaultInjection, InFlight};
+use super::{Executor, InFlight};
 
 /// What one segment's `VkSubmitInfo2` points at.
 struct SegmentSubmit {

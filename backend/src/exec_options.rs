@@ -1,5 +1,8 @@
 //! Executor settings: frames in flight, copy chunking and queues, barrier placement, timing
 //! granularity, readback, external shaders and deliberate faults.
+//!
+//! A leaf: the executor, its device state and the recording read these settings, so it imports
+//! none of them.
 
 use crate::shaders::ShaderLibrary;
 
