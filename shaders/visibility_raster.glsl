@@ -120,10 +120,12 @@ uvec4 pixel_box(BvhTriangle tri) {
         // Wholly behind the eye (nothing to hit); a NaN corner bounds nothing: the band.
         return in_front == 0u ? uvec4(0u) : uvec4(0u, pc.y0, pc.width, pc.y1);
     }
-    // Pixels whose centres lie within the projected box, one more on each side against
-    // rounding (the ray test decides), clamped to the band before converting.
-    vec2 first = clamp(floor(lo - 0.5) - 1.0, vec2(0.0), size);
-    vec2 last = clamp(ceil(hi - 0.5) + 2.0, vec2(0.0), size);
+    // Pixels whose centres x + 0.5 lie within the projected box widened by a margin far above
+    // the rounding of the projection and of the ray test (a twentieth of a pixel, and a
+    // relative 1e-5 for corners far outside), clamped to the band before converting. A
+    // triangle between pixel centres then tests no pixel at all; the ray test decides the rest.
+    vec2 first = clamp(ceil(lo - 0.5 - (0.05 + 1e-5 * abs(lo))), vec2(0.0), size);
+    vec2 last = clamp(floor(hi - 0.5 + (0.05 + 1e-5 * abs(hi))) + 1.0, vec2(0.0), size);
     return uvec4(uint(first.x), max(uint(first.y), pc.y0), uint(last.x), min(uint(last.y), pc.y1));
 }
 
