@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use parallax_backend::ExecutionPlan;
+use parallax_backend::KernelPlan;
 use parallax_graph::{PlanSummary, Rig};
 
 use crate::logging::{result, spinner};
@@ -56,7 +56,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     let summary = compiled.summary;
     let shares = match &layout {
         Some(layout) => {
-            let plan = ExecutionPlan::from_schedule(&compiled.graph, &compiled.schedule)?;
+            let plan = KernelPlan::from_schedule(&compiled.graph, &compiled.schedule)?;
             Some(shares(&compiled.schedule, &plan, layout, lf.width))
         }
         None => None,

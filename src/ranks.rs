@@ -11,7 +11,7 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Result, bail};
-use parallax_backend::{DeviceProgram, ExecutionPlan, Op, remote_device_id};
+use parallax_backend::{DeviceProgram, ExecutionPlan, KernelPlan, Op, remote_device_id};
 use parallax_graph::{CopyId, DeviceId, InstanceId, Schedule};
 
 /// Set in a rank other than 0 of a render over several ranks: rank 0 speaks for the run, so
@@ -86,7 +86,7 @@ pub fn linked(global: &ExecutionPlan, layout: &RankLayout) -> bool {
 /// says which device wrote which band of a view), which its devices never run. Otherwise
 /// gathers of finished views to device 0 from another rank's devices are left out: the view is
 /// read where it was written and sent through MPI.
-pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -> ExecutionPlan {
+pub fn restrict_plan(global: &KernelPlan, layout: &RankLayout, rank: usize) -> KernelPlan {
     let (first, count) = (layout.first(rank), layout.devices[rank]);
     let local = |d: DeviceId| (first..first + count).contains(&d.0);
     let linked = linked(global, layout);
@@ -141,7 +141,6 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
         batches: Vec::new(),
         devices,
         history: global.history.clone(),
-        kernels: global.kernels.clone(),
     };
     // Exports are read back from device 0: only those this rank's device 0 still holds (its own
     // views, and those its other devices or linked ranks gather to it) stay exported.
@@ -149,7 +148,7 @@ pub fn restrict_plan(global: &ExecutionPlan, layout: &RankLayout, rank: usize) -
     for (a, r) in plan.resources.iter_mut().enumerate() {
         r.exported &= held.contains(&parallax_graph::AllocId(a as u32));
     }
-    plan
+    KernelPlan { plan, kernels: global.kernels.clone() }
 }
 
 /// The run's number of a device that a rank's part of the plan (its devices from `first`)
@@ -234,14 +233,14 @@ mod tests {
     use crate::scene_args::LayoutArgs;
 
     /// The execution plan `render` runs for 4×2 views of 32×24 under `scheme` on `devices`.
-    fn global_plan(scheme: &str, devices: u32) -> (ExecutionPlan, parallax_graph::ProvenSchedule) {
+    fn global_plan(scheme: &str, devices: u32) -> (KernelPlan, parallax_graph::ProvenSchedule) {
         let words = ["--lf", "4x2", "--resolution", "32x24", "--scheme", scheme];
         let command =
             PipelineArgs::augment_args(LayoutArgs::augment_args(clap::Command::new("t").no_binary_name(true)));
         let matches = command.try_get_matches_from(words).unwrap();
         let lf = LayoutArgs::from_arg_matches(&matches).unwrap().with_rig(parallax_graph::Rig::default()).unwrap();
         let compiled = PipelineArgs::from_arg_matches(&matches).unwrap().compile(&lf, devices, 1.0).unwrap();
-        (ExecutionPlan::from_schedule(&compiled.graph, &compiled.schedule).unwrap(), compiled.schedule)
+        (KernelPlan::from_schedule(&compiled.graph, &compiled.schedule).unwrap(), compiled.schedule)
     }
 
     /// Under multi-source each rank's part holds its devices' passes only, renumbered from 0,
@@ -278,7 +277,7 @@ mod tests {
         let (global, schedule) = global_plan("fine-all", 3);
         let layout = RankLayout { devices: vec![1, 1, 1] };
         assert!(linked(&global, &layout));
-        let parts: Vec<ExecutionPlan> = (0..3).map(|r| restrict_plan(&global, &layout, r)).collect();
+        let parts: Vec<KernelPlan> = (0..3).map(|r| restrict_plan(&global, &layout, r)).collect();
         // A copy as the whole run names it: (from, to, resource, version, rows).
         let global_copy = |rank: usize, c: &parallax_backend::CrossCopy| {
             let name = |d: DeviceId| if d.0 < 1 { d.0 + layout.first(rank) } else { d.0 - 1 };

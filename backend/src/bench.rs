@@ -18,9 +18,10 @@ use crate::device::DeviceInfo;
 use crate::error::Result;
 use crate::exec_options::ExecOptions;
 use crate::executor::Executor;
+use crate::kernel::{KernelPlan, PassKernel};
 use crate::lower::KernelGraph;
-use crate::plan::{CopyId, ExecutionPlan, InstanceId, PassInstance};
-use crate::recorder::{PassKernel, Recorder};
+use crate::plan::{CopyId, InstanceId, PassInstance};
+use crate::recorder::Recorder;
 use crate::timing::{EventKind, FrameReport};
 
 /// Width of the benchmark payload image (RGBA32F, 16 KiB per row).
@@ -175,7 +176,7 @@ impl Placement for ViewsInOrder {
 /// The copy benchmark: `bench_fill` writes a `width`×`height` RGBA32F payload for view 0 on
 /// device 0; view 1 on device 1 reads it as its source, so the payload crosses from device 0
 /// to device 1 every frame.
-pub fn copy_plan(width: u32, height: u32) -> Result<ExecutionPlan> {
+pub fn copy_plan(width: u32, height: u32) -> Result<KernelPlan> {
     let topology =
         ViewTopology { width, height, sources_of: vec![vec![], vec![ViewId(0)]], is_source: vec![true, false] };
     let mut graph = KernelGraph::with_payload(topology);
@@ -183,13 +184,13 @@ pub fn copy_plan(width: u32, height: u32) -> Result<ExecutionPlan> {
     declare_fill(&mut graph, Role::Sources, &mut payload).record();
     graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
     let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: 1 })?;
-    Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
+    Ok(KernelPlan::from_schedule(&graph, &schedule)?)
 }
 
 /// `sources` payloads on device 0 that one target on device 1 reads: `sources` copies in a row
 /// into device 1 (segmentation tests).
 #[cfg(test)]
-pub(crate) fn gather_plan(sources: u32, width: u32, height: u32) -> Result<ExecutionPlan> {
+pub(crate) fn gather_plan(sources: u32, width: u32, height: u32) -> Result<KernelPlan> {
     let all: Vec<ViewId> = (0..sources).map(ViewId).collect();
     let mut sources_of = vec![vec![]; sources as usize];
     sources_of.push(all);
@@ -200,18 +201,18 @@ pub(crate) fn gather_plan(sources: u32, width: u32, height: u32) -> Result<Execu
     declare_fill(&mut graph, Role::Sources, &mut payload).record();
     graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
     let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: sources })?;
-    Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
+    Ok(KernelPlan::from_schedule(&graph, &schedule)?)
 }
 
 /// The overhead benchmark: `passes_per_device` views of `size`×`size` RGBA8 per device, each
 /// filled by one `bench_fill` and kept by `side_effect()`; no copies.
-pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<ExecutionPlan> {
+pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<KernelPlan> {
     let topology = ViewTopology::all_sources(devices * passes_per_device, size, size);
     let mut graph = KernelGraph::with_payload(topology);
     let mut target = graph.image(PAYLOAD, Format::Rgba8);
     declare_fill(&mut graph, Role::All, &mut target).side_effect().record();
     let schedule = compile(&graph, &ViewsInOrder { devices, views_per_device: passes_per_device })?;
-    Ok(ExecutionPlan::from_schedule(&graph, &schedule)?)
+    Ok(KernelPlan::from_schedule(&graph, &schedule)?)
 }
 
 fn sustained_rate(bytes: u64, frames: &[CopyFrame]) -> Option<f64> {

@@ -13,6 +13,7 @@ use gpu_allocator::MemoryLocation;
 use crate::device::{Device, QueueKind};
 use crate::error::{BackendError, Result, VkContext};
 use crate::exec_options::ExecOptions;
+use crate::kernel::KernelPlan;
 use crate::link_memory::SharedDeviceBuffer;
 use crate::links::LinkKind;
 use crate::memory::{Buffer, Image, SharedHostBuffer};
@@ -140,7 +141,7 @@ impl Staging {
 /// progress timeline exportable with `export_progress`: it produces for `gpu` links).
 pub(crate) fn create_device_state(
     device: &Arc<Device>,
-    plan: &ExecutionPlan,
+    plan: &KernelPlan,
     segments: Vec<Segment>,
     slots: usize,
     options: &ExecOptions,

@@ -2,9 +2,10 @@
 //!
 //! * [`Context`]: instance (+ validation), N physical devices (`--gpus N`) or N logical
 //!   devices on one physical device (`--fake-devices N`).
-//! * [`ExecutionPlan`]: what the executor runs: a proven schedule's own pass instances,
-//!   copies, device programs and history pairs, with each pass's kernel and each allocation's
-//!   GPU description.
+//! * [`ExecutionPlan`]: the data the executor runs: a proven schedule's own pass instances,
+//!   copies, device programs and history pairs, with each allocation's GPU description.
+//!   [`KernelPlan`] is an `ExecutionPlan` with each pass's kernel ([`Kernels`]): what
+//!   [`Executor::new`] takes.
 //! * [`Executor`]: records per-device command buffers once, submits frames with timeline
 //!   semaphores, moves cross-device copies over one link per device pair of the kind
 //!   [`link_kinds`] chooses (device memory shared by logical devices of one GPU, with GPU-side
@@ -12,7 +13,7 @@
 //!   times every pass instance and copy, or every run of one pass's instances ([`Timing`];
 //!   [`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
-//!   [`ExecutionPlan::from_schedule`] takes its compiled, proven schedule (allocations get their GPU
+//!   [`KernelPlan::from_schedule`] takes its compiled, proven schedule (allocations get their GPU
 //!   description, history allocations two halves swapped by frame parity; kernels bind the
 //!   instances' accesses by the slot tokens their declarations returned).
 //! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
@@ -71,7 +72,7 @@
 //! let fill = Fill { payload: pass.write_slot(&mut payload) };
 //! pass.kernel(Arc::new(fill)).record();
 //! graph.export(&payload);
-//! let plan = ExecutionPlan::from_schedule(&graph, &compile(&graph, &placement)?)?;
+//! let plan = KernelPlan::from_schedule(&graph, &compile(&graph, &placement)?)?;
 //!
 //! // Two logical devices on one physical device (lavapipe in CI), validation on.
 //! let context = Context::new(&ContextDesc {
@@ -103,6 +104,7 @@ mod frame_block;
 mod frame_data;
 mod frame_stats;
 mod instance;
+mod kernel;
 mod lifetime_lock;
 mod link_memory;
 mod links;
@@ -136,16 +138,17 @@ pub use frame_block::{FrameBlock, FrameClock, FrameConstants, FrameHeader, GpuCa
 pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use frame_stats::{EventTotals, FrameStats, SUMMARY_SAMPLE, Summary};
 pub use instance::{Instance, Validation, validation_from_env};
+pub use kernel::{KernelPlan, Kernels, PassKernel};
 pub use lower::KernelGraph;
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
     Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan, FamilyId,
-    Format, HistoryPair, HistorySlot, InstanceId, Kernels, MAX_RESET_WORDS, Op, Origin, PassId, PassInstance, ReadSlot,
-    Region, ResourceId, ResourceKind, SourcesSlot, ViewId, WriteSlot, own_access,
+    Format, HistoryPair, HistorySlot, InstanceId, MAX_RESET_WORDS, Op, Origin, PassId, PassInstance, ReadSlot, Region,
+    ResourceId, ResourceKind, SourcesSlot, ViewId, WriteSlot, own_access,
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};
-pub use recorder::{Draw, PassKernel, PassParams, Recorder, RecordingBuffer};
+pub use recorder::{Draw, PassParams, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};
 pub use shaders::{BACKEND_SHADERS, ShaderLibrary, USER_SHADERS, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};

@@ -1,10 +1,10 @@
 //! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
-//! [`ExecutionPlan`]. The schedule's pass instances, copies, device programs (ops and barriers,
-//! by device id) and history pairs are taken as they are: nothing is re-planned, and the op
-//! order (batching included, `parallax_graph::CompileOptions`) is the order the executor
-//! submits. Lowering adds each declared pass's kernel, and each allocation's GPU description: a
-//! resource of its declared resource's family (a history pair's previous half described as its
-//! current half, the two swapped by frame parity).
+//! [`KernelPlan`]: an [`ExecutionPlan`] and its kernels. The schedule's pass instances, copies,
+//! device programs (ops and barriers, by device id) and history pairs are taken as they are:
+//! nothing is re-planned, and the op order (batching included, `parallax_graph::CompileOptions`)
+//! is the order the executor submits. Lowering adds each declared pass's kernel, and each
+//! allocation's GPU description: a resource of its declared resource's family (a history pair's
+//! previous half described as its current half, the two swapped by frame parity).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -12,19 +12,19 @@ use std::sync::Arc;
 use parallax_graph::{AllocId, Format, Graph, ProvenSchedule, ResourceDesc, Schedule};
 
 use crate::error::LowerError;
-use crate::plan::{ExecResource, ExecutionPlan, Kernels, ResourceKind};
-use crate::recorder::PassKernel;
+use crate::kernel::{KernelPlan, Kernels, PassKernel};
+use crate::plan::{ExecResource, ExecutionPlan, ResourceKind};
 
 /// A render graph whose passes carry their kernels: what the executor runs.
 pub type KernelGraph = Graph<Arc<dyn PassKernel>>;
 
-impl ExecutionPlan {
+impl KernelPlan {
     /// Lowers `schedule`, compiled from `graph`. The schedule is proven (`ProvenSchedule`: it
     /// passed `Schedule::validate()` once, when it was compiled or changed): that is the proof of
     /// the plan's ids, rows, op order, barriers, copies, history pairs and storage, so nothing
-    /// here checks them again; `ExecutionPlan::validate` (the executor runs it) adds only what
+    /// here checks them again; `KernelPlan::validate` (the executor runs it) adds only what
     /// the backend knows (device count, kernels, resets).
-    pub fn from_schedule(graph: &KernelGraph, schedule: &ProvenSchedule) -> Result<ExecutionPlan, LowerError> {
+    pub fn from_schedule(graph: &KernelGraph, schedule: &ProvenSchedule) -> Result<KernelPlan, LowerError> {
         let mut kernels = Kernels::default();
         for inst in &schedule.instances {
             if kernels.of(inst.pass).is_some() {
@@ -56,15 +56,15 @@ impl ExecutionPlan {
         if ids.iter().enumerate().any(|(i, &d)| d as usize != i) {
             return Err(LowerError::DevicePrograms { found: ids, expected: devices.len() });
         }
-        Ok(ExecutionPlan {
+        let plan = ExecutionPlan {
             resources,
             passes: schedule.instances.clone(),
             copies: schedule.copies.clone(),
             batches: schedule.batches.clone(),
             devices,
             history: schedule.history.clone(),
-            kernels,
-        })
+        };
+        Ok(KernelPlan { plan, kernels })
     }
 }
 

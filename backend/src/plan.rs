@@ -1,11 +1,14 @@
 //! The execution plan: the part of a compiled `Schedule` the executor needs. Its pass
 //! instances, copies, device programs (ops in submission order, with their barriers) and history
-//! pairs are the schedule's own, as compiled; what it adds is the kernel of each declared pass
-//! ([`Kernels`]) and each allocation's GPU description ([`ExecResource`]). The executor can also
-//! be tested with hand-laid plans ([`own_access`], [`ExecutionPlan::laid_copy`]).
+//! pairs are the schedule's own, as compiled; what it adds is each allocation's GPU description
+//! ([`ExecResource`]). The executor can also be tested with hand-laid plans ([`own_access`],
+//! [`ExecutionPlan::laid_copy`]).
+//!
+//! The plan is data only: the kernel of each declared pass travels beside it
+//! ([`crate::KernelPlan`], kernel.rs), because a kernel records through a `Recorder` that reads
+//! this plan. kernel.rs imports this module and the recorder; this module names neither.
 
-use std::collections::{BTreeMap, HashMap};
-use std::sync::Arc;
+use std::collections::HashMap;
 
 pub use parallax_graph::{
     Access, AllocId, BatchId, CopyBatch, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, FamilyId, Format,
@@ -13,10 +16,7 @@ pub use parallax_graph::{
     ViewId, WriteSlot,
 };
 
-use parallax_graph::{Role, ViewTopology};
-
 pub use crate::error::ExecutionPlanError;
-use crate::recorder::PassKernel;
 
 /// What a plan resource is on the GPU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -176,97 +176,12 @@ pub struct ExecutionPlan {
     /// history from `previous`; odd frames swap the two. Command buffers are recorded once per
     /// parity, so the swap costs nothing per frame.
     pub history: Vec<HistoryPair>,
-    /// The kernel of each declared pass, which records its instances.
-    #[serde(skip)]
-    pub kernels: Kernels,
-}
-
-/// The kernels of a plan, by the declared pass whose instances they record. Two plans' kernels
-/// are equal when they are the same objects for the same passes.
-#[derive(Clone, Default)]
-pub struct Kernels(BTreeMap<PassId, Arc<dyn PassKernel>>);
-
-impl PartialEq for Kernels {
-    fn eq(&self, other: &Self) -> bool {
-        self.0.len() == other.0.len() && self.0.iter().zip(&other.0).all(|((p, a), (q, b))| p == q && Arc::ptr_eq(a, b))
-    }
-}
-
-impl std::fmt::Debug for Kernels {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Kernels({})", self.0.len())
-    }
-}
-
-impl Kernels {
-    /// Sets `pass`'s kernel.
-    pub fn insert(&mut self, pass: PassId, kernel: Arc<dyn PassKernel>) {
-        self.0.insert(pass, kernel);
-    }
-
-    /// `pass`'s kernel, if it has one.
-    pub fn of(&self, pass: PassId) -> Option<&Arc<dyn PassKernel>> {
-        self.0.get(&pass)
-    }
-
-    /// Drops `pass`'s kernel (a test's way to make a plan the executor refuses).
-    #[cfg(test)]
-    fn remove(&mut self, pass: PassId) -> Option<Arc<dyn PassKernel>> {
-        self.0.remove(&pass)
-    }
 }
 
 /// Most words a reset header may have: vkCmdUpdateBuffer writes at most 65536 bytes.
 pub const MAX_RESET_WORDS: usize = 65536 / 4;
 
 impl ExecutionPlan {
-    /// One pass instance `name` on device 0 writing all of `resource` (version 1) and nothing
-    /// else; the other `devices - 1` devices stay idle. What a kernel that runs alone needs:
-    /// `kernel` makes it from the slot token of that write, declared like any pass's.
-    pub fn single_pass<K: PassKernel + 'static>(
-        name: &str,
-        kernel: impl FnOnce(WriteSlot) -> K,
-        resource: ExecResource,
-        devices: usize,
-    ) -> Self {
-        // Only a pass builder mints slot tokens: a one-pass declaration gives the write's, and the
-        // pass id the instance must carry for the token to bind.
-        let mut graph = parallax_graph::Graph::new(ViewTopology::all_sources(1, 1, 1));
-        let mut target = graph.image(&resource.name, resource.format);
-        let mut declared = graph.pass(name, Role::All);
-        let write = declared.write_slot(&mut target);
-        let pass = declared.record();
-        let all = Region::new(0, resource.height);
-        let mut kernels = Kernels::default();
-        kernels.insert(pass, Arc::new(kernel(write)));
-        let mut plan = ExecutionPlan {
-            passes: vec![PassInstance {
-                pass,
-                name: name.to_string(),
-                view: ViewId(resource.view),
-                region: all,
-                device: DeviceId(0),
-                reads: vec![],
-                writes: vec![own_access(write.index(), AllocId(0), all)],
-                history_reads: vec![],
-            }],
-            resources: vec![resource],
-            copies: vec![],
-            batches: vec![],
-            devices: (0..devices.max(1) as u32)
-                .map(|d| DeviceProgram {
-                    device: DeviceId(d),
-                    ops: if d == 0 { vec![Op::Pass(InstanceId(0))] } else { vec![] },
-                    barriers: vec![],
-                })
-                .collect(),
-            history: vec![],
-            kernels,
-        };
-        plan.place_barriers();
-        plan
-    }
-
     /// Places every device program's barriers by the rule compiling a schedule follows
     /// (`parallax_graph::place_barriers`): how a hand-laid plan states them, once its ops are
     /// in order.
@@ -284,13 +199,6 @@ impl ExecutionPlan {
     /// Pass instance `i`.
     pub fn pass(&self, i: InstanceId) -> &PassInstance {
         &self.passes[i.index()]
-    }
-
-    /// The kernel that records instance `i`. Plans the executor runs are validated
-    /// ([`Self::validate`]): every instance's pass has one.
-    pub fn kernel(&self, i: InstanceId) -> &Arc<dyn PassKernel> {
-        let pass = self.pass(i).pass;
-        self.kernels.of(pass).unwrap_or_else(|| panic!("pass {pass} has no kernel: the plan was not validated"))
     }
 
     /// Copy `c`.
@@ -344,20 +252,22 @@ impl ExecutionPlan {
         self.passes.iter().enumerate().map(|(i, p)| (InstanceId(i as u32), p))
     }
 
-    /// Checks what only the backend knows: the context's device count, the kernels, and that
-    /// every reset is one vkCmdUpdateBuffer of a buffer; and that each program's barriers are
-    /// increasing indices of its ops (recording walks the two lists side by side, so a hand-laid
-    /// list out of order would lose every barrier after the fault).
-    pub fn validate(&self, context_devices: usize) -> Result<(), ExecutionPlanError> {
+    /// Checks the plan's side of what only the backend knows (`KernelPlan::validate` adds the
+    /// kernels between the two halves): the context's device count, and that each program's
+    /// barriers are increasing indices of its ops (recording walks the two lists side by side,
+    /// so a hand-laid list out of order would lose every barrier after the fault).
+    pub(crate) fn validate_programs(&self, context_devices: usize) -> Result<(), ExecutionPlanError> {
         if self.devices.len() != context_devices {
             return Err(ExecutionPlanError::DeviceCount { plan: self.devices.len(), context: context_devices });
         }
         if let Some(fault) = self.devices.iter().find_map(DeviceProgram::barrier_list_fault) {
             return Err(ExecutionPlanError::Barriers(fault));
         }
-        if let Some((index, p)) = self.pass_ids().find(|(_, p)| self.kernels.of(p.pass).is_none()) {
-            return Err(ExecutionPlanError::MissingKernel { pass: p.name.clone(), index });
-        }
+        Ok(())
+    }
+
+    /// Checks that every reset is one vkCmdUpdateBuffer of a buffer.
+    pub(crate) fn validate_resets(&self) -> Result<(), ExecutionPlanError> {
         for (a, r) in self.resource_ids() {
             let Some(header) = &r.reset else {
                 continue;
@@ -467,13 +377,13 @@ impl ExecutionPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::{copy_plan, overhead_plan};
-    use parallax_graph::ScheduleError;
+    use crate::bench::copy_plan;
+    use parallax_graph::{Role, ScheduleError, ViewTopology};
 
     /// Records nothing: these plans are only inspected.
     struct Idle;
 
-    impl PassKernel for Idle {
+    impl crate::PassKernel for Idle {
         fn record(&self, _: &mut crate::Recorder<'_>, _: &PassInstance, _: InstanceId) -> crate::Result<()> {
             Ok(())
         }
@@ -498,7 +408,7 @@ mod tests {
         }
         let placement = parallax_graph::BandedPlacement { devices: 3, bands: 3 };
         let schedule = parallax_graph::compile(&graph, &placement).unwrap();
-        (ExecutionPlan::from_schedule(&graph, &schedule).unwrap(), layer.family())
+        (crate::KernelPlan::from_schedule(&graph, &schedule).unwrap().plan, layer.family())
     }
 
     #[test]
@@ -527,21 +437,9 @@ mod tests {
     }
 
     #[test]
-    fn a_plan_for_another_device_count_or_without_its_kernel_is_refused() {
-        let plan = copy_plan(8, 8).unwrap();
-        assert_eq!(plan.validate(3), Err(ExecutionPlanError::DeviceCount { plan: 2, context: 3 }));
-        let mut plan = overhead_plan(1, 2, 8).unwrap();
-        let removed = plan.passes[1].pass;
-        assert!(plan.kernels.remove(removed).is_some());
-        let (index, first) = plan.pass_ids().find(|(_, p)| p.pass == removed).unwrap();
-        let pass = first.name.clone();
-        assert_eq!(plan.validate(1), Err(ExecutionPlanError::MissingKernel { pass, index }));
-    }
-
-    #[test]
     fn barriers_out_of_order_or_past_the_ops_are_refused() {
-        let mut plan = copy_plan(8, 8).unwrap();
-        assert_eq!(plan.validate(2), Ok(()));
+        let mut plan = copy_plan(8, 8).unwrap().plan;
+        assert_eq!(plan.validate_programs(2), Ok(()));
         let ops = plan.devices[0].ops.len();
         let device = DeviceId(0);
         for (barriers, fault) in [
@@ -550,35 +448,13 @@ mod tests {
             (vec![ops as u32], ScheduleError::BarrierOutOfRange { device, index: ops as u32, ops }),
         ] {
             plan.devices[0].barriers = barriers;
-            assert_eq!(plan.validate(2), Err(ExecutionPlanError::Barriers(fault)));
+            assert_eq!(plan.validate_programs(2), Err(ExecutionPlanError::Barriers(fault)));
         }
-    }
-
-    /// A kernel for plans that are validated, never recorded.
-    struct Nothing;
-
-    impl PassKernel for Nothing {
-        fn record(&self, _: &mut crate::Recorder<'_>, _: &PassInstance, _: InstanceId) -> crate::Result<()> {
-            Ok(())
-        }
-    }
-
-    #[test]
-    fn reset_headers_fit_their_buffer() {
-        let mut plan =
-            ExecutionPlan::single_pass("count", |_| Nothing, ExecResource::buffer("counts", FamilyId(0), 0, 8), 2);
-        plan.resources[0].reset = Some(vec![0, 1]);
-        assert_eq!(plan.validate(2), Ok(()));
-        plan.resources[0].reset = Some(vec![0, 1, 1]);
-        assert_eq!(
-            plan.validate(2),
-            Err(ExecutionPlanError::ResetTooLong { resource: AllocId(0), words: 3, capacity: 2, max: MAX_RESET_WORDS })
-        );
     }
 
     #[test]
     fn ids_serialise_as_the_plain_numbers_they_index() {
-        let json = serde_json::to_value(copy_plan(8, 8).unwrap()).unwrap();
+        let json = serde_json::to_value(copy_plan(8, 8).unwrap().plan).unwrap();
         assert_eq!(
             (&json["devices"][0]["ops"][0], &json["devices"][0]["barriers"][0], &json["devices"][1]["ops"][0]),
             (&serde_json::json!({ "Pass": 0 }), &serde_json::json!(0), &serde_json::json!({ "Wait": 0 }))

@@ -22,6 +22,7 @@ use ash::vk;
 use crate::device::QueueKind;
 use crate::error::{Result, VkContext};
 use crate::exec_options::Timing;
+use crate::kernel::KernelPlan;
 use crate::memory::Image;
 use crate::pipeline::Bindless;
 use crate::plan::{AllocId, ExecutionPlan, InstanceId};
@@ -50,7 +51,7 @@ pub(crate) struct TimerLabel {
 /// The ops of `segment`, as ranges of its items in order: every item alone, but for runs of
 /// consecutive instances of one pass whose kernel records groups, which end where the schedule
 /// puts a barrier (an instance touches what an earlier one since the last barrier touched).
-pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<usize>> {
+pub(crate) fn op_groups(plan: &KernelPlan, segment: &Segment) -> Vec<Range<usize>> {
     let grouped_pass = |item: &Item| match *item {
         Item::Pass(p) if plan.kernels.of(plan.pass(p).pass).is_some_and(|k| k.records_groups()) => Some(p),
         _ => None,
@@ -78,7 +79,7 @@ pub(crate) fn op_groups(plan: &ExecutionPlan, segment: &Segment) -> Vec<Range<us
 /// Spans never split an op. A span of copies is also recorded as one batch (one barrier for
 /// their ownership transfers, [`record_items`]): a timestamp drains the queue on NVIDIA, and
 /// the fine schemes copy thousands of small chunks a frame, whose cost was these drains.
-pub(crate) fn timer_spans(plan: &ExecutionPlan, segment: &Segment, timing: Timing) -> Vec<Range<usize>> {
+pub(crate) fn timer_spans(plan: &KernelPlan, segment: &Segment, timing: Timing) -> Vec<Range<usize>> {
     #[derive(PartialEq)]
     enum Stage<'a> {
         Pass(&'a str),
@@ -173,7 +174,7 @@ pub(crate) struct SegmentContext<'a> {
     pub barriers: crate::exec_options::Barriers,
     pub raw: &'a ash::Device,
     pub device_index: usize,
-    pub plan: &'a ExecutionPlan,
+    pub plan: &'a KernelPlan,
     pub bindless: &'a mut Bindless,
     pub images: &'a HashMap<AllocId, Image>,
     pub image_slots: &'a HashMap<AllocId, u32>,
@@ -337,7 +338,7 @@ fn record_passes(
         frame_block: ctx.frame_block,
         buffers: ctx.buffers,
         buffer_addresses: ctx.buffer_addresses,
-        plan: ctx.plan,
+        plan: &ctx.plan.plan,
         device_index: ctx.device_index,
         bound,
         device: ctx.device,
@@ -435,7 +436,7 @@ pub(crate) fn copies_to_host_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
 
 /// Whether `item` is a pass whose kernel touches memory its pass does not declare: the schedule
 /// cannot see that, so a barrier goes before and after it.
-fn touches_undeclared_memory(plan: &ExecutionPlan, item: &Item) -> bool {
+fn touches_undeclared_memory(plan: &KernelPlan, item: &Item) -> bool {
     matches!(*item, Item::Pass(p) if plan.kernel(p).touches_undeclared_memory())
 }
 
@@ -624,11 +625,11 @@ pub(crate) fn full_barrier(raw: &ash::Device, cb: vk::CommandBuffer) {
 pub(crate) mod grouping_plans {
     use std::sync::Arc;
 
+    use crate::kernel::{KernelPlan, Kernels, PassKernel};
     use crate::plan::{
-        DeviceId, DeviceProgram, ExecutionPlan, InstanceId, Kernels, Op, PassId, PassInstance, Region, ViewId,
-        own_access,
+        DeviceId, DeviceProgram, ExecutionPlan, InstanceId, Op, PassId, PassInstance, Region, ViewId, own_access,
     };
-    use crate::recorder::{PassKernel, Recorder};
+    use crate::recorder::Recorder;
 
     /// Records nothing; `groups` says whether it records groups.
     pub(crate) struct Nothing {
@@ -648,7 +649,7 @@ pub(crate) mod grouping_plans {
     /// Passes `(name, reads, writes)` on device 0, in order, the passes named `fill…` with a
     /// kernel that records groups, the others with one that does not; every pass op in order
     /// on device 0; reads and writes are allocation numbers.
-    pub(crate) fn plan(passes: &[(&str, &[u32], &[u32])]) -> ExecutionPlan {
+    pub(crate) fn plan(passes: &[(&str, &[u32], &[u32])]) -> KernelPlan {
         let mut kernels = Kernels::default();
         let rows = Region::new(0, 1);
         let access = |&r: &u32| own_access(0, crate::plan::AllocId(r), rows);
@@ -673,7 +674,7 @@ pub(crate) mod grouping_plans {
             .collect();
         let ops = (0..passes.len() as u32).map(|i| Op::Pass(InstanceId(i))).collect();
         let program = DeviceProgram { device: DeviceId(0), ops, barriers: Vec::new() };
-        ExecutionPlan { passes, devices: vec![program], kernels, ..ExecutionPlan::default() }
+        KernelPlan { plan: ExecutionPlan { passes, devices: vec![program], ..ExecutionPlan::default() }, kernels }
     }
 
     /// The declared pass of the instances named `name` among instances named `names`: one per
@@ -747,7 +748,7 @@ mod tests {
 
     /// A plan whose passes are named `names` (one instance each, view = index; one declared pass
     /// per distinct name).
-    fn plan_of(names: &[&str]) -> ExecutionPlan {
+    fn plan_of(names: &[&str]) -> KernelPlan {
         let pass = |(view, name): (usize, &&str)| PassInstance {
             pass: grouping_plans::pass_named(name, names),
             name: name.to_string(),
@@ -758,7 +759,8 @@ mod tests {
             writes: Vec::new(),
             history_reads: Vec::new(),
         };
-        ExecutionPlan { passes: names.iter().enumerate().map(pass).collect(), ..ExecutionPlan::default() }
+        let plan = ExecutionPlan { passes: names.iter().enumerate().map(pass).collect(), ..ExecutionPlan::default() };
+        KernelPlan { plan, ..KernelPlan::default() }
     }
 
     fn segment(items: Vec<Item>) -> Segment {

@@ -1,4 +1,5 @@
-//! The recording API that pass kernels see, and the registry that maps pass names to kernels.
+//! The recording API that pass kernels see. The kernels themselves ([`crate::PassKernel`]) live in
+//! kernel.rs, which imports this module: a recorder reads the data plan, never a kernel.
 //!
 //! A kernel never touches descriptors, barriers or timestamps: the executor binds the device's
 //! descriptor set and puts the barriers ([`crate::Barriers`]) and timestamp pairs
@@ -10,7 +11,7 @@ use std::sync::Arc;
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
-use parallax_graph::{Access, AllocId, Format, InstanceId, PassInstance, Region};
+use parallax_graph::{Access, AllocId, Format, PassInstance, Region};
 
 use crate::device::Device;
 use crate::error::{BackendError, Result};
@@ -81,7 +82,7 @@ impl RecordingBuffer {
     }
 }
 
-/// Records the work of one pass instance (or of a group of them, [`PassKernel::record_group`])
+/// Records the work of one pass instance (or of a group of them, [`crate::PassKernel::record_group`])
 /// into a device's command buffer.
 pub struct Recorder<'a> {
     /// Name of the pass being recorded, for errors.
@@ -536,40 +537,6 @@ fn check_push<P: PushConstants>(pass: &str, pipeline: &Pipeline) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// The GPU work of one pass (by name). Implemented by the passes crate for path tracing,
-/// reprojection, denoising, ...; the backend ships the small kernels its own tests use.
-pub trait PassKernel: Send + Sync {
-    /// Records instance `index` of the plan (`pass` = `plan.pass(index)`).
-    fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> Result<()>;
-
-    /// Whether the executor hands this kernel's instances to [`Self::record_group`] in groups
-    /// rather than one by one to [`Self::record`]: for work whose instances are too small to
-    /// fill a GPU alone (hole filling of many targets), which one dispatch can do for all.
-    fn records_groups(&self) -> bool {
-        false
-    }
-
-    /// Records `instances` (of `rec.plan()`) as one op, with no barrier and
-    /// no timestamp between them: consecutive instances of one pass in a submission of one
-    /// device that no barrier of the plan separates (the schedule puts one wherever an instance
-    /// touches what an earlier one wrote, so any order of their work is right), within one
-    /// timestamp pair. Only called when [`Self::records_groups`];
-    /// a group may have one instance. The default records each instance alone.
-    fn record_group(&self, rec: &mut Recorder<'_>, instances: &[InstanceId]) -> Result<()> {
-        for &index in instances {
-            self.record(rec, rec.plan().pass(index), index)?;
-        }
-        Ok(())
-    }
-
-    /// Whether the kernel writes memory its pass does not declare (a global buffer, say). The
-    /// schedule places barriers only where declared accesses conflict; the executor puts one
-    /// before and after such a kernel, so it is ordered against everything around it.
-    fn touches_undeclared_memory(&self) -> bool {
-        false
-    }
 }
 
 /// The checked attachments of one draw and their common size.

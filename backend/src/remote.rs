@@ -341,6 +341,7 @@ mod tests {
     use crate::exec_options::ExecOptions;
     use crate::executor::Executor;
     use crate::instance::Validation;
+    use crate::kernel::KernelPlan;
     use crate::links::LinkKind;
     use crate::plan::{CopyId, CrossCopy, Op, Region};
 
@@ -382,7 +383,7 @@ mod tests {
     }
 
     /// What device 1 holds of the payload after `frames` frames of `plan`.
-    fn received(context: &Context, plan: ExecutionPlan, options: ExecOptions, frames: usize) -> Vec<u8> {
+    fn received(context: &Context, plan: KernelPlan, options: ExecOptions, frames: usize) -> Vec<u8> {
         let dst = plan.copies.last().expect("a copy").dst_alloc;
         let mut executor = Executor::new(context, plan, options).unwrap();
         for _ in 0..frames {

@@ -5,8 +5,8 @@ use std::collections::BTreeSet;
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, ExecutionPlanError, Executor,
-    KernelGraph, LowerError, Validation,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlanError, Executor, KernelGraph,
+    KernelPlan, LowerError, Validation,
 };
 use parallax_graph::{
     AllocId, BandedPlacement, CopyId, DeviceId, FamilyId, Format, Op, PassPlacementInfo, Placement, Region, Role,
@@ -73,10 +73,10 @@ impl Placement for OnDevice {
     }
 }
 
-fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
+fn lower(graph: &KernelGraph, placement: &dyn Placement) -> KernelPlan {
     let schedule = compile(graph, placement).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    ExecutionPlan::from_schedule(graph, &schedule).unwrap()
+    KernelPlan::from_schedule(graph, &schedule).unwrap()
 }
 
 /// `views` views of `size`², each accumulating into `acc` from its own history (`read_history`),
@@ -93,7 +93,7 @@ fn history_graph(views: u32, size: u32) -> (KernelGraph, FamilyId) {
 }
 
 /// [`history_graph`] under `placement`, and the family of its `acc`.
-fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> (ExecutionPlan, FamilyId) {
+fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> (KernelPlan, FamilyId) {
     let (graph, acc) = history_graph(views, size);
     (lower(&graph, placement), acc)
 }
@@ -197,7 +197,7 @@ fn plan_errors_are_reported_before_any_gpu_work() {
     graph.export(&acc);
     let schedule = compile(&graph, &OnDevice { device: 0, devices: 1 }).unwrap();
     assert_eq!(
-        ExecutionPlan::from_schedule(&graph, &schedule).err().unwrap(),
+        KernelPlan::from_schedule(&graph, &schedule).err().unwrap(),
         LowerError::MissingKernel { pass: "accumulate".into() }
     );
 }
@@ -240,7 +240,7 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
 /// One raster pass instance per device, each over a row band of the same colour image and
 /// depth resource; bands of both gathered on device 0. Returns the plan and the families of the
 /// image and the depth resource.
-fn raster_plan(devices: usize, size: u32) -> (ExecutionPlan, [FamilyId; 2]) {
+fn raster_plan(devices: usize, size: u32) -> (KernelPlan, [FamilyId; 2]) {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(6, size, size));
     let mut gbuffer = graph.image("gbuffer", Format::Rgba32f);
     let mut depth = graph.image("depth", Format::Depth32f);
@@ -283,7 +283,7 @@ fn raster_passes_render_row_bands_into_a_depth_resource_on_any_device_count() {
 
 /// Two views, view v on device v, each `weighted_fill`ed; view 1 gathered on device 0. Returns
 /// the plan and the family of `w`.
-fn weighted_plan(size: u32) -> (ExecutionPlan, FamilyId) {
+fn weighted_plan(size: u32) -> (KernelPlan, FamilyId) {
     struct ViewPerDevice;
     impl Placement for ViewPerDevice {
         fn devices(&self) -> u32 {

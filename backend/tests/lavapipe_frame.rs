@@ -7,8 +7,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecResource, ExecutionPlan, Executor, FrameBlock, FrameClock, FrameData,
-    FrameHeader, GpuCamera, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, ViewCameras, WriteSlot,
+    BackendError, Context, ExecOptions, ExecResource, Executor, FrameBlock, FrameClock, FrameData, FrameHeader,
+    GpuCamera, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder, ViewCameras, WriteSlot,
     check_push_constants,
 };
 use parallax_graph::{
@@ -140,7 +140,7 @@ impl Placement for ViewPerDevice {
 }
 
 /// View 0 filled on device 0, view 1 on device 1 and gathered on device 0; both exported.
-fn gather_plan() -> ExecutionPlan {
+fn gather_plan() -> KernelPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, SIZE, SIZE));
     let mut fill = graph.image("fill", Format::R32u);
     let mut pass = graph.pass("frame_fill", Role::All);
@@ -148,7 +148,7 @@ fn gather_plan() -> ExecutionPlan {
     pass.kernel(Arc::new(kernel)).record();
     graph.export(&fill);
     let schedule = compile(&graph, &ViewPerDevice).unwrap();
-    ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+    KernelPlan::from_schedule(&graph, &schedule).unwrap()
 }
 
 /// This frame's data: the frame block, then the fill pass's salt.
@@ -257,7 +257,7 @@ fn kernels_see_last_frames_camera_as_previous_and_no_history_after_a_cut() {
     let bytes = 4 * (3 + camera_words_per_view * VIEWS as u64);
     let mut probe = ExecResource::buffer("frame block copy", FamilyId(0), 0, bytes);
     probe.exported = true;
-    let plan = ExecutionPlan::single_pass("frame_probe", |out| FrameProbeKernel { views: VIEWS, out }, probe, 1);
+    let plan = KernelPlan::single_pass("frame_probe", |out| FrameProbeKernel { views: VIEWS, out }, probe, 1);
     let ctx = context(1);
     let options = ExecOptions { read_back_exports: true, frames_in_flight: 2, ..parallax_testkit::options() };
     let mut exec = Executor::new(&ctx, plan.clone(), options.clone()).unwrap();

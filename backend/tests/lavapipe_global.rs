@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    ExecutionPlan, Executor, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder, ResourceKind,
+    Executor, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, PassParams, Recorder, ResourceKind,
 };
 use parallax_graph::{
     AssignStrategy, DeviceId, FamilyId, Format, LightField, Plan, PlanConfig, ProvenSchedule, ReadSlot, Rig, Role,
@@ -73,7 +73,7 @@ impl PassKernel for BlendWithGlobal {
 
 fn run(scheme: Scheme, devices: u32) -> Vec<Vec<u8>> {
     let (graph, schedule) = global_graph(scheme, devices);
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let shared: Vec<_> = plan.resources.iter().filter(|r| r.name == "shared").collect();
     let blend_devices: std::collections::BTreeSet<DeviceId> =
         plan.passes.iter().filter(|p| p.name == "blend").map(|p| p.device).collect();

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use parallax_backend::KernelGraph;
 use parallax_backend::{
-    Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, ExecutionPlan, Executor, Validation,
+    Context, ContextDesc, DeviceSelection, EventKind, ExecOptions, ExecutionPlan, Executor, KernelPlan, Validation,
 };
 use parallax_graph::Format;
 use parallax_graph::{
@@ -63,7 +63,7 @@ fn output_resources(plan: &ExecutionPlan, views: u32) -> Vec<(u32, AllocId)> {
 
 fn run(scheme: Scheme, devices: u32) -> Vec<Vec<f32>> {
     let ((graph, schedule), sources_of) = demo_schedule(scheme, devices);
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = Context::new(&ContextDesc {
         selection: DeviceSelection::FakeDevices(devices as usize),
         validation: Validation::Core,
@@ -123,7 +123,7 @@ fn both_schemes_really_copy_between_devices() {
     for scheme in [Scheme::FineAll, Scheme::FineSources] {
         for devices in [2, 3] {
             let ((graph, schedule), _) = demo_schedule(scheme, devices);
-            let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+            let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
             plan.validate(devices as usize).unwrap();
             assert!(plan.copies.iter().any(|c| c.region.len() < SIZE), "{scheme:?}/{devices}: expected band copies");
             // Fine-sources finishes every view on device 0; fine-all gathers the bands there.
@@ -146,7 +146,7 @@ fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     declare_writer(&mut g, "fill_buffer", Role::All, &mut list, |out| FillBufferKernel { out }).record();
     g.export(&list);
     let schedule = compile(&g, &plan).unwrap();
-    let exec_plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
+    let exec_plan = KernelPlan::from_schedule(&g, &schedule).unwrap();
     assert!(exec_plan.resources.iter().all(|r| r.kind == ResourceKind::Buffer && r.width == 250));
     assert_eq!(exec_plan.copies.len(), 2, "views on devices 1 and 2 gathered to device 0");
     let gathered: Vec<AllocId> = (0..3).map(|v| exec_plan.final_output(list.family(), v).unwrap().1).collect();
@@ -180,7 +180,7 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
                 let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
                 let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
                 let (graph, schedule) = fill_and_blend(&plan);
-                let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+                let exec_plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
                 let outputs = output_resources(&exec_plan, lf.len() as u32);
                 let ctx = Context::new(&ContextDesc {
                     selection: DeviceSelection::FakeDevices(devices as usize),
@@ -215,7 +215,7 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
 fn graph_exports_are_read_back_by_the_frame_loop() {
     let devices = 2;
     let ((graph, schedule), _) = demo_schedule(Scheme::FineAll, devices);
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let mut outputs: Vec<AllocId> = output_resources(&plan, schedule.views).into_iter().map(|(_, r)| r).collect();
     outputs.sort();
     let exported: Vec<AllocId> = plan.resource_ids().filter(|(_, r)| r.exported).map(|(a, _)| a).collect();

@@ -7,8 +7,8 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecResource, ExecutionPlan, ExecutionPlanError,
-    Executor, Format, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, Region, Validation, own_access,
+    BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecResource, ExecutionPlanError, Executor,
+    Format, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder, Region, Validation, own_access,
 };
 use parallax_graph::{AllocId, BandedPlacement, FamilyId, ReadSlot, Role, ViewTopology, WriteSlot, compile};
 use parallax_testkit::kernels::reference_mask;
@@ -122,7 +122,7 @@ impl PassKernel for MisusedKernel {
 
 /// Arguments and counter (both reset every frame and exported), written by `fused` as one pass
 /// or by two; both accumulate into their reset contents in place.
-fn indirect_plan(fused: bool) -> ExecutionPlan {
+fn indirect_plan(fused: bool) -> KernelPlan {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 1, 1));
     let mut args = graph.buffer(ARGS, 16);
     let mut counter = graph.buffer(COUNTER, 4);
@@ -144,7 +144,7 @@ fn indirect_plan(fused: bool) -> ExecutionPlan {
     graph.export(&counter);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    ExecutionPlan::from_schedule(&graph, &schedule).unwrap()
+    KernelPlan::from_schedule(&graph, &schedule).unwrap()
 }
 
 #[test]
@@ -193,7 +193,7 @@ fn indirect_arguments_that_cannot_be_read_are_refused_naming_the_resource() {
     let image = ExecResource { storage: 1, ..ExecResource::image("image", FamilyId(1), 0, 4, 4, Format::R32u) };
     let plan = |kernel: MisusedKernel| {
         let args = ExecResource::buffer("args", FamilyId(0), 0, 16);
-        let mut plan = ExecutionPlan::single_pass("misused", |_| kernel, args, 1);
+        let mut plan = KernelPlan::single_pass("misused", |_| kernel, args, 1);
         plan.resources.push(image.clone());
         plan.passes[0].writes.push(own_access(1, AllocId(1), Region::new(0, 4)));
         plan

@@ -9,8 +9,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    BACKEND_SHADERS, BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlan, Executor,
-    InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder, SearchedShaders, ShaderLibrary,
+    BACKEND_SHADERS, BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, Executor, InstanceId,
+    KernelGraph, KernelPlan, PassInstance, PassKernel, PassParams, Recorder, SearchedShaders, ShaderLibrary,
     SpirvDefect, Validation, shader_names,
 };
 use parallax_glsl::{CompiledShader, Compiler};
@@ -64,7 +64,7 @@ fn reference_scale_swap(x: u32, y: u32, view: u32) -> [f32; 4] {
 /// testkit `fill` → user pass `user` (kernel dispatching `shader`) on every view of a 2×1 light
 /// field over two devices, the result gathered on device 0. Returns the plan and, per view,
 /// the resource of the result.
-fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<AllocId>) {
+fn fill_then_user_pass(shader: &'static str) -> (KernelPlan, Vec<AllocId>) {
     let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
     let config =
         PlanConfig { devices: DEVICES, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
@@ -78,7 +78,7 @@ fn fill_then_user_pass(shader: &'static str) -> (ExecutionPlan, Vec<AllocId>) {
     pass.kernel(Arc::new(ReadWriteKernel { shader, src, dst })).record();
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
-    let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&g, &schedule).unwrap();
     let outputs = (0..2).map(|v| plan.final_output(output.family(), v).unwrap().1).collect();
     (plan, outputs)
 }
@@ -186,7 +186,7 @@ fn a_push_constant_struct_unlike_the_shaders_block_is_refused_naming_the_pass_an
     pass.kernel(Arc::new(kernel)).record();
     g.export(&out);
     let placement = parallax_graph::BandedPlacement { devices: DEVICES, bands: 1 };
-    let plan = ExecutionPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();
+    let plan = KernelPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();
     let options = ExecOptions { shaders: parallax_testkit::shaders(), ..ExecOptions::default() };
     let result = Executor::new(&ctx, plan, options).and_then(|mut exec| exec.run_frame());
     match result {

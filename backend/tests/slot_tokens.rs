@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, ExecutionPlan, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
+use parallax_backend::{BackendError, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder};
 use parallax_graph::{BandedPlacement, Format, Origin, Role, UnboundSlot, ViewId, ViewTopology, compile};
 
 /// A kernel that records nothing: these tests only look at the lowered plan.
@@ -16,7 +16,7 @@ impl PassKernel for Nothing {
     }
 }
 
-fn pass_named<'p>(plan: &'p ExecutionPlan, name: &str, view: u32) -> &'p PassInstance {
+fn pass_named<'p>(plan: &'p KernelPlan, name: &str, view: u32) -> &'p PassInstance {
     plan.passes.iter().find(|p| p.name == name && p.view == ViewId(view)).unwrap()
 }
 
@@ -43,7 +43,7 @@ fn each_token_binds_its_own_access_and_a_foreign_one_is_refused() {
     blend.side_effect().kernel(Arc::new(Nothing)).record();
 
     let placement = BandedPlacement { devices: 1, bands: 1 };
-    let plan = ExecutionPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();
+    let plan = KernelPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();
     let blend = pass_named(&plan, "blend", 1);
     let name = |access: &parallax_backend::Access| plan.resource(access.alloc).name.clone();
     assert_eq!(name(blend.read(own).unwrap()), "radiance");

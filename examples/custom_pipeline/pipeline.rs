@@ -15,8 +15,8 @@ use anyhow::{Context as _, Result, bail, ensure};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    AllocId, BackendError, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, ExecutionPlan, Executor,
-    FamilyId, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, Validation,
+    AllocId, BackendError, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, Executor, FamilyId,
+    InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder, Validation,
 };
 use parallax_graph::{
     AssignStrategy, Format, LightField, Plan, PlanConfig, ProvenSchedule, ReadSlot, Rig, Role, Scheme, SourcesSlot,
@@ -188,7 +188,7 @@ pub fn schedule_dot(scheme: Scheme, devices: u32) -> Result<String> {
 pub fn run(options: &Options) -> Result<Report> {
     let (lf, plan, graph, radiance) = declare(options.scheme, options.devices.count() as u32)?;
     let schedule = schedule(&graph, &plan)?;
-    let exec_plan = ExecutionPlan::from_schedule(&graph, &schedule)?;
+    let exec_plan = KernelPlan::from_schedule(&graph, &schedule)?;
     let shaders = parallax_backend::include_shaders!()?;
 
     let context = Context::new(&ContextDesc { selection: options.devices, validation: options.validation })?;

@@ -10,8 +10,8 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ExecOptions, ExecutionPlan, Executor, Format, FrameClock, FrameData, FrameReport,
-    InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder,
+    BackendError, Context, ExecOptions, Executor, Format, FrameClock, FrameData, FrameReport, InstanceId, KernelGraph,
+    KernelPlan, PassInstance, PassKernel, PassParams, Recorder,
 };
 use parallax_graph::{BandedPlacement, FamilyId, Role, ViewId, ViewTopology, WriteSlot, compile};
 use parallax_scene::gpu::GpuScene;
@@ -170,7 +170,7 @@ pub fn bench_holes(
 /// Source view 0 path traced, target view 1 masked, compacted and filled (after the first-hit
 /// G-buffer of both with `first_hits`), on one device. The plan, and the family of its hole
 /// list.
-fn bench_plan(width: u32, height: u32, threshold: u32, first_hits: bool) -> Result<(ExecutionPlan, FamilyId)> {
+fn bench_plan(width: u32, height: u32, threshold: u32, first_hits: bool) -> Result<(KernelPlan, FamilyId)> {
     let topology =
         ViewTopology { width, height, sources_of: vec![Vec::new(), vec![ViewId(0)]], is_source: vec![true, false] };
     let mut graph = KernelGraph::with_payload(topology);
@@ -188,7 +188,7 @@ fn bench_plan(width: u32, height: u32, threshold: u32, first_hits: bool) -> Resu
     let list = declare_hole_fill(&mut graph, &holes, first_hit.as_ref(), &mut radiance);
     graph.export(&radiance);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?;
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
+    let plan = KernelPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
     Ok((plan, list.family()))
 }
 

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    AllocId, BackendError, Context, DeviceId, EventKind, ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph,
+    AllocId, BackendError, Context, DeviceId, EventKind, ExecOptions, Executor, InstanceId, KernelGraph, KernelPlan,
     PassInstance, PassKernel, Recorder, ResourceKind, WriteSlot,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
@@ -240,7 +240,7 @@ impl Raycaster {
 
 /// One `raycast` instance on device 0 (the others idle) writing the hits of up to `capacity` rays
 /// to `hits`, the plan's only resource (0).
-fn raycast_plan(capacity: usize, opaque: bool, schedule: RaySchedule, devices: u32) -> Result<ExecutionPlan> {
+fn raycast_plan(capacity: usize, opaque: bool, schedule: RaySchedule, devices: u32) -> Result<KernelPlan> {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 1, 1));
     let mut hits = graph.buffer("hits", (capacity * std::mem::size_of::<HitOut>()) as u64);
     let mut pass = graph.pass(RAYCAST, Role::All);
@@ -248,7 +248,7 @@ fn raycast_plan(capacity: usize, opaque: bool, schedule: RaySchedule, devices: u
     // Nothing in the plan reads the hits: the host does.
     pass.side_effect().kernel(Arc::new(kernel)).record();
     let schedule = compile(&graph, &BandedPlacement { devices, bands: 1 })?;
-    Ok(ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
+    Ok(KernelPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
 }
 
 fn xorshift(s: &mut u64) -> f32 {

@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use parallax_backend::{
     AllocId, Context, DeviceId, ExecOptions, ExecutionPlan, Executor, FamilyId, FrameClock, FrameData, FrameReport,
-    FrameStats, Summary,
+    FrameStats, KernelPlan, Summary,
 };
 use parallax_scene::gpu::{GpuScene, TraceLighting};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -51,7 +51,7 @@ pub struct LightFieldRenderer {
 impl LightFieldRenderer {
     /// Creates the executor for `plan` and uploads `scene`. The plan's views are those its
     /// passes and resources name (views `0..n`): every frame gives that many.
-    pub fn new(context: &Context, plan: ExecutionPlan, scene: &GpuScene<'_>) -> Result<Self> {
+    pub fn new(context: &Context, plan: KernelPlan, scene: &GpuScene<'_>) -> Result<Self> {
         Self::with_options(context, plan, scene, ExecOptions::default())
     }
 
@@ -60,7 +60,7 @@ impl LightFieldRenderer {
     /// are layered over the passes' ([`crate::shader_library`]).
     pub fn with_options(
         context: &Context,
-        plan: ExecutionPlan,
+        plan: KernelPlan,
         scene: &GpuScene<'_>,
         options: ExecOptions,
     ) -> Result<Self> {

@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, Context, ExecOptions, ExecutionPlan, KernelGraph, ResourceKind};
+use parallax_backend::{BackendError, Context, ExecOptions, KernelGraph, KernelPlan, ResourceKind};
 use parallax_graph::{
     AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
     Scheme, ViewTopology, compile,
@@ -51,7 +51,7 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
 /// A plan of `path_trace` passes and its [`TraceOutputs`].
 #[derive(Clone, Debug)]
 pub struct TracePlan {
-    pub plan: ExecutionPlan,
+    pub plan: KernelPlan,
     pub outputs: TraceOutputs,
 }
 
@@ -92,7 +92,7 @@ fn lower_trace(
     let mut graph = KernelGraph::with_payload(topology);
     let outputs = declare_trace(&mut graph, pixel_list).map(|image| Some(image.family()));
     let schedule = compile(&graph, placement)?;
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
+    let plan = KernelPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
     Ok(TracePlan { plan, outputs })
 }
 

@@ -6,8 +6,7 @@ mod common;
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph, MAX_TEXTURES, ShaderLibrary,
-    TextureData,
+    BackendError, ExecOptions, Executor, InstanceId, KernelGraph, KernelPlan, MAX_TEXTURES, ShaderLibrary, TextureData,
 };
 use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
 use parallax_passes::{
@@ -65,7 +64,7 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     pass.kernel(Arc::new(kernel)).record();
     g.export(&list);
     let schedule = compile(&g, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
-    let plan = ExecutionPlan::from_schedule(&g, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&g, &schedule).unwrap();
     let options = ExecOptions { shaders: parallax_passes::shader_library(), ..ExecOptions::default() };
     let mut exec = Executor::new(&ctx, plan, options).unwrap();
     parallax_passes::upload_scene(&mut exec, &gpu_scene).unwrap();

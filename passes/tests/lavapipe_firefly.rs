@@ -13,7 +13,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, Recorder,
+    ExecOptions, Executor, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, PassParams, Recorder,
     ShaderLibrary,
 };
 use parallax_graph::{BandedPlacement, Format, Role, ViewTopology, WriteSlot, compile};
@@ -82,7 +82,7 @@ fn synthetic(devices: u32, suppress: bool) -> Vec<f32> {
     graph.export(&radiance);
     let schedule = compile(&graph, &BandedPlacement { devices, bands: devices }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(devices as usize);
     let options = ExecOptions { shaders: test_shaders(), ..ExecOptions::default() };
     let mut exec = Executor::new(&ctx, plan, options).unwrap();
@@ -177,7 +177,7 @@ fn traced(mode: FireflyMode, frames: u32) -> Vec<Vec<(Vec<f32>, Vec<f32>)>> {
     graph.export(&handles.radiance);
     graph.export(&handles.gbuffer.position_depth);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(1);
     let bvh = SceneBvh::build(&scene);
     let mut renderer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&scene, &bvh)).unwrap();

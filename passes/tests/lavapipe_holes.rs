@@ -14,7 +14,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use parallax_backend::{
-    EventKind, ExecOptions, ExecutionPlan, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder,
+    EventKind, ExecOptions, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder,
 };
 use parallax_graph::{
     AssignStrategy, FamilyId, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, ViewId, WriteSlot,
@@ -39,7 +39,7 @@ const SETTINGS: TraceSettings =
 
 /// What a run gives back: every view's pixels and, per view that has one, its `hole_list` words.
 struct Run {
-    plan: ExecutionPlan,
+    plan: KernelPlan,
     pixels: Vec<Vec<GpuPixel>>,
     lists: Vec<(u32, Vec<u32>)>,
     /// Per frame, the devices of its timed `hole_fill` ops (a timestamp pair around each op).
@@ -105,7 +105,7 @@ impl Case {
         graph.export(&list);
         let schedule = compile(&graph, &placement).unwrap();
         assert_eq!(schedule.validate().errors, vec![]);
-        let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+        let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
         let outputs = [Some(radiance.family()), None, None, None];
         HolePlan { trace: TracePlan { plan, outputs }, list: Some(list.family()) }
     }

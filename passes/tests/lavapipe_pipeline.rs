@@ -6,7 +6,7 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{Barriers, EventKind, ExecOptions, ExecutionPlan, FrameReport, KernelGraph, LinkKind, Timing};
+use parallax_backend::{Barriers, EventKind, ExecOptions, FrameReport, KernelGraph, KernelPlan, LinkKind, Timing};
 use parallax_graph::{
     AssignStrategy, DeviceId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region, Scheme,
     ViewId, compile,
@@ -85,7 +85,7 @@ fn run_config(
     graph.export(&handles.display);
     let (denoised, display) = (handles.denoised.expect("the pipeline denoises").family(), handles.display.family());
     let schedule = compile(&graph, placement).unwrap();
-    let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let exec = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(placement.devices() as usize);
     let bvh = SceneBvh::build(scene);
     let mut renderer = LightFieldRenderer::with_options(&ctx, exec, &GpuScene::new(scene, &bvh), options).unwrap();

@@ -6,7 +6,7 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{ExecutionPlan, KernelGraph};
+use parallax_backend::{KernelGraph, KernelPlan};
 use parallax_graph::{
     AssignStrategy, DeviceId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region, Scheme,
     ViewId, compile,
@@ -51,7 +51,7 @@ fn run(lf: &LightField, plan: &Plan, placement: &dyn Placement, pose: bool) -> V
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.display);
     let denoised = handles.denoised.expect("the pipeline denoises").family();
-    let exec = ExecutionPlan::from_schedule(&graph, &compile(&graph, placement).unwrap()).unwrap();
+    let exec = KernelPlan::from_schedule(&graph, &compile(&graph, placement).unwrap()).unwrap();
     let ctx = common::context(placement.devices() as usize);
     let bvh = SceneBvh::build(&scene);
     let mut renderer = LightFieldRenderer::new(&ctx, exec, &GpuScene::new(&scene, &bvh)).unwrap();

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use parallax_backend::{
-    ExecOptions, ExecutionPlan, Executor, FrameClock, FrameData, InstanceId, KernelGraph, PassInstance, PassKernel,
+    ExecOptions, Executor, FrameClock, FrameData, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel,
     PassParams, Recorder, ShaderLibrary,
 };
 use parallax_graph::{BandedPlacement, DeviceId, FamilyId, Format, ReadSlot, Role, ViewTopology, WriteSlot, compile};
@@ -54,7 +54,7 @@ impl PassKernel for DepthCopyKernel {
 /// colour layers, the depth resource and its copy exported; under `bands` bands on as many
 /// devices. Returns the plan and the families of the exported layers, in [`RASTER_OUTPUTS`]
 /// order, then the depth and its copy.
-fn raster_plan(views: u32, (width, height): (u32, u32), devices: u32) -> (ExecutionPlan, [FamilyId; 5]) {
+fn raster_plan(views: u32, (width, height): (u32, u32), devices: u32) -> (KernelPlan, [FamilyId; 5]) {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(views, width, height));
     let g = declare_gbuffer_raster(&mut graph);
     let mut copy = graph.image(DEPTH_COPY, Format::R32f);
@@ -67,7 +67,7 @@ fn raster_plan(views: u32, (width, height): (u32, u32), devices: u32) -> (Execut
     }
     let schedule = compile(&graph, &BandedPlacement { devices, bands: devices }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    (ExecutionPlan::from_schedule(&graph, &schedule).unwrap(), exported.map(|image| image.family()))
+    (KernelPlan::from_schedule(&graph, &schedule).unwrap(), exported.map(|image| image.family()))
 }
 
 /// Every exported layer of every view after one frame, by layer name: what device 0 holds.

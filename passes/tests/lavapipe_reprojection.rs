@@ -9,7 +9,7 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{ExecutionPlan, KernelGraph};
+use parallax_backend::{KernelGraph, KernelPlan};
 use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
@@ -128,7 +128,7 @@ fn render_setup(s: Setup<'_>) -> Rendered {
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     let schedule = compile(&graph, &plan).unwrap();
-    let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let exec = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(s.devices as usize);
     let views = lightfield_views(&lf);
     let mut renderer = LightFieldRenderer::new(&ctx, exec, &GpuScene::new(s.scene, &bvh)).unwrap();

@@ -12,8 +12,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parallax_backend::{
-    Context, ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams,
-    Recorder, ShaderLibrary,
+    Context, ExecOptions, ExecutionPlan, Executor, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel,
+    PassParams, Recorder, ShaderLibrary,
 };
 use parallax_graph::{
     BandedPlacement, FamilyId, Format, Handle, Image, Placement, ReadSlot, Role, ViewTopology, WriteSlot, compile,
@@ -130,7 +130,7 @@ struct Input {
 
 /// `path_trace` (G-buffer and radiance) → [`Input`] → `declare_svgf`, for `views` views;
 /// `denoised` and the traced radiance exported.
-fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> ExecutionPlan {
+fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> KernelPlan {
     let mut g = KernelGraph::with_payload(ViewTopology::all_sources(views, SIZE, SIZE));
     let [mut radiance, mut albedo, mut normal, mut position]: [Handle<Image>; 4] =
         TRACE_OUTPUTS.map(|name| g.image(name, Format::Rgba32f));
@@ -180,10 +180,10 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> ExecutionPl
     lower(&g, placement)
 }
 
-fn lower(graph: &KernelGraph, placement: &dyn Placement) -> ExecutionPlan {
+fn lower(graph: &KernelGraph, placement: &dyn Placement) -> KernelPlan {
     let schedule = compile(graph, placement).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    ExecutionPlan::from_schedule(graph, &schedule).unwrap()
+    KernelPlan::from_schedule(graph, &schedule).unwrap()
 }
 
 fn one_device() -> BandedPlacement {
@@ -198,7 +198,7 @@ struct Run {
 }
 
 impl Run {
-    fn new(ctx: &Context, plan: ExecutionPlan, views: u32, test: &str) -> Self {
+    fn new(ctx: &Context, plan: KernelPlan, views: u32, test: &str) -> Self {
         let scene = default_scene();
         let bvh = SceneBvh::build(&scene);
         let options = ExecOptions { shaders: test_shaders(test), ..ExecOptions::default() };

@@ -7,7 +7,7 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph};
+use parallax_backend::{ExecOptions, KernelGraph, KernelPlan};
 use parallax_graph::{BandedPlacement, FamilyId, ViewTopology, compile};
 use parallax_passes::pipeline::{PipelineKind, declare_pipeline};
 use parallax_passes::{LightFieldRenderer, banded_trace_plan};
@@ -32,7 +32,7 @@ fn renderer(ctx: &parallax_backend::Context, scene: &Scene, views: u32) -> (Ligh
     let denoised = handles.denoised.as_ref().unwrap();
     graph.export(denoised);
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let bvh = SceneBvh::build(scene);
     (LightFieldRenderer::new(ctx, plan, &GpuScene::new(scene, &bvh)).unwrap(), denoised.family())
 }

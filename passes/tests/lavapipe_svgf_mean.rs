@@ -17,7 +17,7 @@
 mod common;
 
 use glam::{Vec3, Vec4};
-use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph};
+use parallax_backend::{ExecOptions, KernelGraph, KernelPlan};
 use parallax_graph::{BandedPlacement, ViewTopology, compile};
 use parallax_passes::pipeline::{PipelineKind, declare_pipeline};
 use parallax_passes::{LightFieldRenderer, banded_trace_plan};
@@ -176,7 +176,7 @@ fn denoise(case: &Case) -> Measured {
     let [radiance_of, denoised_of] = read_back.map(|handle| handle.family());
     let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(1);
     let bvh = SceneBvh::build(&case.scene);
     let mut renderer = LightFieldRenderer::new(&ctx, plan, &GpuScene::new(&case.scene, &bvh)).unwrap();

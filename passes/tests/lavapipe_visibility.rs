@@ -10,7 +10,7 @@
 mod common;
 
 use glam::Vec3;
-use parallax_backend::{ExecOptions, ExecutionPlan, KernelGraph};
+use parallax_backend::{ExecOptions, KernelGraph, KernelPlan};
 use parallax_graph::{BandedPlacement, FamilyId, ViewTopology, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::gbuffer::declare_gbuffer;
@@ -41,7 +41,7 @@ fn render(scene: &Scene, views: &[View], devices: u32, visibility: bool) -> Laye
     let families: [FamilyId; 5] = exported.map(|image| image.family());
     let schedule = compile(&graph, &BandedPlacement { devices, bands: devices }).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
-    let plan = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(devices as usize);
     let bvh = SceneBvh::build(scene);
     let mut renderer =

@@ -8,7 +8,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use parallax_backend::{Barriers, Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, ExecutionPlan, Timing};
+use parallax_backend::{Barriers, Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, KernelPlan, Timing};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::PipelineBuilder;
@@ -54,7 +54,7 @@ pub(super) fn render_frames(
             args.link.kind().map_or("auto", |k| k.name())
         ))
     })?;
-    let exec_plan = ExecutionPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
+    let exec_plan = KernelPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
     let exec_plan = match &job.rank {
         Some(part) => crate::ranks::restrict_plan(&exec_plan, &part.layout, part.rank),
         None => exec_plan,

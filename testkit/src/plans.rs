@@ -15,7 +15,7 @@ use std::sync::Arc;
 
 use parallax_backend::{
     Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan, FamilyId,
-    Format, InstanceId, KernelGraph, Kernels, Op, PassId, PassInstance, Region, ViewId, own_access,
+    Format, InstanceId, KernelGraph, KernelPlan, Kernels, Op, PassId, PassInstance, Region, ViewId, own_access,
 };
 use parallax_graph::{Origin, Role, ViewTopology};
 
@@ -67,7 +67,7 @@ pub fn demo_device_of_view(view: u32, devices: usize) -> DeviceId {
 }
 
 /// Builds the reprojection demo for `views` views of `width`×`height` on `devices` devices.
-pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) -> (ExecutionPlan, DemoResources) {
+pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) -> (KernelPlan, DemoResources) {
     assert!(views >= 1 && devices >= 1 && height >= devices as u32);
     let mut demo = Demo::new(views, devices, width, height);
     demo.fills();
@@ -79,7 +79,7 @@ pub fn reprojection_demo(views: u32, devices: usize, width: u32, height: u32) ->
 
 /// The reprojection demo while it is laid out.
 struct Demo {
-    plan: ExecutionPlan,
+    plan: KernelPlan,
     /// Phase lists per device; concatenated at the end so every wait follows its signal's phase.
     phases: Vec<[Vec<Op>; 4]>,
     views: u32,
@@ -93,7 +93,7 @@ impl Demo {
         let mut kernels = Kernels::default();
         kernels.insert(FILL, Arc::new(fill));
         kernels.insert(SHIFT_BLEND, Arc::new(blend));
-        let mut plan = ExecutionPlan { kernels, ..ExecutionPlan::default() };
+        let mut plan = KernelPlan { kernels, ..KernelPlan::default() };
         let mut image = |name: &str, family: FamilyId, view: u32| {
             plan.resources.push(ExecResource::image(name, family, view, width, height, Format::Rgba32f));
             AllocId(plan.resources.len() as u32 - 1)
@@ -221,7 +221,7 @@ impl Demo {
         }
     }
 
-    fn finish(mut self) -> (ExecutionPlan, DemoResources) {
+    fn finish(mut self) -> (KernelPlan, DemoResources) {
         for (d, device_phases) in self.phases.into_iter().enumerate() {
             let ops = device_phases.into_iter().flatten().collect();
             self.plan.devices.push(DeviceProgram { device: DeviceId(d as u32), ops, barriers: Vec::new() });
@@ -232,7 +232,7 @@ impl Demo {
 }
 
 /// One fill on device 0 of a `width`×`height` RGBA32F image and its copy to device 1.
-pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
+pub fn copy_plan(width: u32, height: u32) -> KernelPlan {
     let all = Region::new(0, height);
     let mut plan = ExecutionPlan {
         resources: vec![ExecResource::image("payload", RADIANCE, 0, width, height, Format::Rgba32f)],
@@ -246,7 +246,6 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
             history_reads: vec![],
             writes: vec![own_access(0, AllocId(0), all)],
         }],
-        kernels: fill_only(),
         ..ExecutionPlan::default()
     };
     plan.copies = vec![plan.laid_copy((AllocId(0), AllocId(0)), all, (DeviceId(0), DeviceId(1)), CopyKind::Dependency)];
@@ -257,7 +256,7 @@ pub fn copy_plan(width: u32, height: u32) -> ExecutionPlan {
         program(1, vec![Op::Wait(c), Op::CopyIn(c)]),
     ];
     plan.place_barriers();
-    plan
+    KernelPlan { plan, kernels: fill_only() }
 }
 
 /// The demo's `fill` alone (pass 0, writing its payload as write 0).

@@ -7,6 +7,7 @@ use ash::vk;
 use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
 use crate::error::{BackendError, Result};
 use crate::exec_options::FaultInjection;
+use crate::kernel::KernelPlan;
 use crate::link_memory::import_timeline;
 use crate::links::{ChunkLink, Link, LinkKind, link_order};
 use crate::plan::{CopyId, ExecutionPlan};
@@ -22,7 +23,7 @@ impl Executor {
     /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the
     /// current one; otherwise waits for all frames, keeps the images whose resource description
     /// is unchanged (their contents survive), and records everything anew at the next frame.
-    pub fn set_plan(&mut self, plan: ExecutionPlan) -> Result<bool> {
+    pub fn set_plan(&mut self, plan: KernelPlan) -> Result<bool> {
         if plan == self.plan {
             return Ok(false);
         }
@@ -31,7 +32,7 @@ impl Executor {
         Ok(true)
     }
 
-    pub(super) fn build(&mut self, plan: ExecutionPlan) -> Result<()> {
+    pub(super) fn build(&mut self, plan: KernelPlan) -> Result<()> {
         plan.validate(self.devices.len())?;
         // Threads first (they use the old semaphores), then the old states.
         self.relay = None;

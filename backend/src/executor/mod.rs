@@ -1,4 +1,4 @@
-//! The executor: turns an [`ExecutionPlan`] into per-device command buffers recorded once, and submits
+//! The executor: turns a [`KernelPlan`] into per-device command buffers recorded once, and submits
 //! them frame after frame.
 //!
 //! * Within a device, submissions are ordered by the queue and made memory-safe by barriers;
@@ -47,9 +47,9 @@ use crate::error::Result;
 use crate::exec_options::ExecOptions;
 use crate::frame_data::FrameData;
 use crate::instance::Instance;
+use crate::kernel::KernelPlan;
 use crate::links::{ChunkLink, DeviceSubmissions, Link, LinkInfo, LinkKinds, link_kinds};
 use crate::memory::Buffer;
-use crate::plan::ExecutionPlan;
 use crate::readback::Readback;
 use crate::relay::Relay;
 use crate::remote::Remote;
@@ -72,11 +72,11 @@ struct InFlight {
     read_back: bool,
 }
 
-/// Executes an [`ExecutionPlan`] on the devices of a [`Context`].
+/// Executes a [`KernelPlan`] on the devices of a [`Context`].
 pub struct Executor {
     instance: Arc<Instance>,
     devices: Vec<Arc<Device>>,
-    plan: ExecutionPlan,
+    plan: KernelPlan,
     options: ExecOptions,
     chunks: Vec<Vec<Chunk>>,
     states: Vec<DeviceState>,
@@ -131,13 +131,13 @@ impl Executor {
     /// Chooses the links between devices (refusing a requested kind some pair cannot use),
     /// validates `plan` and allocates its resources. Command buffers are recorded at the first
     /// frame (so global buffers can be uploaded first) and then reused.
-    pub fn new(context: &Context, plan: ExecutionPlan, options: ExecOptions) -> Result<Self> {
+    pub fn new(context: &Context, plan: KernelPlan, options: ExecOptions) -> Result<Self> {
         let link_kinds = link_kinds(&context.devices, options.link)?;
         let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
             instance: context.instance.clone(),
             devices: context.devices.clone(),
-            plan: ExecutionPlan::default(),
+            plan: KernelPlan::default(),
             options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
             chunks: Vec::new(),
             states: Vec::new(),
@@ -221,7 +221,7 @@ impl Executor {
     }
 
     /// The plan being executed.
-    pub fn plan(&self) -> &ExecutionPlan {
+    pub fn plan(&self) -> &KernelPlan {
         &self.plan
     }
 

@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use glam::Vec3;
-use parallax_backend::{Context, ExecOptions, ExecutionPlan, KernelGraph};
+use parallax_backend::{Context, ExecOptions, KernelGraph, KernelPlan};
 use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::firefly::FireflyMode;
@@ -48,7 +48,7 @@ pub fn reprojection_renderer(
     let handles = declare_pipeline(&mut graph, &pipeline).unwrap();
     graph.export(&handles.display);
     let schedule = compile(&graph, &plan).unwrap();
-    let exec = ExecutionPlan::from_schedule(&graph, &schedule).unwrap();
+    let exec = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let renderer = LightFieldRenderer::with_options(context, exec, &GpuScene::new(scene, bvh), options).unwrap();
     (renderer, handles)
 }
