@@ -4,7 +4,6 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use parallax_backend::KernelPlan;
 use parallax_graph::{PlanSummary, Rig};
 
 use crate::logging::{result, spinner};
@@ -54,13 +53,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     // The exposure is a push constant of tonemap: it changes no pass, resource or copy.
     let compiled = args.pipeline.compile(&lf, devices, 1.0)?;
     let summary = compiled.summary;
-    let shares = match &layout {
-        Some(layout) => {
-            let plan = KernelPlan::from_schedule(&compiled.graph, &compiled.schedule)?;
-            Some(shares(&compiled.schedule, &plan, layout, lf.width))
-        }
-        None => None,
-    };
+    let shares = layout.as_ref().map(|layout| shares(&compiled.schedule, &compiled.exec, layout, lf.width));
     // Render everything before writing anything, so a failure leaves no partial output.
     let dot = args.dot.render(&compiled.schedule);
     let dot = match (&layout, dot) {

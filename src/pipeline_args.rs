@@ -6,7 +6,7 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use parallax_backend::KernelGraph;
+use parallax_backend::{Compiled, KernelGraph, KernelPlan};
 use parallax_graph::{LightField, Plan, PlanConfig, PlanSummary, ProvenSchedule, Schedule, Scheme, SourcesPerSet};
 use parallax_passes::firefly::FireflyMode;
 use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
@@ -207,9 +207,10 @@ impl DotArgs {
 /// A compiled, checked schedule of the pipeline, with what running it needs.
 pub struct PipelineSchedule {
     pub plan: Plan,
-    pub graph: KernelGraph,
     pub handles: PipelineHandles,
     pub schedule: ProvenSchedule,
+    /// What executes `schedule`, lowered from it once here (a rank runs its part of it).
+    pub exec: KernelPlan,
     pub summary: PlanSummary,
     pub kind: PipelineKind,
 }
@@ -242,7 +243,8 @@ impl PipelineArgs {
     }
 
     /// Plans `lf` over `devices`, declares the pipeline (only the display images are exported:
-    /// they travel to device 0; float layers are read where they were made) and compiles it.
+    /// they travel to device 0; float layers are read where they were made) and compiles it
+    /// into its schedule and the plan that executes it (`Compiled::compile`).
     /// The plan depends only on the views' positions in the rig plane, never on the rig's pose,
     /// so any rig gives the same schedule.
     pub fn compile(&self, lf: &LightField, devices: u32, exposure: f32) -> Result<PipelineSchedule> {
@@ -294,8 +296,8 @@ impl PipelineArgs {
         let mut graph = KernelGraph::with_payload(plan.topology.clone());
         let handles = extend(PipelineBuilder::new(self.config(exposure))).declare(&mut graph)?;
         graph.export(&handles.display);
-        let schedule = parallax_graph::compile(&graph, &plan)?;
+        let Compiled { schedule, plan: exec } = Compiled::compile(&graph, &plan)?;
         let summary = PlanSummary::new(lf, &plan, &schedule);
-        Ok(PipelineSchedule { plan, graph, handles, schedule, summary, kind: self.pipeline.into() })
+        Ok(PipelineSchedule { plan, handles, schedule, exec, summary, kind: self.pipeline.into() })
     }
 }

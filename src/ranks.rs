@@ -240,7 +240,7 @@ mod tests {
         let matches = command.try_get_matches_from(words).unwrap();
         let lf = LayoutArgs::from_arg_matches(&matches).unwrap().with_rig(parallax_graph::Rig::default()).unwrap();
         let compiled = PipelineArgs::from_arg_matches(&matches).unwrap().compile(&lf, devices, 1.0).unwrap();
-        (KernelPlan::from_schedule(&compiled.graph, &compiled.schedule).unwrap(), compiled.schedule)
+        (compiled.exec, compiled.schedule)
     }
 
     /// Under multi-source each rank's part holds its devices' passes only, renumbered from 0,

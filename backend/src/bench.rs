@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use parallax_graph::{
     DeviceId, Format, Handle, Image, PassBuilder, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology,
-    WriteSlot, compile,
+    WriteSlot,
 };
 use serde::Serialize;
 
@@ -19,7 +19,7 @@ use crate::error::Result;
 use crate::exec_options::ExecOptions;
 use crate::executor::Executor;
 use crate::kernel::{KernelPlan, PassKernel};
-use crate::lower::KernelGraph;
+use crate::lower::{Compiled, KernelGraph};
 use crate::plan::{CopyId, InstanceId, PassInstance};
 use crate::recorder::Recorder;
 use crate::timing::{EventKind, FrameReport};
@@ -183,8 +183,7 @@ pub fn copy_plan(width: u32, height: u32) -> Result<KernelPlan> {
     let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
     declare_fill(&mut graph, Role::Sources, &mut payload).record();
     graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
-    let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: 1 })?;
-    Ok(KernelPlan::from_schedule(&graph, &schedule)?)
+    Ok(Compiled::compile(&graph, &ViewsInOrder { devices: 2, views_per_device: 1 })?.plan)
 }
 
 /// `sources` payloads on device 0 that one target on device 1 reads: `sources` copies in a row
@@ -200,8 +199,7 @@ pub(crate) fn gather_plan(sources: u32, width: u32, height: u32) -> Result<Kerne
     let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
     declare_fill(&mut graph, Role::Sources, &mut payload).record();
     graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
-    let schedule = compile(&graph, &ViewsInOrder { devices: 2, views_per_device: sources })?;
-    Ok(KernelPlan::from_schedule(&graph, &schedule)?)
+    Ok(Compiled::compile(&graph, &ViewsInOrder { devices: 2, views_per_device: sources })?.plan)
 }
 
 /// The overhead benchmark: `passes_per_device` views of `size`×`size` RGBA8 per device, each
@@ -211,8 +209,7 @@ pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<
     let mut graph = KernelGraph::with_payload(topology);
     let mut target = graph.image(PAYLOAD, Format::Rgba8);
     declare_fill(&mut graph, Role::All, &mut target).side_effect().record();
-    let schedule = compile(&graph, &ViewsInOrder { devices, views_per_device: passes_per_device })?;
-    Ok(KernelPlan::from_schedule(&graph, &schedule)?)
+    Ok(Compiled::compile(&graph, &ViewsInOrder { devices, views_per_device: passes_per_device })?.plan)
 }
 
 fn sustained_rate(bytes: u64, frames: &[CopyFrame]) -> Option<f64> {

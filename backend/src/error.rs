@@ -276,6 +276,27 @@ pub enum LowerError {
     UngroupedKernel { pass: String },
 }
 
+/// Why [`Compiled::compile`](crate::Compiled::compile) failed: the error of the step that
+/// failed, shown as that error alone, so a caller reports it as it reported the step's own.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CompileError {
+    #[error(transparent)]
+    Graph(#[from] parallax_graph::GraphError),
+    #[error(transparent)]
+    Lower(#[from] LowerError),
+}
+
+/// Each step's error becomes the backend error it becomes alone ([`BackendError::Graph`],
+/// [`BackendError::Lower`]).
+impl From<CompileError> for BackendError {
+    fn from(error: CompileError) -> BackendError {
+        match error {
+            CompileError::Graph(e) => BackendError::Graph(e),
+            CompileError::Lower(e) => BackendError::Lower(e),
+        }
+    }
+}
+
 /// Why bytes or words are not a SPIR-V module.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SpirvDefect {

@@ -13,7 +13,8 @@
 //!   times every pass instance and copy, or every run of one pass's instances ([`Timing`];
 //!   [`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
-//!   [`KernelPlan::from_schedule`] takes its compiled, proven schedule (allocations get their GPU
+//!   [`Compiled::compile`] compiles it and lowers its proven schedule in one call
+//!   ([`KernelPlan::from_schedule`] lowers one compiled or changed apart: allocations get their GPU
 //!   description, history allocations two halves swapped by frame parity; kernels bind the
 //!   instances' accesses by the slot tokens their declarations returned).
 //! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
@@ -45,7 +46,7 @@
 //! ```
 //! use std::sync::Arc;
 //! use parallax_backend::*;
-//! use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme, compile};
+//! use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme};
 //!
 //! // A kernel of its own: the benchmark's producer shader over the instance's rows, into the
 //! // write its pass declared.
@@ -72,7 +73,7 @@
 //! let fill = Fill { payload: pass.write_slot(&mut payload) };
 //! pass.kernel(Arc::new(fill)).record();
 //! graph.export(&payload);
-//! let plan = KernelPlan::from_schedule(&graph, &compile(&graph, &placement)?)?;
+//! let plan = Compiled::compile(&graph, &placement)?.plan;
 //!
 //! // Two logical devices on one physical device (lavapipe in CI), validation on.
 //! let context = Context::new(&ContextDesc {
@@ -131,7 +132,7 @@ pub mod reflect;
 
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
-pub use error::{BackendError, ExecutionPlanError, LowerError, Result, SearchedShaders, SpirvDefect};
+pub use error::{BackendError, CompileError, ExecutionPlanError, LowerError, Result, SearchedShaders, SpirvDefect};
 pub use exec_options::{Barriers, ExecOptions, FaultInjection, Timing};
 pub use executor::Executor;
 pub use frame_block::{FrameBlock, FrameClock, FrameConstants, FrameHeader, GpuCamera, ViewCameras};
@@ -139,7 +140,7 @@ pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use frame_stats::{EventTotals, FrameStats, SUMMARY_SAMPLE, Summary};
 pub use instance::{Instance, Validation, validation_from_env};
 pub use kernel::{KernelPlan, Kernels, PassKernel};
-pub use lower::KernelGraph;
+pub use lower::{Compiled, KernelGraph};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
     Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan, FamilyId,

@@ -5,18 +5,40 @@
 //! is the order the executor submits. Lowering adds each declared pass's kernel, and each
 //! allocation's GPU description: a resource of its declared resource's family (a history pair's
 //! previous half described as its current half, the two swapped by frame parity).
+//! [`Compiled::compile`] compiles and lowers in one call, so that a caller holds what executes
+//! without lowering anything itself.
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use parallax_graph::{AllocId, Format, Graph, ProvenSchedule, ResourceDesc, Schedule};
+use parallax_graph::{AllocId, Format, Graph, Placement, ProvenSchedule, ResourceDesc, Schedule};
 
-use crate::error::LowerError;
+use crate::error::{CompileError, LowerError};
 use crate::kernel::{KernelPlan, Kernels, PassKernel};
 use crate::plan::{ExecResource, ExecutionPlan, ResourceKind};
 
 /// A render graph whose passes carry their kernels: what the executor runs.
 pub type KernelGraph = Graph<Arc<dyn PassKernel>>;
+
+/// A kernel graph compiled for the executor: its proven schedule (what a plan is drawn, summed
+/// up and cut into ranks from) and the plan lowered from it (what `Executor::new` runs), both
+/// from one [`Compiled::compile`].
+#[derive(Clone, Debug)]
+pub struct Compiled {
+    pub schedule: ProvenSchedule,
+    pub plan: KernelPlan,
+}
+
+impl Compiled {
+    /// Compiles `graph` under `placement` (`parallax_graph::compile`, which proves the
+    /// schedule) and lowers the schedule ([`KernelPlan::from_schedule`]). The error is the
+    /// step's own: a `GraphError` of compiling or a `LowerError` of lowering.
+    pub fn compile(graph: &KernelGraph, placement: &dyn Placement) -> Result<Compiled, CompileError> {
+        let schedule = parallax_graph::compile(graph, placement)?;
+        let plan = KernelPlan::from_schedule(graph, &schedule)?;
+        Ok(Compiled { schedule, plan })
+    }
+}
 
 impl KernelPlan {
     /// Lowers `schedule`, compiled from `graph`. The schedule is proven (`ProvenSchedule`: it

@@ -407,8 +407,7 @@ mod tests {
             }
         }
         let placement = parallax_graph::BandedPlacement { devices: 3, bands: 3 };
-        let schedule = parallax_graph::compile(&graph, &placement).unwrap();
-        (crate::KernelPlan::from_schedule(&graph, &schedule).unwrap().plan, layer.family())
+        (crate::Compiled::compile(&graph, &placement).unwrap().plan.plan, layer.family())
     }
 
     #[test]

@@ -15,12 +15,11 @@ use anyhow::{Context as _, Result, bail, ensure};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    AllocId, BackendError, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, Executor, FamilyId,
-    InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder, Validation,
+    AllocId, BackendError, Compiled, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, Executor, FamilyId,
+    InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, Validation,
 };
 use parallax_graph::{
-    AssignStrategy, Format, LightField, Plan, PlanConfig, ProvenSchedule, ReadSlot, Rig, Role, Scheme, SourcesSlot,
-    WriteSlot, compile,
+    AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Scheme, SourcesSlot, WriteSlot, compile,
 };
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{Frame, PixelSample};
@@ -168,27 +167,17 @@ fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGrap
     Ok((lf, plan, graph, radiance.family()))
 }
 
-/// Compiles the graph and checks the schedule's invariants.
-fn schedule(graph: &KernelGraph, plan: &Plan) -> Result<ProvenSchedule> {
-    let schedule = compile(graph, plan)?;
-    let report = schedule.validate();
-    if let Some(first) = report.errors.first() {
-        bail!("the compiled schedule breaks {} invariant(s); first: {first}", report.errors.len());
-    }
-    Ok(schedule)
-}
-
 /// The schedule over `devices` devices as DOT (no GPU needed).
 pub fn schedule_dot(scheme: Scheme, devices: u32) -> Result<String> {
     let (_, plan, graph, _) = declare(scheme, devices)?;
-    Ok(schedule(&graph, &plan)?.to_dot())
+    Ok(compile(&graph, &plan)?.to_dot())
 }
 
 /// Runs the pipeline on the devices, checks every pixel against the CPU and writes the PNG.
 pub fn run(options: &Options) -> Result<Report> {
     let (lf, plan, graph, radiance) = declare(options.scheme, options.devices.count() as u32)?;
-    let schedule = schedule(&graph, &plan)?;
-    let exec_plan = KernelPlan::from_schedule(&graph, &schedule)?;
+    // Compiling proves the schedule (its invariants hold) before it is lowered for the executor.
+    let Compiled { schedule, plan: exec_plan } = Compiled::compile(&graph, &plan)?;
     let shaders = parallax_backend::include_shaders!()?;
 
     let context = Context::new(&ContextDesc { selection: options.devices, validation: options.validation })?;

@@ -1,7 +1,7 @@
 //! Errors of the passes crate: what the backend, the planner or the scene reported, plus the
 //! inconsistencies between them that only this crate can see.
 
-use parallax_backend::BackendError;
+use parallax_backend::{BackendError, CompileError};
 
 /// Errors of parallax-passes.
 #[derive(Debug, thiserror::Error)]
@@ -80,6 +80,17 @@ pub enum PassError {
     /// a bug, since each ray is traced by the same code whichever invocation takes it.
     #[error("ray schedule {schedule} returned {differing} hits that differ from schedule {reference}")]
     ScheduleChangedHits { schedule: String, reference: String, differing: usize },
+}
+
+/// Each step's error of `Compiled::compile` becomes the error it becomes alone: compiling's
+/// [`PassError::Graph`], lowering's [`BackendError::Lower`].
+impl From<CompileError> for PassError {
+    fn from(error: CompileError) -> PassError {
+        match error {
+            CompileError::Graph(e) => PassError::Graph(e),
+            CompileError::Lower(e) => PassError::Backend(e.into()),
+        }
+    }
 }
 
 /// Shorthand used across the crate.

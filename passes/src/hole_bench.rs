@@ -10,10 +10,10 @@
 use std::sync::Arc;
 
 use parallax_backend::{
-    BackendError, Context, ExecOptions, Executor, Format, FrameClock, FrameData, FrameReport, InstanceId, KernelGraph,
-    KernelPlan, PassInstance, PassKernel, PassParams, Recorder,
+    BackendError, Compiled, Context, ExecOptions, Executor, Format, FrameClock, FrameData, FrameReport, InstanceId,
+    KernelGraph, KernelPlan, PassInstance, PassKernel, PassParams, Recorder,
 };
-use parallax_graph::{BandedPlacement, FamilyId, Role, ViewId, ViewTopology, WriteSlot, compile};
+use parallax_graph::{BandedPlacement, FamilyId, Role, ViewId, ViewTopology, WriteSlot};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, View};
 
@@ -187,8 +187,7 @@ fn bench_plan(width: u32, height: u32, threshold: u32, first_hits: bool) -> Resu
     pass.kernel(Arc::new(HashedHoleMaskKernel { mask, threshold })).record();
     let list = declare_hole_fill(&mut graph, &holes, first_hit.as_ref(), &mut radiance);
     graph.export(&radiance);
-    let schedule = compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?;
-    let plan = KernelPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
+    let plan = Compiled::compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?.plan;
     Ok((plan, list.family()))
 }
 

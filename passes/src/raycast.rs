@@ -12,10 +12,10 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
-    AllocId, BackendError, Context, DeviceId, EventKind, ExecOptions, Executor, InstanceId, KernelGraph, KernelPlan,
-    PassInstance, PassKernel, Recorder, ResourceKind, WriteSlot,
+    AllocId, BackendError, Compiled, Context, DeviceId, EventKind, ExecOptions, Executor, InstanceId, KernelGraph,
+    KernelPlan, PassInstance, PassKernel, Recorder, ResourceKind, WriteSlot,
 };
-use parallax_graph::{BandedPlacement, Role, ViewTopology, compile};
+use parallax_graph::{BandedPlacement, Role, ViewTopology};
 use parallax_scene::Scene;
 use parallax_scene::gpu::GpuScene;
 
@@ -247,8 +247,7 @@ fn raycast_plan(capacity: usize, opaque: bool, schedule: RaySchedule, devices: u
     let kernel = RaycastKernel { opaque, schedule, hits: pass.write_slot(&mut hits) };
     // Nothing in the plan reads the hits: the host does.
     pass.side_effect().kernel(Arc::new(kernel)).record();
-    let schedule = compile(&graph, &BandedPlacement { devices, bands: 1 })?;
-    Ok(KernelPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?)
+    Ok(Compiled::compile(&graph, &BandedPlacement { devices, bands: 1 })?.plan)
 }
 
 fn xorshift(s: &mut u64) -> f32 {

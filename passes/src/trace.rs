@@ -5,10 +5,10 @@
 
 use std::sync::Arc;
 
-use parallax_backend::{BackendError, Context, ExecOptions, KernelGraph, KernelPlan, ResourceKind};
+use parallax_backend::{Compiled, Context, ExecOptions, KernelGraph, KernelPlan, ResourceKind};
 use parallax_graph::{
     AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
-    Scheme, ViewTopology, compile,
+    Scheme, ViewTopology,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -91,8 +91,7 @@ fn lower_trace(
 ) -> Result<TracePlan> {
     let mut graph = KernelGraph::with_payload(topology);
     let outputs = declare_trace(&mut graph, pixel_list).map(|image| Some(image.family()));
-    let schedule = compile(&graph, placement)?;
-    let plan = KernelPlan::from_schedule(&graph, &schedule).map_err(BackendError::from)?;
+    let plan = Compiled::compile(&graph, placement)?.plan;
     Ok(TracePlan { plan, outputs })
 }
 

@@ -8,7 +8,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use parallax_backend::{Barriers, Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, KernelPlan, Timing};
+use parallax_backend::{Barriers, Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, Timing};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::PipelineBuilder;
@@ -54,10 +54,9 @@ pub(super) fn render_frames(
             args.link.kind().map_or("auto", |k| k.name())
         ))
     })?;
-    let exec_plan = KernelPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
     let exec_plan = match &job.rank {
-        Some(part) => crate::ranks::restrict_plan(&exec_plan, &part.layout, part.rank),
-        None => exec_plan,
+        Some(part) => crate::ranks::restrict_plan(&job.compiled.exec, &part.layout, part.rank),
+        None => job.compiled.exec.clone(),
     };
     let options = ExecOptions {
         barriers: match args.barriers {

@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use anyhow::{Context as _, Result, bail};
 use glam::{Vec2, Vec3};
-use parallax_backend::{ExecutionPlan, KernelPlan};
+use parallax_backend::ExecutionPlan;
 use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::Camera;
 
@@ -91,7 +91,7 @@ fn lead(
     // A link that waited in vain for a rank that failed: its own message says why.
     let mut rendered = rendered.or_else(|e| collector.poll(cluster).and(Err(e)))?;
     let finished = collector.wait_all(cluster)?;
-    let global = KernelPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?.plan;
+    let global = job.compiled.exec.plan.clone();
     rendered.ranks = Some(gathered(args, &mut rendered, &collector, finished, global, cluster, layout)?);
     write_outputs(args, &job, rendered)
 }
@@ -151,11 +151,11 @@ fn inject(fault: Option<RankFault>, rank: usize, frame: u32) -> Result<()> {
 /// This rank's part of the run: its devices, and where its devices exchange bands with other
 /// ranks' (a fine scheme), the transport of those links.
 fn rank_part(args: &RenderArgs, job: &RenderJob, cluster: &Cluster, layout: &RankLayout) -> Result<RankPart> {
-    let global = KernelPlan::from_schedule(&job.compiled.graph, &job.compiled.schedule)?;
-    let transport: Option<std::sync::Arc<dyn parallax_backend::RemoteTransport>> = match linked(&global, layout) {
-        true => Some(LinkTransport::start(cluster, layout, Duration::from_secs(args.rank_timeout))?),
-        false => None,
-    };
+    let transport: Option<std::sync::Arc<dyn parallax_backend::RemoteTransport>> =
+        match linked(&job.compiled.exec, layout) {
+            true => Some(LinkTransport::start(cluster, layout, Duration::from_secs(args.rank_timeout))?),
+            false => None,
+        };
     Ok(RankPart { layout: layout.clone(), rank: cluster.rank, transport })
 }
 
