@@ -48,7 +48,7 @@ cargo test -p parallax --features mpi --test cli_ranks 2>&1 | tee -a "$log"
 # Every shell block of README.md and docs/ as written, at tiny sizes (its MPI block needs the
 # MPI build); their Python blocks run with the module's tests below.
 cargo test -p parallax --features mpi --test docs_blocks 2>&1 | tee -a "$log"
-cargo test -p parallax --features mpi --lib ranks_mpi 2>&1 | tee -a "$log"
+cargo test -p parallax-render --features mpi --lib ranks::mpi 2>&1 | tee -a "$log"
 
 # Tests on Sponza read its path from PARALLAX_SPONZA and are #[ignore]d without it; CI has the
 # shared scenes beside the clone.

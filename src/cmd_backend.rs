@@ -6,10 +6,11 @@ use clap::{Args, ValueEnum};
 use parallax_backend::bench::{CopyBenchOptions, OverheadBenchOptions, copy_bandwidth, executor_overhead};
 use parallax_backend::{BackendError, Context, ContextDesc, LinkKind, chrome_trace};
 
-use crate::budget::check_host_bytes;
 use crate::logging::result;
+use crate::options::sink_parser;
 use crate::options::{DeviceArgs, count_in};
-use crate::outputs::{Format, Output, Sink, check, sink_parser, write_json};
+use parallax_render::outputs::budget::check_host_bytes;
+use parallax_render::outputs::{Format, Output, Sink, check, write_json};
 
 #[derive(Args, Debug)]
 pub struct DevicesArgs {

@@ -4,7 +4,7 @@
 //! cell that fails (say, more devices than views) is reported with its error and the others
 //! still run. Every cell's render arguments are parsed before the first cell runs, so a typo
 //! in a case fails at once. Writes `bench.json` (documented below), `bench.md` (tables in the
-//! paper's layouts, [`crate::bench_tables`]), and `points.json` (one chart point per cell, for
+//! paper's layouts, [`parallax_render::bench::tables`]), and `points.json` (one chart point per cell, for
 //! `parallax chart speed-accuracy`, `views` and `holes`), all three after every cell.
 //!
 //! bench.json: `{"common", "matrix", "frames", "warmup", "cases": [{"name", "args",
@@ -43,11 +43,11 @@ use clap::Args;
 
 use crate::bench_matrix::{self, Axes, Case, Cell, Denoise, Matrix, name_of};
 use crate::bench_resume;
-use crate::bench_tables;
 use crate::cmd_render::RenderArgs;
 use crate::logging::{bar, result};
 use crate::options::{AssignArg, SchemeArg};
 use crate::pipeline_args::PipelineArg;
+use parallax_render::bench::tables;
 
 /// Bytes of a failed cell's diagnostics kept for bench.json.
 const MAX_CELL_ERROR_BYTES: u64 = 1 << 20;
@@ -385,13 +385,15 @@ fn write_outputs(
         "common": args.matrix.is_none().then_some(&args.common), "matrix": args.matrix, "frames": frames,
         "warmup": warmup, "cases": cases, "cells": entries,
     });
-    let staged_json = crate::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
+    let staged_json = parallax_render::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
     let points: Vec<serde_json::Value> = entries.iter().filter(|c| c["ok"] == true).map(point).collect();
-    let staged_points =
-        crate::outputs::stage_json(&args.out_dir.join("points.json"), &serde_json::json!({ "points": points }))?;
-    let md = bench_tables::markdown(entries);
+    let staged_points = parallax_render::outputs::stage_json(
+        &args.out_dir.join("points.json"),
+        &serde_json::json!({ "points": points }),
+    )?;
+    let md = tables::markdown(entries);
     let md_path = args.out_dir.join("bench.md");
-    let staged_md = crate::outputs::stage(&md_path, |tmp| {
+    let staged_md = parallax_render::outputs::stage(&md_path, |tmp| {
         std::fs::write(tmp, &md).with_context(|| format!("cannot write {}", md_path.display()))
     })?;
     staged_md.commit()?;

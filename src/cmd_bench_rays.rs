@@ -8,10 +8,11 @@ use parallax_passes::RaySchedule;
 use parallax_passes::bench::{RayRate, bench_rays};
 use parallax_scene::Camera;
 
-use crate::budget::TraceWork;
 use crate::logging::{result, spinner};
+use crate::options::sink_parser;
 use crate::options::{BvhQualityArg, MAX_DEVICES, Resolution, count_in, parse_camera, parse_resolution};
-use crate::outputs::{Format, Output, Sink, check, sink_parser, write_json};
+use parallax_render::outputs::budget::TraceWork;
+use parallax_render::outputs::{Format, Output, Sink, check, write_json};
 
 #[derive(Debug, clap::Args)]
 pub struct BenchRaysArgs {
@@ -61,7 +62,7 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     if let Some(Sink::File(json)) = &args.json {
         let inputs: Vec<(&str, &std::path::Path)> =
             scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect();
-        crate::outputs::check_inputs(&[("--json", json)], &inputs)?;
+        parallax_render::outputs::check_inputs(&[("--json", json)], &inputs)?;
     }
     tracing::info!("scene '{}': {} triangles, loaded in {:.2?}", scene.name, scene.triangle_count(), t0.elapsed());
     let selection = args.fake_devices.map_or(DeviceSelection::Gpus(1), |n| DeviceSelection::FakeDevices(n as usize));

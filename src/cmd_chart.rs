@@ -64,7 +64,7 @@ pub struct ChartArgs {
 pub fn run(args: ChartArgs) -> Result<()> {
     let written: Vec<(&str, &Path)> = args.out.iter().map(|p| ("--out", p.as_path())).collect();
     let read: Vec<(&str, &Path)> = args.inputs.iter().map(|p| ("INPUT", p.as_path())).collect();
-    crate::outputs::check_inputs(&written, &read)?;
+    parallax_render::outputs::check_inputs(&written, &read)?;
     if args.kind == ChartKind::Timeline {
         if args.case.is_some() {
             bail!("--case selects points of a points file; a timeline reads one Chrome trace: drop --case");

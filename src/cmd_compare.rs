@@ -4,7 +4,7 @@
 //! render.json when it has one).
 //!
 //! Before any figure, the settings recorded beside both sides (`setup` in render.json or
-//! reference.json, [`crate::run_setup`]) must agree: a comparison of a moving camera with a
+//! reference.json, [`parallax_render::report::setup`]) must agree: a comparison of a moving camera with a
 //! still reference, or of another scene, light or depth, measures the difference in settings,
 //! not the error, so it is refused (exit 1) naming each differing setting, unless
 //! `--allow-mismatch`.
@@ -19,8 +19,8 @@ use parallax_accuracy::{CompareOptions, Comparison, Point, compare_paths, write_
 use parallax_scene::input::{TEXT_FILE_LIMIT, read_bounded};
 
 use crate::options::{Exposure, parse_exposure};
-use crate::outputs::{Format, Output, Sink, check, check_inputs, stage, write_json};
-use crate::run_setup::{differences, setup_beside};
+use parallax_render::outputs::{Format, Output, Sink, check, check_inputs, stage, write_json};
+use parallax_render::report::setup::{differences, setup_beside};
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
@@ -30,7 +30,7 @@ pub struct CompareArgs {
     reference: PathBuf,
     /// Write the figures (and a chart point) as JSON here (`-` = stdout; the table then goes to
     /// stderr).
-    #[arg(long, value_parser = crate::outputs::sink_parser())]
+    #[arg(long, value_parser = crate::options::sink_parser())]
     json: Option<Sink>,
     /// Also write the markdown table here.
     #[arg(long)]

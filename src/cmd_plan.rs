@@ -7,11 +7,12 @@ use clap::{Args, ValueEnum};
 use parallax_graph::{PlanSummary, Rig};
 
 use crate::logging::{result, spinner};
+use crate::options::sink_parser;
 use crate::options::{DeviceArgs, UsageError};
-use crate::outputs::{Format, Output, Sink, check, sink_parser, write_bytes, write_json};
 use crate::pipeline_args::{DotArgs, PipelineArgs, plan_json};
-use crate::ranks::{RankLayout, RankShare, shares};
 use crate::scene_args::LayoutArgs;
+use parallax_render::outputs::{Format, Output, Sink, check, write_bytes, write_json};
+use parallax_render::ranks::{RankLayout, RankShare, shares};
 
 /// The options of `render` that decide its schedule, taken the same way, so `plan` with
 /// render's flags shows the schedule render runs.
@@ -184,4 +185,150 @@ fn sources_prediction_line(s: &PlanSummary) -> String {
 /// How a value of an option is spelt on the command line.
 fn flag_value(v: impl ValueEnum) -> String {
     v.to_possible_value().map_or_else(String::new, |p| p.get_name().to_string())
+}
+
+/// `plan`'s flags compiled as `render` compiles them: the bounds of the planner's size estimate
+/// and the parts each rank runs, checked on the plans these flags give.
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeSet;
+
+    use clap::{Args as _, FromArgMatches as _};
+    use parallax_backend::{ExecutionPlan, KernelPlan, Op};
+    use parallax_graph::{DeviceId, Scheme};
+    use parallax_render::outputs::budget::PlanShape;
+    use parallax_render::ranks::{RankLayout, linked, restrict_plan, shares};
+
+    use crate::pipeline_args::PipelineArgs;
+    use crate::scene_args::LayoutArgs;
+
+    /// The bounds of [`PlanShape::items`] hold for compiled plans of the standard pipeline, and
+    /// are not so loose that they refuse what the planner could hold (within 4×, or 8× for
+    /// the small multi-source plans whose copies are mostly the gather).
+    #[test]
+    fn plan_items_bound_the_compiled_plans() {
+        #[derive(clap::Parser)]
+        struct Flags {
+            #[command(flatten)]
+            layout: crate::scene_args::LayoutArgs,
+            #[command(flatten)]
+            pipeline: crate::pipeline_args::PipelineArgs,
+        }
+        let cases: [(&str, u32, &[&str]); 6] = [
+            ("16x1", 1, &[]),
+            ("16x1", 2, &[]),
+            ("16x1", 16, &[]),
+            ("16x2", 4, &[]),
+            ("32x1", 8, &["--sources", "0,9,20"]),
+            ("32x1", 8, &[]),
+        ];
+        for (lf, devices, extra) in cases {
+            for scheme in Scheme::ALL {
+                if scheme == Scheme::MultiSource && !extra.is_empty() {
+                    continue;
+                }
+                let mut argv = vec!["plan", "--lf", lf, "--resolution", "64x64", "--scheme", scheme.name()];
+                argv.extend(extra);
+                let flags = <Flags as clap::Parser>::parse_from(&argv);
+                let lf = flags.layout.with_rig(parallax_graph::Rig::default()).unwrap();
+                let compiled = flags.pipeline.compile(&lf, devices, 1.0).unwrap();
+                let s = &compiled.schedule;
+                let actual = (s.instances.len() + s.edges.len() + s.delta_edges.len() + s.copies.len()) as u64;
+                let shape = PlanShape {
+                    views: lf.len() as u64,
+                    devices: u64::from(devices),
+                    sources: compiled.plan.sources.len() as u64,
+                    scheme,
+                    sources_flag: None,
+                };
+                let slack = if scheme == Scheme::MultiSource { 8 } else { 4 };
+                assert!(
+                    actual <= shape.items() && shape.items() <= slack * actual,
+                    "{argv:?} on {devices} device(s): {actual} items, estimated {}",
+                    shape.items()
+                );
+            }
+        }
+    }
+
+    /// The execution plan `render` runs for 4×2 views of 32×24 under `scheme` on `devices`.
+    fn global_plan(scheme: &str, devices: u32) -> (KernelPlan, parallax_graph::ProvenSchedule) {
+        let words = ["--lf", "4x2", "--resolution", "32x24", "--scheme", scheme];
+        let command =
+            PipelineArgs::augment_args(LayoutArgs::augment_args(clap::Command::new("t").no_binary_name(true)));
+        let matches = command.try_get_matches_from(words).unwrap();
+        let lf = LayoutArgs::from_arg_matches(&matches).unwrap().with_rig(parallax_graph::Rig::default()).unwrap();
+        let compiled = PipelineArgs::from_arg_matches(&matches).unwrap().compile(&lf, devices, 1.0).unwrap();
+        (compiled.exec, compiled.schedule)
+    }
+
+    /// Under multi-source each rank's part holds its devices' passes only, renumbered from 0,
+    /// with no copy from or to another rank; the parts together hold every pass once, and
+    /// `plan --ranks` names the same views per rank.
+    #[test]
+    fn a_rank_runs_the_passes_of_its_devices_and_nothing_crosses_ranks() {
+        let (global, schedule) = global_plan("multi-source", 3);
+        let layout = RankLayout { devices: vec![1, 2] };
+        assert!(!linked(&global, &layout));
+        let shares = shares(&schedule, &global, &layout, 32);
+        assert!(shares.iter().all(|s| s.link_bytes_per_frame == 0));
+        let mut passes = 0;
+        for (rank, share) in shares.iter().enumerate() {
+            let part = restrict_plan(&global, &layout, rank);
+            // Its barriers still index its ops, in order, with the ops it left out gone.
+            part.validate(layout.devices[rank] as usize).unwrap();
+            assert_eq!(part.devices.len(), layout.devices[rank] as usize);
+            assert!(part.passes.iter().all(|p| p.device.0 < layout.devices[rank]));
+            assert!(part.copies.iter().all(|c| c.from.0 < layout.devices[rank] && c.to.0 < layout.devices[rank]));
+            assert_eq!(views_in(&part), share.views);
+            passes += part.passes.len();
+        }
+        assert_eq!(passes, global.passes.len());
+        assert!(global.copies.iter().any(|c| c.is_gather()), "views gathered to device 0 in one process");
+    }
+
+    /// A fine scheme reads other devices' bands: each rank's part keeps the copies with one end
+    /// on its devices, the other end named past its own devices; what one rank's part sends
+    /// another is what the other's receives, in the same order (what names their messages);
+    /// and rank 0 holds every view, its bands gathered from the other ranks.
+    #[test]
+    fn linked_ranks_keep_the_copies_between_them_in_the_same_order_on_both_ends() {
+        let (global, schedule) = global_plan("fine-all", 3);
+        let layout = RankLayout { devices: vec![1, 1, 1] };
+        assert!(linked(&global, &layout));
+        let parts: Vec<KernelPlan> = (0..3).map(|r| restrict_plan(&global, &layout, r)).collect();
+        // A copy as the whole run names it: (from, to, resource, version, rows).
+        let global_copy = |rank: usize, c: &parallax_backend::CrossCopy| {
+            let name = |d: DeviceId| if d.0 < 1 { d.0 + layout.first(rank) } else { d.0 - 1 };
+            (name(c.from), name(c.to), c.src_alloc, c.version, c.region)
+        };
+        for (a, b) in [(0usize, 1usize), (1, 0), (1, 2), (2, 0)] {
+            let between = |part: usize| -> Vec<_> {
+                parts[part]
+                    .copies
+                    .iter()
+                    .map(|c| global_copy(part, c))
+                    .filter(|&(from, to, ..)| (from as usize, to as usize) == (a, b))
+                    .collect()
+            };
+            assert!(!between(a).is_empty(), "rank {a} sends rank {b} bands");
+            assert_eq!(between(a), between(b), "rank {a} → rank {b}");
+        }
+        for part in &parts {
+            part.validate(1).unwrap();
+            assert!(part.copies.iter().all(|c| c.from.0 < 1 || c.to.0 < 1), "one end on the rank");
+            assert!(part.devices[0].ops.iter().all(|op| match *op {
+                Op::Pass(p) => part.pass(p).device == DeviceId(0),
+                _ => true,
+            }));
+        }
+        let exported: Vec<usize> = parts.iter().map(|p| p.resources.iter().filter(|r| r.exported).count()).collect();
+        assert_eq!(exported[0], global.resources.iter().filter(|r| r.exported).count());
+        let shares = shares(&schedule, &global, &layout, 32);
+        assert!(shares.iter().all(|s| s.display_bytes_per_frame == 0 && s.link_bytes_per_frame > 0));
+    }
+
+    fn views_in(plan: &ExecutionPlan) -> Vec<u32> {
+        plan.passes.iter().map(|p| p.view.0).collect::<BTreeSet<u32>>().into_iter().collect()
+    }
 }

@@ -26,11 +26,11 @@ use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
-use crate::budget::{TraceWork, check_host_bytes, refuse_every_exceeded};
 use crate::options::{DeviceArgs, Exposure, UsageError, parse_exposure};
-use crate::run_setup::Setup;
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use parallax_passes::camera::lightfield_view;
+use parallax_render::outputs::budget::{TraceWork, check_host_bytes, refuse_every_exceeded};
+use parallax_render::report::setup::Setup;
 
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {
@@ -176,7 +176,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let written: Vec<PathBuf> =
         ["reference.json", "reference.png", PARTIAL_FILE].iter().map(|name| args.out_dir.join(name)).collect();
     let written: Vec<(&str, &Path)> = written.iter().map(|p| ("--out-dir", p.as_path())).collect();
-    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+    parallax_render::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
     let selected = match &args.views {
         Some(list) => parse_views(list, lf.len())?,
@@ -289,9 +289,10 @@ fn settings_key(args: &ReferenceArgs, scene: &Scene, lf: &LightField, selected: 
 /// Creates and locks `--out-dir` and checks, before any tracing, that it can take every file
 /// the run writes; removes temporaries an interrupted run left. The lock lives as long as the
 /// returned guard.
-fn prepare_out_dir(out_dir: &Path, selected: &[u32]) -> Result<crate::outputs::FolderLock> {
-    crate::outputs::create_folder(out_dir).with_context(|| format!("cannot create --out-dir {}", out_dir.display()))?;
-    let lock = crate::outputs::lock_folder(out_dir, "--out-dir")?;
+fn prepare_out_dir(out_dir: &Path, selected: &[u32]) -> Result<parallax_render::outputs::FolderLock> {
+    parallax_render::outputs::create_folder(out_dir)
+        .with_context(|| format!("cannot create --out-dir {}", out_dir.display()))?;
+    let lock = parallax_render::outputs::lock_folder(out_dir, "--out-dir")?;
     // Found now rather than at the first checkpoint, after the tracing: a folder that cannot
     // take files (read-only, immutable) or a folder where a view's file goes.
     if let Err(e) = tempfile::NamedTempFile::new_in(out_dir) {
@@ -299,7 +300,7 @@ fn prepare_out_dir(out_dir: &Path, selected: &[u32]) -> Result<crate::outputs::F
         bail!("--out-dir {}: the folder is not writable: {why}", out_dir.display());
     }
     let names = selected.iter().map(|v| format!("view_{v:03}.exr"));
-    crate::outputs::check_targets_in(
+    parallax_render::outputs::check_targets_in(
         out_dir,
         names.chain(["reference.json", "reference.png", PARTIAL_FILE].map(String::from)),
         "--out-dir",

@@ -14,13 +14,11 @@
 //! render.json). A user crate runs all three over its own stages with [`run_extended`].
 
 mod frames;
-mod host_memory;
 mod plan;
 mod posing;
 #[cfg(feature = "mpi")]
 mod ranked;
 mod report;
-mod startup;
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -33,11 +31,12 @@ use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::{PipelineBuilder, PipelineHandles};
 use parallax_scene::{Camera, Scene};
 
+use crate::options::sink_parser;
 use crate::options::{DeviceArgs, Exposure, UsageError, count_u32_in, parse_exposure};
-use crate::outputs::{Sink, sink_parser};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use frames::render_frames;
+use parallax_render::outputs::Sink;
 use plan::RenderJob;
 use report::write_outputs;
 
@@ -169,8 +168,8 @@ pub struct RenderArgs {
     /// the views allow; `--quilt` alone), a device's own (go 11x6, portrait 8x6, 16in 7x7, 65in
     /// 8x9; every tile shows the view nearest its place in the sweep) or COLSxROWS.
     #[arg(long, value_name = "SHAPE", num_args = 0..=1, default_missing_value = "auto",
-          value_parser = crate::lightfield_images::parse_quilt)]
-    quilt: Option<crate::lightfield_images::QuiltShape>,
+          value_parser = parallax_render::report::images::parse_quilt)]
+    quilt: Option<parallax_render::report::images::QuiltShape>,
     /// Barriers between GPU ops: `tracked` (where the compiled schedule put them, which `plan
     /// --dot` lists: only where declared accesses conflict, so the instances of one pass for
     /// many views overlap; synchronisation validation reports false hazards with it), or
@@ -234,7 +233,7 @@ impl RenderArgs {
     /// The exposure the GPU's tonemap pass runs at: `--exposure N`, or 1 under `auto` (whose
     /// pictures are tonemapped on the host).
     pub fn tonemap_exposure(&self) -> f32 {
-        crate::render_pictures::gpu_exposure(self.exposure)
+        parallax_render::report::pictures::gpu_exposure(self.exposure)
     }
 
     /// The run's settings as a run file for `--config`: every flag that shapes the pixels and
@@ -308,14 +307,16 @@ pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<
     }
     // Without MPI every rank of mpirun would render the whole light field into the same folder.
     #[cfg(not(feature = "mpi"))]
-    if let Some(ranks) = crate::ranks::launched_ranks().filter(|&n| n > 1) {
+    if let Some(ranks) = parallax_render::ranks::launched_ranks().filter(|&n| n > 1) {
         bail!(
             "started as one of {ranks} MPI ranks, but this parallax was built without MPI, so each rank would render \
              the whole light field alone: build it with cargo build --release --features mpi"
         );
     }
     #[cfg(feature = "mpi")]
-    if let Some(ranked) = crate::ranks_mpi::with_cluster(|c| c.map(|c| ranked::run(&args, &mut extension, c))) {
+    if let Some(ranked) =
+        parallax_render::ranks::mpi::with_cluster(|c| c.map(|c| ranked::run(&args, &mut extension, c)))
+    {
         return ranked;
     }
     let identity = |builder: PipelineBuilder| builder;

@@ -13,11 +13,11 @@ use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{CpuTracer, Frame, Scene, SceneBvh, TraceSettings, View};
 
-use crate::budget::TraceWork;
 use crate::logging::{bar, spinner};
 use crate::options::{Exposure, MAX_DEVICES, Resolution, count_in, parse_exposure, parse_resolution, selection};
-use crate::outputs::{Format, Output, Sink, check, stage};
 use crate::scene_args::{DepthArgs, SceneArgs};
+use parallax_render::outputs::budget::TraceWork;
+use parallax_render::outputs::{Format, Output, Sink, check, stage};
 
 #[derive(Debug, clap::Args)]
 pub struct TraceArgs {
@@ -73,13 +73,13 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     check(&outputs)?;
     let devices = if args.cpu { 0 } else { selection(args.gpus, args.fake_devices).count() as u64 };
     let work = TraceWork::one_view(width, height, args.spp, devices);
-    crate::budget::refuse_every_exceeded([work.check_duration(), work.check_host()])?;
+    parallax_render::outputs::budget::refuse_every_exceeded([work.check_duration(), work.check_host()])?;
 
     let t0 = Instant::now();
     let scene = args.scene.load()?;
     let mut written = vec![("--out", args.out.as_path())];
     written.extend(args.png.as_deref().map(|p| ("--png", p)));
-    crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+    parallax_render::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
     let load_time = t0.elapsed();
     let bvh = SceneBvh::build(&scene);
     tracing::info!(

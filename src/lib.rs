@@ -6,8 +6,6 @@
 
 mod bench_matrix;
 mod bench_resume;
-mod bench_tables;
-mod budget;
 mod cmd_backend;
 mod cmd_bench;
 mod cmd_bench_rays;
@@ -17,26 +15,18 @@ mod cmd_plan;
 mod cmd_reference;
 pub mod cmd_render;
 mod cmd_trace;
-mod disk_space;
-mod host_memory;
-mod lightfield_images;
 mod logging;
 mod options;
-mod outputs;
-mod pending;
 mod pipeline_args;
-mod ranks;
-#[cfg(feature = "mpi")]
-mod ranks_mpi;
-mod render_pictures;
-mod render_report;
 mod run_file;
-mod run_setup;
 mod scene_args;
-mod view_source;
-mod viewer;
 
 use std::ffi::OsString;
+
+use parallax_render::outputs::pending;
+use parallax_render::ranks;
+#[cfg(feature = "mpi")]
+use parallax_render::ranks::mpi as ranks_mpi;
 
 use clap::{CommandFactory, Parser, Subcommand};
 

@@ -14,12 +14,8 @@
 
 use std::borrow::Cow;
 use std::fmt;
-use std::io::Write as _;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+pub use parallax_render::console::{self, bar, quiet, result, spinner, stdout_error, to_stdout};
 use tracing::{Event, Level, Subscriber};
 use tracing_subscriber::fmt::format::Writer;
 use tracing_subscriber::fmt::{FmtContext, FormatEvent, FormatFields};
@@ -36,13 +32,9 @@ pub struct Verbosity {
     quiet: bool,
 }
 
-static QUIET: AtomicBool = AtomicBool::new(false);
-/// Commands run inside another program ([`init_embedded`]).
-static EMBEDDED: AtomicBool = AtomicBool::new(false);
-
 /// Installs the stderr logger for the whole process.
 pub fn init(v: Verbosity) {
-    QUIET.store(v.quiet, Ordering::Relaxed);
+    console::set_quiet(v.quiet);
     // Fails only when a logger is already installed, which the binary never does twice.
     let _ = install(v, Level::INFO);
 }
@@ -88,8 +80,8 @@ pub fn escape_controls(text: &str) -> Cow<'_, str> {
 /// as the first call asks; a later call sets only whether progress bars are hidden. Result
 /// lines become notes (shown from `-v`).
 pub fn init_embedded(v: Verbosity) {
-    QUIET.store(v.quiet, Ordering::Relaxed);
-    EMBEDDED.store(true, Ordering::Relaxed);
+    console::set_quiet(v.quiet);
+    console::set_embedded();
     // Fails only when a logger is already installed (by an earlier call, or by the host).
     let _ = install(v, Level::WARN);
 }
@@ -116,77 +108,4 @@ where
         w.write_str(&escape_controls(&message))?;
         writeln!(w)
     }
-}
-
-/// Set once a reader closed stdout: nothing more is written there.
-static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
-/// The first failed write of a result line (not a closed pipe), reported when the command ends.
-static STDOUT_ERROR: Mutex<Option<std::io::Error>> = Mutex::new(None);
-
-/// Writes `bytes` to stdout whole and flushes them. A closed pipe (EPIPE) is not an error: the
-/// reader has all it wanted, so this and every later write to stdout is dropped quietly.
-pub fn to_stdout(bytes: &[u8]) -> std::io::Result<()> {
-    if STDOUT_CLOSED.load(Ordering::Relaxed) {
-        return Ok(());
-    }
-    let mut out = std::io::stdout().lock();
-    match out.write_all(bytes).and_then(|()| out.flush()) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
-            STDOUT_CLOSED.store(true, Ordering::Relaxed);
-            Ok(())
-        }
-        other => other,
-    }
-}
-
-/// Prints one result (a line, or a table): on stdout, or as a note on stderr when
-/// stdout already carries a machine-readable output (`--json -`), which text would corrupt, or
-/// when the command runs inside another program (which takes the results as values). A failed
-/// write is kept for [`stdout_error`]: the command finishes its files first.
-pub fn result(stdout_taken: bool, line: &str) {
-    if stdout_taken || EMBEDDED.load(Ordering::Relaxed) {
-        // A note per line: a message is one line (a table's line breaks would show escaped).
-        line.lines().for_each(|l| tracing::info!("{l}"));
-        return;
-    }
-    if let Err(e) = to_stdout(format!("{line}\n").as_bytes()) {
-        let mut first = STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner());
-        first.get_or_insert(e);
-    }
-}
-
-/// The first result line that could not be written (a full disk, /dev/full), if any: the
-/// command then ends with that error, exit 1.
-pub fn stdout_error() -> Option<std::io::Error> {
-    STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner()).take()
-}
-
-/// Whether `-q` was given: detail a person reads (the stage table) is left out, the one-line
-/// results stay.
-pub fn quiet() -> bool {
-    QUIET.load(Ordering::Relaxed)
-}
-
-/// A spinner for work of unknown length (a GPU frame), ticking on its own.
-pub fn spinner(message: String) -> ProgressBar {
-    let bar = if QUIET.load(Ordering::Relaxed) {
-        ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden())
-    } else {
-        ProgressBar::new_spinner()
-    };
-    bar.set_message(message);
-    bar.enable_steady_tick(Duration::from_millis(200));
-    bar
-}
-
-/// A bar over `total` steps with the time left.
-pub fn bar(total: u64) -> ProgressBar {
-    if QUIET.load(Ordering::Relaxed) {
-        return ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
-    }
-    let bar = ProgressBar::new(total);
-    if let Ok(style) = ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% ({eta} left)") {
-        bar.set_style(style);
-    }
-    bar
 }

@@ -2,6 +2,7 @@
 //! (so a bad value is a usage error, exit code 2, naming the flag) into the scene and graph
 //! types, and every limit is stated in the message that enforces it.
 
+pub use parallax_render::error::{UsageError, input_error};
 use std::ops::RangeInclusive;
 
 use glam::Vec3;
@@ -324,15 +325,6 @@ pub fn parse_exposure(s: &str) -> Result<Exposure, String> {
     s.parse()
 }
 
-/// `error`, about the file `path` a flag named, as an error of `flag` that names the path once:
-/// `--scene s.gltf: cannot read file…` where the error starts with the path (as the input and
-/// scene errors do), else `--scene s.gltf: <error>`.
-pub fn input_error(flag: &str, path: &std::path::Path, error: impl Into<anyhow::Error>) -> anyhow::Error {
-    // `{:#}`: the causes too ("cannot read file: No such file or directory").
-    let (shown, text) = (path.display().to_string(), format!("{:#}", error.into()));
-    if text.starts_with(&shown) { anyhow::anyhow!("{flag} {text}") } else { anyhow::anyhow!("{flag} {shown}: {text}") }
-}
-
 /// Which flag of `args` (the command line) was given a value that is not UTF-8, in words: clap
 /// says only that some argument was. Paths take any bytes; the flags that take text do not.
 pub fn non_utf8_argument(args: impl IntoIterator<Item = std::ffi::OsString>) -> String {
@@ -355,19 +347,6 @@ pub fn non_utf8_argument(args: impl IntoIterator<Item = std::ffi::OsString>) -> 
     }
     "an argument is not UTF-8 text".to_string()
 }
-
-/// A usage error found after parsing (two flags that do not go together): `main` prints it
-/// like clap's own and exits with 2.
-#[derive(Debug)]
-pub struct UsageError(pub String);
-
-impl std::fmt::Display for UsageError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageError {}
 
 /// The message of `err` if it is a usage error: a [`UsageError`] anywhere in its chain, or a
 /// planning error about two flags that do not go together. Errors about the light field (more
@@ -432,6 +411,17 @@ pub fn selection(gpus: Option<u64>, fake_devices: Option<u64>) -> DeviceSelectio
         (None, Some(n)) => DeviceSelection::FakeDevices(n as usize),
         (None, None) => DeviceSelection::Gpus(1),
     }
+}
+
+/// clap value parser of an output: `-` is stdout, anything else a path, UTF-8 or not (as any
+/// `PathBuf` flag takes it).
+pub fn sink_parser() -> impl clap::builder::TypedValueParser<Value = parallax_render::outputs::Sink> {
+    use clap::builder::TypedValueParser as _;
+    clap::builder::OsStringValueParser::new().try_map(|s| match s.as_encoded_bytes() {
+        b"" => Err("an empty path"),
+        b"-" => Ok(parallax_render::outputs::Sink::Stdout),
+        _ => Ok(parallax_render::outputs::Sink::File(std::path::PathBuf::from(s))),
+    })
 }
 
 #[cfg(test)]

@@ -6,15 +6,16 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use parallax_backend::{Compiled, KernelGraph, KernelPlan};
-use parallax_graph::{LightField, Plan, PlanConfig, PlanSummary, ProvenSchedule, Schedule, Scheme, SourcesPerSet};
+use parallax_graph::{LightField, PlanConfig, PlanSummary, Schedule, Scheme, SourcesPerSet};
 use parallax_passes::firefly::FireflyMode;
-use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
+use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
+use parallax_render::compile::PipelineSchedule;
 
-use crate::budget::PlanShape;
+use crate::options::sink_parser;
 use crate::options::{AssignArg, DotDetail, SchemeArg, SourceList, UsageError, assignment, parse_sources};
-use crate::outputs::{Sink, sink_parser};
+use parallax_render::outputs::Sink;
+use parallax_render::outputs::budget::PlanShape;
 
 /// `--pipeline`: what renders the views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -204,17 +205,6 @@ impl DotArgs {
     }
 }
 
-/// A compiled, checked schedule of the pipeline, with what running it needs.
-pub struct PipelineSchedule {
-    pub plan: Plan,
-    pub handles: PipelineHandles,
-    pub schedule: ProvenSchedule,
-    /// What executes `schedule`, lowered from it once here (a rank runs its part of it).
-    pub exec: KernelPlan,
-    pub summary: PlanSummary,
-    pub kind: PipelineKind,
-}
-
 impl PipelineArgs {
     /// Refuses flags that do not go together (a usage error), before any work.
     pub fn check(&self) -> Result<(), UsageError> {
@@ -244,7 +234,7 @@ impl PipelineArgs {
 
     /// Plans `lf` over `devices`, declares the pipeline (only the display images are exported:
     /// they travel to device 0; float layers are read where they were made) and compiles it
-    /// into its schedule and the plan that executes it (`Compiled::compile`).
+    /// into its schedule and the plan that executes it ([`parallax_render::compile::compile`]).
     /// The plan depends only on the views' positions in the rig plane, never on the rig's pose,
     /// so any rig gives the same schedule.
     pub fn compile(&self, lf: &LightField, devices: u32, exposure: f32) -> Result<PipelineSchedule> {
@@ -292,12 +282,6 @@ impl PipelineArgs {
     ) -> Result<PipelineSchedule> {
         let config = self.plan_config(devices)?;
         self.plan_shape(lf, &config).check()?;
-        let plan = Plan::with_sources(lf, &config, self.sources_per_set.0)?;
-        let mut graph = KernelGraph::with_payload(plan.topology.clone());
-        let handles = extend(PipelineBuilder::new(self.config(exposure))).declare(&mut graph)?;
-        graph.export(&handles.display);
-        let Compiled { schedule, plan: exec } = Compiled::compile(&graph, &plan)?;
-        let summary = PlanSummary::new(lf, &plan, &schedule);
-        Ok(PipelineSchedule { plan, handles, schedule, exec, summary, kind: self.pipeline.into() })
+        parallax_render::compile::compile(lf, &config, self.sources_per_set.0, self.config(exposure), extend)
     }
 }

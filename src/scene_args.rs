@@ -71,7 +71,7 @@ impl SceneArgs {
     }
 
     /// Every file `scene` (loaded by [`SceneArgs::load`]) was read from, by the flag that named
-    /// it: what no output may overwrite ([`crate::outputs::check_inputs`]).
+    /// it: what no output may overwrite ([`parallax_render::outputs::check_inputs`]).
     pub fn inputs<'a>(&self, scene: &'a Scene) -> Vec<(&'static str, &'a std::path::Path)> {
         scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect()
     }
@@ -85,7 +85,8 @@ impl SceneArgs {
 /// How `--scene` is loaded: `--allow-outside-files`, and the memory the process may still take
 /// (the loader refuses a scene whose estimate is larger, before building it).
 pub fn load_options(allow_outside_files: bool) -> LoadOptions {
-    let memory = crate::host_memory::budget().memory.map(|m| MemoryLimit { bytes: m.bytes, bound: m.bound });
+    let memory =
+        parallax_render::outputs::host::budget().memory.map(|m| MemoryLimit { bytes: m.bytes, bound: m.bound });
     LoadOptions { uris: uri_policy(allow_outside_files), memory }
 }
 

@@ -15,14 +15,14 @@ use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings};
 
-use super::host_memory::{ResidentSampler, ResidentSummary};
 use super::plan::RenderJob;
 use super::posing::Posing;
 use super::report::{Rendered, ViewLayers, stage_views, view_layers};
-use super::startup::Step;
 use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
 use crate::logging::bar;
-use crate::outputs::Staged;
+use parallax_render::outputs::Staged;
+use parallax_render::outputs::resident::{ResidentSampler, ResidentSummary};
+use parallax_render::report::startup::Step;
 
 /// Called after each frame is submitted with its index and host wall time: how ranks report
 /// and listen while they render.
@@ -55,7 +55,7 @@ pub(super) fn render_frames(
         ))
     })?;
     let exec_plan = match &job.rank {
-        Some(part) => crate::ranks::restrict_plan(&job.compiled.exec, &part.layout, part.rank),
+        Some(part) => parallax_render::ranks::restrict_plan(&job.compiled.exec, &part.layout, part.rank),
         None => job.compiled.exec.clone(),
     };
     let options = ExecOptions {
@@ -83,7 +83,7 @@ pub(super) fn render_frames(
     // Devices by the run's numbers (a rank's own, and other ranks' at the far end of a link).
     let first = job.rank.as_ref().map_or(0, |part| part.layout.first(part.rank));
     for link in executor.links() {
-        let end = |d: usize| crate::ranks::run_device(executor.plan(), first, d);
+        let end = |d: usize| parallax_render::ranks::run_device(executor.plan(), first, d);
         tracing::info!(
             "link device {} → device {}: {}, {} chunk(s) and {:.1} MiB a frame",
             end(link.from),
@@ -112,9 +112,9 @@ pub(super) fn render_frames(
     }
 
     let lock = if job.writes_outputs {
-        crate::outputs::create_folder(&args.out_dir)
+        parallax_render::outputs::create_folder(&args.out_dir)
             .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
-        Some(crate::outputs::lock_folder(&args.out_dir, "--out-dir")?)
+        Some(parallax_render::outputs::lock_folder(&args.out_dir, "--out-dir")?)
     } else {
         None
     };
@@ -173,7 +173,7 @@ fn frame_loop(
             let folder = args.out_dir.join(format!("frame_{m:05}"));
             // Only inside --out-dir as it is: making it again would put the frames beside the
             // folder the user moved.
-            match crate::outputs::create_subfolder(&folder) {
+            match parallax_render::outputs::create_subfolder(&folder) {
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                     bail!("--out-dir: {}", parallax_accuracy::folder_gone(&args.out_dir))
                 }

@@ -14,13 +14,14 @@ use parallax_passes::visibility::{GbufferChoice, choose_gbuffer};
 use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
-use super::startup::{Startup, Step};
 use super::{MotionArg, RenderArgs, dolly};
-use crate::budget::{TraceWork, refuse_every_exceeded};
-use crate::disk_space::{RenderOutputs, free_bytes};
-use crate::outputs::{Format, Output, Sink, check_creating};
-use crate::pipeline_args::{PipelineArg, PipelineSchedule};
-use crate::render_pictures::gpu_exposure;
+use crate::pipeline_args::PipelineArg;
+use parallax_render::compile::PipelineSchedule;
+use parallax_render::outputs::budget::{TraceWork, refuse_every_exceeded};
+use parallax_render::outputs::disk::{RenderOutputs, free_bytes};
+use parallax_render::outputs::{Format, Output, Sink, check_creating};
+use parallax_render::report::pictures::gpu_exposure;
+use parallax_render::report::startup::{Startup, Step};
 
 /// A render, planned: what the frame loop runs and the report describes.
 pub(super) struct RenderJob {
@@ -48,7 +49,7 @@ pub(super) struct RenderJob {
     /// ranks does not).
     pub writes_outputs: bool,
     /// A rank of a render over several ranks: what it runs.
-    pub rank: Option<crate::ranks::RankPart>,
+    pub rank: Option<parallax_render::ranks::RankPart>,
     /// Every frame's camera as rank 0 sent it (None: computed here).
     pub cameras: Option<Vec<Camera>>,
     /// When each step of the start ended (render.json's `startup`).
@@ -177,10 +178,14 @@ impl RenderJob {
         let sized = args.light_field.with_rig(Rig::default())?;
         if args.quilt.is_some() {
             // Refused before any frame: NELF holds no one sweep for a Looking Glass.
-            crate::lightfield_images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
+            parallax_render::report::images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
         }
         if writes_outputs {
-            crate::outputs::check_targets_in(&args.out_dir, (0..sized.len() as u32).map(view_file_name), "--out-dir")?;
+            parallax_render::outputs::check_targets_in(
+                &args.out_dir,
+                (0..sized.len() as u32).map(view_file_name),
+                "--out-dir",
+            )?;
         }
         let one_frame = TraceWork {
             views: sized.len() as u64,
@@ -221,11 +226,11 @@ impl RenderJob {
         let scene = args.scene.load()?;
         startup.ended(Step::SceneLoaded);
         let mut written = vec![("--out-dir", render_json.as_path()), ("--out-dir", sheet.as_path())];
-        if let Some(crate::outputs::Sink::File(trace)) = &args.trace {
+        if let Some(parallax_render::outputs::Sink::File(trace)) = &args.trace {
             written.push(("--trace", trace.as_path()));
         }
         if writes_outputs {
-            crate::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+            parallax_render::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
         }
         let camera = args.scene.camera_or_default(&scene);
         let centre = scene.bounds().center();

@@ -21,7 +21,7 @@ use parallax_scene::gpu::GpuScene;
 
 use super::RenderArgs;
 use super::plan::RenderJob;
-use crate::render_report::Spread;
+use parallax_render::report::stages::Spread;
 
 /// Poses the scene frame by frame and times it.
 pub(super) struct Posing {

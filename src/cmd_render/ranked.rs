@@ -22,9 +22,9 @@ use super::plan::RenderJob;
 use super::report::{RankViews, Rendered, output_families, write_outputs};
 use super::{RankFault, RenderArgs, RenderExtension, rank_fault_from_env};
 use crate::options::UsageError;
-use crate::ranks::{RankLayout, RankPart, linked, views_of};
-use crate::ranks_mpi::{Cluster, Collector, FrameStat, LinkTransport, Reported};
-use crate::render_report::timings;
+use parallax_render::ranks::mpi::{Cluster, Collector, FrameStat, LinkTransport, Reported};
+use parallax_render::ranks::{RankLayout, RankPart, linked, views_of};
+use parallax_render::report::stages::timings;
 
 /// Runs this rank's part of the render.
 pub(super) fn run(args: &RenderArgs, extension: &mut RenderExtension, cluster: &Cluster) -> Result<()> {
@@ -246,7 +246,7 @@ fn gathered(
     args: &RenderArgs,
     rendered: &mut Rendered,
     collector: &Collector,
-    finished: Vec<crate::ranks_mpi::Finished>,
+    finished: Vec<parallax_render::ranks::mpi::Finished>,
     plan: ExecutionPlan,
     cluster: &Cluster,
     layout: &RankLayout,

@@ -19,15 +19,15 @@ use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Frame, PixelSample, View};
 
 use super::RenderArgs;
-use super::host_memory::ResidentSummary;
 use super::plan::{RenderJob, view_file_name};
 use super::posing::GeometryReport;
 use crate::logging::result;
-use crate::outputs::{FolderLock, Sink, Staged, stage};
-use crate::render_pictures::{display_images, stage_pictures, view_png_name};
-use crate::render_report::{MissingPixels, missing_pixels, stage_table, timings};
-use crate::run_setup::{CameraSetup, Setup};
-use crate::view_source::{Gathered, ViewSource};
+use parallax_render::outputs::resident::ResidentSummary;
+use parallax_render::outputs::{FolderLock, Sink, Staged, stage};
+use parallax_render::ranks::view_source::{Gathered, ViewSource};
+use parallax_render::report::pictures::{display_images, stage_pictures, view_png_name};
+use parallax_render::report::setup::{CameraSetup, Setup};
+use parallax_render::report::stages::{MissingPixels, missing_pixels, stage_table, timings};
 
 /// What the frame loop leaves for the report: the renderer after the last frame (its
 /// statistics and final images), the context it ran on, the views already staged by
@@ -123,7 +123,7 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
         },
     )?;
     let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
-    let json_file = crate::outputs::stage_json(&job.render_json, &json)?;
+    let json_file = parallax_render::outputs::stage_json(&job.render_json, &json)?;
     let trace = args.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
     for s in staged.into_iter().chain(pictures.staged) {
         s.commit()?;
@@ -131,13 +131,13 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     viewer.commit()?;
     remove_stale_views(&args.out_dir, lf.len())?;
     if let (Some(sink), Some(trace)) = (&args.trace, &trace) {
-        crate::outputs::write_json(sink, trace)?;
+        parallax_render::outputs::write_json(sink, trace)?;
     }
     if let (Some(sink), Some(dot)) = (&args.dot.dot, &job.dot) {
-        crate::outputs::write_bytes(sink, dot.as_bytes())?;
+        parallax_render::outputs::write_bytes(sink, dot.as_bytes())?;
     }
     json_file.commit()?;
-    crate::outputs::keep_folders();
+    parallax_render::outputs::keep_folders();
     drop(lock);
     let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     let say = |line: String| result(stdout_taken, &line);
@@ -180,7 +180,7 @@ fn wall_ms(args: &RenderArgs, wall: std::time::Duration) -> f64 {
 struct Measured<'a> {
     exposure: f32,
     wall_ms: f64,
-    timing: &'a crate::render_report::Timings,
+    timing: &'a parallax_render::report::stages::Timings,
     missing: &'a MissingPixels,
     device_names: Vec<String>,
     host_memory: ResidentSummary,
@@ -195,7 +195,7 @@ struct Measured<'a> {
 /// render over several ranks lists its `remote` links too); and the host and device staging
 /// memory they use.
 fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
-    let end = |d: usize| crate::ranks::run_device(executor.plan(), 0, d);
+    let end = |d: usize| parallax_render::ranks::run_device(executor.plan(), 0, d);
     let links: Vec<serde_json::Value> = executor
         .links()
         .iter()

@@ -19,12 +19,12 @@ use parallax_graph::LightField;
 use parallax_passes::pipeline::PipelineHandles;
 use parallax_passes::tonemap::tonemap_pixel;
 
-use crate::lightfield_images::{
+use crate::outputs::{Staged, stage};
+use crate::report::images::{
     DisplayImage, QuiltShape, encode_png, quilt_file_name, quilt_grid, quilt_views, wiggle_order, write_contact_sheet,
     write_quilt, write_wiggle,
 };
-use crate::outputs::{Staged, stage};
-use crate::viewer::{ViewGeometry, ViewerPage, settings_of_render_json};
+use crate::report::viewer::{ViewGeometry, ViewerPage, settings_of_render_json};
 
 /// Most views per row of the contact sheet: a 100×1 light field wraps into 10 rows, which a
 /// screen shows whole.
@@ -48,7 +48,7 @@ pub fn gpu_exposure(exposure: Exposure) -> f32 {
 /// linear views are read back twice, once for the log-average and once to tonemap, rather than
 /// all held in memory at once (a NELF light field is over a gigabyte of Rgba32f).
 pub fn display_images(
-    renderer: &mut dyn crate::view_source::ViewSource,
+    renderer: &mut dyn crate::ranks::view_source::ViewSource,
     handles: &PipelineHandles,
     (views, width): (u32, u32),
     exposure: Exposure,

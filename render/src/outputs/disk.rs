@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{Result, bail};
 
-use crate::budget::gib;
+use crate::outputs::budget::gib;
 
 /// "2.0 MiB", "344.9 GiB".
 fn size(bytes: u64) -> String {
@@ -17,7 +17,7 @@ fn size(bytes: u64) -> String {
 const FILE_OVERHEAD_BYTES: u64 = 4 << 10;
 /// `viewer.html`: its template and the view PNGs it embeds, at most this many bytes in base64.
 const VIEWER_BYTES: u64 =
-    (crate::viewer::EMBED_LIMIT_BYTES as u64).div_ceil(3) * 4 + crate::viewer::TEMPLATE.len() as u64;
+    (crate::report::viewer::EMBED_LIMIT_BYTES as u64).div_ceil(3) * 4 + crate::report::viewer::TEMPLATE.len() as u64;
 
 /// An EXR of f32 channels as `write_exr_with` writes it, at most: its lossless compression
 /// stores a block that would grow uncompressed, and every scanline may be a block with an
@@ -153,8 +153,8 @@ mod tests {
         let pixel_bytes = u64::from(w * h) * 11 * 4;
         assert!(written > pixel_bytes / 2 && written <= exr_bytes(w, h, 11), "{written} bytes");
         let rgba: Vec<u8> = (0..w * h * 4).map(|_| noise().to_bits() as u8).collect();
-        let image = crate::lightfield_images::DisplayImage { width: w, height: h, rgba8: &rgba };
-        let png = crate::lightfield_images::encode_png(&image).unwrap();
+        let image = crate::report::images::DisplayImage { width: w, height: h, rgba8: &rgba };
+        let png = crate::report::images::encode_png(&image).unwrap();
         assert!(png.len() as u64 <= png_bytes(w, h), "{} bytes", png.len());
     }
 

@@ -5,10 +5,16 @@
 //! - [`check`]: the folder exists and is writable, the extension matches the format, no two
 //!   outputs share a path, the target is not a folder.
 //! - [`stage`] then [`Staged::commit`]: the bytes go to a temporary file in a staging folder
-//!   inside the target's folder (see [`crate::pending`]) and are renamed over the target, so a reader (or a full disk, or Ctrl-C) never leaves a
+//!   inside the target's folder (see [`crate::outputs::pending`]) and are renamed over the target, so a reader (or a full disk, or Ctrl-C) never leaves a
 //!   truncated file and a failed run keeps the previous good one. A target that exists and is
 //!   not a regular file (a device such as /dev/null, a FIFO) is written through instead; a
 //!   symlink is followed and its target replaced, the link kept.
+
+pub mod budget;
+pub mod disk;
+pub mod host;
+pub mod pending;
+pub mod resident;
 
 use std::ffi::OsStr;
 use std::io::Write;
@@ -23,17 +29,6 @@ use tempfile::NamedTempFile;
 pub enum Sink {
     Stdout,
     File(PathBuf),
-}
-
-/// clap value parser of an output: `-` is stdout, anything else a path, UTF-8 or not (as any
-/// `PathBuf` flag takes it).
-pub fn sink_parser() -> impl clap::builder::TypedValueParser<Value = Sink> {
-    use clap::builder::TypedValueParser as _;
-    clap::builder::OsStringValueParser::new().try_map(|s| match s.as_encoded_bytes() {
-        b"" => Err("an empty path"),
-        b"-" => Ok(Sink::Stdout),
-        _ => Ok(Sink::File(PathBuf::from(s))),
-    })
 }
 
 /// The format of an output, which its file name must say.
@@ -84,7 +79,7 @@ pub fn check_creating(outputs: &[Output], created: Option<&Path>) -> Result<()> 
                 bail!("{} -: images cannot be written to stdout; give a file name", o.flag);
             }
             if let Some((_, other)) = seen.iter().find(|(p, _)| p.as_os_str() == "-") {
-                return Err(crate::options::UsageError(format!(
+                return Err(crate::error::UsageError(format!(
                     "{} and {other} both write to stdout: send one of them to a file",
                     o.flag
                 ))
@@ -222,7 +217,7 @@ fn identity(path: &Path) -> PathBuf {
     folder.join(path.file_name().unwrap_or_default())
 }
 
-pub use crate::pending::{create_folder, create_subfolder, keep_folders};
+pub use crate::outputs::pending::{create_folder, create_subfolder, keep_folders};
 
 /// An advisory lock on an output folder a run owns, held until dropped: a second run into the
 /// same folder is refused instead of silently mixing its files with the first's. The lock is
@@ -255,7 +250,7 @@ pub struct Staged {
     /// `None` once persisted.
     temp: Option<NamedTempFile>,
     temp_path: PathBuf,
-    /// The staging folder that holds the temporary file (see [`crate::pending`]).
+    /// The staging folder that holds the temporary file (see [`crate::outputs::pending`]).
     staging: PathBuf,
     target: PathBuf,
     /// The target exists and is not a regular file: copy the bytes into it, never replace it.
@@ -266,7 +261,7 @@ impl Drop for Staged {
     fn drop(&mut self) {
         // The temporary file goes before its staging folder is released.
         drop(self.temp.take());
-        crate::pending::release_staging(&self.staging);
+        crate::outputs::pending::release_staging(&self.staging);
     }
 }
 
@@ -282,11 +277,11 @@ pub fn stage(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<Sta
     let write_through = std::fs::metadata(&target).is_ok_and(|m| !m.is_file());
     let folder = if write_through { std::env::temp_dir() } else { folder_of(&target) };
     let cannot = || format!("cannot write {}", path.display());
-    let staging = crate::pending::staging_folder(&folder).with_context(cannot)?;
+    let staging = crate::outputs::pending::staging_folder(&folder).with_context(cannot)?;
     let temp = match tempfile::Builder::new().prefix("output-").tempfile_in(&staging) {
         Ok(temp) => temp,
         Err(e) => {
-            crate::pending::release_staging(&staging);
+            crate::outputs::pending::release_staging(&staging);
             bail!("{}: {}", cannot(), write_failure(&folder, &e));
         }
     };
@@ -341,7 +336,7 @@ fn set_published_permissions(_: &Path, _: &Path) -> std::io::Result<()> {
 /// Writes `bytes` to `sink` whole or not at all.
 pub fn write_bytes(sink: &Sink, bytes: &[u8]) -> Result<()> {
     match sink {
-        Sink::Stdout => crate::logging::to_stdout(bytes).context("cannot write to stdout"),
+        Sink::Stdout => crate::console::to_stdout(bytes).context("cannot write to stdout"),
         Sink::File(path) => {
             stage(path, |temp| std::fs::write(temp, bytes).with_context(|| format!("cannot write {}", path.display())))?
                 .commit()

@@ -8,7 +8,7 @@ use serde::Serialize;
 /// The steps of a render's start, in the order they end.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub(super) enum Step {
+pub enum Step {
     /// The arguments checked and the schedule compiled and proven.
     Planned,
     /// The scene read and imported.
@@ -24,7 +24,7 @@ pub(super) enum Step {
 
 /// When each step of a render's start ended.
 #[derive(Clone, Debug)]
-pub(super) struct Startup {
+pub struct Startup {
     started_ns: u64,
     ended_ns: Vec<(Step, u64)>,
 }

@@ -14,7 +14,7 @@ const INTERVAL: Duration = Duration::from_secs(1);
 /// What the samples say, in bytes; every figure is `None` where the resident set cannot be
 /// read (no /proc).
 #[derive(Debug, Clone, Default, serde::Serialize)]
-pub(super) struct ResidentSummary {
+pub struct ResidentSummary {
     pub interval_s: f64,
     pub samples: usize,
     pub first_bytes: Option<u64>,
@@ -44,7 +44,7 @@ impl Samples {
 }
 
 /// Samples the resident set until [`ResidentSampler::stop`].
-pub(super) struct ResidentSampler {
+pub struct ResidentSampler {
     samples: Arc<Mutex<Samples>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -52,7 +52,7 @@ pub(super) struct ResidentSampler {
 
 impl ResidentSampler {
     /// Takes the first sample now and the next ones every [`INTERVAL`].
-    pub(super) fn start() -> Self {
+    pub fn start() -> Self {
         let samples = Arc::new(Mutex::new(Samples::default()));
         let stop = Arc::new(AtomicBool::new(false));
         sample_into(&samples);
@@ -76,7 +76,7 @@ impl ResidentSampler {
     }
 
     /// Takes the last sample and says what all of them were.
-    pub(super) fn stop(mut self) -> ResidentSummary {
+    pub fn stop(mut self) -> ResidentSummary {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();

@@ -94,7 +94,7 @@ pub fn parse_quilt(s: &str) -> Result<QuiltShape, String> {
 /// one of an even count). NELF's two eye blocks are no sweep: refused with the reason.
 pub fn quilt_views(cols: u32, rows: u32, nelf: bool) -> Result<Vec<u32>> {
     if nelf {
-        return Err(crate::options::UsageError(
+        return Err(crate::error::UsageError(
             "--quilt: NELF's views are two 6x6 blocks for two eyes 62 mm apart, not one sweep a Looking Glass shows; \
              use a grid (--lf 12x1 or WxH) for a quilt"
                 .into(),

@@ -74,7 +74,7 @@ pub fn scene_fingerprint(spec: &Path) -> Result<String> {
         return Ok("default".into());
     }
     let bytes = parallax_scene::input::read_bounded(spec, parallax_scene::input::SCENE_FILE_LIMIT, "glTF scene")
-        .map_err(|e| crate::options::input_error("--scene", spec, e))?;
+        .map_err(|e| crate::error::input_error("--scene", spec, e))?;
     let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
     let name = spec.file_name().map_or(spec.to_string_lossy(), |n| n.to_string_lossy());
     Ok(format!("{name} (fnv1a {hash:016x}, {} bytes)", bytes.len()))

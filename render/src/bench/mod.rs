@@ -1,0 +1,3 @@
+//! `parallax bench`'s tables: bench.md and the figures of its cells.
+
+pub mod tables;
