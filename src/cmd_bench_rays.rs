@@ -58,7 +58,7 @@ pub fn run(args: BenchRaysArgs) -> anyhow::Result<()> {
     let work = TraceWork::one_view(width, height, 1, args.fake_devices.unwrap_or(1));
     work.check_host()?;
     let t0 = Instant::now();
-    let scene = crate::scene_args::load_scene_arg(&args.scene, args.allow_outside_files)?;
+    let scene = parallax_render::scene::load_scene(&args.scene, args.allow_outside_files)?;
     if let Some(Sink::File(json)) = &args.json {
         let inputs: Vec<(&str, &std::path::Path)> =
             scene.sources.iter().map(|s| ("--scene", s.path.as_path())).collect();

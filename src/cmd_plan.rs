@@ -9,8 +9,9 @@ use parallax_graph::{PlanSummary, Rig};
 use crate::logging::{result, spinner};
 use crate::options::sink_parser;
 use crate::options::{DeviceArgs, UsageError};
-use crate::pipeline_args::{DotArgs, PipelineArgs, plan_json};
+use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::scene_args::LayoutArgs;
+use parallax_render::compile::plan_json;
 use parallax_render::outputs::{Format, Output, Sink, check, write_bytes, write_json};
 use parallax_render::ranks::{RankLayout, RankShare, shares};
 
@@ -68,11 +69,11 @@ pub fn run(args: PlanArgs) -> Result<()> {
     if let Some(sink) = &args.json {
         match &shares {
             Some(shares) => {
-                let mut json = plan_json(&summary, args.pipeline.gbuffer);
+                let mut json = plan_json(&summary, args.pipeline.gbuffer.into());
                 json["ranks"] = serde_json::to_value(shares)?;
                 write_json(sink, &json)?;
             }
-            None => write_json(sink, &plan_json(&summary, args.pipeline.gbuffer))?,
+            None => write_json(sink, &plan_json(&summary, args.pipeline.gbuffer.into()))?,
         }
     }
     // The summary is the result, on stdout, unless stdout already carries the DOT or JSON.

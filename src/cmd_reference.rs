@@ -176,8 +176,11 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let written: Vec<PathBuf> =
         ["reference.json", "reference.png", PARTIAL_FILE].iter().map(|name| args.out_dir.join(name)).collect();
     let written: Vec<(&str, &Path)> = written.iter().map(|p| ("--out-dir", p.as_path())).collect();
-    parallax_render::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
-    let lf = args.light_field.around(&args.scene.camera_or_default(&scene), scene.bounds().center())?;
+    parallax_render::outputs::check_inputs(&written, &args.scene.settings().inputs(&scene))?;
+    let lf = args
+        .light_field
+        .settings()
+        .around(&args.scene.settings().camera_or_default(&scene), scene.bounds().center())?;
     let selected = match &args.views {
         Some(list) => parse_views(list, lf.len())?,
         None => (0..lf.len() as u32).collect(),
@@ -196,9 +199,9 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let setup = Setup::new(
         &args.scene.scene,
         &scene,
-        &args.scene.camera_or_default(&scene),
+        &args.scene.settings().camera_or_default(&scene),
         true,
-        (&lf, args.light_field.layout.spacing_on(&lf.rig)),
+        (&lf, args.light_field.layout.settings().spacing_on(&lf.rig)),
         args.depth.max_depth,
     )?;
     let _lock = prepare_out_dir(&args.out_dir, &selected)?;
@@ -272,7 +275,10 @@ fn settings_key(args: &ReferenceArgs, scene: &Scene, lf: &LightField, selected: 
     settings_key.extend([
         ("--lf".to_string(), format!("{:?} ({}x{} views)", args.light_field.layout.lf, lf.cols, lf.rows)),
         // The spacing in effect, so an explicit --spacing equal to the preset's is the same run.
-        ("--spacing".to_string(), args.light_field.layout.spacing_on(&lf.rig).unwrap_or(DEFAULT_SPACING).to_string()),
+        (
+            "--spacing".to_string(),
+            args.light_field.layout.settings().spacing_on(&lf.rig).unwrap_or(DEFAULT_SPACING).to_string(),
+        ),
         ("--resolution".to_string(), format!("{}x{}", lf.width, lf.height)),
         ("--focus".to_string(), format!("{focus}")),
         ("--camera".to_string(), format!("{:?}", args.scene.camera.map(|c| c.camera))),

@@ -9,36 +9,25 @@
 //! parallax), an optional Looking Glass quilt and wiggle, and render.json with the paper's
 //! Table 1 / Table 4 measures and the `setup` that comparisons check.
 //!
-//! Three rooms: [`plan`] (flags, outputs and work checked, the pipeline compiled, the scene
-//! loaded), [`frames`] (devices, executor, the frame loop) and [`report`] (read-back, outputs,
-//! render.json). A user crate runs all three over its own stages with [`run_extended`].
-
-mod frames;
-mod plan;
-mod posing;
-#[cfg(feature = "mpi")]
-mod ranked;
-mod report;
+//! The flags become [`RenderSettings`] ([`RenderArgs::settings`]) and `parallax_render::job::run`
+//! renders them; a user crate runs it over its own stages with [`run_extended`].
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Result, bail};
+use std::time::Duration;
+
+use anyhow::Result;
 use clap::{Args, FromArgMatches as _, ValueEnum};
-use glam::Vec3;
-use parallax_backend::{FaultInjection, ShaderLibrary};
-use parallax_passes::LightFieldRenderer;
-use parallax_passes::pipeline::{PipelineBuilder, PipelineHandles};
-use parallax_scene::{Camera, Scene};
+use parallax_backend::{Barriers, Timing};
+pub use parallax_render::settings::RenderExtension;
+use parallax_render::settings::{MotionRequest, RenderSettings};
 
 use crate::options::sink_parser;
 use crate::options::{DeviceArgs, Exposure, UsageError, count_u32_in, parse_exposure};
 use crate::pipeline_args::{DotArgs, PipelineArgs};
 use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
-use frames::render_frames;
 use parallax_render::outputs::Sink;
-use plan::RenderJob;
-use report::write_outputs;
 
 /// `--barriers`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -201,19 +190,6 @@ pub struct RenderArgs {
     rank_timeout: u64,
 }
 
-/// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,
-/// eased in and out, centred on the starting camera.
-fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
-    if total <= 1 {
-        return *camera;
-    }
-    let (right, _, _) = camera.basis();
-    let t = f as f32 / (total - 1) as f32;
-    let eased = 0.5 - 0.5 * (std::f32::consts::PI * t).cos();
-    let offset: Vec3 = right * (0.1 * scene.bounds().diagonal() * (eased - 0.5));
-    Camera { eye: camera.eye + offset, ..*camera }
-}
-
 impl RenderArgs {
     /// `render`'s arguments from the run file `path`, then the flags of the command line
     /// `invocation` (the program's name first, as `std::env::args_os()` gives it), parsed by
@@ -228,6 +204,48 @@ impl RenderArgs {
             UsageError(format!("--config {}: {line}", path.display()))
         })?;
         Ok(RenderArgs::from_arg_matches(&matches)?)
+    }
+
+    /// The settings these flags give the library (a bad `--assign` is a usage error).
+    pub fn settings(&self) -> Result<RenderSettings> {
+        let exposure = parallax_render::report::pictures::gpu_exposure(self.exposure);
+        Ok(RenderSettings {
+            scene: self.scene.settings(),
+            light_field: self.light_field.settings(),
+            devices: self.devices.selection(),
+            pipeline: self.pipeline.settings(exposure)?,
+            spp: self.spp,
+            max_depth: self.depth.max_depth,
+            frames: self.frames,
+            frames_in_flight: self.frames_in_flight,
+            warmup: self.warmup,
+            motion: match (self.still, self.motion) {
+                (true, _) | (false, MotionArg::None) => MotionRequest::None,
+                (false, MotionArg::Auto) => MotionRequest::Auto,
+                (false, MotionArg::Dolly) => MotionRequest::Dolly,
+                (false, MotionArg::Animation) => MotionRequest::Animation,
+            },
+            save_every: self.save_every,
+            out_dir: self.out_dir.clone(),
+            exposure: self.exposure,
+            wiggle: self.wiggle.clone(),
+            layers: self.layers,
+            quilt: self.quilt,
+            barriers: match self.barriers {
+                BarrierArg::EveryOp => Barriers::EveryOp,
+                BarrierArg::Tracked => Barriers::Tracked,
+            },
+            timing: match self.timing {
+                TimingArg::PerOp => Timing::PerOp,
+                TimingArg::PerStage => Timing::PerStage,
+            },
+            link: self.link.kind(),
+            trace: self.trace.clone(),
+            dot: self.dot.dot.clone(),
+            dot_detail: self.dot.dot_detail.into(),
+            rank_timeout: Duration::from_secs(self.rank_timeout),
+            run: self.run_file(),
+        })
     }
 
     /// The exposure the GPU's tonemap pass runs at: `--exposure N`, or 1 under `auto` (whose
@@ -269,26 +287,6 @@ impl RenderArgs {
     }
 }
 
-/// Extends the pipeline a builder declares (a user crate's stages).
-pub type ExtendPipeline = Box<dyn Fn(PipelineBuilder) -> PipelineBuilder>;
-/// Looks at the renderer once the last frame is finished; the handles of the pipeline it runs
-/// say where each layer is read back.
-pub type AfterFrames = Box<dyn FnMut(&mut LightFieldRenderer, &PipelineHandles) -> Result<()>>;
-
-/// What a user crate adds to `render`: stages of its own in the standard pipeline, the shaders
-/// they dispatch, and a look at the renderer after the last frame (before any output is
-/// written). [`run_extended`] runs it with `render`'s frame loop, reports and outputs.
-#[derive(Default)]
-pub struct RenderExtension {
-    /// Adds stages to (or replaces stages of) the pipeline the flags declare.
-    pub stages: Option<ExtendPipeline>,
-    /// The stages' kernels (`parallax_backend::include_shaders!()`), layered over the passes'
-    /// (`parallax_passes::shader_library()`): a shader of the same name replaces a pass's.
-    pub shaders: ShaderLibrary,
-    /// Called once the last frame is finished, e.g. to read back a layer the stages made.
-    pub after_frames: Option<AfterFrames>,
-}
-
 /// `parallax render`; the flags of the command line `invocation` (the program's name first) win
 /// over those of a `--config` file.
 pub fn run(args: RenderArgs, invocation: &[OsString]) -> Result<()> {
@@ -301,73 +299,9 @@ pub fn run(args: RenderArgs, invocation: &[OsString]) -> Result<()> {
 
 /// `parallax render` over the standard pipeline extended by `extension`: plan, frames, report.
 /// The flags of this process's command line win over those of a `--config` file.
-pub fn run_extended(args: RenderArgs, mut extension: RenderExtension) -> Result<()> {
+pub fn run_extended(args: RenderArgs, extension: RenderExtension) -> Result<()> {
     if let Some(file) = &args.config {
         return run_extended(RenderArgs::of_run_file(file, std::env::args_os())?, extension);
     }
-    // Without MPI every rank of mpirun would render the whole light field into the same folder.
-    #[cfg(not(feature = "mpi"))]
-    if let Some(ranks) = parallax_render::ranks::launched_ranks().filter(|&n| n > 1) {
-        bail!(
-            "started as one of {ranks} MPI ranks, but this parallax was built without MPI, so each rank would render \
-             the whole light field alone: build it with cargo build --release --features mpi"
-        );
-    }
-    #[cfg(feature = "mpi")]
-    if let Some(ranked) =
-        parallax_render::ranks::mpi::with_cluster(|c| c.map(|c| ranked::run(&args, &mut extension, c)))
-    {
-        return ranked;
-    }
-    let identity = |builder: PipelineBuilder| builder;
-    let extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder = extension.stages.as_deref().unwrap_or(&identity);
-    let devices = args.devices.selection().count() as u32;
-    let mut job = RenderJob::prepare(&args, extend, devices, true)?;
-    let rendered = render_frames(&args, &mut job, &mut extension, None)?;
-    write_outputs(&args, &job, rendered)
-}
-
-/// `PARALLAX_FAULT=device-lost:F`: frame F's submission fails as on a lost GPU
-/// (`FaultInjection::LoseDevice`), so tests can check what a failed run leaves behind.
-fn fault_from_env() -> Result<Option<FaultInjection>> {
-    let Ok(value) = std::env::var("PARALLAX_FAULT") else {
-        return Ok(None);
-    };
-    if rank_fault_from_env()?.is_some() {
-        return Ok(None);
-    }
-    match value.strip_prefix("device-lost:").and_then(|f| f.parse().ok()) {
-        Some(frame) => Ok(Some(FaultInjection::LoseDevice { frame })),
-        None => bail!(
-            "PARALLAX_FAULT={value}: the faults are device-lost:FRAME, rank-fails:RANK:FRAME and \
-             rank-stalls:RANK:FRAME (e.g. device-lost:1); unset it"
-        ),
-    }
-}
-
-/// A rank's injected fault (`PARALLAX_FAULT`), for tests of a render over several ranks.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum RankFault {
-    /// `rank-fails:R:F`: rank R's frame F fails with an error.
-    Fails { rank: usize, frame: u32 },
-    /// `rank-stalls:R:F`: rank R stops answering at frame F, as a hung process would.
-    Stalls { rank: usize, frame: u32 },
-}
-
-/// `PARALLAX_FAULT=rank-fails:R:F` or `rank-stalls:R:F` (None: another fault, or none).
-pub(crate) fn rank_fault_from_env() -> Result<Option<RankFault>> {
-    let Ok(value) = std::env::var("PARALLAX_FAULT") else {
-        return Ok(None);
-    };
-    let Some((kind, place)) = value.split_once(':').filter(|(k, _)| k.starts_with("rank-")) else {
-        return Ok(None);
-    };
-    let parsed = place.split_once(':').and_then(|(r, f)| Some((r.parse().ok()?, f.parse().ok()?)));
-    match (kind, parsed) {
-        ("rank-fails", Some((rank, frame))) => Ok(Some(RankFault::Fails { rank, frame })),
-        ("rank-stalls", Some((rank, frame))) => Ok(Some(RankFault::Stalls { rank, frame })),
-        _ => {
-            bail!("PARALLAX_FAULT={value}: a rank's fault is rank-fails:RANK:FRAME or rank-stalls:RANK:FRAME; unset it")
-        }
-    }
+    parallax_render::job::run(&args.settings()?, extension)
 }

@@ -79,7 +79,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let scene = args.scene.load()?;
     let mut written = vec![("--out", args.out.as_path())];
     written.extend(args.png.as_deref().map(|p| ("--png", p)));
-    parallax_render::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+    parallax_render::outputs::check_inputs(&written, &args.scene.settings().inputs(&scene))?;
     let load_time = t0.elapsed();
     let bvh = SceneBvh::build(&scene);
     tracing::info!(
@@ -93,7 +93,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         bvh.build_time
     );
 
-    let view = View { camera: args.scene.camera_or_default(&scene), width, height, index: 0 };
+    let view = View { camera: args.scene.settings().camera_or_default(&scene), width, height, index: 0 };
     let settings = TraceSettings {
         spp: args.spp,
         max_depth: args.depth.max_depth,

@@ -15,7 +15,7 @@
 use std::borrow::Cow;
 use std::fmt;
 
-pub use parallax_render::console::{self, bar, quiet, result, spinner, stdout_error, to_stdout};
+pub use parallax_render::console::{self, bar, result, spinner, stdout_error, to_stdout};
 use tracing::{Event, Level, Subscriber};
 use tracing_subscriber::fmt::format::Writer;
 use tracing_subscriber::fmt::{FmtContext, FormatEvent, FormatFields};

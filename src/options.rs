@@ -169,28 +169,14 @@ pub enum DotDetail {
     Full,
 }
 
-impl DotDetail {
-    /// The most instances of one pass `auto` draws in full: Graphviz sets a pass's instances
-    /// side by side, about 110 pt each, so 40 make a row of 4,400 pt.
-    const AUTO_FULL_WIDTH: usize = 40;
-
-    pub fn render(self, schedule: &parallax_graph::Schedule) -> String {
-        let full = match self {
-            DotDetail::Auto => widest_pass(schedule) <= Self::AUTO_FULL_WIDTH,
-            DotDetail::Summary => false,
-            DotDetail::Full => true,
-        };
-        if full { schedule.to_dot() } else { schedule.to_dot_summary() }
+impl From<DotDetail> for parallax_render::compile::DotDetail {
+    fn from(d: DotDetail) -> Self {
+        match d {
+            DotDetail::Auto => Self::Auto,
+            DotDetail::Summary => Self::Summary,
+            DotDetail::Full => Self::Full,
+        }
     }
-}
-
-/// The most instances any one pass of `schedule` has.
-fn widest_pass(schedule: &parallax_graph::Schedule) -> usize {
-    let mut per_pass = std::collections::HashMap::new();
-    for instance in &schedule.instances {
-        *per_pass.entry(instance.pass).or_insert(0) += 1;
-    }
-    per_pass.into_values().max().unwrap_or(0)
 }
 
 /// `--resolution WxH`, each side 1..=[`MAX_IMAGE_SIDE`].

@@ -6,16 +6,15 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use parallax_graph::{LightField, PlanConfig, PlanSummary, Schedule, Scheme, SourcesPerSet};
+use parallax_graph::{LightField, Schedule, SourcesPerSet};
 use parallax_passes::firefly::FireflyMode;
-use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineKind};
+use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
-use parallax_render::compile::PipelineSchedule;
+use parallax_render::compile::{PipelineSchedule, PipelineSettings};
 
 use crate::options::sink_parser;
 use crate::options::{AssignArg, DotDetail, SchemeArg, SourceList, UsageError, assignment, parse_sources};
 use parallax_render::outputs::Sink;
-use parallax_render::outputs::budget::PlanShape;
 
 /// `--pipeline`: what renders the views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
@@ -53,25 +52,6 @@ impl From<GbufferArg> for GbufferSource {
             GbufferArg::Visibility => GbufferSource::Visibility,
         }
     }
-}
-
-impl From<GbufferSource> for GbufferArg {
-    fn from(g: GbufferSource) -> GbufferArg {
-        match g {
-            GbufferSource::FirstHits => GbufferArg::FirstHits,
-            GbufferSource::Raster => GbufferArg::Raster,
-            GbufferSource::Visibility => GbufferArg::Visibility,
-        }
-    }
-}
-
-/// The plan's JSON (`plan --json`, render.json's `plan`): the summary and the G-buffer kind the
-/// schedule computes (render's is the one that ran: `visibility` falls back to `first-hits` on
-/// devices without 64-bit buffer atomics).
-pub fn plan_json(summary: &PlanSummary, gbuffer: GbufferArg) -> serde_json::Value {
-    let mut json = serde_json::to_value(summary).expect("a plan summary serialises");
-    json["gbuffer"] = serde_json::to_value(gbuffer).expect("a flag value serialises");
-    json
 }
 
 /// `--fireflies`.
@@ -201,7 +181,7 @@ pub struct DotArgs {
 impl DotArgs {
     /// The DOT text to write, if `--dot` was given.
     pub fn render(&self, schedule: &Schedule) -> Option<String> {
-        self.dot.as_ref().map(|_| self.dot_detail.render(schedule))
+        self.dot.as_ref().map(|_| parallax_render::compile::DotDetail::from(self.dot_detail).render(schedule))
     }
 }
 
@@ -232,56 +212,21 @@ impl PipelineArgs {
         }
     }
 
-    /// Plans `lf` over `devices`, declares the pipeline (only the display images are exported:
-    /// they travel to device 0; float layers are read where they were made) and compiles it
-    /// into its schedule and the plan that executes it ([`parallax_render::compile::compile`]).
-    /// The plan depends only on the views' positions in the rig plane, never on the rig's pose,
-    /// so any rig gives the same schedule.
-    pub fn compile(&self, lf: &LightField, devices: u32, exposure: f32) -> Result<PipelineSchedule> {
-        self.compile_with(lf, devices, exposure, &|builder| builder)
-    }
-
-    fn plan_config(&self, devices: u32) -> Result<PlanConfig> {
-        Ok(PlanConfig {
-            devices,
+    /// The pipeline and placement these flags ask for, the GPU's tonemap at `exposure`.
+    pub fn settings(&self, exposure: f32) -> Result<PipelineSettings, UsageError> {
+        Ok(PipelineSettings {
+            config: self.config(exposure),
             scheme: self.scheme.into(),
             assign: assignment(self.scheme, self.assign)?,
             sources: self.sources.as_ref().map(|s| s.0.clone()),
+            sources_per_set: self.sources_per_set.0,
+            reprojection_tolerance: self.reprojection_tolerance,
         })
     }
 
-    fn plan_shape(&self, lf: &LightField, config: &PlanConfig) -> PlanShape {
-        let devices = config.devices;
-        let (sources, sources_flag) = match (&config.sources, config.scheme) {
-            (Some(s), _) => (s.len() as u64, Some("--sources")),
-            (None, Scheme::MultiSource) => match self.sources_per_set.0 {
-                SourcesPerSet::Count(n) if n > 1 => (u64::from(devices) * u64::from(n), Some("--sources-per-set")),
-                // Multi-source plans grow with the views, not the sources (PlanShape::items).
-                _ => (u64::from(devices), None),
-            },
-            (None, _) => (u64::from(devices), None),
-        };
-        PlanShape { views: lf.len() as u64, devices: u64::from(devices), sources, scheme: config.scheme, sources_flag }
-    }
-
-    /// Refuses a plan of `lf` over `devices` that the planner could not hold, before planning
-    /// (render checks it beside its other limits, to name them all at once).
-    pub fn check_plan_size(&self, lf: &LightField, devices: u32) -> Result<()> {
-        // A bad --assign is not a limit: compiling refuses it alone, as the usage error it is.
-        let Ok(config) = self.plan_config(devices) else { return Ok(()) };
-        self.plan_shape(lf, &config).check()
-    }
-
-    /// [`Self::compile`] of the pipeline extended by `extend` (a user crate's stages).
-    pub fn compile_with(
-        &self,
-        lf: &LightField,
-        devices: u32,
-        exposure: f32,
-        extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
-    ) -> Result<PipelineSchedule> {
-        let config = self.plan_config(devices)?;
-        self.plan_shape(lf, &config).check()?;
-        parallax_render::compile::compile(lf, &config, self.sources_per_set.0, self.config(exposure), extend)
+    /// Plans `lf` over `devices` and compiles the standard pipeline into its schedule and the
+    /// plan that executes it ([`PipelineSettings::compile_with`]).
+    pub fn compile(&self, lf: &LightField, devices: u32, exposure: f32) -> Result<PipelineSchedule> {
+        self.settings(exposure)?.compile_with(lf, devices, &|builder| builder)
     }
 }

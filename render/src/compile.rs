@@ -5,8 +5,68 @@
 
 use anyhow::Result;
 use parallax_backend::{Compiled, KernelGraph, KernelPlan};
-use parallax_graph::{LightField, Plan, PlanConfig, PlanSummary, ProvenSchedule, SourcesPerSet};
-use parallax_passes::pipeline::{PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
+use parallax_graph::{
+    AssignStrategy, LightField, Plan, PlanConfig, PlanSummary, ProvenSchedule, Schedule, Scheme, SourcesPerSet,
+};
+use parallax_passes::firefly::FireflyMode;
+use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
+
+use crate::outputs::budget::PlanShape;
+
+/// The pipeline and its placement over the devices.
+#[derive(Clone, Debug)]
+pub struct PipelineSettings {
+    /// The pipeline declared (its exposure is the GPU tonemap's).
+    pub config: PipelineConfig,
+    pub scheme: Scheme,
+    /// How views are grouped into sets (multi-source).
+    pub assign: AssignStrategy,
+    /// Explicit sources for the fine-grained schemes.
+    pub sources: Option<Vec<u32>>,
+    pub sources_per_set: SourcesPerSet,
+    /// The reprojection's view-dependence tolerance as given (`config` holds it as the
+    /// shader's f32), for render.json.
+    pub reprojection_tolerance: f64,
+}
+
+impl PipelineSettings {
+    fn plan_config(&self, devices: u32) -> PlanConfig {
+        PlanConfig { devices, scheme: self.scheme, assign: self.assign, sources: self.sources.clone() }
+    }
+
+    fn plan_shape(&self, lf: &LightField, config: &PlanConfig) -> PlanShape {
+        let devices = config.devices;
+        let (sources, sources_flag) = match (&config.sources, config.scheme) {
+            (Some(s), _) => (s.len() as u64, Some("--sources")),
+            (None, Scheme::MultiSource) => match self.sources_per_set {
+                SourcesPerSet::Count(n) if n > 1 => (u64::from(devices) * u64::from(n), Some("--sources-per-set")),
+                // Multi-source plans grow with the views, not the sources (PlanShape::items).
+                _ => (u64::from(devices), None),
+            },
+            (None, _) => (u64::from(devices), None),
+        };
+        PlanShape { views: lf.len() as u64, devices: u64::from(devices), sources, scheme: config.scheme, sources_flag }
+    }
+
+    /// Refuses a plan of `lf` over `devices` that the planner could not hold, before planning
+    /// (render checks it beside its other limits, to name them all at once).
+    pub fn check_plan_size(&self, lf: &LightField, devices: u32) -> Result<()> {
+        self.plan_shape(lf, &self.plan_config(devices)).check()
+    }
+
+    /// [`compile`] of these settings over `devices`, the pipeline extended by `extend` (a user
+    /// crate's stages), after refusing a plan too large to hold.
+    pub fn compile_with(
+        &self,
+        lf: &LightField,
+        devices: u32,
+        extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
+    ) -> Result<PipelineSchedule> {
+        let config = self.plan_config(devices);
+        self.plan_shape(lf, &config).check()?;
+        compile(lf, &config, self.sources_per_set, self.config, extend)
+    }
+}
 
 /// A compiled, checked schedule of the pipeline, with what running it needs.
 pub struct PipelineSchedule {
@@ -39,4 +99,83 @@ pub fn compile(
     let Compiled { schedule, plan: exec } = Compiled::compile(&graph, &plan)?;
     let summary = PlanSummary::new(lf, &plan, &schedule);
     Ok(PipelineSchedule { plan, handles, schedule, exec, summary, kind })
+}
+
+/// How much of a schedule the DOT drawing shows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DotDetail {
+    /// `full` while one pass has at most 40 instances (the drawing's widest row: 8x4 views on
+    /// any number of devices), `summary` above (NELF's 72 views drawn in full are 14,800 pt
+    /// wide, past reading).
+    #[default]
+    Auto,
+    /// One node per pass and device with instance counts, one per copy kind and device pair.
+    Summary,
+    /// Every pass instance and copy (large schedules take Graphviz minutes or longer).
+    Full,
+}
+
+impl DotDetail {
+    /// The most instances of one pass `auto` draws in full: Graphviz sets a pass's instances
+    /// side by side, about 110 pt each, so 40 make a row of 4,400 pt.
+    const AUTO_FULL_WIDTH: usize = 40;
+
+    /// `schedule` as Graphviz DOT, in this much detail.
+    pub fn render(self, schedule: &Schedule) -> String {
+        let full = match self {
+            DotDetail::Auto => widest_pass(schedule) <= Self::AUTO_FULL_WIDTH,
+            DotDetail::Summary => false,
+            DotDetail::Full => true,
+        };
+        if full { schedule.to_dot() } else { schedule.to_dot_summary() }
+    }
+}
+
+fn widest_pass(schedule: &Schedule) -> usize {
+    let mut per_pass = std::collections::HashMap::new();
+    for instance in &schedule.instances {
+        *per_pass.entry(instance.pass).or_insert(0) += 1;
+    }
+    per_pass.into_values().max().unwrap_or(0)
+}
+
+/// The plan's summary as `plan --json` and render.json's `plan` write it, with the G-buffer
+/// that runs.
+pub fn plan_json(summary: &PlanSummary, gbuffer: GbufferSource) -> serde_json::Value {
+    let mut json = serde_json::to_value(summary).expect("a plan summary serialises");
+    json["gbuffer"] = gbuffer_name(gbuffer).into();
+    json
+}
+
+/// The settings' values as the JSON outputs spell them (the command line's flag values).
+pub fn pipeline_name(kind: PipelineKind) -> &'static str {
+    match kind {
+        PipelineKind::Reproject => "reproject",
+        PipelineKind::PathTrace => "path-trace",
+    }
+}
+
+/// `first-hits`, `raster` or `visibility`.
+pub fn gbuffer_name(gbuffer: GbufferSource) -> &'static str {
+    match gbuffer {
+        GbufferSource::FirstHits => "first-hits",
+        GbufferSource::Raster => "raster",
+        GbufferSource::Visibility => "visibility",
+    }
+}
+
+/// `suppress` or `keep`.
+pub fn fireflies_name(fireflies: FireflyMode) -> &'static str {
+    match fireflies {
+        FireflyMode::Suppress => "suppress",
+        FireflyMode::Keep => "keep",
+    }
+}
+
+/// `"auto"` or the count.
+pub fn sources_per_set_json(sources_per_set: SourcesPerSet) -> serde_json::Value {
+    match sources_per_set {
+        SourcesPerSet::Auto => "auto".into(),
+        SourcesPerSet::Count(n) => n.into(),
+    }
 }

@@ -9,25 +9,23 @@ use anyhow::{Result, bail};
 use glam::Vec3;
 use parallax_backend::DeviceInfo;
 use parallax_graph::{LightField, Rig};
-use parallax_passes::pipeline::PipelineBuilder;
+use parallax_passes::pipeline::{PipelineBuilder, PipelineKind};
 use parallax_passes::visibility::{GbufferChoice, choose_gbuffer};
 use parallax_scene::animation::CameraAnimation;
 use parallax_scene::{Camera, Scene, TraceSettings};
 
-use super::{MotionArg, RenderArgs, dolly};
-use crate::pipeline_args::PipelineArg;
-use parallax_render::compile::PipelineSchedule;
-use parallax_render::outputs::budget::{TraceWork, refuse_every_exceeded};
-use parallax_render::outputs::disk::{RenderOutputs, free_bytes};
-use parallax_render::outputs::{Format, Output, Sink, check_creating};
-use parallax_render::report::pictures::gpu_exposure;
-use parallax_render::report::startup::{Startup, Step};
+use crate::compile::PipelineSchedule;
+use crate::outputs::budget::{TraceWork, refuse_every_exceeded};
+use crate::outputs::disk::{RenderOutputs, free_bytes};
+use crate::outputs::{Format, Output, Sink, check_creating};
+use crate::report::startup::{Startup, Step};
+use crate::settings::{MotionRequest, RenderSettings};
 
 /// A render, planned: what the frame loop runs and the report describes.
 pub(super) struct RenderJob {
     pub sheet: PathBuf,
     pub render_json: PathBuf,
-    pub settings: TraceSettings,
+    pub trace_settings: TraceSettings,
     /// Warm-up and measured frames.
     pub total_frames: u32,
     /// The views of one frame over the frames (memory is per frame: the frames reuse the same
@@ -49,7 +47,7 @@ pub(super) struct RenderJob {
     /// ranks does not).
     pub writes_outputs: bool,
     /// A rank of a render over several ranks: what it runs.
-    pub rank: Option<parallax_render::ranks::RankPart>,
+    pub rank: Option<crate::ranks::RankPart>,
     /// Every frame's camera as rank 0 sent it (None: computed here).
     pub cameras: Option<Vec<Camera>>,
     /// When each step of the start ended (render.json's `startup`).
@@ -73,31 +71,31 @@ pub(super) enum Motion {
 }
 
 impl Motion {
-    /// `--motion` (or `--still`) for this scene: `auto` is the glTF animation when the scene
-    /// has one, its camera's part only when the user placed no camera, so a `--camera` stays
-    /// where it was put while the scene's meshes move.
-    fn resolve(args: &RenderArgs, scene: &Scene) -> Result<Motion> {
-        let placed = args.scene.camera.is_some();
+    /// The motion asked for, for this scene: `auto` is the glTF animation when the scene has
+    /// one, its camera's part only when the user placed no camera (`placed`), so a `--camera`
+    /// stays where it was put while the scene's meshes move; one measured frame of `frames` is
+    /// still.
+    fn resolve(request: MotionRequest, placed: bool, frames: u32, scene: &Scene) -> Result<Motion> {
         let geometry = scene.geometry_animation.as_ref().map(|a| a.duration());
         let animation = |camera: Option<CameraAnimation>| {
             let duration = camera.as_ref().map(|c| c.duration).into_iter().chain(geometry).reduce(f32::max);
             duration.map(|duration| Motion::Animation { camera, duration })
         };
-        let motion = match (args.still, args.motion) {
-            (true, _) | (false, MotionArg::None) => Motion::Still,
-            (false, MotionArg::Dolly) => Motion::Dolly,
-            (false, MotionArg::Auto) => {
+        let motion = match request {
+            MotionRequest::None => Motion::Still,
+            MotionRequest::Dolly => Motion::Dolly,
+            MotionRequest::Auto => {
                 animation(scene.camera_animation.clone().filter(|_| !placed)).unwrap_or(Motion::Still)
             }
-            (false, MotionArg::Animation) if placed && scene.camera_animation.is_some() => {
-                return Err(crate::options::UsageError(
+            MotionRequest::Animation if placed && scene.camera_animation.is_some() => {
+                return Err(crate::error::UsageError(
                     "--motion animation moves the scene's own camera, so --camera would be ignored: drop --camera, or \
                      use --motion dolly to move the camera you give"
                         .into(),
                 )
                 .into());
             }
-            (false, MotionArg::Animation) => match animation(scene.camera_animation.clone()) {
+            MotionRequest::Animation => match animation(scene.camera_animation.clone()) {
                 Some(motion) => motion,
                 None => bail!(
                     "--motion animation: scene '{}' has no animation of its camera or meshes; use --motion dolly or \
@@ -107,7 +105,7 @@ impl Motion {
             },
         };
         // One measured frame is a still camera whatever the motion.
-        Ok(if args.frames == 1 { Motion::Still } else { motion })
+        Ok(if frames == 1 { Motion::Still } else { motion })
     }
 
     /// render.json's `motion`.
@@ -132,11 +130,11 @@ impl RenderJob {
     /// over several ranks refuses instead: every rank must run one schedule.
     pub fn choose_gbuffer(
         &mut self,
-        args: &RenderArgs,
+        settings: &RenderSettings,
         extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
         devices: &[DeviceInfo],
     ) -> Result<()> {
-        let choice = choose_gbuffer(args.pipeline.gbuffer.into(), devices);
+        let choice = choose_gbuffer(settings.pipeline.config.gbuffer, devices);
         if let Some(reason) = &choice.fallback {
             if self.rank.is_some() {
                 bail!(
@@ -144,45 +142,44 @@ impl RenderJob {
                 );
             }
             tracing::warn!("--gbuffer visibility: {reason}");
-            let mut pipeline = args.pipeline.clone();
-            pipeline.gbuffer = choice.runs.into();
-            let sized = args.light_field.with_rig(Rig::default())?;
+            let mut pipeline = settings.pipeline.clone();
+            pipeline.config.gbuffer = choice.runs;
+            let sized = settings.light_field.with_rig(Rig::default())?;
             let devices = self.compiled.summary.devices;
-            self.compiled = pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
-            self.dot = args.dot.render(&self.compiled.schedule);
+            self.compiled = pipeline.compile_with(&sized, devices, extend)?;
+            self.dot = settings.dot.as_ref().map(|_| settings.dot_detail.render(&self.compiled.schedule));
         }
         self.gbuffer = choice;
         Ok(())
     }
 
-    /// Checks `args` and plans the run over `devices` devices (every rank's, in a render over
+    /// Checks `settings` and plans the run over `devices` devices (every rank's, in a render over
     /// several ranks), the pipeline extended by `extend`; only a process that `writes_outputs`
     /// checks them.
     pub fn prepare(
-        args: &RenderArgs,
+        settings: &RenderSettings,
         extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
         devices: u32,
         writes_outputs: bool,
     ) -> Result<RenderJob> {
         let mut startup = Startup::start();
-        args.pipeline.check()?;
-        let sheet = args.out_dir.join("lightfield.png");
-        let render_json = args.out_dir.join("render.json");
-        let (trace, dot) = (args.trace.as_ref(), args.dot.dot.as_ref());
+        let sheet = settings.out_dir.join("lightfield.png");
+        let render_json = settings.out_dir.join("render.json");
+        let (trace, dot) = (settings.trace.as_ref(), settings.dot.as_ref());
         if writes_outputs {
-            check_outputs(&args.out_dir, &sheet, &render_json, trace, dot, args.wiggle.as_deref())?;
+            check_outputs(&settings.out_dir, &sheet, &render_json, trace, dot, settings.wiggle.as_deref())?;
         }
-        let settings = TraceSettings { spp: args.spp, max_depth: args.depth.max_depth, ..Default::default() };
-        settings.validate()?;
-        let total_frames = args.warmup + args.frames;
-        let sized = args.light_field.with_rig(Rig::default())?;
-        if args.quilt.is_some() {
+        let trace_settings = TraceSettings { spp: settings.spp, max_depth: settings.max_depth, ..Default::default() };
+        trace_settings.validate()?;
+        let total_frames = settings.warmup + settings.frames;
+        let sized = settings.light_field.with_rig(Rig::default())?;
+        if settings.quilt.is_some() {
             // Refused before any frame: NELF holds no one sweep for a Looking Glass.
-            parallax_render::report::images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
+            crate::report::images::quilt_views(sized.cols, sized.rows, sized.name == "nelf")?;
         }
         if writes_outputs {
-            parallax_render::outputs::check_targets_in(
-                &args.out_dir,
+            crate::outputs::check_targets_in(
+                &settings.out_dir,
                 (0..sized.len() as u32).map(view_file_name),
                 "--out-dir",
             )?;
@@ -192,54 +189,56 @@ impl RenderJob {
             frames: u64::from(total_frames),
             width: sized.width,
             height: sized.height,
-            spp: args.spp,
+            spp: settings.spp,
             devices: u64::from(devices),
             views_flag: "--lf",
             frames_flag: "--frames, --warmup",
         };
         // At most: the pipeline may compute fewer layers (path tracing without denoising none).
-        let (layers, holes) = (args.layers, args.layers && args.pipeline.pipeline == PipelineArg::Reproject);
+        let (layers, holes) =
+            (settings.layers, settings.layers && settings.pipeline.config.kind == PipelineKind::Reproject);
         let outputs = RenderOutputs {
             views: sized.len() as u64,
             width: sized.width,
             height: sized.height,
             channels: 3 + if layers { 7 } else { 0 } + u64::from(holes),
-            frames: args.frames,
-            save_every: args.save_every,
+            frames: settings.frames,
+            save_every: settings.save_every,
             layer_pictures: u64::from(layers) + u64::from(holes),
-            quilt: args.quilt.is_some(),
+            quilt: settings.quilt.is_some(),
         };
-        let disk =
-            free_bytes(&args.out_dir).filter(|_| writes_outputs).map(|free| outputs.check_fits(&args.out_dir, free));
+        let disk = free_bytes(&settings.out_dir)
+            .filter(|_| writes_outputs)
+            .map(|free| outputs.check_fits(&settings.out_dir, free));
         refuse_every_exceeded([
-            args.pipeline.check_plan_size(&sized, devices),
+            settings.pipeline.check_plan_size(&sized, devices),
             one_frame.check_duration(),
             one_frame.check_host(),
             disk.unwrap_or(Ok(())),
         ])?;
         // Planned from the layout alone, as `plan` plans it: the schedule depends on the views'
         // positions in the rig plane, not on where the rig stands.
-        let compiled = args.pipeline.compile_with(&sized, devices, gpu_exposure(args.exposure), extend)?;
-        let dot = args.dot.render(&compiled.schedule);
+        let compiled = settings.pipeline.compile_with(&sized, devices, extend)?;
+        let dot = settings.dot.as_ref().map(|_| settings.dot_detail.render(&compiled.schedule));
         startup.ended(Step::Planned);
 
-        let scene = args.scene.load()?;
+        let scene = settings.scene.load()?;
         startup.ended(Step::SceneLoaded);
         let mut written = vec![("--out-dir", render_json.as_path()), ("--out-dir", sheet.as_path())];
-        if let Some(parallax_render::outputs::Sink::File(trace)) = &args.trace {
+        if let Some(crate::outputs::Sink::File(trace)) = &settings.trace {
             written.push(("--trace", trace.as_path()));
         }
         if writes_outputs {
-            parallax_render::outputs::check_inputs(&written, &args.scene.inputs(&scene))?;
+            crate::outputs::check_inputs(&written, &settings.scene.inputs(&scene))?;
         }
-        let camera = args.scene.camera_or_default(&scene);
+        let camera = settings.scene.camera_or_default(&scene);
         let centre = scene.bounds().center();
-        let motion = Motion::resolve(args, &scene)?;
-        tracing::info!("motion over the {} measured frame(s): {}", args.frames, motion.name());
+        let motion = Motion::resolve(settings.motion, settings.scene.camera.is_some(), settings.frames, &scene)?;
+        tracing::info!("motion over the {} measured frame(s): {}", settings.frames, motion.name());
         let mut job = RenderJob {
             sheet,
             render_json,
-            settings,
+            trace_settings,
             total_frames,
             one_frame,
             compiled,
@@ -254,46 +253,59 @@ impl RenderJob {
             cameras: None,
             startup,
             gbuffer: GbufferChoice {
-                requested: args.pipeline.gbuffer.into(),
-                runs: args.pipeline.gbuffer.into(),
+                requested: settings.pipeline.config.gbuffer,
+                runs: settings.pipeline.config.gbuffer,
                 fallback: None,
             },
         };
-        let first = &args.light_field;
-        job.spacing = first.layout.spacing_on(&first.rig_around(&job.camera_at(args, 0), job.centre));
+        let first = &settings.light_field;
+        job.spacing = first.layout.spacing_on(&first.rig_around(&job.camera_at(settings, 0), job.centre));
         Ok(job)
     }
 
     /// The animation time of frame `f`, seconds: under the glTF animation its whole length spread
     /// over the measured frames, else 0, the time the scene was loaded at. Warm-up frames have
     /// the first measured frame's.
-    pub fn time_at(&self, args: &RenderArgs, f: u32) -> f32 {
-        let m = f.saturating_sub(args.warmup);
+    pub fn time_at(&self, settings: &RenderSettings, f: u32) -> f32 {
+        let m = f.saturating_sub(settings.warmup);
         match &self.motion {
-            Motion::Animation { duration, .. } => duration * m as f32 / args.frames.saturating_sub(1).max(1) as f32,
+            Motion::Animation { duration, .. } => duration * m as f32 / settings.frames.saturating_sub(1).max(1) as f32,
             Motion::Still | Motion::Dolly => 0.0,
         }
     }
 
     /// The camera of frame `f`. Warm-up frames see the first measured frame's camera, so one
     /// measured frame is a still camera whatever the warm-up.
-    pub fn camera_at(&self, args: &RenderArgs, f: u32) -> Camera {
+    pub fn camera_at(&self, settings: &RenderSettings, f: u32) -> Camera {
         if let Some(camera) = self.cameras.as_ref().and_then(|c| c.get(f as usize)) {
             return *camera;
         }
-        let m = f.saturating_sub(args.warmup);
+        let m = f.saturating_sub(settings.warmup);
         match &self.motion {
             Motion::Still | Motion::Animation { camera: None, .. } => self.camera,
-            Motion::Animation { camera: Some(a), .. } => a.camera_at(self.time_at(args, f)),
-            Motion::Dolly => dolly(&self.camera, &self.scene, m, args.frames),
+            Motion::Animation { camera: Some(a), .. } => a.camera_at(self.time_at(settings, f)),
+            Motion::Dolly => dolly(&self.camera, &self.scene, m, settings.frames),
         }
     }
 
     /// The light field of frame `f`.
-    pub fn lf_of(&self, args: &RenderArgs, f: u32) -> Result<LightField> {
-        let rig = args.light_field.rig_around(&self.camera_at(args, f), self.centre);
-        args.light_field.layout.with_rig_spaced(rig, self.spacing)
+    pub fn lf_of(&self, settings: &RenderSettings, f: u32) -> Result<LightField> {
+        let rig = settings.light_field.rig_around(&self.camera_at(settings, f), self.centre);
+        settings.light_field.layout.with_rig_spaced(rig, self.spacing)
     }
+}
+
+/// The rig of frame `f` of `total`: a smooth sideways dolly across 10 % of the scene's size,
+/// eased in and out, centred on the starting camera.
+fn dolly(camera: &Camera, scene: &Scene, f: u32, total: u32) -> Camera {
+    if total <= 1 {
+        return *camera;
+    }
+    let (right, _, _) = camera.basis();
+    let t = f as f32 / (total - 1) as f32;
+    let eased = 0.5 - 0.5 * (std::f32::consts::PI * t).cos();
+    let offset: Vec3 = right * (0.1 * scene.bounds().diagonal() * (eased - 0.5));
+    Camera { eye: camera.eye + offset, ..*camera }
 }
 
 pub(super) fn view_file_name(index: u32) -> String {
@@ -358,67 +370,61 @@ pub(super) fn check_outputs(
 
 #[cfg(test)]
 mod tests {
-    use clap::{Args as _, FromArgMatches as _};
     use parallax_scene::default_scene;
 
     use super::*;
 
-    fn args(words: &[&str]) -> RenderArgs {
-        let command = RenderArgs::augment_args(clap::Command::new("render").no_binary_name(true));
-        RenderArgs::from_arg_matches(&command.try_get_matches_from(words).unwrap()).unwrap()
-    }
-
-    fn motion(words: &[&str], scene: &Scene) -> String {
-        Motion::resolve(&args(words), scene).map(|m| m.name().to_string()).unwrap_or_else(|e| e.to_string())
+    /// The motion that runs for `request` over `frames` frames, a camera `placed` or not.
+    fn motion(request: MotionRequest, placed: bool, frames: u32, scene: &Scene) -> String {
+        Motion::resolve(request, placed, frames, scene).map(|m| m.name().to_string()).unwrap_or_else(|e| e.to_string())
     }
 
     /// A placed camera stays where it was put; the scene's own animation runs only when no
     /// camera is given; the dolly only when asked for.
     #[test]
     fn a_camera_moves_only_when_a_motion_is_asked_for() {
+        use MotionRequest::{Animation, Auto, Dolly, None};
         let still = default_scene();
         let mut animated = default_scene();
         animated.camera_animation = Some(CameraAnimation { nodes: Vec::new(), yfov: 0.8, duration: 1.0 });
-        let camera = ["--camera", "0,1,4,0,1,0,0,1,0,45"];
-        assert_eq!(motion(&["--frames", "3"], &still), "none");
-        assert_eq!(motion(&["--frames", "3"], &animated), "animation");
-        assert_eq!(motion(&[&["--frames", "3"][..], &camera].concat(), &animated), "none");
-        assert_eq!(motion(&[&["--frames", "3", "--motion", "dolly"][..], &camera].concat(), &still), "dolly");
+        assert_eq!(motion(Auto, false, 3, &still), "none");
+        assert_eq!(motion(Auto, false, 3, &animated), "animation");
+        assert_eq!(motion(Auto, true, 3, &animated), "none");
+        assert_eq!(motion(Dolly, true, 3, &still), "dolly");
         assert!(
-            motion(&[&["--frames", "3", "--motion", "animation"][..], &camera].concat(), &animated)
+            motion(Animation, true, 3, &animated)
                 .starts_with("--motion animation moves the scene's own camera, so --camera would be ignored")
         );
-        assert_eq!(motion(&["--frames", "3", "--motion", "animation"], &animated), "animation");
-        assert_eq!(motion(&["--frames", "3", "--still"], &animated), "none");
-        assert_eq!(motion(&["--frames", "1", "--motion", "dolly"], &still), "none", "one frame is still");
+        assert_eq!(motion(Animation, false, 3, &animated), "animation");
+        assert_eq!(motion(None, false, 3, &animated), "none");
+        assert_eq!(motion(Dolly, false, 1, &still), "none", "one frame is still");
         assert_eq!(
-            motion(&["--frames", "3", "--motion", "animation"], &still),
+            motion(Animation, false, 3, &still),
             "--motion animation: scene 'default' has no animation of its camera or meshes; use --motion dolly or \
              --motion none"
         );
     }
 
     /// A skinned, animated scene (Fox) moves by default, its meshes posed at each frame's time
-    /// whether or not a camera is placed; a placed camera stays put meanwhile. `--motion none`,
-    /// `--still`, the dolly and a single frame pose it once, at t = 0.
+    /// whether or not a camera is placed; a placed camera stays put meanwhile. `--motion none`
+    /// (`--still`), the dolly and a single frame pose it once, at t = 0.
     #[test]
     fn moving_meshes_run_their_animation_under_a_still_or_placed_camera() {
-        let fox = parallax_scene::load_gltf(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/fox/Fox.gltf")).unwrap();
-        let camera = ["--camera", "0,40,200,0,40,0,0,1,0,45"];
-        let placed = [&["--frames", "3"][..], &camera].concat();
-        assert_eq!(motion(&["--frames", "3"], &fox), "animation");
-        assert_eq!(motion(&placed, &fox), "animation");
-        assert_eq!(motion(&[&placed[..], &["--motion", "animation"]].concat(), &fox), "animation");
-        assert_eq!(motion(&["--frames", "3", "--motion", "none"], &fox), "none");
-        assert_eq!(motion(&["--frames", "3", "--still"], &fox), "none");
-        assert_eq!(motion(&["--frames", "3", "--motion", "dolly"], &fox), "dolly");
-        assert_eq!(motion(&["--frames", "1"], &fox), "none");
+        use MotionRequest::{Animation, Auto, Dolly, None};
+        let fox =
+            parallax_scene::load_gltf(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/fox/Fox.gltf")).unwrap();
+        assert_eq!(motion(Auto, false, 3, &fox), "animation");
+        assert_eq!(motion(Auto, true, 3, &fox), "animation");
+        assert_eq!(motion(Animation, true, 3, &fox), "animation");
+        assert_eq!(motion(None, false, 3, &fox), "none");
+        assert_eq!(motion(Dolly, false, 3, &fox), "dolly");
+        assert_eq!(motion(Auto, false, 1, &fox), "none");
 
         // The placed camera is not animated; the meshes' animation (Survey, 3.42 s) runs.
-        let placed = Motion::resolve(&args(&placed), &fox).unwrap();
+        let placed = Motion::resolve(Auto, true, 3, &fox).unwrap();
         assert!(placed.moves_geometry(&fox));
-        let Motion::Animation { camera: None, duration } = placed else { panic!("the camera was placed") };
+        let Motion::Animation { camera: Option::None, duration } = placed else { panic!("the camera was placed") };
         assert!((duration - 3.4166667).abs() < 1e-5, "{duration}");
-        assert!(!Motion::resolve(&args(&["--frames", "3", "--still"]), &fox).unwrap().moves_geometry(&fox));
+        assert!(!Motion::resolve(None, false, 3, &fox).unwrap().moves_geometry(&fox));
     }
 }

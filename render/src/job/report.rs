@@ -18,16 +18,17 @@ use parallax_passes::pipeline::{PipelineHandles, PipelineKind};
 use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Frame, PixelSample, View};
 
-use super::RenderArgs;
 use super::plan::{RenderJob, view_file_name};
 use super::posing::GeometryReport;
-use crate::logging::result;
-use parallax_render::outputs::resident::ResidentSummary;
-use parallax_render::outputs::{FolderLock, Sink, Staged, stage};
-use parallax_render::ranks::view_source::{Gathered, ViewSource};
-use parallax_render::report::pictures::{display_images, stage_pictures, view_png_name};
-use parallax_render::report::setup::{CameraSetup, Setup};
-use parallax_render::report::stages::{MissingPixels, missing_pixels, stage_table, timings};
+use crate::compile::{fireflies_name, gbuffer_name, pipeline_name, plan_json, sources_per_set_json};
+use crate::console::result;
+use crate::outputs::resident::ResidentSummary;
+use crate::outputs::{FolderLock, Sink, Staged, stage};
+use crate::ranks::view_source::{Gathered, ViewSource};
+use crate::report::pictures::{display_images, stage_pictures, view_png_name};
+use crate::report::setup::{CameraSetup, Setup};
+use crate::report::stages::{MissingPixels, missing_pixels, stage_table, timings};
+use crate::settings::{RenderSettings, barriers_name, timing_name};
 
 /// What the frame loop leaves for the report: the renderer after the last frame (its
 /// statistics and final images), the context it ran on, the views already staged by
@@ -71,20 +72,20 @@ pub(super) struct RankViews {
 }
 
 /// Reads the last frame back, writes every output and says what was rendered.
-pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<()> {
+pub(super) fn write_outputs(settings: &RenderSettings, job: &RenderJob, rendered: Rendered) -> Result<()> {
     let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock, layers, geometry, ranks } = rendered;
     let reports = renderer.take_reports();
     let prepare = renderer.prepare_ms().clone();
     let timing = timings(renderer.stats(), &prepare);
     let (kind, handles) = (job.compiled.kind, &job.compiled.handles);
-    let last_views = lightfield_views(&job.lf_of(args, job.total_frames - 1)?);
+    let last_views = lightfield_views(&job.lf_of(settings, job.total_frames - 1)?);
     let no_remote = (HashMap::new(), BTreeSet::new(), HashMap::new());
     let (remote, remote_views, bands) =
         ranks.as_ref().map_or((&no_remote.0, &no_remote.1, &no_remote.2), |r| (&r.remote, &r.remote_views, &r.bands));
     let mut views = Gathered { local: &mut renderer, remote, remote_views, bands };
-    staged.extend(stage_views(&mut views, handles, &args.out_dir, &last_views, layers)?);
-    let (exposure, displays) = display_images(&mut views, handles, (lf.len() as u32, lf.width), args.exposure)?;
-    let pictures = stage_pictures(&args.out_dir, &lf, &displays, args.quilt, args.wiggle.as_deref())?;
+    staged.extend(stage_views(&mut views, handles, &settings.out_dir, &last_views, layers)?);
+    let (exposure, displays) = display_images(&mut views, handles, (lf.len() as u32, lf.width), settings.exposure)?;
+    let pictures = stage_pictures(&settings.out_dir, &lf, &displays, settings.quilt, settings.wiggle.as_deref())?;
     drop(displays);
     let holes = match kind {
         PipelineKind::Reproject => Some(holes_of_targets(job, &mut views, lf.len() as u32)?),
@@ -106,9 +107,9 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
         Some(r) => r.device_names.clone(),
         None => context.device_infos().iter().map(|d| d.name.clone()).collect(),
     };
-    let wall_ms = ranks.as_ref().map_or_else(|| wall_ms(args, wall), |r| r.wall_ms);
+    let wall_ms = ranks.as_ref().map_or_else(|| wall_ms(settings, wall), |r| r.wall_ms);
     let json = render_json(
-        args,
+        settings,
         job,
         &Measured {
             exposure,
@@ -122,28 +123,28 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
             ranks: ranks.as_ref().map(|r| r.json.clone()),
         },
     )?;
-    let viewer = pictures.stage_viewer(&args.out_dir, &lf, &json)?;
-    let json_file = parallax_render::outputs::stage_json(&job.render_json, &json)?;
-    let trace = args.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
+    let viewer = pictures.stage_viewer(&settings.out_dir, &lf, &json)?;
+    let json_file = crate::outputs::stage_json(&job.render_json, &json)?;
+    let trace = settings.trace.as_ref().map(|_| chrome_trace(&reports, &context.device_infos()));
     for s in staged.into_iter().chain(pictures.staged) {
         s.commit()?;
     }
     viewer.commit()?;
-    remove_stale_views(&args.out_dir, lf.len())?;
-    if let (Some(sink), Some(trace)) = (&args.trace, &trace) {
-        parallax_render::outputs::write_json(sink, trace)?;
+    remove_stale_views(&settings.out_dir, lf.len())?;
+    if let (Some(sink), Some(trace)) = (&settings.trace, &trace) {
+        crate::outputs::write_json(sink, trace)?;
     }
-    if let (Some(sink), Some(dot)) = (&args.dot.dot, &job.dot) {
-        parallax_render::outputs::write_bytes(sink, dot.as_bytes())?;
+    if let (Some(sink), Some(dot)) = (&settings.dot, &job.dot) {
+        crate::outputs::write_bytes(sink, dot.as_bytes())?;
     }
     json_file.commit()?;
-    parallax_render::outputs::keep_folders();
+    crate::outputs::keep_folders();
     drop(lock);
-    let stdout_taken = [&args.trace, &args.dot.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
+    let stdout_taken = [&settings.trace, &settings.dot].iter().any(|s| matches!(s, Some(Sink::Stdout)));
     let say = |line: String| result(stdout_taken, &line);
     // The table is detail for a person at a terminal: -q (bench's cells, scripts) keeps the
     // one-line results only.
-    if !crate::logging::quiet() {
+    if !crate::console::quiet() {
         say(stage_table(&timing));
     }
     say(format!(
@@ -151,11 +152,11 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
         lf.len(),
         lf.width,
         lf.height,
-        crate::bench_matrix::name_of(&args.pipeline.pipeline),
+        crate::compile::pipeline_name(settings.pipeline.config.kind),
         job.compiled.summary.scheme,
         job.compiled.summary.devices,
-        args.spp,
-        args.frames,
+        settings.spp,
+        settings.frames,
         wall_ms,
         timing.frame_gpu.mean_ms,
         100.0 * missing.overall
@@ -163,24 +164,24 @@ pub(super) fn write_outputs(args: &RenderArgs, job: &RenderJob, rendered: Render
     say(format!(
         "wrote {} views (EXR and PNG at exposure {exposure:.4}, {}), {}, {} and {}",
         lf.len(),
-        args.exposure.mode(),
+        settings.exposure.mode(),
         job.sheet.display(),
-        args.out_dir.join("viewer.html").display(),
+        settings.out_dir.join("viewer.html").display(),
         job.render_json.display()
     ));
     Ok(())
 }
 
 /// Wall time per measured frame, in milliseconds.
-fn wall_ms(args: &RenderArgs, wall: std::time::Duration) -> f64 {
-    wall.as_secs_f64() * 1e3 / f64::from(args.frames)
+fn wall_ms(settings: &RenderSettings, wall: std::time::Duration) -> f64 {
+    wall.as_secs_f64() * 1e3 / f64::from(settings.frames)
 }
 
 /// What the run measured, for render.json.
 struct Measured<'a> {
     exposure: f32,
     wall_ms: f64,
-    timing: &'a parallax_render::report::stages::Timings,
+    timing: &'a crate::report::stages::Timings,
     missing: &'a MissingPixels,
     device_names: Vec<String>,
     host_memory: ResidentSummary,
@@ -195,7 +196,7 @@ struct Measured<'a> {
 /// render over several ranks lists its `remote` links too); and the host and device staging
 /// memory they use.
 fn links_json(executor: &parallax_backend::Executor) -> serde_json::Value {
-    let end = |d: usize| parallax_render::ranks::run_device(executor.plan(), 0, d);
+    let end = |d: usize| crate::ranks::run_device(executor.plan(), 0, d);
     let links: Vec<serde_json::Value> = executor
         .links()
         .iter()
@@ -247,36 +248,36 @@ fn holes_of_targets(
 }
 
 /// render.json: the setup that comparisons check, the plan and what was measured.
-fn render_json(args: &RenderArgs, job: &RenderJob, measured: &Measured<'_>) -> Result<serde_json::Value> {
+fn render_json(settings: &RenderSettings, job: &RenderJob, measured: &Measured<'_>) -> Result<serde_json::Value> {
     let last = job.total_frames - 1;
-    let lf = job.lf_of(args, 0)?;
+    let lf = job.lf_of(settings, 0)?;
     let still = matches!(job.motion, super::plan::Motion::Still);
-    let last_lf = job.lf_of(args, last)?;
+    let last_lf = job.lf_of(settings, last)?;
     let spacing = job.spacing;
-    let camera_last = job.camera_at(args, last);
+    let camera_last = job.camera_at(settings, last);
     let setup =
-        Setup::new(&args.scene.scene, &job.scene, &camera_last, still, (&last_lf, spacing), args.depth.max_depth)?;
+        Setup::new(&settings.scene.path, &job.scene, &camera_last, still, (&last_lf, spacing), settings.max_depth)?;
     let (summary, kind) = (&job.compiled.summary, job.compiled.kind);
     Ok(serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
-        "scene": args.scene.scene.to_string_lossy(),
+        "scene": settings.scene.path.to_string_lossy(),
         "camera": CameraSetup::of(&job.camera), "sun": &setup.sun, "sky": &setup.sky,
         "layout": { "lf": &lf.name, "views": lf.len(), "cols": lf.cols, "rows": lf.rows,
                     "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
         // The assignment groups views only under multi-source (`--assign` is refused otherwise).
-        "pipeline": args.pipeline.pipeline, "scheme": summary.scheme, "assign": summary.assign,
-        "sources_per_set": args.pipeline.sources_per_set, "denoise": !args.pipeline.no_denoise,
-        "fireflies": args.pipeline.fireflies_applied(),
-        "exposure": measured.exposure, "exposure_mode": args.exposure.mode(), "still": still,
+        "pipeline": pipeline_name(settings.pipeline.config.kind), "scheme": summary.scheme, "assign": summary.assign,
+        "sources_per_set": sources_per_set_json(settings.pipeline.sources_per_set), "denoise": settings.pipeline.config.denoise,
+        "fireflies": fireflies_name(settings.pipeline.config.fireflies),
+        "exposure": measured.exposure, "exposure_mode": settings.exposure.mode(), "still": still,
         "motion": job.motion.name(), "geometry": &measured.geometry, "setup": &setup,
-        "barriers": args.barriers, "timestamps": args.timing, "gbuffer": crate::pipeline_args::GbufferArg::from(job.gbuffer.runs),
-        "gbuffer_requested": args.pipeline.gbuffer, "gbuffer_fallback": &job.gbuffer.fallback,
-        "reprojection_tolerance": args.pipeline.reprojection_tolerance,
-        "spp": args.spp, "max_depth": args.depth.max_depth, "frames": args.frames, "warmup": args.warmup,
-        "frames_in_flight": args.frames_in_flight,
+        "barriers": barriers_name(settings.barriers), "timestamps": timing_name(settings.timing), "gbuffer": gbuffer_name(job.gbuffer.runs),
+        "gbuffer_requested": gbuffer_name(settings.pipeline.config.gbuffer), "gbuffer_fallback": &job.gbuffer.fallback,
+        "reprojection_tolerance": settings.pipeline.reprojection_tolerance,
+        "spp": settings.spp, "max_depth": settings.max_depth, "frames": settings.frames, "warmup": settings.warmup,
+        "frames_in_flight": settings.frames_in_flight,
         "devices": measured.device_names,
-        "run": args.run_file(),
-        "plan": crate::pipeline_args::plan_json(summary, job.gbuffer.runs.into()),
+        "run": settings.run.clone(),
+        "plan": plan_json(summary, job.gbuffer.runs),
         "startup": job.startup.to_json(),
         "wall_ms_per_frame": measured.wall_ms,
         "timing": measured.timing,
@@ -302,12 +303,12 @@ pub(super) struct ViewLayers {
 /// computes no G-buffer: its views carry radiance alone, which is said once, before the frames
 /// (reading a layer no pass writes used to fail the run after all of them).
 pub(super) fn view_layers(
-    args: &RenderArgs,
+    settings: &RenderSettings,
     kind: PipelineKind,
     handles: &PipelineHandles,
     renderer: &LightFieldRenderer,
 ) -> ViewLayers {
-    if !args.layers {
+    if !settings.layers {
         return ViewLayers::default();
     }
     // A view this process renders (a rank of several renders only some).
@@ -469,11 +470,15 @@ fn parse_view_file_name(name: &str) -> Option<u32> {
 /// the linear radiance, the tonemapped display (at a fixed exposure), the hole mask
 /// (reprojection) and the `--layers`.
 #[cfg(feature = "mpi")]
-pub(super) fn output_families(args: &RenderArgs, job: &RenderJob, layers: ViewLayers) -> Vec<parallax_graph::FamilyId> {
+pub(super) fn output_families(
+    settings: &RenderSettings,
+    job: &RenderJob,
+    layers: ViewLayers,
+) -> Vec<parallax_graph::FamilyId> {
     let handles = &job.compiled.handles;
     let gbuffer = &handles.gbuffer;
     let mut families = vec![handles.linear];
-    if matches!(args.exposure, crate::options::Exposure::Fixed(_)) {
+    if matches!(settings.exposure, parallax_accuracy::exposure::Exposure::Fixed(_)) {
         families.push(handles.display.family());
     }
     if job.compiled.kind == PipelineKind::Reproject {

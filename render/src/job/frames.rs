@@ -8,21 +8,22 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use parallax_backend::{Barriers, Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, Timing};
+use parallax_backend::{Context as VkContext, ContextDesc, DeviceInfo, ExecOptions};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings};
 
+use super::faults::fault_from_env;
 use super::plan::RenderJob;
 use super::posing::Posing;
 use super::report::{Rendered, ViewLayers, stage_views, view_layers};
-use super::{BarrierArg, RenderArgs, RenderExtension, TimingArg, fault_from_env};
-use crate::logging::bar;
-use parallax_render::outputs::Staged;
-use parallax_render::outputs::resident::{ResidentSampler, ResidentSummary};
-use parallax_render::report::startup::Step;
+use crate::console::bar;
+use crate::outputs::Staged;
+use crate::outputs::resident::{ResidentSampler, ResidentSummary};
+use crate::report::startup::Step;
+use crate::settings::{RenderExtension, RenderSettings};
 
 /// Called after each frame is submitted with its index and host wall time: how ranks report
 /// and listen while they render.
@@ -31,14 +32,14 @@ pub(super) type OnFrame<'a> = &'a mut dyn FnMut(u32, Duration) -> Result<()>;
 /// Creates the devices and the executor for `job` and runs every frame; the scene is left in
 /// the last frame's pose.
 pub(super) fn render_frames(
-    args: &RenderArgs,
+    settings: &RenderSettings,
     job: &mut RenderJob,
     extension: &mut RenderExtension,
     on_frame: Option<OnFrame<'_>>,
 ) -> Result<Rendered> {
-    let lf = job.lf_of(args, 0)?;
+    let lf = job.lf_of(settings, 0)?;
     let bvh = SceneBvh::build(&job.scene);
-    let context = VkContext::new(&ContextDesc::from_env(args.devices.selection()))?;
+    let context = VkContext::new(&ContextDesc::from_env(settings.devices))?;
     job.startup.ended(Step::Devices);
     // One message per device: a message is one line (crate::logging).
     context.to_string().lines().for_each(|line| tracing::info!("{line}"));
@@ -46,30 +47,24 @@ pub(super) fn render_frames(
     let identity = |builder: PipelineBuilder| builder;
     let extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder = extension.stages.as_deref().unwrap_or(&identity);
     let infos: Vec<DeviceInfo> = context.devices().iter().map(|d| d.info.clone()).collect();
-    job.choose_gbuffer(args, extend, &infos)?;
+    job.choose_gbuffer(settings, extend, &infos)?;
     // A link kind some pair cannot use is a usage error, found before any frame.
-    parallax_backend::link_kinds(context.devices(), args.link.kind()).map_err(|e| {
-        crate::options::UsageError(format!(
+    parallax_backend::link_kinds(context.devices(), settings.link).map_err(|e| {
+        crate::error::UsageError(format!(
             "--link {}: {e}; `--link auto` takes the best each pair offers",
-            args.link.kind().map_or("auto", |k| k.name())
+            settings.link.map_or("auto", |k| k.name())
         ))
     })?;
     let exec_plan = match &job.rank {
-        Some(part) => parallax_render::ranks::restrict_plan(&job.compiled.exec, &part.layout, part.rank),
+        Some(part) => crate::ranks::restrict_plan(&job.compiled.exec, &part.layout, part.rank),
         None => job.compiled.exec.clone(),
     };
     let options = ExecOptions {
-        barriers: match args.barriers {
-            BarrierArg::EveryOp => Barriers::EveryOp,
-            BarrierArg::Tracked => Barriers::Tracked,
-        },
-        timing: match args.timing {
-            TimingArg::PerOp => Timing::PerOp,
-            TimingArg::PerStage => Timing::PerStage,
-        },
-        frames_in_flight: args.frames_in_flight as usize,
+        barriers: settings.barriers,
+        timing: settings.timing,
+        frames_in_flight: settings.frames_in_flight as usize,
         fault: fault_from_env()?,
-        link: args.link.kind(),
+        link: settings.link,
         shaders: extension.shaders.clone(),
         remote: job.rank.as_ref().and_then(|part| part.transport.clone()),
         ..ExecOptions::default()
@@ -78,12 +73,12 @@ pub(super) fn render_frames(
         LightFieldRenderer::with_options(&context, exec_plan, &GpuScene::new(&job.scene, &bvh), options)?;
     job.startup.ended(Step::Executor);
     drop(bvh);
-    let layers = view_layers(args, job.compiled.kind, &job.compiled.handles, &renderer);
+    let layers = view_layers(settings, job.compiled.kind, &job.compiled.handles, &renderer);
     let executor = renderer.executor();
     // Devices by the run's numbers (a rank's own, and other ranks' at the far end of a link).
     let first = job.rank.as_ref().map_or(0, |part| part.layout.first(part.rank));
     for link in executor.links() {
-        let end = |d: usize| parallax_render::ranks::run_device(executor.plan(), first, d);
+        let end = |d: usize| crate::ranks::run_device(executor.plan(), first, d);
         tracing::info!(
             "link device {} → device {}: {}, {} chunk(s) and {:.1} MiB a frame",
             end(link.from),
@@ -112,14 +107,14 @@ pub(super) fn render_frames(
     }
 
     let lock = if job.writes_outputs {
-        parallax_render::outputs::create_folder(&args.out_dir)
-            .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
-        Some(parallax_render::outputs::lock_folder(&args.out_dir, "--out-dir")?)
+        crate::outputs::create_folder(&settings.out_dir)
+            .with_context(|| format!("cannot create --out-dir {}", settings.out_dir.display()))?;
+        Some(crate::outputs::lock_folder(&settings.out_dir, "--out-dir")?)
     } else {
         None
     };
     let mut posing = Posing::of(job);
-    let (staged, wall, host_memory) = frame_loop(args, job, &mut renderer, layers, posing.as_mut(), on_frame)?;
+    let (staged, wall, host_memory) = frame_loop(settings, job, &mut renderer, layers, posing.as_mut(), on_frame)?;
     if let Some(done) = renderer.executor().first_frame_done_ns() {
         job.startup.ended_at(Step::FirstFrame, done);
     }
@@ -134,7 +129,7 @@ pub(super) fn render_frames(
 /// posed the scene at its time; returns the views `--save-every` staged, the wall time of the
 /// measured frames and the resident set over them.
 fn frame_loop(
-    args: &RenderArgs,
+    settings: &RenderSettings,
     job: &mut RenderJob,
     renderer: &mut LightFieldRenderer,
     layers: ViewLayers,
@@ -147,35 +142,35 @@ fn frame_loop(
     let mut sampler = None;
     let mut staged: Vec<Staged> = Vec::new();
     for f in 0..job.total_frames {
-        if f == args.warmup {
+        if f == settings.warmup {
             renderer.finish()?;
             renderer.reset_stats();
             // Only a trace needs every event of every frame; otherwise the statistics are all.
-            renderer.keep_reports(args.trace.is_some());
+            renderer.keep_reports(settings.trace.is_some());
             measured_from = Some(Instant::now());
             sampler = Some(ResidentSampler::start());
         }
         if let Some(posing) = posing.as_deref_mut() {
-            posing.before_frame(args, job, renderer, f)?;
+            posing.before_frame(settings, job, renderer, f)?;
         }
         let frame_started = Instant::now();
-        let views = lightfield_views(&job.lf_of(args, f)?);
-        renderer.submit(&job.scene, &views, &TraceSettings { frame: f, ..job.settings })?;
+        let views = lightfield_views(&job.lf_of(settings, f)?);
+        renderer.submit(&job.scene, &views, &TraceSettings { frame: f, ..job.trace_settings })?;
         if let Some(on_frame) = on_frame.as_deref_mut() {
             on_frame(f, frame_started.elapsed())?;
         }
-        let measured = f.checked_sub(args.warmup);
-        if let (Some(every), Some(m)) = (args.save_every, measured)
+        let measured = f.checked_sub(settings.warmup);
+        if let (Some(every), Some(m)) = (settings.save_every, measured)
             && m % every == 0
             && f + 1 < job.total_frames
         {
             renderer.finish()?;
-            let folder = args.out_dir.join(format!("frame_{m:05}"));
+            let folder = settings.out_dir.join(format!("frame_{m:05}"));
             // Only inside --out-dir as it is: making it again would put the frames beside the
             // folder the user moved.
-            match parallax_render::outputs::create_subfolder(&folder) {
+            match crate::outputs::create_subfolder(&folder) {
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                    bail!("--out-dir: {}", parallax_accuracy::folder_gone(&args.out_dir))
+                    bail!("--out-dir: {}", parallax_accuracy::folder_gone(&settings.out_dir))
                 }
                 created => created.with_context(|| format!("cannot create {}", folder.display()))?,
             }

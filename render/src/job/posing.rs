@@ -19,9 +19,9 @@ use parallax_passes::LightFieldRenderer;
 use parallax_scene::SceneBvh;
 use parallax_scene::gpu::GpuScene;
 
-use super::RenderArgs;
 use super::plan::RenderJob;
-use parallax_render::report::stages::Spread;
+use crate::report::stages::Spread;
+use crate::settings::RenderSettings;
 
 /// Poses the scene frame by frame and times it.
 pub(super) struct Posing {
@@ -75,12 +75,12 @@ impl Posing {
     /// backend change — to win back only the GPU's idle time during the copy of a few buffers.
     pub fn before_frame(
         &mut self,
-        args: &RenderArgs,
+        settings: &RenderSettings,
         job: &mut RenderJob,
         renderer: &mut LightFieldRenderer,
         f: u32,
     ) -> Result<()> {
-        let t = job.time_at(args, f);
+        let t = job.time_at(settings, f);
         if t == self.shown {
             return Ok(());
         }

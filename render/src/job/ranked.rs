@@ -17,31 +17,32 @@ use parallax_backend::ExecutionPlan;
 use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::Camera;
 
+use super::faults::{RankFault, rank_fault_from_env};
 use super::frames::render_frames;
 use super::plan::RenderJob;
 use super::report::{RankViews, Rendered, output_families, write_outputs};
-use super::{RankFault, RenderArgs, RenderExtension, rank_fault_from_env};
-use crate::options::UsageError;
-use parallax_render::ranks::mpi::{Cluster, Collector, FrameStat, LinkTransport, Reported};
-use parallax_render::ranks::{RankLayout, RankPart, linked, views_of};
-use parallax_render::report::stages::timings;
+use crate::error::UsageError;
+use crate::ranks::mpi::{Cluster, Collector, FrameStat, LinkTransport, Reported};
+use crate::ranks::{RankLayout, RankPart, linked, views_of};
+use crate::report::stages::timings;
+use crate::settings::{RenderExtension, RenderSettings};
 
 /// Runs this rank's part of the render.
-pub(super) fn run(args: &RenderArgs, extension: &mut RenderExtension, cluster: &Cluster) -> Result<()> {
+pub(super) fn run(settings: &RenderSettings, extension: &mut RenderExtension, cluster: &Cluster) -> Result<()> {
     // A collective before anything can fail on one rank alone.
-    let layout = cluster.layout(args.devices.selection().count() as u32);
+    let layout = cluster.layout(settings.devices.count() as u32);
     let fault = rank_fault_from_env()?;
     if cluster.rank == 0 {
-        refuse(args)?;
-        lead(args, extension, cluster, &layout, fault)
+        refuse(settings)?;
+        lead(settings, extension, cluster, &layout, fault)
     } else {
-        follow(args, extension, cluster, &layout, fault)
+        follow(settings, extension, cluster, &layout, fault)
     }
 }
 
 /// What only runs in one process today.
-fn refuse(args: &RenderArgs) -> Result<()> {
-    if args.save_every.is_some() {
+fn refuse(settings: &RenderSettings) -> Result<()> {
+    if settings.save_every.is_some() {
         return Err(UsageError(
             "--save-every writes intermediate frames, which ranks do not send to rank 0 yet: drop --save-every under \
              mpirun"
@@ -60,8 +61,8 @@ fn extend_of(extension: &RenderExtension) -> impl Fn(PipelineBuilder) -> Pipelin
 }
 
 /// The run's settings that every rank must share (its devices are its own).
-fn shared_settings(args: &RenderArgs) -> serde_json::Value {
-    let mut settings = args.run_file();
+fn shared_settings(settings: &RenderSettings) -> serde_json::Value {
+    let mut settings = settings.run.clone();
     if let Some(map) = settings.as_object_mut() {
         map.remove("gpus");
         map.remove("fake_devices");
@@ -72,34 +73,34 @@ fn shared_settings(args: &RenderArgs) -> serde_json::Value {
 /// Rank 0: plans, sends every rank the frames, renders its own sets while listening, gathers
 /// the others' views and writes the outputs.
 fn lead(
-    args: &RenderArgs,
+    settings: &RenderSettings,
     extension: &mut RenderExtension,
     cluster: &Cluster,
     layout: &RankLayout,
     fault: Option<RankFault>,
 ) -> Result<()> {
-    let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), true)?;
-    job.rank = Some(rank_part(args, &job, cluster, layout)?);
-    let cameras: Vec<[u32; 12]> = (0..job.total_frames).map(|f| camera_bits(&job.camera_at(args, f))).collect();
-    cluster.send_frames(&serde_json::json!({ "settings": shared_settings(args), "cameras": cameras }));
-    let mut collector = Collector::new(cluster.size(), Duration::from_secs(args.rank_timeout));
+    let mut job = RenderJob::prepare(settings, &extend_of(extension), layout.total(), true)?;
+    job.rank = Some(rank_part(settings, &job, cluster, layout)?);
+    let cameras: Vec<[u32; 12]> = (0..job.total_frames).map(|f| camera_bits(&job.camera_at(settings, f))).collect();
+    cluster.send_frames(&serde_json::json!({ "settings": shared_settings(settings), "cameras": cameras }));
+    let mut collector = Collector::new(cluster.size(), settings.rank_timeout);
     let mut listen = |frame: u32, _wall: Duration| {
         inject(fault, 0, frame)?;
         collector.poll(cluster)
     };
-    let rendered = render_frames(args, &mut job, extension, Some(&mut listen));
+    let rendered = render_frames(settings, &mut job, extension, Some(&mut listen));
     // A link that waited in vain for a rank that failed: its own message says why.
     let mut rendered = rendered.or_else(|e| collector.poll(cluster).and(Err(e)))?;
     let finished = collector.wait_all(cluster)?;
     let global = job.compiled.exec.plan.clone();
-    rendered.ranks = Some(gathered(args, &mut rendered, &collector, finished, global, cluster, layout)?);
-    write_outputs(args, &job, rendered)
+    rendered.ranks = Some(gathered(settings, &mut rendered, &collector, finished, global, cluster, layout)?);
+    write_outputs(settings, &job, rendered)
 }
 
 /// Ranks other than 0: render the own sets, report each frame, send the views; a failure goes
 /// to rank 0, which says it.
 fn follow(
-    args: &RenderArgs,
+    settings: &RenderSettings,
     extension: &mut RenderExtension,
     cluster: &Cluster,
     layout: &RankLayout,
@@ -108,20 +109,20 @@ fn follow(
     let frames = cluster.receive_frames()?;
     let rank = cluster.rank;
     let outcome = (|| -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
-        if frames["settings"] != shared_settings(args) {
+        if frames["settings"] != shared_settings(settings) {
             bail!("its flags differ from rank 0's: give every rank the same flags (but --gpus/--fake-devices)");
         }
         let cameras: Vec<[u32; 12]> = serde_json::from_value(frames["cameras"].clone())?;
-        let mut job = RenderJob::prepare(args, &extend_of(extension), layout.total(), false)?;
+        let mut job = RenderJob::prepare(settings, &extend_of(extension), layout.total(), false)?;
         job.cameras = Some(cameras.iter().map(camera_of_bits).collect());
-        job.rank = Some(rank_part(args, &job, cluster, layout)?);
+        job.rank = Some(rank_part(settings, &job, cluster, layout)?);
         let mut report = |frame: u32, wall: Duration| {
             inject(fault, rank, frame)?;
             cluster.send_frame_done(&FrameStat { frame, wall_ms: wall.as_secs_f64() * 1e3 });
             Ok(())
         };
-        let rendered = render_frames(args, &mut job, extension, Some(&mut report))?;
-        views_to_send(args, &job, rendered)
+        let rendered = render_frames(settings, &mut job, extension, Some(&mut report))?;
+        views_to_send(settings, &job, rendered)
     })();
     match outcome {
         Ok((header, blobs)) => {
@@ -150,10 +151,10 @@ fn inject(fault: Option<RankFault>, rank: usize, frame: u32) -> Result<()> {
 
 /// This rank's part of the run: its devices, and where its devices exchange bands with other
 /// ranks' (a fine scheme), the transport of those links.
-fn rank_part(args: &RenderArgs, job: &RenderJob, cluster: &Cluster, layout: &RankLayout) -> Result<RankPart> {
+fn rank_part(settings: &RenderSettings, job: &RenderJob, cluster: &Cluster, layout: &RankLayout) -> Result<RankPart> {
     let transport: Option<std::sync::Arc<dyn parallax_backend::RemoteTransport>> =
         match linked(&job.compiled.exec, layout) {
-            true => Some(LinkTransport::start(cluster, layout, Duration::from_secs(args.rank_timeout))?),
+            true => Some(LinkTransport::start(cluster, layout, settings.rank_timeout)?),
             false => None,
         };
     Ok(RankPart { layout: layout.clone(), rank: cluster.rank, transport })
@@ -163,14 +164,18 @@ fn rank_part(args: &RenderArgs, job: &RenderJob, cluster: &Cluster, layout: &Ran
 /// Under a fine scheme rank 0 holds the gathered layers already (the links brought their
 /// bands); the rank sends only the bands of the other layers that its devices hold
 /// ([`own_bands`]).
-fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
+fn views_to_send(
+    settings: &RenderSettings,
+    job: &RenderJob,
+    rendered: Rendered,
+) -> Result<(serde_json::Value, Vec<Vec<u8>>)> {
     let Rendered { context, mut renderer, wall, layers, .. } = rendered;
     let views = views_of(renderer.plan());
     let part = job.rank.as_ref().context("a rank runs a part")?;
     let linked = part.transport.is_some();
     let mut listed = Vec::new();
     let mut blobs = Vec::new();
-    let families = output_families(args, job, layers);
+    let families = output_families(settings, job, layers);
     let (bands, band_blobs) = match linked {
         true => own_bands(&mut renderer, &families, &views, part.layout.first(part.rank))?,
         false => (Vec::new(), Vec::new()),
@@ -197,7 +202,7 @@ fn views_to_send(args: &RenderArgs, job: &RenderJob, rendered: Rendered) -> Resu
         "views": views,
         "resources": listed,
         "bands": bands,
-        "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(args.frames),
+        "wall_ms_per_frame": wall.as_secs_f64() * 1e3 / f64::from(settings.frames),
         "frame_gpu_ms": timing.frame_gpu.mean_ms,
     });
     blobs.extend(band_blobs);
@@ -243,16 +248,16 @@ fn own_bands(
 
 /// Rank 0's gathered views and render.json's `ranks`.
 fn gathered(
-    args: &RenderArgs,
+    settings: &RenderSettings,
     rendered: &mut Rendered,
     collector: &Collector,
-    finished: Vec<parallax_render::ranks::mpi::Finished>,
+    finished: Vec<crate::ranks::mpi::Finished>,
     plan: ExecutionPlan,
     cluster: &Cluster,
     layout: &RankLayout,
 ) -> Result<RankViews> {
     let own_views = views_of(rendered.renderer.plan());
-    let own_wall = rendered.wall.as_secs_f64() * 1e3 / f64::from(args.frames);
+    let own_wall = rendered.wall.as_secs_f64() * 1e3 / f64::from(settings.frames);
     let prepare = rendered.renderer.prepare_ms().clone();
     let own_timing = timings(rendered.renderer.stats(), &prepare);
     let mut device_names: Vec<String> = rendered.context.device_infos().iter().map(|d| d.name.clone()).collect();
@@ -283,14 +288,15 @@ fn gathered(
         wall_ms = wall_ms.max(wall);
         let first = layout.first(rank);
         let frames_ms: Vec<f64> =
-            collector.frames[rank].iter().filter(|s| s.frame >= args.warmup).map(|s| s.wall_ms).collect();
+            collector.frames[rank].iter().filter(|s| s.frame >= settings.warmup).map(|s| s.wall_ms).collect();
         ranks.push(serde_json::json!({
             "rank": rank, "host": cluster.hosts[rank], "devices": (first..first + layout.devices[rank]).collect::<Vec<_>>(),
             "views": views, "wall_ms_per_frame": wall, "frame_gpu_ms": header["frame_gpu_ms"],
             "submit_ms_per_frame": frames_ms, "bytes_sent": f.bytes,
         }));
     }
-    let json = serde_json::json!({ "count": cluster.size(), "timeout_s": args.rank_timeout, "per_rank": ranks });
+    let json =
+        serde_json::json!({ "count": cluster.size(), "timeout_s": settings.rank_timeout.as_secs(), "per_rank": ranks });
     Ok(RankViews { remote, remote_views, bands, plan, device_names, wall_ms, json })
 }
 
