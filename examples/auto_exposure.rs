@@ -16,21 +16,23 @@
 //! exposure.
 //!
 //! Run: `cargo run --example auto_exposure -- --lf 4x2 --resolution 64x48 --fake-devices 2
-//! --frames 2 --exposure 1 --out-dir out/auto_exposure` (every `render` flag applies; with
-//! `--exposure 1` the PNGs are the GPU's display images).
+//! --frames 2 --exposure 1 --out-dir out/auto_exposure` (the flags of [`Cli`], each as
+//! `parallax render` spells it, over `parallax_render`'s default settings; with `--exposure 1`
+//! the PNGs are the GPU's display images).
 
 use std::sync::{Arc, Mutex};
 
 use anyhow::{Context as _, Result, ensure};
 use bytemuck::{Pod, Zeroable};
 use clap::Parser;
-use parallax::cmd_render::{RenderArgs, RenderExtension, run_extended};
-use parallax_accuracy::exposure::LogAverage;
+use parallax_accuracy::exposure::{Exposure, LogAverage};
+use parallax_backend::DeviceSelection;
 use parallax_backend::{InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
-use parallax_graph::{Format, ReadSlot, Role, SourcesSlot, WriteSlot};
+use parallax_graph::{Format, LayoutSpec, ReadSlot, Role, Scheme, SourcesSlot, WriteSlot};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::pipeline::{InsertionPoint, Layers, PipelineBuilder, PipelineHandles};
 use parallax_passes::tonemap::tonemap_pixel;
+use parallax_render::settings::{RenderExtension, RenderSettings};
 
 /// The kernel, `auto_exposure.comp`.
 const SHADER: &str = "auto_exposure";
@@ -176,25 +178,73 @@ fn rgb_texels(bytes: &[u8]) -> Vec<[f32; 3]> {
     bytemuck::pod_collect_to_vec::<u8, f32>(bytes).chunks_exact(4).map(|t| [t[0], t[1], t[2]]).collect()
 }
 
-/// Every `parallax render` flag.
+/// The render's settings that the example takes, spelt as `parallax render`'s flags.
 #[derive(Parser, Debug)]
 #[command(about = "parallax render with a GPU auto-exposure pass before the tonemapper")]
-struct Cli {
-    #[command(flatten)]
-    render: RenderArgs,
+pub struct Cli {
+    /// Light-field layout: multiscopic, nelf or WxH.
+    #[arg(long, default_value = "8x4")]
+    lf: LayoutSpec,
+    /// Per-view resolution WxH (default: the preset's).
+    #[arg(long, value_parser = parse_size)]
+    resolution: Option<(u32, u32)>,
+    /// Spacing between neighbouring views in metres (default: the layout's).
+    #[arg(long)]
+    spacing: Option<f64>,
+    /// N logical devices on one GPU (default: the first GPU alone).
+    #[arg(long)]
+    fake_devices: Option<usize>,
+    /// multi-source, fine-sources or fine-all.
+    #[arg(long, default_value = "multi-source")]
+    scheme: Scheme,
+    /// Measured frames.
+    #[arg(long, default_value_t = 1)]
+    frames: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 1)]
+    spp: u32,
+    /// `auto` or a multiplier of the pictures' exposure.
+    #[arg(long, default_value = "auto")]
+    exposure: Exposure,
+    /// Folder of the views, viewer.html and render.json.
+    #[arg(long, default_value = "out/auto_exposure")]
+    out_dir: std::path::PathBuf,
+}
+
+/// `WxH`.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once('x').ok_or("expected WxH")?;
+    Ok((w.parse().map_err(|_| "a bad width")?, h.parse().map_err(|_| "a bad height")?))
+}
+
+impl Cli {
+    /// The library's default settings with these flags applied.
+    pub fn settings(&self) -> RenderSettings {
+        let mut settings = RenderSettings::default();
+        settings.light_field.layout.lf = self.lf;
+        settings.light_field.layout.resolution = self.resolution;
+        settings.light_field.layout.spacing = self.spacing;
+        if let Some(n) = self.fake_devices {
+            settings.devices = DeviceSelection::FakeDevices(n);
+        }
+        settings.pipeline.scheme = self.scheme;
+        settings.pipeline.config.exposure = parallax_render::report::pictures::gpu_exposure(self.exposure);
+        (settings.frames, settings.spp, settings.exposure) = (self.frames, self.spp, self.exposure);
+        settings.out_dir = self.out_dir.clone();
+        settings
+    }
 }
 
 fn main() {
-    if let Err(err) = run(Cli::parse()) {
+    if let Err(err) = run(&Cli::parse().settings()) {
         eprintln!("error: {err:#}");
         std::process::exit(1);
     }
 }
 
-fn run(cli: Cli) -> Result<()> {
+fn run(settings: &RenderSettings) -> Result<()> {
     let check = Arc::new(Mutex::new(ExposureCheck::default()));
-    let exposure = cli.render.tonemap_exposure();
-    run_extended(cli.render, extension(exposure, check.clone())?)?;
+    parallax_render::job::run(settings, extension(settings.tonemap_exposure(), check.clone())?)?;
     let check = *check.lock().expect("not poisoned");
     println!(
         "GPU exposure {:.6}, host log-average {:.6}; display within {} step(s) of the curve",

@@ -10,7 +10,7 @@
 //! Table 1 / Table 4 measures and the `setup` that comparisons check.
 //!
 //! The flags become [`RenderSettings`] ([`RenderArgs::settings`]) and `parallax_render::job::run`
-//! renders them; a user crate runs it over its own stages with [`run_extended`].
+//! renders them (a user crate calls it too, with stages of its own: `examples/auto_exposure.rs`).
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -20,8 +20,7 @@ use std::time::Duration;
 use anyhow::Result;
 use clap::{Args, FromArgMatches as _, ValueEnum};
 use parallax_backend::{Barriers, Timing};
-pub use parallax_render::settings::RenderExtension;
-use parallax_render::settings::{MotionRequest, RenderSettings};
+use parallax_render::settings::{MotionRequest, RenderExtension, RenderSettings};
 
 use crate::options::sink_parser;
 use crate::options::{DeviceArgs, Exposure, UsageError, count_u32_in, parse_exposure};
@@ -248,12 +247,6 @@ impl RenderArgs {
         })
     }
 
-    /// The exposure the GPU's tonemap pass runs at: `--exposure N`, or 1 under `auto` (whose
-    /// pictures are tonemapped on the host).
-    pub fn tonemap_exposure(&self) -> f32 {
-        parallax_render::report::pictures::gpu_exposure(self.exposure)
-    }
-
     /// The run's settings as a run file for `--config`: every flag that shapes the pixels and
     /// the timing, by its long name, typed (outputs such as `--out-dir` are left to the command
     /// line).
@@ -294,14 +287,20 @@ pub fn run(args: RenderArgs, invocation: &[OsString]) -> Result<()> {
         Some(file) => RenderArgs::of_run_file(file, invocation.iter().cloned())?,
         None => args,
     };
-    run_extended(args, RenderExtension::default())
+    parallax_render::job::run(&args.settings()?, RenderExtension::default())
 }
 
-/// `parallax render` over the standard pipeline extended by `extension`: plan, frames, report.
-/// The flags of this process's command line win over those of a `--config` file.
-pub fn run_extended(args: RenderArgs, extension: RenderExtension) -> Result<()> {
-    if let Some(file) = &args.config {
-        return run_extended(RenderArgs::of_run_file(file, std::env::args_os())?, extension);
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `parallax render` without flags runs the library's default settings (but for render.json's
+    /// `run`, which only the command line spells).
+    #[test]
+    fn no_flags_give_the_default_settings() {
+        let command = RenderArgs::augment_args(clap::Command::new("render").no_binary_name(true));
+        let args = RenderArgs::from_arg_matches(&command.try_get_matches_from(Vec::<String>::new()).unwrap()).unwrap();
+        let settings = RenderSettings { run: serde_json::Value::Null, ..args.settings().unwrap() };
+        assert_eq!(format!("{settings:?}"), format!("{:?}", RenderSettings::default()));
     }
-    parallax_render::job::run(&args.settings()?, extension)
 }

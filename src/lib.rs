@@ -1,8 +1,7 @@
-//! The `parallax` command line as a library: the binary (`src/main.rs`) runs [`cli_main`], and a
-//! crate of its own runs `render`'s frame loop, reports and outputs over the standard pipeline
-//! extended with stages and kernels of its own ([`cmd_render::run_extended`] with a
-//! [`cmd_render::RenderExtension`]; `examples/auto_exposure.rs` shows how), and another
-//! program runs any command in-process with [`run_command`] (the Python module in `python/`).
+//! The `parallax` command line as a library: the binary (`src/main.rs`) runs [`cli_main`], and
+//! another program runs any command in-process with [`run_command`] (the Python module in
+//! `python/`). The commands parse flags, call the libraries and print; renders run in
+//! `parallax_render`, which a crate of its own calls directly (`examples/auto_exposure.rs`).
 
 mod bench_matrix;
 mod bench_resume;
@@ -13,7 +12,7 @@ mod cmd_chart;
 mod cmd_compare;
 mod cmd_plan;
 mod cmd_reference;
-pub mod cmd_render;
+mod cmd_render;
 mod cmd_trace;
 mod logging;
 mod options;

@@ -114,7 +114,7 @@ pub struct PipelineArgs {
     /// (the bound of docs/PIPELINE.md, from the angle between target and source view
     /// directions, the GGX lobe width and Fresnel); pixels over it are holes, path traced.
     /// 0 reuses only sources at the target's own position.
-    #[arg(long, allow_negative_numbers = true, default_value_t = default_reprojection_tolerance(),
+    #[arg(long, allow_negative_numbers = true, default_value_t = parallax_render::compile::default_reprojection_tolerance(),
           value_parser = parse_reprojection_tolerance)]
     pub reprojection_tolerance: f64,
 }
@@ -145,12 +145,6 @@ pub fn parse_sources_per_set(s: &str) -> Result<SourcesPerSetArg, String> {
             _ => Err(format!("'{s}' is neither `auto` nor a count of sources from 1 to {MAX_SOURCES_PER_SET}")),
         },
     }
-}
-
-/// `ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE` as the decimal it is written as (0.2, not
-/// the f32's 0.20000000298...), for `--help` and render.json.
-fn default_reprojection_tolerance() -> f64 {
-    ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE.to_string().parse().expect("a float prints as a float")
 }
 
 /// `--reprojection-tolerance`: a relative error, finite and at least 0.

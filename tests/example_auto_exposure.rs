@@ -11,13 +11,6 @@ mod auto_exposure;
 use std::sync::{Arc, Mutex};
 
 use clap::Parser;
-use parallax::cmd_render::{RenderArgs, run_extended};
-
-#[derive(Parser)]
-struct Cli {
-    #[command(flatten)]
-    render: RenderArgs,
-}
 
 /// Relative difference allowed between the GPU's exposure and the host's.
 const EXPOSURE_TOLERANCE: f32 = 1e-3;
@@ -46,10 +39,12 @@ fn the_gpu_exposure_matches_the_host_log_average_and_feeds_tonemap() {
             "--exposure",
             "1.5",
         ];
-        let cli = Cli::try_parse_from(args.iter().copied().chain(["--out-dir", dir.to_str().unwrap()])).unwrap();
+        let cli = auto_exposure::Cli::try_parse_from(args.iter().copied().chain(["--out-dir", dir.to_str().unwrap()]))
+            .unwrap();
+        let settings = cli.settings();
         let check = Arc::new(Mutex::new(auto_exposure::ExposureCheck::default()));
-        let extension = auto_exposure::extension(cli.render.tonemap_exposure(), check.clone()).unwrap();
-        run_extended(cli.render, extension).unwrap_or_else(|e| panic!("{scheme}: {e:#}"));
+        let extension = auto_exposure::extension(settings.tonemap_exposure(), check.clone()).unwrap();
+        parallax_render::job::run(&settings, extension).unwrap_or_else(|e| panic!("{scheme}: {e:#}"));
         let check = *check.lock().unwrap();
         let relative = (check.gpu - check.host).abs() / check.host;
         assert!(relative < EXPOSURE_TOLERANCE, "{scheme}: GPU {} vs host {}", check.gpu, check.host);

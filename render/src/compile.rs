@@ -10,6 +10,7 @@ use parallax_graph::{
 };
 use parallax_passes::firefly::FireflyMode;
 use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
+use parallax_passes::reproject::ReprojectionTolerances;
 
 use crate::outputs::budget::PlanShape;
 
@@ -27,6 +28,27 @@ pub struct PipelineSettings {
     /// The reprojection's view-dependence tolerance as given (`config` holds it as the
     /// shader's f32), for render.json.
     pub reprojection_tolerance: f64,
+}
+
+impl Default for PipelineSettings {
+    /// The paper's pipeline (PipelineConfig's default) under multi-source with compact sets,
+    /// the sources per set chosen by their predicted cost.
+    fn default() -> Self {
+        PipelineSettings {
+            config: PipelineConfig::default(),
+            scheme: Scheme::MultiSource,
+            assign: AssignStrategy::Compact,
+            sources: None,
+            sources_per_set: SourcesPerSet::Auto,
+            reprojection_tolerance: default_reprojection_tolerance(),
+        }
+    }
+}
+
+/// `ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE` as the decimal it is written as (0.2, not
+/// the f32's 0.20000000298...), for `--help` and render.json.
+pub fn default_reprojection_tolerance() -> f64 {
+    ReprojectionTolerances::DEFAULT_VIEW_DEPENDENCE.to_string().parse().expect("a float prints as a float")
 }
 
 impl PipelineSettings {

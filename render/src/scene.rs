@@ -27,6 +27,20 @@ pub struct SceneSettings {
     pub allow_outside_files: bool,
 }
 
+impl Default for SceneSettings {
+    /// The embedded default scene with its own camera and light.
+    fn default() -> Self {
+        SceneSettings {
+            path: PathBuf::from("default"),
+            camera: None,
+            sun: None,
+            no_sun: false,
+            sky: None,
+            allow_outside_files: false,
+        }
+    }
+}
+
 impl SceneSettings {
     /// Loads the scene and applies the sun and sky to it.
     pub fn load(&self) -> Result<Scene> {

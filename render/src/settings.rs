@@ -21,6 +21,8 @@ use crate::report::images::QuiltShape;
 use crate::scene::SceneSettings;
 
 /// A render: the scene, the light field, the devices, the pipeline, the frames and the outputs.
+/// [`Default`] is what `parallax render` runs without flags.
+#[derive(Clone, Debug)]
 pub struct RenderSettings {
     pub scene: SceneSettings,
     pub light_field: LightFieldSettings,
@@ -62,8 +64,42 @@ pub struct RenderSettings {
     /// Under mpirun: how long rank 0 waits for a word from another rank.
     pub rank_timeout: Duration,
     /// render.json's `run`: these settings as a run file, in the caller's spelling (the
-    /// command line's flags), so the run can be repeated.
+    /// command line's flags), so the run can be repeated; null where the caller has none.
     pub run: serde_json::Value,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            scene: SceneSettings::default(),
+            light_field: LightFieldSettings {
+                layout: LayoutSettings { lf: LayoutSpec::Grid { cols: 8, rows: 4 }, spacing: None, resolution: None },
+                focus: None,
+            },
+            devices: DeviceSelection::Gpus(1),
+            pipeline: PipelineSettings::default(),
+            spp: 1,
+            max_depth: 6,
+            frames: 1,
+            frames_in_flight: 2,
+            warmup: 1,
+            motion: MotionRequest::Auto,
+            save_every: None,
+            out_dir: PathBuf::from("out/lightfield"),
+            exposure: Exposure::Auto,
+            wiggle: None,
+            layers: false,
+            quilt: None,
+            barriers: Barriers::Tracked,
+            timing: Timing::PerStage,
+            link: None,
+            trace: None,
+            dot: None,
+            dot_detail: DotDetail::Auto,
+            rank_timeout: Duration::from_secs(600),
+            run: serde_json::Value::Null,
+        }
+    }
 }
 
 impl RenderSettings {
