@@ -52,23 +52,7 @@ pub fn name_of<T: ValueEnum>(value: &T) -> String {
     value.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string())
 }
 
-/// Render arguments shared by a set of cells (scene, light field, resolution, ...).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Case {
-    /// None for `--common`, whose cells keep ids without a case prefix.
-    pub name: Option<String>,
-    pub args: String,
-    /// Reference views to measure the case's cells against.
-    pub reference: Option<PathBuf>,
-}
-
-impl Case {
-    /// The render arguments as words, split as a POSIX shell would (quotes keep a path with
-    /// spaces in one word).
-    pub fn words(&self) -> Result<Vec<String>> {
-        shlex::split(&self.args).ok_or_else(|| anyhow!("`{}`: a quote is not closed: close it", self.args))
-    }
-}
+pub use parallax_render::bench::case::Case;
 
 /// The axes of one slice.
 #[derive(Clone, Debug, PartialEq)]

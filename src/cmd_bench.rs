@@ -26,7 +26,7 @@
 //!
 //! Each cell is reported on stderr as it ends, and the progress bar names the cell running;
 //! `--resume` keeps the cells of an earlier run's bench.json that ran well
-//! ([`crate::bench_resume`]).
+//! ([`parallax_render::bench::resume`]).
 //!
 //! points.json: `{"points": [point]}`, one per ok cell: `label` (the id), `series` (the
 //! pipeline), `case`, `frame_ms`, `flip`, `psnr`, `views`, `devices`, `assignment`,
@@ -42,11 +42,11 @@ use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
 use crate::bench_matrix::{self, Axes, Case, Cell, Denoise, Matrix, name_of};
-use crate::bench_resume;
 use crate::cmd_render::RenderArgs;
 use crate::logging::{bar, result};
 use crate::options::{AssignArg, SchemeArg};
 use crate::pipeline_args::PipelineArg;
+use parallax_render::bench::resume as bench_resume;
 use parallax_render::bench::tables;
 
 /// Bytes of a failed cell's diagnostics kept for bench.json.
@@ -422,7 +422,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create --out-dir {}", args.out_dir.display()))?;
     let mut previous = if args.resume {
-        bench_resume::previous_cells(&args.out_dir, &matrix, frames, warmup)?
+        bench_resume::previous_cells(&args.out_dir, &matrix.cases, frames, warmup)?
     } else {
         Default::default()
     };

@@ -4,7 +4,6 @@
 //! `parallax_render`, which a crate of its own calls directly (`examples/auto_exposure.rs`).
 
 mod bench_matrix;
-mod bench_resume;
 mod cmd_backend;
 mod cmd_bench;
 mod cmd_bench_rays;

@@ -132,33 +132,6 @@ mod tests {
         <crate::cmd_trace::TraceArgs as Args>::augment_args(Command::new("trace")).debug_assert();
     }
 
-    /// A grid without --spacing is spaced so that a point at half the focus distance moves
-    /// [`GRID_PARALLAX`](parallax_render::settings::GRID_PARALLAX) of the view's height from the first to the last view of its wider side
-    /// (3.84 pixels at 256x192); the presets keep the paper's 1 mm and an explicit --spacing wins.
-    #[test]
-    fn a_grid_default_spacing_gives_visible_parallax() {
-        use clap::Parser;
-        #[derive(Parser)]
-        struct Cli {
-            #[command(flatten)]
-            layout: super::LayoutArgs,
-        }
-        let layout = |words: &[&str]| Cli::try_parse_from([&["x"][..], words].concat()).unwrap().layout;
-        let rig = parallax_graph::Rig { focus_distance: 4.0, ..Default::default() };
-        let grid = layout(&["--lf", "8x4", "--resolution", "256x192"]);
-        let spacing = grid.settings().spacing_on(&rig).unwrap();
-        let focal_px = 96.0 / (22.5f64.to_radians()).tan();
-        let shift = |z: f64| 7.0 * spacing * focal_px * (1.0 / z - 1.0 / rig.focus_distance);
-        assert!((shift(2.0) - 3.84).abs() < 1e-9, "{}", shift(2.0));
-        let larger = layout(&["--lf", "8x4", "--resolution", "512x512"]);
-        assert_eq!(larger.settings().spacing_on(&rig), Some(spacing), "the rig does not change with the resolution");
-        let lf = grid.with_rig(rig).unwrap();
-        assert!((lf.positions[1].x - lf.positions[0].x - spacing).abs() < 1e-12);
-        assert_eq!(layout(&["--lf", "nelf"]).settings().spacing_on(&rig), None);
-        assert_eq!(layout(&["--lf", "multiscopic"]).settings().spacing_on(&rig), None);
-        assert_eq!(layout(&["--lf", "8x4", "--spacing", "0.05"]).settings().spacing_on(&rig), Some(0.05));
-    }
-
     /// `--sky` takes values starting with '-' in every command, so the value's own check names
     /// the problem.
     #[test]

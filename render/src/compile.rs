@@ -123,6 +123,24 @@ pub fn compile(
     Ok(PipelineSchedule { plan, handles, schedule, exec, summary, kind })
 }
 
+/// The light field `lf` of `resolution` on the default rig and its default pipeline compiled
+/// under `scheme` (with `sources`, if given) over `devices`: what `render` runs with those flags.
+#[cfg(test)]
+pub(crate) fn compiled(
+    lf: &str,
+    resolution: (u32, u32),
+    scheme: Scheme,
+    sources: Option<Vec<u32>>,
+    devices: u32,
+) -> (LightField, PipelineSchedule) {
+    let layout =
+        crate::settings::LayoutSettings { lf: lf.parse().unwrap(), spacing: None, resolution: Some(resolution) };
+    let lf = layout.with_rig(parallax_graph::Rig::default()).unwrap();
+    let pipeline = PipelineSettings { scheme, sources, ..PipelineSettings::default() };
+    let compiled = pipeline.compile_with(&lf, devices, &|builder| builder).unwrap();
+    (lf, compiled)
+}
+
 /// How much of a schedule the DOT drawing shows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DotDetail {

@@ -231,3 +231,29 @@ pub struct RenderExtension {
     /// Called once the last frame is finished, e.g. to read back a layer the stages made.
     pub after_frames: Option<AfterFrames>,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A grid without a spacing is spaced so that a point at half the focus distance moves
+    /// [`GRID_PARALLAX`] of the view's height from the first to the last view of its wider side
+    /// (3.84 pixels at 256x192); the presets keep the paper's 1 mm and an explicit spacing wins.
+    #[test]
+    fn a_grid_default_spacing_gives_visible_parallax() {
+        let layout = |lf: &str, resolution, spacing| LayoutSettings { lf: lf.parse().unwrap(), spacing, resolution };
+        let rig = parallax_graph::Rig { focus_distance: 4.0, ..Default::default() };
+        let grid = layout("8x4", Some((256, 192)), None);
+        let spacing = grid.spacing_on(&rig).unwrap();
+        let focal_px = 96.0 / (22.5f64.to_radians()).tan();
+        let shift = |z: f64| 7.0 * spacing * focal_px * (1.0 / z - 1.0 / rig.focus_distance);
+        assert!((shift(2.0) - 3.84).abs() < 1e-9, "{}", shift(2.0));
+        let larger = layout("8x4", Some((512, 512)), None);
+        assert_eq!(larger.spacing_on(&rig), Some(spacing), "the rig does not change with the resolution");
+        let lf = grid.with_rig(rig).unwrap();
+        assert!((lf.positions[1].x - lf.positions[0].x - spacing).abs() < 1e-12);
+        assert_eq!(layout("nelf", None, None).spacing_on(&rig), None);
+        assert_eq!(layout("multiscopic", None, None).spacing_on(&rig), None);
+        assert_eq!(layout("8x4", None, Some(0.05)).spacing_on(&rig), Some(0.05));
+    }
+}

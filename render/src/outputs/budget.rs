@@ -355,6 +355,45 @@ mod tests {
         );
     }
 
+    /// The bounds of [`PlanShape::items`] hold for compiled plans of the standard pipeline, and
+    /// are not so loose that they refuse what the planner could hold (within 4×, or 8× for
+    /// the small multi-source plans whose copies are mostly the gather).
+    #[test]
+    fn plan_items_bound_the_compiled_plans() {
+        let cases: [(&str, u32, Option<Vec<u32>>); 6] = [
+            ("16x1", 1, None),
+            ("16x1", 2, None),
+            ("16x1", 16, None),
+            ("16x2", 4, None),
+            ("32x1", 8, Some(vec![0, 9, 20])),
+            ("32x1", 8, None),
+        ];
+        for (lf, devices, sources) in cases {
+            for scheme in Scheme::ALL {
+                if scheme == Scheme::MultiSource && sources.is_some() {
+                    continue;
+                }
+                let (lf, compiled) = crate::compile::compiled(lf, (64, 64), scheme, sources.clone(), devices);
+                let s = &compiled.schedule;
+                let actual = (s.instances.len() + s.edges.len() + s.delta_edges.len() + s.copies.len()) as u64;
+                let shape = PlanShape {
+                    views: lf.len() as u64,
+                    devices: u64::from(devices),
+                    sources: compiled.plan.sources.len() as u64,
+                    scheme,
+                    sources_flag: None,
+                };
+                let slack = if scheme == Scheme::MultiSource { 8 } else { 4 };
+                assert!(
+                    actual <= shape.items() && shape.items() <= slack * actual,
+                    "{} {scheme:?} {sources:?} on {devices} device(s): {actual} items, estimated {}",
+                    lf.name,
+                    shape.items()
+                );
+            }
+        }
+    }
+
     #[test]
     fn durations_read_naturally() {
         assert_eq!(duration(5.0), "5 s");

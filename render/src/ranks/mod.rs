@@ -232,6 +232,82 @@ pub fn shares(schedule: &Schedule, plan: &ExecutionPlan, layout: &RankLayout, wi
 mod tests {
     use super::*;
 
+    /// The execution plan `render` runs for 4×2 views of 32×24 under `scheme` on `devices`.
+    fn global_plan(scheme: &str, devices: u32) -> (KernelPlan, parallax_graph::ProvenSchedule) {
+        let (_, compiled) = crate::compile::compiled("4x2", (32, 24), scheme.parse().unwrap(), None, devices);
+        (compiled.exec, compiled.schedule)
+    }
+
+    /// Under multi-source each rank's part holds its devices' passes only, renumbered from 0,
+    /// with no copy from or to another rank; the parts together hold every pass once, and
+    /// `plan --ranks` names the same views per rank.
+    #[test]
+    fn a_rank_runs_the_passes_of_its_devices_and_nothing_crosses_ranks() {
+        let (global, schedule) = global_plan("multi-source", 3);
+        let layout = RankLayout { devices: vec![1, 2] };
+        assert!(!linked(&global, &layout));
+        let shares = shares(&schedule, &global, &layout, 32);
+        assert!(shares.iter().all(|s| s.link_bytes_per_frame == 0));
+        let mut passes = 0;
+        for (rank, share) in shares.iter().enumerate() {
+            let part = restrict_plan(&global, &layout, rank);
+            // Its barriers still index its ops, in order, with the ops it left out gone.
+            part.validate(layout.devices[rank] as usize).unwrap();
+            assert_eq!(part.devices.len(), layout.devices[rank] as usize);
+            assert!(part.passes.iter().all(|p| p.device.0 < layout.devices[rank]));
+            assert!(part.copies.iter().all(|c| c.from.0 < layout.devices[rank] && c.to.0 < layout.devices[rank]));
+            assert_eq!(views_in(&part), share.views);
+            passes += part.passes.len();
+        }
+        assert_eq!(passes, global.passes.len());
+        assert!(global.copies.iter().any(|c| c.is_gather()), "views gathered to device 0 in one process");
+    }
+
+    /// A fine scheme reads other devices' bands: each rank's part keeps the copies with one end
+    /// on its devices, the other end named past its own devices; what one rank's part sends
+    /// another is what the other's receives, in the same order (what names their messages);
+    /// and rank 0 holds every view, its bands gathered from the other ranks.
+    #[test]
+    fn linked_ranks_keep_the_copies_between_them_in_the_same_order_on_both_ends() {
+        let (global, schedule) = global_plan("fine-all", 3);
+        let layout = RankLayout { devices: vec![1, 1, 1] };
+        assert!(linked(&global, &layout));
+        let parts: Vec<KernelPlan> = (0..3).map(|r| restrict_plan(&global, &layout, r)).collect();
+        // A copy as the whole run names it: (from, to, resource, version, rows).
+        let global_copy = |rank: usize, c: &parallax_backend::CrossCopy| {
+            let name = |d: DeviceId| if d.0 < 1 { d.0 + layout.first(rank) } else { d.0 - 1 };
+            (name(c.from), name(c.to), c.src_alloc, c.version, c.region)
+        };
+        for (a, b) in [(0usize, 1usize), (1, 0), (1, 2), (2, 0)] {
+            let between = |part: usize| -> Vec<_> {
+                parts[part]
+                    .copies
+                    .iter()
+                    .map(|c| global_copy(part, c))
+                    .filter(|&(from, to, ..)| (from as usize, to as usize) == (a, b))
+                    .collect()
+            };
+            assert!(!between(a).is_empty(), "rank {a} sends rank {b} bands");
+            assert_eq!(between(a), between(b), "rank {a} → rank {b}");
+        }
+        for part in &parts {
+            part.validate(1).unwrap();
+            assert!(part.copies.iter().all(|c| c.from.0 < 1 || c.to.0 < 1), "one end on the rank");
+            assert!(part.devices[0].ops.iter().all(|op| match *op {
+                Op::Pass(p) => part.pass(p).device == DeviceId(0),
+                _ => true,
+            }));
+        }
+        let exported: Vec<usize> = parts.iter().map(|p| p.resources.iter().filter(|r| r.exported).count()).collect();
+        assert_eq!(exported[0], global.resources.iter().filter(|r| r.exported).count());
+        let shares = shares(&schedule, &global, &layout, 32);
+        assert!(shares.iter().all(|s| s.display_bytes_per_frame == 0 && s.link_bytes_per_frame > 0));
+    }
+
+    fn views_in(plan: &ExecutionPlan) -> Vec<u32> {
+        plan.passes.iter().map(|p| p.view.0).collect::<BTreeSet<u32>>().into_iter().collect()
+    }
+
     #[test]
     fn a_layout_numbers_devices_rank_after_rank() {
         let layout = RankLayout { devices: vec![1, 2, 1] };

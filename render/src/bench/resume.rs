@@ -9,14 +9,15 @@ use std::path::Path;
 use anyhow::{Context as _, Result, bail};
 use parallax_scene::input::{InputError, TEXT_FILE_LIMIT, read_bounded};
 
-use crate::bench_matrix::Matrix;
+use crate::bench::case::Case;
 
 /// The cells of `out_dir/bench.json` that ran well, by id, once that file is known to come
 /// from the same matrix: the same frames and warm-up, and every case of this run that it also
-/// has with the same arguments and reference. No bench.json: nothing to keep.
+/// has with the same arguments and reference (`cases`, the matrix's). No bench.json: nothing
+/// to keep.
 pub fn previous_cells(
     out_dir: &Path,
-    matrix: &Matrix,
+    cases: &[Case],
     frames: u32,
     warmup: u32,
 ) -> Result<HashMap<String, serde_json::Value>> {
@@ -39,7 +40,7 @@ pub fn previous_cells(
         }
     }
     let stored = json["cases"].as_array().cloned().unwrap_or_default();
-    for case in &matrix.cases {
+    for case in cases {
         let name = serde_json::json!(case.name);
         let Some(old) = stored.iter().find(|c| c["name"] == name) else { continue };
         let (args, reference) = (serde_json::json!(case.args), serde_json::json!(case.reference));
@@ -81,11 +82,9 @@ pub fn cell_line(done: usize, total: usize, entry: &serde_json::Value, kept: boo
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench_matrix::Case;
 
-    fn matrix(args: &str) -> Matrix {
-        let case = Case { name: Some("a".into()), args: args.into(), reference: None };
-        Matrix { frames: None, warmup: None, cases: vec![case], slices: Vec::new() }
+    fn matrix(args: &str) -> Vec<Case> {
+        vec![Case { name: Some("a".into()), args: args.into(), reference: None }]
     }
 
     #[test]
