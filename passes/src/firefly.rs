@@ -64,16 +64,17 @@ pub enum FireflyMode {
     Keep,
 }
 
-/// Declares the two passes for every view: reads `radiance` (Rgba32f) and `position_depth`
+/// Declares the two passes for every view of `role`: reads `radiance` (Rgba32f) and `position_depth`
 /// (w = 0: no hit) and leaves the suppressed radiance as `radiance`'s next version, in place.
 pub fn declare_firefly_suppression(
     graph: &mut KernelGraph,
+    role: Role,
     position_depth: &Handle<Image>,
     radiance: &mut Handle<Image>,
 ) {
     let mut share = graph.image(FIREFLY_SHARE, Format::Rgba32f);
     let mut frames = graph.image(FIREFLY_FRAMES, Format::R32f);
-    let mut pass = graph.pass(FIREFLY_BOUND, Role::All);
+    let mut pass = graph.pass(FIREFLY_BOUND, role);
     let stage = Stage::Bound {
         radiance: pass.read_halo_slot(radiance, RADIUS),
         position: pass.read_halo_slot(position_depth, RADIUS),
@@ -83,7 +84,7 @@ pub fn declare_firefly_suppression(
         frames: pass.write_slot(&mut frames),
     };
     pass.kernel(Arc::new(FireflyKernel(stage))).record();
-    let mut pass = graph.pass(FIREFLY_SPREAD, Role::All);
+    let mut pass = graph.pass(FIREFLY_SPREAD, role);
     let position = pass.read_slot(position_depth);
     let share = pass.read_halo_slot(&share, RADIUS);
     let (_, radiance) = pass.modify_slot(radiance);

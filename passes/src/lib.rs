@@ -50,6 +50,7 @@ pub mod error;
 pub mod firefly;
 pub mod gbuffer;
 pub mod hole_bench;
+pub mod hole_denoise;
 pub mod holes;
 pub mod path_trace;
 pub mod pipeline;

@@ -4,6 +4,10 @@
 //! placed by any of the three schemes. What differs between the schemes is only the plan's
 //! sources and placement, which is what makes the comparison side by side fair.
 //!
+//! Where the denoiser runs is [`Denoiser`]: over every view after reconstruction (`Views`), or
+//! over the samples (`Samples`: SVGF on the sources before reprojection, the targets reproject
+//! the denoised radiance, and their hole pixels are accumulated by [`crate::hole_denoise`]).
+//!
 //! [`PipelineBuilder`] declares it stage by stage; a caller adds stages of its own at named
 //! [`InsertionPoint`]s and replaces the denoiser or the tonemapper, and gets the standard
 //! pipeline, pass for pass, when it does neither ([`declare_pipeline`]):
@@ -38,6 +42,7 @@ use parallax_graph::{FamilyId, Format, Handle, Image, Role};
 use crate::error::Result;
 use crate::firefly::{FireflyMode, declare_firefly_suppression};
 use crate::gbuffer::{Gbuffer, declare_gbuffer, declare_gbuffer_rasterised};
+use crate::hole_denoise::declare_hole_denoise;
 use crate::holes::declare_hole_fill;
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
 use crate::reproject::{ReprojectionTolerances, declare_reproject};
@@ -56,6 +61,21 @@ pub enum PipelineKind {
     PathTrace,
 }
 
+/// Where the pipeline denoises (docs/PIPELINE.md, "Denoising in sample space").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Denoiser {
+    /// SVGF over every view after reconstruction, between the radiance and the tonemapper.
+    Views,
+    /// Where fresh samples are: SVGF over the sources before reprojection (the targets reproject
+    /// the denoised radiance), then each target's hole pixels accumulated over frames
+    /// ([`crate::hole_denoise`]). With [`PipelineKind::PathTrace`] every view is a source, so
+    /// this is `Views`.
+    Samples,
+    /// No denoising (and no firefly suppression, which belongs to it).
+    None,
+}
+
 /// What a pipeline declaration needs to know.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PipelineConfig {
@@ -65,8 +85,8 @@ pub struct PipelineConfig {
     /// Energy-conserving firefly suppression of the complete radiance, before the denoiser
     /// ([`crate::firefly`]).
     pub fireflies: FireflyMode,
-    /// SVGF between the radiance and the tonemapper.
-    pub denoise: bool,
+    /// Where SVGF runs, if anywhere.
+    pub denoise: Denoiser,
     /// Exposure of the tonemapper (finite, > 0).
     pub exposure: f32,
 }
@@ -79,7 +99,8 @@ pub struct PipelineHandles {
     pub radiance: Handle<Image>,
     /// Targets' hole masks (`Reproject` only).
     pub holes: Option<Handle<Image>>,
-    /// Linear radiance after denoising (`denoise` only).
+    /// Linear radiance after denoising (`denoise` not `None`). Under [`Denoiser::Samples`] a
+    /// target's is its reprojected denoised radiance with its holes traced and accumulated.
     pub denoised: Option<Handle<Image>>,
     /// The declared resource of the final linear radiance, what the tonemapper reads and the
     /// linear views are read back by: the denoiser's output (`denoised` for SVGF), or
@@ -154,7 +175,7 @@ impl Default for PipelineConfig {
             gbuffer: GbufferSource::FirstHits,
             tolerances: ReprojectionTolerances::default(),
             fireflies: FireflyMode::Suppress,
-            denoise: true,
+            denoise: Denoiser::Views,
             exposure: 1.0,
         }
     }
@@ -211,6 +232,9 @@ impl PipelineBuilder {
         let traced = if config.kind == PipelineKind::PathTrace { Role::All } else { Role::Sources };
         declare_path_trace(graph, traced, &mut layers.radiance);
         self.run_stages(InsertionPoint::AfterTrace, graph, &mut layers)?;
+        if config.kind == PipelineKind::Reproject && config.denoise == Denoiser::Samples {
+            return self.declare_sample_space(graph, layers);
+        }
         if config.kind == PipelineKind::Reproject {
             layers.holes = Some(declare_reproject(graph, &layers.gbuffer, &mut layers.radiance, config.tolerances)?);
             self.run_stages(InsertionPoint::AfterReprojection, graph, &mut layers)?;
@@ -219,23 +243,58 @@ impl PipelineBuilder {
             self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
         }
         if config.fireflies == FireflyMode::Suppress {
-            declare_firefly_suppression(graph, &layers.gbuffer.position_depth, &mut layers.radiance);
+            declare_firefly_suppression(graph, Role::All, &layers.gbuffer.position_depth, &mut layers.radiance);
         }
         self.run_stages(InsertionPoint::AfterFireflies, graph, &mut layers)?;
-        if config.denoise {
+        if config.denoise != Denoiser::None {
             let denoised = match self.denoiser.take() {
                 Some(denoiser) => denoiser(graph, &mut layers)?,
-                None => declare_standard_svgf(graph, &layers),
+                None => declare_standard_svgf(graph, Role::All, &layers),
             };
             layers.denoised = Some(denoised);
         }
         self.run_stages(InsertionPoint::AfterDenoise, graph, &mut layers)?;
+        self.finish(graph, layers)
+    }
+
+    /// The reprojection pipeline denoised in sample space ([`Denoiser::Samples`]): the sources'
+    /// radiance is suppressed and denoised first (SVGF for [`Role::Sources`]), the targets
+    /// reproject that denoised radiance into their `denoised` image, their holes are traced into
+    /// it and accumulated there. The insertion points come in the order the stages run: the
+    /// fireflies and the denoiser before the reprojection.
+    fn declare_sample_space(mut self, graph: &mut KernelGraph, mut layers: Layers) -> Result<PipelineHandles> {
+        let config = self.config;
+        if config.fireflies == FireflyMode::Suppress {
+            declare_firefly_suppression(graph, Role::Sources, &layers.gbuffer.position_depth, &mut layers.radiance);
+        }
+        self.run_stages(InsertionPoint::AfterFireflies, graph, &mut layers)?;
+        let denoised = match self.denoiser.take() {
+            Some(denoiser) => denoiser(graph, &mut layers)?,
+            None => declare_standard_svgf(graph, Role::Sources, &layers),
+        };
+        layers.denoised = Some(denoised);
+        self.run_stages(InsertionPoint::AfterDenoise, graph, &mut layers)?;
+        // Reads the sources' denoised radiance, writes the targets' own.
+        let denoised = layers.denoised.as_mut().expect("set above");
+        let holes = declare_reproject(graph, &layers.gbuffer, denoised, config.tolerances)?;
+        layers.holes = Some(holes);
+        self.run_stages(InsertionPoint::AfterReprojection, graph, &mut layers)?;
+        let holes = layers.holes.as_ref().expect("set above");
+        let denoised = layers.denoised.as_mut().expect("set above");
+        let list = declare_hole_fill(graph, holes, layers.gbuffer.first_hit.as_ref(), denoised);
+        declare_hole_denoise(graph, &list, denoised);
+        self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
+        self.finish(graph, layers)
+    }
+
+    /// The stages before the tonemapper, the tonemapper, and the handles.
+    fn finish(mut self, graph: &mut KernelGraph, mut layers: Layers) -> Result<PipelineHandles> {
         self.run_stages(InsertionPoint::BeforeTonemap, graph, &mut layers)?;
         let display = match self.tonemapper.take() {
             Some(tonemapper) => tonemapper(graph, &mut layers)?,
             None => {
                 let linear = layers.denoised.as_ref().unwrap_or(&layers.radiance);
-                declare_tonemap_scaled(graph, linear, config.exposure, layers.exposure.as_ref())?
+                declare_tonemap_scaled(graph, linear, self.config.exposure, layers.exposure.as_ref())?
             }
         };
         let linear = layers.denoised.as_ref().unwrap_or(&layers.radiance).family();
@@ -252,8 +311,8 @@ impl PipelineBuilder {
     }
 }
 
-/// SVGF over the pipeline's radiance and G-buffer.
-fn declare_standard_svgf(graph: &mut KernelGraph, layers: &Layers) -> Handle<Image> {
+/// SVGF over the pipeline's radiance and G-buffer of the views of `role`.
+fn declare_standard_svgf(graph: &mut KernelGraph, role: Role, layers: &Layers) -> Handle<Image> {
     let gbuffer = &layers.gbuffer;
     let inputs = SvgfInputs {
         radiance: &layers.radiance,
@@ -262,7 +321,7 @@ fn declare_standard_svgf(graph: &mut KernelGraph, layers: &Layers) -> Handle<Ima
         position_depth: &gbuffer.position_depth,
         motion: &gbuffer.motion,
     };
-    declare_svgf(graph, &inputs)
+    declare_svgf(graph, role, &inputs)
 }
 
 /// Declares `path_trace` for every view of `role`, writing only `radiance`.
@@ -406,7 +465,7 @@ mod tests {
     #[test]
     fn a_replaced_tonemapper_is_declared_instead_of_tonemap() {
         let mut graph = KernelGraph::with_payload(topology());
-        let handles = PipelineBuilder::new(PipelineConfig { denoise: false, ..PipelineConfig::default() })
+        let handles = PipelineBuilder::new(PipelineConfig { denoise: Denoiser::None, ..PipelineConfig::default() })
             .replace_tonemapper(|graph, layers| {
                 let mut display = graph.image("my_display", Format::Rgba8);
                 graph.pass("my_tonemap", Role::All).read(layers.linear()).write(&mut display).record();
@@ -418,5 +477,85 @@ mod tests {
         assert!(!names.iter().any(|n| n == crate::tonemap::TONEMAP), "{names:?}");
         assert_eq!(names.last().map(String::as_str), Some("my_tonemap"));
         assert_eq!(handles.linear, handles.radiance.family());
+    }
+
+    /// The passes of the pipeline denoised in sample space, in order, with their roles.
+    const SAMPLE_SPACE: [(&str, Role); 16] = [
+        ("gbuffer", Role::All),
+        ("path_trace", Role::Sources),
+        ("firefly_bound", Role::Sources),
+        ("firefly_spread", Role::Sources),
+        ("svgf_history", Role::Sources),
+        ("svgf_temporal", Role::Sources),
+        ("svgf_atrous_1", Role::Sources),
+        ("svgf_atrous_2", Role::Sources),
+        ("svgf_atrous_3", Role::Sources),
+        ("svgf_atrous_4", Role::Sources),
+        ("svgf_atrous_5", Role::Sources),
+        ("reproject", Role::Targets),
+        ("compact_holes", Role::Targets),
+        ("hole_fill", Role::Targets),
+        ("hole_temporal", Role::Targets),
+        // Reads every view's `denoised`: the sources' from SVGF, the targets' from reprojection,
+        // hole filling and `hole_temporal`.
+        ("tonemap", Role::All),
+    ];
+
+    #[test]
+    fn denoising_in_sample_space_runs_svgf_on_the_sources_before_reprojection() {
+        let mut graph = KernelGraph::with_payload(topology());
+        let config = PipelineConfig { denoise: Denoiser::Samples, ..PipelineConfig::default() };
+        let handles = declare_pipeline(&mut graph, &config).unwrap();
+        let declared: Vec<(&str, Role)> = graph.passes().iter().map(|p| (p.name.as_str(), p.role)).collect();
+        assert_eq!(declared, SAMPLE_SPACE);
+        let denoised = handles.denoised.as_ref().unwrap();
+        assert_eq!((handles.linear, graph.name_of(denoised)), (denoised.family(), crate::svgf::DENOISED));
+        // The path-tracing baseline has no targets: samples are every view's, as `Views`.
+        let (mut samples, mut views) = (KernelGraph::with_payload(topology()), KernelGraph::with_payload(topology()));
+        let path_trace = PipelineConfig { kind: PipelineKind::PathTrace, ..config };
+        declare_pipeline(&mut samples, &path_trace).unwrap();
+        declare_pipeline(&mut views, &PipelineConfig { denoise: Denoiser::Views, ..path_trace }).unwrap();
+        assert_eq!(pass_names(&samples), pass_names(&views));
+    }
+
+    #[test]
+    fn the_sample_space_schedule_has_svgf_instances_on_sources_only_under_every_scheme() {
+        use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Rig, Scheme, compile};
+        let lf =
+            LightField::new(LayoutSpec::Grid { cols: 4, rows: 2 }, Some(0.02), Some((16, 12)), Rig::default()).unwrap();
+        for scheme in Scheme::ALL {
+            for devices in [1, 3] {
+                let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
+                let plan =
+                    Plan::new(&lf, &PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources }).unwrap();
+                let mut graph = KernelGraph::with_payload(plan.topology.clone());
+                let config = PipelineConfig { denoise: Denoiser::Samples, ..PipelineConfig::default() };
+                let handles = declare_pipeline(&mut graph, &config).unwrap();
+                graph.export(&handles.display);
+                let schedule = compile(&graph, &plan).unwrap();
+                assert!(schedule.validate().is_ok(), "{scheme:?} on {devices}: {:?}", schedule.validate());
+                let is_source = &plan.topology.is_source;
+                let views_of = |prefix: &str| -> std::collections::BTreeSet<u32> {
+                    schedule.instances.iter().filter(|i| i.name.starts_with(prefix)).map(|i| i.view.0).collect()
+                };
+                let sources: std::collections::BTreeSet<u32> =
+                    (0..lf.len() as u32).filter(|&v| is_source[v as usize]).collect();
+                let targets: std::collections::BTreeSet<u32> =
+                    (0..lf.len() as u32).filter(|&v| !is_source[v as usize]).collect();
+                assert!(!sources.is_empty() && !targets.is_empty());
+                for (prefix, views) in [
+                    ("svgf_", &sources),
+                    ("firefly_", &sources),
+                    ("hole_temporal", &targets),
+                    ("tonemap", &(0..8).collect()),
+                ] {
+                    assert_eq!(&views_of(prefix), views, "{scheme:?} on {devices} device(s): views of {prefix}*");
+                }
+                // Seven SVGF passes per source, each over the source's bands.
+                let svgf = schedule.instances.iter().filter(|i| i.name.starts_with("svgf_")).count();
+                let bands = if scheme == Scheme::MultiSource { 1 } else { devices as usize };
+                assert_eq!(svgf, 7 * sources.len() * bands, "{scheme:?} on {devices} device(s)");
+            }
+        }
     }
 }

@@ -100,9 +100,10 @@ pub struct SvgfInputs<'a> {
     pub motion: &'a Handle<Image>,
 }
 
-/// Declares the SVGF passes (see the module docs) for every view and returns the `denoised`
-/// handle (Rgba32f; not exported). The inputs are read in their current versions.
-pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<Image> {
+/// Declares the SVGF passes (see the module docs) for every view of `role` (every view, or the
+/// sources alone when the pipeline denoises in sample space) and returns the `denoised` handle
+/// (Rgba32f; not exported). The inputs are read in their current versions.
+pub fn declare_svgf(graph: &mut KernelGraph, role: Role, inputs: &SvgfInputs<'_>) -> Handle<Image> {
     let mut color = graph.image(SVGF_COLOR, Format::Rgba32f);
     let mut moments = graph.image(SVGF_MOMENTS, Format::Rgba32f);
     let mut prev_color = graph.image(PREV_COLOR, Format::Rgba32f);
@@ -116,7 +117,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     let mut atrous = graph.image(ATROUS, Format::Rgba32f);
     let mut denoised = graph.image(DENOISED, Format::Rgba32f);
 
-    let mut pass = graph.pass("svgf_history", Role::All);
+    let mut pass = graph.pass("svgf_history", role);
     let history = Stage::History {
         color: pass.read_history_slot(&color),
         moments: pass.read_history_slot(&moments),
@@ -128,7 +129,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     // spatial variance estimate `TEMPORAL_RADIUS` rows. The colour and moments copies
     // `HISTORY_REACH` rows: the shader drops taps through `motion` farther away. The history directly where
     // an instance covers its whole view (the copy is then skipped), the copies where it is a band.
-    let mut pass = graph.pass("svgf_temporal", Role::All);
+    let mut pass = graph.pass("svgf_temporal", role);
     let temporal = Stage::Temporal(TemporalSlots {
         history_color: pass.read_history_slot(&color),
         history_moments: pass.read_history_slot(&moments),
@@ -153,7 +154,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, inputs: &SvgfInputs<'_>) -> Handle<
     for (i, &step) in ATROUS_STEPS.iter().enumerate() {
         let name = format!("svgf_atrous_{}", i + 1);
         let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
-        let mut pass = graph.pass(&name, Role::All);
+        let mut pass = graph.pass(&name, role);
         // The 3×3 taps reach one step away, the first iteration's 3×3 variance blur one more
         // (svgf_atrous.glsl).
         let reach = step * if first { 2 } else { 1 };

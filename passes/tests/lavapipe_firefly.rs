@@ -19,7 +19,7 @@ use parallax_backend::{
 use parallax_graph::{BandedPlacement, Format, Role, ViewTopology, WriteSlot, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::firefly::{FireflyMode, declare_firefly_suppression};
-use parallax_passes::pipeline::{PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{Denoiser, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
 
@@ -77,7 +77,7 @@ fn synthetic(devices: u32, suppress: bool) -> Vec<f32> {
     let kernel = SyntheticInput { radiance: pass.write_slot(&mut radiance), position: pass.write_slot(&mut position) };
     pass.kernel(Arc::new(kernel)).record();
     if suppress {
-        declare_firefly_suppression(&mut graph, &position, &mut radiance);
+        declare_firefly_suppression(&mut graph, Role::All, &position, &mut radiance);
     }
     graph.export(&radiance);
     let schedule = compile(&graph, &BandedPlacement { devices, bands: devices }).unwrap();
@@ -171,8 +171,12 @@ fn traced(mode: FireflyMode, frames: u32) -> Vec<Vec<(Vec<f32>, Vec<f32>)>> {
     let scene = default_scene();
     let views = common::views(&scene, 2, 48, 36);
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, 48, 36));
-    let config =
-        PipelineConfig { kind: PipelineKind::PathTrace, fireflies: mode, denoise: false, ..PipelineConfig::default() };
+    let config = PipelineConfig {
+        kind: PipelineKind::PathTrace,
+        fireflies: mode,
+        denoise: Denoiser::None,
+        ..PipelineConfig::default()
+    };
     let handles = declare_pipeline(&mut graph, &config).unwrap();
     graph.export(&handles.radiance);
     graph.export(&handles.gbuffer.position_depth);

@@ -14,7 +14,7 @@ use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, S
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::firefly::FireflyMode;
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{Denoiser, GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_passes::view_bound::{ViewBound, view_angle};
 use parallax_scene::gpu::GpuScene;
@@ -122,7 +122,7 @@ fn render_setup(s: Setup<'_>) -> Rendered {
         gbuffer: s.gbuffer,
         tolerances: s.tolerances,
         fireflies: FireflyMode::Keep,
-        denoise: false,
+        denoise: Denoiser::None,
         exposure: 1.0,
     };
     let handles = declare_pipeline(&mut graph, &config).unwrap();

@@ -174,7 +174,7 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> KernelPlan 
         position_depth: &position,
         motion: &motion,
     };
-    let denoised = declare_svgf(&mut g, &inputs);
+    let denoised = declare_svgf(&mut g, Role::All, &inputs);
     g.export(&denoised);
     g.export(&radiance);
     lower(&g, placement)

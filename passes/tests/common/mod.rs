@@ -7,7 +7,9 @@ use parallax_backend::{Context, ExecOptions, KernelGraph, KernelPlan};
 use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::firefly::FireflyMode;
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline};
+use parallax_passes::pipeline::{
+    Denoiser, GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline,
+};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, View};
@@ -61,7 +63,7 @@ pub fn denoising_pipeline(kind: PipelineKind) -> PipelineConfig {
         gbuffer: GbufferSource::FirstHits,
         tolerances: ReprojectionTolerances::default(),
         fireflies: FireflyMode::Suppress,
-        denoise: true,
+        denoise: Denoiser::Views,
         exposure: 1.0,
     }
 }
