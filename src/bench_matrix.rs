@@ -17,7 +17,7 @@
 //! assignments = ["compact"]   # reprojecting multi-source cells only (default: render's)
 //! sources_per_set = [1, 2, 4] # reprojecting multi-source cells only
 //! spp = [1, 2, 4, 8]
-//! denoise = ["on", "off"]
+//! denoise = ["on", "off"]     # also "samples": render --denoise samples
 //! reprojection_tolerances = [0.05, 0.2, 1.0] # reprojecting cells only (default: render's)
 //! devices = [1]
 //! fake_devices = false
@@ -40,11 +40,13 @@ use crate::pipeline_args::PipelineArg;
 /// arguments are held and checked before the first runs.
 pub const MAX_CELLS: u64 = 10_000;
 
-/// `--denoise`: SVGF on or off.
+/// `--denoise`: SVGF on every view (`on`), over the samples (`samples`: render's `--denoise
+/// samples`) or off.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Denoise {
     On,
     Off,
+    Samples,
 }
 
 /// The command-line spelling of a value of a clap enum.
@@ -282,8 +284,10 @@ fn slice_cells(case: &Case, case_index: usize, axes: &Axes) -> Vec<Cell> {
                                 if shaped {
                                     args.extend(["--sources-per-set".into(), sources_per_set.to_string()]);
                                 }
-                                if denoise == Denoise::Off {
-                                    args.push("--no-denoise".into());
+                                match denoise {
+                                    Denoise::On => {}
+                                    Denoise::Off => args.push("--no-denoise".into()),
+                                    Denoise::Samples => args.extend(["--denoise".into(), "samples".into()]),
                                 }
                                 let mut tolerance_id = String::new();
                                 if let Some(t) = tolerance {

@@ -12,7 +12,7 @@
 //! `--matrix`); a cell has `id` (`[case/]pipeline_scheme[_assignment]_kK_sppS_dnD_dN[_tolT]`), `case`
 //! (the case's name; null for `--common`), `args` (the render arguments beyond the case's),
 //! `pipeline`, `scheme`, `assignment` (reprojecting multi-source cells: the one asked for, or
-//! the one render used by default), `sources_per_set`, `spp`, `denoise` (bool),
+//! the one render used by default), `sources_per_set`, `spp`, `denoise` (bool), `denoiser` (`on`, `off`, `samples`),
 //! `reprojection_tolerance` (reprojecting cells: the one asked for, or render's default; else
 //! null), `devices`,
 //! `ok`, `error` (when not ok), and when ok: `views`, `frame_ms` (mean, median, p95 of the GPU
@@ -89,7 +89,8 @@ pub struct BenchArgs {
     /// Samples per pixel, comma-separated.
     #[arg(long, default_value = "1", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=65536))]
     spp: Vec<u32>,
-    /// Denoising, comma-separated.
+    /// Denoising, comma-separated: `on` (SVGF on every view), `off`, `samples` (render's
+    /// `--denoise samples`).
     #[arg(long, value_enum, default_value = "on", value_delimiter = ',')]
     denoise: Vec<Denoise>,
     /// `render --reprojection-tolerance` values, comma-separated (reprojecting cells only;
@@ -178,13 +179,14 @@ fn case_origin(matrix: Option<&Path>, case: &Case) -> String {
 }
 
 /// The render flags bench sets per cell (clap id, spelling): a case may not give them.
-const BENCH_FLAGS: [(&str, &str); 12] = [
+const BENCH_FLAGS: [(&str, &str); 13] = [
     ("pipeline", "--pipeline"),
     ("scheme", "--scheme"),
     ("assign", "--assign"),
     ("sources_per_set", "--sources-per-set"),
     ("spp", "--spp"),
     ("no_denoise", "--no-denoise"),
+    ("denoise", "--denoise"),
     ("reprojection_tolerance", "--reprojection-tolerance"),
     ("gpus", "--gpus"),
     ("fake_devices", "--fake-devices"),
@@ -286,7 +288,7 @@ fn run_cell(
     let mut entry = serde_json::json!({
         "id": id, "case": case.name, "args": cell.args, "pipeline": name_of(&cell.pipeline),
         "scheme": name_of(&cell.scheme), "assignment": cell.assignment.map(|a| name_of(&a)),
-        "sources_per_set": cell.sources_per_set, "spp": cell.spp, "denoise": cell.denoise == Denoise::On,
+        "sources_per_set": cell.sources_per_set, "spp": cell.spp, "denoise": cell.denoise != Denoise::Off, "denoiser": name_of(&cell.denoise),
         "reprojection_tolerance": cell.tolerance, "devices": cell.devices,
     });
     if !status.success() {

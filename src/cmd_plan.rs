@@ -9,7 +9,7 @@ use parallax_graph::{PlanSummary, Rig};
 use crate::logging::{result, spinner};
 use crate::options::sink_parser;
 use crate::options::{DeviceArgs, UsageError};
-use crate::pipeline_args::{DotArgs, PipelineArgs};
+use crate::pipeline_args::{DenoiseArg, DotArgs, PipelineArgs};
 use crate::scene_args::LayoutArgs;
 use parallax_render::compile::plan_json;
 use parallax_render::outputs::{Format, Output, Sink, check, write_bytes, write_json};
@@ -131,7 +131,11 @@ fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 9] {
             flag_value(p.pipeline),
             flag_value(p.gbuffer),
             flag_value(p.fireflies_applied()),
-            if p.no_denoise { "no denoising" } else { "SVGF" }
+            match p.denoise_applied() {
+                DenoiseArg::Views => "SVGF over every view",
+                DenoiseArg::Samples => "SVGF over the samples (sources, then hole pixels)",
+                DenoiseArg::None => "no denoising",
+            }
         ),
         format!("light field   {} ({} views, {}x{} each)", s.layout, s.views, s.resolution[0], s.resolution[1]),
         format!(

@@ -8,7 +8,7 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use parallax_graph::{LightField, Schedule, SourcesPerSet};
 use parallax_passes::firefly::FireflyMode;
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind};
+use parallax_passes::pipeline::{Denoiser, GbufferSource, PipelineConfig, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_render::compile::{PipelineSchedule, PipelineSettings};
 
@@ -71,6 +71,29 @@ impl From<FirefliesArg> for FireflyMode {
     }
 }
 
+/// `--denoise`: where SVGF runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DenoiseArg {
+    /// SVGF over every view after reconstruction.
+    Views,
+    /// SVGF over the sources before reprojection, targets reproject the denoised radiance and
+    /// accumulate their hole pixels.
+    Samples,
+    /// No denoising (and no firefly suppression).
+    None,
+}
+
+impl From<DenoiseArg> for Denoiser {
+    fn from(d: DenoiseArg) -> Denoiser {
+        match d {
+            DenoiseArg::Views => Denoiser::Views,
+            DenoiseArg::Samples => Denoiser::Samples,
+            DenoiseArg::None => Denoiser::None,
+        }
+    }
+}
+
 /// The pipeline and its placement. The field names are the clap ids that `bench` checks with
 /// `value_source`.
 #[derive(Args, Debug, Clone)]
@@ -85,8 +108,14 @@ pub struct PipelineArgs {
     /// shaderBufferInt64Atomics).
     #[arg(long, value_enum, default_value_t = GbufferArg::FirstHits)]
     pub gbuffer: GbufferArg,
-    /// Skip SVGF: the display shows the radiance after reprojection and hole filling.
-    #[arg(long)]
+    /// Where SVGF runs: over every view after reconstruction (`views`), over the path-traced
+    /// samples (`samples`: the sources before reprojection, then each target's hole pixels
+    /// accumulated over frames), or nowhere (`none`: the display shows the radiance after
+    /// reprojection and hole filling).
+    #[arg(long, value_enum, default_value_t = DenoiseArg::Views)]
+    pub denoise: DenoiseArg,
+    /// The same as `--denoise none` (kept for older command lines and run files).
+    #[arg(long, conflicts_with = "denoise")]
     pub no_denoise: bool,
     /// Before denoising, a pixel brighter than its 5×5 neighbourhood's mean + 3 standard
     /// deviations (luminance; × √n on a still camera's n-th frame, so it fades as the image
@@ -185,10 +214,15 @@ impl PipelineArgs {
         assignment(self.scheme, self.assign).map(|_| ())
     }
 
+    /// Where these flags denoise: `--denoise`, or `none` with `--no-denoise`.
+    pub fn denoise_applied(&self) -> DenoiseArg {
+        if self.no_denoise { DenoiseArg::None } else { self.denoise }
+    }
+
     /// What `--fireflies` does with these flags: without denoising the display is the radiance
-    /// as traced (`--no-denoise`), so nothing is suppressed and no G-buffer is computed for it.
+    /// as traced (`--denoise none`), so nothing is suppressed and no G-buffer is computed for it.
     pub fn fireflies_applied(&self) -> FirefliesArg {
-        if self.no_denoise { FirefliesArg::Keep } else { self.fireflies }
+        if self.denoise_applied() == DenoiseArg::None { FirefliesArg::Keep } else { self.fireflies }
     }
 
     /// The pipeline declaration these flags ask for.
@@ -201,7 +235,7 @@ impl PipelineArgs {
                 ..Default::default()
             },
             fireflies: self.fireflies_applied().into(),
-            denoise: !self.no_denoise,
+            denoise: self.denoise_applied().into(),
             exposure,
         }
     }

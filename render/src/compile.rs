@@ -9,7 +9,7 @@ use parallax_graph::{
     AssignStrategy, LightField, Plan, PlanConfig, PlanSummary, ProvenSchedule, Schedule, Scheme, SourcesPerSet,
 };
 use parallax_passes::firefly::FireflyMode;
-use parallax_passes::pipeline::{GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
+use parallax_passes::pipeline::{Denoiser, GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
 
 use crate::outputs::budget::PlanShape;
@@ -209,6 +209,15 @@ pub fn fireflies_name(fireflies: FireflyMode) -> &'static str {
     match fireflies {
         FireflyMode::Suppress => "suppress",
         FireflyMode::Keep => "keep",
+    }
+}
+
+/// `views`, `samples` or `none`.
+pub fn denoiser_name(denoiser: Denoiser) -> &'static str {
+    match denoiser {
+        Denoiser::Views => "views",
+        Denoiser::Samples => "samples",
+        Denoiser::None => "none",
     }
 }
 

@@ -126,7 +126,11 @@ fn scheme_table(cells: &[serde_json::Value]) -> String {
             text(&c["pipeline"]),
             c["sources_per_set"],
             c["spp"],
-            if c["denoise"] == true { "on" } else { "off" },
+            match c["denoiser"].as_str() {
+                Some(name) => name,
+                None if c["denoise"] == true => "on",
+                None => "off",
+            },
             c["devices"]
         )
     };

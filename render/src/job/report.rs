@@ -20,7 +20,7 @@ use parallax_scene::{Frame, PixelSample, View};
 
 use super::plan::{RenderJob, view_file_name};
 use super::posing::GeometryReport;
-use crate::compile::{fireflies_name, gbuffer_name, pipeline_name, plan_json, sources_per_set_json};
+use crate::compile::{denoiser_name, fireflies_name, gbuffer_name, pipeline_name, plan_json, sources_per_set_json};
 use crate::console::result;
 use crate::outputs::resident::ResidentSummary;
 use crate::outputs::{FolderLock, Sink, Staged, stage};
@@ -266,7 +266,7 @@ fn render_json(settings: &RenderSettings, job: &RenderJob, measured: &Measured<'
                     "width": lf.width, "height": lf.height, "spacing_m": setup.spacing_m, "focus_m": lf.rig.focus_distance },
         // The assignment groups views only under multi-source (`--assign` is refused otherwise).
         "pipeline": pipeline_name(settings.pipeline.config.kind), "scheme": summary.scheme, "assign": summary.assign,
-        "sources_per_set": sources_per_set_json(settings.pipeline.sources_per_set), "denoise": settings.pipeline.config.denoise,
+        "sources_per_set": sources_per_set_json(settings.pipeline.sources_per_set), "denoise": denoiser_name(settings.pipeline.config.denoise),
         "fireflies": fireflies_name(settings.pipeline.config.fireflies),
         "exposure": measured.exposure, "exposure_mode": settings.exposure.mode(), "still": still,
         "motion": job.motion.name(), "geometry": &measured.geometry, "setup": &setup,
