@@ -255,3 +255,37 @@ fn hole_pixels_keep_the_bits_of_path_tracing_every_view() {
         assert!(holes > 0, "{devices} device(s): the light field has holes to fill");
     }
 }
+
+/// `--denoise` picks where SVGF runs and render.json records it (its `run` too, so `--config`
+/// repeats it); `--no-denoise` is `--denoise none`, and the two together are one usage error.
+#[test]
+fn the_denoiser_is_chosen_by_flag_and_recorded() {
+    let dir = scratch("render", "denoiser");
+    let samples = dir.join("samples");
+    render(&samples, &["--denoise", "samples", "--frames", "2"]);
+    let j = json(&samples.join("render.json"));
+    assert_eq!((j["denoise"].as_str(), j["run"]["denoise"].as_str()), (Some("samples"), Some("samples")));
+    let stages: Vec<&str> =
+        j["timing"]["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    assert!(stages.contains(&"hole_temporal") && stages.contains(&"svgf_temporal"), "{stages:?}");
+
+    let again = dir.join("again");
+    let config = samples.join("render.json");
+    let out = parallax(&["-q", "render", "--config", config.to_str().unwrap(), "--out-dir", again.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for v in 0..8 {
+        let name = format!("view_{v:03}.exr");
+        assert!(std::fs::read(samples.join(&name)).unwrap() == std::fs::read(again.join(&name)).unwrap(), "{name}");
+    }
+
+    let none = dir.join("none");
+    render(&none, &["--no-denoise", "--frames", "1"]);
+    assert_eq!(json(&none.join("render.json"))["denoise"].as_str(), Some("none"));
+
+    let both = dir.join("both");
+    let out = parallax(&["render", "--denoise", "samples", "--no-denoise", "--out-dir", both.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--denoise") && stderr.contains("--no-denoise"), "{stderr}");
+    assert!(!both.exists(), "a refused run writes nothing");
+}

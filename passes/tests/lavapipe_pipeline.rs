@@ -8,12 +8,15 @@ mod common;
 use glam::Vec3;
 use parallax_backend::{Barriers, EventKind, ExecOptions, FrameReport, KernelGraph, KernelPlan, LinkKind, Timing};
 use parallax_graph::{
-    AssignStrategy, DeviceId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region, Scheme,
-    ViewId, compile,
+    AssignStrategy, DeviceId, FamilyId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region,
+    Scheme, ViewId, compile,
 };
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
-use parallax_passes::pipeline::{GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
+use parallax_passes::firefly::FireflyMode;
+use parallax_passes::pipeline::{
+    Denoiser, GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline,
+};
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{Camera, Scene, SceneBvh, TraceSettings, default_scene};
 
@@ -80,10 +83,35 @@ fn run_config(
     options: ExecOptions,
     config: &PipelineConfig,
 ) -> (Frames, Vec<FrameReport>) {
+    let read = |h: &PipelineHandles, _source: bool| {
+        vec![h.denoised.as_ref().expect("the pipeline denoises").family(), h.display.family()]
+    };
+    let (layers, reports) = run_layers(scene, lf, plan, placement, frames, cut, options, config, &read);
+    let frames = layers.into_iter().map(|views| views.into_iter().map(|mut l| (l.remove(0), l.remove(0))).collect());
+    (frames.collect(), reports)
+}
+
+/// Per frame, per view, the layers `read` names for it, in its order.
+type Layers = Vec<Vec<Vec<Vec<u8>>>>;
+
+/// Renders the pipeline `config` declares and reads back, every view of every frame, the layers
+/// `read` picks from its handles for a source (`true`) or a target view.
+#[allow(clippy::too_many_arguments)]
+fn run_layers(
+    scene: &Scene,
+    lf: &LightField,
+    plan: &Plan,
+    placement: &dyn Placement,
+    frames: std::ops::Range<u32>,
+    cut: Option<(u32, &LightField)>,
+    options: ExecOptions,
+    config: &PipelineConfig,
+    read: &dyn Fn(&PipelineHandles, bool) -> Vec<FamilyId>,
+) -> (Layers, Vec<FrameReport>) {
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let handles = declare_pipeline(&mut graph, config).unwrap();
     graph.export(&handles.display);
-    let (denoised, display) = (handles.denoised.expect("the pipeline denoises").family(), handles.display.family());
+    let families = [read(&handles, false), read(&handles, true)];
     let schedule = compile(&graph, placement).unwrap();
     let exec = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(placement.devices() as usize);
@@ -106,7 +134,10 @@ fn run_config(
         renderer.finish().unwrap();
         out.push(
             (0..lf.len() as u32)
-                .map(|v| (renderer.read(denoised, v).unwrap(), renderer.read(display, v).unwrap()))
+                .map(|v| {
+                    let of_view = &families[usize::from(plan.topology.is_source[v as usize])];
+                    of_view.iter().map(|&family| renderer.read(family, v).unwrap()).collect()
+                })
                 .collect(),
         );
     }
@@ -157,6 +188,23 @@ fn every_scheme_gives_the_same_bits_on_one_and_three_devices_with_the_visibility
 }
 
 #[test]
+fn every_scheme_gives_the_same_bits_on_one_and_three_devices_denoising_the_samples() {
+    let scene = default_scene();
+    let lf = light_field(&scene, scene.default_camera(), 0.02);
+    let config = PipelineConfig { denoise: Denoiser::Samples, ..common::denoising_pipeline(PipelineKind::Reproject) };
+    for scheme in Scheme::ALL {
+        let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
+        let plan_config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources };
+        let plan = Plan::new(&lf, &plan_config).unwrap();
+        let options = ExecOptions::default;
+        let (three, _) = run_config(&scene, &lf, &plan, &plan, 0..FRAMES, None, options(), &config);
+        let (one, _) = run_config(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None, options(), &config);
+        assert!(finite(&three), "{scheme:?}: finite");
+        assert!(three == one, "{scheme:?}: 3 devices and 1 device differ denoising the samples");
+    }
+}
+
+#[test]
 fn fine_schemes_give_the_same_bits_on_one_and_three_devices_over_each_lavapipe_link_kind() {
     // Lavapipe offers `shared` (opaque-fd memory, relayed signals) and `relay` (host staging);
     // `gpu` needs VK_KHR_external_semaphore_fd, which it lacks (refused: backend links.rs).
@@ -189,12 +237,68 @@ fn the_frame_after_a_camera_cut_equals_a_fresh_start() {
     let after = light_field(&scene, moved, 0.02);
     let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
     let plan = Plan::new(&before, &config).unwrap();
-    let cut = run(&scene, &before, &plan, &plan, 0..4, Some((3, &after)));
-    let fresh = run(&scene, &after, &plan, &plan, 3..4, None);
-    assert!(cut[3] == fresh[0], "no ghost of the frames before the cut");
-    // Without the cut, history would have been blended in (so the test can fail).
-    let uncut = run(&scene, &before, &plan, &plan, 0..4, None);
-    assert!(uncut[3] != cut[3]);
+    for denoise in [Denoiser::Views, Denoiser::Samples] {
+        let pipeline = PipelineConfig { denoise, ..common::denoising_pipeline(PipelineKind::Reproject) };
+        let run = |lf: &LightField, frames: std::ops::Range<u32>, cut: Option<(u32, &LightField)>| {
+            run_config(&scene, lf, &plan, &plan, frames, cut, ExecOptions::default(), &pipeline).0
+        };
+        let cut = run(&before, 0..4, Some((3, &after)));
+        let fresh = run(&after, 3..4, None);
+        assert!(cut[3] == fresh[0], "{denoise:?}: no ghost of the frames before the cut");
+        // Without the cut, history would have been blended in (so the test can fail).
+        let uncut = run(&before, 0..4, None);
+        assert!(uncut[3] != cut[3], "{denoise:?}");
+    }
+}
+
+#[test]
+fn denoising_the_samples_makes_each_hole_pixel_the_mean_of_its_samples_on_a_still_camera() {
+    // Under `Samples` a target's hole pixels are traced into its `denoised` image and
+    // accumulated there (hole_temporal); without a denoiser the same pixels get the same traced
+    // samples (one RNG stream per pixel and frame) and keep them as they are. So on a still
+    // camera a hole pixel of frame n must be the mean of the undenoised run's frames 0..=n.
+    let scene = default_scene();
+    let lf = light_field(&scene, scene.default_camera(), 0.02);
+    let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = Plan::new(&lf, &config).unwrap();
+    let base = common::denoising_pipeline(PipelineKind::Reproject);
+    let samples = PipelineConfig { denoise: Denoiser::Samples, ..base };
+    let none = PipelineConfig { denoise: Denoiser::None, fireflies: FireflyMode::Keep, ..base };
+    let frames = 0..4;
+    // Hole masks exist for targets only.
+    let with_holes = |image: FamilyId, h: &PipelineHandles, source: bool| {
+        if source { vec![image] } else { vec![image, h.holes.as_ref().unwrap().family()] }
+    };
+    let read_samples = |h: &PipelineHandles, source: bool| with_holes(h.denoised.as_ref().unwrap().family(), h, source);
+    let read_none = |h: &PipelineHandles, source: bool| with_holes(h.radiance.family(), h, source);
+    let (accumulated, _) =
+        run_layers(&scene, &lf, &plan, &plan, frames.clone(), None, ExecOptions::default(), &samples, &read_samples);
+    let (traced, _) = run_layers(&scene, &lf, &plan, &plan, frames, None, ExecOptions::default(), &none, &read_none);
+    let (mut holes, mut worst) = (0usize, 0.0f64);
+    for view in 0..lf.len() {
+        if plan.topology.is_source[view] {
+            continue;
+        }
+        let mask = &accumulated[0][view][1];
+        assert_eq!(mask, &traced[0][view][1], "view {view}: both runs find the same holes");
+        let is_hole: Vec<bool> =
+            mask.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) != 0).collect();
+        for (n, frame) in accumulated.iter().enumerate() {
+            let got = common::floats(&frame[view][0]);
+            let samples: Vec<Vec<f32>> = traced[..=n].iter().map(|f| common::floats(&f[view][0])).collect();
+            for (pixel, _) in is_hole.iter().enumerate().filter(|(_, hole)| **hole) {
+                holes += usize::from(n == 0);
+                for c in 0..3 {
+                    let i = pixel * 4 + c;
+                    let mean = samples.iter().map(|s| f64::from(s[i].clamp(0.0, 1e8))).sum::<f64>() / (n + 1) as f64;
+                    worst = worst.max((f64::from(got[i]) - mean).abs() / mean.abs().max(1e-3));
+                }
+            }
+        }
+    }
+    eprintln!("{holes} hole pixels; worst relative distance from the mean of their samples {worst:.2e}");
+    assert!(holes > 0, "the light field has holes, so the test can fail");
+    assert!(worst <= 1e-5, "a hole pixel is {worst:.2e} (relative) off the mean of its samples");
 }
 
 /// A scene of very thin geometry: a comb of 1 mm slabs in front of a wall, under a sun and sky.

@@ -9,7 +9,9 @@ use parallax_graph::{
     AssignStrategy, LightField, Plan, PlanConfig, PlanSummary, ProvenSchedule, Schedule, Scheme, SourcesPerSet,
 };
 use parallax_passes::firefly::FireflyMode;
-use parallax_passes::pipeline::{Denoiser, GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind};
+use parallax_passes::pipeline::{
+    Denoiser, GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind,
+};
 use parallax_passes::reproject::ReprojectionTolerances;
 
 use crate::outputs::budget::PlanShape;
