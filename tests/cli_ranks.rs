@@ -72,8 +72,15 @@ mod under_mpirun {
     /// every rank as PARALLAX_FAULT (ranks on this host inherit mpirun's environment).
     fn render_on_three_ranks(mpirun: &str, dir: &Path, extra: &[&str], fault: Option<&str>) -> std::process::Output {
         let mut command = Command::new(mpirun);
+        // Each launch gets its own session directory: Open MPI keeps one per host and user under
+        // TMPDIR (`/tmp/ompi.<host>.<uid>`), and two tests' mpiruns sharing it collided there
+        // (one's clean-up removed what the other was starting in).
+        // Beside `dir`, not in it: the tests check what a run leaves in `dir`.
+        let session = dir.with_extension("mpi");
+        std::fs::create_dir_all(&session).unwrap();
         // CI runs as root, on two cores.
         command
+            .env("TMPDIR", &session)
             .args(["--allow-run-as-root", "--oversubscribe", "-n", "3"])
             .arg(env!("CARGO_BIN_EXE_parallax"))
             .args(RENDER)
@@ -88,7 +95,9 @@ mod under_mpirun {
         if let Some(fault) = fault {
             command.env("PARALLAX_FAULT", fault);
         }
-        wait_or_kill(command.spawn().unwrap(), "mpirun -n 3 parallax render")
+        let output = wait_or_kill(command.spawn().unwrap(), "mpirun -n 3 parallax render");
+        let _ = std::fs::remove_dir_all(&session);
+        output
     }
 
     fn files(dir: &Path) -> Vec<String> {
