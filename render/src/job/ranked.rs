@@ -193,8 +193,9 @@ fn views_to_send(
             }
         }
     }
-    let prepare = renderer.prepare_ms().clone();
-    let timing = timings(renderer.stats(), &prepare);
+    // Stats borrow the renderer mutably (they fold the retired frames first).
+    let stats = renderer.stats().clone();
+    let timing = timings(&stats, renderer.prepare_ms(), renderer.plan());
     drop(renderer);
     context.check_validation()?;
     let header = serde_json::json!({
@@ -258,8 +259,9 @@ fn gathered(
 ) -> Result<RankViews> {
     let own_views = views_of(rendered.renderer.plan());
     let own_wall = rendered.wall.as_secs_f64() * 1e3 / f64::from(settings.frames);
-    let prepare = rendered.renderer.prepare_ms().clone();
-    let own_timing = timings(rendered.renderer.stats(), &prepare);
+    // Stats borrow the renderer mutably (they fold the retired frames first).
+    let stats = rendered.renderer.stats().clone();
+    let own_timing = timings(&stats, rendered.renderer.prepare_ms(), rendered.renderer.plan());
     let mut device_names: Vec<String> = rendered.context.device_infos().iter().map(|d| d.name.clone()).collect();
     let mut remote = HashMap::new();
     let mut bands = HashMap::new();

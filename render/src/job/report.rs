@@ -75,8 +75,9 @@ pub(super) struct RankViews {
 pub(super) fn write_outputs(settings: &RenderSettings, job: &RenderJob, rendered: Rendered) -> Result<()> {
     let Rendered { context, mut renderer, mut staged, wall, host_memory, lf, lock, layers, geometry, ranks } = rendered;
     let reports = renderer.take_reports();
-    let prepare = renderer.prepare_ms().clone();
-    let timing = timings(renderer.stats(), &prepare);
+    // Stats borrow the renderer mutably (they fold the retired frames first).
+    let stats = renderer.stats().clone();
+    let timing = timings(&stats, renderer.prepare_ms(), renderer.plan());
     let (kind, handles) = (job.compiled.kind, &job.compiled.handles);
     let last_views = lightfield_views(&job.lf_of(settings, job.total_frames - 1)?);
     let no_remote = (HashMap::new(), BTreeSet::new(), HashMap::new());

@@ -84,42 +84,29 @@ fn stage_of(totals: &EventTotals) -> String {
     }
 }
 
-/// The stages in the order the pipeline runs them (the paper's Table 1): a stage's rank is that
-/// of its name or of the name it extends (`svgf_atrous_2` is an `svgf_atrous`); stages not
-/// listed come after, by name.
-const PIPELINE_ORDER: [&str; 19] = [
-    "gbuffer",
-    "gbuffer_raster",
-    "visibility_raster",
-    "visibility_resolve",
-    "motion",
-    "pixel_list",
-    "path_trace",
-    "reproject",
-    "compact_holes",
-    "hole_fill",
-    "firefly_bound",
-    "firefly_spread",
-    "svgf_history",
-    "svgf_temporal",
-    "svgf_variance",
-    "svgf_atrous",
-    "tonemap",
-    "copy",
-    "transfer",
-];
-
-fn pipeline_rank(stage: &str) -> usize {
-    let extends = |s: &str| stage.strip_prefix(s).is_some_and(|rest| rest.starts_with('_'));
-    PIPELINE_ORDER
-        .iter()
-        .position(|&s| s == stage)
-        .or_else(|| PIPELINE_ORDER.iter().rposition(|&s| extends(s)))
-        .unwrap_or(PIPELINE_ORDER.len())
+/// The stages in the order the pipeline runs them (the paper's Table 1): its passes in the order
+/// `plan` instantiates them, which is the order the pipeline declared them (not the order a
+/// device submits them: that interleaves views); then the copies between devices, then the
+/// gathers to device 0.
+fn stage_order(plan: &ExecutionPlan) -> Vec<&str> {
+    let mut order: Vec<&str> = Vec::new();
+    for pass in &plan.passes {
+        if !order.contains(&pass.name.as_str()) {
+            order.push(&pass.name);
+        }
+    }
+    order.extend(["copy", "transfer"]);
+    order
 }
 
-/// The timings of the frames folded into `stats`; `prepare` is the renderer's frame-data time.
-pub fn timings(stats: &FrameStats, prepare: &Summary) -> Timings {
+/// Where `stage` ranks in `order`: after all of it when not in it (callers sort those by name).
+fn rank_in(order: &[&str], stage: &str) -> usize {
+    order.iter().position(|&s| s == stage).unwrap_or(order.len())
+}
+
+/// The timings of the frames folded into `stats`; `prepare` is the renderer's frame-data time,
+/// `plan` what ran them (it orders the stages).
+pub fn timings(stats: &FrameStats, prepare: &Summary, plan: &ExecutionPlan) -> Timings {
     let frames = stats.frames().max(1) as f64;
     let mut stages: BTreeMap<(String, usize), (u64, u64)> = BTreeMap::new();
     let mut copies = 0u64;
@@ -134,8 +121,9 @@ pub fn timings(stats: &FrameStats, prepare: &Summary) -> Timings {
         }
     }
     let mut stages: Vec<_> = stages.into_iter().collect();
-    // Stable: by name (the map's order) within a rank, so svgf_atrous_0 comes before _1.
-    stages.sort_by_key(|((stage, _), _)| pipeline_rank(stage));
+    // Stable: a stage's devices in order (the map's), and stages the plan lacks by name.
+    let order = stage_order(plan);
+    stages.sort_by_key(|((stage, _), _)| rank_in(&order, stage));
     Timings {
         frames: stats.frames() as usize,
         frame_gpu_ms: stats.gpu_span_ms().sample().to_vec(),
@@ -240,15 +228,67 @@ pub fn missing_pixels(
 mod tests {
     use super::*;
 
+    /// A plan of one instance per `(pass name, view)`, in that order, all on device 0.
+    fn plan_of(instances: &[(&str, u32)]) -> ExecutionPlan {
+        let pass_id = |name: &str| instances.iter().position(|&(n, _)| n == name).unwrap() as u32;
+        let passes = instances
+            .iter()
+            .map(|&(name, view)| parallax_backend::PassInstance {
+                pass: parallax_backend::PassId(pass_id(name)),
+                name: name.into(),
+                view: parallax_backend::ViewId(view),
+                region: parallax_backend::Region::new(0, 1),
+                device: parallax_backend::DeviceId(0),
+                reads: vec![],
+                writes: vec![],
+                history_reads: vec![],
+            })
+            .collect();
+        ExecutionPlan { passes, ..ExecutionPlan::default() }
+    }
+
     #[test]
-    fn stages_rank_in_pipeline_order() {
-        let mut names =
-            ["transfer", "tonemap", "svgf_atrous_1", "hole_fill", "svgf_atrous_0", "zeta", "gbuffer", "copy"];
-        names.sort_by_key(|n| (pipeline_rank(n), *n));
+    fn stages_rank_in_the_order_the_plan_declares_its_passes() {
+        // A source view 0 and a target view 1: each pass's first instance sets its rank, and
+        // svgf_atrous_10 is declared (and ranks) after svgf_atrous_9, whatever the names' order.
+        let plan = plan_of(&[
+            ("gbuffer", 0),
+            ("gbuffer", 1),
+            ("path_trace", 0),
+            ("reproject", 1),
+            ("svgf_atrous_9", 0),
+            ("svgf_atrous_9", 1),
+            ("svgf_atrous_10", 0),
+            ("tonemap", 0),
+        ]);
+        let order = stage_order(&plan);
+        let mut names = [
+            "transfer",
+            "tonemap",
+            "svgf_atrous_10",
+            "zeta",
+            "reproject",
+            "svgf_atrous_9",
+            "copy",
+            "gbuffer",
+            "path_trace",
+            "alpha",
+        ];
+        names.sort_by_key(|n| (rank_in(&order, n), *n));
         assert_eq!(
             names,
-            ["gbuffer", "hole_fill", "svgf_atrous_0", "svgf_atrous_1", "tonemap", "copy", "transfer", "zeta"]
+            [
+                "gbuffer",
+                "path_trace",
+                "reproject",
+                "svgf_atrous_9",
+                "svgf_atrous_10",
+                "tonemap",
+                "copy",
+                "transfer",
+                "alpha",
+                "zeta"
+            ]
         );
-        assert_eq!(pipeline_rank("gbuffer_raster"), 1, "an exact name before a prefix");
     }
 }
