@@ -197,7 +197,8 @@ impl PipelineBuilder {
     }
 
     /// Declares `denoiser` instead of SVGF (when the config denoises): it returns the denoised
-    /// radiance.
+    /// radiance. Under [`Denoiser::Samples`] it runs before reprojection, when only the sources
+    /// have radiance: its passes must be declared for [`Role::Sources`].
     pub fn replace_denoiser(
         mut self,
         denoiser: impl FnOnce(&mut KernelGraph, &mut Layers) -> Result<Handle<Image>> + 'static,
@@ -242,19 +243,30 @@ impl PipelineBuilder {
             declare_hole_fill(graph, holes, layers.gbuffer.first_hit.as_ref(), &mut layers.radiance);
             self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
         }
-        if config.fireflies == FireflyMode::Suppress {
-            declare_firefly_suppression(graph, Role::All, &layers.gbuffer.position_depth, &mut layers.radiance);
+        self.declare_fireflies_and_denoiser(graph, &mut layers, Role::All)?;
+        self.finish(graph, layers)
+    }
+
+    /// Firefly suppression and the denoiser (SVGF, or the replaced one) over the radiance of
+    /// the views of `role`, each followed by its insertion point's stages.
+    fn declare_fireflies_and_denoiser(
+        &mut self,
+        graph: &mut KernelGraph,
+        layers: &mut Layers,
+        role: Role,
+    ) -> Result<()> {
+        if self.config.fireflies == FireflyMode::Suppress {
+            declare_firefly_suppression(graph, role, &layers.gbuffer.position_depth, &mut layers.radiance);
         }
-        self.run_stages(InsertionPoint::AfterFireflies, graph, &mut layers)?;
-        if config.denoise != Denoiser::None {
+        self.run_stages(InsertionPoint::AfterFireflies, graph, layers)?;
+        if self.config.denoise != Denoiser::None {
             let denoised = match self.denoiser.take() {
-                Some(denoiser) => denoiser(graph, &mut layers)?,
-                None => declare_standard_svgf(graph, Role::All, &layers),
+                Some(denoiser) => denoiser(graph, layers)?,
+                None => declare_standard_svgf(graph, role, layers),
             };
             layers.denoised = Some(denoised);
         }
-        self.run_stages(InsertionPoint::AfterDenoise, graph, &mut layers)?;
-        self.finish(graph, layers)
+        self.run_stages(InsertionPoint::AfterDenoise, graph, layers)
     }
 
     /// The reprojection pipeline denoised in sample space ([`Denoiser::Samples`]): the sources'
@@ -263,20 +275,10 @@ impl PipelineBuilder {
     /// it and accumulated there. The insertion points come in the order the stages run: the
     /// fireflies and the denoiser before the reprojection.
     fn declare_sample_space(mut self, graph: &mut KernelGraph, mut layers: Layers) -> Result<PipelineHandles> {
-        let config = self.config;
-        if config.fireflies == FireflyMode::Suppress {
-            declare_firefly_suppression(graph, Role::Sources, &layers.gbuffer.position_depth, &mut layers.radiance);
-        }
-        self.run_stages(InsertionPoint::AfterFireflies, graph, &mut layers)?;
-        let denoised = match self.denoiser.take() {
-            Some(denoiser) => denoiser(graph, &mut layers)?,
-            None => declare_standard_svgf(graph, Role::Sources, &layers),
-        };
-        layers.denoised = Some(denoised);
-        self.run_stages(InsertionPoint::AfterDenoise, graph, &mut layers)?;
+        self.declare_fireflies_and_denoiser(graph, &mut layers, Role::Sources)?;
         // Reads the sources' denoised radiance, writes the targets' own.
-        let denoised = layers.denoised.as_mut().expect("set above");
-        let holes = declare_reproject(graph, &layers.gbuffer, denoised, config.tolerances)?;
+        let denoised = layers.denoised.as_mut().expect("`Samples` declares the denoiser");
+        let holes = declare_reproject(graph, &layers.gbuffer, denoised, self.config.tolerances)?;
         layers.holes = Some(holes);
         self.run_stages(InsertionPoint::AfterReprojection, graph, &mut layers)?;
         let holes = layers.holes.as_ref().expect("set above");

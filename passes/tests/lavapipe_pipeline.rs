@@ -153,55 +153,46 @@ fn finite(frames: &Frames) -> bool {
     })
 }
 
-#[test]
-fn every_scheme_gives_the_same_bits_on_one_and_three_devices() {
+/// `devices` devices under `scheme`, compact assignment: explicit sources 1 and 6 for the fine
+/// schemes (so a run and its one-device twin reproject from the same views), the planner's for
+/// multi-source.
+fn compact_plan(lf: &LightField, devices: u32, scheme: Scheme) -> Plan {
+    let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
+    Plan::new(lf, &PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources }).unwrap()
+}
+
+/// Every scheme on three devices gives the bits of the same plan on one device, for the
+/// pipeline `config` declares (`what` names it in the failure).
+fn assert_every_scheme_gives_the_same_bits_on_one_and_three_devices(config: &PipelineConfig, what: &str) {
     let scene = default_scene();
     let lf = light_field(&scene, scene.default_camera(), 0.02);
     for scheme in Scheme::ALL {
-        // Explicit sources for the fine schemes, so both runs reproject from the same views.
-        let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
-        let config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources };
-        let plan = Plan::new(&lf, &config).unwrap();
-        let three = run(&scene, &lf, &plan, &plan, 0..FRAMES, None);
-        let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
-        assert!(finite(&three), "{scheme:?}: finite");
-        assert!(three == one, "{scheme:?}: 3 devices and 1 device differ");
+        let plan = compact_plan(&lf, 3, scheme);
+        let options = ExecOptions::default;
+        let (three, _) = run_config(&scene, &lf, &plan, &plan, 0..FRAMES, None, options(), config);
+        let (one, _) = run_config(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None, options(), config);
+        assert!(finite(&three), "{scheme:?}, {what}: finite");
+        assert!(three == one, "{scheme:?}, {what}: 3 devices and 1 device differ");
     }
+}
+
+#[test]
+fn every_scheme_gives_the_same_bits_on_one_and_three_devices() {
+    let config = common::denoising_pipeline(PipelineKind::Reproject);
+    assert_every_scheme_gives_the_same_bits_on_one_and_three_devices(&config, "SVGF over every view");
 }
 
 #[test]
 fn every_scheme_gives_the_same_bits_on_one_and_three_devices_with_the_visibility_gbuffer() {
-    let scene = default_scene();
-    let lf = light_field(&scene, scene.default_camera(), 0.02);
     let config =
         PipelineConfig { gbuffer: GbufferSource::Visibility, ..common::denoising_pipeline(PipelineKind::Reproject) };
-    for scheme in Scheme::ALL {
-        let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
-        let plan_config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources };
-        let plan = Plan::new(&lf, &plan_config).unwrap();
-        let options = ExecOptions::default;
-        let (three, _) = run_config(&scene, &lf, &plan, &plan, 0..FRAMES, None, options(), &config);
-        let (one, _) = run_config(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None, options(), &config);
-        assert!(finite(&three), "{scheme:?}: finite");
-        assert!(three == one, "{scheme:?}: 3 devices and 1 device differ with the visibility G-buffer");
-    }
+    assert_every_scheme_gives_the_same_bits_on_one_and_three_devices(&config, "the visibility G-buffer");
 }
 
 #[test]
 fn every_scheme_gives_the_same_bits_on_one_and_three_devices_denoising_the_samples() {
-    let scene = default_scene();
-    let lf = light_field(&scene, scene.default_camera(), 0.02);
     let config = PipelineConfig { denoise: Denoiser::Samples, ..common::denoising_pipeline(PipelineKind::Reproject) };
-    for scheme in Scheme::ALL {
-        let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
-        let plan_config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources };
-        let plan = Plan::new(&lf, &plan_config).unwrap();
-        let options = ExecOptions::default;
-        let (three, _) = run_config(&scene, &lf, &plan, &plan, 0..FRAMES, None, options(), &config);
-        let (one, _) = run_config(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None, options(), &config);
-        assert!(finite(&three), "{scheme:?}: finite");
-        assert!(three == one, "{scheme:?}: 3 devices and 1 device differ denoising the samples");
-    }
+    assert_every_scheme_gives_the_same_bits_on_one_and_three_devices(&config, "SVGF over the samples");
 }
 
 #[test]
@@ -211,8 +202,7 @@ fn fine_schemes_give_the_same_bits_on_one_and_three_devices_over_each_lavapipe_l
     let scene = default_scene();
     let lf = light_field(&scene, scene.default_camera(), 0.02);
     for scheme in [Scheme::FineAll, Scheme::FineSources] {
-        let config = PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources: Some(vec![1, 6]) };
-        let plan = Plan::new(&lf, &config).unwrap();
+        let plan = compact_plan(&lf, 3, scheme);
         let one = run(&scene, &lf, &plan, &OnOneDevice(&plan), 0..FRAMES, None);
         // The last: host staging rings of one copy each, which wrap around within every frame.
         for (kind, host_staging_bytes) in
@@ -235,8 +225,7 @@ fn the_frame_after_a_camera_cut_equals_a_fresh_start() {
     let mut moved = scene.default_camera();
     moved.eye += Vec3::new(0.4, 0.1, -0.3);
     let after = light_field(&scene, moved, 0.02);
-    let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&before, &config).unwrap();
+    let plan = compact_plan(&before, 1, Scheme::MultiSource);
     for denoise in [Denoiser::Views, Denoiser::Samples] {
         let pipeline = PipelineConfig { denoise, ..common::denoising_pipeline(PipelineKind::Reproject) };
         let run = |lf: &LightField, frames: std::ops::Range<u32>, cut: Option<(u32, &LightField)>| {
@@ -259,8 +248,7 @@ fn denoising_the_samples_makes_each_hole_pixel_the_mean_of_its_samples_on_a_stil
     // camera a hole pixel of frame n must be the mean of the undenoised run's frames 0..=n.
     let scene = default_scene();
     let lf = light_field(&scene, scene.default_camera(), 0.02);
-    let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config).unwrap();
+    let plan = compact_plan(&lf, 1, Scheme::MultiSource);
     let base = common::denoising_pipeline(PipelineKind::Reproject);
     let samples = PipelineConfig { denoise: Denoiser::Samples, ..base };
     let none = PipelineConfig { denoise: Denoiser::None, fireflies: FireflyMode::Keep, ..base };
@@ -347,9 +335,7 @@ fn barriers_only_where_accesses_conflict_and_per_stage_timing_give_the_same_bits
     let lf = light_field(&scene, scene.default_camera(), 0.02);
     let tracked_per_stage = ExecOptions { barriers: Barriers::Tracked, timing: Timing::PerStage, ..Default::default() };
     for scheme in [Scheme::MultiSource, Scheme::FineAll] {
-        let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
-        let plan =
-            Plan::new(&lf, &PlanConfig { devices: 3, scheme, assign: AssignStrategy::Compact, sources }).unwrap();
+        let plan = compact_plan(&lf, 3, scheme);
         let (every, per_op) = run_with(&scene, &lf, &plan, &plan, 0..2, None, ExecOptions::default());
         let (tracked, per_stage) = run_with(&scene, &lf, &plan, &plan, 0..2, None, tracked_per_stage.clone());
         assert!(every == tracked, "{scheme:?}");
