@@ -23,7 +23,6 @@
 use std::sync::{Arc, Mutex};
 
 use anyhow::{Context as _, Result, ensure};
-use bytemuck::{Pod, Zeroable};
 use clap::Parser;
 use parallax_accuracy::exposure::{Exposure, LogAverage};
 use parallax_backend::DeviceSelection;
@@ -34,26 +33,16 @@ use parallax_passes::pipeline::{InsertionPoint, Layers, PipelineBuilder, Pipelin
 use parallax_passes::tonemap::tonemap_pixel;
 use parallax_render::settings::{RenderExtension, RenderSettings};
 
-/// The kernel, `auto_exposure.comp`.
-const SHADER: &str = "auto_exposure";
+/// The kernels' push-constant structs and typed ids, generated from their SPIR-V by the
+/// build (parallax-glsl); the table holds every example's kernels, this one dispatches `auto_exposure`.
+#[allow(dead_code)]
+mod shaders {
+    parallax_backend::shader_bindings!();
+}
+use shaders::ExposurePush;
+
 /// The global 1×1 image the tonemapper scales its exposure by.
 const EXPOSURE: &str = "exposure";
-
-/// Push constants of `auto_exposure.comp`; the backend holds them against its SPIR-V when it
-/// creates the pipeline.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct ExposurePush {
-    mode: u32,
-    src: u32,
-    dst: u32,
-    width: u32,
-    height: u32,
-    views: u32,
-    list: u64,
-}
-
-parallax_backend::push_constants!(ExposurePush { mode, src, dst, width, height, views, list });
 
 /// `measure_luminance`: one view's radiance into its 1×1 measure (mode 0).
 struct MeasureKernel {
@@ -73,7 +62,7 @@ impl PassKernel for MeasureKernel {
             height,
             ..Default::default()
         };
-        rec.dispatch(SHADER, &push, [1, 1, 1])
+        rec.dispatch(shaders::AUTO_EXPOSURE, &push, [1, 1, 1])
     }
 }
 
@@ -96,7 +85,7 @@ impl PassKernel for ExposeKernel {
             list: list.address(),
             ..Default::default()
         };
-        rec.dispatch(SHADER, &push, [1, 1, 1])
+        rec.dispatch(shaders::AUTO_EXPOSURE, &push, [1, 1, 1])
     }
 }
 

@@ -52,6 +52,7 @@ layout(push_constant, std430) uniform RaycastPush {
     // 0: one ray per invocation. Otherwise persistent invocations that fetch new rays for
     // their idle lanes once at least this many lanes of the subgroup are idle.
     uint fetch_threshold;
+    uint pad; // rounds the block to its 8-byte alignment, as the Rust struct is
 } pc;
 
 #define PT_SCENE pc.scene

@@ -27,7 +27,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) buffer PixelList {
     uint data[];
 };
 
-// 24 bytes; parallax_passes::holes::CompactHolesPush.
+// 24 bytes; parallax_passes::shaders::CompactHolesPush, generated from this block.
 layout(push_constant, std430) uniform CompactHolesPush {
     PixelList list; // the band's section: list address + y0 * row_bytes
     uint holes;     // R32_UINT image index (uimages[] of bindless.glsl)

@@ -22,7 +22,7 @@
 #include "bindless.glsl"
 #include "frame_block.glsl"
 
-// 64 bytes; parallax_passes::firefly::FireflyPush (a test holds the layouts together).
+// 64 bytes; parallax_passes::shaders::FireflyPush, generated from this block.
 layout(push_constant, std430) uniform FireflyPush {
     uint radiance; // Rgba32f; bound: read with the halo; spread: read and written in place
     uint position; // position_depth: w = 0 is no hit

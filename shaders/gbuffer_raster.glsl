@@ -15,7 +15,7 @@
 #include "frame_block.glsl"
 #include "pt_types.glsl"
 
-// 64 bytes; parallax_passes::raster_gbuffer::GbufferRasterPush.
+// 64 bytes; parallax_passes::shaders::GbufferRasterPush, generated from this block.
 layout(push_constant, std430) uniform GbufferRasterPush {
     SceneRefs scene;
     FrameBlock frame; // the frame block section: views[view].current is this view's camera

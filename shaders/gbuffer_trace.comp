@@ -14,7 +14,7 @@
 #include "pt_types.glsl"
 #include "frame_block.glsl"
 
-// parallax_passes::gbuffer::GbufferPush.
+// parallax_passes::shaders::GbufferPush, generated from this block.
 layout(push_constant, std430) uniform GbufferPush {
     SceneRefs scene;
     TraceParamsRef trace; // this view's TraceParams in the per-frame data

@@ -16,7 +16,7 @@
 #include "bindless.glsl"
 #include "hole_fill.glsl"
 
-// 64 bytes; parallax_passes::hole_fill::HoleFillPush.
+// 64 bytes; parallax_passes::shaders::HoleFillPush, generated from this block.
 layout(push_constant, std430) uniform HoleFillPush {
     SceneRefs scene;
     HoleFillTable table;

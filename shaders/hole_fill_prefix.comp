@@ -8,7 +8,7 @@
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "hole_fill.glsl"
 
-// 16 bytes; parallax_passes::hole_fill::HoleFillPrefixPush.
+// 16 bytes; parallax_passes::shaders::HoleFillPrefixPush, generated from this block.
 layout(push_constant, std430) uniform HoleFillPrefixPush {
     HoleFillTable table;
     uint target_count;

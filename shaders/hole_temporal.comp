@@ -34,7 +34,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer Hol
     uint data[];
 };
 
-// 40 bytes; parallax_passes::hole_denoise::HoleTemporalPush (a test holds the layouts together).
+// 40 bytes; parallax_passes::shaders::HoleTemporalPush, generated from this block.
 layout(push_constant, std430) uniform HoleTemporalPush {
     HoleList list;    // the band's section of `hole_list`
     FrameBlock block; // the cameras that tell a still one

@@ -10,7 +10,7 @@
 #include "bindless.glsl"
 #include "frame_block.glsl"
 
-// parallax_passes::gbuffer::MotionPush.
+// parallax_passes::shaders::MotionPush, generated from this block.
 layout(push_constant, std430) uniform MotionPush {
     FrameBlock block;
     uint position_depth;
@@ -20,6 +20,7 @@ layout(push_constant, std430) uniform MotionPush {
     uint y1;
     uint width;
     uint height;
+    uint pad; // rounds the block to its 8-byte alignment, as the Rust struct is
 } pc;
 
 layout(local_size_x = 8, local_size_y = 8) in;

@@ -16,7 +16,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) writeonly buffer Pi
     uint data[];
 };
 
-// 32 bytes; parallax_passes::pixel_list::StridedListPush.
+// 32 bytes; parallax_passes::shaders::StridedListPush, generated from this block.
 layout(push_constant, std430) uniform StridedListPush {
     uint width;
     uint height;

@@ -23,7 +23,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer Pix
 
 const uint NO_IMAGE = 0xffffffffu;
 
-// 96 bytes; parallax_passes::path_trace::PathTracePush.
+// 96 bytes; parallax_passes::shaders::PathTracePush, generated from this block.
 layout(push_constant, std430) uniform PathTracePush {
     SceneRefs scene;
     TraceParamsRef trace; // this view's TraceParams in the per-frame data

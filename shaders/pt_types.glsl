@@ -95,7 +95,7 @@ layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Sc
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer SceneLights { PunctualLight data[]; };
 layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer TraceParamsRef { TraceParams p; };
 
-// The six scene buffers, in the order of parallax_passes::SceneBuffers (48 bytes).
+// The six scene buffers, in the order of parallax_passes::SCENE_BUFFERS (48 bytes).
 struct SceneRefs {
     SceneNodes nodes;
     SceneTriangles triangles;

@@ -25,7 +25,7 @@
 
 const uint MAX_SOURCES = 4u;
 
-// parallax_passes::reproject::ReprojectPush.
+// parallax_passes::shaders::ReprojectPush, generated from this block.
 layout(push_constant, std430) uniform ReprojectPush {
     FrameBlock block;
     TraceParamsRef trace; // the target view's TraceParams (camera, size, sky, sun, sampling)

@@ -14,7 +14,7 @@
 #include "bindless.glsl"
 #include "frame_block.glsl"
 
-// 96 bytes; parallax_passes::svgf::SvgfPush (a test holds the layouts together). Image
+// 96 bytes; parallax_passes::shaders::SvgfPush, generated from this block. Image
 // indices into images[]; what in0..in3 and out0..out3 hold depends on the kernel (see its
 // header). Rows [y0, y1) are the instance's band; every read with a footprint may touch any row.
 layout(push_constant, std430) uniform SvgfPush {

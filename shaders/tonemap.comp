@@ -5,7 +5,7 @@
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
 
-// 32 bytes; parallax_passes::tonemap::TonemapPush.
+// 32 bytes; parallax_passes::shaders::TonemapPush, generated from this block.
 layout(push_constant, std430) uniform TonemapPush {
     uint src;
     uint dst;

@@ -34,7 +34,7 @@ layout(buffer_reference, std430, buffer_reference_align = 16) buffer VisibilityT
     uvec4 tile[];
 };
 
-// parallax_passes::visibility::VisibilityRasterPush.
+// parallax_passes::shaders::VisibilityRasterPush, generated from this block.
 layout(push_constant, std430) uniform VisibilityRasterPush {
     SceneRefs scene;
     TraceParamsRef trace; // this view's TraceParams in the per-frame data

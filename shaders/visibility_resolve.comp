@@ -15,7 +15,7 @@
 #include "frame_block.glsl"
 #include "visibility.glsl"
 
-// parallax_passes::visibility::VisibilityResolvePush.
+// parallax_passes::shaders::VisibilityResolvePush, generated from this block.
 layout(push_constant, std430) uniform VisibilityResolvePush {
     SceneRefs scene;
     TraceParamsRef trace; // this view's TraceParams in the per-frame data

@@ -131,7 +131,7 @@ impl PassKernel for BenchFillKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
         let dst = pass.write(self.payload)?.alloc;
         let params = rec.row_params(pass, dst)?;
-        rec.dispatch_rows(BENCH_FILL, params)
+        rec.dispatch_rows(crate::bindings::BENCH_FILL, params)
     }
 }
 

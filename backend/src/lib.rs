@@ -27,9 +27,12 @@
 //!   ([`Recorder::dispatch_indirect`], buffers reset every frame by `ExecResource::reset`);
 //!   consecutive instances of one pass recorded as one op ([`PassKernel::record_group`]) with
 //!   data fixed at record time in a [`RecordingBuffer`].
-//! * [`PushConstants`] ([`push_constants!`]): a kernel's push-constant struct names its fields;
-//!   each pipeline's shader block is reflected from the SPIR-V when it is created, and a
-//!   struct that differs is refused with [`BackendError::PushConstantLayout`].
+//! * [`Shader`] ids and [`PushConstants`] structs: a crate's build writes them from its shaders'
+//!   SPIR-V ([`shader_bindings!`]), so a dispatch names its shader at compile time with the
+//!   struct of that shader's block. A shader added at run time is named by a string with a
+//!   struct that lists its fields ([`push_constants!`]); each pipeline's block is reflected
+//!   from the SPIR-V when it is created, and a struct that differs is refused with
+//!   [`BackendError::PushConstantLayout`].
 //! * [`FrameClock`] / [`FrameBlock`]: per view the current and previous camera, as
 //!   `shaders/include/frame_block.glsl` declares them ([`FrameData::frame_block`],
 //!   [`Recorder::frame_block_address`]); the executor writes its frame index and history flag
@@ -94,6 +97,14 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+// The shader bindings the build writes name the backend by its crate name, inside it too.
+extern crate self as parallax_backend;
+
+/// The backend's own shaders (`backend/shaders/`): [`PassParams`], the push block every
+/// row-band kernel shares, and their ids.
+mod bindings {
+    crate::shader_bindings!();
+}
 mod context;
 mod device;
 mod device_state;
@@ -121,6 +132,7 @@ mod relay;
 mod remote;
 pub use remote::{RemoteTransport, Wire, remote_device, remote_device_id};
 mod segments;
+mod shader_id;
 mod shaders;
 mod staging_ring;
 mod texture;
@@ -128,8 +140,10 @@ mod timing;
 
 pub mod bench;
 pub mod plan;
-pub mod reflect;
+pub use bytemuck;
+pub use parallax_glsl::{reflect, rust_layout};
 
+pub use bindings::PassParams;
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
 pub use error::{BackendError, CompileError, ExecutionPlanError, LowerError, Result, SearchedShaders, SpirvDefect};
@@ -149,8 +163,9 @@ pub use plan::{
 };
 pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};
-pub use recorder::{Draw, PassParams, Recorder, RecordingBuffer};
+pub use recorder::{Draw, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};
+pub use shader_id::{Shader, ShaderName};
 pub use shaders::{BACKEND_SHADERS, ShaderLibrary, USER_SHADERS, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

@@ -18,6 +18,11 @@ pub trait PushConstants: bytemuck::Pod {
     const FIELDS: &'static [(&'static str, u32)];
 }
 
+/// A shader without push constants is dispatched with `&()`.
+impl PushConstants for () {
+    const FIELDS: &'static [(&'static str, u32)] = &[];
+}
+
 /// Implements [`PushConstants`] for a `#[repr(C)]` struct from the list of its fields, in
 /// declaration order, named as the GLSL block names its members:
 /// `push_constants!(TonemapPush { src, dst, y0, y1, width, exposure });`.

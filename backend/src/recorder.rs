@@ -13,31 +13,17 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 use parallax_graph::{Access, AllocId, Format, PassInstance, Region};
 
+use crate::PassParams;
 use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
 use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
 use crate::plan::{ExecResource, ExecutionPlan};
 use crate::push::{self, PushConstants};
+use crate::shader_id::ShaderName;
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
 const INDIRECT_ARGS_BYTES: u64 = 12;
-
-/// Push constants of every kernel (`PassParams` in shaders/include/bindless.glsl).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct PassParams {
-    pub dst: u32,
-    pub src0: u32,
-    pub src1: u32,
-    pub view: u32,
-    pub y0: u32,
-    pub y1: u32,
-    pub width: u32,
-    pub param: u32,
-}
-
-crate::push_constants!(PassParams { dst, src0, src1, view, y0, y1, width, param });
 
 /// A draw of a raster pass: the render targets are plan images, the row band limits the render
 /// area and the scissor (the viewport stays the whole image, so a band renders exactly its rows
@@ -185,8 +171,8 @@ impl<'a> Recorder<'a> {
     /// `push` and dispatches `groups`. `push` is [`PassParams`] or a kernel-defined block (the
     /// shader defines `PARALLAX_CUSTOM_PUSH_CONSTANTS` and declares it); either way its layout
     /// must match the shader's block ([`PushConstants`]).
-    pub fn dispatch<P: PushConstants>(&mut self, shader: &str, push: &P, groups: [u32; 3]) -> Result<()> {
-        self.bind_compute(shader, push)?;
+    pub fn dispatch<P: PushConstants>(&mut self, shader: impl ShaderName<P>, push: &P, groups: [u32; 3]) -> Result<()> {
+        self.bind_compute(shader.shader_name(), push)?;
         unsafe { self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]) };
         Ok(())
     }
@@ -201,11 +187,12 @@ impl<'a> Recorder<'a> {
     /// dispatch on them in one pass.
     pub fn dispatch_indirect<P: PushConstants>(
         &mut self,
-        shader: &str,
+        shader: impl ShaderName<P>,
         push: &P,
         resource: AllocId,
         byte_offset: u64,
     ) -> Result<()> {
+        let shader = shader.shader_name();
         let invalid = |problem: String| BackendError::IndirectArgs {
             shader: shader.to_string(),
             resource,
@@ -226,11 +213,12 @@ impl<'a> Recorder<'a> {
     /// [`Self::dispatch_indirect`] with the arguments in a [`RecordingBuffer`] of this op.
     pub fn dispatch_indirect_from<P: PushConstants>(
         &mut self,
-        shader: &str,
+        shader: impl ShaderName<P>,
         push: &P,
         args: &RecordingBuffer,
         byte_offset: u64,
     ) -> Result<()> {
+        let shader = shader.shader_name();
         let invalid = |problem: String| BackendError::KernelMisuse {
             kernel: shader.to_string(),
             instance: None,
@@ -371,7 +359,7 @@ impl<'a> Recorder<'a> {
 
     /// Dispatches `shader` over `params.width` × rows `[y0, y1)` with the 8×8 workgroups every
     /// row-band kernel in shaders/ uses.
-    pub fn dispatch_rows(&mut self, shader: &str, params: PassParams) -> Result<()> {
+    pub fn dispatch_rows(&mut self, shader: impl ShaderName<PassParams>, params: PassParams) -> Result<()> {
         let rows = params.y1.saturating_sub(params.y0);
         self.dispatch(shader, &params, [params.width.div_ceil(8), rows.div_ceil(8), 1])
     }

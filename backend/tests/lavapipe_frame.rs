@@ -3,17 +3,16 @@
 //! history as kernels see it, and the frame loop that reads back each frame's exported images
 //! with two frames in flight and no `finish()`.
 
-use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3};
 use parallax_backend::reflect::{MemberLayout, struct_layout};
 use parallax_backend::{
     BackendError, Context, ExecOptions, ExecResource, Executor, FrameBlock, FrameClock, FrameData, FrameHeader,
     GpuCamera, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder, ViewCameras, WriteSlot,
-    check_push_constants,
 };
 use parallax_graph::{
     AllocId, DeviceId, FamilyId, Format, PassPlacementInfo, Placement, Region, Role, ViewId, ViewTopology, compile,
 };
+use parallax_testkit::ids::{self, FrameBlockProbe, FrameFillParams};
 use parallax_testkit::kernels::reference_mask;
 use std::mem::{offset_of, size_of};
 use std::sync::Arc;
@@ -34,35 +33,8 @@ fn offsets(layout: &[MemberLayout]) -> Vec<(&str, u32)> {
     layout.iter().map(|m| (m.name.as_str(), m.offset)).collect()
 }
 
-/// Push constants of test_frame_fill.comp (`FrameFillParams`).
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct FrameFillParams {
-    dst: u32,
-    view: u32,
-    width: u32,
-    height: u32,
-    block: u64,
-    section: u64,
-}
-
-parallax_backend::push_constants!(FrameFillParams { dst, view, width, height, block, section });
-
-/// Push constants of test_frame_block.comp (`FrameBlockProbe`).
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct FrameBlockProbe {
-    block: u64,
-    target: u64,
-    max_views: u32,
-    /// Rounds the struct to its 8-byte alignment; the shader's block ends before it.
-    pad: u32,
-}
-
-parallax_backend::push_constants!(FrameBlockProbe { block, target, max_views });
-
 #[test]
-fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
+fn the_frame_block_matches_its_glsl_layout() {
     let probe = parallax_testkit::shaders().spirv("test_frame_block").unwrap();
     let camera = struct_layout(&probe, "GpuCamera").unwrap();
     assert_eq!(
@@ -93,10 +65,6 @@ fn frame_block_and_kernel_parameters_match_their_glsl_layout() {
         ]
     );
     assert_eq!(block[2].array_stride, Some(size_of::<ViewCameras>() as u32));
-    // Kernels' parameter structs are held against their push-constant blocks as a dispatch does.
-    let fill = parallax_testkit::shaders().spirv("test_frame_fill").unwrap();
-    assert_eq!(check_push_constants::<FrameFillParams>(&fill), Ok(()));
-    assert_eq!(check_push_constants::<FrameBlockProbe>(&probe), Ok(()));
 }
 
 /// Camera of view `view` in frame `frame`: every frame and view different.
@@ -122,7 +90,7 @@ impl PassKernel for FrameFillKernel {
             block: rec.frame_block_address()?,
             section: rec.frame_section_address(FILL_SECTION)?,
         };
-        rec.dispatch("test_frame_fill", &params, [SIZE.div_ceil(8), SIZE.div_ceil(8), 1])
+        rec.dispatch(ids::TEST_FRAME_FILL, &params, [SIZE.div_ceil(8), SIZE.div_ceil(8), 1])
     }
 }
 
@@ -238,7 +206,7 @@ impl PassKernel for FrameProbeKernel {
             max_views: self.views,
             pad: 0,
         };
-        rec.dispatch("test_frame_block", &push, [1, 1, 1])
+        rec.dispatch(ids::TEST_FRAME_BLOCK, &push, [1, 1, 1])
     }
 }
 

@@ -11,6 +11,7 @@ use parallax_backend::{
     Format, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder, Region, Validation, own_access,
 };
 use parallax_graph::{AllocId, BandedPlacement, FamilyId, ReadSlot, Role, ViewTopology, WriteSlot, compile};
+use parallax_testkit::ids::{self, IndirectArgsParams, IndirectCountParams};
 use parallax_testkit::kernels::reference_mask;
 
 const SALT: u32 = 0x5eed;
@@ -33,38 +34,16 @@ fn words(bytes: &[u8]) -> Vec<u32> {
     bytes.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
 }
 
-/// Push constants of test_indirect_args.comp.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct IndirectArgsParams {
-    args: u64,
-    salt: u32,
-    /// Rounds the struct to its 8-byte alignment; the shader's block ends before it.
-    pad: u32,
-}
-
-parallax_backend::push_constants!(IndirectArgsParams { args, salt });
-
-/// Push constants of test_indirect_count.comp.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct IndirectCountParams {
-    args: u64,
-    counter: u64,
-}
-
-parallax_backend::push_constants!(IndirectCountParams { args, counter });
-
 /// Records the arguments pass (one workgroup) into the buffer `args`.
 fn record_args(rec: &mut Recorder<'_>, args: AllocId) -> parallax_backend::Result<()> {
     let args = rec.buffer_of(args)?;
-    rec.dispatch("test_indirect_args", &IndirectArgsParams { args, salt: SALT, pad: 0 }, [1, 1, 1])
+    rec.dispatch(ids::TEST_INDIRECT_ARGS, &IndirectArgsParams { args, salt: SALT, pad: 0 }, [1, 1, 1])
 }
 
 /// Records the indirect dispatch on the arguments `args` into the counter `counter`.
 fn record_count(rec: &mut Recorder<'_>, args: AllocId, counter: AllocId) -> parallax_backend::Result<()> {
     let push = IndirectCountParams { args: rec.buffer_of(args)?, counter: rec.buffer_of(counter)? };
-    rec.dispatch_indirect("test_indirect_count", &push, args, 0)
+    rec.dispatch_indirect(ids::TEST_INDIRECT_COUNT, &push, args, 0)
 }
 
 /// Pass `indirect_args`: writes the arguments.
@@ -116,7 +95,7 @@ struct MisusedKernel {
 impl PassKernel for MisusedKernel {
     fn record(&self, rec: &mut Recorder<'_>, _: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let push = IndirectCountParams { args: 0, counter: 0 };
-        rec.dispatch_indirect("test_indirect_count", &push, self.resource, self.offset)
+        rec.dispatch_indirect(ids::TEST_INDIRECT_COUNT, &push, self.resource, self.offset)
     }
 }
 

@@ -12,7 +12,6 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Context as _, Result, bail, ensure};
-use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use parallax_backend::{
     AllocId, BackendError, Compiled, Context, ContextDesc, DeviceId, DeviceSelection, ExecOptions, Executor, FamilyId,
@@ -23,6 +22,14 @@ use parallax_graph::{
 };
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{Frame, PixelSample};
+
+/// The kernels' push-constant structs and typed ids, generated from their SPIR-V by the
+/// build (parallax-glsl); the table holds every example's kernels, this one dispatches `pattern` and `blend`.
+#[allow(dead_code)]
+mod shaders {
+    parallax_backend::shader_bindings!();
+}
+use shaders::BlendParams;
 
 /// Light field of the example: 4×2 views of 64×32.
 const LAYOUT: &str = "4x2";
@@ -62,26 +69,9 @@ impl PassKernel for PatternKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> parallax_backend::Result<()> {
         let dst = pass.write(self.radiance)?.alloc;
         let params = rec.row_params(pass, dst)?;
-        rec.dispatch_rows("pattern", params)
+        rec.dispatch_rows(shaders::PATTERN, params)
     }
 }
-
-/// Push constants of `blend.comp`; the backend holds them against its SPIR-V when it creates
-/// the pipeline.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct BlendParams {
-    dst: u32,
-    own: u32,
-    y0: u32,
-    y1: u32,
-    width: u32,
-    sources: u32,
-    source_image: [u32; MAX_SOURCES],
-    shift: [u32; MAX_SOURCES],
-}
-
-parallax_backend::push_constants!(BlendParams { dst, own, y0, y1, width, sources, source_image, shift });
 
 /// Pass `blend`: `blend.comp` with the target's own `radiance` and every source's.
 struct BlendKernel {
@@ -112,7 +102,7 @@ impl PassKernel for BlendKernel {
             params.shift[i] = shift(pass.view.0, rec.resource(source.alloc).view, self.cols, width);
             params.sources += 1;
         }
-        rec.dispatch("blend", &params, [width.div_ceil(8), pass.region.len().div_ceil(8), 1])
+        rec.dispatch(shaders::BLEND, &params, [width.div_ceil(8), pass.region.len().div_ceil(8), 1])
     }
 }
 

@@ -29,6 +29,10 @@ pub enum GlslError {
     #[error("shader file name {} is not UTF-8; rename it", .0.display())]
     NonUtf8Name(PathBuf),
 
+    /// A shader's push-constant block cannot be written as a Rust struct (see `problem`).
+    #[error("the push constants of {} cannot be bound from Rust: {problem}", .file.display())]
+    Bindings { file: PathBuf, problem: String },
+
     /// Two folders compiled into one table hold shaders of one name.
     #[error("two shaders are named `{name}`: {} and {}; rename one", .first.display(), .second.display())]
     DuplicateName { name: String, first: PathBuf, second: PathBuf },

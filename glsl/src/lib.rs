@@ -13,12 +13,16 @@
 //! ```
 //!
 //! and at run time `parallax_backend::include_shaders!()?` turns the table into a
-//! `ShaderLibrary` for `ExecOptions::shaders`. Each shader is compiled for Vulkan 1.3 with
+//! `ShaderLibrary` for `ExecOptions::shaders`, while `parallax_backend::shader_bindings!()`
+//! declares, from the same SPIR-V, each push-constant block as a Rust struct and each shader
+//! as a typed id (`pub const FILL: Shader<FillPush>`), so a block is written once, in GLSL. Each shader is compiled for Vulkan 1.3 with
 //! `-O -g -Werror`; `GLSLC` overrides which glslc runs.
 
+mod bindings;
 mod compiler;
 mod depfile;
 mod error;
+pub mod reflect;
 mod shader;
 mod table;
 
@@ -32,6 +36,12 @@ pub use shader::CompiledShader;
 /// folder: `pub const EMBEDDED: &[(&str, &[u8])]`, shader name → SPIR-V bytes.
 pub const TABLE_FILE: &str = "shaders.rs";
 
+/// File name of the shader bindings [`compile_dir`] (a build script's call) writes beside the
+/// table: a
+/// `#[repr(C)]` struct per push-constant block and a typed id per shader, generated from the
+/// SPIR-V (`parallax_backend::shader_bindings!()` includes it).
+pub const BINDINGS_FILE: &str = "shader_bindings.rs";
+
 /// The folder of Parallax's shared includes (`bindless.glsl`: the descriptor set and push
 /// constants every kernel sees). It is found beside this crate's sources, which a path or git
 /// dependency on the Parallax repository provides.
@@ -39,8 +49,9 @@ pub fn parallax_include_dir() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shaders/include"))
 }
 
-/// [`Compiler::compile_dir`] with the compiler of [`Compiler::new`], plus what cargo needs to
-/// run the build script again when a shader changes: `rerun-if-changed` for the folders (a new
+/// For a build script: [`Compiler::compile_dir`] with the compiler of [`Compiler::new`], the
+/// shader bindings ([`BINDINGS_FILE`]) written from the SPIR-V, and what cargo needs to run the
+/// build script again when a shader changes: `rerun-if-changed` for the folders (a new
 /// shader), every source and every `#include`d file, and `rerun-if-env-changed=GLSLC`.
 pub fn compile_dir(src_dir: &Path, include_dirs: &[&Path], out_dir: &Path) -> Result<Vec<CompiledShader>> {
     compile_dirs(&[src_dir], include_dirs, out_dir)
@@ -53,6 +64,7 @@ pub fn compile_dirs(src_dirs: &[&Path], include_dirs: &[&Path], out_dir: &Path) 
         println!("cargo:rerun-if-changed={}", dir.display());
     }
     let shaders = Compiler::new().compile_dirs(src_dirs, include_dirs, out_dir)?;
+    bindings::write(&shaders, &out_dir.join(BINDINGS_FILE))?;
     for dependency in shaders.iter().flat_map(|s| &s.dependencies) {
         println!("cargo:rerun-if-changed={}", dependency.display());
     }

@@ -102,3 +102,51 @@ fn a_missing_folder_is_a_read_error_naming_it() {
     let err = Compiler::new().compile_dir(&dir, &[], &dir).unwrap_err();
     assert!(matches!(&err, GlslError::Read { path, .. } if path == &dir), "{err:?}");
 }
+
+/// A block with a scalar of each kind, a buffer reference, a nested struct and an array.
+const PUSHED: &str = "#version 460\n#extension GL_EXT_buffer_reference : require\n\
+    layout(buffer_reference, std430) buffer Words { uint w[]; };\n\
+    struct Pair { uint a; float b; };\n\
+    layout(push_constant, std430) uniform FillPush { Words out_words; Pair pair; int signed_value; uint taps[3]; } pc;\n\
+    layout(local_size_x = 1) in;\n\
+    void main() { pc.out_words.w[0] = pc.pair.a + uint(pc.pair.b) + uint(pc.signed_value) + pc.taps[2]; }\n";
+
+#[test]
+fn the_build_writes_each_block_as_a_struct_and_each_shader_as_a_typed_id() {
+    let dir = scratch("bindings");
+    std::fs::write(dir.join("fill.comp"), PUSHED).unwrap();
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+
+    parallax_glsl::compile_dir(&dir, &[], &out).unwrap();
+
+    let bindings = std::fs::read_to_string(out.join(parallax_glsl::BINDINGS_FILE)).unwrap();
+    assert!(
+        bindings.contains(
+            "pub struct FillPush {\n    pub out_words: u64,\n    pub pair: Pair,\n    pub signed_value: i32,\n    \
+             pub taps: [u32; 3],\n}"
+        ),
+        "{bindings}"
+    );
+    assert!(bindings.contains("pub struct Pair {\n    pub a: u32,\n    pub b: f32,\n}"), "{bindings}");
+    assert!(bindings.contains("const _: () = assert!(::std::mem::offset_of!(FillPush, taps) == 20);"), "{bindings}");
+    assert!(bindings.contains("pub const FILL: ::parallax_backend::Shader<FillPush>"), "{bindings}");
+}
+
+#[test]
+fn a_block_with_hidden_padding_fails_the_build_naming_the_member() {
+    let dir = scratch("padded");
+    let padded = PUSHED.replace("Words out_words; Pair pair;", "uint first; Words out_words; Pair pair;");
+    std::fs::write(dir.join("fill.comp"), padded).unwrap();
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+
+    let err = parallax_glsl::compile_dir(&dir, &[], &out).unwrap_err();
+
+    assert!(matches!(err, GlslError::Bindings { .. }), "{err:?}");
+    let message = err.to_string();
+    assert!(
+        message.contains("fill.comp") && message.contains("`FillPush.out_words` starts at byte 8 after 4 bytes"),
+        "{message}"
+    );
+}

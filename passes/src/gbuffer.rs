@@ -15,6 +15,7 @@ use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES};
 use crate::scene_upload::scene_refs;
+use crate::shaders::{self, GbufferPush, MotionPush};
 
 /// Where the G-buffer comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -34,42 +35,6 @@ pub enum GbufferSource {
 pub const GBUFFER: &str = "gbuffer";
 /// Slot of the BVH primitive of each pixel's centre-ray hit (R32u, `u32::MAX`: no hit).
 pub const FIRST_HIT: &str = "first_hit";
-
-/// Push constants of `gbuffer_trace.comp` (`GbufferPush` there).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct GbufferPush {
-    pub scene: [u64; 6],
-    pub trace: u64,
-    pub block: u64,
-    pub position_depth: u32,
-    pub normal_metallic: u32,
-    pub albedo_roughness: u32,
-    pub motion: u32,
-    pub view: u32,
-    pub y0: u32,
-    pub y1: u32,
-    pub width: u32,
-    /// Image index of `first_hit`, [`NO_IMAGE`] where not declared.
-    pub first_hit: u32,
-    pub pad: u32,
-}
-
-parallax_backend::push_constants!(GbufferPush {
-    scene,
-    trace,
-    block,
-    position_depth,
-    normal_metallic,
-    albedo_roughness,
-    motion,
-    view,
-    y0,
-    y1,
-    width,
-    first_hit,
-    pad
-});
 
 /// Records `gbuffer` instances into the G-buffer writes its pass declared.
 struct GbufferKernel {
@@ -100,30 +65,12 @@ impl PassKernel for GbufferKernel {
             first_hit: self.first_hit.map_or(Ok(NO_IMAGE), |slot| image(rec, slot))?,
             pad: 0,
         };
-        rec.dispatch("gbuffer_trace", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
+        rec.dispatch(shaders::GBUFFER_TRACE, &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
     }
 }
 
 /// Pass name of [`MotionKernel`].
 pub const MOTION: &str = "motion";
-
-/// Push constants of `motion.comp` (`MotionPush` there).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct MotionPush {
-    pub block: u64,
-    pub position_depth: u32,
-    pub motion: u32,
-    pub view: u32,
-    pub y0: u32,
-    pub y1: u32,
-    pub width: u32,
-    pub height: u32,
-    pub pad: u32,
-}
-
-// The pad only rounds the struct to its 8-byte alignment: the shader's block ends before it.
-parallax_backend::push_constants!(MotionPush { block, position_depth, motion, view, y0, y1, width, height });
 
 /// Records `motion` instances: motion vectors from a G-buffer's world positions and the
 /// previous camera (for G-buffers that do not come with them, such as the raster one).
@@ -148,7 +95,7 @@ impl PassKernel for MotionKernel {
             height,
             pad: 0,
         };
-        rec.dispatch("motion", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
+        rec.dispatch(shaders::MOTION, &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
     }
 }
 
@@ -200,22 +147,5 @@ pub fn declare_gbuffer_rasterised(graph: &mut KernelGraph) -> Gbuffer {
         albedo_roughness: raster.albedo_roughness,
         motion,
         first_hit: None,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::shaders::spirv;
-    use parallax_backend::check_push_constants;
-
-    #[test]
-    fn the_motion_push_struct_matches_motion_comp() {
-        assert_eq!(check_push_constants::<MotionPush>(&spirv("motion").unwrap()), Ok(()));
-    }
-
-    #[test]
-    fn the_push_struct_matches_gbuffer_trace_comp() {
-        assert_eq!(check_push_constants::<GbufferPush>(&spirv("gbuffer_trace").unwrap()), Ok(()));
     }
 }

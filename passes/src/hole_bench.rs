@@ -23,6 +23,7 @@ use crate::gbuffer::declare_gbuffer;
 use crate::holes::{COMPACT_HOLES, HOLE_FILL, HOLES, declare_hole_fill};
 use crate::path_trace::{PATH_TRACE, PathTraceKernel, trace_frame_data};
 use crate::scene_upload::upload_scene;
+use crate::shaders;
 
 /// Pass name of [`HashedHoleMaskKernel`].
 pub const HOLE_MASK: &str = "hole_mask";
@@ -63,7 +64,7 @@ impl PassKernel for HashedHoleMaskKernel {
             });
         }
         let params = PassParams { param: self.threshold, ..rec.row_params(pass, mask.alloc)? };
-        rec.dispatch_rows("hole_mask_hashed", params)
+        rec.dispatch_rows(shaders::HOLE_MASK_HASHED, params)
     }
 }
 

@@ -13,6 +13,7 @@
 
 use std::sync::Arc;
 
+use crate::shaders::{self, HoleTemporalPush};
 use parallax_backend::{BackendError, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, ResourceKind};
 use parallax_graph::{Buffer, Format, Handle, HistorySlot, Image, ReadSlot, Role, WriteSlot};
 
@@ -41,35 +42,6 @@ pub fn declare_hole_denoise(graph: &mut KernelGraph, hole_list: &Handle<Buffer>,
     };
     pass.kernel(Arc::new(HoleTemporalKernel(slots))).record();
 }
-
-/// Push constants of hole_temporal.comp (`HoleTemporalPush` there; a test holds the layouts
-/// together).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct HoleTemporalPush {
-    /// Address of the band's section of the hole list.
-    pub list: u64,
-    /// The frame block's address (`Recorder::frame_block_address`).
-    pub block: u64,
-    pub radiance: u32,
-    pub accum_in: u32,
-    pub stamp_in: u32,
-    pub accum_out: u32,
-    pub stamp_out: u32,
-    /// The view whose cameras in `block` tell a still camera.
-    pub view: u32,
-}
-
-parallax_backend::push_constants!(HoleTemporalPush {
-    list,
-    block,
-    radiance,
-    accum_in,
-    stamp_in,
-    accum_out,
-    stamp_out,
-    view
-});
 
 /// What `hole_temporal` declared.
 #[derive(Clone, Copy, Debug)]
@@ -112,18 +84,6 @@ impl PassKernel for HoleTemporalKernel {
         };
         let alloc = list.alloc;
         // The header's first three words are the indirect arguments (pixel_list.glsl).
-        rec.dispatch_indirect("hole_temporal", &push, alloc, offset)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::shaders::spirv;
-    use parallax_backend::check_push_constants;
-
-    #[test]
-    fn the_push_struct_matches_hole_temporal_comp() {
-        assert_eq!(check_push_constants::<HoleTemporalPush>(&spirv("hole_temporal").unwrap()), Ok(()));
+        rec.dispatch_indirect(shaders::HOLE_TEMPORAL, &push, alloc, offset)
     }
 }

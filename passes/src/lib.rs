@@ -81,8 +81,8 @@ pub use pixel_list::{
     LIST_HEADER_WORDS, PIXEL_LIST, StridedPixelListKernel, StridedPixels, list_groups, pixel_list_bytes, strided_pixels,
 };
 pub use raster_gbuffer::{
-    GBUFFER_RASTER, GbufferHandles, GbufferRasterKernel, GbufferRasterPush, RASTER_DEPTH, RASTER_OUTPUTS,
-    declare_gbuffer_raster, raster_camera,
+    GBUFFER_RASTER, GbufferHandles, GbufferRasterKernel, RASTER_DEPTH, RASTER_OUTPUTS, declare_gbuffer_raster,
+    raster_camera,
 };
 pub use raycast::{
     HitOut, RAYCAST, RAYCAST_WORK, RayIn, RaySchedule, RaycastKernel, Raycaster, TraversalComparison, compare_with_cpu,

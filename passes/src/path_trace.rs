@@ -25,6 +25,7 @@ use parallax_scene::{PixelSet, Scene, TraceSettings, View};
 use crate::error::{PassError, Result};
 use crate::pixel_list::list_groups;
 use crate::scene_upload::scene_refs;
+use crate::shaders::{self, PathTracePush};
 
 /// Pass name the kernel is registered under.
 pub const PATH_TRACE: &str = "path_trace";
@@ -74,43 +75,6 @@ fn misuse(index: InstanceId, detail: String) -> BackendError {
     BackendError::KernelMisuse { kernel: PATH_TRACE.into(), instance: Some(index), detail }
 }
 
-/// Push constants of `pt_trace.comp` (`PathTracePush` there; a test holds the two layouts
-/// together).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct PathTracePush {
-    /// Addresses of the scene buffers (`SceneRefs`, [`crate::SCENE_BUFFERS`] order).
-    pub scene: [u64; 6],
-    /// Address of this view's `TraceParams` in the per-frame data.
-    pub trace: u64,
-    /// Address of the band's section of the pixel list, header first (list mode only).
-    pub pixel_list: u64,
-    /// Image indices of the outputs, [`NO_IMAGE`] where not written.
-    pub radiance: u32,
-    pub albedo_roughness: u32,
-    pub normal_metallic: u32,
-    pub position_depth: u32,
-    pub y0: u32,
-    pub y1: u32,
-    pub width: u32,
-    /// 1: trace the pixel list instead of rows `y0..y1`.
-    pub list_mode: u32,
-}
-
-parallax_backend::push_constants!(PathTracePush {
-    scene,
-    trace,
-    pixel_list,
-    radiance,
-    albedo_roughness,
-    normal_metallic,
-    position_depth,
-    y0,
-    y1,
-    width,
-    list_mode
-});
-
 impl PassKernel for PathTraceKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let mut images = [NO_IMAGE; 4];
@@ -143,9 +107,11 @@ impl PassKernel for PathTraceKernel {
             list_mode: u32::from(list.is_some()),
         };
         match list {
-            Some((_, capacity)) => rec.dispatch("pt_trace", &push, list_groups(capacity)),
+            Some((_, capacity)) => rec.dispatch(shaders::PT_TRACE, &push, list_groups(capacity)),
             // 8x8-pixel tiles (see pt_trace.comp).
-            None => rec.dispatch("pt_trace", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1]),
+            None => {
+                rec.dispatch(shaders::PT_TRACE, &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
+            }
         }
     }
 }
@@ -223,17 +189,5 @@ pub fn to_pixel_sample(p: &GpuPixel) -> parallax_scene::PixelSample {
         roughness: p.albedo_roughness[3],
         metallic: p.normal_metallic[3],
         hit: p.radiance[3] > 0.5,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::shaders::spirv;
-    use parallax_backend::check_push_constants;
-
-    #[test]
-    fn the_push_struct_matches_pt_trace_comp() {
-        assert_eq!(check_push_constants::<PathTracePush>(&spirv("pt_trace").unwrap()), Ok(()));
     }
 }

@@ -11,6 +11,7 @@
 //! [`StridedPixelListKernel`] writes a deterministic scattered selection into a plain buffer,
 //! which is what the subset-independence tests trace.
 
+use crate::shaders::{self, StridedListPush};
 use parallax_backend::{BackendError, InstanceId, PassInstance, PassKernel, Recorder, ResourceKind, WriteSlot};
 
 /// Pass name of [`StridedPixelListKernel`].
@@ -43,24 +44,6 @@ pub fn strided_pixels(width: u32, height: u32, stride: u32, phase: u32) -> Vec<(
     let n = width * height;
     (phase..n).step_by(stride.max(1) as usize).map(|l| (l % width, l / width)).collect()
 }
-
-/// Push constants of `pixel_list_strided.comp` (`StridedListPush` there; a test holds the two
-/// layouts together).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct StridedListPush {
-    pub width: u32,
-    pub height: u32,
-    pub stride: u32,
-    pub phase: u32,
-    /// Entries the buffer holds.
-    pub capacity: u32,
-    pub pad: u32,
-    /// Address of the list buffer.
-    pub list: u64,
-}
-
-parallax_backend::push_constants!(StridedListPush { width, height, stride, phase, capacity, pad, list });
 
 /// Every `stride`-th pixel (row-major, from `phase`) of a `width`×`height` view: the list a
 /// [`StridedPixelListKernel`] writes (the view's size is given here because the list is a plain
@@ -101,20 +84,13 @@ impl PassKernel for StridedPixelListKernel {
             list: rec.buffer_of(list)?,
         };
         let groups = capacity.div_ceil(LIST_GROUP).max(1);
-        rec.dispatch("pixel_list_strided", &push, [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS), 1])
+        rec.dispatch(shaders::PIXEL_LIST_STRIDED, &push, [groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS), 1])
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shaders::spirv;
-    use parallax_backend::check_push_constants;
-
-    #[test]
-    fn the_push_struct_matches_pixel_list_strided_comp() {
-        assert_eq!(check_push_constants::<StridedListPush>(&spirv("pixel_list_strided").unwrap()), Ok(()));
-    }
 
     #[test]
     fn list_groups_cover_the_count_and_fold_beyond_one_axis() {

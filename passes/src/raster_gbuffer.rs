@@ -32,6 +32,7 @@ use parallax_scene::gpu::GpuTriangle;
 
 use crate::error::{PassError, Result};
 use crate::scene_upload::scene_refs;
+use crate::shaders::{self, GbufferRasterPush};
 
 /// Pass name of the raster G-buffer.
 pub const GBUFFER_RASTER: &str = "gbuffer_raster";
@@ -42,22 +43,6 @@ pub const RASTER_OUTPUTS: [&str; 3] = ["albedo_roughness", "normal_metallic", "p
 
 /// The depth slot of `gbuffer_raster` (a `Depth32f` resource).
 pub const RASTER_DEPTH: &str = "depth";
-
-/// Push constants of both stages (`GbufferRasterPush` in shaders/gbuffer_raster.glsl; a test
-/// holds the two layouts together).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct GbufferRasterPush {
-    /// Addresses of the scene buffers (`SceneRefs`, [`crate::SCENE_BUFFERS`] order).
-    pub scene: [u64; 6],
-    /// Address of the frame block.
-    pub frame: u64,
-    /// The view whose camera projects (index into the frame block's views).
-    pub view: u32,
-    pub pad: u32,
-}
-
-parallax_backend::push_constants!(GbufferRasterPush { scene, frame, view, pad });
 
 /// Records `gbuffer_raster` instances (see the module docs) into the colour targets (the
 /// [`RASTER_OUTPUTS`] writes, in that order) and the depth write its pass declared.
@@ -93,8 +78,8 @@ impl PassKernel for GbufferRasterKernel {
             GbufferRasterPush { scene: scene_refs(rec)?, frame: rec.frame_block_address()?, view: pass.view.0, pad: 0 };
         rec.draw(
             &Draw {
-                vertex_shader: "gbuffer_raster.vert",
-                fragment_shader: "gbuffer_raster.frag",
+                vertex_shader: shaders::GBUFFER_RASTER_VERT.name(),
+                fragment_shader: shaders::GBUFFER_RASTER_FRAG.name(),
                 color_targets: &color_targets,
                 depth_target: Some(depth.alloc),
                 clear: true,
@@ -158,16 +143,7 @@ pub fn raster_camera(view: &View, near: f32) -> Result<GpuCamera> {
 mod tests {
     use super::*;
     use glam::{Mat4, Vec3};
-    use parallax_backend::check_push_constants;
     use parallax_scene::Camera;
-
-    #[test]
-    fn the_push_struct_matches_both_stages() {
-        for stage in ["gbuffer_raster.vert", "gbuffer_raster.frag"] {
-            let spirv = crate::shaders::spirv(stage).unwrap();
-            assert_eq!(check_push_constants::<GbufferRasterPush>(&spirv), Ok(()), "{stage}");
-        }
-    }
 
     #[test]
     fn pixel_centres_project_along_the_path_tracers_primary_rays() {

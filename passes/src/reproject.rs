@@ -22,6 +22,7 @@ use crate::error::{PassError, Result};
 use crate::gbuffer::Gbuffer;
 use crate::holes::HOLES;
 use crate::path_trace::TRACE_PARAMS_BYTES;
+use crate::shaders::{self, ReprojectPush};
 
 /// Pass name.
 pub const REPROJECT: &str = "reproject";
@@ -71,47 +72,6 @@ impl Default for ReprojectionTolerances {
         Self { position: 0.01, normal_cos: 0.9, view_dependence: Self::DEFAULT_VIEW_DEPENDENCE }
     }
 }
-
-/// Push constants of `reproject.comp` (`ReprojectPush` there).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct ReprojectPush {
-    pub block: u64,
-    /// The target view's `GpuTraceParams` (its size, camera, sky, sun and sampling).
-    pub trace: u64,
-    pub position_depth: u32,
-    pub normal_metallic: u32,
-    pub albedo_roughness: u32,
-    pub radiance: u32,
-    pub holes: u32,
-    pub source_count: u32,
-    pub y0: u32,
-    pub y1: u32,
-    pub position_tolerance: f32,
-    pub normal_cos: f32,
-    pub view_tolerance: f32,
-    pub pad: u32,
-    /// Per source: view, position_depth, normal_metallic, radiance images.
-    pub sources: [[u32; 4]; MAX_SOURCES],
-}
-
-parallax_backend::push_constants!(ReprojectPush {
-    block,
-    trace,
-    position_depth,
-    normal_metallic,
-    albedo_roughness,
-    radiance,
-    holes,
-    source_count,
-    y0,
-    y1,
-    position_tolerance,
-    normal_cos,
-    view_tolerance,
-    pad,
-    sources
-});
 
 /// Records `reproject` instances.
 struct ReprojectKernel {
@@ -168,7 +128,7 @@ impl PassKernel for ReprojectKernel {
             pad: 0,
             sources,
         };
-        rec.dispatch("reproject", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
+        rec.dispatch(shaders::REPROJECT, &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
     }
 }
 
@@ -196,16 +156,4 @@ pub fn declare_reproject(
     };
     pass.kernel(Arc::new(ReprojectKernel { tolerances, slots })).record();
     Ok(holes)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::shaders::spirv;
-    use parallax_backend::check_push_constants;
-
-    #[test]
-    fn the_push_struct_matches_reproject_comp() {
-        assert_eq!(check_push_constants::<ReprojectPush>(&spirv("reproject").unwrap()), Ok(()));
-    }
 }

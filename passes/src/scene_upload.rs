@@ -8,13 +8,11 @@ use parallax_backend::{Executor, Recorder, TextureData};
 use parallax_scene::gpu::GpuScene;
 
 use crate::error::Result;
+use crate::shaders::SceneRefs;
 
 /// Global buffer names, in the order of `SceneRefs` in shaders/pt_types.glsl.
 pub const SCENE_BUFFERS: [&str; 6] =
     ["scene.nodes", "scene.triangles", "scene.attributes", "scene.materials", "scene.emissive", "scene.lights"];
-
-/// Bytes of `SceneRefs` (six buffer addresses) at the start of a kernel's push constants.
-pub const SCENE_REFS_BYTES: usize = 48;
 
 /// Uploads `scene` on every device of `executor`: BVH nodes, BVH-ordered triangles and their
 /// attributes, materials, emissive-triangle table, punctual lights, textures. Replaces a
@@ -48,11 +46,16 @@ pub fn upload_geometry(executor: &mut Executor, scene: &GpuScene<'_>) -> Result<
     Ok(())
 }
 
-/// The `SceneRefs` push-constant bytes of the device being recorded.
-pub(crate) fn scene_refs(rec: &Recorder<'_>) -> parallax_backend::Result<[u64; 6]> {
-    let mut refs = [0u64; 6];
-    for (slot, name) in refs.iter_mut().zip(SCENE_BUFFERS) {
-        *slot = rec.buffer_address(name)?;
-    }
-    Ok(refs)
+/// The scene's buffer addresses on the device being recorded, as kernels push them.
+pub(crate) fn scene_refs(rec: &Recorder<'_>) -> parallax_backend::Result<SceneRefs> {
+    let [nodes, triangles, attributes, materials, emissive, lights] =
+        SCENE_BUFFERS.map(|name| rec.buffer_address(name));
+    Ok(SceneRefs {
+        nodes: nodes?,
+        triangles: triangles?,
+        attributes: attributes?,
+        materials: materials?,
+        emissive: emissive?,
+        lights: lights?,
+    })
 }

@@ -5,6 +5,10 @@ use std::sync::OnceLock;
 
 use parallax_backend::ShaderLibrary;
 
+// The push-constant struct of every shader's block and a typed id per shader, written by the
+// build from the SPIR-V (parallax-glsl's bindings), so a block is declared once, in GLSL.
+parallax_backend::shader_bindings!();
+
 /// The SPIR-V of every shader the passes' kernels dispatch, as the "the shaders of
 /// parallax-passes" layer of a [`ShaderLibrary`]. Built once; a call after the first clones
 /// shared words. [`crate::LightFieldRenderer`] puts it beneath the library of its options, so

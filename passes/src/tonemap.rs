@@ -7,6 +7,7 @@
 
 use std::sync::Arc;
 
+use crate::shaders::{self, TonemapPush};
 use parallax_backend::{BackendError, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 
@@ -52,23 +53,6 @@ pub fn declare_tonemap_scaled(
     Ok(display)
 }
 
-/// Push constants of `tonemap.comp` (`TonemapPush` there; a test holds the layouts together).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct TonemapPush {
-    pub src: u32,
-    pub dst: u32,
-    pub y0: u32,
-    pub y1: u32,
-    pub width: u32,
-    pub exposure: f32,
-    /// Image whose texel (0, 0) scales `exposure`, read only when `scaled` is 1.
-    pub scale: u32,
-    pub scaled: u32,
-}
-
-parallax_backend::push_constants!(TonemapPush { src, dst, y0, y1, width, exposure, scale, scaled });
-
 /// Records `tonemap` instances: the radiance read into the `display` write.
 struct TonemapKernel {
     src: ReadSlot,
@@ -103,7 +87,7 @@ impl PassKernel for TonemapKernel {
             scaled: u32::from(self.scale.is_some()),
         };
         let groups = [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1];
-        rec.dispatch(TONEMAP, &push, groups)
+        rec.dispatch(shaders::TONEMAP, &push, groups)
     }
 }
 
@@ -130,13 +114,6 @@ pub fn tonemap_pixel(rgb: [f32; 3], exposure: f32) -> [f32; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shaders::spirv;
-    use parallax_backend::check_push_constants;
-
-    #[test]
-    fn the_push_struct_matches_tonemap_comp() {
-        assert_eq!(check_push_constants::<TonemapPush>(&spirv(TONEMAP).unwrap()), Ok(()));
-    }
 
     #[test]
     fn exposure_must_be_finite_and_positive() {

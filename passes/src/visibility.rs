@@ -31,6 +31,7 @@ use parallax_scene::gpu::GpuTriangle;
 use crate::gbuffer::{Gbuffer, GbufferSource};
 use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES};
 use crate::scene_upload::scene_refs;
+use crate::shaders::{self, VisibilityRasterPush, VisibilityResolvePush};
 
 /// Pass name of the triangle pass.
 pub const VISIBILITY_RASTER: &str = "visibility_raster";
@@ -59,75 +60,6 @@ pub fn tile_row_bytes(width: u32) -> u64 {
 /// Workgroups per row of `visibility_raster`'s dispatch grid at most (one triangle per
 /// invocation, 64 per workgroup; more rows beyond).
 const MAX_GROUPS_X: u32 = 32768;
-
-/// Push constants of `visibility_raster.comp` (`VisibilityRasterPush` there).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct VisibilityRasterPush {
-    pub scene: [u64; 6],
-    pub trace: u64,
-    pub keys: u64,
-    /// The band's tile list: [`VISIBILITY_TILES`] at the band's first row.
-    pub tiles: u64,
-    pub y0: u32,
-    pub y1: u32,
-    pub width: u32,
-    pub triangles: u32,
-    pub groups_x: u32,
-    /// Tiles the band's list holds.
-    pub tile_capacity: u32,
-}
-
-parallax_backend::push_constants!(VisibilityRasterPush {
-    scene,
-    trace,
-    keys,
-    tiles,
-    y0,
-    y1,
-    width,
-    triangles,
-    groups_x,
-    tile_capacity
-});
-
-/// Push constants of `visibility_resolve.comp` (`VisibilityResolvePush` there).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct VisibilityResolvePush {
-    pub scene: [u64; 6],
-    pub trace: u64,
-    pub block: u64,
-    pub keys: u64,
-    pub position_depth: u32,
-    pub normal_metallic: u32,
-    pub albedo_roughness: u32,
-    pub motion: u32,
-    pub view: u32,
-    pub y0: u32,
-    pub y1: u32,
-    pub width: u32,
-    /// Image index of `first_hit`, [`NO_IMAGE`] where not declared.
-    pub first_hit: u32,
-    pub pad: u32,
-}
-
-parallax_backend::push_constants!(VisibilityResolvePush {
-    scene,
-    trace,
-    block,
-    keys,
-    position_depth,
-    normal_metallic,
-    albedo_roughness,
-    motion,
-    view,
-    y0,
-    y1,
-    width,
-    first_hit,
-    pad
-});
 
 fn misuse(kernel: &str, index: InstanceId, detail: String) -> BackendError {
     BackendError::KernelMisuse { kernel: kernel.into(), instance: Some(index), detail }
@@ -191,8 +123,8 @@ impl PassKernel for VisibilityRasterKernel {
             groups_x,
             tile_capacity,
         };
-        rec.dispatch("visibility_raster", &push, [groups_x, groups.div_ceil(groups_x), 1])?;
-        rec.dispatch_indirect("visibility_raster_tiles", &push, tiles.alloc, list_offset)
+        rec.dispatch(shaders::VISIBILITY_RASTER, &push, [groups_x, groups.div_ceil(groups_x), 1])?;
+        rec.dispatch_indirect(shaders::VISIBILITY_RASTER_TILES, &push, tiles.alloc, list_offset)
     }
 }
 
@@ -231,7 +163,7 @@ impl PassKernel for VisibilityResolveKernel {
             first_hit: self.first_hit.map_or(Ok(NO_IMAGE), |slot| image(rec, slot))?,
             pad: 0,
         };
-        rec.dispatch("visibility_resolve", &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
+        rec.dispatch(shaders::VISIBILITY_RESOLVE, &push, [width.div_ceil(8), pass.region.len().div_ceil(8).max(1), 1])
     }
 }
 
@@ -299,15 +231,6 @@ pub fn choose_gbuffer(requested: GbufferSource, devices: &[DeviceInfo]) -> Gbuff
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shaders::spirv;
-    use parallax_backend::check_push_constants;
-
-    #[test]
-    fn the_push_structs_match_their_shaders() {
-        assert_eq!(check_push_constants::<VisibilityRasterPush>(&spirv("visibility_raster").unwrap()), Ok(()));
-        assert_eq!(check_push_constants::<VisibilityRasterPush>(&spirv("visibility_raster_tiles").unwrap()), Ok(()));
-        assert_eq!(check_push_constants::<VisibilityResolvePush>(&spirv("visibility_resolve").unwrap()), Ok(()));
-    }
 
     fn device(index: usize, atomics: bool) -> DeviceInfo {
         DeviceInfo {

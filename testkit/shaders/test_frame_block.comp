@@ -17,6 +17,7 @@ layout(push_constant, std430) uniform FrameBlockProbe {
     FrameBlock block;
     Words target;
     uint max_views;
+    uint pad; // rounds the block to its 8-byte alignment, as the Rust struct is
 } pc;
 
 layout(local_size_x = 1) in;

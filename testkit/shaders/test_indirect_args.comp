@@ -18,6 +18,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) buffer IndirectArgs
 layout(push_constant, std430) uniform IndirectArgsParams {
     IndirectArgs args;
     uint salt;
+    uint pad; // rounds the block to its 8-byte alignment, as the Rust struct is
 } pc;
 
 layout(local_size_x = 64) in;

@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+use crate::ids::{self, FillBufferParams, WeightedFillParams};
 use parallax_backend::{
     BackendError, Draw, Format, HistorySlot, InstanceId, KernelGraph, PassInstance, PassKernel, PassParams, ReadSlot,
     Recorder, Result, SourcesSlot, WriteSlot,
@@ -33,7 +34,7 @@ pub struct FillKernel {
 impl PassKernel for FillKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
         let params = rec.row_params(pass, pass.write(self.out)?.alloc)?;
-        rec.dispatch_rows("fill", params)
+        rec.dispatch_rows(ids::FILL, params)
     }
 }
 
@@ -60,7 +61,7 @@ impl PassKernel for ShiftBlendKernel {
             param: shift_of_view(pass.view.0, base.width),
             ..base
         };
-        rec.dispatch_rows("shift_blend", params)
+        rec.dispatch_rows(ids::SHIFT_BLEND, params)
     }
 }
 
@@ -92,8 +93,8 @@ impl PassKernel for RasterDemoKernel {
         };
         rec.draw(
             &Draw {
-                vertex_shader: "raster_demo.vert",
-                fragment_shader: "raster_demo.frag",
+                vertex_shader: ids::RASTER_DEMO_VERT.name(),
+                fragment_shader: ids::RASTER_DEMO_FRAG.name(),
                 color_targets: &[gbuffer.alloc],
                 depth_target: Some(depth.alloc),
                 clear: true,
@@ -132,25 +133,9 @@ impl PassKernel for WeightedFillKernel {
             weights: rec.buffer_address("weights")?,
             frame_data: rec.frame_data_address(),
         };
-        rec.dispatch("weighted_fill", &push, [width.div_ceil(8), pass.region.len().div_ceil(8), 1])
+        rec.dispatch(ids::WEIGHTED_FILL, &push, [width.div_ceil(8), pass.region.len().div_ceil(8), 1])
     }
 }
-
-/// Push constants of `weighted_fill.comp`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct WeightedFillParams {
-    dst: u32,
-    view: u32,
-    y0: u32,
-    y1: u32,
-    width: u32,
-    pad: u32,
-    weights: u64,
-    frame_data: u64,
-}
-
-parallax_backend::push_constants!(WeightedFillParams { dst, view, y0, y1, width, pad, weights, frame_data });
 
 /// Writes `hash3(i, 0, view)` into every 32-bit word `i` of its `out` write, a per-view buffer
 /// (`fill_buffer.comp`).
@@ -163,20 +148,9 @@ impl PassKernel for FillBufferKernel {
         let dst = pass.write(self.out)?.alloc;
         let words = rec.resource(dst).width;
         let push = FillBufferParams { view: pass.view.0, count: words, target: rec.buffer_of(dst)? };
-        rec.dispatch("fill_buffer", &push, [words.div_ceil(64), 1, 1])
+        rec.dispatch(ids::FILL_BUFFER, &push, [words.div_ceil(64), 1, 1])
     }
 }
-
-/// Push constants of `fill_buffer.comp`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct FillBufferParams {
-    view: u32,
-    count: u32,
-    target: u64,
-}
-
-parallax_backend::push_constants!(FillBufferParams { view, count, target });
 
 /// CPU value of word `i` written by [`FillBufferKernel`] for `view`.
 pub fn reference_buffer_word(i: u32, view: u32) -> u32 {
@@ -199,7 +173,7 @@ impl PassKernel for FillMaskKernel {
             });
         }
         let params = rec.row_params(pass, dst)?;
-        rec.dispatch_rows("fill_mask", params)
+        rec.dispatch_rows(ids::FILL_MASK, params)
     }
 }
 
@@ -219,7 +193,7 @@ impl PassKernel for AccumulateKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, _: InstanceId) -> Result<()> {
         let (output, history) = (pass.write(self.acc)?, pass.history_read(self.history)?);
         let params = PassParams { src0: rec.image(history.alloc)?, ..rec.row_params(pass, output.alloc)? };
-        rec.dispatch_rows("accumulate", params)
+        rec.dispatch_rows(ids::ACCUMULATE, params)
     }
 }
 

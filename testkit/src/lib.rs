@@ -6,11 +6,18 @@
 //! * [`plans`]: execution plans laid out by hand the way the graph compiler lays out a schedule,
 //!   so the executor can be tested (and fault-injected) without the graph crate.
 //! * [`shaders`] / [`options`]: the kernels' SPIR-V (`shaders/`, compiled by this crate's
-//!   build.rs through parallax-glsl), which the executor finds through `ExecOptions::shaders`.
+//!   build.rs through parallax-glsl), which the executor finds through `ExecOptions::shaders`;
+//!   [`ids`]: their push-constant structs and typed ids, generated from the same SPIR-V.
 //! * [`lavapipe_context`]: the logical devices a test runs on.
 
 pub mod kernels;
 pub mod plans;
+
+/// The push-constant struct of every test kernel's block and a [`parallax_backend::Shader`]
+/// id per kernel (`ids::FILL`), written by the build from the SPIR-V.
+pub mod ids {
+    parallax_backend::shader_bindings!();
+}
 
 use parallax_backend::{Context, ContextDesc, DeviceSelection, ExecOptions, ShaderLibrary, Validation};
 

@@ -1,10 +1,12 @@
 //! Struct layouts read from SPIR-V: the byte offset of every member (`OpMemberDecorate …
 //! Offset`) and the stride of array members (`OpDecorate … ArrayStride`), found by the names
-//! the compiler keeps with debug info (build.rs compiles with `-g`), and the block of a module's
-//! push constants ([`push_constant_block`]), which pipeline creation holds a kernel's
-//! [`crate::PushConstants`] against. A test holds other `#[repr(C)]` structs (buffer contents)
-//! against the GLSL by comparing these with `std::mem::offset_of!` ([`rust_layout!`]), without
-//! running anything on a GPU.
+//! the compiler keeps with debug info (the compiler passes `-g`), and the block of a module's
+//! push constants: its layout ([`push_constant_block`]), which the backend holds a kernel's
+//! `PushConstants` against when it creates a pipeline, and its types
+//! ([`push_constant_struct`]), from which the build writes the Rust struct of the block
+//! (`crate::bindings`). A test holds other `#[repr(C)]` structs (buffer contents) against the
+//! GLSL by comparing these with `std::mem::offset_of!` ([`rust_layout!`]), without running
+//! anything on a GPU.
 //!
 //! Only explicitly laid-out types carry offsets: blocks (push constants, buffers, buffer
 //! references) and the structs inside them.
@@ -14,14 +16,20 @@ use std::collections::HashMap;
 const MAGIC: u32 = 0x0723_0203;
 const OP_NAME: u32 = 5;
 const OP_MEMBER_NAME: u32 = 6;
+const OP_TYPE_INT: u32 = 21;
+const OP_TYPE_FLOAT: u32 = 22;
+const OP_TYPE_VECTOR: u32 = 23;
+const OP_TYPE_ARRAY: u32 = 28;
 const OP_TYPE_STRUCT: u32 = 30;
 const OP_TYPE_POINTER: u32 = 32;
+const OP_CONSTANT: u32 = 43;
 const OP_VARIABLE: u32 = 59;
 const OP_DECORATE: u32 = 71;
 const OP_MEMBER_DECORATE: u32 = 72;
 const DECORATION_ARRAY_STRIDE: u32 = 6;
 const DECORATION_OFFSET: u32 = 35;
 const STORAGE_CLASS_PUSH_CONSTANT: u32 = 9;
+const STORAGE_CLASS_PHYSICAL_STORAGE_BUFFER: u32 = 5349;
 
 /// What can go wrong reading a layout.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -34,6 +42,8 @@ pub enum ReflectError {
     NoStruct(String),
     #[error("the module has several structs named `{0}` with different layouts")]
     Ambiguous(String),
+    #[error("member `{member}` of `{block}` has a type a push-constant struct cannot spell ({what})")]
+    UnsupportedType { block: String, member: String, what: String },
 }
 
 /// One member of a laid-out struct.
@@ -80,6 +90,76 @@ pub fn push_constant_block(words: &[u32]) -> Result<Option<(String, Vec<MemberLa
     Ok(Some((name, members)))
 }
 
+/// A scalar of a push-constant block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scalar {
+    U32,
+    I32,
+    F32,
+    U64,
+    I64,
+    F64,
+}
+
+impl Scalar {
+    pub fn bytes(self) -> u32 {
+        match self {
+            Scalar::U32 | Scalar::I32 | Scalar::F32 => 4,
+            Scalar::U64 | Scalar::I64 | Scalar::F64 => 8,
+        }
+    }
+}
+
+/// The type of a member of a push-constant block, as far as a `#[repr(C)]` struct spells it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum MemberType {
+    Scalar(Scalar),
+    /// `vecN`, `uvecN`, `ivecN`: `count` scalars.
+    Vector(Scalar, u32),
+    /// A fixed-size array with its stride.
+    Array {
+        element: Box<MemberType>,
+        length: u32,
+        stride: u32,
+    },
+    /// A nested struct (with explicit offsets).
+    Struct(StructType),
+    /// A `buffer_reference`: a 64-bit device address.
+    DeviceAddress,
+}
+
+/// A struct with explicit offsets and its members' types.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StructType {
+    /// The GLSL type name (empty without debug info).
+    pub name: String,
+    pub members: Vec<TypedMember>,
+}
+
+/// One member of a [`StructType`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TypedMember {
+    pub name: String,
+    pub offset: u32,
+    pub ty: MemberType,
+}
+
+/// The push-constant block of a module with every member's type, or `None` when the shader
+/// declares no push constants: what the build turns into the Rust struct of the block.
+pub fn push_constant_struct(words: &[u32]) -> Result<Option<StructType>, ReflectError> {
+    let module = Module::parse(words)?;
+    module.push_constant_block.map(|block| module.struct_type(block)).transpose()
+}
+
+/// A type instruction the typed reflection reads, by id.
+#[derive(Clone, Copy, Debug)]
+enum TypeOp {
+    Int { width: u32, signed: bool },
+    Float { width: u32 },
+    Vector { component: u32, count: u32 },
+    Array { element: u32, length: u32 },
+}
+
 /// The instructions a layout needs, by id.
 #[derive(Default)]
 struct Module {
@@ -93,6 +173,10 @@ struct Module {
     struct_members: HashMap<u32, Vec<u32>>,
     offsets: HashMap<(u32, u32), u32>,
     array_strides: HashMap<u32, u32>,
+    /// Scalar, vector and array types.
+    types: HashMap<u32, TypeOp>,
+    /// The first word of every 32-bit constant (array lengths).
+    constants: HashMap<u32, u32>,
 }
 
 impl Module {
@@ -129,6 +213,23 @@ impl Module {
                 (OP_TYPE_POINTER, [id, storage, pointee]) => {
                     module.pointers.insert(*id, (*storage, *pointee));
                 }
+                (OP_TYPE_INT, [id, width, signed]) => {
+                    module.types.insert(*id, TypeOp::Int { width: *width, signed: *signed == 1 });
+                }
+                (OP_TYPE_FLOAT, [id, width, ..]) => {
+                    module.types.insert(*id, TypeOp::Float { width: *width });
+                }
+                (OP_TYPE_VECTOR, [id, component, count]) => {
+                    module.types.insert(*id, TypeOp::Vector { component: *component, count: *count });
+                }
+                // The length is a constant defined before the array type.
+                (OP_TYPE_ARRAY, [id, element, length]) => {
+                    let length = module.constants.get(length).copied().unwrap_or(0);
+                    module.types.insert(*id, TypeOp::Array { element: *element, length });
+                }
+                (OP_CONSTANT, [_, id, value, ..]) => {
+                    module.constants.insert(*id, *value);
+                }
                 // Types precede variables, so the pointer type is known here.
                 (OP_VARIABLE, [pointer, _, STORAGE_CLASS_PUSH_CONSTANT, ..]) => {
                     module.push_constant_block = module.pointers.get(pointer).map(|&(_, pointee)| pointee);
@@ -157,6 +258,71 @@ impl Module {
                 })
             })
             .collect()
+    }
+}
+
+impl Module {
+    /// Struct `id` with its members' types.
+    fn struct_type(&self, id: u32) -> Result<StructType, ReflectError> {
+        let name = self.names.get(&id).cloned().unwrap_or_default();
+        let layout = self.layout(id).ok_or_else(|| ReflectError::NoStruct(name.clone()))?;
+        let member_types = &self.struct_members[&id];
+        let members = layout
+            .into_iter()
+            .zip(member_types)
+            .map(|(member, &ty)| {
+                let unsupported = |what: String| ReflectError::UnsupportedType {
+                    block: name.clone(),
+                    member: member.name.clone(),
+                    what,
+                };
+                let ty = self.member_type(ty, &unsupported)?;
+                Ok(TypedMember { name: member.name, offset: member.offset, ty })
+            })
+            .collect::<Result<_, ReflectError>>()?;
+        Ok(StructType { name, members })
+    }
+
+    fn member_type(&self, id: u32, unsupported: &dyn Fn(String) -> ReflectError) -> Result<MemberType, ReflectError> {
+        if self.struct_members.contains_key(&id) {
+            return Ok(MemberType::Struct(self.struct_type(id)?));
+        }
+        if let Some(&(storage, _)) = self.pointers.get(&id) {
+            return match storage {
+                STORAGE_CLASS_PHYSICAL_STORAGE_BUFFER => Ok(MemberType::DeviceAddress),
+                other => Err(unsupported(format!("a pointer of storage class {other}"))),
+            };
+        }
+        match self.types.get(&id) {
+            Some(&TypeOp::Int { .. } | &TypeOp::Float { .. }) => Ok(MemberType::Scalar(self.scalar(id, unsupported)?)),
+            Some(&TypeOp::Vector { component, count }) => {
+                Ok(MemberType::Vector(self.scalar(component, unsupported)?, count))
+            }
+            Some(&TypeOp::Array { element, length }) => {
+                let stride = self.array_strides.get(&id).copied();
+                match (length, stride) {
+                    (1.., Some(stride)) => Ok(MemberType::Array {
+                        element: Box::new(self.member_type(element, unsupported)?),
+                        length,
+                        stride,
+                    }),
+                    _ => Err(unsupported("an array without a constant length and stride".into())),
+                }
+            }
+            None => Err(unsupported(format!("type id {id}: a matrix, bool or runtime array"))),
+        }
+    }
+
+    fn scalar(&self, id: u32, unsupported: &dyn Fn(String) -> ReflectError) -> Result<Scalar, ReflectError> {
+        match self.types.get(&id) {
+            Some(TypeOp::Int { width: 32, signed: false }) => Ok(Scalar::U32),
+            Some(TypeOp::Int { width: 32, signed: true }) => Ok(Scalar::I32),
+            Some(TypeOp::Int { width: 64, signed: false }) => Ok(Scalar::U64),
+            Some(TypeOp::Int { width: 64, signed: true }) => Ok(Scalar::I64),
+            Some(TypeOp::Float { width: 32 }) => Ok(Scalar::F32),
+            Some(TypeOp::Float { width: 64 }) => Ok(Scalar::F64),
+            other => Err(unsupported(format!("{other:?}"))),
+        }
     }
 }
 
@@ -211,14 +377,6 @@ mod tests {
         words.extend(instruction(OP_MEMBER_DECORATE, &[1, 1, DECORATION_OFFSET, 16]));
         words.extend(instruction(OP_TYPE_STRUCT, &[1, 2, 3]));
         words
-    }
-
-    #[test]
-    fn the_shared_pass_params_match_bindless_glsl() {
-        let spirv = crate::spirv("bench_fill").unwrap();
-        assert_eq!(crate::check_push_constants::<crate::PassParams>(&spirv), Ok(()));
-        let (block, members) = push_constant_block(&spirv).unwrap().unwrap();
-        assert_eq!((block.as_str(), members.len()), ("PassParams", 8));
     }
 
     #[test]
