@@ -97,11 +97,11 @@ fn declare_auto_exposure(graph: &mut KernelGraph, layers: &mut Layers) -> parall
     let mut pass = graph.pass("measure_luminance", Role::All);
     let kernel =
         MeasureKernel { radiance: pass.read_whole_slot(layers.linear()), measure: pass.write_slot(&mut measure) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     let mut pass = graph.global_pass("expose");
     let kernel =
         ExposeKernel { measures: pass.read_every_view_slot(&measure), exposure: pass.write_slot(&mut exposure) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     layers.exposure = Some(exposure);
     Ok(())
 }

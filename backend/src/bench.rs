@@ -181,8 +181,8 @@ pub fn copy_plan(width: u32, height: u32) -> Result<KernelPlan> {
         ViewTopology { width, height, sources_of: vec![vec![], vec![ViewId(0)]], is_source: vec![true, false] };
     let mut graph = KernelGraph::with_payload(topology);
     let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
-    declare_fill(&mut graph, Role::Sources, &mut payload).record();
-    graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
+    declare_fill(&mut graph, Role::Sources, &mut payload).add();
+    graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).add();
     Ok(Compiled::compile(&graph, &ViewsInOrder { devices: 2, views_per_device: 1 })?.plan)
 }
 
@@ -197,8 +197,8 @@ pub(crate) fn gather_plan(sources: u32, width: u32, height: u32) -> Result<Kerne
     is_source.push(false);
     let mut graph = KernelGraph::with_payload(ViewTopology { width, height, sources_of, is_source });
     let mut payload = graph.image(PAYLOAD, Format::Rgba32f);
-    declare_fill(&mut graph, Role::Sources, &mut payload).record();
-    graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).record();
+    declare_fill(&mut graph, Role::Sources, &mut payload).add();
+    graph.pass("receive", Role::Targets).read_sources(&payload).side_effect().kernel(Arc::new(ReceiveKernel)).add();
     Ok(Compiled::compile(&graph, &ViewsInOrder { devices: 2, views_per_device: sources })?.plan)
 }
 
@@ -208,7 +208,7 @@ pub fn overhead_plan(devices: u32, passes_per_device: u32, size: u32) -> Result<
     let topology = ViewTopology::all_sources(devices * passes_per_device, size, size);
     let mut graph = KernelGraph::with_payload(topology);
     let mut target = graph.image(PAYLOAD, Format::Rgba8);
-    declare_fill(&mut graph, Role::All, &mut target).side_effect().record();
+    declare_fill(&mut graph, Role::All, &mut target).side_effect().add();
     Ok(Compiled::compile(&graph, &ViewsInOrder { devices, views_per_device: passes_per_device })?.plan)
 }
 

@@ -17,10 +17,10 @@ use crate::kernel::KernelPlan;
 use crate::link_memory::SharedDeviceBuffer;
 use crate::links::LinkKind;
 use crate::memory::{Buffer, Image, SharedHostBuffer};
-use crate::pipeline::Bindless;
 use crate::plan::{AllocId, CopyId, DeviceId, ExecResource, ExecutionPlan, Format, ResourceKind};
 use crate::record::{TimerLabel, timer_labels, timer_spans};
 use crate::segments::{Item, Segment};
+use crate::shader_pipelines::Bindless;
 use crate::staging_ring::{RingLayout, STAGING_ALIGN};
 
 /// Fault-injection gate: producer's first submission of a frame waits until the consumer's

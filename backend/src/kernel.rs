@@ -130,7 +130,7 @@ impl KernelPlan {
         let mut target = graph.image(&resource.name, resource.format);
         let mut declared = graph.pass(name, Role::All);
         let write = declared.write_slot(&mut target);
-        let pass = declared.record();
+        let pass = declared.add();
         let all = Region::new(0, resource.height);
         let mut kernels = Kernels::default();
         kernels.insert(pass, Arc::new(kernel(write)));

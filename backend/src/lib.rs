@@ -74,7 +74,7 @@
 //! let mut payload = graph.image("payload", Format::Rgba32f);
 //! let mut pass = graph.pass("fill", Role::All);
 //! let fill = Fill { payload: pass.write_slot(&mut payload) };
-//! pass.kernel(Arc::new(fill)).record();
+//! pass.kernel(Arc::new(fill)).add();
 //! graph.export(&payload);
 //! let plan = Compiled::compile(&graph, &placement)?.plan;
 //!
@@ -123,7 +123,6 @@ mod links;
 pub use links::{DeviceSubmissions, LinkInfo, LinkKind, LinkKinds, link_kinds};
 mod lower;
 mod memory;
-mod pipeline;
 mod push;
 mod readback;
 mod record;
@@ -133,6 +132,7 @@ mod remote;
 pub use remote::{RemoteTransport, Wire, remote_device, remote_device_id};
 mod segments;
 mod shader_id;
+mod shader_pipelines;
 mod shaders;
 mod staging_ring;
 mod texture;

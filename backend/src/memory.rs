@@ -56,7 +56,7 @@ impl Image {
         let transfer = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
         if format.is_depth() {
             // Depth formats cannot be storage images: kernels read them through the sampled
-            // depth array of the descriptor set (pipeline.rs).
+            // depth array of the descriptor set (shader_pipelines.rs).
             let needed = vk::FormatFeatureFlags::DEPTH_STENCIL_ATTACHMENT | vk::FormatFeatureFlags::SAMPLED_IMAGE;
             if !features.contains(needed) {
                 return Err(BackendError::MissingCapability {

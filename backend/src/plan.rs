@@ -396,14 +396,14 @@ mod tests {
         use std::sync::Arc;
         let mut graph = crate::KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 6));
         let mut layer = graph.image("layer", Format::Rgba32f);
-        graph.pass("write", Role::All).write(&mut layer).kernel(Arc::new(Idle)).record();
+        graph.pass("write", Role::All).write(&mut layer).kernel(Arc::new(Idle)).add();
         match then {
             "export" => graph.export(&layer),
             "read per band" => {
-                graph.pass("read", Role::All).read(&layer).side_effect().kernel(Arc::new(Idle)).record();
+                graph.pass("read", Role::All).read(&layer).side_effect().kernel(Arc::new(Idle)).add();
             }
             _ => {
-                graph.pass("read", Role::All).read_whole(&layer).side_effect().kernel(Arc::new(Idle)).record();
+                graph.pass("read", Role::All).read_whole(&layer).side_effect().kernel(Arc::new(Idle)).add();
             }
         }
         let placement = parallax_graph::BandedPlacement { devices: 3, bands: 3 };

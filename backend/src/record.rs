@@ -24,10 +24,10 @@ use crate::error::{Result, VkContext};
 use crate::exec_options::Timing;
 use crate::kernel::KernelPlan;
 use crate::memory::Image;
-use crate::pipeline::Bindless;
 use crate::plan::{AllocId, ExecutionPlan, InstanceId};
 use crate::recorder::Recorder;
 use crate::segments::{Chunk, Item, Segment};
+use crate::shader_pipelines::Bindless;
 use crate::timing::EventKind;
 
 /// What timestamp pair `i` of a device measures.

@@ -17,10 +17,10 @@ use crate::PassParams;
 use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
-use crate::pipeline::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
 use crate::plan::{ExecResource, ExecutionPlan};
 use crate::push::{self, PushConstants};
 use crate::shader_id::ShaderName;
+use crate::shader_pipelines::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
 const INDIRECT_ARGS_BYTES: u64 = 12;

@@ -1,6 +1,6 @@
 //! Sampled textures: read-only RGBA8 images (a scene's base-colour, metallic-roughness and
 //! emissive maps) that every kernel can sample through the `textures[]` array of set 0
-//! (binding 3, see pipeline.rs and shaders/include/bindless.glsl).
+//! (binding 3, see shader_pipelines.rs and shaders/include/bindless.glsl).
 //!
 //! They are global like [`crate::Executor::upload_buffer`]'s buffers: uploaded once per device,
 //! kept over plan changes, and unlike plan images they stay in `SHADER_READ_ONLY_OPTIMAL`.

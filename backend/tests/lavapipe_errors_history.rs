@@ -87,7 +87,7 @@ fn history_graph(views: u32, size: u32) -> (KernelGraph, FamilyId) {
     let mut pass = graph.pass("accumulate", Role::All);
     let history = pass.read_history_slot(&acc);
     let kernel = AccumulateKernel { acc: pass.write_slot(&mut acc), history };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     graph.export(&acc);
     (graph, acc.family())
 }
@@ -193,7 +193,7 @@ fn plan_errors_are_reported_before_any_gpu_work() {
     // A pass declared without a kernel cannot be lowered; the error names it.
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 8));
     let mut acc = graph.image("acc", Format::Rgba32f);
-    graph.pass("accumulate", Role::All).write(&mut acc).record();
+    graph.pass("accumulate", Role::All).write(&mut acc).add();
     graph.export(&acc);
     let schedule = compile(&graph, &OnDevice { device: 0, devices: 1 }).unwrap();
     assert_eq!(
@@ -211,8 +211,8 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, size, size));
     let mut mask = graph.image("mask", Format::R32u);
     let mut radiance = graph.image("radiance", Format::Rgba32f);
-    declare_writer(&mut graph, "fill_mask", Role::All, &mut mask, |out| FillMaskKernel { out }).record();
-    declare_writer(&mut graph, "fill", Role::All, &mut radiance, |out| FillKernel { out }).record();
+    declare_writer(&mut graph, "fill_mask", Role::All, &mut mask, |out| FillMaskKernel { out }).add();
+    declare_writer(&mut graph, "fill", Role::All, &mut radiance, |out| FillKernel { out }).add();
     graph.export(&mask);
     graph.export(&radiance);
     let plan = lower(&graph, &OnDevice { device: 1, devices: 2 });
@@ -246,7 +246,7 @@ fn raster_plan(devices: usize, size: u32) -> (KernelPlan, [FamilyId; 2]) {
     let mut depth = graph.image("depth", Format::Depth32f);
     let mut pass = graph.pass("raster_demo", Role::All);
     let kernel = RasterDemoKernel { gbuffer: pass.write_slot(&mut gbuffer), depth: pass.write_slot(&mut depth) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     graph.export(&gbuffer);
     graph.export(&depth);
     let plan = lower(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 });
@@ -295,7 +295,7 @@ fn weighted_plan(size: u32) -> (KernelPlan, FamilyId) {
     }
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(2, size, size));
     let mut w = graph.image("w", Format::Rgba32f);
-    declare_writer(&mut graph, "weighted_fill", Role::All, &mut w, |out| WeightedFillKernel { out }).record();
+    declare_writer(&mut graph, "weighted_fill", Role::All, &mut w, |out| WeightedFillKernel { out }).add();
     graph.export(&w);
     (lower(&graph, &ViewPerDevice), w.family())
 }

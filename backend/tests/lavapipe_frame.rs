@@ -113,7 +113,7 @@ fn gather_plan() -> KernelPlan {
     let mut fill = graph.image("fill", Format::R32u);
     let mut pass = graph.pass("frame_fill", Role::All);
     let kernel = FrameFillKernel { out: pass.write_slot(&mut fill) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     graph.export(&fill);
     let schedule = compile(&graph, &ViewPerDevice).unwrap();
     KernelPlan::from_schedule(&graph, &schedule).unwrap()

@@ -36,15 +36,15 @@ fn fill_and_blend(plan: &parallax_graph::Plan) -> (KernelGraph, ProvenSchedule) 
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
     assert_eq!(output.family(), OUTPUT);
-    declare_writer(&mut g, "fill", Role::Sources, &mut radiance, |out| FillKernel { out }).record();
-    declare_writer(&mut g, "fill", Role::Targets, &mut radiance, |out| FillKernel { out }).record();
+    declare_writer(&mut g, "fill", Role::Sources, &mut radiance, |out| FillKernel { out }).add();
+    declare_writer(&mut g, "fill", Role::Targets, &mut radiance, |out| FillKernel { out }).add();
     let mut blend = g.pass("shift_blend", Role::All);
     let kernel = ShiftBlendKernel {
         own: blend.read_slot(&radiance),
         sources: blend.read_sources_slot(&radiance),
         out: blend.write_slot(&mut output),
     };
-    blend.kernel(Arc::new(kernel)).record();
+    blend.kernel(Arc::new(kernel)).add();
     g.export(&output);
     let schedule = compile(&g, plan).unwrap();
     (g, schedule)
@@ -143,7 +143,7 @@ fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let bytes = 1000; // not a multiple of 4 on purpose: rounded up to 250 words
     let mut list = g.buffer("list", bytes);
-    declare_writer(&mut g, "fill_buffer", Role::All, &mut list, |out| FillBufferKernel { out }).record();
+    declare_writer(&mut g, "fill_buffer", Role::All, &mut list, |out| FillBufferKernel { out }).add();
     g.export(&list);
     let schedule = compile(&g, &plan).unwrap();
     let exec_plan = KernelPlan::from_schedule(&g, &schedule).unwrap();

@@ -110,14 +110,14 @@ fn indirect_plan(fused: bool) -> KernelPlan {
     if fused {
         let mut pass = graph.pass("indirect_fused", Role::All);
         let kernel = FusedKernel { args: pass.modify_slot(&mut args).1, counter: pass.modify_slot(&mut counter).1 };
-        pass.kernel(Arc::new(kernel)).record();
+        pass.kernel(Arc::new(kernel)).add();
     } else {
         let mut pass = graph.pass("indirect_args", Role::All);
         let kernel = ArgsKernel { args: pass.modify_slot(&mut args).1 };
-        pass.kernel(Arc::new(kernel)).record();
+        pass.kernel(Arc::new(kernel)).add();
         let mut pass = graph.pass("indirect_count", Role::All);
         let kernel = CountKernel { args: pass.read_slot(&args), counter: pass.modify_slot(&mut counter).1 };
-        pass.kernel(Arc::new(kernel)).record();
+        pass.kernel(Arc::new(kernel)).add();
     }
     graph.export(&args);
     graph.export(&counter);

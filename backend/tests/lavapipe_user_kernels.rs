@@ -72,10 +72,10 @@ fn fill_then_user_pass(shader: &'static str) -> (KernelPlan, Vec<AllocId>) {
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut pattern = g.image("pattern", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
-    declare_writer(&mut g, "fill", Role::All, &mut pattern, |out| FillKernel { out }).record();
+    declare_writer(&mut g, "fill", Role::All, &mut pattern, |out| FillKernel { out }).add();
     let mut pass = g.pass("user", Role::All);
     let (src, dst) = (pass.read_slot(&pattern), pass.write_slot(&mut output));
-    pass.kernel(Arc::new(ReadWriteKernel { shader, src, dst })).record();
+    pass.kernel(Arc::new(ReadWriteKernel { shader, src, dst })).add();
     g.export(&output);
     let schedule = compile(&g, &plan).unwrap();
     let plan = KernelPlan::from_schedule(&g, &schedule).unwrap();
@@ -183,7 +183,7 @@ fn a_push_constant_struct_unlike_the_shaders_block_is_refused_naming_the_pass_an
     let mut out = g.image("out", Format::Rgba32f);
     let mut pass = g.pass("swapped", Role::All);
     let kernel = SwappedRowsKernel { dst: pass.write_slot(&mut out) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     g.export(&out);
     let placement = parallax_graph::BandedPlacement { devices: DEVICES, bands: 1 };
     let plan = KernelPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();

@@ -33,14 +33,14 @@ fn each_token_binds_its_own_access_and_a_foreign_one_is_refused() {
 
     let mut trace = g.pass("trace", Role::All);
     let traced = trace.write_slot(&mut radiance);
-    trace.kernel(Arc::new(Nothing)).record();
+    trace.kernel(Arc::new(Nothing)).add();
     let mut blend = g.pass("blend", Role::Targets);
     let history = blend.read_history_slot(&acc);
     let own = blend.read_slot(&radiance);
     let sources = blend.read_sources_slot(&radiance);
     let (_, accumulated) = blend.modify_slot(&mut acc);
     let blended = blend.write_slot(&mut out);
-    blend.side_effect().kernel(Arc::new(Nothing)).record();
+    blend.side_effect().kernel(Arc::new(Nothing)).add();
 
     let placement = BandedPlacement { devices: 1, bands: 1 };
     let plan = KernelPlan::from_schedule(&g, &compile(&g, &placement).unwrap()).unwrap();

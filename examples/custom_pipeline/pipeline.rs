@@ -147,12 +147,12 @@ fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGrap
     let mut radiance = graph.image(RADIANCE, Format::Rgba32f);
     let mut pass = graph.pass("pattern", Role::All);
     let pattern = PatternKernel { radiance: pass.write_slot(&mut radiance) };
-    pass.kernel(Arc::new(pattern)).record();
+    pass.kernel(Arc::new(pattern)).add();
     let mut pass = graph.pass("blend", Role::Targets);
     let own = pass.read_slot(&radiance);
     let sources = pass.read_sources_slot(&radiance); // the δ-edges
     let blended = pass.write_slot(&mut radiance);
-    pass.kernel(Arc::new(BlendKernel { own, sources, blended, cols: lf.cols })).record();
+    pass.kernel(Arc::new(BlendKernel { own, sources, blended, cols: lf.cols })).add();
     graph.export(&radiance);
     Ok((lf, plan, graph, radiance.family()))
 }

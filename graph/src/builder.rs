@@ -363,21 +363,21 @@ impl<P> Graph<P> {
             reads: Vec::new(),
             writes: Vec::new(),
         };
-        // A builder borrows the graph until it records, so the pass gets the next id.
+        // A builder borrows the graph until it is added, so the pass gets the next id.
         let id = PassId(self.passes.len() as u32);
         PassBuilder { graph: self, id, decl, payload: None, refused: None }
     }
 }
 
-/// Fluent pass declaration. Nothing is recorded until [`PassBuilder::record`].
-#[must_use = "a pass is only added to the graph by .record()"]
+/// Fluent pass declaration. Nothing is added to the graph until [`PassBuilder::add`].
+#[must_use = "a pass is only added to the graph by .add()"]
 pub struct PassBuilder<'g, P = ()> {
     graph: &'g mut Graph<P>,
-    /// The id `record` gives the pass, which its slot tokens carry.
+    /// The id `add` gives the pass, which its slot tokens carry.
     id: PassId,
     decl: PassDecl,
     payload: Option<P>,
-    /// The first mistake in this declaration, handed to the graph by `record`.
+    /// The first mistake in this declaration, handed to the graph by `add`.
     refused: Option<GraphError>,
 }
 
@@ -615,7 +615,7 @@ impl<P> PassBuilder<'_, P> {
     }
 
     /// Adds the pass to the graph.
-    pub fn record(self) -> PassId {
+    pub fn add(self) -> PassId {
         let id = self.id;
         if let Some(error) = self.refused {
             self.graph.refused.push(error);

@@ -26,8 +26,8 @@
 //! let plan = Plan::new(&lf, &config)?;
 //! let mut graph = Graph::new(plan.topology.clone());
 //! let mut radiance = graph.image("radiance", Format::Rgba32f);
-//! graph.pass("trace", Role::Sources).write(&mut radiance).record();
-//! graph.pass("reproject", Role::Targets).read_sources(&radiance).write(&mut radiance).record();
+//! graph.pass("trace", Role::Sources).write(&mut radiance).add();
+//! graph.pass("reproject", Role::Targets).read_sources(&radiance).write(&mut radiance).add();
 //! graph.export(&radiance);
 //! let schedule = compile(&graph, &plan)?;
 //! assert!(schedule.validate().is_ok());

@@ -15,9 +15,9 @@ fn chain() -> Schedule {
     let mut graph = Graph::new(ViewTopology::all_sources(3, 8, 8));
     let mut a = graph.image("a", Format::Rgba32f);
     let mut b = graph.image("b", Format::Rgba32f);
-    graph.pass("write", Role::All).write(&mut a).record();
-    graph.pass("blur", Role::All).read(&a).write(&mut b).record();
-    graph.pass("blur_again", Role::All).modify(&mut b).record();
+    graph.pass("write", Role::All).write(&mut a).add();
+    graph.pass("blur", Role::All).read(&a).write(&mut b).add();
+    graph.pass("blur_again", Role::All).modify(&mut b).add();
     graph.export(&b);
     compile(&graph, &BandedPlacement { devices: 1, bands: 1 }).unwrap().into_schedule()
 }

@@ -150,8 +150,8 @@ fn halo_schedule() -> Schedule {
     let mut graph = Graph::new(plan.topology.clone());
     let mut x = graph.image("x", Format::Rgba32f);
     let mut y = graph.image("y", Format::Rgba32f);
-    graph.pass("produce", Role::All).write(&mut x).record();
-    graph.pass("filter", Role::All).read_halo(&x, 1).write(&mut y).record();
+    graph.pass("produce", Role::All).write(&mut x).add();
+    graph.pass("filter", Role::All).read_halo(&x, 1).write(&mut y).add();
     graph.export(&y);
     compile(&graph, &plan).unwrap().into_schedule()
 }

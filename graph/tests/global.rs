@@ -18,12 +18,12 @@ fn exposure_graph(plan: &Plan) -> Graph {
     let mut luminance = g.image_sized("luminance", 1, 1, Format::R32f);
     let mut exposure = g.global_buffer("exposure", 16);
     let mut display = g.image("display", Format::Rgba8);
-    g.pass("shade", Role::All).write(&mut radiance).record();
-    g.pass("measure", Role::All).read_whole(&radiance).write(&mut luminance).record();
+    g.pass("shade", Role::All).write(&mut radiance).add();
+    g.pass("measure", Role::All).read_whole(&radiance).write(&mut luminance).add();
     let mut expose = g.global_pass("expose");
     expose.read_every_view_slot(&luminance);
-    expose.write(&mut exposure).record();
-    g.pass("tonemap", Role::All).read(&radiance).read(&exposure).write(&mut display).record();
+    expose.write(&mut exposure).add();
+    g.pass("tonemap", Role::All).read(&radiance).read(&exposure).write(&mut display).add();
     g.export(&display);
     g
 }
@@ -98,7 +98,7 @@ fn a_per_view_pass_may_not_write_a_global_resource() {
     let plan = plan(1, Scheme::MultiSource);
     let mut g = Graph::new(plan.topology.clone());
     let mut exposure = g.global_buffer("exposure", 16);
-    g.pass("expose", Role::All).write(&mut exposure).record();
+    g.pass("expose", Role::All).write(&mut exposure).add();
     g.export(&exposure);
     let err = compile(&g, &plan).unwrap_err();
     assert!(matches!(&err, GraphError::WriteScope { pass, global: true, .. } if pass == "expose"), "{err}");
@@ -110,14 +110,14 @@ fn a_global_pass_may_not_write_a_per_view_resource_nor_read_one_as_its_own_view(
     let plan = plan(1, Scheme::MultiSource);
     let mut g = Graph::new(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
-    g.global_pass("shade").write(&mut radiance).record();
+    g.global_pass("shade").write(&mut radiance).add();
     assert!(matches!(compile(&g, &plan), Err(GraphError::WriteScope { global: false, .. })));
 
     let mut g = Graph::new(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut exposure = g.global_buffer("exposure", 16);
-    g.pass("shade", Role::All).write(&mut radiance).record();
-    g.global_pass("expose").read(&radiance).write(&mut exposure).record();
+    g.pass("shade", Role::All).write(&mut radiance).add();
+    g.global_pass("expose").read(&radiance).write(&mut exposure).add();
     g.export(&exposure);
     let err = compile(&g, &plan).unwrap_err();
     assert!(matches!(&err, GraphError::ReadScope { resource, global: false, .. } if resource == "radiance"), "{err}");
@@ -130,10 +130,10 @@ fn a_per_view_pass_may_not_read_a_global_resource_as_sources_or_history() {
         let mut g = Graph::new(plan.topology.clone());
         let mut exposure = g.global_buffer("exposure", 16);
         let mut display = g.image("display", Format::Rgba8);
-        g.global_pass("expose").write(&mut exposure).record();
+        g.global_pass("expose").write(&mut exposure).add();
         let pass = g.pass("tonemap", Role::Targets);
         let pass = if history { pass.read_history(&exposure) } else { pass.read_sources(&exposure) };
-        pass.write(&mut display).record();
+        pass.write(&mut display).add();
         g.export(&display);
         let err = compile(&g, &plan).unwrap_err();
         assert!(matches!(&err, GraphError::ReadScope { global: true, .. }), "{err}");
@@ -145,7 +145,7 @@ fn a_global_pass_reads_last_frames_global_buffer_as_history() {
     let plan = plan(2, Scheme::MultiSource);
     let mut g = Graph::new(plan.topology.clone());
     let mut exposure = g.global_buffer("exposure", 16);
-    g.global_pass("adapt").read_history(&exposure).write(&mut exposure).record();
+    g.global_pass("adapt").read_history(&exposure).write(&mut exposure).add();
     g.export(&exposure);
     let s = compile(&g, &plan).unwrap();
     assert_eq!(s.validate().errors, vec![]);

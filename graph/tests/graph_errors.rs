@@ -22,7 +22,7 @@ fn reading_a_version_nobody_writes() {
     let mut g = Graph::new(topology());
     let a = g.image("a", Format::R32f);
     let mut out = g.image("out", Format::R32f);
-    g.pass("consume", Role::All).read(&a).write(&mut out).record();
+    g.pass("consume", Role::All).read(&a).write(&mut out).add();
     g.export(&out);
     let err = compile(&g, &Single).unwrap_err();
     assert!(
@@ -50,7 +50,7 @@ fn imported_resources_may_be_read_before_written() {
     let scene = g.buffer("scene", 64);
     g.import(&scene);
     let mut out = g.image("out", Format::R32f);
-    g.pass("consume", Role::All).read(&scene).write(&mut out).record();
+    g.pass("consume", Role::All).read(&scene).write(&mut out).add();
     g.export(&out);
     assert!(compile(&g, &Single).unwrap().validate().is_ok());
 }
@@ -59,8 +59,8 @@ fn imported_resources_may_be_read_before_written() {
 fn two_passes_writing_one_version() {
     let mut g = Graph::new(topology());
     let a = g.image("a", Format::R32f);
-    g.pass("first", Role::All).write_version(&a, 1).record();
-    g.pass("second", Role::All).write_version(&a, 1).record();
+    g.pass("first", Role::All).write_version(&a, 1).add();
+    g.pass("second", Role::All).write_version(&a, 1).add();
     g.export(&a);
     let err = compile(&g, &Single).unwrap_err();
     assert!(
@@ -74,9 +74,9 @@ fn cycles_are_reported_with_their_passes() {
     let mut g = Graph::new(topology());
     let a = g.image("a", Format::R32f);
     let b = g.image("b", Format::R32f);
-    g.pass("ping", Role::All).read_version(&b, 1).write_version(&a, 1).record();
-    g.pass("pong", Role::All).read_version(&a, 1).write_version(&b, 1).record();
-    g.pass("sink", Role::All).read_version(&b, 1).side_effect().record();
+    g.pass("ping", Role::All).read_version(&b, 1).write_version(&a, 1).add();
+    g.pass("pong", Role::All).read_version(&a, 1).write_version(&b, 1).add();
+    g.pass("sink", Role::All).read_version(&b, 1).side_effect().add();
     assert_eq!(compile(&g, &Single).unwrap_err(), GraphError::Cycle { passes: vec!["ping".into(), "pong".into()] });
 }
 
@@ -86,7 +86,7 @@ fn handles_of_another_graph_are_rejected() {
     let foreign = other.image("foreign", Format::R32f);
     let mut g = Graph::new(topology());
     let mut out = g.image("out", Format::R32f);
-    g.pass("mix", Role::All).read(&foreign).write(&mut out).record();
+    g.pass("mix", Role::All).read(&foreign).write(&mut out).add();
     g.export(&out);
     let refused = |err: &GraphError| matches!(err, GraphError::ForeignHandle { pass, .. } if pass == "mix");
     assert!(g.declaration_error().is_some_and(refused), "refused when declared, before compiling");
@@ -99,7 +99,7 @@ fn two_resources_with_one_name_are_refused_where_the_second_is_declared() {
     let mut a = g.image("radiance", Format::Rgba32f);
     let twin = g.buffer("radiance", 64);
     g.import(&twin);
-    g.pass("trace", Role::All).read(&twin).write(&mut a).record();
+    g.pass("trace", Role::All).read(&twin).write(&mut a).add();
     g.export(&a);
     let err = compile(&g, &Single).unwrap_err();
     assert!(
@@ -116,7 +116,7 @@ fn a_pass_declaring_one_access_twice_is_refused() {
     let a = g.image("a", Format::R32f);
     g.import(&a);
     let mut out = g.image("out", Format::R32f);
-    g.pass("blur", Role::All).read(&a).read_whole(&a).write(&mut out).record();
+    g.pass("blur", Role::All).read(&a).read_whole(&a).write(&mut out).add();
     g.export(&out);
     let err = compile(&g, &Single).unwrap_err();
     assert!(
@@ -129,7 +129,7 @@ fn a_pass_declaring_one_access_twice_is_refused() {
 fn a_pass_writing_one_resource_twice_is_refused() {
     let mut g = Graph::new(topology());
     let mut a = g.image("a", Format::R32f);
-    g.pass("twice", Role::All).write(&mut a).write(&mut a).record();
+    g.pass("twice", Role::All).write(&mut a).write(&mut a).add();
     g.export(&a);
     let err = compile(&g, &Single).unwrap_err();
     assert!(
@@ -143,7 +143,7 @@ fn one_resource_read_as_own_view_history_and_in_place_is_one_slot_each() {
     let mut g = Graph::new(topology());
     let mut acc = g.image("acc", Format::R32f);
     g.import(&acc);
-    g.pass("accumulate", Role::All).read_history(&acc).modify(&mut acc).record();
+    g.pass("accumulate", Role::All).read_history(&acc).modify(&mut acc).add();
     g.export(&acc);
     assert_eq!(g.declaration_error(), None);
     assert!(compile(&g, &Single).is_ok());
@@ -153,7 +153,7 @@ fn one_resource_read_as_own_view_history_and_in_place_is_one_slot_each() {
 fn a_graph_without_roots_is_an_error() {
     let mut g = Graph::new(topology());
     let mut a = g.image("a", Format::R32f);
-    g.pass("orphan", Role::All).write(&mut a).record();
+    g.pass("orphan", Role::All).write(&mut a).add();
     assert_eq!(compile(&g, &Single).unwrap_err(), GraphError::NoRoots);
 }
 
@@ -163,10 +163,10 @@ fn unused_passes_are_culled_and_side_effects_kept() {
     let mut a = g.image("a", Format::R32f);
     let mut unused = g.image("unused", Format::R32f);
     let mut stats = g.buffer("stats", 16);
-    g.pass("produce", Role::All).write(&mut a).record();
-    g.pass("dead", Role::All).read(&a).write(&mut unused).record();
+    g.pass("produce", Role::All).write(&mut a).add();
+    g.pass("dead", Role::All).read(&a).write(&mut unused).add();
     // Reads `a` but writes nothing exported: only side_effect() keeps it, and it keeps `a` alive.
-    g.pass("readback", Role::Sources).read(&a).write(&mut stats).side_effect().record();
+    g.pass("readback", Role::Sources).read(&a).write(&mut stats).side_effect().add();
     let s = compile(&g, &Single).unwrap();
     let names: Vec<(&str, ViewId)> = s.instances.iter().map(|i| (i.name.as_str(), i.view)).collect();
     assert_eq!(names, vec![("produce", ViewId(0)), ("readback", ViewId(0))]);
@@ -179,9 +179,9 @@ fn unused_passes_are_culled_and_side_effects_kept() {
 fn reprojection_reads_derive_delta_edges_and_versions_order_passes() {
     let mut g = Graph::new(topology());
     let mut colour = g.image("colour", Format::Rgba32f);
-    g.pass("trace", Role::Sources).write(&mut colour).record();
-    g.pass("reproject", Role::Targets).read_sources(&colour).write(&mut colour).record();
-    g.pass("post", Role::All).read(&colour).write(&mut colour).record();
+    g.pass("trace", Role::Sources).write(&mut colour).add();
+    g.pass("reproject", Role::Targets).read_sources(&colour).write(&mut colour).add();
+    g.pass("post", Role::All).read(&colour).write(&mut colour).add();
     g.export(&colour);
     assert_eq!(colour.version(ViewId(0)), 2, "source: trace, post");
     assert_eq!(colour.version(ViewId(1)), 2, "target: reproject, post");
@@ -211,14 +211,14 @@ fn history_must_stay_on_its_device() {
     let mut g = Graph::new(topology());
     let mut acc = g.image("acc", Format::Rgba32f);
     let mut out = g.image("out", Format::Rgba32f);
-    g.pass("accumulate", Role::All).write(&mut acc).record();
-    g.pass("temporal", Role::All).read(&acc).read_history(&out).write(&mut out).record();
+    g.pass("accumulate", Role::All).write(&mut acc).add();
+    g.pass("temporal", Role::All).read(&acc).read_history(&out).write(&mut out).add();
     g.export(&out);
     assert!(compile(&g, &Single).unwrap().validate().is_ok());
     let mut g2 = Graph::new(topology());
     let mut acc = g2.image("acc", Format::Rgba32f);
-    g2.pass("accumulate", Role::All).read_history(&acc).write(&mut acc).record();
-    g2.pass("blend", Role::All).read_history(&acc).read(&acc).side_effect().record();
+    g2.pass("accumulate", Role::All).read_history(&acc).write(&mut acc).add();
+    g2.pass("blend", Role::All).read_history(&acc).read(&acc).side_effect().add();
     assert!(
         matches!(compile(&g2, &Swapped).unwrap_err(), GraphError::HistoryAcrossDevices { ref pass, reader: 0, writer: 1, .. } if pass == "blend")
     );

@@ -16,13 +16,13 @@ fn blur(views: u32, devices: u32, halo: Option<u32>) -> Schedule {
     let mut g = Graph::new(plan.topology.clone());
     let mut color = g.image("color", Format::Rgba32f);
     let mut out = g.image("out", Format::Rgba32f);
-    g.pass("shade", Role::All).write(&mut color).record();
+    g.pass("shade", Role::All).write(&mut color).add();
     let pass = g.pass("blur", Role::All);
     let pass = match halo {
         Some(rows) => pass.read_halo(&color, rows),
         None => pass.read_whole(&color),
     };
-    pass.write(&mut out).record();
+    pass.write(&mut out).add();
     g.export(&out);
     let schedule = compile(&g, &BandedPlacement { devices, bands: devices }).unwrap();
     assert_eq!(schedule.validate().errors, vec![], "{devices} devices, halo {halo:?}");

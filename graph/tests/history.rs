@@ -15,8 +15,8 @@ fn temporal() -> Schedule {
     let mut g = Graph::new(plan.topology.clone());
     let mut color = g.image("color", Format::Rgba32f);
     let mut accum = g.image("accum", Format::Rgba32f);
-    g.pass("shade", Role::All).write(&mut color).record();
-    g.pass("accumulate", Role::All).read(&color).read_history(&accum).write(&mut accum).record();
+    g.pass("shade", Role::All).write(&mut color).add();
+    g.pass("accumulate", Role::All).read(&color).read_history(&accum).write(&mut accum).add();
     g.export(&accum);
     let s = compile(&g, &plan).unwrap();
     assert_eq!(s.validate().errors, vec![]);

@@ -17,10 +17,10 @@ fn temporal(devices: u32, scheme: Scheme) -> Schedule {
     let mut g = Graph::new(plan.topology.clone());
     let mut color = g.image("color", Format::Rgba32f);
     let mut accum = g.image("accum", Format::Rgba32f);
-    g.pass("shade", Role::All).write(&mut color).record();
-    g.pass("tint", Role::All).modify(&mut color).record();
-    g.pass("blur", Role::All).read(&color).write(&mut color).record();
-    g.pass("accumulate", Role::All).read(&color).read_history(&accum).write(&mut accum).record();
+    g.pass("shade", Role::All).write(&mut color).add();
+    g.pass("tint", Role::All).modify(&mut color).add();
+    g.pass("blur", Role::All).read(&color).write(&mut color).add();
+    g.pass("accumulate", Role::All).read(&color).read_history(&accum).write(&mut accum).add();
     g.export(&accum);
     compile(&g, &plan).unwrap().into_schedule()
 }
@@ -67,9 +67,9 @@ fn a_band_modified_in_place_stays_in_place_when_a_whole_view_read_copies_the_oth
     let mut g = Graph::new(plan.topology.clone());
     let mut color = g.image("color", Format::Rgba32f);
     let mut out = g.image("out", Format::Rgba32f);
-    g.pass("shade", Role::All).write(&mut color).record();
-    g.pass("tint", Role::All).modify(&mut color).record();
-    g.pass("gather", Role::All).read_whole(&color).write(&mut out).record();
+    g.pass("shade", Role::All).write(&mut color).add();
+    g.pass("tint", Role::All).modify(&mut color).add();
+    g.pass("gather", Role::All).read_whole(&color).write(&mut out).add();
     g.export(&out);
     let s = compile(&g, &plan).unwrap();
     assert_eq!(s.validate().errors, vec![]);
@@ -115,14 +115,14 @@ fn reads_carry_their_slot_and_origin() {
     let mut g = Graph::new(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut depth = g.image("depth", Format::R32f);
-    g.pass("raster", Role::All).write(&mut depth).record();
-    g.pass("trace", Role::Sources).write(&mut radiance).record();
+    g.pass("raster", Role::All).write(&mut depth).add();
+    g.pass("trace", Role::Sources).write(&mut radiance).add();
     g.pass("reproject", Role::Targets)
         .read(&depth)
         .read_sources(&depth)
         .read_sources(&radiance)
         .write(&mut radiance)
-        .record();
+        .add();
     g.export(&radiance);
     let s = compile(&g, &plan).unwrap();
     let (_, target) = instance_of(&s, "reproject", 1);
@@ -231,8 +231,8 @@ fn an_exported_version_read_on_device_0_travels_there_once() {
     let mut g = Graph::new(plan.topology.clone());
     let mut x = g.image("x", Format::Rgba32f);
     let mut y = g.image("y", Format::Rgba32f);
-    g.pass("trace", Role::All).write(&mut x).record();
-    g.pass("reproject", Role::Targets).read_sources(&x).write(&mut y).side_effect().record();
+    g.pass("trace", Role::All).write(&mut x).add();
+    g.pass("reproject", Role::Targets).read_sources(&x).write(&mut y).side_effect().add();
     g.export(&x);
     let s = compile(&g, &plan).unwrap();
     assert_eq!(s.validate().errors, vec![]);

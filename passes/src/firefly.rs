@@ -84,12 +84,12 @@ pub fn declare_firefly_suppression(
         frames_before: pass.read_history_slot(&frames),
         frames: pass.write_slot(&mut frames),
     };
-    pass.kernel(Arc::new(FireflyKernel(stage))).record();
+    pass.kernel(Arc::new(FireflyKernel(stage))).add();
     let mut pass = graph.pass(FIREFLY_SPREAD, role);
     let position = pass.read_slot(position_depth);
     let share = pass.read_halo_slot(&share, RADIUS);
     let (_, radiance) = pass.modify_slot(radiance);
-    pass.kernel(Arc::new(FireflyKernel(Stage::Spread { position, share, radiance }))).record();
+    pass.kernel(Arc::new(FireflyKernel(Stage::Spread { position, share, radiance }))).add();
 }
 
 /// `FireflyPush::flags`: `block` holds the frame's cameras.

@@ -128,7 +128,7 @@ pub fn declare_gbuffer(graph: &mut KernelGraph, with_first_hit: bool) -> Gbuffer
         motion: pass.write_slot(&mut g.motion),
         first_hit: g.first_hit.as_mut().map(|first_hit| pass.write_slot(first_hit)),
     };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     g
 }
 
@@ -140,7 +140,7 @@ pub fn declare_gbuffer_rasterised(graph: &mut KernelGraph) -> Gbuffer {
     let mut pass = graph.pass(MOTION, Role::All);
     let position_depth = pass.read_slot(&raster.position_depth);
     let kernel = MotionKernel { position_depth, motion: pass.write_slot(&mut motion) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     Gbuffer {
         position_depth: raster.position_depth,
         normal_metallic: raster.normal_metallic,

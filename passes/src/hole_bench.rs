@@ -182,10 +182,10 @@ fn bench_plan(width: u32, height: u32, threshold: u32, first_hits: bool) -> Resu
     graph.import(&radiance);
     let mut pass = graph.pass(PATH_TRACE, Role::Sources);
     let kernel = PathTraceKernel::new(pass.write_slot(&mut radiance));
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     let mut pass = graph.pass(HOLE_MASK, Role::Targets);
     let mask = pass.write_slot(&mut holes);
-    pass.kernel(Arc::new(HashedHoleMaskKernel { mask, threshold })).record();
+    pass.kernel(Arc::new(HashedHoleMaskKernel { mask, threshold })).add();
     let list = declare_hole_fill(&mut graph, &holes, first_hit.as_ref(), &mut radiance);
     graph.export(&radiance);
     let plan = Compiled::compile(&graph, &BandedPlacement { devices: 1, bands: 1 })?.plan;

@@ -40,7 +40,7 @@ pub fn declare_hole_denoise(graph: &mut KernelGraph, hole_list: &Handle<Buffer>,
         stamp: pass.write_slot(&mut stamp),
         radiance: pass.modify_slot(radiance).1,
     };
-    pass.kernel(Arc::new(HoleTemporalKernel(slots))).record();
+    pass.kernel(Arc::new(HoleTemporalKernel(slots))).add();
 }
 
 /// What `hole_temporal` declared.

@@ -74,12 +74,12 @@ pub fn declare_hole_fill(
     graph.reset_each_frame(&list, Vec::new());
     let mut pass = graph.pass(COMPACT_HOLES, Role::Targets);
     let (holes, (_, written_list)) = (pass.read_slot(holes), pass.modify_slot(&mut list));
-    pass.kernel(Arc::new(CompactHolesKernel { holes, list: written_list })).record();
+    pass.kernel(Arc::new(CompactHolesKernel { holes, list: written_list })).add();
     let mut pass = graph.pass(HOLE_FILL, Role::Targets);
     let read_list = pass.read_slot(&list);
     let first_hit = first_hit.map(|layer| pass.read_slot(layer));
     let (_, radiance) = pass.modify_slot(radiance);
-    pass.kernel(Arc::new(HoleFillKernel { list: read_list, first_hit, radiance })).grouped().record();
+    pass.kernel(Arc::new(HoleFillKernel { list: read_list, first_hit, radiance })).grouped().add();
     list
 }
 

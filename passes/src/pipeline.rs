@@ -24,7 +24,7 @@
 //!         let mut pass = graph.global_pass("expose");
 //!         pass.read_every_view_slot(layers.linear());
 //!         pass.write_slot(&mut exposure);
-//!         // ... .kernel(...) and .record(); tonemap then scales by it:
+//!         // ... .kernel(...) and .add(); tonemap then scales by it:
 //!         # drop(pass);
 //!         layers.exposure = Some(exposure);
 //!         Ok(())
@@ -330,7 +330,7 @@ fn declare_standard_svgf(graph: &mut KernelGraph, role: Role, layers: &Layers) -
 pub fn declare_path_trace(graph: &mut KernelGraph, role: Role, radiance: &mut Handle<Image>) {
     let mut pass = graph.pass(PATH_TRACE, role);
     let kernel = PathTraceKernel::new(pass.write_slot(radiance));
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
 }
 
 /// Declares the standard pipeline of `config` (a [`PipelineBuilder`] with no stage of the
@@ -454,7 +454,7 @@ mod tests {
         let handles = PipelineBuilder::new(PipelineConfig::default())
             .replace_denoiser(|graph, layers| {
                 let mut denoised = graph.image("my_denoised", Format::Rgba32f);
-                graph.pass("my_denoiser", Role::All).read(&layers.radiance).write(&mut denoised).record();
+                graph.pass("my_denoiser", Role::All).read(&layers.radiance).write(&mut denoised).add();
                 Ok(denoised)
             })
             .declare(&mut graph)
@@ -470,7 +470,7 @@ mod tests {
         let handles = PipelineBuilder::new(PipelineConfig { denoise: Denoiser::None, ..PipelineConfig::default() })
             .replace_tonemapper(|graph, layers| {
                 let mut display = graph.image("my_display", Format::Rgba8);
-                graph.pass("my_tonemap", Role::All).read(layers.linear()).write(&mut display).record();
+                graph.pass("my_tonemap", Role::All).read(layers.linear()).write(&mut display).add();
                 Ok(display)
             })
             .declare(&mut graph)

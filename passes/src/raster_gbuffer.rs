@@ -116,7 +116,7 @@ pub fn declare_gbuffer_raster(graph: &mut KernelGraph) -> GbufferHandles {
         ],
         depth: pass.write_slot(&mut depth),
     };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     GbufferHandles { albedo_roughness, normal_metallic, position_depth, depth }
 }
 

@@ -228,7 +228,7 @@ fn raycast_plan(capacity: usize, opaque: bool, schedule: RaySchedule, devices: u
     let mut pass = graph.pass(RAYCAST, Role::All);
     let kernel = RaycastKernel { opaque, schedule, hits: pass.write_slot(&mut hits) };
     // Nothing in the plan reads the hits: the host does.
-    pass.side_effect().kernel(Arc::new(kernel)).record();
+    pass.side_effect().kernel(Arc::new(kernel)).add();
     Ok(Compiled::compile(&graph, &BandedPlacement { devices, bands: 1 })?.plan)
 }
 

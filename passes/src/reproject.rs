@@ -154,6 +154,6 @@ pub fn declare_reproject(
         radiance: pass.write_slot(radiance),
         holes: pass.write_slot(&mut holes),
     };
-    pass.kernel(Arc::new(ReprojectKernel { tolerances, slots })).record();
+    pass.kernel(Arc::new(ReprojectKernel { tolerances, slots })).add();
     Ok(holes)
 }

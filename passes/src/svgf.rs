@@ -125,7 +125,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, role: Role, inputs: &SvgfInputs<'_>
         prev_color: pass.write_slot(&mut prev_color),
         prev_moments: pass.write_slot(&mut prev_moments),
     };
-    pass.kernel(Arc::new(SvgfKernel(history))).record();
+    pass.kernel(Arc::new(SvgfKernel(history))).add();
     // The G-buffer and radiance around the band: the depth gradient reads one row away, the
     // spatial variance estimate `TEMPORAL_RADIUS` rows. The colour and moments copies
     // `HISTORY_REACH` rows: the shader drops taps through `motion` farther away. The history directly where
@@ -151,7 +151,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, role: Role, inputs: &SvgfInputs<'_>
         accum: pass.write_slot(&mut accum),
         accum_m2: pass.write_slot(&mut accum_m2),
     });
-    pass.kernel(Arc::new(SvgfKernel(temporal))).record();
+    pass.kernel(Arc::new(SvgfKernel(temporal))).add();
     for (i, &step) in ATROUS_STEPS.iter().enumerate() {
         let name = format!("svgf_atrous_{}", i + 1);
         let (first, last) = (i == 0, i + 1 == ATROUS_STEPS.len());
@@ -170,7 +170,7 @@ pub fn declare_svgf(graph: &mut KernelGraph, role: Role, inputs: &SvgfInputs<'_>
             (None, pass.write_slot(&mut atrous), None)
         };
         let stage = Stage::Atrous { step, input, guide: guide_slot, albedo: albedo_slot, output, color, radiance };
-        pass.kernel(Arc::new(SvgfKernel(stage))).record();
+        pass.kernel(Arc::new(SvgfKernel(stage))).add();
     }
     denoised
 }

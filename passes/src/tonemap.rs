@@ -49,7 +49,7 @@ pub fn declare_tonemap_scaled(
     let mut pass = graph.pass(TONEMAP, Role::All);
     let (src, dst) = (pass.read_slot(input), pass.write_slot(&mut display));
     let scale = scale.map(|s| pass.read_slot(s));
-    pass.kernel(Arc::new(TonemapKernel { src, dst, scale, exposure })).record();
+    pass.kernel(Arc::new(TonemapKernel { src, dst, scale, exposure })).add();
     Ok(display)
 }
 

@@ -30,7 +30,7 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
         let mut list = graph.buffer(PIXEL_LIST, pixel_list_bytes(entries));
         let mut pass = graph.pass(PIXEL_LIST, Role::All);
         let kernel = StridedPixelListKernel { pixels, list: pass.write_slot(&mut list) };
-        pass.whole_view().kernel(Arc::new(kernel)).record();
+        pass.whole_view().kernel(Arc::new(kernel)).add();
         list
     });
     let mut pass = graph.pass(PATH_TRACE, Role::All);
@@ -41,7 +41,7 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
         kernel = kernel.with_list(list);
         pass = pass.whole_view();
     }
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     for image in &images {
         graph.export(image);
     }

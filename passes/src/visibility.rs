@@ -178,7 +178,7 @@ pub fn declare_gbuffer_visibility(graph: &mut KernelGraph, with_first_hit: bool)
     let mut pass = graph.pass(VISIBILITY_RASTER, Role::All);
     let (_, keys_written) = pass.modify_slot(&mut keys);
     let (_, tiles_written) = pass.modify_slot(&mut tiles);
-    pass.kernel(Arc::new(VisibilityRasterKernel { keys: keys_written, tiles: tiles_written })).record();
+    pass.kernel(Arc::new(VisibilityRasterKernel { keys: keys_written, tiles: tiles_written })).add();
     let mut g = Gbuffer {
         position_depth: graph.image("position_depth", Format::Rgba32f),
         normal_metallic: graph.image("normal_metallic", Format::Rgba32f),
@@ -195,7 +195,7 @@ pub fn declare_gbuffer_visibility(graph: &mut KernelGraph, with_first_hit: bool)
         motion: pass.write_slot(&mut g.motion),
         first_hit: g.first_hit.as_mut().map(|first_hit| pass.write_slot(first_hit)),
     };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     g
 }
 

@@ -61,7 +61,7 @@ fn raycaster_refuses_more_rays_than_planned_and_path_trace_refuses_a_buffer_targ
     let mut list = g.buffer("list", 64);
     let mut pass = g.pass(PATH_TRACE, Role::All);
     let kernel = PathTraceKernel::new(pass.write_slot(&mut list));
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     g.export(&list);
     let schedule = compile(&g, &BandedPlacement { devices: 1, bands: 1 }).unwrap();
     let plan = KernelPlan::from_schedule(&g, &schedule).unwrap();

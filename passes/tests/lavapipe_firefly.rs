@@ -75,7 +75,7 @@ fn synthetic(devices: u32, suppress: bool) -> Vec<f32> {
     let mut position = graph.image("position_depth", Format::Rgba32f);
     let mut pass = graph.pass("test_fireflies", Role::All);
     let kernel = SyntheticInput { radiance: pass.write_slot(&mut radiance), position: pass.write_slot(&mut position) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     if suppress {
         declare_firefly_suppression(&mut graph, Role::All, &position, &mut radiance);
     }

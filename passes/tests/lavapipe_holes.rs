@@ -94,12 +94,12 @@ impl Case {
         let mut holes = graph.image(HOLES, Format::R32u);
         let mut pass = graph.pass(PATH_TRACE, Role::Sources);
         let kernel = PathTraceKernel::new(pass.write_slot(&mut radiance));
-        pass.kernel(Arc::new(kernel)).record();
+        pass.kernel(Arc::new(kernel)).add();
         // What reprojection would leave: here a pattern every untouched pixel must keep.
-        declare_writer(&mut graph, "prefill", Role::Targets, &mut radiance, |out| FillKernel { out }).record();
+        declare_writer(&mut graph, "prefill", Role::Targets, &mut radiance, |out| FillKernel { out }).add();
         let mut pass = graph.pass(HOLE_MASK, Role::Targets);
         let mask = PerViewMask { mask: pass.write_slot(&mut holes), thresholds: self.thresholds.clone() };
-        pass.kernel(Arc::new(mask)).record();
+        pass.kernel(Arc::new(mask)).add();
         let list = declare_hole_fill(&mut graph, &holes, first_hit.as_ref(), &mut radiance);
         graph.export(&radiance);
         graph.export(&list);

@@ -60,7 +60,7 @@ fn raster_plan(views: u32, (width, height): (u32, u32), devices: u32) -> (Kernel
     let mut copy = graph.image(DEPTH_COPY, Format::R32f);
     let mut pass = graph.pass(DEPTH_TO_R32F, Role::All);
     let kernel = DepthCopyKernel { depth: pass.read_slot(&g.depth), copy: pass.write_slot(&mut copy) };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     let exported = [&g.albedo_roughness, &g.normal_metallic, &g.position_depth, &g.depth, &copy];
     for image in exported {
         graph.export(image);

@@ -140,7 +140,7 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> KernelPlan 
         pass.write_slot(&mut normal),
         pass.write_slot(&mut position),
     ]);
-    pass.kernel(Arc::new(traced)).record();
+    pass.kernel(Arc::new(traced)).add();
     match input.change {
         Change::None => {}
         Change::Constant => {
@@ -148,7 +148,7 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> KernelPlan 
             let (_, radiance) = pass.modify_slot(&mut radiance);
             let (_, albedo) = pass.modify_slot(&mut albedo);
             let kernel = ChangeKernel { shader: "test_constant", radiance, albedo, normal: None, position: None };
-            pass.kernel(Arc::new(kernel)).record();
+            pass.kernel(Arc::new(kernel)).add();
         }
         Change::Poison => {
             let mut pass = g.pass("test_poison", Role::All);
@@ -159,14 +159,14 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> KernelPlan 
                 normal: Some(pass.modify_slot(&mut normal).1),
                 position: Some(pass.modify_slot(&mut position).1),
             };
-            pass.kernel(Arc::new(kernel)).record();
+            pass.kernel(Arc::new(kernel)).add();
         }
     }
     let mut motion = g.image("motion", Format::Rg32f);
     let mut pass = g.pass("test_motion", Role::All);
     let (position_slot, motion_slot) = (pass.read_slot(&position), pass.write_slot(&mut motion));
     let kernel = MotionKernel { position: position_slot, motion: motion_slot, offset: input.motion };
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     let inputs = SvgfInputs {
         radiance: &radiance,
         albedo_roughness: &albedo,
@@ -239,7 +239,7 @@ fn tonemap_matches_its_cpu_twin_within_one_step_of_255() {
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut pass = g.pass(PATH_TRACE, Role::All);
     let kernel = PathTraceKernel::new(pass.write_slot(&mut radiance));
-    pass.kernel(Arc::new(kernel)).record();
+    pass.kernel(Arc::new(kernel)).add();
     let display = declare_tonemap(&mut g, &radiance, exposure).unwrap();
     g.export(&display);
     g.export(&radiance);

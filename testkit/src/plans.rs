@@ -32,14 +32,14 @@ fn demo_kernels() -> (FillKernel, ShiftBlendKernel) {
     assert_eq!((radiance.family(), output.family()), (RADIANCE, OUTPUT));
     let mut fill = graph.pass("fill", Role::All);
     let fill_kernel = FillKernel { out: fill.write_slot(&mut radiance) };
-    assert_eq!(fill.record(), FILL);
+    assert_eq!(fill.add(), FILL);
     let mut blend = graph.pass("shift_blend", Role::All);
     let blend_kernel = ShiftBlendKernel {
         own: blend.read_slot(&radiance),
         sources: blend.read_sources_slot(&radiance),
         out: blend.write_slot(&mut output),
     };
-    assert_eq!(blend.record(), SHIFT_BLEND);
+    assert_eq!(blend.add(), SHIFT_BLEND);
     (fill_kernel, blend_kernel)
 }
 

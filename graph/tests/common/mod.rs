@@ -17,8 +17,8 @@ pub fn declare_test_pipeline(g: &mut Graph) {
     let mut denoised = g.image("denoised", Format::Rgba16f);
     let mut display = g.image("display", Format::Rgba8);
 
-    g.pass("gbuffer", Role::All).write(&mut position).write(&mut normal).write(&mut albedo).record();
-    g.pass("path_trace", Role::Sources).write(&mut radiance).record();
+    g.pass("gbuffer", Role::All).write(&mut position).write(&mut normal).write(&mut albedo).add();
+    g.pass("path_trace", Role::Sources).write(&mut radiance).add();
     g.pass("reproject", Role::Targets)
         .read(&position)
         .read(&normal)
@@ -27,14 +27,14 @@ pub fn declare_test_pipeline(g: &mut Graph) {
         .read_sources(&radiance)
         .write(&mut radiance)
         .write(&mut holes)
-        .record();
+        .add();
     g.pass("hole_fill", Role::Targets)
         .read(&holes)
         .read(&position)
         .read(&normal)
         .read(&radiance)
         .write(&mut radiance)
-        .record();
+        .add();
     g.pass("denoise", Role::All)
         .read(&radiance)
         .read(&position)
@@ -44,8 +44,8 @@ pub fn declare_test_pipeline(g: &mut Graph) {
         .read_history(&normal)
         .read_history(&denoised)
         .write(&mut denoised)
-        .record();
-    g.pass("tonemap", Role::All).read(&denoised).write(&mut display).record();
+        .add();
+    g.pass("tonemap", Role::All).read(&denoised).write(&mut display).add();
     g.export(&display);
 }
 
