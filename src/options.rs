@@ -8,7 +8,7 @@ use std::ops::RangeInclusive;
 use glam::Vec3;
 pub use parallax_accuracy::exposure::Exposure;
 use parallax_backend::DeviceSelection;
-use parallax_graph::{AssignStrategy, LayoutSpec, PlanError, Scheme};
+use parallax_graph::{AssignStrategy, LayoutSpec, PartitionError, Scheme};
 use parallax_scene::{Camera, Sky, Sun};
 
 /// Most views a light field may have: the presets have 100 and 72; beyond a few thousand the
@@ -79,7 +79,7 @@ pub fn assignment(scheme: SchemeArg, assign: Option<AssignArg>) -> Result<Assign
 
 /// `--lf`: a preset or a WxH grid of at most [`MAX_VIEWS`] views.
 pub fn parse_layout(s: &str) -> Result<LayoutSpec, String> {
-    let spec: LayoutSpec = s.parse().map_err(|e: PlanError| e.to_string())?;
+    let spec: LayoutSpec = s.parse().map_err(|e: PartitionError| e.to_string())?;
     if let LayoutSpec::Grid { cols, rows } = spec {
         let views = u64::from(cols) * u64::from(rows);
         if views > MAX_VIEWS {
@@ -342,8 +342,8 @@ pub fn usage_error(err: &anyhow::Error) -> Option<String> {
         if let Some(usage) = cause.downcast_ref::<UsageError>() {
             return Some(usage.0.clone());
         }
-        let plan = cause.downcast_ref::<PlanError>()?;
-        matches!(plan, PlanError::SourcesWithMultiSource | PlanError::SourcesPerSetWithFineScheme)
+        let plan = cause.downcast_ref::<PartitionError>()?;
+        matches!(plan, PartitionError::SourcesWithMultiSource | PartitionError::SourcesPerSetWithFineScheme)
             .then(|| plan.to_string())
     })
 }

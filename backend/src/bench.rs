@@ -2,7 +2,7 @@
 //! submitted pass. Used by `parallax bench-copy`; results go to docs/RESULTS.md.
 //!
 //! Both are declared as graphs, compiled under a placement of whole views in order over the devices
-//! and lowered like any pipeline, so what they measure is what a real plan runs. Their producer is
+//! and turned into a kernel plan like any pipeline, so what they measure is what a real plan runs. Their producer is
 //! `bench_fill` (`backend/shaders/bench_fill.comp`), whose values nobody reads.
 
 use std::sync::Arc;
@@ -19,7 +19,7 @@ use crate::error::Result;
 use crate::exec_options::ExecOptions;
 use crate::executor::Executor;
 use crate::kernel::{KernelPlan, PassKernel};
-use crate::lower::{Compiled, KernelGraph};
+use crate::kernel_graph::{Compiled, KernelGraph};
 use crate::plan::{CopyId, InstanceId, PassInstance};
 use crate::recorder::Recorder;
 use crate::timing::{EventKind, FrameReport};

@@ -1,7 +1,7 @@
 //! The one error type of the backend. Every variant names what went wrong and, where a person
 //! can fix it, what to do (which package to install, which flag to change).
 //!
-//! A leaf: it also holds the errors that [`BackendError`] wraps (of the plan, of lowering, of
+//! A leaf: it also holds the errors that [`BackendError`] wraps (of the plan, of building a kernel plan, of
 //! shaders), so every module reports through it without it importing any of them.
 
 use ash::vk;
@@ -76,9 +76,9 @@ pub enum BackendError {
     #[error("cannot compile the graph: {0}")]
     Graph(#[from] parallax_graph::GraphError),
 
-    /// The schedule uses something the backend cannot run yet.
-    #[error("cannot lower the schedule: {0}")]
-    Lower(#[from] LowerError),
+    /// The schedule cannot become a kernel plan.
+    #[error("cannot build the kernel plan of the schedule: {0}")]
+    KernelPlan(#[from] KernelPlanError),
 
     /// A kernel asked for a shader that no layer of its library (ExecOptions::shaders) nor the
     /// backend's own shaders have.
@@ -241,7 +241,7 @@ impl BackendError {
 }
 
 /// What the executor refuses in a plan: the checks only the backend can make, and the form of the
-/// barrier lists it records by. What a plan lowered from a schedule inherits from it (ids, rows,
+/// barrier lists it records by. What a plan built from a schedule inherits from it (ids, rows,
 /// op placement and order, barriers, copies, history pairs, exports on device 0) was proven once,
 /// when the schedule was (`parallax_graph::ProvenSchedule`); a hand-laid plan is trusted with
 /// those.
@@ -263,9 +263,10 @@ pub enum ExecutionPlanError {
     Barriers(parallax_graph::ScheduleError),
 }
 
-/// What makes a schedule impossible to lower.
+/// What keeps a schedule from becoming a [`crate::KernelPlan`] (a pass without its kernel, a
+/// device without its program).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum LowerError {
+pub enum KernelPlanError {
     #[error("the schedule has programs for devices {found:?}; expected exactly 0..{expected}")]
     DevicePrograms { found: Vec<u32>, expected: usize },
     #[error("pass `{pass}` was declared without a kernel: attach one with `.kernel(...)` where it is declared")]
@@ -283,16 +284,16 @@ pub enum CompileError {
     #[error(transparent)]
     Graph(#[from] parallax_graph::GraphError),
     #[error(transparent)]
-    Lower(#[from] LowerError),
+    KernelPlan(#[from] KernelPlanError),
 }
 
 /// Each step's error becomes the backend error it becomes alone ([`BackendError::Graph`],
-/// [`BackendError::Lower`]).
+/// [`BackendError::KernelPlan`]).
 impl From<CompileError> for BackendError {
     fn from(error: CompileError) -> BackendError {
         match error {
             CompileError::Graph(e) => BackendError::Graph(e),
-            CompileError::Lower(e) => BackendError::Lower(e),
+            CompileError::KernelPlan(e) => BackendError::KernelPlan(e),
         }
     }
 }

@@ -13,8 +13,8 @@
 //!   times every pass instance and copy, or every run of one pass's instances ([`Timing`];
 //!   [`FrameReport`], [`chrome_trace`]).
 //! * [`KernelGraph`]: a render graph whose passes carry their [`PassKernel`];
-//!   [`Compiled::compile`] compiles it and lowers its proven schedule in one call
-//!   ([`KernelPlan::from_schedule`] lowers one compiled or changed apart: allocations get their GPU
+//!   [`Compiled::compile`] compiles it and builds the kernel plan of its proven schedule in one call
+//!   ([`KernelPlan::from_schedule`] builds one of a schedule compiled or changed apart: allocations get their GPU
 //!   description, history allocations two halves swapped by frame parity; kernels bind the
 //!   instances' accesses by the slot tokens their declarations returned).
 //! * [`PassKernel`] / [`Recorder`]: how passes plug their GPU work in: compute dispatches over a
@@ -49,7 +49,7 @@
 //! ```
 //! use std::sync::Arc;
 //! use parallax_backend::*;
-//! use parallax_graph::{AssignStrategy, Format, LightField, PlanConfig, Rig, Role, Scheme};
+//! use parallax_graph::{AssignStrategy, Format, LightField, PartitionConfig, Rig, Role, Scheme};
 //!
 //! // A kernel of its own: the benchmark's producer shader over the instance's rows, into the
 //! // write its pass declared.
@@ -68,8 +68,8 @@
 //! // Declare: fill every view in row bands over both devices (FineAll), kernel attached,
 //! // finished views gathered on device 0.
 //! let lf = LightField::new("3x1".parse()?, None, Some((32, 32)), Rig::default())?;
-//! let config = PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
-//! let placement = parallax_graph::Plan::new(&lf, &config)?;
+//! let config = PartitionConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
+//! let placement = parallax_graph::Partition::new(&lf, &config)?;
 //! let mut graph = KernelGraph::with_payload(placement.topology.clone());
 //! let mut payload = graph.image("payload", Format::Rgba32f);
 //! let mut pass = graph.pass("fill", Role::All);
@@ -121,7 +121,7 @@ mod lifetime_lock;
 mod link_memory;
 mod links;
 pub use links::{DeviceSubmissions, LinkInfo, LinkKind, LinkKinds, link_kinds};
-mod lower;
+mod kernel_graph;
 mod memory;
 mod push;
 mod readback;
@@ -146,7 +146,9 @@ pub use parallax_glsl::{reflect, rust_layout};
 pub use bindings::PassParams;
 pub use context::{Context, ContextDesc, DeviceSelection};
 pub use device::{CalibrationMethod, ClockCalibration, Device, DeviceInfo, QueueKind, host_now_ns};
-pub use error::{BackendError, CompileError, ExecutionPlanError, LowerError, Result, SearchedShaders, SpirvDefect};
+pub use error::{
+    BackendError, CompileError, ExecutionPlanError, KernelPlanError, Result, SearchedShaders, SpirvDefect,
+};
 pub use exec_options::{Barriers, ExecOptions, FaultInjection, Timing};
 pub use executor::Executor;
 pub use frame_block::{FrameBlock, FrameClock, FrameConstants, FrameHeader, GpuCamera, ViewCameras};
@@ -154,7 +156,7 @@ pub use frame_data::{FRAME_SECTION_ALIGN, FrameData};
 pub use frame_stats::{EventTotals, FrameStats, SUMMARY_SAMPLE, Summary};
 pub use instance::{Instance, Validation, validation_from_env};
 pub use kernel::{KernelPlan, Kernels, PassKernel};
-pub use lower::{Compiled, KernelGraph};
+pub use kernel_graph::{Compiled, KernelGraph};
 pub use memory::{Buffer, Image, SharedHostBuffer};
 pub use plan::{
     Access, AllocId, CopyId, CopyKind, CrossCopy, DeviceId, DeviceProgram, ExecResource, ExecutionPlan, FamilyId,

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use parallax_backend::{
     BackendError, Context, ContextDesc, DeviceSelection, ExecOptions, ExecutionPlanError, Executor, KernelGraph,
-    KernelPlan, LowerError, Validation,
+    KernelPlan, KernelPlanError, Validation,
 };
 use parallax_graph::{
     AllocId, BandedPlacement, CopyId, DeviceId, FamilyId, Format, Op, PassPlacementInfo, Placement, Region, Role,
@@ -198,7 +198,7 @@ fn plan_errors_are_reported_before_any_gpu_work() {
     let schedule = compile(&graph, &OnDevice { device: 0, devices: 1 }).unwrap();
     assert_eq!(
         KernelPlan::from_schedule(&graph, &schedule).err().unwrap(),
-        LowerError::MissingKernel { pass: "accumulate".into() }
+        KernelPlanError::MissingKernel { pass: "accumulate".into() }
     );
 }
 

@@ -9,8 +9,8 @@ use parallax_backend::{
     Executor, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, PassParams, Recorder, ResourceKind,
 };
 use parallax_graph::{
-    AssignStrategy, DeviceId, FamilyId, Format, LightField, Plan, PlanConfig, ProvenSchedule, ReadSlot, Rig, Role,
-    Scheme, WriteSlot, compile,
+    AssignStrategy, DeviceId, FamilyId, Format, LightField, Partition, PartitionConfig, ProvenSchedule, ReadSlot, Rig,
+    Role, Scheme, WriteSlot, compile,
 };
 use parallax_testkit::kernels::{FillBufferKernel, FillKernel, reference_shift_blend, shift_of_view};
 
@@ -23,8 +23,8 @@ const OUTPUT: FamilyId = FamilyId(3);
 /// 0's pattern) and `shared_words` → shift_blend of every view: its own pattern with `shared`.
 fn global_graph(scheme: Scheme, devices: u32) -> (KernelGraph, ProvenSchedule) {
     let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
-    let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config).unwrap();
+    let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(&lf, &config).unwrap();
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut pattern = g.image("pattern", Format::Rgba32f);
     let mut shared = g.global_image("shared", SIZE, SIZE, Format::Rgba32f);

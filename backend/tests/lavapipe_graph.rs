@@ -9,8 +9,8 @@ use parallax_backend::{
 };
 use parallax_graph::Format;
 use parallax_graph::{
-    AllocId, AssignStrategy, DeviceId, FamilyId, LightField, PlanConfig, ProvenSchedule, Rig, Role, Scheme, ViewId,
-    compile,
+    AllocId, AssignStrategy, DeviceId, FamilyId, LightField, PartitionConfig, ProvenSchedule, Rig, Role, Scheme,
+    ViewId, compile,
 };
 use parallax_testkit::kernels::{
     FillBufferKernel, FillKernel, ShiftBlendKernel, declare_writer, reference_shift_blend,
@@ -25,13 +25,13 @@ const OUTPUT: FamilyId = FamilyId(1);
 /// source → output exported (gathered on device 0).
 fn demo_schedule(scheme: Scheme, devices: u32) -> ((KernelGraph, ProvenSchedule), Vec<Vec<ViewId>>) {
     let lf = LightField::new("4x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
-    let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![0, 3]) };
-    let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
+    let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![0, 3]) };
+    let plan = parallax_graph::Partition::new(&lf, &config).unwrap();
     (fill_and_blend(&plan), plan.topology.sources_of.clone())
 }
 
 /// The fill → shift_blend graph of [`demo_schedule`] compiled for `plan`, validated.
-fn fill_and_blend(plan: &parallax_graph::Plan) -> (KernelGraph, ProvenSchedule) {
+fn fill_and_blend(plan: &parallax_graph::Partition) -> (KernelGraph, ProvenSchedule) {
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);
@@ -138,8 +138,9 @@ fn per_view_buffers_from_the_graph_are_filled_and_gathered() {
     use parallax_backend::ResourceKind;
     use parallax_testkit::kernels::reference_buffer_word;
     let lf = LightField::new("3x1".parse().unwrap(), None, Some((8, 8)), Rig::default()).unwrap();
-    let config = PlanConfig { devices: 3, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
+    let config =
+        PartitionConfig { devices: 3, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = parallax_graph::Partition::new(&lf, &config).unwrap();
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let bytes = 1000; // not a multiple of 4 on purpose: rounded up to 250 words
     let mut list = g.buffer("list", bytes);
@@ -177,8 +178,8 @@ fn every_scheme_layout_and_device_count_matches_the_cpu_reference() {
                 if devices as usize > lf.len() {
                     continue;
                 }
-                let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
-                let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
+                let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
+                let plan = parallax_graph::Partition::new(&lf, &config).unwrap();
                 let (graph, schedule) = fill_and_blend(&plan);
                 let exec_plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
                 let outputs = output_resources(&exec_plan, lf.len() as u32);

@@ -15,7 +15,8 @@ use parallax_backend::{
 };
 use parallax_glsl::{CompiledShader, Compiler};
 use parallax_graph::{
-    AllocId, AssignStrategy, DeviceId, Format, LightField, PlanConfig, ReadSlot, Rig, Role, Scheme, WriteSlot, compile,
+    AllocId, AssignStrategy, DeviceId, Format, LightField, PartitionConfig, ReadSlot, Rig, Role, Scheme, WriteSlot,
+    compile,
 };
 use parallax_testkit::kernels::{FillKernel, declare_writer, reference_fill};
 
@@ -66,9 +67,13 @@ fn reference_scale_swap(x: u32, y: u32, view: u32) -> [f32; 4] {
 /// the resource of the result.
 fn fill_then_user_pass(shader: &'static str) -> (KernelPlan, Vec<AllocId>) {
     let lf = LightField::new("2x1".parse().unwrap(), None, Some((SIZE, SIZE)), Rig::default()).unwrap();
-    let config =
-        PlanConfig { devices: DEVICES, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = parallax_graph::Plan::new(&lf, &config).unwrap();
+    let config = PartitionConfig {
+        devices: DEVICES,
+        scheme: Scheme::MultiSource,
+        assign: AssignStrategy::Compact,
+        sources: None,
+    };
+    let plan = parallax_graph::Partition::new(&lf, &config).unwrap();
     let mut g = KernelGraph::with_payload(plan.topology.clone());
     let mut pattern = g.image("pattern", Format::Rgba32f);
     let mut output = g.image("output", Format::Rgba32f);

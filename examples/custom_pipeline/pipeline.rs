@@ -18,7 +18,8 @@ use parallax_backend::{
     InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, Validation,
 };
 use parallax_graph::{
-    AssignStrategy, Format, LightField, Plan, PlanConfig, ReadSlot, Rig, Role, Scheme, SourcesSlot, WriteSlot, compile,
+    AssignStrategy, Format, LightField, Partition, PartitionConfig, ReadSlot, Rig, Role, Scheme, SourcesSlot,
+    WriteSlot, compile,
 };
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{Frame, PixelSample};
@@ -139,10 +140,10 @@ fn expected(x: u32, y: u32, view: u32, sources: &[u32], lf: &LightField) -> [f32
 }
 
 /// The light field, the planner's placement, the declared graph and its radiance's family.
-fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Plan, KernelGraph, FamilyId)> {
+fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Partition, KernelGraph, FamilyId)> {
     let lf = LightField::new(LAYOUT.parse()?, None, Some(RESOLUTION), Rig::default())?;
-    let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config)?;
+    let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(&lf, &config)?;
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let mut radiance = graph.image(RADIANCE, Format::Rgba32f);
     let mut pass = graph.pass("pattern", Role::All);

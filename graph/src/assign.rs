@@ -9,7 +9,7 @@
 
 use glam::DVec2;
 
-use crate::error::PlanError;
+use crate::error::PartitionError;
 use crate::ids::ViewId;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -30,13 +30,13 @@ impl AssignStrategy {
 }
 
 impl std::str::FromStr for AssignStrategy {
-    type Err = PlanError;
-    fn from_str(s: &str) -> Result<Self, PlanError> {
+    type Err = PartitionError;
+    fn from_str(s: &str) -> Result<Self, PartitionError> {
         match s {
             "round-robin" => Ok(AssignStrategy::RoundRobin),
             "contiguous" => Ok(AssignStrategy::Contiguous),
             "compact" => Ok(AssignStrategy::Compact),
-            _ => Err(PlanError::UnknownAssignment(s.to_string())),
+            _ => Err(PartitionError::UnknownAssignment(s.to_string())),
         }
     }
 }
@@ -65,13 +65,13 @@ fn quota(m: usize, n: usize, i: usize) -> usize {
 }
 
 /// Splits the views at `positions` into `n` sets. Requires 1 ≤ n ≤ M.
-pub fn assign(strategy: AssignStrategy, positions: &[DVec2], n: u32) -> Result<Assignment, PlanError> {
+pub fn assign(strategy: AssignStrategy, positions: &[DVec2], n: u32) -> Result<Assignment, PartitionError> {
     let m = positions.len();
     if n == 0 {
-        return Err(PlanError::NoDevices);
+        return Err(PartitionError::NoDevices);
     }
     if n as usize > m {
-        return Err(PlanError::MoreDevicesThanViews { devices: n, views: m as u32 });
+        return Err(PartitionError::MoreDevicesThanViews { devices: n, views: m as u32 });
     }
     let set_of_view = match strategy {
         AssignStrategy::RoundRobin => (0..m).map(|v| (v % n as usize) as u32).collect(),
@@ -169,10 +169,10 @@ mod tests {
 
     #[test]
     fn bad_device_counts() {
-        assert_eq!(assign(AssignStrategy::Compact, &line(3), 0), Err(PlanError::NoDevices));
+        assert_eq!(assign(AssignStrategy::Compact, &line(3), 0), Err(PartitionError::NoDevices));
         assert_eq!(
             assign(AssignStrategy::Compact, &line(3), 4),
-            Err(PlanError::MoreDevicesThanViews { devices: 4, views: 3 })
+            Err(PartitionError::MoreDevicesThanViews { devices: 4, views: 3 })
         );
     }
 }

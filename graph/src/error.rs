@@ -10,7 +10,7 @@ use crate::scope::SlotAccess;
 
 /// Bad planning input: layouts, device counts, source lists, strategy names.
 #[derive(Clone, Debug, Error, PartialEq)]
-pub enum PlanError {
+pub enum PartitionError {
     #[error("--lf '{0}' is not a layout: use multiscopic, nelf or WxH (e.g. 8x4)")]
     BadLayout(String),
     #[error("--lf {cols}x{rows} has no views: both grid dimensions must be at least 1")]

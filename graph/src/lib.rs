@@ -10,7 +10,7 @@
 //! * [`Graph`]: typed per-view resource handles, passes declared once with a [`Role`] and
 //!   instantiated per view; writes take `&mut` and bump versions.
 //! * [`compile()`]: culling, producer edges and δ-edges derived from declared reads,
-//!   deterministic topological order, placement on devices by a [`Plan`] (one of the three
+//!   deterministic topological order, placement on devices by a [`Partition`] (one of the three
 //!   [`Scheme`]s), cross-device copies exactly where producer and consumer devices differ;
 //!   [`compile_with`] orders each device's ops by [`CompileOptions`] (runs of one pass batched
 //!   by default): the order the backend submits.
@@ -22,8 +22,8 @@
 //! use parallax_graph::*;
 //!
 //! let lf = LightField::new("8x4".parse()?, None, Some((32, 32)), Rig::default())?;
-//! let config = PlanConfig { devices: 4, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-//! let plan = Plan::new(&lf, &config)?;
+//! let config = PartitionConfig { devices: 4, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+//! let plan = Partition::new(&lf, &config)?;
 //! let mut graph = Graph::new(plan.topology.clone());
 //! let mut radiance = graph.image("radiance", Format::Rgba32f);
 //! graph.pass("trace", Role::Sources).write(&mut radiance).add();
@@ -70,12 +70,12 @@ pub use builder::{
     WriteSlot,
 };
 pub use compile::{BandedPlacement, PassPlacementInfo, Placement, compile, compile_with};
-pub use error::{GraphError, PlanError, ScheduleError, UnboundSlot, ValidationReport};
+pub use error::{GraphError, PartitionError, ScheduleError, UnboundSlot, ValidationReport};
 pub use ids::{AllocId, BatchId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 pub use lightfield::{LayoutSpec, LightField, Rig, ViewCamera};
 pub use op_order::{Batching, DEFAULT_CHUNK_BYTES, OpOrder};
 pub use order::CompileOptions;
-pub use partition::{Plan, PlanConfig, Scheme, SourcesPerSet, parse_source_list};
+pub use partition::{Partition, PartitionConfig, Scheme, SourcesPerSet, parse_source_list};
 pub use proven::ProvenSchedule;
 pub use schedule::{
     Access, Allocation, CopyBatch, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin,

@@ -9,7 +9,7 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::error::PlanError;
+use crate::error::PartitionError;
 use crate::ids::ViewId;
 
 /// A light field: view positions, per-view resolution and the rig every camera derives from.
@@ -103,15 +103,15 @@ pub enum LayoutSpec {
 }
 
 impl std::str::FromStr for LayoutSpec {
-    type Err = PlanError;
-    fn from_str(s: &str) -> Result<Self, PlanError> {
+    type Err = PartitionError;
+    fn from_str(s: &str) -> Result<Self, PartitionError> {
         match s {
             "multiscopic" => Ok(LayoutSpec::Multiscopic),
             "nelf" => Ok(LayoutSpec::Nelf),
             _ => {
-                let (cols, rows) = parse_pair(s).ok_or_else(|| PlanError::BadLayout(s.to_string()))?;
+                let (cols, rows) = parse_pair(s).ok_or_else(|| PartitionError::BadLayout(s.to_string()))?;
                 if cols == 0 || rows == 0 {
-                    return Err(PlanError::EmptyLayout { cols, rows });
+                    return Err(PartitionError::EmptyLayout { cols, rows });
                 }
                 Ok(LayoutSpec::Grid { cols, rows })
             }
@@ -137,19 +137,19 @@ impl LightField {
         spacing: Option<f64>,
         resolution: Option<(u32, u32)>,
         rig: Rig,
-    ) -> Result<Self, PlanError> {
+    ) -> Result<Self, PartitionError> {
         if let Some(d) = spacing
             && (!d.is_finite() || d < 0.0)
         {
-            return Err(PlanError::BadSpacing(d));
+            return Err(PartitionError::BadSpacing(d));
         }
         if let Some((w, h)) = resolution
             && (w == 0 || h == 0)
         {
-            return Err(PlanError::BadResolution { width: w, height: h });
+            return Err(PartitionError::BadResolution { width: w, height: h });
         }
         if !(rig.focus_distance.is_finite() && rig.focus_distance > 0.0) {
-            return Err(PlanError::BadFocus(rig.focus_distance));
+            return Err(PartitionError::BadFocus(rig.focus_distance));
         }
         let d = spacing.unwrap_or(DEFAULT_SPACING);
         let (name, cols, rows, default_res, positions) = match spec {
@@ -157,7 +157,7 @@ impl LightField {
             LayoutSpec::Nelf => ("nelf".into(), 12, 6, (1024, 1024), nelf(d)),
             LayoutSpec::Grid { cols, rows } => {
                 if cols == 0 || rows == 0 {
-                    return Err(PlanError::EmptyLayout { cols, rows });
+                    return Err(PartitionError::EmptyLayout { cols, rows });
                 }
                 (format!("{cols}x{rows}"), cols, rows, (512, 512), grid(cols, rows, d))
             }
@@ -278,12 +278,12 @@ mod tests {
 
     #[test]
     fn bad_layouts_are_rejected() {
-        assert_eq!("0x3".parse::<LayoutSpec>(), Err(PlanError::EmptyLayout { cols: 0, rows: 3 }));
-        assert_eq!("banana".parse::<LayoutSpec>(), Err(PlanError::BadLayout("banana".into())));
+        assert_eq!("0x3".parse::<LayoutSpec>(), Err(PartitionError::EmptyLayout { cols: 0, rows: 3 }));
+        assert_eq!("banana".parse::<LayoutSpec>(), Err(PartitionError::BadLayout("banana".into())));
         let spec = LayoutSpec::Grid { cols: 2, rows: 2 };
         let err = LightField::new(spec, Some(f64::NAN), None, Rig::default()).unwrap_err();
-        assert!(matches!(err, PlanError::BadSpacing(d) if d.is_nan()));
+        assert!(matches!(err, PartitionError::BadSpacing(d) if d.is_nan()));
         let err = LightField::new(spec, Some(-1.0), None, Rig::default()).unwrap_err();
-        assert_eq!(err, PlanError::BadSpacing(-1.0));
+        assert_eq!(err, PartitionError::BadSpacing(-1.0));
     }
 }

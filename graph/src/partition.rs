@@ -10,7 +10,7 @@
 use crate::assign::{AssignStrategy, Assignment, assign};
 use crate::builder::ViewTopology;
 use crate::compile::{PassPlacementInfo, Placement};
-use crate::error::PlanError;
+use crate::error::PartitionError;
 use crate::ids::{DeviceId, Region, ViewId};
 use crate::lightfield::LightField;
 use crate::scope::Role;
@@ -37,15 +37,15 @@ impl Scheme {
 }
 
 impl std::str::FromStr for Scheme {
-    type Err = PlanError;
-    fn from_str(s: &str) -> Result<Self, PlanError> {
-        Scheme::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| PlanError::UnknownScheme(s.to_string()))
+    type Err = PartitionError;
+    fn from_str(s: &str) -> Result<Self, PartitionError> {
+        Scheme::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| PartitionError::UnknownScheme(s.to_string()))
     }
 }
 
 /// What the user chose.
 #[derive(Clone, Debug, PartialEq)]
-pub struct PlanConfig {
+pub struct PartitionConfig {
     pub devices: u32,
     pub scheme: Scheme,
     /// How views are grouped into sets (multi-source).
@@ -65,7 +65,7 @@ pub enum SourcesPerSet {
 
 /// Sources, sets and placement for one light field, one scheme, N devices.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Plan {
+pub struct Partition {
     pub scheme: Scheme,
     pub devices: u32,
     pub assign: AssignStrategy,
@@ -79,49 +79,57 @@ pub struct Plan {
     pub sources_prediction: Vec<SetPrediction>,
 }
 
-impl Plan {
+impl Partition {
     /// The plan of `config` with one source per set (multi-source) or the configured sources.
-    pub fn new(lf: &LightField, config: &PlanConfig) -> Result<Plan, PlanError> {
+    pub fn new(lf: &LightField, config: &PartitionConfig) -> Result<Partition, PartitionError> {
         Self::with_sources_per_set(lf, config, 1)
     }
 
-    /// Like [`Plan::new`], with `per_set` sources in every multi-source set (the paper's k_s):
+    /// Like [`Partition::new`], with `per_set` sources in every multi-source set (the paper's k_s):
     /// each set is split into `per_set` spatially compact parts whose medoids are the sources,
     /// and every target reprojects from the nearest source of its set.
-    pub fn with_sources_per_set(lf: &LightField, config: &PlanConfig, per_set: u32) -> Result<Plan, PlanError> {
+    pub fn with_sources_per_set(
+        lf: &LightField,
+        config: &PartitionConfig,
+        per_set: u32,
+    ) -> Result<Partition, PartitionError> {
         Self::with_sources(lf, config, SourcesPerSet::Count(per_set))
     }
 
-    /// Like [`Plan::with_sources_per_set`], or with each set's sources chosen by their
+    /// Like [`Partition::with_sources_per_set`], or with each set's sources chosen by their
     /// predicted cost ([`SourcesPerSet::Auto`]).
-    pub fn with_sources(lf: &LightField, config: &PlanConfig, choice: SourcesPerSet) -> Result<Plan, PlanError> {
+    pub fn with_sources(
+        lf: &LightField,
+        config: &PartitionConfig,
+        choice: SourcesPerSet,
+    ) -> Result<Partition, PartitionError> {
         let per_set = match choice {
             SourcesPerSet::Auto => 1,
             SourcesPerSet::Count(n) => n,
         };
         if per_set == 0 {
-            return Err(PlanError::NoSourcesPerSet);
+            return Err(PartitionError::NoSourcesPerSet);
         }
         if per_set > 1 && config.scheme != Scheme::MultiSource {
-            return Err(PlanError::SourcesPerSetWithFineScheme);
+            return Err(PartitionError::SourcesPerSetWithFineScheme);
         }
         let m = lf.len() as u32;
         if config.devices == 0 {
-            return Err(PlanError::NoDevices);
+            return Err(PartitionError::NoDevices);
         }
         if config.devices > m {
-            return Err(PlanError::MoreDevicesThanViews { devices: config.devices, views: m });
+            return Err(PartitionError::MoreDevicesThanViews { devices: config.devices, views: m });
         }
         let mut sources_prediction = Vec::new();
         let (assignment, sources, sources_of) = match config.scheme {
             Scheme::MultiSource => {
                 if config.sources.is_some() {
-                    return Err(PlanError::SourcesWithMultiSource);
+                    return Err(PartitionError::SourcesWithMultiSource);
                 }
                 let a = assign(config.assign, &lf.positions, config.devices)?;
                 let smallest = a.sets.iter().map(Vec::len).min().unwrap_or(0) as u32;
                 if per_set > smallest {
-                    return Err(PlanError::TooManySourcesPerSet { per_set, smallest });
+                    return Err(PartitionError::TooManySourcesPerSet { per_set, smallest });
                 }
                 let mut set_sources: Vec<Vec<ViewId>> = Vec::new();
                 for (i, set) in a.sets.iter().enumerate() {
@@ -172,7 +180,7 @@ impl Plan {
         };
         let is_source = (0..m).map(|v| sources.contains(&ViewId(v))).collect();
         let topology = ViewTopology { width: lf.width, height: lf.height, sources_of, is_source };
-        Ok(Plan {
+        Ok(Partition {
             scheme: config.scheme,
             devices: config.devices,
             assign: config.assign,
@@ -209,7 +217,7 @@ fn nearest_first(lf: &LightField, target: ViewId, sources: &[ViewId]) -> Vec<Vie
     ordered
 }
 
-impl Placement for Plan {
+impl Placement for Partition {
     fn devices(&self) -> u32 {
         self.devices
     }
@@ -226,28 +234,28 @@ impl Placement for Plan {
 }
 
 /// Parses `--sources 0,99`.
-pub fn parse_source_list(s: &str) -> Result<Vec<u32>, PlanError> {
+pub fn parse_source_list(s: &str) -> Result<Vec<u32>, PartitionError> {
     if s.trim().is_empty() {
-        return Err(PlanError::NoSources);
+        return Err(PartitionError::NoSources);
     }
-    s.split(',').map(|t| t.trim().parse::<u32>().map_err(|_| PlanError::BadSourceList(s.to_string()))).collect()
+    s.split(',').map(|t| t.trim().parse::<u32>().map_err(|_| PartitionError::BadSourceList(s.to_string()))).collect()
 }
 
-fn checked_sources(list: &[u32], views: u32) -> Result<Vec<ViewId>, PlanError> {
+fn checked_sources(list: &[u32], views: u32) -> Result<Vec<ViewId>, PartitionError> {
     if list.is_empty() {
-        return Err(PlanError::NoSources);
+        return Err(PartitionError::NoSources);
     }
     let mut seen = std::collections::BTreeSet::new();
     for &v in list {
         if v >= views {
-            return Err(PlanError::SourceOutOfRange { view: v, views });
+            return Err(PartitionError::SourceOutOfRange { view: v, views });
         }
         if !seen.insert(v) {
-            return Err(PlanError::DuplicateSource(v));
+            return Err(PartitionError::DuplicateSource(v));
         }
     }
     if seen.len() as u32 == views {
-        return Err(PlanError::AllViewsSources { sources: views, views });
+        return Err(PartitionError::AllViewsSources { sources: views, views });
     }
     Ok(seen.into_iter().map(ViewId).collect())
 }

@@ -30,7 +30,7 @@ use glam::DVec2;
 use serde::Serialize;
 
 use crate::assign::{AssignStrategy, assign};
-use crate::error::PlanError;
+use crate::error::PartitionError;
 use crate::ids::ViewId;
 use crate::lightfield::LightField;
 use crate::source::medoid;
@@ -66,7 +66,7 @@ pub fn predicted_missing(baseline: f64) -> f64 {
 }
 
 /// `count` sources of `members`: the medoids of their compact split into `count` parts.
-pub fn compact_sources(lf: &LightField, members: &[ViewId], count: u32) -> Result<Vec<ViewId>, PlanError> {
+pub fn compact_sources(lf: &LightField, members: &[ViewId], count: u32) -> Result<Vec<ViewId>, PartitionError> {
     if count == 1 {
         return Ok(vec![medoid(members, |v| lf.position(v)).expect("a set or block is never empty")]);
     }
@@ -159,7 +159,7 @@ pub fn cheapest_sources(
     lf: &LightField,
     set: u32,
     members: &[ViewId],
-) -> Result<(Vec<ViewId>, SetPrediction), PlanError> {
+) -> Result<(Vec<ViewId>, SetPrediction), PartitionError> {
     let blocks = blocks(lf, members);
     let mut sources = Vec::new();
     for block in &blocks {

@@ -3,7 +3,7 @@
 use serde::Serialize;
 
 use crate::lightfield::LightField;
-use crate::partition::Plan;
+use crate::partition::Partition;
 use crate::schedule::Schedule;
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -74,7 +74,7 @@ fn pair_batches(schedule: &Schedule) -> Vec<PairBatches> {
 }
 
 impl PlanSummary {
-    pub fn new(lf: &LightField, plan: &Plan, schedule: &Schedule) -> Self {
+    pub fn new(lf: &LightField, plan: &Partition, schedule: &Schedule) -> Self {
         PlanSummary {
             layout: lf.name.clone(),
             resolution: [lf.width, lf.height],

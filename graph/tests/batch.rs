@@ -142,9 +142,9 @@ fn overlapping_regions_in_one_batch_are_reported() {
 
 /// A filter reading one row around its band: under fine-all its copies are halo rows.
 fn halo_schedule() -> Schedule {
-    let plan = Plan::new(
+    let plan = Partition::new(
         &grid(3, 1, 12),
-        &PlanConfig { devices: 3, scheme: Scheme::FineAll, assign: AssignStrategy::RoundRobin, sources: None },
+        &PartitionConfig { devices: 3, scheme: Scheme::FineAll, assign: AssignStrategy::RoundRobin, sources: None },
     )
     .unwrap();
     let mut graph = Graph::new(plan.topology.clone());

@@ -12,7 +12,7 @@ use parallax_graph::*;
 /// An auto-exposure shape over a 4×1 light field: `shade` writes every view's radiance,
 /// `measure` reduces each view to a 1×1 image, the global `expose` pass reads all of them and
 /// writes the global `exposure` buffer, and `tonemap` of every view reads it.
-fn exposure_graph(plan: &Plan) -> Graph {
+fn exposure_graph(plan: &Partition) -> Graph {
     let mut g = Graph::new(plan.topology.clone());
     let mut radiance = g.image("radiance", Format::Rgba32f);
     let mut luminance = g.image_sized("luminance", 1, 1, Format::R32f);
@@ -28,8 +28,9 @@ fn exposure_graph(plan: &Plan) -> Graph {
     g
 }
 
-fn plan(devices: u32, scheme: Scheme) -> Plan {
-    Plan::new(&grid(4, 1, 8), &PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None }).unwrap()
+fn plan(devices: u32, scheme: Scheme) -> Partition {
+    Partition::new(&grid(4, 1, 8), &PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None })
+        .unwrap()
 }
 
 fn exposure_schedule(devices: u32, scheme: Scheme) -> Schedule {

@@ -11,8 +11,9 @@ use parallax_graph::*;
 /// `views`×1 views of 16×16, each in `devices` row bands, band `b` on device `b`: `shade`
 /// writes `color`, `blur` reads it with `halo` rows around each band (whole views when `None`).
 fn blur(views: u32, devices: u32, halo: Option<u32>) -> Schedule {
-    let config = PlanConfig { devices: 1, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&grid(views, 1, 16), &config).unwrap();
+    let config =
+        PartitionConfig { devices: 1, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(&grid(views, 1, 16), &config).unwrap();
     let mut g = Graph::new(plan.topology.clone());
     let mut color = g.image("color", Format::Rgba32f);
     let mut out = g.image("out", Format::Rgba32f);

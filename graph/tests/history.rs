@@ -10,8 +10,9 @@ use parallax_graph::*;
 /// A 3×1 light field on 3 devices (FineAll): `shade` writes `color`, `accumulate` reads it and
 /// last frame's `accum` and writes this frame's, `accum` exported.
 fn temporal() -> Schedule {
-    let config = PlanConfig { devices: 3, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&grid(3, 1, 8), &config).unwrap();
+    let config =
+        PartitionConfig { devices: 3, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(&grid(3, 1, 8), &config).unwrap();
     let mut g = Graph::new(plan.topology.clone());
     let mut color = g.image("color", Format::Rgba32f);
     let mut accum = g.image("accum", Format::Rgba32f);

@@ -7,11 +7,11 @@ use common::*;
 use parallax_graph::*;
 
 /// The test pipeline of a 3×2 grid, fine-all over two devices: the graph and its plan.
-fn fine_all_graph() -> (Graph, Plan) {
+fn fine_all_graph() -> (Graph, Partition) {
     let lf = grid(3, 2, 6);
-    let plan = Plan::new(
+    let plan = Partition::new(
         &lf,
-        &PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::RoundRobin, sources: None },
+        &PartitionConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::RoundRobin, sources: None },
     )
     .unwrap();
     let mut graph = Graph::new(plan.topology.clone());

@@ -51,7 +51,8 @@ fn medoid_ties_go_to_the_lowest_index() {
 
 /// Mean distance from each target to its set's source.
 fn mean_target_distance(lf: &LightField, n: u32, assign: AssignStrategy) -> f64 {
-    let plan = Plan::new(lf, &PlanConfig { devices: n, scheme: Scheme::MultiSource, assign, sources: None }).unwrap();
+    let plan = Partition::new(lf, &PartitionConfig { devices: n, scheme: Scheme::MultiSource, assign, sources: None })
+        .unwrap();
     let t = &plan.topology;
     let (sum, count) = (0..lf.len())
         .filter(|&v| !t.is_source[v])
@@ -92,32 +93,36 @@ fn compact_splits_nelf_by_eye() {
 #[test]
 fn explicit_sources_are_checked() {
     let lf = grid(4, 1, 8);
-    let config = |scheme, sources| PlanConfig { devices: 2, scheme, assign: AssignStrategy::RoundRobin, sources };
+    let config = |scheme, sources| PartitionConfig { devices: 2, scheme, assign: AssignStrategy::RoundRobin, sources };
     assert_eq!(
-        Plan::new(&lf, &config(Scheme::FineAll, Some(vec![0, 4]))).unwrap_err(),
-        PlanError::SourceOutOfRange { view: 4, views: 4 }
-    );
-    assert_eq!(Plan::new(&lf, &config(Scheme::FineAll, Some(vec![1, 1]))).unwrap_err(), PlanError::DuplicateSource(1));
-    assert_eq!(Plan::new(&lf, &config(Scheme::FineAll, Some(vec![]))).unwrap_err(), PlanError::NoSources);
-    assert_eq!(
-        Plan::new(&lf, &config(Scheme::FineAll, Some(vec![0, 1, 2, 3]))).unwrap_err(),
-        PlanError::AllViewsSources { sources: 4, views: 4 }
+        Partition::new(&lf, &config(Scheme::FineAll, Some(vec![0, 4]))).unwrap_err(),
+        PartitionError::SourceOutOfRange { view: 4, views: 4 }
     );
     assert_eq!(
-        Plan::new(&lf, &config(Scheme::MultiSource, Some(vec![0]))).unwrap_err(),
-        PlanError::SourcesWithMultiSource
+        Partition::new(&lf, &config(Scheme::FineAll, Some(vec![1, 1]))).unwrap_err(),
+        PartitionError::DuplicateSource(1)
     );
-    let plan = Plan::new(&lf, &config(Scheme::FineSources, Some(vec![3, 0]))).unwrap();
+    assert_eq!(Partition::new(&lf, &config(Scheme::FineAll, Some(vec![]))).unwrap_err(), PartitionError::NoSources);
+    assert_eq!(
+        Partition::new(&lf, &config(Scheme::FineAll, Some(vec![0, 1, 2, 3]))).unwrap_err(),
+        PartitionError::AllViewsSources { sources: 4, views: 4 }
+    );
+    assert_eq!(
+        Partition::new(&lf, &config(Scheme::MultiSource, Some(vec![0]))).unwrap_err(),
+        PartitionError::SourcesWithMultiSource
+    );
+    let plan = Partition::new(&lf, &config(Scheme::FineSources, Some(vec![3, 0]))).unwrap();
     assert_eq!(plan.sources, vec![ViewId(0), ViewId(3)]);
     assert_eq!(parse_source_list("0, 99").unwrap(), vec![0, 99]);
-    assert_eq!(parse_source_list("0;99").unwrap_err(), PlanError::BadSourceList("0;99".into()));
+    assert_eq!(parse_source_list("0;99").unwrap_err(), PartitionError::BadSourceList("0;99".into()));
 }
 
 #[test]
 fn sources_per_set_gives_k_sources_per_set_and_each_target_its_nearest() {
     let lf = grid(8, 4, 8);
-    let config = PlanConfig { devices: 2, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::with_sources_per_set(&lf, &config, 2).unwrap();
+    let config =
+        PartitionConfig { devices: 2, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::with_sources_per_set(&lf, &config, 2).unwrap();
     assert_eq!(plan.sources.len(), 4, "2 sets × 2 sources");
     let sets = plan.assignment.as_ref().unwrap();
     for v in 0..lf.len() as u32 {
@@ -134,20 +139,24 @@ fn sources_per_set_gives_k_sources_per_set_and_each_target_its_nearest() {
         assert!(own.iter().all(|&s| d(of[0]) <= d(s)), "view {v} reads its nearest source");
     }
     assert_eq!(
-        Plan::with_sources_per_set(&lf, &config, 17).err(),
-        Some(PlanError::TooManySourcesPerSet { per_set: 17, smallest: 16 })
+        Partition::with_sources_per_set(&lf, &config, 17).err(),
+        Some(PartitionError::TooManySourcesPerSet { per_set: 17, smallest: 16 })
     );
-    let fine = PlanConfig { scheme: Scheme::FineAll, ..config.clone() };
-    assert_eq!(Plan::with_sources_per_set(&lf, &fine, 2).err(), Some(PlanError::SourcesPerSetWithFineScheme));
-    assert_eq!(Plan::with_sources_per_set(&lf, &config, 0).err(), Some(PlanError::NoSourcesPerSet));
+    let fine = PartitionConfig { scheme: Scheme::FineAll, ..config.clone() };
+    assert_eq!(Partition::with_sources_per_set(&lf, &fine, 2).err(), Some(PartitionError::SourcesPerSetWithFineScheme));
+    assert_eq!(Partition::with_sources_per_set(&lf, &config, 0).err(), Some(PartitionError::NoSourcesPerSet));
 }
 
 #[test]
 fn fine_scheme_targets_read_their_sources_nearest_first() {
     let lf = grid(5, 1, 8);
-    let config =
-        PlanConfig { devices: 1, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![0, 4]) };
-    let plan = Plan::new(&lf, &config).unwrap();
+    let config = PartitionConfig {
+        devices: 1,
+        scheme: Scheme::FineAll,
+        assign: AssignStrategy::Compact,
+        sources: Some(vec![0, 4]),
+    };
+    let plan = Partition::new(&lf, &config).unwrap();
     assert_eq!(plan.topology.sources_of[1], vec![ViewId(0), ViewId(4)]);
     assert_eq!(plan.topology.sources_of[3], vec![ViewId(4), ViewId(0)]);
 }

@@ -11,9 +11,11 @@ use parallax_graph::*;
 /// reads last frame's `accum` and writes this frame's, `shade` writes `color` and then modifies
 /// it in place, `blur` reads it and writes a new version.
 fn temporal(devices: u32, scheme: Scheme) -> Schedule {
-    let plan =
-        Plan::new(&grid(3, 1, 8), &PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None })
-            .unwrap();
+    let plan = Partition::new(
+        &grid(3, 1, 8),
+        &PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None },
+    )
+    .unwrap();
     let mut g = Graph::new(plan.topology.clone());
     let mut color = g.image("color", Format::Rgba32f);
     let mut accum = g.image("accum", Format::Rgba32f);
@@ -59,9 +61,9 @@ fn a_band_modified_in_place_stays_in_place_when_a_whole_view_read_copies_the_oth
     // `tint` modifies each band of `color` in place on its device, `gather` then reads the whole
     // view: the other bands' final rows are copied into the allocation the in-place band lives
     // in, whichever device's `tint` comes first in the frame's order.
-    let plan = Plan::new(
+    let plan = Partition::new(
         &grid(3, 1, 8),
-        &PlanConfig { devices: 3, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None },
+        &PartitionConfig { devices: 3, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None },
     )
     .unwrap();
     let mut g = Graph::new(plan.topology.clone());
@@ -107,9 +109,14 @@ fn history_reads_the_previous_half_of_the_pair_whose_current_half_the_final_writ
 #[test]
 fn reads_carry_their_slot_and_origin() {
     let lf = grid(3, 1, 8);
-    let plan = Plan::new(
+    let plan = Partition::new(
         &lf,
-        &PlanConfig { devices: 1, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![0, 2]) },
+        &PartitionConfig {
+            devices: 1,
+            scheme: Scheme::FineAll,
+            assign: AssignStrategy::Compact,
+            sources: Some(vec![0, 2]),
+        },
     )
     .unwrap();
     let mut g = Graph::new(plan.topology.clone());
@@ -223,9 +230,14 @@ fn an_op_naming_a_missing_instance_is_refused_before_anything_indexes_by_it() {
 
 #[test]
 fn an_exported_version_read_on_device_0_travels_there_once() {
-    let plan = Plan::new(
+    let plan = Partition::new(
         &grid(3, 1, 8),
-        &PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: Some(vec![1]) },
+        &PartitionConfig {
+            devices: 2,
+            scheme: Scheme::FineAll,
+            assign: AssignStrategy::Compact,
+            sources: Some(vec![1]),
+        },
     )
     .unwrap();
     let mut g = Graph::new(plan.topology.clone());

@@ -10,7 +10,7 @@ pub enum PassError {
     Backend(#[from] BackendError),
 
     #[error(transparent)]
-    Plan(#[from] parallax_graph::PlanError),
+    Partition(#[from] parallax_graph::PartitionError),
 
     #[error(transparent)]
     Graph(#[from] parallax_graph::GraphError),
@@ -83,12 +83,12 @@ pub enum PassError {
 }
 
 /// Each step's error of `Compiled::compile` becomes the error it becomes alone: compiling's
-/// [`PassError::Graph`], lowering's [`BackendError::Lower`].
+/// [`PassError::Graph`], the kernel plan's [`BackendError::KernelPlan`].
 impl From<CompileError> for PassError {
     fn from(error: CompileError) -> PassError {
         match error {
             CompileError::Graph(e) => PassError::Graph(e),
-            CompileError::Lower(e) => PassError::Backend(e.into()),
+            CompileError::KernelPlan(e) => PassError::Backend(e.into()),
         }
     }
 }

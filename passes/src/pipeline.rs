@@ -522,14 +522,17 @@ mod tests {
 
     #[test]
     fn the_sample_space_schedule_has_svgf_instances_on_sources_only_under_every_scheme() {
-        use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Rig, Scheme, compile};
+        use parallax_graph::{
+            AssignStrategy, LayoutSpec, LightField, Partition, PartitionConfig, Rig, Scheme, compile,
+        };
         let lf =
             LightField::new(LayoutSpec::Grid { cols: 4, rows: 2 }, Some(0.02), Some((16, 12)), Rig::default()).unwrap();
         for scheme in Scheme::ALL {
             for devices in [1, 3] {
                 let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
                 let plan =
-                    Plan::new(&lf, &PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources }).unwrap();
+                    Partition::new(&lf, &PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources })
+                        .unwrap();
                 let mut graph = KernelGraph::with_payload(plan.topology.clone());
                 let config = PipelineConfig { denoise: Denoiser::Samples, ..PipelineConfig::default() };
                 let handles = declare_pipeline(&mut graph, &config).unwrap();

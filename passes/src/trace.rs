@@ -7,8 +7,8 @@ use std::sync::Arc;
 
 use parallax_backend::{Compiled, Context, ExecOptions, KernelGraph, KernelPlan, ResourceKind};
 use parallax_graph::{
-    AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, Placement, PlanConfig, Rig, Role,
-    Scheme, ViewTopology,
+    AssignStrategy, BandedPlacement, Format, Handle, Image, LayoutSpec, LightField, PartitionConfig, Placement, Rig,
+    Role, Scheme, ViewTopology,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{Scene, TraceSettings, View};
@@ -70,8 +70,8 @@ pub fn trace_plan(
     let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
     // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
     let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
-    let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources };
-    let placement = parallax_graph::Plan::new(&lf, &config)?;
+    let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources };
+    let placement = parallax_graph::Partition::new(&lf, &config)?;
     lower_trace(placement.topology.clone(), &placement, pixel_list)
 }
 

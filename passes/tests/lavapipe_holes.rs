@@ -17,8 +17,8 @@ use parallax_backend::{
     EventKind, ExecOptions, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder,
 };
 use parallax_graph::{
-    AssignStrategy, FamilyId, Format, LayoutSpec, LightField, PlanConfig, Region, Rig, Role, Scheme, ViewId, WriteSlot,
-    compile,
+    AssignStrategy, FamilyId, Format, LayoutSpec, LightField, PartitionConfig, Region, Rig, Role, Scheme, ViewId,
+    WriteSlot, compile,
 };
 use parallax_passes::gbuffer::declare_gbuffer;
 use parallax_passes::{
@@ -86,8 +86,9 @@ impl Case {
     fn plan(&self, devices: u32, scheme: Scheme) -> HolePlan {
         let layout = LayoutSpec::Grid { cols: self.cols, rows: self.rows };
         let lf = LightField::new(layout, None, Some((W, H)), Rig::default()).unwrap();
-        let config = PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![self.source]) };
-        let placement = parallax_graph::Plan::new(&lf, &config).unwrap();
+        let config =
+            PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: Some(vec![self.source]) };
+        let placement = parallax_graph::Partition::new(&lf, &config).unwrap();
         let mut graph = KernelGraph::with_payload(placement.topology.clone());
         let first_hit = self.first_hits.then(|| declare_gbuffer(&mut graph, true).first_hit).flatten();
         let mut radiance = graph.image("radiance", Format::Rgba32f);

@@ -8,8 +8,8 @@ mod common;
 use glam::Vec3;
 use parallax_backend::{Barriers, EventKind, ExecOptions, FrameReport, KernelGraph, KernelPlan, LinkKind, Timing};
 use parallax_graph::{
-    AssignStrategy, DeviceId, FamilyId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region,
-    Scheme, ViewId, compile,
+    AssignStrategy, DeviceId, FamilyId, LayoutSpec, LightField, Partition, PartitionConfig, PassPlacementInfo,
+    Placement, Region, Scheme, ViewId, compile,
 };
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
@@ -25,7 +25,7 @@ const FRAMES: u32 = 3;
 
 /// A plan's placement with every instance moved to device 0: the same sources, sets and bands,
 /// one device.
-struct OnOneDevice<'p>(&'p Plan);
+struct OnOneDevice<'p>(&'p Partition);
 
 impl Placement for OnOneDevice<'_> {
     fn devices(&self) -> u32 {
@@ -50,7 +50,7 @@ type Frames = Vec<Vec<(Vec<u8>, Vec<u8>)>>;
 fn run(
     scene: &Scene,
     lf: &LightField,
-    plan: &Plan,
+    plan: &Partition,
     placement: &dyn Placement,
     frames: std::ops::Range<u32>,
     cut: Option<(u32, &LightField)>,
@@ -61,7 +61,7 @@ fn run(
 fn run_with(
     scene: &Scene,
     lf: &LightField,
-    plan: &Plan,
+    plan: &Partition,
     placement: &dyn Placement,
     frames: std::ops::Range<u32>,
     cut: Option<(u32, &LightField)>,
@@ -76,7 +76,7 @@ fn run_with(
 fn run_config(
     scene: &Scene,
     lf: &LightField,
-    plan: &Plan,
+    plan: &Partition,
     placement: &dyn Placement,
     frames: std::ops::Range<u32>,
     cut: Option<(u32, &LightField)>,
@@ -100,7 +100,7 @@ type Layers = Vec<Vec<Vec<Vec<u8>>>>;
 fn run_layers(
     scene: &Scene,
     lf: &LightField,
-    plan: &Plan,
+    plan: &Partition,
     placement: &dyn Placement,
     frames: std::ops::Range<u32>,
     cut: Option<(u32, &LightField)>,
@@ -156,9 +156,9 @@ fn finite(frames: &Frames) -> bool {
 /// `devices` devices under `scheme`, compact assignment: explicit sources 1 and 6 for the fine
 /// schemes (so a run and its one-device twin reproject from the same views), the planner's for
 /// multi-source.
-fn compact_plan(lf: &LightField, devices: u32, scheme: Scheme) -> Plan {
+fn compact_plan(lf: &LightField, devices: u32, scheme: Scheme) -> Partition {
     let sources = (scheme != Scheme::MultiSource).then(|| vec![1, 6]);
-    Plan::new(lf, &PlanConfig { devices, scheme, assign: AssignStrategy::Compact, sources }).unwrap()
+    Partition::new(lf, &PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources }).unwrap()
 }
 
 /// Every scheme on three devices gives the bits of the same plan on one device, for the
@@ -315,15 +315,16 @@ fn thin_geometry_and_a_camera_inside_geometry_render_finite_images() {
     let thin = thin_scene();
     let camera = Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y, 0.9);
     let lf = light_field(&thin, camera, 0.01);
-    let config = PlanConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config).unwrap();
+    let config =
+        PartitionConfig { devices: 2, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(&lf, &config).unwrap();
     assert!(finite(&run(&thin, &lf, &plan, &plan, 0..2, None)));
 
     // Inside the closed box: every ray hits its inside faces, lit by nothing but what leaks
     // through no gap (so black, but finite).
     let inside = Camera::look_at(Vec3::new(10.0, 0.0, 0.0), Vec3::new(11.0, 0.0, 0.0), Vec3::Y, 1.0);
     let lf = light_field(&thin, inside, 0.001);
-    let plan = Plan::new(&lf, &PlanConfig { scheme: Scheme::MultiSource, ..config }).unwrap();
+    let plan = Partition::new(&lf, &PartitionConfig { scheme: Scheme::MultiSource, ..config }).unwrap();
     assert!(finite(&run(&thin, &lf, &plan, &plan, 0..2, None)));
 }
 
@@ -365,8 +366,9 @@ fn barriers_only_where_accesses_conflict_and_per_stage_timing_give_the_same_bits
 fn fine_all_on_four_devices_runs_with_one_queued_submission_per_device() {
     let scene = default_scene();
     let lf = light_field(&scene, scene.default_camera(), 0.02);
-    let config = PlanConfig { devices: 4, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config).unwrap();
+    let config =
+        PartitionConfig { devices: 4, scheme: Scheme::FineAll, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(&lf, &config).unwrap();
     let narrow = ExecOptions { max_queued_segments: 1, ..Default::default() };
     let (four, reports) = run_with(&scene, &lf, &plan, &plan, 0..FRAMES, None, narrow);
     assert_eq!(reports.len(), FRAMES as usize);

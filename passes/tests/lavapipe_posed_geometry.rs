@@ -8,8 +8,8 @@ mod common;
 use glam::Vec3;
 use parallax_backend::{KernelGraph, KernelPlan};
 use parallax_graph::{
-    AssignStrategy, DeviceId, LayoutSpec, LightField, PassPlacementInfo, Placement, Plan, PlanConfig, Region, Scheme,
-    ViewId, compile,
+    AssignStrategy, DeviceId, LayoutSpec, LightField, Partition, PartitionConfig, PassPlacementInfo, Placement, Region,
+    Scheme, ViewId, compile,
 };
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
@@ -22,7 +22,7 @@ const SIZE: u32 = 16;
 const TIMES: [f32; 3] = [0.0, 1.0, 2.0];
 
 /// A plan's placement with every instance moved to device 0.
-struct OnOneDevice<'p>(&'p Plan);
+struct OnOneDevice<'p>(&'p Partition);
 
 impl Placement for OnOneDevice<'_> {
     fn devices(&self) -> u32 {
@@ -44,7 +44,7 @@ fn lit_fox() -> Scene {
 
 /// The denoised radiance of every view of every frame, the scene posed at `TIMES` (or kept in
 /// its first pose, `pose: false`) before each frame.
-fn run(lf: &LightField, plan: &Plan, placement: &dyn Placement, pose: bool) -> Vec<Vec<Vec<u8>>> {
+fn run(lf: &LightField, plan: &Partition, placement: &dyn Placement, pose: bool) -> Vec<Vec<Vec<u8>>> {
     let mut scene = lit_fox();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let config = common::denoising_pipeline(PipelineKind::Reproject);
@@ -77,8 +77,9 @@ fn posed_geometry_gives_the_same_bits_on_one_and_three_devices() {
     let camera = Camera::look_at(Vec3::new(0.0, 40.0, 250.0), Vec3::new(0.0, 40.0, 0.0), Vec3::Y, 0.7);
     let rig = rig_of(&camera, scene.bounds().center(), None);
     let lf = LightField::new(LayoutSpec::Grid { cols: 3, rows: 1 }, Some(2.0), Some((SIZE, SIZE)), rig).unwrap();
-    let config = PlanConfig { devices: 3, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config).unwrap();
+    let config =
+        PartitionConfig { devices: 3, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(&lf, &config).unwrap();
     let three = run(&lf, &plan, &plan, true);
     let one = run(&lf, &plan, &OnOneDevice(&plan), true);
     assert!(three == one, "3 devices and 1 device differ on posed frames");

@@ -10,7 +10,7 @@ mod common;
 
 use glam::Vec3;
 use parallax_backend::{KernelGraph, KernelPlan};
-use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Plan, PlanConfig, Scheme, compile};
+use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Partition, PartitionConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::firefly::FireflyMode;
@@ -92,7 +92,7 @@ impl Gbuffer {
 /// One rendered light field: per view, radiance texels, and for targets of the reprojecting
 /// pipeline the hole mask and the G-buffer.
 struct Rendered {
-    plan: Plan,
+    plan: Partition,
     views: Vec<View>,
     radiance: Vec<Vec<[f32; 4]>>,
     holes: Vec<Option<Vec<u32>>>,
@@ -113,9 +113,13 @@ fn render_setup(s: Setup<'_>) -> Rendered {
     let rig = rig_of(&s.camera, s.scene.bounds().center(), None);
     let lf =
         LightField::new(LayoutSpec::Grid { cols: s.cols, rows: 1 }, Some(s.spacing), Some((SIZE, SIZE)), rig).unwrap();
-    let config =
-        PlanConfig { devices: s.devices, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &config).unwrap();
+    let config = PartitionConfig {
+        devices: s.devices,
+        scheme: Scheme::MultiSource,
+        assign: AssignStrategy::Compact,
+        sources: None,
+    };
+    let plan = Partition::new(&lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let config = PipelineConfig {
         kind: s.kind,

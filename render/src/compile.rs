@@ -1,12 +1,13 @@
 //! The one place a pipeline becomes what runs: the light field planned over its devices, the
 //! pipeline (extended by a user crate's stages) declared on the plan's topology, and both
-//! compiled and lowered in one call. `plan` and `render` compile through here, so `plan` shows
+//! compiled and made into its kernel plan in one call. `plan` and `render` compile through here, so `plan` shows
 //! exactly the schedule `render` runs.
 
 use anyhow::Result;
 use parallax_backend::{Compiled, KernelGraph, KernelPlan};
 use parallax_graph::{
-    AssignStrategy, LightField, Plan, PlanConfig, PlanSummary, ProvenSchedule, Schedule, Scheme, SourcesPerSet,
+    AssignStrategy, LightField, Partition, PartitionConfig, PlanSummary, ProvenSchedule, Schedule, Scheme,
+    SourcesPerSet,
 };
 use parallax_passes::firefly::FireflyMode;
 use parallax_passes::pipeline::{
@@ -54,11 +55,11 @@ pub fn default_reprojection_tolerance() -> f64 {
 }
 
 impl PipelineSettings {
-    fn plan_config(&self, devices: u32) -> PlanConfig {
-        PlanConfig { devices, scheme: self.scheme, assign: self.assign, sources: self.sources.clone() }
+    fn plan_config(&self, devices: u32) -> PartitionConfig {
+        PartitionConfig { devices, scheme: self.scheme, assign: self.assign, sources: self.sources.clone() }
     }
 
-    fn plan_shape(&self, lf: &LightField, config: &PlanConfig) -> PlanShape {
+    fn plan_shape(&self, lf: &LightField, config: &PartitionConfig) -> PlanShape {
         let devices = config.devices;
         let (sources, sources_flag) = match (&config.sources, config.scheme) {
             (Some(s), _) => (s.len() as u64, Some("--sources")),
@@ -94,10 +95,10 @@ impl PipelineSettings {
 
 /// A compiled, checked schedule of the pipeline, with what running it needs.
 pub struct PipelineSchedule {
-    pub plan: Plan,
+    pub plan: Partition,
     pub handles: PipelineHandles,
     pub schedule: ProvenSchedule,
-    /// What executes `schedule`, lowered from it once here (a rank runs its part of it).
+    /// What executes `schedule`, built from it once here (a rank runs its part of it).
     pub exec: KernelPlan,
     pub summary: PlanSummary,
     pub kind: PipelineKind,
@@ -110,13 +111,13 @@ pub struct PipelineSchedule {
 /// any rig gives the same schedule.
 pub fn compile(
     lf: &LightField,
-    config: &PlanConfig,
+    config: &PartitionConfig,
     sources_per_set: SourcesPerSet,
     pipeline: PipelineConfig,
     extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
 ) -> Result<PipelineSchedule> {
     let kind = pipeline.kind;
-    let plan = Plan::with_sources(lf, config, sources_per_set)?;
+    let plan = Partition::with_sources(lf, config, sources_per_set)?;
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let handles = extend(PipelineBuilder::new(pipeline)).declare(&mut graph)?;
     graph.export(&handles.display);

@@ -56,8 +56,8 @@ pub fn test_schedule(
     scheme: Scheme,
     assign: AssignStrategy,
     sources: Option<Vec<u32>>,
-) -> (Plan, Schedule) {
-    let plan = Plan::new(lf, &PlanConfig { devices, scheme, assign, sources }).expect("valid plan");
+) -> (Partition, Schedule) {
+    let plan = Partition::new(lf, &PartitionConfig { devices, scheme, assign, sources }).expect("valid plan");
     let mut graph = Graph::new(plan.topology.clone());
     declare_test_pipeline(&mut graph);
     let schedule = compile(&graph, &plan).expect("the test pipeline compiles");

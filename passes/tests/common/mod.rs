@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use parallax_backend::{Context, ExecOptions, KernelGraph, KernelPlan};
-use parallax_graph::{AssignStrategy, LightField, Plan, PlanConfig, Scheme, compile};
+use parallax_graph::{AssignStrategy, LightField, Partition, PartitionConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::firefly::FireflyMode;
 use parallax_passes::pipeline::{
@@ -43,8 +43,9 @@ pub fn reprojection_renderer(
     lf: &LightField,
     options: ExecOptions,
 ) -> (LightFieldRenderer, PipelineHandles) {
-    let config = PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(lf, &config).unwrap();
+    let config =
+        PartitionConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let plan = Partition::new(lf, &config).unwrap();
     let mut graph = KernelGraph::with_payload(plan.topology.clone());
     let pipeline = denoising_pipeline(PipelineKind::Reproject);
     let handles = declare_pipeline(&mut graph, &pipeline).unwrap();

@@ -16,8 +16,8 @@ use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings};
 
 use super::faults::fault_from_env;
-use super::plan::RenderJob;
 use super::posing::Posing;
+use super::prepare::RenderJob;
 use super::report::{Rendered, ViewLayers, stage_views, view_layers};
 use crate::console::bar;
 use crate::outputs::Staged;

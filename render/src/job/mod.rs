@@ -8,15 +8,15 @@
 //! parallax), an optional Looking Glass quilt and wiggle, and render.json with the paper's
 //! Table 1 / Table 4 measures and the `setup` that comparisons check.
 //!
-//! Three rooms: [`plan`] (settings, outputs and work checked, the pipeline compiled, the scene
+//! Three rooms: [`prepare`] (settings, outputs and work checked, the pipeline compiled, the scene
 //! loaded), [`frames`] (devices, executor, the frame loop) and [`report`] (read-back, outputs,
 //! render.json); [`ranked`] runs them as one rank of several under mpirun. A user crate runs
 //! all three over its own stages with [`run`].
 
 mod faults;
 mod frames;
-pub mod plan;
 mod posing;
+pub mod prepare;
 #[cfg(feature = "mpi")]
 mod ranked;
 mod report;
@@ -28,10 +28,10 @@ use parallax_passes::pipeline::PipelineBuilder;
 
 use crate::settings::{RenderExtension, RenderSettings};
 use frames::render_frames;
-use plan::RenderJob;
+use prepare::RenderJob;
 use report::write_outputs;
 
-/// A render of `settings` over the standard pipeline extended by `extension`: plan, frames,
+/// A render of `settings` over the standard pipeline extended by `extension`: prepare, frames,
 /// report. Under mpirun (the `mpi` feature) this process renders its rank's part.
 pub fn run(settings: &RenderSettings, mut extension: RenderExtension) -> Result<()> {
     // Without MPI every rank of mpirun would render the whole light field into the same folder.

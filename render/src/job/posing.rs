@@ -19,7 +19,7 @@ use parallax_passes::LightFieldRenderer;
 use parallax_scene::SceneBvh;
 use parallax_scene::gpu::GpuScene;
 
-use super::plan::RenderJob;
+use super::prepare::RenderJob;
 use crate::report::stages::Spread;
 use crate::settings::RenderSettings;
 

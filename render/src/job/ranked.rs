@@ -19,7 +19,7 @@ use parallax_scene::Camera;
 
 use super::faults::{RankFault, rank_fault_from_env};
 use super::frames::render_frames;
-use super::plan::RenderJob;
+use super::prepare::RenderJob;
 use super::report::{RankViews, Rendered, output_families, write_outputs};
 use crate::error::UsageError;
 use crate::ranks::mpi::{Cluster, Collector, FrameStat, LinkTransport, Reported};

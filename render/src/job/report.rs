@@ -18,8 +18,8 @@ use parallax_passes::pipeline::{PipelineHandles, PipelineKind};
 use parallax_scene::output::{ExrLayers, write_exr_with};
 use parallax_scene::{Frame, PixelSample, View};
 
-use super::plan::{RenderJob, view_file_name};
 use super::posing::GeometryReport;
+use super::prepare::{RenderJob, view_file_name};
 use crate::compile::{denoiser_name, fireflies_name, gbuffer_name, pipeline_name, plan_json, sources_per_set_json};
 use crate::console::result;
 use crate::outputs::resident::ResidentSummary;
@@ -252,7 +252,7 @@ fn holes_of_targets(
 fn render_json(settings: &RenderSettings, job: &RenderJob, measured: &Measured<'_>) -> Result<serde_json::Value> {
     let last = job.total_frames - 1;
     let lf = job.lf_of(settings, 0)?;
-    let still = matches!(job.motion, super::plan::Motion::Still);
+    let still = matches!(job.motion, super::prepare::Motion::Still);
     let last_lf = job.lf_of(settings, last)?;
     let spacing = job.spacing;
     let camera_last = job.camera_at(settings, last);

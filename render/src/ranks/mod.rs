@@ -195,7 +195,7 @@ pub struct RankShare {
     pub link_bytes_per_frame: u64,
 }
 
-/// Which rank runs which views of `schedule` (lowered to `plan`) under `layout`, and what each
+/// Which rank runs which views of `schedule` (built into `plan`) under `layout`, and what each
 /// sends per frame.
 pub fn shares(schedule: &Schedule, plan: &ExecutionPlan, layout: &RankLayout, width: u32) -> Vec<RankShare> {
     let pixels_per_view = u64::from(width) * u64::from(schedule.height);

@@ -1,19 +1,20 @@
-//! Lowering a compiled `parallax_graph::Schedule` of a kernel-carrying graph to the executor's
+//! A graph whose passes carry kernels ([`KernelGraph`]), and its compiled `parallax_graph::Schedule`
+//! made into the executor's
 //! [`KernelPlan`]: an [`ExecutionPlan`] and its kernels. The schedule's pass instances, copies,
 //! device programs (ops and barriers, by device id) and history pairs are taken as they are:
 //! nothing is re-planned, and the op order (batching included, `parallax_graph::CompileOptions`)
-//! is the order the executor submits. Lowering adds each declared pass's kernel, and each
+//! is the order the executor submits. [`KernelPlan::from_schedule`] adds each declared pass's kernel, and each
 //! allocation's GPU description: a resource of its declared resource's family (a history pair's
 //! previous half described as its current half, the two swapped by frame parity).
-//! [`Compiled::compile`] compiles and lowers in one call, so that a caller holds what executes
-//! without lowering anything itself.
+//! [`Compiled::compile`] compiles and builds the kernel plan in one call, so that a caller holds
+//! what executes without building anything itself.
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
 use parallax_graph::{AllocId, Format, Graph, Placement, ProvenSchedule, ResourceDesc, Schedule};
 
-use crate::error::{CompileError, LowerError};
+use crate::error::{CompileError, KernelPlanError};
 use crate::kernel::{KernelPlan, Kernels, PassKernel};
 use crate::plan::{ExecResource, ExecutionPlan, ResourceKind};
 
@@ -21,7 +22,7 @@ use crate::plan::{ExecResource, ExecutionPlan, ResourceKind};
 pub type KernelGraph = Graph<Arc<dyn PassKernel>>;
 
 /// A kernel graph compiled for the executor: its proven schedule (what a plan is drawn, summed
-/// up and cut into ranks from) and the plan lowered from it (what `Executor::new` runs), both
+/// up and cut into ranks from) and the plan built from it (what `Executor::new` runs), both
 /// from one [`Compiled::compile`].
 #[derive(Clone, Debug)]
 pub struct Compiled {
@@ -32,7 +33,7 @@ pub struct Compiled {
 impl Compiled {
     /// Compiles `graph` under `placement` (`parallax_graph::compile`, which proves the
     /// schedule) and lowers the schedule ([`KernelPlan::from_schedule`]). The error is the
-    /// step's own: a `GraphError` of compiling or a `LowerError` of lowering.
+    /// step's own: a `GraphError` of compiling or a `KernelPlanError` of building the kernel plan.
     pub fn compile(graph: &KernelGraph, placement: &dyn Placement) -> Result<Compiled, CompileError> {
         let schedule = parallax_graph::compile(graph, placement)?;
         let plan = KernelPlan::from_schedule(graph, &schedule)?;
@@ -41,23 +42,23 @@ impl Compiled {
 }
 
 impl KernelPlan {
-    /// Lowers `schedule`, compiled from `graph`. The schedule is proven (`ProvenSchedule`: it
+    /// The kernel plan of `schedule`, compiled from `graph`. The schedule is proven (`ProvenSchedule`: it
     /// passed `Schedule::validate()` once, when it was compiled or changed): that is the proof of
     /// the plan's ids, rows, op order, barriers, copies, history pairs and storage, so nothing
     /// here checks them again; `KernelPlan::validate` (the executor runs it) adds only what
     /// the backend knows (device count, kernels, resets).
-    pub fn from_schedule(graph: &KernelGraph, schedule: &ProvenSchedule) -> Result<KernelPlan, LowerError> {
+    pub fn from_schedule(graph: &KernelGraph, schedule: &ProvenSchedule) -> Result<KernelPlan, KernelPlanError> {
         let mut kernels = Kernels::default();
         for inst in &schedule.instances {
             if kernels.of(inst.pass).is_some() {
                 continue;
             }
             let kernel =
-                graph.payload(inst.pass).ok_or_else(|| LowerError::MissingKernel { pass: inst.name.clone() })?;
+                graph.payload(inst.pass).ok_or_else(|| KernelPlanError::MissingKernel { pass: inst.name.clone() })?;
             // The schedule's order defers a grouped pass's copy-outs to the end of its runs; a
             // kernel that records groups needs that, or each group is one instance.
             if kernel.records_groups() && !schedule.passes[inst.pass.index()].grouped {
-                return Err(LowerError::UngroupedKernel { pass: inst.name.clone() });
+                return Err(KernelPlanError::UngroupedKernel { pass: inst.name.clone() });
             }
             kernels.insert(inst.pass, kernel.clone());
         }
@@ -76,7 +77,7 @@ impl KernelPlan {
         devices.sort_by_key(|p| p.device);
         let ids: Vec<u32> = devices.iter().map(|p| p.device.0).collect();
         if ids.iter().enumerate().any(|(i, &d)| d as usize != i) {
-            return Err(LowerError::DevicePrograms { found: ids, expected: devices.len() });
+            return Err(KernelPlanError::DevicePrograms { found: ids, expected: devices.len() });
         }
         let plan = ExecutionPlan {
             resources,

@@ -1,4 +1,4 @@
-//! `render`'s plan room: everything decided before a device is touched. The flags are checked
+//! Preparing a render: everything decided before a device is touched. The flags are checked
 //! together, the outputs can be written, the work fits the host, the pipeline (with a user
 //! crate's stages) is compiled as `plan` compiles it, the scene is loaded and the camera of
 //! every frame is known.
