@@ -198,6 +198,45 @@ fn runs_are_checked_against_the_address_space_limit() {
     );
 }
 
+/// Issue 38: logical devices of one GPU that would together outgrow its device-local heap are
+/// refused once the devices are known, before anything is allocated or written. lavapipe's heap
+/// is the machine's memory (`MemTotal`), and under fine-all each of 8 logical devices holds every
+/// view (about 400 B a pixel): views of `MemTotal` / 1024 pixels in all then need about three
+/// heaps, while the host reads back an eighth of the memory.
+#[test]
+fn logical_devices_beyond_their_gpus_heap_are_refused_before_allocating() {
+    let dir = scratch("limits", "heap");
+    let side = (mem_total_bytes() / 1024 / 16).isqrt() / 16 * 16;
+    let resolution = format!("{side}x{side}");
+    // Room for the read-back, Vulkan and 8 devices' threads (what the host check counts), so
+    // the limit that binds is the GPU heap's; a regression that allocates fails under the cap.
+    let cap_kib = (mem_total_bytes() / 8 + (16 << 30)) >> 10;
+    let args = ["-q", "render", "--lf", "4x4", "--resolution", &resolution, "--scheme", "fine-all"];
+    let opening = format!(
+        "error: --scheme fine-all over 8 logical device(s) (--fake-devices 8) with 16 view(s) (--lf) × {resolution} \
+         (--resolution) does not fit in GPU memory: physical GPU "
+    );
+    refused_at(
+        &dir,
+        cap_kib,
+        &args.into_iter().chain(["--fake-devices", "8", "--out-dir", "lf"]).collect::<Vec<_>>(),
+        &[
+            &opening,
+            "for device(s) 0, 1, 2, 3, 4, 5, 6, 7 (",
+            "of plan and scene, and 0.5 GiB each that the driver and allocator take unreported), but its memory heap has",
+            "GiB: use fewer logical devices per GPU (--fake-devices) or --scheme multi-source, or lower --lf or --resolution",
+        ],
+    );
+}
+
+/// The machine's memory, from /proc/meminfo.
+fn mem_total_bytes() -> u64 {
+    let info = std::fs::read_to_string("/proc/meminfo").unwrap();
+    let line = info.lines().find(|l| l.starts_with("MemTotal:")).unwrap();
+    let kib: u64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    kib << 10
+}
+
 /// Kind 11: saved frames are estimated against the free space of --out-dir's filesystem before
 /// any work (37 TB here: more than any disk the tests run on); a refusal for too long a run
 /// names --frames; a run over several limits names every one.

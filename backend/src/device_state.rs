@@ -358,6 +358,12 @@ fn initialise_images<'a>(device: &Device, images: impl Iterator<Item = &'a Image
     })
 }
 
+/// Bytes copy `c` takes in its link's staging: its rows, rounded up so that the next copy
+/// starts aligned.
+pub(crate) fn staged_bytes(plan: &ExecutionPlan, c: CopyId) -> u64 {
+    plan.copy_bytes(c).div_ceil(STAGING_ALIGN) * STAGING_ALIGN
+}
+
 /// The staging buffers of `links` (`(from, to, kind)`) for `slots` slots (`rings`: the links
 /// whose buffer is a ring, its size and the offsets of its copies); `link_of_copy[c]` is
 /// the link copy `c` travels over.
@@ -378,7 +384,7 @@ pub(crate) fn create_staging(
     for c in plan.staging_order() {
         let link = link_of_copy[c.index()];
         places[c.index()] = (link, sizes[link]);
-        sizes[link] += plan.copy_bytes(c).div_ceil(STAGING_ALIGN) * STAGING_ALIGN;
+        sizes[link] += staged_bytes(plan, c);
     }
     // Links whose staging is a ring (staging_ring.rs): its size, its copies' offsets.
     for ring in rings {

@@ -34,16 +34,29 @@ pub fn upload_scene(executor: &mut Executor, scene: &GpuScene<'_>) -> Result<()>
 /// the same size (triangles always, BVH nodes when the build gives as many) keeps its address
 /// and the recorded command buffers.
 pub fn upload_geometry(executor: &mut Executor, scene: &GpuScene<'_>) -> Result<()> {
-    let arrays = [
+    for (name, bytes) in geometry_arrays(scene) {
+        executor.upload_buffer(name, bytes)?;
+    }
+    Ok(())
+}
+
+/// The global buffers a pose of `scene` fills, by name.
+fn geometry_arrays<'a>(scene: &'a GpuScene<'_>) -> [(&'static str, &'a [u8]); 4] {
+    [
         ("scene.nodes", scene.node_bytes()),
         ("scene.triangles", scene.triangle_bytes()),
         ("scene.attributes", scene.attribute_bytes()),
         ("scene.emissive", scene.emissive_bytes()),
-    ];
-    for (name, bytes) in arrays {
-        executor.upload_buffer(name, bytes)?;
-    }
-    Ok(())
+    ]
+}
+
+/// Device-local bytes [`upload_scene`] allocates on each device: the six arrays and the
+/// textures (RGBA8, one level each), known before the upload.
+pub fn scene_device_bytes(scene: &GpuScene<'_>) -> u64 {
+    let arrays =
+        geometry_arrays(scene).map(|(_, bytes)| bytes).into_iter().chain([scene.material_bytes(), scene.light_bytes()]);
+    let textures = scene.textures.iter().map(|t| t.rgba8.len() as u64);
+    arrays.map(|bytes| bytes.len() as u64).chain(textures).sum()
 }
 
 /// The scene's buffer addresses on the device being recorded, as kernels push them.

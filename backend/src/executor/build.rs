@@ -4,17 +4,17 @@
 
 use ash::vk;
 
-use crate::device_state::{Kept, create_device_state, create_staging, fault_gate};
+use crate::device_state::{Kept, create_device_state, create_staging, fault_gate, staged_bytes};
 use crate::error::{BackendError, Result};
 use crate::exec_options::FaultInjection;
 use crate::kernel::KernelPlan;
 use crate::link_memory::import_timeline;
-use crate::links::{ChunkLink, Link, LinkKind, link_order};
-use crate::plan::{CopyId, ExecutionPlan};
+use crate::links::{ChunkLink, Link, LinkKind, LinkKinds, link_order};
+use crate::plan::{CopyId, DeviceId, ExecutionPlan};
 use crate::relay::Relay;
 use crate::remote::{ReceiveLink, Remote, RemoteTransport, number_receives, wires};
 use crate::segments::{Chunk, Item, Segment, chunks_of_copies, cross_device_waits, segment_devices};
-use crate::staging_ring::{RingCopy, RingLayout, RingLink, STAGING_ALIGN, fit_rings};
+use crate::staging_ring::{RingCopy, RingLayout, RingLink, fit_rings};
 use crate::texture::Texture;
 
 use super::Executor;
@@ -189,11 +189,40 @@ impl Executor {
         Ok(())
     }
 
-    /// Recorded frame slots: frames in flight rounded up to even, so a slot's frame parity never
-    /// changes and history pairs can be swapped in the recording (see `ExecutionPlan::history`).
+    /// Recorded frame slots: [`slots_for`] the frames in flight.
     pub(super) fn slot_count(&self) -> usize {
-        self.options.frames_in_flight.div_ceil(2) * 2
+        slots_for(self.options.frames_in_flight)
     }
+
+    /// Device-local bytes [`Executor::new`] would allocate for `plan` on each of its devices,
+    /// known before any is made: every allocation a device touches at its description's size
+    /// (`ExecResource::bytes`, as `create_device_state` creates them), and on the producer of
+    /// each `gpu` or `shared` link its staging, once per frame-in-flight slot (`create_staging`;
+    /// such links join devices of one physical GPU). Not counted: `relay` and `remote` staging,
+    /// read-back and frame data, which live in host-visible memory; the global buffers and
+    /// textures uploaded later (the scene's); and what the driver itself allocates for
+    /// descriptors, command buffers, query pools and pipelines, or pads an image by, which it
+    /// reports only once they exist.
+    pub fn device_local_bytes(plan: &ExecutionPlan, kinds: &LinkKinds, frames_in_flight: usize) -> Vec<u64> {
+        let mut bytes: Vec<u64> = (0..plan.devices.len() as u32)
+            .map(|d| plan.resources_of_device(DeviceId(d)).iter().map(|&a| plan.resource(a).bytes()).sum())
+            .collect();
+        let slots = slots_for(frames_in_flight) as u64;
+        for (c, copy) in plan.copies.iter().enumerate() {
+            let from = copy.from.index();
+            if from < bytes.len() && matches!(kinds.of(from, copy.to.index()), LinkKind::Gpu | LinkKind::Shared) {
+                bytes[from] += slots * staged_bytes(plan, CopyId(c as u32));
+            }
+        }
+        bytes
+    }
+}
+
+/// Recorded frame slots for `frames_in_flight` (at least one): rounded up to even, so a slot's
+/// frame parity never changes and history pairs can be swapped in the recording (see
+/// `ExecutionPlan::history`).
+fn slots_for(frames_in_flight: usize) -> usize {
+    frames_in_flight.max(1).div_ceil(2) * 2
 }
 
 /// The `relay` links of a plan as [`RingLink`]s: each copy with its bytes in staging, the
@@ -239,7 +268,7 @@ fn ring_links(
             let (freed, consumer_segment) = freed[c];
             ring.copies.push(RingCopy {
                 copy: CopyId(c as u32),
-                bytes: plan.copy_bytes(CopyId(c as u32)).div_ceil(STAGING_ALIGN) * STAGING_ALIGN,
+                bytes: staged_bytes(plan, CopyId(c as u32)),
                 producer_segment: first.segment,
                 freed,
                 consumer_segment,
@@ -281,4 +310,25 @@ fn remote_side(
         sends_per_frame[link.from] += link.per_frame;
     }
     Remote::new(transport, wires, receives, ends, sends_per_frame, slots)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::copy_plan;
+
+    /// The copy benchmark's 16×8 RGBA32F payload (2048 B) lives on both devices; over a `gpu`
+    /// or `shared` link its staging adds one copy's bytes per slot to the producer, over a
+    /// `relay` link nothing (host memory).
+    #[test]
+    fn device_local_bytes_are_the_allocations_and_the_producers_device_staging() {
+        let plan = copy_plan(16, 8).unwrap();
+        let kinds = |kind| LinkKinds(vec![vec![None, Some(kind)], vec![Some(kind), None]]);
+        let payload = 16 * 8 * 16;
+        for kind in [LinkKind::Gpu, LinkKind::Shared] {
+            assert_eq!(Executor::device_local_bytes(&plan, &kinds(kind), 2), vec![3 * payload, payload], "{kind:?}");
+            assert_eq!(Executor::device_local_bytes(&plan, &kinds(kind), 3), vec![5 * payload, payload], "4 slots");
+        }
+        assert_eq!(Executor::device_local_bytes(&plan, &kinds(LinkKind::Relay), 2), vec![payload, payload]);
+    }
 }

@@ -8,10 +8,11 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use parallax_backend::{Context as VkContext, ContextDesc, DeviceInfo, ExecOptions};
+use parallax_backend::{Context as VkContext, ContextDesc, DeviceInfo, ExecOptions, Executor, KernelPlan, LinkKinds};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
 use parallax_passes::pipeline::PipelineBuilder;
+use parallax_passes::scene_upload::scene_device_bytes;
 use parallax_scene::gpu::GpuScene;
 use parallax_scene::{SceneBvh, TraceSettings};
 
@@ -21,6 +22,7 @@ use super::prepare::RenderJob;
 use super::report::{Rendered, ViewLayers, stage_views, view_layers};
 use crate::console::bar;
 use crate::outputs::Staged;
+use crate::outputs::budget::{DeviceMemory, Placement};
 use crate::outputs::resident::{ResidentSampler, ResidentSummary};
 use crate::report::startup::Step;
 use crate::settings::{RenderExtension, RenderSettings};
@@ -49,7 +51,7 @@ pub(super) fn render_frames(
     let infos: Vec<DeviceInfo> = context.devices().iter().map(|d| d.info.clone()).collect();
     job.choose_gbuffer(settings, extend, &infos)?;
     // A link kind some pair cannot use is a usage error, found before any frame.
-    parallax_backend::link_kinds(context.devices(), settings.link).map_err(|e| {
+    let link_kinds = parallax_backend::link_kinds(context.devices(), settings.link).map_err(|e| {
         crate::error::UsageError(format!(
             "--link {}: {e}; `--link auto` takes the best each pair offers",
             settings.link.map_or("auto", |k| k.name())
@@ -69,8 +71,11 @@ pub(super) fn render_frames(
         remote: job.rank.as_ref().and_then(|part| part.transport.clone()),
         ..ExecOptions::default()
     };
-    let mut renderer =
-        LightFieldRenderer::with_options(&context, exec_plan, &GpuScene::new(&job.scene, &bvh), options)?;
+    let scene = GpuScene::new(&job.scene, &bvh);
+    let placement = Placement { scheme: settings.pipeline.scheme, selection: settings.devices };
+    let memory = device_memory(&infos, &exec_plan, &link_kinds, options.frames_in_flight, &scene);
+    job.one_frame.check_gpu_memory(placement, &memory)?;
+    let mut renderer = LightFieldRenderer::with_options(&context, exec_plan, &scene, options)?;
     job.startup.ended(Step::Executor);
     drop(bvh);
     let layers = view_layers(settings, job.compiled.kind, &job.compiled.handles, &renderer);
@@ -123,6 +128,30 @@ pub(super) fn render_frames(
     }
     let geometry = posing.map(|p| p.report()).unwrap_or_default();
     Ok(Rendered { context, renderer, staged, wall, host_memory, lf, lock, layers, geometry, ranks: None })
+}
+
+/// What each device of `infos` will allocate in device-local memory for `plan` (with
+/// `frames_in_flight` over links of `link_kinds`) and `scene`, before the executor makes any of it.
+fn device_memory(
+    infos: &[DeviceInfo],
+    plan: &KernelPlan,
+    link_kinds: &LinkKinds,
+    frames_in_flight: usize,
+    scene: &GpuScene<'_>,
+) -> Vec<DeviceMemory> {
+    let scene_bytes = scene_device_bytes(scene);
+    let plan_bytes = Executor::device_local_bytes(plan, link_kinds, frames_in_flight);
+    infos
+        .iter()
+        .zip(plan_bytes)
+        .map(|(info, bytes)| DeviceMemory {
+            device: info.index,
+            physical_index: info.physical_index,
+            gpu_name: info.name.clone(),
+            heap_bytes: info.device_local_heap_bytes,
+            bytes: bytes + scene_bytes,
+        })
+        .collect()
 }
 
 /// Submits the warm-up and measured frames, each after `posing` (when the meshes move) has

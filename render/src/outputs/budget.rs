@@ -2,8 +2,10 @@
 //! and the flags to change when it cannot fit: an out-of-memory kill or a driver's
 //! `vkBindImageMemory failed` names neither the input nor the limit.
 
+use std::collections::BTreeMap;
+
 use anyhow::{Result, bail};
-use parallax_backend::Context;
+use parallax_backend::{Context, DeviceSelection};
 use parallax_graph::Scheme;
 use parallax_scene::PixelSample;
 
@@ -36,6 +38,14 @@ const THREAD_STACK_BYTES: u64 = 8 << 20;
 /// Pass instances, dependencies (producer-consumer edges and δ-edges) and copies a plan may
 /// have: the planner keeps every one in memory.
 const MAX_PLAN_ITEMS: u64 = 4_000_000;
+
+/// Device-local memory each logical device takes beyond what its plan and scene allocate, which
+/// nothing reports before it is made, so an allowance rather than a measurement: gpu-allocator
+/// carves allocations out of 256 MiB blocks (its default), so a device's last block is partly
+/// empty (one block here); and as much again for what the driver allocates or pads by itself
+/// (descriptor pools, command buffers, query pools, pipelines' code, an image's padding beyond
+/// width × height × texel size, known only once the image exists).
+const UNREPORTED_BYTES_PER_DEVICE: u64 = 512 << 20;
 
 pub fn gib(bytes: u64) -> String {
     format!("{:.1} GiB", bytes as f64 / f64::from(1 << 30))
@@ -144,6 +154,41 @@ impl TraceWork {
         Ok(())
     }
 
+    /// Refuses a plan whose logical devices would allocate more than the device-local heap of
+    /// the physical GPU behind them: the devices of one GPU (`--fake-devices`) add up, each GPU
+    /// is checked against its own heap, and every GPU that would overflow is named at once.
+    pub fn check_gpu_memory(self, placement: Placement, devices: &[DeviceMemory]) -> Result<()> {
+        let mut by_gpu: BTreeMap<usize, Vec<&DeviceMemory>> = BTreeMap::new();
+        for device in devices {
+            by_gpu.entry(device.physical_index).or_default().push(device);
+        }
+        let overfull: Vec<Vec<&DeviceMemory>> =
+            by_gpu.into_values().filter(|on_gpu| gpu_bytes(on_gpu) > on_gpu[0].heap_bytes).collect();
+        if overfull.is_empty() {
+            return Ok(());
+        }
+        let (factors, flags) = self.factors(false, false);
+        let gpus: Vec<String> = overfull.iter().map(|on_gpu| overfull_gpu(on_gpu)).collect();
+        let lower = format!("lower {}", or_list(&flags));
+        let fix = if placement.scheme == Scheme::MultiSource {
+            lower
+        } else {
+            // Under the fine schemes a device holds whole images of every view it has a band of,
+            // so each logical device more on a GPU adds about a copy of the light field there.
+            let shared = overfull.iter().any(|on_gpu| on_gpu.len() > 1);
+            let fewer = format!("fewer logical devices per GPU ({}) or ", placement.selection_flag());
+            format!("use {}--scheme multi-source, or {lower}", if shared { fewer.as_str() } else { "" })
+        };
+        bail!(
+            "--scheme {} over {} logical device(s) ({} {}) with {factors} does not fit in GPU memory: {}: {fix}",
+            placement.scheme.name(),
+            devices.len(),
+            placement.selection_flag(),
+            placement.selection.count(),
+            gpus.join("; ")
+        );
+    }
+
     /// Refuses runs of more than a day; announces long ones with their expected duration.
     pub fn check_duration(self) -> Result<()> {
         let paths = self.pixels() as f64 * self.frames as f64 * f64::from(self.spp);
@@ -179,6 +224,62 @@ pub fn refuse_every_exceeded(checks: impl IntoIterator<Item = Result<()>>) -> Re
             bail!("{} limits exceeded: {}", several.len(), listed.join("; "))
         }
     }
+}
+
+/// How a plan is spread over devices: the flags that decide how many copies of its images the
+/// devices hold.
+#[derive(Clone, Copy, Debug)]
+pub struct Placement {
+    pub scheme: Scheme,
+    pub selection: DeviceSelection,
+}
+
+impl Placement {
+    fn selection_flag(self) -> &'static str {
+        match self.selection {
+            DeviceSelection::Gpus(_) => "--gpus",
+            DeviceSelection::FakeDevices(_) => "--fake-devices",
+        }
+    }
+}
+
+/// What one logical device of a run will allocate in device-local memory, and the physical GPU
+/// (and its heap) behind it.
+#[derive(Clone, Debug)]
+pub struct DeviceMemory {
+    /// The logical device's index in the context.
+    pub device: usize,
+    /// The physical GPU behind it (`DeviceInfo::physical_index`), its name and its largest
+    /// device-local heap.
+    pub physical_index: usize,
+    pub gpu_name: String,
+    pub heap_bytes: u64,
+    /// Its plan's allocations and device staging, and the scene uploaded to it.
+    pub bytes: u64,
+}
+
+/// Device-local bytes the logical devices `on_gpu` of one GPU would take together.
+fn gpu_bytes(on_gpu: &[&DeviceMemory]) -> u64 {
+    on_gpu.iter().map(|d| d.bytes + UNREPORTED_BYTES_PER_DEVICE).sum()
+}
+
+/// "physical GPU 0 (name) would hold about X for device(s) 0, 1 (each one's bytes, and the
+/// allowance each), but its memory heap has Y".
+fn overfull_gpu(on_gpu: &[&DeviceMemory]) -> String {
+    let first = on_gpu[0];
+    let indices: Vec<String> = on_gpu.iter().map(|d| d.device.to_string()).collect();
+    let each: Vec<String> = on_gpu.iter().map(|d| gib(d.bytes)).collect();
+    format!(
+        "physical GPU {} ({}) would hold about {} for device(s) {} ({} of plan and scene, and {} each that the \
+         driver and allocator take unreported), but its memory heap has {}",
+        first.physical_index,
+        first.gpu_name,
+        gib(gpu_bytes(on_gpu)),
+        indices.join(", "),
+        each.join(", "),
+        gib(UNREPORTED_BYTES_PER_DEVICE),
+        gib(first.heap_bytes)
+    )
 }
 
 /// "a, b or c".
@@ -392,6 +493,70 @@ mod tests {
                 );
             }
         }
+    }
+
+    const GIB: u64 = 1 << 30;
+
+    /// Logical device `device` on physical GPU `physical` (an 80 GiB one) holding `gib` GiB.
+    fn on_gpu(device: usize, physical: usize, gib: u64) -> DeviceMemory {
+        DeviceMemory {
+            device,
+            physical_index: physical,
+            gpu_name: format!("GPU{physical}"),
+            heap_bytes: 80 * GIB,
+            bytes: gib * GIB,
+        }
+    }
+
+    /// NELF's 72 views at 1024x1024, as `render` describes them.
+    fn nelf() -> TraceWork {
+        TraceWork {
+            views: 72,
+            views_flag: "--lf",
+            frames_flag: "--frames, --warmup",
+            ..TraceWork::one_view(1024, 1024, 1, 4)
+        }
+    }
+
+    /// Logical devices of one GPU add up against its heap, each with the unreported allowance;
+    /// the refusal names the numbers, the flags that set them and the fixes.
+    #[test]
+    fn logical_devices_of_one_gpu_add_up_against_its_heap() {
+        let fine_all = Placement { scheme: Scheme::FineAll, selection: DeviceSelection::FakeDevices(4) };
+        // 4 × (19 + 0.5) = 78 GiB fits in 80; 4 × (20 + 0.5) = 82 does not.
+        let fits: Vec<DeviceMemory> = (0..4).map(|d| on_gpu(d, 0, 19)).collect();
+        assert!(nelf().check_gpu_memory(fine_all, &fits).is_ok());
+        let full: Vec<DeviceMemory> = (0..4).map(|d| on_gpu(d, 0, 20)).collect();
+        let err = nelf().check_gpu_memory(fine_all, &full).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "--scheme fine-all over 4 logical device(s) (--fake-devices 4) with 72 view(s) (--lf) × 1024x1024 \
+             (--resolution) does not fit in GPU memory: physical GPU 0 (GPU0) would hold about 82.0 GiB for device(s) \
+             0, 1, 2, 3 (20.0 GiB, 20.0 GiB, 20.0 GiB, 20.0 GiB of plan and scene, and 0.5 GiB each that the driver and \
+             allocator take unreported), but its memory heap has 80.0 GiB: use fewer logical devices per GPU \
+             (--fake-devices) or --scheme multi-source, or lower --lf or --resolution"
+        );
+    }
+
+    /// Each GPU is checked against its own heap: the same bytes fit spread over two GPUs, and
+    /// only the GPU that overflows is named; multi-source is told only to shrink the views.
+    #[test]
+    fn each_gpu_is_checked_against_its_own_heap() {
+        let gpus = Placement { scheme: Scheme::FineAll, selection: DeviceSelection::Gpus(2) };
+        let two_gpus = [on_gpu(0, 0, 40), on_gpu(1, 1, 40)];
+        assert!(nelf().check_gpu_memory(gpus, &two_gpus).is_ok());
+        let one_gpu = [on_gpu(0, 0, 40), on_gpu(1, 0, 40)];
+        assert!(nelf().check_gpu_memory(gpus, &one_gpu).is_err(), "80 GiB and the allowance on one GPU");
+        let multi = Placement { scheme: Scheme::MultiSource, selection: DeviceSelection::Gpus(2) };
+        let err = nelf().check_gpu_memory(multi, &[on_gpu(0, 0, 40), on_gpu(1, 1, 80)]).unwrap_err().to_string();
+        assert!(err.starts_with("--scheme multi-source over 2 logical device(s) (--gpus 2) with 72 view(s)"), "{err}");
+        assert!(err.contains(": physical GPU 1 (GPU1) would hold about 80.5 GiB for device(s) 1 (80.0 GiB"), "{err}");
+        assert!(!err.contains("physical GPU 0"), "{err}");
+        assert!(err.ends_with("but its memory heap has 80.0 GiB: lower --lf or --resolution"), "{err}");
+        // Both GPUs over: both named, in one line; one device a GPU needs no fewer devices per GPU.
+        let err = nelf().check_gpu_memory(gpus, &[on_gpu(0, 0, 80), on_gpu(1, 1, 80)]).unwrap_err().to_string();
+        assert!(err.contains("80.0 GiB; physical GPU 1 (GPU1) would hold"), "{err}");
+        assert!(err.ends_with(": use --scheme multi-source, or lower --lf or --resolution"), "{err}");
     }
 
     #[test]
