@@ -22,7 +22,7 @@ use super::prepare::RenderJob;
 use super::report::{Rendered, ViewLayers, stage_views, view_layers};
 use crate::console::bar;
 use crate::outputs::Staged;
-use crate::outputs::budget::{DeviceMemory, Placement};
+use crate::outputs::budget::{DeviceMemory, SchemeOnDevices};
 use crate::outputs::resident::{ResidentSampler, ResidentSummary};
 use crate::report::startup::Step;
 use crate::settings::{RenderExtension, RenderSettings};
@@ -72,9 +72,9 @@ pub(super) fn render_frames(
         ..ExecOptions::default()
     };
     let scene = GpuScene::new(&job.scene, &bvh);
-    let placement = Placement { scheme: settings.pipeline.scheme, selection: settings.devices };
+    let spread = SchemeOnDevices { scheme: settings.pipeline.scheme, selection: settings.devices };
     let memory = device_memory(&infos, &exec_plan, &link_kinds, options.frames_in_flight, &scene);
-    job.one_frame.check_gpu_memory(placement, &memory)?;
+    job.one_frame.check_gpu_memory(spread, &memory)?;
     let mut renderer = LightFieldRenderer::with_options(&context, exec_plan, &scene, options)?;
     job.startup.ended(Step::Executor);
     drop(bvh);

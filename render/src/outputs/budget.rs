@@ -157,7 +157,7 @@ impl TraceWork {
     /// Refuses a plan whose logical devices would allocate more than the device-local heap of
     /// the physical GPU behind them: the devices of one GPU (`--fake-devices`) add up, each GPU
     /// is checked against its own heap, and every GPU that would overflow is named at once.
-    pub fn check_gpu_memory(self, placement: Placement, devices: &[DeviceMemory]) -> Result<()> {
+    pub fn check_gpu_memory(self, spread: SchemeOnDevices, devices: &[DeviceMemory]) -> Result<()> {
         let mut by_gpu: BTreeMap<usize, Vec<&DeviceMemory>> = BTreeMap::new();
         for device in devices {
             by_gpu.entry(device.physical_index).or_default().push(device);
@@ -170,21 +170,21 @@ impl TraceWork {
         let (factors, flags) = self.factors(false, false);
         let gpus: Vec<String> = overfull.iter().map(|on_gpu| overfull_gpu(on_gpu)).collect();
         let lower = format!("lower {}", or_list(&flags));
-        let fix = if placement.scheme == Scheme::MultiSource {
+        let fix = if spread.scheme == Scheme::MultiSource {
             lower
         } else {
             // Under the fine schemes a device holds whole images of every view it has a band of,
             // so each logical device more on a GPU adds about a copy of the light field there.
             let shared = overfull.iter().any(|on_gpu| on_gpu.len() > 1);
-            let fewer = format!("fewer logical devices per GPU ({}) or ", placement.selection_flag());
+            let fewer = format!("fewer logical devices per GPU ({}) or ", spread.selection_flag());
             format!("use {}--scheme multi-source, or {lower}", if shared { fewer.as_str() } else { "" })
         };
         bail!(
             "--scheme {} over {} logical device(s) ({} {}) with {factors} does not fit in GPU memory: {}: {fix}",
-            placement.scheme.name(),
+            spread.scheme.name(),
             devices.len(),
-            placement.selection_flag(),
-            placement.selection.count(),
+            spread.selection_flag(),
+            spread.selection.count(),
             gpus.join("; ")
         );
     }
@@ -229,12 +229,12 @@ pub fn refuse_every_exceeded(checks: impl IntoIterator<Item = Result<()>>) -> Re
 /// How a plan is spread over devices: the flags that decide how many copies of its images the
 /// devices hold.
 #[derive(Clone, Copy, Debug)]
-pub struct Placement {
+pub struct SchemeOnDevices {
     pub scheme: Scheme,
     pub selection: DeviceSelection,
 }
 
-impl Placement {
+impl SchemeOnDevices {
     fn selection_flag(self) -> &'static str {
         match self.selection {
             DeviceSelection::Gpus(_) => "--gpus",
@@ -522,7 +522,7 @@ mod tests {
     /// the refusal names the numbers, the flags that set them and the fixes.
     #[test]
     fn logical_devices_of_one_gpu_add_up_against_its_heap() {
-        let fine_all = Placement { scheme: Scheme::FineAll, selection: DeviceSelection::FakeDevices(4) };
+        let fine_all = SchemeOnDevices { scheme: Scheme::FineAll, selection: DeviceSelection::FakeDevices(4) };
         // 4 × (19 + 0.5) = 78 GiB fits in 80; 4 × (20 + 0.5) = 82 does not.
         let fits: Vec<DeviceMemory> = (0..4).map(|d| on_gpu(d, 0, 19)).collect();
         assert!(nelf().check_gpu_memory(fine_all, &fits).is_ok());
@@ -542,12 +542,12 @@ mod tests {
     /// only the GPU that overflows is named; multi-source is told only to shrink the views.
     #[test]
     fn each_gpu_is_checked_against_its_own_heap() {
-        let gpus = Placement { scheme: Scheme::FineAll, selection: DeviceSelection::Gpus(2) };
+        let gpus = SchemeOnDevices { scheme: Scheme::FineAll, selection: DeviceSelection::Gpus(2) };
         let two_gpus = [on_gpu(0, 0, 40), on_gpu(1, 1, 40)];
         assert!(nelf().check_gpu_memory(gpus, &two_gpus).is_ok());
         let one_gpu = [on_gpu(0, 0, 40), on_gpu(1, 0, 40)];
         assert!(nelf().check_gpu_memory(gpus, &one_gpu).is_err(), "80 GiB and the allowance on one GPU");
-        let multi = Placement { scheme: Scheme::MultiSource, selection: DeviceSelection::Gpus(2) };
+        let multi = SchemeOnDevices { scheme: Scheme::MultiSource, selection: DeviceSelection::Gpus(2) };
         let err = nelf().check_gpu_memory(multi, &[on_gpu(0, 0, 40), on_gpu(1, 1, 80)]).unwrap_err().to_string();
         assert!(err.starts_with("--scheme multi-source over 2 logical device(s) (--gpus 2) with 72 view(s)"), "{err}");
         assert!(err.contains(": physical GPU 1 (GPU1) would hold about 80.5 GiB for device(s) 1 (80.0 GiB"), "{err}");
