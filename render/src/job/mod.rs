@@ -20,6 +20,7 @@ pub mod prepare;
 #[cfg(feature = "mpi")]
 mod ranked;
 mod report;
+mod view_files;
 
 use anyhow::Result;
 #[cfg(not(feature = "mpi"))]
