@@ -6,7 +6,27 @@ use std::marker::PhantomData;
 
 /// A shader of a [`crate::ShaderLibrary`], by the name the library holds it under, whose
 /// push constants are a `P`. Generated, one constant per shader:
-/// `pub const TONEMAP: Shader<TonemapPush> = Shader::new("tonemap");`.
+/// `pub const TONEMAP: Shader<TonemapPush> = Shader::new("tonemap");`. A dispatch takes the id
+/// and a `&P` of the same `P` (as `dispatch` below does, like [`crate::Recorder::dispatch`]):
+///
+/// ```
+/// use parallax_backend::{Shader, ShaderName};
+/// fn dispatch<P>(shader: impl ShaderName<P>, _push: &P) -> String {
+///     shader.shader_name().to_string()
+/// }
+/// const FILL: Shader<[u32; 2]> = Shader::new("fill");
+/// assert_eq!(dispatch(FILL, &[1, 2]), "fill");
+/// assert_eq!(dispatch("added_at_run_time", &1.0f32), "added_at_run_time"); // a name takes any P
+/// ```
+///
+/// and another block's struct does not compile:
+///
+/// ```compile_fail
+/// use parallax_backend::{Shader, ShaderName};
+/// fn dispatch<P>(shader: impl ShaderName<P>, _push: &P) {}
+/// const FILL: Shader<[u32; 2]> = Shader::new("fill");
+/// dispatch(FILL, &1.0f32);
+/// ```
 pub struct Shader<P> {
     name: &'static str,
     push: PhantomData<fn(&P)>,
