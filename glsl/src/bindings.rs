@@ -105,11 +105,13 @@ fn collect_structs(
         }
     }
     match structs.get_mut(&ty.name) {
-        Some((known, _)) if known != ty => Err(bindings_error(
+        Some((known, users)) if known != ty => Err(bindings_error(
             shader,
-            format!("`{}` here has another layout than in {}; give one of them another name", ty.name, {
-                structs[&ty.name].1.join(", ")
-            }),
+            format!(
+                "`{}` here has another layout than in {}; give one of them another name",
+                ty.name,
+                users.join(", ")
+            ),
         )),
         Some((_, users)) => {
             users.push(shader.name.clone());
