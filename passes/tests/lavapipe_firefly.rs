@@ -10,7 +10,7 @@
 mod common;
 
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use parallax_backend::{
     ExecOptions, Executor, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, PassParams, Recorder,
@@ -35,14 +35,20 @@ const SKY_FROM: usize = 20;
 
 /// The test kernels of `tests/firefly_kernels/`, over the passes' shaders.
 fn test_shaders() -> ShaderLibrary {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("firefly_kernels");
-    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firefly_kernels");
-    std::fs::create_dir_all(&out).unwrap();
-    let shaders =
-        parallax_glsl::Compiler::new().compile_dir(&src, &[parallax_glsl::parallax_include_dir()], &out).unwrap();
-    let test = shaders.iter().fold(ShaderLibrary::new(), |library, shader| {
-        library.with_spirv_bytes(&shader.name, &std::fs::read(&shader.spirv).unwrap()).unwrap()
+    // Compiled once per test binary: tests run in parallel, and one test reading a SPIR-V file
+    // while another's glslc rewrites it can read it empty.
+    static SPIRV: OnceLock<Vec<(String, Vec<u8>)>> = OnceLock::new();
+    let spirv = SPIRV.get_or_init(|| {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("firefly_kernels");
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firefly_kernels");
+        std::fs::create_dir_all(&out).unwrap();
+        let includes = [parallax_glsl::parallax_include_dir()];
+        let compiled = parallax_glsl::Compiler::new().compile_dir(&src, &includes, &out).unwrap();
+        compiled.into_iter().map(|shader| (shader.name, std::fs::read(&shader.spirv).unwrap())).collect()
     });
+    let test = spirv
+        .iter()
+        .fold(ShaderLibrary::new(), |library, (name, bytes)| library.with_spirv_bytes(name, bytes).unwrap());
     test.layered_over(parallax_passes::shader_library())
 }
 

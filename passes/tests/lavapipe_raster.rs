@@ -6,7 +6,7 @@
 mod common;
 
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use glam::{Vec2, Vec3, Vec4};
 use parallax_backend::{
@@ -25,14 +25,20 @@ const DEPTH_TO_R32F: &str = "depth_to_r32f";
 
 /// The test kernel of `tests/raster_kernels/`, compiled at run time, over the passes' shaders.
 fn test_shaders() -> ShaderLibrary {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("raster_kernels");
-    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("raster_kernels");
-    std::fs::create_dir_all(&out).unwrap();
-    let includes = [parallax_glsl::parallax_include_dir()];
-    let compiled = parallax_glsl::Compiler::new().compile_dir(&src, &includes, &out).unwrap();
-    let test = compiled.iter().fold(ShaderLibrary::new(), |library, shader| {
-        library.with_spirv_bytes(&shader.name, &std::fs::read(&shader.spirv).unwrap()).unwrap()
+    // Compiled once per test binary: tests run in parallel, and one test reading a SPIR-V file
+    // while another's glslc rewrites it can read it empty.
+    static SPIRV: OnceLock<Vec<(String, Vec<u8>)>> = OnceLock::new();
+    let spirv = SPIRV.get_or_init(|| {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("raster_kernels");
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("raster_kernels");
+        std::fs::create_dir_all(&out).unwrap();
+        let includes = [parallax_glsl::parallax_include_dir()];
+        let compiled = parallax_glsl::Compiler::new().compile_dir(&src, &includes, &out).unwrap();
+        compiled.into_iter().map(|shader| (shader.name, std::fs::read(&shader.spirv).unwrap())).collect()
     });
+    let test = spirv
+        .iter()
+        .fold(ShaderLibrary::new(), |library, (name, bytes)| library.with_spirv_bytes(name, bytes).unwrap());
     test.layered_over(parallax_passes::shader_library())
 }
 
