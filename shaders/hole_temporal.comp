@@ -20,6 +20,11 @@
 // geometry a hole stays a hole, so that is always the case; a pixel that became a hole while
 // the camera stood (an animated mesh moved) restarts instead of picking up a stale mean.
 // Pixels are sanitised as SVGF sanitises them: NaN, Inf and negatives become 0.
+//
+// Under subsampled hole filling (`--hole-fill subsampled`) the pass runs a second time over the
+// band's `hole_reconstruct_list` with `carry` set: those pixels were not traced this frame, so
+// their radiance is no sample; their mean of the frames they were traced in is carried into
+// this frame's history unchanged (hole_reconstruct.comp shows it), or restarts with no frames.
 #extension GL_EXT_buffer_reference : require
 #define PARALLAX_CUSTOM_PUSH_CONSTANTS
 #include "bindless.glsl"
@@ -34,7 +39,7 @@ layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer Hol
     uint data[];
 };
 
-// 40 bytes; parallax_passes::shaders::HoleTemporalPush, generated from this block.
+// 48 bytes; parallax_passes::shaders::HoleTemporalPush, generated from this block.
 layout(push_constant, std430) uniform HoleTemporalPush {
     HoleList list;    // the band's section of `hole_list`
     FrameBlock block; // the cameras that tell a still one
@@ -44,6 +49,8 @@ layout(push_constant, std430) uniform HoleTemporalPush {
     uint accum_out;
     uint stamp_out;
     uint view;
+    uint carry;       // 1: the listed pixels were reconstructed, not traced (see above)
+    uint pad;
 } pc;
 
 layout(local_size_x = 64) in;
@@ -83,6 +90,11 @@ void main() {
     }
     // Written so that a NaN history restarts too.
     bool accumulating = previous.a >= 1.0;
+    if (pc.carry != 0u) {
+        imageStore(images[pc.accum_out], p, accumulating ? previous : vec4(0.0));
+        imageStore(images[pc.stamp_out], p, vec4(float(frame.frame_index & STAMP_MASK)));
+        return;
+    }
     float n = accumulating ? previous.a + 1.0 : 1.0;
     vec3 mean = accumulating ? previous.rgb + (sample_ - previous.rgb) / n : sample_;
     imageStore(images[pc.accum_out], p, vec4(mean, n));

@@ -270,7 +270,7 @@ impl RenderArgs {
             "gpus": gpus, "fake_devices": fake_devices,
             "pipeline": name(&p.pipeline), "scheme": name(&p.scheme), "assign": p.assign.map(|a| name(&a)),
             "sources_per_set": p.sources_per_set, "sources": p.sources.as_ref().map(|s| s.0.clone()),
-            "denoise": name(&p.denoise_applied()), "fireflies": name(&p.fireflies), "reprojection_tolerance": p.reprojection_tolerance, "spp": self.spp, "max_depth": self.depth.max_depth,
+            "denoise": name(&p.denoise_applied()), "fireflies": name(&p.fireflies), "hole_fill": name(&p.hole_fill), "reprojection_tolerance": p.reprojection_tolerance, "spp": self.spp, "max_depth": self.depth.max_depth,
             "frames": self.frames, "warmup": self.warmup, "still": self.still, "motion": (!self.still).then(|| name(&self.motion)),
             "save_every": self.save_every,
             "exposure": match self.exposure { Exposure::Auto => serde_json::json!("auto"), Exposure::Fixed(v) => serde_json::json!(v) },

@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use parallax_graph::{LightField, Schedule, SourcesPerSet};
 use parallax_passes::firefly::FireflyMode;
+use parallax_passes::hole_subsample::HoleFillMode;
 use parallax_passes::pipeline::{Denoiser, GbufferSource, PipelineConfig, PipelineKind};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_render::compile::{PipelineSchedule, PipelineSettings};
@@ -94,6 +95,26 @@ impl From<DenoiseArg> for Denoiser {
     }
 }
 
+/// `--hole-fill`: which hole pixels are path traced each frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum HoleFillArg {
+    /// Every hole pixel, every frame.
+    Full,
+    /// One hole pixel of each 2×2 block per frame, taking turns; the others reconstructed from
+    /// traced neighbours on the same surface (isolated holes always traced).
+    Subsampled,
+}
+
+impl From<HoleFillArg> for HoleFillMode {
+    fn from(h: HoleFillArg) -> HoleFillMode {
+        match h {
+            HoleFillArg::Full => HoleFillMode::Full,
+            HoleFillArg::Subsampled => HoleFillMode::Subsampled,
+        }
+    }
+}
+
 /// The pipeline and its placement. The field names are the clap ids that `bench` checks with
 /// `value_source`.
 #[derive(Args, Debug, Clone)]
@@ -124,6 +145,12 @@ pub struct PipelineArgs {
     /// belongs to denoising: with `--no-denoise` the radiance always stays as traced.
     #[arg(long, value_enum, default_value_t = FirefliesArg::Suppress)]
     pub fireflies: FirefliesArg,
+    /// Which of the targets' hole pixels are path traced each frame: all of them (`full`), or,
+    /// where holes are dense, one of each 2×2 block of hole pixels per frame, taking turns, the
+    /// others reconstructed from traced neighbours whose G-buffer normal and depth agree
+    /// (`subsampled`: holes without such a neighbour are traced; docs/PIPELINE.md).
+    #[arg(long, value_enum, default_value_t = HoleFillArg::Full)]
+    pub hole_fill: HoleFillArg,
     /// Partitioning scheme.
     #[arg(long, value_enum, default_value_t = SchemeArg::MultiSource)]
     pub scheme: SchemeArg,
@@ -236,6 +263,7 @@ impl PipelineArgs {
             },
             fireflies: self.fireflies_applied().into(),
             denoise: self.denoise_applied().into(),
+            hole_fill: self.hole_fill.into(),
             exposure,
         }
     }

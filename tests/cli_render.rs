@@ -289,3 +289,39 @@ fn the_denoiser_is_chosen_by_flag_and_recorded() {
     assert!(stderr.contains("--denoise") && stderr.contains("--no-denoise"), "{stderr}");
     assert!(!both.exists(), "a refused run writes nothing");
 }
+
+/// `--hole-fill subsampled` runs the reconstruction and render.json records it (its `run` too,
+/// so `--config` repeats it bit for bit); `full` is the default; a misspelt value is refused by
+/// clap, naming the values.
+#[test]
+fn the_hole_filling_is_chosen_by_flag_and_recorded() {
+    let dir = scratch("render", "hole_fill");
+    let subsampled = dir.join("subsampled");
+    render(&subsampled, &["--hole-fill", "subsampled", "--denoise", "samples", "--frames", "2"]);
+    let j = json(&subsampled.join("render.json"));
+    assert_eq!((j["hole_fill"].as_str(), j["run"]["hole_fill"].as_str()), (Some("subsampled"), Some("subsampled")));
+    let stages: Vec<&str> =
+        j["timing"]["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    assert!(stages.contains(&"hole_reconstruct") && stages.contains(&"hole_reconstruct_apply"), "{stages:?}");
+
+    let again = dir.join("again");
+    let config = subsampled.join("render.json");
+    let out = parallax(&["-q", "render", "--config", config.to_str().unwrap(), "--out-dir", again.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for v in 0..8 {
+        let name = format!("view_{v:03}.exr");
+        assert!(std::fs::read(subsampled.join(&name)).unwrap() == std::fs::read(again.join(&name)).unwrap(), "{name}");
+    }
+
+    let full = dir.join("full");
+    render(&full, &["--frames", "1"]);
+    let j = json(&full.join("render.json"));
+    assert_eq!((j["hole_fill"].as_str(), j["run"]["hole_fill"].as_str()), (Some("full"), Some("full")));
+
+    let misspelt = dir.join("misspelt");
+    let out = parallax(&["render", "--hole-fill", "subsample", "--out-dir", misspelt.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--hole-fill") && stderr.contains("full") && stderr.contains("subsampled"), "{stderr}");
+    assert!(!misspelt.exists(), "a refused run writes nothing");
+}

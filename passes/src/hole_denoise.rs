@@ -26,13 +26,22 @@ pub const HOLE_STAMP: &str = "hole_stamp";
 
 /// Declares `hole_temporal` for every target: reads the band's `hole_list` (as `compact_holes`
 /// wrote it) and last frame's `hole_accum` and `hole_stamp`, and modifies `radiance` (the
-/// targets' radiance after hole filling) in place at the listed pixels only.
-pub fn declare_hole_denoise(graph: &mut KernelGraph, hole_list: &Handle<Buffer>, radiance: &mut Handle<Image>) {
+/// targets' radiance after hole filling) in place at the listed pixels only. With
+/// `reconstructed` (subsampled hole filling, [`crate::hole_subsample`]) it also carries the
+/// history of the pixels of that list, which were not traced, without adding to it. Returns
+/// this frame's `hole_accum`.
+pub fn declare_hole_denoise(
+    graph: &mut KernelGraph,
+    hole_list: &Handle<Buffer>,
+    reconstructed: Option<&Handle<Buffer>>,
+    radiance: &mut Handle<Image>,
+) -> Handle<Image> {
     let mut accum = graph.image(HOLE_ACCUM, Format::Rgba32f);
     let mut stamp = graph.image(HOLE_STAMP, Format::R32f);
     let mut pass = graph.pass(HOLE_TEMPORAL, Role::Targets);
     let slots = HoleTemporalSlots {
         list: pass.read_slot(hole_list),
+        reconstructed: reconstructed.map(|list| pass.read_slot(list)),
         // Read at the pixel's own texel only (a still camera reprojects onto itself).
         accum_before: pass.read_history_slot(&accum),
         stamp_before: pass.read_history_slot(&stamp),
@@ -41,12 +50,15 @@ pub fn declare_hole_denoise(graph: &mut KernelGraph, hole_list: &Handle<Buffer>,
         radiance: pass.modify_slot(radiance).1,
     };
     pass.kernel(Arc::new(HoleTemporalKernel(slots))).add();
+    accum
 }
 
 /// What `hole_temporal` declared.
 #[derive(Clone, Copy, Debug)]
 struct HoleTemporalSlots {
     list: ReadSlot,
+    /// The pixels whose history is carried, not added to (subsampled hole filling).
+    reconstructed: Option<ReadSlot>,
     accum_before: HistorySlot,
     stamp_before: HistorySlot,
     accum: WriteSlot,
@@ -54,26 +66,20 @@ struct HoleTemporalSlots {
     radiance: WriteSlot,
 }
 
-/// Records `hole_temporal` instances: one indirect dispatch on the band's list header.
+/// Records `hole_temporal` instances: one indirect dispatch on the band's list header, and one
+/// on its reconstructed list's where declared.
 struct HoleTemporalKernel(HoleTemporalSlots);
+
+/// `HoleTemporalPush::carry`: the listed pixels' history is carried (shaders/hole_temporal.comp).
+const CARRY: u32 = 1;
 
 impl PassKernel for HoleTemporalKernel {
     fn record(&self, rec: &mut Recorder<'_>, pass: &PassInstance, index: InstanceId) -> parallax_backend::Result<()> {
         let slots = &self.0;
-        let list = pass.read(slots.list)?;
-        let buffer = rec.resource(list.alloc);
-        if buffer.kind != ResourceKind::Buffer {
-            let detail = format!("its read `{}` must be the hole list's row buffer", buffer.name);
-            return Err(BackendError::KernelMisuse { kernel: HOLE_TEMPORAL.into(), instance: Some(index), detail });
-        }
-        if list.region.is_empty() {
-            return Ok(());
-        }
-        let offset = u64::from(list.region.y0) * buffer.row_bytes();
         let history = |rec: &Recorder<'_>, slot: HistorySlot| rec.image(pass.history_read(slot)?.alloc);
         let write = |rec: &Recorder<'_>, slot: WriteSlot| rec.image(pass.write(slot)?.alloc);
         let push = HoleTemporalPush {
-            list: rec.buffer_of(list.alloc)? + offset,
+            list: 0,
             block: rec.frame_block_address()?,
             radiance: write(rec, slots.radiance)?,
             accum_in: history(rec, slots.accum_before)?,
@@ -81,9 +87,36 @@ impl PassKernel for HoleTemporalKernel {
             accum_out: write(rec, slots.accum)?,
             stamp_out: write(rec, slots.stamp)?,
             view: pass.view.0,
+            carry: 0,
+            pad: 0,
         };
-        let alloc = list.alloc;
-        // The header's first three words are the indirect arguments (pixel_list.glsl).
-        rec.dispatch_indirect(shaders::HOLE_TEMPORAL, &push, alloc, offset)
+        dispatch_over(rec, pass, index, slots.list, push)?;
+        match slots.reconstructed {
+            Some(list) => dispatch_over(rec, pass, index, list, HoleTemporalPush { carry: CARRY, ..push }),
+            None => Ok(()),
+        }
     }
+}
+
+/// One indirect dispatch of `push` over the band's section of the pixel list `slot`.
+fn dispatch_over(
+    rec: &mut Recorder<'_>,
+    pass: &PassInstance,
+    index: InstanceId,
+    slot: ReadSlot,
+    push: HoleTemporalPush,
+) -> parallax_backend::Result<()> {
+    let list = pass.read(slot)?;
+    let buffer = rec.resource(list.alloc);
+    if buffer.kind != ResourceKind::Buffer {
+        let detail = format!("its read `{}` must be a pixel list's row buffer", buffer.name);
+        return Err(BackendError::KernelMisuse { kernel: HOLE_TEMPORAL.into(), instance: Some(index), detail });
+    }
+    if list.region.is_empty() {
+        return Ok(());
+    }
+    let offset = u64::from(list.region.y0) * buffer.row_bytes();
+    let push = HoleTemporalPush { list: rec.buffer_of(list.alloc)? + offset, ..push };
+    // The header's first three words are the indirect arguments (pixel_list.glsl).
+    rec.dispatch_indirect(shaders::HOLE_TEMPORAL, &push, list.alloc, offset)
 }

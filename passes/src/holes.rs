@@ -34,7 +34,7 @@ use std::sync::Arc;
 use parallax_backend::{
     BackendError, Format, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder, ResourceKind,
 };
-use parallax_graph::{Buffer, Handle, Image, ReadSlot, Role, WriteSlot};
+use parallax_graph::{Access, Buffer, Handle, Image, ReadSlot, Role, WriteSlot};
 
 use crate::path_trace::{NO_IMAGE, TRACE_PARAMS_BYTES, list_section};
 use crate::pixel_list::LIST_HEADER_WORDS;
@@ -75,12 +75,50 @@ pub fn declare_hole_fill(
     let mut pass = graph.pass(COMPACT_HOLES, Role::Targets);
     let (holes, (_, written_list)) = (pass.read_slot(holes), pass.modify_slot(&mut list));
     pass.kernel(Arc::new(CompactHolesKernel { holes, list: written_list })).add();
+    declare_hole_trace(graph, &list, first_hit, radiance);
+    list
+}
+
+/// Declares `hole_fill`: path traces the pixels of `list` (as a compaction pass wrote it) into
+/// `radiance` in place, its camera rays bounded by `first_hit` where given.
+pub(crate) fn declare_hole_trace(
+    graph: &mut KernelGraph,
+    list: &Handle<Buffer>,
+    first_hit: Option<&Handle<Image>>,
+    radiance: &mut Handle<Image>,
+) {
     let mut pass = graph.pass(HOLE_FILL, Role::Targets);
-    let read_list = pass.read_slot(&list);
+    let read_list = pass.read_slot(list);
     let first_hit = first_hit.map(|layer| pass.read_slot(layer));
     let (_, radiance) = pass.modify_slot(radiance);
     pass.kernel(Arc::new(HoleFillKernel { list: read_list, first_hit, radiance })).grouped().add();
-    list
+}
+
+/// The address of a band's section of a pixel-list row buffer (`list`, written by `kernel`'s
+/// instance `index` over a `width` × `height` view), after checking that it is one: a row
+/// buffer of `height` rows whose band section holds its header and an entry per pixel.
+pub(crate) fn band_list_address(
+    rec: &Recorder<'_>,
+    list: &Access,
+    (width, height): (u32, u32),
+    kernel: &str,
+    index: InstanceId,
+) -> parallax_backend::Result<u64> {
+    let buffer = rec.resource(list.alloc);
+    let rows = u64::from(list.region.len());
+    let fits = rows * buffer.row_bytes() >= 4 * (rows * u64::from(width) + u64::from(LIST_HEADER_WORDS));
+    if buffer.kind != ResourceKind::Buffer || buffer.height != height || !fits {
+        return Err(BackendError::KernelMisuse {
+            kernel: kernel.into(),
+            instance: Some(index),
+            detail: format!(
+                "`{}` must be a row buffer of {height} rows and at least {} bytes per row",
+                buffer.name,
+                hole_list_row_bytes(width)
+            ),
+        });
+    }
+    Ok(rec.buffer_of(list.alloc)? + u64::from(list.region.y0) * buffer.row_bytes())
 }
 
 /// Records `compact_holes` instances: reads slot [`HOLES`] (an R32u image) over the band and
@@ -100,23 +138,12 @@ impl PassKernel for CompactHolesKernel {
             return Err(misuse(format!("`{}` must be an R32u image", mask.name)));
         }
         let width = mask.width;
-        let buffer = rec.resource(list.alloc);
-        // The band's section holds its header and an entry for every pixel of the band.
-        let rows = u64::from(list.region.len());
-        let fits = rows * buffer.row_bytes() >= 4 * (rows * u64::from(width) + u64::from(LIST_HEADER_WORDS));
-        if buffer.kind != ResourceKind::Buffer || buffer.height != mask.height || !fits {
-            return Err(misuse(format!(
-                "`{}` must be a row buffer of {} rows and at least {} bytes per row",
-                buffer.name,
-                mask.height,
-                hole_list_row_bytes(width)
-            )));
-        }
+        let address = band_list_address(rec, list, (width, mask.height), COMPACT_HOLES, index)?;
         if list.region.is_empty() {
             return Ok(());
         }
         let push = CompactHolesPush {
-            list: rec.buffer_of(list.alloc)? + u64::from(list.region.y0) * buffer.row_bytes(),
+            list: address,
             holes: rec.image(holes.alloc)?,
             y0: list.region.y0,
             y1: list.region.y1,

@@ -51,6 +51,7 @@ pub mod firefly;
 pub mod gbuffer;
 pub mod hole_bench;
 pub mod hole_denoise;
+pub mod hole_subsample;
 pub mod holes;
 pub mod path_trace;
 pub mod pipeline;

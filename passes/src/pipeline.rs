@@ -7,6 +7,9 @@
 //! Where the denoiser runs is [`Denoiser`]: over every view after reconstruction (`Views`), or
 //! over the samples (`Samples`: SVGF on the sources before reprojection, the targets reproject
 //! the denoised radiance, and their hole pixels are accumulated by [`crate::hole_denoise`]).
+//! Which hole pixels are traced is [`HoleFillMode`]: all of them every frame (`Full`), or a
+//! rotating subset, the others reconstructed from traced neighbours (`Subsampled`,
+//! [`crate::hole_subsample`]).
 //!
 //! [`PipelineBuilder`] declares it stage by stage; a caller adds stages of its own at named
 //! [`InsertionPoint`]s and replaces the denoiser or the tonemapper, and gets the standard
@@ -43,6 +46,7 @@ use crate::error::Result;
 use crate::firefly::{FireflyMode, declare_firefly_suppression};
 use crate::gbuffer::{Gbuffer, declare_gbuffer, declare_gbuffer_rasterised};
 use crate::hole_denoise::declare_hole_denoise;
+use crate::hole_subsample::{HoleFillMode, SubsampledHoles, declare_hole_reconstruction, declare_subsampled_hole_fill};
 use crate::holes::declare_hole_fill;
 use crate::path_trace::{PATH_TRACE, PathTraceKernel};
 use crate::reproject::{ReprojectionTolerances, declare_reproject};
@@ -87,6 +91,8 @@ pub struct PipelineConfig {
     pub fireflies: FireflyMode,
     /// Where SVGF runs, if anywhere.
     pub denoise: Denoiser,
+    /// Whether every hole pixel is traced every frame ([`crate::hole_subsample`]).
+    pub hole_fill: HoleFillMode,
     /// Exposure of the tonemapper (finite, > 0).
     pub exposure: f32,
 }
@@ -99,6 +105,8 @@ pub struct PipelineHandles {
     pub radiance: Handle<Image>,
     /// Targets' hole masks (`Reproject` only).
     pub holes: Option<Handle<Image>>,
+    /// The traced and reconstructed hole pixels ([`HoleFillMode::Subsampled`] only).
+    pub subsampled_holes: Option<SubsampledHoles>,
     /// Linear radiance after denoising (`denoise` not `None`). Under [`Denoiser::Samples`] a
     /// target's is its reprojected denoised radiance with its holes traced and accumulated.
     pub denoised: Option<Handle<Image>>,
@@ -139,6 +147,8 @@ pub struct Layers {
     pub gbuffer: Gbuffer,
     pub radiance: Handle<Image>,
     pub holes: Option<Handle<Image>>,
+    /// The traced and reconstructed hole pixels ([`HoleFillMode::Subsampled`] only).
+    pub subsampled_holes: Option<SubsampledHoles>,
     pub denoised: Option<Handle<Image>>,
     /// A global 1×1 `R32f` image whose texel the tonemapper multiplies its exposure by; none
     /// (the default) tonemaps at the configured exposure alone.
@@ -176,6 +186,7 @@ impl Default for PipelineConfig {
             tolerances: ReprojectionTolerances::default(),
             fireflies: FireflyMode::Suppress,
             denoise: Denoiser::Views,
+            hole_fill: HoleFillMode::Full,
             exposure: 1.0,
         }
     }
@@ -228,7 +239,8 @@ impl PipelineBuilder {
             }
         };
         let radiance = graph.image("radiance", Format::Rgba32f);
-        let mut layers = Layers { gbuffer, radiance, holes: None, denoised: None, exposure: None };
+        let mut layers =
+            Layers { gbuffer, radiance, holes: None, subsampled_holes: None, denoised: None, exposure: None };
         self.run_stages(InsertionPoint::AfterGbuffer, graph, &mut layers)?;
         let traced = if config.kind == PipelineKind::PathTrace { Role::All } else { Role::Sources };
         declare_path_trace(graph, traced, &mut layers.radiance);
@@ -240,7 +252,18 @@ impl PipelineBuilder {
             layers.holes = Some(declare_reproject(graph, &layers.gbuffer, &mut layers.radiance, config.tolerances)?);
             self.run_stages(InsertionPoint::AfterReprojection, graph, &mut layers)?;
             let holes = layers.holes.as_ref().expect("declared just above");
-            declare_hole_fill(graph, holes, layers.gbuffer.first_hit.as_ref(), &mut layers.radiance);
+            match config.hole_fill {
+                HoleFillMode::Full => {
+                    declare_hole_fill(graph, holes, layers.gbuffer.first_hit.as_ref(), &mut layers.radiance);
+                }
+                HoleFillMode::Subsampled => {
+                    let (gbuffer, radiance) = (&layers.gbuffer, &mut layers.radiance);
+                    let subsampled = declare_subsampled_hole_fill(graph, holes, gbuffer, radiance);
+                    // SVGF takes the reconstructed radiance as it takes the traced.
+                    declare_hole_reconstruction(graph, &subsampled, gbuffer, None, radiance);
+                    layers.subsampled_holes = Some(subsampled);
+                }
+            }
             self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
         }
         self.declare_fireflies_and_denoiser(graph, &mut layers, Role::All)?;
@@ -283,8 +306,19 @@ impl PipelineBuilder {
         self.run_stages(InsertionPoint::AfterReprojection, graph, &mut layers)?;
         let holes = layers.holes.as_ref().expect("set above");
         let denoised = layers.denoised.as_mut().expect("set above");
-        let list = declare_hole_fill(graph, holes, layers.gbuffer.first_hit.as_ref(), denoised);
-        declare_hole_denoise(graph, &list, denoised);
+        match self.config.hole_fill {
+            HoleFillMode::Full => {
+                let list = declare_hole_fill(graph, holes, layers.gbuffer.first_hit.as_ref(), denoised);
+                declare_hole_denoise(graph, &list, None, denoised);
+            }
+            HoleFillMode::Subsampled => {
+                let subsampled = declare_subsampled_hole_fill(graph, holes, &layers.gbuffer, denoised);
+                // Only the traced pixels join their running means; the others show theirs.
+                let accum = declare_hole_denoise(graph, &subsampled.traced, Some(&subsampled.reconstructed), denoised);
+                declare_hole_reconstruction(graph, &subsampled, &layers.gbuffer, Some(&accum), denoised);
+                layers.subsampled_holes = Some(subsampled);
+            }
+        }
         self.run_stages(InsertionPoint::AfterHoleFill, graph, &mut layers)?;
         self.finish(graph, layers)
     }
@@ -300,8 +334,8 @@ impl PipelineBuilder {
             }
         };
         let linear = layers.denoised.as_ref().unwrap_or(&layers.radiance).family();
-        let Layers { gbuffer, radiance, holes, denoised, exposure } = layers;
-        Ok(PipelineHandles { gbuffer, radiance, holes, denoised, linear, exposure, display })
+        let Layers { gbuffer, radiance, holes, subsampled_holes, denoised, exposure } = layers;
+        Ok(PipelineHandles { gbuffer, radiance, holes, subsampled_holes, denoised, linear, exposure, display })
     }
 
     /// Runs the stages inserted at `at`, in insertion order.
@@ -518,6 +552,27 @@ mod tests {
         declare_pipeline(&mut samples, &path_trace).unwrap();
         declare_pipeline(&mut views, &PipelineConfig { denoise: Denoiser::Views, ..path_trace }).unwrap();
         assert_eq!(pass_names(&samples), pass_names(&views));
+    }
+
+    #[test]
+    fn subsampled_hole_filling_reconstructs_after_the_trace_and_after_hole_temporal_in_sample_space() {
+        let declared = |denoise| {
+            let mut graph = KernelGraph::with_payload(topology());
+            let config = PipelineConfig { denoise, hole_fill: HoleFillMode::Subsampled, ..PipelineConfig::default() };
+            let handles = declare_pipeline(&mut graph, &config).unwrap();
+            assert!(handles.subsampled_holes.is_some(), "{denoise:?}");
+            let names = pass_names(&graph);
+            let from = names.iter().position(|n| n == crate::holes::COMPACT_HOLES).unwrap();
+            names[from..from + if denoise == Denoiser::Samples { 5 } else { 4 }].to_vec()
+        };
+        let reconstruct = [crate::hole_subsample::HOLE_RECONSTRUCT, crate::hole_subsample::HOLE_RECONSTRUCT_APPLY];
+        assert_eq!(declared(Denoiser::Views), [["compact_holes", "hole_fill"].as_slice(), &reconstruct].concat());
+        // Only the traced pixels join their means; a reconstructed pixel then shows its own.
+        let samples = [["compact_holes", "hole_fill", "hole_temporal"].as_slice(), &reconstruct].concat();
+        assert_eq!(declared(Denoiser::Samples), samples);
+        // `Full` declares none of it.
+        let mut graph = KernelGraph::with_payload(topology());
+        assert!(declare_pipeline(&mut graph, &PipelineConfig::default()).unwrap().subsampled_holes.is_none());
     }
 
     #[test]

@@ -14,6 +14,7 @@ use parallax_graph::{
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::firefly::FireflyMode;
+use parallax_passes::hole_subsample::HoleFillMode;
 use parallax_passes::pipeline::{
     Denoiser, GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline,
 };
@@ -193,6 +194,18 @@ fn every_scheme_gives_the_same_bits_on_one_and_three_devices_with_the_visibility
 fn every_scheme_gives_the_same_bits_on_one_and_three_devices_denoising_the_samples() {
     let config = PipelineConfig { denoise: Denoiser::Samples, ..common::denoising_pipeline(PipelineKind::Reproject) };
     assert_every_scheme_gives_the_same_bits_on_one_and_three_devices(&config, "SVGF over the samples");
+}
+
+#[test]
+fn every_scheme_gives_the_same_bits_on_one_and_three_devices_subsampling_the_holes() {
+    for denoise in [Denoiser::Views, Denoiser::Samples] {
+        let config = PipelineConfig {
+            denoise,
+            hole_fill: HoleFillMode::Subsampled,
+            ..common::denoising_pipeline(PipelineKind::Reproject)
+        };
+        assert_every_scheme_gives_the_same_bits_on_one_and_three_devices(&config, &format!("subsampled, {denoise:?}"));
+    }
 }
 
 #[test]

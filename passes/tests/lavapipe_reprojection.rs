@@ -14,6 +14,7 @@ use parallax_graph::{AssignStrategy, LayoutSpec, LightField, Partition, Partitio
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::firefly::FireflyMode;
+use parallax_passes::hole_subsample::HoleFillMode;
 use parallax_passes::pipeline::{Denoiser, GbufferSource, PipelineConfig, PipelineKind, declare_pipeline};
 use parallax_passes::reproject::ReprojectionTolerances;
 use parallax_passes::view_bound::{ViewBound, view_angle};
@@ -127,6 +128,7 @@ fn render_setup(s: Setup<'_>) -> Rendered {
         tolerances: s.tolerances,
         fireflies: FireflyMode::Keep,
         denoise: Denoiser::None,
+        hole_fill: HoleFillMode::Full,
         exposure: 1.0,
     };
     let handles = declare_pipeline(&mut graph, &config).unwrap();

@@ -10,6 +10,7 @@ use parallax_graph::{
     SourcesPerSet,
 };
 use parallax_passes::firefly::FireflyMode;
+use parallax_passes::hole_subsample::HoleFillMode;
 use parallax_passes::pipeline::{
     Denoiser, GbufferSource, PipelineBuilder, PipelineConfig, PipelineHandles, PipelineKind,
 };
@@ -221,6 +222,14 @@ pub fn denoiser_name(denoiser: Denoiser) -> &'static str {
         Denoiser::Views => "views",
         Denoiser::Samples => "samples",
         Denoiser::None => "none",
+    }
+}
+
+/// `full` or `subsampled`.
+pub fn hole_fill_name(hole_fill: HoleFillMode) -> &'static str {
+    match hole_fill {
+        HoleFillMode::Full => "full",
+        HoleFillMode::Subsampled => "subsampled",
     }
 }
 

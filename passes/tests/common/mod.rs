@@ -7,6 +7,7 @@ use parallax_backend::{Context, ExecOptions, KernelGraph, KernelPlan};
 use parallax_graph::{AssignStrategy, LightField, Partition, PartitionConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::firefly::FireflyMode;
+use parallax_passes::hole_subsample::HoleFillMode;
 use parallax_passes::pipeline::{
     Denoiser, GbufferSource, PipelineConfig, PipelineHandles, PipelineKind, declare_pipeline,
 };
@@ -65,6 +66,7 @@ pub fn denoising_pipeline(kind: PipelineKind) -> PipelineConfig {
         tolerances: ReprojectionTolerances::default(),
         fireflies: FireflyMode::Suppress,
         denoise: Denoiser::Views,
+        hole_fill: HoleFillMode::Full,
         exposure: 1.0,
     }
 }

@@ -17,7 +17,9 @@ use parallax_passes::pipeline::PipelineKind;
 use super::posing::GeometryReport;
 use super::prepare::RenderJob;
 use super::view_files::{ViewLayers, bytemuck_words, remove_stale_views, stage_views};
-use crate::compile::{denoiser_name, fireflies_name, gbuffer_name, pipeline_name, plan_json, sources_per_set_json};
+use crate::compile::{
+    denoiser_name, fireflies_name, gbuffer_name, hole_fill_name, pipeline_name, plan_json, sources_per_set_json,
+};
 use crate::console::result;
 use crate::outputs::resident::ResidentSummary;
 use crate::outputs::{FolderLock, Sink, Staged};
@@ -266,6 +268,7 @@ fn render_json(settings: &RenderSettings, job: &RenderJob, measured: &Measured<'
         "pipeline": pipeline_name(settings.pipeline.config.kind), "scheme": summary.scheme, "assign": summary.assign,
         "sources_per_set": sources_per_set_json(settings.pipeline.sources_per_set), "denoise": denoiser_name(settings.pipeline.config.denoise),
         "fireflies": fireflies_name(settings.pipeline.config.fireflies),
+        "hole_fill": hole_fill_name(settings.pipeline.config.hole_fill),
         "exposure": measured.exposure, "exposure_mode": settings.exposure.mode(), "still": still,
         "motion": job.motion.name(), "geometry": &measured.geometry, "setup": &setup,
         "barriers": barriers_name(settings.barriers), "timestamps": timing_name(settings.timing), "gbuffer": gbuffer_name(job.gbuffer.runs),
