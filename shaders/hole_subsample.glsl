@@ -19,7 +19,7 @@ const float HOLE_PLANE_TOLERANCE = 0.02;
 
 // How much traced neighbour q (position_depth, normal) may stand in for pixel p; 0 where it may
 // not. Either without a hit (w = 0) is never similar. Where similar the weight is at least
-// 0.9^8 / 2 = 0.22, so a pixel with a similar traced neighbour always has a positive sum.
+// 0.9^8 / 2 = 0.215, so a pixel with a similar traced neighbour always has a positive sum.
 float hole_similarity(vec4 position_p, vec3 normal_p, vec4 position_q, vec3 normal_q) {
     if (position_p.w <= 0.0 || position_q.w <= 0.0) {
         return 0.0;

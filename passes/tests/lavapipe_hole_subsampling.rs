@@ -1,7 +1,7 @@
 //! Subsampled hole filling (`HoleFillMode::Subsampled`, passes/src/hole_subsample.rs) in the
 //! whole pipeline on lavapipe, validation on, the default scene: the traced subset is the
 //! rotating 2×2 pattern it claims, with the fallback where no similar traced neighbour exists
-//! (checked against a CPU twin and the lists' own counts); traced pixels keep path tracing's
+//! (checked against a CPU twin and the lists' entries); traced pixels keep path tracing's
 //! bits and reconstructed ones are the weighted mean of their traced neighbours; a still camera
 //! traces every hole pixel within 4 frames; isolated holes are always traced; and under
 //! `--denoise samples` a hole pixel's running mean counts its traced frames only.
@@ -36,8 +36,8 @@ struct Target {
     normal: Vec<f32>,
     /// `hole_sampling` (empty under `Full`).
     sampling: Vec<u32>,
-    /// The counts in the headers of `hole_list` and `hole_reconstruct_list` (`Subsampled`).
-    listed: (u32, u32),
+    /// The pixel indices `hole_list` and `hole_reconstruct_list` hold, sorted (`Subsampled`).
+    listed: (Vec<usize>, Vec<usize>),
 }
 
 /// Per frame, the target views.
@@ -81,15 +81,14 @@ fn run(config: &PipelineConfig) -> Frames {
         let frame = targets
             .map(|v| {
                 let layers: Vec<Vec<u8>> = families.iter().map(|&f| read(f, v)).collect();
-                // One band per view on one device: each list's header is at its start.
-                let count = |i: usize| layers.get(i).map_or(0, |list| words(list)[3]);
+                let listed = |i: usize| layers.get(i).map(|list| listed_pixels(list)).unwrap_or_default();
                 Target {
                     output: common::floats(&layers[0]),
                     holes: words(&layers[1]),
                     position: common::floats(&layers[2]),
                     normal: common::floats(&layers[3]),
                     sampling: layers.get(4).map(|l| words(l)).unwrap_or_default(),
-                    listed: (count(5), count(6)),
+                    listed: (listed(5), listed(6)),
                 }
             })
             .collect();
@@ -98,6 +97,17 @@ fn run(config: &PipelineConfig) -> Frames {
     drop(renderer);
     ctx.check_validation().unwrap();
     frames
+}
+
+/// The pixels (y · SIZE + x) of a view's pixel list, sorted: one band per view on one device,
+/// so its header (`groups_x, groups_y, groups_z, count`) is at its start.
+fn listed_pixels(list: &[u8]) -> Vec<usize> {
+    let words = words(list);
+    let count = words[3] as usize;
+    let mut pixels: Vec<usize> =
+        words[4..4 + count].iter().map(|&e| ((e >> 16) * SIZE + (e & 0xffff)) as usize).collect();
+    pixels.sort_unstable();
+    pixels
 }
 
 /// The families [`run`] reads, in [`Target`]'s order; the subsampling's last, where declared.
@@ -239,8 +249,9 @@ fn the_traced_hole_pixels_are_the_rotating_pattern_and_the_rest_their_neighbours
         for (view, (t, f)) in views.iter().zip(full_views).enumerate() {
             let at = format!("frame {frame}, target {view}");
             assert_eq!(t.holes, f.holes, "{at}: both runs find the same holes");
-            let count = |s: u32| t.sampling.iter().filter(|&&v| v == s).count() as u32;
-            assert_eq!(t.listed, (count(SAMPLING_TRACED), count(SAMPLING_RECONSTRUCTED)), "{at}: the lists");
+            let flagged = |s: u32| (0..t.sampling.len()).filter(|&i| t.sampling[i] == s).collect::<Vec<_>>();
+            let lists = (flagged(SAMPLING_TRACED), flagged(SAMPLING_RECONSTRUCTED));
+            assert_eq!(t.listed, lists, "{at}: the lists hold the pixels flagged, each once");
             let twin = Twin(t);
             for p in pixels() {
                 let i = twin.index(p).unwrap();
