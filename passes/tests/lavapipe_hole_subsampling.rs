@@ -9,7 +9,7 @@
 mod common;
 
 use parallax_backend::{ExecOptions, KernelGraph, KernelPlan};
-use parallax_graph::{AssignStrategy, FamilyId, LayoutSpec, LightField, Plan, PlanConfig, Scheme, compile};
+use parallax_graph::{AssignStrategy, FamilyId, LayoutSpec, LightField, Partition, PartitionConfig, Scheme, compile};
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::{lightfield_views, rig_of};
 use parallax_passes::firefly::FireflyMode;
@@ -57,14 +57,14 @@ fn light_field() -> LightField {
 fn run(config: &PipelineConfig) -> Frames {
     let scene = default_scene();
     let lf = light_field();
-    let plan_config =
-        PlanConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
-    let plan = Plan::new(&lf, &plan_config).unwrap();
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
+    let partition_config =
+        PartitionConfig { devices: 1, scheme: Scheme::MultiSource, assign: AssignStrategy::Compact, sources: None };
+    let partition = Partition::new(&lf, &partition_config).unwrap();
+    let mut graph = KernelGraph::with_payload(partition.topology.clone());
     let handles = declare_pipeline(&mut graph, config).unwrap();
     graph.export(&handles.display);
     let families = families(&handles);
-    let schedule = compile(&graph, &plan).unwrap();
+    let schedule = compile(&graph, &partition).unwrap();
     let exec = KernelPlan::from_schedule(&graph, &schedule).unwrap();
     let ctx = common::context(1);
     let bvh = SceneBvh::build(&scene);
@@ -76,7 +76,7 @@ fn run(config: &PipelineConfig) -> Frames {
     for frame in 0..FRAMES {
         renderer.submit(&scene, &views, &TraceSettings { frame, ..settings }).unwrap();
         renderer.finish().unwrap();
-        let targets = (0..lf.len() as u32).filter(|&v| !plan.topology.is_source[v as usize]);
+        let targets = (0..lf.len() as u32).filter(|&v| !partition.topology.is_source[v as usize]);
         let mut read = |family: FamilyId, v: u32| renderer.read(family, v).unwrap();
         let frame = targets
             .map(|v| {
