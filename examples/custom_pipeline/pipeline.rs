@@ -167,7 +167,7 @@ pub fn schedule_dot(scheme: Scheme, devices: u32) -> Result<String> {
 /// Runs the pipeline on the devices, checks every pixel against the CPU and writes the PNG.
 pub fn run(options: &Options) -> Result<Report> {
     let (lf, plan, graph, radiance) = declare(options.scheme, options.devices.count() as u32)?;
-    // Compiling proves the schedule (its invariants hold) before it is lowered for the executor.
+    // Compiling proves the schedule (its invariants hold) before the executor's plan is built from it.
     let Compiled { schedule, plan: exec_plan } = Compiled::compile(&graph, &plan)?;
     let shaders = parallax_backend::include_shaders!()?;
 

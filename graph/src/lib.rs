@@ -16,7 +16,7 @@
 //!   by default): the order the backend submits.
 //! * [`Schedule`]: plain data, checked by [`Schedule::validate`] and drawn by
 //!   [`Schedule::to_dot`]; compiling proves what it built once and returns a
-//!   [`ProvenSchedule`], the only kind the backend lowers.
+//!   [`ProvenSchedule`], the only kind the backend builds a kernel plan from.
 //!
 //! ```
 //! use parallax_graph::*;

@@ -72,7 +72,7 @@ pub fn trace_plan(
     let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
     let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources };
     let placement = parallax_graph::Partition::new(&lf, &config)?;
-    lower_trace(placement.topology.clone(), &placement, pixel_list)
+    compile_trace(placement.topology.clone(), &placement, pixel_list)
 }
 
 /// The plan for tracing `views` views of `width`×`height`, each in `bands` row bands, band `b`
@@ -81,10 +81,10 @@ pub fn trace_plan(
 /// `parallax trace` splits its single view over any number of devices this way.
 pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<TracePlan> {
     let topology = ViewTopology::all_sources(views, width, height);
-    lower_trace(topology, &BandedPlacement { devices, bands }, None)
+    compile_trace(topology, &BandedPlacement { devices, bands }, None)
 }
 
-fn lower_trace(
+fn compile_trace(
     topology: ViewTopology,
     placement: &dyn Placement,
     pixel_list: Option<(u64, StridedPixels)>,
