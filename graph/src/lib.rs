@@ -81,4 +81,4 @@ pub use schedule::{
     Access, Allocation, CopyBatch, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin,
     PassInfo, PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
-pub use summary::PlanSummary;
+pub use summary::ScheduleSummary;
