@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use parallax_graph::{ScheduleSummary, Rig};
+use parallax_graph::{Rig, ScheduleSummary};
 
 use crate::logging::{result, spinner};
 use crate::options::sink_parser;

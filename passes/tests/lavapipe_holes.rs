@@ -22,7 +22,7 @@ use parallax_graph::{
 };
 use parallax_passes::gbuffer::declare_gbuffer;
 use parallax_passes::{
-    COMPACT_HOLES, HOLE_FILL, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel, CompiledTrace,
+    COMPACT_HOLES, CompiledTrace, HOLE_FILL, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel,
     banded_trace_plan, bench_holes, declare_hole_fill, hole_threshold, is_hashed_hole, list_groups,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};

@@ -8,7 +8,7 @@ mod common;
 use parallax_backend::ExecOptions;
 use parallax_graph::Scheme;
 use parallax_passes::{
-    LightFieldRenderer, PATH_TRACE, StridedPixels, CompiledTrace, banded_trace_plan, strided_pixels, trace_plan,
+    CompiledTrace, LightFieldRenderer, PATH_TRACE, StridedPixels, banded_trace_plan, strided_pixels, trace_plan,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};

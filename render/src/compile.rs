@@ -6,7 +6,7 @@
 use anyhow::Result;
 use parallax_backend::{Compiled, KernelGraph, KernelPlan};
 use parallax_graph::{
-    AssignStrategy, LightField, Partition, PartitionConfig, ScheduleSummary, ProvenSchedule, Schedule, Scheme,
+    AssignStrategy, LightField, Partition, PartitionConfig, ProvenSchedule, Schedule, ScheduleSummary, Scheme,
     SourcesPerSet,
 };
 use parallax_passes::firefly::FireflyMode;
