@@ -46,6 +46,7 @@ use crate::cmd_render::RenderArgs;
 use crate::logging::{bar, result};
 use crate::options::{AssignArg, SchemeArg};
 use crate::pipeline_args::PipelineArg;
+use parallax_render::bench::cell::{self as bench_cell, CellHead, RanCell};
 use parallax_render::bench::resume as bench_resume;
 use parallax_render::bench::tables;
 
@@ -230,13 +231,6 @@ fn check_render_args(matrix: Option<&Path>, case: &Case, argv: &[OsString]) -> R
     Ok(())
 }
 
-/// A stage's ms per frame in render.json's `timing`, summed over devices; 0 when no device ran
-/// it. A fold from +0, because `sum` over no rows gives -0.
-fn stage_total_ms(timing: &serde_json::Value, stage: &str) -> Option<f64> {
-    let rows = timing["stages"].as_array()?;
-    Some(rows.iter().filter(|r| r["stage"] == stage).filter_map(|r| r["mean_ms"].as_f64()).fold(0.0, |a, b| a + b))
-}
-
 /// Makes a cell's `render` end with bench (Linux): a bench ended by a signal, or killed, would
 /// otherwise leave its running cell rendering on, reparented to init, writing a complete cell
 /// later into a matrix that no longer runs. The child asks for SIGTERM when its parent thread
@@ -285,19 +279,28 @@ fn run_cell(
     let status = render.status().context("cannot start a cell")?;
     let id = &cell.id;
     let shaped = Cell::shaped(cell.pipeline, cell.scheme);
-    let mut entry = serde_json::json!({
-        "id": id, "case": case.name, "args": cell.args, "pipeline": name_of(&cell.pipeline),
-        "scheme": name_of(&cell.scheme), "assignment": cell.assignment.map(|a| name_of(&a)),
-        "sources_per_set": cell.sources_per_set, "spp": cell.spp, "denoise": cell.denoise != Denoise::Off, "denoiser": name_of(&cell.denoise),
-        "reprojection_tolerance": cell.tolerance, "devices": cell.devices,
-    });
+    let (pipeline, scheme, denoiser) = (name_of(&cell.pipeline), name_of(&cell.scheme), name_of(&cell.denoise));
+    let assignment = cell.assignment.map(|a| name_of(&a));
+    let mut entry = CellHead {
+        id,
+        case: case.name.as_deref(),
+        args: &cell.args,
+        pipeline: &pipeline,
+        scheme: &scheme,
+        assignment: assignment.as_deref(),
+        sources_per_set: cell.sources_per_set,
+        spp: cell.spp,
+        denoise: cell.denoise != Denoise::Off,
+        denoiser: &denoiser,
+        tolerance: cell.tolerance,
+        devices: cell.devices,
+    }
+    .entry();
     if !status.success() {
         let mut stderr = Vec::new();
         diagnostics.seek(SeekFrom::Start(0))?;
         diagnostics.take(MAX_CELL_ERROR_BYTES).read_to_end(&mut stderr)?;
-        let error = String::from_utf8_lossy(&stderr).trim().to_string();
-        entry["ok"] = false.into();
-        entry["error"] = error.into();
+        bench_cell::failed(&mut entry, String::from_utf8_lossy(&stderr).trim().to_string());
         return Ok(entry);
     }
     let report: serde_json::Value = match parallax_scene::input::read_bounded(
@@ -310,35 +313,13 @@ fn run_cell(
     {
         Ok(report) => report,
         Err(e) => {
-            entry["ok"] = false.into();
-            entry["error"] = format!("error: the cell ran but its render.json is unreadable: {e}").into();
+            bench_cell::failed(&mut entry, format!("error: the cell ran but its render.json is unreadable: {e}"));
             return Ok(entry);
         }
     };
-    let timing = &report["timing"];
-    let mean = timing["frame_gpu"]["mean_ms"].as_f64().unwrap_or(f64::NAN);
-    let views = report["layout"]["views"].as_f64().unwrap_or(0.0);
-    if shaped && cell.assignment.is_none() {
-        // Render's default, as it reports it.
-        entry["assignment"] = report["assign"].clone();
-    }
-    if cell.pipeline == PipelineArg::Reproject {
-        // Render's default when the cell gave none, as it reports it.
-        entry["reprojection_tolerance"] = report["reprojection_tolerance"].clone();
-    }
-    entry["ok"] = true.into();
-    entry["views"] = report["layout"]["views"].clone();
-    entry["frame_ms"] = timing["frame_gpu"].clone();
-    entry["views_per_s"] = (views * 1e3 / mean).into();
-    entry["stages"] = timing["stages"].clone();
-    entry["hole_fill_ms"] = match cell.pipeline {
-        PipelineArg::Reproject => stage_total_ms(timing, "hole_fill").into(),
-        PipelineArg::PathTrace => serde_json::Value::Null,
-    };
-    entry["gather_ms"] = stage_total_ms(timing, "transfer").into();
-    entry["busy_fraction"] = timing["busy_fraction"].clone();
-    entry["copy_bytes_per_frame"] = timing["copy_bytes_per_frame"].clone();
-    entry["missing_pixels"] = report["missing_pixels"].clone();
+    let reprojected = cell.pipeline == PipelineArg::Reproject;
+    let ran = RanCell { reprojected, default_assignment: shaped && cell.assignment.is_none() };
+    bench_cell::ran(&mut entry, &report, ran);
     if let Some(reference) = &case.reference {
         // Settings that differ would make every cell of the case measure them, not its error.
         crate::cmd_compare::check_settings(folder, reference, allow_mismatch)
@@ -355,19 +336,6 @@ fn run_cell(
         }
     }
     Ok(entry)
-}
-
-/// The chart point of a cell that ran (module docs).
-fn point(c: &serde_json::Value) -> serde_json::Value {
-    let reprojected = c["pipeline"] == "reproject";
-    serde_json::json!({
-        "label": c["id"], "series": c["pipeline"], "case": c["case"], "frame_ms": c["frame_ms"]["mean_ms"],
-        "flip": c["flip"], "psnr": c["psnr_db"], "views": c["views"], "devices": c["devices"],
-        "assignment": c["assignment"], "sources_per_set": c["sources_per_set"], "spp": c["spp"],
-        "reprojection_tolerance": c["reprojection_tolerance"],
-        "missing": if reprojected { c["missing_pixels"]["overall"].clone() } else { serde_json::Value::Null },
-        "hole_fill_ms": c["hole_fill_ms"],
-    })
 }
 
 /// Writes bench.json, points.json and bench.md for the cells run so far; returns bench.md.
@@ -388,7 +356,8 @@ fn write_outputs(
         "warmup": warmup, "cases": cases, "cells": entries,
     });
     let staged_json = parallax_render::outputs::stage_json(&args.out_dir.join("bench.json"), &json)?;
-    let points: Vec<serde_json::Value> = entries.iter().filter(|c| c["ok"] == true).map(point).collect();
+    let points: Vec<serde_json::Value> =
+        entries.iter().filter(|c| c["ok"] == true).map(bench_cell::chart_point).collect();
     let staged_points = parallax_render::outputs::stage_json(
         &args.out_dir.join("points.json"),
         &serde_json::json!({ "points": points }),

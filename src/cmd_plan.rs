@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use parallax_graph::{PlanSummary, Rig};
+use parallax_graph::{Rig, ScheduleSummary};
 
 use crate::logging::{result, spinner};
 use crate::options::sink_parser;
@@ -124,7 +124,7 @@ fn rank_line(s: &RankShare) -> String {
     )
 }
 
-fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 9] {
+fn summary_lines(p: &PipelineArgs, s: &ScheduleSummary) -> [String; 9] {
     [
         format!(
             "pipeline      {}, G-buffer {}, fireflies {}, {}",
@@ -165,7 +165,7 @@ fn summary_lines(p: &PipelineArgs, s: &PlanSummary) -> [String; 9] {
 }
 
 /// How each set's sources were chosen and what they are predicted to cost (multi-source).
-fn sources_prediction_line(s: &PlanSummary) -> String {
+fn sources_prediction_line(s: &ScheduleSummary) -> String {
     if s.sources_prediction.is_empty() {
         return "per set       (row bands: no sets)".to_string();
     }

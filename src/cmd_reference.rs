@@ -18,11 +18,8 @@ use clap::Args;
 use indicatif::ProgressStyle;
 use parallax_accuracy::exposure::LogAverage;
 use parallax_accuracy::{Accumulator, PARTIAL_FILE, Point, RgbImage, remove_stale_temporaries, write_atomically};
-use parallax_backend::{Context as VkContext, ContextDesc, ExecOptions};
 use parallax_graph::lightfield::DEFAULT_SPACING;
 use parallax_graph::{LightField, ViewId};
-use parallax_passes::{LightFieldRenderer, banded_trace_plan};
-use parallax_scene::gpu::GpuScene;
 use parallax_scene::output::write_contact_sheet;
 use parallax_scene::{CpuTracer, Frame, PixelSample, Scene, SceneBvh, TraceSettings, View};
 
@@ -31,6 +28,7 @@ use crate::scene_args::{DepthArgs, LightFieldArgs, SceneArgs};
 use parallax_passes::camera::lightfield_view;
 use parallax_render::outputs::budget::{TraceWork, check_host_bytes, refuse_every_exceeded};
 use parallax_render::report::setup::Setup;
+use parallax_render::trace_run::{GpuTraceSettings, GpuTracer};
 
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {
@@ -121,7 +119,7 @@ fn scene_files_key(scene: &Scene) -> BTreeMap<String, String> {
 
 enum Tracer<'a> {
     Cpu(CpuTracer<'a>),
-    Gpu { context: VkContext, tracer: Box<LightFieldRenderer> },
+    Gpu(GpuTracer),
 }
 
 impl<'a> Tracer<'a> {
@@ -138,15 +136,13 @@ impl<'a> Tracer<'a> {
         if args.cpu {
             return Ok(Tracer::Cpu(CpuTracer::new(scene, bvh)));
         }
-        let selection = args.devices.selection();
-        let context = VkContext::new(&ContextDesc::from_env(selection))?;
-        // One message per device: a message is one line (crate::logging).
-        context.to_string().lines().for_each(|line| tracing::info!("{line}"));
-        work.check_devices(&context)?;
-        let devices = selection.count();
-        let trace = banded_trace_plan(views as u32, (lf.width, lf.height), devices as u32, devices as u32)?;
-        let tracer = LightFieldRenderer::tracing(&context, trace, &GpuScene::new(scene, bvh), ExecOptions::default())?;
-        Ok(Tracer::Gpu { context, tracer: Box::new(tracer) })
+        let settings = GpuTraceSettings {
+            devices: args.devices.selection(),
+            views: views as u32,
+            size: (lf.width, lf.height),
+            timed: false,
+        };
+        Ok(Tracer::Gpu(GpuTracer::start(settings, work, scene, bvh)?))
     }
 }
 
@@ -161,7 +157,7 @@ impl Tracer<'_> {
                     Ok(frame.pixels.iter().map(|p| p.radiance.to_array()).collect())
                 })
                 .collect(),
-            Tracer::Gpu { tracer, .. } => Ok(tracer
+            Tracer::Gpu(tracer) => Ok(tracer
                 .trace(scene, views, settings)?
                 .into_iter()
                 .map(|pixels| pixels.iter().map(|p| [p.radiance[0], p.radiance[1], p.radiance[2]]).collect())
@@ -223,9 +219,8 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let devices = if args.cpu { 0 } else { args.devices.selection().count() };
     let started = Instant::now();
     trace_to_target(&args, &mut tracer, &scene, &views, &mut acc, &selected)?;
-    if let Tracer::Gpu { context, tracer } = tracer {
-        drop(tracer);
-        context.check_validation()?;
+    if let Tracer::Gpu(tracer) = tracer {
+        tracer.finish()?;
     }
     write_outputs(&args, &acc, &selected, (&lf, &setup), started.elapsed().as_secs_f64(), Some(devices))
 }

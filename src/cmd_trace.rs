@@ -7,9 +7,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use parallax_accuracy::exposure::LogAverage;
-use parallax_backend::{Context as VkContext, ContextDesc, DeviceSelection, EventKind, ExecOptions};
-use parallax_passes::{LightFieldRenderer, PATH_TRACE, banded_trace_plan, to_pixel_sample};
-use parallax_scene::gpu::GpuScene;
+use parallax_backend::DeviceSelection;
 use parallax_scene::output::{ExrLayers, write_contact_sheet, write_exr};
 use parallax_scene::{CpuTracer, Frame, Scene, SceneBvh, TraceSettings, View};
 
@@ -18,6 +16,7 @@ use crate::options::{Exposure, MAX_DEVICES, Resolution, count_in, parse_exposure
 use crate::scene_args::{DepthArgs, SceneArgs};
 use parallax_render::outputs::budget::TraceWork;
 use parallax_render::outputs::{Format, Output, Sink, check, stage};
+use parallax_render::trace_run::{GpuTraceSettings, GpuTracer};
 
 #[derive(Debug, clap::Args)]
 pub struct TraceArgs {
@@ -157,8 +156,8 @@ fn trace_cpu(scene: &Scene, bvh: &SceneBvh, view: &View, settings: &TraceSetting
     Ok(frame)
 }
 
-/// One frame of the `path_trace` pass: the view in one row band per selected device, gathered
-/// on device 0. The GPU drops non-finite samples as the CPU does.
+/// One frame of the `path_trace` pass ([`GpuTracer`]): the view in one row band per selected
+/// device, gathered on device 0.
 fn trace_gpu(
     selection: DeviceSelection,
     work: TraceWork,
@@ -167,32 +166,15 @@ fn trace_gpu(
     view: &View,
     settings: &TraceSettings,
 ) -> anyhow::Result<Frame> {
-    let context = VkContext::new(&ContextDesc::from_env(selection))?;
-    // One message per device: a message is one line (crate::logging).
-    context.to_string().lines().for_each(|line| tracing::info!("{line}"));
-    work.check_devices(&context)?;
-    let devices = selection.count() as u32;
-    let trace = banded_trace_plan(1, (view.width, view.height), devices, devices)?;
-    let mut tracer = LightFieldRenderer::tracing(&context, trace, &GpuScene::new(scene, bvh), ExecOptions::default())?;
-    tracer.keep_reports(true);
+    let gpu = GpuTraceSettings { devices: selection, views: 1, size: (view.width, view.height), timed: true };
+    let mut tracer = GpuTracer::start(gpu, work, scene, bvh)?;
     let spinner = spinner(format!("tracing {}x{} at {} spp on the GPU", view.width, view.height, settings.spp));
     let t1 = Instant::now();
-    let pixels = tracer.trace(scene, std::slice::from_ref(view), settings)?.remove(0);
+    let (frame, gpu_ms) = tracer.trace_frame(scene, view, settings)?;
     spinner.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
-    // GPU time: from the first path_trace band's start to the last one's end, any device.
-    let events: Vec<_> = tracer
-        .take_reports()
-        .into_iter()
-        .flat_map(|r| r.events)
-        .filter(|e| e.kind == EventKind::Pass && e.name == PATH_TRACE)
-        .collect();
-    let gpu_ms = match (events.iter().map(|e| e.start_ns).min(), events.iter().map(|e| e.end_ns).max()) {
-        (Some(start), Some(end)) => end.saturating_sub(start) as f64 / 1e6,
-        _ => f64::NAN,
-    };
-    drop(tracer);
-    context.check_validation()?;
+    let devices = tracer.devices();
+    tracer.finish()?;
     tracing::info!(
         "traced {}x{} at {} spp, max depth {} on {} device(s) in {:.2} s ({:.1} ms of GPU time, {:.2} Mpaths/s)",
         view.width,
@@ -204,5 +186,5 @@ fn trace_gpu(
         gpu_ms,
         view.pixel_count() as f64 * settings.spp as f64 / (gpu_ms * 1e-3) / 1e6
     );
-    Ok(Frame { width: view.width, height: view.height, pixels: pixels.iter().map(to_pixel_sample).collect() })
+    Ok(frame)
 }

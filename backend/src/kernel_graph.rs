@@ -32,7 +32,7 @@ pub struct Compiled {
 
 impl Compiled {
     /// Compiles `graph` under `placement` (`parallax_graph::compile`, which proves the
-    /// schedule) and lowers the schedule ([`KernelPlan::from_schedule`]). The error is the
+    /// schedule) and builds the kernel plan from it ([`KernelPlan::from_schedule`]). The error is the
     /// step's own: a `GraphError` of compiling or a `KernelPlanError` of building the kernel plan.
     pub fn compile(graph: &KernelGraph, placement: &dyn Placement) -> Result<Compiled, CompileError> {
         let schedule = parallax_graph::compile(graph, placement)?;

@@ -73,7 +73,7 @@ impl Placement for OnDevice {
     }
 }
 
-fn lower(graph: &KernelGraph, placement: &dyn Placement) -> KernelPlan {
+fn compile_graph(graph: &KernelGraph, placement: &dyn Placement) -> KernelPlan {
     let schedule = compile(graph, placement).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
     KernelPlan::from_schedule(graph, &schedule).unwrap()
@@ -95,7 +95,7 @@ fn history_graph(views: u32, size: u32) -> (KernelGraph, FamilyId) {
 /// [`history_graph`] under `placement`, and the family of its `acc`.
 fn history_plan(views: u32, size: u32, placement: &dyn Placement) -> (KernelPlan, FamilyId) {
     let (graph, acc) = history_graph(views, size);
-    (lower(&graph, placement), acc)
+    (compile_graph(&graph, placement), acc)
 }
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
@@ -175,7 +175,7 @@ fn the_first_frame_and_a_reset_tell_the_kernel_history_is_invalid() {
 
 #[test]
 fn plan_errors_are_reported_before_any_gpu_work() {
-    // A changed schedule is proven again before it can be lowered (`from_schedule` takes only a
+    // A changed schedule is proven again before a kernel plan is built from it (`from_schedule` takes only a
     // proven one); the error is the validator's own.
     let (graph, _) = history_graph(1, 8);
     let mut schedule = compile(&graph, &OnDevice { device: 1, devices: 2 }).unwrap().into_schedule();
@@ -190,7 +190,7 @@ fn plan_errors_are_reported_before_any_gpu_work() {
         "{err}"
     );
 
-    // A pass declared without a kernel cannot be lowered; the error names it.
+    // A pass declared without a kernel gets no kernel plan; the error names it.
     let mut graph = KernelGraph::with_payload(ViewTopology::all_sources(1, 8, 8));
     let mut acc = graph.image("acc", Format::Rgba32f);
     graph.pass("accumulate", Role::All).write(&mut acc).add();
@@ -215,7 +215,7 @@ fn integer_images_go_through_the_uint_binding_and_across_devices() {
     declare_writer(&mut graph, "fill", Role::All, &mut radiance, |out| FillKernel { out }).add();
     graph.export(&mask);
     graph.export(&radiance);
-    let plan = lower(&graph, &OnDevice { device: 1, devices: 2 });
+    let plan = compile_graph(&graph, &OnDevice { device: 1, devices: 2 });
     assert_eq!(plan.copies.len(), 2);
     let (mask_device, mask_resource) = plan.final_output(mask.family(), 0).unwrap();
     let (radiance_device, radiance_resource) = plan.final_output(radiance.family(), 0).unwrap();
@@ -249,7 +249,7 @@ fn raster_plan(devices: usize, size: u32) -> (KernelPlan, [FamilyId; 2]) {
     pass.kernel(Arc::new(kernel)).add();
     graph.export(&gbuffer);
     graph.export(&depth);
-    let plan = lower(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 });
+    let plan = compile_graph(&graph, &BandedPlacement { devices: devices as u32, bands: devices as u32 });
     (plan, [gbuffer.family(), depth.family()])
 }
 
@@ -297,7 +297,7 @@ fn weighted_plan(size: u32) -> (KernelPlan, FamilyId) {
     let mut w = graph.image("w", Format::Rgba32f);
     declare_writer(&mut graph, "weighted_fill", Role::All, &mut w, |out| WeightedFillKernel { out }).add();
     graph.export(&w);
-    (lower(&graph, &ViewPerDevice), w.family())
+    (compile_graph(&graph, &ViewPerDevice), w.family())
 }
 
 #[test]

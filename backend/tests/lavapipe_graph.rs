@@ -220,7 +220,7 @@ fn graph_exports_are_read_back_by_the_frame_loop() {
     let mut outputs: Vec<AllocId> = output_resources(&plan, schedule.views).into_iter().map(|(_, r)| r).collect();
     outputs.sort();
     let exported: Vec<AllocId> = plan.resource_ids().filter(|(_, r)| r.exported).map(|(a, _)| a).collect();
-    assert_eq!(exported, outputs, "lowering keeps the graph's exports");
+    assert_eq!(exported, outputs, "the kernel plan keeps the graph's exports");
     let ctx = Context::new(&ContextDesc {
         selection: DeviceSelection::FakeDevices(devices as usize),
         validation: Validation::Core,

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use parallax_backend::{BackendError, InstanceId, KernelGraph, KernelPlan, PassInstance, PassKernel, Recorder};
 use parallax_graph::{BandedPlacement, Format, Origin, Role, UnboundSlot, ViewId, ViewTopology, compile};
 
-/// A kernel that records nothing: these tests only look at the lowered plan.
+/// A kernel that records nothing: these tests only look at the kernel plan built.
 struct Nothing;
 
 impl PassKernel for Nothing {

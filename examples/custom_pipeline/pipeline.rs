@@ -143,8 +143,8 @@ fn expected(x: u32, y: u32, view: u32, sources: &[u32], lf: &LightField) -> [f32
 fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Partition, KernelGraph, FamilyId)> {
     let lf = LightField::new(LAYOUT.parse()?, None, Some(RESOLUTION), Rig::default())?;
     let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources: None };
-    let plan = Partition::new(&lf, &config)?;
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
+    let partition = Partition::new(&lf, &config)?;
+    let mut graph = KernelGraph::with_payload(partition.topology.clone());
     let mut radiance = graph.image(RADIANCE, Format::Rgba32f);
     let mut pass = graph.pass("pattern", Role::All);
     let pattern = PatternKernel { radiance: pass.write_slot(&mut radiance) };
@@ -155,20 +155,20 @@ fn declare(scheme: Scheme, devices: u32) -> Result<(LightField, Partition, Kerne
     let blended = pass.write_slot(&mut radiance);
     pass.kernel(Arc::new(BlendKernel { own, sources, blended, cols: lf.cols })).add();
     graph.export(&radiance);
-    Ok((lf, plan, graph, radiance.family()))
+    Ok((lf, partition, graph, radiance.family()))
 }
 
 /// The schedule over `devices` devices as DOT (no GPU needed).
 pub fn schedule_dot(scheme: Scheme, devices: u32) -> Result<String> {
-    let (_, plan, graph, _) = declare(scheme, devices)?;
-    Ok(compile(&graph, &plan)?.to_dot())
+    let (_, partition, graph, _) = declare(scheme, devices)?;
+    Ok(compile(&graph, &partition)?.to_dot())
 }
 
 /// Runs the pipeline on the devices, checks every pixel against the CPU and writes the PNG.
 pub fn run(options: &Options) -> Result<Report> {
-    let (lf, plan, graph, radiance) = declare(options.scheme, options.devices.count() as u32)?;
-    // Compiling proves the schedule (its invariants hold) before it is lowered for the executor.
-    let Compiled { schedule, plan: exec_plan } = Compiled::compile(&graph, &plan)?;
+    let (lf, partition, graph, radiance) = declare(options.scheme, options.devices.count() as u32)?;
+    // Compiling proves the schedule (its invariants hold) before the executor's plan is built from it.
+    let Compiled { schedule, plan: exec_plan } = Compiled::compile(&graph, &partition)?;
     let shaders = parallax_backend::include_shaders!()?;
 
     let context = Context::new(&ContextDesc { selection: options.devices, validation: options.validation })?;
@@ -184,7 +184,7 @@ pub fn run(options: &Options) -> Result<Report> {
     for (view, &(device, resource)) in outputs.iter().enumerate() {
         let bytes = executor.read_resource(device, resource)?;
         let view = view as u32;
-        frames.push(check_view(&bytes, view, &plan.topology.sources_of[view as usize], &lf)?);
+        frames.push(check_view(&bytes, view, &partition.topology.sources_of[view as usize], &lf)?);
     }
     drop(executor);
     context.check_validation()?;

@@ -16,7 +16,7 @@
 //!   by default): the order the backend submits.
 //! * [`Schedule`]: plain data, checked by [`Schedule::validate`] and drawn by
 //!   [`Schedule::to_dot`]; compiling proves what it built once and returns a
-//!   [`ProvenSchedule`], the only kind the backend lowers.
+//!   [`ProvenSchedule`], the only kind the backend builds a kernel plan from.
 //!
 //! ```
 //! use parallax_graph::*;
@@ -81,4 +81,4 @@ pub use schedule::{
     Access, Allocation, CopyBatch, CopyKind, CrossCopy, DeviceProgram, Format, HaloReads, HistoryPair, Op, Origin,
     PassInfo, PassInstance, ResourceDesc, ResourceInfo, Schedule, SlotInfo,
 };
-pub use summary::PlanSummary;
+pub use summary::ScheduleSummary;

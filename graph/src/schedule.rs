@@ -1,5 +1,5 @@
-//! The compiled schedule: plain data, nothing GPU-specific. `backend/` lowers it to command
-//! buffers; `validate()` checks every invariant the executor relies on; `dot` draws it.
+//! The compiled schedule: plain data, nothing GPU-specific. `backend/` builds a kernel plan and command
+//! buffers from it; `validate()` checks every invariant the executor relies on; `dot` draws it.
 
 use serde::Serialize;
 

@@ -1,4 +1,4 @@
-//! The machine-readable summary of a plan (`parallax plan --json`).
+//! The machine-readable summary of a schedule and its partition (`parallax plan --json`, render.json's `plan`).
 
 use serde::Serialize;
 
@@ -7,7 +7,7 @@ use crate::partition::Partition;
 use crate::schedule::Schedule;
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct PlanSummary {
+pub struct ScheduleSummary {
     pub layout: String,
     pub resolution: [u32; 2],
     pub views: u32,
@@ -51,7 +51,7 @@ pub struct PlanSummary {
     pub op_order: crate::op_order::OpOrder,
 }
 
-/// The batches of one device pair ([`PlanSummary::copy_batches_per_pair`]).
+/// The batches of one device pair ([`ScheduleSummary::copy_batches_per_pair`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct PairBatches {
     pub from: u32,
@@ -73,9 +73,9 @@ fn pair_batches(schedule: &Schedule) -> Vec<PairBatches> {
     pairs.into_values().collect()
 }
 
-impl PlanSummary {
+impl ScheduleSummary {
     pub fn new(lf: &LightField, plan: &Partition, schedule: &Schedule) -> Self {
-        PlanSummary {
+        ScheduleSummary {
             layout: lf.name.clone(),
             resolution: [lf.width, lf.height],
             views: lf.len() as u32,

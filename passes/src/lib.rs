@@ -94,4 +94,4 @@ pub use scene_upload::{SCENE_BUFFERS, upload_scene};
 pub use shaders::shader_library;
 pub use svgf::{DENOISED, SvgfInputs, declare_svgf};
 pub use tonemap::{DISPLAY, TONEMAP, TonemapError, declare_tonemap, declare_tonemap_scaled, tonemap_pixel};
-pub use trace::{TracePlan, banded_trace_plan, declare_trace, trace_plan};
+pub use trace::{CompiledTrace, banded_trace_plan, declare_trace, trace_plan};

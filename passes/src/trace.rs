@@ -48,9 +48,10 @@ pub fn declare_trace(graph: &mut KernelGraph, pixel_list: Option<(u64, StridedPi
     images
 }
 
-/// A plan of `path_trace` passes and its [`TraceOutputs`].
+/// Path tracing compiled: the kernel plan of its `path_trace` (and `pixel_list`) passes and its
+/// [`TraceOutputs`], what [`LightFieldRenderer::tracing`] runs.
 #[derive(Clone, Debug)]
-pub struct TracePlan {
+pub struct CompiledTrace {
     pub plan: KernelPlan,
     pub outputs: TraceOutputs,
 }
@@ -66,33 +67,33 @@ pub fn trace_plan(
     devices: u32,
     scheme: Scheme,
     pixel_list: Option<(u64, StridedPixels)>,
-) -> Result<TracePlan> {
+) -> Result<CompiledTrace> {
     let lf = LightField::new(LayoutSpec::Grid { cols, rows }, None, Some((width, height)), Rig::default())?;
     // Multi-source picks its own sources (one medoid per set); the fine schemes get view 0.
     let sources = (scheme != Scheme::MultiSource).then(|| vec![0]);
     let config = PartitionConfig { devices, scheme, assign: AssignStrategy::Compact, sources };
     let placement = parallax_graph::Partition::new(&lf, &config)?;
-    lower_trace(placement.topology.clone(), &placement, pixel_list)
+    compile_trace(placement.topology.clone(), &placement, pixel_list)
 }
 
 /// The plan for tracing `views` views of `width`×`height`, each in `bands` row bands, band `b`
 /// on device `b % devices`, every band traced away from device 0 gathered there: the shape of
 /// a fine-all schedule without the light-field rule of at least one view per device.
 /// `parallax trace` splits its single view over any number of devices this way.
-pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<TracePlan> {
+pub fn banded_trace_plan(views: u32, (width, height): (u32, u32), bands: u32, devices: u32) -> Result<CompiledTrace> {
     let topology = ViewTopology::all_sources(views, width, height);
-    lower_trace(topology, &BandedPlacement { devices, bands }, None)
+    compile_trace(topology, &BandedPlacement { devices, bands }, None)
 }
 
-fn lower_trace(
+fn compile_trace(
     topology: ViewTopology,
     placement: &dyn Placement,
     pixel_list: Option<(u64, StridedPixels)>,
-) -> Result<TracePlan> {
+) -> Result<CompiledTrace> {
     let mut graph = KernelGraph::with_payload(topology);
     let outputs = declare_trace(&mut graph, pixel_list).map(|image| Some(image.family()));
     let plan = Compiled::compile(&graph, placement)?.plan;
-    Ok(TracePlan { plan, outputs })
+    Ok(CompiledTrace { plan, outputs })
 }
 
 impl LightFieldRenderer {
@@ -101,7 +102,7 @@ impl LightFieldRenderer {
     /// images [`Self::trace`] decodes into pixels.
     pub fn tracing(
         context: &Context,
-        TracePlan { plan, outputs }: TracePlan,
+        CompiledTrace { plan, outputs }: CompiledTrace,
         scene: &GpuScene<'_>,
         options: ExecOptions,
     ) -> Result<Self> {

@@ -22,7 +22,7 @@ use parallax_graph::{
 };
 use parallax_passes::gbuffer::declare_gbuffer;
 use parallax_passes::{
-    COMPACT_HOLES, HOLE_FILL, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel, TracePlan,
+    COMPACT_HOLES, CompiledTrace, HOLE_FILL, HOLE_MASK, HOLES, HashedHoleMaskKernel, PATH_TRACE, PathTraceKernel,
     banded_trace_plan, bench_holes, declare_hole_fill, hole_threshold, is_hashed_hole, list_groups,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
@@ -108,18 +108,18 @@ impl Case {
         assert_eq!(schedule.validate().errors, vec![]);
         let plan = KernelPlan::from_schedule(&graph, &schedule).unwrap();
         let outputs = [Some(radiance.family()), None, None, None];
-        HolePlan { trace: TracePlan { plan, outputs }, list: Some(list.family()) }
+        HolePlan { trace: CompiledTrace { plan, outputs }, list: Some(list.family()) }
     }
 }
 
 /// A plan the tracer runs, and the family of its hole lists (where it fills holes).
 struct HolePlan {
-    trace: TracePlan,
+    trace: CompiledTrace,
     list: Option<FamilyId>,
 }
 
-impl From<TracePlan> for HolePlan {
-    fn from(trace: TracePlan) -> Self {
+impl From<CompiledTrace> for HolePlan {
+    fn from(trace: CompiledTrace) -> Self {
         HolePlan { trace, list: None }
     }
 }

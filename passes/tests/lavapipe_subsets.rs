@@ -8,7 +8,7 @@ mod common;
 use parallax_backend::ExecOptions;
 use parallax_graph::Scheme;
 use parallax_passes::{
-    LightFieldRenderer, PATH_TRACE, StridedPixels, TracePlan, banded_trace_plan, strided_pixels, trace_plan,
+    CompiledTrace, LightFieldRenderer, PATH_TRACE, StridedPixels, banded_trace_plan, strided_pixels, trace_plan,
 };
 use parallax_scene::gpu::{GpuPixel, GpuScene};
 use parallax_scene::{SceneBvh, TraceSettings, default_scene};
@@ -19,7 +19,7 @@ const VIEWS: u32 = 2;
 const STRIDE: u32 = 3;
 const PHASE: u32 = 1;
 
-fn render(devices: usize, trace: TracePlan) -> Vec<Vec<GpuPixel>> {
+fn render(devices: usize, trace: CompiledTrace) -> Vec<Vec<GpuPixel>> {
     let scene = default_scene();
     let bvh = SceneBvh::build(&scene);
     let ctx = common::context(devices);

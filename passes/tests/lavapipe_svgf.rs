@@ -177,10 +177,10 @@ fn svgf_plan(views: u32, input: Input, placement: &dyn Placement) -> KernelPlan 
     let denoised = declare_svgf(&mut g, Role::All, &inputs);
     g.export(&denoised);
     g.export(&radiance);
-    lower(&g, placement)
+    compile_graph(&g, placement)
 }
 
-fn lower(graph: &KernelGraph, placement: &dyn Placement) -> KernelPlan {
+fn compile_graph(graph: &KernelGraph, placement: &dyn Placement) -> KernelPlan {
     let schedule = compile(graph, placement).unwrap();
     assert_eq!(schedule.validate().errors, vec![]);
     KernelPlan::from_schedule(graph, &schedule).unwrap()
@@ -243,7 +243,7 @@ fn tonemap_matches_its_cpu_twin_within_one_step_of_255() {
     let display = declare_tonemap(&mut g, &radiance, exposure).unwrap();
     g.export(&display);
     g.export(&radiance);
-    let plan = lower(&g, &BandedPlacement { devices: 2, bands: 2 });
+    let plan = compile_graph(&g, &BandedPlacement { devices: 2, bands: 2 });
     let mut run = Run::new(&ctx, plan, 2, "tonemap");
     run.frame(0);
     run.exec.finish().unwrap();

@@ -6,7 +6,7 @@
 use anyhow::Result;
 use parallax_backend::{Compiled, KernelGraph, KernelPlan};
 use parallax_graph::{
-    AssignStrategy, LightField, Partition, PartitionConfig, PlanSummary, ProvenSchedule, Schedule, Scheme,
+    AssignStrategy, LightField, Partition, PartitionConfig, ProvenSchedule, Schedule, ScheduleSummary, Scheme,
     SourcesPerSet,
 };
 use parallax_passes::firefly::FireflyMode;
@@ -56,11 +56,11 @@ pub fn default_reprojection_tolerance() -> f64 {
 }
 
 impl PipelineSettings {
-    fn plan_config(&self, devices: u32) -> PartitionConfig {
+    fn partition_config(&self, devices: u32) -> PartitionConfig {
         PartitionConfig { devices, scheme: self.scheme, assign: self.assign, sources: self.sources.clone() }
     }
 
-    fn plan_shape(&self, lf: &LightField, config: &PartitionConfig) -> PlanShape {
+    fn partition_shape(&self, lf: &LightField, config: &PartitionConfig) -> PlanShape {
         let devices = config.devices;
         let (sources, sources_flag) = match (&config.sources, config.scheme) {
             (Some(s), _) => (s.len() as u64, Some("--sources")),
@@ -77,7 +77,7 @@ impl PipelineSettings {
     /// Refuses a plan of `lf` over `devices` that the planner could not hold, before planning
     /// (render checks it beside its other limits, to name them all at once).
     pub fn check_plan_size(&self, lf: &LightField, devices: u32) -> Result<()> {
-        self.plan_shape(lf, &self.plan_config(devices)).check()
+        self.partition_shape(lf, &self.partition_config(devices)).check()
     }
 
     /// [`compile`] of these settings over `devices`, the pipeline extended by `extend` (a user
@@ -88,27 +88,27 @@ impl PipelineSettings {
         devices: u32,
         extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
     ) -> Result<PipelineSchedule> {
-        let config = self.plan_config(devices);
-        self.plan_shape(lf, &config).check()?;
+        let config = self.partition_config(devices);
+        self.partition_shape(lf, &config).check()?;
         compile(lf, &config, self.sources_per_set, self.config, extend)
     }
 }
 
 /// A compiled, checked schedule of the pipeline, with what running it needs.
 pub struct PipelineSchedule {
-    pub plan: Partition,
+    pub partition: Partition,
     pub handles: PipelineHandles,
     pub schedule: ProvenSchedule,
     /// What executes `schedule`, built from it once here (a rank runs its part of it).
     pub exec: KernelPlan,
-    pub summary: PlanSummary,
+    pub summary: ScheduleSummary,
     pub kind: PipelineKind,
 }
 
-/// Plans `lf` as `config` says, declares the pipeline `pipeline` extended by `extend` (only the
+/// Partitions `lf` as `config` says, declares the pipeline `pipeline` extended by `extend` (only the
 /// display images are exported: they travel to device 0; float layers are read where they were
 /// made) and compiles it into its schedule and the plan that executes it (`Compiled::compile`).
-/// The plan depends only on the views' positions in the rig plane, never on the rig's pose, so
+/// The partition depends only on the views' positions in the rig plane, never on the rig's pose, so
 /// any rig gives the same schedule.
 pub fn compile(
     lf: &LightField,
@@ -118,13 +118,13 @@ pub fn compile(
     extend: &dyn Fn(PipelineBuilder) -> PipelineBuilder,
 ) -> Result<PipelineSchedule> {
     let kind = pipeline.kind;
-    let plan = Partition::with_sources(lf, config, sources_per_set)?;
-    let mut graph = KernelGraph::with_payload(plan.topology.clone());
+    let partition = Partition::with_sources(lf, config, sources_per_set)?;
+    let mut graph = KernelGraph::with_payload(partition.topology.clone());
     let handles = extend(PipelineBuilder::new(pipeline)).declare(&mut graph)?;
     graph.export(&handles.display);
-    let Compiled { schedule, plan: exec } = Compiled::compile(&graph, &plan)?;
-    let summary = PlanSummary::new(lf, &plan, &schedule);
-    Ok(PipelineSchedule { plan, handles, schedule, exec, summary, kind })
+    let Compiled { schedule, plan: exec } = Compiled::compile(&graph, &partition)?;
+    let summary = ScheduleSummary::new(lf, &partition, &schedule);
+    Ok(PipelineSchedule { partition, handles, schedule, exec, summary, kind })
 }
 
 /// The light field `lf` of `resolution` on the default rig and its default pipeline compiled
@@ -185,7 +185,7 @@ fn widest_pass(schedule: &Schedule) -> usize {
 
 /// The plan's summary as `plan --json` and render.json's `plan` write it, with the G-buffer
 /// that runs.
-pub fn plan_json(summary: &PlanSummary, gbuffer: GbufferSource) -> serde_json::Value {
+pub fn plan_json(summary: &ScheduleSummary, gbuffer: GbufferSource) -> serde_json::Value {
     let mut json = serde_json::to_value(summary).expect("a plan summary serialises");
     json["gbuffer"] = gbuffer_name(gbuffer).into();
     json

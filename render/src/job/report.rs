@@ -237,7 +237,7 @@ fn holes_of_targets(
         job.compiled.handles.holes.as_ref().map(|h| h.family()).context("the pipeline has no hole masks")?;
     let holes: Vec<Option<Vec<u32>>> = (0..views)
         .map(|v| {
-            if job.compiled.plan.topology.is_source[v as usize] {
+            if job.compiled.partition.topology.is_source[v as usize] {
                 return Ok(None);
             }
             let bytes = renderer.read_view(holes_family, v)?;

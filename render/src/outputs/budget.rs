@@ -480,7 +480,7 @@ mod tests {
                 let shape = PlanShape {
                     views: lf.len() as u64,
                     devices: u64::from(devices),
-                    sources: compiled.plan.sources.len() as u64,
+                    sources: compiled.partition.sources.len() as u64,
                     scheme,
                     sources_flag: None,
                 };

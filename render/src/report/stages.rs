@@ -74,13 +74,18 @@ pub struct Timings {
     pub host: HostTimings,
 }
 
-/// Stage of an event: the pass name; `transfer` for display images moving to device 0 (Table
-/// 1's last stage), `copy` for every other transfer between devices.
+/// The stage of display images moving to device 0 (Table 1's last stage).
+pub const TRANSFER_STAGE: &str = "transfer";
+/// The stage of every other transfer between devices.
+pub const COPY_STAGE: &str = "copy";
+
+/// Stage of an event: the pass name; [`TRANSFER_STAGE`] for display images moving to device 0,
+/// [`COPY_STAGE`] for every other transfer between devices.
 fn stage_of(totals: &EventTotals) -> String {
     match totals.kind {
         EventKind::Pass => totals.name.clone(),
-        _ if totals.gather => "transfer".to_string(),
-        _ => "copy".to_string(),
+        _ if totals.gather => TRANSFER_STAGE.to_string(),
+        _ => COPY_STAGE.to_string(),
     }
 }
 
@@ -95,7 +100,7 @@ fn stage_order(plan: &ExecutionPlan) -> Vec<&str> {
             order.push(&pass.name);
         }
     }
-    order.extend(["copy", "transfer"]);
+    order.extend([COPY_STAGE, TRANSFER_STAGE]);
     order
 }
 
