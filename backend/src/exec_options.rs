@@ -1,8 +1,9 @@
 //! Executor settings: frames in flight, copy chunking and queues, barrier placement, timing
 //! granularity, readback, external shaders and deliberate faults.
 //!
-//! A leaf: the executor, its device state and the recording read these settings, so it imports
-//! none of them.
+//! Not a leaf: it names what it configures (the shader library, a plan's copy ids, the link
+//! kinds, the remote transport), but none of the modules that read these settings (the
+//! executor, its device state, the recording), so those can import it.
 
 use crate::shaders::ShaderLibrary;
 

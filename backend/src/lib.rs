@@ -167,7 +167,7 @@ pub use push::{LayoutMismatch, PushConstants, check_push_constants};
 pub use readback::{FrameReadback, FrameTicket};
 pub use recorder::{Draw, Recorder, RecordingBuffer};
 pub use segments::{Chunk, chunks_of_copies};
-pub use shader_id::{Shader, ShaderName};
+pub use shader_id::{DrawStage, NoPushBlock, Shader, ShaderName};
 pub use shaders::{BACKEND_SHADERS, ShaderLibrary, USER_SHADERS, shader_names, spirv};
 pub use texture::{MAX_TEXTURES, TextureData};
 pub use timing::{DeviceFrameStats, EventKind, FrameReport, StageStats, TimedEvent, chrome_trace, write_json};

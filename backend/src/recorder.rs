@@ -19,7 +19,7 @@ use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
 use crate::plan::{ExecResource, ExecutionPlan};
 use crate::push::{self, PushConstants};
-use crate::shader_id::ShaderName;
+use crate::shader_id::{DrawStage, ShaderName};
 use crate::shader_pipelines::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
@@ -29,11 +29,12 @@ const INDIRECT_ARGS_BYTES: u64 = 12;
 /// area and the scissor (the viewport stays the whole image, so a band renders exactly its rows
 /// of the frame). Vertex shaders pull their vertices from buffers by address (no vertex input).
 #[derive(Clone, Debug)]
-pub struct Draw<'a> {
+pub struct Draw<'a, V, F> {
     /// Vertex and fragment shaders (`name.vert`, `name.frag`), from `ExecOptions::shaders`,
-    /// else built in (shaders/).
-    pub vertex_shader: &'a str,
-    pub fragment_shader: &'a str,
+    /// else built in (shaders/): generated ids ([`DrawStage`]), so that a push struct of
+    /// another block than theirs does not compile, or names.
+    pub vertex_shader: V,
+    pub fragment_shader: F,
     /// Colour targets (resources), in fragment output location order.
     pub color_targets: &'a [AllocId],
     /// The depth attachment: a [`Format::Depth32f`] resource, tested LESS and written. Without
@@ -367,9 +368,13 @@ impl<'a> Recorder<'a> {
     /// Renders `draw` with dynamic rendering into its colour and depth targets (images stay in
     /// `GENERAL`; the barrier before every pass orders the attachments against earlier passes).
     /// `push` goes to both stages, and must match the block of each that declares one.
-    pub fn draw<P: PushConstants>(&mut self, draw: &Draw<'_>, push: &P) -> Result<()> {
+    pub fn draw<P: PushConstants, V: DrawStage<P>, F: DrawStage<P>>(
+        &mut self,
+        draw: &Draw<'_, V, F>,
+        push: &P,
+    ) -> Result<()> {
         let misuse = |detail: String| BackendError::KernelMisuse {
-            kernel: draw.vertex_shader.to_string(),
+            kernel: draw.vertex_shader.stage_name().to_string(),
             instance: None,
             detail,
         };
@@ -385,8 +390,8 @@ impl<'a> Recorder<'a> {
         };
         let targets = self.draw_targets(draw, first, &misuse)?;
         let key = GraphicsKey {
-            vertex: draw.vertex_shader.to_string(),
-            fragment: draw.fragment_shader.to_string(),
+            vertex: draw.vertex_shader.stage_name().to_string(),
+            fragment: draw.fragment_shader.stage_name().to_string(),
             color_formats: targets.color_formats.clone(),
             depth: targets.depth.is_some(),
         };
@@ -399,9 +404,9 @@ impl<'a> Recorder<'a> {
 
     /// The draw's attachments, all of the size of its `first` target: colour targets of a
     /// colour format, the depth target `Depth32f`.
-    fn draw_targets(
+    fn draw_targets<V, F>(
         &self,
-        draw: &Draw<'_>,
+        draw: &Draw<'_, V, F>,
         first: AllocId,
         misuse: &dyn Fn(String) -> BackendError,
     ) -> Result<DrawTargets> {
@@ -462,7 +467,13 @@ impl<'a> Recorder<'a> {
     }
 
     /// Records the draw over its rows with `pipeline` into checked `targets`.
-    fn record_draw(&self, draw: &Draw<'_>, targets: &DrawTargets, pipeline: vk::Pipeline, push_bytes: &[u8]) {
+    fn record_draw<V, F>(
+        &self,
+        draw: &Draw<'_, V, F>,
+        targets: &DrawTargets,
+        pipeline: vk::Pipeline,
+        push_bytes: &[u8],
+    ) {
         let (width, height) = (targets.width, targets.height);
         let area = vk::Rect2D {
             offset: vk::Offset2D { x: 0, y: draw.rows.y0 as i32 },

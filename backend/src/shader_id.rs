@@ -78,6 +78,61 @@ impl<P> ShaderName<P> for &str {
     }
 }
 
+/// The block type of a generated graphics-stage id whose stage declares no push constants
+/// (`Shader<NoPushBlock>`): in a draw it takes the block of the other stage ([`DrawStage`]).
+/// It is no [`crate::PushConstants`], so no dispatch or draw pushes one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NoPushBlock {}
+
+/// What a [`crate::Draw`] names each of its stages by, for a draw whose push constants are a
+/// `P`: a generated id typed by `P` (`gbuffer_raster.vert` and `.frag` both declare
+/// `GbufferRasterPush`), a generated id of a stage without a block (`Shader<NoPushBlock>`),
+/// which takes any `P`, or a name (a stage added at run time), whose block is checked against
+/// `P` when the pipeline is bound:
+///
+/// ```
+/// use parallax_backend::{DrawStage, NoPushBlock, PassParams, Shader};
+/// fn draw<P>(vertex: impl DrawStage<P>, fragment: impl DrawStage<P>, _push: &P) -> String {
+///     format!("{} {}", vertex.stage_name(), fragment.stage_name())
+/// }
+/// const VERT: Shader<NoPushBlock> = Shader::new("demo.vert");
+/// const FRAG: Shader<PassParams> = Shader::new("demo.frag");
+/// let push = PassParams::default();
+/// assert_eq!(draw(VERT, FRAG, &push), "demo.vert demo.frag");
+/// assert_eq!(draw("added.vert", FRAG, &push), "added.vert demo.frag");
+/// ```
+///
+/// and another block's struct does not compile:
+///
+/// ```compile_fail
+/// use parallax_backend::{DrawStage, NoPushBlock, PassParams, Shader};
+/// fn draw<P>(vertex: impl DrawStage<P>, fragment: impl DrawStage<P>, _push: &P) {}
+/// const VERT: Shader<NoPushBlock> = Shader::new("demo.vert");
+/// const FRAG: Shader<PassParams> = Shader::new("demo.frag");
+/// draw(VERT, FRAG, &());
+/// ```
+pub trait DrawStage<P> {
+    fn stage_name(&self) -> &str;
+}
+
+impl<P: crate::PushConstants> DrawStage<P> for Shader<P> {
+    fn stage_name(&self) -> &str {
+        self.name
+    }
+}
+
+impl<P: crate::PushConstants> DrawStage<P> for Shader<NoPushBlock> {
+    fn stage_name(&self) -> &str {
+        self.name
+    }
+}
+
+impl<P> DrawStage<P> for &str {
+    fn stage_name(&self) -> &str {
+        self
+    }
+}
+
 /// Declares, in the calling module, the shader bindings that parallax-glsl wrote from the
 /// crate's compiled shaders (`parallax_glsl::BINDINGS_FILE`): a `#[repr(C)]` struct per
 /// push-constant block, implementing [`crate::PushConstants`], and a [`Shader`] id per shader.

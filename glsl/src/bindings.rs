@@ -2,7 +2,8 @@
 //! twice: a `#[repr(C)]` struct for every push-constant block (and every struct inside one),
 //! with the backend's `PushConstants` implemented from the block's own members, and one
 //! compile-time id per shader, typed by its block (`Shader<TonemapPush>`), so a dispatch that
-//! hands a shader another block's struct does not compile.
+//! hands a shader another block's struct does not compile (and a draw too: a vertex or fragment
+//! stage without a block is typed `Shader<NoPushBlock>` and takes the other stage's).
 //!
 //! The build refuses a block a `#[repr(C)]` struct cannot reproduce byte for byte (implicit
 //! padding, a `vec3` array, a matrix) with the member named and the fix, and the file it writes
@@ -68,8 +69,11 @@ fn text(blocks: &[(&CompiledShader, Option<StructType>)], defines_shared: bool) 
         let id = constant_name(&shader.name).ok_or_else(|| {
             bindings_error(shader, format!("`{}` is not a Rust identifier; rename the file", shader.name))
         })?;
-        // A shader without push constants is dispatched with `&()`.
+        // A compute shader without push constants is dispatched with `&()`; a graphics stage
+        // without them takes the block of the draw's other stage.
+        let graphics = shader.source.extension().is_some_and(|e| e == "vert" || e == "frag");
         let push = match block {
+            None if graphics => format!("{BACKEND}::NoPushBlock"),
             None => "()".to_string(),
             Some(block) if SHARED_BLOCKS.contains(&block.name.as_str()) && !defines_shared => {
                 format!("{BACKEND}::{}", block.name)

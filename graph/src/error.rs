@@ -4,8 +4,7 @@ use std::panic::Location;
 
 use thiserror::Error;
 
-use crate::ids::{AllocId, BatchId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
-use crate::schedule::Op;
+use crate::ids::{AllocId, BatchId, CopyId, DeviceId, FamilyId, InstanceId, Op, PassId, Region, ResourceId, ViewId};
 use crate::scope::SlotAccess;
 
 /// Bad planning input: layouts, device counts, source lists, strategy names.

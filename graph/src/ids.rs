@@ -1,4 +1,6 @@
-//! Small index newtypes. They are plain numbers so that schedules stay plain data.
+//! Small index newtypes, and [`Op`], the step of a device program they name. They are plain
+//! numbers so that schedules stay plain data. A leaf: it imports nothing from the crate, so the
+//! errors can name ids and ops without depending on the schedule.
 
 use serde::Serialize;
 
@@ -120,4 +122,18 @@ impl std::fmt::Display for Region {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "rows {}..{}", self.y0, self.y1)
     }
+}
+
+/// One step of a device's program.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum Op {
+    Pass(InstanceId),
+    /// Producer side: device → shared host memory.
+    CopyOut(CopyId),
+    /// Producer side: tell the consumer the bytes are in host memory.
+    Signal(CopyId),
+    /// Consumer side: wait for the producer's signal.
+    Wait(CopyId),
+    /// Consumer side: shared host memory → device.
+    CopyIn(CopyId),
 }

@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+pub use crate::ids::Op;
 use crate::ids::{AllocId, CopyId, DeviceId, FamilyId, InstanceId, PassId, Region, ResourceId, ViewId};
 use crate::op_order::OpOrder;
 use crate::scope::Role;
@@ -245,20 +246,6 @@ impl CrossCopy {
     pub fn is_gather(&self) -> bool {
         self.kind == CopyKind::Gather
     }
-}
-
-/// One step of a device's program.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-pub enum Op {
-    Pass(InstanceId),
-    /// Producer side: device → shared host memory.
-    CopyOut(CopyId),
-    /// Producer side: tell the consumer the bytes are in host memory.
-    Signal(CopyId),
-    /// Consumer side: wait for the producer's signal.
-    Wait(CopyId),
-    /// Consumer side: shared host memory → device.
-    CopyIn(CopyId),
 }
 
 /// Everything one device does in a frame, in submission order.

@@ -16,7 +16,7 @@ pub enum PassError {
     Graph(#[from] parallax_graph::GraphError),
 
     #[error(transparent)]
-    Tonemap(#[from] crate::tonemap::TonemapError),
+    Tonemap(#[from] TonemapError),
 
     #[error(transparent)]
     Scene(#[from] parallax_scene::SceneError),
@@ -95,3 +95,10 @@ impl From<CompileError> for PassError {
 
 /// Shorthand used across the crate.
 pub type Result<T> = std::result::Result<T, PassError>;
+
+/// What [`declare_tonemap`](crate::declare_tonemap) refuses.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TonemapError {
+    #[error("tonemap exposure {exposure} must be a finite number greater than 0")]
+    Exposure { exposure: f32 },
+}

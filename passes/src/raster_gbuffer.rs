@@ -78,8 +78,8 @@ impl PassKernel for GbufferRasterKernel {
             GbufferRasterPush { scene: scene_refs(rec)?, frame: rec.frame_block_address()?, view: pass.view.0, pad: 0 };
         rec.draw(
             &Draw {
-                vertex_shader: shaders::GBUFFER_RASTER_VERT.name(),
-                fragment_shader: shaders::GBUFFER_RASTER_FRAG.name(),
+                vertex_shader: shaders::GBUFFER_RASTER_VERT,
+                fragment_shader: shaders::GBUFFER_RASTER_FRAG,
                 color_targets: &color_targets,
                 depth_target: Some(depth.alloc),
                 clear: true,

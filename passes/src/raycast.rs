@@ -28,7 +28,8 @@ pub const RAYCAST: &str = "raycast";
 /// Global buffer holding the rays.
 pub const RAYS: &str = "rays";
 
-/// One ray as the kernel reads it (32 bytes).
+/// One ray as the kernel reads it (32 bytes; `RayIn` in shaders/bvh_raycast.glsl, a test holds
+/// the two layouts together).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct RayIn {
@@ -36,7 +37,8 @@ pub struct RayIn {
     pub dir_tmax: [f32; 4],
 }
 
-/// One result (16 bytes): BVH-ordered triangle index (`u32::MAX` = miss), distance, weights of
+/// One result (16 bytes; `HitOut` in shaders/bvh_raycast.glsl, held to it like [`RayIn`]):
+/// BVH-ordered triangle index (`u32::MAX` = miss), distance, weights of
 /// the second and third corner.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -317,7 +319,21 @@ pub fn compare_with_cpu(
 
 #[cfg(test)]
 mod tests {
-    use super::RaySchedule;
+    use super::{HitOut, RayIn, RaySchedule};
+    use parallax_backend::reflect::member_offsets;
+    use parallax_backend::rust_layout;
+
+    #[test]
+    fn the_structs_match_bvh_raycast_glsl() {
+        let ray = rust_layout!(RayIn { origin_tmin, dir_tmax });
+        let hit = rust_layout!(HitOut { primitive, t, barycentrics });
+        for shader in ["bvh_raycast", "bvh_raycast_opaque"] {
+            let spirv = crate::shaders::spirv(shader).unwrap();
+            assert_eq!(member_offsets(&spirv, "RayIn").unwrap(), ray, "{shader}");
+            assert_eq!(member_offsets(&spirv, "HitOut").unwrap(), hit, "{shader}");
+        }
+        assert_eq!((std::mem::size_of::<RayIn>(), std::mem::size_of::<HitOut>()), (32, 16));
+    }
 
     #[test]
     fn ray_schedules_parse_and_print_back() {

@@ -7,6 +7,7 @@
 
 use std::sync::Arc;
 
+pub use crate::error::TonemapError;
 use crate::shaders::{self, TonemapPush};
 use parallax_backend::{BackendError, InstanceId, KernelGraph, PassInstance, PassKernel, Recorder};
 use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
@@ -15,13 +16,6 @@ use parallax_graph::{Format, Handle, Image, ReadSlot, Role, WriteSlot};
 pub const TONEMAP: &str = "tonemap";
 /// Slot name of the output (Rgba8, sRGB-encoded bytes).
 pub const DISPLAY: &str = "display";
-
-/// What [`declare_tonemap`] refuses.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum TonemapError {
-    #[error("tonemap exposure {exposure} must be a finite number greater than 0")]
-    Exposure { exposure: f32 },
-}
 
 /// Declares `tonemap` for every view: reads `input` (Rgba32f linear radiance, any slot name,
 /// own rows) and returns the `display` handle (Rgba8; not exported). `exposure` scales the

@@ -1,4 +1,4 @@
-//! The one error type of the crate: every failure names the input it came from.
+//! The error types of the crate, a leaf: every failure names the input it came from.
 
 use std::path::PathBuf;
 
@@ -16,7 +16,7 @@ pub enum SceneError {
     },
     /// Not a regular file, too large, a symlink loop.
     #[error(transparent)]
-    Input(crate::input::InputError),
+    Input(InputError),
     #[error("{path}: malformed glTF JSON: {detail}")]
     MalformedJson { path: PathBuf, detail: String },
     #[error("{path}: requires glTF extension {extension}, which Parallax does not support (supported: {supported})")]
@@ -73,11 +73,25 @@ pub enum SceneError {
     InvalidSettings(String),
 }
 
-impl From<crate::input::InputError> for SceneError {
-    fn from(e: crate::input::InputError) -> Self {
+impl From<InputError> for SceneError {
+    fn from(e: InputError) -> Self {
         match e {
-            crate::input::InputError::Io { path, error } => SceneError::Io { path, source: error },
+            InputError::Io { path, error } => SceneError::Io { path, source: error },
             other => SceneError::Input(other),
         }
     }
+}
+
+/// Why an input cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    #[error("{path} is {kind}, not a regular file: give the path of a file")]
+    NotRegular { path: PathBuf, kind: &'static str },
+    #[error("{path} is {size} bytes, more than the {limit} bytes a {what} may have")]
+    TooLarge { path: PathBuf, what: &'static str, size: u64, limit: u64 },
+    #[error("{path} is a symlink loop (or a chain of more than 40 links): fix the links")]
+    SymlinkLoop { path: PathBuf },
+    /// The OS error is part of the message (not a `source`), so a chain prints it once.
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
 }

@@ -19,6 +19,8 @@
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 
+pub use crate::error::InputError;
+
 /// A .gltf/.glb file or one glTF buffer: 4 GiB.
 pub const SCENE_FILE_LIMIT: u64 = 4 << 30;
 /// An image file a glTF names: 1 GiB.
@@ -29,20 +31,6 @@ pub const IMAGE_SIDE_LIMIT: u32 = 16384;
 pub const EXR_FILE_LIMIT: u64 = 4 << 30;
 /// A JSON or TOML file: 256 MiB.
 pub const TEXT_FILE_LIMIT: u64 = 256 << 20;
-
-/// Why an input cannot be read.
-#[derive(Debug, thiserror::Error)]
-pub enum InputError {
-    #[error("{path} is {kind}, not a regular file: give the path of a file")]
-    NotRegular { path: PathBuf, kind: &'static str },
-    #[error("{path} is {size} bytes, more than the {limit} bytes a {what} may have")]
-    TooLarge { path: PathBuf, what: &'static str, size: u64, limit: u64 },
-    #[error("{path} is a symlink loop (or a chain of more than 40 links): fix the links")]
-    SymlinkLoop { path: PathBuf },
-    /// The OS error is part of the message (not a `source`), so a chain prints it once.
-    #[error("{path}: {error}")]
-    Io { path: PathBuf, error: std::io::Error },
-}
 
 impl InputError {
     fn io(path: &Path, source: std::io::Error) -> Self {

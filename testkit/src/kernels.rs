@@ -93,8 +93,8 @@ impl PassKernel for RasterDemoKernel {
         };
         rec.draw(
             &Draw {
-                vertex_shader: ids::RASTER_DEMO_VERT.name(),
-                fragment_shader: ids::RASTER_DEMO_FRAG.name(),
+                vertex_shader: ids::RASTER_DEMO_VERT,
+                fragment_shader: ids::RASTER_DEMO_FRAG,
                 color_targets: &[gbuffer.alloc],
                 depth_target: Some(depth.alloc),
                 clear: true,
