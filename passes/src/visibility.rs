@@ -50,11 +50,14 @@ const TILE_BYTES: u64 = 16;
 /// up to 65535 (`maxComputeWorkGroupCount`).
 const MAX_TILES: u64 = 65535;
 
-/// Bytes per row of [`VISIBILITY_TILES`] for a `width`-wide view: half a byte a pixel, room
-/// for the tiles of boxes covering a band 8 times over (a 16 × 16 tile is 16 bytes), at least
-/// three tiles a row. A band whose boxes need more tests the rest in its workgroups.
+/// Bytes per row of [`VISIBILITY_TILES`] for a `width`-wide view: two bytes a pixel, room for
+/// the tiles of boxes covering a band 32 times over (a 16 × 16 tile is 16 bytes), at least
+/// eight tiles a row. A band whose boxes need more tests the rest in its workgroups, 64
+/// threads a box, which is slow: Sponza lite's atrium from the benchmark camera (768 × 432)
+/// needs about 28,000 tiles in a view, and half a byte a pixel (10,367 tiles) left 3/4 of its
+/// tiled pixels to the workgroups.
 pub fn tile_row_bytes(width: u32) -> u64 {
-    (u64::from(width) / 2).next_multiple_of(TILE_BYTES).max(4 * TILE_BYTES)
+    (2 * u64::from(width)).next_multiple_of(TILE_BYTES).max(8 * TILE_BYTES)
 }
 
 /// Workgroups per row of `visibility_raster`'s dispatch grid at most (one triangle per

@@ -5,7 +5,8 @@
 //! is the same (the resolve intersects the same ray with the same triangle by the same code),
 //! and three row bands on three devices equal to one device bit for bit; a camera inside a
 //! room takes the raster's other paths (triangles crossing the eye's plane, more large tiles
-//! than a band's list holds).
+//! than a band's list holds), and one among slivers through its eye's plane the clipping of
+//! triangles to the band's frustum.
 
 mod common;
 
@@ -200,4 +201,31 @@ fn the_sponza_atrium_sees_the_traced_triangles() {
     let atrium = Camera::look_at(Vec3::new(9.0, 1.6, -0.4), Vec3::new(-8.0, 3.5, -0.4), Vec3::Y, 65f32.to_radians());
     scene.cameras.insert(0, atrium);
     agreement("Sponza atrium", &scene, 2, (128, 72));
+}
+
+/// A camera among long, thin slivers that start behind it and run diagonally past the view's
+/// sides to far in front (each crosses the eye's plane and two or more side planes of the view,
+/// so pixel_box clips it to the band's frustum, vertices of the clipped polygon on every side
+/// plane and on band edges), before a far wall. Agreement here is the clipping's: a clipped box
+/// that lost a pixel a sliver covers shows as a mismatch.
+fn slivers_through_the_eyes_plane() -> Scene {
+    let mut b = SceneBuilder::new("slivers through the eye's plane");
+    let grey = b.material(Material::diffuse("grey", Vec3::splat(0.6)));
+    let red = b.material(Material::diffuse("red", Vec3::new(0.7, 0.1, 0.1)));
+    b.quad(Vec3::new(-40.0, -30.0, -30.0), Vec3::new(80.0, 0.0, 0.0), Vec3::new(0.0, 60.0, 0.0), grey);
+    for k in 0..48 {
+        let (i, j) = ((k % 8) as f32, (k / 8) as f32);
+        // Behind the eye (z > 1), off to one side; in front (z < -20), off to the other.
+        let start = Vec3::new(-6.0 + 1.7 * i, -2.0 + 1.1 * j, 4.0 + 0.5 * (k % 3) as f32);
+        let end = Vec3::new(7.0 - 1.9 * i + 0.3 * j, 4.5 - 1.3 * j + 0.2 * i, -24.0 - (k % 5) as f32);
+        let across = Vec3::new(0.05 + 0.02 * (k % 4) as f32, 0.04 * (k % 3) as f32, 0.0);
+        b.quad(start, end - start, across, if k % 2 == 0 { grey } else { red });
+    }
+    b.camera(Camera::look_at(Vec3::new(0.1, 1.0, 1.0), Vec3::new(0.3, 1.1, -10.0), Vec3::Y, 1.1));
+    b.build()
+}
+
+#[test]
+fn a_camera_among_slivers_through_its_eyes_plane_sees_the_traced_triangles() {
+    agreement("slivers through the eye's plane", &slivers_through_the_eyes_plane(), 2, (80, 48));
 }
