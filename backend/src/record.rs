@@ -26,7 +26,7 @@ use crate::kernel::KernelPlan;
 use crate::memory::Image;
 use crate::plan::{AllocId, ExecutionPlan, InstanceId};
 use crate::recorder::Recorder;
-use crate::segments::{Chunk, Item, Segment};
+use crate::segments::{Chunk, Item, Segment, chunk_bytes};
 use crate::shader_pipelines::Bindless;
 use crate::timing::EventKind;
 
@@ -113,8 +113,6 @@ pub(crate) fn timer_spans(plan: &KernelPlan, segment: &Segment, timing: Timing) 
 /// Timer labels of all timestamp pairs of `segments` (`spans[j]`: segment j's
 /// [`timer_spans`]), in recording order; a span is labelled by its first item.
 pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[Vec<Range<usize>>]) -> Vec<TimerLabel> {
-    let chunk_bytes =
-        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).src_alloc).row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let copy_label = |items: &[Item], kind, queue| {
         let chunks: Vec<&Chunk> = items
             .iter()
@@ -139,7 +137,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
             index: chunk.copy.index(),
             chunk: chunk.index,
             copies: chunks.len() as u32,
-            bytes: chunks.iter().map(|c| chunk_bytes(c)).sum(),
+            bytes: chunks.iter().map(|c| chunk_bytes(plan, c)).sum(),
             gather: copy.is_gather(),
             queue,
         }
@@ -467,7 +465,7 @@ fn record_copies(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, items: &[Item]
             let row_bytes = ctx.plan.resource(local).row_bytes();
             let (staging, offset) = ctx.staging[chunk.copy.index()];
             let staging_offset = offset + u64::from(chunk.y0 - copy.region.y0) * row_bytes;
-            (chunk, local, (staging, staging_offset, u64::from(chunk.y1 - chunk.y0) * row_bytes))
+            (chunk, local, (staging, staging_offset, chunk_bytes(&ctx.plan.plan, &chunk)))
         })
         .collect();
     // A batch lies in one range of its link's staging (ExecutionPlan::staging_order): one
@@ -593,7 +591,7 @@ fn record_allocation_copy(
                 .buffer_offset(staging_offset)
                 .image_subresource(image.layers())
                 .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
-                .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 })
+                .image_extent(vk::Extent3D { width: resource.width, height: chunk.rows(), depth: 1 })
         })
         .collect();
     unsafe {
