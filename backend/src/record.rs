@@ -167,13 +167,13 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
         .collect()
 }
 
-/// Everything a segment recording needs from the device state.
+/// Everything a segment recording reads from the device state: what a [`Recorder`] borrows.
+/// What recording changes is beside it ([`SegmentScratch`]).
 pub(crate) struct SegmentContext<'a> {
     pub barriers: crate::exec_options::Barriers,
     pub raw: &'a ash::Device,
     pub device_index: usize,
     pub plan: &'a KernelPlan,
-    pub bindless: &'a mut Bindless,
     pub images: &'a HashMap<AllocId, Image>,
     pub image_slots: &'a HashMap<AllocId, u32>,
     pub slot: usize,
@@ -195,7 +195,12 @@ pub(crate) struct SegmentContext<'a> {
     /// with `ExecOptions::read_back_exports`; empty otherwise).
     pub readback: &'a [(AllocId, vk::Buffer)],
     pub device: &'a std::sync::Arc<crate::device::Device>,
-    /// The slot's recording buffers (`Recorder::recording_buffer`), emptied before it records.
+}
+
+/// What recording a segment changes: the device's pipelines (created on first use) and the
+/// slot's recording buffers (`Recorder::recording_buffer`), emptied before it records.
+pub(crate) struct SegmentScratch<'a> {
+    pub bindless: &'a mut Bindless,
     pub recording_buffers: &'a mut Vec<crate::memory::Buffer>,
 }
 
@@ -215,7 +220,8 @@ pub(crate) struct SegmentPlace {
 
 /// Records `segment`; its first timer is `first_timer`, and `spans` are its [`timer_spans`].
 pub(crate) fn record_segment(
-    ctx: &mut SegmentContext<'_>,
+    ctx: &SegmentContext<'_>,
+    scratch: &mut SegmentScratch<'_>,
     cb: vk::CommandBuffer,
     segment: &Segment,
     first_timer: u32,
@@ -226,7 +232,7 @@ pub(crate) fn record_segment(
     if place.first {
         record_resets(ctx, cb);
     }
-    let recorded = record_items(ctx, cb, segment, first_timer, spans).and_then(|()| {
+    let recorded = record_items(ctx, scratch, cb, segment, first_timer, spans).and_then(|()| {
         if place.last {
             record_readback(ctx, cb);
         }
@@ -240,7 +246,8 @@ pub(crate) fn record_segment(
 }
 
 fn record_items(
-    ctx: &mut SegmentContext<'_>,
+    ctx: &SegmentContext<'_>,
+    scratch: &mut SegmentScratch<'_>,
     cb: vk::CommandBuffer,
     segment: &Segment,
     first_timer: u32,
@@ -254,9 +261,9 @@ fn record_items(
             raw.cmd_bind_descriptor_sets(
                 cb,
                 vk::PipelineBindPoint::COMPUTE,
-                ctx.bindless.pipeline_layout,
+                scratch.bindless.pipeline_layout,
                 0,
-                &[ctx.bindless.sets[ctx.slot]],
+                &[scratch.bindless.sets[ctx.slot]],
                 &[],
             );
         }
@@ -294,7 +301,7 @@ fn record_items(
         }
         let items = &segment.items[op.clone()];
         match items[0] {
-            Item::Pass(_) => bound = record_passes(ctx, cb, items, bound)?,
+            Item::Pass(_) => bound = record_passes(ctx, scratch, cb, items, bound)?,
             Item::CopyOut(_) => {
                 record_copies(ctx, cb, items, CopyDirection::Out);
                 // The other device reads the bytes, through host memory on a `relay` link.
@@ -312,7 +319,8 @@ fn record_items(
 /// Records the pass instances of one op (one item, or a group of [`op_groups`]) through their
 /// kernel; returns the pipeline left bound.
 fn record_passes(
-    ctx: &mut SegmentContext<'_>,
+    ctx: &SegmentContext<'_>,
+    scratch: &mut SegmentScratch<'_>,
     cb: vk::CommandBuffer,
     items: &[Item],
     bound: Option<vk::Pipeline>,
@@ -320,27 +328,14 @@ fn record_passes(
     let instances: Vec<InstanceId> =
         items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
     let first = instances[0];
-    let kernel = ctx.plan.kernel(first).clone();
+    let kernel = ctx.plan.kernel(first);
     let mut rec = Recorder {
+        ctx,
         pass: &ctx.plan.pass(first).name,
-        parity_map: ctx.parity_map,
-        raw: ctx.raw,
         cb,
-        bindless: ctx.bindless,
-        image_slots: ctx.image_slots,
-        images: ctx.images,
-        slot: ctx.slot,
-        global_buffers: ctx.global_buffers,
-        frame_data_address: ctx.frame_data_address,
-        frame_sections: ctx.frame_sections,
-        frame_block: ctx.frame_block,
-        buffers: ctx.buffers,
-        buffer_addresses: ctx.buffer_addresses,
-        plan: &ctx.plan.plan,
-        device_index: ctx.device_index,
         bound,
-        device: ctx.device,
-        recording_buffers: ctx.recording_buffers,
+        bindless: &mut *scratch.bindless,
+        recording_buffers: &mut *scratch.recording_buffers,
     };
     if kernel.records_groups() {
         kernel.record_group(&mut rec, &instances)?;
