@@ -106,6 +106,13 @@ impl ExecResource {
     pub fn row_bytes(&self) -> u64 {
         u64::from(self.width) * self.format.bytes_per_texel()
     }
+
+    /// Bytes of `rows` whole rows: what a copy (or a chunk of one) of that many rows of this
+    /// resource moves. Every byte count of the backend's copies is this one
+    /// ([`ExecutionPlan::copy_bytes`], `segments::chunk_bytes`, [`ExecutionPlan::laid_copy`]).
+    pub fn rows_bytes(&self, rows: u32) -> u64 {
+        self.row_bytes() * u64::from(rows)
+    }
 }
 
 /// An access of a pass instance's own view in a hand-laid plan: allocation `alloc` over `rows`,
@@ -136,7 +143,7 @@ impl ExecutionPlan {
         (from, to): (DeviceId, DeviceId),
         kind: CopyKind,
     ) -> CrossCopy {
-        let bytes = self.resource(src).row_bytes() * u64::from(rows.len());
+        let bytes = self.resource(src).rows_bytes(rows.len());
         CrossCopy {
             resource: ResourceId(src.0),
             version: 1,
@@ -367,10 +374,14 @@ impl ExecutionPlan {
         bands.iter().all(|&(d, r, _)| (d, r) == (device, resource)).then_some((device, resource))
     }
 
-    /// Bytes moved by copy `c` (only the copied rows).
+    /// Bytes moved by copy `c` (only the copied rows), as the backend lays them out: whole
+    /// rows of its source's description ([`ExecResource::rows_bytes`]). That is the copy's
+    /// `bytes` but for a buffer whose declared size is no whole number of 32-bit words, which
+    /// the schedule counts as declared and the backend allocates, stages and moves rounded up
+    /// to whole words (rows of one stride, so a chunk's offset and size agree with its copy's).
     pub fn copy_bytes(&self, c: CopyId) -> u64 {
         let copy = self.copy(c);
-        self.resource(copy.src_alloc).row_bytes() * u64::from(copy.region.len())
+        self.resource(copy.src_alloc).rows_bytes(copy.region.len())
     }
 }
 

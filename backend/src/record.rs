@@ -26,7 +26,7 @@ use crate::kernel::KernelPlan;
 use crate::memory::Image;
 use crate::plan::{AllocId, ExecutionPlan, InstanceId};
 use crate::recorder::Recorder;
-use crate::segments::{Chunk, Item, Segment};
+use crate::segments::{Chunk, Item, Segment, chunk_bytes};
 use crate::shader_pipelines::Bindless;
 use crate::timing::EventKind;
 
@@ -113,8 +113,6 @@ pub(crate) fn timer_spans(plan: &KernelPlan, segment: &Segment, timing: Timing) 
 /// Timer labels of all timestamp pairs of `segments` (`spans[j]`: segment j's
 /// [`timer_spans`]), in recording order; a span is labelled by its first item.
 pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[Vec<Range<usize>>]) -> Vec<TimerLabel> {
-    let chunk_bytes =
-        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).src_alloc).row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let copy_label = |items: &[Item], kind, queue| {
         let chunks: Vec<&Chunk> = items
             .iter()
@@ -139,7 +137,7 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
             index: chunk.copy.index(),
             chunk: chunk.index,
             copies: chunks.len() as u32,
-            bytes: chunks.iter().map(|c| chunk_bytes(c)).sum(),
+            bytes: chunks.iter().map(|c| chunk_bytes(plan, c)).sum(),
             gather: copy.is_gather(),
             queue,
         }
@@ -169,13 +167,13 @@ pub(crate) fn timer_labels(plan: &ExecutionPlan, segments: &[Segment], spans: &[
         .collect()
 }
 
-/// Everything a segment recording needs from the device state.
+/// Everything a segment recording reads from the device state: what a [`Recorder`] borrows.
+/// What recording changes is beside it ([`SegmentScratch`]).
 pub(crate) struct SegmentContext<'a> {
     pub barriers: crate::exec_options::Barriers,
     pub raw: &'a ash::Device,
     pub device_index: usize,
     pub plan: &'a KernelPlan,
-    pub bindless: &'a mut Bindless,
     pub images: &'a HashMap<AllocId, Image>,
     pub image_slots: &'a HashMap<AllocId, u32>,
     pub slot: usize,
@@ -197,7 +195,12 @@ pub(crate) struct SegmentContext<'a> {
     /// with `ExecOptions::read_back_exports`; empty otherwise).
     pub readback: &'a [(AllocId, vk::Buffer)],
     pub device: &'a std::sync::Arc<crate::device::Device>,
-    /// The slot's recording buffers (`Recorder::recording_buffer`), emptied before it records.
+}
+
+/// What recording a segment changes: the device's pipelines (created on first use) and the
+/// slot's recording buffers (`Recorder::recording_buffer`), emptied before it records.
+pub(crate) struct SegmentScratch<'a> {
+    pub bindless: &'a mut Bindless,
     pub recording_buffers: &'a mut Vec<crate::memory::Buffer>,
 }
 
@@ -217,7 +220,8 @@ pub(crate) struct SegmentPlace {
 
 /// Records `segment`; its first timer is `first_timer`, and `spans` are its [`timer_spans`].
 pub(crate) fn record_segment(
-    ctx: &mut SegmentContext<'_>,
+    ctx: &SegmentContext<'_>,
+    scratch: &mut SegmentScratch<'_>,
     cb: vk::CommandBuffer,
     segment: &Segment,
     first_timer: u32,
@@ -228,7 +232,7 @@ pub(crate) fn record_segment(
     if place.first {
         record_resets(ctx, cb);
     }
-    let recorded = record_items(ctx, cb, segment, first_timer, spans).and_then(|()| {
+    let recorded = record_items(ctx, scratch, cb, segment, first_timer, spans).and_then(|()| {
         if place.last {
             record_readback(ctx, cb);
         }
@@ -242,7 +246,8 @@ pub(crate) fn record_segment(
 }
 
 fn record_items(
-    ctx: &mut SegmentContext<'_>,
+    ctx: &SegmentContext<'_>,
+    scratch: &mut SegmentScratch<'_>,
     cb: vk::CommandBuffer,
     segment: &Segment,
     first_timer: u32,
@@ -256,9 +261,9 @@ fn record_items(
             raw.cmd_bind_descriptor_sets(
                 cb,
                 vk::PipelineBindPoint::COMPUTE,
-                ctx.bindless.pipeline_layout,
+                scratch.bindless.pipeline_layout,
                 0,
-                &[ctx.bindless.sets[ctx.slot]],
+                &[scratch.bindless.sets[ctx.slot]],
                 &[],
             );
         }
@@ -296,7 +301,7 @@ fn record_items(
         }
         let items = &segment.items[op.clone()];
         match items[0] {
-            Item::Pass(_) => bound = record_passes(ctx, cb, items, bound)?,
+            Item::Pass(_) => bound = record_passes(ctx, scratch, cb, items, bound)?,
             Item::CopyOut(_) => {
                 record_copies(ctx, cb, items, CopyDirection::Out);
                 // The other device reads the bytes, through host memory on a `relay` link.
@@ -314,7 +319,8 @@ fn record_items(
 /// Records the pass instances of one op (one item, or a group of [`op_groups`]) through their
 /// kernel; returns the pipeline left bound.
 fn record_passes(
-    ctx: &mut SegmentContext<'_>,
+    ctx: &SegmentContext<'_>,
+    scratch: &mut SegmentScratch<'_>,
     cb: vk::CommandBuffer,
     items: &[Item],
     bound: Option<vk::Pipeline>,
@@ -322,27 +328,14 @@ fn record_passes(
     let instances: Vec<InstanceId> =
         items.iter().filter_map(|item| if let Item::Pass(p) = *item { Some(p) } else { None }).collect();
     let first = instances[0];
-    let kernel = ctx.plan.kernel(first).clone();
+    let kernel = ctx.plan.kernel(first);
     let mut rec = Recorder {
+        ctx,
         pass: &ctx.plan.pass(first).name,
-        parity_map: ctx.parity_map,
-        raw: ctx.raw,
         cb,
-        bindless: ctx.bindless,
-        image_slots: ctx.image_slots,
-        images: ctx.images,
-        slot: ctx.slot,
-        global_buffers: ctx.global_buffers,
-        frame_data_address: ctx.frame_data_address,
-        frame_sections: ctx.frame_sections,
-        frame_block: ctx.frame_block,
-        buffers: ctx.buffers,
-        buffer_addresses: ctx.buffer_addresses,
-        plan: &ctx.plan.plan,
-        device_index: ctx.device_index,
         bound,
-        device: ctx.device,
-        recording_buffers: ctx.recording_buffers,
+        bindless: &mut *scratch.bindless,
+        recording_buffers: &mut *scratch.recording_buffers,
     };
     if kernel.records_groups() {
         kernel.record_group(&mut rec, &instances)?;
@@ -467,7 +460,7 @@ fn record_copies(ctx: &SegmentContext<'_>, cb: vk::CommandBuffer, items: &[Item]
             let row_bytes = ctx.plan.resource(local).row_bytes();
             let (staging, offset) = ctx.staging[chunk.copy.index()];
             let staging_offset = offset + u64::from(chunk.y0 - copy.region.y0) * row_bytes;
-            (chunk, local, (staging, staging_offset, u64::from(chunk.y1 - chunk.y0) * row_bytes))
+            (chunk, local, (staging, staging_offset, chunk_bytes(&ctx.plan.plan, &chunk)))
         })
         .collect();
     // A batch lies in one range of its link's staging (ExecutionPlan::staging_order): one
@@ -593,7 +586,7 @@ fn record_allocation_copy(
                 .buffer_offset(staging_offset)
                 .image_subresource(image.layers())
                 .image_offset(vk::Offset3D { x: 0, y: chunk.y0 as i32, z: 0 })
-                .image_extent(vk::Extent3D { width: resource.width, height: chunk.y1 - chunk.y0, depth: 1 })
+                .image_extent(vk::Extent3D { width: resource.width, height: chunk.rows(), depth: 1 })
         })
         .collect();
     unsafe {

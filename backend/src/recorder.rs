@@ -6,19 +6,16 @@
 //! ([`crate::Timing`]) between ops. The kernel only chooses a shader, fills [`PassParams`] from
 //! the pass instance and dispatches.
 
-use std::collections::HashMap;
-use std::sync::Arc;
-
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use parallax_graph::{Access, AllocId, Format, PassInstance, Region};
 
 use crate::PassParams;
-use crate::device::Device;
 use crate::error::{BackendError, Result};
 use crate::memory::{Buffer, Image};
 use crate::plan::{ExecResource, ExecutionPlan};
 use crate::push::{self, PushConstants};
+use crate::record::SegmentContext;
 use crate::shader_id::{DrawStage, ShaderName};
 use crate::shader_pipelines::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
 
@@ -72,30 +69,16 @@ impl RecordingBuffer {
 /// Records the work of one pass instance (or of a group of them, [`crate::PassKernel::record_group`])
 /// into a device's command buffer.
 pub struct Recorder<'a> {
+    /// What the segment being recorded reads: the plan, the device, its resources and the
+    /// slot's addresses (record.rs), borrowed, not copied.
+    pub(crate) ctx: &'a SegmentContext<'a>,
     /// Name of the pass being recorded, for errors.
     pub(crate) pass: &'a str,
-    /// History pairs swapped for an odd frame (see `ExecutionPlan::history`).
-    pub(crate) parity_map: &'a HashMap<AllocId, AllocId>,
-    pub(crate) raw: &'a ash::Device,
     pub(crate) cb: vk::CommandBuffer,
-    pub(crate) bindless: &'a mut Bindless,
-    pub(crate) image_slots: &'a HashMap<AllocId, u32>,
-    pub(crate) images: &'a HashMap<AllocId, crate::memory::Image>,
-    /// Frame-in-flight slot being recorded (selects the descriptor set).
-    pub(crate) slot: usize,
-    /// Address and size in bytes of every global buffer on this device.
-    pub(crate) global_buffers: &'a HashMap<String, (u64, u64)>,
-    pub(crate) frame_data_address: u64,
-    /// Named sections of the per-frame data and their offsets from `frame_data_address`.
-    pub(crate) frame_sections: &'a [(String, u64)],
-    /// Offset of the frame block from `frame_data_address`, if the frame data has one.
-    pub(crate) frame_block: Option<u64>,
-    pub(crate) buffers: &'a HashMap<AllocId, Buffer>,
-    pub(crate) buffer_addresses: &'a HashMap<AllocId, u64>,
-    pub(crate) plan: &'a ExecutionPlan,
-    pub(crate) device_index: usize,
+    /// The pipeline left bound by the last dispatch or draw of the command buffer.
     pub(crate) bound: Option<vk::Pipeline>,
-    pub(crate) device: &'a Arc<Device>,
+    /// The device's pipelines (created on first use) and descriptor sets.
+    pub(crate) bindless: &'a mut Bindless,
     /// The recording buffers of this device and frame slot, dropped when it records again.
     pub(crate) recording_buffers: &'a mut Vec<Buffer>,
 }
@@ -105,22 +88,22 @@ impl<'a> Recorder<'a> {
     /// `images[]`, or `uimages[]` for `R32u`, or `depth_images[]` for `Depth32f` (bindless.glsl).
     pub fn image(&self, resource: AllocId) -> Result<u32> {
         let resource = self.resolve(resource);
-        if let Some(&slot) = self.image_slots.get(&resource) {
+        if let Some(&slot) = self.ctx.image_slots.get(&resource) {
             return Ok(slot);
         }
-        if self.buffer_addresses.contains_key(&resource) {
+        if self.ctx.buffer_addresses.contains_key(&resource) {
             return Err(BackendError::KernelMisuse {
-                kernel: format!("a kernel of device {}", self.device_index),
+                kernel: format!("a kernel of device {}", self.ctx.device_index),
                 instance: None,
                 detail: format!("resource {resource} is a buffer: use Recorder::buffer_of, not image"),
             });
         }
-        Err(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
+        Err(BackendError::ResourceNotOnDevice { resource, device: self.ctx.device_index })
     }
 
     /// The resource an access to `resource` touches in the frame parity being recorded.
     fn resolve(&self, resource: AllocId) -> AllocId {
-        self.parity_map.get(&resource).copied().unwrap_or(resource)
+        self.ctx.parity_map.get(&resource).copied().unwrap_or(resource)
     }
 
     /// The image slot of access `access` (see [`Self::image`]).
@@ -130,17 +113,17 @@ impl<'a> Recorder<'a> {
 
     /// The plan's description of `resource`.
     pub fn resource(&self, resource: AllocId) -> &ExecResource {
-        self.plan.resource(resource)
+        self.ctx.plan.resource(resource)
     }
 
     /// Index of the device being recorded.
     pub fn device_index(&self) -> usize {
-        self.device_index
+        self.ctx.device_index
     }
 
     /// The plan being recorded (pass instance `i` is `plan().pass(i)`).
     pub fn plan(&self) -> &'a ExecutionPlan {
-        self.plan
+        &self.ctx.plan.plan
     }
 
     /// A buffer of `bytes.len()` bytes (at least 4) holding `bytes`, for the op being recorded
@@ -154,7 +137,7 @@ impl<'a> Recorder<'a> {
     /// barrier of [`Self::dispatch_indirect_from`] orders the dispatches before it).
     pub fn recording_buffer(&mut self, name: &str, bytes: &[u8]) -> Result<RecordingBuffer> {
         let mut buffer = Buffer::new(
-            self.device,
+            self.ctx.device,
             name,
             (bytes.len() as u64).max(4),
             vk::BufferUsageFlags::STORAGE_BUFFER
@@ -174,7 +157,7 @@ impl<'a> Recorder<'a> {
     /// must match the shader's block ([`PushConstants`]).
     pub fn dispatch<P: PushConstants>(&mut self, shader: impl ShaderName<P>, push: &P, groups: [u32; 3]) -> Result<()> {
         self.bind_compute(shader.shader_name(), push)?;
-        unsafe { self.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]) };
+        unsafe { self.ctx.raw.cmd_dispatch(self.cb, groups[0], groups[1], groups[2]) };
         Ok(())
     }
 
@@ -200,13 +183,14 @@ impl<'a> Recorder<'a> {
             offset: byte_offset,
             problem,
         };
-        if self.images.contains_key(&resource) {
+        if self.ctx.images.contains_key(&resource) {
             return Err(invalid("it is an image; indirect arguments live in a buffer resource".into()));
         }
         let buffer = self
+            .ctx
             .buffers
             .get(&resource)
-            .ok_or_else(|| invalid(format!("it is not allocated on device {}", self.device_index)))?;
+            .ok_or_else(|| invalid(format!("it is not allocated on device {}", self.ctx.device_index)))?;
         let (raw, size) = (buffer.raw, buffer.size);
         self.indirect(shader, push, raw, size, byte_offset, invalid)
     }
@@ -258,8 +242,8 @@ impl<'a> Recorder<'a> {
                     | vk::AccessFlags2::SHADER_STORAGE_WRITE,
             )];
         unsafe {
-            self.raw.cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().memory_barriers(&args_ready));
-            self.raw.cmd_dispatch_indirect(self.cb, raw, byte_offset);
+            self.ctx.raw.cmd_pipeline_barrier2(self.cb, &vk::DependencyInfo::default().memory_barriers(&args_ready));
+            self.ctx.raw.cmd_dispatch_indirect(self.cb, raw, byte_offset);
         }
         Ok(())
     }
@@ -280,11 +264,11 @@ impl<'a> Recorder<'a> {
         let pipeline = pipeline.raw;
         unsafe {
             if self.bound != Some(pipeline) {
-                self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+                self.ctx.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
                 self.bound = Some(pipeline);
             }
             if !bytes.is_empty() {
-                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, bytes);
+                self.ctx.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, bytes);
             }
         }
         Ok(())
@@ -293,10 +277,11 @@ impl<'a> Recorder<'a> {
     /// GPU address of the per-view buffer `resource` (a `ResourceKind::Buffer` of the plan) on
     /// this device.
     pub fn buffer_of(&self, resource: AllocId) -> Result<u64> {
-        self.buffer_addresses
+        self.ctx
+            .buffer_addresses
             .get(&self.resolve(resource))
             .copied()
-            .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
+            .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.ctx.device_index })
     }
 
     /// GPU address of the global buffer `name` on this device (see `Executor::upload_buffer`).
@@ -312,36 +297,39 @@ impl<'a> Recorder<'a> {
     }
 
     fn global_buffer(&self, name: &str) -> Result<(u64, u64)> {
-        self.global_buffers
+        self.ctx
+            .global_buffers
             .get(name)
             .copied()
-            .ok_or_else(|| BackendError::UnknownBuffer { name: name.to_string(), device: self.device_index })
+            .ok_or_else(|| BackendError::UnknownBuffer { name: name.to_string(), device: self.ctx.device_index })
     }
 
     /// GPU address of this frame-in-flight slot's copy of the per-frame data (see
     /// `Executor::set_frame_data`); the contents change every frame without re-recording.
     pub fn frame_data_address(&self) -> u64 {
-        self.frame_data_address
+        self.ctx.frame_data_address
     }
 
     /// GPU address of the section `name` of the per-frame data (see `FrameData::section`), in
     /// this frame-in-flight slot's copy.
     pub fn frame_section_address(&self, name: &str) -> Result<u64> {
-        self.frame_sections
+        self.ctx
+            .frame_sections
             .iter()
             .find(|(n, _)| n == name)
-            .map(|(_, offset)| self.frame_data_address + offset)
+            .map(|(_, offset)| self.ctx.frame_data_address + offset)
             .ok_or_else(|| BackendError::UnknownFrameSection {
                 name: name.to_string(),
-                known: self.frame_sections.iter().map(|(n, _)| n.clone()).collect(),
+                known: self.ctx.frame_sections.iter().map(|(n, _)| n.clone()).collect(),
             })
     }
 
     /// GPU address of the frame block of cameras (see `FrameData::frame_block`), in this
     /// frame-in-flight slot's copy.
     pub fn frame_block_address(&self) -> Result<u64> {
-        self.frame_block
-            .map(|offset| self.frame_data_address + offset)
+        self.ctx
+            .frame_block
+            .map(|offset| self.ctx.frame_data_address + offset)
             .ok_or_else(|| BackendError::NoFrameBlock { pass: self.pass.to_string() })
     }
 
@@ -419,9 +407,10 @@ impl<'a> Recorder<'a> {
                     desc.name, desc.width, desc.height
                 )));
             }
-            self.images
+            self.ctx
+                .images
                 .get(&self.resolve(resource))
-                .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.device_index })
+                .ok_or(BackendError::ResourceNotOnDevice { resource, device: self.ctx.device_index })
         };
         let load_op = if draw.clear { vk::AttachmentLoadOp::CLEAR } else { vk::AttachmentLoadOp::LOAD };
         let mut color_formats = Vec::with_capacity(draw.color_targets.len());
@@ -487,25 +476,25 @@ impl<'a> Recorder<'a> {
         let viewport =
             vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 };
         unsafe {
-            self.raw.cmd_begin_rendering(self.cb, &rendering);
-            self.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-            self.raw.cmd_bind_descriptor_sets(
+            self.ctx.raw.cmd_begin_rendering(self.cb, &rendering);
+            self.ctx.raw.cmd_bind_pipeline(self.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            self.ctx.raw.cmd_bind_descriptor_sets(
                 self.cb,
                 vk::PipelineBindPoint::GRAPHICS,
                 self.bindless.pipeline_layout,
                 0,
-                &[self.bindless.sets[self.slot]],
+                &[self.bindless.sets[self.ctx.slot]],
                 &[],
             );
-            self.raw.cmd_set_viewport(self.cb, 0, &[viewport]);
-            self.raw.cmd_set_scissor(self.cb, 0, &[area]);
+            self.ctx.raw.cmd_set_viewport(self.cb, 0, &[viewport]);
+            self.ctx.raw.cmd_set_scissor(self.cb, 0, &[area]);
             if !push_bytes.is_empty() {
-                self.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push_bytes);
+                self.ctx.raw.cmd_push_constants(self.cb, self.bindless.pipeline_layout, SHADER_STAGES, 0, push_bytes);
             }
             if draw.vertex_count > 0 && draw.instance_count > 0 {
-                self.raw.cmd_draw(self.cb, draw.vertex_count, draw.instance_count, 0, 0);
+                self.ctx.raw.cmd_draw(self.cb, draw.vertex_count, draw.instance_count, 0, 0);
             }
-            self.raw.cmd_end_rendering(self.cb);
+            self.ctx.raw.cmd_end_rendering(self.cb);
         }
     }
 
@@ -516,7 +505,7 @@ impl<'a> Recorder<'a> {
 
     /// The raw device, with [`Self::command_buffer`].
     pub fn raw_device(&self) -> &ash::Device {
-        self.raw
+        self.ctx.raw
     }
 }
 

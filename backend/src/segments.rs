@@ -36,6 +36,18 @@ pub struct Chunk {
     pub y1: u32,
 }
 
+impl Chunk {
+    /// Rows the chunk moves.
+    pub fn rows(&self) -> u32 {
+        self.y1 - self.y0
+    }
+}
+
+/// Bytes `chunk` moves: its rows of its copy's source ([`crate::ExecResource::rows_bytes`]).
+pub(crate) fn chunk_bytes(plan: &ExecutionPlan, chunk: &Chunk) -> u64 {
+    plan.resource(plan.copy(chunk.copy).src_alloc).rows_bytes(chunk.rows())
+}
+
 /// What a segment records, in order (the executor puts barriers and timestamp pairs between
 /// the items: `Barriers`, `Timing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -245,8 +257,6 @@ fn segment_single_queue(
     let batch_of = plan.batch_of_copies();
     let mut last_batch: Option<BatchId> = None;
     let joins_batch = |last: Option<BatchId>, c: CopyId| last.is_some() && batch_of[c.index()] == last;
-    let bytes =
-        |chunk: &Chunk| plan.resource(plan.copy(chunk.copy).src_alloc).row_bytes() * u64::from(chunk.y1 - chunk.y0);
     let mut segments = Vec::new();
     let mut current = Segment::default();
     let mut tail = Tail::Closed;
@@ -272,7 +282,7 @@ fn segment_single_queue(
                         Tail::CopyOuts(held)
                             if small(c)
                                 && (joins_batch(last_batch, c)
-                                    || held.saturating_add(bytes(&chunk)) <= merge_bytes) =>
+                                    || held.saturating_add(chunk_bytes(plan, &chunk)) <= merge_bytes) =>
                         {
                             Some(held)
                         }
@@ -283,7 +293,11 @@ fn segment_single_queue(
                     }
                     current.push(Item::CopyOut(chunk), &mut barrier);
                     current.relays.push(chunk);
-                    tail = if small(c) { Tail::CopyOuts(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
+                    tail = if small(c) {
+                        Tail::CopyOuts(held.unwrap_or(0) + chunk_bytes(plan, &chunk))
+                    } else {
+                        Tail::Closed
+                    };
                     last_batch = batch_of[c.index()];
                 }
             }
@@ -298,7 +312,7 @@ fn segment_single_queue(
                         Tail::CopyIns(held)
                             if small(c)
                                 && (joins_batch(last_batch, c)
-                                    || held.saturating_add(bytes(&chunk)) <= merge_bytes) =>
+                                    || held.saturating_add(chunk_bytes(plan, &chunk)) <= merge_bytes) =>
                         {
                             Some(held)
                         }
@@ -311,7 +325,11 @@ fn segment_single_queue(
                         current.waits.push(ReadyWait { copy: c, chunk: chunk.index });
                     }
                     current.push(Item::CopyIn(chunk), &mut barrier);
-                    tail = if small(c) { Tail::CopyIns(held.unwrap_or(0) + bytes(&chunk)) } else { Tail::Closed };
+                    tail = if small(c) {
+                        Tail::CopyIns(held.unwrap_or(0) + chunk_bytes(plan, &chunk))
+                    } else {
+                        Tail::Closed
+                    };
                     last_batch = batch_of[c.index()];
                 }
             }

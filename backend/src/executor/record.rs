@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::error::Result;
 use crate::plan::AllocId;
-use crate::record::{SegmentContext, SegmentPlace, record_segment};
+use crate::record::{SegmentContext, SegmentPlace, SegmentScratch, record_segment};
 
 use super::Executor;
 
@@ -32,13 +32,12 @@ impl Executor {
                     _ => Vec::new(),
                 };
                 let staging = self.staging.as_ref().map(|s| s.of_device(d, slot)).unwrap_or_default();
-                let mut ctx = SegmentContext {
+                let ctx = SegmentContext {
                     barriers: self.options.barriers,
                     raw: &state.device.raw,
                     device_index: d,
                     plan,
                     parity_map: &parity_maps[slot % 2],
-                    bindless: &mut state.bindless,
                     images: &state.images,
                     image_slots: &state.image_slots,
                     slot,
@@ -52,6 +51,9 @@ impl Executor {
                     frame_block: self.frame_data.frame_block_offset(),
                     readback: &readback,
                     device: &state.device,
+                };
+                let mut scratch = SegmentScratch {
+                    bindless: &mut state.bindless,
                     recording_buffers: &mut state.recording_buffers[slot],
                 };
                 let mut first_timer = 0u32;
@@ -60,7 +62,7 @@ impl Executor {
                     let cb = state.slots[slot].command_buffers[j];
                     let place = SegmentPlace { first: j == 0, last: j + 1 == segment_count };
                     let spans = &state.timer_spans[j];
-                    record_segment(&mut ctx, cb, segment, first_timer, spans, place)?;
+                    record_segment(&ctx, &mut scratch, cb, segment, first_timer, spans, place)?;
                     first_timer += spans.len() as u32;
                 }
             }

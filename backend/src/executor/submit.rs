@@ -298,6 +298,6 @@ impl Executor {
         let copy = self.plan.copy(chunk.copy);
         let row_bytes = self.plan.resource(copy.src_alloc).row_bytes();
         let offset = staging.places[chunk.copy.index()].1 + u64::from(chunk.y0 - copy.region.y0) * row_bytes;
-        HostSpan::new(base, offset, u64::from(chunk.y1 - chunk.y0) * row_bytes)
+        HostSpan::new(base, offset, crate::segments::chunk_bytes(&self.plan, &chunk))
     }
 }
