@@ -12,6 +12,7 @@
 
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
+use std::sync::Arc;
 use std::time::Instant;
 
 use parallax_backend::{
@@ -51,7 +52,7 @@ pub struct LightFieldRenderer {
 impl LightFieldRenderer {
     /// Creates the executor for `plan` and uploads `scene`. The plan's views are those its
     /// passes and resources name (views `0..n`): every frame gives that many.
-    pub fn new(context: &Context, plan: KernelPlan, scene: &GpuScene<'_>) -> Result<Self> {
+    pub fn new(context: &Context, plan: impl Into<Arc<KernelPlan>>, scene: &GpuScene<'_>) -> Result<Self> {
         Self::with_options(context, plan, scene, ExecOptions::default())
     }
 
@@ -60,10 +61,11 @@ impl LightFieldRenderer {
     /// are layered over the passes' ([`crate::shader_library`]).
     pub fn with_options(
         context: &Context,
-        plan: KernelPlan,
+        plan: impl Into<Arc<KernelPlan>>,
         scene: &GpuScene<'_>,
         options: ExecOptions,
     ) -> Result<Self> {
+        let plan = plan.into();
         let views = plan_views(&plan);
         // Every view's trace parameters, then the frame block (header + cameras), aligned.
         let needed = u64::from(views) * (TRACE_PARAMS_BYTES + FRAME_BLOCK_VIEW_BYTES) + 2 * 256 + 16;
@@ -211,6 +213,11 @@ impl LightFieldRenderer {
     /// The plan it runs.
     pub fn plan(&self) -> &ExecutionPlan {
         self.executor.plan()
+    }
+
+    /// A handle on the plan it runs, for reading it while the renderer is driven.
+    pub fn shared_plan(&self) -> Arc<KernelPlan> {
+        self.executor.shared_plan()
     }
 
     /// The executor (timing reports, validation, resources the renderer does not read).

@@ -3,6 +3,8 @@
 //! compiled and made into its kernel plan in one call. `plan` and `render` compile through here, so `plan` shows
 //! exactly the schedule `render` runs.
 
+use std::sync::Arc;
+
 use anyhow::Result;
 use parallax_backend::{Compiled, KernelGraph, KernelPlan};
 use parallax_graph::{
@@ -100,7 +102,7 @@ pub struct PipelineSchedule {
     pub handles: PipelineHandles,
     pub schedule: ProvenSchedule,
     /// What executes `schedule`, built from it once here (a rank runs its part of it).
-    pub exec: KernelPlan,
+    pub exec: Arc<KernelPlan>,
     pub summary: ScheduleSummary,
     pub kind: PipelineKind,
 }
@@ -124,7 +126,7 @@ pub fn compile(
     graph.export(&handles.display);
     let Compiled { schedule, plan: exec } = Compiled::compile(&graph, &partition)?;
     let summary = ScheduleSummary::new(lf, &partition, &schedule);
-    Ok(PipelineSchedule { partition, handles, schedule, exec, summary, kind })
+    Ok(PipelineSchedule { partition, handles, schedule, exec: Arc::new(exec), summary, kind })
 }
 
 /// The light field `lf` of `resolution` on the default rig and its default pipeline compiled

@@ -2,6 +2,8 @@
 //! copy chunks and their links (kinds, semaphores), the fault gate, the submission order, staging and
 //! readback memory, relay threads.
 
+use std::sync::Arc;
+
 use ash::vk;
 
 use crate::device_state::{Kept, create_device_state, create_staging, fault_gate, staged_bytes};
@@ -23,7 +25,8 @@ impl Executor {
     /// Replaces the plan. Returns `false` (and re-records nothing) when `plan` equals the
     /// current one; otherwise waits for all frames, keeps the images whose resource description
     /// is unchanged (their contents survive), and records everything anew at the next frame.
-    pub fn set_plan(&mut self, plan: KernelPlan) -> Result<bool> {
+    pub fn set_plan(&mut self, plan: impl Into<Arc<KernelPlan>>) -> Result<bool> {
+        let plan = plan.into();
         if plan == self.plan {
             return Ok(false);
         }
@@ -32,7 +35,7 @@ impl Executor {
         Ok(true)
     }
 
-    pub(super) fn build(&mut self, plan: KernelPlan) -> Result<()> {
+    pub(super) fn build(&mut self, plan: Arc<KernelPlan>) -> Result<()> {
         plan.validate(self.devices.len())?;
         // Threads first (they use the old semaphores), then the old states.
         self.relay = None;

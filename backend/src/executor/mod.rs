@@ -76,7 +76,8 @@ struct InFlight {
 pub struct Executor {
     instance: Arc<Instance>,
     devices: Vec<Arc<Device>>,
-    plan: KernelPlan,
+    /// Shared, not copied: the caller that compiled it (or a rank that cut it) keeps a handle.
+    plan: Arc<KernelPlan>,
     options: ExecOptions,
     chunks: Vec<Vec<Chunk>>,
     states: Vec<DeviceState>,
@@ -131,13 +132,13 @@ impl Executor {
     /// Chooses the links between devices (refusing a requested kind some pair cannot use),
     /// validates `plan` and allocates its resources. Command buffers are recorded at the first
     /// frame (so global buffers can be uploaded first) and then reused.
-    pub fn new(context: &Context, plan: KernelPlan, options: ExecOptions) -> Result<Self> {
+    pub fn new(context: &Context, plan: impl Into<Arc<KernelPlan>>, options: ExecOptions) -> Result<Self> {
         let link_kinds = link_kinds(&context.devices, options.link)?;
         let calibration = context.devices.iter().map(|d| d.clock_offset()).collect::<Result<Vec<_>>>()?;
         let mut executor = Self {
             instance: context.instance.clone(),
             devices: context.devices.clone(),
-            plan: KernelPlan::default(),
+            plan: Arc::default(),
             options: ExecOptions { frames_in_flight: options.frames_in_flight.max(1), ..options },
             chunks: Vec::new(),
             states: Vec::new(),
@@ -185,7 +186,7 @@ impl Executor {
                     .collect::<Result<Vec<_>>>()
             })
             .collect::<Result<Vec<_>>>()?;
-        executor.build(plan)?;
+        executor.build(plan.into())?;
         Ok(executor)
     }
 
@@ -223,6 +224,12 @@ impl Executor {
     /// The plan being executed.
     pub fn plan(&self) -> &KernelPlan {
         &self.plan
+    }
+
+    /// A handle on the plan being executed, for a caller that reads it while it drives the
+    /// executor (the plan is shared, never copied).
+    pub fn shared_plan(&self) -> Arc<KernelPlan> {
+        Arc::clone(&self.plan)
     }
 
     /// The plan's links between devices, one per (producer, consumer) pair it copies over.

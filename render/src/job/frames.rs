@@ -5,6 +5,7 @@
 //! frames on the way. A user crate's [`RenderExtension`] brings the shaders of its stages and
 //! looks at the renderer once the last frame is done.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
@@ -59,8 +60,8 @@ pub(super) fn render_frames(
         ))
     })?;
     let exec_plan = match &job.rank {
-        Some(part) => crate::ranks::restrict_plan(&job.compiled.exec, &part.layout, part.rank),
-        None => job.compiled.exec.clone(),
+        Some(part) => Arc::new(crate::ranks::restrict_plan(&job.compiled.exec, &part.layout, part.rank)),
+        None => Arc::clone(&job.compiled.exec),
     };
     let options = ExecOptions {
         barriers: settings.barriers,

@@ -9,11 +9,12 @@
 //! since rank 0 stages every output until all views are in, a failed run leaves nothing.
 
 use std::collections::{BTreeSet, HashMap};
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context as _, Result, bail};
 use glam::{Vec2, Vec3};
-use parallax_backend::ExecutionPlan;
+use parallax_backend::KernelPlan;
 use parallax_passes::pipeline::PipelineBuilder;
 use parallax_scene::Camera;
 
@@ -93,7 +94,7 @@ fn lead(
     // A link that waited in vain for a rank that failed: its own message says why.
     let mut rendered = rendered.or_else(|e| collector.poll(cluster).and(Err(e)))?;
     let finished = collector.wait_all(cluster)?;
-    let global = job.compiled.exec.plan.clone();
+    let global = Arc::clone(&job.compiled.exec);
     rendered.ranks = Some(gathered(settings, &mut rendered, &collector, finished, global, cluster, layout)?);
     write_outputs(settings, &job, rendered)
 }
@@ -223,7 +224,7 @@ fn own_bands(
     views: &BTreeSet<u32>,
     first: u32,
 ) -> Result<OwnBands> {
-    let plan = renderer.plan().clone();
+    let plan = renderer.shared_plan();
     let here = plan.devices.len();
     let (mut listed, mut blobs) = (Vec::new(), Vec::new());
     for &family in families {
@@ -254,7 +255,7 @@ fn gathered(
     rendered: &mut Rendered,
     collector: &Collector,
     finished: Vec<crate::ranks::mpi::Finished>,
-    plan: ExecutionPlan,
+    plan: Arc<KernelPlan>,
     cluster: &Cluster,
     layout: &RankLayout,
 ) -> Result<RankViews> {

@@ -5,10 +5,11 @@
 //! folder as it was or complete. Also the checks of those outputs that run before any work.
 
 use std::collections::{BTreeSet, HashMap};
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context as _, Result};
-use parallax_backend::{Context as VkContext, ExecutionPlan, chrome_trace};
+use parallax_backend::{Context as VkContext, KernelPlan, chrome_trace};
 use parallax_graph::LightField;
 use parallax_passes::LightFieldRenderer;
 use parallax_passes::camera::lightfield_views;
@@ -61,7 +62,7 @@ pub(super) struct RankViews {
     /// global device) (view_source.rs).
     pub bands: HashMap<(u32, u32, u32), Vec<u8>>,
     /// The whole run's plan (which device wrote which rows).
-    pub plan: ExecutionPlan,
+    pub plan: Arc<KernelPlan>,
     /// Every device of the run, in global order.
     pub device_names: Vec<String>,
     /// Wall time per measured frame of the slowest rank.

@@ -235,7 +235,7 @@ mod tests {
     /// The execution plan `render` runs for 4×2 views of 32×24 under `scheme` on `devices`.
     fn global_plan(scheme: &str, devices: u32) -> (KernelPlan, parallax_graph::ProvenSchedule) {
         let (_, compiled) = crate::compile::compiled("4x2", (32, 24), scheme.parse().unwrap(), None, devices);
-        (compiled.exec, compiled.schedule)
+        (std::sync::Arc::unwrap_or_clone(compiled.exec), compiled.schedule)
     }
 
     /// Under multi-source each rank's part holds its devices' passes only, renumbered from 0,
