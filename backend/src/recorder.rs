@@ -17,7 +17,7 @@ use crate::plan::{ExecResource, ExecutionPlan};
 use crate::push::{self, PushConstants};
 use crate::record::SegmentContext;
 use crate::shader_id::{DrawStage, ShaderName};
-use crate::shader_pipelines::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, Pipeline, SHADER_STAGES};
+use crate::shader_pipelines::{Bindless, GraphicsKey, PUSH_CONSTANT_BYTES, SHADER_STAGES, ShaderPipeline};
 
 /// Bytes of the arguments of an indirect dispatch: `VkDispatchIndirectCommand` (x, y, z).
 const INDIRECT_ARGS_BYTES: u64 = 12;
@@ -259,7 +259,7 @@ impl<'a> Recorder<'a> {
                 detail: format!("{} push-constant bytes (at most {PUSH_CONSTANT_BYTES}, a multiple of 4)", bytes.len()),
             });
         }
-        let pipeline = self.bindless.pipeline(shader)?;
+        let pipeline = self.bindless.compute_pipeline(shader)?;
         check_push::<P>(self.pass, pipeline)?;
         let pipeline = pipeline.raw;
         unsafe {
@@ -511,7 +511,7 @@ impl<'a> Recorder<'a> {
 
 /// Holds `P` against the push-constant block of each of `pipeline`'s shaders. A shader without
 /// a block reads none of the bytes, so none can be misread.
-fn check_push<P: PushConstants>(pass: &str, pipeline: &Pipeline) -> Result<()> {
+fn check_push<P: PushConstants>(pass: &str, pipeline: &ShaderPipeline) -> Result<()> {
     let size = std::mem::size_of::<P>();
     for (shader, block) in &pipeline.push_blocks {
         if let Some(members) = block {

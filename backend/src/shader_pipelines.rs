@@ -58,8 +58,8 @@ const FRAME_CONSTANT_BYTES: u64 = 16;
 /// pipeline is created, which every dispatch's or draw's push constants are held to.
 pub(crate) type PushBlock = Option<Vec<MemberLayout>>;
 
-/// A pipeline and the push-constant blocks of its shaders (by shader name).
-pub(crate) struct Pipeline {
+/// A Vulkan pipeline (compute or graphics) and the push-constant blocks of its shaders (by shader name).
+pub(crate) struct ShaderPipeline {
     pub(crate) raw: vk::Pipeline,
     pub(crate) push_blocks: Vec<(String, PushBlock)>,
 }
@@ -77,8 +77,8 @@ pub(crate) struct Bindless {
     image_count: u32,
     /// Where pipelines' shaders come from: the library's layers, then the backend's own.
     shaders: ShaderLibrary,
-    pipelines: HashMap<String, Pipeline>,
-    graphics_pipelines: HashMap<GraphicsKey, Pipeline>,
+    pipelines: HashMap<String, ShaderPipeline>,
+    graphics_pipelines: HashMap<GraphicsKey, ShaderPipeline>,
     /// Float, uint and depth 1x1 images shown where a binding's array has no image of its kind.
     placeholders: [Image; 3],
     /// What unused texture slots show, and the sampler of every slot.
@@ -280,7 +280,7 @@ impl Bindless {
     }
 
     /// The compute pipeline of shader `name`, created on first use.
-    pub(crate) fn pipeline(&mut self, name: &str) -> Result<&Pipeline> {
+    pub(crate) fn compute_pipeline(&mut self, name: &str) -> Result<&ShaderPipeline> {
         if self.pipelines.contains_key(name) {
             return Ok(&self.pipelines[name]);
         }
@@ -309,7 +309,7 @@ impl Bindless {
         if let Some(stats) = &self.device.pipeline_stats {
             print_pipeline_statistics(stats, pipeline, name, self.device.info.index);
         }
-        Ok(self.pipelines.entry(name.to_string()).or_insert(Pipeline { raw: pipeline, push_blocks }))
+        Ok(self.pipelines.entry(name.to_string()).or_insert(ShaderPipeline { raw: pipeline, push_blocks }))
     }
 }
 
@@ -317,7 +317,7 @@ impl Bindless {
     /// The graphics pipeline of `key`, created on first use: no vertex input (vertex shaders
     /// pull what they need from storage), triangle lists, no culling, dynamic viewport and
     /// scissor, depth test LESS with writes when asked, no blending.
-    pub(crate) fn graphics_pipeline(&mut self, key: &GraphicsKey) -> Result<&Pipeline> {
+    pub(crate) fn graphics_pipeline(&mut self, key: &GraphicsKey) -> Result<&ShaderPipeline> {
         if self.graphics_pipelines.contains_key(key) {
             return Ok(&self.graphics_pipelines[key]);
         }
@@ -397,7 +397,7 @@ impl Bindless {
         let created = unsafe { raw.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
         modules.iter().for_each(|&m| unsafe { raw.destroy_shader_module(m, None) });
         let pipeline = created.map_err(|(_, result)| BackendError::vk("vkCreateGraphicsPipelines", result))?.remove(0);
-        Ok(self.graphics_pipelines.entry(key.clone()).or_insert(Pipeline { raw: pipeline, push_blocks }))
+        Ok(self.graphics_pipelines.entry(key.clone()).or_insert(ShaderPipeline { raw: pipeline, push_blocks }))
     }
 }
 

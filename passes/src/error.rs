@@ -29,15 +29,15 @@ pub enum PassError {
     #[error("the plan has views 0..{plan_views} but a frame gave {given} views")]
     MissingViews { plan_views: u32, given: usize },
 
-    /// A trace plan whose outputs have no radiance image for a view.
-    #[error("the trace plan traces no radiance for view {view}: its outputs must name the image path_trace writes")]
+    /// A compiled trace whose outputs have no radiance image for a view.
+    #[error("the compiled trace traces no radiance for view {view}: its outputs must name the image path_trace writes")]
     MissingRadiance { view: u32 },
 
-    /// `LightFieldRenderer::trace` on a renderer that was not made for a trace plan.
+    /// `LightFieldRenderer::trace` on a renderer that was not made from a `CompiledTrace`.
     #[error(
-        "this renderer runs a plan without trace outputs: make it with LightFieldRenderer::tracing(context, trace_plan, ...)"
+        "this renderer runs a plan without trace outputs: make it with LightFieldRenderer::tracing(context, compiled_trace, ...)"
     )]
-    NotATracePlan,
+    NoTraceOutputs,
 
     /// Nothing in the plan writes the declared resource `family` for `view`. The message leaves
     /// the family's id out: it is an index, which tells a user nothing.

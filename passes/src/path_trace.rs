@@ -33,7 +33,7 @@ pub const PATH_TRACE: &str = "path_trace";
 /// Images a `path_trace` pass writes, in write order, all `Rgba32f`.
 pub const TRACE_OUTPUTS: [&str; 4] = ["radiance", "albedo_roughness", "normal_metallic", "position_depth"];
 
-/// The declared resources of a trace plan's [`TRACE_OUTPUTS`] images, in that order (radiance
+/// The declared resources of a compiled trace's [`TRACE_OUTPUTS`] images, in that order (radiance
 /// always; a first-hit layer where the graph declares it): what [`crate::LightFieldRenderer::trace`]
 /// reads the traced views from.
 pub type TraceOutputs = [Option<FamilyId>; 4];

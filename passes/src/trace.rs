@@ -141,7 +141,7 @@ impl LightFieldRenderer {
 
     /// The trace outputs, once every one the plan has for `view` is `view`-sized RGBA32F.
     fn check_trace_view(&self, view: &View) -> Result<TraceOutputs> {
-        let outputs = self.trace_outputs.ok_or(PassError::NotATracePlan)?;
+        let outputs = self.trace_outputs.ok_or(PassError::NoTraceOutputs)?;
         let plan = self.plan();
         for (&name, &family) in TRACE_OUTPUTS.iter().zip(&outputs) {
             let Some(bands) = family.and_then(|f| plan.final_bands(f, view.index)) else {

@@ -25,7 +25,7 @@ pub struct GpuTraceSettings {
     pub timed: bool,
 }
 
-/// A GPU path tracer: the context and the runner of the banded trace plan on it.
+/// A GPU path tracer: the context and the runner of the banded compiled trace on it.
 pub struct GpuTracer {
     // Dropped before the context it runs on.
     renderer: Box<LightFieldRenderer>,
@@ -35,7 +35,7 @@ pub struct GpuTracer {
 
 impl GpuTracer {
     /// Creates the context over `settings.devices` (one log line per device), checks `work`
-    /// against every device's limits, and compiles and loads the trace plan with `scene`.
+    /// against every device's limits, and compiles and loads the compiled trace with `scene`.
     pub fn start(settings: GpuTraceSettings, work: TraceWork, scene: &Scene, bvh: &SceneBvh) -> Result<Self> {
         let context = Context::new(&ContextDesc::from_env(settings.devices))?;
         // One message per device: a message is one line (the CLI's logging).
